@@ -1,0 +1,203 @@
+// The in-process graph: topics, their subscriptions, and the statistics the
+// CLI shows. Publishing hands one std::shared_ptr<const T> to every
+// subscription of the topic: zero copies on fan-out. Types are checked by
+// identity of their msg::TypeSupport.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <tinyline/bus/qos.hpp>
+#include <tinyline/bus/time.hpp>
+#include <tinyline/msg/type_support.hpp>
+
+namespace tinyline::bus {
+
+class CallbackGroup;
+class Executor;
+
+/// What a subscriber learns about a message besides its content.
+struct MessageInfo {
+  Time publish_time;            ///< context clock at publish
+  std::uint64_t sequence = 0;   ///< per-topic publish counter, from 1
+  std::uint32_t origin = 0;     ///< 0: published in this process; else the transport that brought it
+};
+
+struct PublishStatus {
+  std::size_t delivered = 0;  ///< subscriptions that took the message
+  std::size_t failed = 0;     ///< reliable subscriptions that timed out (each reported)
+  bool ok() const { return failed == 0; }
+};
+
+/// One queued message.
+struct QueuedMessage {
+  std::shared_ptr<const void> msg;
+  MessageInfo info;
+};
+
+class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
+ public:
+  SubscriptionBase(std::string topic, const msg::TypeSupport* type, QoS qos, std::shared_ptr<CallbackGroup> group);
+  virtual ~SubscriptionBase() = default;
+  SubscriptionBase(const SubscriptionBase&) = delete;
+  SubscriptionBase& operator=(const SubscriptionBase&) = delete;
+
+  const std::string& topic_name() const { return topic_; }
+  const msg::TypeSupport& type() const { return *type_; }
+  const QoS& qos() const { return qos_; }
+
+  /// Publisher side. Returns false only for a reliable queue that stayed full
+  /// for max_block (or could never drain because the publisher is the thread
+  /// that drains it); `why` then says which.
+  bool enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why);
+
+  /// Executor side: takes the oldest message and runs the callback with it.
+  /// Returns false when the queue was empty (a keep-last drop took it).
+  bool execute_one();
+
+  std::uint64_t received() const { return received_.load(std::memory_order_relaxed); }
+  std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
+  std::uint64_t timeouts() const { return timeouts_.load(std::memory_order_relaxed); }
+  std::size_t queued() const;
+
+  /// Filled by the transport layer: messages whose origin equals this are not
+  /// delivered (a bridge must not receive what it injected itself).
+  std::uint32_t ignore_origin = 0;
+
+  /// Detaches from the executor so no more callbacks run (node destruction).
+  void cancel();
+
+ protected:
+  virtual void dispatch(const std::shared_ptr<const void>& msg, const MessageInfo& info) = 0;
+
+ private:
+  std::string topic_;
+  const msg::TypeSupport* type_;
+  QoS qos_;
+  std::shared_ptr<CallbackGroup> group_;
+  mutable std::mutex mu_;
+  std::condition_variable room_;
+  std::deque<QueuedMessage> queue_;
+  bool cancelled_ = false;
+  std::atomic<std::uint64_t> received_{0};
+  std::atomic<std::uint64_t> dropped_{0};
+  std::atomic<std::uint64_t> timeouts_{0};
+};
+
+/// One topic of the graph.
+class Topic {
+ public:
+  Topic(std::string name, const msg::TypeSupport* type) : name_(std::move(name)), type_(type) {}
+
+  const std::string& name() const { return name_; }
+  const msg::TypeSupport& type() const { return *type_; }
+
+  PublishStatus publish(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why);
+
+  void add_subscription(const std::shared_ptr<SubscriptionBase>& s);
+  void remove_subscription(const SubscriptionBase* s);
+  void add_publisher(const QoS& offered);
+  void remove_publisher();
+
+  std::size_t publisher_count() const { return publishers_.load(); }
+  std::size_t subscription_count() const;
+  std::uint64_t published() const { return published_.load(std::memory_order_relaxed); }
+  std::uint64_t next_sequence() { return sequence_.fetch_add(1, std::memory_order_relaxed) + 1; }
+  /// Sum over subscriptions (live and gone) of keep-last drops and reliable timeouts.
+  std::uint64_t dropped() const;
+  std::uint64_t timeouts() const;
+
+ private:
+  using SubList = std::vector<std::shared_ptr<SubscriptionBase>>;
+  std::shared_ptr<const SubList> snapshot() const;
+
+  std::string name_;
+  const msg::TypeSupport* type_;
+  mutable std::mutex mu_;
+  std::shared_ptr<const SubList> subs_ = std::make_shared<SubList>();
+  std::atomic<std::size_t> publishers_{0};
+  std::atomic<std::uint64_t> published_{0};
+  std::atomic<std::uint64_t> sequence_{0};
+  std::uint64_t gone_dropped_ = 0;   // from removed subscriptions (under mu_)
+  std::uint64_t gone_timeouts_ = 0;
+  // Transient-local: the last messages published, for late subscribers.
+  std::atomic<std::size_t> latched_depth_{0};
+  std::deque<QueuedMessage> latched_;
+};
+
+/// A row of `tinyline topic list` / the launch table.
+struct TopicInfo {
+  std::string name;
+  std::string type;
+  std::size_t publishers = 0;
+  std::size_t subscriptions = 0;
+  std::uint64_t published = 0;
+  std::uint64_t dropped = 0;
+  std::uint64_t timeouts = 0;
+};
+
+struct EndpointInfo {
+  std::string topic;
+  std::string type;
+  QoS qos;
+};
+
+struct NodeInfo {
+  std::string full_name;
+  std::string type;  ///< registered "pkg/Type", or empty for ad-hoc nodes
+  std::vector<EndpointInfo> publishers;
+  std::vector<EndpointInfo> subscriptions;
+};
+
+class Graph {
+ public:
+  /// The topic `name`, created on first use. Throws std::invalid_argument if
+  /// it exists with another type (naming both).
+  std::shared_ptr<Topic> topic(const std::string& name, const msg::TypeSupport& type);
+  /// The topic if it exists.
+  std::shared_ptr<Topic> find(const std::string& name) const;
+
+  std::vector<TopicInfo> topics() const;
+  std::vector<NodeInfo> nodes() const;
+
+  /// Called with every topic created from now on (and, at once, with every
+  /// existing one). Used by "record all topics" and transport bridges.
+  int on_topic(std::function<void(const std::shared_ptr<Topic>&)> fn);
+  void remove_on_topic(int id);
+
+  // Node bookkeeping for introspection.
+  void add_node(const void* key, std::function<NodeInfo()> describe);
+  void remove_node(const void* key);
+
+ private:
+  mutable std::mutex mu_;
+  std::vector<std::shared_ptr<Topic>> topics_;
+  std::vector<std::pair<int, std::function<void(const std::shared_ptr<Topic>&)>>> listeners_;
+  std::vector<std::pair<const void*, std::function<NodeInfo()>>> nodes_;
+  int next_listener_ = 1;
+};
+
+/// Counts per topic between two looks at the graph: rates for the live table.
+class RateMonitor {
+ public:
+  struct Row {
+    TopicInfo info;
+    double rate_hz = 0.0;
+  };
+  /// Rates since the previous call (zero on the first call).
+  std::vector<Row> sample(const Graph& g, Time wall_now);
+
+ private:
+  std::vector<std::pair<std::string, std::uint64_t>> last_counts_;
+  Time last_time_;
+  bool have_last_ = false;
+};
+
+}  // namespace tinyline::bus

@@ -1,0 +1,281 @@
+#include <tinyline/bus/graph.hpp>
+
+#include <algorithm>
+#include <stdexcept>
+
+#include <fmt/format.h>
+
+#include <tinyline/bus/executor.hpp>
+
+namespace tinyline::bus {
+
+// ---------------------------------------------------------------------------- SubscriptionBase
+
+SubscriptionBase::SubscriptionBase(std::string topic, const msg::TypeSupport* type, QoS qos,
+                                   std::shared_ptr<CallbackGroup> group)
+    : topic_(std::move(topic)), type_(type), qos_(qos), group_(std::move(group)) {
+  if (qos_.depth == 0) throw std::invalid_argument("subscription to '" + topic_ + "': QoS depth must be at least 1");
+}
+
+bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why) {
+  if (ignore_origin != 0 && info.origin == ignore_origin) return true;
+  {
+    std::unique_lock lk(mu_);
+    if (cancelled_) return true;
+    if (queue_.size() >= qos_.depth) {
+      if (qos_.history == QoS::History::KeepLast) {
+        queue_.pop_front();
+        dropped_.fetch_add(1, std::memory_order_relaxed);
+      } else if (!group_->unbounded_reliable()) {
+        // Reliable: wait for room, unless this thread is the one that must make it.
+        const bool self = group_->running_here() || group_->drained_by_this_thread_only();
+        if (self) {
+          timeouts_.fetch_add(1, std::memory_order_relaxed);
+          if (why) {
+            *why = fmt::format(
+                "reliable queue of {} for '{}' is full ({}) and the publisher runs on the thread that drains it; "
+                "raise the depth or run the subscriber on another executor thread",
+                topic_, group_->owner(), qos_.depth);
+          }
+          return false;
+        }
+        if (!room_.wait_for(lk, qos_.max_block, [&] { return queue_.size() < qos_.depth || cancelled_; })) {
+          timeouts_.fetch_add(1, std::memory_order_relaxed);
+          if (why) {
+            *why = fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, group_->owner(),
+                               qos_.depth, to_seconds(qos_.max_block));
+          }
+          return false;
+        }
+        if (cancelled_) return true;
+      }
+    }
+    queue_.push_back(QueuedMessage{std::move(msg), info});
+    received_.fetch_add(1, std::memory_order_relaxed);
+  }
+  group_->notify(this);
+  return true;
+}
+
+bool SubscriptionBase::execute_one() {
+  QueuedMessage m;
+  {
+    std::lock_guard lk(mu_);
+    if (queue_.empty() || cancelled_) return false;
+    m = std::move(queue_.front());
+    queue_.pop_front();
+  }
+  if (qos_.history == QoS::History::Reliable) room_.notify_one();
+  dispatch(m.msg, m.info);
+  return true;
+}
+
+std::size_t SubscriptionBase::queued() const {
+  std::lock_guard lk(mu_);
+  return queue_.size();
+}
+
+void SubscriptionBase::cancel() {
+  {
+    std::lock_guard lk(mu_);
+    cancelled_ = true;
+    queue_.clear();
+  }
+  room_.notify_all();
+}
+
+// ---------------------------------------------------------------------------- Topic
+
+std::shared_ptr<const Topic::SubList> Topic::snapshot() const {
+  std::lock_guard lk(mu_);
+  return subs_;
+}
+
+PublishStatus Topic::publish(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why) {
+  published_.fetch_add(1, std::memory_order_relaxed);
+  if (latched_depth_.load(std::memory_order_relaxed) != 0) {
+    std::lock_guard lk(mu_);
+    latched_.push_back(QueuedMessage{msg, info});
+    while (latched_.size() > latched_depth_.load()) latched_.pop_front();
+  }
+  const auto subs = snapshot();
+  PublishStatus st;
+  for (const auto& s : *subs) {
+    if (s->enqueue(msg, info, why)) {
+      ++st.delivered;
+    } else {
+      ++st.failed;
+    }
+  }
+  return st;
+}
+
+void Topic::add_subscription(const std::shared_ptr<SubscriptionBase>& s) {
+  if (s->type().name != type_->name) {
+    throw std::invalid_argument(fmt::format("topic '{}' has type {}, cannot subscribe with {}", name_,
+                                            type_->name, s->type().name));
+  }
+  std::deque<QueuedMessage> latched;
+  {
+    std::lock_guard lk(mu_);
+    auto next = std::make_shared<SubList>(*subs_);
+    next->push_back(s);
+    subs_ = std::move(next);
+    if (s->qos().transient_local) latched = latched_;
+  }
+  for (auto& m : latched) s->enqueue(m.msg, m.info, nullptr);
+}
+
+void Topic::remove_subscription(const SubscriptionBase* s) {
+  std::lock_guard lk(mu_);
+  auto next = std::make_shared<SubList>();
+  for (const auto& x : *subs_) {
+    if (x.get() == s) {
+      gone_dropped_ += x->dropped();
+      gone_timeouts_ += x->timeouts();
+    } else {
+      next->push_back(x);
+    }
+  }
+  subs_ = std::move(next);
+}
+
+void Topic::add_publisher(const QoS& offered) {
+  publishers_.fetch_add(1);
+  if (offered.transient_local) {
+    std::lock_guard lk(mu_);
+    latched_depth_.store(std::max(latched_depth_.load(), offered.depth));
+  }
+}
+
+void Topic::remove_publisher() { publishers_.fetch_sub(1); }
+
+std::size_t Topic::subscription_count() const { return snapshot()->size(); }
+
+std::uint64_t Topic::dropped() const {
+  std::lock_guard lk(mu_);
+  std::uint64_t n = gone_dropped_;
+  for (const auto& s : *subs_) n += s->dropped();
+  return n;
+}
+
+std::uint64_t Topic::timeouts() const {
+  std::lock_guard lk(mu_);
+  std::uint64_t n = gone_timeouts_;
+  for (const auto& s : *subs_) n += s->timeouts();
+  return n;
+}
+
+// ---------------------------------------------------------------------------- Graph
+
+std::shared_ptr<Topic> Graph::topic(const std::string& name, const msg::TypeSupport& type) {
+  std::shared_ptr<Topic> created;
+  std::vector<std::function<void(const std::shared_ptr<Topic>&)>> fns;
+  {
+    std::lock_guard lk(mu_);
+    for (const auto& t : topics_) {
+      if (t->name() == name) {
+        if (t->type().name != type.name) {
+          throw std::invalid_argument(
+              fmt::format("topic '{}' already has type {}; cannot use it as {}", name, t->type().name, type.name));
+        }
+        return t;
+      }
+    }
+    created = std::make_shared<Topic>(name, &type);
+    topics_.push_back(created);
+    for (auto& [id, fn] : listeners_) fns.push_back(fn);
+  }
+  for (auto& fn : fns) fn(created);
+  return created;
+}
+
+std::shared_ptr<Topic> Graph::find(const std::string& name) const {
+  std::lock_guard lk(mu_);
+  for (const auto& t : topics_)
+    if (t->name() == name) return t;
+  return nullptr;
+}
+
+std::vector<TopicInfo> Graph::topics() const {
+  std::vector<std::shared_ptr<Topic>> ts;
+  {
+    std::lock_guard lk(mu_);
+    ts = topics_;
+  }
+  std::vector<TopicInfo> out;
+  for (const auto& t : ts) {
+    out.push_back(TopicInfo{t->name(), std::string(t->type().name), t->publisher_count(), t->subscription_count(),
+                            t->published(), t->dropped(), t->timeouts()});
+  }
+  std::sort(out.begin(), out.end(), [](const TopicInfo& a, const TopicInfo& b) { return a.name < b.name; });
+  return out;
+}
+
+std::vector<NodeInfo> Graph::nodes() const {
+  std::vector<std::function<NodeInfo()>> fns;
+  {
+    std::lock_guard lk(mu_);
+    for (const auto& [k, fn] : nodes_) fns.push_back(fn);
+  }
+  std::vector<NodeInfo> out;
+  for (auto& fn : fns) out.push_back(fn());
+  std::sort(out.begin(), out.end(), [](const NodeInfo& a, const NodeInfo& b) { return a.full_name < b.full_name; });
+  return out;
+}
+
+int Graph::on_topic(std::function<void(const std::shared_ptr<Topic>&)> fn) {
+  std::vector<std::shared_ptr<Topic>> existing;
+  int id;
+  {
+    std::lock_guard lk(mu_);
+    id = next_listener_++;
+    listeners_.emplace_back(id, fn);
+    existing = topics_;
+  }
+  for (const auto& t : existing) fn(t);
+  return id;
+}
+
+void Graph::remove_on_topic(int id) {
+  std::lock_guard lk(mu_);
+  std::erase_if(listeners_, [id](const auto& p) { return p.first == id; });
+}
+
+void Graph::add_node(const void* key, std::function<NodeInfo()> describe) {
+  std::lock_guard lk(mu_);
+  nodes_.emplace_back(key, std::move(describe));
+}
+
+void Graph::remove_node(const void* key) {
+  std::lock_guard lk(mu_);
+  std::erase_if(nodes_, [key](const auto& p) { return p.first == key; });
+}
+
+// ---------------------------------------------------------------------------- RateMonitor
+
+std::vector<RateMonitor::Row> RateMonitor::sample(const Graph& g, Time wall_now) {
+  std::vector<Row> rows;
+  const double dt = have_last_ ? (wall_now - last_time_).count() * 1e-9 : 0.0;
+  std::vector<std::pair<std::string, std::uint64_t>> counts;
+  for (auto& info : g.topics()) {
+    Row r;
+    r.info = info;
+    if (dt > 0) {
+      for (const auto& [name, n] : last_counts_) {
+        if (name == info.name) {
+          r.rate_hz = static_cast<double>(info.published - n) / dt;
+          break;
+        }
+      }
+    }
+    counts.emplace_back(info.name, info.published);
+    rows.push_back(std::move(r));
+  }
+  last_counts_ = std::move(counts);
+  last_time_ = wall_now;
+  have_last_ = true;
+  return rows;
+}
+
+}  // namespace tinyline::bus
