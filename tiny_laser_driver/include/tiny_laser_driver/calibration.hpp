@@ -1,0 +1,82 @@
+// The calibration model of the tiny TOF line sensor: what maps one pixel's
+// read-out (two capacitor discharges at a pulse count, the MCU temperature)
+// to a distance. One implementation, used by the calibration tool to fit and
+// by the driver at run time (issue: "the model the tool writes is the model
+// the driver applies").
+//
+// Declared model (thesis 3.2.4-3.3.4):
+//   X = (b - Vle(p)) / ((a*Rsen - Vle(p)) + (b - Vle(p)))      charge ratio, Eq. 3.16 / 3.18
+//   L = P(X) + c_T * (T_stable - T)                            polynomial, Eq. 3.18; temperature, 3.3.4
+// fitted with per-distance weights K_i (multi-discharge, Eq. 3.20). Terms
+// found by the residual analysis (named covariate + form) are added on top.
+//
+// This header is the contract between the calibration tool and the driver.
+// Extend it; do not break it.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace tinyline::tiny_laser_driver {
+
+/// One read-out of one pixel. Charges in the sensor's charge unit (the wire
+/// carries ten times this unit as int16).
+struct Readout {
+  double a = 0.0;              ///< capacitor A discharge [charge_unit]
+  double b = 0.0;              ///< capacitor B discharge [charge_unit]
+  int pulses = 0;              ///< accumulated laser pulses
+  double temperature_c = 0.0;  ///< MCU temperature [degC]
+  int pixel = 0;               ///< 0-271 (dark pixels included)
+  double t_s = 0.0;            ///< time since the sensor started [s]
+  /// Values of the model's extra covariates, in the order of
+  /// CalibrationModel::extra_covariates() (empty when the model has none).
+  std::vector<double> extra;
+};
+
+/// The declared validity rule (public driver): a read-out is usable when both
+/// charges are inside (low, high) and a + b exceeds min_sum + per_pulse * pulses/10.
+struct ValidityRule {
+  double low = 10.0;         ///< [charge_unit] below: too little light
+  double high = 230.0;       ///< [charge_unit] above: saturated
+  double min_sum = 10.0;     ///< [charge_unit]
+  double per_pulse = 0.4;    ///< [charge_unit per 10 pulses]
+
+  enum class Verdict { kValid, kSaturated, kTooDark };
+  [[nodiscard]] Verdict check(const Readout& r) const;
+};
+
+class CalibrationModel {
+ public:
+  /// Loads a calibration YAML (as written by `tinyline calib fit`). Throws
+  /// std::runtime_error naming the file, line and field on bad content.
+  static CalibrationModel load(const std::string& path);
+  static CalibrationModel from_yaml(const std::string& text, const std::string& source_name);
+  /// Writes the model; throws std::runtime_error on I/O failure.
+  void save(const std::string& path) const;
+  std::string to_yaml() const;
+
+  /// Distance along the pixel's ray [m]; NaN when the read-out is not valid
+  /// under the model's validity rule.
+  [[nodiscard]] double distance_m(const Readout& r) const;
+  [[nodiscard]] const ValidityRule& validity() const;
+  /// Names of further covariates the model's discovered terms use.
+  [[nodiscard]] const std::vector<std::string>& extra_covariates() const;
+
+  // The representation is the calibration tool's business (see calibration.cpp).
+  struct Impl;
+  CalibrationModel();
+  ~CalibrationModel();
+  CalibrationModel(const CalibrationModel&);
+  CalibrationModel& operator=(const CalibrationModel&);
+  CalibrationModel(CalibrationModel&&) noexcept;
+  CalibrationModel& operator=(CalibrationModel&&) noexcept;
+  Impl& impl() { return *impl_; }
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  Impl* impl_;
+};
+
+}  // namespace tinyline::tiny_laser_driver
