@@ -87,15 +87,16 @@ std::vector<std::shared_ptr<Timer>> Node::timers() const {
   return timers_;
 }
 
-PublishStatus Node::publish_erased(Topic& topic, std::shared_ptr<const void> msg, std::uint32_t origin) {
+PublishStatus detail::publish(Topic& topic, Clock& clock, const Logger& logger, std::shared_ptr<const void> msg,
+                              std::uint32_t origin) {
   if (!msg) throw std::invalid_argument("publish on " + topic.name() + ": null message");
   MessageInfo info;
-  info.publish_time = now();
+  info.publish_time = clock.now();
   info.sequence = topic.next_sequence();
   info.origin = origin;
   std::string why;
   const PublishStatus st = topic.publish(std::move(msg), info, &why);
-  if (!st.ok()) logger_.error("publish on {} failed for {} subscriber(s): {}", topic.name(), st.failed, why);
+  if (!st.ok()) logger.error("publish on {} failed for {} subscriber(s): {}", topic.name(), st.failed, why);
   return st;
 }
 
@@ -158,14 +159,14 @@ NodeInfo Node::describe() const {
 // ---------------------------------------------------------------------------- GenericPublisher
 
 GenericPublisher::GenericPublisher(Node& node, std::shared_ptr<Topic> topic, QoS qos)
-    : node_(node), topic_(std::move(topic)), qos_(qos) {
+    : context_(node.context_ptr()), logger_(node.logger()), topic_(std::move(topic)), qos_(qos) {
   topic_->add_publisher(qos_);
 }
 
 GenericPublisher::~GenericPublisher() { topic_->remove_publisher(); }
 
 PublishStatus GenericPublisher::publish(std::shared_ptr<const void> msg, std::uint32_t origin) {
-  return node_.publish_erased(*topic_, std::move(msg), origin);
+  return detail::publish(*topic_, context_->clock(), logger_, std::move(msg), origin);
 }
 
 PublishStatus GenericPublisher::publish_serialized(std::span<const std::uint8_t> cdr, std::uint32_t origin) {

@@ -44,7 +44,15 @@ struct NodeOptions {
 
 class Node;
 
-/// Typed publisher. publish() hands the same object to every subscriber.
+namespace detail {
+/// Stamps a message with the clock and a sequence number, hands it to every
+/// subscription of the topic, and logs a failure with the publisher's logger.
+PublishStatus publish(Topic& topic, Clock& clock, const Logger& logger, std::shared_ptr<const void> msg,
+                      std::uint32_t origin);
+}  // namespace detail
+
+/// Typed publisher. publish() hands the same object to every subscriber. It
+/// keeps its context alive, so it stays valid after its node is gone.
 template <class T>
 class Publisher {
  public:
@@ -62,7 +70,8 @@ class Publisher {
   const QoS& qos() const { return qos_; }
 
  private:
-  Node& node_;
+  std::shared_ptr<Context> context_;
+  Logger logger_;
   std::shared_ptr<Topic> topic_;
   QoS qos_;
 };
@@ -86,7 +95,8 @@ class GenericPublisher {
   std::size_t subscription_count() const { return topic_->subscription_count(); }
 
  private:
-  Node& node_;
+  std::shared_ptr<Context> context_;
+  Logger logger_;
   std::shared_ptr<Topic> topic_;
   QoS qos_;
 };
@@ -238,18 +248,13 @@ class Node {
   std::vector<std::shared_ptr<Timer>> timers_;
   std::vector<EndpointInfo> pub_info_;
   std::vector<EndpointInfo> sub_info_;
-
-  template <class T>
-  friend class Publisher;
-  friend class GenericPublisher;
-  PublishStatus publish_erased(Topic& topic, std::shared_ptr<const void> msg, std::uint32_t origin);
 };
 
 // ---------------------------------------------------------------------------- Publisher<T>
 
 template <class T>
 Publisher<T>::Publisher(Node& node, std::shared_ptr<Topic> topic, QoS qos)
-    : node_(node), topic_(std::move(topic)), qos_(qos) {
+    : context_(node.context_ptr()), logger_(node.logger()), topic_(std::move(topic)), qos_(qos) {
   topic_->add_publisher(qos_);
 }
 
@@ -260,7 +265,7 @@ Publisher<T>::~Publisher() {
 
 template <class T>
 PublishStatus Publisher<T>::publish(std::shared_ptr<const T> msg) {
-  return node_.publish_erased(*topic_, std::static_pointer_cast<const void>(std::move(msg)), 0);
+  return detail::publish(*topic_, context_->clock(), logger_, std::static_pointer_cast<const void>(std::move(msg)), 0);
 }
 
 }  // namespace tinyline::bus
