@@ -6,7 +6,7 @@
 
 #include <fmt/format.h>
 
-#include "yaml_params.hpp"
+#include <tinyline/bus/detail/yaml_params.hpp>
 
 namespace tinyline::bus {
 

@@ -1,0 +1,97 @@
+// Launch files: YAML in the shape of ROS 2 YAML launch files.
+//
+//   launch:
+//   - arg: {name: scene, default: "rail.yaml", description: "scene to simulate"}
+//   - include: {file: "$(dirname)/sensor.launch.yaml", arg: [{name: ns, value: hand}]}
+//   - group:
+//     - push-ros-namespace: {namespace: robot}
+//     - node:
+//         pkg: laser_clustering
+//         exec: line_clusterer
+//         name: clusterer
+//         namespace: hand
+//         param: [{name: eps_m, value: 0.02}, {from: "$(dirname)/params.yaml"}]
+//         remap: [{from: scan, to: /hand/line_scan}]
+//
+// Substitutions: $(var name), $(env NAME), $(env NAME default), $(dirname),
+// $(find-pkg-share pkg). Every key is checked: an unknown key, a missing
+// required arg, an include cycle, an unknown node type or parameter, a wrong
+// type or a value out of range stops the launch with the file, line and
+// reason. Nothing starts until the whole file is valid.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <tinyline/bus/names.hpp>
+#include <tinyline/bus/node.hpp>
+#include <tinyline/bus/params.hpp>
+#include <tinyline/bus/registry.hpp>
+
+namespace tinyline::launch {
+
+/// A problem in a launch file, located ("file:line:col: what").
+class LaunchError : public std::runtime_error {
+ public:
+  LaunchError(const bus::SourceLocation& where, const std::string& what)
+      : std::runtime_error(where.known() ? where.str() + ": " + what : what), where_(where) {}
+  const bus::SourceLocation& where() const { return where_; }
+
+ private:
+  bus::SourceLocation where_;
+};
+
+struct ArgDecl {
+  std::string name;
+  bool has_default = false;
+  std::string default_value;
+  std::string description;
+  bus::SourceLocation where;
+};
+
+struct NodeSpec {
+  std::string pkg;
+  std::string exec;
+  std::string name;       ///< defaults to exec
+  std::string ns = "/";   ///< with every enclosing group's namespace applied
+  std::vector<bus::ParamOverride> params;
+  std::vector<bus::Remap> remaps;
+  std::string process;    ///< process group ("" = the launching process)
+  bool respawn = false;   ///< restart its process if it dies (process groups only)
+  bus::SourceLocation where;       ///< the node entry
+  bus::SourceLocation exec_where;  ///< its exec value (for unknown types)
+};
+
+struct LaunchPlan {
+  std::vector<ArgDecl> args;    ///< arguments of the top-level file
+  std::vector<NodeSpec> nodes;
+  std::vector<std::string> files;  ///< every file read, top-level first
+};
+
+struct LoadOptions {
+  std::map<std::string, std::string> args;  ///< name:=value from the command line
+  /// Where $(find-pkg-share pkg) points (tinyline's share dir for every package).
+  std::string share_dir;
+};
+
+/// Reads a launch file and everything it includes. Throws LaunchError.
+LaunchPlan load_launch_file(const std::string& path, const LoadOptions& options = {});
+LaunchPlan load_launch_string(const std::string& yaml, const std::string& source_name,
+                              const LoadOptions& options = {});
+
+/// Builds every node of the plan in `context` (those of `process` only).
+/// Throws LaunchError naming the launch-file entry: unknown node type (with
+/// the known ones), unknown parameter, wrong type, out of range, duplicate
+/// node name.
+std::vector<std::shared_ptr<bus::Node>> instantiate(const LaunchPlan& plan, const bus::NodeRegistry& registry,
+                                                    const std::shared_ptr<bus::Context>& context,
+                                                    const std::string& process = "");
+
+/// Reads a ROS 2 parameter file (`node: {ros__parameters: {...}}`, `/**` for
+/// all nodes) and returns the overrides for the node with this full name.
+std::vector<bus::ParamOverride> load_param_file(const std::string& path, const std::string& node_full_name);
+
+}  // namespace tinyline::launch
