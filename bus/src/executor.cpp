@@ -223,7 +223,11 @@ void Executor::start_pending_nodes() {
     todo.swap(unstarted_);
   }
   for (auto& n : todo) {
-    n->on_start();
+    try {
+      n->on_start();
+    } catch (const std::exception& e) {
+      throw std::runtime_error("node '" + n->full_name() + "' failed to start: " + e.what());
+    }
     // on_start may have created timers.
     for (const auto& t : n->timers()) add_timer(t, n->callback_group());
   }

@@ -1,0 +1,13 @@
+// Generic utility nodes of the `tinyline` package: useful in any graph.
+//   tinyline/echo   logs every message of a topic as YAML
+//   tinyline/relay  republishes a topic under another name (zero-copy)
+//   tinyline/pulse  publishes a counter text at a fixed rate (smoke tests)
+#pragma once
+
+#include <tinyline/bus/registry.hpp>
+
+namespace tinyline::tools {
+
+void register_nodes(bus::NodeRegistry& r);
+
+}  // namespace tinyline::tools

@@ -1,0 +1,27 @@
+// Runs a set of nodes in this process until Ctrl-C or a duration, with a live
+// table of topics (rates, drops) on a terminal. Shared by `launch` and `run`.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include <tinyline/bus/node.hpp>
+
+namespace tinyline::tools {
+
+struct RunOptions {
+  std::optional<double> duration_s;  ///< stop after this long (wall time)
+  int threads = 2;                   ///< executor threads
+  bool table = true;                 ///< live topic table (only on a terminal)
+  double table_period_s = 1.0;
+};
+
+/// Runs the nodes; returns the exit code (0, or 1 if a node failed to start).
+int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::shared_ptr<bus::Node>>& nodes,
+              const RunOptions& options);
+
+/// The topic table as text (the live view and the final summary).
+std::string topic_table(const bus::Graph& graph, bus::RateMonitor& rates, bus::Time wall_now);
+
+}  // namespace tinyline::tools
