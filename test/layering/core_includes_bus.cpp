@@ -1,0 +1,3 @@
+// Must not compile: a core library reaching for the bus (see CMakeLists.txt).
+#include <tiny_laser_driver/protocol.hpp>
+#include <tinyline/bus/node.hpp>
