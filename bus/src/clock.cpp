@@ -14,6 +14,7 @@ Time Clock::now() const {
 void Clock::set_sim_time(Time t) {
   if (!is_sim()) throw std::logic_error("set_sim_time on a wall clock");
   sim_ns_.store(t.ns, std::memory_order_release);
+  if (!started_.load(std::memory_order_acquire)) start_ns_.store(t.ns, std::memory_order_release);
   started_.store(true, std::memory_order_release);
   std::vector<std::function<void()>> fns;
   {

@@ -17,68 +17,98 @@
 namespace tinyline::bus {
 
 namespace {
-thread_local const detail::ReadyQueue* tl_queue = nullptr;
+thread_local const detail::ExecutorCore* tl_core = nullptr;
 
-struct QueueScope {
-  explicit QueueScope(const detail::ReadyQueue* q) : prev(tl_queue) { tl_queue = q; }
-  ~QueueScope() { tl_queue = prev; }
-  const detail::ReadyQueue* prev;
+struct CoreScope {
+  explicit CoreScope(const detail::ExecutorCore* c) : prev(tl_core) { tl_core = c; }
+  ~CoreScope() { tl_core = prev; }
+  const detail::ExecutorCore* prev;
 };
 }  // namespace
 
 Executor* current_executor() {
-  return tl_queue ? tl_queue->owner : nullptr;
-}
-
-void detail::ReadyQueue::push(std::shared_ptr<CallbackGroup> g) {
-  {
-    std::lock_guard lk(mu);
-    groups.push_back(std::move(g));
-    count.fetch_add(1, std::memory_order_release);
-  }
-  cv.notify_one();
+  return tl_core ? tl_core->owner : nullptr;
 }
 
 // ---------------------------------------------------------------------------- CallbackGroup
 
-void CallbackGroup::push(Entry e) {
-  std::shared_ptr<detail::ReadyQueue> q;
+std::shared_ptr<detail::ExecutorCore> CallbackGroup::push_locked(Entry e, bool* enter_fifo) {
+  pending_.push_back(std::move(e));
+  pending_count_.fetch_add(1, std::memory_order_seq_cst);  // pairs with a worker's sleepers++ (Dekker)
+  *enter_fifo = false;
+  if (core_ && core_->fifo && !scheduled_ && !running_.load(std::memory_order_relaxed)) {
+    scheduled_ = true;
+    *enter_fifo = true;
+  }
+  return core_;
+}
+
+void CallbackGroup::announce(const std::shared_ptr<detail::ExecutorCore>& core, bool enter_fifo) {
+  if (!core) return;
+  if (enter_fifo) {
+    std::lock_guard lk(core->mu);
+    core->ready.push_back(shared_from_this());
+  } else if (!core->fifo) {
+    core->wake();
+  }
+}
+
+void CallbackGroup::notify(const std::shared_ptr<Timer>& timer) {
+  std::shared_ptr<detail::ExecutorCore> core;
+  bool enter_fifo = false;
   {
     std::lock_guard lk(mu_);
     if (dead_) return;
-    pending_.push_back(std::move(e));
-    if (!scheduled_ && !running_ && queue_) {
-      scheduled_ = true;
-      q = queue_;
-    }
+    core = push_locked(Entry{nullptr, timer}, &enter_fifo);
   }
-  if (q) q->push(shared_from_this());
+  announce(core, enter_fifo);
 }
 
-void CallbackGroup::notify(SubscriptionBase* sub) { push(Entry{sub, nullptr}); }
-void CallbackGroup::notify(const std::shared_ptr<Timer>& timer) { push(Entry{nullptr, timer}); }
+bool CallbackGroup::try_run(std::size_t max, std::size_t* ran) {
+  bool expected = false;
+  if (!running_.compare_exchange_strong(expected, true, std::memory_order_acq_rel)) return false;
+  running_thread_.store(std::this_thread::get_id());
+  const std::size_t n = run_claimed(max);
+  running_thread_.store(std::thread::id{});
+  running_.store(false, std::memory_order_seq_cst);
+  if (shutdown_waiting_.load(std::memory_order_seq_cst)) {
+    std::lock_guard lk(mu_);
+    idle_.notify_all();
+  }
+  if (ran) *ran = n;
+  return true;
+}
 
-std::size_t CallbackGroup::run(std::size_t max) {
+std::size_t CallbackGroup::run_claimed(std::size_t max) {
   {
     std::lock_guard lk(mu_);
-    scheduled_ = false;
-    if (dead_ || running_) return 0;
-    running_ = true;
-    running_thread_ = std::this_thread::get_id();
+    if (dead_) return 0;
     const std::size_t n = std::min(max, pending_.size());
     for (std::size_t i = 0; i < n; ++i) {
-      batch_.push_back(std::move(pending_.front()));
+      Entry e = std::move(pending_.front());
       pending_.pop_front();
+      if (e.sub != nullptr) {
+        // A keep-last drop may have taken this entry's message already.
+        if (!e.sub->queue_.empty() && !e.sub->cancelled_) {
+          batch_.push_back(Taken{e.sub, std::move(e.sub->queue_.front()), nullptr});
+          e.sub->queue_.pop_front();
+        }
+      } else {
+        batch_.push_back(Taken{nullptr, {}, std::move(e.timer)});
+      }
     }
+    pending_count_.fetch_sub(n, std::memory_order_release);
   }
   std::size_t ran = 0;
-  for (auto& e : batch_) {
+  for (auto& t : batch_) {
     try {
-      if (e.sub != nullptr) {
-        if (e.sub->execute_one()) ++ran;
-      } else if (e.timer && !e.timer->cancelled()) {
-        e.timer->fired_.fetch_add(1, std::memory_order_relaxed);
-        e.timer->cb_();
+      if (t.sub != nullptr) {
+        if (t.sub->qos_.history == QoS::History::Reliable) t.sub->room_.notify_one();
+        t.sub->dispatch(t.m.msg, t.m.info);
+        ++ran;
+      } else if (t.timer && !t.timer->cancelled()) {
+        t.timer->fired_.fetch_add(1, std::memory_order_relaxed);
+        t.timer->cb_();
         ++ran;
       }
     } catch (const std::exception& ex) {
@@ -90,82 +120,85 @@ std::size_t CallbackGroup::run(std::size_t max) {
     }
   }
   batch_.clear();
-  std::shared_ptr<detail::ReadyQueue> q;
-  {
-    std::lock_guard lk(mu_);
-    running_ = false;
-    running_thread_ = {};
-    if (!dead_ && !pending_.empty() && queue_ && !scheduled_) {
-      scheduled_ = true;
-      q = queue_;
-    }
-  }
-  idle_.notify_all();
-  if (q) q->push(shared_from_this());
   return ran;
 }
 
-void CallbackGroup::attach(std::shared_ptr<detail::ReadyQueue> queue, bool unbounded_reliable) {
-  std::shared_ptr<detail::ReadyQueue> q;
+void CallbackGroup::attach(std::shared_ptr<detail::ExecutorCore> core, bool unbounded_reliable) {
+  bool enter_fifo = false;
   {
     std::lock_guard lk(mu_);
-    if (queue_ && queue_ != queue) throw std::logic_error("node '" + owner_ + "' is already in an executor");
-    queue_ = std::move(queue);
+    if (core_ && core_ != core) throw std::logic_error("node '" + owner_ + "' is already in an executor");
+    core_ = core;
     unbounded_reliable_.store(unbounded_reliable);
-    if (!pending_.empty() && !scheduled_ && !running_ && !dead_) {
+    if (core_->fifo && !pending_.empty() && !scheduled_ && !dead_) {
       scheduled_ = true;
-      q = queue_;
+      enter_fifo = true;
     }
   }
-  if (q) q->push(shared_from_this());
+  {
+    std::lock_guard lk(core->mu);
+    if (std::find(core->groups.begin(), core->groups.end(), shared_from_this()) == core->groups.end()) {
+      core->groups.push_back(shared_from_this());
+      core->groups_version.fetch_add(1);
+    }
+    if (enter_fifo) core->ready.push_back(shared_from_this());
+  }
+  if (!core->fifo) core->wake_all();
 }
 
 void CallbackGroup::detach() {
-  std::unique_lock lk(mu_);
-  queue_.reset();
-  scheduled_ = false;
+  std::shared_ptr<detail::ExecutorCore> core;
+  {
+    std::lock_guard lk(mu_);
+    core.swap(core_);
+    scheduled_ = false;
+  }
+  if (!core) return;
+  std::lock_guard lk(core->mu);
+  std::erase(core->groups, shared_from_this());
+  std::erase(core->ready, shared_from_this());
+  core->groups_version.fetch_add(1);
 }
 
 void CallbackGroup::shutdown() {
-  std::unique_lock lk(mu_);
-  dead_ = true;
-  pending_.clear();
-  if (running_thread_ != std::this_thread::get_id()) {
-    idle_.wait(lk, [&] { return !running_; });
+  {
+    std::unique_lock lk(mu_);
+    dead_ = true;
+    pending_.clear();
+    pending_count_.store(0);
+    if (running_thread_.load() != std::this_thread::get_id()) {
+      shutdown_waiting_.store(true, std::memory_order_seq_cst);
+      idle_.wait(lk, [&] { return !running_.load(std::memory_order_seq_cst); });
+    }
   }
-  queue_.reset();
+  detach();
 }
 
 Executor* CallbackGroup::executor() const {
-  std::shared_ptr<detail::ReadyQueue> q;
+  std::shared_ptr<detail::ExecutorCore> core;
   {
     std::lock_guard lk(mu_);
-    q = queue_;
+    core = core_;
   }
-  if (!q) return nullptr;
-  std::lock_guard lk(q->mu);
-  return q->owner;
+  if (!core) return nullptr;
+  std::lock_guard lk(core->mu);
+  return core->owner;
 }
 
 bool CallbackGroup::drained_by_this_thread_only() const {
-  std::lock_guard lk(mu_);
-  return queue_ && queue_.get() == tl_queue && queue_->threads == 1;
-}
-
-bool CallbackGroup::running_here() const {
-  std::lock_guard lk(mu_);
-  return running_ && running_thread_ == std::this_thread::get_id();
+  // Called with mu_ held (from SubscriptionBase::enqueue): reads core_ directly.
+  return core_ && core_.get() == tl_core && core_->threads == 1;
 }
 
 // ---------------------------------------------------------------------------- Executor
 
 Executor::Executor(Clock& clock, ExecutorOptions options)
-    : clock_(clock), options_(options), queue_(std::make_shared<detail::ReadyQueue>()) {
+    : clock_(clock), options_(options), core_(std::make_shared<detail::ExecutorCore>()) {
   if (options_.threads < 1) throw std::invalid_argument("an executor needs at least one thread");
-  queue_->threads = options_.threads;
-  queue_->owner = this;
-  // Sim-time changes may make timers due: wake a sleeping worker.
-  clock_listener_ = clock_.add_listener([q = queue_] { q->cv.notify_all(); });
+  core_->threads = options_.threads;
+  core_->owner = this;
+  // Sim-time changes may make timers due: wake sleeping workers.
+  clock_listener_ = clock_.add_listener([c = core_] { c->wake_all(); });
 }
 
 Executor::~Executor() {
@@ -177,9 +210,10 @@ Executor::~Executor() {
     nodes.swap(nodes_);
   }
   for (auto& n : nodes) n->callback_group()->detach();
-  std::lock_guard lk(queue_->mu);
-  queue_->owner = nullptr;
-  queue_->groups.clear();
+  std::lock_guard lk(core_->mu);
+  core_->owner = nullptr;
+  core_->groups.clear();
+  core_->ready.clear();
 }
 
 void Executor::add_node(const std::shared_ptr<Node>& node) {
@@ -191,7 +225,7 @@ void Executor::add_node(const std::shared_ptr<Node>& node) {
     nodes_.push_back(node);
     unstarted_.push_back(node);
   }
-  node->callback_group()->attach(queue_, unbounded_);
+  node->callback_group()->attach(core_, unbounded_);
   for (const auto& t : node->timers()) add_timer(t, node->callback_group());
 }
 
@@ -211,9 +245,13 @@ void Executor::add_timer(const std::shared_ptr<Timer>& t, const std::shared_ptr<
     std::lock_guard lk(timers_mu_);
     for (const auto& p : timers_)
       if (p.first == t) return;
+    if (clock_.started() && !t->anchored_) {  // created while time runs: count from now
+      t->next_due_ = clock_.now() + t->period_;
+      t->anchored_ = true;
+    }
     timers_.emplace_back(t, g);
   }
-  queue_->cv.notify_all();
+  core_->wake_all();
 }
 
 void Executor::start_pending_nodes() {
@@ -235,7 +273,7 @@ void Executor::start_pending_nodes() {
 
 void Executor::stop() {
   stop_.store(true);
-  queue_->cv.notify_all();
+  core_->wake_all();
 }
 
 std::optional<Time> Executor::fire_due_timers(Time now, bool catch_up) {
@@ -246,9 +284,11 @@ std::optional<Time> Executor::fire_due_timers(Time now, bool catch_up) {
     std::erase_if(timers_, [](const auto& p) { return p.first->cancelled(); });
     if (!clock_.started()) return std::nullopt;
     for (auto& [t, g] : timers_) {
-      if (!t->anchored_ || now < t->next_due_ - t->period_) {  // first time, or time went back
-        t->next_due_ = now + t->period_;
+      if (!t->anchored_) {  // created before time started: count from its start
+        t->next_due_ = (clock_.is_sim() ? clock_.start_time() : now) + t->period_;
         t->anchored_ = true;
+      } else if (now < t->next_due_ - t->period_) {  // time went back (a replay loop): re-anchor
+        t->next_due_ = now + t->period_;
       }
       while (t->next_due_ <= now) {
         due.emplace_back(t, g);
@@ -262,47 +302,65 @@ std::optional<Time> Executor::fire_due_timers(Time now, bool catch_up) {
   return next;
 }
 
-bool Executor::run_once(Duration max_wait) {
-  std::shared_ptr<CallbackGroup> g;
-  auto try_pop = [&] {
-    std::lock_guard lk(queue_->mu);
-    if (queue_->groups.empty()) return false;
-    g = std::move(queue_->groups.front());
-    queue_->groups.pop_front();
-    queue_->count.fetch_sub(1, std::memory_order_relaxed);
-    return true;
-  };
-  if (queue_->count.load(std::memory_order_acquire) == 0 && max_wait.count() > 0) {
-    // Poll briefly before sleeping: a message from another thread then costs a
-    // cache miss, not a futex wake-up.
-    const auto spin_end = std::chrono::steady_clock::now() + std::min(options_.spin, max_wait);
-    while (queue_->count.load(std::memory_order_acquire) == 0 && !stop_.load(std::memory_order_relaxed) &&
-           std::chrono::steady_clock::now() < spin_end) {
-      for (int i = 0; i < 32; ++i) TL_CPU_RELAX();
+bool Executor::run_some_group(std::vector<std::shared_ptr<CallbackGroup>>& local, std::uint64_t& version,
+                              std::size_t& cursor) {
+  const std::uint64_t v = core_->groups_version.load(std::memory_order_acquire);
+  if (v != version) {
+    std::lock_guard lk(core_->mu);
+    local = core_->groups;
+    version = core_->groups_version.load();
+  }
+  const std::size_t n = local.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = (cursor + k) % n;
+    CallbackGroup& g = *local[i];
+    if (g.pending() == 0) continue;
+    if (g.try_run(options_.batch)) {
+      cursor = (i + 1) % n;  // round robin: the next scan starts after it
+      return true;
     }
   }
-  if (!try_pop()) {
-    if (max_wait.count() <= 0) return false;
-    std::unique_lock lk(queue_->mu);
-    queue_->cv.wait_for(lk, max_wait, [&] { return !queue_->groups.empty() || stop_.load(); });
-    if (queue_->groups.empty()) return false;
-    g = std::move(queue_->groups.front());
-    queue_->groups.pop_front();
-    queue_->count.fetch_sub(1, std::memory_order_relaxed);
-  }
-  QueueScope scope(queue_.get());
-  g->run(options_.batch);
-  return true;
+  return false;
 }
 
 void Executor::worker_loop() {
   constexpr Duration kIdleWait = std::chrono::milliseconds(100);
+  CoreScope scope(core_.get());
+  std::vector<std::shared_ptr<CallbackGroup>> local;
+  std::uint64_t version = ~std::uint64_t{0};
+  std::size_t cursor = 0;
+  auto any_pending = [&] {
+    for (const auto& g : local)
+      if (g->pending() != 0) return true;
+    return false;
+  };
   while (!stop_.load()) {
     const Time now = clock_.now();
     const auto next = fire_due_timers(now, clock_.is_sim());
+    if (run_some_group(local, version, cursor)) continue;
     Duration wait = kIdleWait;
     if (next && !clock_.is_sim()) wait = std::clamp<Duration>(*next - now, Duration::zero(), kIdleWait);
-    run_once(wait);
+    if (wait.count() == 0) continue;
+    // Poll briefly before sleeping: a message from another thread then costs a
+    // few cache-line transfers instead of a futex wake-up.
+    const auto spin_end = std::chrono::steady_clock::now() + std::min(options_.spin, wait);
+    bool found = false;
+    while (!stop_.load(std::memory_order_relaxed) && std::chrono::steady_clock::now() < spin_end) {
+      if (any_pending() || core_->groups_version.load(std::memory_order_relaxed) != version) {
+        found = true;
+        break;
+      }
+      for (int i = 0; i < 16; ++i) TL_CPU_RELAX();
+    }
+    if (found) continue;
+    // Sleep. Announce it first, then look once more: a publisher increments a
+    // pending count and then reads `sleepers`, so one of the two sees the other.
+    std::unique_lock lk(core_->mu);
+    core_->sleepers.fetch_add(1, std::memory_order_seq_cst);
+    core_->cv.wait_for(lk, wait, [&] {
+      return stop_.load() || any_pending() || core_->groups_version.load() != version;
+    });
+    core_->sleepers.fetch_sub(1, std::memory_order_seq_cst);
   }
 }
 
@@ -315,8 +373,12 @@ void Executor::spin() {
 std::size_t Executor::spin_some() {
   start_pending_nodes();
   fire_due_timers(clock_.now(), clock_.is_sim());
+  CoreScope scope(core_.get());
+  std::vector<std::shared_ptr<CallbackGroup>> local;
+  std::uint64_t version = ~std::uint64_t{0};
+  std::size_t cursor = 0;
   std::size_t n = 0;
-  while (run_once(Duration::zero())) ++n;
+  while (run_some_group(local, version, cursor)) ++n;
   return n;
 }
 
@@ -334,22 +396,40 @@ void MultiThreadedExecutor::spin() {
 DeterministicExecutor::DeterministicExecutor(Clock& clock) : Executor(clock, ExecutorOptions{1, Duration::zero(), 1}) {
   if (!clock.is_sim()) throw std::invalid_argument("DeterministicExecutor needs a context with a sim clock");
   unbounded_ = true;
+  core_->fifo = true;
 }
 
 std::size_t DeterministicExecutor::spin_until_idle() {
   start_pending_nodes();
+  CoreScope scope(core_.get());
   std::size_t n = 0;
   while (true) {
     std::shared_ptr<CallbackGroup> g;
     {
-      std::lock_guard lk(queue_->mu);
-      if (queue_->groups.empty()) break;
-      g = std::move(queue_->groups.front());
-      queue_->groups.pop_front();
-      queue_->count.fetch_sub(1, std::memory_order_relaxed);
+      std::lock_guard lk(core_->mu);
+      if (core_->ready.empty()) break;
+      g = std::move(core_->ready.front());
+      core_->ready.pop_front();
     }
-    QueueScope scope(queue_.get());
-    n += g->run(1);
+    {
+      std::lock_guard lk(g->mu_);
+      g->scheduled_ = false;
+    }
+    std::size_t ran = 0;
+    g->try_run(1, &ran);
+    n += ran;
+    bool again = false;
+    {
+      std::lock_guard lk(g->mu_);
+      if (!g->pending_.empty() && !g->scheduled_ && !g->dead_ && g->core_ == core_) {
+        g->scheduled_ = true;
+        again = true;
+      }
+    }
+    if (again) {
+      std::lock_guard lk(core_->mu);
+      core_->ready.push_back(g);
+    }
   }
   return n;
 }

@@ -19,65 +19,54 @@ SubscriptionBase::SubscriptionBase(std::string topic, const msg::TypeSupport* ty
 
 bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why) {
   if (ignore_origin != 0 && info.origin == ignore_origin) return true;
-  {
-    std::unique_lock lk(mu_);
-    if (cancelled_) return true;
-    if (queue_.size() >= qos_.depth) {
-      if (qos_.history == QoS::History::KeepLast) {
-        queue_.pop_front();
-        dropped_.fetch_add(1, std::memory_order_relaxed);
-      } else if (!group_->unbounded_reliable()) {
-        // Reliable: wait for room, unless this thread is the one that must make it.
-        const bool self = group_->running_here() || group_->drained_by_this_thread_only();
-        if (self) {
-          timeouts_.fetch_add(1, std::memory_order_relaxed);
-          if (why) {
-            *why = fmt::format(
-                "reliable queue of {} for '{}' is full ({}) and the publisher runs on the thread that drains it; "
-                "raise the depth or run the subscriber on another executor thread",
-                topic_, group_->owner(), qos_.depth);
-          }
-          return false;
+  CallbackGroup& g = *group_;
+  std::unique_lock lk(g.mu_);
+  if (cancelled_ || g.dead_) return true;
+  if (queue_.size() >= qos_.depth) {
+    if (qos_.history == QoS::History::KeepLast) {
+      queue_.pop_front();  // its pending entry finds the queue one shorter and is skipped
+      dropped_.fetch_add(1, std::memory_order_relaxed);
+    } else if (!g.unbounded_reliable()) {
+      // Reliable: wait for room, unless this thread is the one that must make it.
+      if (g.running_here() || g.drained_by_this_thread_only()) {
+        timeouts_.fetch_add(1, std::memory_order_relaxed);
+        if (why) {
+          *why = fmt::format(
+              "reliable queue of {} for '{}' is full ({}) and the publisher runs on the thread that drains it; "
+              "raise the depth or run the subscriber on another executor thread",
+              topic_, g.owner(), qos_.depth);
         }
-        if (!room_.wait_for(lk, qos_.max_block, [&] { return queue_.size() < qos_.depth || cancelled_; })) {
-          timeouts_.fetch_add(1, std::memory_order_relaxed);
-          if (why) {
-            *why = fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, group_->owner(),
-                               qos_.depth, to_seconds(qos_.max_block));
-          }
-          return false;
-        }
-        if (cancelled_) return true;
+        return false;
       }
+      if (!room_.wait_for(lk, qos_.max_block,
+                          [&] { return queue_.size() < qos_.depth || cancelled_ || g.dead_; })) {
+        timeouts_.fetch_add(1, std::memory_order_relaxed);
+        if (why) {
+          *why = fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, g.owner(),
+                             qos_.depth, to_seconds(qos_.max_block));
+        }
+        return false;
+      }
+      if (cancelled_ || g.dead_) return true;
     }
-    queue_.push_back(QueuedMessage{std::move(msg), info});
-    received_.fetch_add(1, std::memory_order_relaxed);
   }
-  group_->notify(this);
-  return true;
-}
-
-bool SubscriptionBase::execute_one() {
-  QueuedMessage m;
-  {
-    std::lock_guard lk(mu_);
-    if (queue_.empty() || cancelled_) return false;
-    m = std::move(queue_.front());
-    queue_.pop_front();
-  }
-  if (qos_.history == QoS::History::Reliable) room_.notify_one();
-  dispatch(m.msg, m.info);
+  queue_.push_back(QueuedMessage{std::move(msg), info});
+  received_.fetch_add(1, std::memory_order_relaxed);
+  bool enter_fifo = false;
+  auto core = g.push_locked(CallbackGroup::Entry{this, nullptr}, &enter_fifo);
+  lk.unlock();
+  g.announce(core, enter_fifo);
   return true;
 }
 
 std::size_t SubscriptionBase::queued() const {
-  std::lock_guard lk(mu_);
+  std::lock_guard lk(group_->mu_);
   return queue_.size();
 }
 
 void SubscriptionBase::cancel() {
   {
-    std::lock_guard lk(mu_);
+    std::lock_guard lk(group_->mu_);
     cancelled_ = true;
     queue_.clear();
   }

@@ -27,6 +27,8 @@ class Clock {
 
   /// True once sim time has been set (always true for wall time).
   bool started() const { return !is_sim() || started_.load(std::memory_order_acquire); }
+  /// Sim: the first time ever set (timers created before it count from it).
+  Time start_time() const { return Time{start_ns_.load(std::memory_order_acquire)}; }
 
   /// Sets sim time and wakes every listener. Only valid for a sim clock.
   void set_sim_time(Time t);
@@ -39,6 +41,7 @@ class Clock {
   ClockType type_;
   std::atomic<std::int64_t> sim_ns_{0};
   std::atomic<bool> started_{false};
+  std::atomic<std::int64_t> start_ns_{0};
   std::mutex mu_;
   std::vector<std::pair<int, std::function<void()>>> listeners_;
   int next_id_ = 1;

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include <tinyline/bus/clock.hpp>
+#include <tinyline/bus/message_info.hpp>
 #include <tinyline/bus/time.hpp>
 
 namespace tinyline::bus {
@@ -35,17 +36,35 @@ class SubscriptionBase;
 class CallbackGroup;
 
 namespace detail {
-/// The queue of groups with work. Shared by an executor and the groups
-/// attached to it, so a publisher racing an executor's destruction never
-/// touches freed memory.
-struct ReadyQueue {
+/// What an executor shares with the groups attached to it (a separate object,
+/// so a publisher racing an executor's destruction never touches freed memory).
+///
+/// Real-time executors: workers scan their groups' pending counts; a
+/// publisher only wakes a sleeping worker. Delivering a message then costs one
+/// lock (the group's) and a few cache-line transfers, no queue hand-off.
+/// Deterministic executors: groups with work wait in a FIFO, in arrival order.
+struct ExecutorCore {
   std::mutex mu;
   std::condition_variable cv;
-  std::deque<std::shared_ptr<CallbackGroup>> groups;
-  std::atomic<std::size_t> count{0};
+  bool fifo = false;
+  std::deque<std::shared_ptr<CallbackGroup>> ready;  ///< fifo mode only
+  std::atomic<int> sleepers{0};                      ///< workers asleep on cv
   int threads = 1;
   Executor* owner = nullptr;  ///< nulled when the executor goes away (under mu)
-  void push(std::shared_ptr<CallbackGroup> g);
+  std::vector<std::shared_ptr<CallbackGroup>> groups;  ///< attached (under mu)
+  std::atomic<std::uint64_t> groups_version{0};
+
+  /// Publisher side, after queueing work: wake one sleeping worker if any.
+  void wake() {
+    if (sleepers.load(std::memory_order_seq_cst) > 0) {
+      std::lock_guard lk(mu);
+      cv.notify_one();
+    }
+  }
+  void wake_all() {
+    std::lock_guard lk(mu);
+    cv.notify_all();
+  }
 };
 }  // namespace detail
 
@@ -73,21 +92,24 @@ class Timer {
   Time next_due_;
 };
 
-/// The unit of mutual exclusion: one per node.
+/// The unit of mutual exclusion: one per node. Its lock also guards the
+/// queues of the node's subscriptions, so queueing a message takes one lock.
 class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
  public:
   explicit CallbackGroup(std::string owner) : owner_(std::move(owner)) {}
 
   const std::string& owner() const { return owner_; }
 
-  /// One entry per queued message, in arrival order.
-  void notify(SubscriptionBase* sub);
+  /// Queues a timer tick (subscriptions queue through SubscriptionBase::enqueue).
   void notify(const std::shared_ptr<Timer>& timer);
 
-  /// Runs up to `max` pending callbacks; returns how many ran.
-  std::size_t run(std::size_t max);
+  /// Claims the group and runs up to `max` pending callbacks. Returns false if
+  /// another thread is running it; `ran` gets the number run.
+  bool try_run(std::size_t max, std::size_t* ran = nullptr);
+  /// Messages and ticks waiting (may count messages a keep-last queue dropped).
+  std::size_t pending() const { return pending_count_.load(std::memory_order_acquire); }
 
-  void attach(std::shared_ptr<detail::ReadyQueue> queue, bool unbounded_reliable);
+  void attach(std::shared_ptr<detail::ExecutorCore> core, bool unbounded_reliable);
   void detach();
   /// Stops all future callbacks and waits for a running one to finish.
   void shutdown();
@@ -99,29 +121,44 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   bool drained_by_this_thread_only() const;
   bool unbounded_reliable() const { return unbounded_reliable_.load(); }
   /// True when the calling thread is inside one of this group's callbacks.
-  bool running_here() const;
+  bool running_here() const {
+    return running_.load(std::memory_order_acquire) && running_thread_.load() == std::this_thread::get_id();
+  }
 
   /// Callback exceptions caught (and logged) so far.
   std::uint64_t errors() const { return errors_.load(); }
   std::function<void(const std::string&)> on_error;  ///< set by the node: logs the failure
 
  private:
+  friend class SubscriptionBase;
+  friend class DeterministicExecutor;
   struct Entry {
     SubscriptionBase* sub = nullptr;
     std::shared_ptr<Timer> timer;
   };
-  void push(Entry e);
+  struct Taken {
+    SubscriptionBase* sub = nullptr;
+    QueuedMessage m;
+    std::shared_ptr<Timer> timer;
+  };
+  /// With mu_ held: records a new entry; returns the core to notify (and
+  /// whether the group must enter the FIFO).
+  std::shared_ptr<detail::ExecutorCore> push_locked(Entry e, bool* enter_fifo);
+  void announce(const std::shared_ptr<detail::ExecutorCore>& core, bool enter_fifo);
+  std::size_t run_claimed(std::size_t max);
 
   std::string owner_;
   mutable std::mutex mu_;
   std::condition_variable idle_;
   std::deque<Entry> pending_;
-  std::vector<Entry> batch_;
-  std::shared_ptr<detail::ReadyQueue> queue_;
-  bool scheduled_ = false;
-  bool running_ = false;
+  std::vector<Taken> batch_;
+  std::shared_ptr<detail::ExecutorCore> core_;
+  bool scheduled_ = false;  // in the FIFO of a deterministic executor
   bool dead_ = false;
-  std::thread::id running_thread_;
+  std::atomic<std::size_t> pending_count_{0};
+  std::atomic<bool> running_{false};
+  std::atomic<bool> shutdown_waiting_{false};
+  std::atomic<std::thread::id> running_thread_{};
   std::atomic<bool> unbounded_reliable_{false};
   std::atomic<std::uint64_t> errors_{0};
 };
@@ -161,8 +198,9 @@ class Executor {
  protected:
   /// Calls on_start() of every node added since the last call.
   void start_pending_nodes();
-  /// Takes one ready group (waiting up to `max_wait`) and runs a batch.
-  bool run_once(Duration max_wait);
+  /// Runs one batch of some group with work; false if none had any.
+  bool run_some_group(std::vector<std::shared_ptr<CallbackGroup>>& local, std::uint64_t& version,
+                      std::size_t& cursor);
   /// Hands due timers to their groups; returns the next due time if any.
   std::optional<Time> fire_due_timers(Time now, bool catch_up);
   /// The worker loop of spin().
@@ -171,7 +209,7 @@ class Executor {
   Clock& clock_;
   ExecutorOptions options_;
   bool unbounded_ = false;
-  std::shared_ptr<detail::ReadyQueue> queue_;
+  std::shared_ptr<detail::ExecutorCore> core_;
   std::mutex timers_mu_;
   std::vector<std::pair<std::shared_ptr<Timer>, std::shared_ptr<CallbackGroup>>> timers_;
   std::mutex nodes_mu_;

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include <tinyline/bus/message_info.hpp>
 #include <tinyline/bus/qos.hpp>
 #include <tinyline/bus/time.hpp>
 #include <tinyline/msg/type_support.hpp>
@@ -23,23 +24,10 @@ namespace tinyline::bus {
 class CallbackGroup;
 class Executor;
 
-/// What a subscriber learns about a message besides its content.
-struct MessageInfo {
-  Time publish_time;            ///< context clock at publish
-  std::uint64_t sequence = 0;   ///< per-topic publish counter, from 1
-  std::uint32_t origin = 0;     ///< 0: published in this process; else the transport that brought it
-};
-
 struct PublishStatus {
   std::size_t delivered = 0;  ///< subscriptions that took the message
   std::size_t failed = 0;     ///< reliable subscriptions that timed out (each reported)
   bool ok() const { return failed == 0; }
-};
-
-/// One queued message.
-struct QueuedMessage {
-  std::shared_ptr<const void> msg;
-  MessageInfo info;
 };
 
 class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
@@ -58,10 +46,6 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
   /// that drains it); `why` then says which.
   bool enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why);
 
-  /// Executor side: takes the oldest message and runs the callback with it.
-  /// Returns false when the queue was empty (a keep-last drop took it).
-  bool execute_one();
-
   std::uint64_t received() const { return received_.load(std::memory_order_relaxed); }
   std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
   std::uint64_t timeouts() const { return timeouts_.load(std::memory_order_relaxed); }
@@ -75,6 +59,7 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
   void cancel();
 
  protected:
+  friend class CallbackGroup;
   virtual void dispatch(const std::shared_ptr<const void>& msg, const MessageInfo& info) = 0;
 
  private:
@@ -82,10 +67,9 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
   const msg::TypeSupport* type_;
   QoS qos_;
   std::shared_ptr<CallbackGroup> group_;
-  mutable std::mutex mu_;
-  std::condition_variable room_;
-  std::deque<QueuedMessage> queue_;
-  bool cancelled_ = false;
+  std::condition_variable room_;     // reliable: publishers wait here (with the group's lock)
+  std::deque<QueuedMessage> queue_;  // guarded by the group's lock
+  bool cancelled_ = false;           // guarded by the group's lock
   std::atomic<std::uint64_t> received_{0};
   std::atomic<std::uint64_t> dropped_{0};
   std::atomic<std::uint64_t> timeouts_{0};
