@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tinyline::tiny_laser_driver {
@@ -46,6 +47,27 @@ struct ValidityRule {
   enum class Verdict { kValid, kSaturated, kTooDark };
   [[nodiscard]] Verdict check(const Readout& r) const;
 };
+std::string_view to_string(ValidityRule::Verdict v);
+
+/// Everything the model computes for one read-out (CalibrationModel::evaluate).
+struct CalibrationEvaluation {
+  enum class Status {
+    kValid,             ///< distance_m is the calibrated distance
+    kSaturated,         ///< the validity rule says saturated
+    kTooDark,           ///< the validity rule says too little light (or a non-positive corrected sum)
+    kOutOfRange,        ///< the charge ratio lies outside the range the model was fitted on
+    kMissingCovariate,  ///< a discovered term needs an extra covariate the read-out lacks (term skipped)
+  };
+  Status status = Status::kTooDark;
+  double distance_m = std::numeric_limits<double>::quiet_NaN();  ///< NaN unless kValid / kMissingCovariate
+  /// Distance of the declared part alone (Eq. 3.18 + temperature), before discovered terms [m].
+  double declared_distance_m = std::numeric_limits<double>::quiet_NaN();
+  double ratio = std::numeric_limits<double>::quiet_NaN();  ///< charge ratio X of Eq. 3.16
+  /// The sensor's relative reflectance figure: declared_distance_m^2 * (a + b) / pulses
+  /// [charge_unit m^2 / pulse] (the public driver's figure in other units).
+  double reflectance = std::numeric_limits<double>::quiet_NaN();
+};
+std::string_view to_string(CalibrationEvaluation::Status s);
 
 class CalibrationModel {
  public:
@@ -60,9 +82,24 @@ class CalibrationModel {
   /// Distance along the pixel's ray [m]; NaN when the read-out is not valid
   /// under the model's validity rule.
   [[nodiscard]] double distance_m(const Readout& r) const;
+  /// distance_m() with the reason when there is none, and the intermediate figures.
+  /// A term whose extra covariate is missing (r.extra too short or NaN) is skipped and
+  /// reported as kMissingCovariate, with the distance of the remaining terms.
+  [[nodiscard]] CalibrationEvaluation evaluate(const Readout& r) const;
   [[nodiscard]] const ValidityRule& validity() const;
   /// Names of further covariates the model's discovered terms use.
   [[nodiscard]] const std::vector<std::string>& extra_covariates() const;
+  /// One line per part of the model ("degree-6 polynomial in X on [0.35, 0.80]", one per term).
+  [[nodiscard]] std::string describe() const;
+
+  /// The calibration of a real sensor as the public driver ships it
+  /// (measured.yaml real_sensor_polynomials): distance_cm = sum_i poly[i] k^(6-i)
+  /// + offsets, k = b / (a + b), plus (stable - t) * sensi with t in 0.1 degC.
+  /// `poly` and `offsets_added` are highest power first.
+  static CalibrationModel from_public_driver(const std::vector<double>& poly,
+                                             const std::vector<double>& offsets_added,
+                                             double stable_temperature_decic,
+                                             double temperature_sensi_cm_per_decic);
 
   // The representation is the calibration tool's business (see calibration.cpp).
   struct Impl;

@@ -1,0 +1,130 @@
+// The representation behind CalibrationModel: the declared model's parameters
+// and the terms the residual analysis added. The fitter fills it; the driver
+// only needs calibration.hpp. Units are in the names.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <tiny_laser_driver/calibration.hpp>
+
+namespace tinyline::tiny_laser_driver {
+
+/// Covariates every read-out carries (derived from its own fields and the
+/// declared model), plus named extra columns.
+enum class Covariate {
+  kPixel,              ///< "pixel": pixel index 0-271
+  kTime,               ///< "t_s": time since the sensor started [s]
+  kPulses,             ///< "pulses": accumulated pulses of the read-out
+  kAmplitude,          ///< "amplitude": a + b [charge_unit]
+  kAmplitudePerPulse,  ///< "amplitude_per_pulse": (a + b) / pulses [charge_unit]
+  kRatio,              ///< "ratio": the charge ratio X of Eq. 3.16
+  kTemperature,        ///< "temperature_c": MCU temperature [degC]
+  kReflectance,        ///< "reflectance": declared distance^2 * (a + b) / pulses [charge_unit m^2]
+  kExtra,              ///< a further numeric column, by name (Readout::extra)
+};
+
+/// Name used in CSV headers, YAML and reports ("pixel", "t_s", ...); "" for kExtra.
+std::string_view covariate_name(Covariate c);
+/// The built-in covariate of that name, or kExtra when it names no built-in one.
+Covariate covariate_from_name(std::string_view name);
+/// Built-in covariates in report order.
+const std::vector<Covariate>& builtin_covariates();
+
+/// Shapes a discovered term may take.
+enum class TermForm {
+  kSmooth,                ///< g(z): piecewise linear on knots, constant beyond the end knots
+  kTable,                 ///< offset per integer value of z (0 for values not in the table)
+  kAmplitudeInteraction,  ///< g(z) * u, u = (a + b - amplitude_reference) / amplitude_scale
+};
+std::string_view to_string(TermForm f);
+std::optional<TermForm> term_form_from_string(std::string_view s);
+
+/// One term added on top of the declared model: distance += term(z).
+struct CalibrationTerm {
+  std::string covariate;  ///< covariate name (built-in or extra column)
+  TermForm form = TermForm::kSmooth;
+  // kSmooth, kAmplitudeInteraction: values at increasing knots.
+  std::vector<double> knots;
+  std::vector<double> values;  ///< [m] (kSmooth) or [m per unit of u] (kAmplitudeInteraction)
+  // kTable: sorted integer keys and their offsets [m].
+  std::vector<long> keys;
+  std::vector<double> offsets_m;
+  // kAmplitudeInteraction
+  double amplitude_reference = 0.0;  ///< [charge_unit]
+  double amplitude_scale = 1.0;      ///< [charge_unit]
+  // Held-out figures recorded when the term was accepted (informational; NaN if unknown).
+  double rmse_before_m = std::numeric_limits<double>::quiet_NaN();
+  double rmse_after_m = std::numeric_limits<double>::quiet_NaN();
+
+  // Resolved on load / when added to a model.
+  Covariate kind = Covariate::kExtra;
+  int extra_index = -1;  ///< index into Readout::extra for kExtra
+
+  /// Number of linear coefficients (the fitter's basis size).
+  [[nodiscard]] std::size_t basis_size() const;
+  /// Basis functions at covariate value z and amplitude (a + b): appends (column, value)
+  /// pairs with columns relative to the term's first coefficient.
+  void basis(double z, double amplitude, std::vector<std::pair<std::size_t, double>>& out) const;
+  /// Sets the term's coefficients from a vector of basis_size() values.
+  void set_coefficients(const double* c);
+  /// The term's value at z for a read-out of amplitude (a + b) [m].
+  [[nodiscard]] double value(double z, double amplitude) const;
+};
+
+/// Provenance and in-sample figures written beside the model (informational).
+struct CalibrationFitInfo {
+  std::string data;          ///< data file the model was fitted on
+  std::size_t rows = 0;      ///< valid read-outs used
+  double rmse_m = std::numeric_limits<double>::quiet_NaN();  ///< in-sample
+  double heldout_rmse_before_m = std::numeric_limits<double>::quiet_NaN();
+  double heldout_rmse_after_m = std::numeric_limits<double>::quiet_NaN();
+  std::string weighting;     ///< K_i of Eq. 3.20
+};
+
+struct CalibrationModel::Impl {
+  ValidityRule validity;
+
+  // Eq. 3.16: X = (b - Vle(p)) / ((a Rsen - Vle(p)) + (b - Vle(p))), Vle(p) = offset + per_pulse * p.
+  double sensitivity_ratio = 1.0;
+  std::vector<double> sensitivity_ratio_per_pixel;  ///< empty, or one per pixel (0-271)
+  double leakage_offset = 0.0;                      ///< [charge_unit]
+  double leakage_per_pulse = 0.0;                   ///< [charge_unit per pulse]
+  /// X outside [ratio_min, ratio_max] widened by ratio_margin of its span is out of range:
+  /// a polynomial is meaningless beyond the data it was fitted on.
+  double ratio_min = 0.0;
+  double ratio_max = 1.0;
+  double ratio_margin = 0.05;
+
+  // Eq. 3.18: L = sum_k poly_m[k] u^k, u = (X - poly_center) / poly_scale (scaled for conditioning).
+  double poly_center = 0.0;
+  double poly_scale = 1.0;
+  std::vector<double> poly_m{0.0};
+
+  // 3.3.4: L += temperature_coef_m_per_c * (temperature_reference_c - T).
+  double temperature_reference_c = 48.0;
+  double temperature_coef_m_per_c = 0.0;
+
+  std::vector<CalibrationTerm> terms;
+  std::vector<std::string> extra_covariates;  ///< derived from terms (resolve())
+  CalibrationFitInfo info;
+
+  /// Charge ratio X (NaN when the corrected sum is not positive).
+  [[nodiscard]] double ratio(const Readout& r) const;
+  [[nodiscard]] double sensitivity_ratio_of(int pixel) const;
+  /// Eq. 3.18 in X.
+  [[nodiscard]] double polynomial_m(double x) const;
+  /// Polynomial + temperature offset for ratio x [m].
+  [[nodiscard]] double declared_m(double x, double temperature_c) const;
+  /// Value of covariate `kind` for a read-out (extra_index for kExtra), given its
+  /// ratio and declared distance. NaN when unavailable.
+  [[nodiscard]] static double covariate_value(Covariate kind, int extra_index, const Readout& r, double x,
+                                              double declared_m);
+  /// Resolves term covariates and rebuilds extra_covariates (kept in first-use order).
+  void resolve();
+};
+
+}  // namespace tinyline::tiny_laser_driver

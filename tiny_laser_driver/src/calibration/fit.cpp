@@ -1,0 +1,642 @@
+// The declared-model fitter (thesis 3.3.3-3.3.4): variable projection over
+// Rsen and the leakage, an exact weighted least-squares solve for everything
+// linear (polynomial, temperature coefficient, term coefficients).
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <tuple>
+
+#include <fmt/format.h>
+
+#include <tiny_laser_driver/protocol.hpp>
+
+#include "fit_engine.hpp"
+
+namespace tinyline::tiny_laser_driver {
+
+namespace detail {
+
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kMissPenaltyM = 1.0;  // residual charged to a row whose X is undefined under trial parameters
+
+double median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+}  // namespace
+
+double term_covariate(const CalibrationDataset& data, std::size_t row, const CalibrationTerm& term, int dataset_extra,
+                      double x, double declared_m) {
+  const Readout& r = data.readouts[row];
+  if (term.kind == Covariate::kExtra) {
+    return dataset_extra >= 0 ? r.extra[static_cast<std::size_t>(dataset_extra)] : kNaN;
+  }
+  return CalibrationModel::Impl::covariate_value(term.kind, -1, r, x, declared_m);
+}
+
+FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+                     const DeclaredFitParams& params, const std::vector<CalibrationTerm>& terms)
+    : data_(data), p_(params), terms_(terms) {
+  if (p_.degree < 1 || p_.degree > 12) {
+    problem_ = fmt::format("polynomial degree {} is outside 1-12", p_.degree);
+    return;
+  }
+  std::vector<std::size_t> candidates = rows;
+  if (candidates.empty()) {
+    candidates.resize(data.size());
+    std::iota(candidates.begin(), candidates.end(), std::size_t{0});
+  }
+  offered = candidates.size();
+  std::vector<std::size_t> valid;
+  valid.reserve(candidates.size());
+  for (std::size_t i : candidates) {
+    switch (p_.validity.check(data.readouts[i])) {
+      case ValidityRule::Verdict::kValid: valid.push_back(i); break;
+      case ValidityRule::Verdict::kSaturated: ++saturated; break;
+      case ValidityRule::Verdict::kTooDark: ++too_dark; break;
+    }
+  }
+  if (valid.empty()) {
+    problem_ = fmt::format(
+        "no valid read-outs among {} rows of {}: {} saturated (a or b >= {}), {} too dark (a or b <= {}, or "
+        "a + b <= {} + {} * pulses / 10)",
+        candidates.size(), data.source, saturated, p_.validity.high, too_dark, p_.validity.low, p_.validity.min_sum,
+        p_.validity.per_pulse);
+    return;
+  }
+  if (p_.selection == ReadoutSelection::kDriver) {
+    // Per pixel and frame keep the valid read-out with the most pulses (the driver's choice).
+    std::sort(valid.begin(), valid.end(), [&](std::size_t i, std::size_t j) {
+      const Readout& a = data.readouts[i];
+      const Readout& b = data.readouts[j];
+      if (a.t_s != b.t_s) return a.t_s < b.t_s;
+      if (a.pixel != b.pixel) return a.pixel < b.pixel;
+      return a.pulses > b.pulses;
+    });
+    std::vector<std::size_t> kept;
+    for (std::size_t k = 0; k < valid.size(); ++k) {
+      const Readout& r = data.readouts[valid[k]];
+      if (k > 0) {
+        const Readout& prev = data.readouts[valid[k - 1]];
+        if (prev.t_s == r.t_s && prev.pixel == r.pixel) {
+          ++not_selected;
+          continue;
+        }
+      }
+      kept.push_back(valid[k]);
+    }
+    valid = std::move(kept);
+    std::sort(valid.begin(), valid.end());
+  }
+  rows_ = std::move(valid);
+
+  const auto target_group = target_distance_groups(data);
+  std::vector<long long> mm;
+  std::vector<int> group_ids;
+  group_.reserve(rows_.size());
+  y_.reserve(rows_.size());
+  double tmin = 1e300, tmax = -1e300;
+  for (std::size_t i : rows_) {
+    const double d = data.distance_m[i];
+    y_.push_back(d);
+    mm.push_back(std::llround(d * 1000.0));
+    group_.push_back(target_group[i]);
+    tmin = std::min(tmin, data.readouts[i].temperature_c);
+    tmax = std::max(tmax, data.readouts[i].temperature_c);
+  }
+  // Dense group ids over the kept rows (weights of Eq. 3.20 are per target distance).
+  group_ids = group_;
+  std::sort(group_ids.begin(), group_ids.end());
+  group_ids.erase(std::unique(group_ids.begin(), group_ids.end()), group_ids.end());
+  for (int& g : group_) g = static_cast<int>(std::lower_bound(group_ids.begin(), group_ids.end(), g) - group_ids.begin());
+  groups_ = group_ids.size();
+  std::sort(mm.begin(), mm.end());
+  mm.erase(std::unique(mm.begin(), mm.end()), mm.end());
+  distances = mm.size();
+  const std::size_t min_rows = 2 * static_cast<std::size_t>(p_.degree + 2);
+  if (rows_.size() < min_rows) {
+    problem_ = fmt::format("only {} valid read-outs: a degree-{} fit needs at least {}", rows_.size(), p_.degree, min_rows);
+    return;
+  }
+  if (distances < static_cast<std::size_t>(p_.degree + 1)) {
+    problem_ = fmt::format("only {} distinct true distances (mm): a degree-{} polynomial needs at least {}", distances,
+                           p_.degree, p_.degree + 1);
+    return;
+  }
+
+  // The leakage offset shows only as X changing with the pulse count at one
+  // target: it needs frames with several valid pulse levels per pixel.
+  fit_leak_offset_ = p_.fit_leakage;
+  if (fit_leak_offset_) {
+    std::vector<std::tuple<double, int, int>> keys;
+    keys.reserve(rows_.size());
+    for (std::size_t i : rows_) keys.emplace_back(data.readouts[i].t_s, data.readouts[i].pixel, data.readouts[i].pulses);
+    std::sort(keys.begin(), keys.end());
+    std::size_t multi = 0;
+    for (std::size_t k = 1; k < keys.size(); ++k) {
+      const auto& [t0, px0, p0] = keys[k - 1];
+      const auto& [t1, px1, p1] = keys[k];
+      multi += (t0 == t1 && px0 == px1 && p0 != p1) ? 1 : 0;
+    }
+    if (multi < rows_.size() / 10) {
+      fit_leak_offset_ = false;
+      notes.push_back(fmt::format("few frames hold several valid pulse levels of a pixel: leakage offset kept at {}",
+                                  p_.leakage_offset));
+    }
+  }
+
+  use_temp_ = p_.fit_temperature && (tmax - tmin) >= p_.min_temperature_span_c;
+  if (p_.fit_temperature && !use_temp_) {
+    notes.push_back(fmt::format("temperature spans {:.2f} degC (< {:.2f}): no temperature term fitted", tmax - tmin,
+                                p_.min_temperature_span_c));
+  }
+
+  term_extra_.assign(terms_.size(), -1);
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    auto& t = terms_[k];
+    t.kind = covariate_from_name(t.covariate);
+    if (t.kind == Covariate::kExtra) {
+      term_extra_[k] = data.extra_index(t.covariate);
+      if (term_extra_[k] < 0) {
+        problem_ = fmt::format("term covariate '{}' is neither a built-in covariate nor a column of {}", t.covariate,
+                               data.source);
+        return;
+      }
+    }
+  }
+  declared_cols_ = static_cast<std::size_t>(p_.degree + 1) + (use_temp_ ? 1 : 0);
+  cols_ = declared_cols_;
+  for (const auto& t : terms_) {
+    term_col_.push_back(cols_);
+    cols_ += t.basis_size();
+  }
+  coef_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(cols_));
+
+  rsen_ = p_.sensitivity_ratio;
+  leak_offset_ = p_.leakage_offset;
+  leak_per_pulse_ = p_.leakage_per_pulse;
+  compute_x();
+  double lo = 1e300, hi = -1e300;
+  for (double x : x_) {
+    if (std::isfinite(x)) {
+      lo = std::min(lo, x);
+      hi = std::max(hi, x);
+    }
+  }
+  if (!(hi - lo > 1e-6)) {
+    problem_ = fmt::format("the charge ratio X does not vary over the valid read-outs (span {:.3g}): nothing to fit",
+                           hi > lo ? hi - lo : 0.0);
+    return;
+  }
+  center_ = 0.5 * (lo + hi);
+  scale_ = 0.5 * (hi - lo);
+  set_weights(std::vector<double>(groups_, 1.0));
+}
+
+void FitEngine::set_weights(const std::vector<double>& k_per_group) {
+  std::vector<double> count(groups_, 0.0);
+  for (int g : group_) count[static_cast<std::size_t>(g)] += 1.0;
+  w_.resize(rows_.size());
+  double sum = 0.0;
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    const auto g = static_cast<std::size_t>(group_[i]);
+    w_[i] = k_per_group[g] / (p_.equalize_distances ? count[g] : 1.0);  // K_i / N_i, Eq. 3.20
+    sum += w_[i];
+  }
+  const double norm = static_cast<double>(rows_.size()) / sum;  // mean weight 1: ridge reads as pseudo-rows
+  for (double& w : w_) w *= norm;
+}
+
+void FitEngine::compute_x() {
+  x_.resize(rows_.size());
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    const Readout& r = data_.readouts[rows_[i]];
+    const double rsen = rsen_pixel_.empty() ? rsen_ : rsen_pixel_[static_cast<std::size_t>(r.pixel)];
+    const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
+    const double num = r.b - vle;
+    const double den = (r.a * rsen - vle) + num;  // Eq. 3.16
+    x_[i] = den > 0.0 ? num / den : kNaN;
+  }
+}
+
+double FitEngine::declared_m(std::size_t i) const {
+  const double u = (x_[i] - center_) / scale_;
+  double acc = 0.0;
+  for (int k = p_.degree; k >= 0; --k) acc = acc * u + coef_[k];
+  if (use_temp_) acc += coef_[p_.degree + 1] * (p_.temperature_reference_c - data_.readouts[rows_[i]].temperature_c);
+  return acc;
+}
+
+void FitEngine::compute_covariates() {
+  z_.assign(terms_.size(), std::vector<double>(rows_.size(), kNaN));
+  const bool solved = coef_.size() > 0 && coef_.cwiseAbs().maxCoeff() > 0.0;
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    for (std::size_t i = 0; i < rows_.size(); ++i) {
+      // Before the first solve the truth stands in for the declared distance (reflectance only).
+      const double declared = solved ? declared_m(i) : y_[i];
+      z_[k][i] = term_covariate(data_, rows_[i], terms_[k], term_extra_[k], x_[i], declared);
+    }
+  }
+}
+
+void FitEngine::declared_entries(std::size_t i, Entries& out) const {
+  out.clear();
+  if (!std::isfinite(x_[i])) return;
+  const double u = (x_[i] - center_) / scale_;
+  double pw = 1.0;
+  for (int k = 0; k <= p_.degree; ++k) {
+    out.emplace_back(static_cast<std::size_t>(k), pw);
+    pw *= u;
+  }
+  if (use_temp_) {
+    out.emplace_back(static_cast<std::size_t>(p_.degree + 1),
+                     p_.temperature_reference_c - data_.readouts[rows_[i]].temperature_c);  // 3.3.4
+  }
+}
+
+void FitEngine::entries(std::size_t i, Entries& out) const {
+  declared_entries(i, out);
+  if (out.empty()) return;
+  const Readout& r = data_.readouts[rows_[i]];
+  Entries tmp;
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    tmp.clear();
+    terms_[k].basis(z_[k][i], r.a + r.b, tmp);
+    for (const auto& [c, v] : tmp) out.emplace_back(term_col_[k] + c, v);
+  }
+}
+
+Eigen::VectorXd FitEngine::ridge(std::size_t total_columns) const {
+  Eigen::VectorXd r = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(total_columns), p_.term_ridge);
+  for (std::size_t c = 0; c < declared_cols_; ++c) r[static_cast<Eigen::Index>(c)] = 1e-9;
+  return r;
+}
+
+double FitEngine::solve_linear() {
+  if (z_.size() != terms_.size()) compute_covariates();
+  NormalEquations ne(cols_);
+  Entries e;
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    entries(i, e);
+    if (!e.empty()) ne.add(e, y_[i], w_[i]);
+  }
+  coef_ = ne.solve(ridge(cols_));
+  double sse = 0.0;
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    entries(i, e);
+    const double r = e.empty() ? kMissPenaltyM : y_[i] - dot(e, coef_);
+    sse += w_[i] * r * r;
+  }
+  return sse;
+}
+
+double FitEngine::residual_cost(std::vector<double>* residuals) {
+  compute_x();
+  const double sse = solve_linear();
+  if (residuals) {
+    residuals->resize(rows_.size());
+    Entries e;
+    for (std::size_t i = 0; i < rows_.size(); ++i) {
+      entries(i, e);
+      (*residuals)[i] = std::sqrt(w_[i]) * (e.empty() ? kMissPenaltyM : y_[i] - dot(e, coef_));
+    }
+  }
+  return sse;
+}
+
+void FitEngine::optimise_global() {
+  // Parameters in scaled units so one finite-difference step fits all.
+  struct Param {
+    double* value;
+    double typical;
+    double lo, hi;
+  };
+  std::vector<Param> ps;
+  if (fit_leak_offset_) ps.push_back({&leak_offset_, 1.0, -50.0, 50.0});
+  if (p_.fit_leakage) ps.push_back({&leak_per_pulse_, 0.01, -1.0, 1.0});
+  if (ps.empty()) {
+    residual_cost(nullptr);
+    return;
+  }
+  const std::size_t k = ps.size();
+  auto get = [&] {
+    Eigen::VectorXd t(static_cast<Eigen::Index>(k));
+    for (std::size_t j = 0; j < k; ++j) t[static_cast<Eigen::Index>(j)] = *ps[j].value / ps[j].typical;
+    return t;
+  };
+  auto set = [&](const Eigen::VectorXd& t) {
+    for (std::size_t j = 0; j < k; ++j) {
+      *ps[j].value = std::clamp(t[static_cast<Eigen::Index>(j)] * ps[j].typical, ps[j].lo, ps[j].hi);
+    }
+  };
+  std::vector<double> r0, r1;
+  Eigen::VectorXd theta = get();
+  double cost = residual_cost(&r0);
+  double lambda = 1e-3;
+  constexpr double kStep = 1e-5;
+  const auto n = static_cast<Eigen::Index>(rows_.size());
+  for (int it = 0; it < 40; ++it) {
+    Eigen::MatrixXd jac(n, static_cast<Eigen::Index>(k));
+    for (std::size_t j = 0; j < k; ++j) {
+      Eigen::VectorXd t = theta;
+      t[static_cast<Eigen::Index>(j)] += kStep;
+      set(t);
+      residual_cost(&r1);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        jac(i, static_cast<Eigen::Index>(j)) = (r1[static_cast<std::size_t>(i)] - r0[static_cast<std::size_t>(i)]) / kStep;
+      }
+    }
+    const Eigen::Map<const Eigen::VectorXd> f(r0.data(), n);
+    // r = sqrt(w)(y - pred): minimise |r|^2, step solves (J'J + lambda diag) d = -J'r.
+    const Eigen::MatrixXd a = jac.transpose() * jac;
+    const Eigen::VectorXd g = jac.transpose() * f;
+    bool improved = false;
+    while (lambda < 1e10) {
+      Eigen::MatrixXd damped = a;
+      for (Eigen::Index j = 0; j < damped.rows(); ++j) damped(j, j) += lambda * std::max(a(j, j), 1e-12);
+      const Eigen::VectorXd step = damped.ldlt().solve(-g);
+      const Eigen::VectorXd trial = theta + step;
+      set(trial);
+      const double c = residual_cost(&r1);
+      if (std::isfinite(c) && c < cost) {
+        const double gain = (cost - c) / std::max(cost, 1e-300);
+        theta = get();
+        cost = c;
+        r0.swap(r1);
+        lambda = std::max(lambda / 3.0, 1e-9);
+        improved = gain > 1e-10;
+        break;
+      }
+      lambda *= 4.0;
+    }
+    if (!improved) break;
+  }
+  set(theta);
+  residual_cost(nullptr);
+}
+
+void FitEngine::refine_per_pixel() {
+  std::vector<int> count(kPixels, 0);
+  std::vector<std::vector<int>> seen(kPixels);
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    const auto px = static_cast<std::size_t>(data_.readouts[rows_[i]].pixel);
+    ++count[px];
+    auto& s = seen[px];
+    if (std::find(s.begin(), s.end(), group_[i]) == s.end() && s.size() < 64) s.push_back(group_[i]);
+  }
+  std::vector<bool> eligible(kPixels, false);
+  std::size_t n_eligible = 0;
+  for (std::size_t px = 0; px < kPixels; ++px) {
+    eligible[px] = count[px] >= p_.min_rows_per_pixel && static_cast<int>(seen[px].size()) >= p_.min_distances_per_pixel;
+    n_eligible += eligible[px] ? 1 : 0;
+  }
+  if (n_eligible == 0) {
+    rsen_pixel_.clear();
+    notes.push_back(fmt::format("no pixel has {} valid read-outs over {} distances: one global Rsen",
+                                p_.min_rows_per_pixel, p_.min_distances_per_pixel));
+    return;
+  }
+  if (rsen_pixel_.empty()) rsen_pixel_.assign(kPixels, rsen_);
+  Entries e;
+  for (int iter = 0; iter < 4; ++iter) {
+    std::vector<double> jr(kPixels, 0.0), jj(kPixels, 0.0);
+    for (std::size_t i = 0; i < rows_.size(); ++i) {
+      const Readout& r = data_.readouts[rows_[i]];
+      const auto px = static_cast<std::size_t>(r.pixel);
+      if (!eligible[px] || !std::isfinite(x_[i])) continue;
+      entries(i, e);
+      const double res = y_[i] - dot(e, coef_);
+      // d pred / d Rsen = P'(X) dX/dRsen, dX/dRsen = -(b - Vle) a / den^2 (terms' share ignored).
+      const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
+      const double num = r.b - vle;
+      const double den = (r.a * rsen_pixel_[px] - vle) + num;
+      const double dx = -num * r.a / (den * den);
+      const double u = (x_[i] - center_) / scale_;
+      double dp = 0.0, pw = 1.0;
+      for (int k = 1; k <= p_.degree; ++k) {
+        dp += k * coef_[k] * pw;
+        pw *= u;
+      }
+      const double jac = dp / scale_ * dx;
+      jr[px] += w_[i] * jac * res;
+      jj[px] += w_[i] * jac * jac;
+    }
+    for (std::size_t px = 0; px < kPixels; ++px) {
+      if (!eligible[px] || !(jj[px] > 0.0)) continue;
+      const double step = std::clamp(jr[px] / jj[px], -0.05 * rsen_pixel_[px], 0.05 * rsen_pixel_[px]);
+      rsen_pixel_[px] = std::clamp(rsen_pixel_[px] + step, 0.3, 3.0);
+    }
+    compute_x();
+    solve_linear();
+  }
+  std::vector<double> fitted;
+  for (std::size_t px = 0; px < kPixels; ++px) {
+    if (eligible[px]) fitted.push_back(rsen_pixel_[px]);
+  }
+  // Only differences between pixels are identifiable: hold their median at the common value.
+  const double shift = p_.sensitivity_ratio / median(fitted);
+  for (std::size_t px = 0; px < kPixels; ++px) {
+    rsen_pixel_[px] = eligible[px] ? rsen_pixel_[px] * shift : p_.sensitivity_ratio;
+  }
+  rsen_ = p_.sensitivity_ratio;
+  if (n_eligible < kPixels - 2 * kDarkPixels) {
+    notes.push_back(fmt::format("per-pixel Rsen fitted for {} pixels; the others use the median {:.4f}", n_eligible, rsen_));
+  }
+  compute_x();
+  solve_linear();
+}
+
+void FitEngine::reweight_inverse_variance() {
+  std::vector<double> sse(groups_, 0.0), n(groups_, 0.0);
+  Entries e;
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    entries(i, e);
+    if (e.empty()) continue;
+    const double r = y_[i] - dot(e, coef_);
+    sse[static_cast<std::size_t>(group_[i])] += r * r;
+    n[static_cast<std::size_t>(group_[i])] += 1.0;
+  }
+  std::vector<double> mse;
+  for (std::size_t g = 0; g < groups_; ++g) {
+    if (n[g] > 0) mse.push_back(sse[g] / n[g]);
+  }
+  const double floor = std::max(1e-3 * median(mse), 1e-12);
+  std::vector<double> k(groups_, 1.0);
+  for (std::size_t g = 0; g < groups_; ++g) k[g] = n[g] > 0 ? 1.0 / std::max(sse[g] / n[g], floor) : 1.0;
+  set_weights(k);
+  weighting_note_ = "K_i = 1 / residual variance at distance i (one reweighting)";
+}
+
+void FitEngine::fit() {
+  const bool per_pixel = p_.sensitivity_ratio_mode == SensitivityRatioMode::kPerPixel;
+  auto run_passes = [&](int passes) {
+    for (int pass = 0; pass < passes; ++pass) {
+      compute_x();
+      compute_covariates();
+      optimise_global();
+      if (per_pixel) refine_per_pixel();
+      if (!per_pixel && !p_.fit_leakage && terms_.empty() && pass > 0) break;  // nothing left to iterate
+    }
+  };
+  run_passes(std::max(p_.passes, 1));
+  if (p_.weighting == DistanceWeighting::kInverseVariance) {
+    reweight_inverse_variance();
+    run_passes(1);
+  }
+  compute_x();
+  compute_covariates();
+  solve_linear();
+  ratio_min_ = 1e300;
+  ratio_max_ = -1e300;
+  for (double x : x_) {
+    if (std::isfinite(x)) {
+      ratio_min_ = std::min(ratio_min_, x);
+      ratio_max_ = std::max(ratio_max_, x);
+    }
+  }
+}
+
+CalibrationModel FitEngine::model() const {
+  CalibrationModel model;
+  auto& m = model.impl();
+  m.validity = p_.validity;
+  m.sensitivity_ratio = rsen_;
+  m.sensitivity_ratio_per_pixel = rsen_pixel_;
+  m.leakage_offset = leak_offset_;
+  m.leakage_per_pulse = leak_per_pulse_;
+  m.ratio_min = ratio_min_;
+  m.ratio_max = ratio_max_;
+  m.poly_center = center_;
+  m.poly_scale = scale_;
+  m.poly_m.assign(coef_.data(), coef_.data() + p_.degree + 1);
+  m.temperature_reference_c = p_.temperature_reference_c;
+  m.temperature_coef_m_per_c = use_temp_ ? coef_[p_.degree + 1] : 0.0;
+  m.terms = terms_;
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    m.terms[k].set_coefficients(coef_.data() + term_col_[k]);
+  }
+  m.info.data = data_.source;
+  m.info.rows = rows_.size();
+  m.info.weighting = weighting_note_ + (p_.equalize_distances ? ", N_i = read-outs at distance i" : ", N_i = 1");
+  m.resolve();
+  return model;
+}
+
+}  // namespace detail
+
+// ------------------------------------------------------------------ public API
+
+DeclaredFitResult fit_calibration_model(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+                                        const DeclaredFitParams& params, const std::vector<CalibrationTerm>& terms) {
+  DeclaredFitResult res;
+  if (data.empty()) {
+    res.reason = fmt::format("{}: no rows", data.source);
+    return res;
+  }
+  detail::FitEngine engine(data, rows, params, terms);
+  res.rows = engine.offered;
+  res.saturated = engine.saturated;
+  res.too_dark = engine.too_dark;
+  res.not_selected = engine.not_selected;
+  res.distances = engine.distances;
+  if (!engine.problem().empty()) {
+    res.reason = engine.problem();
+    return res;
+  }
+  engine.fit();
+  res.model = engine.model();
+  res.used = engine.size();
+  res.notes = engine.notes;
+  const auto residuals = model_residuals(res.model, data, engine.rows());
+  const auto stats = error_stats(residuals);
+  res.rmse_m = stats.rmse_m;
+  res.model.impl().info.rmse_m = stats.rmse_m;
+  if (stats.n == 0) {
+    res.reason = "the fitted model gives no distance on its own data (fit diverged)";
+    return res;
+  }
+  res.ok = true;
+  return res;
+}
+
+DeclaredFitResult fit_declared_model(const CalibrationDataset& data, const DeclaredFitParams& params) {
+  return fit_calibration_model(data, {}, params, {});
+}
+
+std::vector<double> model_residuals(const CalibrationModel& model, const CalibrationDataset& data,
+                                    const std::vector<std::size_t>& rows) {
+  const auto& names = model.extra_covariates();
+  std::vector<int> idx;
+  for (const auto& n : names) idx.push_back(data.extra_index(n));
+  std::vector<double> out;
+  out.reserve(rows.size());
+  Readout r;
+  for (std::size_t i : rows) {
+    r = data.readouts[i];
+    r.extra.assign(names.size(), std::numeric_limits<double>::quiet_NaN());
+    for (std::size_t k = 0; k < idx.size(); ++k) {
+      if (idx[k] >= 0) r.extra[k] = data.readouts[i].extra[static_cast<std::size_t>(idx[k])];
+    }
+    const auto ev = model.evaluate(r);
+    out.push_back(ev.status == CalibrationEvaluation::Status::kValid ? ev.distance_m - data.distance_m[i]
+                                                                      : std::numeric_limits<double>::quiet_NaN());
+  }
+  return out;
+}
+
+ErrorStats error_stats(const std::vector<double>& residuals) {
+  ErrorStats s;
+  std::vector<double> abs;
+  double sum = 0.0, sum2 = 0.0;
+  for (double r : residuals) {
+    if (!std::isfinite(r)) continue;
+    sum += r;
+    sum2 += r * r;
+    abs.push_back(std::abs(r));
+  }
+  s.n = abs.size();
+  if (s.n == 0) return s;
+  const double n = static_cast<double>(s.n);
+  s.bias_m = sum / n;
+  s.rmse_m = std::sqrt(sum2 / n);
+  s.sd_m = std::sqrt(std::max(0.0, sum2 / n - s.bias_m * s.bias_m));
+  const std::size_t k = static_cast<std::size_t>(std::ceil(0.95 * n)) - 1;
+  std::nth_element(abs.begin(), abs.begin() + static_cast<std::ptrdiff_t>(k), abs.end());
+  s.p95_abs_m = abs[k];
+  return s;
+}
+
+ErrorStats evaluate_model(const CalibrationModel& model, const CalibrationDataset& data,
+                          const std::vector<std::size_t>& rows_in) {
+  std::vector<std::size_t> rows = rows_in;
+  if (rows.empty()) {
+    rows.resize(data.size());
+    std::iota(rows.begin(), rows.end(), std::size_t{0});
+  }
+  const auto readouts = readouts_for_model(data.subset(rows), model);
+  std::vector<double> residuals;
+  residuals.reserve(rows.size());
+  std::size_t sat = 0, dark = 0, oor = 0, missing = 0;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const auto ev = model.evaluate(readouts[k]);
+    using S = CalibrationEvaluation::Status;
+    switch (ev.status) {
+      case S::kValid: residuals.push_back(ev.distance_m - data.distance_m[rows[k]]); break;
+      case S::kSaturated: ++sat; break;
+      case S::kTooDark: ++dark; break;
+      case S::kOutOfRange: ++oor; break;
+      case S::kMissingCovariate: ++missing; break;
+    }
+  }
+  ErrorStats s = error_stats(residuals);
+  s.saturated = sat;
+  s.too_dark = dark;
+  s.out_of_range = oor;
+  s.missing_covariate = missing;
+  return s;
+}
+
+}  // namespace tinyline::tiny_laser_driver
