@@ -116,9 +116,11 @@ struct ZstdD {
   ~ZstdD() { ZSTD_freeDCtx(ctx); }
 };
 
-// Output grows as it is produced: the declared size is only trusted up to this
-// much in advance.
-constexpr std::uint64_t kUpfront = 64ULL << 20;
+// Output grows as it is produced: the declared size is trusted in advance only
+// up to a multiple of the compressed size (so a few corrupt bytes cannot make
+// the reader allocate gigabytes); past that the buffer doubles as output comes.
+constexpr std::uint64_t kUpfrontMin = 1ULL << 20;
+constexpr std::uint64_t kUpfrontRatio = 8;
 
 // Grows `out` (capacity limit: target + 1, the extra byte detects overflow).
 bool grow(std::vector<std::uint8_t>& out, std::uint64_t limit) {
@@ -151,7 +153,8 @@ Status decompress(std::string_view compression, std::span<const std::uint8_t> in
             fmt::format("{}: unsupported chunk compression '{}' (this reader knows lz4 and zstd)", where, compression)};
   }
   const std::uint64_t limit = uncompressed_size + 1;
-  out.resize(static_cast<std::size_t>(std::min(limit, kUpfront)));
+  out.resize(static_cast<std::size_t>(
+      std::min(limit, std::max<std::uint64_t>(kUpfrontMin, kUpfrontRatio * static_cast<std::uint64_t>(in.size())))));
   std::size_t produced = 0;
   std::size_t consumed = 0;
   bool frame_done = false;

@@ -6,7 +6,7 @@
 
 namespace tinyline::bag {
 
-Status recover(Readable& in, std::unique_ptr<Writable> out, const RecoverOptions& options, RecoverReport& report) {
+Status recover(Readable& in, Writable& out, const RecoverOptions& options, RecoverReport& report) {
   report = {};
   report.input_bytes = in.size();
   LinearReader lr(in, LinearReaderOptions{options.validate_crcs, options.max_record_bytes, true});
@@ -21,7 +21,7 @@ Status recover(Readable& in, std::unique_ptr<Writable> out, const RecoverOptions
   wo.profile = r.header->profile;
   wo.library = r.header->library.empty() ? "recovered by tinyline" : r.header->library + " (recovered by tinyline)";
   Writer w;
-  if (Status s = w.open(std::move(out), wo); !s.ok()) return s;
+  if (Status s = w.open(std::make_unique<WritableRef>(out), wo); !s.ok()) return s;
 
   std::map<SchemaId, SchemaId> schema_ids;     // input -> output
   std::map<ChannelId, ChannelId> channel_ids;  // input -> output
@@ -114,9 +114,11 @@ Status recover(const std::string& in_path, const std::string& out_path, const Re
   }
   FileReadable in;
   if (Status s = in.open(in_path); !s.ok()) return s;
-  auto out = std::make_unique<FileWritable>();
-  if (Status s = out->open(out_path); !s.ok()) return s;
-  return recover(in, std::move(out), options, report);
+  FileWritable out;
+  if (Status s = out.open(out_path); !s.ok()) return s;
+  Status s = recover(in, out, options, report);
+  Status closed = out.close();
+  return s.ok() ? closed : s;
 }
 
 }  // namespace tinyline::bag

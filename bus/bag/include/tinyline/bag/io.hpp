@@ -131,4 +131,19 @@ class MemoryWritable final : public Writable {
   bool closed_ = false;
 };
 
+/// Forwards to a sink the caller keeps (a writer owns its sink; this lets the
+/// caller read a MemoryWritable after the writer is gone).
+class WritableRef final : public Writable {
+ public:
+  explicit WritableRef(Writable& target) : target_(target) {}
+  Status write(std::span<const std::uint8_t> bytes) override { return target_.write(bytes); }
+  Status flush() override { return target_.flush(); }
+  Status close() override { return target_.flush(); }  // the owner closes the target
+  std::uint64_t size() const override { return target_.size(); }
+  const std::string& name() const override { return target_.name(); }
+
+ private:
+  Writable& target_;
+};
+
 }  // namespace tinyline::bag

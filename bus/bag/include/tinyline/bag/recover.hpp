@@ -38,8 +38,8 @@ struct RecoverReport {
   std::vector<ReadProblem> problems;  ///< everything stepped over, with byte offsets
 };
 
-/// Reads `in` and writes the recovered file to `out`.
-Status recover(Readable& in, std::unique_ptr<Writable> out, const RecoverOptions& options, RecoverReport& report);
+/// Reads `in` and writes the recovered file to `out` (which the caller keeps and closes).
+Status recover(Readable& in, Writable& out, const RecoverOptions& options, RecoverReport& report);
 Status recover(const std::string& in_path, const std::string& out_path, const RecoverOptions& options,
                RecoverReport& report);
 
