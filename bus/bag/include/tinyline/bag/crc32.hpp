@@ -1,0 +1,13 @@
+// CRC-32 (ISO-HDLC, polynomial 0xEDB88320, the zlib crc32) that MCAP uses for
+// chunks, the data section, the summary and attachments.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+namespace tinyline::bag {
+
+/// Continues a running CRC: crc32(b, crc32(a)) == crc32(a + b); start from 0.
+std::uint32_t crc32(std::span<const std::uint8_t> bytes, std::uint32_t crc = 0);
+
+}  // namespace tinyline::bag
