@@ -142,6 +142,7 @@ namespace {
 bool pixel_valid(const OrderedScanPoints& s, std::size_t i) {
   const double r = s.range_m[i];
   if (!std::isfinite(r) || r <= 0.0 || !std::isfinite(s.angle_rad[i])) return false;
+  if (!s.group.empty() && s.group[i] < 0) return false;
   return s.feature.empty() || std::isfinite(s.feature[i]);
 }
 
@@ -151,6 +152,9 @@ std::string check_scan_shape(const OrderedScanPoints& s) {
   }
   if (!s.feature.empty() && s.feature.size() != s.range_m.size()) {
     return fmt::format("scan has {} ranges but {} feature values", s.range_m.size(), s.feature.size());
+  }
+  if (!s.group.empty() && s.group.size() != s.range_m.size()) {
+    return fmt::format("scan has {} ranges but {} group ids", s.range_m.size(), s.group.size());
   }
   if (s.range_m.size() >= static_cast<std::size_t>(std::numeric_limits<int>::max())) {
     return fmt::format("scan too long ({} pixels)", s.range_m.size());
@@ -188,6 +192,7 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
 
   const std::size_t n_all = scan.range_m.size();
   const bool with_f = !scan.feature.empty();
+  const bool with_g = !scan.group.empty();
   r.labels.assign(n_all, kInvalid);
   r.is_core.assign(n_all, 0);
 
@@ -195,6 +200,7 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
   x_.clear();
   z_.clear();
   f_.clear();
+  g_.clear();
   theta_.clear();
   index_.clear();
   for (std::size_t i = 0; i < n_all; ++i) {
@@ -202,6 +208,7 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
     x_.push_back(scan.range_m[i] * std::sin(scan.angle_rad[i]));
     z_.push_back(scan.range_m[i] * std::cos(scan.angle_rad[i]));
     if (with_f) f_.push_back(scan.feature[i]);
+    if (with_g) g_.push_back(scan.group[i]);
     theta_.push_back(scan.angle_rad[i]);
     index_.push_back(static_cast<int>(i));
   }
@@ -228,7 +235,9 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
 
   const double eps = params.eps;
   const double eps2 = eps * eps;
+  // Squared distance; pixels of different groups are infinitely far apart.
   auto d2 = [&](int i, int j) {
+    if (with_g && g_[i] != g_[j]) return std::numeric_limits<double>::infinity();
     double t = x_[i] - x_[j];
     double s = t * t;
     t = z_[i] - z_[j];

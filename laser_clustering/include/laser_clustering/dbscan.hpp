@@ -78,17 +78,22 @@ struct DbscanResult {
 /// Angles of valid pixels must be strictly monotone (either direction).
 /// A pixel is invalid when its range is not finite or <= 0.
 struct OrderedScanPoints {
-  std::span<const double> angle_rad;
-  std::span<const double> range_m;
+  std::span<const double> angle_rad{};
+  std::span<const double> range_m{};
   /// Optional extra coordinate per pixel (already scaled to metres-equivalent,
   /// e.g. log reflectance, see reflectance_clustering.hpp); empty if none. A
   /// non-finite value makes the pixel invalid.
-  std::span<const double> feature;
+  std::span<const double> feature{};
+  /// Optional group id per pixel; pixels of different groups are never
+  /// neighbours (as if they were infinitely far apart), a negative id makes
+  /// the pixel invalid. Empty: one group. Used to run DBSCAN inside each
+  /// group of a first clustering in one pass.
+  std::span<const int> group{};
 };
 
 /// The points the fast path clusters, one per column: rows x, z (and the
 /// feature when present); invalid pixels get NaN. Use it to run dbscan() on
-/// exactly the same coordinates.
+/// exactly the same coordinates (groups are not represented).
 [[nodiscard]] Eigen::MatrixXd to_points(const OrderedScanPoints& scan);
 
 /// Fast path for ordered line scans. Two points at bearings differing by
@@ -103,7 +108,7 @@ class OrderedScanDbscan {
 
  private:
   std::vector<double> x_, z_, f_, theta_, half_window_;
-  std::vector<int> index_, parent_, cluster_of_root_;
+  std::vector<int> g_, index_, parent_, cluster_of_root_;
 };
 
 /// One-shot convenience for OrderedScanDbscan::run.
