@@ -43,6 +43,7 @@ struct SynthParams {
 struct SynthScan {
   LineScan scan;
   std::vector<int> truth;  ///< per pixel: id of the dominant object, 0 wall, -1 nothing
+  std::vector<double> purity;  ///< per pixel: the dominant object's share of the received energy
 };
 
 inline SynthScan synth_scan(const std::vector<Disc>& discs, const SynthParams& p) {
@@ -103,11 +104,14 @@ inline SynthScan synth_scan(const std::vector<Disc>& discs, const SynthParams& p
       out.scan.range_m.push_back(nan);
       out.scan.reflectance.push_back(nan);
       out.truth.push_back(-1);
+      out.purity.push_back(1.0);
       continue;
     }
     out.scan.range_m.push_back(swr / sw);
     out.scan.reflectance.push_back(swref / p.subrays);
-    out.truth.push_back(std::max_element(energy.begin(), energy.end(), [](auto& l, auto& r) { return l.second < r.second; })->first);
+    const auto dominant = std::max_element(energy.begin(), energy.end(), [](auto& l, auto& r) { return l.second < r.second; });
+    out.truth.push_back(dominant->first);
+    out.purity.push_back(dominant->second / sw);
   }
   // Emitter-side drag: the near object's edge pixels facing the emitter read long.
   if (p.drag_m > 0.0) {
