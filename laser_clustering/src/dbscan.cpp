@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
+#include <numeric>
 
 #include <fmt/format.h>
 
@@ -47,19 +49,26 @@ std::size_t mark_valid(const Eigen::Ref<const Eigen::MatrixXd>& points, std::vec
 }
 
 void finish(DbscanResult& r) {
-  r.ok = true;
-  r.num_core = r.num_noise = r.num_invalid = 0;
+  std::size_t core = 0, noise = 0, invalid = 0;
   for (std::size_t i = 0; i < r.labels.size(); ++i) {
-    r.num_core += r.is_core[i];
-    r.num_noise += r.labels[i] == kNoise;
-    r.num_invalid += r.labels[i] == kInvalid;
+    core += r.is_core[i];
+    noise += r.labels[i] == kNoise;
+    invalid += r.labels[i] == kInvalid;
   }
+  finish(r, core, noise, invalid);
+}
+
+void finish(DbscanResult& r, std::size_t core, std::size_t noise, std::size_t invalid) {
+  r.ok = true;
+  r.num_core = core;
+  r.num_noise = noise;
+  r.num_invalid = invalid;
+  // Notes only where there is nothing else to report (formatting costs
+  // more than clustering a scan).
   if (r.labels.empty()) {
     r.reason = "empty input";
-  } else if (r.num_invalid == r.labels.size()) {
-    r.reason = fmt::format("no valid points ({} invalid)", r.num_invalid);
-  } else if (r.num_invalid > 0) {
-    r.reason = fmt::format("{} invalid points ignored", r.num_invalid);
+  } else if (invalid == r.labels.size()) {
+    r.reason = fmt::format("no valid points ({} invalid)", invalid);
   }
 }
 
@@ -76,9 +85,9 @@ DbscanResult label_from_neighbours(const std::vector<std::uint8_t>& valid, const
       r.is_core[i] = 1;
     }
   }
-  std::vector<int> parent;
-  DisjointSets sets;
-  sets.reset(parent, n);
+  std::vector<int> parent(n), size(n, 1);
+  std::iota(parent.begin(), parent.end(), 0);
+  DisjointSets sets(parent, size);
   for (std::size_t i = 0; i < n; ++i) {
     if (!r.is_core[i]) continue;
     for (std::size_t k = lists.offset[i]; k < lists.offset[i + 1]; ++k) {
@@ -139,9 +148,11 @@ DbscanResult dbscan_brute_force(const Eigen::Ref<const Eigen::MatrixXd>& points,
 
 namespace {
 
-bool pixel_valid(const OrderedScanPoints& s, std::size_t i) {
-  const double r = s.range_m[i];
-  if (!std::isfinite(r) || r <= 0.0 || !std::isfinite(s.angle_rad[i])) return false;
+inline bool pixel_valid(const OrderedScanPoints& s, std::size_t i) {
+  constexpr double kMax = std::numeric_limits<double>::max();
+  const double r = s.range_m[i], a = s.angle_rad[i];
+  // Written so that NaN fails every comparison.
+  if (!(r > 0.0 && r <= kMax && a >= -kMax && a <= kMax)) return false;
   if (!s.group.empty() && s.group[i] < 0) return false;
   return s.feature.empty() || std::isfinite(s.feature[i]);
 }
@@ -193,132 +204,216 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
   const std::size_t n_all = scan.range_m.size();
   const bool with_f = !scan.feature.empty();
   const bool with_g = !scan.group.empty();
+  const double eps = params.eps;
+  const double eps2 = eps * eps;
   r.labels.assign(n_all, kInvalid);
   r.is_core.assign(n_all, 0);
 
-  // Compact the valid pixels (same coordinates as to_points()).
-  x_.clear();
-  z_.clear();
-  f_.clear();
-  g_.clear();
-  theta_.clear();
-  index_.clear();
+  // A sensor's pixel angles are the same scan after scan: keep their sines
+  // and cosines (they would cost more than the clustering itself).
+  if (trig_angle_.size() != n_all ||
+      (n_all > 0 && std::memcmp(trig_angle_.data(), scan.angle_rad.data(), n_all * sizeof(double)) != 0)) {
+    trig_angle_.assign(scan.angle_rad.begin(), scan.angle_rad.end());
+    sin_.resize(n_all);
+    cos_.resize(n_all);
+    for (std::size_t i = 0; i < n_all; ++i) {
+      sin_[i] = std::sin(trig_angle_[i]);
+      cos_[i] = std::cos(trig_angle_[i]);
+    }
+  }
+
+  // One pass over the pixels: compact the valid ones (same coordinates as
+  // to_points()), check that their bearings are strictly monotone, and
+  // compute each one's bearing window and each block's depth interval.
+  //
+  // Window: a neighbour j of i satisfies |dtheta| <= asin(eps / r_i) <=
+  // x + (pi/2 - 1) x^3 with x = eps / r_i (the cubic meets asin at 0 and 1
+  // and stays above it between; it spares an asin per pixel), widened by a
+  // hair so rounding never hides a pair at exactly eps.
+  // Blocks: a neighbour also satisfies |r_i - r_j| <= eps, so blocks of
+  // kBlock pixels keep their depth interval and a walk skips a whole block
+  // at another depth (a pedicel's window over the wall behind it) at once.
+  constexpr int kBlock = 8;
+  constexpr double kCubic = std::numbers::pi / 2.0 - 1.0;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double eps_wide = eps * (1.0 + 1e-9);
+  x_.resize(n_all);
+  z_.resize(n_all);
+  f_.resize(with_f ? n_all : 0);
+  g_.resize(with_g ? n_all : 0);
+  theta_.resize(n_all);
+  range_.resize(n_all);
+  half_window_.resize(n_all);
+  index_.resize(n_all);
+  core_.resize(n_all);
+  block_lo_.assign(n_all / kBlock + 1, kInf);
+  block_hi_.assign(n_all / kBlock + 1, -kInf);
+  std::size_t m = 0;
+  double direction = 0.0;  // +1 ascending, -1 descending, 0 unknown yet
   for (std::size_t i = 0; i < n_all; ++i) {
     if (!pixel_valid(scan, i)) continue;
-    x_.push_back(scan.range_m[i] * std::sin(scan.angle_rad[i]));
-    z_.push_back(scan.range_m[i] * std::cos(scan.angle_rad[i]));
-    if (with_f) f_.push_back(scan.feature[i]);
-    if (with_g) g_.push_back(scan.group[i]);
-    theta_.push_back(scan.angle_rad[i]);
-    index_.push_back(static_cast<int>(i));
-  }
-  const auto n = static_cast<int>(index_.size());
-
-  // Strictly monotone bearings; a descending scan is walked mirrored.
-  if (n >= 2) {
-    const bool ascending = theta_[1] > theta_[0];
-    for (int k = 1; k < n; ++k) {
-      const bool ok = ascending ? theta_[k] > theta_[k - 1] : theta_[k] < theta_[k - 1];
-      if (!ok) {
+    const double ri = scan.range_m[i], ti = scan.angle_rad[i];
+    if (m > 0) {
+      if (direction == 0.0) direction = ti > theta_[m - 1] ? 1.0 : -1.0;
+      if (!(direction * (ti - theta_[m - 1]) > 0.0)) {
         r.labels.clear();
         r.is_core.clear();
         r.reason = fmt::format(
-            "pixel angles must be strictly monotone over valid pixels: pixel {} at {} rad after pixel {} at {} rad",
-            index_[k], theta_[k], index_[k - 1], theta_[k - 1]);
+            "pixel angles must be strictly monotone over valid pixels: pixel {} at {} rad after pixel {} at {} rad", i,
+            ti, index_[m - 1], theta_[m - 1]);
         return r;
       }
     }
-    if (!ascending) {
-      for (double& t : theta_) t = -t;
-    }
+    x_[m] = ri * sin_[i];
+    z_[m] = ri * cos_[i];
+    if (with_f) f_[m] = scan.feature[i];
+    if (with_g) g_[m] = scan.group[i];
+    theta_[m] = ti;
+    range_[m] = ri;
+    const double x = eps / ri;
+    half_window_[m] = x >= 1.0 ? std::numbers::pi * 2.0 : (x + kCubic * x * x * x) * (1.0 + 1e-9) + 1e-12;
+    const std::size_t b = m / kBlock;
+    block_lo_[b] = std::min(block_lo_[b], ri - eps_wide);
+    block_hi_[b] = std::max(block_hi_[b], ri + eps_wide);
+    index_[m] = static_cast<int>(i);
+    ++m;
+  }
+  const int n = static_cast<int>(m);
+  if (direction < 0.0) {  // walk a descending scan mirrored
+    for (int k = 0; k < n; ++k) theta_[static_cast<std::size_t>(k)] = -theta_[static_cast<std::size_t>(k)];
   }
 
-  const double eps = params.eps;
-  const double eps2 = eps * eps;
   // Squared distance; pixels of different groups are infinitely far apart.
   auto d2 = [&](int i, int j) {
-    if (with_g && g_[i] != g_[j]) return std::numeric_limits<double>::infinity();
-    double t = x_[i] - x_[j];
+    const auto u = static_cast<std::size_t>(i), v = static_cast<std::size_t>(j);
+    if (with_g && g_[u] != g_[v]) return kInf;
+    double t = x_[u] - x_[v];
     double s = t * t;
-    t = z_[i] - z_[j];
+    t = z_[u] - z_[v];
     s += t * t;
     if (with_f) {
-      t = f_[i] - f_[j];
+      t = f_[u] - f_[v];
       s += t * t;
     }
     return s;
   };
-  // A neighbour j of i satisfies |dtheta| <= asin(eps / r_i); widened by a
-  // hair so rounding never hides a pair at exactly eps.
-  half_window_.resize(static_cast<std::size_t>(n));
-  for (int i = 0; i < n; ++i) {
-    const double ratio = eps / scan.range_m[static_cast<std::size_t>(index_[i])];
-    half_window_[i] = ratio >= 1.0 ? std::numbers::pi * 2.0 : std::asin(ratio) * (1.0 + 1e-9) + 1e-12;
-  }
+  // Calls visit(j) for j = from, from+1, ... within i's bearing window,
+  // skipping blocks at other depths, until visit returns false. Returns
+  // false if visit stopped it.
+  auto walk_right = [&](int i, int from, auto&& visit) {
+    const auto u = static_cast<std::size_t>(i);
+    const double limit = theta_[u] + half_window_[u], ri = range_[u];
+    for (int j = from; j < n;) {
+      const auto b = static_cast<std::size_t>(j) / kBlock;
+      const int end = std::min(n, static_cast<int>(b + 1) * kBlock);
+      if (ri < block_lo_[b] || ri > block_hi_[b]) {
+        if (theta_[static_cast<std::size_t>(j)] > limit) return true;
+        j = end;
+        continue;
+      }
+      for (; j < end; ++j) {
+        if (theta_[static_cast<std::size_t>(j)] > limit) return true;
+        if (!visit(j)) return false;
+      }
+    }
+    return true;
+  };
+  auto walk_left = [&](int i, int from, auto&& visit) {
+    const auto u = static_cast<std::size_t>(i);
+    const double limit = theta_[u] - half_window_[u], ri = range_[u];
+    for (int j = from; j >= 0;) {
+      const auto b = static_cast<std::size_t>(j) / kBlock;
+      const int end = static_cast<int>(b * kBlock) - 1;
+      if (ri < block_lo_[b] || ri > block_hi_[b]) {
+        if (theta_[static_cast<std::size_t>(j)] < limit) return true;
+        j = end;
+        continue;
+      }
+      for (; j > end; --j) {
+        if (theta_[static_cast<std::size_t>(j)] < limit) return true;
+        if (!visit(j)) return false;
+      }
+    }
+    return true;
+  };
 
-  // Core flags: count outwards from each pixel, stop once min_points is reached.
+  // Core flags: count the neighbours on the right, then the left, stopping
+  // as soon as min_points is reached.
+  std::size_t num_core = 0;
   for (int i = 0; i < n; ++i) {
     int count = 1;
-    const double h = half_window_[i];
-    bool left = true, right = true;
-    for (int k = 1; count < params.min_points && (left || right); ++k) {
-      if (left) {
-        const int j = i - k;
-        if (j < 0 || theta_[i] - theta_[j] > h) {
-          left = false;
-        } else if (d2(i, j) <= eps2) {
-          ++count;
-        }
-      }
-      if (right && count < params.min_points) {
-        const int j = i + k;
-        if (j >= n || theta_[j] - theta_[i] > h) {
-          right = false;
-        } else if (d2(i, j) <= eps2) {
-          ++count;
-        }
-      }
-    }
-    r.is_core[static_cast<std::size_t>(index_[i])] = count >= params.min_points ? 1 : 0;
+    auto counter = [&](int j) {
+      count += d2(i, j) <= eps2;
+      return count < params.min_points;
+    };
+    if (count < params.min_points && walk_right(i, i + 1, counter)) walk_left(i, i - 1, counter);
+    const std::uint8_t c = count >= params.min_points ? 1 : 0;
+    core_[static_cast<std::size_t>(i)] = c;
+    r.is_core[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
+    num_core += c;
   }
-  auto core = [&](int i) { return r.is_core[static_cast<std::size_t>(index_[i])] != 0; };
+  auto core = [&](int i) { return core_[static_cast<std::size_t>(i)] != 0; };
 
-  // Core-core edges, right to left: when i is processed, everything right of
-  // it is already joined, so most pairs are skipped without a distance.
-  detail::DisjointSets sets;
-  sets.reset(parent_, static_cast<std::size_t>(n));
-  for (int i = n - 1; i >= 0; --i) {
+  // Core-core edges. Consecutive core pixels within eps form runs (a surface
+  // is one run), joined up front under their last pixel. Then each core
+  // pixel looks beyond its run for core pixels within eps; once it meets
+  // one, that pixel's whole run is joined and jumped over. On a surface
+  // this is O(1) per pixel instead of a window's worth.
+  run_end_.resize(static_cast<std::size_t>(n));
+  parent_.resize(static_cast<std::size_t>(n));
+  size_.resize(static_cast<std::size_t>(n));
+  for (int k = n - 1; k >= 0; --k) {
+    const auto u = static_cast<std::size_t>(k);
+    const bool linked = core(k) && k + 1 < n && core(k + 1) && d2(k, k + 1) <= eps2;
+    run_end_[u] = linked ? run_end_[u + 1] : k;
+    parent_[u] = run_end_[u];
+    size_[u] = 1;
+    if (linked) ++size_[static_cast<std::size_t>(run_end_[u])];
+  }
+  detail::DisjointSets sets(parent_, size_);
+  for (int i = 0; i < n; ++i) {
     if (!core(i)) continue;
-    const double h = half_window_[i];
-    for (int j = i + 1; j < n && theta_[j] - theta_[i] <= h; ++j) {
-      if (core(j) && sets.find(i) != sets.find(j) && d2(i, j) <= eps2) sets.unite(i, j);
+    int skip_to = run_end_[static_cast<std::size_t>(i)] + 1;
+    while (skip_to < n) {
+      const int from = skip_to;
+      skip_to = -1;
+      walk_right(i, from, [&](int j) {
+        if (!core(j) || d2(i, j) > eps2) return true;
+        sets.unite(i, j);
+        skip_to = run_end_[static_cast<std::size_t>(j)] + 1;
+        return false;
+      });
+      if (skip_to < 0) break;
     }
   }
+  // Clusters in the order of their lowest-indexed core point.
   cluster_of_root_.assign(static_cast<std::size_t>(n), -1);
   int clusters = 0;
   for (int i = 0; i < n; ++i) {
     if (!core(i)) continue;
     int& c = cluster_of_root_[static_cast<std::size_t>(sets.find(i))];
     if (c < 0) c = clusters++;
-    r.labels[static_cast<std::size_t>(index_[i])] = c;
+    r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
   }
   // Border points: the lowest-numbered cluster among core points within eps.
+  std::size_t num_noise = 0;
   for (int i = 0; i < n; ++i) {
     if (core(i)) continue;
     int best = kNoise;
-    const double h = half_window_[i];
-    for (int j = i - 1; j >= 0 && theta_[i] - theta_[j] <= h; --j) {
-      const int lj = r.labels[static_cast<std::size_t>(index_[j])];
-      if (core(j) && (best == kNoise || lj < best) && d2(i, j) <= eps2) best = lj;
-    }
-    for (int j = i + 1; j < n && theta_[j] - theta_[i] <= h; ++j) {
-      const int lj = r.labels[static_cast<std::size_t>(index_[j])];
-      if (core(j) && (best == kNoise || lj < best) && d2(i, j) <= eps2) best = lj;
-    }
-    r.labels[static_cast<std::size_t>(index_[i])] = best;
+    auto consider = [&](int j) {
+      if (core(j)) {
+        const int lj = r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(j)])];
+        if ((best == kNoise || lj < best) && d2(i, j) <= eps2) best = lj;
+      }
+      return true;
+    };
+    walk_left(i, i - 1, consider);
+    walk_right(i, i + 1, consider);
+    r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = best;
+    num_noise += best == kNoise;
   }
   r.num_clusters = clusters;
-  detail::finish(r);
+  detail::finish(r, num_core, num_noise, n_all - m);
   return r;
 }
 

@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <numeric>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -13,21 +14,17 @@
 
 namespace tinyline::laser_clustering::detail {
 
-/// Union-find with path halving and union by index (the smaller root wins, so
-/// a root is its component's lowest index; not needed for correctness, but it
-/// keeps trees shallow for scans processed right to left).
+/// Union-find with path halving and union by size, on storage the caller
+/// keeps and initialises (parent[i] a root or a member of i's set, size[r]
+/// the set size at each root), so a reused OrderedScanDbscan allocates
+/// nothing per scan.
 class DisjointSets {
  public:
-  void reset(std::vector<int>& storage, std::size_t n) {
-    p_ = &storage;
-    storage.resize(n);
-    std::iota(storage.begin(), storage.end(), 0);
-  }
+  DisjointSets(std::vector<int>& parent, std::vector<int>& size) : p_(parent), s_(size) {}
   int find(int i) {
-    auto& p = *p_;
-    while (p[i] != i) {
-      p[i] = p[p[i]];
-      i = p[i];
+    while (p_[i] != i) {
+      p_[i] = p_[p_[i]];
+      i = p_[i];
     }
     return i;
   }
@@ -36,16 +33,15 @@ class DisjointSets {
     a = find(a);
     b = find(b);
     if (a == b) return false;
-    if (a < b) {
-      (*p_)[b] = a;
-    } else {
-      (*p_)[a] = b;
-    }
+    if (s_[a] < s_[b]) std::swap(a, b);
+    p_[b] = a;
+    s_[a] += s_[b];
     return true;
   }
 
  private:
-  std::vector<int>* p_ = nullptr;
+  std::vector<int>& p_;
+  std::vector<int>& s_;
 };
 
 /// Squared distance between columns i and j, summed over rows in order (the
@@ -79,7 +75,8 @@ struct NeighbourLists {
 DbscanResult label_from_neighbours(const std::vector<std::uint8_t>& valid, const NeighbourLists& lists,
                                    int min_points);
 
-/// Fills the counters and the note of a finished result.
+/// Fills the counters (counted here, or given) and the note of a finished result.
 void finish(DbscanResult& r);
+void finish(DbscanResult& r, std::size_t num_core, std::size_t num_noise, std::size_t num_invalid);
 
 }  // namespace tinyline::laser_clustering::detail

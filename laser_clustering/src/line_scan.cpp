@@ -8,10 +8,6 @@
 
 namespace tinyline::laser_clustering {
 
-bool LineScan::valid(std::size_t i) const {
-  return i < range_m.size() && std::isfinite(range_m[i]) && range_m[i] > 0.0;
-}
-
 std::size_t LineScan::num_valid() const {
   std::size_t n = 0;
   for (std::size_t i = 0; i < range_m.size(); ++i) n += valid(i);
@@ -33,16 +29,23 @@ std::string check_scan(const LineScan& s) {
   if (!s.reflectance.empty() && s.reflectance.size() != s.range_m.size()) {
     return fmt::format("scan has {} ranges but {} reflectance values", s.range_m.size(), s.reflectance.size());
   }
-  for (std::size_t i = 0; i < s.angle_rad.size(); ++i) {
-    if (!std::isfinite(s.angle_rad[i])) return fmt::format("pixel {} has a non-finite angle ({})", i, s.angle_rad[i]);
+  // One pass; the error path re-reads to name the culprit.
+  const std::size_t n = s.angle_rad.size();
+  const double* a = s.angle_rad.data();
+  const double dir = n >= 2 && a[1] < a[0] ? -1.0 : 1.0;
+  bool ok = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    ok &= std::isfinite(a[i]);
+    if (i > 0) ok &= dir * (a[i] - a[i - 1]) > 0.0;
   }
-  if (s.angle_rad.size() >= 2) {
-    const bool up = s.angle_rad[1] > s.angle_rad[0];
-    for (std::size_t i = 1; i < s.angle_rad.size(); ++i) {
-      if (up ? !(s.angle_rad[i] > s.angle_rad[i - 1]) : !(s.angle_rad[i] < s.angle_rad[i - 1])) {
-        return fmt::format("pixel angles must be strictly monotone: pixel {} at {} rad after pixel {} at {} rad", i,
-                           s.angle_rad[i], i - 1, s.angle_rad[i - 1]);
-      }
+  if (ok) return {};
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(a[i])) return fmt::format("pixel {} has a non-finite angle ({})", i, a[i]);
+  }
+  for (std::size_t i = 1; i < n; ++i) {
+    if (!(dir * (a[i] - a[i - 1]) > 0.0)) {
+      return fmt::format("pixel angles must be strictly monotone: pixel {} at {} rad after pixel {} at {} rad", i, a[i],
+                         i - 1, a[i - 1]);
     }
   }
   return {};

@@ -132,9 +132,9 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
   const bool between_blades = std::abs(d.lateral_offset_m) <= p.scissors.opening_m / 2 - p.blade_margin_m &&
                               std::abs(d.depth_offset_m) <= p.depth_tolerance_m;
   d.outcome = between_blades ? PedicelOutcome::kCutHere : PedicelOutcome::kMove;
-  d.reason = fmt::format("pedicel {:.1f} mm wide at x {:+.1f} mm, z {:.1f} mm; {} candidate{}", best.width_m * 1e3,
-                         best.position_xz_m.x() * 1e3, best.position_xz_m.y() * 1e3, d.candidates.size(),
-                         d.candidates.size() == 1 ? "" : "s");
+  // A fixed note: the numbers are in the fields, and formatting them would
+  // cost more than finding the pedicel.
+  d.reason = between_blades ? "pedicel between the blades" : "pedicel in view: move to it";
   return d;
 }
 

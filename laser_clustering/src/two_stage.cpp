@@ -1,8 +1,10 @@
 #include "laser_clustering/two_stage.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -12,6 +14,8 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // An object within this many pixels of the scan's ends may be cut by the field of view.
 constexpr int kFovEdgePx = 1;
+// Bound on EdgeFilterParams::reference_px (the median works on the stack).
+constexpr int kMaxReferencePx = 16;
 }
 
 Validation validate(const TwoStageParams& p) {
@@ -19,7 +23,9 @@ Validation validate(const TwoStageParams& p) {
   if (auto v = validate(p.objects); !v.valid) return {false, "objects: " + v.reason};
   const auto& e = p.edge;
   if (e.edge_width_px < 0) return {false, fmt::format("edge.edge_width_px must be >= 0 (got {})", e.edge_width_px)};
-  if (e.reference_px < 1) return {false, fmt::format("edge.reference_px must be >= 1 (got {})", e.reference_px)};
+  if (e.reference_px < 1 || e.reference_px > kMaxReferencePx) {
+    return {false, fmt::format("edge.reference_px must be in [1, {}] (got {})", kMaxReferencePx, e.reference_px)};
+  }
   if (!std::isfinite(e.step_m) || e.step_m < 0.0) {
     return {false, fmt::format("edge.step_m must be finite and >= 0 (got {})", e.step_m)};
   }
@@ -52,13 +58,12 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   auto step = [&](double r) { return e.step_m + e.step_per_m * r; };
 
   // Stage 1: object groups.
-  const DbscanResult groups = dbscan_.run({scan.angle_rad, scan.range_m, {}, {}}, params_.groups);
+  DbscanResult groups = dbscan_.run({scan.angle_rad, scan.range_m, {}, {}}, params_.groups);
   if (!groups.ok) {
     out.reason = "stage 1: " + groups.reason;
     return out;
   }
   out.ok = true;
-  out.group_labels = groups.labels;
   out.num_groups = groups.num_clusters;
   out.fate.assign(n, PixelFate::kInvalid);
   out.smoothed_range_m.assign(n, kNaN);
@@ -72,24 +77,27 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   auto process_run = [&]() {
     const int m = static_cast<int>(run_.size());
     if (m == 0) return;
-    auto r = [&](int k) { return scan.range_m[static_cast<std::size_t>(run_[static_cast<std::size_t>(k)])]; };
-    auto median_of = [&](int from, int to) {  // inclusive run positions
-      ref_.clear();
-      for (int k = from; k <= to; ++k) ref_.push_back(r(k));
-      auto mid = ref_.begin() + static_cast<std::ptrdiff_t>(ref_.size() / 2);
-      std::nth_element(ref_.begin(), mid, ref_.end());
-      return *mid;
+    // The run's ranges, contiguous.
+    range_.resize(run_.size());
+    for (std::size_t k = 0; k < run_.size(); ++k) range_[k] = scan.range_m[static_cast<std::size_t>(run_[k])];
+    const double* r = range_.data();
+    auto median_of = [&](int from, int to) {  // inclusive run positions, at most kMaxReferencePx values
+      std::array<double, kMaxReferencePx> v;
+      const int cnt = to - from + 1;
+      std::copy(r + from, r + to + 1, v.begin());
+      std::nth_element(v.begin(), v.begin() + cnt / 2, v.begin() + cnt);
+      return v[static_cast<std::size_t>(cnt / 2)];
     };
     int lo = 0, hi = m - 1;
     for (int k = 0; k < e.edge_width_px && hi - lo + 1 > e.min_keep_px; ++k) {
       const double ref = median_of(lo + 1, std::min(hi, lo + e.reference_px));
-      if (std::abs(r(lo) - ref) <= step(ref)) break;
+      if (std::abs(r[lo] - ref) <= step(ref)) break;
       out.fate[static_cast<std::size_t>(run_[static_cast<std::size_t>(lo)])] = PixelFate::kEdgeDropped;
       ++lo;
     }
     for (int k = 0; k < e.edge_width_px && hi - lo + 1 > e.min_keep_px; ++k) {
       const double ref = median_of(std::max(lo, hi - e.reference_px), hi - 1);
-      if (std::abs(r(hi) - ref) <= step(ref)) break;
+      if (std::abs(r[hi] - ref) <= step(ref)) break;
       out.fate[static_cast<std::size_t>(run_[static_cast<std::size_t>(hi)])] = PixelFate::kEdgeDropped;
       --hi;
     }
@@ -97,14 +105,14 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     // Smooth the kept points without averaging across a depth step.
     const int h = e.smooth_half_width_px;
     for (int k = lo; k <= hi; ++k) {
-      const double c = r(k), limit = step(c);
+      const double c = r[k], limit = step(c);
       double sum = 0.0;
       int cnt = 0;
-      for (int j = std::max(lo, k - h); j <= std::min(hi, k + h); ++j) {
-        if (std::abs(r(j) - c) <= limit) {
-          sum += r(j);
-          ++cnt;
-        }
+      const int j_end = std::min(hi, k + h);
+      for (int j = std::max(lo, k - h); j <= j_end; ++j) {
+        const bool near = std::abs(r[j] - c) <= limit;
+        sum += near ? r[j] : 0.0;
+        cnt += near;
       }
       out.smoothed_range_m[static_cast<std::size_t>(run_[static_cast<std::size_t>(k)])] = sum / cnt;
     }
@@ -128,19 +136,22 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   for (std::size_t i = 0; i < n; ++i) {
     if (out.fate[i] == PixelFate::kKept) group_[i] = groups.labels[i];
   }
-  const DbscanResult objects = dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects);
+  DbscanResult objects = dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects);
   if (!objects.ok) {
     out.ok = false;
     out.reason = "stage 3: " + objects.reason;
     return out;
   }
-  out.labels = objects.labels;
+  out.labels = std::move(objects.labels);
   // Dropped and ungrouped pixels are noise to the caller, not invalid.
   for (std::size_t i = 0; i < n; ++i) {
     if (out.labels[i] == kInvalid && out.fate[i] != PixelFate::kInvalid) out.labels[i] = kNoise;
   }
 
-  // Per-object summaries.
+  // Per-object summaries (the sines and cosines of the angles are the
+  // clusterer's cached ones).
+  const auto& sin_a = dbscan_.sin_angle();
+  const auto& cos_a = dbscan_.cos_angle();
   out.clusters.assign(static_cast<std::size_t>(objects.num_clusters), ScanCluster{});
   std::vector<double> sum_r2(out.clusters.size(), 0.0), sum_refl(out.clusters.size(), 0.0);
   std::vector<int> n_refl(out.clusters.size(), 0);
@@ -158,7 +169,7 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     }
     c.last_pixel = static_cast<int>(i);
     ++c.num_points;
-    c.centroid_xz_m += Eigen::Vector2d(rr * std::sin(scan.angle_rad[i]), rr * std::cos(scan.angle_rad[i]));
+    c.centroid_xz_m += Eigen::Vector2d(rr * sin_a[i], rr * cos_a[i]);
     c.mean_range_m += rr;
     sum_r2[static_cast<std::size_t>(l)] += rr * rr;
     if (!scan.reflectance.empty() && std::isfinite(scan.reflectance[i])) {
@@ -196,6 +207,7 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     c.occluded_low = in_front(f, -1);
     c.occluded_high = in_front(b, +1);
   }
+  out.group_labels = std::move(groups.labels);
   if (n == 0) {
     out.reason = "empty scan";
   } else if (!any_valid) {

@@ -51,7 +51,8 @@ struct DbscanResult {
   /// False when the parameters or the input were rejected; `reason` says why
   /// and the per-point vectors are empty.
   bool ok = false;
-  /// Why !ok, or a note on an ok result ("empty input", "3 invalid points").
+  /// Why !ok, or a note on an ok result without valid points ("empty input",
+  /// "no valid points (5 invalid)"); empty otherwise (see num_invalid).
   std::string reason;
   /// Per input point: a cluster id in [0, num_clusters), kNoise or kInvalid.
   std::vector<int> labels;
@@ -105,10 +106,17 @@ struct OrderedScanPoints {
 class OrderedScanDbscan {
  public:
   [[nodiscard]] DbscanResult run(const OrderedScanPoints& scan, const DbscanParams& params);
+  /// sin and cos of the angles of the last scan run (cached: a sensor's
+  /// pixel angles are the same scan after scan); callers that need the
+  /// points' coordinates reuse them.
+  [[nodiscard]] const std::vector<double>& sin_angle() const { return sin_; }
+  [[nodiscard]] const std::vector<double>& cos_angle() const { return cos_; }
 
  private:
-  std::vector<double> x_, z_, f_, theta_, half_window_;
-  std::vector<int> g_, index_, parent_, cluster_of_root_;
+  std::vector<double> trig_angle_, sin_, cos_;  // cached per sensor geometry
+  std::vector<double> x_, z_, f_, theta_, range_, half_window_, block_lo_, block_hi_;
+  std::vector<int> g_, index_, run_end_, parent_, size_, cluster_of_root_;
+  std::vector<std::uint8_t> core_;
 };
 
 /// One-shot convenience for OrderedScanDbscan::run.

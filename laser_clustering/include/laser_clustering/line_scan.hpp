@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -21,7 +22,10 @@ struct LineScan {
   std::vector<double> reflectance;
 
   [[nodiscard]] std::size_t size() const { return range_m.size(); }
-  [[nodiscard]] bool valid(std::size_t i) const;
+  [[nodiscard]] bool valid(std::size_t i) const {
+    // Written so that NaN fails every comparison.
+    return i < range_m.size() && range_m[i] > 0.0 && range_m[i] <= std::numeric_limits<double>::max();
+  }
   [[nodiscard]] std::size_t num_valid() const;
   /// Median spacing of adjacent pixel bearings [rad] (the footprint of one
   /// pixel is this times the range); NaN with fewer than two angles.

@@ -26,7 +26,7 @@ namespace tinyline::laser_clustering {
 struct EdgeFilterParams {
   /// How many pixels at each end of a run may be peeled off as dragged.
   int edge_width_px = 4;
-  /// Inner points the candidate is compared with (their median).
+  /// Inner points the candidate is compared with (their median); 1 to 16.
   int reference_px = 3;
   /// A candidate is dragged when it differs from that median by more than
   /// step_m + step_per_m * range (the range noise grows with range, Table 3.1).
@@ -105,7 +105,7 @@ class LineScanClusterer {
   TwoStageParams params_;
   Validation valid_;
   OrderedScanDbscan dbscan_;
-  std::vector<double> range_, smooth_, ref_;
+  std::vector<double> range_;
   std::vector<int> run_, group_;
 };
 
