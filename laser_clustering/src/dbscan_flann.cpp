@@ -9,11 +9,33 @@
 #include <flann/algorithms/kdtree_single_index.h>
 #include <flann/util/matrix.h>
 #include <flann/util/params.h>
+#include <flann/util/result_set.h>
 
 #include "dbscan_internal.hpp"
 #include "laser_clustering/dbscan.hpp"
 
 namespace tinyline::laser_clustering {
+
+namespace {
+
+/// A FLANN result set that appends every point within eps (exactly) to a
+/// neighbour list, with no per-query allocation.
+class CsrResultSet : public flann::ResultSet<double> {
+ public:
+  CsrResultSet(std::vector<int>& out, double eps2, double search_radius2)
+      : out_(out), eps2_(eps2), search_radius2_(search_radius2) {}
+  bool full() const override { return true; }
+  void addPoint(double dist, size_t index) override {
+    if (dist <= eps2_) out_.push_back(static_cast<int>(index));
+  }
+  double worstDist() const override { return search_radius2_; }
+
+ private:
+  std::vector<int>& out_;
+  double eps2_, search_radius2_;
+};
+
+}  // namespace
 
 DbscanResult dbscan(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params) {
   DbscanResult bad;
@@ -42,32 +64,24 @@ DbscanResult dbscan(const Eigen::Ref<const Eigen::MatrixXd>& points, const Dbsca
   flann::KDTreeSingleIndex<flann::L2_Simple<double>> index(dataset, flann::KDTreeSingleIndexParams(10, false));
   index.buildIndex();
 
-  // FLANN takes the radius as a float and keeps dist < radius: search a
-  // slightly larger ball, then decide membership with our exact rule.
+  // Neighbours go straight into the compressed rows. FLANN keeps a point
+  // when its distance is < worstDist() and prunes boxes against it; boxes'
+  // distances are accumulated incrementally and may round up, so worstDist()
+  // is a little more than eps^2, and membership is decided here exactly:
+  // FLANN's L2_Simple sums squared differences in coordinate order, the
+  // very number our rule compares (|p - q|^2 <= eps^2).
   const double eps2 = params.eps * params.eps;
-  const auto search_radius = static_cast<float>(eps2 * (1.0 + 1e-5) + 1e-300);
-  flann::SearchParams search;
-  search.eps = 0.0f;
-  search.sorted = false;
-  search.max_neighbors = -1;
-
-  std::vector<std::vector<std::size_t>> found;
-  std::vector<std::vector<double>> dists;
+  CsrResultSet result(lists.nbr, eps2, eps2 * (1.0 + 1e-9) + 1e-300);
+  const flann::SearchParams search(flann::FLANN_CHECKS_UNLIMITED, 0.0f, false);
   std::size_t next_row = 0;  // rows are written in index order; invalid points get empty rows
-  constexpr std::size_t kBatch = 4096;  // bounds the memory of the candidate lists
-  for (std::size_t first = 0; first < n_valid; first += kBatch) {
-    const std::size_t count = std::min(kBatch, n_valid - first);
-    const flann::Matrix<double> queries(data.data() + first * dim, count, dim);
-    index.radiusSearch(queries, found, dists, search_radius, search);
-    for (std::size_t q = 0; q < count; ++q) {
-      const auto i = static_cast<std::size_t>(original[first + q]);
-      for (; next_row <= i; ++next_row) lists.offset[next_row] = lists.nbr.size();
-      for (const std::size_t c : found[q]) {
-        const auto j = static_cast<Eigen::Index>(original[c]);
-        if (detail::squared_distance(points, static_cast<Eigen::Index>(i), j) <= eps2) {
-          lists.nbr.push_back(static_cast<int>(j));
-        }
-      }
+  for (std::size_t q = 0; q < n_valid; ++q) {
+    const auto i = static_cast<std::size_t>(original[q]);
+    for (; next_row <= i; ++next_row) lists.offset[next_row] = lists.nbr.size();
+    const std::size_t row_begin = lists.nbr.size();
+    index.findNeighbors(result, data.data() + q * dim, search);
+    // FLANN reports positions among the valid points: map back to input indices.
+    for (std::size_t k = row_begin; k < lists.nbr.size(); ++k) {
+      lists.nbr[k] = original[static_cast<std::size_t>(lists.nbr[k])];
     }
   }
   for (; next_row <= n; ++next_row) lists.offset[next_row] = lists.nbr.size();
