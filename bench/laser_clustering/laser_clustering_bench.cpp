@@ -1,0 +1,178 @@
+// laser_clustering benchmarks. Per 256-pixel scan: the whole two-stage
+// clustering + pedicel finding (the fast path), against the same two DBSCAN
+// passes on the same points through the FLANN path and the brute-force
+// O(n^2) algorithm. General DBSCAN on 3-D clouds up to 100,000 points.
+// scikit-learn's side of the comparison runs in side_by_side.py, on points
+// this binary dumps with --dump_points=FILE.
+//
+// Run: build/bench/laser_clustering/laser_clustering_bench
+//      .venv/bin/python bench/laser_clustering/side_by_side.py build
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+#include <fmt/format.h>
+
+#include "bench_scenes.hpp"
+#include "laser_clustering/dbscan.hpp"
+#include "laser_clustering/pedicel_finder.hpp"
+#include "laser_clustering/two_stage.hpp"
+
+namespace lc = tinyline::laser_clustering;
+
+namespace {
+
+constexpr int kScans = 64;
+
+const std::vector<lc::LineScan>& scans() {
+  static const auto s = lc::bench::pedicel_scans(kScans);
+  return s;
+}
+
+const std::vector<Eigen::MatrixXd>& scan_points() {
+  static const auto p = [] {
+    std::vector<Eigen::MatrixXd> v;
+    for (const auto& s : scans()) v.push_back(lc::to_points({s.angle_rad, s.range_m, {}, {}}));
+    return v;
+  }();
+  return p;
+}
+
+void BM_TwoStagePlusPedicel(benchmark::State& state) {
+  lc::LineScanClusterer clusterer;
+  const lc::PedicelFinderParams finder;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto& s = scans()[k++ % kScans];
+    const auto objects = clusterer.run(s);
+    const auto pedicel = lc::find_pedicel(s, objects, finder);
+    benchmark::DoNotOptimize(pedicel.lateral_offset_m);
+  }
+}
+BENCHMARK(BM_TwoStagePlusPedicel);
+
+void BM_TwoStageOnly(benchmark::State& state) {
+  lc::LineScanClusterer clusterer;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto objects = clusterer.run(scans()[k++ % kScans]);
+    benchmark::DoNotOptimize(objects.clusters.data());
+  }
+}
+BENCHMARK(BM_TwoStageOnly);
+
+// One ordered-scan DBSCAN pass with the stage-1 parameters.
+void BM_OrderedScanDbscanStage1(benchmark::State& state) {
+  lc::OrderedScanDbscan d;
+  const lc::TwoStageParams p;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto& s = scans()[k++ % kScans];
+    const auto r = d.run({s.angle_rad, s.range_m, {}, {}}, p.groups);
+    benchmark::DoNotOptimize(r.labels.data());
+  }
+}
+BENCHMARK(BM_OrderedScanDbscanStage1);
+
+// The two DBSCAN passes (stage-1 and stage-3 parameters on the scan's
+// points), through the general searches: what the pipeline would cost
+// without the ordered-scan fast path.
+void BM_FlannDbscanTwoPasses(benchmark::State& state) {
+  const lc::TwoStageParams p;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto& pts = scan_points()[k++ % kScans];
+    const auto a = lc::dbscan(pts, p.groups);
+    const auto b = lc::dbscan(pts, p.objects);
+    benchmark::DoNotOptimize(a.labels.data());
+    benchmark::DoNotOptimize(b.labels.data());
+  }
+}
+BENCHMARK(BM_FlannDbscanTwoPasses);
+
+void BM_BruteForceDbscanTwoPasses(benchmark::State& state) {
+  const lc::TwoStageParams p;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto& pts = scan_points()[k++ % kScans];
+    const auto a = lc::dbscan_brute_force(pts, p.groups);
+    const auto b = lc::dbscan_brute_force(pts, p.objects);
+    benchmark::DoNotOptimize(a.labels.data());
+    benchmark::DoNotOptimize(b.labels.data());
+  }
+}
+BENCHMARK(BM_BruteForceDbscanTwoPasses);
+
+// General DBSCAN on 3-D surface clouds: eps 1 cm, min 5 (about 16 neighbours per point).
+constexpr double kCloudEps = 0.01;
+constexpr int kCloudMin = 5;
+
+const Eigen::MatrixXd& cloud(int n) {
+  static std::vector<std::pair<int, Eigen::MatrixXd>> cache;
+  for (const auto& [k, c] : cache)
+    if (k == n) return c;
+  cache.emplace_back(n, lc::bench::surface_cloud(n));
+  return cache.back().second;
+}
+
+void BM_FlannDbscan3D(benchmark::State& state) {
+  const auto& c = cloud(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    const auto r = lc::dbscan(c, {kCloudEps, kCloudMin});
+    benchmark::DoNotOptimize(r.labels.data());
+  }
+  state.SetComplexityN(state.range(0));
+}
+BENCHMARK(BM_FlannDbscan3D)->Arg(1000)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond)->Complexity();
+
+void BM_BruteForceDbscan3D(benchmark::State& state) {
+  const auto& c = cloud(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    const auto r = lc::dbscan_brute_force(c, {kCloudEps, kCloudMin});
+    benchmark::DoNotOptimize(r.labels.data());
+  }
+  state.SetComplexityN(state.range(0));
+}
+BENCHMARK(BM_BruteForceDbscan3D)->Arg(1000)->Arg(10000)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+// Writes the benchmark's inputs for side_by_side.py: every scan's points and
+// the 100k cloud, in hex floats (exact), with the parameters used.
+void dump_points(const std::string& path) {
+  std::ofstream f(path);
+  const lc::TwoStageParams p;
+  f << fmt::format("params {:a} {} {:a} {} {:a} {}\n", p.groups.eps, p.groups.min_points, p.objects.eps,
+                   p.objects.min_points, kCloudEps, kCloudMin);
+  for (const auto& pts : scan_points()) {
+    int valid = 0;
+    for (Eigen::Index i = 0; i < pts.cols(); ++i) valid += pts.col(i).allFinite();
+    f << "scan " << valid << "\n";
+    for (Eigen::Index i = 0; i < pts.cols(); ++i) {
+      if (pts.col(i).allFinite()) f << fmt::format("{:a} {:a}\n", pts(0, i), pts(1, i));
+    }
+  }
+  const auto& c = cloud(100000);
+  f << "cloud " << c.cols() << "\n";
+  for (Eigen::Index i = 0; i < c.cols(); ++i) f << fmt::format("{:a} {:a} {:a}\n", c(0, i), c(1, i), c(2, i));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<char*> args;
+  for (int i = 0; i < argc; ++i) {
+    if (std::strncmp(argv[i], "--dump_points=", 14) == 0) {
+      dump_points(argv[i] + 14);
+      return 0;
+    }
+    args.push_back(argv[i]);
+  }
+  int n = static_cast<int>(args.size());
+  benchmark::Initialize(&n, args.data());
+  if (benchmark::ReportUnrecognizedArguments(n, args.data())) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,65 @@
+// Alignment search (thesis 5.3.2): the robot pitches the gripper in small
+// steps and records the target surface's reflectance at each; the pitch of
+// maximum reflectance is where the sensor faces the wrench squarely. The
+// maximum sample is refined between the steps by a least-squares parabola
+// through it and its neighbours, on log reflectance by default (a Gaussian
+// specular lobe is exactly a parabola in log).
+#pragma once
+
+#include <span>
+#include <string>
+
+#include "laser_clustering/line_scan.hpp"
+#include "laser_clustering/reflectance_clustering.hpp"
+
+namespace tinyline::laser_clustering {
+
+struct AlignmentSample {
+  double pitch_rad = 0.0;    ///< gripper pitch when the scan was taken
+  double reflectance = 0.0;  ///< the target surface's reflectance in that scan (> 0)
+};
+
+struct AlignmentParams {
+  /// Samples on each side of the maximum that the parabola fits (>= 1).
+  int fit_half_width = 1;
+  /// Fit log reflectance (true) or reflectance itself.
+  bool fit_log = true;
+  /// The maximum must exceed the sweep's median by this factor to be a peak (>= 1).
+  double min_peak_ratio = 1.3;
+};
+
+[[nodiscard]] Validation validate(const AlignmentParams& params);
+
+enum class AlignmentOutcome {
+  kFound,         ///< an interior peak; best_pitch_rad is refined between the steps
+  kAtSweepEdge,   ///< the maximum is the first or last pitch: extend the sweep that way
+  kNoPeak,        ///< the sweep is flat (no target, or no specular surface in view)
+  kInvalidInput,  ///< bad parameters or too few usable samples (see reason)
+};
+[[nodiscard]] const char* to_string(AlignmentOutcome o);
+
+struct AlignmentResult {
+  AlignmentOutcome outcome = AlignmentOutcome::kInvalidInput;
+  std::string reason;
+  double best_pitch_rad = 0.0;
+  double peak_reflectance = 0.0;  ///< at best_pitch_rad (from the fit when refined)
+  int peak_sample = -1;           ///< index of the maximum among the usable samples, sorted by pitch
+  bool refined = false;           ///< false: the parabola was not concave, best_pitch_rad is the sample's
+  int num_samples = 0;            ///< usable samples
+};
+
+/// Samples may come in any order; non-finite or non-positive ones are skipped.
+/// Samples at the same pitch are averaged.
+[[nodiscard]] AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const AlignmentParams& params = {});
+
+/// The target surface's reflectance in one scan: the median reflectance of
+/// the brightest reflectance cluster (the metal, Table 3.2).
+struct SurfaceReflectance {
+  bool found = false;
+  double reflectance = 0.0;
+  int cluster = -1;  ///< index into the clustering's clusters
+  std::string reason;
+};
+[[nodiscard]] SurfaceReflectance surface_reflectance(const LineScan& scan, const ReflectanceClusteringParams& params = {});
+
+}  // namespace tinyline::laser_clustering

@@ -1,0 +1,105 @@
+// Pedicel finder (thesis 4.4.2, 4.5): from the objects of a two-stage
+// clustering, the one whose width and range fit the pedicel prior (about
+// 6 mm wide, measured.yaml tomato.pedicel_diameter_m), and the move that
+// centres it between the scissor blades (opening 2 cm, tomato.scissor_opening_m).
+//
+// Frames: everything is in the laser frame (z forward along the optical axis,
+// x along the line). The blade throat (where the blades meet the pedicel) is
+// at ScissorGeometry::centre_{x,z}_m, cutting along +z.
+//
+// "Nothing to cut here" and "out of view" are outcomes, not failures: the
+// thesis's robot entered its laser-guide mode on the first (4.5) and counted
+// the second as a trial lost to the field of view (Table 4.3).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "laser_clustering/two_stage.hpp"
+
+namespace tinyline::laser_clustering {
+
+struct ScissorGeometry {
+  double centre_x_m = 0.0;   ///< blade throat along the line [m]
+  double centre_z_m = 0.12;  ///< blade throat along the optical axis [m]
+  double opening_m = 0.02;   ///< gap between the open blades [m] (measured.yaml)
+};
+
+struct PedicelFinderParams {
+  double diameter_m = 0.006;     ///< pedicel prior [m] (measured.yaml tomato.pedicel_diameter_m)
+  /// Spread of a measured width around the prior [m]: pixel footprint,
+  /// mixed edge pixels and real pedicels together.
+  double diameter_sd_m = 0.0025;
+  double min_width_m = 0.002;    ///< narrower objects are never pedicels [m]
+  double max_width_m = 0.014;    ///< wider objects (stems, tomatoes, leaves) are never pedicels [m]
+  int min_points = 2;            ///< fewer points cannot show a width
+  double min_range_m = 0.05;     ///< working range of the gripper [m]; nearer returns are ignored
+  double max_range_m = 0.35;     ///< farther returns are background [m]
+  /// Spread of where the pedicel is believed to be around the expected point
+  /// (the blade throat unless the caller gives one) [m]; it ranks candidates.
+  double search_sd_m = 0.03;
+  /// A pedicel whose centre is within opening/2 - margin of the throat's line
+  /// is already between the blades [m].
+  double blade_margin_m = 0.004;
+  /// ... and within this of the throat's depth (the blades are long) [m].
+  double depth_tolerance_m = 0.015;
+  ScissorGeometry scissors;
+};
+
+[[nodiscard]] Validation validate(const PedicelFinderParams& params);
+
+/// Where the caller expects the pedicel (e.g. projected from the vision
+/// system's tomato and pedicel estimate), overriding the blade throat.
+struct PedicelExpectation {
+  Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();
+  double sd_m = 0.03;  ///< how far off it may be [m]
+};
+
+enum class PedicelOutcome {
+  kCutHere,       ///< a pedicel is already between the blades (a small correction is still given)
+  kMove,          ///< a pedicel is in view elsewhere: move by the offset (or turn by the angle)
+  kNothingToCut,  ///< objects in range, none pedicel-like
+  kOutOfView,     ///< nothing in the working range, or the only pedicel-like object is cut by the view's edge
+  kInvalidInput,  ///< bad parameters or a malformed scan (see reason)
+};
+[[nodiscard]] const char* to_string(PedicelOutcome o);
+
+struct PedicelCandidate {
+  int cluster = -1;          ///< index into TwoStageResult::clusters
+  double width_m = 0.0;
+  Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();
+  double shape_score = 0.0;  ///< width fit to the prior, in (0, 1]
+  double isolation = 0.0;    ///< 1 free on both sides, 0.5 per occluded side
+  double position_score = 0.0;  ///< closeness to the expected point, in (0, 1]
+  double weight = 0.0;       ///< product of the three
+};
+
+struct PedicelDetection {
+  PedicelOutcome outcome = PedicelOutcome::kInvalidInput;
+  std::string reason;
+  int cluster = -1;  ///< the chosen object (index into clusters), -1 if none
+  Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();  ///< its centre, laser frame [m]
+  double width_m = 0.0;
+  /// Translation of the gripper (laser frame) that puts the pedicel in the
+  /// blade throat: lateral along x, depth along z [m].
+  double lateral_offset_m = 0.0;
+  double depth_offset_m = 0.0;
+  /// Or: yaw about the laser origin that brings the pedicel onto the line
+  /// from the origin through the throat [rad], positive towards +x.
+  double angle_rad = 0.0;
+  /// How sure: the chosen candidate's shape and isolation times its share of
+  /// all candidates' weight (an ambiguous scene lowers it), in [0, 1].
+  double confidence = 0.0;
+  std::vector<PedicelCandidate> candidates;  ///< every candidate considered, best first
+};
+
+/// Picks the pedicel among `objects` (from the same scan). `expectation`
+/// replaces the blade throat as the expected position when given.
+[[nodiscard]] PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects,
+                                            const PedicelFinderParams& params,
+                                            const std::optional<PedicelExpectation>& expectation = std::nullopt);
+
+}  // namespace tinyline::laser_clustering

@@ -1,0 +1,425 @@
+#include "laser_clustering/dbscan.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numbers>
+#include <numeric>
+
+#include <fmt/format.h>
+
+#include "dbscan_internal.hpp"
+
+namespace tinyline::laser_clustering {
+
+Validation validate(const DbscanParams& p) {
+  if (!std::isfinite(p.eps) || p.eps <= 0.0) {
+    return {false, fmt::format("DbscanParams.eps must be finite and > 0 (got {})", p.eps)};
+  }
+  if (p.min_points < 1) {
+    return {false, fmt::format("DbscanParams.min_points must be >= 1 (got {})", p.min_points)};
+  }
+  return {};
+}
+
+namespace detail {
+
+std::string check_points_input(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params) {
+  if (auto v = validate(params); !v.valid) return v.reason;
+  if (points.cols() > 0 && points.rows() == 0) {
+    return fmt::format("points have dimension 0 ({} columns of no coordinates)", points.cols());
+  }
+  if (points.cols() >= std::numeric_limits<int>::max()) {
+    return fmt::format("too many points ({}); at most {}", points.cols(), std::numeric_limits<int>::max() - 1);
+  }
+  return {};
+}
+
+std::size_t mark_valid(const Eigen::Ref<const Eigen::MatrixXd>& points, std::vector<std::uint8_t>& valid) {
+  valid.assign(static_cast<std::size_t>(points.cols()), 0);
+  std::size_t n = 0;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    if (points.col(i).allFinite()) {
+      valid[static_cast<std::size_t>(i)] = 1;
+      ++n;
+    }
+  }
+  return n;
+}
+
+void finish(DbscanResult& r) {
+  std::size_t core = 0, noise = 0, invalid = 0;
+  for (std::size_t i = 0; i < r.labels.size(); ++i) {
+    core += r.is_core[i];
+    noise += r.labels[i] == kNoise;
+    invalid += r.labels[i] == kInvalid;
+  }
+  finish(r, core, noise, invalid);
+}
+
+void finish(DbscanResult& r, std::size_t core, std::size_t noise, std::size_t invalid) {
+  r.ok = true;
+  r.num_core = core;
+  r.num_noise = noise;
+  r.num_invalid = invalid;
+  // Notes only where there is nothing else to report (formatting costs
+  // more than clustering a scan).
+  if (r.labels.empty()) {
+    r.reason = "empty input";
+  } else if (invalid == r.labels.size()) {
+    r.reason = fmt::format("no valid points ({} invalid)", invalid);
+  }
+}
+
+DbscanResult label_from_neighbours(const std::vector<std::uint8_t>& valid, const NeighbourLists& lists,
+                                   int min_points) {
+  const std::size_t n = valid.size();
+  DbscanResult r;
+  r.labels.assign(n, kNoise);
+  r.is_core.assign(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!valid[i]) {
+      r.labels[i] = kInvalid;
+    } else if (lists.offset[i + 1] - lists.offset[i] >= static_cast<std::size_t>(min_points)) {
+      r.is_core[i] = 1;
+    }
+  }
+  std::vector<int> parent(n), size(n, 1);
+  std::iota(parent.begin(), parent.end(), 0);
+  DisjointSets sets(parent, size);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!r.is_core[i]) continue;
+    for (std::size_t k = lists.offset[i]; k < lists.offset[i + 1]; ++k) {
+      const int j = lists.nbr[k];
+      if (static_cast<std::size_t>(j) > i && r.is_core[static_cast<std::size_t>(j)]) sets.unite(static_cast<int>(i), j);
+    }
+  }
+  // Clusters in the order of their lowest-indexed core point.
+  std::vector<int> cluster_of_root(n, -1);
+  int clusters = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!r.is_core[i]) continue;
+    int& c = cluster_of_root[static_cast<std::size_t>(sets.find(static_cast<int>(i)))];
+    if (c < 0) c = clusters++;
+    r.labels[i] = c;
+  }
+  // Border points: the lowest-numbered cluster among adjacent core points.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!valid[i] || r.is_core[i]) continue;
+    int best = kNoise;
+    for (std::size_t k = lists.offset[i]; k < lists.offset[i + 1]; ++k) {
+      const auto j = static_cast<std::size_t>(lists.nbr[k]);
+      if (r.is_core[j] && (best == kNoise || r.labels[j] < best)) best = r.labels[j];
+    }
+    r.labels[i] = best;
+  }
+  r.num_clusters = clusters;
+  finish(r);
+  return r;
+}
+
+}  // namespace detail
+
+DbscanResult dbscan_brute_force(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params) {
+  DbscanResult bad;
+  if (bad.reason = detail::check_points_input(points, params); !bad.reason.empty()) return bad;
+  std::vector<std::uint8_t> valid;
+  detail::mark_valid(points, valid);
+  const double eps2 = params.eps * params.eps;
+  const auto n = static_cast<std::size_t>(points.cols());
+  detail::NeighbourLists lists;
+  lists.offset.assign(n + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    lists.offset[i] = lists.nbr.size();
+    if (!valid[i]) continue;
+    for (std::size_t j = 0; j < n; ++j) {
+      if (valid[j] && detail::squared_distance(points, static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) <= eps2) {
+        lists.nbr.push_back(static_cast<int>(j));
+      }
+    }
+  }
+  lists.offset[n] = lists.nbr.size();
+  return detail::label_from_neighbours(valid, lists, params.min_points);
+}
+
+// ---------------------------------------------------------------------------
+// Ordered line scans
+
+namespace {
+
+inline bool pixel_valid(const OrderedScanPoints& s, std::size_t i) {
+  constexpr double kMax = std::numeric_limits<double>::max();
+  const double r = s.range_m[i], a = s.angle_rad[i];
+  // Written so that NaN fails every comparison.
+  if (!(r > 0.0 && r <= kMax && a >= -kMax && a <= kMax)) return false;
+  if (!s.group.empty() && s.group[i] < 0) return false;
+  return s.feature.empty() || std::isfinite(s.feature[i]);
+}
+
+std::string check_scan_shape(const OrderedScanPoints& s) {
+  if (s.range_m.size() != s.angle_rad.size()) {
+    return fmt::format("scan has {} angles but {} ranges", s.angle_rad.size(), s.range_m.size());
+  }
+  if (!s.feature.empty() && s.feature.size() != s.range_m.size()) {
+    return fmt::format("scan has {} ranges but {} feature values", s.range_m.size(), s.feature.size());
+  }
+  if (!s.group.empty() && s.group.size() != s.range_m.size()) {
+    return fmt::format("scan has {} ranges but {} group ids", s.range_m.size(), s.group.size());
+  }
+  if (s.range_m.size() >= static_cast<std::size_t>(std::numeric_limits<int>::max())) {
+    return fmt::format("scan too long ({} pixels)", s.range_m.size());
+  }
+  return {};
+}
+
+}  // namespace
+
+Eigen::MatrixXd to_points(const OrderedScanPoints& s) {
+  const std::size_t n = std::min(s.angle_rad.size(), s.range_m.size());
+  const bool with_f = !s.feature.empty() && s.feature.size() >= n;
+  Eigen::MatrixXd p(with_f ? 3 : 2, static_cast<Eigen::Index>(n));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto c = static_cast<Eigen::Index>(i);
+    if (!pixel_valid(s, i)) {
+      p.col(c).setConstant(nan);
+      continue;
+    }
+    p(0, c) = s.range_m[i] * std::sin(s.angle_rad[i]);
+    p(1, c) = s.range_m[i] * std::cos(s.angle_rad[i]);
+    if (with_f) p(2, c) = s.feature[i];
+  }
+  return p;
+}
+
+DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanParams& params) {
+  DbscanResult r;
+  if (auto v = validate(params); !v.valid) {
+    r.reason = v.reason;
+    return r;
+  }
+  if (r.reason = check_scan_shape(scan); !r.reason.empty()) return r;
+
+  const std::size_t n_all = scan.range_m.size();
+  const bool with_f = !scan.feature.empty();
+  const bool with_g = !scan.group.empty();
+  const double eps = params.eps;
+  const double eps2 = eps * eps;
+  r.labels.assign(n_all, kInvalid);
+  r.is_core.assign(n_all, 0);
+
+  // A sensor's pixel angles are the same scan after scan: keep their sines
+  // and cosines (they would cost more than the clustering itself).
+  if (trig_angle_.size() != n_all ||
+      (n_all > 0 && std::memcmp(trig_angle_.data(), scan.angle_rad.data(), n_all * sizeof(double)) != 0)) {
+    trig_angle_.assign(scan.angle_rad.begin(), scan.angle_rad.end());
+    sin_.resize(n_all);
+    cos_.resize(n_all);
+    for (std::size_t i = 0; i < n_all; ++i) {
+      sin_[i] = std::sin(trig_angle_[i]);
+      cos_[i] = std::cos(trig_angle_[i]);
+    }
+  }
+
+  // One pass over the pixels: compact the valid ones (same coordinates as
+  // to_points()), check that their bearings are strictly monotone, and
+  // compute each one's bearing window and each block's depth interval.
+  //
+  // Window: a neighbour j of i satisfies |dtheta| <= asin(eps / r_i) <=
+  // x + (pi/2 - 1) x^3 with x = eps / r_i (the cubic meets asin at 0 and 1
+  // and stays above it between; it spares an asin per pixel), widened by a
+  // hair so rounding never hides a pair at exactly eps.
+  // Blocks: a neighbour also satisfies |r_i - r_j| <= eps, so blocks of
+  // kBlock pixels keep their depth interval and a walk skips a whole block
+  // at another depth (a pedicel's window over the wall behind it) at once.
+  constexpr int kBlock = 8;
+  constexpr double kCubic = std::numbers::pi / 2.0 - 1.0;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double eps_wide = eps * (1.0 + 1e-9);
+  x_.resize(n_all);
+  z_.resize(n_all);
+  f_.resize(with_f ? n_all : 0);
+  g_.resize(with_g ? n_all : 0);
+  theta_.resize(n_all);
+  range_.resize(n_all);
+  half_window_.resize(n_all);
+  index_.resize(n_all);
+  core_.resize(n_all);
+  block_lo_.assign(n_all / kBlock + 1, kInf);
+  block_hi_.assign(n_all / kBlock + 1, -kInf);
+  std::size_t m = 0;
+  double direction = 0.0;  // +1 ascending, -1 descending, 0 unknown yet
+  for (std::size_t i = 0; i < n_all; ++i) {
+    if (!pixel_valid(scan, i)) continue;
+    const double ri = scan.range_m[i], ti = scan.angle_rad[i];
+    if (m > 0) {
+      if (direction == 0.0) direction = ti > theta_[m - 1] ? 1.0 : -1.0;
+      if (!(direction * (ti - theta_[m - 1]) > 0.0)) {
+        r.labels.clear();
+        r.is_core.clear();
+        r.reason = fmt::format(
+            "pixel angles must be strictly monotone over valid pixels: pixel {} at {} rad after pixel {} at {} rad", i,
+            ti, index_[m - 1], theta_[m - 1]);
+        return r;
+      }
+    }
+    x_[m] = ri * sin_[i];
+    z_[m] = ri * cos_[i];
+    if (with_f) f_[m] = scan.feature[i];
+    if (with_g) g_[m] = scan.group[i];
+    theta_[m] = ti;
+    range_[m] = ri;
+    const double x = eps / ri;
+    half_window_[m] = x >= 1.0 ? std::numbers::pi * 2.0 : (x + kCubic * x * x * x) * (1.0 + 1e-9) + 1e-12;
+    const std::size_t b = m / kBlock;
+    block_lo_[b] = std::min(block_lo_[b], ri - eps_wide);
+    block_hi_[b] = std::max(block_hi_[b], ri + eps_wide);
+    index_[m] = static_cast<int>(i);
+    ++m;
+  }
+  const int n = static_cast<int>(m);
+  if (direction < 0.0) {  // walk a descending scan mirrored
+    for (int k = 0; k < n; ++k) theta_[static_cast<std::size_t>(k)] = -theta_[static_cast<std::size_t>(k)];
+  }
+
+  // Squared distance; pixels of different groups are infinitely far apart.
+  auto d2 = [&](int i, int j) {
+    const auto u = static_cast<std::size_t>(i), v = static_cast<std::size_t>(j);
+    if (with_g && g_[u] != g_[v]) return kInf;
+    double t = x_[u] - x_[v];
+    double s = t * t;
+    t = z_[u] - z_[v];
+    s += t * t;
+    if (with_f) {
+      t = f_[u] - f_[v];
+      s += t * t;
+    }
+    return s;
+  };
+  // Calls visit(j) for j = from, from+1, ... within i's bearing window,
+  // skipping blocks at other depths, until visit returns false. Returns
+  // false if visit stopped it.
+  auto walk_right = [&](int i, int from, auto&& visit) {
+    const auto u = static_cast<std::size_t>(i);
+    const double limit = theta_[u] + half_window_[u], ri = range_[u];
+    for (int j = from; j < n;) {
+      const auto b = static_cast<std::size_t>(j) / kBlock;
+      const int end = std::min(n, static_cast<int>(b + 1) * kBlock);
+      if (ri < block_lo_[b] || ri > block_hi_[b]) {
+        if (theta_[static_cast<std::size_t>(j)] > limit) return true;
+        j = end;
+        continue;
+      }
+      for (; j < end; ++j) {
+        if (theta_[static_cast<std::size_t>(j)] > limit) return true;
+        if (!visit(j)) return false;
+      }
+    }
+    return true;
+  };
+  auto walk_left = [&](int i, int from, auto&& visit) {
+    const auto u = static_cast<std::size_t>(i);
+    const double limit = theta_[u] - half_window_[u], ri = range_[u];
+    for (int j = from; j >= 0;) {
+      const auto b = static_cast<std::size_t>(j) / kBlock;
+      const int end = static_cast<int>(b * kBlock) - 1;
+      if (ri < block_lo_[b] || ri > block_hi_[b]) {
+        if (theta_[static_cast<std::size_t>(j)] < limit) return true;
+        j = end;
+        continue;
+      }
+      for (; j > end; --j) {
+        if (theta_[static_cast<std::size_t>(j)] < limit) return true;
+        if (!visit(j)) return false;
+      }
+    }
+    return true;
+  };
+
+  // Core flags: count the neighbours on the right, then the left, stopping
+  // as soon as min_points is reached.
+  std::size_t num_core = 0;
+  for (int i = 0; i < n; ++i) {
+    int count = 1;
+    auto counter = [&](int j) {
+      count += d2(i, j) <= eps2;
+      return count < params.min_points;
+    };
+    if (count < params.min_points && walk_right(i, i + 1, counter)) walk_left(i, i - 1, counter);
+    const std::uint8_t c = count >= params.min_points ? 1 : 0;
+    core_[static_cast<std::size_t>(i)] = c;
+    r.is_core[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
+    num_core += c;
+  }
+  auto core = [&](int i) { return core_[static_cast<std::size_t>(i)] != 0; };
+
+  // Core-core edges. Consecutive core pixels within eps form runs (a surface
+  // is one run), joined up front under their last pixel. Then each core
+  // pixel looks beyond its run for core pixels within eps; once it meets
+  // one, that pixel's whole run is joined and jumped over. On a surface
+  // this is O(1) per pixel instead of a window's worth.
+  run_end_.resize(static_cast<std::size_t>(n));
+  parent_.resize(static_cast<std::size_t>(n));
+  size_.resize(static_cast<std::size_t>(n));
+  for (int k = n - 1; k >= 0; --k) {
+    const auto u = static_cast<std::size_t>(k);
+    const bool linked = core(k) && k + 1 < n && core(k + 1) && d2(k, k + 1) <= eps2;
+    run_end_[u] = linked ? run_end_[u + 1] : k;
+    parent_[u] = run_end_[u];
+    size_[u] = 1;
+    if (linked) ++size_[static_cast<std::size_t>(run_end_[u])];
+  }
+  detail::DisjointSets sets(parent_, size_);
+  for (int i = 0; i < n; ++i) {
+    if (!core(i)) continue;
+    int skip_to = run_end_[static_cast<std::size_t>(i)] + 1;
+    while (skip_to < n) {
+      const int from = skip_to;
+      skip_to = -1;
+      walk_right(i, from, [&](int j) {
+        if (!core(j) || d2(i, j) > eps2) return true;
+        sets.unite(i, j);
+        skip_to = run_end_[static_cast<std::size_t>(j)] + 1;
+        return false;
+      });
+      if (skip_to < 0) break;
+    }
+  }
+  // Clusters in the order of their lowest-indexed core point.
+  cluster_of_root_.assign(static_cast<std::size_t>(n), -1);
+  int clusters = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!core(i)) continue;
+    int& c = cluster_of_root_[static_cast<std::size_t>(sets.find(i))];
+    if (c < 0) c = clusters++;
+    r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
+  }
+  // Border points: the lowest-numbered cluster among core points within eps.
+  std::size_t num_noise = 0;
+  for (int i = 0; i < n; ++i) {
+    if (core(i)) continue;
+    int best = kNoise;
+    auto consider = [&](int j) {
+      if (core(j)) {
+        const int lj = r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(j)])];
+        if ((best == kNoise || lj < best) && d2(i, j) <= eps2) best = lj;
+      }
+      return true;
+    };
+    walk_left(i, i - 1, consider);
+    walk_right(i, i + 1, consider);
+    r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = best;
+    num_noise += best == kNoise;
+  }
+  r.num_clusters = clusters;
+  detail::finish(r, num_core, num_noise, n_all - m);
+  return r;
+}
+
+DbscanResult dbscan_ordered_scan(const OrderedScanPoints& scan, const DbscanParams& params) {
+  OrderedScanDbscan d;
+  return d.run(scan, params);
+}
+
+}  // namespace tinyline::laser_clustering

@@ -1,0 +1,54 @@
+#include "laser_clustering/line_scan.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+
+namespace tinyline::laser_clustering {
+
+std::size_t LineScan::num_valid() const {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < range_m.size(); ++i) n += valid(i);
+  return n;
+}
+
+double LineScan::pixel_pitch_rad() const {
+  if (angle_rad.size() < 2) return std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> d(angle_rad.size() - 1);
+  for (std::size_t i = 1; i < angle_rad.size(); ++i) d[i - 1] = std::abs(angle_rad[i] - angle_rad[i - 1]);
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+std::string check_scan(const LineScan& s) {
+  if (s.angle_rad.size() != s.range_m.size()) {
+    return fmt::format("scan has {} angles but {} ranges", s.angle_rad.size(), s.range_m.size());
+  }
+  if (!s.reflectance.empty() && s.reflectance.size() != s.range_m.size()) {
+    return fmt::format("scan has {} ranges but {} reflectance values", s.range_m.size(), s.reflectance.size());
+  }
+  // One pass; the error path re-reads to name the culprit.
+  const std::size_t n = s.angle_rad.size();
+  const double* a = s.angle_rad.data();
+  const double dir = n >= 2 && a[1] < a[0] ? -1.0 : 1.0;
+  bool ok = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    ok &= std::isfinite(a[i]);
+    if (i > 0) ok &= dir * (a[i] - a[i - 1]) > 0.0;
+  }
+  if (ok) return {};
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(a[i])) return fmt::format("pixel {} has a non-finite angle ({})", i, a[i]);
+  }
+  for (std::size_t i = 1; i < n; ++i) {
+    if (!(dir * (a[i] - a[i - 1]) > 0.0)) {
+      return fmt::format("pixel angles must be strictly monotone: pixel {} at {} rad after pixel {} at {} rad", i, a[i],
+                         i - 1, a[i - 1]);
+    }
+  }
+  return {};
+}
+
+}  // namespace tinyline::laser_clustering

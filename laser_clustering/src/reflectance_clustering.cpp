@@ -1,0 +1,127 @@
+#include "laser_clustering/reflectance_clustering.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+
+namespace tinyline::laser_clustering {
+
+Validation validate(const ReflectanceClusteringParams& p) {
+  if (auto v = validate(p.dbscan); !v.valid) return {false, "dbscan: " + v.reason};
+  if (!std::isfinite(p.reflectance_ratio_at_eps) || p.reflectance_ratio_at_eps <= 1.0) {
+    return {false, fmt::format("reflectance_ratio_at_eps must be finite and > 1 (got {})", p.reflectance_ratio_at_eps)};
+  }
+  if (p.smooth_half_width_px < 0) {
+    return {false, fmt::format("smooth_half_width_px must be >= 0 (got {})", p.smooth_half_width_px)};
+  }
+  if (!std::isfinite(p.smooth_step_m) || p.smooth_step_m < 0.0) {
+    return {false, fmt::format("smooth_step_m must be finite and >= 0 (got {})", p.smooth_step_m)};
+  }
+  return {};
+}
+
+ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const ReflectanceClusteringParams& p) {
+  ReflectanceClusteringResult out;
+  if (auto v = validate(p); !v.valid) {
+    out.reason = v.reason;
+    return out;
+  }
+  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
+  if (p.use_reflectance && scan.reflectance.size() != scan.size()) {
+    out.reason = fmt::format("reflectance clustering needs a reflectance per pixel; the scan has {} for {} pixels",
+                             scan.reflectance.size(), scan.size());
+    return out;
+  }
+  const std::size_t n = scan.size();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+
+  // Range smoothing that never averages across a depth step.
+  std::vector<double> range(n, nan), feature;
+  const int h = p.smooth_half_width_px;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!scan.valid(i)) continue;
+    double sum = 0.0;
+    int cnt = 0;
+    const auto lo = static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, static_cast<std::ptrdiff_t>(i) - h));
+    const std::size_t hi = std::min(n - 1, i + static_cast<std::size_t>(h));
+    for (std::size_t j = lo; j <= hi; ++j) {
+      if (scan.valid(j) && std::abs(scan.range_m[j] - scan.range_m[i]) <= p.smooth_step_m) {
+        sum += scan.range_m[j];
+        ++cnt;
+      }
+    }
+    range[i] = sum / cnt;
+  }
+  std::size_t no_reflectance = 0;
+  if (p.use_reflectance) {
+    const double scale = p.dbscan.eps / std::log(p.reflectance_ratio_at_eps);
+    feature.assign(n, nan);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double r = scan.reflectance[i];
+      if (std::isfinite(r) && r > 0.0) {
+        feature[i] = scale * std::log(r);
+      } else if (scan.valid(i)) {
+        ++no_reflectance;  // a range without a usable reflectance: left out
+      }
+    }
+  }
+  OrderedScanDbscan dbscan;
+  const DbscanResult r = dbscan.run({scan.angle_rad, range, feature, {}}, p.dbscan);
+  if (!r.ok) {
+    out.reason = r.reason;
+    return out;
+  }
+  out.ok = true;
+  out.labels = r.labels;
+  if (n == 0) {
+    out.reason = "empty scan";
+  } else if (scan.num_valid() == 0) {
+    out.reason = "no valid pixels";
+  } else if (no_reflectance > 0) {
+    out.reason = fmt::format("{} pixels without a positive reflectance left out", no_reflectance);
+  }
+
+  out.clusters.resize(static_cast<std::size_t>(r.num_clusters));
+  std::vector<std::vector<double>> refl(out.clusters.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const int l = r.labels[i];
+    if (l < 0) continue;
+    auto& c = out.clusters[static_cast<std::size_t>(l)];
+    if (c.num_points == 0) {
+      c.id = l;
+      c.first_pixel = static_cast<int>(i);
+    }
+    c.last_pixel = static_cast<int>(i);
+    ++c.num_points;
+    c.mean_range_m += range[i];
+    c.centroid_xz_m += Eigen::Vector2d(range[i] * std::sin(scan.angle_rad[i]), range[i] * std::cos(scan.angle_rad[i]));
+    if (!scan.reflectance.empty() && std::isfinite(scan.reflectance[i])) refl[static_cast<std::size_t>(l)].push_back(scan.reflectance[i]);
+  }
+  double brightest = -std::numeric_limits<double>::infinity();
+  for (std::size_t l = 0; l < out.clusters.size(); ++l) {
+    auto& c = out.clusters[l];
+    c.mean_range_m /= c.num_points;
+    c.centroid_xz_m /= c.num_points;
+    auto& v = refl[l];
+    if (v.empty()) {
+      c.median_reflectance = nan;
+    } else {
+      auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+      std::nth_element(v.begin(), mid, v.end());
+      c.median_reflectance = *mid;
+      if (c.median_reflectance > brightest) {
+        brightest = c.median_reflectance;
+        out.brightest = static_cast<int>(l);
+      }
+    }
+    const auto f = static_cast<std::size_t>(c.first_pixel), b = static_cast<std::size_t>(c.last_pixel);
+    const std::size_t lo = f > 0 ? f - 1 : f, hi = b + 1 < n ? b + 1 : b;
+    const double pitch = hi > lo ? std::abs(scan.angle_rad[hi] - scan.angle_rad[lo]) / static_cast<double>(hi - lo) : 0.0;
+    c.width_m = c.mean_range_m * (std::abs(scan.angle_rad[b] - scan.angle_rad[f]) + pitch);
+  }
+  return out;
+}
+
+}  // namespace tinyline::laser_clustering

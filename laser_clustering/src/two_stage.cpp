@@ -1,0 +1,219 @@
+#include "laser_clustering/two_stage.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include <fmt/format.h>
+
+namespace tinyline::laser_clustering {
+
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// An object within this many pixels of the scan's ends may be cut by the field of view.
+constexpr int kFovEdgePx = 1;
+// Bound on EdgeFilterParams::reference_px (the median works on the stack).
+constexpr int kMaxReferencePx = 16;
+}
+
+Validation validate(const TwoStageParams& p) {
+  if (auto v = validate(p.groups); !v.valid) return {false, "groups: " + v.reason};
+  if (auto v = validate(p.objects); !v.valid) return {false, "objects: " + v.reason};
+  const auto& e = p.edge;
+  if (e.edge_width_px < 0) return {false, fmt::format("edge.edge_width_px must be >= 0 (got {})", e.edge_width_px)};
+  if (e.reference_px < 1 || e.reference_px > kMaxReferencePx) {
+    return {false, fmt::format("edge.reference_px must be in [1, {}] (got {})", kMaxReferencePx, e.reference_px)};
+  }
+  if (!std::isfinite(e.step_m) || e.step_m < 0.0) {
+    return {false, fmt::format("edge.step_m must be finite and >= 0 (got {})", e.step_m)};
+  }
+  if (!std::isfinite(e.step_per_m) || e.step_per_m < 0.0) {
+    return {false, fmt::format("edge.step_per_m must be finite and >= 0 (got {})", e.step_per_m)};
+  }
+  if (e.min_keep_px < 1) return {false, fmt::format("edge.min_keep_px must be >= 1 (got {})", e.min_keep_px)};
+  if (e.smooth_half_width_px < 0) {
+    return {false, fmt::format("edge.smooth_half_width_px must be >= 0 (got {})", e.smooth_half_width_px)};
+  }
+  return {};
+}
+
+LineScanClusterer::LineScanClusterer(TwoStageParams params) : params_(params), valid_(validate(params_)) {}
+
+TwoStageResult cluster_line_scan(const LineScan& scan, const TwoStageParams& params) {
+  LineScanClusterer c(params);
+  return c.run(scan);
+}
+
+TwoStageResult LineScanClusterer::run(const LineScan& scan) {
+  TwoStageResult out;
+  if (!valid_.valid) {
+    out.reason = valid_.reason;
+    return out;
+  }
+  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
+  const std::size_t n = scan.size();
+  const auto& e = params_.edge;
+  auto step = [&](double r) { return e.step_m + e.step_per_m * r; };
+
+  // Stage 1: object groups.
+  DbscanResult groups = dbscan_.run({scan.angle_rad, scan.range_m, {}, {}}, params_.groups);
+  if (!groups.ok) {
+    out.reason = "stage 1: " + groups.reason;
+    return out;
+  }
+  out.ok = true;
+  out.num_groups = groups.num_clusters;
+  out.fate.assign(n, PixelFate::kInvalid);
+  out.smoothed_range_m.assign(n, kNaN);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (groups.labels[i] == kInvalid) continue;
+    out.fate[i] = groups.labels[i] == kNoise ? PixelFate::kNotGrouped : PixelFate::kKept;
+  }
+
+  // Stage 2: the edge filter, run by run. A run is a stretch of valid pixels
+  // of one group (invalid pixels inside it do not break it).
+  auto process_run = [&]() {
+    const int m = static_cast<int>(run_.size());
+    if (m == 0) return;
+    // The run's ranges, contiguous.
+    range_.resize(run_.size());
+    for (std::size_t k = 0; k < run_.size(); ++k) range_[k] = scan.range_m[static_cast<std::size_t>(run_[k])];
+    const double* r = range_.data();
+    auto median_of = [&](int from, int to) {  // inclusive run positions, at most kMaxReferencePx values
+      std::array<double, kMaxReferencePx> v;
+      const int cnt = to - from + 1;
+      std::copy(r + from, r + to + 1, v.begin());
+      std::nth_element(v.begin(), v.begin() + cnt / 2, v.begin() + cnt);
+      return v[static_cast<std::size_t>(cnt / 2)];
+    };
+    int lo = 0, hi = m - 1;
+    for (int k = 0; k < e.edge_width_px && hi - lo + 1 > e.min_keep_px; ++k) {
+      const double ref = median_of(lo + 1, std::min(hi, lo + e.reference_px));
+      if (std::abs(r[lo] - ref) <= step(ref)) break;
+      out.fate[static_cast<std::size_t>(run_[static_cast<std::size_t>(lo)])] = PixelFate::kEdgeDropped;
+      ++lo;
+    }
+    for (int k = 0; k < e.edge_width_px && hi - lo + 1 > e.min_keep_px; ++k) {
+      const double ref = median_of(std::max(lo, hi - e.reference_px), hi - 1);
+      if (std::abs(r[hi] - ref) <= step(ref)) break;
+      out.fate[static_cast<std::size_t>(run_[static_cast<std::size_t>(hi)])] = PixelFate::kEdgeDropped;
+      --hi;
+    }
+    out.num_edge_dropped += lo + (m - 1 - hi);
+    // Smooth the kept points without averaging across a depth step.
+    const int h = e.smooth_half_width_px;
+    for (int k = lo; k <= hi; ++k) {
+      const double c = r[k], limit = step(c);
+      double sum = 0.0;
+      int cnt = 0;
+      const int j_end = std::min(hi, k + h);
+      for (int j = std::max(lo, k - h); j <= j_end; ++j) {
+        const bool near = std::abs(r[j] - c) <= limit;
+        sum += near ? r[j] : 0.0;
+        cnt += near;
+      }
+      out.smoothed_range_m[static_cast<std::size_t>(run_[static_cast<std::size_t>(k)])] = sum / cnt;
+    }
+  };
+  run_.clear();
+  int run_group = kNoise;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int g = groups.labels[i];
+    if (g == kInvalid) continue;
+    if (g != run_group) {
+      process_run();
+      run_.clear();
+      run_group = g;
+    }
+    if (g >= 0) run_.push_back(static_cast<int>(i));
+  }
+  process_run();
+
+  // Stage 3: small-eps DBSCAN inside each group, on the smoothed ranges.
+  group_.assign(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (out.fate[i] == PixelFate::kKept) group_[i] = groups.labels[i];
+  }
+  DbscanResult objects = dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects);
+  if (!objects.ok) {
+    out.ok = false;
+    out.reason = "stage 3: " + objects.reason;
+    return out;
+  }
+  out.labels = std::move(objects.labels);
+  // Dropped and ungrouped pixels are noise to the caller, not invalid.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (out.labels[i] == kInvalid && out.fate[i] != PixelFate::kInvalid) out.labels[i] = kNoise;
+  }
+
+  // Per-object summaries (the sines and cosines of the angles are the
+  // clusterer's cached ones).
+  const auto& sin_a = dbscan_.sin_angle();
+  const auto& cos_a = dbscan_.cos_angle();
+  out.clusters.assign(static_cast<std::size_t>(objects.num_clusters), ScanCluster{});
+  std::vector<double> sum_r2(out.clusters.size(), 0.0), sum_refl(out.clusters.size(), 0.0);
+  std::vector<int> n_refl(out.clusters.size(), 0);
+  bool any_valid = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    any_valid = any_valid || scan.valid(i);
+    const int l = out.labels[i];
+    if (l < 0) continue;
+    auto& c = out.clusters[static_cast<std::size_t>(l)];
+    const double rr = out.smoothed_range_m[i];
+    if (c.num_points == 0) {
+      c.id = l;
+      c.group = groups.labels[i];
+      c.first_pixel = static_cast<int>(i);
+    }
+    c.last_pixel = static_cast<int>(i);
+    ++c.num_points;
+    c.centroid_xz_m += Eigen::Vector2d(rr * sin_a[i], rr * cos_a[i]);
+    c.mean_range_m += rr;
+    sum_r2[static_cast<std::size_t>(l)] += rr * rr;
+    if (!scan.reflectance.empty() && std::isfinite(scan.reflectance[i])) {
+      sum_refl[static_cast<std::size_t>(l)] += scan.reflectance[i];
+      ++n_refl[static_cast<std::size_t>(l)];
+    }
+  }
+  for (std::size_t l = 0; l < out.clusters.size(); ++l) {
+    auto& c = out.clusters[l];
+    const double k = c.num_points;
+    c.centroid_xz_m /= k;
+    c.mean_range_m /= k;
+    c.range_sd_m = std::sqrt(std::max(0.0, sum_r2[l] / k - c.mean_range_m * c.mean_range_m));
+    c.mean_reflectance = n_refl[l] ? sum_refl[l] / n_refl[l] : kNaN;
+    const auto f = static_cast<std::size_t>(c.first_pixel), b = static_cast<std::size_t>(c.last_pixel);
+    // One pixel's footprint: the mean bearing step around the object.
+    const std::size_t lo = f > 0 ? f - 1 : f, hi = b + 1 < n ? b + 1 : b;
+    const double pitch = hi > lo ? std::abs(scan.angle_rad[hi] - scan.angle_rad[lo]) / static_cast<double>(hi - lo) : 0.0;
+    c.width_m = c.mean_range_m * (std::abs(scan.angle_rad[b] - scan.angle_rad[f]) + pitch);
+    c.touches_fov_edge = c.first_pixel <= kFovEdgePx || c.last_pixel >= static_cast<int>(n) - 1 - kFovEdgePx;
+    // Occlusion: one of the next two valid pixels beyond the end is in front
+    // (two, because the first may be a mixed pixel between the two depths).
+    auto in_front = [&](std::size_t edge_pixel, int dir) {
+      const double limit = out.smoothed_range_m[edge_pixel] - step(out.smoothed_range_m[edge_pixel]);
+      int seen = 0;
+      for (auto j = static_cast<std::ptrdiff_t>(edge_pixel) + dir; j >= 0 && j < static_cast<std::ptrdiff_t>(n) && seen < 2;
+           j += dir) {
+        const auto u = static_cast<std::size_t>(j);
+        if (!scan.valid(u)) continue;
+        ++seen;
+        if (scan.range_m[u] < limit) return true;
+      }
+      return false;
+    };
+    c.occluded_low = in_front(f, -1);
+    c.occluded_high = in_front(b, +1);
+  }
+  out.group_labels = std::move(groups.labels);
+  if (n == 0) {
+    out.reason = "empty scan";
+  } else if (!any_valid) {
+    out.reason = "no valid pixels";
+  }
+  return out;
+}
+
+}  // namespace tinyline::laser_clustering

@@ -1,0 +1,149 @@
+// Pedicel finder on hand-made scans: the move it reports, and its explicit
+// outcomes.
+#include <cmath>
+#include <limits>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "laser_clustering/pedicel_finder.hpp"
+#include "synthetic_scan.hpp"
+
+namespace lc = tinyline::laser_clustering;
+using lc::PedicelOutcome;
+using lc::test::Disc;
+using lc::test::synth_scan;
+using lc::test::SynthParams;
+using ::testing::HasSubstr;
+
+namespace tinyline::laser_clustering {
+// Readable outcomes in failure messages.
+inline void PrintTo(PedicelOutcome o, std::ostream* os) { *os << to_string(o); }
+}  // namespace tinyline::laser_clustering
+
+namespace {
+
+lc::PedicelDetection detect(const lc::LineScan& scan, const lc::PedicelFinderParams& p = {},
+                            const std::optional<lc::PedicelExpectation>& e = std::nullopt) {
+  const auto objects = lc::cluster_line_scan(scan);
+  return lc::find_pedicel(scan, objects, p, e);
+}
+
+SynthParams with_wall(unsigned seed, double wall_z = 0.40) {
+  SynthParams sp;
+  sp.wall_z_m = wall_z;
+  sp.seed = seed;
+  return sp;
+}
+
+}  // namespace
+
+TEST(PedicelFinder, OffsetPedicelGivesTheMoveThatCentresIt) {
+  // Throat at (0, 0.12); pedicel 2.5 cm to +x and 1 cm deeper.
+  const auto s = synth_scan({{0.025, 0.13, 0.003, 6.0, 1}}, with_wall(1));
+  const auto d = detect(s.scan);
+  ASSERT_EQ(d.outcome, PedicelOutcome::kMove) << d.reason;
+  // The centroid is on the rod's front surface (about 1 to 2 mm before its axis).
+  EXPECT_NEAR(d.lateral_offset_m, 0.025, 0.0015);
+  EXPECT_NEAR(d.depth_offset_m, 0.01 - 0.002, 0.003);
+  EXPECT_NEAR(d.angle_rad, std::atan2(0.025, 0.128), 0.01);
+  EXPECT_NEAR(d.width_m, 0.006, 0.0015);
+  EXPECT_GT(d.confidence, 0.8);
+  ASSERT_EQ(d.candidates.size(), 1u);
+}
+
+TEST(PedicelFinder, PedicelBetweenTheBladesIsCutHere) {
+  const auto s = synth_scan({{0.003, 0.122, 0.003, 6.0, 1}}, with_wall(2));
+  const auto d = detect(s.scan);
+  EXPECT_EQ(d.outcome, PedicelOutcome::kCutHere) << d.reason;
+  EXPECT_NEAR(d.lateral_offset_m, 0.003, 0.0015);
+}
+
+TEST(PedicelFinder, NearestOfTwoPedicelsWinsAndAmbiguityLowersConfidence) {
+  const auto clear = synth_scan({{0.004, 0.12, 0.003, 6.0, 1}, {0.05, 0.12, 0.003, 6.0, 2}}, with_wall(3));
+  const auto a = detect(clear.scan);
+  ASSERT_EQ(a.outcome, PedicelOutcome::kCutHere) << a.reason;
+  EXPECT_NEAR(a.position_xz_m.x(), 0.004, 0.0015);
+  EXPECT_EQ(a.candidates.size(), 2u);
+  // Two pedicels equally far from the throat: still an answer, low confidence.
+  const auto tie = synth_scan({{-0.03, 0.12, 0.003, 6.0, 1}, {0.03, 0.12, 0.003, 6.0, 2}}, with_wall(3));
+  const auto b = detect(tie.scan);
+  ASSERT_EQ(b.outcome, PedicelOutcome::kMove);
+  EXPECT_LT(b.confidence, 0.65);
+  EXPECT_LT(b.confidence, a.confidence);
+}
+
+TEST(PedicelFinder, ExpectationFromVisionOverridesTheThroat) {
+  const auto s = synth_scan({{0.01, 0.12, 0.003, 6.0, 1}, {0.05, 0.12, 0.003, 6.0, 2}}, with_wall(4));
+  lc::PedicelExpectation e{{0.045, 0.12}, 0.015};
+  const auto d = detect(s.scan, {}, e);
+  ASSERT_EQ(d.outcome, PedicelOutcome::kMove);
+  EXPECT_NEAR(d.position_xz_m.x(), 0.05, 0.0015);
+}
+
+TEST(PedicelFinder, TomatoesAndStemsAloneAreNothingToCut) {
+  // A tomato (3 cm radius) and a 2 cm stem: objects in range, none 6 mm wide.
+  const auto s = synth_scan({{-0.03, 0.2, 0.03, 6.0, 1}, {0.05, 0.15, 0.01, 6.0, 2}}, with_wall(5));
+  const auto d = detect(s.scan);
+  EXPECT_EQ(d.outcome, PedicelOutcome::kNothingToCut) << d.reason;
+  EXPECT_THAT(d.reason, HasSubstr("none pedicel-like"));
+  EXPECT_EQ(d.cluster, -1);
+}
+
+TEST(PedicelFinder, NothingInRangeIsOutOfView) {
+  // Only a wall at 1 m, beyond the 0.35 m working range.
+  const auto far = synth_scan({}, with_wall(6, 1.0));
+  const auto d = detect(far.scan);
+  EXPECT_EQ(d.outcome, PedicelOutcome::kOutOfView);
+  EXPECT_THAT(d.reason, HasSubstr("no return between 0.050 and 0.350 m"));
+  // All pixels invalid.
+  lc::LineScan dark = far.scan;
+  for (auto& r : dark.range_m) r = std::numeric_limits<double>::quiet_NaN();
+  const auto e = detect(dark);
+  EXPECT_EQ(e.outcome, PedicelOutcome::kOutOfView);
+  EXPECT_THAT(e.reason, HasSubstr("0 valid pixels of 256"));
+  // Empty scan.
+  const auto f = detect(lc::LineScan{});
+  EXPECT_EQ(f.outcome, PedicelOutcome::kOutOfView);
+  EXPECT_EQ(f.reason, "empty scan");
+}
+
+TEST(PedicelFinder, PedicelCutByTheFieldOfViewIsOutOfView) {
+  const double a = 35.0 * std::numbers::pi / 180.0;
+  SynthParams sp;
+  sp.seed = 7;
+  const auto s = synth_scan({{0.12 * std::sin(a) - 0.001, 0.12 * std::cos(a), 0.003, 6.0, 1}}, sp);
+  const auto d = detect(s.scan);
+  EXPECT_EQ(d.outcome, PedicelOutcome::kOutOfView) << d.reason;
+  EXPECT_THAT(d.reason, HasSubstr("cut by the edge of the field of view"));
+}
+
+TEST(PedicelFinder, BadInputIsInvalidInputWithAReason) {
+  const auto s = synth_scan({{0.0, 0.12, 0.003, 6.0, 1}}, with_wall(8));
+  lc::PedicelFinderParams p;
+  p.diameter_m = -0.006;
+  auto d = detect(s.scan, p);
+  EXPECT_EQ(d.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_THAT(d.reason, HasSubstr("diameter_m must be > 0"));
+  p = {};
+  p.max_range_m = 0.01;
+  EXPECT_THAT(detect(s.scan, p).reason, HasSubstr("min_range_m < max_range_m"));
+  // Clusters of another scan.
+  const auto objects = lc::cluster_line_scan(s.scan);
+  lc::LineScan shorter = s.scan;
+  shorter.angle_rad.resize(100);
+  shorter.range_m.resize(100);
+  d = lc::find_pedicel(shorter, objects, {});
+  EXPECT_EQ(d.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_THAT(d.reason, HasSubstr("256 labels for a scan of 100 pixels"));
+  // A failed clustering passes its reason on.
+  lc::LineScan broken = s.scan;
+  broken.range_m.pop_back();
+  d = detect(broken);
+  EXPECT_EQ(d.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_THAT(d.reason, HasSubstr("clustering failed"));
+  // A NaN expectation.
+  d = detect(s.scan, {}, lc::PedicelExpectation{{std::numeric_limits<double>::quiet_NaN(), 0.1}, 0.01});
+  EXPECT_EQ(d.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_STREQ(lc::to_string(d.outcome), "invalid_input");
+}
