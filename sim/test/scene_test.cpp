@@ -136,6 +136,7 @@ TEST(Scene, SensorFilesInheritAndShippedFilesLoad) {
 
   // Every shipped sensor and scene file loads.
   for (const char* sub : {"sim/config/sensors", "sim/config/scenes"}) {
+    if (!std::filesystem::exists(src(sub))) continue;  // no scene files shipped yet
     for (const auto& f : std::filesystem::directory_iterator(src(sub))) {
       if (f.path().extension() != ".yaml") continue;
       if (std::string(sub).ends_with("sensors")) {
