@@ -66,6 +66,10 @@ struct CalibrationEvaluation {
   /// The sensor's relative reflectance figure: declared_distance_m^2 * (a + b) / pulses
   /// [charge_unit m^2 / pulse] (the public driver's figure in other units).
   double reflectance = std::numeric_limits<double>::quiet_NaN();
+  /// Light returned per pulse relative to the calibration target's at the same distance and
+  /// pixel (1 = like the target; white paper calibrations read other materials' albedo
+  /// relative to white paper). NaN when the model carries no amplitude reference.
+  double albedo = std::numeric_limits<double>::quiet_NaN();
 };
 std::string_view to_string(CalibrationEvaluation::Status s);
 

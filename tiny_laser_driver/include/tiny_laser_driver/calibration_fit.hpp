@@ -39,9 +39,13 @@ enum class DistanceWeighting {
   kInverseVariance,  ///< K_i = 1 / residual variance at distance i, from a first fit (one reweighting)
 };
 
+/// Which read-outs the fit uses. The driver applies the model only to the read-out
+/// it selects per pixel (the most pulses without saturation), so by default the fit
+/// uses and judges exactly those: the low-signal read-outs it never applies the model
+/// to carry a ratio biased by noise and by the validity rule's cut-off.
 enum class ReadoutSelection {
-  kAll,     ///< every valid read-out (multi-discharge data, Eq. 3.20)
   kDriver,  ///< per pixel and frame (same t_s), only the valid read-out with the most pulses, as the driver does
+  kAll,     ///< every valid read-out (the multi-discharge data set of Eq. 3.20)
 };
 
 struct DeclaredFitParams {
@@ -56,7 +60,7 @@ struct DeclaredFitParams {
   double min_temperature_span_c = 1.0;    ///< less spread than this: no temperature term (not identifiable)
   bool equalize_distances = true;         ///< the 1 / N_i of Eq. 3.20: every target distance weighs the same
   DistanceWeighting weighting = DistanceWeighting::kOnes;
-  ReadoutSelection selection = ReadoutSelection::kAll;
+  ReadoutSelection selection = ReadoutSelection::kDriver;
   ValidityRule validity;
   int min_rows_per_pixel = 20;       ///< per-pixel Rsen only for pixels with this many valid read-outs
   int min_distances_per_pixel = 4;   ///< ... spread over at least this many target distances
@@ -88,6 +92,14 @@ struct DeclaredFitResult {
                                                       const DeclaredFitParams& params,
                                                       const std::vector<CalibrationTerm>& terms);
 
+/// Of rows `rows` of `data` (all when empty), the read-outs valid under `rule`; with
+/// kDriver, per pixel and frame (same t_s) only the one with the most pulses. Sorted.
+/// Counts what it left out when given the pointers.
+[[nodiscard]] std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+                                                       const ValidityRule& rule, ReadoutSelection selection,
+                                                       std::size_t* saturated = nullptr, std::size_t* too_dark = nullptr,
+                                                       std::size_t* not_selected = nullptr);
+
 /// Error of a model on data, over the read-outs it gives a distance for.
 struct ErrorStats {
   std::size_t n = 0;  ///< read-outs with a distance
@@ -99,10 +111,12 @@ struct ErrorStats {
 };
 
 /// Evaluates `model` through its own distance path (CalibrationModel::evaluate)
-/// on rows `rows` of `data` (all when empty). Read-outs with a missing extra
+/// on the read-outs of rows `rows` of `data` (all when empty) that `selection`
+/// keeps under the model's validity rule. Read-outs with a missing extra
 /// covariate count in missing_covariate and are left out.
 [[nodiscard]] ErrorStats evaluate_model(const CalibrationModel& model, const CalibrationDataset& data,
-                                        const std::vector<std::size_t>& rows = {});
+                                        const std::vector<std::size_t>& rows = {},
+                                        ReadoutSelection selection = ReadoutSelection::kDriver);
 
 /// Residuals model - truth per row of `rows` (NaN where the model gives no distance).
 [[nodiscard]] std::vector<double> model_residuals(const CalibrationModel& model, const CalibrationDataset& data,

@@ -24,6 +24,7 @@ enum class Covariate {
   kRatio,              ///< "ratio": the charge ratio X of Eq. 3.16
   kTemperature,        ///< "temperature_c": MCU temperature [degC]
   kReflectance,        ///< "reflectance": declared distance^2 * (a + b) / pulses [charge_unit m^2]
+  kAlbedo,             ///< "albedo": (a + b) / pulses relative to the calibration target's at that distance and pixel
   kExtra,              ///< a further numeric column, by name (Readout::extra)
 };
 
@@ -75,6 +76,19 @@ struct CalibrationTerm {
   [[nodiscard]] double value(double z, double amplitude) const;
 };
 
+/// What the calibration target returned per pulse, by declared distance and
+/// pixel: the reference of the albedo covariate. It holds the 1/L^2 fall-off,
+/// the emitter/receiver overlap at close range and the lens vignetting, which
+/// the thesis's reflectance figure (L^2 (a + b) / pulses) leaves in.
+struct AmplitudeReference {
+  std::vector<double> knots_m;            ///< declared distances [m], increasing
+  std::vector<double> log_amplitude;      ///< ln((a + b) / pulses) at the knots [ln charge_unit]
+  std::vector<double> pixel_log_offset;   ///< empty, or per pixel (0-271) [ln]
+  [[nodiscard]] bool empty() const { return knots_m.empty(); }
+  /// (a + b) / pulses over the reference at `declared_m` (NaN when empty or not positive).
+  [[nodiscard]] double albedo(const Readout& r, double declared_m) const;
+};
+
 /// Provenance and in-sample figures written beside the model (informational).
 struct CalibrationFitInfo {
   std::string data;          ///< data file the model was fitted on
@@ -108,6 +122,8 @@ struct CalibrationModel::Impl {
   double temperature_reference_c = 48.0;
   double temperature_coef_m_per_c = 0.0;
 
+  AmplitudeReference amplitude_reference;  ///< for the albedo covariate and evaluation output
+
   std::vector<CalibrationTerm> terms;
   std::vector<std::string> extra_covariates;  ///< derived from terms (resolve())
   CalibrationFitInfo info;
@@ -122,7 +138,7 @@ struct CalibrationModel::Impl {
   /// Value of covariate `kind` for a read-out (extra_index for kExtra), given its
   /// ratio and declared distance. NaN when unavailable.
   [[nodiscard]] static double covariate_value(Covariate kind, int extra_index, const Readout& r, double x,
-                                              double declared_m);
+                                              double declared_m, const AmplitudeReference& reference);
   /// Resolves term covariates and rebuilds extra_covariates (kept in first-use order).
   void resolve();
 };

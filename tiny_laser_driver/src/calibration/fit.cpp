@@ -29,12 +29,69 @@ double median(std::vector<double> v) {
 }  // namespace
 
 double term_covariate(const CalibrationDataset& data, std::size_t row, const CalibrationTerm& term, int dataset_extra,
-                      double x, double declared_m) {
+                      double x, double declared_m, const AmplitudeReference& reference) {
   const Readout& r = data.readouts[row];
   if (term.kind == Covariate::kExtra) {
     return dataset_extra >= 0 ? r.extra[static_cast<std::size_t>(dataset_extra)] : kNaN;
   }
-  return CalibrationModel::Impl::covariate_value(term.kind, -1, r, x, declared_m);
+  return CalibrationModel::Impl::covariate_value(term.kind, -1, r, x, declared_m, reference);
+}
+
+AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+                                           const std::vector<double>& declared_m) {
+  constexpr int kKnots = 16;
+  AmplitudeReference ref;
+  std::vector<std::size_t> use;
+  std::vector<double> d;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const Readout& r = data.readouts[rows[k]];
+    if (r.pulses > 0 && r.a + r.b > 0.0 && std::isfinite(declared_m[k]) && declared_m[k] > 0.0) {
+      use.push_back(k);
+      d.push_back(declared_m[k]);
+    }
+  }
+  if (use.size() < 50) return ref;
+  std::vector<double> sorted = d;
+  std::sort(sorted.begin(), sorted.end());
+  for (int i = 0; i < kKnots; ++i) {
+    const double v = sorted[static_cast<std::size_t>(std::lround(i * (sorted.size() - 1.0) / (kKnots - 1)))];
+    if (ref.knots_m.empty() || v > ref.knots_m.back() + 1e-6) ref.knots_m.push_back(v);
+  }
+  if (ref.knots_m.size() < 2) return {};
+  // ln amplitude = hat basis in distance + per-pixel offset (a ridge keeps the offsets
+  // centred) + per-material offset when the data names materials: then the curve is
+  // that of one material (the most common), not of whichever mix is valid at each distance.
+  const std::size_t nk = ref.knots_m.size();
+  std::size_t n_mat = 0, ref_mat = 0;
+  if (data.has_material && data.materials.size() > 1) {
+    n_mat = data.materials.size();
+    std::vector<std::size_t> count(n_mat, 0);
+    for (std::size_t j : use) {
+      const int m = data.material[rows[j]];
+      if (m >= 0) ++count[static_cast<std::size_t>(m)];
+    }
+    ref_mat = static_cast<std::size_t>(std::max_element(count.begin(), count.end()) - count.begin());
+  }
+  const std::size_t cols = nk + kPixels + n_mat;
+  NormalEquations ne(cols);
+  CalibrationTerm hat;
+  hat.knots = ref.knots_m;
+  Entries e;
+  for (std::size_t j = 0; j < use.size(); ++j) {
+    const Readout& r = data.readouts[rows[use[j]]];
+    e.clear();
+    hat.basis(d[j], 0.0, e);
+    e.emplace_back(nk + static_cast<std::size_t>(r.pixel), 1.0);
+    const int m = n_mat ? data.material[rows[use[j]]] : -1;
+    if (m >= 0 && static_cast<std::size_t>(m) != ref_mat) e.emplace_back(nk + kPixels + static_cast<std::size_t>(m), 1.0);
+    ne.add(e, std::log((r.a + r.b) / r.pulses), 1.0);
+  }
+  Eigen::VectorXd ridge = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(cols), 1e-9);
+  for (std::size_t c = nk; c < nk + kPixels; ++c) ridge[static_cast<Eigen::Index>(c)] = 1.0;
+  const Eigen::VectorXd c = ne.solve(ridge);
+  ref.log_amplitude.assign(c.data(), c.data() + nk);
+  ref.pixel_log_offset.assign(c.data() + nk, c.data() + nk + kPixels);
+  return ref;
 }
 
 FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
@@ -44,54 +101,16 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
     problem_ = fmt::format("polynomial degree {} is outside 1-12", p_.degree);
     return;
   }
-  std::vector<std::size_t> candidates = rows;
-  if (candidates.empty()) {
-    candidates.resize(data.size());
-    std::iota(candidates.begin(), candidates.end(), std::size_t{0});
-  }
-  offered = candidates.size();
-  std::vector<std::size_t> valid;
-  valid.reserve(candidates.size());
-  for (std::size_t i : candidates) {
-    switch (p_.validity.check(data.readouts[i])) {
-      case ValidityRule::Verdict::kValid: valid.push_back(i); break;
-      case ValidityRule::Verdict::kSaturated: ++saturated; break;
-      case ValidityRule::Verdict::kTooDark: ++too_dark; break;
-    }
-  }
-  if (valid.empty()) {
+  offered = rows.empty() ? data.size() : rows.size();
+  rows_ = select_readouts(data, rows, p_.validity, p_.selection, &saturated, &too_dark, &not_selected);
+  if (rows_.empty()) {
     problem_ = fmt::format(
         "no valid read-outs among {} rows of {}: {} saturated (a or b >= {}), {} too dark (a or b <= {}, or "
         "a + b <= {} + {} * pulses / 10)",
-        candidates.size(), data.source, saturated, p_.validity.high, too_dark, p_.validity.low, p_.validity.min_sum,
+        offered, data.source, saturated, p_.validity.high, too_dark, p_.validity.low, p_.validity.min_sum,
         p_.validity.per_pulse);
     return;
   }
-  if (p_.selection == ReadoutSelection::kDriver) {
-    // Per pixel and frame keep the valid read-out with the most pulses (the driver's choice).
-    std::sort(valid.begin(), valid.end(), [&](std::size_t i, std::size_t j) {
-      const Readout& a = data.readouts[i];
-      const Readout& b = data.readouts[j];
-      if (a.t_s != b.t_s) return a.t_s < b.t_s;
-      if (a.pixel != b.pixel) return a.pixel < b.pixel;
-      return a.pulses > b.pulses;
-    });
-    std::vector<std::size_t> kept;
-    for (std::size_t k = 0; k < valid.size(); ++k) {
-      const Readout& r = data.readouts[valid[k]];
-      if (k > 0) {
-        const Readout& prev = data.readouts[valid[k - 1]];
-        if (prev.t_s == r.t_s && prev.pixel == r.pixel) {
-          ++not_selected;
-          continue;
-        }
-      }
-      kept.push_back(valid[k]);
-    }
-    valid = std::move(kept);
-    std::sort(valid.begin(), valid.end());
-  }
-  rows_ = std::move(valid);
 
   const auto target_group = target_distance_groups(data);
   std::vector<long long> mm;
@@ -230,14 +249,24 @@ double FitEngine::declared_m(std::size_t i) const {
   return acc;
 }
 
+void FitEngine::update_reference() {
+  const bool solved = coef_.size() > 0 && coef_.cwiseAbs().maxCoeff() > 0.0;
+  std::vector<double> declared(rows_.size());
+  for (std::size_t i = 0; i < rows_.size(); ++i) declared[i] = solved ? declared_m(i) : y_[i];
+  reference_ = fit_amplitude_reference(data_, rows_, declared);
+}
+
 void FitEngine::compute_covariates() {
   z_.assign(terms_.size(), std::vector<double>(rows_.size(), kNaN));
   const bool solved = coef_.size() > 0 && coef_.cwiseAbs().maxCoeff() > 0.0;
+  const bool needs_reference =
+      std::any_of(terms_.begin(), terms_.end(), [](const auto& t) { return t.kind == Covariate::kAlbedo; });
+  if (needs_reference) update_reference();
   for (std::size_t k = 0; k < terms_.size(); ++k) {
     for (std::size_t i = 0; i < rows_.size(); ++i) {
       // Before the first solve the truth stands in for the declared distance (reflectance only).
       const double declared = solved ? declared_m(i) : y_[i];
-      z_[k][i] = term_covariate(data_, rows_[i], terms_[k], term_extra_[k], x_[i], declared);
+      z_[k][i] = term_covariate(data_, rows_[i], terms_[k], term_extra_[k], x_[i], declared, reference_);
     }
   }
 }
@@ -489,6 +518,7 @@ void FitEngine::fit() {
   compute_x();
   compute_covariates();
   solve_linear();
+  update_reference();
   ratio_min_ = 1e300;
   ratio_max_ = -1e300;
   for (double x : x_) {
@@ -514,6 +544,7 @@ CalibrationModel FitEngine::model() const {
   m.poly_m.assign(coef_.data(), coef_.data() + p_.degree + 1);
   m.temperature_reference_c = p_.temperature_reference_c;
   m.temperature_coef_m_per_c = use_temp_ ? coef_[p_.degree + 1] : 0.0;
+  m.amplitude_reference = reference_;
   m.terms = terms_;
   for (std::size_t k = 0; k < terms_.size(); ++k) {
     m.terms[k].set_coefficients(coef_.data() + term_col_[k]);
@@ -528,6 +559,55 @@ CalibrationModel FitEngine::model() const {
 }  // namespace detail
 
 // ------------------------------------------------------------------ public API
+
+std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+                                         const ValidityRule& rule, ReadoutSelection selection, std::size_t* saturated,
+                                         std::size_t* too_dark, std::size_t* not_selected) {
+  std::size_t sat = 0, dark = 0, dropped = 0;
+  std::vector<std::size_t> valid;
+  valid.reserve(rows.empty() ? data.size() : rows.size());
+  auto consider = [&](std::size_t i) {
+    switch (rule.check(data.readouts[i])) {
+      case ValidityRule::Verdict::kValid: valid.push_back(i); break;
+      case ValidityRule::Verdict::kSaturated: ++sat; break;
+      case ValidityRule::Verdict::kTooDark: ++dark; break;
+    }
+  };
+  if (rows.empty()) {
+    for (std::size_t i = 0; i < data.size(); ++i) consider(i);
+  } else {
+    for (std::size_t i : rows) consider(i);
+  }
+  if (selection == ReadoutSelection::kDriver) {
+    // Per pixel and frame keep the valid read-out with the most pulses (the driver's choice).
+    std::sort(valid.begin(), valid.end(), [&](std::size_t i, std::size_t j) {
+      const Readout& a = data.readouts[i];
+      const Readout& b = data.readouts[j];
+      if (a.t_s != b.t_s) return a.t_s < b.t_s;
+      if (a.pixel != b.pixel) return a.pixel < b.pixel;
+      return a.pulses > b.pulses;
+    });
+    std::vector<std::size_t> kept;
+    kept.reserve(valid.size());
+    for (std::size_t k = 0; k < valid.size(); ++k) {
+      if (k > 0) {
+        const Readout& prev = data.readouts[valid[k - 1]];
+        const Readout& r = data.readouts[valid[k]];
+        if (prev.t_s == r.t_s && prev.pixel == r.pixel) {
+          ++dropped;
+          continue;
+        }
+      }
+      kept.push_back(valid[k]);
+    }
+    valid = std::move(kept);
+  }
+  std::sort(valid.begin(), valid.end());
+  if (saturated) *saturated = sat;
+  if (too_dark) *too_dark = dark;
+  if (not_selected) *not_selected = dropped;
+  return valid;
+}
 
 DeclaredFitResult fit_calibration_model(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
                                         const DeclaredFitParams& params, const std::vector<CalibrationTerm>& terms) {
@@ -610,12 +690,10 @@ ErrorStats error_stats(const std::vector<double>& residuals) {
 }
 
 ErrorStats evaluate_model(const CalibrationModel& model, const CalibrationDataset& data,
-                          const std::vector<std::size_t>& rows_in) {
-  std::vector<std::size_t> rows = rows_in;
-  if (rows.empty()) {
-    rows.resize(data.size());
-    std::iota(rows.begin(), rows.end(), std::size_t{0});
-  }
+                          const std::vector<std::size_t>& rows_in, ReadoutSelection selection) {
+  std::size_t sat0 = 0, dark0 = 0;
+  const std::vector<std::size_t> rows =
+      select_readouts(data, rows_in, model.validity(), selection, &sat0, &dark0, nullptr);
   const auto readouts = readouts_for_model(data.subset(rows), model);
   std::vector<double> residuals;
   residuals.reserve(rows.size());
@@ -632,8 +710,8 @@ ErrorStats evaluate_model(const CalibrationModel& model, const CalibrationDatase
     }
   }
   ErrorStats s = error_stats(residuals);
-  s.saturated = sat;
-  s.too_dark = dark;
+  s.saturated = sat + sat0;
+  s.too_dark = dark + dark0;
   s.out_of_range = oor;
   s.missing_covariate = missing;
   return s;

@@ -16,7 +16,12 @@ namespace tinyline::tiny_laser_driver::detail {
 /// Covariate value of a term for dataset row `row` (dataset_extra: the term's
 /// column in the data set for kExtra), given the row's X and declared distance.
 double term_covariate(const CalibrationDataset& data, std::size_t row, const CalibrationTerm& term, int dataset_extra,
-                      double x, double declared_m);
+                      double x, double declared_m, const AmplitudeReference& reference);
+
+/// Fits the amplitude reference (ln amplitude per pulse by declared distance, plus a
+/// per-pixel offset) to rows with their declared distances.
+AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+                                           const std::vector<double>& declared_m);
 
 class FitEngine {
  public:
@@ -45,6 +50,7 @@ class FitEngine {
   [[nodiscard]] double declared_m(std::size_t i) const;
   [[nodiscard]] double ratio_min() const { return ratio_min_; }
   [[nodiscard]] double ratio_max() const { return ratio_max_; }
+  [[nodiscard]] const AmplitudeReference& amplitude_reference() const { return reference_; }
   /// Ridge per column (tiny on the declared columns, term_ridge on the term columns).
   [[nodiscard]] Eigen::VectorXd ridge(std::size_t total_columns) const;
 
@@ -79,6 +85,8 @@ class FitEngine {
   bool use_temp_ = false;
   bool fit_leak_offset_ = false;
 
+  AmplitudeReference reference_;
+  void update_reference();
   std::vector<CalibrationTerm> terms_;
   std::vector<int> term_extra_;                // dataset extra column per term
   std::vector<std::vector<double>> z_;         // per term, per kept row

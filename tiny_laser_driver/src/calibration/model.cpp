@@ -26,6 +26,7 @@ constexpr CovariateEntry kCovariates[] = {
     {Covariate::kRatio, "ratio"},
     {Covariate::kTemperature, "temperature_c"},
     {Covariate::kReflectance, "reflectance"},
+    {Covariate::kAlbedo, "albedo"},
 };
 
 // Index i of the knot interval holding z (z clamped) and the weight of knot i+1.
@@ -186,8 +187,23 @@ double CalibrationModel::Impl::declared_m(double x, double temperature_c) const 
   return polynomial_m(x) + temperature_coef_m_per_c * (temperature_reference_c - temperature_c);  // 3.3.4
 }
 
+double AmplitudeReference::albedo(const Readout& r, double declared_m) const {
+  if (empty() || r.pulses <= 0 || !std::isfinite(declared_m)) return kNaN;
+  const double amp = (r.a + r.b) / r.pulses;
+  if (!(amp > 0.0)) return kNaN;
+  double ref = log_amplitude.front();
+  if (knots_m.size() >= 2) {
+    const auto [i, t] = locate(knots_m, declared_m);
+    ref = (1.0 - t) * log_amplitude[i] + t * log_amplitude[i + 1];
+  }
+  if (!pixel_log_offset.empty() && r.pixel >= 0 && static_cast<std::size_t>(r.pixel) < pixel_log_offset.size()) {
+    ref += pixel_log_offset[static_cast<std::size_t>(r.pixel)];
+  }
+  return amp / std::exp(ref);
+}
+
 double CalibrationModel::Impl::covariate_value(Covariate kind, int extra_index, const Readout& r, double x,
-                                               double declared) {
+                                               double declared, const AmplitudeReference& reference) {
   switch (kind) {
     case Covariate::kPixel: return r.pixel;
     case Covariate::kTime: return r.t_s;
@@ -198,6 +214,7 @@ double CalibrationModel::Impl::covariate_value(Covariate kind, int extra_index, 
     case Covariate::kTemperature: return r.temperature_c;
     case Covariate::kReflectance:
       return r.pulses > 0 ? declared * declared * (r.a + r.b) / r.pulses : kNaN;
+    case Covariate::kAlbedo: return reference.albedo(r, declared);
     case Covariate::kExtra:
       if (extra_index >= 0 && static_cast<std::size_t>(extra_index) < r.extra.size()) {
         return r.extra[static_cast<std::size_t>(extra_index)];
@@ -257,12 +274,15 @@ CalibrationEvaluation CalibrationModel::evaluate(const Readout& r) const {
     return ev;
   }
   ev.declared_distance_m = m.declared_m(ev.ratio, r.temperature_c);
-  ev.reflectance = Impl::covariate_value(Covariate::kReflectance, -1, r, ev.ratio, ev.declared_distance_m);
+  ev.reflectance = Impl::covariate_value(Covariate::kReflectance, -1, r, ev.ratio, ev.declared_distance_m,
+                                         m.amplitude_reference);
+  ev.albedo = m.amplitude_reference.albedo(r, ev.declared_distance_m);
   double d = ev.declared_distance_m;
   bool missing = false;
   const double amplitude = r.a + r.b;
   for (const auto& t : m.terms) {
-    const double z = Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio, ev.declared_distance_m);
+    const double z =
+        Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio, ev.declared_distance_m, m.amplitude_reference);
     if (!std::isfinite(z)) {
       missing = true;
       continue;

@@ -112,7 +112,7 @@ bool strictly_increasing(const std::vector<T>& v) {
 }
 
 void parse(const YAML::Node& root, const Reader& rd, CalibrationModel::Impl& m) {
-  rd.only_keys(root, "", {"format", "validity", "ratio", "polynomial", "temperature", "terms", "fit"});
+  rd.only_keys(root, "", {"format", "validity", "ratio", "polynomial", "temperature", "amplitude_reference", "terms", "fit"});
   const auto fmt_node = rd.required(root, "", "format");
   if (rd.text(fmt_node, "format") != kFormat) {
     rd.fail(fmt_node, "format", fmt::format("'{}' is not '{}'", fmt_node.Scalar(), kFormat));
@@ -169,6 +169,29 @@ void parse(const YAML::Node& root, const Reader& rd, CalibrationModel::Impl& m) 
     rd.only_keys(t, "temperature", {"reference_c", "coefficient_m_per_c"});
     m.temperature_reference_c = rd.number_or(t, "temperature", "reference_c", m.temperature_reference_c);
     m.temperature_coef_m_per_c = rd.number_or(t, "temperature", "coefficient_m_per_c", 0.0);
+  }
+
+  if (const auto a = root["amplitude_reference"]) {
+    rd.only_keys(a, "amplitude_reference", {"knots_m", "log_amplitude", "pixel_log_offset"});
+    auto& ref = m.amplitude_reference;
+    const auto kn = rd.required(a, "amplitude_reference", "knots_m");
+    ref.knots_m = rd.numbers(kn, "amplitude_reference.knots_m");
+    if (ref.knots_m.empty() || !strictly_increasing(ref.knots_m)) {
+      rd.fail(kn, "amplitude_reference.knots_m", "must be a non-empty, strictly increasing list");
+    }
+    const auto ln = rd.required(a, "amplitude_reference", "log_amplitude");
+    ref.log_amplitude = rd.numbers(ln, "amplitude_reference.log_amplitude");
+    if (ref.log_amplitude.size() != ref.knots_m.size()) {
+      rd.fail(ln, "amplitude_reference.log_amplitude",
+              fmt::format("has {} values for {} knots", ref.log_amplitude.size(), ref.knots_m.size()));
+    }
+    if (const auto pp = a["pixel_log_offset"]) {
+      ref.pixel_log_offset = rd.numbers(pp, "amplitude_reference.pixel_log_offset");
+      if (ref.pixel_log_offset.size() != kPixels) {
+        rd.fail(pp, "amplitude_reference.pixel_log_offset",
+                fmt::format("has {} values, expected one per pixel ({})", ref.pixel_log_offset.size(), kPixels));
+      }
+    }
   }
 
   if (const auto terms = root["terms"]) {
@@ -306,6 +329,12 @@ std::string CalibrationModel::to_yaml() const {
   y += "temperature:              # 3.3.4: + coefficient_m_per_c * (reference_c - T)\n";
   y += fmt::format("  reference_c: {}\n  coefficient_m_per_c: {}\n", num(m.temperature_reference_c),
                    num(m.temperature_coef_m_per_c));
+  if (!m.amplitude_reference.empty()) {
+    const auto& ref = m.amplitude_reference;
+    y += "amplitude_reference:      # ln((a + b) / pulses) of the calibration target: the albedo covariate's reference\n";
+    y += fmt::format("  knots_m: {}\n  log_amplitude: {}\n", list(ref.knots_m, "    "), list(ref.log_amplitude, "    "));
+    if (!ref.pixel_log_offset.empty()) y += fmt::format("  pixel_log_offset: {}\n", list(ref.pixel_log_offset, "    "));
+  }
   if (m.terms.empty()) {
     y += "terms: []                # effects found by the residual analysis (none)\n";
   } else {

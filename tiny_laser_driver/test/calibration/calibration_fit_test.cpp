@@ -44,7 +44,7 @@ TEST(CalibrationFit, NoiseFreeDataIsFittedToAMillimetre) {
   const auto fit = tl::fit_declared_model(rail(s, 1));
   ASSERT_TRUE(fit.ok) << fit.reason;
   EXPECT_LT(fit.rmse_m, 0.001) << fit.model.describe();
-  EXPECT_GT(fit.used, 10000u);
+  EXPECT_GT(fit.used, 7000u);  // one read-out per pixel and frame
 }
 
 TEST(CalibrationFit, RecoversPerPixelSensitivityDifferencesAndTemperatureDrift) {
@@ -126,18 +126,22 @@ TEST(CalibrationFit, FittedModelSurvivesSaveAndLoadBitForBit) {
       ++compared;
     }
   }
-  EXPECT_EQ(compared, fit.used);
+  EXPECT_GE(compared, fit.used);
   const auto e0 = tl::evaluate_model(fit.model, data);
   EXPECT_NEAR(e0.rmse_m, fit.rmse_m, 1e-12);
   EXPECT_EQ(e0.n, fit.used);
+  // Every valid read-out, not only the driver's choice: more of them, and noisier.
+  const auto e1 = tl::evaluate_model(fit.model, data, {}, tl::ReadoutSelection::kAll);
+  EXPECT_GT(e1.n, 2 * e0.n);
 }
 
 TEST(CalibrationFit, DriverSelectionKeepsOneReadoutPerPixelAndFrame) {
-  tl::DeclaredFitParams p;
-  p.selection = tl::ReadoutSelection::kDriver;
-  const auto fit = tl::fit_declared_model(noisy_rail(), p);
+  const auto fit = tl::fit_declared_model(noisy_rail());  // kDriver is the default
   ASSERT_TRUE(fit.ok) << fit.reason;
-  const auto all = tl::fit_declared_model(noisy_rail());
+  tl::DeclaredFitParams p;
+  p.selection = tl::ReadoutSelection::kAll;
+  const auto all = tl::fit_declared_model(noisy_rail(), p);
+  ASSERT_TRUE(all.ok) << all.reason;
   EXPECT_EQ(fit.used + fit.not_selected, all.used);
   // 40 distances x 2 passes x 3 frames x 64 pixels, less the pixels with no valid read-out at all.
   EXPECT_LE(fit.used, 40u * 2 * 3 * 64);
@@ -195,8 +199,7 @@ TEST(CalibrationFit, NoTemperatureSpreadMeansNoTemperatureTerm) {
   const auto fit = tl::fit_declared_model(data);
   ASSERT_TRUE(fit.ok) << fit.reason;
   EXPECT_EQ(fit.model.impl().temperature_coef_m_per_c, 0.0);
-  ASSERT_FALSE(fit.notes.empty());
-  EXPECT_THAT(fit.notes.front(), HasSubstr("no temperature term"));
+  EXPECT_THAT(fit.notes, ::testing::Contains(HasSubstr("no temperature term")));
 }
 
 TEST(CalibrationFit, TermOnAColumnTheDataLacksIsAReason) {

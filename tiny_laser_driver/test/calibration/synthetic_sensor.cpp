@@ -217,7 +217,8 @@ CalibrationDataset simulate_rail(const SyntheticSensor& s, const RailPlan& plan_
           r.a = s.quantise ? std::round(a * 10.0) / 10.0 : a;  // the wire carries ten times the charge unit as int16
           r.b = s.quantise ? std::round(b * 10.0) / 10.0 : b;
           r.temperature_c = temperature;
-          if (supply_col) r.extra.push_back(std::round((supply + 0.005 * n01(rng)) * 1000.0) / 1000.0);
+          const double supply_read = supply + 0.005 * n01(rng);  // drawn always: the same seed gives the same noise
+          if (supply_col) r.extra.push_back(std::round(supply_read * 1000.0) / 1000.0);
           data.add(std::move(r), ray_m, material.name);
         }
       }
