@@ -42,6 +42,8 @@ Player::Player(bus::NodeOptions options, PlayerOptions defaults) : Node(std::mov
 Player::~Player() { stop(); }
 
 void Player::on_start() {
+  if (thread_.joinable() || opened_) return;  // started already (the CLI opens before spinning)
+  opened_ = true;
   open();
   stop_.store(false);
   thread_ = std::thread([this] { run(); });

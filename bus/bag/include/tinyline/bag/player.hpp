@@ -78,6 +78,7 @@ class Player : public bus::Node {
   std::shared_ptr<bus::Publisher<rosgraph_msgs::msg::Clock>> clock_pub_;
   std::thread thread_;
   std::atomic<bool> stop_{false};
+  bool opened_ = false;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   PlayerStats stats_;
