@@ -63,8 +63,7 @@ struct LinearReader::Impl {
   // The end of the file came before a Data End record or footer.
   bool truncated_end(std::uint64_t offset, std::string what) {
     Status s(StatusCode::Truncated,
-             fmt::format("{}: {} (the writer did not finish; `tinyline bag recover` rewrites what is there)",
-                         src.name(), what));
+             fmt::format("{} (the writer did not finish; `tinyline bag recover` rewrites what is there)", what));
     state = State::Done;
     if (opt.recover) {
       problems.push_back(ReadProblem{offset, std::move(s), false});
@@ -95,10 +94,11 @@ struct LinearReader::Impl {
   bool read_prefix(std::uint8_t& op, std::uint64_t& len) {
     const std::uint64_t size = src.size();
     if (pos == size) {
-      return truncated_end(pos, fmt::format("file ends at byte {} without a Data End record or footer", pos));
+      return truncated_end(pos, fmt::format("{}: file ends at byte {} without a Data End record or footer",
+                                            src.name(), pos));
     }
     if (size - pos < kRecordPrefix) {
-      return truncated_end(pos, fmt::format("file ends inside a record prefix at byte {}", pos));
+      return truncated_end(pos, fmt::format("{}: file ends inside a record prefix at byte {}", src.name(), pos));
     }
     std::uint8_t p[9];
     if (Status s = src.read(pos, p); !s.ok()) return fatal(std::move(s));

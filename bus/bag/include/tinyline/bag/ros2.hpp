@@ -58,9 +58,7 @@ class Ros2Writer {
   template <class T>
   Status write(ChannelId channel, const T& message, Timestamp log_time, Timestamp publish_time,
                std::uint32_t sequence = 0) {
-    buffer_.clear();
-    msg::serialize(message, buffer_);
-    return write_serialized(channel, buffer_, log_time, publish_time, sequence);
+    return write(channel, msg::type_support<T>(), &message, log_time, publish_time, sequence);
   }
   /// Type-erased: `message` must be of the channel's type.
   Status write(ChannelId channel, const msg::TypeSupport& type, const void* message, Timestamp log_time,

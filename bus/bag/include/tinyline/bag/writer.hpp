@@ -92,6 +92,8 @@ class Writer {
   Status close();
 
   const WriterStats& stats() const { return stats_; }
+  /// Uncompressed bytes in the chunk not yet closed.
+  std::uint64_t open_chunk_bytes() const { return chunk_records_.size(); }
   const WriterOptions& options() const { return options_; }
   /// The sink, e.g. to read back a MemoryWritable after close().
   Writable* sink() { return out_.get(); }
