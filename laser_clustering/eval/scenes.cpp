@@ -1,0 +1,232 @@
+#include "scenes.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+namespace tinyline::laser_clustering::eval {
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+struct Rng {
+  explicit Rng(std::uint64_t seed) : gen(seed) {}
+  double uniform(double a, double b) { return std::uniform_real_distribution<double>(a, b)(gen); }
+  double uniform(const double (&r)[2]) { return uniform(r[0], r[1]); }
+  double normal(double sd) { return std::normal_distribution<double>(0.0, sd)(gen); }
+  int integer(int a, int b) { return std::uniform_int_distribution<int>(a, b)(gen); }
+  std::mt19937_64 gen;
+};
+
+sim::MaterialId material(const sim::World& w, const std::string& name) {
+  const auto id = w.materials().find(name);
+  if (!id) throw std::invalid_argument("eval scene: unknown material '" + name + "'");
+  return *id;
+}
+
+Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Matrix3d& R = Eigen::Matrix3d::Identity()) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = t;
+  return T;
+}
+
+Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) { return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix(); }
+
+struct Hanging {
+  Eigen::Vector3d top, bottom, dir;
+  double radius = 0, length = 0;
+  Eigen::Vector3d tomato_centre;
+  double tomato_radius = 0;
+};
+
+// A pedicel hanging from `top` (down = +y) within max_tilt of vertical, with its tomato.
+Hanging hang(Rng& rng, const Eigen::Vector3d& top, const TrussOptions& o) {
+  Hanging h;
+  const double tilt = rng.uniform(0.0, o.max_tilt_deg) * kDeg, az = rng.uniform(0.0, 2.0 * std::numbers::pi);
+  h.dir = Eigen::Vector3d(std::sin(tilt) * std::cos(az), std::cos(tilt), std::sin(tilt) * std::sin(az));
+  h.length = rng.uniform(o.pedicel_length_m);
+  h.radius = rng.uniform(o.pedicel_radius_m);
+  h.top = top;
+  h.bottom = top + h.length * h.dir;
+  h.tomato_radius = rng.uniform(o.tomato_radius_m);
+  h.tomato_centre = h.bottom + h.tomato_radius * h.dir;
+  return h;
+}
+
+bool overlaps(const Hanging& a, const std::vector<Hanging>& others) {
+  for (const auto& b : others) {
+    if ((a.tomato_centre - b.tomato_centre).norm() < a.tomato_radius + b.tomato_radius + 0.002) return true;
+    // The new pedicel must not run through an existing tomato, nor its tomato through a pedicel.
+    for (const auto& [p, s] : {std::pair{&a, &b}, std::pair{&b, &a}}) {
+      const Eigen::Vector3d d = p->bottom - p->top;
+      const double t = std::clamp((s->tomato_centre - p->top).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      if ((p->top + t * d - s->tomato_centre).norm() < s->tomato_radius + p->radius) return true;
+    }
+  }
+  return false;
+}
+
+void add_hanging(sim::World& w, const Hanging& h, const std::string& name, sim::MaterialId stem, sim::MaterialId red,
+                 sim::ObjectId& pedicel, sim::ObjectId& tomato) {
+  pedicel = w.add({name + "_pedicel", sim::RodShape{h.top, h.bottom, h.radius}, Eigen::Isometry3d::Identity(), stem});
+  tomato = w.add({name + "_tomato", sim::SphereShape{h.tomato_radius}, pose(h.tomato_centre), red});
+}
+
+}  // namespace
+
+TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions& o) {
+  Rng rng(seed);
+  TrussScene s;
+  sim::World& w = s.world;
+  const auto stem_mat = material(w, "stem"), red = material(w, "tomato_red"), leaf = material(w, "leaf");
+
+  // The target pedicel crosses the world's y = 0 plane at `cross`.
+  Eigen::Vector3d cross(0.0, 0.0, o.throat_z_m);
+  if (c == TrussCase::kRandomOffset) {
+    const double rho = o.max_offset_m * std::sqrt(rng.uniform(0.0, 1.0)), phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
+    cross += Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
+  }
+  Hanging target = hang(rng, Eigen::Vector3d::Zero(), o);
+  const double along = std::clamp(0.5 * target.length + rng.uniform(-o.vertical_jitter_m, o.vertical_jitter_m),
+                                  0.2 * target.length, 0.8 * target.length);
+  // Move it so that the point `along` down its axis lies on the plane at `cross`.
+  const Eigen::Vector3d shift = cross - along * target.dir;
+  target.top += shift;
+  target.bottom += shift;
+  target.tomato_centre += shift;
+  std::vector<Hanging> hangings{target};
+
+  // Neighbours along the stem on both sides (at least one in all).
+  int left = rng.integer(0, 2), right = rng.integer(0, 2);
+  if (left + right == 0) (rng.integer(0, 1) ? left : right) = 1;
+  for (const int side : {-1, 1}) {
+    double x = target.top.x();
+    for (int k = 0; k < (side < 0 ? left : right); ++k) {
+      // Tomatoes do not interpenetrate: a crowded draw is redrawn, a little
+      // further out each time.
+      for (int attempt = 0; attempt < 50; ++attempt) {
+        const double x_try = x + side * rng.uniform(o.neighbour_spacing_m) * (1.0 + 0.02 * attempt);
+        const Eigen::Vector3d top(x_try, target.top.y() + rng.uniform(-o.neighbour_drop_m, o.neighbour_drop_m),
+                                  target.top.z() + rng.uniform(-o.neighbour_depth_m, o.neighbour_depth_m));
+        const Hanging h = hang(rng, top, o);
+        if (!overlaps(h, hangings)) {
+          hangings.push_back(h);
+          x = x_try;
+          break;
+        }
+      }
+    }
+  }
+  for (std::size_t i = 0; i < hangings.size(); ++i) {
+    sim::ObjectId p, t;
+    add_hanging(w, hangings[i], i == 0 ? "target" : "neighbour" + std::to_string(i), stem_mat, red, p, t);
+    s.truth.pedicels.push_back(p);
+    s.truth.tomatoes.push_back(t);
+  }
+  s.truth.target_pedicel = s.truth.pedicels.front();
+  s.truth.target_radius_m = target.radius;
+
+  // The truss stem above every top, and a short peduncle from each top up to it.
+  double stem_y = 0.0, x_lo = 0.0, x_hi = 0.0;
+  for (const auto& h : hangings) {
+    stem_y = std::min(stem_y, h.top.y());
+    x_lo = std::min(x_lo, h.top.x());
+    x_hi = std::max(x_hi, h.top.x());
+  }
+  stem_y -= 0.012;
+  const double stem_z = target.top.z();
+  s.truth.stem = w.add({"stem", sim::RodShape{{x_lo - 0.1, stem_y, stem_z}, {x_hi + 0.1, stem_y, stem_z}, 0.004},
+                        Eigen::Isometry3d::Identity(), stem_mat});
+  for (std::size_t i = 0; i < hangings.size(); ++i) {
+    const auto& h = hangings[i];
+    w.add({"peduncle" + std::to_string(i), sim::RodShape{{h.top.x(), stem_y, stem_z}, h.top, 0.0025},
+           Eigen::Isometry3d::Identity(), stem_mat});
+  }
+  // Leaves behind the truss.
+  if (rng.uniform(0.0, 1.0) < o.leaf_probability) {
+    const Eigen::Matrix3d R = rot(Eigen::Vector3d::UnitY(), rng.uniform(-20.0, 20.0) * kDeg) *
+                              rot(Eigen::Vector3d::UnitX(), rng.uniform(-20.0, 20.0) * kDeg);
+    w.add({"leaf", sim::PlaneShape{Eigen::Vector2d(0.6, 0.6)},
+           pose(Eigen::Vector3d(rng.uniform(-0.1, 0.1), 0.0, o.throat_z_m + rng.uniform(o.leaf_z_m) - 0.15), R), leaf});
+  }
+
+  // Where the gripper really is.
+  if (c == TrussCase::kRecognitionError) {
+    const double rho = rng.uniform(o.recognition_offset_m), phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
+    const Eigen::Vector3d estimate = cross + Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
+    const Eigen::Matrix3d yaw = rot(Eigen::Vector3d::UnitY(), rng.uniform(-o.recognition_yaw_deg, o.recognition_yaw_deg) * kDeg);
+    s.T_world_sensor = pose(estimate - yaw * Eigen::Vector3d(0.0, 0.0, o.throat_z_m), yaw);
+    // The vision's tomato is right (within a few mm): the pedicel is expected
+    // right above its centre.
+    const Eigen::Vector3d tomato = target.tomato_centre + Eigen::Vector3d(rng.normal(o.tomato_estimate_sd_m), 0.0,
+                                                                          rng.normal(o.tomato_estimate_sd_m));
+    const Eigen::Vector3d expected = s.T_world_sensor.inverse() * Eigen::Vector3d(tomato.x(), 0.0, tomato.z());
+    s.truth.expected_xz_m = Eigen::Vector2d(expected.x(), expected.z());
+    s.truth.expected_sd_m = 0.015;
+    s.truth.use_expectation = true;
+  } else {
+    s.truth.expected_xz_m = Eigen::Vector2d(0.0, o.throat_z_m);
+  }
+  s.truth.target_in_sensor = s.T_world_sensor.inverse() * cross;
+  return s;
+}
+
+StickScene make_stick_scene(std::uint64_t seed, const StickOptions& o) {
+  Rng rng(seed);
+  StickScene s;
+  sim::World& w = s.world;
+  const double d = rng.uniform(o.panel_distance_m);
+  auto tilt = [&]() -> Eigen::Matrix3d {
+    return rot(Eigen::Vector3d::UnitY(), rng.uniform(-o.max_tilt_deg, o.max_tilt_deg) * kDeg) *
+           rot(Eigen::Vector3d::UnitX(), rng.uniform(-o.max_tilt_deg, o.max_tilt_deg) * kDeg);
+  };
+  s.panel = w.add({"panel", sim::PlaneShape{Eigen::Vector2d(0.6, 0.6)}, pose(Eigen::Vector3d(0, 0, d), tilt()),
+                   material(w, o.panel_material)});
+  // The stick stands off the panel: its front face front_gap before it, its
+  // back no deeper than the panel.
+  const double thickness = std::min(o.stick_thickness_m, o.front_gap_m);
+  const double x = rng.uniform(-o.lateral_m, o.lateral_m);
+  // The panel's depth at the stick (the panel is tilted).
+  const auto& T_panel = w.object(s.panel).T_world_object;
+  const Eigen::Vector3d n = T_panel.linear().col(2);
+  const double panel_z = d - n.x() * x / n.z();
+  s.stick = w.add({"stick", sim::BoxShape{Eigen::Vector3d(o.stick_width_m, 0.3, thickness)},
+                   pose(Eigen::Vector3d(x, 0.0, panel_z - o.front_gap_m + thickness / 2), tilt()),
+                   material(w, o.stick_material)});
+  return s;
+}
+
+Eigen::Isometry3d WrenchScene::T_world_sensor(double pitch_rad) const {
+  // Rotate about the laser's x axis around a pivot behind it.
+  return pose(Eigen::Vector3d(0.0, 0.0, -pivot_behind_m)) * pose(Eigen::Vector3d::Zero(), rot(Eigen::Vector3d::UnitX(), pitch_rad)) *
+         pose(Eigen::Vector3d(0.0, 0.0, pivot_behind_m));
+}
+
+WrenchScene make_wrench_scene(std::uint64_t seed, const WrenchOptions& o) {
+  Rng rng(seed);
+  WrenchScene s;
+  s.pivot_behind_m = o.pivot_behind_m;
+  sim::World& w = s.world;
+  const double d = rng.uniform(o.panel_distance_m);
+  w.add({"panel", sim::PlaneShape{Eigen::Vector2d(0.8, 0.8)}, pose(Eigen::Vector3d(0, 0, d)), material(w, o.panel_material)});
+  const double pitch = rng.uniform(-o.max_face_pitch_deg, o.max_face_pitch_deg) * kDeg;
+  const double yaw = rng.uniform(-o.max_face_yaw_deg, o.max_face_yaw_deg) * kDeg;
+  const Eigen::Matrix3d R = rot(Eigen::Vector3d::UnitY(), yaw) * rot(Eigen::Vector3d::UnitX(), pitch);
+  const Eigen::Vector3d size(o.wrench_size_m[0], o.wrench_size_m[1], o.wrench_size_m[2]);
+  // Hanging on the panel: pulled forward so no corner goes through it.
+  const double reach = 0.5 * (std::abs(R(2, 0)) * size.x() + std::abs(R(2, 1)) * size.y() + std::abs(R(2, 2)) * size.z());
+  s.wrench = w.add({"wrench", sim::BoxShape{size},
+                    pose(Eigen::Vector3d(rng.uniform(-o.lateral_m, o.lateral_m), 0.0, d - reach - 0.001), R),
+                    material(w, o.wrench_material)});
+  // The face towards the laser has normal -R z; square means the optical axis
+  // R_x(p) z runs along m = R z in the y-z plane: (0, -sin p, cos p) ~ (m_y, m_z).
+  const Eigen::Vector3d m = R.col(2);
+  s.true_pitch_rad = std::atan2(-m.y(), m.z());
+  return s;
+}
+
+}  // namespace tinyline::laser_clustering::eval

@@ -1,0 +1,101 @@
+// The laser_clustering nodes: thin shells that declare parameters (defaults
+// from the core's structs), convert tinyline_msgs/LineScan to the core's
+// LineScan, call the core and publish. Topic names are generic; launch files
+// remap them. Construct one directly to embed it, or by name through
+// register_nodes().
+#pragma once
+
+#include <deque>
+#include <memory>
+#include <optional>
+#include <utility>
+
+#include <tinyline/bus/node.hpp>
+#include <tinyline/msg/geometry_msgs/point_stamped.hpp>
+#include <tinyline/msg/sensor_msgs/joint_state.hpp>
+#include <tinyline/msg/tinyline_msgs/alignment_result.hpp>
+#include <tinyline/msg/tinyline_msgs/line_clusters.hpp>
+#include <tinyline/msg/tinyline_msgs/line_scan.hpp>
+#include <tinyline/msg/tinyline_msgs/pedicel_detection.hpp>
+
+#include "laser_clustering/alignment_search.hpp"
+#include "laser_clustering/pedicel_finder.hpp"
+#include "laser_clustering/reflectance_clustering.hpp"
+#include "laser_clustering/two_stage.hpp"
+
+namespace tinyline::laser_clustering {
+
+/// scan (tinyline_msgs/LineScan) -> clusters (tinyline_msgs/LineClusters):
+/// two-stage clustering of thesis 4.4.2.
+class LineClustererNode : public bus::Node {
+ public:
+  explicit LineClustererNode(bus::NodeOptions options);
+
+ private:
+  void on_scan(const tinyline_msgs::msg::LineScan& msg);
+  LineScanClusterer clusterer_;
+  LineScan scan_;  // reused buffers
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+};
+
+/// scan -> pedicel (tinyline_msgs/PedicelDetection) and clusters: the
+/// pedicel finder of 4.4.2 / 4.5. An optional expected_pedicel
+/// (geometry_msgs/PointStamped in the scan's frame, from the vision side)
+/// replaces the blade throat as the expected position while it is recent.
+class PedicelFinderNode : public bus::Node {
+ public:
+  explicit PedicelFinderNode(bus::NodeOptions options);
+
+ private:
+  void on_scan(const tinyline_msgs::msg::LineScan& msg);
+  LineScanClusterer clusterer_;
+  PedicelFinderParams finder_;
+  double expectation_sd_m_ = 0.0;
+  double expectation_max_age_s_ = 0.0;
+  std::optional<std::pair<bus::Time, Eigen::Vector2d>> expected_;
+  LineScan scan_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::PedicelDetection>> pub_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> clusters_pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+  std::shared_ptr<bus::Subscription<geometry_msgs::msg::PointStamped>> expected_sub_;
+};
+
+/// scan -> clusters: DBSCAN on position and reflectance (thesis 5.3, Fig. 5.8).
+class ReflectanceClustererNode : public bus::Node {
+ public:
+  explicit ReflectanceClustererNode(bus::NodeOptions options);
+
+ private:
+  void on_scan(const tinyline_msgs::msg::LineScan& msg);
+  ReflectanceClusteringParams params_;
+  LineScan scan_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+};
+
+/// scan + joint_states (sensor_msgs/JointState with the gripper's pitch
+/// joint) -> alignment (tinyline_msgs/AlignmentResult) after every scan: the
+/// pitch of maximum surface reflectance over the samples of the last
+/// window_s seconds (thesis 5.3.2).
+class AlignmentSearchNode : public bus::Node {
+ public:
+  explicit AlignmentSearchNode(bus::NodeOptions options);
+
+ private:
+  void on_joints(const sensor_msgs::msg::JointState& msg);
+  void on_scan(const tinyline_msgs::msg::LineScan& msg);
+  ReflectanceClusteringParams clustering_;
+  AlignmentParams params_;
+  std::string joint_;
+  double window_s_ = 0.0;
+  double max_joint_age_s_ = 0.0;
+  std::deque<std::pair<bus::Time, double>> pitch_;    // joint history (stamp, rad)
+  std::deque<std::pair<bus::Time, AlignmentSample>> samples_;
+  LineScan scan_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::AlignmentResult>> pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+  std::shared_ptr<bus::Subscription<sensor_msgs::msg::JointState>> joints_sub_;
+};
+
+}  // namespace tinyline::laser_clustering

@@ -1,0 +1,11 @@
+// Registers the laser_clustering nodes by name (launch files, `tinyline run`).
+#pragma once
+
+#include <tinyline/bus/registry.hpp>
+
+namespace tinyline::laser_clustering {
+
+/// line_clusterer, pedicel_finder, reflectance_clusterer, alignment_search.
+void register_nodes(bus::NodeRegistry& registry);
+
+}  // namespace tinyline::laser_clustering

@@ -1,0 +1,36 @@
+// Shared pieces of the laser_clustering nodes: message <-> core conversions
+// and the parameter declarations of the core structs (defaults from them).
+#pragma once
+
+#include <string>
+
+#include <tinyline/bus/node.hpp>
+#include <tinyline/msg/tinyline_msgs/line_clusters.hpp>
+#include <tinyline/msg/tinyline_msgs/line_scan.hpp>
+
+#include "laser_clustering/alignment_search.hpp"
+#include "laser_clustering/pedicel_finder.hpp"
+#include "laser_clustering/reflectance_clustering.hpp"
+#include "laser_clustering/two_stage.hpp"
+
+namespace tinyline::laser_clustering::nodes {
+
+/// Fills `out` (reusing its buffers) from a LineScan message: a pixel is
+/// valid when its status is STATUS_VALID and its distance finite and > 0.
+/// Returns an empty string, or what is wrong with the message (array
+/// lengths that disagree).
+std::string to_core(const tinyline_msgs::msg::LineScan& msg, LineScan& out);
+
+/// The message of a two-stage clustering.
+void to_msg(const TwoStageResult& r, tinyline_msgs::msg::LineClusters& out);
+/// The message of a reflectance clustering.
+void to_msg(const ReflectanceClusteringResult& r, tinyline_msgs::msg::LineClusters& out);
+
+/// Declares the TwoStageParams parameters (defaults from the struct) and
+/// validates them together; throws bus::ParamError with the reason.
+TwoStageParams declare_two_stage(bus::Node& node);
+PedicelFinderParams declare_pedicel_finder(bus::Node& node);
+ReflectanceClusteringParams declare_reflectance(bus::Node& node);
+AlignmentParams declare_alignment(bus::Node& node);
+
+}  // namespace tinyline::laser_clustering::nodes

@@ -1,0 +1,219 @@
+#include "laser_clustering/nodes/nodes.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "common.hpp"
+#include "laser_clustering/nodes/register.hpp"
+
+namespace tinyline::laser_clustering {
+
+using bus::ParamConstraints;
+// The core has types of the same names (LineScan, PedicelDetection,
+// AlignmentResult): messages are always spelled msgs::.
+namespace msgs = tinyline_msgs::msg;
+
+namespace {
+constexpr std::size_t kScanQueue = 5;
+
+// The outcomes go on the wire as their enum values.
+constexpr std::uint8_t wire(PedicelOutcome o) { return static_cast<std::uint8_t>(o); }
+constexpr std::uint8_t wire(AlignmentOutcome o) { return static_cast<std::uint8_t>(o); }
+static_assert(wire(PedicelOutcome::kCutHere) == msgs::PedicelDetection::CUT_HERE);
+static_assert(wire(PedicelOutcome::kMove) == msgs::PedicelDetection::MOVE);
+static_assert(wire(PedicelOutcome::kNothingToCut) == msgs::PedicelDetection::NOTHING_TO_CUT);
+static_assert(wire(PedicelOutcome::kOutOfView) == msgs::PedicelDetection::OUT_OF_VIEW);
+static_assert(wire(PedicelOutcome::kInvalidInput) == msgs::PedicelDetection::INVALID_INPUT);
+static_assert(wire(AlignmentOutcome::kFound) == msgs::AlignmentResult::FOUND);
+static_assert(wire(AlignmentOutcome::kAtSweepEdge) == msgs::AlignmentResult::AT_SWEEP_EDGE);
+static_assert(wire(AlignmentOutcome::kNoPeak) == msgs::AlignmentResult::NO_PEAK);
+static_assert(wire(AlignmentOutcome::kInvalidInput) == msgs::AlignmentResult::INVALID_INPUT);
+}  // namespace
+
+// ---------------------------------------------------------------------------- line_clusterer
+
+LineClustererNode::LineClustererNode(bus::NodeOptions o)
+    : Node(std::move(o)), clusterer_(nodes::declare_two_stage(*this)) {
+  pub_ = create_publisher<msgs::LineClusters>("clusters");
+  sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
+                                       [this](const msgs::LineScan& m) { on_scan(m); });
+}
+
+void LineClustererNode::on_scan(const msgs::LineScan& m) {
+  auto out = std::make_unique<msgs::LineClusters>();
+  out->header = m.header;
+  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+    logger().warn("{}", bad);
+    out->brightest = -1;
+    out->note = bad;
+  } else {
+    nodes::to_msg(clusterer_.run(scan_), *out);
+  }
+  pub_->publish(std::move(out));
+}
+
+// ---------------------------------------------------------------------------- pedicel_finder
+
+PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
+    : Node(std::move(o)), clusterer_(nodes::declare_two_stage(*this)), finder_(nodes::declare_pedicel_finder(*this)) {
+  expectation_sd_m_ = declare_parameter("expectation_sd_m", 0.015,
+                                        "how far off the vision's expected pedicel may be [m]",
+                                        ParamConstraints::range(1e-4, 1.0));
+  expectation_max_age_s_ = declare_parameter("expectation_max_age_s", 1.0,
+                                             "an expected_pedicel older than this (vs the scan) is ignored [s]",
+                                             ParamConstraints::range(0.0, 3600.0));
+  pub_ = create_publisher<msgs::PedicelDetection>("pedicel");
+  clusters_pub_ = create_publisher<msgs::LineClusters>("clusters");
+  sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
+                                       [this](const msgs::LineScan& m) { on_scan(m); });
+  expected_sub_ = create_subscription<geometry_msgs::msg::PointStamped>(
+      "expected_pedicel", bus::QoS::keep_last(1), [this](const geometry_msgs::msg::PointStamped& p) {
+        // The laser plane is x-z: the point's y (off the plane) is not used.
+        expected_ = std::make_pair(bus::Time::from_msg(p.header.stamp), Eigen::Vector2d(p.point.x, p.point.z));
+      });
+}
+
+void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
+  auto det = std::make_unique<msgs::PedicelDetection>();
+  det->header = m.header;
+  det->cluster = -1;
+  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+    logger().warn("{}", bad);
+    det->outcome = msgs::PedicelDetection::INVALID_INPUT;
+    det->reason = bad;
+    pub_->publish(std::move(det));
+    return;
+  }
+  const TwoStageResult objects = clusterer_.run(scan_);
+  std::optional<PedicelExpectation> expectation;
+  const bus::Time stamp = bus::Time::from_msg(m.header.stamp);
+  if (expected_ && std::abs(bus::to_seconds(stamp - expected_->first)) <= expectation_max_age_s_) {
+    expectation = PedicelExpectation{expected_->second, expectation_sd_m_};
+  }
+  const auto d = find_pedicel(scan_, objects, finder_, expectation);
+  det->outcome = wire(d.outcome);
+  det->reason = d.reason;
+  det->cluster = d.cluster;
+  det->position.x = d.position_xz_m.x();
+  det->position.z = d.position_xz_m.y();
+  det->width_m = d.width_m;
+  det->lateral_offset_m = d.lateral_offset_m;
+  det->depth_offset_m = d.depth_offset_m;
+  det->angle_rad = d.angle_rad;
+  det->confidence = d.confidence;
+  det->num_candidates = static_cast<std::uint32_t>(d.candidates.size());
+  pub_->publish(std::move(det));
+  if (clusters_pub_->subscription_count() > 0) {
+    auto c = std::make_unique<msgs::LineClusters>();
+    c->header = m.header;
+    nodes::to_msg(objects, *c);
+    clusters_pub_->publish(std::move(c));
+  }
+}
+
+// ---------------------------------------------------------------------------- reflectance_clusterer
+
+ReflectanceClustererNode::ReflectanceClustererNode(bus::NodeOptions o)
+    : Node(std::move(o)), params_(nodes::declare_reflectance(*this)) {
+  pub_ = create_publisher<msgs::LineClusters>("clusters");
+  sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
+                                       [this](const msgs::LineScan& m) { on_scan(m); });
+}
+
+void ReflectanceClustererNode::on_scan(const msgs::LineScan& m) {
+  auto out = std::make_unique<msgs::LineClusters>();
+  out->header = m.header;
+  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+    logger().warn("{}", bad);
+    out->brightest = -1;
+    out->note = bad;
+  } else {
+    nodes::to_msg(cluster_by_reflectance(scan_, params_), *out);
+  }
+  pub_->publish(std::move(out));
+}
+
+// ---------------------------------------------------------------------------- alignment_search
+
+AlignmentSearchNode::AlignmentSearchNode(bus::NodeOptions o)
+    : Node(std::move(o)), clustering_(nodes::declare_reflectance(*this)), params_(nodes::declare_alignment(*this)) {
+  joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch",
+                                          "joint of sensor_msgs/JointState whose position is the gripper pitch [rad]");
+  window_s_ = declare_parameter("window_s", 10.0, "samples older than this (vs the newest scan) leave the sweep [s]",
+                                ParamConstraints::range(0.01, 3600.0));
+  max_joint_age_s_ = declare_parameter("max_joint_age_s", 0.05,
+                                       "a scan needs a pitch reading within this of its stamp [s]",
+                                       ParamConstraints::range(0.0, 10.0));
+  pub_ = create_publisher<msgs::AlignmentResult>("alignment");
+  joints_sub_ = create_subscription<sensor_msgs::msg::JointState>(
+      "joint_states", bus::QoS::keep_last(50), [this](const sensor_msgs::msg::JointState& m) { on_joints(m); });
+  sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
+                                       [this](const msgs::LineScan& m) { on_scan(m); });
+}
+
+void AlignmentSearchNode::on_joints(const sensor_msgs::msg::JointState& m) {
+  const auto it = std::find(m.name.begin(), m.name.end(), joint_);
+  if (it == m.name.end()) return;
+  const auto k = static_cast<std::size_t>(it - m.name.begin());
+  if (k >= m.position.size() || !std::isfinite(m.position[k])) return;
+  pitch_.emplace_back(bus::Time::from_msg(m.header.stamp), m.position[k]);
+  while (pitch_.size() > 200) pitch_.pop_front();
+}
+
+void AlignmentSearchNode::on_scan(const msgs::LineScan& m) {
+  auto out = std::make_unique<msgs::AlignmentResult>();
+  out->header = m.header;
+  const bus::Time stamp = bus::Time::from_msg(m.header.stamp);
+  auto publish_invalid = [&](std::string why) {
+    out->outcome = msgs::AlignmentResult::INVALID_INPUT;
+    out->reason = std::move(why);
+    out->num_samples = static_cast<std::uint32_t>(samples_.size());
+    pub_->publish(std::move(out));
+  };
+  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+    logger().warn("{}", bad);
+    return publish_invalid(bad);
+  }
+  // The pitch at the scan's stamp: the nearest joint reading, if close enough.
+  const std::pair<bus::Time, double>* nearest = nullptr;
+  for (const auto& p : pitch_) {
+    if (!nearest || std::abs(bus::to_seconds(p.first - stamp)) < std::abs(bus::to_seconds(nearest->first - stamp))) {
+      nearest = &p;
+    }
+  }
+  if (!nearest || std::abs(bus::to_seconds(nearest->first - stamp)) > max_joint_age_s_) {
+    return publish_invalid("no '" + joint_ + "' reading within max_joint_age_s of the scan");
+  }
+  const SurfaceReflectance s = surface_reflectance(scan_, clustering_);
+  if (!s.found) return publish_invalid("no reflectance cluster in the scan: " + s.reason);
+  samples_.emplace_back(stamp, AlignmentSample{nearest->second, s.reflectance});
+  while (!samples_.empty() && bus::to_seconds(stamp - samples_.front().first) > window_s_) samples_.pop_front();
+  std::vector<AlignmentSample> sweep;
+  for (const auto& [t, sample] : samples_) sweep.push_back(sample);
+  const auto a = find_alignment(sweep, params_);
+  out->outcome = wire(a.outcome);
+  out->reason = a.reason;
+  out->best_pitch_rad = a.best_pitch_rad;
+  out->peak_reflectance = a.peak_reflectance;
+  out->refined = a.refined;
+  out->num_samples = static_cast<std::uint32_t>(a.num_samples);
+  out->last_pitch_rad = nearest->second;
+  out->last_reflectance = s.reflectance;
+  pub_->publish(std::move(out));
+}
+
+// ---------------------------------------------------------------------------- registry
+
+void register_nodes(bus::NodeRegistry& r) {
+  r.add<LineClustererNode>("laser_clustering", "line_clusterer",
+                           "two-stage DBSCAN of line scans (scan -> clusters), thesis 4.4.2");
+  r.add<PedicelFinderNode>("laser_clustering", "pedicel_finder",
+                           "pedicel and the scissor move that centres it (scan -> pedicel, clusters)");
+  r.add<ReflectanceClustererNode>("laser_clustering", "reflectance_clusterer",
+                                  "DBSCAN on position and reflectance (scan -> clusters), thesis 5.3");
+  r.add<AlignmentSearchNode>("laser_clustering", "alignment_search",
+                             "pitch of maximum surface reflectance (scan + joint_states -> alignment), 5.3.2");
+}
+
+}  // namespace tinyline::laser_clustering

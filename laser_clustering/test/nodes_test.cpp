@@ -1,0 +1,255 @@
+// The laser_clustering nodes on the bus: built by name with remaps and
+// parameters, fed LineScan messages, stepped by the deterministic executor
+// on sim time (no sleeps).
+#include <cmath>
+#include <numbers>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <tinyline/bus/executor.hpp>
+#include <tinyline/bus/registry.hpp>
+
+#include "laser_clustering/nodes/nodes.hpp"
+#include "laser_clustering/nodes/register.hpp"
+#include "synthetic_scan.hpp"
+
+namespace lc = tinyline::laser_clustering;
+namespace bus = tinyline::bus;
+using tinyline::geometry_msgs::msg::PointStamped;
+using tinyline::sensor_msgs::msg::JointState;
+using tinyline::tinyline_msgs::msg::AlignmentResult;
+using tinyline::tinyline_msgs::msg::LineClusters;
+using tinyline::tinyline_msgs::msg::LineScan;
+using tinyline::tinyline_msgs::msg::PedicelDetection;
+using ::testing::HasSubstr;
+
+namespace {
+
+struct Harness {
+  std::shared_ptr<bus::Context> ctx;
+  bus::DeterministicExecutor ex;
+  bus::NodeRegistry registry;
+  std::shared_ptr<bus::Node> io;  // publishes inputs, receives outputs
+
+  Harness() : ctx(make_ctx()), ex(ctx->clock()) {
+    lc::register_nodes(registry);
+    bus::NodeOptions o;
+    o.name = "io";
+    o.context = ctx;
+    io = std::make_shared<bus::Node>(o);
+    ex.add_node(io);
+  }
+  static std::shared_ptr<bus::Context> make_ctx() {
+    bus::ContextOptions o;
+    o.clock = bus::ClockType::Sim;
+    o.log_sink = std::make_shared<bus::CaptureSink>();
+    return bus::Context::create(o);
+  }
+  std::shared_ptr<bus::Node> add(const std::string& type, bus::NodeOptions o) {
+    o.context = ctx;
+    auto n = registry.create("laser_clustering", type, std::move(o));
+    ex.add_node(n);
+    return n;
+  }
+};
+
+std::unique_ptr<LineScan> to_msg(const lc::LineScan& s, double t_s) {
+  auto m = std::make_unique<LineScan>();
+  m->header.stamp = bus::Time::from_seconds(t_s).to_msg();
+  m->header.frame_id = "laser";
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    m->angles.push_back(static_cast<float>(s.angle_rad[i]));
+    const bool valid = s.valid(i);
+    m->distance_m.push_back(valid ? static_cast<float>(s.range_m[i]) : std::nanf(""));
+    m->status.push_back(valid ? LineScan::STATUS_VALID : LineScan::STATUS_TOO_DARK);
+    if (!s.reflectance.empty()) m->reflectance.push_back(static_cast<float>(s.reflectance[i]));
+  }
+  return m;
+}
+
+lc::test::SynthScan pedicel_scene(double x, unsigned seed = 1) {
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.40;
+  sp.seed = seed;
+  return lc::test::synth_scan({{x, 0.13, 0.003, 6.0, 1}, {-0.08, 0.25, 0.03, 6.0, 2}}, sp);
+}
+
+}  // namespace
+
+TEST(LaserClusteringNodes, AllFourAreRegistered) {
+  bus::NodeRegistry r;
+  lc::register_nodes(r);
+  for (const char* t : {"line_clusterer", "pedicel_finder", "reflectance_clusterer", "alignment_search"}) {
+    EXPECT_NE(r.find("laser_clustering", t), nullptr) << t;
+  }
+}
+
+TEST(LaserClusteringNodes, LineClustererPublishesObjectsAndNotesBadScans) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "clusterer";
+  o.remap("scan", "/laser/scan").remap("clusters", "/laser/clusters").param("objects_eps_m", 0.008);
+  h.add("line_clusterer", o);
+  std::vector<std::shared_ptr<const LineClusters>> got;
+  auto sub = h.io->create_subscription<LineClusters>("/laser/clusters", bus::QoS::keep_last(10),
+                                                      [&](const std::shared_ptr<const LineClusters>& m) { got.push_back(m); });
+  auto pub = h.io->create_publisher<LineScan>("/laser/scan");
+  const auto s = pedicel_scene(0.02);
+  pub->publish(to_msg(s.scan, 1.0));
+  auto broken = to_msg(s.scan, 1.1);
+  broken->status.pop_back();
+  pub->publish(std::move(broken));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 2u);
+  const auto& c = *got[0];
+  EXPECT_EQ(c.header.frame_id, "laser");
+  EXPECT_EQ(c.labels.size(), 256u);
+  EXPECT_EQ(c.fate.size(), 256u);
+  // The pedicel is one narrow object at x 2 cm.
+  int narrow = 0;
+  for (const auto& k : c.clusters) {
+    if (std::abs(k.width_m - 0.006) < 0.0015 && std::abs(k.centroid_x_m - 0.02) < 0.002) ++narrow;
+  }
+  EXPECT_EQ(narrow, 1);
+  EXPECT_TRUE(got[1]->clusters.empty());
+  EXPECT_THAT(got[1]->note, HasSubstr("255 statuses"));
+}
+
+TEST(LaserClusteringNodes, PedicelFinderReportsTheMoveAndHonoursTheExpectation) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "finder";
+  o.param("scissor_centre_z_m", 0.12);
+  h.add("pedicel_finder", o);
+  std::vector<std::shared_ptr<const PedicelDetection>> got;
+  auto sub = h.io->create_subscription<PedicelDetection>(
+      "pedicel", bus::QoS::keep_last(10), [&](const std::shared_ptr<const PedicelDetection>& m) { got.push_back(m); });
+  auto pub = h.io->create_publisher<LineScan>("scan");
+  auto expected = h.io->create_publisher<PointStamped>("expected_pedicel");
+
+  pub->publish(to_msg(pedicel_scene(0.025).scan, 1.0));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0]->outcome, PedicelDetection::MOVE) << got[0]->reason;
+  EXPECT_NEAR(got[0]->lateral_offset_m, 0.025, 0.0015);
+  EXPECT_GT(got[0]->confidence, 0.5);
+
+  // Two pedicels; vision expects the one at +5 cm.
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.4;
+  const auto two = lc::test::synth_scan({{0.005, 0.12, 0.003, 6.0, 1}, {0.05, 0.12, 0.003, 6.0, 2}}, sp);
+  auto p = std::make_unique<PointStamped>();
+  p->header.stamp = bus::Time::from_seconds(1.95).to_msg();
+  p->point.x = 0.048;
+  p->point.z = 0.12;
+  expected->publish(std::move(p));
+  pub->publish(to_msg(two.scan, 2.0));
+  // An hour later the expectation is stale: the throat rules again.
+  pub->publish(to_msg(two.scan, 3600.0));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 3u);
+  EXPECT_NEAR(got[1]->position.x, 0.05, 0.002);
+  EXPECT_NEAR(got[2]->position.x, 0.005, 0.002);
+  EXPECT_EQ(got[2]->outcome, PedicelDetection::CUT_HERE);
+
+  // Nothing in range.
+  lc::test::SynthParams far;
+  far.wall_z_m = 1.5;
+  pub->publish(to_msg(lc::test::synth_scan({}, far).scan, 4000.0));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 4u);
+  EXPECT_EQ(got[3]->outcome, PedicelDetection::OUT_OF_VIEW);
+  EXPECT_THAT(got[3]->reason, HasSubstr("no return between"));
+}
+
+TEST(LaserClusteringNodes, BadParametersStopTheNodeWithTheReason) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "finder";
+  o.param("min_range_m", 0.5).param("max_range_m", 0.2);
+  try {
+    h.add("pedicel_finder", o);
+    FAIL() << "expected a ParamError";
+  } catch (const bus::ParamError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("min_range_m < max_range_m"));
+  }
+  bus::NodeOptions u;
+  u.name = "clusterer";
+  u.param("groups_eps", 0.02);  // not a parameter (groups_eps_m is)
+  EXPECT_THROW(h.add("line_clusterer", u), bus::ParamError);
+  bus::NodeOptions r;
+  r.name = "refl";
+  r.param("eps_m", -1.0);
+  EXPECT_THROW(h.add("reflectance_clusterer", r), bus::ParamError);
+}
+
+namespace {
+
+// Figure 5.8 B-like scan whose metal reflectance follows a specular lobe over pitch.
+lc::LineScan stick_scan(double pitch, double best_pitch, unsigned seed) {
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.30;
+  sp.wall_reflectance = 4.8;
+  sp.noise_sd_m = 0.003;
+  sp.seed = seed;
+  const double lobe = 5.0 + 32.0 * std::exp(-0.5 * std::pow((pitch - best_pitch) / 0.07, 2));
+  return lc::test::synth_scan({{0.0, 0.30 - 0.004 + 0.005, 0.005, lobe, 1}}, sp).scan;
+}
+
+}  // namespace
+
+TEST(LaserClusteringNodes, ReflectanceClustererFindsTheMetal) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "refl";
+  h.add("reflectance_clusterer", o);
+  std::shared_ptr<const LineClusters> got;
+  auto sub = h.io->create_subscription<LineClusters>("clusters", bus::QoS::keep_last(1),
+                                                      [&](const std::shared_ptr<const LineClusters>& m) { got = m; });
+  auto pub = h.io->create_publisher<LineScan>("scan");
+  pub->publish(to_msg(stick_scan(0.0, 0.0, 3), 1.0));
+  h.ex.spin_until_idle();
+  ASSERT_TRUE(got);
+  ASSERT_GE(got->brightest, 0);
+  const auto& c = got->clusters[static_cast<std::size_t>(got->brightest)];
+  EXPECT_NEAR(c.reflectance, 37.0, 4.0);
+  EXPECT_NEAR(c.centroid_x_m, 0.0, 0.002);
+}
+
+TEST(LaserClusteringNodes, AlignmentSearchFindsThePitchOfAPitchSweep) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "align";
+  o.param("pitch_joint", std::string("wrist_pitch"));
+  h.add("alignment_search", o);
+  std::vector<std::shared_ptr<const AlignmentResult>> got;
+  auto sub = h.io->create_subscription<AlignmentResult>(
+      "alignment", bus::QoS::keep_last(100), [&](const std::shared_ptr<const AlignmentResult>& m) { got.push_back(m); });
+  auto scans = h.io->create_publisher<LineScan>("scan");
+  auto joints = h.io->create_publisher<JointState>("joint_states");
+  const double deg = std::numbers::pi / 180.0, best = 3.3 * deg;
+  // A scan without a pitch reading first: an explicit invalid result.
+  scans->publish(to_msg(stick_scan(0.0, best, 1), 0.5));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0]->outcome, AlignmentResult::INVALID_INPUT);
+  EXPECT_THAT(got[0]->reason, HasSubstr("no 'wrist_pitch' reading"));
+  // The sweep: -10 .. +10 degrees in 2 degree steps, one scan per step.
+  int k = 0;
+  for (double p = -10 * deg; p <= 10.01 * deg; p += 2 * deg, ++k) {
+    const double t = 1.0 + 0.1 * k;
+    auto j = std::make_unique<JointState>();
+    j->header.stamp = bus::Time::from_seconds(t).to_msg();
+    j->name = {"elbow", "wrist_pitch"};
+    j->position = {0.3, p};
+    joints->publish(std::move(j));
+    scans->publish(to_msg(stick_scan(p, best, static_cast<unsigned>(k + 10)), t + 0.01));
+    h.ex.spin_until_idle();
+  }
+  const auto& last = *got.back();
+  EXPECT_EQ(last.outcome, AlignmentResult::FOUND) << last.reason;
+  EXPECT_EQ(last.num_samples, 11u);
+  EXPECT_TRUE(last.refined);
+  EXPECT_NEAR(last.best_pitch_rad, best, 0.5 * deg);
+}
