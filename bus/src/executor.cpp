@@ -276,6 +276,8 @@ void Executor::stop() {
   core_->wake_all();
 }
 
+void Executor::restart() { stop_.store(false); }
+
 std::optional<Time> Executor::fire_due_timers(Time now, bool catch_up) {
   std::vector<std::pair<std::shared_ptr<Timer>, std::shared_ptr<CallbackGroup>>> due;
   std::optional<Time> next;
@@ -365,7 +367,6 @@ void Executor::worker_loop() {
 }
 
 void Executor::spin() {
-  stop_.store(false);
   start_pending_nodes();
   worker_loop();
 }
@@ -383,7 +384,6 @@ std::size_t Executor::spin_some() {
 }
 
 void MultiThreadedExecutor::spin() {
-  stop_.store(false);
   start_pending_nodes();
   std::vector<std::thread> workers;
   for (int i = 1; i < options_.threads; ++i) workers.emplace_back([this] { worker_loop(); });

@@ -572,3 +572,19 @@ TEST(Bus, ManyPublishersManyNodesManyThreadsLoseNothingReliable) {
   EXPECT_EQ(failures.load(), 0);
   for (auto& c : counts) EXPECT_EQ(c.load(), kPublishers * kEach);
 }
+
+TEST(Bus, AStopBeforeSpinStartsIsNotLost) {
+  bus::ContextOptions o;
+  o.log_sink = std::make_shared<bus::CaptureSink>();
+  auto ctx = bus::Context::create(o);
+  bus::MultiThreadedExecutor ex(ctx->clock(), 2);
+  ex.add_node(make_node(ctx, "n"));
+  ex.stop();  // e.g. a short job finished before its spinner thread was scheduled
+  std::thread spinner([&] { ex.spin(); });
+  spinner.join();  // returns: the stop was kept
+  ex.restart();
+  std::thread again([&] { ex.spin(); });
+  ex.stop();
+  again.join();
+  SUCCEED();
+}
