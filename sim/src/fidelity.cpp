@@ -6,47 +6,12 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <Eigen/QR>
+#include <tiny_laser_driver/calibration_data.hpp>
+#include <tiny_laser_driver/calibration_fit.hpp>
 
 #include <sim/yaml_node.hpp>
 
 namespace tinyline::sim {
-
-double PolyFit::operator()(double x) const {
-  const double z = (x - centre) / scale;
-  double acc = 0.0;
-  for (std::size_t k = coeffs.size(); k-- > 0;) acc = acc * z + coeffs[k];
-  return acc;
-}
-
-PolyFit fit_polynomial(const std::vector<double>& x, const std::vector<double>& y, int degree) {
-  if (degree < 0) throw std::invalid_argument("fit_polynomial: negative degree");
-  if (x.size() != y.size()) throw std::invalid_argument("fit_polynomial: x and y differ in length");
-  const auto n = x.size();
-  if (n < static_cast<std::size_t>(degree + 1)) throw std::invalid_argument("fit_polynomial: too few points for the degree");
-  PolyFit f;
-  const auto [lo, hi] = std::minmax_element(x.begin(), x.end());
-  f.centre = 0.5 * (*lo + *hi);
-  f.scale = std::max(1e-12, 0.5 * (*hi - *lo));
-  Eigen::MatrixXd A(static_cast<Eigen::Index>(n), degree + 1);
-  Eigen::VectorXd b(static_cast<Eigen::Index>(n));
-  for (std::size_t i = 0; i < n; ++i) {
-    const double z = (x[i] - f.centre) / f.scale;
-    double p = 1.0;
-    for (int k = 0; k <= degree; ++k, p *= z) A(static_cast<Eigen::Index>(i), k) = p;
-    b(static_cast<Eigen::Index>(i)) = y[i];
-  }
-  const Eigen::VectorXd c = A.colPivHouseholderQr().solve(b);
-  f.coeffs.assign(c.data(), c.data() + c.size());
-  return f;
-}
-
-double DeclaredPixelModel::ratio(double a, double b, int pulses) const {
-  const double vle = vle_per_pulse * pulses;
-  const double num = b - vle;
-  const double den = (a * rsen - vle) + (b - vle);  // Eq. 3.16
-  return den != 0.0 ? num / den : kNaN;
-}
 
 int select_readout(const SensorSet& set, int pixel) {
   const auto i = static_cast<std::size_t>(pixel);
@@ -60,9 +25,7 @@ int select_readout(const SensorSet& set, int pixel) {
 
 namespace {
 
-struct Sample {
-  double x, d_cm;
-};
+namespace tld = tiny_laser_driver;
 
 double mean(const std::vector<double>& v) {
   return v.empty() ? kNaN : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
@@ -78,14 +41,14 @@ double sd(const std::vector<double>& v) {
 
 // The thesis's way to the declared constants (3.3.3): V_le from dark sets,
 // R_sen from a uniform exposure with the laser off.
-void measure_constants(const SensorParams& params, int pixel, double t_s, std::uint64_t seed, DeclaredPixelModel& m) {
+void measure_constants(const SensorParams& params, int pixel, double t_s, std::uint64_t seed, MeasuredConstants& m) {
   SensorParams dark = params;
   dark.environment.ambient_charge_per_pulse = 0.0;  // pitch black
   CalibrationRail rail(dark);
   MeasureOptions off;
   off.laser_on = false;
   const std::vector<int> sched{100, 300, 500, 700, 900};
-  double sxy = 0.0, sxx = 0.0;
+  double sxy = 0.0, sxx = 0.0;  // V_le = slope of b against pulses in the dark
   for (int k = 0; k < 20; ++k) {
     const SensorSet s = rail.measure(t_s, sched, seed + 1000 + static_cast<std::uint64_t>(k), off);
     for (const auto& r : s.readouts) {
@@ -108,59 +71,86 @@ void measure_constants(const SensorParams& params, int pixel, double t_s, std::u
   m.rsen = sb / sa;  // equal charge in both: b / a = R_sen
 }
 
-// Fixed-discharge calibration data at the given fractions.
-std::vector<Sample> collect(const CalibrationRail& tmpl, const DeclaredPixelModel& m, const std::vector<double>& fractions,
-                            const FidelityOptions& o, std::uint64_t seed) {
+// Fixed-discharge calibration data at the given fractions: one row per
+// distance and discharge, the mean read-out of the sets (the thesis's "one
+// data point for each certain distance").
+tld::CalibrationDataset collect(const CalibrationRail& tmpl, const std::vector<double>& fractions,
+                                const FidelityOptions& o, std::uint64_t seed) {
   CalibrationRail rail = tmpl;
-  std::vector<Sample> out;
+  tld::CalibrationDataset out;
+  out.source = "simulated rail";
   std::uint64_t index = seed;
+  const auto i = static_cast<std::size_t>(o.pixel);
+  double t = o.warm_time_s;
   for (double d = 0.05; d <= 2.0 + 1e-9; d += o.calib_step_m) {
     rail.set_target_distance(d);
     for (double frac : fractions) {
       const std::vector<int> sched{rail.pulses_for_discharge(frac, o.pixel, o.warm_time_s)};
-      // One data point per distance and discharge: the mean ratio of the sets
-      // (the thesis's "one data point for each certain distance").
-      double sum = 0.0, range = kNaN;
+      double sa = 0.0, sb = 0.0, temp = 0.0, range = kNaN;
       int n = 0;
       for (int k = 0; k < o.calib_sets_per_distance; ++k) {
         const SensorSet s = rail.measure(o.warm_time_s, sched, index++);
-        const auto i = static_cast<std::size_t>(o.pixel);
-        const auto& r = s.readouts[0];
-        range = 100.0 * s.truth[i].range_m;
+        range = s.truth[i].range_m;
         if (select_readout(s, o.pixel) != 0) continue;  // valid read-outs only
-        const double x = m.ratio(r.a[i], r.b[i], r.pulses);
-        if (!std::isfinite(x)) continue;
-        sum += x;
+        sa += s.readouts[0].a[i];
+        sb += s.readouts[0].b[i];
+        temp += s.temperature_c;
         ++n;
       }
-      if (n > 0) out.push_back({sum / n, range});
+      if (n == 0 || !std::isfinite(range)) continue;
+      tld::Readout r;
+      r.a = sa / n;
+      r.b = sb / n;
+      r.pulses = sched[0];
+      r.temperature_c = temp / n;
+      r.pixel = o.pixel;
+      r.t_s = (t += 1.0);  // one "frame" per row
+      out.add(r, range);
     }
   }
   return out;
 }
 
-FitScore score(const std::string& name, const std::vector<Sample>& train, const std::vector<Sample>& test, int degree,
-               PolyFit* fitted = nullptr) {
-  std::vector<double> x, y;
-  for (const auto& s : train) {
-    x.push_back(s.x);
-    y.push_back(s.d_cm);
-  }
-  const PolyFit f = fit_polynomial(x, y, degree);
-  std::vector<double> res;
-  for (const auto& s : train) res.push_back(s.d_cm - f(s.x));
+FitScore score(const std::string& name, const tld::CalibrationDataset& train, const tld::CalibrationDataset& test,
+               int degree, const MeasuredConstants& c, tld::CalibrationModel* fitted = nullptr) {
+  tld::DeclaredFitParams fp;
+  fp.degree = degree;
+  fp.sensitivity_ratio_mode = tld::SensitivityRatioMode::kFixed;
+  fp.sensitivity_ratio = c.rsen;
+  fp.fit_leakage = false;
+  fp.leakage_offset = 0.0;
+  fp.leakage_per_pulse = c.vle_per_pulse;
+  fp.fit_temperature = false;  // every set is warm
+  fp.selection = tld::ReadoutSelection::kAll;
+  const tld::DeclaredFitResult fit = tld::fit_declared_model(train, fp);
+  if (!fit.ok) throw std::runtime_error("fidelity: calibration fit '" + name + "' failed: " + fit.reason);
+  std::vector<std::size_t> all(train.size());
+  for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
+  const std::vector<double> res = tld::model_residuals(fit.model, train, all);
+  std::vector<double> cm;
+  for (double r : res)
+    if (std::isfinite(r)) cm.push_back(100.0 * r);
   FitScore sc;
   sc.name = name;
-  const double mu = mean(res);
+  const double mu = mean(cm);
   double v = 0.0;
-  for (double r : res) v += (r - mu) * (r - mu);
-  sc.var_cm2 = v / static_cast<double>(res.size() - 1);
+  for (double r : cm) v += (r - mu) * (r - mu);
+  sc.var_cm2 = v / static_cast<double>(std::max<std::size_t>(2, cm.size()) - 1);
   sc.sd_cm = std::sqrt(sc.var_cm2);
-  double h = 0.0;
-  for (const auto& s : test) h += (s.d_cm - f(s.x)) * (s.d_cm - f(s.x));
-  sc.heldout_sd_cm = std::sqrt(h / static_cast<double>(std::max<std::size_t>(1, test.size())));
-  if (fitted) *fitted = f;
+  sc.heldout_sd_cm = 100.0 * tld::evaluate_model(fit.model, test, {}, tld::ReadoutSelection::kAll).rmse_m;
+  if (fitted) *fitted = fit.model;
   return sc;
+}
+
+double model_cm(const tld::CalibrationModel& m, const Readout& ro, std::size_t i, double temperature_c) {
+  tld::Readout r;
+  r.a = ro.a[i];
+  r.b = ro.b[i];
+  r.pulses = ro.pulses;
+  r.temperature_c = temperature_c;
+  r.pixel = static_cast<int>(i);
+  r.t_s = ro.t_s;
+  return 100.0 * m.distance_m(r);
 }
 
 }  // namespace
@@ -168,26 +158,31 @@ FitScore score(const std::string& name, const std::vector<Sample>& train, const 
 FidelityReport run_fidelity(const SensorParams& sensor, const FidelityOptions& o) {
   FidelityReport rep;
   const std::uint64_t base = o.seed_offset * 1000003ull;
-  DeclaredPixelModel& cal = rep.calibration;
-  measure_constants(sensor, o.pixel, o.warm_time_s, base + 1, cal);
+  MeasuredConstants& c = rep.constants;
+  measure_constants(sensor, o.pixel, o.warm_time_s, base + 1, c);
+  tld::CalibrationModel& cal = rep.calibration;
 
   const CalibrationRail rail(sensor);
-  const auto d40 = collect(rail, cal, {0.4}, o, base + 100000);
+  const auto d40 = collect(rail, {0.4}, o, base + 100000);
   if (o.fits) {
-    const auto t40 = collect(rail, cal, {0.4}, o, base + 200000);
-    const auto d20 = collect(rail, cal, {0.2}, o, base + 300000);
-    const auto t20 = collect(rail, cal, {0.2}, o, base + 400000);
-    const auto dm = collect(rail, cal, {0.1, 0.2, 0.4, 0.6, 0.8}, o, base + 500000);
-    const auto tm = collect(rail, cal, {0.1, 0.2, 0.4, 0.6, 0.8}, o, base + 600000);
-    rep.fits.push_back(score("linear_eq_3_16", d40, t40, 1));
-    rep.fits.push_back(score("poly3_discharge_40pct", d40, t40, 3));
-    rep.fits.push_back(score("poly6_discharge_40pct", d40, t40, 6, &cal.poly));
-    rep.fits.push_back(score("poly6_discharge_20pct", d20, t20, 6));
-    rep.fits.push_back(score("poly6_multi_discharge", dm, tm, 6));
+    const auto t40 = collect(rail, {0.4}, o, base + 200000);
+    const auto d20 = collect(rail, {0.2}, o, base + 300000);
+    const auto t20 = collect(rail, {0.2}, o, base + 400000);
+    const auto dm = collect(rail, {0.1, 0.2, 0.4, 0.6, 0.8}, o, base + 500000);
+    const auto tm = collect(rail, {0.1, 0.2, 0.4, 0.6, 0.8}, o, base + 600000);
+    rep.fits.push_back(score("linear_eq_3_16", d40, t40, 1, c));
+    rep.fits.push_back(score("poly3_discharge_40pct", d40, t40, 3, c));
+    rep.fits.push_back(score("poly6_discharge_40pct", d40, t40, 6, c, &cal));
+    rep.fits.push_back(score("poly6_discharge_20pct", d20, t20, 6, c));
+    rep.fits.push_back(score("poly6_multi_discharge", dm, tm, 6, c));
   } else {
-    (void)score("poly6_discharge_40pct", d40, d40, 6, &cal.poly);
+    (void)score("poly6_discharge_40pct", d40, d40, 6, c, &cal);
   }
-  for (const auto& s : d40) rep.curve.emplace_back(s.d_cm, s.x);
+  for (std::size_t k = 0; k < d40.size(); ++k) {
+    const auto& r = d40.readouts[k];
+    const double vle = c.vle_per_pulse * r.pulses;
+    rep.curve.emplace_back(100.0 * d40.distance_m[k], (r.b - vle) / ((r.a * c.rsen - vle) + (r.b - vle)));
+  }
 
   const auto px = static_cast<std::size_t>(o.pixel);
   // Table 3.1: continuous raw mode, read-out selection as the driver does it.
@@ -208,7 +203,12 @@ FidelityReport run_fidelity(const SensorParams& sensor, const FidelityOptions& o
           continue;
         }
         const auto& ro = s.readouts[static_cast<std::size_t>(sel)];
-        d.push_back(cal.distance_cm(ro.a[px], ro.b[px], ro.pulses));
+        const double cm = model_cm(cal, ro, px, s.temperature_c);
+        if (!std::isfinite(cm)) {
+          ++row.invalid;
+          continue;
+        }
+        d.push_back(cm);
         p.push_back(ro.pulses);
       }
       // Error against the range along the pixel's ray (the centre pixel looks
@@ -244,7 +244,12 @@ FidelityReport run_fidelity(const SensorParams& sensor, const FidelityOptions& o
           ++row.invalid;
           continue;
         }
-        d.push_back(cal.distance_cm(ro.a[px], ro.b[px], ro.pulses));
+        const double cm = model_cm(cal, ro, px, s.temperature_c);
+        if (!std::isfinite(cm)) {
+          ++row.invalid;
+          continue;
+        }
+        d.push_back(cm);
       }
       row.n = static_cast<int>(d.size());
       row.mean_cm = mean(d) - range_cm + 30.0;
@@ -263,12 +268,19 @@ FidelityReport run_fidelity(const SensorParams& sensor, const FidelityOptions& o
     for (double t = 0.0; t < 5.0 * sensor.thermal.time_constant_s; t += sensor.thermal.time_constant_s / 60.0) {
       const SensorSet s = r.measure(t, sched, index++);
       if (select_readout(s, o.pixel) != 0) continue;
+      const double cm = model_cm(cal, s.readouts[0], px, sensor.thermal.reference_c);  // no temperature correction
+      if (!std::isfinite(cm)) continue;
       temp.push_back(s.temperature_c);
-      dist.push_back(cal.distance_cm(s.readouts[0].a[px], s.readouts[0].b[px], s.readouts[0].pulses));
+      dist.push_back(cm);
     }
-    if (temp.size() > 3) {
-      const PolyFit line = fit_polynomial(temp, dist, 1);
-      rep.temperature_cm_per_c = line.coeffs[1] / line.scale;
+    if (temp.size() > 3) {  // least-squares slope
+      const double mt = mean(temp), md = mean(dist);
+      double sxy = 0.0, sxx = 0.0;
+      for (std::size_t k = 0; k < temp.size(); ++k) {
+        sxy += (temp[k] - mt) * (dist[k] - md);
+        sxx += (temp[k] - mt) * (temp[k] - mt);
+      }
+      rep.temperature_cm_per_c = sxx > 0 ? sxy / sxx : kNaN;
     }
   }
   return rep;

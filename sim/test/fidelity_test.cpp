@@ -49,17 +49,7 @@ TEST(Fidelity, LastLoopStepIsTheShippedSensor) {
   EXPECT_EQ(to_yaml(last), to_yaml(shipped));
 }
 
-TEST(Fidelity, PolynomialFitAndSelectionRule) {
-  std::vector<double> x, y;
-  for (int i = 0; i <= 20; ++i) {
-    const double t = 0.4 + 0.02 * i;
-    x.push_back(t);
-    y.push_back(3.0 - 2.0 * t + 5.0 * t * t * t);
-  }
-  const PolyFit f = fit_polynomial(x, y, 3);
-  for (double t : {0.41, 0.6, 0.79}) EXPECT_NEAR(f(t), 3.0 - 2.0 * t + 5.0 * t * t * t, 1e-9);
-  EXPECT_THROW((void)fit_polynomial({0.1, 0.2}, {1.0, 2.0}, 3), std::invalid_argument);
-
+TEST(Fidelity, SelectionRuleOfTheDriver) {
   SensorSet s;
   s.readouts.resize(3);
   const int pulses[3] = {20, 100, 700};

@@ -21,7 +21,7 @@ void json(std::ostream& o, const FidelityReport& r, const ThesisFigures& m, cons
           const std::string& sensor) {
   o.precision(8);
   o << "{\n  \"sensor\": \"" << sensor << "\",\n  \"goals_met\": " << (v.ok ? "true" : "false") << ",\n";
-  o << "  \"calibration\": {\"rsen\": " << r.calibration.rsen << ", \"vle_per_pulse\": " << r.calibration.vle_per_pulse << "},\n";
+  o << "  \"calibration\": {\"rsen\": " << r.constants.rsen << ", \"vle_per_pulse\": " << r.constants.vle_per_pulse << "},\n";
   o << "  \"fits\": [";
   for (std::size_t i = 0; i < r.fits.size(); ++i) {
     const auto& f = r.fits[i];
@@ -107,8 +107,8 @@ int main(int argc, char** argv) {
     }
     const FidelityReport r = run_fidelity(p, opt);
     const FidelityVerdict v = judge(r, m);
-    std::printf("sensor %s: R_sen %.4f, V_le %.5f per pulse\n\n", sensor_path.c_str(), r.calibration.rsen,
-                r.calibration.vle_per_pulse);
+    std::printf("sensor %s: R_sen %.4f, V_le %.5f per pulse\n\n", sensor_path.c_str(), r.constants.rsen,
+                r.constants.vle_per_pulse);
     std::printf("Section 3.5 fits [cm^2, cm]        sim var   sim SD  held-out | thesis var  thesis SD\n");
     for (const auto& f : r.fits) {
       double mv = NAN, ms = NAN;

@@ -5,10 +5,13 @@
 // Protocol (docs/simulator_fidelity.md says why):
 //  * R_sen and V_le are measured as the thesis did (3.3.3): V_le from dark
 //    sets (laser off, no ambient), R_sen from a uniform-light exposure.
-//  * Calibration data (3.5): white paper, centre pixel, 5-200 cm, fixed
-//    discharge (the pulse count that fills the fuller capacitor to 40 % or
-//    20 %), several sets per distance; "multi-discharge" pools 10-80 %.
-//    Fits: linear (Eq. 3.16), 3rd and 6th degree polynomial in X (Eq. 3.18).
+//  * Calibration data (3.5): white paper, centre pixel, 5-200 cm in 2.5 cm
+//    steps, fixed discharge (the pulse count that fills the fuller capacitor
+//    to 40 % or 20 %); one data point per distance = the mean read-out of 10
+//    sets; "multi-discharge" pools 10-80 %. Fits: linear (Eq. 3.16), 3rd and
+//    6th degree polynomial in X (Eq. 3.18), made by the project's calibration
+//    fitter (tiny_laser_driver/calibration_fit.hpp) with R_sen and V_le fixed
+//    to the measured constants.
 //  * Table 3.1: white paper at 20.5-125 cm, continuous raw mode (the default
 //    read-out schedule), per pixel the read-out with the most pulses that is
 //    valid, distance from the 6th-degree 40 % calibration.
@@ -19,29 +22,18 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
+#include <tiny_laser_driver/calibration.hpp>
 
 #include <sim/rail.hpp>
 
 namespace tinyline::sim {
 
-/// Least-squares polynomial in one variable (centred and scaled for conditioning).
-struct PolyFit {
-  std::vector<double> coeffs;  ///< in z = (x - centre) / scale, ascending powers
-  double centre = 0.0, scale = 1.0;
-  [[nodiscard]] double operator()(double x) const;
-  [[nodiscard]] bool valid() const { return !coeffs.empty(); }
-};
-/// Throws std::invalid_argument when there are fewer points than coefficients.
-[[nodiscard]] PolyFit fit_polynomial(const std::vector<double>& x, const std::vector<double>& y, int degree);
-
-/// The declared model of one pixel: X (Eq. 3.16/3.18) and a polynomial.
-struct DeclaredPixelModel {
-  double rsen = 1.0;               ///< measured sensitivity ratio
-  double vle_per_pulse = 0.0;      ///< measured leakage per accumulated pulse [charge_unit]
-  PolyFit poly;                    ///< distance [cm] from X
-  [[nodiscard]] double ratio(double a, double b, int pulses) const;
-  [[nodiscard]] double distance_cm(double a, double b, int pulses) const { return poly(ratio(a, b, pulses)); }
+/// The declared constants measured the thesis's way (3.3.3): V_le from dark
+/// sets (laser off, no ambient light), R_sen from an even exposure with the
+/// laser off. They are handed to the declared-model fitter as fixed values.
+struct MeasuredConstants {
+  double rsen = 1.0;               ///< sensitivity ratio of the pixel
+  double vle_per_pulse = 0.0;      ///< leakage per accumulated pulse [charge_unit]
 };
 
 /// The driver's validity rule (wire_protocol.md) and selection: the read-out
@@ -86,7 +78,8 @@ struct MaterialRow {
 };
 
 struct FidelityReport {
-  DeclaredPixelModel calibration;   ///< the 6th-degree, 40 % model used for the tables
+  MeasuredConstants constants;
+  tiny_laser_driver::CalibrationModel calibration;  ///< the 6th-degree, 40 % model used for the tables
   std::vector<FitScore> fits;       ///< linear, poly3_40, poly6_40, poly6_20, poly6_multi
   std::vector<DistanceRow> table31;
   std::vector<MaterialRow> table32;
