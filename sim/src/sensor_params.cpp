@@ -129,7 +129,7 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
   }
   if (auto l = n.find("lens")) {
     l->check_keys({"focal_mm", "sensor_length_mm", "pixels", "dark_pixels", "subrays_per_pixel", "psf_sigma_px",
-                   "halo_fraction", "halo_length_px", "vignetting_cos_power"});
+                   "halo_fraction", "halo_length_px", "vignetting_cos_power", "pixel_height_mm"});
     auto& x = p.lens;
     x.focal_mm = l->in_range("focal_mm", x.focal_mm, 0.5, 100.0);
     x.sensor_length_mm = l->in_range("sensor_length_mm", x.sensor_length_mm, 0.1, 100.0);
@@ -140,14 +140,17 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
     x.halo_fraction = l->in_range("halo_fraction", x.halo_fraction, 0.0, 0.5);
     x.halo_length_px = l->in_range("halo_length_px", x.halo_length_px, 0.1, 200.0);
     x.vignetting_cos_power = l->in_range("vignetting_cos_power", x.vignetting_cos_power, 0.0, 8.0);
+    x.pixel_height_mm = l->in_range("pixel_height_mm", x.pixel_height_mm, 0.001, 20.0);
   }
   if (auto e = n.find("emitter")) {
-    e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "pulse_width_ns", "pulse_rise_exponent",
+    e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "sheet_thickness_mm", "sheet_divergence_deg", "pulse_width_ns", "pulse_rise_exponent",
                    "pulse_fall_exponent", "diffusion_tail_ns", "pulse_rate_hz", "charge_per_pulse_1m"});
     auto& x = p.emitter;
     x.baseline_m = e->in_range("baseline_m", x.baseline_m, -0.2, 0.2);
     x.fan_half_angle_deg = e->in_range("fan_half_angle_deg", x.fan_half_angle_deg, 0.5, 89.0);
     x.fan_edge_deg = e->in_range("fan_edge_deg", x.fan_edge_deg, 0.0, 30.0);
+    x.sheet_thickness_mm = e->in_range("sheet_thickness_mm", x.sheet_thickness_mm, 0.0, 100.0);
+    x.sheet_divergence_deg = e->in_range("sheet_divergence_deg", x.sheet_divergence_deg, 0.0, 45.0);
     x.pulse_width_ns = e->in_range("pulse_width_ns", x.pulse_width_ns, 1.0, 1000.0);
     x.pulse_rise_exponent = e->in_range("pulse_rise_exponent", x.pulse_rise_exponent, 0.0, 10.0);
     x.pulse_fall_exponent = e->in_range("pulse_fall_exponent", x.pulse_fall_exponent, 0.0, 10.0);
@@ -157,7 +160,7 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
   }
   if (auto q = n.find("pixel")) {
     q->check_keys({"gate_split_ns", "sensitivity_ratio", "sensitivity_ratio_sd", "leakage_per_ms", "leakage_sd",
-                   "prnu_sd", "full_scale", "knee", "read_noise", "shot_noise_gain", "adc_lsb", "adc_max"});
+                   "prnu_sd", "full_scale", "knee", "nonlinearity", "read_noise", "shot_noise_gain", "transfer_noise_per_pulse", "adc_offset_a", "adc_offset_b", "adc_lsb", "adc_max"});
     auto& x = p.pixel;
     x.gate_split_ns = q->in_range("gate_split_ns", x.gate_split_ns, -1000.0, 1000.0);
     x.sensitivity_ratio = q->in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
@@ -167,8 +170,12 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
     x.prnu_sd = q->in_range("prnu_sd", x.prnu_sd, 0.0, 0.5);
     x.full_scale = q->positive("full_scale", x.full_scale);
     x.knee = q->positive("knee", x.knee);
+    x.nonlinearity = q->in_range("nonlinearity", x.nonlinearity, 0.0, 0.5);
     x.read_noise = q->non_negative("read_noise", x.read_noise);
     x.shot_noise_gain = q->non_negative("shot_noise_gain", x.shot_noise_gain);
+    x.transfer_noise_per_pulse = q->non_negative("transfer_noise_per_pulse", x.transfer_noise_per_pulse);
+    x.adc_offset_a = q->in_range("adc_offset_a", x.adc_offset_a, -50.0, 50.0);
+    x.adc_offset_b = q->in_range("adc_offset_b", x.adc_offset_b, -50.0, 50.0);
     x.adc_lsb = q->positive("adc_lsb", x.adc_lsb);
     x.adc_max = q->positive("adc_max", x.adc_max);
   }
@@ -240,10 +247,12 @@ std::string to_yaml(const SensorParams& p) {
   s << "lens:\n  focal_mm: " << l.focal_mm << "\n  sensor_length_mm: " << l.sensor_length_mm << "\n  pixels: " << l.pixels
     << "\n  dark_pixels: " << l.dark_pixels << "\n  subrays_per_pixel: " << l.subrays_per_pixel
     << "\n  psf_sigma_px: " << l.psf_sigma_px << "\n  halo_fraction: " << l.halo_fraction
-    << "\n  halo_length_px: " << l.halo_length_px << "\n  vignetting_cos_power: " << l.vignetting_cos_power << "\n";
+    << "\n  halo_length_px: " << l.halo_length_px << "\n  vignetting_cos_power: " << l.vignetting_cos_power
+    << "\n  pixel_height_mm: " << l.pixel_height_mm << "\n";
   const auto& e = p.emitter;
   s << "emitter:\n  baseline_m: " << e.baseline_m << "\n  fan_half_angle_deg: " << e.fan_half_angle_deg
-    << "\n  fan_edge_deg: " << e.fan_edge_deg << "\n  pulse_width_ns: " << e.pulse_width_ns
+    << "\n  fan_edge_deg: " << e.fan_edge_deg << "\n  sheet_thickness_mm: " << e.sheet_thickness_mm
+    << "\n  sheet_divergence_deg: " << e.sheet_divergence_deg << "\n  pulse_width_ns: " << e.pulse_width_ns
     << "\n  pulse_rise_exponent: " << e.pulse_rise_exponent << "\n  pulse_fall_exponent: " << e.pulse_fall_exponent
     << "\n  diffusion_tail_ns: " << e.diffusion_tail_ns << "\n  pulse_rate_hz: " << e.pulse_rate_hz
     << "\n  charge_per_pulse_1m: " << e.charge_per_pulse_1m << "\n";
@@ -251,8 +260,8 @@ std::string to_yaml(const SensorParams& p) {
   s << "pixel:\n  gate_split_ns: " << q.gate_split_ns << "\n  sensitivity_ratio: " << q.sensitivity_ratio
     << "\n  sensitivity_ratio_sd: " << q.sensitivity_ratio_sd << "\n  leakage_per_ms: " << q.leakage_per_ms
     << "\n  leakage_sd: " << q.leakage_sd << "\n  prnu_sd: " << q.prnu_sd << "\n  full_scale: " << q.full_scale
-    << "\n  knee: " << q.knee << "\n  read_noise: " << q.read_noise << "\n  shot_noise_gain: " << q.shot_noise_gain
-    << "\n  adc_lsb: " << q.adc_lsb << "\n  adc_max: " << q.adc_max << "\n";
+    << "\n  knee: " << q.knee << "\n  nonlinearity: " << q.nonlinearity << "\n  read_noise: " << q.read_noise << "\n  shot_noise_gain: " << q.shot_noise_gain << "\n  transfer_noise_per_pulse: " << q.transfer_noise_per_pulse
+    << "\n  adc_offset_a: " << q.adc_offset_a << "\n  adc_offset_b: " << q.adc_offset_b << "\n  adc_lsb: " << q.adc_lsb << "\n  adc_max: " << q.adc_max << "\n";
   const auto& t = p.thermal;
   s << "thermal:\n  ambient_c: " << t.ambient_c << "\n  warm_c: " << t.warm_c << "\n  time_constant_s: " << t.time_constant_s
     << "\n  reference_c: " << t.reference_c << "\n  delay_drift_ns_per_c: " << t.delay_drift_ns_per_c

@@ -32,6 +32,7 @@ struct LensParams {
   double halo_fraction = 0.01;        ///< share of each pixel's light scattered into a wide halo
   double halo_length_px = 8.0;        ///< e-folding length of the halo [pixels]
   double vignetting_cos_power = 4.0;  ///< relative illumination cos^n(field angle)
+  double pixel_height_mm = 0.5;       ///< pixel height across the line (vertical field of view)
 
   [[nodiscard]] double pitch_mm() const { return sensor_length_mm / (pixels - 2 * dark_pixels); }
 };
@@ -40,6 +41,8 @@ struct EmitterParams {
   double baseline_m = 0.012;          ///< emitter offset along +x from the receiver
   double fan_half_angle_deg = 22.0;   ///< line laser fan half angle (flat inside)
   double fan_edge_deg = 2.0;          ///< width of the fan's soft edge
+  double sheet_thickness_mm = 1.0;    ///< laser sheet thickness at the emitter (crosstalk geometry)
+  double sheet_divergence_deg = 0.3;  ///< full divergence of the sheet across the fan plane
   double pulse_width_ns = 40.0;       ///< T0, emitted pulse length
   double pulse_rise_exponent = 1.0;   ///< pulse power ~ s^rise (1-s)^fall, s in [0,1]
   double pulse_fall_exponent = 1.4;
@@ -47,7 +50,7 @@ struct EmitterParams {
   double pulse_rate_hz = 25000.0;     ///< laser pulse repetition rate (0.1% duty at 40 ns)
   /// Received (a+b) per pulse [charge_unit] from a Lambertian albedo-1 target
   /// at 1 m, normal incidence, on the optical axis. Sets the radiometric scale.
-  double charge_per_pulse_1m = 0.6;
+  double charge_per_pulse_1m = 0.787;
 };
 
 struct PixelParams {
@@ -59,8 +62,19 @@ struct PixelParams {
   double prnu_sd = 0.02;              ///< photo-response non-uniformity (relative gain spread)
   double full_scale = 250.0;          ///< saturation of a capacitor read-out [charge_unit]
   double knee = 225.0;                ///< soft compression starts here [charge_unit]
-  double read_noise = 0.25;           ///< ADC + reset noise per read-out [charge_unit rms]
-  double shot_noise_gain = 0.01;      ///< shot-noise variance per unit of collected charge [charge_unit]
+  /// Charge-to-voltage non-linearity of the storage node: a read-out v of
+  /// charge q is q * (1 - nonlinearity * q / full_scale) (compression at full scale).
+  double nonlinearity = 0.0;
+  double read_noise = 0.10;           ///< ADC + reset noise per read-out [charge_unit rms]
+  double shot_noise_gain = 8e-4;      ///< shot-noise variance per unit of collected charge [charge_unit]
+  /// Zero-mean charge each gate cycle adds (reset and transfer noise of the
+  /// photodiode, drained and refilled every pulse) [charge_unit rms per pulse].
+  double transfer_noise_per_pulse = 0.04;
+  /// Constant offsets of the two read-out channels (each capacitor has its
+  /// own buffer and ADC) [charge_unit]; they do not grow with the pulses, so
+  /// the declared leakage V_le * pulses cannot absorb them.
+  double adc_offset_a = 0.0;
+  double adc_offset_b = -1.75;
   double adc_lsb = 0.1;               ///< quantisation step [charge_unit] (the wire carries 10x)
   double adc_max = 409.5;             ///< ADC full range [charge_unit] (12 bit)
 };

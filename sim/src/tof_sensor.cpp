@@ -1,0 +1,708 @@
+#include <sim/tof_sensor.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+
+#include "random.hpp"
+
+namespace tinyline::sim {
+
+namespace {
+
+constexpr double kNsPerM = 1e9 / kSpeedOfLight;  // one-way light time per metre [ns]
+
+double normal_cdf(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
+
+double deg(double d) { return d * M_PI / 180.0; }
+
+// Fan profile: flat inside, cos^2 taper over the soft edge.
+double fan_weight(double phi_rad, const EmitterParams& e) {
+  const double half = deg(e.fan_half_angle_deg), edge = deg(e.fan_edge_deg);
+  const double a = std::abs(phi_rad);
+  if (a <= half - 0.5 * edge) return 1.0;
+  if (a >= half + 0.5 * edge) return 0.0;
+  const double c = std::cos(0.5 * M_PI * (a - (half - 0.5 * edge)) / edge);
+  return c * c;
+}
+
+// Soft saturation: linear up to the knee, then an exponential approach to full scale.
+double compress(double v, double knee, double full) {
+  if (v <= knee) return v;
+  const double span = full - knee;
+  if (span <= 0) return full;
+  return knee + span * (1.0 - std::exp(-(v - knee) / span));
+}
+
+template <class... Ts>
+struct Overloaded : Ts... {
+  using Ts::operator()...;
+};
+template <class... Ts>
+Overloaded(Ts...) -> Overloaded<Ts...>;
+
+}  // namespace
+
+struct TofLineSensor::Impl {
+  int n = 0, s = 0, nsub = 0;
+  std::vector<Eigen::Vector3d> sub_dir;  // sensor frame
+  std::vector<double> sub_vign;
+  std::vector<Eigen::Vector3d> px_dir;
+  std::vector<double> px_angle;
+  std::vector<char> dark;
+  std::vector<double> rsen, leak, prnu, skew_ns;
+
+  // Lens: core blur over sub-rays (FIR), halo over pixels (two-sided exponential IIR).
+  int core_radius = 0;               // in sub-rays, each side
+  std::vector<double> core_w;        // index o + core_radius, o = j - s*i
+  double halo_h = 0.0, halo_a = 0.0;
+
+  // Gate tables over the arrival delay Td [ns].
+  double td0 = 0.0, dtd = 0.005;
+  std::vector<double> fa, fb, dfa, dfb;
+
+  // Effects, resolved.
+  const TrapDelayEffect* trap = nullptr;
+  const RangeWalkEffect* walk = nullptr;
+  const MaterialBiasEffect* material_bias = nullptr;
+  const TimeDriftEffect* time_drift = nullptr;
+  const TemperatureLagEffect* temp_lag = nullptr;
+  std::vector<const CovariateEffect*> covariates;
+  bool need_derivative = false;
+
+  // Random walks of covariates, extended on demand (1 s steps).
+  mutable std::mutex walk_mu;
+  mutable std::vector<std::vector<double>> walk_paths;
+
+  double lookup(const std::vector<double>& t, double td) const {
+    const double x = (td - td0) / dtd;
+    if (!(x >= 0.0)) return 0.0;
+    const auto i = static_cast<std::size_t>(x);
+    if (i + 1 >= t.size()) return 0.0;
+    const double f = x - static_cast<double>(i);
+    return t[i] + f * (t[i + 1] - t[i]);
+  }
+
+  // Spreads sub-ray values onto pixels: (1-h) * core blur + h * halo.
+  void blur(const std::vector<double>& in, std::vector<double>& out, std::vector<double>& binned) const {
+    out.assign(static_cast<std::size_t>(n), 0.0);
+    binned.assign(static_cast<std::size_t>(n), 0.0);
+    for (int j = 0; j < nsub; ++j) binned[static_cast<std::size_t>(j / s)] += in[static_cast<std::size_t>(j)];
+    for (int i = 0; i < n; ++i) {
+      const int j0 = std::max(0, s * i - core_radius), j1 = std::min(nsub - 1, s * i + core_radius);
+      double acc = 0.0;
+      const double* w = core_w.data() + (j0 - s * i + core_radius);
+      for (int j = j0; j <= j1; ++j) acc += *w++ * in[static_cast<std::size_t>(j)];
+      out[static_cast<std::size_t>(i)] = (1.0 - halo_h) * acc;
+    }
+    if (halo_h > 0.0) {
+      // y_i = sum_k x_k c a^|i-k|, c = (1-a)/(1+a) normalises the discrete kernel.
+      const double a = halo_a, c = (1.0 - a) / (1.0 + a);
+      double fwd = 0.0;
+      std::vector<double> f(static_cast<std::size_t>(n));
+      for (int i = 0; i < n; ++i) f[static_cast<std::size_t>(i)] = fwd = binned[static_cast<std::size_t>(i)] + a * fwd;
+      double bwd = 0.0;
+      for (int i = n - 1; i >= 0; --i) {
+        bwd = binned[static_cast<std::size_t>(i)] + a * bwd;
+        out[static_cast<std::size_t>(i)] +=
+            halo_h * c * (f[static_cast<std::size_t>(i)] + bwd - binned[static_cast<std::size_t>(i)]);
+      }
+    }
+  }
+
+  double covariate_value(std::size_t k, double t_s, std::uint64_t seed) const {
+    const CovariateEffect& c = *covariates[k];
+    double v = c.mean + c.amplitude * std::sin(2.0 * M_PI * t_s / c.period_s);
+    if (c.random_walk_per_sqrt_s > 0.0 && t_s > 0.0) {
+      std::lock_guard<std::mutex> lock(walk_mu);
+      auto& path = walk_paths[k];
+      const auto need = static_cast<std::size_t>(t_s) + 2;
+      if (path.empty()) path.push_back(0.0);
+      if (path.size() < need) {
+        Rng rng(mix_seed(seed, 0xC0FFEEull + k, path.size()));
+        while (path.size() < need) path.push_back(path.back() + c.random_walk_per_sqrt_s * rng.normal());
+      }
+      const auto i = static_cast<std::size_t>(t_s);
+      const double f = t_s - static_cast<double>(i);
+      v += path[i] + f * (path[i + 1] - path[i]);
+    }
+    return v;
+  }
+};
+
+TofLineSensor::TofLineSensor(SensorParams params) : params_(std::move(params)), impl_(std::make_unique<Impl>()) {
+  if (const std::string why = params_.validate(); !why.empty()) throw std::invalid_argument("sensor parameters: " + why);
+  Impl& m = *impl_;
+  const auto& lens = params_.lens;
+  m.n = lens.pixels;
+  m.s = lens.subrays_per_pixel;
+  m.nsub = m.n * m.s;
+  const double pitch = lens.pitch_mm(), f = lens.focal_mm;
+  const double mid = 0.5 * m.n;  // the line's middle, in pixel units
+  auto dir_at = [&](double pos_px) {
+    const double u = (pos_px - mid) * pitch;
+    return Eigen::Vector3d(u, 0.0, f).normalized();
+  };
+  m.sub_dir.resize(static_cast<std::size_t>(m.nsub));
+  m.sub_vign.resize(static_cast<std::size_t>(m.nsub));
+  for (int j = 0; j < m.nsub; ++j) {
+    const Eigen::Vector3d d = dir_at((j + 0.5) / m.s);
+    m.sub_dir[static_cast<std::size_t>(j)] = d;
+    m.sub_vign[static_cast<std::size_t>(j)] = std::pow(d.z(), lens.vignetting_cos_power);
+  }
+  m.px_dir.resize(static_cast<std::size_t>(m.n));
+  m.px_angle.resize(static_cast<std::size_t>(m.n));
+  m.dark.resize(static_cast<std::size_t>(m.n));
+  for (int i = 0; i < m.n; ++i) {
+    m.px_dir[static_cast<std::size_t>(i)] = dir_at(i + 0.5);
+    m.px_angle[static_cast<std::size_t>(i)] = std::atan2(m.px_dir[static_cast<std::size_t>(i)].x(), m.px_dir[static_cast<std::size_t>(i)].z());
+    m.dark[static_cast<std::size_t>(i)] = (i < lens.dark_pixels || i >= m.n - lens.dark_pixels) ? 1 : 0;
+  }
+
+  // Per-pixel constants (R_sen, V_le, PRNU) from the seed.
+  Rng rng(mix_seed(params_.seed, 0x5E45ull, 0));
+  const auto& px = params_.pixel;
+  for (int i = 0; i < m.n; ++i) {
+    m.rsen.push_back(std::max(0.2, px.sensitivity_ratio * (1.0 + px.sensitivity_ratio_sd * rng.normal())));
+    m.leak.push_back(std::max(0.0, px.leakage_per_ms * (1.0 + px.leakage_sd * rng.normal())));
+    m.prnu.push_back(std::max(0.1, 1.0 + px.prnu_sd * rng.normal()));
+  }
+  m.skew_ns.assign(static_cast<std::size_t>(m.n), 0.0);
+
+  // Core blur weights: a Gaussian (sigma) integrated over one pixel's width.
+  const double sigma = lens.psf_sigma_px;
+  const int r_px = static_cast<int>(std::ceil(4.0 * sigma)) + 1;
+  m.core_radius = r_px * m.s;
+  for (int o = -m.core_radius; o <= m.core_radius; ++o) {
+    const double d = (o + 0.5) / m.s - 0.5;  // sub-ray position relative to the pixel centre [px]
+    double w;
+    if (sigma <= 1e-9) {
+      w = (d >= -0.5 && d < 0.5) ? 1.0 : 0.0;
+    } else {
+      w = normal_cdf((d + 0.5) / sigma) - normal_cdf((d - 0.5) / sigma);
+    }
+    m.core_w.push_back(w);
+  }
+  m.halo_h = lens.halo_fraction;
+  m.halo_a = std::exp(-1.0 / lens.halo_length_px);
+
+  // Gate tables: the curved pulse s^rise (1-s)^fall on [0, T0], smeared by the
+  // photo-charge diffusion tail; gate A = [split - T0, split), B = [split, split + T0).
+  const auto& em = params_.emitter;
+  const double T0 = em.pulse_width_ns, tau = em.diffusion_tail_ns, split = px.gate_split_ns;
+  const double dt = m.dtd;
+  const double support = T0 + 12.0 * tau + dt;
+  const auto np = static_cast<std::size_t>(support / dt) + 2;
+  std::vector<double> cdf(np, 0.0);
+  {
+    const double k = tau > 0 ? std::exp(-dt / tau) : 0.0;
+    double y = 0.0, acc = 0.0;
+    for (std::size_t i = 0; i < np; ++i) {
+      const double t = static_cast<double>(i) * dt;
+      double p = 0.0;
+      if (t <= T0) {
+        const double sn = t / T0;
+        p = std::pow(sn, em.pulse_rise_exponent) * std::pow(1.0 - sn, em.pulse_fall_exponent);
+        if (em.pulse_rise_exponent == 0.0 && em.pulse_fall_exponent == 0.0) p = 1.0;
+      }
+      y = k * y + (1.0 - k) * p;  // convolution with the normalised exponential tail
+      acc += y * dt;
+      cdf[i] = acc;
+    }
+    for (auto& c : cdf) c /= acc;
+  }
+  auto C = [&](double t) {
+    const double x = t / dt;
+    if (x <= 0.0) return 0.0;
+    const auto i = static_cast<std::size_t>(x);
+    if (i + 1 >= np) return 1.0;
+    return cdf[i] + (x - static_cast<double>(i)) * (cdf[i + 1] - cdf[i]);
+  };
+  m.td0 = split - 2.0 * T0 - support - 1.0;
+  const double td1 = split + T0 + 1.0;
+  const auto nt = static_cast<std::size_t>((td1 - m.td0) / dt) + 2;
+  m.fa.resize(nt);
+  m.fb.resize(nt);
+  for (std::size_t i = 0; i < nt; ++i) {
+    const double td = m.td0 + static_cast<double>(i) * dt;
+    m.fa[i] = C(split - td) - C(split - T0 - td);
+    m.fb[i] = C(split + T0 - td) - C(split - td);
+  }
+  m.dfa.resize(nt);
+  m.dfb.resize(nt);
+  for (std::size_t i = 0; i < nt; ++i) {
+    const std::size_t lo = i > 0 ? i - 1 : i, hi = i + 1 < nt ? i + 1 : i;
+    const double span = static_cast<double>(hi - lo) * dt;
+    m.dfa[i] = (m.fa[hi] - m.fa[lo]) / span;
+    m.dfb[i] = (m.fb[hi] - m.fb[lo]) / span;
+  }
+
+  // Effects.
+  for (const auto& fx : params_.effects) {
+    std::visit(Overloaded{[&](const TrapDelayEffect& e) { m.trap = &e; },
+                          [&](const RangeWalkEffect& e) {
+                            m.walk = &e;
+                            m.need_derivative = true;
+                          },
+                          [&](const MaterialBiasEffect& e) { m.material_bias = &e; },
+                          [&](const FixedPatternEffect& e) {
+                            Rng r(mix_seed(e.seed, 0xF1CEDull, 0));
+                            for (int i = 0; i < m.n; ++i) {
+                              const double ramp = m.n > 1 ? (static_cast<double>(i) / (m.n - 1) - 0.5) * e.ramp_ps : 0.0;
+                              m.skew_ns[static_cast<std::size_t>(i)] += 1e-3 * (e.sigma_ps * r.normal() + ramp);
+                            }
+                            m.need_derivative = true;
+                          },
+                          [&](const TimeDriftEffect& e) { m.time_drift = &e; },
+                          [&](const CovariateEffect& e) { m.covariates.push_back(&e); },
+                          [&](const TemperatureLagEffect& e) { m.temp_lag = &e; }},
+               fx);
+  }
+  m.walk_paths.resize(m.covariates.size());
+}
+
+TofLineSensor::~TofLineSensor() = default;
+TofLineSensor::TofLineSensor(TofLineSensor&&) noexcept = default;
+TofLineSensor& TofLineSensor::operator=(TofLineSensor&&) noexcept = default;
+
+bool TofLineSensor::is_dark(int pixel) const { return impl_->dark.at(static_cast<std::size_t>(pixel)) != 0; }
+double TofLineSensor::pixel_angle_rad(int pixel) const { return impl_->px_angle.at(static_cast<std::size_t>(pixel)); }
+Eigen::Vector3d TofLineSensor::pixel_direction(int pixel) const { return impl_->px_dir.at(static_cast<std::size_t>(pixel)); }
+double TofLineSensor::sensitivity_ratio(int pixel) const { return impl_->rsen.at(static_cast<std::size_t>(pixel)); }
+double TofLineSensor::leakage_per_ms(int pixel) const { return impl_->leak.at(static_cast<std::size_t>(pixel)); }
+double TofLineSensor::gate_fraction_a(double td_ns) const { return impl_->lookup(impl_->fa, td_ns); }
+double TofLineSensor::gate_fraction_b(double td_ns) const { return impl_->lookup(impl_->fb, td_ns); }
+
+double TofLineSensor::temperature_c(double t_s) const {
+  const auto& th = params_.thermal;
+  return th.warm_c - (th.warm_c - th.ambient_c) * std::exp(-std::max(0.0, t_s) / th.time_constant_s);
+}
+
+namespace {
+
+// Everything of one set that does not depend on the pulse count.
+struct PixelPulse {
+  std::vector<double> qa, qb, amb;  // per pulse, per pixel
+};
+
+}  // namespace
+
+// Computes the per-pulse charges of every pixel; shared by measure() and pulse_charges().
+static void compute_pulse(const TofLineSensor::Impl& m, const SensorParams& p, const World& world,
+                          const Eigen::Isometry3d& T_ws, double global_delay_ns, PixelPulse& out,
+                          std::vector<PixelTruth>* truth) {
+  const auto nsub = static_cast<std::size_t>(m.nsub);
+  const auto n = static_cast<std::size_t>(m.n);
+  const Eigen::Matrix3d R = T_ws.linear();
+  const Eigen::Vector3d O = T_ws.translation();
+  const Eigen::Vector3d E = T_ws * Eigen::Vector3d(p.emitter.baseline_m, 0.0, 0.0);
+  const double c1 = p.emitter.charge_per_pulse_1m / m.s;
+  const double amb_c = p.environment.ambient_charge_per_pulse / m.s;
+  const bool two = m.trap != nullptr;
+  const double trap_shift = two ? m.trap->release_delay_ns : 0.0;
+
+  // Extra optical path per material (subsurface scattering effect).
+  std::vector<double> extra_ns(world.materials().size(), 0.0);
+  if (m.material_bias) {
+    for (const auto& [name, mm] : m.material_bias->path_mm) {
+      if (auto id = world.materials().find(name)) extra_ns[static_cast<std::size_t>(*id)] = mm * 1e-3 * kNsPerM;
+    }
+  }
+
+  std::vector<double> qa(nsub, 0.0), qb(nsub, 0.0), amb(nsub, 0.0), qa2, qb2, dqa, dqb;
+  if (two) {
+    qa2.assign(nsub, 0.0);
+    qb2.assign(nsub, 0.0);
+  }
+  if (m.need_derivative) {
+    dqa.assign(nsub, 0.0);
+    dqb.assign(nsub, 0.0);
+  }
+  std::vector<double> sub_range(nsub, kNaN);
+  std::vector<ObjectId> sub_obj(nsub, kNoObject);
+
+  const double max_range = 30.0;
+  for (std::size_t j = 0; j < nsub; ++j) {
+    const Eigen::Vector3d dir = R * m.sub_dir[j];
+    const auto hit = world.raycast(Ray{O, dir}, 1e-6, max_range);
+    if (!hit) continue;
+    sub_range[j] = hit->t_m;
+    sub_obj[j] = hit->object;
+    const Material& mat = world.material_of(*hit);
+    amb[j] = amb_c * mat.albedo * m.sub_vign[j];
+    // The emitter's light: in the fan, facing the surface, not shadowed.
+    const Eigen::Vector3d v = hit->point - E;
+    const double re = v.norm();
+    const Eigen::Vector3d vs = R.transpose() * v;
+    if (vs.z() <= 0.0) continue;
+    const double fan = fan_weight(std::atan2(vs.x(), vs.z()), p.emitter);
+    if (fan <= 0.0) continue;
+    const Eigen::Vector3d to_e = -v / re;
+    const double cos_i = hit->normal.dot(to_e);
+    if (cos_i <= 0.0) continue;
+    if (world.occluded(hit->point + 1e-7 * hit->normal, E)) continue;
+    const double rf = mat.return_factor(hit->normal, to_e, -dir);
+    const double energy = c1 * rf * cos_i * fan * m.sub_vign[j] / (re * hit->t_m);
+    const double td = (re + hit->t_m) * kNsPerM + global_delay_ns + extra_ns[static_cast<std::size_t>(hit->material)];
+    qa[j] = energy * m.lookup(m.fa, td);
+    qb[j] = energy * m.lookup(m.fb, td);
+    if (two) {
+      qa2[j] = energy * m.lookup(m.fa, td + trap_shift);
+      qb2[j] = energy * m.lookup(m.fb, td + trap_shift);
+    }
+    if (m.need_derivative) {
+      dqa[j] = energy * m.lookup(m.dfa, td);
+      dqb[j] = energy * m.lookup(m.dfb, td);
+    }
+  }
+
+  std::vector<double> binned;
+  m.blur(qa, out.qa, binned);
+  m.blur(qb, out.qb, binned);
+  m.blur(amb, out.amb, binned);
+  std::vector<double> pa2, pb2, pda, pdb;
+  if (two) {
+    m.blur(qa2, pa2, binned);
+    m.blur(qb2, pb2, binned);
+  }
+  if (m.need_derivative) {
+    m.blur(dqa, pda, binned);
+    m.blur(dqb, pdb, binned);
+  }
+
+  for (std::size_t i = 0; i < n; ++i) {
+    if (m.dark[i]) {
+      out.qa[i] = out.qb[i] = out.amb[i] = 0.0;  // masked: no light
+      continue;
+    }
+    const double g = m.prnu[i];
+    double a = out.qa[i] * g, b = out.qb[i] * g;
+    const double intensity = a + b;
+    if (two && intensity > 0.0) {
+      // Trapped share released late: eps / (I + eps) of the charge.
+      const double share = m.trap->capacity_per_pulse / (intensity + m.trap->capacity_per_pulse);
+      a = (1.0 - share) * a + share * pa2[i] * g;
+      b = (1.0 - share) * b + share * pb2[i] * g;
+    }
+    if (m.need_derivative && intensity > 0.0) {
+      double shift = m.skew_ns[i];
+      if (m.walk) {
+        shift += std::clamp(m.walk->ns_per_decade * std::log10(intensity / m.walk->reference_charge_per_pulse),
+                            -m.walk->max_ns, m.walk->max_ns);
+      }
+      // First order in the shift; the total stays (charge moves between gates).
+      const double da = shift * pda[i] * g, db = shift * pdb[i] * g;
+      a = std::max(0.0, a + da);
+      b = std::max(0.0, b + db);
+    }
+    out.qa[i] = a;
+    out.qb[i] = b;
+    out.amb[i] *= g;
+  }
+
+  if (truth) {
+    truth->assign(n, PixelTruth{});
+    for (std::size_t i = 0; i < n; ++i) {
+      PixelTruth& t = (*truth)[i];
+      const Eigen::Vector3d dir = R * m.px_dir[i];
+      const auto hit = world.raycast(Ray{O, dir}, 1e-6, max_range);
+      if (!hit) continue;
+      t.range_m = hit->t_m;
+      t.object = hit->object;
+      t.material = hit->material;
+      t.incidence_rad = std::acos(std::clamp(hit->normal.dot(-dir), -1.0, 1.0));
+      const Eigen::Vector3d v = hit->point - E;
+      const Eigen::Vector3d vs = R.transpose() * v;
+      t.lit = vs.z() > 0.0 && fan_weight(std::atan2(vs.x(), vs.z()), p.emitter) > 0.0 && hit->normal.dot(-v) > 0.0 &&
+              !world.occluded(hit->point + 1e-7 * hit->normal, E);
+      // Mixed: the sub-rays of this pixel and its neighbours see other surfaces or ranges.
+      const int s = m.s;
+      const int j0 = std::max(0, static_cast<int>(i) * s - s), j1 = std::min(m.nsub - 1, static_cast<int>(i) * s + 2 * s - 1);
+      for (int j = j0; j <= j1 && !t.mixed; ++j) {
+        const auto js = static_cast<std::size_t>(j);
+        if (sub_obj[js] != t.object || std::isnan(sub_range[js]) || std::abs(sub_range[js] - t.range_m) > 0.02) t.mixed = true;
+      }
+    }
+  }
+}
+
+// Light of other sensors' line lasers that reaches this sensor's pixels while
+// its gates are open (thesis 6.2.1). For each pixel, the point of the scene
+// that lies on the other sensor's laser sheet inside this pixel's field of
+// view (a root search over the pixel's vertical angle), plus the other
+// emitter itself when it shines straight into this receiver. Per own pulse,
+// the other sensor's nearest pulse sets the arrival time in this sensor's
+// gates; the pulses whose light lands inside the gates add charge.
+static void add_crosstalk(const TofLineSensor::Impl& m, const SensorParams& p, const World& world,
+                          const Eigen::Isometry3d& T_ws, double t0_shared, std::span<const int> pulses,
+                          std::span<const ForeignEmitter> others, std::vector<double>& xa, std::vector<double>& xb,
+                          int& hit_pulses) {
+  const auto n = static_cast<std::size_t>(m.n);
+  const std::size_t nr = pulses.size();
+  const Eigen::Matrix3d R = T_ws.linear();
+  const Eigen::Vector3d O = T_ws.translation();
+  const double f = p.lens.focal_mm, pitch = p.lens.pitch_mm();
+  const double psi_max = std::atan(0.5 * p.lens.pixel_height_mm / f);
+  const double td_lo = m.td0, td_hi = m.td0 + m.dtd * static_cast<double>(m.fa.size());
+  const double own_rate = p.emitter.pulse_rate_hz;
+  const double c1 = p.emitter.charge_per_pulse_1m;
+  std::vector<double> inc_a(n * nr, 0.0), inc_b(n * nr, 0.0);
+  std::vector<char> pulse_hit(static_cast<std::size_t>(pulses.back()), 0);
+
+  for (const ForeignEmitter& fe : others) {
+    const double fj = fe.pulse_rate_hz;
+    if (!(fj > 0.0) || fe.on_intervals.empty()) continue;
+    auto on_at = [&](double t) {
+      for (const auto& [a, b] : fe.on_intervals)
+        if (t >= a && t < b) return true;
+      return false;
+    };
+    // Timing first (cheap): which own pulses could catch this emitter's light at all?
+    const double max_path_ns = 2.0 * 30.0 * kNsPerM;
+    std::vector<std::pair<int, double>> candidates;  // (own pulse, offset of the other's pulse [ns])
+    for (int k = 0; k < pulses.back(); ++k) {
+      const double t = t0_shared + k / own_rate;
+      if (!on_at(t)) continue;
+      const double q = std::round((t - fe.first_pulse_s) * fj);
+      const double o_ns = (fe.first_pulse_s + q / fj - t) * 1e9;
+      if (o_ns + max_path_ns < td_lo || o_ns > td_hi) continue;
+      candidates.emplace_back(k, o_ns);
+    }
+    if (candidates.empty()) continue;
+
+    // Geometry: per pixel, the energy one foreign pulse deposits and its path delay.
+    const Eigen::Matrix3d Rj = fe.T_world_sensor.linear();
+    const Eigen::Vector3d Ej = fe.T_world_sensor * Eigen::Vector3d(fe.emitter.baseline_m, 0, 0);
+    const Eigen::Vector3d nj = Rj.col(1);
+    const double half_thick0 = 0.5e-3 * fe.emitter.sheet_thickness_mm;
+    const double half_div = std::tan(0.5 * deg(fe.emitter.sheet_divergence_deg));
+    std::vector<double> energy(n, 0.0), path_ns(n, 0.0);
+    auto lit_by_j = [&](const Eigen::Vector3d& pt, const Eigen::Vector3d& normal, double& re, Eigen::Vector3d& to_e,
+                        double& fan) {
+      const Eigen::Vector3d v = pt - Ej;
+      re = v.norm();
+      const Eigen::Vector3d vs = Rj.transpose() * v;
+      if (vs.z() <= 0.0 || std::abs(vs.y()) > half_thick0 + re * half_div) return false;
+      fan = fan_weight(std::atan2(vs.x(), vs.z()), fe.emitter);
+      if (fan <= 0.0) return false;
+      to_e = -v / re;
+      if (normal.dot(to_e) <= 0.0) return false;
+      return !world.occluded(pt + 1e-7 * normal, Ej);
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+      if (m.dark[i]) continue;
+      const double th = m.px_angle[i];
+      auto ray_at = [&](double psi) {
+        return Eigen::Vector3d(R * Eigen::Vector3d(std::sin(th) * std::cos(psi), std::sin(psi), std::cos(th) * std::cos(psi)));
+      };
+      auto g_at = [&](double psi, std::optional<Hit>& h) {
+        h = world.raycast(Ray{O, ray_at(psi)}, 1e-6, 30.0);
+        return h ? nj.dot(h->point - Ej) : kNaN;
+      };
+      constexpr int K = 9;
+      double best_psi = kNaN, prev_psi = 0, prev_g = kNaN;
+      std::optional<Hit> h;
+      for (int k = 0; k < K && std::isnan(best_psi); ++k) {
+        const double psi = -psi_max + 2.0 * psi_max * k / (K - 1);
+        const double g = g_at(psi, h);
+        if (!std::isnan(g) && std::abs(g) < 1e-9) best_psi = psi;
+        else if (!std::isnan(g) && !std::isnan(prev_g) && (g > 0) != (prev_g > 0)) {
+          double lo = prev_psi, hi = psi, glo = prev_g;
+          for (int it = 0; it < 12; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            const double gm = g_at(mid, h);
+            if (std::isnan(gm)) break;
+            if ((gm > 0) == (glo > 0)) { lo = mid; glo = gm; } else { hi = mid; }
+          }
+          best_psi = 0.5 * (lo + hi);
+        }
+        prev_psi = psi;
+        prev_g = g;
+      }
+      if (std::isnan(best_psi)) continue;
+      const Eigen::Vector3d dir = ray_at(best_psi);
+      const auto hit = world.raycast(Ray{O, dir}, 1e-6, 30.0);
+      if (!hit) continue;
+      double re = 0, fan = 0;
+      Eigen::Vector3d to_e;
+      if (!lit_by_j(hit->point, hit->normal, re, to_e, fan)) continue;
+      const Material& mat = world.material_of(*hit);
+      const double rf = mat.return_factor(hit->normal, to_e, -dir);
+      energy[i] = c1 * rf * hit->normal.dot(to_e) * fan * std::pow(m.px_dir[i].z(), p.lens.vignetting_cos_power) /
+                  (re * hit->t_m) * m.prnu[i];
+      path_ns[i] = (re + hit->t_m) * kNsPerM;
+    }
+    // The other emitter seen directly: its whole beam into one pixel (saturates).
+    {
+      const Eigen::Vector3d ve = R.transpose() * (Ej - O);
+      const double r = ve.norm();
+      if (ve.z() > 0.0 && std::abs(ve.y()) <= ve.z() * std::tan(psi_max)) {
+        const double pos = ve.x() / ve.z() * f / pitch + 0.5 * m.n;
+        const auto i = static_cast<long>(std::floor(pos));
+        if (i >= 0 && i < m.n && !m.dark[static_cast<std::size_t>(i)]) {
+          const Eigen::Vector3d vj = Rj.transpose() * (O - Ej);
+          if (vj.z() > 0.0 && std::abs(vj.y()) <= half_thick0 + r * half_div &&
+              fan_weight(std::atan2(vj.x(), vj.z()), fe.emitter) > 0.0 && !world.occluded(O, Ej)) {
+            constexpr double kDirectGain = 1e4;  // a beam into the aperture vs. a white diffuse return
+            energy[static_cast<std::size_t>(i)] += c1 * kDirectGain / (r * r);
+            path_ns[static_cast<std::size_t>(i)] = r * kNsPerM;
+          }
+        }
+      }
+    }
+    for (const auto& [k, o_ns] : candidates) {
+      std::size_t rk = 0;
+      while (rk < nr && pulses[rk] <= k) ++rk;  // the first read-out this pulse counts in
+      bool any = false;
+      for (std::size_t i = 0; i < n; ++i) {
+        if (energy[i] <= 0.0) continue;
+        const double td = o_ns + path_ns[i];
+        const double fa = m.lookup(m.fa, td), fb = m.lookup(m.fb, td);
+        if (fa <= 0.0 && fb <= 0.0) continue;
+        inc_a[rk * n + i] += energy[i] * fa;
+        inc_b[rk * n + i] += energy[i] * fb;
+        any = true;
+      }
+      if (any) pulse_hit[static_cast<std::size_t>(k)] = 1;
+    }
+  }
+  for (std::size_t r = 0; r < nr; ++r) {
+    for (std::size_t i = 0; i < n; ++i) {
+      xa[r * n + i] = inc_a[r * n + i] + (r > 0 ? xa[(r - 1) * n + i] : 0.0);
+      xb[r * n + i] = inc_b[r * n + i] + (r > 0 ? xb[(r - 1) * n + i] : 0.0);
+    }
+  }
+  hit_pulses = 0;
+  for (char c : pulse_hit) hit_pulses += c;
+}
+
+PulseCharges TofLineSensor::pulse_charges(const World& world, const Eigen::Isometry3d& T_world_sensor, double t_s,
+                                          std::vector<PixelTruth>* truth) const {
+  const auto& th = params_.thermal;
+  PixelPulse pp;
+  // Same global delay as measure() at this instant.
+  double delay = 0.0;
+  {
+    const Impl& m = *impl_;
+    double td = temperature_c(t_s);
+    if (m.temp_lag) {
+      const double tau = th.time_constant_s, tl = m.temp_lag->time_constant_s, D = th.warm_c - th.ambient_c;
+      td = std::abs(tau - tl) < 1e-9
+               ? th.warm_c - D * (1.0 + t_s / tau) * std::exp(-t_s / tau)
+               : th.warm_c - D * (tau * std::exp(-t_s / tau) - tl * std::exp(-t_s / tl)) / (tau - tl);
+    }
+    delay += th.delay_drift_ns_per_c * (td - th.reference_c);
+    if (m.time_drift) {
+      delay += m.time_drift->ns_per_hour * t_s / 3600.0 +
+               m.time_drift->sine_amplitude_ns * std::sin(2.0 * M_PI * t_s / m.time_drift->sine_period_s);
+    }
+    for (std::size_t k = 0; k < m.covariates.size(); ++k) {
+      delay += m.covariates[k]->ns_per_unit * (m.covariate_value(k, t_s, params_.seed) - m.covariates[k]->mean);
+    }
+  }
+  compute_pulse(*impl_, params_, world, T_world_sensor, delay, pp, truth);
+  return PulseCharges{std::move(pp.qa), std::move(pp.qb), std::move(pp.amb)};
+}
+
+SensorSet TofLineSensor::measure(const World& world, const Eigen::Isometry3d& T_world_sensor, double t_start_s,
+                                 std::span<const int> pulses, std::uint64_t index,
+                                 std::span<const ForeignEmitter> others, const MeasureOptions& options) const {
+  const Impl& m = *impl_;
+  const auto& px = params_.pixel;
+  const auto n = static_cast<std::size_t>(m.n);
+  if (pulses.empty()) throw std::invalid_argument("measure: no read-out pulse counts");
+  for (std::size_t k = 0; k < pulses.size(); ++k) {
+    if (pulses[k] <= 0 || (k > 0 && pulses[k] <= pulses[k - 1]))
+      throw std::invalid_argument("measure: read-out pulse counts must be positive and increasing");
+  }
+  const int p_max = pulses.back();
+  const double t_mid = t_start_s + 0.5 * accumulation_time_s(p_max);
+
+  SensorSet set;
+  set.index = index;
+  set.t_start_s = t_start_s;
+  set.t_end_s = t_start_s + accumulation_time_s(p_max);
+  set.laser_on = options.laser_on;
+  set.T_world_sensor = T_world_sensor;
+  for (std::size_t k = 0; k < m.covariates.size(); ++k) {
+    set.covariates[m.covariates[k]->name] = m.covariate_value(k, t_mid, params_.seed);
+  }
+
+  // Per-pulse charges at the middle of the accumulation (the scene is static during a set).
+  PulseCharges pc = pulse_charges(world, T_world_sensor, t_mid, &set.truth);
+  if (!options.laser_on) {
+    std::fill(pc.qa.begin(), pc.qa.end(), 0.0);
+    std::fill(pc.qb.begin(), pc.qb.end(), 0.0);
+  }
+
+  // Crosstalk: other sensors' pulses that land inside this sensor's gates.
+  const std::size_t nr = pulses.size();
+  std::vector<double> xa(n * nr, 0.0), xb(n * nr, 0.0);  // cumulative per read-out
+  if (!others.empty()) {
+    add_crosstalk(m, params_, world, T_world_sensor, t_start_s + options.clock_offset_s, pulses, others, xa, xb,
+                  set.crosstalk_pulses);
+  }
+
+  Rng rng(mix_seed(params_.seed, 0xA11CEull, index));
+  set.readouts.resize(nr);
+  for (std::size_t k = 0; k < nr; ++k) {
+    auto& r = set.readouts[k];
+    r.pulses = pulses[k];
+    r.t_s = t_start_s + accumulation_time_s(pulses[k]);
+    r.a.resize(n);
+    r.b.resize(n);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const double sa = pc.qa[i] + pc.ambient[i], sb = pc.qb[i] + pc.ambient[i];
+    double prev_a = 0.0, prev_b = 0.0, noise_a = 0.0, noise_b = 0.0;
+    int prev_p = 0;
+    const double k_transfer = px.transfer_noise_per_pulse * px.transfer_noise_per_pulse;
+    for (std::size_t k = 0; k < nr; ++k) {
+      const double p = pulses[k];
+      const double t_ms = 1e3 * accumulation_time_s(pulses[k]);
+      const double leak = m.leak[i] * t_ms;
+      const double mean_a = p * sa + xa[k * n + i] + leak;
+      const double mean_b = p * sb + xb[k * n + i] + leak;
+      double a = mean_a, b = mean_b;
+      if (options.noise) {
+        // Shot noise accumulates with the charge (read-outs are non-destructive);
+        // read noise is fresh at each read-out.
+        const double cycles = pulses[k] - prev_p;
+        noise_a += std::sqrt(px.shot_noise_gain * std::max(0.0, mean_a - prev_a) + k_transfer * cycles) * rng.normal();
+        noise_b += std::sqrt(px.shot_noise_gain * std::max(0.0, mean_b - prev_b) + k_transfer * cycles) * rng.normal();
+        a = mean_a + noise_a;
+        b = mean_b + noise_b;
+      }
+      prev_a = mean_a;
+      prev_b = mean_b;
+      prev_p = pulses[k];
+      a /= m.rsen[i];  // Eq. 3.16: a * R_sen - V_le and b - V_le compare like with like
+      if (options.noise) {
+        a += px.read_noise * rng.normal();
+        b += px.read_noise * rng.normal();
+      }
+      if (px.nonlinearity > 0.0) {
+        a -= px.nonlinearity * a * std::abs(a) / px.full_scale;
+        b -= px.nonlinearity * b * std::abs(b) / px.full_scale;
+      }
+      a = compress(a, px.knee, px.full_scale) + px.adc_offset_a;
+      b = compress(b, px.knee, px.full_scale) + px.adc_offset_b;
+      if (options.noise) {
+        a = std::round(a / px.adc_lsb) * px.adc_lsb;
+        b = std::round(b / px.adc_lsb) * px.adc_lsb;
+      }
+      set.readouts[k].a[i] = std::clamp(a, -px.adc_max, px.adc_max);
+      set.readouts[k].b[i] = std::clamp(b, -px.adc_max, px.adc_max);
+    }
+  }
+
+  set.true_temperature_c = temperature_c(set.t_end_s);
+  double reading = set.true_temperature_c;
+  if (options.noise) reading += params_.thermal.reading_noise_c * rng.normal();
+  set.temperature_c = std::round(reading * 10.0) / 10.0;
+  return set;
+}
+
+}  // namespace tinyline::sim
