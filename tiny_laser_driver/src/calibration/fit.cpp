@@ -162,8 +162,13 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
     }
     if (multi < rows_.size() / 10) {
       fit_leak_offset_ = false;
-      notes.push_back(fmt::format("few frames hold several valid pulse levels of a pixel: leakage offset kept at {}",
-                                  p_.leakage_offset));
+      notes.push_back(p_.selection == ReadoutSelection::kDriver
+                          ? fmt::format("one read-out per pixel and frame (the driver's choice) cannot tell a leakage "
+                                        "offset from a per-pulse leakage: offset kept at {} charge_unit",
+                                        p_.leakage_offset)
+                          : fmt::format("few frames hold several valid pulse levels of a pixel: leakage offset kept "
+                                        "at {} charge_unit",
+                                        p_.leakage_offset));
     }
   }
 

@@ -255,6 +255,14 @@ std::string cm(double m) { return std::isfinite(m) ? fmt::format("{:.3f} cm", m 
 
 // ------------------------------------------------------------------ report
 
+std::vector<std::string> unique(std::vector<std::string> v) {
+  std::vector<std::string> out;
+  for (auto& s : v) {
+    if (std::find(out.begin(), out.end(), s) == out.end()) out.push_back(std::move(s));
+  }
+  return out;
+}
+
 struct ReportContext {
   std::string command;  // fit or diagnose
   std::string data_path;
@@ -320,6 +328,7 @@ std::string summary_json(const ReportContext& c) {
   j += "],\n  \"notes\": [";
   std::vector<std::string> notes = r.notes;
   notes.insert(notes.end(), c.fit_notes.begin(), c.fit_notes.end());
+  notes = unique(std::move(notes));
   for (std::size_t k = 0; k < notes.size(); ++k) j += (k ? ",\n    " : "\n    ") + json_string(notes[k]);
   j += notes.empty() ? "]\n" : "\n  ]\n";
   j += "}\n";
@@ -433,6 +442,7 @@ std::string report_markdown(const ReportContext& c, const std::string& dir, cons
   figure("residual_material.png", "Held-out error by material (a diagnosis: the driver does not know the material)");
   std::vector<std::string> notes = r.notes;
   notes.insert(notes.end(), c.fit_notes.begin(), c.fit_notes.end());
+  notes = unique(std::move(notes));
   if (!notes.empty()) {
     md += "## Notes\n\n";
     for (const auto& n : notes) md += "- " + n + "\n";
