@@ -284,14 +284,17 @@ CalibrationEvaluation compute(const CalibrationModel::Impl& m, const Readout& r)
     ev.status = S::kOutOfRange;
     return ev;
   }
-  ev.declared_distance_m = m.declared_m(ev.ratio, r.temperature_c);
+  // Without a temperature reading the offset of 3.3.4 cannot be applied: distance
+  // at the reference temperature, flagged like any other missing covariate.
+  const bool has_temperature = std::isfinite(r.temperature_c);
+  ev.declared_distance_m = m.declared_m(ev.ratio, has_temperature ? r.temperature_c : m.temperature_reference_c);
   if constexpr (Full) {
     ev.reflectance = CalibrationModel::Impl::covariate_value(Covariate::kReflectance, -1, r, ev.ratio,
                                                              ev.declared_distance_m, m.amplitude_reference);
     ev.albedo = m.amplitude_reference.albedo(r, ev.declared_distance_m);
   }
   double d = ev.declared_distance_m;
-  bool missing = false;
+  bool missing = !has_temperature && m.temperature_coef_m_per_c != 0.0;
   const double amplitude = r.a + r.b;
   for (const auto& t : m.terms) {
     const double z = CalibrationModel::Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio,

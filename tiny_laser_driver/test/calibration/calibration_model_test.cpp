@@ -262,3 +262,31 @@ TEST(CalibrationModel, DocsExampleReadsAsWritten) {
   EXPECT_TRUE(std::isnan(ev.albedo));  // no amplitude reference in this model
   EXPECT_EQ(tl::to_string(ev.status), "valid");
 }
+
+TEST(CalibrationModel, NonFiniteInputsNeverGiveAValidNaN) {
+  const auto m = simple_model();
+  using S = tl::CalibrationEvaluation::Status;
+  const double nan = std::nan("");
+  const double inf = std::numeric_limits<double>::infinity();
+  for (double a : {nan, inf, -inf, 0.0, -5.0, 120.0}) {
+    for (double b : {nan, inf, -inf, 0.0, -5.0, 60.0}) {
+      for (int pulses : {0, -10, 100}) {
+        auto r = readout(a, b, pulses);
+        const auto ev = m.evaluate(r);
+        if (ev.status == S::kValid || ev.status == S::kMissingCovariate) {
+          EXPECT_TRUE(std::isfinite(ev.distance_m)) << a << " " << b << " " << pulses;
+        } else {
+          EXPECT_TRUE(std::isnan(ev.distance_m));
+        }
+      }
+    }
+  }
+  auto r = readout(120, 60);
+  r.temperature_c = nan;
+  const auto ev = m.evaluate(r);
+  EXPECT_EQ(ev.status, S::kMissingCovariate);
+  EXPECT_DOUBLE_EQ(ev.distance_m, m.distance_m(readout(120, 60, 100, 48.0)));  // at the reference temperature
+  r = readout(120, 60);
+  r.pixel = 999;  // out of range: the common Rsen
+  EXPECT_TRUE(std::isfinite(m.distance_m(r)));
+}
