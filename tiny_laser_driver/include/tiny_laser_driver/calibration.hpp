@@ -56,7 +56,8 @@ struct CalibrationEvaluation {
     kSaturated,         ///< the validity rule says saturated
     kTooDark,           ///< the validity rule says too little light (or a non-positive corrected sum)
     kOutOfRange,        ///< the charge ratio lies outside the range the model was fitted on
-    kMissingCovariate,  ///< a discovered term needs an extra covariate the read-out lacks (term skipped)
+    kMissingCovariate,  ///< a term needs a covariate the read-out lacks (term skipped), or the temperature
+                        ///< is NaN (offset of 3.3.4 not applied); distance_m is still given
   };
   Status status = Status::kTooDark;
   double distance_m = std::numeric_limits<double>::quiet_NaN();  ///< NaN unless kValid / kMissingCovariate

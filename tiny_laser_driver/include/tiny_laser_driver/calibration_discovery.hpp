@@ -99,6 +99,11 @@ struct DiscoveryResult {
   std::size_t groups = 0, holdout_groups = 0;
   double z_threshold = 0.0;  ///< of the first round
   std::vector<std::size_t> train_rows, holdout_rows;
+  /// The held-out read-outs the errors are measured on (selection applied), with
+  /// their residuals (model - truth) before and after the accepted terms; NaN
+  /// where a model gives no distance.
+  std::vector<std::size_t> heldout_eval_rows;
+  std::vector<double> heldout_residual_before_m, heldout_residual_after_m;
   std::vector<std::string> candidates;  ///< covariates tried
   std::vector<std::string> notes;
 };

@@ -64,6 +64,8 @@ struct CalibrationTerm {
   // Resolved on load / when added to a model.
   Covariate kind = Covariate::kExtra;
   int extra_index = -1;  ///< index into Readout::extra for kExtra
+  bool dense_keys = false;  ///< keys are first_key, first_key + 1, ...: a table lookup is an index
+  long first_key = 0;
 
   /// Number of linear coefficients (the fitter's basis size).
   [[nodiscard]] std::size_t basis_size() const;

@@ -623,6 +623,9 @@ DiscoveryResult discover_effects(const CalibrationDataset& data, const Discovery
     res.train_after = fit.model;
   }
   res.rmse_after_m = current;
+  res.heldout_eval_rows = select_readouts(data, res.holdout_rows, p.declared.validity, p.declared.selection);
+  res.heldout_residual_before_m = model_residuals(res.train_before, data, res.heldout_eval_rows);
+  res.heldout_residual_after_m = model_residuals(res.train_after, data, res.heldout_eval_rows);
 
   const auto final_fit = fit_calibration_model(data, {}, p.declared, kept_terms);
   if (!final_fit.ok) {
@@ -743,6 +746,13 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     current = after;
   }
   res.rmse_after_m = current;
+  const auto pred = fit_and_predict(d, kept, p.declared.term_ridge);
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] != -2) continue;
+    res.heldout_eval_rows.push_back(d.row[i]);
+    res.heldout_residual_before_m.push_back(-d.y[i]);  // y = truth - model
+    res.heldout_residual_after_m.push_back(kept.empty() ? -d.y[i] : pred[i] - d.y[i]);
+  }
   res.ok = true;
   return res;
 }

@@ -162,8 +162,13 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
     }
     if (multi < rows_.size() / 10) {
       fit_leak_offset_ = false;
-      notes.push_back(fmt::format("few frames hold several valid pulse levels of a pixel: leakage offset kept at {}",
-                                  p_.leakage_offset));
+      notes.push_back(p_.selection == ReadoutSelection::kDriver
+                          ? fmt::format("one read-out per pixel and frame (the driver's choice) cannot tell a leakage "
+                                        "offset from a per-pulse leakage: offset kept at {} charge_unit",
+                                        p_.leakage_offset)
+                          : fmt::format("few frames hold several valid pulse levels of a pixel: leakage offset kept "
+                                        "at {} charge_unit",
+                                        p_.leakage_offset));
     }
   }
 
@@ -424,8 +429,9 @@ void FitEngine::refine_per_pixel() {
   }
   if (n_eligible == 0) {
     rsen_pixel_.clear();
-    notes.push_back(fmt::format("no pixel has {} valid read-outs over {} distances: one global Rsen",
+    if (notes_rsen_once_) notes.push_back(fmt::format("no pixel has {} valid read-outs over {} distances: one global Rsen",
                                 p_.min_rows_per_pixel, p_.min_distances_per_pixel));
+    notes_rsen_once_ = false;
     return;
   }
   if (rsen_pixel_.empty()) rsen_pixel_.assign(kPixels, rsen_);
@@ -471,7 +477,8 @@ void FitEngine::refine_per_pixel() {
     rsen_pixel_[px] = eligible[px] ? rsen_pixel_[px] * shift : p_.sensitivity_ratio;
   }
   rsen_ = p_.sensitivity_ratio;
-  if (n_eligible < kPixels - 2 * kDarkPixels) {
+  if (n_eligible < kPixels - 2 * kDarkPixels && notes_rsen_once_) {
+    notes_rsen_once_ = false;
     notes.push_back(fmt::format("per-pixel Rsen fitted for {} pixels; the others use the median {:.4f}", n_eligible, rsen_));
   }
   compute_x();

@@ -84,6 +84,7 @@ class FitEngine {
   double ratio_min_ = 0.0, ratio_max_ = 1.0;
   bool use_temp_ = false;
   bool fit_leak_offset_ = false;
+  bool notes_rsen_once_ = true;
 
   AmplitudeReference reference_;
   void update_reference();

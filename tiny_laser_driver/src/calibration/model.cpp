@@ -145,6 +145,10 @@ double CalibrationTerm::value(double z, double amplitude) const {
   if (!std::isfinite(z)) return 0.0;
   if (form == TermForm::kTable) {
     const long k = std::lround(z);
+    if (dense_keys) {
+      const long i = k - first_key;
+      return (i >= 0 && i < static_cast<long>(offsets_m.size())) ? offsets_m[static_cast<std::size_t>(i)] : 0.0;
+    }
     const auto it = std::lower_bound(keys.begin(), keys.end(), k);
     return (it != keys.end() && *it == k) ? offsets_m[static_cast<std::size_t>(it - keys.begin())] : 0.0;
   }
@@ -228,6 +232,9 @@ void CalibrationModel::Impl::resolve() {
   extra_covariates.clear();
   for (auto& t : terms) {
     t.kind = covariate_from_name(t.covariate);
+    t.dense_keys = t.form == TermForm::kTable && !t.keys.empty() && t.offsets_m.size() == t.keys.size() &&
+                   t.keys.back() - t.keys.front() + 1 == static_cast<long>(t.keys.size());
+    t.first_key = t.keys.empty() ? 0 : t.keys.front();
     t.extra_index = -1;
     if (t.kind != Covariate::kExtra) continue;
     const auto it = std::find(extra_covariates.begin(), extra_covariates.end(), t.covariate);
@@ -254,9 +261,13 @@ CalibrationModel& CalibrationModel::operator=(CalibrationModel&& o) noexcept {
 const ValidityRule& CalibrationModel::validity() const { return impl_->validity; }
 const std::vector<std::string>& CalibrationModel::extra_covariates() const { return impl_->extra_covariates; }
 
-CalibrationEvaluation CalibrationModel::evaluate(const Readout& r) const {
+namespace {
+
+// The per-pixel path. `Full` also fills reflectance and albedo; the distance-only
+// path (the driver's, once per pixel) computes only what its terms need.
+template <bool Full>
+CalibrationEvaluation compute(const CalibrationModel::Impl& m, const Readout& r) {
   using S = CalibrationEvaluation::Status;
-  const Impl& m = *impl_;
   CalibrationEvaluation ev;
   switch (m.validity.check(r)) {
     case ValidityRule::Verdict::kSaturated: ev.status = S::kSaturated; return ev;
@@ -273,16 +284,21 @@ CalibrationEvaluation CalibrationModel::evaluate(const Readout& r) const {
     ev.status = S::kOutOfRange;
     return ev;
   }
-  ev.declared_distance_m = m.declared_m(ev.ratio, r.temperature_c);
-  ev.reflectance = Impl::covariate_value(Covariate::kReflectance, -1, r, ev.ratio, ev.declared_distance_m,
-                                         m.amplitude_reference);
-  ev.albedo = m.amplitude_reference.albedo(r, ev.declared_distance_m);
+  // Without a temperature reading the offset of 3.3.4 cannot be applied: distance
+  // at the reference temperature, flagged like any other missing covariate.
+  const bool has_temperature = std::isfinite(r.temperature_c);
+  ev.declared_distance_m = m.declared_m(ev.ratio, has_temperature ? r.temperature_c : m.temperature_reference_c);
+  if constexpr (Full) {
+    ev.reflectance = CalibrationModel::Impl::covariate_value(Covariate::kReflectance, -1, r, ev.ratio,
+                                                             ev.declared_distance_m, m.amplitude_reference);
+    ev.albedo = m.amplitude_reference.albedo(r, ev.declared_distance_m);
+  }
   double d = ev.declared_distance_m;
-  bool missing = false;
+  bool missing = !has_temperature && m.temperature_coef_m_per_c != 0.0;
   const double amplitude = r.a + r.b;
   for (const auto& t : m.terms) {
-    const double z =
-        Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio, ev.declared_distance_m, m.amplitude_reference);
+    const double z = CalibrationModel::Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio,
+                                                             ev.declared_distance_m, m.amplitude_reference);
     if (!std::isfinite(z)) {
       missing = true;
       continue;
@@ -294,10 +310,11 @@ CalibrationEvaluation CalibrationModel::evaluate(const Readout& r) const {
   return ev;
 }
 
-double CalibrationModel::distance_m(const Readout& r) const {
-  const auto ev = evaluate(r);
-  return ev.distance_m;
-}
+}  // namespace
+
+CalibrationEvaluation CalibrationModel::evaluate(const Readout& r) const { return compute<true>(*impl_, r); }
+
+double CalibrationModel::distance_m(const Readout& r) const { return compute<false>(*impl_, r).distance_m; }
 
 std::string CalibrationModel::describe() const {
   const Impl& m = *impl_;

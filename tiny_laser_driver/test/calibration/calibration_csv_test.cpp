@@ -1,6 +1,7 @@
 // The calibration CSV reader: the format and its bad-input errors.
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 
 #include <gmock/gmock.h>
@@ -120,4 +121,39 @@ TEST(CalibrationCsv, UnreadableFile) {
   } catch (const tl::CalibrationDataError& e) {
     EXPECT_THAT(e.what(), HasSubstr("/nonexistent/data.csv: cannot open data file"));
   }
+}
+
+TEST(CalibrationCsv, MangledBytesGiveEitherDataOrAClearError) {
+  const std::string good =
+      "t_s,pixel,pulses,a,b,temperature_c,distance_m,material,humidity\n"
+      "0.5,100,200,120.5,60.25,41.3,0.5,white_paper,55\n"
+      "0.5,101,700,80,90,41.4,0.75,\"cloth, blue\",56.5\n";
+  std::mt19937 rng(5);
+  std::size_t parsed = 0, refused = 0;
+  for (int i = 0; i < 4000; ++i) {
+    std::string s = good;
+    const int edits = 1 + static_cast<int>(rng() % 4);
+    for (int e = 0; e < edits; ++e) {
+      const std::size_t at = rng() % (s.size() + 1);
+      switch (rng() % 3) {
+        case 0: if (at < s.size()) s[at] = static_cast<char>(rng() % 256); break;
+        case 1: s.insert(at, 1, static_cast<char>(rng() % 256)); break;
+        default: if (at < s.size()) s.erase(at, 1); break;
+      }
+    }
+    try {
+      const auto d = tl::parse_calibration_csv(s, "m.csv");
+      for (std::size_t r = 0; r < d.size(); ++r) {
+        ASSERT_TRUE(std::isfinite(d.readouts[r].a) && std::isfinite(d.distance_m[r]) && d.distance_m[r] > 0);
+        ASSERT_GE(d.readouts[r].pixel, 0);
+        ASSERT_LE(d.readouts[r].pixel, 271);
+      }
+      ++parsed;
+    } catch (const tl::CalibrationDataError& e) {
+      ASSERT_THAT(e.what(), HasSubstr("m.csv"));
+      ++refused;
+    }
+  }
+  EXPECT_GT(parsed, 100u);
+  EXPECT_GT(refused, 1000u);
 }

@@ -152,6 +152,9 @@ TEST(CalibrationYaml, RoundTripKeepsEveryDistance) {
   t.knots = {0.1, 1.0, 3.0};
   t.values = {0.03, 0.001, -0.0123456789};
   m.impl().terms = {t};
+  m.impl().amplitude_reference.knots_m = {0.1, 1.0, 2.0};
+  m.impl().amplitude_reference.log_amplitude = {3.0, 0.5, -1.0};
+  m.impl().amplitude_reference.pixel_log_offset.assign(272, 0.01);
   m.impl().resolve();
   m.impl().info.data = "rail \"A\".csv";
 
@@ -161,6 +164,9 @@ TEST(CalibrationYaml, RoundTripKeepsEveryDistance) {
   std::filesystem::remove(path);
   EXPECT_EQ(back.to_yaml(), m.to_yaml());
   EXPECT_EQ(back.impl().info.data, "rail \"A\".csv");
+  auto probe = readout(100, 60, 100, 40.0, 100);
+  EXPECT_EQ(back.evaluate(probe).albedo, m.evaluate(probe).albedo);
+  EXPECT_TRUE(std::isfinite(m.evaluate(probe).albedo));
   for (int px : {99, 100}) {
     for (double a = 20; a < 200; a += 7) {
       auto r = readout(a, 200 - a, 100, 40.0, px);
@@ -207,6 +213,9 @@ TEST(CalibrationYaml, ErrorsNameFileLineAndField) {
               HasSubstr("has 1 values for 2 knots"));
   EXPECT_THAT(expect_load_error(std::string(kMinimal) + "validity: {low: 300, high: 230}\n"),
               HasSubstr("low must be below high"));
+  EXPECT_THAT(expect_load_error(std::string(kMinimal) +
+                                "amplitude_reference:\n  knots_m: [0.1, 1]\n  log_amplitude: [1]\n"),
+              HasSubstr("calib.yaml:6: field 'amplitude_reference.log_amplitude': has 1 values for 2 knots"));
 }
 
 TEST(CalibrationYaml, MissingFileIsAClearError) {
@@ -239,4 +248,45 @@ TEST(CalibrationModel, PublicDriverPolynomialOfSensorK) {
   // Survives its own YAML.
   const auto back = tl::CalibrationModel::from_yaml(m.to_yaml(), "k.yaml");
   EXPECT_EQ(back.distance_m(r), m.distance_m(r));
+}
+
+TEST(CalibrationModel, DocsExampleReadsAsWritten) {
+  // docs/calibration.md section 7, as a user would write it.
+  const auto model = tl::CalibrationModel::from_yaml(kMinimal, "calib.yaml");
+  tl::Readout r{.a = 120.5, .b = 60.2, .pulses = 400, .temperature_c = 41.3, .pixel = 136, .t_s = 12.0, .extra = {}};
+  EXPECT_TRUE(model.extra_covariates().empty());
+  const double d = model.distance_m(r);
+  const auto ev = model.evaluate(r);
+  EXPECT_EQ(ev.status, tl::CalibrationEvaluation::Status::kValid);
+  EXPECT_DOUBLE_EQ(d, ev.distance_m);
+  EXPECT_TRUE(std::isnan(ev.albedo));  // no amplitude reference in this model
+  EXPECT_EQ(tl::to_string(ev.status), "valid");
+}
+
+TEST(CalibrationModel, NonFiniteInputsNeverGiveAValidNaN) {
+  const auto m = simple_model();
+  using S = tl::CalibrationEvaluation::Status;
+  const double nan = std::nan("");
+  const double inf = std::numeric_limits<double>::infinity();
+  for (double a : {nan, inf, -inf, 0.0, -5.0, 120.0}) {
+    for (double b : {nan, inf, -inf, 0.0, -5.0, 60.0}) {
+      for (int pulses : {0, -10, 100}) {
+        auto r = readout(a, b, pulses);
+        const auto ev = m.evaluate(r);
+        if (ev.status == S::kValid || ev.status == S::kMissingCovariate) {
+          EXPECT_TRUE(std::isfinite(ev.distance_m)) << a << " " << b << " " << pulses;
+        } else {
+          EXPECT_TRUE(std::isnan(ev.distance_m));
+        }
+      }
+    }
+  }
+  auto r = readout(120, 60);
+  r.temperature_c = nan;
+  const auto ev = m.evaluate(r);
+  EXPECT_EQ(ev.status, S::kMissingCovariate);
+  EXPECT_DOUBLE_EQ(ev.distance_m, m.distance_m(readout(120, 60, 100, 48.0)));  // at the reference temperature
+  r = readout(120, 60);
+  r.pixel = 999;  // out of range: the common Rsen
+  EXPECT_TRUE(std::isfinite(m.distance_m(r)));
 }

@@ -123,6 +123,12 @@ RailPlan default_rail() {
 std::vector<double> pixel_sensitivity_ratios(const SyntheticSensor& sensor) { return pixel_constants(sensor).rsen; }
 std::vector<double> pixel_pattern_m(const SyntheticSensor& sensor) { return pixel_constants(sensor).pattern_m; }
 
+Charges dark_charges(const SyntheticSensor& s, int pixel, int pulses) {
+  const auto consts = pixel_constants(s);
+  const double v = s.ambient_per_pulse + s.leak_per_pulse;
+  return {pulses * v / consts.rsen[static_cast<std::size_t>(pixel)], pulses * v};
+}
+
 Charges expected_charges(const SyntheticSensor& s, double distance_m, double albedo, int pixel, double temperature_c,
                          int pulses) {
   const auto consts = pixel_constants(s);
@@ -169,7 +175,8 @@ CalibrationDataset simulate_rail(const SyntheticSensor& s, const RailPlan& plan_
 
   double t = 0.0;
   const double v_leak = s.ambient_per_pulse + s.leak_per_pulse;
-  std::vector<double> walk1(pulses.size()), walk2(pulses.size());
+  std::vector<double> walk1(pulses.size() + 1), walk2(pulses.size() + 1);
+  std::vector<int> pixel_levels;
   for (const Visit& visit : visits) {
     t += plan.move_time_s;
     const auto& material = plan.materials[visit.material];
@@ -189,19 +196,27 @@ CalibrationDataset simulate_rail(const SyntheticSensor& s, const RailPlan& plan_
         // Delay drift with the temperature the MCU reads (declared, 3.3.4) uses the true temperature.
         const Echo e = echo(s, ray_m, angle, material.albedo, delay, temperature);
         const double rsen = consts.rsen[static_cast<std::size_t>(px)];
+        std::vector<int>& levels = pixel_levels;
+        levels = pulses;
+        if (plan.fixed_discharge > 0.0) {
+          // The thesis's fixed-discharge data: pulses so the fuller capacitor reaches the share.
+          const double fuller = std::max((e.q1 + v_leak) / rsen, e.q2 + v_leak);
+          const double p = plan.fixed_discharge * s.full_scale / std::max(fuller, 1e-9);
+          levels = {static_cast<int>(std::clamp(std::round(p / 10.0) * 10.0, 10.0, 990.0))};
+        }
         double acc1 = 0.0, acc2 = 0.0;
         int prev = 0;
-        for (std::size_t k = 0; k < pulses.size(); ++k) {
+        for (std::size_t k = 0; k < levels.size(); ++k) {
           // Non-destructive read-outs: one accumulation, shot noise as a random walk.
-          const double dp = pulses[k] - prev;
-          prev = pulses[k];
+          const double dp = levels[k] - prev;
+          prev = levels[k];
           const double m1 = dp * (e.q1 + v_leak), m2 = dp * (e.q2 + v_leak);
           acc1 += m1 + std::sqrt(s.shot_gain * std::max(m1, 0.0)) * n01(rng);
           acc2 += m2 + std::sqrt(s.shot_gain * std::max(m2, 0.0)) * n01(rng);
           walk1[k] = acc1;
           walk2[k] = acc2;
         }
-        for (std::size_t k = 0; k < pulses.size(); ++k) {
+        for (std::size_t k = 0; k < levels.size(); ++k) {
           double a = walk1[k] / rsen;
           double b = walk2[k];
           if (s.effects.capacitor_nonlinearity) {
@@ -213,7 +228,7 @@ CalibrationDataset simulate_rail(const SyntheticSensor& s, const RailPlan& plan_
           Readout r;
           r.t_s = std::round(t * 1000.0) / 1000.0;
           r.pixel = px;
-          r.pulses = pulses[k];
+          r.pulses = levels[k];
           r.a = s.quantise ? std::round(a * 10.0) / 10.0 : a;  // the wire carries ten times the charge unit as int16
           r.b = s.quantise ? std::round(b * 10.0) / 10.0 : b;
           r.temperature_c = temperature;

@@ -85,6 +85,10 @@ struct RailPlan {
   std::vector<SyntheticMaterial> materials{{"white_paper", 1.0}};
   std::vector<int> pulses{20, 100, 200, 400, 700};  ///< read-outs per frame (measured.yaml)
   std::vector<int> pixels;             ///< default: every 4th ranging pixel
+  /// When > 0: one read-out per pixel and frame, its pulse count (a multiple of 10 in
+  /// [10, 990]) chosen per pixel and distance so the fuller capacitor reaches this share
+  /// of full scale: the thesis's fixed-discharge data (3.5: 0.4 and 0.2).
+  double fixed_discharge = 0.0;
   int passes = 2;
   int frames_per_visit = 3;
   double frame_period_s = 0.03;
@@ -100,6 +104,11 @@ CalibrationDataset simulate_rail(const SyntheticSensor& sensor, const RailPlan& 
 std::vector<double> pixel_sensitivity_ratios(const SyntheticSensor& sensor);
 /// The fixed-pattern offset of each pixel [m] (used when effects.pixel_pattern).
 std::vector<double> pixel_pattern_m(const SyntheticSensor& sensor);
+
+/// What a pixel reads with the laser off (ambient light and leakage only), noise-free:
+/// the thesis measures Vle this way and Rsen from the ratio (3.3.3).
+struct Charges;
+Charges dark_charges(const SyntheticSensor& sensor, int pixel, int pulses);
 
 /// Per-pulse expected charges of one pixel (no noise), for checks.
 struct Charges {

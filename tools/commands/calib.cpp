@@ -1,0 +1,33 @@
+// tinyline calib fit|diagnose|eval: the calibration tool (issue 6). The logic
+// lives in tiny_laser_driver's calibration_tool library; this file finds the
+// plot script and its Python and hands over.
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+
+#include <tiny_laser_driver/calibration_tool.hpp>
+#include <tinyline/tools/command.hpp>
+
+namespace tinyline::tools {
+namespace {
+
+int cmd_calib(const std::vector<std::string>& args) {
+  namespace fs = std::filesystem;
+  tiny_laser_driver::CalibToolEnv env;
+  const fs::path share = share_dir();
+  env.plot_script = (share / "scripts" / "plots" / "calib_report.py").string();
+  // The test virtual env has matplotlib; TINYLINE_PYTHON overrides, python3 is the last resort.
+  if (const char* py = std::getenv("TINYLINE_PYTHON"); py && *py) {
+    env.python = py;
+  } else if (std::error_code ec; fs::exists(share / ".venv" / "bin" / "python", ec)) {
+    env.python = (share / ".venv" / "bin" / "python").string();
+  } else {
+    env.python = "python3";
+  }
+  return tiny_laser_driver::run_calib_command(args, std::cout, std::cerr, env);
+}
+
+const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval", &cmd_calib};
+
+}  // namespace
+}  // namespace tinyline::tools
