@@ -8,6 +8,10 @@
 namespace tinyline::bag {
 
 /// Continues a running CRC: crc32(b, crc32(a)) == crc32(a + b); start from 0.
+/// Uses carry-less multiplication (PCLMULQDQ) where the CPU has it.
 std::uint32_t crc32(std::span<const std::uint8_t> bytes, std::uint32_t crc = 0);
+
+/// The table-driven path only (the reference the fast path is tested against).
+std::uint32_t crc32_portable(std::span<const std::uint8_t> bytes, std::uint32_t crc = 0);
 
 }  // namespace tinyline::bag
