@@ -103,6 +103,7 @@ BENCHMARK(BM_RawWrite)->Unit(benchmark::kMillisecond)->UseRealTime()->ComputeSta
 
 void BM_Record(benchmark::State& state) {
   const auto comp = static_cast<bag::Compression>(state.range(0));
+  const int level = static_cast<int>(state.range(1));
   const auto& traffic = record_traffic();
   const std::string path = tmp_path("record.mcap");
   std::uint64_t file_bytes = 0;
@@ -110,6 +111,7 @@ void BM_Record(benchmark::State& state) {
     bag::ros2::Ros2Writer w;
     bag::WriterOptions o;
     o.compression = comp;
+    o.compression_level = level;
     if (!w.open(path, o).ok()) std::abort();
     bag::ChannelId ids[5];
     for (int k = 0; k < 5; ++k) {
@@ -128,12 +130,13 @@ void BM_Record(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * traffic.size()));
   state.counters["file_MB"] = static_cast<double>(file_bytes) / 1e6;
   state.counters["ratio"] = static_cast<double>(payload) / static_cast<double>(file_bytes);
-  state.SetLabel(std::string(bag::to_string(comp)));
+  state.SetLabel(std::string(bag::to_string(comp)) + (level != 0 ? "-" + std::to_string(level) : std::string()));
 }
 BENCHMARK(BM_Record)
-    ->Arg(static_cast<int>(bag::Compression::None))
-    ->Arg(static_cast<int>(bag::Compression::Lz4))
-    ->Arg(static_cast<int>(bag::Compression::Zstd))
+    ->Args({static_cast<int>(bag::Compression::None), 0})
+    ->Args({static_cast<int>(bag::Compression::Lz4), 0})
+    ->Args({static_cast<int>(bag::Compression::Zstd), 1})
+    ->Args({static_cast<int>(bag::Compression::Zstd), 0})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->ComputeStatistics("min", min_of);

@@ -123,6 +123,41 @@ std::uint32_t crc32(std::span<const std::uint8_t> bytes, std::uint32_t crc) {
   return ~crc_tables(c, p, n);
 }
 
+namespace {
+// CRC combination in GF(2): appending n zero bits to a CRC is a linear map,
+// a 32x32 bit matrix; squaring it doubles n, so len2 bytes cost O(log len2).
+std::uint32_t gf2_times(const std::uint32_t* mat, std::uint32_t vec) {
+  std::uint32_t sum = 0;
+  for (; vec != 0; vec >>= 1, ++mat) {
+    if (vec & 1U) sum ^= *mat;
+  }
+  return sum;
+}
+void gf2_square(std::uint32_t* square, const std::uint32_t* mat) {
+  for (int n = 0; n < 32; ++n) square[n] = gf2_times(mat, mat[n]);
+}
+}  // namespace
+
+std::uint32_t crc32_combine(std::uint32_t crc1, std::uint32_t crc2, std::uint64_t len2) {
+  if (len2 == 0) return crc1;
+  std::uint32_t even[32], odd[32];
+  odd[0] = 0xEDB88320U;  // one zero bit
+  std::uint32_t row = 1;
+  for (int n = 1; n < 32; ++n, row <<= 1) odd[n] = row;
+  gf2_square(even, odd);  // two zero bits
+  gf2_square(odd, even);  // four
+  do {  // apply len2 bytes of zeros to crc1
+    gf2_square(even, odd);
+    if (len2 & 1U) crc1 = gf2_times(even, crc1);
+    len2 >>= 1;
+    if (len2 == 0) break;
+    gf2_square(odd, even);
+    if (len2 & 1U) crc1 = gf2_times(odd, crc1);
+    len2 >>= 1;
+  } while (len2 != 0);
+  return crc1 ^ crc2;
+}
+
 std::uint32_t crc32_portable(std::span<const std::uint8_t> bytes, std::uint32_t crc) {
   return ~crc_tables(~crc, bytes.data(), bytes.size());
 }

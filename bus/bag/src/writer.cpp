@@ -57,8 +57,8 @@ Status Writer::fail(Status s) {
   return s;
 }
 
-Status Writer::emit(std::span<const std::uint8_t> bytes) {
-  if (options_.crcs) data_crc_ = crc32(bytes, data_crc_);
+Status Writer::emit(std::span<const std::uint8_t> bytes, bool update_crc) {
+  if (options_.crcs && update_crc) data_crc_ = crc32(bytes, data_crc_);
   Status s = out_->write(bytes);
   stats_.file_bytes = out_->size();
   if (!s.ok()) return fail(std::move(s));
@@ -225,10 +225,14 @@ Status Writer::emit_chunk(std::span<const std::uint8_t> a, std::span<const std::
   wire::put_string(scratch_, comp);
   wire::put<std::uint64_t>(scratch_, index.compressed_size);
   if (Status s = emit(scratch_); !s.ok()) return s;
-  if (Status s = emit(a); !s.ok()) return s;
+  // A stored chunk's bytes are the ones its CRC covers: fold that CRC into the
+  // data CRC instead of reading them a second time.
+  const bool fold = comp.empty() && crc != 0;
+  if (Status s = emit(a, !fold); !s.ok()) return s;
   if (!b.empty()) {
-    if (Status s = emit(b); !s.ok()) return s;
+    if (Status s = emit(b, !fold); !s.ok()) return s;
   }
+  if (fold) data_crc_ = crc32_combine(data_crc_, crc, index.compressed_size);
   index.chunk_length = kRecordPrefix + content;
 
   if (options_.message_indexes) {

@@ -51,6 +51,17 @@ TEST(Crc32, TheFastPathAgreesWithTheTablesAtEveryLengthAndAlignment) {
   EXPECT_EQ(crc32(bytes_of(std::string(100, 'a'))), crc32_portable(bytes_of(std::string(100, 'a'))));
 }
 
+TEST(Crc32, CombiningEqualsTheCrcOfTheConcatenation) {
+  Bytes data(3000);
+  std::mt19937 rng(4);
+  for (auto& b : data) b = static_cast<std::uint8_t>(rng());
+  for (std::size_t split : {0UL, 1UL, 7UL, 64UL, 1000UL, 2999UL, 3000UL}) {
+    const auto a = std::span(data).first(split);
+    const auto b = std::span(data).subspan(split);
+    EXPECT_EQ(crc32_combine(crc32(a), crc32(b), b.size()), crc32(data)) << split;
+  }
+}
+
 class CompressionRoundTrip : public ::testing::TestWithParam<Compression> {};
 
 TEST_P(CompressionRoundTrip, DecompressesToTheSameBytes) {

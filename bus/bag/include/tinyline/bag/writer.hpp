@@ -106,7 +106,7 @@ class Writer {
   std::unique_ptr<Writable> release_sink() { return std::move(closed_out_); }
 
  private:
-  Status emit(std::span<const std::uint8_t> bytes);  // to the file, through the data CRC
+  Status emit(std::span<const std::uint8_t> bytes, bool update_crc = true);  // to the file (and the data CRC)
   Status close_chunk(ChannelId large_channel = 0);
   Status write_large(const Message& m);
   Status emit_chunk(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b, std::uint32_t crc,
