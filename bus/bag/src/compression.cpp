@@ -49,10 +49,15 @@ Compressor::Compressor(Compression c, int level) : type_(c), level_(level), impl
 
 Compressor::~Compressor() = default;
 
-Status Compressor::compress(std::span<const std::uint8_t> in, std::vector<std::uint8_t>& out) {
+Status Compressor::compress(std::span<const std::uint8_t> in, std::vector<std::uint8_t>& buffer,
+                            std::span<const std::uint8_t>& result) {
+  auto& out = buffer;
+  auto reserve = [&](std::size_t n) {
+    if (out.size() < n) out.resize(n);
+  };
   switch (type_) {
     case Compression::None:
-      out.assign(in.begin(), in.end());
+      result = in;
       return {};
     case Compression::Lz4: {
       if (impl_->lz4 == nullptr) return {StatusCode::WriteFailed, "lz4: cannot create a compression context"};
@@ -61,7 +66,7 @@ Status Compressor::compress(std::span<const std::uint8_t> in, std::vector<std::u
       prefs.frameInfo.blockMode = LZ4F_blockIndependent;
       prefs.frameInfo.contentSize = in.size();  // lets readers size their buffer exactly
       prefs.compressionLevel = level_;
-      out.resize(LZ4F_compressFrameBound(in.size(), &prefs));
+      reserve(LZ4F_compressFrameBound(in.size(), &prefs));
       // Begin/update/end on a kept context: no allocation per chunk.
       std::size_t n = LZ4F_compressBegin(impl_->lz4, out.data(), out.size(), &prefs);
       std::size_t total = n;
@@ -77,19 +82,19 @@ Status Compressor::compress(std::span<const std::uint8_t> in, std::vector<std::u
         return {StatusCode::WriteFailed, fmt::format("lz4 compression of {} bytes failed: {}", in.size(),
                                                      LZ4F_getErrorName(n))};
       }
-      out.resize(total);
+      result = std::span<const std::uint8_t>(out.data(), total);
       return {};
     }
     case Compression::Zstd: {
       if (impl_->zstd == nullptr) return {StatusCode::WriteFailed, "zstd: cannot create a compression context"};
-      out.resize(ZSTD_compressBound(in.size()));
+      reserve(ZSTD_compressBound(in.size()));
       const int level = level_ == 0 ? ZSTD_CLEVEL_DEFAULT : level_;
       const std::size_t n = ZSTD_compressCCtx(impl_->zstd, out.data(), out.size(), in.data(), in.size(), level);
       if (ZSTD_isError(n)) {
         return {StatusCode::WriteFailed,
                 fmt::format("zstd compression of {} bytes failed: {}", in.size(), ZSTD_getErrorName(n))};
       }
-      out.resize(n);
+      result = std::span<const std::uint8_t>(out.data(), n);
       return {};
     }
   }

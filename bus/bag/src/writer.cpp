@@ -42,6 +42,7 @@ Status Writer::open(std::unique_ptr<Writable> out, WriterOptions options) {
   chunk_entries_.clear();
   chunk_channels_.clear();
   chunk_messages_ = 0;
+  skip_compression_.clear();
   data_crc_ = 0;
   stats_ = {};
 
@@ -56,8 +57,8 @@ Status Writer::fail(Status s) {
   return s;
 }
 
-Status Writer::emit(std::span<const std::uint8_t> bytes) {
-  if (options_.crcs) data_crc_ = crc32(bytes, data_crc_);
+Status Writer::emit(std::span<const std::uint8_t> bytes, bool update_crc) {
+  if (options_.crcs && update_crc) data_crc_ = crc32(bytes, data_crc_);
   Status s = out_->write(bytes);
   stats_.file_bytes = out_->size();
   if (!s.ok()) return fail(std::move(s));
@@ -133,6 +134,13 @@ Status Writer::write(const Message& m) {
     serialize(m, scratch_);
     return emit(scratch_);
   }
+  // A message as large as a chunk gets a chunk of its own: readers of the
+  // small topics then skip it without decompressing (its chunk index lists
+  // only its channel).
+  if (kRecordPrefix + 22 + m.data.size() >= options_.chunk_size_bytes) {
+    if (Status s = close_chunk(); !s.ok()) return s;
+    return write_large(m);
+  }
   if (chunk_messages_ == 0) {
     chunk_start_ = chunk_end_ = m.log_time;
   } else {
@@ -151,35 +159,80 @@ Status Writer::write(const Message& m) {
   return {};
 }
 
-Status Writer::close_chunk() {
+Status Writer::write_large(const Message& m) {
+  chunk_start_ = chunk_end_ = m.log_time;
+  chunk_messages_ = 1;
+  if (options_.message_indexes) {
+    if (chunk_entries_.size() <= m.channel_id) chunk_entries_.resize(m.channel_id + 1);
+    chunk_entries_[m.channel_id].push_back(MessageIndexEntry{m.log_time, 0});
+    chunk_channels_.push_back(m.channel_id);
+  }
+  if (skip_compression_.size() <= m.channel_id) skip_compression_.resize(m.channel_id + 1, 0);
+  std::uint8_t& skip = skip_compression_[m.channel_id];
+  if (compressor_->type() != Compression::None && skip == 0) {
+    serialize(m, chunk_records_);  // the compressor wants one contiguous buffer
+    return close_chunk(m.channel_id);
+  }
+  if (skip > 0) --skip;
+  // Stored as is: the record prefix, then the caller's bytes, with no copy.
+  prefix_.clear();
+  serialize_message_prefix(m, m.data.size(), prefix_);
+  const std::uint32_t crc = options_.crcs ? crc32(m.data, crc32(prefix_)) : 0;
+  return emit_chunk(prefix_, m.data, crc, prefix_.size() + m.data.size(), "");
+}
+
+Status Writer::close_chunk(ChannelId large_channel) {
   if (chunk_records_.empty()) return {};
   const std::uint32_t crc = options_.crcs ? crc32(chunk_records_) : 0;
-  if (Status s = compressor_->compress(chunk_records_, compressed_); !s.ok()) {
-    return fail(Status(s.code, fmt::format("{}: chunk {}: {}", out_->name(), statistics_.chunk_count, s.message)));
+  std::span<const std::uint8_t> stored = chunk_records_;  // stored as is: no copy
+  std::string_view comp;
+  if (compressor_->type() != Compression::None) {
+    std::span<const std::uint8_t> packed;
+    if (Status s = compressor_->compress(chunk_records_, compressed_, packed); !s.ok()) {
+      return fail(Status(s.code, fmt::format("{}: chunk {}: {}", out_->name(), statistics_.chunk_count, s.message)));
+    }
+    if (options_.skip_incompressible && packed.size() * 100 > chunk_records_.size() * 97) {
+      // Under 3% saved: store it, so readers need not decompress it either; and
+      // do not even try the next few large messages of the same topic.
+      if (large_channel != 0) skip_compression_[large_channel] = kSkipAfterIncompressible;
+    } else {
+      stored = packed;
+      comp = mcap_name(compressor_->type());
+    }
   }
-  const std::string_view comp = mcap_name(compressor_->type());
+  return emit_chunk(stored, {}, crc, chunk_records_.size(), comp);
+}
 
+Status Writer::emit_chunk(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b, std::uint32_t crc,
+                          std::uint64_t uncompressed_size, std::string_view comp) {
   ChunkIndex index;
   index.message_start_time = chunk_messages_ ? chunk_start_ : 0;
   index.message_end_time = chunk_messages_ ? chunk_end_ : 0;
   index.chunk_start_offset = out_->size();
   index.compression = std::string(comp);
-  index.compressed_size = compressed_.size();
-  index.uncompressed_size = chunk_records_.size();
+  index.compressed_size = a.size() + b.size();
+  index.uncompressed_size = uncompressed_size;
 
-  // The chunk record, written as its fixed fields then the compressed bytes (no copy).
+  // The chunk record: its fixed fields, then the stored bytes as they are (no copy).
   scratch_.clear();
   scratch_.push_back(static_cast<std::uint8_t>(Opcode::Chunk));
-  const std::uint64_t content = 8 + 8 + 8 + 4 + 4 + comp.size() + 8 + compressed_.size();
+  const std::uint64_t content = 8 + 8 + 8 + 4 + 4 + comp.size() + 8 + index.compressed_size;
   wire::put(scratch_, content);
   wire::put(scratch_, index.message_start_time);
   wire::put(scratch_, index.message_end_time);
-  wire::put<std::uint64_t>(scratch_, chunk_records_.size());
+  wire::put<std::uint64_t>(scratch_, uncompressed_size);
   wire::put(scratch_, crc);
   wire::put_string(scratch_, comp);
-  wire::put<std::uint64_t>(scratch_, compressed_.size());
+  wire::put<std::uint64_t>(scratch_, index.compressed_size);
   if (Status s = emit(scratch_); !s.ok()) return s;
-  if (Status s = emit(compressed_); !s.ok()) return s;
+  // A stored chunk's bytes are the ones its CRC covers: fold that CRC into the
+  // data CRC instead of reading them a second time.
+  const bool fold = comp.empty() && crc != 0;
+  if (Status s = emit(a, !fold); !s.ok()) return s;
+  if (!b.empty()) {
+    if (Status s = emit(b, !fold); !s.ok()) return s;
+  }
+  if (fold) data_crc_ = crc32_combine(data_crc_, crc, index.compressed_size);
   index.chunk_length = kRecordPrefix + content;
 
   if (options_.message_indexes) {
@@ -191,7 +244,7 @@ Status Writer::close_chunk() {
       auto& entries = chunk_entries_[id];
       // Log-time order lets an indexed reader merge chunks without sorting.
       std::stable_sort(entries.begin(), entries.end(),
-                       [](const MessageIndexEntry& a, const MessageIndexEntry& b) { return a.log_time < b.log_time; });
+                       [](const MessageIndexEntry& x, const MessageIndexEntry& y) { return x.log_time < y.log_time; });
       index.message_index_offsets[id] = base + scratch_.size();
       mi.channel_id = id;
       mi.records.swap(entries);
@@ -206,7 +259,7 @@ Status Writer::close_chunk() {
 
   ++statistics_.chunk_count;
   ++stats_.chunks;
-  stats_.uncompressed_bytes += chunk_records_.size();
+  stats_.uncompressed_bytes += uncompressed_size;
   if (options_.summary) chunk_indexes_.push_back(std::move(index));
   chunk_records_.clear();
   chunk_messages_ = 0;

@@ -34,8 +34,10 @@ class Compressor {
   Compressor& operator=(const Compressor&) = delete;
 
   Compression type() const { return type_; }
-  /// Replaces `out` with the compressed form of `in`.
-  Status compress(std::span<const std::uint8_t> in, std::vector<std::uint8_t>& out);
+  /// Compresses `in` into `buffer` (grown as needed, never shrunk, so a
+  /// reused buffer costs no zero-filling) and points `out` at the result.
+  Status compress(std::span<const std::uint8_t> in, std::vector<std::uint8_t>& buffer,
+                  std::span<const std::uint8_t>& out);
 
  private:
   struct Impl;

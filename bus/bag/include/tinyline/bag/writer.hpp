@@ -44,6 +44,11 @@ struct WriterOptions {
   bool summary_offsets = true;
   /// CRCs of chunks, the data section, the summary and attachments.
   bool crcs = true;
+  /// Store a chunk uncompressed when compression saves under 3% (noisy point
+  /// clouds): readers then skip decompressing it too. After a large message
+  /// (one that fills a chunk) did not compress, the next 15 of its topic are
+  /// stored without trying, then compression is tried again.
+  bool skip_incompressible = true;
   /// Hand every finished chunk to the OS at once (crash safety); false leaves it to the buffer.
   bool flush_every_chunk = true;
 };
@@ -101,8 +106,12 @@ class Writer {
   std::unique_ptr<Writable> release_sink() { return std::move(closed_out_); }
 
  private:
-  Status emit(std::span<const std::uint8_t> bytes);  // to the file, through the data CRC
-  Status close_chunk();
+  Status emit(std::span<const std::uint8_t> bytes, bool update_crc = true);  // to the file (and the data CRC)
+  Status close_chunk(ChannelId large_channel = 0);
+  Status write_large(const Message& m);
+  Status emit_chunk(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b, std::uint32_t crc,
+                    std::uint64_t uncompressed_size, std::string_view comp);
+  static constexpr std::uint8_t kSkipAfterIncompressible = 15;
   Status fail(Status s);
 
   WriterOptions options_;
@@ -123,6 +132,8 @@ class Writer {
   std::vector<std::uint8_t> chunk_records_;
   std::vector<std::uint8_t> compressed_;
   std::vector<std::uint8_t> scratch_;
+  std::vector<std::uint8_t> prefix_;
+  std::vector<std::uint8_t> skip_compression_;  // per channel: large messages left to store without trying
   std::vector<std::vector<MessageIndexEntry>> chunk_entries_;  // per channel id
   std::vector<ChannelId> chunk_channels_;                       // channels with entries, in first-use order
   Timestamp chunk_start_ = 0;
