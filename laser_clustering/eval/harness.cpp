@@ -57,6 +57,17 @@ Rate wilson(int k, int n) {
   return r;
 }
 
+std::string object_kind(const TrussScene& scene, sim::ObjectId id) {
+  if (id == sim::kNoObject) return "none";
+  if (id == scene.truth.target_pedicel) return "target";
+  const auto& p = scene.truth.pedicels;
+  if (std::find(p.begin(), p.end(), id) != p.end()) return "pedicel";
+  const auto& tm = scene.truth.tomatoes;
+  if (std::find(tm.begin(), tm.end(), id) != tm.end()) return "tomato";
+  const std::string& name = scene.world.object(id).name;
+  return name.rfind("leaf", 0) == 0 ? "leaf" : "stem";
+}
+
 const char* to_string(Verdict v) {
   switch (v) {
     case Verdict::kAligned: return "aligned";
@@ -91,19 +102,9 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
     int target_pixels = 0;
     for (const auto id : s.truth_object) target_pixels += id == scene.truth.target_pedicel;
     trial.target_visible = target_pixels >= 2;
-    const auto kind = [&](sim::ObjectId id) -> std::string {
-      if (id == sim::kNoObject) return "none";
-      if (id == scene.truth.target_pedicel) return "target";
-      const auto& p = scene.truth.pedicels;
-      if (std::find(p.begin(), p.end(), id) != p.end()) return "pedicel";
-      const auto& tm = scene.truth.tomatoes;
-      if (std::find(tm.begin(), tm.end(), id) != tm.end()) return "tomato";
-      const std::string& name = scene.world.object(id).name;
-      return name.rfind("leaf", 0) == 0 ? "leaf" : "stem";
-    };
     if (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove) {
       trial.chosen = majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s);
-      trial.chosen_kind = kind(trial.chosen);
+      trial.chosen_kind = object_kind(scene, trial.chosen);
       // Where the target ends up relative to the throat after the move.
       const Eigen::Vector3d& tgt = scene.truth.target_in_sensor;
       const double lateral = tgt.x() - (finder.scissors.centre_x_m + d.lateral_offset_m);

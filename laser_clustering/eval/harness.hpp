@@ -66,6 +66,9 @@ struct TrussTrial {
   bool target_visible = false;
 };
 
+/// "target", "pedicel", "tomato", "stem", "leaf" or "none" for a ground-truth object of a truss scene.
+[[nodiscard]] std::string object_kind(const TrussScene& scene, sim::ObjectId id);
+
 struct TrussResult {
   std::vector<TrussTrial> trials;
   Rate aligned, wrong, out_of_view, missed;
