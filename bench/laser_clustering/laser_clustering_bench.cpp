@@ -6,7 +6,7 @@
 // this binary dumps with --dump_points=FILE.
 //
 // Run: build/bench/laser_clustering/laser_clustering_bench
-//      .venv/bin/python bench/laser_clustering/side_by_side.py build
+//      .venv/bin/python bench/laser_clustering/side_by_side.py --build build
 #include <cstdio>
 #include <cstring>
 #include <fstream>

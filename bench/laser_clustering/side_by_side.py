@@ -10,7 +10,7 @@
    parameters); for the cloud, one pass.
 4. Prints a Markdown table (the one in docs/benchmarks.md).
 
-usage: .venv/bin/python bench/laser_clustering/side_by_side.py <build-dir> [--repetitions N]
+usage: .venv/bin/python bench/laser_clustering/side_by_side.py [--build build] [--repetitions N]
 """
 import argparse
 import json
@@ -64,7 +64,7 @@ def cpu_ns(fn, repeats):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("build")
+    ap.add_argument("--build", default="build", help="the CMake build directory")
     ap.add_argument("--repetitions", type=int, default=5)
     args = ap.parse_args()
     exe = os.path.join(args.build, "bench", "laser_clustering", "laser_clustering_bench")

@@ -130,21 +130,17 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
   s.truth.target_pedicel = s.truth.pedicels.front();
   s.truth.target_radius_m = target.radius;
 
-  // The truss stem above every top, and a short peduncle from each top up to it.
-  double stem_y = 0.0, x_lo = 0.0, x_hi = 0.0;
-  for (const auto& h : hangings) {
-    stem_y = std::min(stem_y, h.top.y());
-    x_lo = std::min(x_lo, h.top.x());
-    x_hi = std::max(x_hi, h.top.x());
-  }
-  stem_y -= 0.012;
-  const double stem_z = target.top.z();
-  s.truth.stem = w.add({"stem", sim::RodShape{{x_lo - 0.1, stem_y, stem_z}, {x_hi + 0.1, stem_y, stem_z}, 0.004},
-                        Eigen::Isometry3d::Identity(), stem_mat});
-  for (std::size_t i = 0; i < hangings.size(); ++i) {
-    const auto& h = hangings[i];
-    w.add({"peduncle" + std::to_string(i), sim::RodShape{{h.top.x(), stem_y, stem_z}, h.top, 0.0025},
-           Eigen::Isometry3d::Identity(), stem_mat});
+  // The truss's main stem (rachis) runs through every pedicel's top: a chain
+  // of rods in order along x, continued 10 cm beyond the outer tops.
+  std::vector<Eigen::Vector3d> tops;
+  for (const auto& h : hangings) tops.push_back(h.top);
+  std::sort(tops.begin(), tops.end(), [](const auto& a, const auto& b) { return a.x() < b.x(); });
+  tops.insert(tops.begin(), tops.front() - Eigen::Vector3d(0.10, 0.0, 0.0));
+  tops.push_back(tops.back() + Eigen::Vector3d(0.10, 0.0, 0.0));
+  for (std::size_t i = 0; i + 1 < tops.size(); ++i) {
+    const sim::ObjectId id = w.add({"stem" + std::to_string(i), sim::RodShape{tops[i], tops[i + 1], 0.004},
+                                    Eigen::Isometry3d::Identity(), stem_mat});
+    if (i == 0) s.truth.stem = id;
   }
   // Leaves behind the truss.
   if (rng.uniform(0.0, 1.0) < o.leaf_probability) {

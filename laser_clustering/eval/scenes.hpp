@@ -43,7 +43,7 @@ struct TrussOptions {
   double tomato_radius_m[2] = {0.025, 0.035};
   double neighbour_spacing_m[2] = {0.045, 0.085};  ///< along the stem between pedicel tops
   double neighbour_depth_m = 0.025;    ///< neighbours sit up to this before/behind the target [m]
-  double neighbour_drop_m = 0.03;      ///< neighbours' tops up to this above/below the target's [m]
+  double neighbour_drop_m = 0.02;      ///< neighbours' tops up to this above/below the target's [m]
   double leaf_probability = 0.6;       ///< a leaf wall behind the truss
   double leaf_z_m[2] = {0.30, 0.60};
   /// kRecognitionError: the gripper's error (offset in a disc, yaw) and the
@@ -57,7 +57,7 @@ struct TrussTruth {
   sim::ObjectId target_pedicel = sim::kNoObject;
   std::vector<sim::ObjectId> pedicels;  ///< target first
   std::vector<sim::ObjectId> tomatoes;  ///< target's first
-  sim::ObjectId stem = sim::kNoObject;
+  sim::ObjectId stem = sim::kNoObject;  ///< the first rod of the stem chain (named stem0, stem1, ...)
   /// Where the target pedicel's axis crosses the sensor's laser plane, in the
   /// sensor frame [m] (the point the throat must reach).
   Eigen::Vector3d target_in_sensor = Eigen::Vector3d::Zero();

@@ -200,10 +200,17 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
     return r;
   }
   if (r.reason = check_scan_shape(scan); !r.reason.empty()) return r;
+  // One instantiation per input shape keeps the inner loops free of the
+  // feature and group branches.
+  const bool f = !scan.feature.empty(), g = !scan.group.empty();
+  if (f) return g ? run_impl<true, true>(scan, params) : run_impl<true, false>(scan, params);
+  return g ? run_impl<false, true>(scan, params) : run_impl<false, false>(scan, params);
+}
 
+template <bool with_f, bool with_g>
+DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanParams& params) {
+  DbscanResult r;
   const std::size_t n_all = scan.range_m.size();
-  const bool with_f = !scan.feature.empty();
-  const bool with_g = !scan.group.empty();
   const double eps = params.eps;
   const double eps2 = eps * eps;
   r.labels.assign(n_all, kInvalid);
@@ -251,7 +258,15 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
   std::size_t m = 0;
   double direction = 0.0;  // +1 ascending, -1 descending, 0 unknown yet
   for (std::size_t i = 0; i < n_all; ++i) {
-    if (!pixel_valid(scan, i)) continue;
+    {
+      constexpr double kMax = std::numeric_limits<double>::max();
+      const double rr = scan.range_m[i], aa = scan.angle_rad[i];
+      // As pixel_valid(), without the branches this instantiation does not need.
+      bool ok = rr > 0.0 && rr <= kMax && aa >= -kMax && aa <= kMax;
+      if constexpr (with_g) ok = ok && scan.group[i] >= 0;
+      if constexpr (with_f) ok = ok && std::isfinite(scan.feature[i]);
+      if (!ok) continue;
+    }
     const double ri = scan.range_m[i], ti = scan.angle_rad[i];
     if (m > 0) {
       if (direction == 0.0) direction = ti > theta_[m - 1] ? 1.0 : -1.0;
@@ -266,8 +281,8 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
     }
     x_[m] = ri * sin_[i];
     z_[m] = ri * cos_[i];
-    if (with_f) f_[m] = scan.feature[i];
-    if (with_g) g_[m] = scan.group[i];
+    if constexpr (with_f) f_[m] = scan.feature[i];
+    if constexpr (with_g) g_[m] = scan.group[i];
     theta_[m] = ti;
     range_[m] = ri;
     const double x = eps / ri;
@@ -286,12 +301,14 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
   // Squared distance; pixels of different groups are infinitely far apart.
   auto d2 = [&](int i, int j) {
     const auto u = static_cast<std::size_t>(i), v = static_cast<std::size_t>(j);
-    if (with_g && g_[u] != g_[v]) return kInf;
+    if constexpr (with_g) {
+      if (g_[u] != g_[v]) return kInf;
+    }
     double t = x_[u] - x_[v];
     double s = t * t;
     t = z_[u] - z_[v];
     s += t * t;
-    if (with_f) {
+    if constexpr (with_f) {
       t = f_[u] - f_[v];
       s += t * t;
     }
@@ -304,10 +321,10 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
     const auto u = static_cast<std::size_t>(i);
     const double limit = theta_[u] + half_window_[u], ri = range_[u];
     for (int j = from; j < n;) {
+      if (theta_[static_cast<std::size_t>(j)] > limit) return true;
       const auto b = static_cast<std::size_t>(j) / kBlock;
       const int end = std::min(n, static_cast<int>(b + 1) * kBlock);
       if (ri < block_lo_[b] || ri > block_hi_[b]) {
-        if (theta_[static_cast<std::size_t>(j)] > limit) return true;
         j = end;
         continue;
       }
@@ -322,10 +339,10 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
     const auto u = static_cast<std::size_t>(i);
     const double limit = theta_[u] - half_window_[u], ri = range_[u];
     for (int j = from; j >= 0;) {
+      if (theta_[static_cast<std::size_t>(j)] < limit) return true;
       const auto b = static_cast<std::size_t>(j) / kBlock;
       const int end = static_cast<int>(b * kBlock) - 1;
       if (ri < block_lo_[b] || ri > block_hi_[b]) {
-        if (theta_[static_cast<std::size_t>(j)] < limit) return true;
         j = end;
         continue;
       }
@@ -337,16 +354,24 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
     return true;
   };
 
-  // Core flags: count the neighbours on the right, then the left, stopping
-  // as soon as min_points is reached.
+  // Adjacent pixels are the likeliest neighbours: their squared distances,
+  // once, serve the core test and the run links below.
+  adjacent_.resize(n_all);
+  for (int k = 0; k + 1 < n; ++k) adjacent_[static_cast<std::size_t>(k)] = d2(k, k + 1);
+  auto adjacent_within = [&](int k) { return adjacent_[static_cast<std::size_t>(k)] <= eps2; };  // k, k+1
+
+  // Core flags: the adjacent pixels first, then walks outwards from there
+  // (right, then left), stopping as soon as min_points is reached.
   std::size_t num_core = 0;
   for (int i = 0; i < n; ++i) {
-    int count = 1;
-    auto counter = [&](int j) {
-      count += d2(i, j) <= eps2;
-      return count < params.min_points;
-    };
-    if (count < params.min_points && walk_right(i, i + 1, counter)) walk_left(i, i - 1, counter);
+    int count = 1 + (i > 0 && adjacent_within(i - 1)) + (i + 1 < n && adjacent_within(i));
+    if (count < params.min_points) {
+      auto counter = [&](int j) {
+        count += d2(i, j) <= eps2;
+        return count < params.min_points;
+      };
+      if (walk_right(i, i + 2, counter)) walk_left(i, i - 2, counter);
+    }
     const std::uint8_t c = count >= params.min_points ? 1 : 0;
     core_[static_cast<std::size_t>(i)] = c;
     r.is_core[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
@@ -364,7 +389,7 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
   size_.resize(static_cast<std::size_t>(n));
   for (int k = n - 1; k >= 0; --k) {
     const auto u = static_cast<std::size_t>(k);
-    const bool linked = core(k) && k + 1 < n && core(k + 1) && d2(k, k + 1) <= eps2;
+    const bool linked = core(k) && k + 1 < n && core(k + 1) && adjacent_within(k);
     run_end_[u] = linked ? run_end_[u + 1] : k;
     parent_[u] = run_end_[u];
     size_[u] = 1;

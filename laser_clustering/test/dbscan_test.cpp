@@ -46,6 +46,16 @@ TEST(Dbscan, CoreBorderNoiseOnALine) {
   EXPECT_EQ(r.num_noise, 1u);
 }
 
+TEST(Dbscan, TakesFixedSizeEigenPointsWithoutCopying) {
+  Eigen::Matrix3Xd p(3, 4);
+  p << 0, 0.1, 0.2, 5,  //
+      0, 0, 0, 0,       //
+      0, 0, 0, 0;
+  const auto r = lc::dbscan(p, {.eps = 0.15, .min_points = 2});
+  ASSERT_TRUE(r.ok);
+  EXPECT_THAT(r.labels, ElementsAre(0, 0, 0, lc::kNoise));
+}
+
 TEST(Dbscan, NeighbourAtExactlyEpsCounts) {
   // Distances of exactly eps (exact in binary) are neighbours: |p-q|^2 <= eps^2.
   const auto p = line_1d({0.0, 0.5, 1.0});

@@ -113,8 +113,10 @@ class OrderedScanDbscan {
   [[nodiscard]] const std::vector<double>& cos_angle() const { return cos_; }
 
  private:
+  template <bool with_feature, bool with_group>
+  DbscanResult run_impl(const OrderedScanPoints& scan, const DbscanParams& params);
   std::vector<double> trig_angle_, sin_, cos_;  // cached per sensor geometry
-  std::vector<double> x_, z_, f_, theta_, range_, half_window_, block_lo_, block_hi_;
+  std::vector<double> x_, z_, f_, theta_, range_, half_window_, block_lo_, block_hi_, adjacent_;
   std::vector<int> g_, index_, run_end_, parent_, size_, cluster_of_root_;
   std::vector<std::uint8_t> core_;
 };

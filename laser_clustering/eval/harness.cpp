@@ -1,0 +1,226 @@
+#include "harness.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+
+namespace tinyline::laser_clustering::eval {
+
+namespace {
+constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+// The ground-truth object most of a cluster's pixels hit (kNoObject if none).
+sim::ObjectId majority_object(const std::vector<int>& labels, int cluster, const SimulatedScan& s) {
+  std::map<sim::ObjectId, int> votes;
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    if (labels[i] == cluster && s.truth_object[i] != sim::kNoObject) ++votes[s.truth_object[i]];
+  }
+  sim::ObjectId best = sim::kNoObject;
+  int n = 0;
+  for (const auto& [id, c] : votes) {
+    if (c > n) {
+      best = id;
+      n = c;
+    }
+  }
+  return best;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto i = static_cast<std::size_t>(pos);
+  if (i + 1 >= v.size()) return v.back();
+  const double f = pos - static_cast<double>(i);
+  if (std::isinf(v[i + 1])) return f > 0.0 ? kInfinity : v[i];
+  return v[i] * (1.0 - f) + v[i + 1] * f;
+}
+
+}  // namespace
+
+Rate wilson(int k, int n) {
+  Rate r;
+  r.k = k;
+  r.n = n;
+  if (n <= 0) return r;
+  constexpr double z = 1.959963984540054;  // 95 %
+  const double p = static_cast<double>(k) / n, z2n = z * z / n;
+  const double centre = (p + z2n / 2.0) / (1.0 + z2n);
+  const double half = z / (1.0 + z2n) * std::sqrt(p * (1.0 - p) / n + z2n / (4.0 * n));
+  r.p = p;
+  r.lo = std::max(0.0, centre - half);
+  r.hi = std::min(1.0, centre + half);
+  return r;
+}
+
+std::string object_kind(const TrussScene& scene, sim::ObjectId id) {
+  if (id == sim::kNoObject) return "none";
+  if (id == scene.truth.target_pedicel) return "target";
+  const auto& p = scene.truth.pedicels;
+  if (std::find(p.begin(), p.end(), id) != p.end()) return "pedicel";
+  const auto& tm = scene.truth.tomatoes;
+  if (std::find(tm.begin(), tm.end(), id) != tm.end()) return "tomato";
+  const std::string& name = scene.world.object(id).name;
+  return name.rfind("leaf", 0) == 0 ? "leaf" : "stem";
+}
+
+const char* to_string(Verdict v) {
+  switch (v) {
+    case Verdict::kAligned: return "aligned";
+    case Verdict::kWrong: return "wrong";
+    case Verdict::kOutOfView: return "out_of_view";
+    case Verdict::kMissed: return "missed";
+  }
+  return "unknown";
+}
+
+TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint64_t seed0, const TrussEvalOptions& o,
+                           const TrussObserver& on_trial) {
+  TrussResult out;
+  PedicelFinderParams finder = o.finder;
+  finder.scissors.centre_x_m = 0.0;
+  finder.scissors.centre_z_m = o.scene.throat_z_m;
+  LineScanClusterer clusterer(o.clustering);
+  int counts[4] = {0, 0, 0, 0};
+  for (int t = 0; t < trials; ++t) {
+    const std::uint64_t seed = seed0 + static_cast<std::uint64_t>(t);
+    const TrussScene scene = make_truss_scene(c, seed, o.scene);
+    const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor, seed);
+    const TwoStageResult objects = clusterer.run(s.scan);
+    std::optional<PedicelExpectation> expectation;
+    if (scene.truth.use_expectation) expectation = PedicelExpectation{scene.truth.expected_xz_m, scene.truth.expected_sd_m};
+    const PedicelDetection d = find_pedicel(s.scan, objects, finder, expectation);
+
+    TrussTrial trial;
+    trial.seed = seed;
+    trial.outcome = d.outcome;
+    trial.confidence = d.confidence;
+    int target_pixels = 0;
+    for (const auto id : s.truth_object) target_pixels += id == scene.truth.target_pedicel;
+    trial.target_visible = target_pixels >= 2;
+    if (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove) {
+      trial.chosen = majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s);
+      trial.chosen_kind = object_kind(scene, trial.chosen);
+      // Where the target ends up relative to the throat after the move.
+      const Eigen::Vector3d& tgt = scene.truth.target_in_sensor;
+      const double lateral = tgt.x() - (finder.scissors.centre_x_m + d.lateral_offset_m);
+      const double depth = tgt.z() - (finder.scissors.centre_z_m + d.depth_offset_m);
+      trial.lateral_error_m = lateral;
+      const bool between = std::abs(lateral) <= finder.scissors.opening_m / 2 - scene.truth.target_radius_m &&
+                           std::abs(depth) <= o.depth_tolerance_m;
+      trial.verdict = trial.chosen == scene.truth.target_pedicel && between ? Verdict::kAligned : Verdict::kWrong;
+    } else {
+      trial.chosen_kind = "none";
+      trial.verdict = trial.target_visible ? Verdict::kMissed : Verdict::kOutOfView;
+    }
+    ++counts[static_cast<int>(trial.verdict)];
+    if (on_trial) on_trial(trial, scene, s, objects, d);
+    out.trials.push_back(std::move(trial));
+  }
+  out.aligned = wilson(counts[0], trials);
+  out.wrong = wilson(counts[1], trials);
+  out.out_of_view = wilson(counts[2], trials);
+  out.missed = wilson(counts[3], trials);
+  return out;
+}
+
+namespace {
+
+// IoU of the stick's pure pixels and the cluster holding most of them; mixed
+// pixels (footprint over stick and panel) belong to neither side.
+double stick_iou(const std::vector<int>& labels, const SimulatedScan& s, sim::ObjectId stick) {
+  std::map<int, int> votes;
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    if (s.truth_object[i] == stick && !s.truth_mixed[i] && labels[i] >= 0) ++votes[labels[i]];
+  }
+  if (votes.empty()) return 0.0;
+  const int best = std::max_element(votes.begin(), votes.end(), [](auto& a, auto& b) { return a.second < b.second; })->first;
+  int inter = 0, uni = 0;
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    if (s.truth_mixed[i]) continue;
+    const bool a = s.truth_object[i] == stick, b = labels[i] == best;
+    inter += a && b;
+    uni += a || b;
+  }
+  return uni ? static_cast<double>(inter) / uni : 0.0;
+}
+
+}  // namespace
+
+StickResult run_stick_case(Scanner& scanner, int trials, std::uint64_t seed0, const StickEvalOptions& o,
+                           const StickObserver& on_trial) {
+  StickResult out;
+  int with = 0, without = 0;
+  ReflectanceClusteringParams pw = o.clustering, pd = o.clustering;
+  pw.use_reflectance = true;
+  pd.use_reflectance = false;
+  for (int t = 0; t < trials; ++t) {
+    const std::uint64_t seed = seed0 + static_cast<std::uint64_t>(t);
+    const StickScene scene = make_stick_scene(seed, o.scene);
+    const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor, seed);
+    const auto rw = cluster_by_reflectance(s.scan, pw);
+    const auto rd = cluster_by_reflectance(s.scan, pd);
+    StickTrial trial;
+    trial.seed = seed;
+    trial.iou_reflectance = rw.ok ? stick_iou(rw.labels, s, scene.stick) : 0.0;
+    trial.iou_distance_only = rd.ok ? stick_iou(rd.labels, s, scene.stick) : 0.0;
+    with += trial.iou_reflectance >= o.min_iou;
+    without += trial.iou_distance_only >= o.min_iou;
+    if (on_trial) on_trial(trial, scene, s, rw, rd);
+    out.trials.push_back(trial);
+  }
+  out.reflectance_correct = wilson(with, trials);
+  out.distance_only_correct = wilson(without, trials);
+  return out;
+}
+
+WrenchResult run_wrench_case(Scanner& scanner, int trials, std::uint64_t seed0, const WrenchEvalOptions& o,
+                             const WrenchObserver& on_trial) {
+  WrenchResult out;
+  std::vector<double> err, step_err;
+  int within = 0, found = 0;
+  for (int t = 0; t < trials; ++t) {
+    const std::uint64_t seed = seed0 + static_cast<std::uint64_t>(t);
+    const WrenchScene scene = make_wrench_scene(seed, o.scene);
+    std::vector<AlignmentSample> sweep;
+    std::uint64_t k = 0;
+    for (double p = o.sweep_from_deg; p <= o.sweep_to_deg + 1e-9; p += o.sweep_step_deg, ++k) {
+      const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor(p * kDeg), seed * 1000 + k);
+      const SurfaceReflectance r = surface_reflectance(s.scan, o.clustering);
+      if (r.found) sweep.push_back({p * kDeg, r.reflectance});
+    }
+    const AlignmentResult a = find_alignment(sweep, o.alignment);
+    WrenchTrial trial;
+    trial.seed = seed;
+    trial.outcome = a.outcome;
+    trial.true_pitch_rad = scene.true_pitch_rad;
+    trial.best_pitch_rad = a.best_pitch_rad;
+    const bool ok = a.outcome == AlignmentOutcome::kFound;
+    trial.error_rad = ok ? std::abs(a.best_pitch_rad - scene.true_pitch_rad) : kInfinity;
+    if (!sweep.empty()) {
+      const auto best = std::max_element(sweep.begin(), sweep.end(),
+                                         [](const auto& x, const auto& y) { return x.reflectance < y.reflectance; });
+      trial.step_error_rad = std::abs(best->pitch_rad - scene.true_pitch_rad);
+    } else {
+      trial.step_error_rad = kInfinity;
+    }
+    found += ok;
+    within += trial.error_rad <= 1.0 * kDeg;
+    err.push_back(trial.error_rad / kDeg);
+    step_err.push_back(trial.step_error_rad / kDeg);
+    if (on_trial) on_trial(trial, sweep);
+    out.trials.push_back(trial);
+  }
+  out.median_error_deg = quantile(err, 0.5);
+  out.p90_error_deg = quantile(err, 0.9);
+  out.median_step_error_deg = quantile(step_err, 0.5);
+  out.within_1deg = wilson(within, trials);
+  out.found = wilson(found, trials);
+  return out;
+}
+
+}  // namespace tinyline::laser_clustering::eval

@@ -1,0 +1,146 @@
+// The evaluation harness of docs/laser_clustering.md: seeded trials of the
+// scenes in scenes.hpp, scanned by a Scanner (the simulated sensor and the
+// driver's processing, see sim_scanner.hpp), scored against ground truth,
+// with Wilson 95 % confidence intervals.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include <sim/world.hpp>
+
+#include "laser_clustering/alignment_search.hpp"
+#include "laser_clustering/line_scan.hpp"
+#include "laser_clustering/pedicel_finder.hpp"
+#include "laser_clustering/reflectance_clustering.hpp"
+#include "laser_clustering/two_stage.hpp"
+#include "scenes.hpp"
+
+namespace tinyline::laser_clustering::eval {
+
+/// One calibrated scan with the ground truth of every pixel.
+struct SimulatedScan {
+  LineScan scan;
+  std::vector<sim::ObjectId> truth_object;  ///< per pixel: what its central ray hits (kNoObject: nothing)
+  std::vector<std::uint8_t> truth_mixed;    ///< per pixel: its footprint spans several surfaces
+};
+
+/// Produces scans of a world from a sensor pose. `index` seeds the scan's noise.
+class Scanner {
+ public:
+  virtual ~Scanner() = default;
+  virtual SimulatedScan scan(const sim::World& world, const Eigen::Isometry3d& T_world_sensor, std::uint64_t index) = 0;
+  /// One line for reports (sensor model, lens, calibration).
+  [[nodiscard]] virtual std::string describe() const = 0;
+};
+
+/// A proportion with its Wilson score 95 % interval.
+struct Rate {
+  int k = 0, n = 0;
+  double p = 0.0, lo = 0.0, hi = 0.0;
+};
+[[nodiscard]] Rate wilson(int k, int n);
+
+// ---------------------------------------------------------------------------- trusses (Table 4.3)
+
+enum class Verdict {
+  kAligned,    ///< the move puts the target pedicel between the blades
+  kWrong,      ///< the finder chose something else (a neighbour, a tomato edge) or misplaced the target
+  kOutOfView,  ///< no move, and the target pedicel is not in the scan
+  kMissed,     ///< no move although the target pedicel is in the scan
+};
+[[nodiscard]] const char* to_string(Verdict v);
+
+struct TrussTrial {
+  std::uint64_t seed = 0;
+  Verdict verdict = Verdict::kOutOfView;
+  PedicelOutcome outcome = PedicelOutcome::kInvalidInput;
+  sim::ObjectId chosen = sim::kNoObject;  ///< majority ground-truth object of the chosen cluster
+  std::string chosen_kind;                ///< "target", "pedicel", "tomato", "stem", "leaf", "none"
+  double lateral_error_m = 0.0;           ///< target vs throat after the move (aligned/wrong with a move)
+  double confidence = 0.0;
+  bool target_visible = false;
+};
+
+/// "target", "pedicel", "tomato", "stem", "leaf" or "none" for a ground-truth object of a truss scene.
+[[nodiscard]] std::string object_kind(const TrussScene& scene, sim::ObjectId id);
+
+struct TrussResult {
+  std::vector<TrussTrial> trials;
+  Rate aligned, wrong, out_of_view, missed;
+};
+
+struct TrussEvalOptions {
+  TrussOptions scene;
+  TwoStageParams clustering;
+  PedicelFinderParams finder;  ///< its scissor throat is set from scene.throat_z_m
+  /// The move succeeds when the target's axis ends within opening/2 minus
+  /// its radius of the throat's line, and within this of the throat's depth.
+  double depth_tolerance_m = 0.02;
+};
+
+/// Runs `trials` seeded trials (seed0, seed0 + 1, ...). `on_trial` (optional)
+/// sees every trial with its scan and clustering, for pictures.
+using TrussObserver = std::function<void(const TrussTrial&, const TrussScene&, const SimulatedScan&,
+                                         const TwoStageResult&, const PedicelDetection&)>;
+[[nodiscard]] TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint64_t seed0,
+                                         const TrussEvalOptions& o = {}, const TrussObserver& on_trial = {});
+
+// ---------------------------------------------------------------------------- Figure 5.8 B
+
+struct StickTrial {
+  std::uint64_t seed = 0;
+  double iou_reflectance = 0.0;    ///< best cluster vs the stick's pure pixels
+  double iou_distance_only = 0.0;
+};
+
+struct StickResult {
+  std::vector<StickTrial> trials;
+  Rate reflectance_correct, distance_only_correct;  ///< IoU >= min_iou
+};
+
+struct StickEvalOptions {
+  StickOptions scene;
+  ReflectanceClusteringParams clustering;  ///< use_reflectance is set per method
+  double min_iou = 0.8;
+};
+
+using StickObserver = std::function<void(const StickTrial&, const StickScene&, const SimulatedScan&,
+                                         const ReflectanceClusteringResult& with, const ReflectanceClusteringResult& without)>;
+[[nodiscard]] StickResult run_stick_case(Scanner& scanner, int trials, std::uint64_t seed0, const StickEvalOptions& o = {},
+                                         const StickObserver& on_trial = {});
+
+// ---------------------------------------------------------------------------- wrench (5.3.2)
+
+struct WrenchTrial {
+  std::uint64_t seed = 0;
+  AlignmentOutcome outcome = AlignmentOutcome::kInvalidInput;
+  double true_pitch_rad = 0.0;
+  double best_pitch_rad = 0.0;
+  double error_rad = 0.0;  ///< |best - true|; infinite when no pitch was found
+  double step_error_rad = 0.0;  ///< the same for the brightest sample alone (no refinement)
+};
+
+struct WrenchResult {
+  std::vector<WrenchTrial> trials;
+  double median_error_deg = 0.0, p90_error_deg = 0.0;
+  double median_step_error_deg = 0.0;  ///< without the sub-step refinement
+  Rate within_1deg, found;
+};
+
+struct WrenchEvalOptions {
+  WrenchOptions scene;
+  ReflectanceClusteringParams clustering;
+  AlignmentParams alignment;
+  double sweep_from_deg = -16.0, sweep_to_deg = 16.0, sweep_step_deg = 2.0;
+};
+
+using WrenchObserver = std::function<void(const WrenchTrial&, const std::vector<AlignmentSample>&)>;
+[[nodiscard]] WrenchResult run_wrench_case(Scanner& scanner, int trials, std::uint64_t seed0,
+                                           const WrenchEvalOptions& o = {}, const WrenchObserver& on_trial = {});
+
+}  // namespace tinyline::laser_clustering::eval
