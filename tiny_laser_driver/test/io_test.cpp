@@ -390,3 +390,28 @@ TEST(PortSpec, MemoryLinksAreReachableByName) {
   s.stream.reset();
   EXPECT_EQ(opener->open().status.error, io::IoError::kNotFound);
 }
+
+TEST(UsbDiscovery, TheSensorListGivesThePortToUseAndTheAccess) {
+  TempDir tmp;
+  Pty pty;
+  make_fake_usb(tmp.path / "root", "A50285BI", "1-1.2", "ttyUSB0");
+  make_fake_usb(tmp.path / "root", "NODRV", "1-1.3", "");
+  fs::create_directories(tmp.path / "dev");
+  fs::create_symlink(pty.slave, tmp.path / "dev/ttyUSB0");
+  io::DiscoveryOptions o;
+  o.sysfs_root = (tmp.path / "root").string();
+  o.dev_root = (tmp.path / "dev").string();
+  const auto listing = io::format_sensor_list(io::discover_usb_serial(o), o);
+  EXPECT_NE(listing.find("usb:A50285BI"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("ready"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("modprobe ftdi_sio"), std::string::npos) << listing;
+  auto held = io::SerialPort::open((tmp.path / "dev/ttyUSB0").string());
+  ASSERT_TRUE(held.status.ok());
+  const auto busy = io::format_sensor_list(io::discover_usb_serial(o), o);
+  EXPECT_NE(busy.find("in use"), std::string::npos) << busy;
+
+  io::DiscoveryOptions none;
+  none.sysfs_root = (tmp.path / "nothing").string();
+  const auto empty = io::format_sensor_list(io::discover_usb_serial(none), none);
+  EXPECT_NE(empty.find("no 0403:6001 adapters found"), std::string::npos) << empty;
+}

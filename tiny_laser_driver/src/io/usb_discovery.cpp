@@ -9,6 +9,14 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
+
+#include <tiny_laser_driver/io/serial_port.hpp>
+
 #if TINYLINE_HAVE_LIBUSB
 #include <libusb.h>
 #endif
@@ -220,6 +228,50 @@ FoundTty find_sensor_tty(const std::string& serial, const DiscoveryOptions& opti
                   "cable; `tinyline sensors` lists what is attached",
                   serial, options.vendor_id, options.product_id, attached, found.backend,
                   found.note.empty() ? "" : ", " + found.note));
+  return out;
+}
+
+std::string tty_access(const UsbSerialDevice& d) {
+  if (d.tty.empty()) return "no serial driver bound (sudo modprobe ftdi_sio)";
+  const int fd = ::open(d.tty.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    const int err = errno;
+    if (err == EACCES || err == EPERM) {
+      return "no permission: add your user to the dialout group or install the udev rule (see below)";
+    }
+    if (err == EBUSY) return "in use by another process";
+    return open_error_status(err, d.tty).message;
+  }
+  const bool busy = ::flock(fd, LOCK_EX | LOCK_NB) != 0;
+  ::close(fd);
+  return busy ? "in use by another process" : "ready";
+}
+
+std::string format_sensor_list(const Discovery& d, const DiscoveryOptions& o) {
+  std::string out;
+  const std::string what =
+      o.any_device ? std::string("USB serial adapters") : fmt::format("{:04x}:{:04x} adapters", o.vendor_id, o.product_id);
+  if (d.devices.empty()) {
+    out += fmt::format("no {} found (searched with {}{}).\n", what, d.backend, d.note.empty() ? "" : "; " + d.note);
+    out += "Check the cable; a sensor shows up as an FTDI FT232R (0403:6001). `dmesg | tail` shows what the kernel saw.\n";
+    return out;
+  }
+  out += fmt::format("{:<22} {:<14} {:<9} {:<9} {:<9} {}\n", "PORT", "TTY", "USB", "VID:PID", "DRIVER", "ACCESS");
+  bool permission = false;
+  for (const auto& dev : d.devices) {
+    const std::string port = dev.serial.empty() ? dev.tty : "usb:" + dev.serial;
+    const std::string access = tty_access(dev);
+    permission = permission || access.rfind("no permission", 0) == 0;
+    out += fmt::format("{:<22} {:<14} {:<9} {:04x}:{:04x} {:<9} {}\n", port.empty() ? "-" : port,
+                       dev.tty.empty() ? "-" : dev.tty, dev.usb_path, dev.vendor_id, dev.product_id,
+                       dev.driver.empty() ? "-" : dev.driver, access);
+  }
+  out += fmt::format("({} found with {}; give the driver `port: usb:SERIAL` to follow a sensor across sockets)\n",
+                     d.devices.size(), d.backend);
+  if (permission) {
+    out += "No permission: `sudo usermod -aG dialout $USER` (then log in again), or install "
+           "tiny_laser_driver/config/99-tinyline-laser.rules into /etc/udev/rules.d/.\n";
+  }
   return out;
 }
 

@@ -61,4 +61,12 @@ struct FoundTty {
 };
 [[nodiscard]] FoundTty find_sensor_tty(const std::string& serial, const DiscoveryOptions& options = {});
 
+/// Whether this user can open a sensor's tty now: "ready", or what stands in
+/// the way and what to do (no driver bound, no permission, in use).
+[[nodiscard]] std::string tty_access(const UsbSerialDevice& d);
+
+/// The listing `tinyline sensors` prints: one line per adapter with the port
+/// spec to use, its tty, USB path and access; or why nothing was found.
+[[nodiscard]] std::string format_sensor_list(const Discovery& d, const DiscoveryOptions& options);
+
 }  // namespace tinyline::tiny_laser_driver::io
