@@ -190,6 +190,7 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
     DistanceFrame& d = distances_.emplace_back();
     get_i16_array(p, d.distance);
     d.end_byte = end_byte;
+    d.sequence = stats_.frames + stats_.frames_dropped();
     ++stats_.frames;
     return;
   }
@@ -253,7 +254,7 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
   if (last) {
     if (!broken_) {
       if (pending_.size() == options_.readouts_per_set) {
-        sets_.push_back(RawSet{std::move(pending_)});
+        sets_.push_back(RawSet{std::move(pending_), stats_.sets + stats_.dropped(DropReason::kIncompleteSet)});
         pending_ = {};
         pending_.reserve(options_.readouts_per_set);
         ++stats_.sets;

@@ -296,6 +296,8 @@ TEST(Protocol, ASetMissingAnyMemberIsDroppedAndCountedOnce) {
     EXPECT_EQ(sets[0].frames[0].a[0], make_frame(0, 450, 1).a[0]);
     EXPECT_EQ(sets[1].frames[0].a[0], make_frame(0, 450, 3).a[0]);
     EXPECT_EQ(d(p, tl::DropReason::kIncompleteSet), 1u) << "missing frame " << missing;
+    EXPECT_EQ(sets[0].sequence, 0u);
+    EXPECT_EQ(sets[1].sequence, 2u);  // the gap is the broken set
     EXPECT_EQ(p.stats().frames_discarded, 4u) << "missing frame " << missing;
     EXPECT_EQ(p.stats().frames, 14u);
   }

@@ -52,6 +52,9 @@ struct RawFrame {
 /// A complete raw measurement set: frames in index order, the last one flagged.
 struct RawSet {
   std::vector<RawFrame> frames;
+  /// Parser only: sets seen before this one, complete or not (gaps in it are
+  /// sets lost to damage).
+  std::uint64_t sequence = 0;
 
   /// The set's MCU temperature [0.1 degC]: the median of its frames, so one
   /// corrupted packed word cannot move it.
@@ -64,6 +67,7 @@ struct RawSet {
 struct DistanceFrame {
   std::array<std::int16_t, kPixels> distance{};  ///< per pixel, sensor units; 0 = invalid
   std::uint64_t end_byte = 0;  ///< parser only: stream offset just past the frame's last byte
+  std::uint64_t sequence = 0;  ///< parser only: frames seen before this one, accepted or dropped
 };
 
 enum class StreamMode { Raw, Distance };

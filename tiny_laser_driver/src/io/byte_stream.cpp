@@ -107,13 +107,15 @@ OpenResult MemoryLink::open() {
   state_->host_open = true;
   state_->interrupted = false;
   ++state_->opens;
+  state_->cv.notify_all();
   return {std::make_unique<MemoryHost>(state_, state_->generation, name_, baud_), {}};
 }
 
 void MemoryLink::push(std::span<const std::uint8_t> bytes) {
   {
     std::lock_guard lk(state_->mu);
-    if (!state_->plugged) return;  // nobody listens to an unplugged device
+    // Like a tty nobody has open: bytes sent while unplugged or unopened are lost.
+    if (!state_->plugged || !state_->host_open) return;
     state_->to_host.insert(state_->to_host.end(), bytes.begin(), bytes.end());
   }
   state_->cv.notify_all();
@@ -149,6 +151,11 @@ bool MemoryLink::plugged() const {
 std::size_t MemoryLink::queued() const {
   std::lock_guard lk(state_->mu);
   return state_->to_host.size();
+}
+
+bool MemoryLink::wait_for_host(std::chrono::milliseconds timeout) {
+  std::unique_lock lk(state_->mu);
+  return state_->cv.wait_for(lk, timeout, [&] { return state_->host_open; });
 }
 
 int MemoryLink::opens() const {

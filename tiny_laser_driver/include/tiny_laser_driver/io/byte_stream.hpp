@@ -79,7 +79,8 @@ class MemoryLink : public std::enable_shared_from_this<MemoryLink> {
   /// side is open fails with kBusy, as a real exclusive port does.
   OpenResult open();
 
-  /// Device side: bytes for the host to read.
+  /// Device side: bytes for the host to read; lost (as on a real port) while
+  /// unplugged or while no host side is open.
   void push(std::span<const std::uint8_t> bytes);
   /// Device side: what the host wrote (host commands), and forget it.
   std::vector<std::uint8_t> take_written();
@@ -90,6 +91,8 @@ class MemoryLink : public std::enable_shared_from_this<MemoryLink> {
   [[nodiscard]] bool plugged() const;
   /// Bytes pushed and not yet read by the host.
   [[nodiscard]] std::size_t queued() const;
+  /// Device side: waits until a host side is open (true) or the timeout passes.
+  bool wait_for_host(std::chrono::milliseconds timeout);
   /// Times open() succeeded.
   [[nodiscard]] int opens() const;
 
