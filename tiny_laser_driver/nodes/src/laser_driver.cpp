@@ -17,8 +17,6 @@ using namespace std::chrono_literals;
 
 namespace {
 
-constexpr double kRangeMinM = 0.05;  // measured.yaml sensor.range_m
-constexpr double kRangeMaxM = 3.0;   // the outer limit quoted beside it
 constexpr std::size_t kReadChunk = 16384;
 
 std::string drop_key(DropReason r) { return fmt::format("drops_{}", to_string(r)); }
@@ -148,8 +146,7 @@ void LaserDriver::on_start() {
     }
   }
   processor_ = std::make_unique<ScanProcessor>(std::move(model), params_.optics);
-  angles_.assign(processor_->angles_rad().begin(), processor_->angles_rad().end());
-  layout_ = uniform_scan_layout(processor_->angles_rad());
+  messages_ = std::make_unique<ScanMessages>(*processor_, params_.frame_id, params_.scan_frame_id);
   logger().info("port {} ({} mode, calibration {}), publishing {} scans in frame {}", opener_->describe(),
                 to_string(mode_), mode_ == StreamMode::Raw ? params_.calibration : "firmware",
                 mode_ == StreamMode::Raw ? "raw and line" : "line", params_.frame_id);
@@ -338,27 +335,9 @@ void LaserDriver::publish_set(const RawSet& set, std::uint64_t chunk_end, bus::T
   const bus::Time stamp = stamp_of(set.end_byte(), chunk_end, t_recv);
   if (!first_stamp_) first_stamp_ = stamp;
   processor_->process(set, (stamp - *first_stamp_).count() * 1e-9, scan_);
-  const auto index = static_cast<std::uint32_t>(set.sequence);
-  const float temperature = static_cast<float>(set.temperature_decic() / 10.0);
-  if (raw_pub_) {
-    auto m = std::make_unique<tinyline_msgs::msg::RawScan>();
-    m->header.stamp = stamp.to_msg();
-    m->header.frame_id = params_.frame_id;
-    m->set_index = index;
-    m->temperature_c = temperature;
-    m->pixels = static_cast<std::uint16_t>(kPixels);
-    m->pulses.reserve(set.frames.size());
-    m->a.resize(set.frames.size() * kPixels);
-    m->b.resize(set.frames.size() * kPixels);
-    for (std::size_t k = 0; k < set.frames.size(); ++k) {
-      const RawFrame& f = set.frames[k];
-      m->pulses.push_back(f.pulses);
-      std::memcpy(m->a.data() + k * kPixels, f.a.data(), kPixels * sizeof(std::int16_t));
-      std::memcpy(m->b.data() + k * kPixels, f.b.data(), kPixels * sizeof(std::int16_t));
-    }
-    raw_pub_->publish(std::move(m));
-  }
-  publish_scan(scan_, index, stamp, temperature);
+  if (raw_pub_) raw_pub_->publish(to_raw_scan(set, stamp, params_.frame_id));
+  publish_scan(scan_, static_cast<std::uint32_t>(set.sequence), stamp,
+               static_cast<float>(set.temperature_decic() / 10.0));
 }
 
 void LaserDriver::publish_distance(const DistanceFrame& f, std::uint64_t chunk_end, bus::Time t_recv) {
@@ -370,45 +349,8 @@ void LaserDriver::publish_distance(const DistanceFrame& f, std::uint64_t chunk_e
 void LaserDriver::publish_scan(const ProcessedScan& scan, std::uint32_t index, bus::Time stamp, float temperature_c) {
   if (prev_stamp_) scan_period_s_ = (stamp - *prev_stamp_).count() * 1e-9;
   prev_stamp_ = stamp;
-
-  auto line = std::make_unique<tinyline_msgs::msg::LineScan>();
-  line->header.stamp = stamp.to_msg();
-  line->header.frame_id = params_.frame_id;
-  line->set_index = index;
-  line->temperature_c = temperature_c;
-  line->angles = angles_;
-  line->distance_m.assign(scan.distance_m.begin(), scan.distance_m.end());
-  line->intensity.assign(scan.intensity.begin(), scan.intensity.end());
-  line->reflectance.assign(scan.reflectance.begin(), scan.reflectance.end());
-  line->pulses.assign(scan.pulses.begin(), scan.pulses.end());
-  line->status.resize(kPixels);
-  for (std::size_t p = 0; p < kPixels; ++p) line->status[p] = static_cast<std::uint8_t>(scan.status[p]);
-
-  auto ls = std::make_unique<sensor_msgs::msg::LaserScan>();
-  ls->header.stamp = line->header.stamp;
-  ls->header.frame_id = params_.scan_frame_id;
-  ls->angle_min = static_cast<float>(layout_.angle_min_rad);
-  ls->angle_max = static_cast<float>(layout_.angle_max_rad);
-  ls->angle_increment = static_cast<float>(layout_.angle_increment_rad);
-  ls->time_increment = 0.0f;  // every pixel integrates at once
-  ls->scan_time = static_cast<float>(scan_period_s_);
-  ls->range_min = static_cast<float>(kRangeMinM);
-  ls->range_max = static_cast<float>(kRangeMaxM);
-  ls->ranges.resize(layout_.pixel_of_bin.size());
-  ls->intensities.resize(layout_.pixel_of_bin.size());
-  for (std::size_t i = 0; i < layout_.pixel_of_bin.size(); ++i) {
-    const std::size_t p = layout_.pixel_of_bin[i];
-    // REP 117: +inf where nothing returned, NaN where the reading is unusable.
-    switch (scan.status[p]) {
-      case PixelStatus::kValid: ls->ranges[i] = scan.distance_m[p]; break;
-      case PixelStatus::kTooDark: ls->ranges[i] = std::numeric_limits<float>::infinity(); break;
-      default: ls->ranges[i] = std::numeric_limits<float>::quiet_NaN(); break;
-    }
-    ls->intensities[i] = std::isfinite(scan.intensity[p]) ? scan.intensity[p] : 0.0f;
-  }
-
-  scan_pub_->publish(std::move(line));
-  laser_scan_pub_->publish(std::move(ls));
+  scan_pub_->publish(messages_->line(scan, index, stamp, temperature_c));
+  laser_scan_pub_->publish(messages_->laser(scan, stamp, scan_period_s_));
   constexpr double kEffective = kPixels - 2 * kDarkPixels;
   std::lock_guard lk(mu_);
   ++status_.scans_published;

@@ -40,6 +40,7 @@
 #include <tinyline/msg/tinyline_msgs/raw_scan.hpp>
 
 #include <tiny_laser_driver/io/port.hpp>
+#include <tiny_laser_driver/nodes/scan_messages.hpp>
 #include <tiny_laser_driver/protocol.hpp>
 #include <tiny_laser_driver/scan_processor.hpp>
 
@@ -121,8 +122,7 @@ class LaserDriver : public bus::Node {
   StreamMode mode_ = StreamMode::Raw;
   std::unique_ptr<io::PortOpener> opener_;
   std::unique_ptr<ScanProcessor> processor_;  // built in on_start (loads the calibration)
-  UniformScanLayout layout_;
-  std::vector<float> angles_;
+  std::unique_ptr<ScanMessages> messages_;
 
   // I/O thread state (only the I/O thread touches these, or pump()'s caller).
   Parser parser_;
