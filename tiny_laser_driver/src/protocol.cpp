@@ -1,6 +1,7 @@
 #include <tiny_laser_driver/protocol.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 
@@ -31,22 +32,37 @@ std::string_view to_string(DropReason r) {
   switch (r) {
     case DropReason::kGarbage: return "garbage_bytes";
     case DropReason::kBadEnder: return "bad_ender";
-    case DropReason::kIncompleteSet: return "incomplete_set";
+    case DropReason::kWrongMode: return "wrong_mode";
     case DropReason::kBadField: return "bad_field";
+    case DropReason::kIncompleteSet: return "incomplete_set";
+    case DropReason::kTruncated: return "truncated";
     case DropReason::kCount: break;
   }
   return "?";
+}
+
+std::string_view to_string(StreamMode m) { return m == StreamMode::Raw ? "raw" : "distance"; }
+
+std::uint16_t RawSet::temperature_decic() const {
+  if (frames.empty()) return 0;
+  std::array<std::uint16_t, 128> t{};
+  const std::size_t n = std::min(frames.size(), t.size());
+  for (std::size_t i = 0; i < n; ++i) t[i] = frames[i].temperature_decic;
+  std::nth_element(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(n / 2), t.begin() + static_cast<std::ptrdiff_t>(n));
+  return t[n / 2];
 }
 
 void encode_raw_frame(const RawFrame& f, std::vector<std::uint8_t>& out) {
   if (f.pulses % 10 != 0 || f.pulses / 10 > 99) {
     throw std::invalid_argument("raw frame pulses must be a multiple of 10 below 1000");
   }
-  if (f.temperature_decic > 655) throw std::invalid_argument("raw frame temperature must be below 65.5 degC");
+  const std::uint32_t packed = static_cast<std::uint32_t>(f.temperature_decic) * 100 + f.pulses / 10;
+  if (packed > 0xFFFF) throw std::invalid_argument("raw frame temperature too high for the packed word (about 65.5 degC)");
+  if (f.index + (f.last ? kLastFrameFlag : 0) > 0xFFFF) throw std::invalid_argument("raw frame index too large");
   out.reserve(out.size() + kRawFrameBytes);
   out.insert(out.end(), std::begin(kHeader), std::end(kHeader));
   put_u16(out, static_cast<std::uint16_t>(f.index + (f.last ? kLastFrameFlag : 0)));
-  put_u16(out, static_cast<std::uint16_t>(f.temperature_decic * 100 + f.pulses / 10));
+  put_u16(out, static_cast<std::uint16_t>(packed));
   put_i16_array(out, f.a);
   put_i16_array(out, f.b);
   out.insert(out.end(), std::begin(kEnder), std::end(kEnder));
@@ -65,101 +81,189 @@ Parser::Parser(Options options) : options_(options) {
   if (options_.readouts_per_set == 0 || options_.readouts_per_set >= kLastFrameFlag) {
     throw std::invalid_argument("readouts_per_set must be in [1, 99]");
   }
+  pending_.reserve(options_.readouts_per_set);
+}
+
+void Parser::abandon_pending() {
+  if (!pending_.empty()) {
+    drop(DropReason::kIncompleteSet);
+    stats_.frames_discarded += pending_.size();
+    pending_.clear();
+  }
 }
 
 void Parser::reset() {
-  if (!pending_.empty()) drop(DropReason::kIncompleteSet);
-  pending_.clear();
-  orphan_ = false;
+  const std::size_t left = buffered();
+  if (left >= 2) {
+    drop(DropReason::kTruncated);  // a header and part of its frame
+  } else if (left == 1) {
+    drop(DropReason::kGarbage);    // a lone first header byte
+  }
+  abandon_pending();
+  broken_ = false;
+  prev_index_ = -1;
+  buf_origin_ += buf_.size();
   buf_.clear();
   start_ = 0;
 }
 
+namespace {
+bool ender_at(const std::uint8_t* f, std::size_t len) { return f[len - 2] == kEnder[0] && f[len - 1] == kEnder[1]; }
+}  // namespace
+
 void Parser::feed(std::span<const std::uint8_t> bytes) {
   stats_.bytes += bytes.size();
+  if (bytes.empty()) return;
+  // Drop what is parsed before appending; what is left is at most one partial
+  // frame, so this costs O(frame) per consumed frame, linear overall.
+  if (start_ > 0) {
+    buf_.erase(buf_.begin(), buf_.begin() + static_cast<std::ptrdiff_t>(start_));
+    buf_origin_ += start_;
+    start_ = 0;
+  }
   buf_.insert(buf_.end(), bytes.begin(), bytes.end());
-  const std::size_t frame_len = options_.mode == StreamMode::Raw ? kRawFrameBytes : kDistanceFrameBytes;
+
+  const bool raw = options_.mode == StreamMode::Raw;
+  const std::size_t own = raw ? kRawFrameBytes : kDistanceFrameBytes;
+  const std::size_t other = raw ? kDistanceFrameBytes : kRawFrameBytes;
+  const std::uint8_t* base = buf_.data();
+  const std::size_t end = buf_.size();
   while (true) {
     // Hunt for the two-byte header.
     std::size_t p = start_;
-    while (p + 1 < buf_.size() && !(buf_[p] == kHeader[0] && buf_[p + 1] == kHeader[1])) ++p;
-    if (p + 1 >= buf_.size()) {
-      // No header yet; keep a trailing first header byte, everything else is garbage.
-      const std::size_t keep = (!buf_.empty() && buf_.back() == kHeader[0] && p < buf_.size()) ? 1 : 0;
-      const std::size_t skip = buf_.size() - start_ - keep;
-      drop(DropReason::kGarbage, skip);
-      start_ += skip;
-      break;
+    while (p < end) {
+      const void* hit = std::memchr(base + p, kHeader[0], end - p);
+      if (hit == nullptr) {
+        p = end;
+        break;
+      }
+      p = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - base);
+      if (p + 1 >= end || base[p + 1] == kHeader[1]) break;  // a header, or a first byte to keep
+      ++p;
     }
-    drop(DropReason::kGarbage, p - start_);
-    start_ = p;
-    if (buf_.size() - start_ < frame_len) break;  // wait for the rest of the frame
-    const std::uint8_t* f = buf_.data() + start_;
-    if (f[frame_len - 2] == kEnder[0] && f[frame_len - 1] == kEnder[1]) {
-      consume_frame({f, frame_len});
-      start_ += frame_len;
+    if (p > start_) {
+      drop(DropReason::kGarbage, p - start_);
+      start_ = p;
+    }
+    const std::size_t avail = end - start_;
+    if (avail < 2) break;  // nothing, or a lone first header byte
+    const std::uint8_t* f = base + start_;
+    // The decisions below depend only on the frame's bytes, never on how
+    // many have arrived beyond what each needs: output is chunking-independent.
+    if (raw) {
+      // A distance frame's ender sits where a raw frame carries A[270], which
+      // no ADC value can make 0x2B2A: an unambiguous sign of the other mode.
+      if (avail < kDistanceFrameBytes) break;
+      if (ender_at(f, kDistanceFrameBytes)) {
+        drop(DropReason::kWrongMode);
+        start_ += kDistanceFrameBytes;
+        continue;
+      }
+      if (avail < own) break;
+      if (ender_at(f, own)) {
+        consume_frame(f, buf_origin_ + start_ + own);
+        start_ += own;
+        continue;
+      }
     } else {
-      drop(DropReason::kBadEnder);
-      start_ += 2;  // resume the hunt inside the bad frame: a real header may be there
+      if (avail < own) break;
+      if (ender_at(f, own)) {
+        consume_frame(f, buf_origin_ + start_ + own);
+        start_ += own;
+        continue;
+      }
+      if (avail < other) break;  // may be a raw frame: wait for its ender position
+      if (ender_at(f, other)) {
+        drop(DropReason::kWrongMode);
+        start_ += other;
+        continue;
+      }
     }
-  }
-  // Compact occasionally so the buffer stays small and parsing stays linear.
-  if (start_ > 0 && (start_ >= buf_.size() || start_ > 65536)) {
-    buf_.erase(buf_.begin(), buf_.begin() + static_cast<std::ptrdiff_t>(start_));
-    start_ = 0;
+    drop(DropReason::kBadEnder);
+    start_ += 2;  // resume the hunt inside the bad frame: a real header may be there
   }
 }
 
-void Parser::consume_frame(std::span<const std::uint8_t> frame) {
-  const std::uint8_t* p = frame.data() + 2;
+void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
+  const std::uint8_t* p = frame + 2;
   if (options_.mode == StreamMode::Distance) {
-    DistanceFrame d;
+    DistanceFrame& d = distances_.emplace_back();
     get_i16_array(p, d.distance);
-    distances_.push_back(d);
+    d.end_byte = end_byte;
+    d.sequence = stats_.frames + stats_.frames_dropped();
     ++stats_.frames;
     return;
   }
-  RawFrame r;
   const std::uint16_t index_word = get_u16(p);
   const std::uint16_t packed = get_u16(p + 2);
-  r.last = index_word >= kLastFrameFlag;
-  r.index = static_cast<std::uint16_t>(r.last ? index_word - kLastFrameFlag : index_word);
-  r.temperature_decic = packed / 100;
-  r.pulses = static_cast<std::uint16_t>((packed % 100) * 10);
-  if (r.index >= options_.readouts_per_set || r.pulses == 0) {
+  const bool last = index_word >= kLastFrameFlag;
+  const std::uint16_t index = static_cast<std::uint16_t>(last ? index_word - kLastFrameFlag : index_word);
+  const std::uint16_t pulses = static_cast<std::uint16_t>((packed % 100) * 10);
+  if (index >= options_.readouts_per_set || pulses == 0) {
+    // Its set is unknown; the set being assembled cannot complete without it.
+    // (With nothing pending, the next frame shows whether a set lost its head.)
     drop(DropReason::kBadField);
     if (!pending_.empty()) {
-      drop(DropReason::kIncompleteSet);
-      orphan_ = !r.last;  // the rest of this set is already counted
+      abandon_pending();
+      broken_ = true;
     }
-    pending_.clear();
     return;
   }
-  get_i16_array(p + 4, r.a);
-  get_i16_array(p + 4 + 2 * kPixels, r.b);
   ++stats_.frames;
-  if (r.index == 0) orphan_ = false;
-  if (r.index != pending_.size()) {
-    // A member is missing: abandon the set being assembled. A frame that is
-    // not a set's first cannot start one either; its set is counted once.
-    if (!pending_.empty()) drop(DropReason::kIncompleteSet);
-    pending_.clear();
-    if (r.index != 0) {
-      if (!orphan_) drop(DropReason::kIncompleteSet);
-      orphan_ = !r.last;
-      return;
+  // Set membership from the indices: a set starts after a flagged last frame
+  // or where the index does not rise. A set seen only in part counts once.
+  const bool new_set = prev_index_ < 0 || index <= prev_index_;
+  if (new_set) {
+    abandon_pending();  // the previous set lost its tail
+    broken_ = false;
+    if (index != 0) {   // this one lost its head
+      drop(DropReason::kIncompleteSet);
+      broken_ = true;
+    }
+  } else if (!broken_ && index != pending_.size()) {
+    abandon_pending();  // a member in the middle is missing
+    broken_ = true;
+  }
+  if (!broken_ && !pending_.empty() && pulses <= pending_.back().pulses) {
+    abandon_pending();  // read-outs of one set accumulate: pulses must rise
+    broken_ = true;
+  }
+  prev_index_ = index;
+  if (broken_) {
+    ++stats_.frames_discarded;
+  } else {
+    RawFrame& r = pending_.emplace_back();
+    r.index = index;
+    r.last = last;
+    r.temperature_decic = packed / 100;
+    r.pulses = pulses;
+    r.end_byte = end_byte;
+    get_i16_array(p + 4, r.a);
+    get_i16_array(p + 4 + 2 * kPixels, r.b);
+    std::uint64_t impossible = 0;
+    for (std::size_t i = 0; i < kPixels; ++i) {
+      impossible += static_cast<std::uint64_t>(std::abs(r.a[i]) > kMaxRawMagnitude) +
+                    static_cast<std::uint64_t>(std::abs(r.b[i]) > kMaxRawMagnitude);
+    }
+    stats_.impossible_values += impossible;
+    if (pending_.size() == options_.readouts_per_set && !last) {
+      abandon_pending();  // full but not flagged: the flag is part of the framing
+      broken_ = true;
     }
   }
-  const bool last = r.last;
-  pending_.push_back(r);
-  if (last || pending_.size() == options_.readouts_per_set) {
-    if (last && pending_.size() == options_.readouts_per_set) {
-      sets_.push_back(RawSet{std::move(pending_)});
-      ++stats_.sets;
-    } else {
-      drop(DropReason::kIncompleteSet);
+  if (last) {
+    if (!broken_) {
+      if (pending_.size() == options_.readouts_per_set) {
+        sets_.push_back(RawSet{std::move(pending_), stats_.sets + stats_.dropped(DropReason::kIncompleteSet)});
+        pending_ = {};
+        pending_.reserve(options_.readouts_per_set);
+        ++stats_.sets;
+      } else {
+        abandon_pending();  // flagged before all members came
+      }
     }
-    pending_.clear();
+    broken_ = false;
+    prev_index_ = -1;
   }
 }
 
@@ -181,6 +285,10 @@ std::optional<DistanceFrame> Parser::next_distance() {
   return distances_[distances_taken_++];
 }
 
+std::size_t Parser::ready() const {
+  return (sets_.size() - sets_taken_) + (distances_.size() - distances_taken_);
+}
+
 // ---------------------------------------------------------------------------- host commands
 
 std::vector<std::uint8_t> cmd_reset(std::uint8_t pulses_div10) { return {'R', pulses_div10}; }
@@ -193,6 +301,12 @@ std::vector<std::uint8_t> cmd_framed(FramedCommand c, std::span<const std::uint8
   out.insert(out.end(), args.begin(), args.end());
   out.push_back(kCmdEnd);
   return out;
+}
+
+std::vector<std::uint8_t> cmd_framed_reset(std::int16_t pulses) {
+  const auto v = static_cast<std::uint16_t>(pulses);
+  const std::uint8_t a[2] = {static_cast<std::uint8_t>(v & 0xFF), static_cast<std::uint8_t>(v >> 8)};
+  return cmd_framed(FramedCommand::kReset, a);
 }
 
 std::vector<std::uint8_t> cmd_laser(bool on) {

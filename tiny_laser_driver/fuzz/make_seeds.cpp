@@ -1,0 +1,79 @@
+// Writes seed inputs for driver_parser_fuzz into the directory given: raw
+// sets and distance frames, clean and with the damage a serial link does.
+// Input layout: byte 0 = (readouts - 1) << 1 | distance_mode, byte 1 = chunking seed.
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <tiny_laser_driver/protocol.hpp>
+
+namespace tl = tinyline::tiny_laser_driver;
+
+namespace {
+
+std::vector<std::uint8_t> raw_set(int seed) {
+  std::vector<std::uint8_t> out;
+  const std::uint16_t pulses[5] = {20, 100, 200, 400, 700};
+  for (int i = 0; i < 5; ++i) {
+    tl::RawFrame f;
+    f.index = static_cast<std::uint16_t>(i);
+    f.last = i == 4;
+    f.temperature_decic = 450;
+    f.pulses = pulses[i];
+    for (std::size_t p = 0; p < tl::kPixels; ++p) {
+      f.a[p] = static_cast<std::int16_t>((seed * 31 + i * 7 + static_cast<int>(p)) % 2300);
+      f.b[p] = static_cast<std::int16_t>((seed * 17 + i * 3 + static_cast<int>(p) * 2) % 2300);
+    }
+    tl::encode_raw_frame(f, out);
+  }
+  return out;
+}
+
+std::vector<std::uint8_t> distance_frame(int seed) {
+  tl::DistanceFrame d;
+  for (std::size_t p = 0; p < tl::kPixels; ++p) d.distance[p] = static_cast<std::int16_t>((seed + p) % 2000);
+  std::vector<std::uint8_t> out;
+  tl::encode_distance_frame(d, out);
+  return out;
+}
+
+void write(const std::string& dir, const std::string& name, std::uint8_t mode, const std::vector<std::uint8_t>& body) {
+  std::ofstream f(dir + "/" + name, std::ios::binary);
+  const std::uint8_t head[2] = {mode, 7};
+  f.write(reinterpret_cast<const char*>(head), 2);
+  f.write(reinterpret_cast<const char*>(body.data()), static_cast<std::streamsize>(body.size()));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s SEED_DIR\n", argv[0]);
+    return 2;
+  }
+  const std::string dir = argv[1];
+  const std::uint8_t raw5 = 4 << 1;  // readouts 5, raw mode
+  auto two = raw_set(1);
+  const auto second = raw_set(2);
+  two.insert(two.end(), second.begin(), second.end());
+  write(dir, "raw_two_sets", raw5, two);
+  auto bad_ender = two;
+  bad_ender[1094] = 0;
+  write(dir, "raw_bad_ender", raw5, bad_ender);
+  auto missing = two;
+  missing.erase(missing.begin() + 2 * 1096, missing.begin() + 3 * 1096);
+  write(dir, "raw_missing_member", raw5, missing);
+  auto slipped = two;
+  slipped.erase(slipped.begin() + 3000);
+  write(dir, "raw_dropped_byte", raw5, slipped);
+  std::vector<std::uint8_t> mixed = distance_frame(1);
+  mixed.insert(mixed.end(), two.begin(), two.end());
+  write(dir, "raw_after_distance", raw5, mixed);
+  std::vector<std::uint8_t> dist = distance_frame(1);
+  const auto d2 = distance_frame(2);
+  dist.insert(dist.end(), d2.begin(), d2.end());
+  write(dir, "distance_two", 1, dist);
+  write(dir, "distance_then_raw", 1, mixed);
+  return 0;
+}

@@ -1,0 +1,435 @@
+#include <tiny_laser_driver/nodes/laser_driver.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include <tiny_laser_driver/public_driver_sensors.hpp>
+
+namespace tinyline::tiny_laser_driver {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr std::size_t kReadChunk = 16384;
+
+std::string drop_key(DropReason r) { return fmt::format("drops_{}", to_string(r)); }
+
+}  // namespace
+
+// ---------------------------------------------------------------------------- calibration
+
+std::string default_calibration_path() {
+  const std::string rel = "tiny_laser_driver/calibration/sim_default.yaml";
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = exe.parent_path().parent_path() / "share/tinyline" / rel;
+    if (fs::exists(installed, ec)) return installed.string();
+  }
+  return std::string(TINYLINE_DRIVER_CONFIG_DIR) + "/calibration/sim_default.yaml";
+}
+
+CalibrationModel load_calibration(const std::string& spec) {
+  if (spec.rfind("public:", 0) == 0) {
+    const std::string name = spec.substr(7);
+    if (auto m = public_driver_calibration(name)) return std::move(*m);
+    throw std::runtime_error(fmt::format("calibration '{}': the public driver has no sensor '{}' (it has {})", spec,
+                                         name, fmt::join(public_driver_sensor_names(), ", ")));
+  }
+  const std::string path = spec == "default" ? default_calibration_path() : spec;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    throw std::runtime_error(fmt::format(
+        "calibration '{}': no file {}. Give `calibration:` a YAML written by `tinyline calib fit`, or public:NAME "
+        "for a sensor of the public driver ({})",
+        spec, path, fmt::join(public_driver_sensor_names(), ", ")));
+  }
+  return CalibrationModel::load(path);  // throws naming the file, line and field
+}
+
+// ---------------------------------------------------------------------------- node
+
+LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
+  using bus::ParamConstraints;
+  const DriverParams d;  // defaults live in the struct
+  DriverParams& p = params_;
+  p.port = declare_parameter("port", d.port, "/dev/ttyUSB0 (a path), usb:SERIAL (found by USB serial number), "
+                                             "sim:SCENE.yaml (simulated sensor in-process), mem:NAME (tests)");
+  p.mode = declare_parameter("mode", d.mode, "raw: the host computes distance from all read-outs; distance: "
+                                             "the firmware sends distances", ParamConstraints::one_of({"raw", "distance"}));
+  p.baud = declare_parameter("baud", d.baud, "link rate [bit/s] (the sensor's FT232R: 2000000)",
+                             ParamConstraints::range(1200, 12'000'000));
+  p.readouts_per_set = declare_parameter("readouts_per_set", d.readouts_per_set,
+                                         "raw mode: read-outs (frames) per set", ParamConstraints::range(1, 99));
+  p.optics.focal_mm = declare_parameter("focal_mm", d.optics.focal_mm, "receiver lens focal length [mm] (3.6 or 8)",
+                                        ParamConstraints::range(0.5, 100.0));
+  p.optics.sensor_length_mm = declare_parameter("sensor_length_mm", d.optics.sensor_length_mm,
+                                                "length of the 256 effective pixels [mm]",
+                                                ParamConstraints::range(0.1, 100.0));
+  p.frame_id = declare_parameter("frame_id", d.frame_id, "frame of RawScan/LineScan: z forward, x along the line");
+  p.scan_frame_id = declare_parameter("scan_frame_id", d.scan_frame_id,
+                                      "frame of the LaserScan (x = sensor z, y = sensor x); empty: frame_id + '_scan'");
+  p.calibration = declare_parameter("calibration", d.calibration,
+                                    "calibration YAML (tinyline calib fit), public:NAME (R J S K T of the public "
+                                    "driver), or default (the simulated sensor's)");
+  p.distance_unit_m = declare_parameter("distance_unit_m", d.distance_unit_m,
+                                        "distance mode: unit of the firmware's distances [m]",
+                                        ParamConstraints::range(1e-6, 1.0));
+  p.sensor_name = declare_parameter("sensor_name", d.sensor_name,
+                                    "name in LaserCommand.sensors; empty: the node's name");
+  p.sequence_slot = declare_parameter("sequence_slot", d.sequence_slot,
+                                      "sequence mode slot (thesis 6.2.1): >= 0 keeps the laser off until a "
+                                      "LaserCommand lists the slot; -1: not in sequence mode",
+                                      ParamConstraints::range(-1, 65535));
+  p.send_stream_mode = declare_parameter("send_stream_mode", d.send_stream_mode,
+                                         "send the stream-mode command (0x11, a tinyline extension) on connect");
+  p.reconnect_min_s = declare_parameter("reconnect_min_s", d.reconnect_min_s, "first retry after a disconnect [s]",
+                                        ParamConstraints::range(0.001, 60.0));
+  p.reconnect_max_s = declare_parameter("reconnect_max_s", d.reconnect_max_s,
+                                        "longest wait between reconnect attempts [s]",
+                                        ParamConstraints::range(0.001, 600.0));
+  p.diagnostics_period_s = declare_parameter("diagnostics_period_s", d.diagnostics_period_s,
+                                             "diagnostics period [s]", ParamConstraints::range(0.01, 3600.0));
+  p.stall_timeout_s = declare_parameter("stall_timeout_s", d.stall_timeout_s,
+                                        "connected but no complete frame for this long: WARN [s]",
+                                        ParamConstraints::range(0.01, 3600.0));
+  p.threaded = declare_parameter("threaded", d.threaded,
+                                 "run the I/O thread; false: the embedding code calls pump()");
+  p.publish_raw = declare_parameter("publish_raw", d.publish_raw, "publish tinyline_msgs/RawScan (raw mode)");
+  if (p.reconnect_max_s < p.reconnect_min_s) {
+    throw bus::ParamError({}, fmt::format("node '{}': reconnect_max_s ({}) is below reconnect_min_s ({})", full_name(),
+                                          p.reconnect_max_s, p.reconnect_min_s));
+  }
+  if (p.sensor_name.empty()) p.sensor_name = name();
+  if (p.scan_frame_id.empty()) p.scan_frame_id = p.frame_id + "_scan";
+  mode_ = p.mode == "raw" ? StreamMode::Raw : StreamMode::Distance;
+
+  io::PortOptions po;
+  po.serial.baud = p.baud;
+  try {
+    opener_ = io::make_port_opener(p.port, po);  // parses the spec; opens nothing
+  } catch (const std::invalid_argument& e) {
+    throw bus::ParamError({}, fmt::format("node '{}': parameter 'port': {}", full_name(), e.what()));
+  }
+  parser_ = Parser(Parser::Options{mode_, static_cast<std::size_t>(p.readouts_per_set)});
+  buf_.resize(kReadChunk);
+  if (p.sequence_slot >= 0) laser_wanted_ = false;  // sequence mode: off until the sequencer says otherwise
+  backoff_s_ = p.reconnect_min_s;
+
+  if (mode_ == StreamMode::Raw && p.publish_raw) raw_pub_ = create_publisher<tinyline_msgs::msg::RawScan>("raw", bus::QoS::sensor_data());
+  scan_pub_ = create_publisher<tinyline_msgs::msg::LineScan>("scan", bus::QoS::sensor_data());
+  laser_scan_pub_ = create_publisher<sensor_msgs::msg::LaserScan>("laser_scan", bus::QoS::sensor_data());
+  diag_pub_ = create_publisher<diagnostic_msgs::msg::DiagnosticArray>("/diagnostics", bus::QoS::keep_last(10));
+  command_sub_ = create_subscription<tinyline_msgs::msg::LaserCommand>(
+      "laser_command", bus::QoS::keep_last(10),
+      [this](const tinyline_msgs::msg::LaserCommand& m) { on_command(m); });
+  diag_timer_ = create_timer(bus::from_seconds(p.diagnostics_period_s), [this] { publish_diagnostics(); });
+}
+
+LaserDriver::~LaserDriver() { on_stop(); }
+
+void LaserDriver::on_start() {
+  if (processor_) return;
+  CalibrationModel model;
+  if (mode_ == StreamMode::Raw) {
+    model = load_calibration(params_.calibration);
+    if (!model.extra_covariates().empty()) {
+      logger().warn("the calibration's terms in {} use covariates the driver does not measure; they are skipped",
+                    fmt::join(model.extra_covariates(), ", "));
+    }
+  }
+  processor_ = std::make_unique<ScanProcessor>(std::move(model), params_.optics);
+  messages_ = std::make_unique<ScanMessages>(*processor_, params_.frame_id, params_.scan_frame_id);
+  logger().info("port {} ({} mode, calibration {}), publishing {} scans in frame {}", opener_->describe(),
+                to_string(mode_), mode_ == StreamMode::Raw ? params_.calibration : "firmware",
+                mode_ == StreamMode::Raw ? "raw and line" : "line", params_.frame_id);
+  if (params_.threaded) {
+    stop_.store(false);
+    io_thread_ = std::thread([this] { run(); });
+  }
+}
+
+void LaserDriver::on_stop() {
+  stop_.store(true);
+  {
+    std::lock_guard lk(stream_mu_);
+    if (stream_) stream_->interrupt();
+  }
+  wake_.notify_all();
+  if (io_thread_.joinable()) io_thread_.join();
+  std::lock_guard lk(stream_mu_);
+  stream_.reset();
+}
+
+void LaserDriver::run() {
+  while (!stop_.load()) {
+    try {
+      pump(50ms);
+    } catch (const std::exception& e) {
+      // Nothing a device sends may stop the driver; log and carry on.
+      logger().error("I/O step failed: {}", e.what());
+      std::unique_lock lk(mu_);
+      wake_.wait_for(lk, 100ms, [this] { return stop_.load(); });
+    }
+  }
+}
+
+void LaserDriver::pump(std::chrono::milliseconds timeout) {
+  if (!processor_) throw std::logic_error("LaserDriver::pump() before on_start()");
+  if (!stream_) {
+    const bus::Time now = this->now();
+    if (now < next_attempt_) {
+      if (timeout.count() > 0) {
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(next_attempt_ - now) + 1ms;
+        std::unique_lock lk(mu_);
+        wake_.wait_for(lk, std::min(timeout, left), [this] { return stop_.load(); });
+      }
+      return;
+    }
+    try_open(now);
+    if (!stream_) return;
+  }
+  send_pending();
+  if (!stream_) return;
+  const io::ReadResult r = stream_->read(buf_, timeout);
+  const bus::Time t_recv = this->now();
+  if (!r.status.ok()) {
+    lost(r.status);
+    return;
+  }
+  if (r.bytes == 0) return;
+  parser_.feed({buf_.data(), r.bytes});
+  const std::uint64_t chunk_end = parser_.stats().bytes;
+  {
+    std::lock_guard lk(mu_);
+    status_.bytes += r.bytes;
+    status_.last_receive = t_recv;
+    status_.parser = parser_.stats();
+  }
+  while (auto s = parser_.next_set()) publish_set(*s, chunk_end, t_recv);
+  while (auto d = parser_.next_distance()) publish_distance(*d, chunk_end, t_recv);
+}
+
+void LaserDriver::try_open(bus::Time now) {
+  io::OpenResult r = opener_->open();
+  if (!r.status.ok()) {
+    next_attempt_ = now + bus::from_seconds(backoff_s_);
+    backoff_s_ = std::min(2.0 * backoff_s_, params_.reconnect_max_s);
+    bool changed = false;
+    {
+      std::lock_guard lk(mu_);
+      changed = status_.last_error != r.status.error || status_.last_error_message != r.status.message;
+      status_.last_error = r.status.error;
+      status_.last_error_message = r.status.message;
+      ++status_.open_failures;
+    }
+    // Say it once per distinct failure, not at every retry.
+    if (changed) logger().warn("{} (retrying every {} s at most)", r.status.message, params_.reconnect_max_s);
+    return;
+  }
+  {
+    std::lock_guard lk(stream_mu_);
+    stream_ = std::move(r.stream);
+  }
+  backoff_s_ = params_.reconnect_min_s;
+  {
+    std::lock_guard lk(mu_);
+    status_.connected = true;
+    ++status_.connects;
+    status_.link = stream_->describe();
+    status_.last_error = io::IoError::kNone;
+    status_.last_error_message.clear();
+    if (laser_wanted_) laser_dirty_ = true;  // a replugged sensor forgot what it was told
+  }
+  logger().info("connected: {}", stream_->describe());
+  if (params_.send_stream_mode) {
+    if (const auto st = stream_->write(cmd_stream_mode(mode_)); !st.ok()) {
+      lost(st);
+      return;
+    }
+    std::lock_guard lk(mu_);
+    ++status_.commands_sent;
+  }
+}
+
+void LaserDriver::lost(const io::IoStatus& why) {
+  parser_.reset();  // a frame or set cut here is counted, never published
+  {
+    std::lock_guard lk(stream_mu_);
+    stream_.reset();
+  }
+  next_attempt_ = now() + bus::from_seconds(params_.reconnect_min_s);
+  backoff_s_ = std::min(2.0 * params_.reconnect_min_s, params_.reconnect_max_s);
+  {
+    std::lock_guard lk(mu_);
+    status_.connected = false;
+    ++status_.disconnects;
+    status_.last_error = why.error;
+    status_.last_error_message = why.message;
+    status_.parser = parser_.stats();
+  }
+  logger().warn("lost the sensor: {}; reconnecting", why.message);
+}
+
+void LaserDriver::send_pending() {
+  bool want = true;
+  {
+    std::lock_guard lk(mu_);
+    if (!laser_dirty_ || !laser_wanted_) return;
+    want = *laser_wanted_;
+  }
+  if (const auto st = stream_->write(cmd_laser(want)); !st.ok()) {
+    lost(st);
+    return;
+  }
+  std::lock_guard lk(mu_);
+  if (laser_wanted_ == want) laser_dirty_ = false;
+  status_.laser_on = want;
+  ++status_.commands_sent;
+}
+
+void LaserDriver::on_command(const tinyline_msgs::msg::LaserCommand& cmd) {
+  std::optional<bool> want;
+  if (cmd.sensors.size() != cmd.laser_on.size()) {
+    logger().warn("LaserCommand with {} sensors and {} laser_on entries: the by-name orders are ignored",
+                  cmd.sensors.size(), cmd.laser_on.size());
+  } else {
+    for (std::size_t i = 0; i < cmd.sensors.size(); ++i) {
+      if (cmd.sensors[i] == params_.sensor_name) want = cmd.laser_on[i];
+    }
+  }
+  if (!want && params_.sequence_slot >= 0) {
+    want = std::find(cmd.active_slots.begin(), cmd.active_slots.end(), params_.sequence_slot) != cmd.active_slots.end();
+  }
+  if (!want) return;
+  {
+    std::lock_guard lk(mu_);
+    if (laser_wanted_ == want && !laser_dirty_) return;
+    laser_wanted_ = want;
+    laser_dirty_ = true;
+  }
+  {
+    std::lock_guard lk(stream_mu_);
+    if (stream_ && params_.threaded) stream_->interrupt();  // the I/O thread sends it now, not after its read
+  }
+  wake_.notify_all();
+}
+
+bus::Time LaserDriver::stamp_of(std::uint64_t end_byte, std::uint64_t chunk_end, bus::Time t_recv) const {
+  // The chunk's last byte arrived at t_recv; earlier ones one byte time apart.
+  const double baud = stream_ && stream_->baud() > 0 ? stream_->baud() : params_.baud;
+  const double byte_s = byte_time_s(baud);
+  const double behind = static_cast<double>(chunk_end - end_byte) * byte_s;
+  const double transmission = static_cast<double>(frame_bytes(mode_)) * byte_s;
+  return t_recv - bus::from_seconds(behind + transmission);
+}
+
+void LaserDriver::publish_set(const RawSet& set, std::uint64_t chunk_end, bus::Time t_recv) {
+  const bus::Time stamp = stamp_of(set.end_byte(), chunk_end, t_recv);
+  if (!first_stamp_) first_stamp_ = stamp;
+  processor_->process(set, (stamp - *first_stamp_).count() * 1e-9, scan_);
+  if (raw_pub_) raw_pub_->publish(to_raw_scan(set, stamp, params_.frame_id));
+  publish_scan(scan_, static_cast<std::uint32_t>(set.sequence), stamp,
+               static_cast<float>(set.temperature_decic() / 10.0));
+}
+
+void LaserDriver::publish_distance(const DistanceFrame& f, std::uint64_t chunk_end, bus::Time t_recv) {
+  const bus::Time stamp = stamp_of(f.end_byte, chunk_end, t_recv);
+  processor_->process_distance(f, params_.distance_unit_m, scan_);
+  publish_scan(scan_, static_cast<std::uint32_t>(f.sequence), stamp, std::numeric_limits<float>::quiet_NaN());
+}
+
+void LaserDriver::publish_scan(const ProcessedScan& scan, std::uint32_t index, bus::Time stamp, float temperature_c) {
+  if (prev_stamp_) scan_period_s_ = (stamp - *prev_stamp_).count() * 1e-9;
+  prev_stamp_ = stamp;
+  scan_pub_->publish(messages_->line(scan, index, stamp, temperature_c));
+  laser_scan_pub_->publish(messages_->laser(scan, stamp, scan_period_s_));
+  constexpr double kEffective = kPixels - 2 * kDarkPixels;
+  std::lock_guard lk(mu_);
+  ++status_.scans_published;
+  status_.last_scan_stamp = stamp;
+  status_.last_saturated_share = scan.saturated_share();
+  status_.last_valid_share = scan.valid / kEffective;
+  if (std::isfinite(temperature_c)) status_.last_temperature_c = temperature_c;
+}
+
+DriverStatus LaserDriver::status() const {
+  std::lock_guard lk(mu_);
+  return status_;
+}
+
+void LaserDriver::publish_diagnostics() {
+  using diagnostic_msgs::msg::DiagnosticStatus;
+  using diagnostic_msgs::msg::KeyValue;
+  const DriverStatus s = status();
+  const bus::Time now = this->now();
+  const double dt = diag_have_prev_ ? (now - diag_prev_time_).count() * 1e-9 : 0.0;
+  const DriverStatus& prev = diag_have_prev_ ? diag_prev_ : DriverStatus{};
+  auto per_s = [&](std::uint64_t a, std::uint64_t b) { return dt > 0 ? static_cast<double>(a - b) / dt : 0.0; };
+  const double rate = per_s(s.scans_published, prev.scans_published);
+  const double bytes_per_s = per_s(s.bytes, prev.bytes);
+  const double baud = params_.baud;
+  std::uint64_t period_drops = 0;
+  for (std::size_t r = 0; r < static_cast<std::size_t>(DropReason::kCount); ++r) {
+    if (static_cast<DropReason>(r) == DropReason::kGarbage) continue;
+    period_drops += s.parser.drops[r] - prev.parser.drops[r];
+  }
+  const double since_data_s = (now - s.last_receive).count() * 1e-9;
+
+  DiagnosticStatus st;
+  st.name = full_name() + ": tiny laser link";
+  st.hardware_id = opener_->hardware_id();
+  if (!s.connected) {
+    st.level = DiagnosticStatus::ERROR;
+    st.message = s.last_error_message.empty() ? "connecting" : "no device: " + s.last_error_message;
+  } else if (s.connects > 0 && (s.bytes == prev.bytes && dt > 0) && since_data_s > params_.stall_timeout_s) {
+    st.level = DiagnosticStatus::WARN;
+    st.message = fmt::format("connected, but no data for {:.1f} s", since_data_s);
+  } else if (period_drops > 0) {
+    st.level = DiagnosticStatus::WARN;
+    st.message = fmt::format("streaming, {} frames or sets dropped in the last {:.1f} s", period_drops, dt);
+  } else {
+    st.level = DiagnosticStatus::OK;
+    st.message = "streaming";
+  }
+  auto kv = [&](std::string k, std::string v) { st.values.push_back(KeyValue{std::move(k), std::move(v)}); };
+  kv("state", s.connected ? "connected" : "disconnected");
+  kv("port", opener_->describe());
+  kv("link", s.link);
+  kv("mode", std::string(to_string(mode_)));
+  kv("frame_rate_hz", fmt::format("{:.2f}", rate));
+  kv("bytes_per_s", fmt::format("{:.0f}", bytes_per_s));
+  kv("link_utilisation", fmt::format("{:.3f}", bytes_per_s * kBitsPerByte8N1 / baud));
+  kv("scans_published", std::to_string(s.scans_published));
+  kv("sets_complete", std::to_string(s.parser.sets));
+  for (std::size_t r = 0; r < static_cast<std::size_t>(DropReason::kCount); ++r) {
+    kv(drop_key(static_cast<DropReason>(r)), std::to_string(s.parser.drops[r]));
+  }
+  kv("frames_discarded", std::to_string(s.parser.frames_discarded));
+  kv("impossible_values", std::to_string(s.parser.impossible_values));
+  kv("saturated_share", fmt::format("{:.4f}", s.last_saturated_share));
+  kv("valid_share", fmt::format("{:.4f}", s.last_valid_share));
+  kv("temperature_c", fmt::format("{:.1f}", s.last_temperature_c));
+  kv("connects", std::to_string(s.connects));
+  kv("disconnects", std::to_string(s.disconnects));
+  kv("laser", s.laser_on ? (*s.laser_on ? "on" : "off") : "not commanded");
+  kv("commands_sent", std::to_string(s.commands_sent));
+  kv("last_error", s.last_error_message);
+
+  auto arr = std::make_unique<diagnostic_msgs::msg::DiagnosticArray>();
+  arr->header.stamp = now.to_msg();
+  arr->status.push_back(std::move(st));
+  diag_pub_->publish(std::move(arr));
+  diag_prev_ = s;
+  diag_prev_time_ = now;
+  diag_have_prev_ = true;
+}
+
+}  // namespace tinyline::tiny_laser_driver

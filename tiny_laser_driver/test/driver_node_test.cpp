@@ -1,0 +1,458 @@
+// The driver node against an in-memory device, stepped on a sim clock with
+// the deterministic executor (threaded: false): publishing, timestamps,
+// reconnect with backoff, no partial scan, laser commands, diagnostics, and
+// errors. One test runs the real I/O thread.
+#include <gtest/gtest.h>
+
+#include <stdlib.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+
+#include <tinyline/bus/context.hpp>
+#include <tinyline/bus/executor.hpp>
+
+#include <tiny_laser_driver/nodes/laser_driver.hpp>
+#include <tiny_laser_driver/nodes/register.hpp>
+
+namespace tl = tinyline::tiny_laser_driver;
+namespace bus = tinyline::bus;
+namespace io = tl::io;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using Bytes = std::vector<std::uint8_t>;
+using tinyline::diagnostic_msgs::msg::DiagnosticArray;
+using tinyline::sensor_msgs::msg::LaserScan;
+using tinyline::tinyline_msgs::msg::LaserCommand;
+using tinyline::tinyline_msgs::msg::LineScan;
+using tinyline::tinyline_msgs::msg::RawScan;
+
+namespace {
+
+constexpr std::uint16_t kPulses[5] = {20, 100, 200, 400, 700};
+constexpr double kByteS = 10.0 / 2'000'000;
+
+// A set whose effective pixels see k = b / (a + b) = 0.1 + 0.001 * p.
+Bytes make_set(int seed = 0) {
+  Bytes out;
+  for (int i = 0; i < 5; ++i) {
+    tl::RawFrame f;
+    f.index = static_cast<std::uint16_t>(i);
+    f.last = i == 4;
+    f.pulses = kPulses[i];
+    f.temperature_decic = 450;
+    for (std::size_t p = 0; p < tl::kPixels; ++p) {
+      const double k = 0.1 + 0.001 * static_cast<double>(p);
+      const double sum = 0.3 * kPulses[i] + 0.001 * seed;  // 210 charge units at 700 pulses
+      f.a[p] = static_cast<std::int16_t>(std::lround(10.0 * sum * (1.0 - k)));
+      f.b[p] = static_cast<std::int16_t>(std::lround(10.0 * sum * k));
+    }
+    tl::encode_raw_frame(f, out);
+  }
+  return out;
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    char tmpl[] = "/tmp/tinyline_driver_XXXXXX";
+    path = ::mkdtemp(tmpl);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+// A small fixture: a sim-clock context, a deterministic executor, an in-memory
+// device reachable as mem:NAME, the driver, and listeners on its topics.
+struct Rig {
+  TempDir tmp;
+  std::string calib;
+  std::shared_ptr<bus::CaptureSink> log = std::make_shared<bus::CaptureSink>();
+  std::shared_ptr<bus::Context> ctx;
+  std::unique_ptr<bus::DeterministicExecutor> ex;
+  std::shared_ptr<io::MemoryLink> link;
+  std::string link_name;
+  std::shared_ptr<tl::LaserDriver> driver;
+  std::shared_ptr<bus::Node> listener;
+  std::vector<std::shared_ptr<const RawScan>> raws;
+  std::vector<std::shared_ptr<const LineScan>> scans;
+  std::vector<std::shared_ptr<const LaserScan>> laser_scans;
+  std::vector<std::shared_ptr<const DiagnosticArray>> diags;
+  std::vector<bus::Time> scan_seen_at;  // sim time when each LineScan arrived
+  std::shared_ptr<bus::Subscription<RawScan>> s1;
+  std::shared_ptr<bus::Subscription<LineScan>> s2;
+  std::shared_ptr<bus::Subscription<LaserScan>> s3;
+  std::shared_ptr<bus::Subscription<DiagnosticArray>> s4;
+  std::shared_ptr<bus::Publisher<LaserCommand>> commands;
+
+  explicit Rig(std::vector<std::pair<std::string, bus::ParamValue>> extra = {}, bool start = true) {
+    calib = (tmp.path / "linear.yaml").string();
+    // distance_cm = 300 k: the expected distance of pixel p is 3 (0.1 + 0.001 p) m.
+    tl::CalibrationModel::from_public_driver({0, 0, 0, 0, 0, 300, 0}, {}, 450, 0).save(calib);
+    bus::ContextOptions co;
+    co.clock = bus::ClockType::Sim;
+    co.log_sink = log;
+    ctx = bus::Context::create(co);
+    ctx->clock().set_sim_time(bus::Time::from_seconds(100.0));
+    ex = std::make_unique<bus::DeterministicExecutor>(ctx->clock());
+    static int counter = 0;
+    link_name = "rig" + std::to_string(++counter);
+    link = io::MemoryLink::create(link_name);
+    io::register_memory_link(link_name, link);
+    bus::NodeOptions o;
+    o.context = ctx;
+    o.name = "laser";
+    o.param("port", "mem:" + link_name).param("calibration", calib).param("threaded", false);
+    for (auto& [k, v] : extra) o.param(k, v);
+    driver = std::make_shared<tl::LaserDriver>(o);
+    bus::NodeOptions lo;
+    lo.context = ctx;
+    lo.name = "listener";
+    listener = std::make_shared<bus::Node>(lo);
+    const auto q = bus::QoS::keep_last(1000);
+    s1 = listener->create_subscription<RawScan>("/raw", q, [this](const std::shared_ptr<const RawScan>& m) { raws.push_back(m); });
+    s2 = listener->create_subscription<LineScan>("/scan", q, [this](const std::shared_ptr<const LineScan>& m) {
+      scans.push_back(m);
+      scan_seen_at.push_back(ctx->clock().now());
+    });
+    s3 = listener->create_subscription<LaserScan>("/laser_scan", q,
+                                                  [this](const std::shared_ptr<const LaserScan>& m) { laser_scans.push_back(m); });
+    s4 = listener->create_subscription<DiagnosticArray>("/diagnostics", q,
+                                                        [this](const std::shared_ptr<const DiagnosticArray>& m) { diags.push_back(m); });
+    commands = listener->create_publisher<LaserCommand>("/laser_command");
+    ex->add_node(driver);
+    ex->add_node(listener);
+    if (start) ex->spin_until_idle();  // runs on_start
+  }
+  ~Rig() { io::unregister_memory_link(link_name); }
+
+  bus::Time now() const { return ctx->clock().now(); }
+  // Driver steps at the current sim time until the device's bytes are read, then deliver everything.
+  void step() {
+    for (int i = 0; i < 100; ++i) {
+      driver->pump(0ms);
+      if (link->queued() == 0) break;
+    }
+    ex->spin_until_idle();
+  }
+  // Moves sim time on by dt (firing timers), then steps.
+  void advance(double dt_s) {
+    ex->advance_to(now() + bus::from_seconds(dt_s));
+    step();
+  }
+  std::string diag_value(const std::string& key) const {
+    if (diags.empty() || diags.back()->status.empty()) return "";
+    for (const auto& kv : diags.back()->status[0].values) {
+      if (kv.key == key) return kv.value;
+    }
+    return "";
+  }
+};
+
+}  // namespace
+
+TEST(LaserDriverNode, PublishesRawLineAndLaserScans) {
+  Rig rig;
+  rig.step();  // connects
+  ASSERT_TRUE(rig.driver->status().connected);
+  Bytes stream;
+  for (int s = 0; s < 3; ++s) {
+    const Bytes set = make_set(s);
+    stream.insert(stream.end(), set.begin(), set.end());
+  }
+  rig.link->push(stream);
+  rig.step();
+  ASSERT_EQ(rig.scans.size(), 3u);
+  ASSERT_EQ(rig.raws.size(), 3u);
+  ASSERT_EQ(rig.laser_scans.size(), 3u);
+
+  const auto& raw = *rig.raws[0];
+  EXPECT_EQ(raw.header.frame_id, "laser");
+  EXPECT_EQ(raw.pixels, 272);
+  EXPECT_EQ(raw.pulses, (std::vector<std::uint16_t>{20, 100, 200, 400, 700}));
+  ASSERT_EQ(raw.a.size(), 5u * 272);
+  EXPECT_FLOAT_EQ(raw.temperature_c, 45.0f);
+  EXPECT_EQ(rig.raws[1]->set_index, 1u);
+
+  const auto& scan = *rig.scans[2];
+  ASSERT_EQ(scan.distance_m.size(), 272u);
+  for (std::size_t p = 8; p < 264; ++p) {
+    ASSERT_EQ(scan.status[p], LineScan::STATUS_VALID) << p;
+    EXPECT_NEAR(scan.distance_m[p], 3.0 * (0.1 + 0.001 * p), 2e-3) << p;  // 0.1 charge-unit rounding of the wire
+    EXPECT_EQ(scan.pulses[p], 700);
+  }
+  EXPECT_EQ(scan.status[0], LineScan::STATUS_DARK_PIXEL);
+  EXPECT_TRUE(std::isnan(scan.distance_m[0]));
+  EXPECT_EQ(scan.angles.size(), 272u);
+  EXPECT_LT(scan.angles[8], 0.0f);
+  EXPECT_GT(scan.angles[263], 0.0f);
+
+  const auto& ls = *rig.laser_scans[2];
+  EXPECT_EQ(ls.header.frame_id, "laser_scan");
+  EXPECT_EQ(ls.ranges.size(), 256u);
+  EXPECT_FLOAT_EQ(ls.angle_min, scan.angles[8]);
+  EXPECT_NEAR(ls.ranges[0], scan.distance_m[8], 1e-6);
+  EXPECT_NEAR(ls.ranges[255], scan.distance_m[263], 1e-6);
+}
+
+TEST(LaserDriverNode, StampsAreTheLastByteTimeMinusTheTransmissionTime) {
+  Rig rig;
+  rig.step();
+  Bytes stream = make_set(0);
+  const Bytes second = make_set(1);
+  stream.insert(stream.end(), second.begin(), second.end());
+  stream.resize(stream.size() + 100, 0x00);  // 100 bytes after the second set, in the same read
+  rig.link->push(stream);
+  const bus::Time t = rig.now();
+  rig.step();
+  ASSERT_EQ(rig.scans.size(), 2u);
+  // The read's last byte arrived at t; the second set's last byte 100 bytes earlier;
+  // its last frame started 1096 bytes before that.
+  const double expect2 = t.seconds() - (100 + 1096) * kByteS;
+  const double expect1 = expect2 - 5 * 1096 * kByteS;
+  EXPECT_NEAR(bus::Time::from_msg(rig.scans[1]->header.stamp).seconds(), expect2, 2e-9);
+  EXPECT_NEAR(bus::Time::from_msg(rig.scans[0]->header.stamp).seconds(), expect1, 2e-9);
+  EXPECT_EQ(rig.scans[0]->header.stamp, rig.raws[0]->header.stamp);
+
+  // A third set read 10 ms later: scan_time is the spacing of the stamps.
+  rig.ex->advance_to(t + 10ms);
+  rig.link->push(make_set(2));
+  rig.step();
+  ASSERT_EQ(rig.laser_scans.size(), 3u);
+  const double expect3 = t.seconds() + 0.010 - 1096 * kByteS;
+  EXPECT_NEAR(bus::Time::from_msg(rig.scans[2]->header.stamp).seconds(), expect3, 2e-9);
+  EXPECT_NEAR(rig.laser_scans[2]->scan_time, expect3 - expect2, 1e-6);
+}
+
+TEST(LaserDriverNode, DistanceModePublishesTheFirmwareDistances) {
+  Rig rig({{"mode", std::string("distance")}, {"distance_unit_m", 0.001}});
+  rig.step();
+  tl::DistanceFrame f;
+  for (std::size_t p = 0; p < tl::kPixels; ++p) f.distance[p] = static_cast<std::int16_t>(500 + p);
+  Bytes b;
+  tl::encode_distance_frame(f, b);
+  tl::encode_distance_frame(f, b);
+  rig.link->push(b);
+  rig.step();
+  ASSERT_EQ(rig.scans.size(), 2u);
+  EXPECT_TRUE(rig.raws.empty());
+  EXPECT_NEAR(rig.scans[0]->distance_m[100], 0.6, 1e-6);
+  EXPECT_EQ(rig.scans[0]->status[100], LineScan::STATUS_VALID);
+  EXPECT_EQ(rig.scans[1]->set_index, 1u);
+}
+
+TEST(LaserDriverNode, ReconnectsAfterAnUnplugWithinASecondAndNeverPublishesAPartialSet) {
+  Rig rig;
+  rig.step();
+  const Bytes set = make_set(0);
+  // Device streams; the host steps every 10 ms of sim time.
+  rig.link->push(set);
+  rig.step();
+  ASSERT_EQ(rig.scans.size(), 1u);
+  // Half a set, then the cable is pulled.
+  rig.link->push({set.data(), set.size() / 2});
+  rig.step();
+  rig.link->unplug();
+  rig.step();
+  auto st = rig.driver->status();
+  EXPECT_FALSE(st.connected);
+  EXPECT_EQ(st.disconnects, 1u);
+  EXPECT_EQ(st.last_error, io::IoError::kDisconnected);
+  EXPECT_EQ(st.parser.dropped(tl::DropReason::kIncompleteSet), 1u);  // the half set: counted, not published
+  EXPECT_EQ(rig.scans.size(), 1u);
+
+  // Three seconds without the device: the driver keeps retrying, backing off.
+  for (int i = 0; i < 300; ++i) rig.advance(0.01);
+  st = rig.driver->status();
+  EXPECT_EQ(st.last_error, io::IoError::kNotFound);
+  EXPECT_GE(st.open_failures, 5u);
+  EXPECT_LE(st.open_failures, 12u);  // 50, 100, 200, 400 ms, then every 500 ms: not a busy loop
+  EXPECT_TRUE(rig.log->contains(bus::LogLevel::Warn, "lost the sensor"));
+
+  // Replug. The device streams a set every 30 ms from then on (while someone listens).
+  rig.link->replug();
+  const bus::Time replugged = rig.now();
+  for (int i = 0; i < 150 && rig.scans.size() < 2; ++i) {
+    if (i % 3 == 0) rig.link->push(set);
+    rig.advance(0.01);
+  }
+  ASSERT_EQ(rig.scans.size(), 2u);
+  const double resumed_after_s = (rig.scan_seen_at.back() - replugged).count() * 1e-9;
+  EXPECT_LE(resumed_after_s, 1.0);
+  EXPECT_TRUE(rig.driver->status().connected);
+  EXPECT_EQ(rig.driver->status().connects, 2u);
+  // Every scan published is whole.
+  for (const auto& s : rig.scans) EXPECT_EQ(s->distance_m.size(), 272u);
+  for (const auto& r : rig.raws) EXPECT_EQ(r->a.size(), 5u * 272);
+}
+
+TEST(LaserDriverNode, SequenceModeFollowsTheSlotAndNameOrders) {
+  Rig rig({{"sequence_slot", std::int64_t{2}}, {"sensor_name", std::string("left")}});
+  rig.step();
+  EXPECT_EQ(rig.link->take_written(), tl::cmd_laser(false));  // off until its slot comes
+  auto order = [&](std::vector<std::uint16_t> slots, std::vector<std::string> names = {}, std::vector<bool> on = {}) {
+    auto m = std::make_unique<LaserCommand>();
+    m->active_slots = std::move(slots);
+    m->sensors = std::move(names);
+    m->laser_on = std::move(on);
+    rig.commands->publish(std::move(m));
+    rig.ex->spin_until_idle();
+    rig.step();
+  };
+  order({2});
+  EXPECT_EQ(rig.link->take_written(), tl::cmd_laser(true));
+  order({2, 5});
+  EXPECT_TRUE(rig.link->take_written().empty());  // no change, nothing sent
+  order({1});
+  EXPECT_EQ(rig.link->take_written(), tl::cmd_laser(false));
+  order({1}, {"left"}, {true});  // by name beats the slot rule
+  EXPECT_EQ(rig.link->take_written(), tl::cmd_laser(true));
+  order({}, {"right"}, {false});  // someone else's order; the slot rule says off
+  EXPECT_EQ(rig.link->take_written(), tl::cmd_laser(false));
+  order({2}, {"left"}, {});  // malformed: names without states, by-name part ignored
+  EXPECT_EQ(rig.link->take_written(), tl::cmd_laser(true));
+  EXPECT_TRUE(rig.log->contains(bus::LogLevel::Warn, "by-name orders are ignored"));
+  EXPECT_EQ(rig.driver->status().laser_on, true);
+
+  // After a replug the sensor has forgotten: the driver tells it again.
+  rig.link->unplug();
+  rig.step();
+  rig.link->replug();
+  rig.advance(0.2);
+  EXPECT_EQ(rig.link->take_written(), tl::cmd_laser(true));
+}
+
+TEST(LaserDriverNode, NotInSequenceModeItSendsNothing) {
+  Rig rig;
+  rig.step();
+  auto m = std::make_unique<LaserCommand>();
+  m->active_slots = {0, 1, 2};
+  rig.commands->publish(std::move(m));
+  rig.ex->spin_until_idle();
+  rig.step();
+  EXPECT_TRUE(rig.link->take_written().empty());
+}
+
+TEST(LaserDriverNode, DiagnosticsReportRateDropsAndTheLinkState) {
+  Rig rig;
+  rig.step();
+  rig.ex->advance_to(rig.now() + 1s);  // a first report to count from
+  Bytes good = make_set(0);
+  Bytes bad = make_set(1);
+  bad[1094] = 0;  // a wrong ender: its set is lost
+  for (int i = 0; i < 10; ++i) {
+    rig.link->push(i == 4 ? bad : good);
+    rig.step();
+    rig.ex->advance_to(rig.now() + 100ms);  // the last one reaches the next report
+  }
+  ASSERT_GE(rig.diags.size(), 2u);
+  const auto& st = rig.diags.back()->status.at(0);
+  EXPECT_EQ(st.level, tinyline::diagnostic_msgs::msg::DiagnosticStatus::WARN);
+  EXPECT_EQ(st.name, "/laser: tiny laser link");
+  EXPECT_EQ(st.hardware_id, "mem:" + rig.link_name);
+  EXPECT_EQ(rig.diag_value("drops_bad_ender"), "1");
+  EXPECT_EQ(rig.diag_value("drops_incomplete_set"), "1");
+  EXPECT_EQ(rig.diag_value("frame_rate_hz"), "9.00");
+  EXPECT_EQ(rig.diag_value("state"), "connected");
+  EXPECT_EQ(rig.diag_value("temperature_c"), "45.0");
+  EXPECT_EQ(rig.diag_value("saturated_share"), "0.0000");
+  // 10 sets of 5,480 bytes in a second at 2 Mbaud.
+  EXPECT_NEAR(std::stod(rig.diag_value("link_utilisation")), 10 * 5480 * 10 / 2e6, 1e-3);
+
+  rig.link->unplug();
+  rig.step();
+  rig.ex->advance_to(rig.now() + 1s);
+  const auto& down = rig.diags.back()->status.at(0);
+  EXPECT_EQ(down.level, tinyline::diagnostic_msgs::msg::DiagnosticStatus::ERROR);
+  EXPECT_NE(down.message.find("no device"), std::string::npos) << down.message;
+  EXPECT_EQ(rig.diag_value("state"), "disconnected");
+}
+
+TEST(LaserDriverNode, BadSettingsSayWhatIsWrong) {
+  bus::ContextOptions co;
+  co.clock = bus::ClockType::Sim;
+  co.log_sink = std::make_shared<bus::CaptureSink>();
+  auto ctx = bus::Context::create(co);
+  auto make = [&](std::vector<std::pair<std::string, bus::ParamValue>> params) {
+    bus::NodeOptions o;
+    o.context = ctx;
+    o.name = "laser";
+    for (auto& [k, v] : params) o.param(k, v);
+    return std::make_shared<tl::LaserDriver>(o);
+  };
+  try {
+    make({{"port", std::string("bogus:x")}});
+    FAIL() << "accepted an unknown port scheme";
+  } catch (const bus::ParamError& e) {
+    EXPECT_NE(std::string(e.what()).find("parameter 'port'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(make({{"mode", std::string("fast")}}), bus::ParamError);
+  EXPECT_THROW(make({{"focal_mm", 0.0}}), bus::ParamError);
+  EXPECT_THROW(make({{"reconnect_min_s", 2.0}, {"reconnect_max_s", 1.0}}), bus::ParamError);
+
+  auto missing = make({{"calibration", std::string("/no/such/calibration.yaml")}, {"threaded", false}});
+  try {
+    missing->on_start();
+    FAIL() << "started without its calibration";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/no/such/calibration.yaml"), std::string::npos) << e.what();
+  }
+  auto unknown = make({{"calibration", std::string("public:Q")}, {"threaded", false}});
+  EXPECT_THROW(unknown->on_start(), std::runtime_error);
+  auto known = make({{"calibration", std::string("public:K")}, {"threaded", false}});
+  EXPECT_NO_THROW(known->on_start());
+}
+
+TEST(LaserDriverNode, IsRegisteredForLaunchFiles) {
+  bus::NodeRegistry r;
+  tl::register_nodes(r);
+  ASSERT_NE(r.find("tiny_laser_driver", "laser_driver"), nullptr);
+}
+
+TEST(LaserDriverNode, TheIoThreadPublishesWhatTheDeviceSends) {
+  // Wall clock, a real executor thread and the driver's own I/O thread.
+  TempDir tmp;
+  const std::string calib = (tmp.path / "linear.yaml").string();
+  tl::CalibrationModel::from_public_driver({0, 0, 0, 0, 0, 300, 0}, {}, 450, 0).save(calib);
+  auto ctx = bus::Context::create({bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
+  auto link = io::MemoryLink::create("threaded");
+  io::register_memory_link("threaded", link);
+  bus::NodeOptions o;
+  o.context = ctx;
+  o.name = "laser";
+  o.param("port", std::string("mem:threaded")).param("calibration", calib);
+  auto driver = std::make_shared<tl::LaserDriver>(o);
+  bus::NodeOptions lo;
+  lo.context = ctx;
+  lo.name = "listener";
+  auto listener = std::make_shared<bus::Node>(lo);
+  std::mutex mu;
+  std::condition_variable cv;
+  std::size_t got = 0;
+  auto sub = listener->create_subscription<LineScan>("/scan", bus::QoS::keep_last(100), [&](const LineScan&) {
+    std::lock_guard lk(mu);
+    ++got;
+    cv.notify_all();
+  });
+  bus::SingleThreadedExecutor ex(ctx->clock());
+  ex.add_node(driver);
+  ex.add_node(listener);
+  std::thread spinner([&] { ex.spin(); });
+  // Wait (on a condition, not a sleep) until the I/O thread has the port open.
+  ASSERT_TRUE(link->wait_for_host(10s));
+  for (int i = 0; i < 5; ++i) link->push(make_set(i));
+  {
+    std::unique_lock lk(mu);
+    cv.wait_for(lk, 10s, [&] { return got >= 5; });
+  }
+  EXPECT_EQ(got, 5u);
+  ex.stop();
+  spinner.join();
+  driver->on_stop();
+  io::unregister_memory_link("threaded");
+}
