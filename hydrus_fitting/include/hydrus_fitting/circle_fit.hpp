@@ -1,0 +1,155 @@
+// Circle fitting on fused 2-D laser points (thesis 6.2.2, Eq. 6.7-6.8):
+//
+//   fit_circle_kasa      plain algebraic least squares (Kasa 1976): the
+//                        cheapest fit; its radius is biased low on short arcs.
+//   fit_circle_hyper     the Hyper fit (Al-Sharadqah & Chernov 2009): an
+//                        algebraic fit whose essential bias is zero.
+//   fit_circle_taubin    Taubin (1991), for comparison.
+//   refine_circle        geometric (orthogonal distance) Levenberg-Marquardt,
+//                        optionally weighted per point and with a known radius.
+//                        This is the maximum-likelihood fit under Gaussian
+//                        noise; it reaches the KCR bound to first order.
+//   fit_circle_robust    MSAC on minimal samples (3 points, or 2 with a known
+//                        radius), then Hyper + geometric refinement on the
+//                        consensus set, repeated while the set changes.
+//   kcr_bound            the KCR lower bound (Chernov & Lesort 2004) of the
+//                        covariance of (centre, radius) for given true points
+//                        and noise.
+//
+// Points are the columns of a 2 x n matrix [m]. Non-finite points take no
+// part (they are counted). Degenerate input (fewer than the minimum of points,
+// collinear points) is a result with a status and a reason, never an
+// exception.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace tinyline::hydrus_fitting {
+
+struct Circle {
+  Eigen::Vector2d centre_m = Eigen::Vector2d::Zero();
+  double radius_m = 0.0;
+};
+
+enum class FitStatus : std::uint8_t {
+  kOk = 0,
+  kTooFewPoints,      ///< fewer finite points than the fit needs
+  kCollinear,         ///< the points lie on a line (no finite circle)
+  kNoConsensus,       ///< robust fit: no hypothesis gathered enough inliers
+  kRadiusOutOfRange,  ///< the best circle's radius is outside [min, max]
+  kInvalidParams,     ///< a parameter is out of its range (reason names it)
+};
+[[nodiscard]] const char* to_string(FitStatus s);
+
+/// Result of every circle fit. Covariance rows/cols are (cx, cy, r); with a
+/// known radius the r row and column are zero.
+struct CircleFit {
+  FitStatus status = FitStatus::kTooFewPoints;
+  std::string reason;                 ///< why !ok(), empty when ok
+  Circle circle;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< [m^2]; zero for the algebraic fits
+  double rms_residual_m = 0.0;        ///< RMS orthogonal distance of the points used
+  int points_used = 0;                ///< finite points fitted (the consensus set for robust fits)
+  int non_finite = 0;                 ///< input points skipped for a NaN/inf coordinate
+  int iterations = 0;                 ///< LM iterations (refine) or hypotheses drawn (robust)
+  bool converged = false;             ///< LM met its tolerance (refine, robust)
+  std::vector<std::uint8_t> inlier_mask;  ///< robust fit: 1 per input point in the consensus set
+
+  [[nodiscard]] bool ok() const { return status == FitStatus::kOk; }
+};
+
+/// Kasa: minimises sum (x^2 + y^2 + D x + E y + F)^2. Biased (radius too
+/// small on short arcs); kept as the reference the benchmarks compare with.
+[[nodiscard]] CircleFit fit_circle_kasa(const Eigen::Ref<const Eigen::Matrix2Xd>& points);
+/// Hyper fit (Al-Sharadqah & Chernov 2009, "Error analysis for circle fitting
+/// algorithms", Eq. for the 'hyperaccurate' constraint matrix), SVD-free form.
+[[nodiscard]] CircleFit fit_circle_hyper(const Eigen::Ref<const Eigen::Matrix2Xd>& points);
+/// Taubin fit (Taubin 1991), Chernov's centred form.
+[[nodiscard]] CircleFit fit_circle_taubin(const Eigen::Ref<const Eigen::Matrix2Xd>& points);
+
+struct RefineParams {
+  int max_iterations = 50;
+  double step_tolerance_m = 1e-10;    ///< stop when the update is shorter than this
+  double initial_lambda = 1e-3;       ///< LM damping (Marquardt, scaled by diag(J^T W J))
+  /// Fix the radius to this value [m] (> 0), fitting only the centre.
+  std::optional<double> known_radius_m;
+  /// Covariance scale: true uses the residuals (sigma^2 = weighted RSS /
+  /// (n - p)); false uses the per-point sigmas as given (a-priori).
+  bool covariance_from_residuals = true;
+};
+
+/// Geometric fit from an initial circle. `sigma_m`, if not empty, is the
+/// noise SD of each point along the circle's normal [m] (weights 1/sigma^2);
+/// otherwise every point has weight 1. Needs >= 3 points (>= 2 with a known
+/// radius).
+[[nodiscard]] CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
+                                      const RefineParams& params = {}, std::span<const double> sigma_m = {});
+
+/// Hyper, then geometric refinement: the non-robust best fit.
+[[nodiscard]] CircleFit fit_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RefineParams& params = {},
+                                   std::span<const double> sigma_m = {});
+
+struct RobustCircleParams {
+  /// Orthogonal distance under which a point supports a circle [m]; about 3x
+  /// the range noise (Table 3.1: 0.4-1 cm SD at 0.2-1 m).
+  double inlier_threshold_m = 0.02;
+  /// Accepted radii [m]; hypotheses outside are skipped, a final fit outside
+  /// is kRadiusOutOfRange.
+  double min_radius_m = 0.01;
+  double max_radius_m = 2.0;
+  /// Fit only the centre for this radius [m] (2-point minimal samples).
+  std::optional<double> known_radius_m;
+  int max_iterations = 1000;          ///< hypotheses at most
+  double confidence = 0.999;          ///< adaptive stop: P(an all-inlier sample was drawn)
+  int min_inliers = 5;                ///< a consensus set smaller than this is kNoConsensus
+  int local_optimisation_rounds = 3;  ///< Hyper + LM on the set, re-select, at most this often
+  /// After each local-optimisation fit the consensus set is
+  /// re-selected with the tighter of inlier_threshold_m and this many robust
+  /// SDs of its own residuals (1.4826 MAD, per-point sigmas normalised out),
+  /// so clutter just inside a generous threshold cannot hold the fit (three
+  /// extra rounds allowed for it). 0 disables.
+  double final_threshold_sigmas = 3.0;
+  std::uint64_t seed = 1;             ///< sampling is deterministic for a seed
+  RefineParams refine;                ///< known_radius_m here is ignored: set it above
+};
+
+/// Where each point was seen from (optional): a hypothesis is only supported
+/// by points that face their sensor (the surface normal points towards the
+/// viewpoint), and is rejected when a viewpoint lies inside it. This removes
+/// circles through points a sensor could not have seen (the far side of the
+/// object, points on the robot behind the sensor).
+struct Viewpoints {
+  std::span<const Eigen::Vector2d> origins_m;  ///< per sensor
+  std::span<const int> sensor_of_point;        ///< per point: index into origins_m
+};
+
+/// MSAC + local optimisation. `sigma_m` as in refine_circle (per point).
+[[nodiscard]] CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points,
+                                          const RobustCircleParams& params = {}, std::span<const double> sigma_m = {},
+                                          const Viewpoints& viewpoints = {});
+
+/// Result of kcr_bound: the covariance (cx, cy, r) no unbiased estimator can
+/// beat to first order in the noise (Chernov & Lesort 2004): sigma^2
+/// (sum_i g_i g_i^T / sigma_i^2)^-1 with g_i = d(|p_i - c| - r)/d(cx, cy, r) at
+/// the true circle. With a known radius, the 2 x 2 centre block (r terms zero).
+struct KcrBound {
+  bool ok = false;
+  std::string reason;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< [m^2]
+};
+/// `true_points` lie on `truth`; `sigma_m` is one SD for all points (size 1)
+/// or one per point, along the normal [m].
+[[nodiscard]] KcrBound kcr_bound(const Eigen::Ref<const Eigen::Matrix2Xd>& true_points, const Circle& truth,
+                                 std::span<const double> sigma_m, bool known_radius = false);
+
+/// Circle through three points; nullopt when they are (nearly) collinear.
+[[nodiscard]] std::optional<Circle> circle_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                                                   const Eigen::Vector2d& c);
+
+}  // namespace tinyline::hydrus_fitting

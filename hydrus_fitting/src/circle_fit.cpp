@@ -1,0 +1,704 @@
+#include "hydrus_fitting/circle_fit.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <fmt/format.h>
+
+#include "hydrus_fitting/detail/random.hpp"
+
+namespace tinyline::hydrus_fitting {
+
+const char* to_string(FitStatus s) {
+  switch (s) {
+    case FitStatus::kOk: return "ok";
+    case FitStatus::kTooFewPoints: return "too_few_points";
+    case FitStatus::kCollinear: return "collinear";
+    case FitStatus::kNoConsensus: return "no_consensus";
+    case FitStatus::kRadiusOutOfRange: return "radius_out_of_range";
+    case FitStatus::kInvalidParams: return "invalid_params";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// Beyond this radius, in units of the points' RMS spread, a circle is a line
+// for every practical purpose (and the algebraic solution is rounding noise).
+constexpr double kLineRadiusRatio = 1e8;
+// Points whose scatter has a smallest/largest eigenvalue ratio below this are
+// a line: the eigenvalues carry ~1e-16 relative rounding, so anything much
+// smaller cannot be told from zero (a 1 m line with 1 um of wiggle is a line).
+constexpr double kCollinearPlanarity = 1e-12;
+
+CircleFit failed(FitStatus s, std::string reason, int non_finite = 0) {
+  CircleFit f;
+  f.status = s;
+  f.reason = std::move(reason);
+  f.non_finite = non_finite;
+  return f;
+}
+
+bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
+
+/// The finite points, centred on their mean and scaled to unit RMS distance,
+/// so the algebraic fits' moment matrices are well conditioned.
+struct Normalised {
+  Eigen::Matrix2Xd q;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  double scale = 1.0;  // q = (p - mean) / scale
+  int non_finite = 0;
+};
+
+Normalised normalise(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
+  Normalised n;
+  n.q.resize(2, points.cols());
+  Eigen::Index k = 0;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    if (finite(points.col(i))) {
+      n.q.col(k++) = points.col(i);
+    } else {
+      ++n.non_finite;
+    }
+  }
+  n.q.conservativeResize(2, k);
+  if (k == 0) return n;
+  n.mean = n.q.rowwise().mean();
+  n.q.colwise() -= n.mean;
+  const double ms = n.q.squaredNorm() / static_cast<double>(k);
+  n.scale = ms > 0.0 ? std::sqrt(ms) : 1.0;
+  n.q /= n.scale;
+  return n;
+}
+
+/// Smallest over largest eigenvalue of the (normalised) scatter matrix: 0 for
+/// points on a line, 1 for an isotropic spread.
+double planarity(const Eigen::Matrix2Xd& q) {
+  const Eigen::Matrix2d s = q * q.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(s, Eigen::EigenvaluesOnly);
+  const double hi = es.eigenvalues()(1);
+  return hi > 0.0 ? es.eigenvalues()(0) / hi : 0.0;
+}
+
+double rms_distance(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& c) {
+  double s = 0.0;
+  int n = 0;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    if (!finite(points.col(i))) continue;
+    const double d = (points.col(i) - c.centre_m).norm() - c.radius_m;
+    s += d * d;
+    ++n;
+  }
+  return n > 0 ? std::sqrt(s / n) : 0.0;
+}
+
+/// Circle from the algebraic parameters A (A0 z + A1 x + A2 y + A3 = 0) in
+/// normalised coordinates, mapped back. Fails on a line (A0 ~ 0).
+CircleFit from_algebraic(const Eigen::Vector4d& A, const Normalised& n, const Eigen::Ref<const Eigen::Matrix2Xd>& points,
+                         const char* method) {
+  const double disc = A(1) * A(1) + A(2) * A(2) - 4.0 * A(0) * A(3);
+  const double r_norm = std::sqrt(std::max(disc, 0.0)) / (2.0 * std::abs(A(0)));
+  if (!std::isfinite(r_norm) || r_norm > kLineRadiusRatio || disc <= 0.0) {
+    return failed(FitStatus::kCollinear,
+                  fmt::format("{} fit: the {} points are collinear (no finite circle fits them)", method, n.q.cols()),
+                  n.non_finite);
+  }
+  CircleFit f;
+  f.status = FitStatus::kOk;
+  f.circle.centre_m = n.mean + n.scale * Eigen::Vector2d(-A(1) / (2.0 * A(0)), -A(2) / (2.0 * A(0)));
+  f.circle.radius_m = n.scale * r_norm;
+  f.points_used = static_cast<int>(n.q.cols());
+  f.non_finite = n.non_finite;
+  f.rms_residual_m = rms_distance(points, f.circle);
+  return f;
+}
+
+/// Common checks of the algebraic fits: enough finite points, not all on a line.
+std::optional<CircleFit> check_algebraic_input(const Normalised& n, const char* method) {
+  const auto k = n.q.cols();
+  if (k < 3) {
+    return failed(FitStatus::kTooFewPoints,
+                  fmt::format("{} fit needs at least 3 finite points, got {}{}", method, k,
+                              n.non_finite ? fmt::format(" ({} non-finite skipped)", n.non_finite) : ""),
+                  n.non_finite);
+  }
+  if (planarity(n.q) < kCollinearPlanarity) {
+    return failed(FitStatus::kCollinear, fmt::format("{} fit: the {} points are collinear", method, k), n.non_finite);
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+CircleFit fit_circle_kasa(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
+  const Normalised n = normalise(points);
+  if (auto bad = check_algebraic_input(n, "Kasa")) return *bad;
+  // min sum (z + D x + E y + F)^2: normal equations of [x y 1] against -z.
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (Eigen::Index i = 0; i < n.q.cols(); ++i) {
+    const Eigen::Vector3d u(n.q(0, i), n.q(1, i), 1.0);
+    M.noalias() += u * u.transpose();
+    rhs -= u * n.q.col(i).squaredNorm();
+  }
+  const Eigen::Vector3d x = M.ldlt().solve(rhs);
+  return from_algebraic(Eigen::Vector4d(1.0, x(0), x(1), x(2)), n, points, "Kasa");
+}
+
+CircleFit fit_circle_hyper(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
+  const Normalised n = normalise(points);
+  if (auto bad = check_algebraic_input(n, "Hyper")) return *bad;
+  // Moments of Z = [z x y 1] (data centred, so mean x = mean y = 0).
+  Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+  double zbar = 0.0;
+  for (Eigen::Index i = 0; i < n.q.cols(); ++i) {
+    const double z = n.q.col(i).squaredNorm();
+    const Eigen::Vector4d u(z, n.q(0, i), n.q(1, i), 1.0);
+    M.noalias() += u * u.transpose();
+    zbar += z;
+  }
+  const double k = static_cast<double>(n.q.cols());
+  M /= k;
+  zbar /= k;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es(M);
+  const Eigen::Vector4d lam = es.eigenvalues().cwiseMax(0.0);
+  Eigen::Vector4d A;
+  if (lam(0) <= 1e-14 * lam(3)) {
+    // Points on a circle to rounding precision: the null vector is the fit.
+    A = es.eigenvectors().col(0);
+  } else {
+    // Hyper constraint matrix (Al-Sharadqah & Chernov 2009) for centred data.
+    Eigen::Matrix4d N = Eigen::Matrix4d::Zero();
+    N(0, 0) = 8.0 * zbar;
+    N(0, 3) = N(3, 0) = 2.0;
+    N(1, 1) = N(2, 2) = 1.0;
+    // M A = eta N A  <=>  W N^-1 W C = eta C with W = M^(1/2), C = W A; the
+    // smallest positive eta (N has one negative eigenvalue) is the second.
+    const Eigen::Matrix4d V = es.eigenvectors();
+    const Eigen::Matrix4d W = V * lam.cwiseSqrt().asDiagonal() * V.transpose();
+    const Eigen::Matrix4d Winv = V * lam.cwiseSqrt().cwiseInverse().asDiagonal() * V.transpose();
+    Eigen::Matrix4d Ninv = Eigen::Matrix4d::Zero();
+    Ninv(0, 3) = Ninv(3, 0) = 0.5;
+    Ninv(1, 1) = Ninv(2, 2) = 1.0;
+    Ninv(3, 3) = -2.0 * zbar;  // inverse of [[8z, 2], [2, 0]] is [[0, 1/2], [1/2, -2z]]
+    const Eigen::Matrix4d S = W * Ninv * W;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> gs(0.5 * (S + S.transpose()));
+    A = Winv * gs.eigenvectors().col(1);
+  }
+  return from_algebraic(A, n, points, "Hyper");
+}
+
+CircleFit fit_circle_taubin(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
+  const Normalised n = normalise(points);
+  if (auto bad = check_algebraic_input(n, "Taubin")) return *bad;
+  const double k = static_cast<double>(n.q.cols());
+  double zmean = n.q.squaredNorm() / k;  // 1 after normalisation, kept general
+  const double s = 2.0 * std::sqrt(zmean);
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+  for (Eigen::Index i = 0; i < n.q.cols(); ++i) {
+    const Eigen::Vector3d u((n.q.col(i).squaredNorm() - zmean) / s, n.q(0, i), n.q(1, i));
+    M.noalias() += u * u.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(M);
+  const Eigen::Vector3d a = es.eigenvectors().col(0);
+  const double a0 = a(0) / s;
+  return from_algebraic(Eigen::Vector4d(a0, a(1), a(2), -zmean * a0), n, points, "Taubin");
+}
+
+CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
+                        const RefineParams& params, std::span<const double> sigma_m) {
+  const bool known = params.known_radius_m.has_value();
+  if (known && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m))) {
+    return failed(FitStatus::kInvalidParams,
+                  fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
+  }
+  if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols())) {
+    return failed(FitStatus::kInvalidParams, fmt::format("sigma_m has {} entries for {} points", sigma_m.size(),
+                                                         points.cols()));
+  }
+  if (params.max_iterations < 1) {
+    return failed(FitStatus::kInvalidParams, fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
+  }
+  const int p = known ? 2 : 3;
+  // Finite points with a finite, positive sigma.
+  std::vector<Eigen::Index> idx;
+  idx.reserve(static_cast<std::size_t>(points.cols()));
+  int non_finite = 0;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    const bool ok_sigma = sigma_m.empty() || (std::isfinite(sigma_m[static_cast<std::size_t>(i)]) &&
+                                              sigma_m[static_cast<std::size_t>(i)] > 0.0);
+    if (finite(points.col(i)) && ok_sigma) {
+      idx.push_back(i);
+    } else {
+      ++non_finite;
+    }
+  }
+  const int n = static_cast<int>(idx.size());
+  if (n < p) {
+    return failed(FitStatus::kTooFewPoints,
+                  fmt::format("geometric fit needs at least {} finite points, got {}", p, n), non_finite);
+  }
+  if (!finite(initial.centre_m) || !std::isfinite(initial.radius_m)) {
+    return failed(FitStatus::kInvalidParams, "initial circle is not finite", non_finite);
+  }
+  auto weight = [&](Eigen::Index i) {
+    if (sigma_m.empty()) return 1.0;
+    const double s = sigma_m[static_cast<std::size_t>(i)];
+    return 1.0 / (s * s);
+  };
+
+  Eigen::Vector3d theta(initial.centre_m.x(), initial.centre_m.y(), known ? *params.known_radius_m : initial.radius_m);
+  // Cost, gradient system (J^T W J, J^T W d) at theta.
+  auto evaluate = [&](const Eigen::Vector3d& t, Eigen::Matrix3d* H, Eigen::Vector3d* g) {
+    double cost = 0.0;
+    if (H) H->setZero();
+    if (g) g->setZero();
+    for (const Eigen::Index i : idx) {
+      const Eigen::Vector2d dv = points.col(i) - t.head<2>();
+      const double rho = dv.norm();
+      const double d = rho - t(2);
+      const double w = weight(i);
+      cost += w * d * d;
+      if (H) {
+        const Eigen::Vector2d u = rho > 0.0 ? Eigen::Vector2d(dv / rho) : Eigen::Vector2d::Zero();
+        const Eigen::Vector3d j(-u.x(), -u.y(), -1.0);
+        H->noalias() += w * j * j.transpose();
+        *g += w * d * j;
+      }
+    }
+    return cost;
+  };
+
+  Eigen::Matrix3d H;
+  Eigen::Vector3d g;
+  double cost = evaluate(theta, &H, &g);
+  double lambda = params.initial_lambda;
+  bool converged = false;
+  int it = 0;
+  for (; it < params.max_iterations && !converged; ++it) {
+    // Try steps with growing damping until one lowers the cost.
+    bool accepted = false;
+    for (int tries = 0; tries < 20 && !accepted; ++tries) {
+      Eigen::Matrix3d A = H;
+      for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(H(k, k), 1e-12);
+      Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+      if (known) {
+        delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-g.head<2>());
+      } else {
+        delta = A.ldlt().solve(-g);
+      }
+      if (!delta.allFinite()) {
+        lambda *= 10.0;
+        continue;
+      }
+      const Eigen::Vector3d cand = theta + delta;
+      const double c = (cand(2) > 0.0) ? evaluate(cand, nullptr, nullptr) : std::numeric_limits<double>::infinity();
+      if (c <= cost) {
+        theta = cand;
+        const double old = cost;
+        cost = evaluate(theta, &H, &g);
+        lambda = std::max(lambda * 0.1, 1e-12);
+        accepted = true;
+        if (delta.norm() < params.step_tolerance_m || old - c <= 1e-15 * old) converged = true;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!accepted) {
+      converged = true;  // no descent direction left: at a minimum to rounding
+    }
+  }
+
+  CircleFit f;
+  f.status = FitStatus::kOk;
+  f.circle.centre_m = theta.head<2>();
+  f.circle.radius_m = theta(2);
+  f.points_used = n;
+  f.non_finite = non_finite;
+  f.iterations = it;
+  f.converged = converged;
+  double rss = 0.0;
+  for (const Eigen::Index i : idx) {
+    const double d = (points.col(i) - f.circle.centre_m).norm() - f.circle.radius_m;
+    rss += d * d;
+  }
+  f.rms_residual_m = std::sqrt(rss / n);
+  // Covariance: (J^T W J)^-1, scaled by the weighted residual variance when asked.
+  const bool use_residuals = params.covariance_from_residuals || sigma_m.empty();
+  const double dof = static_cast<double>(n - p);
+  const double s2 = use_residuals ? (dof > 0 ? cost / dof : 0.0) : 1.0;
+  if (known) {
+    const Eigen::Matrix2d Hc = H.topLeftCorner<2, 2>();
+    Eigen::FullPivLU<Eigen::Matrix2d> lu(Hc);
+    if (lu.isInvertible()) f.covariance.topLeftCorner<2, 2>() = s2 * lu.inverse();
+  } else {
+    Eigen::FullPivLU<Eigen::Matrix3d> lu(H);
+    if (lu.isInvertible()) f.covariance = s2 * lu.inverse();
+  }
+  return f;
+}
+
+CircleFit fit_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RefineParams& params,
+                     std::span<const double> sigma_m) {
+  CircleFit init = fit_circle_hyper(points);
+  if (!init.ok()) {
+    if (params.known_radius_m && init.status == FitStatus::kCollinear) {
+      // A known radius still fixes a circle through collinear points (two
+      // mirror solutions); the algebraic start cannot, so say so plainly.
+      init.reason += " (a known radius does not resolve which side the centre is on)";
+    }
+    return init;
+  }
+  CircleFit f = refine_circle(points, init.circle, params, sigma_m);
+  return f;
+}
+
+// ---------------------------------------------------------------------------- robust
+
+std::optional<Circle> circle_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  const Eigen::Vector2d ab = b - a, ac = c - a;
+  const double d = 2.0 * (ab.x() * ac.y() - ab.y() * ac.x());
+  // d / 2 = |ab| |ac| sin(angle at a): below a sine of 1e-9 the points are
+  // collinear to rounding (or two coincide) and the centre is meaningless.
+  if (!(std::abs(d) > 2e-9 * ab.norm() * ac.norm())) return std::nullopt;
+  const double ab2 = ab.squaredNorm(), ac2 = ac.squaredNorm();
+  const Eigen::Vector2d o((ac.y() * ab2 - ab.y() * ac2) / d, (ab.x() * ac2 - ac.x() * ab2) / d);
+  Circle circle{a + o, o.norm()};
+  if (!std::isfinite(circle.radius_m)) return std::nullopt;
+  return circle;
+}
+
+namespace {
+
+struct Consensus {
+  double score = std::numeric_limits<double>::infinity();
+  int inliers = 0;
+};
+
+}  // namespace
+
+CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RobustCircleParams& params,
+                            std::span<const double> sigma_m, const Viewpoints& viewpoints) {
+  // ---- parameters and input
+  const bool known = params.known_radius_m.has_value();
+  auto invalid = [](std::string r) { return failed(FitStatus::kInvalidParams, std::move(r)); };
+  if (!(params.inlier_threshold_m > 0.0) || !std::isfinite(params.inlier_threshold_m))
+    return invalid(fmt::format("inlier_threshold_m must be > 0, got {}", params.inlier_threshold_m));
+  if (!(params.min_radius_m >= 0.0) || !(params.max_radius_m > params.min_radius_m))
+    return invalid(fmt::format("need 0 <= min_radius_m < max_radius_m, got [{}, {}]", params.min_radius_m,
+                               params.max_radius_m));
+  if (known && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
+    return invalid(fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
+  if (params.max_iterations < 1) return invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
+  if (!(params.confidence > 0.0 && params.confidence < 1.0))
+    return invalid(fmt::format("confidence must be in (0, 1), got {}", params.confidence));
+  if (params.min_inliers < (known ? 2 : 3))
+    return invalid(fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
+  if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols()))
+    return invalid(fmt::format("sigma_m has {} entries for {} points", sigma_m.size(), points.cols()));
+  const bool use_views = !viewpoints.origins_m.empty();
+  if (use_views) {
+    if (viewpoints.sensor_of_point.size() != static_cast<std::size_t>(points.cols()))
+      return invalid(fmt::format("viewpoints.sensor_of_point has {} entries for {} points",
+                                 viewpoints.sensor_of_point.size(), points.cols()));
+    for (const int s : viewpoints.sensor_of_point)
+      if (s < 0 || static_cast<std::size_t>(s) >= viewpoints.origins_m.size())
+        return invalid(fmt::format("viewpoints.sensor_of_point holds {} but there are {} origins", s,
+                                   viewpoints.origins_m.size()));
+  }
+
+  std::vector<int> idx;  // finite points
+  idx.reserve(static_cast<std::size_t>(points.cols()));
+  int non_finite = 0;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    if (finite(points.col(i))) {
+      idx.push_back(static_cast<int>(i));
+    } else {
+      ++non_finite;
+    }
+  }
+  const int n = static_cast<int>(idx.size());
+  const int s = known ? 2 : 3;  // minimal sample
+  if (n < std::max(s, params.min_inliers)) {
+    return failed(FitStatus::kTooFewPoints,
+                  fmt::format("robust circle fit needs at least {} finite points, got {}{}",
+                              std::max(s, params.min_inliers), n,
+                              non_finite ? fmt::format(" ({} non-finite skipped)", non_finite) : ""),
+                  non_finite);
+  }
+  {
+    Eigen::Matrix2Xd q(2, n);
+    for (int k = 0; k < n; ++k) q.col(k) = points.col(idx[static_cast<std::size_t>(k)]);
+    q.colwise() -= q.rowwise().mean();
+    if (planarity(q) < kCollinearPlanarity && !known) {
+      return failed(FitStatus::kCollinear, fmt::format("the {} points are collinear", n), non_finite);
+    }
+  }
+
+  const double T = params.inlier_threshold_m;
+  const double T2 = T * T;
+  const Eigen::Vector2d* vp = use_views ? viewpoints.origins_m.data() : nullptr;
+
+  // A point supports circle c when it is within T of it and, with viewpoints,
+  // faces its sensor (outward normal towards the viewpoint).
+  auto supports = [&](int i, const Circle& c, double* d2out) {
+    const Eigen::Vector2d p = points.col(i);
+    const Eigen::Vector2d dv = p - c.centre_m;
+    const double d = dv.norm() - c.radius_m;
+    *d2out = d * d;
+    if (d * d > T2) return false;
+    if (vp) {
+      const Eigen::Vector2d& o = vp[viewpoints.sensor_of_point[static_cast<std::size_t>(i)]];
+      if (dv.dot(o - p) <= 0.0) return false;
+    }
+    return true;
+  };
+  auto viewpoints_outside = [&](const Circle& c) {
+    if (!vp) return true;
+    for (const auto& o : viewpoints.origins_m)
+      if ((o - c.centre_m).norm() < c.radius_m) return false;
+    return true;
+  };
+  // MSAC cost with early exit once above `bound`.
+  auto score = [&](const Circle& c, double bound) {
+    Consensus r;
+    double sc = 0.0;
+    for (const int i : idx) {
+      double d2;
+      if (supports(i, c, &d2)) {
+        sc += d2;
+        ++r.inliers;
+      } else {
+        sc += T2;
+      }
+      if (sc > bound) return Consensus{};
+    }
+    r.score = sc;
+    return r;
+  };
+
+  detail::SplitMix64 rng(params.seed);
+  Circle best{};
+  Consensus best_c;
+  int drawn = 0, valid = 0, out_of_range = 0;
+  long long needed = params.max_iterations;
+  const double log1mconf = std::log(1.0 - params.confidence);
+
+  auto consider = [&](const Circle& c) {
+    if (c.radius_m < params.min_radius_m || c.radius_m > params.max_radius_m) {
+      ++out_of_range;
+      return;
+    }
+    if (!viewpoints_outside(c)) return;
+    ++valid;
+    const Consensus r = score(c, best_c.score);
+    if (r.score < best_c.score) {
+      best_c = r;
+      best = c;
+      const double eps = static_cast<double>(r.inliers) / n;
+      const double pin = std::pow(eps, s);
+      if (pin >= 1.0) {
+        needed = 0;
+      } else if (pin > 0.0) {
+        needed = std::min<long long>(params.max_iterations, static_cast<long long>(std::ceil(log1mconf / std::log1p(-pin))));
+      }
+    }
+  };
+
+  while (drawn < needed && drawn < params.max_iterations) {
+    ++drawn;
+    const int a = idx[rng.below(static_cast<std::uint64_t>(n))];
+    int b = idx[rng.below(static_cast<std::uint64_t>(n))];
+    if (b == a) continue;
+    if (known) {
+      // Two centres at distance R from both points (mirror images).
+      const Eigen::Vector2d pa = points.col(a), pb = points.col(b);
+      const double R = *params.known_radius_m;
+      const double half = 0.5 * (pb - pa).norm();
+      if (half > R || half == 0.0) continue;
+      const Eigen::Vector2d mid = 0.5 * (pa + pb);
+      const Eigen::Vector2d perp = Eigen::Vector2d(-(pb - pa).y(), (pb - pa).x()) / (2.0 * half);
+      const double h = std::sqrt(R * R - half * half);
+      consider(Circle{mid + h * perp, R});
+      consider(Circle{mid - h * perp, R});
+    } else {
+      const int c = idx[rng.below(static_cast<std::uint64_t>(n))];
+      if (c == a || c == b) continue;
+      const auto circ = circle_through(points.col(a), points.col(b), points.col(c));
+      if (!circ) continue;
+      consider(*circ);
+    }
+  }
+
+  if (best_c.inliers == 0) {
+    if (valid == 0 && out_of_range > 0) {
+      return failed(FitStatus::kRadiusOutOfRange,
+                    fmt::format("all {} circles through samples of the {} points had radii outside [{}, {}] m "
+                                "(a straight or too curved surface)",
+                                out_of_range, n, params.min_radius_m, params.max_radius_m),
+                    non_finite);
+    }
+    return failed(FitStatus::kNoConsensus,
+                  fmt::format("no circle hypothesis from {} samples of {} points was supported", drawn, n), non_finite);
+  }
+
+  // ---- local optimisation: fit the consensus set, re-select, repeat. The
+  // first selection uses inlier_threshold_m; later ones also the set's own
+  // residual scale (final_threshold_sigmas), so clutter just inside a
+  // generous threshold (worst: a point on the unobserved side of a short arc,
+  // which has high leverage) cannot hold the fit.
+  std::vector<std::uint8_t> mask(static_cast<std::size_t>(points.cols()), 0);
+  auto sig = [&](int i) { return sigma_m.empty() ? 1.0 : sigma_m[static_cast<std::size_t>(i)]; };
+  auto select = [&](const Circle& c, double scaled_limit) {
+    std::fill(mask.begin(), mask.end(), 0);
+    int k = 0;
+    for (const int i : idx) {
+      double d2;
+      if (!supports(i, c, &d2)) continue;
+      if (scaled_limit > 0.0 && std::sqrt(d2) > scaled_limit * sig(i)) continue;
+      mask[static_cast<std::size_t>(i)] = 1;
+      ++k;
+    }
+    return k;
+  };
+  // Robust scale of the normalised residuals of the current set, times the factor.
+  auto adaptive_limit = [&](const Circle& c) {
+    if (!(params.final_threshold_sigmas > 0.0)) return 0.0;
+    std::vector<double> e;
+    for (const int i : idx) {
+      if (!mask[static_cast<std::size_t>(i)]) continue;
+      e.push_back(std::abs((points.col(i) - c.centre_m).norm() - c.radius_m) / sig(i));
+    }
+    if (e.size() < static_cast<std::size_t>(2 * s)) return 0.0;
+    std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
+    return params.final_threshold_sigmas * 1.4826 * e[e.size() / 2];
+  };
+  RefineParams rp = params.refine;
+  rp.known_radius_m = params.known_radius_m;
+  Eigen::Matrix2Xd inl;
+  std::vector<double> inl_sigma;
+  auto gather = [&]() {
+    const auto k = std::count(mask.begin(), mask.end(), 1);
+    inl.resize(2, k);
+    inl_sigma.clear();
+    Eigen::Index j = 0;
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      if (!mask[static_cast<std::size_t>(i)]) continue;
+      inl.col(j++) = points.col(i);
+      if (!sigma_m.empty()) inl_sigma.push_back(sigma_m[static_cast<std::size_t>(i)]);
+    }
+  };
+
+  Circle current = best;
+  int count = select(current, 0.0);
+  CircleFit fit;
+  bool have_fit = false;
+  const int rounds = std::max(1, params.local_optimisation_rounds) + (params.final_threshold_sigmas > 0.0 ? 3 : 0);
+  for (int round = 0; round < rounds; ++round) {
+    gather();
+    CircleFit f;
+    if (known || have_fit) {
+      // Continue from the current circle (the algebraic fit cannot hold a
+      // known radius, and after the first round the start is already good).
+      f = refine_circle(inl, current, rp, inl_sigma);
+    } else {
+      const CircleFit h = fit_circle_hyper(inl);
+      f = refine_circle(inl, h.ok() ? h.circle : current, rp, inl_sigma);
+    }
+    if (!f.ok()) break;
+    const std::vector<std::uint8_t> before = mask;
+    const int before_count = count;
+    const double limit = adaptive_limit(f.circle);
+    const int k = select(f.circle, limit);
+    if (limit == 0.0 && k < before_count && have_fit) {
+      mask = before;  // the refit lost support: keep the previous set and fit
+      count = before_count;
+      break;
+    }
+    fit = std::move(f);
+    have_fit = true;
+    current = fit.circle;
+    count = k;
+    if (mask == before) break;
+  }
+  if (!have_fit) {
+    // The consensus set could not be refined (e.g. it is collinear): report
+    // the hypothesis itself.
+    fit = CircleFit{};
+    fit.status = FitStatus::kOk;
+    fit.circle = current;
+    count = select(current, 0.0);
+  } else if (count != fit.points_used) {
+    // The last selection differs from the set fitted last: fit it once more.
+    gather();
+    CircleFit f = refine_circle(inl, fit.circle, rp, inl_sigma);
+    if (f.ok()) fit = std::move(f);
+  }
+  fit.iterations = drawn;
+  fit.non_finite = non_finite;
+  fit.inlier_mask = mask;
+  fit.points_used = count;
+  if (count < params.min_inliers) {
+    fit.status = FitStatus::kNoConsensus;
+    fit.reason = fmt::format("best circle has {} inliers of {} points, fewer than min_inliers = {}", count, n,
+                             params.min_inliers);
+    return fit;
+  }
+  if (fit.circle.radius_m < params.min_radius_m || fit.circle.radius_m > params.max_radius_m) {
+    fit.status = FitStatus::kRadiusOutOfRange;
+    fit.reason = fmt::format("fitted radius {:.4f} m is outside [{}, {}] m", fit.circle.radius_m, params.min_radius_m,
+                             params.max_radius_m);
+    return fit;
+  }
+  return fit;
+}
+
+// ---------------------------------------------------------------------------- KCR
+
+KcrBound kcr_bound(const Eigen::Ref<const Eigen::Matrix2Xd>& true_points, const Circle& truth,
+                   std::span<const double> sigma_m, bool known_radius) {
+  KcrBound b;
+  const auto n = true_points.cols();
+  if (sigma_m.size() != 1 && sigma_m.size() != static_cast<std::size_t>(n)) {
+    b.reason = fmt::format("sigma_m needs 1 or {} entries, got {}", n, sigma_m.size());
+    return b;
+  }
+  Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double s = sigma_m.size() == 1 ? sigma_m[0] : sigma_m[static_cast<std::size_t>(i)];
+    if (!(s > 0.0) || !std::isfinite(s) || !finite(true_points.col(i))) {
+      b.reason = fmt::format("point {} has a non-finite coordinate or sigma {}", i, s);
+      return b;
+    }
+    const Eigen::Vector2d dv = true_points.col(i) - truth.centre_m;
+    const double rho = dv.norm();
+    if (rho == 0.0) {
+      b.reason = fmt::format("point {} is at the centre", i);
+      return b;
+    }
+    const Eigen::Vector3d g(-dv.x() / rho, -dv.y() / rho, -1.0);
+    W.noalias() += g * g.transpose() / (s * s);
+  }
+  if (known_radius) {
+    Eigen::FullPivLU<Eigen::Matrix2d> lu(W.topLeftCorner<2, 2>());
+    if (!lu.isInvertible()) {
+      b.reason = "information matrix is singular (fewer than 2 distinct directions)";
+      return b;
+    }
+    b.covariance.topLeftCorner<2, 2>() = lu.inverse();
+  } else {
+    Eigen::FullPivLU<Eigen::Matrix3d> lu(W);
+    if (!lu.isInvertible() || n < 3) {
+      b.reason = "information matrix is singular (fewer than 3 distinct directions)";
+      return b;
+    }
+    b.covariance = lu.inverse();
+  }
+  b.ok = true;
+  return b;
+}
+
+}  // namespace tinyline::hydrus_fitting

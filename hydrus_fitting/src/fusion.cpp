@@ -1,0 +1,173 @@
+#include "hydrus_fitting/fusion.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+
+namespace tinyline::hydrus_fitting {
+
+double RangeNoiseModel::sd_at(double range_m) const {
+  if (range_sd_m.empty()) return 0.0;
+  if (range_m <= range_sd_m.front().first) return range_sd_m.front().second;
+  if (range_m >= range_sd_m.back().first) return range_sd_m.back().second;
+  const auto hi = std::upper_bound(range_sd_m.begin(), range_sd_m.end(), range_m,
+                                   [](double r, const std::pair<double, double>& e) { return r < e.first; });
+  const auto lo = std::prev(hi);
+  const double w = (range_m - lo->first) / (hi->first - lo->first);
+  return (1.0 - w) * lo->second + w * hi->second;
+}
+
+const char* to_string(ScanStatus s) {
+  switch (s) {
+    case ScanStatus::kOk: return "ok";
+    case ScanStatus::kUnknownSensor: return "unknown_sensor";
+    case ScanStatus::kJointState: return "joint_state";
+    case ScanStatus::kBadScan: return "bad_scan";
+  }
+  return "unknown";
+}
+
+namespace {
+
+/// A link's footprint as a test in its own frame: x in [-m, L + m], |y| <= w/2 + m.
+struct Footprint {
+  Eigen::Isometry2d T_link_base;
+  double x_max, half_width;
+};
+
+std::vector<Footprint> footprints(const RobotModel& model, const Kinematics& k, double margin_m) {
+  std::vector<Footprint> f;
+  f.reserve(model.links().size());
+  for (std::size_t i = 0; i < model.links().size(); ++i) {
+    const auto& l = model.links()[i];
+    f.push_back({k.T_base_link[i].inverse(), l.length_m + margin_m, 0.5 * l.width_m + margin_m});
+  }
+  return f;
+}
+
+bool inside(const std::vector<Footprint>& fs, const Eigen::Vector2d& p, double margin_m) {
+  for (const auto& f : fs) {
+    const Eigen::Vector2d q = f.T_link_base * p;
+    if (q.x() >= -margin_m && q.x() <= f.x_max && std::abs(q.y()) <= f.half_width) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+bool on_robot(const RobotModel& model, const Kinematics& k, const Eigen::Vector2d& p, double margin_m) {
+  return inside(footprints(model, k, margin_m), p, margin_m);
+}
+
+ScanFuser::ScanFuser(const RobotModel& model, FusionParams params) : model_(&model), params_(std::move(params)) {
+  if (!(params_.self_filter_margin_m >= 0.0))
+    throw std::invalid_argument(fmt::format("fusion: self_filter_margin_m must be >= 0, got {}",
+                                            params_.self_filter_margin_m));
+}
+
+void ScanFuser::clear() {
+  cloud_.xy_m.clear();
+  cloud_.sigma_m.clear();
+  cloud_.range_m.clear();
+  cloud_.view_of_point.clear();
+  cloud_.views.clear();
+  cloud_.view_sensor.clear();
+  cloud_.view_stamp_ns.clear();
+  cloud_.self_filtered = 0;
+}
+
+ScanOutcome ScanFuser::add(const ScanView& scan, const JointStateBuffer& joints) {
+  ScanOutcome out;
+  const auto sensor = model_->sensor_index(scan.sensor);
+  if (!sensor) {
+    out.status = ScanStatus::kUnknownSensor;
+    std::string known;
+    for (const auto& s : model_->sensors()) known += (known.empty() ? "" : ", ") + s.name;
+    out.reason = fmt::format("sensor '{}' is not in the robot description '{}' (it has: {})", scan.sensor,
+                             model_->name(), known);
+    return out;
+  }
+  if (joints.joint_names() != model_->joint_names()) {
+    out.status = ScanStatus::kJointState;
+    out.reason = "joint buffer was made for other joints than the robot model's";
+    return out;
+  }
+  const JointLookup q = joints.at(scan.stamp_ns);
+  if (!q.ok()) {
+    out.status = ScanStatus::kJointState;
+    out.joints = q.status;
+    out.sensor = *sensor;
+    out.reason = q.reason;
+    return out;
+  }
+  return add_resolved(scan, *sensor, q.positions);
+}
+
+ScanOutcome ScanFuser::add(const ScanView& scan, std::span<const double> joint_positions) {
+  ScanOutcome out;
+  const auto sensor = model_->sensor_index(scan.sensor);
+  if (!sensor) {
+    out.status = ScanStatus::kUnknownSensor;
+    out.reason = fmt::format("sensor '{}' is not in the robot description '{}'", scan.sensor, model_->name());
+    return out;
+  }
+  if (joint_positions.size() != model_->joint_names().size()) {
+    out.status = ScanStatus::kJointState;
+    out.reason = fmt::format("{} joint positions for {} joints", joint_positions.size(), model_->joint_names().size());
+    return out;
+  }
+  return add_resolved(scan, *sensor, joint_positions);
+}
+
+ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<const double> q) {
+  ScanOutcome out;
+  out.sensor = sensor;
+  if (scan.angle_rad.size() != scan.range_m.size()) {
+    out.status = ScanStatus::kBadScan;
+    out.reason = fmt::format("scan of '{}' has {} angles but {} ranges", scan.sensor, scan.angle_rad.size(),
+                             scan.range_m.size());
+    return out;
+  }
+  const Kinematics k = model_->forward(q);
+  const SensorSpec& spec = model_->sensors()[static_cast<std::size_t>(sensor)];
+  const Eigen::Isometry2d& T = k.T_base_sensor[static_cast<std::size_t>(sensor)];
+  const double margin = params_.self_filter_margin_m;
+  const auto fps = params_.self_filter ? footprints(*model_, k, margin) : std::vector<Footprint>{};
+  const int view = static_cast<int>(cloud_.views.size());
+  const Eigen::Matrix2d R = T.linear();
+  const Eigen::Vector2d t = T.translation();
+  const double side = spec.line_axis_left ? 1.0 : -1.0;
+
+  cloud_.xy_m.reserve(cloud_.xy_m.size() + 2 * scan.range_m.size());
+  for (std::size_t i = 0; i < scan.range_m.size(); ++i) {
+    const double r = scan.range_m[i];
+    const double a = scan.angle_rad[i];
+    if (!std::isfinite(r) || !(r > 0.0) || !std::isfinite(a)) {
+      ++out.invalid;
+      continue;
+    }
+    if (r < spec.min_range_m || r > spec.max_range_m) {
+      ++out.out_of_range;
+      continue;
+    }
+    const Eigen::Vector2d p = t + R * Eigen::Vector2d(r * std::cos(a), side * r * std::sin(a));
+    if (!fps.empty() && inside(fps, p, margin)) {
+      ++out.self_filtered;
+      continue;
+    }
+    cloud_.xy_m.push_back(p.x());
+    cloud_.xy_m.push_back(p.y());
+    cloud_.sigma_m.push_back(params_.noise.sd_at(r));
+    cloud_.range_m.push_back(r);
+    cloud_.view_of_point.push_back(view);
+    ++out.added;
+  }
+  cloud_.views.push_back(t);
+  cloud_.view_sensor.push_back(sensor);
+  cloud_.view_stamp_ns.push_back(scan.stamp_ns);
+  cloud_.self_filtered += out.self_filtered;
+  return out;
+}
+
+}  // namespace tinyline::hydrus_fitting
