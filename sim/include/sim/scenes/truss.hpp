@@ -1,0 +1,154 @@
+// Tomato trusses (thesis 4.3, 4.5, Figure 4.8): 1 to 8 tomatoes hanging from
+// pedicels off a peduncle, settled in static equilibrium under gravity and
+// contact, with leaves and stems, in the three complexity classes of 4.5:
+//   A  simple:  1-2 tomatoes, no occlusion
+//   B  normal:  3-4 tomatoes, slight occlusion
+//   C  complex: 5-8 tomatoes, densely gathered and occluded
+//
+// Physics (what the reasoning of 4.3.3 inverts). Each tomato is a rigid
+// sphere of density `density_kg_m3` hanging from its anchor on the peduncle
+// by a pedicel of fixed length that joins the fruit at the calyx, so the
+// centre lies on the pedicel line at pedicel_length + radius from the anchor
+// (a pendulum with 2 degrees of freedom). The pedicel resists bending at the
+// anchor with a torsion spring towards a rest direction (real pedicels are
+// stiff near the knuckle, so a lone tomato does not hang plumb). Tomatoes
+// push each other and the peduncle through frictionless contacts (forces
+// along the line of centres). The rest state minimises
+//   sum_i m_i g z_i + 1/2 k_i angle(d_i, rest_i)^2
+// subject to no interpenetration; it is found by a constrained relaxation
+// (projected gradient steps on the pendulum directions with stiff contact
+// penalties, continued until every tomato's net torque vanishes), and the
+// contact forces at the rest state are the ground truth of Eq. 4.18-4.22.
+//
+// World frame: z up. The truss hangs in front of a hand camera that looks
+// along +y from about 0.45 m (thesis hand-camera range 0.35-0.6 m).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include <sim/scene.hpp>
+#include <sim/world.hpp>
+
+namespace tinyline::sim {
+
+enum class TrussClass : char { kA = 'A', kB = 'B', kC = 'C' };
+
+/// "A", "B" or "C" (case-insensitive) to the class; nullopt otherwise.
+[[nodiscard]] std::optional<TrussClass> parse_truss_class(std::string_view s);
+
+struct TrussParams {
+  TrussClass complexity = TrussClass::kB;
+  int num_tomatoes = 0;                 ///< 0: drawn from the class (A 1-2, B 3-4, C 5-8); else 1..8
+  std::uint64_t seed = 1;
+  std::string name = "truss";           ///< object name prefix
+  Eigen::Vector3d origin_m{0, 0, 1.2};  ///< where the peduncle leaves the main stem [m]
+  double radius_min_m = 0.025;          ///< tomato radius range [m]
+  double radius_max_m = 0.040;
+  double pedicel_length_min_m = 0.012;  ///< anchor to calyx [m]
+  double pedicel_length_max_m = 0.035;
+  double pedicel_radius_m = 0.003;      ///< 6 mm pedicels (measured.yaml tomato.pedicel_diameter_m)
+  double peduncle_radius_m = 0.0045;
+  double density_kg_m3 = 1000.0;        ///< tomato flesh
+  /// Pedicel bending stiffness as a share of the tomato's gravity torque
+  /// m g (pedicel + radius) at one radian: drawn per tomato in this range.
+  double stiffness_ratio_min = 0.08;
+  double stiffness_ratio_max = 0.45;
+  double rest_tilt_max_deg = 55.0;      ///< rest direction of a pedicel: up to this from straight down
+  /// Leaves: -1 picks from the class (A: none in front; B: 1-2 partly in
+  /// front; C: 2-4 in front), else this many in front of the truss.
+  int front_leaves = -1;
+  bool background_leaves = true;        ///< leaves and a stem behind the truss
+  bool distractor_truss = true;         ///< B and C: another truss further back (a second branch)
+  bool room = true;                     ///< floor and a back wall
+  double camera_distance_m = 0.45;      ///< camera to the truss centre [m]
+  double camera_jitter_m = 0.03;        ///< random lateral / vertical offset of the camera [m]
+  double camera_yaw_jitter_deg = 10.0;
+
+  [[nodiscard]] std::string validate() const;
+};
+
+struct TrussTomato {
+  Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
+  double radius_m = 0.0;
+  double mass_kg = 0.0;
+  Eigen::Vector3d anchor_m = Eigen::Vector3d::Zero();  ///< where the pedicel leaves the peduncle
+  Eigen::Vector3d calyx_m = Eigen::Vector3d::Zero();   ///< where it enters the fruit
+  /// Unit direction from the centre along the pedicel (towards the anchor):
+  /// the "pedicel direction" the reasoning estimates.
+  Eigen::Vector3d pedicel_dir = Eigen::Vector3d::UnitZ();
+  /// Force of the pedicel on the fruit at rest [N] (balances gravity and
+  /// contacts, Eq. 4.22). Not parallel to pedicel_dir when the pedicel bends.
+  Eigen::Vector3d pedicel_force_n = Eigen::Vector3d::Zero();
+  std::string object_name;  ///< its sphere in the world
+};
+
+enum class ContactKind : int {
+  kFruit = 0,     ///< fruit i touches fruit j (an edge of the graph of Eq. 4.17)
+  kPeduncle = 1,  ///< fruit i rests on the peduncle (j = -1)
+  kPedicel = 2,   ///< fruit i touches the pedicel of fruit j
+};
+
+struct TrussContact {
+  int i = -1, j = -1;  ///< tomato indices (j = -1: the peduncle)
+  ContactKind kind = ContactKind::kFruit;
+  double force_n = 0.0;  ///< normal force magnitude at rest [N]
+};
+
+struct RelaxationReport {
+  bool converged = false;
+  int iterations = 0;
+  double max_torque_residual = 0.0;  ///< largest net torque / (m g l) left at rest [1]
+  double max_penetration_m = 0.0;    ///< deepest overlap left at rest [m]
+  int restarts = 0;                  ///< re-draws of a layout that could not settle
+};
+
+struct Truss {
+  TrussParams params;
+  std::vector<TrussTomato> tomatoes;
+  std::vector<TrussContact> contacts;
+  RelaxationReport relaxation;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();  ///< suggested hand-camera pose
+  std::vector<Eigen::Vector3d> peduncle_m;  ///< peduncle polyline
+  std::vector<Material> materials;          ///< per-tomato colours (added by add_to_world)
+};
+
+/// Builds and settles a truss. Throws std::invalid_argument on bad parameters.
+[[nodiscard]] Truss make_truss(const TrussParams& params);
+
+/// Adds the truss's materials and objects (fruit, pedicels, sepals,
+/// peduncle, main stem, leaves, the second branch, the room) to the world.
+/// Returns the tomatoes of the second branch (empty when there is none).
+std::vector<TrussTomato> add_to_world(const Truss& truss, World& world);
+
+/// Ground truth as scene.truth entries (flattened vectors), read back by
+/// truss_truth_from_scene():
+///   truss_tomato_centres_m [3n], truss_tomato_radii_m [n], truss_pedicel_dirs [3n],
+///   truss_pedicel_anchors_m [3n], truss_pedicel_forces_n [3n],
+///   truss_contacts [4m: i, j, kind (ContactKind), force],
+///   truss_camera_pose [7: x y z qx qy qz qw], truss_class [1: 0 A, 1 B, 2 C], truss_seed [1],
+///   truss_distractor_centres_m [3k] (the second branch's fruit; may be empty)
+void write_truth(const Truss& truss, Scene& scene, const std::vector<TrussTomato>& distractors = {});
+
+struct TrussTruth {
+  TrussClass complexity = TrussClass::kB;
+  std::uint64_t seed = 0;
+  std::vector<TrussTomato> tomatoes;  ///< object_name and mass are not stored
+  std::vector<TrussContact> contacts;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Vector3d> distractor_centres_m;
+};
+
+/// The truth a truss generator wrote into a scene; throws std::runtime_error
+/// naming the missing or malformed entry.
+[[nodiscard]] TrussTruth truss_truth_from_scene(const Scene& scene);
+
+/// A scene holding one truss (room, leaves, truth), as the `truss`
+/// generator makes it from YAML.
+[[nodiscard]] Scene make_truss_scene(const TrussParams& params);
+
+}  // namespace tinyline::sim
