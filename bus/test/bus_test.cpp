@@ -572,3 +572,33 @@ TEST(Bus, ManyPublishersManyNodesManyThreadsLoseNothingReliable) {
   EXPECT_EQ(failures.load(), 0);
   for (auto& c : counts) EXPECT_EQ(c.load(), kPublishers * kEach);
 }
+
+TEST(Graph, ReportsEndpointChangesAfterTheEndpointExistsAndWhenItsNodeGoesAway) {
+  auto ctx = sim_context();
+  std::vector<std::string> seen;
+  std::vector<std::size_t> pubs_at_call;
+  const int id = ctx->graph().on_endpoints_changed([&](const std::string& topic) {
+    seen.push_back(topic);
+    // The listener sees the endpoint already in place (a bridge reads the graph here).
+    auto t = ctx->graph().find(topic);
+    pubs_at_call.push_back(t ? t->publisher_count() : 99);
+  });
+  {
+    auto n = make_node(ctx, "talker");
+    auto pub = n->create_publisher<StringMsg>("chatter");
+    ASSERT_EQ(seen, std::vector<std::string>{"/chatter"});
+    EXPECT_EQ(pubs_at_call.back(), 1u);
+    auto sub = n->create_subscription<StringMsg>("other", QoS::keep_last(1), [](const StringMsg&) {});
+    EXPECT_EQ(seen.back(), "/other");
+    EXPECT_EQ(ctx->graph().find("/other")->subscription_count(), 1u);
+    seen.clear();
+  }
+  // The node went away: both its topics are reported once each.
+  std::sort(seen.begin(), seen.end());
+  EXPECT_EQ(seen, (std::vector<std::string>{"/chatter", "/other"}));
+  ctx->graph().remove_on_endpoints_changed(id);
+  seen.clear();
+  auto n2 = make_node(ctx, "late");
+  auto p2 = n2->create_publisher<StringMsg>("chatter");
+  EXPECT_TRUE(seen.empty());
+}
