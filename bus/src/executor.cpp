@@ -365,9 +365,12 @@ void Executor::worker_loop() {
 }
 
 void Executor::spin() {
-  stop_.store(false);
+  // A stop() that comes before spin() gets going ends this spin at once (a
+  // thread started to spin may begin after its owner already asked it to
+  // stop); the request is consumed on the way out, so a later spin() runs.
   start_pending_nodes();
   worker_loop();
+  stop_.store(false);
 }
 
 std::size_t Executor::spin_some() {
@@ -383,12 +386,12 @@ std::size_t Executor::spin_some() {
 }
 
 void MultiThreadedExecutor::spin() {
-  stop_.store(false);
   start_pending_nodes();
   std::vector<std::thread> workers;
   for (int i = 1; i < options_.threads; ++i) workers.emplace_back([this] { worker_loop(); });
   worker_loop();
   for (auto& w : workers) w.join();
+  stop_.store(false);  // see Executor::spin()
 }
 
 // ---------------------------------------------------------------------------- DeterministicExecutor

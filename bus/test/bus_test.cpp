@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <future>
 #include <thread>
 
 #include <tinyline/bus/executor.hpp>
@@ -601,4 +602,25 @@ TEST(Graph, ReportsEndpointChangesAfterTheEndpointExistsAndWhenItsNodeGoesAway) 
   auto n2 = make_node(ctx, "late");
   auto p2 = n2->create_publisher<StringMsg>("chatter");
   EXPECT_TRUE(seen.empty());
+}
+
+TEST(Executor, AStopThatComesBeforeTheSpinningThreadStartsIsNotLost) {
+  // The usual shape: start a thread that spins, decide to stop at once. The
+  // spinning thread may only begin after stop() was called.
+  auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
+  for (int threads : {1, 3}) {
+    SCOPED_TRACE(threads);
+    bus::MultiThreadedExecutor ex(ctx->clock(), threads);
+    ex.stop();
+    auto done = std::async(std::launch::async, [&] { ex.spin(); });
+    const bool returned = done.wait_for(5s) == std::future_status::ready;
+    if (!returned) ex.stop();  // free the thread so the test can fail instead of hanging
+    done.wait();
+    EXPECT_TRUE(returned) << "spin() ignored a stop() made before it started";
+    // The request was consumed: the executor can spin again.
+    auto again = std::async(std::launch::async, [&] { ex.spin(); });
+    EXPECT_EQ(again.wait_for(50ms), std::future_status::timeout);
+    ex.stop();
+    again.wait();
+  }
 }

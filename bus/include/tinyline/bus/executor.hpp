@@ -182,7 +182,8 @@ class Executor {
   void add_node(const std::shared_ptr<Node>& node);
   void remove_node(const std::shared_ptr<Node>& node);
 
-  /// Blocks running callbacks until stop() (from any thread or a signal-safe flag).
+  /// Blocks running callbacks until stop() (from any thread or a signal-safe
+  /// flag). A stop() made before spin() starts ends that spin at once.
   virtual void spin();
   /// Runs what is ready now (and due timers), then returns.
   std::size_t spin_some();
