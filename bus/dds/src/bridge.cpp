@@ -26,9 +26,18 @@ constexpr std::size_t kOutQueueMin = 256;  // messages (shared pointers) between
 
 std::atomic<std::uint32_t> g_next_origin{0xdd500001u};
 
-/// What the DDS writer offers: the strongest of the local publishers, so it
-/// matches every reader a local publisher would serve.
-EndpointQos writer_qos(const std::vector<bus::QoS>& pubs) {
+bool same(const EndpointQos& a, const EndpointQos& b) {
+  return a.reliable == b.reliable && a.transient_local == b.transient_local && a.keep_all == b.keep_all &&
+         a.depth == b.depth;
+}
+
+/// Logs the first failure of a kind and then every 100th, so a broken peer
+/// cannot flood the log.
+bool worth_logging(std::uint64_t count) { return count == 1 || count % 100 == 0; }
+
+}  // namespace
+
+EndpointQos offered_qos(const std::vector<bus::QoS>& pubs) {
   EndpointQos e;
   e.reliable = false;
   e.depth = 1;
@@ -43,11 +52,7 @@ EndpointQos writer_qos(const std::vector<bus::QoS>& pubs) {
   return e;
 }
 
-/// What the DDS reader requests: reliability and durability only if every
-/// local subscriber needs them (a stronger request would refuse writers that
-/// some local subscriber would have been served by), the deepest history,
-/// keep-all (end-to-end back-pressure) if any subscriber is reliable-queued.
-EndpointQos reader_qos(const std::vector<bus::QoS>& subs) {
+EndpointQos requested_qos(const std::vector<bus::QoS>& subs) {
   EndpointQos e;
   e.reliable = true;
   e.transient_local = true;
@@ -61,16 +66,16 @@ EndpointQos reader_qos(const std::vector<bus::QoS>& subs) {
   return e;
 }
 
-bool same(const EndpointQos& a, const EndpointQos& b) {
-  return a.reliable == b.reliable && a.transient_local == b.transient_local && a.keep_all == b.keep_all &&
-         a.depth == b.depth;
+std::string incompatibility(const EndpointQos& offered, const EndpointQos& requested) {
+  // Request-offered: a reader gets nothing from a writer that offers less.
+  std::string why;
+  if (requested.reliable && !offered.reliable) why = "the publishers are best effort, the subscribers require reliable";
+  if (requested.transient_local && !offered.transient_local) {
+    why += std::string(why.empty() ? "" : "; ") +
+           "the subscribers require transient local (latched), the publishers are volatile";
+  }
+  return why;
 }
-
-/// Logs the first failure of a kind and then every 100th, so a broken peer
-/// cannot flood the log.
-bool worth_logging(std::uint64_t count) { return count == 1 || count % 100 == 0; }
-
-}  // namespace
 
 struct Bridge::Link {
   Bridge* bridge = nullptr;
@@ -102,7 +107,7 @@ namespace {
 // the listener before dds_create_* returns; sync_topic calls this again).
 template <bool kWriter>
 void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_count, const bus::Logger& log,
-                  std::mutex& mu, std::condition_variable& cv, std::uint64_t& events) {
+                  bool departures_expected, std::mutex& mu, std::condition_variable& cv, std::uint64_t& events) {
   std::vector<dds_instance_handle_t> hs(256);
   const dds_return_t n = kWriter ? dds_get_matched_subscriptions(entity, hs.data(), hs.size())
                                  : dds_get_matched_publications(entity, hs.data(), hs.size());
@@ -147,7 +152,11 @@ void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_cou
   const char* what = kWriter ? "subscriber" : "publisher";
   for (const auto& j : joined) log.info("{}: remote {} in {} connected", l.name, what, j);
   for (const auto& g : left) {
-    log.warn("{}: lost the remote {} in {}; {} remote {}(s) left", l.name, what, g, now_count, what);
+    if (departures_expected) {
+      log.info("{}: the remote {} in {} left; {} remote {}(s) left", l.name, what, g, now_count, what);
+    } else {
+      log.warn("{}: lost the remote {} in {}; {} remote {}(s) left", l.name, what, g, now_count, what);
+    }
   }
   {
     std::lock_guard lk(mu);
@@ -163,13 +172,13 @@ void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_cou
 struct BridgeAccess {
   static void publication_matched(dds_entity_t w, const dds_publication_matched_status_t st, void* arg) {
     auto* l = static_cast<Bridge::Link*>(arg);
-    update_peers<true>(*l, w, st.current_count, l->bridge->logger(), l->bridge->match_mu_, l->bridge->matched_cv_,
-                       l->bridge->match_events_);
+    update_peers<true>(*l, w, st.current_count, l->bridge->logger(), l->bridge->departures_expected_.load(),
+                       l->bridge->match_mu_, l->bridge->matched_cv_, l->bridge->match_events_);
   }
   static void subscription_matched(dds_entity_t r, const dds_subscription_matched_status_t st, void* arg) {
     auto* l = static_cast<Bridge::Link*>(arg);
-    update_peers<false>(*l, r, st.current_count, l->bridge->logger(), l->bridge->match_mu_,
-                        l->bridge->matched_cv_, l->bridge->match_events_);
+    update_peers<false>(*l, r, st.current_count, l->bridge->logger(), l->bridge->departures_expected_.load(),
+                        l->bridge->match_mu_, l->bridge->matched_cv_, l->bridge->match_events_);
   }
   static void refresh_writer(Bridge::Link& l, dds_entity_t w) {
     dds_publication_matched_status_t st{};
@@ -235,6 +244,7 @@ Bridge::~Bridge() {
 }
 
 void Bridge::on_stop() {
+  departures_expected_.store(true);
   {
     std::lock_guard lk(mu_);
     if (stopped_) return;
@@ -308,7 +318,7 @@ void Bridge::sync_topic(const std::string& name) {
   Link& L = *l;
 
   // Writer: exists while the process publishes the topic.
-  const EndpointQos wq = writer_qos(pubs);
+  const EndpointQos wq = offered_qos(pubs);
   if (L.writer.load() != 0 && (pubs.empty() || !same(wq, L.wq))) {
     dds_delete(L.writer.exchange(0));
     L.remote_readers.store(0);
@@ -349,7 +359,7 @@ void Bridge::sync_topic(const std::string& name) {
   }
 
   // Reader: exists while the process subscribes to the topic.
-  const EndpointQos rq = reader_qos(subs);
+  const EndpointQos rq = requested_qos(subs);
   if (L.reader.load() != 0 && (subs.empty() || !same(rq, L.rq))) {
     dds_waitset_detach(waitset_, L.read_cond);
     dds_delete(L.reader.exchange(0));  // deletes its read condition too

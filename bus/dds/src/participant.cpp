@@ -432,4 +432,29 @@ std::vector<DiscoveredEndpoint> Discovery::settle(std::chrono::milliseconds sett
   return last;
 }
 
+std::vector<DiscoveredEndpoint> Discovery::wait_for(
+    const std::function<bool(const std::vector<DiscoveredEndpoint>&)>& pred, std::chrono::milliseconds timeout) const {
+  using SC = std::chrono::steady_clock;
+  const auto deadline = SC::now() + timeout;
+  const dds_entity_t ws = dds_create_waitset(self_);
+  const dds_entity_t c1 = dds_create_readcondition(publications_, DDS_NOT_READ_SAMPLE_STATE);
+  const dds_entity_t c2 = dds_create_readcondition(subscriptions_, DDS_NOT_READ_SAMPLE_STATE);
+  dds_waitset_attach(ws, c1, 0);
+  dds_waitset_attach(ws, c2, 0);
+  auto snap = snapshot();
+  while (!pred(snap)) {
+    const auto left = deadline - SC::now();
+    if (left <= SC::duration::zero()) break;
+    // Bounded so endpoints that vanish (no new sample to trigger on) are noticed.
+    dds_waitset_wait(ws, nullptr, 0,
+                     std::min<std::int64_t>(DDS_MSECS(200),
+                                            std::chrono::duration_cast<std::chrono::nanoseconds>(left).count()));
+    snap = snapshot();
+  }
+  dds_delete(c1);
+  dds_delete(c2);
+  dds_delete(ws);
+  return snap;
+}
+
 }  // namespace tinyline::dds

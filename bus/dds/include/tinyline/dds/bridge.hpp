@@ -79,6 +79,18 @@ struct WaitResult {
   std::string missing;  ///< what was still missing at the deadline
 };
 
+/// The QoS the bridge's DDS writer offers for these local publishers: the
+/// strongest of them, so it serves every reader one of them would.
+EndpointQos offered_qos(const std::vector<bus::QoS>& publishers);
+/// The QoS its DDS reader requests for these local subscribers: reliability
+/// and durability only if every one of them needs it (a stronger request
+/// would refuse writers some of them accept), the deepest history, keep-all
+/// if any of them queues reliably (back-pressure end to end).
+EndpointQos requested_qos(const std::vector<bus::QoS>& subscribers);
+/// Why DDS will not connect a writer offering `offered` to a reader
+/// requesting `requested` (the ROS 2 / DDS rules), or empty if it will.
+std::string incompatibility(const EndpointQos& offered, const EndpointQos& requested);
+
 /// Add it to the executor like any node: its subscription callbacks are what
 /// writes local messages to DDS. Received messages are published from its own
 /// receive thread.
@@ -94,6 +106,10 @@ class Bridge : public bus::Node {
   void start();
   void on_start() override { start(); }
   void on_stop() override;
+
+  /// From now on, remote endpoints that go away are reported as departures
+  /// (info), not losses (warnings): the graph is being stopped on purpose.
+  void expect_departures() { departures_expected_.store(true); }
 
   /// Marks one more topic for DDS (absolute name).
   void bridge_topic(const std::string& topic);
@@ -136,6 +152,7 @@ class Bridge : public bus::Node {
   std::int32_t waitset_ = 0;
   std::int32_t wake_ = 0;
   std::atomic<bool> quit_{false};
+  std::atomic<bool> departures_expected_{false};
   std::thread receiver_;
   std::mutex match_mu_;  // guards match_events_ (bumped by DDS listeners)
   std::condition_variable matched_cv_;

@@ -131,6 +131,10 @@ class Discovery {
   /// Waits until the snapshot stops changing for `settle` (or `timeout`
   /// passes), then returns it. Discovery on loopback takes tens of ms.
   std::vector<DiscoveredEndpoint> settle(std::chrono::milliseconds settle, std::chrono::milliseconds timeout) const;
+  /// Waits until `pred` holds for the snapshot (checked whenever discovery
+  /// learns something) or `timeout` passes; returns the last snapshot.
+  std::vector<DiscoveredEndpoint> wait_for(const std::function<bool(const std::vector<DiscoveredEndpoint>&)>& pred,
+                                           std::chrono::milliseconds timeout) const;
 
  private:
   std::int32_t self_ = 0;
