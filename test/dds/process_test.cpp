@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <filesystem>
 #include <regex>
 
 #include <fmt/format.h>
@@ -175,4 +176,21 @@ TEST(TopicTools, ListEchoAndHzSeeARunningMultiProcessGraph) {
   EXPECT_EQ(WEXITSTATUS(*mst), 1);
   EXPECT_TRUE(missing.wait_for_text("no publisher of /chain/nothing appeared within 0.5 s", 1s)) << missing.output();
   interrupt_and_expect_clean_exit(graph);
+}
+
+TEST(MultiHost, TwoNetworkNamespacesJoinedByAVethPairRunOneGraph) {
+  const std::string work = fmt::format("{}/tl_two_hosts_{}", ::testing::TempDir(), getpid());
+  std::filesystem::remove_all(work);
+  std::filesystem::create_directories(work);
+  ChildProcess p({"/bin/bash", std::string(TINYLINE_SOURCE_DIR) + "/test/dds/two_hosts.sh", TINYLINE_EXE,
+                  kLaunchDir + "two_hosts.launch.yaml", work});
+  const auto first = p.wait_for_line(std::regex("^(SKIP: .*|veth up: .*)$"), 30s);
+  if (first && first->rfind("SKIP: ", 0) == 0) GTEST_SKIP() << *first;
+  ASSERT_TRUE(first) << p.output();
+  ASSERT_TRUE(p.wait_for_text("[host_b] data: \"pulse 20\"", 60s)) << p.output();
+  // Each host started from the same file with --process, waited for its peer
+  // on the other side of the cable, and the first message made it across.
+  EXPECT_EQ(echoed(p.lines(), R"(\[host_b\] )"), pulses(20)) << p.output();
+  EXPECT_TRUE(p.find("[host_b] [INFO]") && p.find("remote publisher in process 'host_a'")) << p.output();
+  std::filesystem::remove_all(work);
 }
