@@ -276,8 +276,6 @@ void Executor::stop() {
   core_->wake_all();
 }
 
-void Executor::restart() { stop_.store(false); }
-
 std::optional<Time> Executor::fire_due_timers(Time now, bool catch_up) {
   std::vector<std::pair<std::shared_ptr<Timer>, std::shared_ptr<CallbackGroup>>> due;
   std::optional<Time> next;
@@ -367,8 +365,12 @@ void Executor::worker_loop() {
 }
 
 void Executor::spin() {
+  // A stop() that comes before spin() gets going ends this spin at once (a
+  // thread started to spin may begin after its owner already asked it to
+  // stop); the request is consumed on the way out, so a later spin() runs.
   start_pending_nodes();
   worker_loop();
+  stop_.store(false);
 }
 
 std::size_t Executor::spin_some() {
@@ -389,6 +391,7 @@ void MultiThreadedExecutor::spin() {
   for (int i = 1; i < options_.threads; ++i) workers.emplace_back([this] { worker_loop(); });
   worker_loop();
   for (auto& w : workers) w.join();
+  stop_.store(false);  // see Executor::spin()
 }
 
 // ---------------------------------------------------------------------------- DeterministicExecutor

@@ -231,6 +231,27 @@ void Graph::remove_on_topic(int id) {
   std::erase_if(listeners_, [id](const auto& p) { return p.first == id; });
 }
 
+int Graph::on_endpoints_changed(std::function<void(const std::string&)> fn) {
+  std::lock_guard lk(mu_);
+  const int id = next_listener_++;
+  endpoint_listeners_.emplace_back(id, std::move(fn));
+  return id;
+}
+
+void Graph::remove_on_endpoints_changed(int id) {
+  std::lock_guard lk(mu_);
+  std::erase_if(endpoint_listeners_, [id](const auto& p) { return p.first == id; });
+}
+
+void Graph::endpoints_changed(const std::string& topic) {
+  std::vector<std::function<void(const std::string&)>> fns;
+  {
+    std::lock_guard lk(mu_);
+    for (auto& [id, fn] : endpoint_listeners_) fns.push_back(fn);
+  }
+  for (auto& fn : fns) fn(topic);  // outside the lock: a listener may create endpoints itself
+}
+
 void Graph::add_node(const void* key, std::function<NodeInfo()> describe) {
   std::lock_guard lk(mu_);
   nodes_.emplace_back(key, std::move(describe));

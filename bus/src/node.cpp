@@ -1,5 +1,7 @@
 #include <tinyline/bus/node.hpp>
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 namespace tinyline::bus {
@@ -27,12 +29,21 @@ Node::Node(NodeOptions options)
 Node::~Node() {
   group_->shutdown();
   context_->graph().remove_node(this);
-  std::lock_guard lk(mu_);
-  for (auto& [topic, sub] : subs_) {
-    topic->remove_subscription(sub.get());
-    sub->cancel();
+  std::vector<std::string> touched;
+  {
+    std::lock_guard lk(mu_);
+    for (auto& [topic, sub] : subs_) {
+      topic->remove_subscription(sub.get());
+      sub->cancel();
+    }
+    for (auto& t : timers_) t->cancel();
+    for (const auto* list : {&pub_info_, &sub_info_}) {
+      for (const auto& e : *list) {
+        if (std::find(touched.begin(), touched.end(), e.topic) == touched.end()) touched.push_back(e.topic);
+      }
+    }
   }
-  for (auto& t : timers_) t->cancel();
+  for (const auto& t : touched) context_->graph().endpoints_changed(t);
 }
 
 std::string Node::full_name() const { return (ns_ == "/" ? "" : ns_) + "/" + name_; }
@@ -48,11 +59,15 @@ void Node::attach_subscription(const std::shared_ptr<Topic>& t, const std::share
     sub_info_.push_back(EndpointInfo{t->name(), std::string(t->type().name), s->qos()});
   }
   t->add_subscription(s);
+  context_->graph().endpoints_changed(t->name());
 }
 
 void Node::record_endpoint(bool publisher, const std::string& topic, std::string_view type, const QoS& qos) {
-  std::lock_guard lk(mu_);
-  (publisher ? pub_info_ : sub_info_).push_back(EndpointInfo{topic, std::string(type), qos});
+  {
+    std::lock_guard lk(mu_);
+    (publisher ? pub_info_ : sub_info_).push_back(EndpointInfo{topic, std::string(type), qos});
+  }
+  context_->graph().endpoints_changed(topic);
 }
 
 std::shared_ptr<GenericPublisher> Node::create_generic_publisher(const std::string& topic,

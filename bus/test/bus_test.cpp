@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <future>
 #include <thread>
 
 #include <tinyline/bus/executor.hpp>
@@ -573,18 +574,53 @@ TEST(Bus, ManyPublishersManyNodesManyThreadsLoseNothingReliable) {
   for (auto& c : counts) EXPECT_EQ(c.load(), kPublishers * kEach);
 }
 
-TEST(Bus, AStopBeforeSpinStartsIsNotLost) {
-  bus::ContextOptions o;
-  o.log_sink = std::make_shared<bus::CaptureSink>();
-  auto ctx = bus::Context::create(o);
-  bus::MultiThreadedExecutor ex(ctx->clock(), 2);
-  ex.add_node(make_node(ctx, "n"));
-  ex.stop();  // e.g. a short job finished before its spinner thread was scheduled
-  std::thread spinner([&] { ex.spin(); });
-  spinner.join();  // returns: the stop was kept
-  ex.restart();
-  std::thread again([&] { ex.spin(); });
-  ex.stop();
-  again.join();
-  SUCCEED();
+TEST(Graph, ReportsEndpointChangesAfterTheEndpointExistsAndWhenItsNodeGoesAway) {
+  auto ctx = sim_context();
+  std::vector<std::string> seen;
+  std::vector<std::size_t> pubs_at_call;
+  const int id = ctx->graph().on_endpoints_changed([&](const std::string& topic) {
+    seen.push_back(topic);
+    // The listener sees the endpoint already in place (a bridge reads the graph here).
+    auto t = ctx->graph().find(topic);
+    pubs_at_call.push_back(t ? t->publisher_count() : 99);
+  });
+  {
+    auto n = make_node(ctx, "talker");
+    auto pub = n->create_publisher<StringMsg>("chatter");
+    ASSERT_EQ(seen, std::vector<std::string>{"/chatter"});
+    EXPECT_EQ(pubs_at_call.back(), 1u);
+    auto sub = n->create_subscription<StringMsg>("other", QoS::keep_last(1), [](const StringMsg&) {});
+    EXPECT_EQ(seen.back(), "/other");
+    EXPECT_EQ(ctx->graph().find("/other")->subscription_count(), 1u);
+    seen.clear();
+  }
+  // The node went away: both its topics are reported once each.
+  std::sort(seen.begin(), seen.end());
+  EXPECT_EQ(seen, (std::vector<std::string>{"/chatter", "/other"}));
+  ctx->graph().remove_on_endpoints_changed(id);
+  seen.clear();
+  auto n2 = make_node(ctx, "late");
+  auto p2 = n2->create_publisher<StringMsg>("chatter");
+  EXPECT_TRUE(seen.empty());
+}
+
+TEST(Executor, AStopThatComesBeforeTheSpinningThreadStartsIsNotLost) {
+  // The usual shape: start a thread that spins, decide to stop at once. The
+  // spinning thread may only begin after stop() was called.
+  auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
+  for (int threads : {1, 3}) {
+    SCOPED_TRACE(threads);
+    bus::MultiThreadedExecutor ex(ctx->clock(), threads);
+    ex.stop();
+    auto done = std::async(std::launch::async, [&] { ex.spin(); });
+    const bool returned = done.wait_for(5s) == std::future_status::ready;
+    if (!returned) ex.stop();  // free the thread so the test can fail instead of hanging
+    done.wait();
+    EXPECT_TRUE(returned) << "spin() ignored a stop() made before it started";
+    // The request was consumed: the executor can spin again.
+    auto again = std::async(std::launch::async, [&] { ex.spin(); });
+    EXPECT_EQ(again.wait_for(50ms), std::future_status::timeout);
+    ex.stop();
+    again.wait();
+  }
 }

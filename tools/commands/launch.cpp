@@ -1,57 +1,188 @@
-// tinyline launch FILE [name:=value ...] [--duration S] [--threads N] [--no-table]
+// tinyline launch FILE [name:=value ...] [--duration S] [--threads N] [--no-table] [--process NAME]
+//
+// One process runs the nodes without a process group; each group gets a child
+// process (this same executable with --process NAME), supervised here. Topics
+// crossing processes travel over DDS (docs/dds.md).
+#include <unistd.h>
+
+#include <filesystem>
+
 #include <fmt/format.h>
 
+#include <tinyline/dds/bridge.hpp>
 #include <tinyline/launch/launch.hpp>
 #include <tinyline/tools/command.hpp>
 
 #include "../src/args.hpp"
 #include "../src/graph_runner.hpp"
+#include "../src/process_plan.hpp"
+#include "../src/supervisor.hpp"
 
 namespace tinyline::tools {
 namespace {
 
 constexpr const char* kHelp = R"(usage: tinyline launch FILE [name:=value ...] [options]
 
-Runs the nodes of a launch file (ROS 2 YAML launch shape) in this process and
-shows a live table of topics with rates and drops. Stops on Ctrl-C or after
---duration. Nothing starts unless the whole file is valid: errors name the
-file, line and reason.
+Runs the nodes of a launch file (ROS 2 YAML launch shape) and shows a live
+table of topics with rates and drops. Stops on Ctrl-C or after --duration.
+Nothing starts unless the whole file is valid: errors name the file, line and
+reason.
+
+Nodes in a process group (group: {process: NAME, ...} or node: {process: NAME})
+run in their own process, started and supervised here: their output comes
+back prefixed with [NAME], a crashed one is restarted if a node in it says
+respawn: true, Ctrl-C stops them all. Topics used by several processes, and
+those the file marks with dds, travel over DDS (Cyclone DDS, ROS 2 naming;
+loopback only unless CYCLONEDDS_URI says otherwise, see docs/dds.md).
 
 options:
-  --duration S   stop after S seconds
-  --threads N    executor threads (default 2)
-  --no-table     no live table
-  --check        validate the file and build its nodes, then exit
+  --duration S        stop after S seconds
+  --threads N         executor threads per process (default 2)
+  --no-table          no live table
+  --check             validate the file and build its nodes, then exit
+  --process NAME      run only this process group (what the supervisor starts;
+                      also how to start one group on another machine)
+  --dds-wait S        longest wait for DDS peers before nodes start (default 10)
+  --respawn-delay S   wait before restarting a crashed process (default 1)
+  --grace S           after Ctrl-C, wait this long before killing (default 5)
 )";
 
+std::string self_exe() {
+  std::error_code ec;
+  const auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) throw std::runtime_error("cannot find this executable (/proc/self/exe): " + ec.message());
+  return p.string();
+}
+
+std::string dds_table(const std::vector<dds::LinkStats>& links) {
+  std::string s = fmt::format("over DDS:\n{:<34} {:>11} {:>11} {:>10} {:>10} {:>9} {:>7}\n", "topic", "remote subs",
+                              "remote pubs", "sent", "received", "no reader", "errors");
+  for (const auto& l : links) {
+    s += fmt::format("{:<34} {:>11} {:>11} {:>10} {:>10} {:>9} {:>7}\n", l.topic, l.remote_readers,
+                     l.remote_writers, l.sent, l.received, l.unmatched,
+                     l.decode_errors + l.write_errors + l.incompatible);
+  }
+  return s;
+}
+
 int cmd_launch(const std::vector<std::string>& argv) {
-  Args a(argv, {"--duration", "--threads"}, {"--no-table", "--check", "--help", "-h"});
+  Args a(argv, {"--duration", "--threads", "--process", "--dds-wait", "--respawn-delay", "--grace"},
+         {"--no-table", "--check", "--help", "-h"});
   if (a.flag("--help") || a.flag("-h")) {
     fmt::print("{}", kHelp);
     return 0;
   }
   if (a.positional().empty()) throw UsageError("which launch file? (tinyline launch --help)");
+  const std::string file = a.positional()[0];
   launch::LoadOptions lo;
   lo.share_dir = share_dir();
   for (std::size_t i = 1; i < a.positional().size(); ++i) lo.args.insert(split_assignment(a.positional()[i]));
+  const std::optional<std::string> only = a.value("--process");
+
   auto ctx = bus::Context::create();
   std::vector<std::shared_ptr<bus::Node>> nodes;
+  launch::LaunchPlan plan;
+  GraphPlan graph;
   try {
-    const auto plan = launch::load_launch_file(a.positional()[0], lo);
-    nodes = launch::instantiate(plan, node_registry(), ctx);
+    plan = launch::load_launch_file(file, lo);
+    graph = plan_processes(plan, node_registry());  // builds every node once: the whole file is valid
+    if (only && graph.find(*only) == nullptr) {
+      std::string known;
+      for (const auto& p : graph.processes)
+        if (!p.name.empty()) known += (known.empty() ? "" : ", ") + p.name;
+      throw UsageError(fmt::format("{} has no process group '{}' (groups: {})", file, *only,
+                                   known.empty() ? "none" : known));
+    }
+    nodes = launch::instantiate(plan, node_registry(), ctx, only.value_or(""));
   } catch (const launch::LaunchError& e) {
     fmt::print(stderr, "{}\n", e.what());
     return 1;
   }
+  const std::string me = only.value_or("");
+  const ProcessPlan& mine = *graph.find(me);
   if (a.flag("--check")) {
-    fmt::print("{}: {} node(s), valid\n", a.positional()[0], nodes.size());
+    fmt::print("{}: {} node(s), valid\n", file, plan.nodes.size());
+    for (const auto& p : graph.processes) {
+      if (p.name.empty() && p.nodes.empty()) continue;
+      fmt::print("  process {}: {} node(s){}\n", p.name.empty() ? "(launching)" : "'" + p.name + "'", p.nodes.size(),
+                 p.uses_dds() ? fmt::format(", on DDS: {}", p.dds.all ? std::string("all topics")
+                                                                      : fmt::format("{}", fmt::join(p.dds.topics, " ")))
+                              : "");
+    }
+    for (const auto& w : graph.warnings) fmt::print("  warning: {}\n", w);
     return 0;
   }
+  if (!only) {
+    for (const auto& w : graph.warnings) fmt::print(stderr, "[launch] warning: {}\n", w);
+  }
+
+  // The DDS bridge of this process, if it has anything to share.
+  std::shared_ptr<dds::Bridge> bridge;
+  if (mine.uses_dds()) {
+    dds::BridgeOptions bo;
+    const std::string stem = std::filesystem::path(file).stem().stem().string();
+    bo.settings = dds_settings(plan, me.empty() ? stem : me);
+    bo.selection = mine.dds;
+    try {
+      bridge = dds::Bridge::create(ctx, bo);
+    } catch (const dds::DdsError& e) {
+      fmt::print(stderr, "{}: DDS: {}\n", file, e.what());
+      return 1;
+    }
+    nodes.push_back(bridge);
+  }
+
+  // The children: one per process group, unless this is one of them.
+  SupervisorOptions so;
+  so.respawn_delay_s = a.number("--respawn-delay", 1.0);
+  so.grace_s = a.number("--grace", 5.0);
+  auto supervisor = std::make_unique<Supervisor>(so);
+  if (!only) {
+    for (const auto& p : graph.processes) {
+      if (p.name.empty()) continue;
+      ChildSpec c;
+      c.name = p.name;
+      c.nodes = p.nodes;
+      c.respawn = p.respawn;
+      c.argv = {self_exe(), "launch", file};
+      for (std::size_t i = 1; i < a.positional().size(); ++i) c.argv.push_back(a.positional()[i]);
+      c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--threads",
+                                   std::to_string(static_cast<int>(a.number("--threads", 2))), "--dds-wait",
+                                   fmt::format("{}", a.number("--dds-wait", 10.0))});
+      supervisor->start(std::move(c));
+    }
+  }
+
   RunOptions ro;
   if (a.value("--duration")) ro.duration_s = a.number("--duration", 0);
   ro.threads = static_cast<int>(a.number("--threads", 2));
   ro.table = !a.flag("--no-table");
-  return run_nodes(ctx, nodes, ro);
+  if (bridge) {
+    const auto wait_ms = std::chrono::milliseconds(static_cast<long>(a.number("--dds-wait", 10.0) * 1000));
+    ro.before_spin = [&] {
+      bridge->start();
+      if (mine.expect.empty()) return;
+      const auto r = bridge->wait_for_peers(mine.expect, wait_ms);
+      if (!r.ok) {
+        bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait_ms.count() / 1000.0,
+                              r.missing);
+      }
+    };
+  }
+  ro.before_stop = [&] {
+    if (bridge) bridge->expect_departures();  // the other processes are stopping too
+    supervisor->stop_all();
+  };
+  if (!only && graph.has_groups()) {
+    ro.tick = [&](std::chrono::milliseconds budget) {
+      supervisor->poll(budget);
+      return true;
+    };
+  }
+  const int rc = run_nodes(ctx, nodes, ro);
+  if (bridge) fmt::print("{}", dds_table(bridge->stats()));
+  supervisor.reset();
+  return rc;
 }
 
 const CommandRegistration kLaunch{"launch", "run the nodes of a launch file", &cmd_launch};

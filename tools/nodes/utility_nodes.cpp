@@ -62,8 +62,14 @@ class Pulse : public bus::Node {
     const double rate = declare_parameter("rate_hz", 10.0, "publish rate [Hz]",
                                           bus::ParamConstraints::range(0.001, 100000.0));
     text_ = declare_parameter<std::string>("text", "pulse", "text before the counter");
+    limit_ = declare_parameter("count", 0, "messages to publish, then stay quiet (0: no limit)",
+                               bus::ParamConstraints::at_least(0));
     pub_ = create_publisher<std_msgs::msg::String>("output");
     timer_ = create_timer(bus::from_seconds(1.0 / rate), [this] {
+      if (limit_ > 0 && count_ >= static_cast<std::uint64_t>(limit_)) {
+        timer_->cancel();
+        return;
+      }
       auto m = std::make_unique<std_msgs::msg::String>();
       m->data = text_ + " " + std::to_string(++count_);
       pub_->publish(std::move(m));
@@ -72,6 +78,7 @@ class Pulse : public bus::Node {
 
  private:
   std::string text_;
+  int limit_ = 0;
   std::uint64_t count_ = 0;
   std::shared_ptr<bus::Publisher<std_msgs::msg::String>> pub_;
   std::shared_ptr<bus::Timer> timer_;

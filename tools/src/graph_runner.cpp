@@ -43,6 +43,7 @@ int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::s
   g_signal.store(0);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  if (options.before_spin) options.before_spin();
 
   std::atomic<bool> spin_done{false};
   std::string failure;
@@ -72,8 +73,13 @@ int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::s
       last_lines = static_cast<std::size_t>(std::count(t.begin(), t.end(), '\n'));
       next_table = now + std::chrono::duration<double>(options.table_period_s);
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // a CLI waiting for Ctrl-C, not a test
+    if (options.tick) {
+      if (!options.tick(std::chrono::milliseconds(50))) break;
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));  // a CLI waiting for Ctrl-C, not a test
+    }
   }
+  if (options.before_stop) options.before_stop();
   ex.stop();
   spinner.join();
   for (auto it = nodes.rbegin(); it != nodes.rend(); ++it) {
@@ -83,6 +89,7 @@ int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::s
       fmt::print(stderr, "node '{}' failed to stop cleanly: {}\n", (*it)->full_name(), e.what());
     }
   }
+  if (options.on_stopping) options.on_stopping();
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

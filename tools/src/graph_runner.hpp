@@ -2,6 +2,8 @@
 // table of topics (rates, drops) on a terminal. Shared by `launch` and `run`.
 #pragma once
 
+#include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -15,6 +17,18 @@ struct RunOptions {
   int threads = 2;                   ///< executor threads
   bool table = true;                 ///< live topic table (only on a terminal)
   double table_period_s = 1.0;
+  /// Runs after the nodes are on the executor and before it starts (the DDS
+  /// bridge waits for its peers here).
+  std::function<void()> before_spin;
+  /// Called in the wait loop instead of sleeping, may block up to the given
+  /// time (the launch supervisor forwards its children's output here);
+  /// returning false ends the run.
+  std::function<bool(std::chrono::milliseconds)> tick;
+  /// Called when the run ends, while the local nodes still run (the launch
+  /// supervisor stops its children here, so the last messages still arrive).
+  std::function<void()> before_stop;
+  /// Called once the local nodes stopped, before the summary.
+  std::function<void()> on_stopping;
 };
 
 /// Runs the nodes; returns the exit code (0, or 1 if a node failed to start).

@@ -29,6 +29,7 @@ struct Scope {
   std::map<std::string, std::string> vars;
   std::string ns = "/";
   std::string process;
+  bool dds = false;
   std::string file;  // as given (for messages)
   std::string dir;   // for $(dirname) and relative includes
 };
@@ -160,6 +161,7 @@ struct Loader {
     s.dir = fs::path(abs).parent_path().string();
     s.ns = outer.ns;
     s.process = outer.process;
+    s.dds = outer.dds;
     load_text(text.str(), s, std::move(given), stack.size() == 1);
     stack.pop_back();
   }
@@ -196,7 +198,8 @@ struct Loader {
                    std::set<std::string>& declared, bool top) {
     for (const auto& entry : list) {
       if (!entry.IsMap() || entry.size() != 1) {
-        fail(s, entry, "each action is a mapping with one key: arg, let, include, group, node or push-ros-namespace");
+        fail(s, entry,
+             "each action is a mapping with one key: arg, let, include, group, node, dds or push-ros-namespace");
       }
       const std::string kind = entry.begin()->first.Scalar();
       const YAML::Node v = entry.begin()->second;
@@ -222,9 +225,11 @@ struct Loader {
         }
       } else if (kind == "node") {
         action_node(s, v);
+      } else if (kind == "dds") {
+        action_dds(s, v);
       } else {
         fail(s, entry.begin()->first,
-             fmt::format("unknown action '{}' (known: arg, let, include, group, node, push-ros-namespace)", kind));
+             fmt::format("unknown action '{}' (known: arg, let, include, group, node, dds, push-ros-namespace)", kind));
       }
     }
   }
@@ -277,7 +282,7 @@ struct Loader {
     if (v.IsSequence()) {
       children = v;
     } else {
-      check_keys(s, v, {"namespace", "process", "scoped", "children"}, "group");
+      check_keys(s, v, {"namespace", "process", "dds", "scoped", "children"}, "group");
       if (!v["children"]) fail(s, v, "group needs children (a list of actions)");
       children = v["children"];
       if (v["namespace"]) {
@@ -288,6 +293,7 @@ struct Loader {
         }
       }
       if (v["process"]) inner.process = str(s, v["process"], "process");
+      if (v["dds"]) inner.dds = boolean(s, v["dds"], "dds");
       if (v["scoped"] && str(s, v["scoped"], "scoped") == "false") {
         run_actions(s, children, given, declared, false);
         return;
@@ -298,7 +304,8 @@ struct Loader {
   }
 
   void action_node(const Scope& s, const YAML::Node& v) {
-    check_keys(s, v, {"pkg", "exec", "name", "namespace", "param", "remap", "respawn", "output", "process"}, "node");
+    check_keys(s, v, {"pkg", "exec", "name", "namespace", "param", "remap", "respawn", "output", "process", "dds"},
+               "node");
     NodeSpec n;
     n.where = loc(s, v);
     if (!v["pkg"]) fail(s, v, "node needs pkg");
@@ -314,11 +321,8 @@ struct Loader {
     } catch (const std::invalid_argument& e) {
       fail(s, v["namespace"], e.what());
     }
-    if (v["respawn"]) {
-      const std::string r = str(s, v["respawn"], "respawn");
-      if (r != "true" && r != "false") fail(s, v["respawn"], "respawn must be true or false");
-      n.respawn = r == "true";
-    }
+    if (v["respawn"]) n.respawn = boolean(s, v["respawn"], "respawn");
+    n.dds = v["dds"] ? boolean(s, v["dds"], "dds") : s.dds;
     if (v["output"]) {
       const std::string o = str(s, v["output"], "output");
       if (o != "screen" && o != "log") fail(s, v["output"], "output must be screen or log");
@@ -362,6 +366,63 @@ struct Loader {
       }
     }
     plan.nodes.push_back(std::move(n));
+  }
+
+  bool boolean(const Scope& s, const YAML::Node& n, const std::string& what) const {
+    const std::string b = str(s, n, what);
+    if (b != "true" && b != "false") fail(s, n, what + " must be true or false");
+    return b == "true";
+  }
+
+  void action_dds(const Scope& s, const YAML::Node& v) {
+    check_keys(s, v, {"topics", "domain_id", "config"}, "dds");
+    DdsPlan& d = plan.dds;
+    if (!d.where.known()) d.where = loc(s, v);
+    if (const YAML::Node t = v["topics"]) {
+      if (t.IsScalar()) {
+        if (str(s, t, "topics") != "all") fail(s, t, "dds topics must be 'all' or a list of absolute topic names");
+        d.all = true;
+      } else if (t.IsSequence()) {
+        for (const auto& e : t) {
+          const std::string name = str(s, e, "topic");
+          try {
+            bus::validate_name(name, "dds topic");
+          } catch (const std::invalid_argument& ex) {
+            fail(s, e, ex.what());
+          }
+          if (name[0] != '/') fail(s, e, "dds topic '" + name + "' must be absolute (start with '/')");
+          if (std::find(d.topics.begin(), d.topics.end(), name) == d.topics.end()) d.topics.push_back(name);
+        }
+      } else {
+        fail(s, t, "dds topics must be 'all' or a list of absolute topic names");
+      }
+    }
+    if (const YAML::Node id = v["domain_id"]) {
+      const std::string text = str(s, id, "domain_id");
+      char* end = nullptr;
+      const long n = std::strtol(text.c_str(), &end, 10);
+      if (text.empty() || *end != '\0' || n < 0 || n > 232) {
+        fail(s, id, "dds domain_id must be an integer in 0..232, got '" + text + "'");
+      }
+      if (d.domain_id && *d.domain_id != n) {
+        fail(s, id, fmt::format("dds domain_id {} contradicts domain_id {} given at {}", n, *d.domain_id,
+                                d.where.str()));
+      }
+      d.domain_id = static_cast<int>(n);
+    }
+    if (const YAML::Node c = v["config"]) {
+      std::string cfg = str(s, c, "config");
+      // XML text and file:// URIs pass as they are (CYCLONEDDS_URI syntax);
+      // a plain path is relative to this launch file and must exist.
+      if (!cfg.empty() && cfg[0] != '<' && cfg.rfind("file://", 0) != 0) {
+        fs::path p(cfg);
+        if (p.is_relative()) p = fs::path(s.dir) / p;
+        std::error_code ec;
+        if (!fs::exists(p, ec)) fail(s, c, "dds config file '" + p.lexically_normal().string() + "' does not exist");
+        cfg = "file://" + fs::absolute(p, ec).lexically_normal().string();
+      }
+      d.config = cfg;
+    }
   }
 
   bus::ParamValue param_value(const Scope& s, const YAML::Node& n) const {

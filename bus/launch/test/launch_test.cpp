@@ -2,6 +2,8 @@
 // golden error message for every way a launch file can be wrong.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -92,7 +94,7 @@ TEST_F(LaunchTest, GoldenErrorMessages) {
     EXPECT_EQ(got, expected) << "for " << file;
     ++checked;
   }
-  EXPECT_EQ(checked, 10);
+  EXPECT_EQ(checked, 12);
 }
 
 TEST_F(LaunchTest, ArgsSubstitutionsGroupsAndRemaps) {
@@ -200,4 +202,50 @@ launch:
   EXPECT_TRUE(plan.nodes[1].respawn);
   EXPECT_EQ(launch::instantiate(plan, registry(), context(), "").size(), 1u);
   EXPECT_EQ(launch::instantiate(plan, registry(), context(), "ground").size(), 1u);
+}
+
+TEST_F(LaunchTest, DdsMarksNodesGroupsAndTopicsAndIsInheritedIntoIncludes) {
+  const fs::path dir = fs::temp_directory_path() / ("tl_launch_dds_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  {
+    std::ofstream(dir / "inner.launch.yaml") << "launch:\n- node: {pkg: demo, exec: listener, name: inner}\n";
+    std::ofstream(dir / "net.xml") << "<CycloneDDS/>\n";
+    std::ofstream(dir / "top.launch.yaml") << R"YAML(launch:
+- dds: {topics: [/chatter, /other], domain_id: 7, config: net.xml}
+- node: {pkg: demo, exec: talker, name: plain}
+- node: {pkg: demo, exec: talker, name: marked, dds: true}
+- group:
+    process: ground
+    dds: true
+    children:
+    - node: {pkg: demo, exec: listener, name: in_group}
+    - node: {pkg: demo, exec: listener, name: opted_out, dds: false}
+    - include: {file: inner.launch.yaml}
+)YAML";
+  }
+  const auto plan = launch::load_launch_file((dir / "top.launch.yaml").string());
+  ASSERT_EQ(plan.nodes.size(), 5u);
+  EXPECT_FALSE(plan.nodes[0].dds);
+  EXPECT_TRUE(plan.nodes[1].dds);
+  EXPECT_TRUE(plan.nodes[2].dds);
+  EXPECT_EQ(plan.nodes[2].process, "ground");
+  EXPECT_FALSE(plan.nodes[3].dds);
+  EXPECT_TRUE(plan.nodes[4].dds) << "an include inherits the group's dds";
+  EXPECT_EQ(plan.nodes[4].process, "ground");
+  EXPECT_FALSE(plan.dds.all);
+  EXPECT_EQ(plan.dds.topics, (std::vector<std::string>{"/chatter", "/other"}));
+  EXPECT_EQ(plan.dds.domain_id, 7);
+  EXPECT_EQ(plan.dds.config, "file://" + (dir / "net.xml").lexically_normal().string());
+  EXPECT_TRUE(plan.dds.where.known());
+
+  const auto none = launch::load_launch_string("launch:\n- node: {pkg: demo, exec: talker}\n", "n.yaml");
+  EXPECT_FALSE(none.dds.where.known());
+  EXPECT_FALSE(none.dds.all);
+  const auto all = launch::load_launch_string("launch:\n- dds: {topics: all}\n", "a.yaml");
+  EXPECT_TRUE(all.dds.all);
+  EXPECT_THROW(launch::load_launch_string("launch:\n- dds: {topics: all, port: 3}\n", "k.yaml"), launch::LaunchError);
+  EXPECT_THROW(launch::load_launch_string("launch:\n- dds: {config: missing.xml}\n", "m.yaml"), launch::LaunchError);
+  EXPECT_THROW(launch::load_launch_string("launch:\n- node: {pkg: demo, exec: talker, dds: maybe}\n", "b.yaml"),
+               launch::LaunchError);
+  fs::remove_all(dir);
 }

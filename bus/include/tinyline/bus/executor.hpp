@@ -182,15 +182,12 @@ class Executor {
   void add_node(const std::shared_ptr<Node>& node);
   void remove_node(const std::shared_ptr<Node>& node);
 
-  /// Blocks running callbacks until stop(). A stop() that comes first, even
-  /// before the spinning thread starts, makes spin() return at once.
+  /// Blocks running callbacks until stop() (from any thread or a signal-safe
+  /// flag). A stop() made before spin() starts ends that spin at once.
   virtual void spin();
   /// Runs what is ready now (and due timers), then returns.
   std::size_t spin_some();
-  /// Makes spin() return (now or, if not yet spinning, as soon as it starts).
   void stop();
-  /// Clears a stop() so the executor can spin again.
-  void restart();
   bool stopped() const { return stop_.load(); }
 
   int threads() const { return options_.threads; }

@@ -156,6 +156,15 @@ class Graph {
   int on_topic(std::function<void(const std::shared_ptr<Topic>&)> fn);
   void remove_on_topic(int id);
 
+  /// Called with a topic's name after a node adds a publisher or a
+  /// subscription on it, and after a node with endpoints on it goes away, on
+  /// the thread that did it. Transport bridges use it to mirror exactly the
+  /// topics that have local endpoints, whenever they appear.
+  int on_endpoints_changed(std::function<void(const std::string& topic)> fn);
+  void remove_on_endpoints_changed(int id);
+  /// Called by Node (never with a node's lock held).
+  void endpoints_changed(const std::string& topic);
+
   // Node bookkeeping for introspection.
   void add_node(const void* key, std::function<NodeInfo()> describe);
   void remove_node(const void* key);
@@ -164,6 +173,7 @@ class Graph {
   mutable std::mutex mu_;
   std::vector<std::shared_ptr<Topic>> topics_;
   std::vector<std::pair<int, std::function<void(const std::shared_ptr<Topic>&)>>> listeners_;
+  std::vector<std::pair<int, std::function<void(const std::string&)>>> endpoint_listeners_;
   std::vector<std::pair<const void*, std::function<NodeInfo()>>> nodes_;
   int next_listener_ = 1;
 };

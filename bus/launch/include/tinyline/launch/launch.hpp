@@ -13,6 +13,16 @@
 //         param: [{name: eps_m, value: 0.02}, {from: "$(dirname)/params.yaml"}]
 //         remap: [{from: scan, to: /hand/line_scan}]
 //
+// Process groups and DDS (docs/dds.md):
+//
+//   - group: {process: ground, dds: true, children: [...]}   # own process; its topics on DDS
+//   - node: {pkg: ..., exec: ..., process: ground, dds: true}
+//   - dds: {topics: all | [/scan, /clusters], domain_id: 3, config: "$(dirname)/net.xml"}
+//
+// Topics that cross process groups always travel over DDS; `dds` marks more
+// (every topic of a node or group, named topics, or all) so other programs
+// (tinyline topic, ROS 2 nodes) see them.
+//
 // Substitutions: $(var name), $(env NAME), $(env NAME default), $(dirname),
 // $(find-pkg-share pkg). Every key is checked: an unknown key, a missing
 // required arg, an include cycle, an unknown node type or parameter, a wrong
@@ -22,6 +32,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -61,13 +72,24 @@ struct NodeSpec {
   std::vector<bus::Remap> remaps;
   std::string process;    ///< process group ("" = the launching process)
   bool respawn = false;   ///< restart its process if it dies (process groups only)
+  bool dds = false;       ///< every topic of this node also travels over DDS
   bus::SourceLocation where;       ///< the node entry
   bus::SourceLocation exec_where;  ///< its exec value (for unknown types)
+};
+
+/// The file's `dds` actions, merged.
+struct DdsPlan {
+  bool all = false;                  ///< every topic travels over DDS
+  std::vector<std::string> topics;   ///< these (absolute names) travel over DDS
+  std::optional<int> domain_id;      ///< overrides ROS_DOMAIN_ID
+  std::string config;                ///< Cyclone DDS configuration (XML or file:// URI); overrides CYCLONEDDS_URI
+  bus::SourceLocation where;         ///< the first dds action (empty if none)
 };
 
 struct LaunchPlan {
   std::vector<ArgDecl> args;    ///< arguments of the top-level file
   std::vector<NodeSpec> nodes;
+  DdsPlan dds;
   std::vector<std::string> files;  ///< every file read, top-level first
 };
 

@@ -1,0 +1,162 @@
+// The DDS transport of the bus: a node that mirrors chosen topics of its
+// process onto DDS and back.
+//
+//   local publisher --shared_ptr--> local subscribers          (zero copy, as before)
+//                   \--> bridge: serialize once --> DDS writer "rt/<topic>"
+//   DDS reader "rt/<topic>" --> bridge: deserialize once --> local subscribers
+//
+// Only topics with a local endpoint get DDS endpoints: a DDS writer when the
+// process publishes the topic, a reader when it subscribes to it. Messages the
+// bridge injects carry its origin, and its own subscription ignores that
+// origin, so nothing is echoed back; DDS readers ignore writers of their own
+// participant. A writer with no matched reader skips serialization entirely.
+//
+// QoS maps one to one (keep-last depth or keep-all, reliable or best effort,
+// volatile or transient local), so DDS matching rules apply across processes
+// exactly as in ROS 2: a best-effort publisher does not match a reliable
+// subscriber. Mismatches are logged with the policy that failed.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <tinyline/bus/node.hpp>
+#include <tinyline/dds/participant.hpp>
+#include <tinyline/dds/settings.hpp>
+
+namespace tinyline::dds {
+
+struct BridgeAccess;
+
+/// Which topics of a process travel over DDS.
+struct TopicSelection {
+  bool all = false;                 ///< every topic with a local endpoint
+  std::vector<std::string> topics;  ///< these absolute names (in addition)
+
+  bool selects(const std::string& topic) const;
+};
+
+struct BridgeOptions {
+  Settings settings;
+  TopicSelection selection;
+  std::string node_name = "dds_bridge";  ///< the bridge's node in the local graph
+};
+
+/// What one bridged topic has done so far.
+struct LinkStats {
+  std::string topic;
+  std::string type;
+  bool writer = false;              ///< a DDS writer exists (local publishers)
+  bool reader = false;              ///< a DDS reader exists (local subscribers)
+  EndpointQos writer_qos;
+  EndpointQos reader_qos;
+  std::size_t remote_readers = 0;   ///< matched now
+  std::size_t remote_writers = 0;   ///< matched now
+  std::uint64_t sent = 0;           ///< messages written to DDS
+  std::uint64_t unmatched = 0;      ///< local messages not sent: no remote reader (volatile topics)
+  std::uint64_t received = 0;       ///< messages from DDS published locally
+  std::uint64_t decode_errors = 0;  ///< samples from DDS that did not decode (dropped, logged)
+  std::uint64_t write_errors = 0;   ///< DDS writes that failed (logged)
+  std::uint64_t incompatible = 0;   ///< remote endpoints refused for incompatible QoS
+};
+
+/// Remote endpoints a process expects before its nodes start.
+struct PeerExpectation {
+  std::string topic;
+  std::size_t readers = 0;  ///< remote readers our writer must match
+  std::size_t writers = 0;  ///< remote writers our reader must match
+};
+
+struct WaitResult {
+  bool ok = false;
+  std::string missing;  ///< what was still missing at the deadline
+};
+
+/// The QoS the bridge's DDS writer offers for these local publishers: the
+/// strongest of them, so it serves every reader one of them would.
+EndpointQos offered_qos(const std::vector<bus::QoS>& publishers);
+/// The QoS its DDS reader requests for these local subscribers: reliability
+/// and durability only if every one of them needs it (a stronger request
+/// would refuse writers some of them accept), the deepest history, keep-all
+/// if any of them queues reliably (back-pressure end to end).
+EndpointQos requested_qos(const std::vector<bus::QoS>& subscribers);
+/// Why DDS will not connect a writer offering `offered` to a reader
+/// requesting `requested` (the ROS 2 / DDS rules), or empty if it will.
+std::string incompatibility(const EndpointQos& offered, const EndpointQos& requested);
+
+/// Add it to the executor like any node: its subscription callbacks are what
+/// writes local messages to DDS. Received messages are published from its own
+/// receive thread.
+class Bridge : public bus::Node {
+ public:
+  /// Creates the participant and starts the receive thread; DDS endpoints are
+  /// created by start() (or on_start()). Throws DdsError.
+  static std::shared_ptr<Bridge> create(const std::shared_ptr<bus::Context>& context, BridgeOptions options);
+  ~Bridge() override;
+
+  /// Creates DDS endpoints for every selected topic with local endpoints, and
+  /// from now on for each new one as it appears. Idempotent.
+  void start();
+  void on_start() override { start(); }
+  void on_stop() override;
+
+  /// From now on, remote endpoints that go away are reported as departures
+  /// (info), not losses (warnings): the graph is being stopped on purpose.
+  void expect_departures() { departures_expected_.store(true); }
+
+  /// Marks one more topic for DDS (absolute name).
+  void bridge_topic(const std::string& topic);
+
+  /// Blocks until every expectation is met or `timeout` passes. Lets a
+  /// launched graph connect before its nodes publish, so the first message is
+  /// not lost to discovery.
+  [[nodiscard]] WaitResult wait_for_peers(const std::vector<PeerExpectation>& expected,
+                                          std::chrono::milliseconds timeout);
+
+  std::vector<LinkStats> stats() const;
+  /// The origin of messages this bridge injects (MessageInfo::origin).
+  std::uint32_t origin() const { return origin_; }
+  const Participant& participant() const { return *participant_; }
+
+  struct Link;  // one bridged topic (bridge.cpp)
+
+  Bridge(bus::NodeOptions node_options, BridgeOptions options);  // use create()
+
+ private:
+  friend struct BridgeAccess;
+  void on_graph_change(const std::string& topic);
+  void sync_topic(const std::string& topic);
+  void send(Link& link, const std::shared_ptr<const void>& msg);
+  void receive_loop();
+  void attach_graph(const std::weak_ptr<Bridge>& self);
+
+  BridgeOptions options_;
+  std::unique_ptr<Participant> participant_;
+  std::uint32_t origin_ = 0;
+  // Lock order: sync_mu_ (held across DDS calls that create or delete
+  // entities) before mu_ (the link list, short). DDS listeners take neither:
+  // deleting an entity waits for its listeners to return.
+  mutable std::mutex sync_mu_;
+  mutable std::mutex mu_;
+  std::vector<std::shared_ptr<Link>> links_;
+  bool started_ = false;
+  bool stopped_ = false;
+  int graph_listener_ = 0;
+  std::int32_t waitset_ = 0;
+  std::int32_t wake_ = 0;
+  std::atomic<bool> quit_{false};
+  std::atomic<bool> departures_expected_{false};
+  std::thread receiver_;
+  std::mutex match_mu_;  // guards match_events_ (bumped by DDS listeners)
+  std::condition_variable matched_cv_;
+  std::uint64_t match_events_ = 0;
+};
+
+}  // namespace tinyline::dds

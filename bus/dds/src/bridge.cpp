@@ -1,0 +1,551 @@
+#include <tinyline/dds/bridge.hpp>
+
+#include <algorithm>
+#include <map>
+
+#include <fmt/format.h>
+
+#include <tinyline/dds/naming.hpp>
+
+#include "entities.hpp"
+#include "serdata.hpp"
+
+namespace tinyline::dds {
+
+using detail::fail;
+
+bool TopicSelection::selects(const std::string& topic) const {
+  return all || std::find(topics.begin(), topics.end(), topic) != topics.end();
+}
+
+namespace {
+
+thread_local bool t_in_sync = false;
+
+constexpr std::size_t kOutQueueMin = 256;  // messages (shared pointers) between a publisher and the DDS writer  // the bridge's own endpoints must not re-enter sync_topic
+
+std::atomic<std::uint32_t> g_next_origin{0xdd500001u};
+
+bool same(const EndpointQos& a, const EndpointQos& b) {
+  return a.reliable == b.reliable && a.transient_local == b.transient_local && a.keep_all == b.keep_all &&
+         a.depth == b.depth;
+}
+
+/// Logs the first failure of a kind and then every 100th, so a broken peer
+/// cannot flood the log.
+bool worth_logging(std::uint64_t count) { return count == 1 || count % 100 == 0; }
+
+}  // namespace
+
+EndpointQos offered_qos(const std::vector<bus::QoS>& pubs) {
+  EndpointQos e;
+  e.reliable = false;
+  e.depth = 1;
+  e.max_blocking = std::chrono::nanoseconds(0);
+  for (const auto& q : pubs) {
+    e.reliable |= !q.best_effort;
+    e.transient_local |= q.transient_local;
+    e.keep_all |= q.history == bus::QoS::History::Reliable;
+    e.depth = std::max(e.depth, static_cast<int>(q.depth));
+    e.max_blocking = std::max(e.max_blocking, std::chrono::duration_cast<std::chrono::nanoseconds>(q.max_block));
+  }
+  return e;
+}
+
+EndpointQos requested_qos(const std::vector<bus::QoS>& subs) {
+  EndpointQos e;
+  e.reliable = true;
+  e.transient_local = true;
+  e.depth = 1;
+  for (const auto& q : subs) {
+    e.reliable &= !q.best_effort;
+    e.transient_local &= q.transient_local;
+    e.keep_all |= q.history == bus::QoS::History::Reliable;
+    e.depth = std::max(e.depth, static_cast<int>(q.depth));
+  }
+  return e;
+}
+
+std::string incompatibility(const EndpointQos& offered, const EndpointQos& requested) {
+  // Request-offered: a reader gets nothing from a writer that offers less.
+  std::string why;
+  if (requested.reliable && !offered.reliable) why = "the publishers are best effort, the subscribers require reliable";
+  if (requested.transient_local && !offered.transient_local) {
+    why += std::string(why.empty() ? "" : "; ") +
+           "the subscribers require transient local (latched), the publishers are volatile";
+  }
+  return why;
+}
+
+struct Bridge::Link {
+  Bridge* bridge = nullptr;
+  std::string name;
+  const msg::TypeSupport* type = nullptr;
+  detail::TopicHandle topic;
+  // Written by sync_topic (serialised by sync_mu_), read by callbacks.
+  std::atomic<dds_entity_t> writer{0};
+  std::atomic<dds_entity_t> reader{0};
+  std::atomic<bool> writer_latched{false};
+  dds_entity_t read_cond = 0;
+  EndpointQos wq, rq;
+  std::shared_ptr<bus::GenericSubscription> out;  // local -> DDS (kept for the bridge's life)
+  std::shared_ptr<bus::GenericPublisher> in;      // DDS -> local
+  std::atomic<std::size_t> remote_readers{0}, remote_writers{0};
+  std::atomic<std::uint64_t> sent{0}, unmatched{0}, received{0}, decode_errors{0}, write_errors{0},
+      incompatible{0};
+  std::size_t last_size = 64;  // serialization buffer guess (out callback only)
+  std::mutex peers_mu;
+  std::map<dds_instance_handle_t, Identity> readers_seen, writers_seen;
+};
+
+namespace {
+
+// The entity of a status callback is a writer or a reader of `l`; report who
+// joined and who left by comparing the matched set with what we knew.
+// `status_count` is the count the status reported: the fallback when the
+// entity cannot be queried yet (a match found while it is being created calls
+// the listener before dds_create_* returns; sync_topic calls this again).
+template <bool kWriter>
+void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_count, const bus::Logger& log,
+                  bool departures_expected, std::mutex& mu, std::condition_variable& cv, std::uint64_t& events) {
+  std::vector<dds_instance_handle_t> hs(256);
+  const dds_return_t n = kWriter ? dds_get_matched_subscriptions(entity, hs.data(), hs.size())
+                                 : dds_get_matched_publications(entity, hs.data(), hs.size());
+  if (n < 0) {
+    (kWriter ? l.remote_readers : l.remote_writers).store(status_count);
+    {
+      std::lock_guard lk(mu);
+      ++events;
+    }
+    cv.notify_all();
+    return;
+  }
+  hs.resize(std::min(hs.size(), static_cast<std::size_t>(n)));
+  std::vector<std::string> joined, left;
+  std::size_t now_count = 0;
+  {
+    std::lock_guard lk(l.peers_mu);
+    auto& seen = kWriter ? l.readers_seen : l.writers_seen;
+    for (const auto h : hs) {
+      if (seen.count(h) != 0) continue;
+      dds_builtintopic_endpoint_t* e =
+          kWriter ? dds_get_matched_subscription_data(entity, h) : dds_get_matched_publication_data(entity, h);
+      Identity who;
+      if (e != nullptr) {
+        who = detail::read_identity(e->qos);
+        dds_builtintopic_free_endpoint(e);
+      }
+      joined.push_back(who.describe());
+      seen.emplace(h, who);
+    }
+    for (auto it = seen.begin(); it != seen.end();) {
+      if (std::find(hs.begin(), hs.end(), it->first) == hs.end()) {
+        left.push_back(it->second.describe());
+        it = seen.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    now_count = seen.size();
+  }
+  (kWriter ? l.remote_readers : l.remote_writers).store(now_count);
+  const char* what = kWriter ? "subscriber" : "publisher";
+  for (const auto& j : joined) log.info("{}: remote {} in {} connected", l.name, what, j);
+  for (const auto& g : left) {
+    if (departures_expected) {
+      log.info("{}: the remote {} in {} left; {} remote {}(s) left", l.name, what, g, now_count, what);
+    } else {
+      log.warn("{}: lost the remote {} in {}; {} remote {}(s) left", l.name, what, g, now_count, what);
+    }
+  }
+  {
+    std::lock_guard lk(mu);
+    ++events;
+  }
+  cv.notify_all();
+}
+
+}  // namespace
+
+// The listener callbacks need the bridge's match bookkeeping; these statics
+// reach it through the link.
+struct BridgeAccess {
+  static void publication_matched(dds_entity_t w, const dds_publication_matched_status_t st, void* arg) {
+    auto* l = static_cast<Bridge::Link*>(arg);
+    update_peers<true>(*l, w, st.current_count, l->bridge->logger(), l->bridge->departures_expected_.load(),
+                       l->bridge->match_mu_, l->bridge->matched_cv_, l->bridge->match_events_);
+  }
+  static void subscription_matched(dds_entity_t r, const dds_subscription_matched_status_t st, void* arg) {
+    auto* l = static_cast<Bridge::Link*>(arg);
+    update_peers<false>(*l, r, st.current_count, l->bridge->logger(), l->bridge->departures_expected_.load(),
+                        l->bridge->match_mu_, l->bridge->matched_cv_, l->bridge->match_events_);
+  }
+  static void refresh_writer(Bridge::Link& l, dds_entity_t w) {
+    dds_publication_matched_status_t st{};
+    dds_get_publication_matched_status(w, &st);
+    publication_matched(w, st, &l);
+  }
+  static void refresh_reader(Bridge::Link& l, dds_entity_t r) {
+    dds_subscription_matched_status_t st{};
+    dds_get_subscription_matched_status(r, &st);
+    subscription_matched(r, st, &l);
+  }
+  static void offered_incompatible(dds_entity_t, const dds_offered_incompatible_qos_status_t st, void* arg) {
+    auto* l = static_cast<Bridge::Link*>(arg);
+    l->incompatible.fetch_add(1);
+    l->bridge->logger().warn(
+        "{}: a remote subscriber requests QoS the local publishers do not offer ({}); it gets nothing. "
+        "Offered here: {}",
+        l->name, detail::policy_name(st.last_policy_id), l->wq.describe());
+  }
+  static void requested_incompatible(dds_entity_t, const dds_requested_incompatible_qos_status_t st, void* arg) {
+    auto* l = static_cast<Bridge::Link*>(arg);
+    l->incompatible.fetch_add(1);
+    l->bridge->logger().warn(
+        "{}: a remote publisher offers QoS the local subscribers cannot accept ({}); nothing arrives from it. "
+        "Requested here: {} (a best-effort publisher needs best-effort subscribers, QoS::sensor_data())",
+        l->name, detail::policy_name(st.last_policy_id), l->rq.describe());
+  }
+};
+
+// ---------------------------------------------------------------------------- Bridge
+
+std::shared_ptr<Bridge> Bridge::create(const std::shared_ptr<bus::Context>& context, BridgeOptions options) {
+  bus::NodeOptions no;
+  no.name = options.node_name;
+  no.context = context;
+  auto b = std::make_shared<Bridge>(std::move(no), std::move(options));
+  b->attach_graph(b);
+  return b;
+}
+
+Bridge::Bridge(bus::NodeOptions node_options, BridgeOptions options)
+    : Node(std::move(node_options)), options_(std::move(options)) {
+  participant_ = std::make_unique<Participant>(options_.settings);
+  origin_ = g_next_origin.fetch_add(1);
+  waitset_ = dds_create_waitset(participant_->handle());
+  wake_ = dds_create_guardcondition(participant_->handle());
+  if (waitset_ < 0 || wake_ < 0) fail("cannot create the DDS bridge's waitset", waitset_ < 0 ? waitset_ : wake_);
+  dds_waitset_attach(waitset_, wake_, 0);
+  receiver_ = std::thread([this] { receive_loop(); });
+}
+
+void Bridge::attach_graph(const std::weak_ptr<Bridge>& self) {
+  graph_listener_ = context().graph().on_endpoints_changed([weak = self](const std::string& topic) {
+    if (auto b = weak.lock()) b->on_graph_change(topic);
+  });
+}
+
+Bridge::~Bridge() {
+  context().graph().remove_on_endpoints_changed(graph_listener_);
+  on_stop();
+  // Entities go before the links their listeners point to.
+  participant_.reset();
+}
+
+void Bridge::on_stop() {
+  departures_expected_.store(true);
+  {
+    std::lock_guard lk(mu_);
+    if (stopped_) return;
+    stopped_ = true;
+  }
+  quit_.store(true);
+  dds_set_guardcondition(wake_, true);
+  if (receiver_.joinable()) receiver_.join();
+}
+
+void Bridge::start() {
+  {
+    std::lock_guard lk(mu_);
+    if (started_ || stopped_) return;
+    started_ = true;
+  }
+  for (const auto& t : context().graph().topics()) sync_topic(t.name);
+}
+
+void Bridge::bridge_topic(const std::string& topic) {
+  {
+    std::lock_guard lk(mu_);
+    if (!options_.selection.selects(topic)) options_.selection.topics.push_back(topic);
+  }
+  sync_topic(topic);
+}
+
+void Bridge::on_graph_change(const std::string& topic) {
+  if (t_in_sync) return;
+  sync_topic(topic);
+}
+
+void Bridge::sync_topic(const std::string& name) {
+  std::lock_guard sync(sync_mu_);
+  {
+    std::lock_guard lk(mu_);
+    if (!started_ || stopped_ || !options_.selection.selects(name)) return;
+  }
+  auto topic = context().graph().find(name);
+  if (!topic) return;
+  std::vector<bus::QoS> pubs, subs;
+  const std::string self = full_name();
+  for (const auto& n : context().graph().nodes()) {
+    if (n.full_name == self) continue;
+    for (const auto& e : n.publishers)
+      if (e.topic == name) pubs.push_back(e.qos);
+    for (const auto& e : n.subscriptions)
+      if (e.topic == name) subs.push_back(e.qos);
+  }
+  std::shared_ptr<Link> l;
+  {
+    std::lock_guard lk(mu_);
+    for (const auto& x : links_)
+      if (x->name == name) l = x;
+  }
+  if (!l && pubs.empty() && subs.empty()) return;
+  t_in_sync = true;
+  struct Reset {
+    ~Reset() { t_in_sync = false; }
+  } reset;
+  if (!l) {
+    l = std::make_shared<Link>();
+    l->bridge = this;
+    l->name = name;
+    l->type = &topic->type();
+    l->topic = detail::create_topic(participant_->handle(), dds_topic_name(name), std::string(l->type->dds_type_name()),
+                                    l->type, options_.settings.max_sample_bytes);
+    std::lock_guard lk(mu_);
+    links_.push_back(l);
+  }
+  Link& L = *l;
+
+  // Writer: exists while the process publishes the topic.
+  const EndpointQos wq = offered_qos(pubs);
+  if (L.writer.load() != 0 && (pubs.empty() || !same(wq, L.wq))) {
+    dds_delete(L.writer.exchange(0));
+    L.remote_readers.store(0);
+    std::lock_guard lk(L.peers_mu);
+    L.readers_seen.clear();
+  }
+  if (!pubs.empty() && L.writer.load() == 0) {
+    L.wq = wq;
+    detail::Qos q;
+    detail::fill_qos(q, wq, false, participant_->identity());
+    dds_listener_t* ls = dds_create_listener(&L);
+    dds_lset_publication_matched(ls, &BridgeAccess::publication_matched);
+    dds_lset_offered_incompatible_qos(ls, &BridgeAccess::offered_incompatible);
+    const dds_entity_t w = dds_create_writer(participant_->handle(), L.topic.topic, q.q, ls);
+    dds_delete_listener(ls);
+    if (w < 0) fail("cannot create a DDS writer for " + name, w);
+    L.writer_latched.store(wq.transient_local);
+    L.writer.store(w);
+    BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
+    if (!L.out) {
+      // The bridge is one more local subscriber, with the publishers' own QoS
+      // (a latched topic replays its history to it, a reliable one waits for it).
+      // Its queue holds pointers, not copies: deep enough that a burst the
+      // local subscribers absorb reaches the DDS writer too, whose own
+      // history then applies the publishers' depth as in ROS 2.
+      const auto depth = std::max<std::size_t>(static_cast<std::size_t>(wq.depth), kOutQueueMin);
+      bus::QoS sq = wq.keep_all ? bus::QoS::reliable(depth, std::chrono::duration_cast<bus::Duration>(wq.max_blocking))
+                                : bus::QoS::keep_last(depth);
+      sq.transient_local = wq.transient_local;
+      Link* raw = l.get();
+      L.out = create_generic_subscription(
+          name, *L.type, sq,
+          [raw](const std::shared_ptr<const void>& m, const msg::TypeSupport&, const bus::MessageInfo&) {
+            raw->bridge->send(*raw, m);
+          });
+      L.out->ignore_origin = origin_;
+    }
+  }
+
+  // Reader: exists while the process subscribes to the topic.
+  const EndpointQos rq = requested_qos(subs);
+  if (L.reader.load() != 0 && (subs.empty() || !same(rq, L.rq))) {
+    dds_waitset_detach(waitset_, L.read_cond);
+    dds_delete(L.reader.exchange(0));  // deletes its read condition too
+    L.remote_writers.store(0);
+    std::lock_guard lk(L.peers_mu);
+    L.writers_seen.clear();
+  }
+  if (!subs.empty() && L.reader.load() == 0) {
+    L.rq = rq;
+    if (!L.in) {
+      bus::QoS pq = bus::QoS::keep_last(static_cast<std::size_t>(rq.depth));
+      pq.transient_local = rq.transient_local;  // late local subscribers get what came in
+      auto in = create_generic_publisher(name, *L.type, pq);
+      std::lock_guard lk(mu_);
+      L.in = std::move(in);
+    }
+    detail::Qos q;
+    detail::fill_qos(q, rq, true, participant_->identity());
+    dds_listener_t* ls = dds_create_listener(&L);
+    dds_lset_subscription_matched(ls, &BridgeAccess::subscription_matched);
+    dds_lset_requested_incompatible_qos(ls, &BridgeAccess::requested_incompatible);
+    const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
+    dds_delete_listener(ls);
+    if (r < 0) fail("cannot create a DDS reader for " + name, r);
+    L.read_cond = dds_create_readcondition(r, DDS_ANY_STATE);
+    L.reader.store(r);
+    BridgeAccess::refresh_reader(L, r);
+    dds_waitset_attach(waitset_, L.read_cond, static_cast<dds_attach_t>(r));
+  }
+}
+
+void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
+  const dds_entity_t w = l.writer.load();
+  if (w == 0) return;
+  // Volatile data nobody remote listens to is not worth serializing; DDS
+  // would drop it anyway. Latched data is kept by the writer for late joiners.
+  if (!l.writer_latched.load() && l.remote_readers.load() == 0) {
+    l.unmatched.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  std::vector<std::uint8_t> buf;
+  buf.reserve(l.last_size);
+  try {
+    l.type->serialize(m.get(), buf);
+  } catch (const std::exception& e) {
+    if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
+      logger().error("{}: cannot serialize a message for DDS: {}", l.name, e.what());
+    }
+    return;
+  }
+  l.last_size = buf.size();
+  ddsi_serdata* sd = detail::make_serdata(l.topic.sertype, std::move(buf));
+  const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
+  if (rc < 0) {
+    if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
+      logger().error("{}: DDS write failed: {} ({} remote reader(s))", l.name, dds_strretcode(rc),
+                     l.remote_readers.load());
+    }
+    return;
+  }
+  l.sent.fetch_add(1, std::memory_order_relaxed);
+}
+
+void Bridge::receive_loop() {
+  std::vector<dds_attach_t> xs(64);
+  while (!quit_.load()) {
+    const dds_return_t n = dds_waitset_wait(waitset_, xs.data(), xs.size(), DDS_INFINITY);
+    if (quit_.load()) break;
+    for (dds_return_t i = 0; i < n && i < static_cast<dds_return_t>(xs.size()); ++i) {
+      const auto reader = static_cast<dds_entity_t>(xs[static_cast<std::size_t>(i)]);
+      if (reader == 0) continue;
+      std::shared_ptr<Link> l;
+      std::shared_ptr<bus::GenericPublisher> in;
+      {
+        std::lock_guard lk(mu_);
+        for (const auto& x : links_) {
+          if (x->reader.load() == reader) {
+            l = x;
+            in = x->in;
+          }
+        }
+      }
+      if (!l || !in) continue;
+      for (;;) {
+        ddsi_serdata* sd = nullptr;
+        dds_sample_info_t info;
+        if (dds_takecdr(reader, &sd, 1, &info, DDS_ANY_STATE) <= 0) break;
+        if (info.valid_data) {
+          std::shared_ptr<void> msg;
+          try {
+            msg = l->type->deserialize(detail::serdata_bytes(sd));
+          } catch (const std::exception& e) {
+            const auto errors = l->decode_errors.fetch_add(1) + 1;
+            if (worth_logging(errors)) {
+              Identity who;
+              if (auto* ep = dds_get_matched_publication_data(reader, info.publication_handle)) {
+                who = detail::read_identity(ep->qos);
+                dds_builtintopic_free_endpoint(ep);
+              }
+              logger().error("{}: dropped a sample from {} that does not decode as {} ({} so far): {}", l->name,
+                             who.describe(), l->type->name, errors, e.what());
+            }
+          }
+          if (msg) {
+            in->publish(std::move(msg), origin_);
+            l->received.fetch_add(1, std::memory_order_relaxed);
+          }
+        }
+        ddsi_serdata_unref(sd);
+      }
+    }
+  }
+}
+
+WaitResult Bridge::wait_for_peers(const std::vector<PeerExpectation>& expected, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  auto check = [&](std::string* missing) {
+    std::vector<std::shared_ptr<Link>> links;
+    {
+      std::lock_guard lk(mu_);
+      links = links_;
+    }
+    bool ok = true;
+    for (const auto& e : expected) {
+      const Link* l = nullptr;
+      for (const auto& x : links)
+        if (x->name == e.topic) l = x.get();
+      const std::size_t r = l ? l->remote_readers.load() : 0;
+      const std::size_t w = l ? l->remote_writers.load() : 0;
+      if (r < e.readers || w < e.writers) {
+        ok = false;
+        if (missing) {
+          *missing += fmt::format("{}{}: {} of {} remote subscriber(s), {} of {} remote publisher(s)",
+                                  missing->empty() ? "" : "; ", e.topic, r, e.readers, w, e.writers);
+        }
+      }
+    }
+    return ok;
+  };
+  for (;;) {
+    std::uint64_t seen;
+    {
+      std::lock_guard lk(match_mu_);
+      seen = match_events_;
+    }
+    if (check(nullptr)) return {true, {}};
+    std::unique_lock lk(match_mu_);
+    if (!matched_cv_.wait_until(lk, deadline, [&] { return match_events_ != seen; })) {
+      lk.unlock();
+      WaitResult r;
+      r.ok = check(&r.missing);
+      return r;
+    }
+  }
+}
+
+std::vector<LinkStats> Bridge::stats() const {
+  std::vector<std::shared_ptr<Link>> links;
+  {
+    std::lock_guard lk(mu_);
+    links = links_;
+  }
+  std::vector<LinkStats> out;
+  for (const auto& l : links) {
+    LinkStats s;
+    s.topic = l->name;
+    s.type = std::string(l->type->name);
+    s.writer = l->writer.load() != 0;
+    s.reader = l->reader.load() != 0;
+    {
+      std::lock_guard lk(sync_mu_);
+      s.writer_qos = l->wq;
+      s.reader_qos = l->rq;
+    }
+    s.remote_readers = l->remote_readers.load();
+    s.remote_writers = l->remote_writers.load();
+    s.sent = l->sent.load();
+    s.unmatched = l->unmatched.load();
+    s.received = l->received.load();
+    s.decode_errors = l->decode_errors.load();
+    s.write_errors = l->write_errors.load();
+    s.incompatible = l->incompatible.load();
+    out.push_back(std::move(s));
+  }
+  std::sort(out.begin(), out.end(), [](const LinkStats& a, const LinkStats& b) { return a.topic < b.topic; });
+  return out;
+}
+
+}  // namespace tinyline::dds

@@ -1,0 +1,112 @@
+#include "process_plan.hpp"
+
+#include <algorithm>
+#include <map>
+#include <set>
+
+#include <fmt/format.h>
+
+namespace tinyline::tools {
+
+const ProcessPlan* GraphPlan::find(const std::string& name) const {
+  for (const auto& p : processes)
+    if (p.name == name) return &p;
+  return nullptr;
+}
+
+namespace {
+
+struct Use {
+  std::vector<bus::QoS> pubs;
+  std::vector<bus::QoS> subs;
+};
+
+}  // namespace
+
+GraphPlan plan_processes(const launch::LaunchPlan& plan, const bus::NodeRegistry& registry) {
+  GraphPlan g;
+  g.processes.push_back(ProcessPlan{});
+  for (const auto& n : plan.nodes) {
+    if (g.find(n.process) == nullptr) g.processes.push_back(ProcessPlan{n.process, {}, false, {}, {}});
+  }
+  // process -> topic -> endpoints, from the nodes themselves.
+  std::vector<std::map<std::string, Use>> uses(g.processes.size());
+  for (std::size_t p = 0; p < g.processes.size(); ++p) {
+    ProcessPlan& pp = g.processes[p];
+    bus::ContextOptions co;
+    co.clock = bus::ClockType::Sim;
+    co.log_sink = std::make_shared<bus::CaptureSink>();
+    auto nodes = launch::instantiate(plan, registry, bus::Context::create(co), pp.name);
+    std::set<std::string> marked;
+    for (const auto& spec : plan.nodes) {
+      if (spec.process != pp.name) continue;
+      pp.respawn |= spec.respawn;
+      if (spec.dds) marked.insert((spec.ns == "/" ? "" : spec.ns) + "/" + spec.name);
+    }
+    for (const auto& n : nodes) {
+      pp.nodes.push_back(n->full_name());
+      const auto info = n->describe();
+      for (const auto& e : info.publishers) uses[p][e.topic].pubs.push_back(e.qos);
+      for (const auto& e : info.subscriptions) uses[p][e.topic].subs.push_back(e.qos);
+      if (marked.count(n->full_name()) != 0) {
+        for (const auto* list : {&info.publishers, &info.subscriptions})
+          for (const auto& e : *list) pp.dds.topics.push_back(e.topic);
+      }
+    }
+    pp.dds.all = plan.dds.all;
+    pp.dds.topics.insert(pp.dds.topics.end(), plan.dds.topics.begin(), plan.dds.topics.end());
+  }
+  // Topics that cross processes travel over DDS wherever they are used.
+  for (std::size_t p = 0; p < g.processes.size(); ++p) {
+    for (const auto& [topic, use] : uses[p]) {
+      for (std::size_t q = 0; q < g.processes.size(); ++q) {
+        if (q != p && uses[q].count(topic) != 0) g.processes[p].dds.topics.push_back(topic);
+      }
+    }
+  }
+  for (auto& pp : g.processes) {
+    std::sort(pp.dds.topics.begin(), pp.dds.topics.end());
+    pp.dds.topics.erase(std::unique(pp.dds.topics.begin(), pp.dds.topics.end()), pp.dds.topics.end());
+  }
+  // Who waits for whom, and which pairs DDS will refuse to connect.
+  for (std::size_t p = 0; p < g.processes.size(); ++p) {
+    for (const auto& [topic, mine] : uses[p]) {
+      if (!g.processes[p].dds.selects(topic)) continue;
+      dds::PeerExpectation e{topic, 0, 0};
+      for (std::size_t q = 0; q < g.processes.size(); ++q) {
+        if (q == p || !g.processes[q].dds.selects(topic)) continue;
+        const auto it = uses[q].find(topic);
+        if (it == uses[q].end()) continue;
+        const Use& theirs = it->second;
+        if (!mine.pubs.empty() && !theirs.subs.empty()) {
+          const auto why = dds::incompatibility(dds::offered_qos(mine.pubs), dds::requested_qos(theirs.subs));
+          if (why.empty()) {
+            ++e.readers;
+          } else {
+            g.warnings.push_back(fmt::format(
+                "{}: DDS will not connect the publishers in {} to the subscribers in {}: {}", topic,
+                g.processes[p].name.empty() ? "the launching process" : "process '" + g.processes[p].name + "'",
+                g.processes[q].name.empty() ? "the launching process" : "process '" + g.processes[q].name + "'",
+                why));
+          }
+        }
+        if (!mine.subs.empty() && !theirs.pubs.empty() &&
+            dds::incompatibility(dds::offered_qos(theirs.pubs), dds::requested_qos(mine.subs)).empty()) {
+          ++e.writers;
+        }
+      }
+      if (e.readers + e.writers > 0) g.processes[p].expect.push_back(e);
+    }
+  }
+  return g;
+}
+
+dds::Settings dds_settings(const launch::LaunchPlan& plan, const std::string& process_name) {
+  dds::Settings s = dds::Settings::from_environment();
+  if (plan.dds.domain_id) s.domain_id = *plan.dds.domain_id;
+  if (!plan.dds.config.empty()) s.config = plan.dds.config;
+  s.process_name = process_name;
+  return s;
+}
+
+}  // namespace tinyline::tools
