@@ -1,6 +1,8 @@
 #include <sim/system.hpp>
 
 #include <cmath>
+#include <filesystem>
+#include <map>
 #include <stdexcept>
 
 #include "random.hpp"
@@ -8,7 +10,10 @@
 namespace tinyline::sim {
 
 SimulatedSystem::SimulatedSystem(Scene scene, SystemOptions options)
-    : scene_(std::move(scene)), options_(options), t0_(std::chrono::steady_clock::now()) {
+    : scene_(std::move(scene)),
+      options_(options),
+      t0_(std::chrono::steady_clock::now()),
+      wall0_(std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count()) {
   for (std::size_t i = 0; i < scene_.sensors.size(); ++i) {
     const SensorMount& m = scene_.sensors[i];
     Rng rng(mix_seed(m.params.seed, 0xC10Cull, i));
@@ -19,6 +24,43 @@ SimulatedSystem::SimulatedSystem(Scene scene, SystemOptions options)
 
 std::shared_ptr<SimulatedSystem> SimulatedSystem::from_file(const std::string& scene_path, SystemOptions options) {
   return std::make_shared<SimulatedSystem>(load_scene(scene_path), options);
+}
+
+std::shared_ptr<SimulatedSystem> SimulatedSystem::shared(const std::string& scene_path, SystemOptions options) {
+  static std::mutex mu;
+  static std::map<std::string, std::weak_ptr<SimulatedSystem>> systems;
+  std::error_code ec;
+  std::string key = std::filesystem::weakly_canonical(scene_path, ec).string();
+  if (ec) key = scene_path;
+  std::lock_guard lock(mu);
+  if (auto it = systems.find(key); it != systems.end()) {
+    if (auto s = it->second.lock()) return s;
+  }
+  auto s = from_file(scene_path, options);
+  systems[key] = s;
+  return s;
+}
+
+double SimulatedSystem::bus_epoch(double bus_time_s) {
+  std::lock_guard lock(epoch_mu_);
+  if (!bus_epoch_) bus_epoch_ = bus_time_s;
+  return *bus_epoch_;
+}
+
+int SimulatedSystem::add_observer(std::function<void(std::size_t, const SensorSet&)> fn) {
+  std::lock_guard lock(observers_mu_);
+  observers_.emplace_back(next_observer_, std::move(fn));
+  return next_observer_++;
+}
+
+void SimulatedSystem::remove_observer(int id) {
+  std::lock_guard lock(observers_mu_);
+  std::erase_if(observers_, [id](const auto& o) { return o.first == id; });
+}
+
+void SimulatedSystem::notify(std::size_t sensor, const SensorSet& set) {
+  std::lock_guard lock(observers_mu_);
+  for (const auto& [id, fn] : observers_) fn(sensor, set);
 }
 
 double SimulatedSystem::now() const {

@@ -74,7 +74,7 @@ std::unique_ptr<VirtualDevice> VirtualDevice::from_port(const std::string& port,
     scene = scene.substr(0, hash);
   }
   if (scene.empty()) throw std::invalid_argument("virtual device port '" + port + "' names no scene file");
-  return std::make_unique<VirtualDevice>(SimulatedSystem::from_file(scene), std::move(options));
+  return std::make_unique<VirtualDevice>(SimulatedSystem::shared(scene), std::move(options));
 }
 
 VirtualDevice::~VirtualDevice() { stop(); }
@@ -329,6 +329,7 @@ void VirtualDevice::run() {
           SensorSet set = system_->measure(sensor_, t0, pulses, s.index++, true);
           ++s.stats.sets;
           if (s.on_set) s.on_set(set);
+          system_->notify(sensor_, set);
           s.frames = raw_frames(set);
           s.next_frame = 0;
           s.set = std::move(set);

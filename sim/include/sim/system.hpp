@@ -4,8 +4,10 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <string>
 #include <vector>
@@ -28,10 +30,21 @@ class SimulatedSystem {
   explicit SimulatedSystem(Scene scene, SystemOptions options = {});
   /// Loads a scene file; throws ConfigError.
   static std::shared_ptr<SimulatedSystem> from_file(const std::string& scene_path, SystemOptions options = {});
+  /// The one system of this process for a scene file (made on first use, kept
+  /// while anyone holds it): a driver's in-process device and the scene-truth
+  /// node then share one world, one clock and one crosstalk record.
+  static std::shared_ptr<SimulatedSystem> shared(const std::string& scene_path, SystemOptions options = {});
 
   /// Seconds since the system started (steady clock): the shared time base.
   [[nodiscard]] double now() const;
   [[nodiscard]] double sensor_time(double shared_s) const { return shared_s + options_.power_on_age_s; }
+  /// For nodes on a bus clock: the bus time [s] that is shared time 0 for
+  /// this system (set by the first caller, so every node agrees). Shared
+  /// times stay small, keeping nanosecond resolution for crosstalk timing.
+  double bus_epoch(double bus_time_s);
+  /// Wall-clock time [s since the epoch] of a shared time (for message stamps).
+  [[nodiscard]] double wall_time(double shared_s) const { return wall0_ + shared_s; }
+  [[nodiscard]] const std::string& scene_name() const { return scene_.name; }
 
   [[nodiscard]] std::size_t sensor_count() const { return sensors_.size(); }
   /// Index of a sensor by name; throws std::invalid_argument naming the known ones.
@@ -58,6 +71,13 @@ class SimulatedSystem {
   [[nodiscard]] SensorSet measure(std::size_t i, double t_start_shared, std::span<const int> pulses, std::uint64_t index,
                                   bool laser_on = true);
 
+  /// Observers of every set any device of this system measures (called on the
+  /// device's thread: keep them short). Returns an id for remove_observer().
+  int add_observer(std::function<void(std::size_t sensor, const SensorSet& set)> fn);
+  void remove_observer(int id);
+  /// Devices call this with each set they measure.
+  void notify(std::size_t sensor, const SensorSet& set);
+
  private:
   struct SensorState {
     SensorMount mount;
@@ -70,7 +90,13 @@ class SimulatedSystem {
   SystemOptions options_;
   std::vector<SensorState> sensors_;
   std::chrono::steady_clock::time_point t0_;
+  double wall0_ = 0.0;
+  std::mutex epoch_mu_;
+  std::optional<double> bus_epoch_;
   mutable std::shared_mutex mu_;
+  std::mutex observers_mu_;
+  std::vector<std::pair<int, std::function<void(std::size_t, const SensorSet&)>>> observers_;
+  int next_observer_ = 1;
 };
 
 }  // namespace tinyline::sim
