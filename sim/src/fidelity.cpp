@@ -511,7 +511,7 @@ TuneResult tune_noise(const SensorParams& base, const ThesisFigures& m, const Fi
   table << "read_noise,shot_noise_gain,transfer_noise_per_pulse,fit_error,held_out_error\n";
   for (double rn : {0.1, 0.15, 0.2, 0.3}) {
     for (double g : {1e-4, 2e-4, 4e-4, 8e-4}) {
-      for (double tn : {0.03, 0.035, 0.04, 0.045, 0.05}) {
+      for (double tn : {0.035, 0.04, 0.045, 0.05, 0.055}) {
         SensorParams p = base;
         p.pixel.read_noise = rn;
         p.pixel.shot_noise_gain = g;

@@ -57,7 +57,10 @@ struct PixelParams {
   double gate_split_ns = 21.0;        ///< gate A closes / gate B opens this long after emission starts
   double sensitivity_ratio = 1.0;     ///< mean R_sen (Eq. 3.16): raw a = (q_A + V_le) / R_sen
   double sensitivity_ratio_sd = 0.03; ///< pixel-to-pixel spread of R_sen
-  double leakage_per_ms = 1.0;        ///< mean V_le growth [charge_unit per ms of accumulation]
+  /// Mean V_le growth [charge_unit per ms of accumulation]. The public
+  /// driver's validity rule (a + b > 10 + 0.4 pulses/10) implies the two
+  /// capacitors leak well under 0.04 per pulse together.
+  double leakage_per_ms = 0.6;
   double leakage_sd = 0.1;            ///< relative pixel-to-pixel spread of the leakage
   double prnu_sd = 0.02;              ///< photo-response non-uniformity (relative gain spread)
   double full_scale = 250.0;          ///< saturation of a capacitor read-out [charge_unit]
@@ -65,11 +68,11 @@ struct PixelParams {
   /// Charge-to-voltage non-linearity of the storage node: a read-out v of
   /// charge q is q * (1 - nonlinearity * q / full_scale) (compression at full scale).
   double nonlinearity = 0.0;
-  double read_noise = 0.10;           ///< ADC + reset noise per read-out [charge_unit rms]
-  double shot_noise_gain = 8e-4;      ///< shot-noise variance per unit of collected charge [charge_unit]
+  double read_noise = 0.15;           ///< ADC + reset noise per read-out [charge_unit rms]
+  double shot_noise_gain = 4e-4;      ///< shot-noise variance per unit of collected charge [charge_unit]
   /// Zero-mean charge each gate cycle adds (reset and transfer noise of the
   /// photodiode, drained and refilled every pulse) [charge_unit rms per pulse].
-  double transfer_noise_per_pulse = 0.04;
+  double transfer_noise_per_pulse = 0.045;
   /// Constant offsets of the two read-out channels (each capacitor has its
   /// own buffer and ADC) [charge_unit]; they do not grow with the pulses, so
   /// the declared leakage V_le * pulses cannot absorb them.

@@ -1,0 +1,136 @@
+// The simulated sensor behind a pseudo-terminal that speaks the real serial
+// framing (reference/wire_protocol.md, tiny_laser_driver/protocol.hpp), so a
+// driver cannot tell it from the hardware. docs/simulator.md lists the bytes.
+//
+//   auto sys = SimulatedSystem::from_file("sim/config/scenes/calibration_rail.yaml");
+//   VirtualDevice dev(sys, {.link_path = dir + "/ttyTINY0"});
+//   dev.start();                       // the host opens dev.path() at 2 Mbaud
+//   dev.unplug(); dev.replug();        // the path disappears and comes back
+//   dev.stop();
+//
+// Firmware behaviour:
+//  * raw mode (default): continuous sets of read-outs at the sensor's
+//    acquisition.raw_pulses (5 frames per set, the last flagged);
+//  * distance mode: one distance frame per set at acquisition.distance_pulses,
+//    millimetres per pixel from the on-board calibration (firmware.hpp);
+//  * single-shot (the calibration firmware, Algorithm 1): 'R', n or the framed
+//    reset enters it with n * 10 pulses; each 'S' / 'P' / framed sample sends
+//    one raw frame (index 0, flagged last); the framed stream-mode command
+//    returns to continuous streaming;
+//  * sequence mode (Algorithm 4): framed laser off (F8 02 10 00 8F) stops the
+//    pulse timer (no light, no frames) and drops the partial set; laser on
+//    (F8 02 10 01 8F) starts a new set at once.
+// Frames leave at the link rate (10 bits per byte at `baud`); a frame's bytes
+// are produced when its read-out completes. With no host on the port the
+// output is discarded (as an FTDI with no reader); when the host lags, whole
+// frames beyond the transmit buffer are dropped and counted.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <sim/system.hpp>
+
+namespace tinyline::sim {
+
+/// Faults injected on the device-to-host bytes, for tests.
+struct LinkFaults {
+  double byte_error_rate = 0.0;  ///< probability per byte that one random bit flips
+  double byte_drop_rate = 0.0;   ///< probability per byte that it is lost
+  std::uint64_t seed = 1;
+};
+
+enum class FirmwareMode { kRaw, kDistance, kSingleShot };
+
+struct VirtualDeviceOptions {
+  std::string sensor;            ///< sensor name in the scene; empty: the first sensor
+  /// A stable path for the host: a symlink to the current pty, created by
+  /// start(), removed by unplug()/stop(), re-created by replug(). Empty: none
+  /// (path() is then the pty itself, which changes on replug).
+  std::string link_path;
+  double baud = 2000000.0;       ///< the FT232's rate; frames are paced at baud / 10 bytes per second
+  FirmwareMode mode = FirmwareMode::kRaw;
+  bool laser_on = true;          ///< false: silent until the host's laser-on (sequence mode)
+  int single_shot_pulses = 100;  ///< pulses before the host's first reset command
+  LinkFaults faults;
+  std::size_t tx_buffer_bytes = 16384;  ///< device-side buffer; beyond it frames are dropped
+};
+
+struct VirtualDeviceStats {
+  std::uint64_t sets = 0;              ///< sets measured
+  std::uint64_t frames_sent = 0;       ///< frames whose bytes went to the pty (before faults)
+  std::uint64_t frames_overflowed = 0; ///< frames dropped because the host lagged
+  std::uint64_t frames_no_host = 0;    ///< frames discarded while no host had the port open
+  std::uint64_t bytes_sent = 0;
+  std::uint64_t bytes_corrupted = 0;   ///< bytes sent with a flipped bit
+  std::uint64_t bytes_dropped = 0;     ///< bytes the fault injector removed
+  std::uint64_t bytes_overrun = 0;     ///< bytes lost because the pty was full (host not reading)
+  std::uint64_t commands = 0;          ///< host commands understood
+  std::uint64_t command_garbage = 0;   ///< host bytes that were no command
+  std::uint64_t host_opens = 0;        ///< times a host opened the port
+  std::uint64_t replugs = 0;
+};
+
+class VirtualDevice {
+ public:
+  /// Throws std::invalid_argument when the sensor is not in the scene.
+  VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDeviceOptions options = {});
+  /// A device from a port string "sim:SCENE.yaml" or "sim:SCENE.yaml#sensor"
+  /// (the driver's `port` parameter). Throws ConfigError / std::invalid_argument.
+  static std::unique_ptr<VirtualDevice> from_port(const std::string& port, VirtualDeviceOptions options = {});
+  ~VirtualDevice();
+  VirtualDevice(const VirtualDevice&) = delete;
+  VirtualDevice& operator=(const VirtualDevice&) = delete;
+
+  /// Opens the pty (and the link) and starts the firmware thread. Throws
+  /// std::system_error when the pty or the link cannot be made.
+  void start();
+  void stop();
+  [[nodiscard]] bool running() const { return running_.load(); }
+
+  /// Where the host opens the device: the link if configured, else the pty.
+  [[nodiscard]] std::string path() const;
+
+  /// USB unplug: the pty closes (the host reads EOF / EIO) and the link
+  /// disappears; the sensor is unpowered. replug() powers it up again on a
+  /// fresh pty behind the same link, in its initial mode.
+  void unplug();
+  void replug();
+  [[nodiscard]] bool plugged() const;
+  /// The link stops for `seconds` (a USB hiccup): output waits; frames beyond
+  /// the transmit buffer are dropped meanwhile.
+  void stall(double seconds);
+  void set_faults(const LinkFaults& faults);
+
+  [[nodiscard]] VirtualDeviceStats stats() const;
+  [[nodiscard]] FirmwareMode mode() const;
+  [[nodiscard]] bool laser_on() const;
+  [[nodiscard]] std::size_t sensor_index() const { return sensor_; }
+  [[nodiscard]] const std::shared_ptr<SimulatedSystem>& system() const { return system_; }
+  /// Called from the device thread with every set it measures (ground truth
+  /// for tests and for the scene node); keep it short.
+  void on_set(std::function<void(const SensorSet&)> callback);
+
+ private:
+  struct State;
+  void run();
+  void open_pty();
+  void close_pty();
+
+  std::shared_ptr<SimulatedSystem> system_;
+  VirtualDeviceOptions options_;
+  std::size_t sensor_ = 0;
+  std::unique_ptr<State> state_;
+  mutable std::mutex mu_;
+  std::thread thread_;
+  std::atomic<bool> running_{false};
+  std::atomic<bool> stop_{false};
+};
+
+}  // namespace tinyline::sim

@@ -1,0 +1,441 @@
+#include <sim/virtual_device.hpp>
+
+#include <fcntl.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <stdexcept>
+#include <system_error>
+
+#include <tiny_laser_driver/protocol.hpp>
+
+#include <sim/firmware.hpp>
+
+#include "random.hpp"
+
+namespace tinyline::sim {
+
+namespace tld = tiny_laser_driver;
+
+struct VirtualDevice::State {
+  // Link.
+  int master = -1;
+  std::string pty_name;
+  bool plugged = false;
+  bool host_present = false;
+  double stall_until = -1.0;
+  LinkFaults faults;
+  Rng fault_rng{1};
+  std::deque<std::vector<std::uint8_t>> tx;  // whole frames waiting to be sent
+  std::size_t tx_bytes = 0;
+  std::size_t tx_offset = 0;                 // bytes of tx.front() already sent
+  double last_write_t = 0.0;
+  tld::CommandParser commands;
+
+  // Firmware.
+  FirmwareMode mode = FirmwareMode::kRaw;
+  bool laser = true;
+  int shot_pulses = 100;
+  bool shot_requested = false;
+  std::optional<SensorSet> set;              // the set being read out
+  std::vector<tld::RawFrame> frames;         // its frames (raw and single shot)
+  std::size_t next_frame = 0;
+  std::uint64_t index = 0;
+  std::optional<tld::CalibrationModel> onboard;  // distance mode, made on first use
+
+  VirtualDeviceStats stats;
+  std::function<void(const SensorSet&)> on_set;
+};
+
+VirtualDevice::VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDeviceOptions options)
+    : system_(std::move(system)), options_(std::move(options)), state_(std::make_unique<State>()) {
+  if (!system_) throw std::invalid_argument("virtual device: no simulated system");
+  if (system_->sensor_count() == 0) throw std::invalid_argument("virtual device: the scene has no sensor");
+  sensor_ = options_.sensor.empty() ? 0 : system_->sensor_index(options_.sensor);
+  if (!(options_.baud > 0.0)) throw std::invalid_argument("virtual device: baud must be > 0");
+  if (options_.single_shot_pulses < 10 || options_.single_shot_pulses > 990 || options_.single_shot_pulses % 10 != 0)
+    throw std::invalid_argument("virtual device: single_shot_pulses must be a multiple of 10 in [10, 990]");
+  state_->faults = options_.faults;
+  state_->fault_rng = Rng(options_.faults.seed);
+}
+
+std::unique_ptr<VirtualDevice> VirtualDevice::from_port(const std::string& port, VirtualDeviceOptions options) {
+  if (port.rfind("sim:", 0) != 0) throw std::invalid_argument("virtual device port must look like sim:SCENE.yaml[#sensor], got '" + port + "'");
+  std::string scene = port.substr(4);
+  if (const auto hash = scene.find('#'); hash != std::string::npos) {
+    options.sensor = scene.substr(hash + 1);
+    scene = scene.substr(0, hash);
+  }
+  if (scene.empty()) throw std::invalid_argument("virtual device port '" + port + "' names no scene file");
+  return std::make_unique<VirtualDevice>(SimulatedSystem::shared(scene), std::move(options));
+}
+
+VirtualDevice::~VirtualDevice() { stop(); }
+
+void VirtualDevice::open_pty() {
+  State& s = *state_;
+  const int m = posix_openpt(O_RDWR | O_NOCTTY | O_NONBLOCK);
+  if (m < 0) throw std::system_error(errno, std::generic_category(), "virtual device: posix_openpt");
+  if (grantpt(m) != 0 || unlockpt(m) != 0) {
+    const int e = errno;
+    ::close(m);
+    throw std::system_error(e, std::generic_category(), "virtual device: grantpt/unlockpt");
+  }
+  char name[128];
+  if (ptsname_r(m, name, sizeof name) != 0) {
+    const int e = errno;
+    ::close(m);
+    throw std::system_error(e, std::generic_category(), "virtual device: ptsname");
+  }
+  // Raw line discipline, and one open/close of the slave so that the master
+  // reports a hang-up until a host opens it (bytes before that are discarded).
+  const int sl = ::open(name, O_RDWR | O_NOCTTY);
+  if (sl >= 0) {
+    termios t{};
+    if (tcgetattr(sl, &t) == 0) {
+      cfmakeraw(&t);
+      cfsetispeed(&t, B2000000);
+      cfsetospeed(&t, B2000000);
+      tcsetattr(sl, TCSANOW, &t);
+    }
+    ::close(sl);
+  }
+  s.master = m;
+  s.pty_name = name;
+  s.host_present = false;
+  s.plugged = true;
+  if (!options_.link_path.empty()) {
+    namespace fs = std::filesystem;
+    const fs::path link(options_.link_path);
+    const fs::path tmp = link.string() + ".tmp";
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    fs::create_symlink(name, tmp, ec);
+    if (ec) throw std::system_error(ec, "virtual device: cannot create link " + tmp.string());
+    fs::rename(tmp, link, ec);  // atomic replace
+    if (ec) throw std::system_error(ec, "virtual device: cannot create link " + link.string());
+  }
+}
+
+void VirtualDevice::close_pty() {
+  State& s = *state_;
+  if (!options_.link_path.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(options_.link_path, ec);
+  }
+  if (s.master >= 0) ::close(s.master);
+  s.master = -1;
+  s.plugged = false;
+  s.host_present = false;
+  s.tx.clear();
+  s.tx_bytes = 0;
+  s.tx_offset = 0;
+}
+
+void VirtualDevice::start() {
+  if (running_.load()) return;
+  {
+    std::lock_guard lock(mu_);
+    State& s = *state_;
+    s.mode = options_.mode;
+    s.laser = options_.laser_on;
+    s.shot_pulses = options_.single_shot_pulses;
+    // The on-board calibration takes a moment: make it before streaming starts.
+    if (s.mode == FirmwareMode::kDistance && !s.onboard) s.onboard = factory_calibration(system_->sensor(sensor_).params());
+    open_pty();
+    s.last_write_t = system_->now();
+  }
+  stop_ = false;
+  running_ = true;
+  thread_ = std::thread([this] { run(); });
+}
+
+void VirtualDevice::stop() {
+  if (!running_.load() && !thread_.joinable()) return;
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  running_ = false;
+  std::lock_guard lock(mu_);
+  system_->set_emitting(sensor_, false, system_->now());
+  close_pty();
+}
+
+std::string VirtualDevice::path() const {
+  std::lock_guard lock(mu_);
+  return options_.link_path.empty() ? state_->pty_name : options_.link_path;
+}
+
+void VirtualDevice::unplug() {
+  std::lock_guard lock(mu_);
+  State& s = *state_;
+  if (!s.plugged) return;
+  close_pty();
+  s.set.reset();
+  s.frames.clear();
+  system_->set_emitting(sensor_, false, system_->now());
+}
+
+void VirtualDevice::replug() {
+  std::lock_guard lock(mu_);
+  State& s = *state_;
+  if (s.plugged) return;
+  // Power-on: the firmware starts over in its initial mode.
+  s.mode = options_.mode;
+  s.laser = options_.laser_on;
+  s.shot_pulses = options_.single_shot_pulses;
+  s.shot_requested = false;
+  s.commands = tld::CommandParser{};
+  open_pty();
+  s.last_write_t = system_->now();
+  ++s.stats.replugs;
+}
+
+bool VirtualDevice::plugged() const {
+  std::lock_guard lock(mu_);
+  return state_->plugged;
+}
+
+void VirtualDevice::stall(double seconds) {
+  std::lock_guard lock(mu_);
+  state_->stall_until = system_->now() + std::max(0.0, seconds);
+}
+
+void VirtualDevice::set_faults(const LinkFaults& faults) {
+  std::lock_guard lock(mu_);
+  state_->faults = faults;
+  state_->fault_rng = Rng(faults.seed);
+}
+
+VirtualDeviceStats VirtualDevice::stats() const {
+  std::lock_guard lock(mu_);
+  return state_->stats;
+}
+
+FirmwareMode VirtualDevice::mode() const {
+  std::lock_guard lock(mu_);
+  return state_->mode;
+}
+
+bool VirtualDevice::laser_on() const {
+  std::lock_guard lock(mu_);
+  return state_->laser;
+}
+
+void VirtualDevice::on_set(std::function<void(const SensorSet&)> callback) {
+  std::lock_guard lock(mu_);
+  state_->on_set = std::move(callback);
+}
+
+void VirtualDevice::run() {
+  const SensorParams& params = system_->sensor(sensor_).params();
+  const double rate = params.emitter.pulse_rate_hz;
+  while (!stop_.load()) {
+    double sleep_s = 0.001;
+    {
+      std::lock_guard lock(mu_);
+      State& s = *state_;
+      const double now = system_->now();
+      if (!s.plugged) {
+        s.set.reset();
+        // Unpowered: nothing happens until replug().
+      } else {
+        // Host presence: a hang-up on the master means nobody has the port open.
+        pollfd p{s.master, POLLIN, 0};
+        ::poll(&p, 1, 0);
+        const bool present = !(p.revents & POLLHUP);
+        if (present && !s.host_present) ++s.stats.host_opens;
+        if (!present && s.host_present) {
+          // The host closed the port: what it did not read is gone.
+          s.stats.frames_no_host += s.tx.size();
+          s.tx.clear();
+          s.tx_bytes = 0;
+          s.tx_offset = 0;
+          tcflush(s.master, TCIOFLUSH);
+        }
+        s.host_present = present;
+
+        // Host commands.
+        if (present && (p.revents & POLLIN)) {
+          std::uint8_t buf[256];
+          const ssize_t n = ::read(s.master, buf, sizeof buf);
+          if (n > 0) s.commands.feed(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)));
+        }
+        const std::uint64_t garbage_before = s.commands.garbage();
+        while (auto c = s.commands.next()) {
+          using K = tld::HostCommand::Kind;
+          ++s.stats.commands;
+          switch (c->kind) {
+            case K::Reset:
+            case K::FramedReset:
+              s.mode = FirmwareMode::kSingleShot;
+              s.shot_pulses = std::clamp((c->value + 5) / 10 * 10, 10, 990);
+              s.set.reset();
+              s.frames.clear();
+              system_->set_emitting(sensor_, false, now);
+              break;
+            case K::Sample:
+            case K::FramedSample:
+              if (s.mode == FirmwareMode::kSingleShot) s.shot_requested = true;
+              break;
+            case K::SampleRestart:
+              if (s.mode == FirmwareMode::kSingleShot) {
+                s.shot_requested = true;
+              } else {
+                s.set.reset();  // restart the pulse timers: a new set from now
+                s.frames.clear();
+              }
+              break;
+            case K::Laser:
+              s.laser = c->value != 0;
+              s.set.reset();
+              s.frames.clear();
+              system_->set_emitting(sensor_, false, now);
+              break;
+            case K::StreamMode:
+              s.mode = c->value == 0 ? FirmwareMode::kDistance : FirmwareMode::kRaw;
+              s.set.reset();
+              s.frames.clear();
+              break;
+            case K::Unknown:
+              --s.stats.commands;
+              ++s.stats.command_garbage;
+              break;
+          }
+        }
+        s.stats.command_garbage += s.commands.garbage() - garbage_before;
+
+        // Firmware: start a set when due.
+        auto enqueue = [&](std::vector<std::uint8_t> bytes) {
+          if (!s.host_present) {
+            ++s.stats.frames_no_host;
+            return;
+          }
+          if (s.tx_bytes + bytes.size() > options_.tx_buffer_bytes) {
+            ++s.stats.frames_overflowed;
+            return;
+          }
+          s.tx_bytes += bytes.size();
+          s.tx.push_back(std::move(bytes));
+        };
+        auto begin_set = [&](double t0, const std::vector<int>& pulses) {
+          system_->set_emitting(sensor_, true, t0);
+          SensorSet set = system_->measure(sensor_, t0, pulses, s.index++, true);
+          ++s.stats.sets;
+          if (s.on_set) s.on_set(set);
+          system_->notify(sensor_, set);
+          s.frames = raw_frames(set);
+          s.next_frame = 0;
+          s.set = std::move(set);
+        };
+        if (!s.set) {
+          if (s.mode == FirmwareMode::kSingleShot) {
+            if (s.shot_requested) {
+              s.shot_requested = false;
+              begin_set(now, {s.shot_pulses});
+            }
+          } else if (s.laser) {
+            begin_set(now, s.mode == FirmwareMode::kRaw ? params.acquisition.raw_pulses : params.acquisition.distance_pulses);
+          }
+        }
+        // Read-outs that completed: their frames go to the transmit queue.
+        while (s.set) {
+          const SensorSet& set = *s.set;
+          if (s.mode == FirmwareMode::kDistance) {
+            if (now < set.t_end_s - system_->sensor_time(0.0)) break;
+            if (!s.onboard) s.onboard = factory_calibration(params);
+            tld::DistanceFrame f;
+            const auto mm = firmware_distances_mm(set, *s.onboard);
+            for (std::size_t i = 0; i < std::min(mm.size(), tld::kPixels); ++i) f.distance[i] = mm[i];
+            std::vector<std::uint8_t> bytes;
+            tld::encode_distance_frame(f, bytes);
+            enqueue(std::move(bytes));
+          } else {
+            if (s.next_frame >= s.frames.size()) {
+              s.set.reset();
+              break;
+            }
+            const double t_ready = set.t_start_s - system_->sensor_time(0.0) + s.frames[s.next_frame].pulses / rate;
+            if (now < t_ready) {
+              sleep_s = std::min(sleep_s, t_ready - now);
+              break;
+            }
+            std::vector<std::uint8_t> bytes;
+            tld::encode_raw_frame(s.frames[s.next_frame], bytes);
+            enqueue(std::move(bytes));
+            ++s.next_frame;
+            if (s.next_frame < s.frames.size()) continue;
+          }
+          // Set complete: in continuous modes the next one starts where this ended.
+          const double t_end = set.t_end_s - system_->sensor_time(0.0);
+          const bool continuous = s.mode != FirmwareMode::kSingleShot && s.laser;
+          s.set.reset();
+          if (!continuous) {
+            system_->set_emitting(sensor_, false, t_end);
+            break;
+          }
+          begin_set(t_end, s.mode == FirmwareMode::kRaw ? params.acquisition.raw_pulses : params.acquisition.distance_pulses);
+        }
+
+        // Link: pace the queued bytes at baud / 10.
+        if (now < s.stall_until) {
+          s.last_write_t = now;
+        } else if (s.host_present && !s.tx.empty()) {
+          double budget = (now - s.last_write_t) * options_.baud / 10.0;
+          budget = std::min(budget, 4096.0);
+          std::vector<std::uint8_t> out;
+          while (budget >= 1.0 && !s.tx.empty()) {
+            auto& front = s.tx.front();
+            const std::size_t take = std::min<std::size_t>(static_cast<std::size_t>(budget), front.size() - s.tx_offset);
+            out.insert(out.end(), front.begin() + static_cast<std::ptrdiff_t>(s.tx_offset),
+                       front.begin() + static_cast<std::ptrdiff_t>(s.tx_offset + take));
+            s.tx_offset += take;
+            budget -= static_cast<double>(take);
+            if (s.tx_offset == front.size()) {
+              s.tx_bytes -= front.size();
+              s.tx.pop_front();
+              s.tx_offset = 0;
+              ++s.stats.frames_sent;
+            }
+          }
+          const double sent_time = static_cast<double>(out.size()) * 10.0 / options_.baud;
+          s.last_write_t = std::min(now, s.last_write_t + sent_time);
+          // Faults, then the pty.
+          std::vector<std::uint8_t> wire;
+          wire.reserve(out.size());
+          for (std::uint8_t b : out) {
+            if (s.faults.byte_drop_rate > 0.0 && s.fault_rng.uniform() < s.faults.byte_drop_rate) {
+              ++s.stats.bytes_dropped;
+              continue;
+            }
+            if (s.faults.byte_error_rate > 0.0 && s.fault_rng.uniform() < s.faults.byte_error_rate) {
+              b ^= static_cast<std::uint8_t>(1u << (s.fault_rng.next() % 8));
+              ++s.stats.bytes_corrupted;
+            }
+            wire.push_back(b);
+          }
+          std::size_t off = 0;
+          while (off < wire.size()) {
+            const ssize_t w = ::write(s.master, wire.data() + off, wire.size() - off);
+            if (w <= 0) break;  // pty full: the host lags; the rest is lost like an overrun FTDI buffer
+            off += static_cast<std::size_t>(w);
+          }
+          s.stats.bytes_sent += off;
+          s.stats.bytes_overrun += wire.size() - off;
+        } else {
+          s.last_write_t = now;
+        }
+        if (!s.tx.empty()) sleep_s = std::min(sleep_s, 0.0005);
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::max(1e-4, sleep_s)));
+  }
+}
+
+}  // namespace tinyline::sim
