@@ -173,20 +173,27 @@ Eigen::VectorXd ridge_vector(const CvData& d, std::size_t cols, double term_ridg
   return r;
 }
 
+detail::SparseRows design(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets) {
+  detail::SparseRows rows;
+  rows.entries.reserve(d.y.size() * (d.base.empty() ? 1 : d.base.front().size() + 2 * terms.size()));
+  Entries e, tmp;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    row_entries(d, terms, offsets, i, e, tmp);
+    rows.push(e);
+  }
+  return rows;
+}
+
 CvResult cross_validate(const CvData& d, const std::vector<const CvTerm*>& terms, double term_ridge) {
   std::vector<std::size_t> offsets;
   const std::size_t cols = columns(d, terms, offsets);
+  const detail::SparseRows x = design(d, terms, offsets);
   std::vector<NormalEquations> per_fold(static_cast<std::size_t>(d.folds), NormalEquations(cols));
   NormalEquations total(cols);
-  Entries e, tmp;
   for (std::size_t i = 0; i < d.y.size(); ++i) {
     if (d.fold[i] == -2) continue;
-    row_entries(d, terms, offsets, i, e, tmp);
-    if (d.fold[i] >= 0) {
-      per_fold[static_cast<std::size_t>(d.fold[i])].add(e, d.y[i], d.w[i]);
-    } else {
-      total.add(e, d.y[i], d.w[i]);
-    }
+    auto& ne = d.fold[i] >= 0 ? per_fold[static_cast<std::size_t>(d.fold[i])] : total;
+    ne.add(x.row(i), x.size(i), d.y[i], d.w[i]);
   }
   for (const auto& f : per_fold) total += f;
   const Eigen::VectorXd ridge = ridge_vector(d, cols, term_ridge);
@@ -200,8 +207,7 @@ CvResult cross_validate(const CvData& d, const std::vector<const CvTerm*>& terms
   res.group_sse.assign(d.groups, 0.0);
   for (std::size_t i = 0; i < d.y.size(); ++i) {
     if (d.fold[i] < 0) continue;
-    row_entries(d, terms, offsets, i, e, tmp);
-    const double r = d.y[i] - detail::dot(e, coef[static_cast<std::size_t>(d.fold[i])]);
+    const double r = d.y[i] - detail::dot(x.row(i), x.size(i), coef[static_cast<std::size_t>(d.fold[i])].data());
     res.sse += r * r;
     res.group_sse[static_cast<std::size_t>(d.group[i])] += r * r;
     ++res.n;
@@ -213,19 +219,14 @@ CvResult cross_validate(const CvData& d, const std::vector<const CvTerm*>& terms
 std::vector<double> fit_and_predict(const CvData& d, const std::vector<const CvTerm*>& terms, double term_ridge) {
   std::vector<std::size_t> offsets;
   const std::size_t cols = columns(d, terms, offsets);
+  const detail::SparseRows x = design(d, terms, offsets);
   NormalEquations ne(cols);
-  Entries e, tmp;
   for (std::size_t i = 0; i < d.y.size(); ++i) {
-    if (d.fold[i] == -2) continue;
-    row_entries(d, terms, offsets, i, e, tmp);
-    ne.add(e, d.y[i], d.w[i]);
+    if (d.fold[i] != -2) ne.add(x.row(i), x.size(i), d.y[i], d.w[i]);
   }
   const Eigen::VectorXd c = ne.solve(ridge_vector(d, cols, term_ridge));
   std::vector<double> pred(d.y.size());
-  for (std::size_t i = 0; i < d.y.size(); ++i) {
-    row_entries(d, terms, offsets, i, e, tmp);
-    pred[i] = detail::dot(e, c);
-  }
+  for (std::size_t i = 0; i < d.y.size(); ++i) pred[i] = detail::dot(x.row(i), x.size(i), c.data());
   return pred;
 }
 

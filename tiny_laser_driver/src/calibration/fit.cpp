@@ -295,11 +295,10 @@ void FitEngine::entries(std::size_t i, Entries& out) const {
   declared_entries(i, out);
   if (out.empty()) return;
   const Readout& r = data_.readouts[rows_[i]];
-  Entries tmp;
   for (std::size_t k = 0; k < terms_.size(); ++k) {
-    tmp.clear();
-    terms_[k].basis(z_[k][i], r.a + r.b, tmp);
-    for (const auto& [c, v] : tmp) out.emplace_back(term_col_[k] + c, v);
+    tmp_.clear();
+    terms_[k].basis(z_[k][i], r.a + r.b, tmp_);
+    for (const auto& [c, v] : tmp_) out.emplace_back(term_col_[k] + c, v);
   }
 }
 
@@ -311,17 +310,24 @@ Eigen::VectorXd FitEngine::ridge(std::size_t total_columns) const {
 
 double FitEngine::solve_linear() {
   if (z_.size() != terms_.size()) compute_covariates();
-  NormalEquations ne(cols_);
+  // The design once per solve, for the normal equations and the residuals.
+  design_.clear();
   Entries e;
   for (std::size_t i = 0; i < rows_.size(); ++i) {
     entries(i, e);
-    if (!e.empty()) ne.add(e, y_[i], w_[i]);
+    design_.push(e);
+  }
+  NormalEquations ne(cols_);
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    if (design_.size(i)) ne.add(design_.row(i), design_.size(i), y_[i], w_[i]);
   }
   coef_ = ne.solve(ridge(cols_));
+  residual_.resize(rows_.size());
   double sse = 0.0;
   for (std::size_t i = 0; i < rows_.size(); ++i) {
-    entries(i, e);
-    const double r = e.empty() ? kMissPenaltyM : y_[i] - dot(e, coef_);
+    const std::size_t n = design_.size(i);
+    const double r = n ? y_[i] - dot(design_.row(i), n, coef_.data()) : kMissPenaltyM;
+    residual_[i] = r;
     sse += w_[i] * r * r;
   }
   return sse;
@@ -332,11 +338,7 @@ double FitEngine::residual_cost(std::vector<double>* residuals) {
   const double sse = solve_linear();
   if (residuals) {
     residuals->resize(rows_.size());
-    Entries e;
-    for (std::size_t i = 0; i < rows_.size(); ++i) {
-      entries(i, e);
-      (*residuals)[i] = std::sqrt(w_[i]) * (e.empty() ? kMissPenaltyM : y_[i] - dot(e, coef_));
-    }
+    for (std::size_t i = 0; i < rows_.size(); ++i) (*residuals)[i] = std::sqrt(w_[i]) * residual_[i];
   }
   return sse;
 }
@@ -379,9 +381,8 @@ void FitEngine::optimise_global() {
       t[static_cast<Eigen::Index>(j)] += kStep;
       set(t);
       residual_cost(&r1);
-      for (Eigen::Index i = 0; i < n; ++i) {
-        jac(i, static_cast<Eigen::Index>(j)) = (r1[static_cast<std::size_t>(i)] - r0[static_cast<std::size_t>(i)]) / kStep;
-      }
+      double* col = jac.data() + static_cast<std::size_t>(n) * j;
+      for (std::size_t i = 0; i < r1.size(); ++i) col[i] = (r1[i] - r0[i]) / kStep;
     }
     const Eigen::Map<const Eigen::VectorXd> f(r0.data(), n);
     // r = sqrt(w)(y - pred): minimise |r|^2, step solves (J'J + lambda diag) d = -J'r.
@@ -435,15 +436,13 @@ void FitEngine::refine_per_pixel() {
     return;
   }
   if (rsen_pixel_.empty()) rsen_pixel_.assign(kPixels, rsen_);
-  Entries e;
   for (int iter = 0; iter < 4; ++iter) {
     std::vector<double> jr(kPixels, 0.0), jj(kPixels, 0.0);
     for (std::size_t i = 0; i < rows_.size(); ++i) {
       const Readout& r = data_.readouts[rows_[i]];
       const auto px = static_cast<std::size_t>(r.pixel);
       if (!eligible[px] || !std::isfinite(x_[i])) continue;
-      entries(i, e);
-      const double res = y_[i] - dot(e, coef_);
+      const double res = residual_[i];
       // d pred / d Rsen = P'(X) dX/dRsen, dX/dRsen = -(b - Vle) a / den^2 (terms' share ignored).
       const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
       const double num = r.b - vle;
@@ -487,11 +486,9 @@ void FitEngine::refine_per_pixel() {
 
 void FitEngine::reweight_inverse_variance() {
   std::vector<double> sse(groups_, 0.0), n(groups_, 0.0);
-  Entries e;
   for (std::size_t i = 0; i < rows_.size(); ++i) {
-    entries(i, e);
-    if (e.empty()) continue;
-    const double r = y_[i] - dot(e, coef_);
+    if (design_.size(i) == 0) continue;
+    const double r = residual_[i];
     sse[static_cast<std::size_t>(group_[i])] += r * r;
     n[static_cast<std::size_t>(group_[i])] += 1.0;
   }

@@ -94,6 +94,9 @@ class FitEngine {
   std::vector<std::size_t> term_col_;          // first column per term
   std::size_t declared_cols_ = 0, cols_ = 0;
   Eigen::VectorXd coef_;
+  SparseRows design_;              // of the last solve
+  std::vector<double> residual_;   // y - prediction of the last solve (unweighted)
+  mutable Entries tmp_;
   std::string weighting_note_ = "K_i = 1";
 };
 

@@ -22,17 +22,25 @@ struct NormalEquations {
   explicit NormalEquations(std::size_t p) : gram(Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(p))),
                                             rhs(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p))) {}
 
-  void add(const Entries& e, double y, double w) {
-    for (std::size_t i = 0; i < e.size(); ++i) {
-      const auto ci = static_cast<Eigen::Index>(e[i].first);
+  void add(const Entries& e, double y, double w) { add(e.data(), e.size(), y, w); }
+
+  // Raw pointers: this loop runs once per row and solve, and Eigen's checked
+  // element access dominates it in debug and sanitizer builds.
+  void add(const std::pair<std::size_t, double>* e, std::size_t n, double y, double w) {
+    double* g = gram.data();
+    double* h = rhs.data();
+    const std::size_t p = static_cast<std::size_t>(gram.rows());
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t ci = e[i].first;
       const double wi = w * e[i].second;
-      rhs[ci] += wi * y;
-      for (std::size_t j = i; j < e.size(); ++j) {
-        const auto cj = static_cast<Eigen::Index>(e[j].first);
+      h[ci] += wi * y;
+      for (std::size_t j = i; j < n; ++j) {
+        const std::size_t cj = e[j].first;
+        const double v = wi * e[j].second;
         if (ci <= cj) {
-          gram(ci, cj) += wi * e[j].second;
+          g[ci + cj * p] += v;
         } else {
-          gram(cj, ci) += wi * e[j].second;
+          g[cj + ci * p] += v;
         }
       }
     }
@@ -66,10 +74,30 @@ struct NormalEquations {
   }
 };
 
-inline double dot(const Entries& e, const Eigen::VectorXd& c) {
+inline double dot(const std::pair<std::size_t, double>* e, std::size_t n, const double* c) {
   double s = 0.0;
-  for (const auto& [i, v] : e) s += v * c[static_cast<Eigen::Index>(i)];
+  for (std::size_t k = 0; k < n; ++k) s += e[k].second * c[e[k].first];
   return s;
 }
+
+inline double dot(const Entries& e, const Eigen::VectorXd& c) { return dot(e.data(), e.size(), c.data()); }
+
+/// Sparse rows, stored back to back (compressed rows).
+struct SparseRows {
+  std::vector<std::pair<std::size_t, double>> entries;
+  std::vector<std::size_t> start{0};  ///< row i holds entries[start[i], start[i + 1])
+
+  void clear() {
+    entries.clear();
+    start.assign(1, 0);
+  }
+  void push(const Entries& e) {
+    entries.insert(entries.end(), e.begin(), e.end());
+    start.push_back(entries.size());
+  }
+  [[nodiscard]] std::size_t rows() const { return start.size() - 1; }
+  [[nodiscard]] const std::pair<std::size_t, double>* row(std::size_t i) const { return entries.data() + start[i]; }
+  [[nodiscard]] std::size_t size(std::size_t i) const { return start[i + 1] - start[i]; }
+};
 
 }  // namespace tinyline::tiny_laser_driver::detail

@@ -49,7 +49,7 @@ class CalibTool : public ::testing::Test {
     s.effects.supply_column = true;
     auto plan = tt::default_rail();
     plan.pixels.clear();
-    for (int px = 8; px < 264; px += 8) plan.pixels.push_back(px);
+    for (int px = 8; px < 264; px += 16) plan.pixels.push_back(px);
     const auto data = tt::simulate_rail(s, plan);
     const std::string p = path(with_effect ? "rail.csv" : "rail_null.csv");
     tl::write_calibration_csv(data, p);
