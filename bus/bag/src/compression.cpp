@@ -62,7 +62,9 @@ Status Compressor::compress(std::span<const std::uint8_t> in, std::vector<std::u
     case Compression::Lz4: {
       if (impl_->lz4 == nullptr) return {StatusCode::WriteFailed, "lz4: cannot create a compression context"};
       LZ4F_preferences_t prefs{};
-      prefs.frameInfo.blockSizeID = LZ4F_max4MB;
+      // 256 KiB blocks: lz4's window is 64 KiB, so larger blocks gain almost
+      // nothing, and the context's staging buffer stays small.
+      prefs.frameInfo.blockSizeID = LZ4F_max256KB;
       prefs.frameInfo.blockMode = LZ4F_blockIndependent;
       prefs.frameInfo.contentSize = in.size();  // lets readers size their buffer exactly
       prefs.compressionLevel = level_;

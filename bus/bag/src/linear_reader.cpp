@@ -157,17 +157,17 @@ struct LinearReader::Impl {
       out = LinearRecord{};
       out.opcode = op;
       out.offset = at;
-      const std::string w = where(at, op);
+      const auto w = [this, at, op] { return where(at, op); };
       switch (o) {
         case Opcode::Header: {
-          if (Status s = parse(rec, header, w); !s.ok()) return fatal(std::move(s));
+          if (Status s = wire::parse_lazy(rec, header, w); !s.ok()) return fatal(std::move(s));
           out.kind = LinearRecord::Kind::Header;
           out.header = &header;
           return true;
         }
         case Opcode::Schema: {
           Schema sc;
-          if (Status s = parse(rec, sc, w); !s.ok()) {
+          if (Status s = wire::parse_lazy(rec, sc, w); !s.ok()) {
             if (!problem(at, std::move(s))) return false;
             continue;
           }
@@ -180,7 +180,7 @@ struct LinearReader::Impl {
         }
         case Opcode::Channel: {
           Channel ch;
-          if (Status s = parse(rec, ch, w); !s.ok()) {
+          if (Status s = wire::parse_lazy(rec, ch, w); !s.ok()) {
             if (!problem(at, std::move(s))) return false;
             continue;
           }
@@ -198,7 +198,7 @@ struct LinearReader::Impl {
           return true;
         }
         case Opcode::Chunk: {
-          if (!open_chunk(at, w)) {
+          if (!open_chunk(at, w())) {
             if (state == State::Done) return false;
             continue;
           }
@@ -208,14 +208,14 @@ struct LinearReader::Impl {
         }
         case Opcode::Attachment: {
           Attachment a;
-          if (Status s = parse(rec, a, w); !s.ok()) {
+          if (Status s = wire::parse_lazy(rec, a, w); !s.ok()) {
             if (!problem(at, std::move(s))) return false;
             continue;
           }
           if (opt.validate_crcs && a.crc != 0) {
             const std::uint32_t got = crc32(std::span(rec).first(rec.size() - 4));
             if (got != a.crc) {
-              if (!problem(at, {StatusCode::CrcMismatch, fmt::format("{}: CRC 0x{:08x} != stored 0x{:08x}", w, got,
+              if (!problem(at, {StatusCode::CrcMismatch, fmt::format("{}: CRC 0x{:08x} != stored 0x{:08x}", w(), got,
                                                                      a.crc)}))
                 return false;
               continue;
@@ -226,7 +226,7 @@ struct LinearReader::Impl {
           return true;
         }
         case Opcode::Metadata: {
-          if (Status s = parse(rec, metadata, w); !s.ok()) {
+          if (Status s = wire::parse_lazy(rec, metadata, w); !s.ok()) {
             if (!problem(at, std::move(s))) return false;
             continue;
           }
@@ -238,13 +238,13 @@ struct LinearReader::Impl {
           DataEnd de;
           data_end = true;
           state = State::Done;
-          if (Status s = parse(rec, de, w); !s.ok()) {
+          if (Status s = wire::parse_lazy(rec, de, w); !s.ok()) {
             problem(at, std::move(s));
             return false;
           }
           if (opt.validate_crcs && de.data_section_crc != 0 && de.data_section_crc != crc_before) {
             problem(at, {StatusCode::CrcMismatch,
-                         fmt::format("{}: data section CRC 0x{:08x} != stored 0x{:08x}", w, crc_before,
+                         fmt::format("{}: data section CRC 0x{:08x} != stored 0x{:08x}", w(), crc_before,
                                      de.data_section_crc)});
             if (!opt.recover) return false;
           }
@@ -266,13 +266,14 @@ struct LinearReader::Impl {
 
   // A Message record's content (top level or inside a chunk). False when it is
   // skipped (recovery) or fatal (state Done).
-  bool message(std::span<const std::uint8_t> content, const std::string& w, std::uint64_t at, LinearRecord& out) {
+  template <class W>
+  bool message(std::span<const std::uint8_t> content, const W& w, std::uint64_t at, LinearRecord& out) {
     Message m;
-    if (Status s = parse(content, m, w); !s.ok()) return problem(at, std::move(s)) && false;
+    if (Status s = wire::parse_lazy(content, m, w); !s.ok()) return problem(at, std::move(s)) && false;
     auto it = channels.find(m.channel_id);
     if (it == channels.end()) {
       problem(at, {StatusCode::InvalidRecord,
-                   fmt::format("{}: refers to channel {}, which no Channel record defined before it", w,
+                   fmt::format("{}: refers to channel {}, which no Channel record defined before it", w(),
                                m.channel_id)});
       return false;
     }
@@ -332,11 +333,11 @@ struct LinearReader::Impl {
       }
       chunk_pos += kRecordPrefix + static_cast<std::size_t>(len);
       const auto content = std::span<const std::uint8_t>(chunk_buf).subspan(inner + kRecordPrefix, len);
-      const std::string w = where_in_chunk(inner, op);
+      const auto w = [this, inner, op] { return where_in_chunk(inner, op); };
       switch (static_cast<Opcode>(op)) {
         case Opcode::Schema: {
           Schema sc;
-          if (Status s = parse(content, sc, w); !s.ok()) return end_chunk_with(std::move(s));
+          if (Status s = wire::parse_lazy(content, sc, w); !s.ok()) return end_chunk_with(std::move(s));
           if (sc.id == 0) continue;
           auto& slot = schemas[sc.id];
           slot = std::move(sc);
@@ -350,7 +351,7 @@ struct LinearReader::Impl {
         }
         case Opcode::Channel: {
           Channel ch;
-          if (Status s = parse(content, ch, w); !s.ok()) return end_chunk_with(std::move(s));
+          if (Status s = wire::parse_lazy(content, ch, w); !s.ok()) return end_chunk_with(std::move(s));
           auto& slot = channels[ch.id];
           slot = std::move(ch);
           out = LinearRecord{};

@@ -270,26 +270,27 @@ class IndexedCursor final : public MessageCursor {
 
   bool message_at(const std::vector<std::uint8_t>& buf, const Entry& e, MessageView& out) {
     const std::uint64_t file_offset = chunks_[e.chunk]->chunk_start_offset;
-    const std::string w = fmt::format("{}: Message at byte {} of the chunk at byte {}", src_.name(), e.offset,
-                                      file_offset);
+    const auto w = [&] {
+      return fmt::format("{}: Message at byte {} of the chunk at byte {}", src_.name(), e.offset, file_offset);
+    };
     if (e.offset > buf.size() || buf.size() - e.offset < kRecordPrefix ||
         buf[e.offset] != static_cast<std::uint8_t>(Opcode::Message)) {
       return fail_chunk(file_offset, {StatusCode::InvalidRecord,
-                                      fmt::format("{}: the message index points at no Message record", w)});
+                                      fmt::format("{}: the message index points at no Message record", w())});
     }
     std::uint64_t len;
     std::memcpy(&len, buf.data() + e.offset + 1, 8);
     if (len > buf.size() - e.offset - kRecordPrefix) {
       return fail_chunk(file_offset, {StatusCode::InvalidRecord,
-                                      fmt::format("{}: claims {} bytes, past the chunk's end", w, len)});
+                                      fmt::format("{}: claims {} bytes, past the chunk's end", w(), len)});
     }
     Message m;
-    if (Status s = parse(std::span(buf).subspan(e.offset + kRecordPrefix, len), m, w); !s.ok())
+    if (Status s = wire::parse_lazy(std::span(buf).subspan(e.offset + kRecordPrefix, len), m, w); !s.ok())
       return fail_chunk(file_offset, s);
     auto ch = summary_.channels.find(m.channel_id);
     if (ch == summary_.channels.end()) {
       return fail_chunk(file_offset, {StatusCode::InvalidRecord,
-                                      fmt::format("{}: channel {} is not in the summary", w, m.channel_id)});
+                                      fmt::format("{}: channel {} is not in the summary", w(), m.channel_id)});
     }
     if (wanted_.count(m.channel_id) == 0) return false;  // an index that lied about its channel: skip
     out.message = m;

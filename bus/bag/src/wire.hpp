@@ -138,4 +138,14 @@ class Cursor {
   Status status_;
 };
 
+/// Parses with no context first and, only if that fails, again with the
+/// context string from `where()`: building "file: record at byte N" for every
+/// record would cost more than parsing it.
+template <class R, class W>
+Status parse_lazy(std::span<const std::uint8_t> content, R& out, const W& where) {
+  Status s = parse(content, out, std::string_view{});
+  if (!s.ok()) s = parse(content, out, where());
+  return s;
+}
+
 }  // namespace tinyline::bag::wire

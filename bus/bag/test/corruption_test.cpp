@@ -132,10 +132,35 @@ TEST(Corruption, TruncationAtEveryLengthKeepsEveryCompleteChunk) {
     std::memcpy(&len, f.data() + data_end + 1, 8);
     data_end += 9 + len;
   }
+  // Every record boundary (and the bytes around it) gets the full treatment
+  // (open, indexed and linear reads, scan, verify, recover and check what
+  // recovery wrote); the other lengths, every 11th of them (the light check
+  // runs at every length).
+  std::vector<bool> full(f.size() + 1, false);
+  for (std::size_t pos = 8; pos + 9 <= f.size();) {
+    for (std::size_t d = 0; d < 3; ++d) {
+      full[pos - d] = true;
+      if (pos + d <= f.size()) full[pos + d] = true;
+    }
+    std::uint64_t len;
+    std::memcpy(&len, f.data() + pos + 1, 8);
+    pos += 9 + len;
+  }
   Tracking t;
   for (std::size_t len = 0; len < f.size(); ++len) {
     const Bytes cut(f.begin(), f.begin() + static_cast<std::ptrdiff_t>(len));
-    const Outcome o = exercise(cut);
+    const bool heavy = full[len] || len % 11 == 0;
+    Outcome o;
+    if (heavy) {
+      o = exercise(cut);
+    } else {
+      MemoryReadable src(cut);
+      LinearReader lr(src);
+      LinearRecord rec;
+      int n = 0;
+      while (lr.next(rec)) n += rec.kind == LinearRecord::Kind::Message;
+      o.linear = lr.status().ok() ? n : -1;
+    }
     if (len <= data_end) {
       // Cut before the end of the data: a linear read ends with a Truncated error, never "all fine".
       EXPECT_EQ(o.linear, -1) << "cut at " << len;
@@ -161,8 +186,10 @@ TEST(Corruption, TruncationAtEveryLengthKeepsEveryCompleteChunk) {
     }
     if (len < 8 + 9 + header_len) {
       ASSERT_TRUE(seqs.empty());
-      ASSERT_EQ(o.recovered, -1) << "cut at " << len << ": no whole header, nothing to recover";
-    } else {
+      if (heavy) {
+        ASSERT_EQ(o.recovered, -1) << "cut at " << len << ": no whole header, nothing to recover";
+      }
+    } else if (heavy) {
       ASSERT_EQ(o.recovered, static_cast<int>(seqs.size())) << "cut at " << len;
     }
   }
@@ -341,7 +368,7 @@ TEST(Corruption, RandomByteFlipsNeverCrash) {
     std::mt19937 rng(1234 + static_cast<int>(c));
     Tracking t;
     int clean = 0;
-    for (int trial = 0; trial < 1500; ++trial) {
+    for (int trial = 0; trial < 300; ++trial) {
       Bytes g = f;
       const int flips = 1 + static_cast<int>(rng() % 4);
       for (int k = 0; k < flips; ++k) g[rng() % g.size()] ^= static_cast<std::uint8_t>(1U << (rng() % 8));
@@ -350,7 +377,7 @@ TEST(Corruption, RandomByteFlipsNeverCrash) {
     }
     EXPECT_LT(t.largest(), std::size_t{4} << 20) << to_string(c);
     // Most flips land in payloads and must be caught by CRCs, not read back as good data.
-    EXPECT_LT(clean, 1500) << to_string(c);
+    EXPECT_LT(clean, 300) << to_string(c);
   }
 }
 
