@@ -2,6 +2,7 @@
 //
 //   laser_clustering_eval [--trials 200] [--seed 1] [--out out/laser_clustering_eval]
 //                         [--cases random_offset,recognition_error,stick,wrench] [--pictures 4]
+//                         [--failure-pictures 4] [--ablation]
 //
 // Prints the Markdown tables of the doc; writes summary.json, one CSV per
 // case with every trial, and the scans of the first --pictures trials of
@@ -37,12 +38,15 @@ struct Args {
   std::uint64_t seed = 1;
   fs::path out = "out/laser_clustering_eval";
   std::set<std::string> cases{"random_offset", "recognition_error", "stick", "wrench"};
-  int pictures = 4;
+  int pictures = 4;        ///< scans of the first K trials of each case
+  int failure_pictures = 4;  ///< and of the first K truss trials that did not align
+  bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
 };
 
 [[noreturn]] void usage(const std::string& why) {
   std::cerr << "laser_clustering_eval: " << why
             << "\nusage: laser_clustering_eval [--trials N] [--seed S] [--out DIR] [--cases a,b,...] [--pictures K]\n"
+               "                             [--failure-pictures K] [--ablation]\n"
                "cases: random_offset, recognition_error, stick, wrench\n";
   std::exit(2);
 }
@@ -69,6 +73,10 @@ Args parse(int argc, char** argv) {
       a.out = value();
     } else if (k == "--pictures") {
       a.pictures = static_cast<int>(integer(value(), 0));
+    } else if (k == "--failure-pictures") {
+      a.failure_pictures = static_cast<int>(integer(value(), 0));
+    } else if (k == "--ablation") {
+      a.ablation = true;
     } else if (k == "--cases") {
       a.cases.clear();
       std::stringstream ss(value());
@@ -108,26 +116,47 @@ void write_scan(const fs::path& path, const ev::SimulatedScan& s, const std::vec
 int main(int argc, char** argv) {
   const Args args = parse(argc, argv);
   fs::create_directories(args.out / "scans");
-  auto scanner = ev::make_sim_scanner();
-  std::cout << "# laser_clustering evaluation\n\nscanner: " << scanner->describe() << "\ntrials per case: " << args.trials
-            << ", seeds " << args.seed << " .. " << args.seed + static_cast<std::uint64_t>(args.trials) - 1 << "\n\n";
+  // The harvesting gripper's sensor works at 8-25 cm: the wide 3.6 mm lens;
+  // the tool-grasping tasks at 20-35 cm: the 8 mm lens. Both with a raw-mode
+  // schedule short enough for close range (the default 20..700 pulses
+  // saturates every pixel nearer than about 20 cm).
+  ev::SimScannerOptions gripper, tools;
+  gripper.sensor_config = "tiny_tof_3p6mm.yaml";
+  tools.sensor_config = "tiny_tof_8mm.yaml";
+  for (auto* o : {&gripper, &tools}) {
+    o->raw_pulses = {3, 8, 25, 80, 250};
+    o->calibration_max_m = 0.6;
+    o->calibration_step_m = 0.01;
+    o->calibration_sets = 3;
+  }
+  const bool trusses = args.cases.count("random_offset") || args.cases.count("recognition_error");
+  const bool metal = args.cases.count("stick") || args.cases.count("wrench");
+  std::unique_ptr<ev::Scanner> truss_scanner = trusses ? ev::make_sim_scanner(gripper) : nullptr;
+  std::unique_ptr<ev::Scanner> tool_scanner = metal ? ev::make_sim_scanner(tools) : nullptr;
+  std::cout << "# laser_clustering evaluation\n\n";
+  if (truss_scanner) std::cout << "trusses: " << truss_scanner->describe() << "\n\n";
+  if (tool_scanner) std::cout << "stick and wrench: " << tool_scanner->describe() << "\n\n";
+  std::cout << "trials per case: " << args.trials << ", seeds " << args.seed << " .. "
+            << args.seed + static_cast<std::uint64_t>(args.trials) - 1 << "\n\n";
   std::ofstream json(args.out / "summary.json");
-  json << "{\n  \"scanner\": \"" << scanner->describe() << "\",\n  \"trials\": " << args.trials << ",\n  \"seed\": " << args.seed;
+  json << "{\n  \"truss_scanner\": \"" << (truss_scanner ? truss_scanner->describe() : "") << "\",\n  \"tool_scanner\": \""
+       << (tool_scanner ? tool_scanner->describe() : "") << "\",\n  \"trials\": " << args.trials << ",\n  \"seed\": " << args.seed;
 
   for (const auto& [name, c] : {std::pair{std::string("random_offset"), ev::TrussCase::kRandomOffset},
                                 std::pair{std::string("recognition_error"), ev::TrussCase::kRecognitionError}}) {
     if (!args.cases.count(name)) continue;
     std::ofstream csv(args.out / ("trials_" + name + ".csv"));
     csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible\n";
-    int pictures = 0;
+    int pictures = 0, failures = 0;
     const auto r = ev::run_truss_case(
-        c, *scanner, args.trials, args.seed, {},
+        c, *truss_scanner, args.trials, args.seed, {},
         [&](const ev::TrussTrial& t, const ev::TrussScene& scene, const ev::SimulatedScan& s, const lc::TwoStageResult& o,
             const lc::PedicelDetection& d) {
           csv << fmt::format("{},{},{},{},{:.5f},{:.3f},{}\n", t.seed, ev::to_string(t.verdict), lc::to_string(t.outcome),
                              t.chosen_kind, t.lateral_error_m, t.confidence, t.target_visible ? 1 : 0);
-          if (pictures >= args.pictures) return;
-          ++pictures;
+          const bool failure = t.verdict != ev::Verdict::kAligned && failures < args.failure_pictures;
+          if (pictures >= args.pictures && !failure) return;
+          ++(failure ? failures : pictures);
           std::vector<std::string> kind(s.scan.size());
           for (std::size_t i = 0; i < kind.size(); ++i) kind[i] = ev::object_kind(scene, s.truth_object[i]);
           const int chosen = d.cluster >= 0 ? o.clusters[static_cast<std::size_t>(d.cluster)].id : -1;
@@ -141,44 +170,88 @@ int main(int argc, char** argv) {
                         rate_json(r.aligned), rate_json(r.wrong), rate_json(r.out_of_view), rate_json(r.missed));
   }
 
+  if (args.ablation && truss_scanner) {
+    // The parameter sets the two-stage clustering went through (docs), on the
+    // same held-out seeds, and the one-stage baseline (a single small-eps
+    // DBSCAN: no groups, no edge filter, no smoothing).
+    struct Variant {
+      const char* name;
+      lc::TwoStageParams p;
+    };
+    std::vector<Variant> variants;
+    lc::TwoStageParams v0;  // first defaults, set on the synthetic unit-test scans
+    v0.groups = {0.025, 4};
+    v0.edge.step_m = 0.006;
+    v0.edge.smooth_step_m = 0.006;
+    v0.edge.mixed_step_m = 1e9;
+    variants.push_back({"v0: first defaults (synthetic scans)", v0});
+    lc::TwoStageParams v1 = v0;  // thresholds from the sensor's noise
+    v1.groups = {0.03, 4};
+    v1.edge.step_m = 0.018;
+    v1.edge.smooth_step_m = 0.018;
+    variants.push_back({"v1: edge threshold from the range noise", v1});
+    variants.push_back({"v2 (defaults): + mixed pixels inside runs, smoothing limit", lc::TwoStageParams{}});
+    lc::TwoStageParams one;
+    one.groups = {0.008, 2};
+    one.edge.edge_width_px = 0;
+    one.edge.mixed_step_m = 1e9;
+    one.edge.smooth_half_width_px = 0;
+    variants.push_back({"one-stage baseline: DBSCAN 8 mm / 2 only", one});
+    std::cout << "## ablation (truss cases, same seeds)\n\n| clustering | random offset: aligned | wrong | recognition error: "
+                 "aligned | wrong |\n|---|---|---|---|---|\n";
+    json << ",\n  \"ablation\": [";
+    for (std::size_t i = 0; i < variants.size(); ++i) {
+      ev::TrussEvalOptions o;
+      o.clustering = variants[i].p;
+      const auto a = ev::run_truss_case(ev::TrussCase::kRandomOffset, *truss_scanner, args.trials, args.seed, o);
+      const auto b = ev::run_truss_case(ev::TrussCase::kRecognitionError, *truss_scanner, args.trials, args.seed, o);
+      std::cout << "| " << variants[i].name << " | " << rate(a.aligned) << " | " << rate(a.wrong) << " | " << rate(b.aligned)
+                << " | " << rate(b.wrong) << " |\n";
+      json << fmt::format("{}\n    {{\"name\": \"{}\", \"random_offset_aligned\": {}, \"recognition_error_aligned\": {}}}",
+                          i ? "," : "", variants[i].name, rate_json(a.aligned), rate_json(b.aligned));
+    }
+    json << "\n  ]";
+    std::cout << "\n";
+  }
+
   if (args.cases.count("stick")) {
     std::ofstream csv(args.out / "trials_stick.csv");
-    csv << "seed,iou_reflectance,iou_distance_only\n";
-    int pictures = 0;
-    ev::StickEvalOptions so;
-    const auto r = ev::run_stick_case(
-        *scanner, args.trials, args.seed, so,
-        [&](const ev::StickTrial& t, const ev::StickScene& scene, const ev::SimulatedScan& s,
-            const lc::ReflectanceClusteringResult& with, const lc::ReflectanceClusteringResult& without) {
-          csv << fmt::format("{},{:.4f},{:.4f}\n", t.seed, t.iou_reflectance, t.iou_distance_only);
-          if (pictures >= args.pictures) return;
-          ++pictures;
-          std::vector<std::string> kind(s.scan.size(), "none");
-          for (std::size_t i = 0; i < kind.size(); ++i) {
-            if (s.truth_object[i] == scene.stick) kind[i] = s.truth_mixed[i] ? "stick_mixed" : "stick";
-            if (s.truth_object[i] == scene.panel) kind[i] = s.truth_mixed[i] ? "panel_mixed" : "panel";
-          }
-          const int bw = with.brightest >= 0 ? with.clusters[static_cast<std::size_t>(with.brightest)].id : -1;
-          write_scan(args.out / "scans" / fmt::format("stick_{}_reflectance.csv", t.seed), s, with.labels, {}, kind, bw);
-          write_scan(args.out / "scans" / fmt::format("stick_{}_distance.csv", t.seed), s, without.labels, {}, kind, -1);
-        });
-    std::cout << "## stick (Figure 5.8 B, front " << so.scene.front_gap_m * 1e3
-              << " mm before the panel)\n\n| method | correct segmentation [95 % CI] |\n|---|---|\n"
-              << "| distance and reflectance | " << rate(r.reflectance_correct) << " |\n| distance alone | "
-              << rate(r.distance_only_correct) << " |\n\n";
-    json << fmt::format(",\n  \"stick\": {{\"front_gap_m\": {}, \"reflectance\": {}, \"distance_only\": {}}}",
-                        so.scene.front_gap_m, rate_json(r.reflectance_correct), rate_json(r.distance_only_correct));
-    // The same at other gaps: where distance alone starts to work.
-    std::cout << "| front gap | with reflectance | distance alone |\n|---:|---|---|\n";
-    json << ",\n  \"stick_by_gap\": [";
+    csv << "material,seed,iou_reflectance,iou_distance_only\n";
+    std::cout << "## stick (Figure 5.8 B)\n\n| stick | front before the panel | distance and reflectance | distance alone |\n"
+                 "|---|---:|---|---|\n";
+    json << ",\n  \"stick\": [";
     bool first = true;
-    for (const double gap : {0.002, 0.004, 0.008, 0.015, 0.03}) {
-      ev::StickEvalOptions g;
-      g.scene.front_gap_m = gap;
-      const auto rg = ev::run_stick_case(*scanner, args.trials, args.seed + 100000, g);
-      std::cout << fmt::format("| {:.0f} mm | {} | {} |\n", gap * 1e3, rate(rg.reflectance_correct), rate(rg.distance_only_correct));
-      json << fmt::format("{}\n    {{\"front_gap_m\": {}, \"reflectance\": {}, \"distance_only\": {}}}", first ? "" : ",", gap,
-                          rate_json(rg.reflectance_correct), rate_json(rg.distance_only_correct));
+    // A brushed and a polished metal stick 4 mm before a cardboard panel, and
+    // the brushed one at other gaps (where distance alone starts to work).
+    const std::vector<std::pair<const char*, double>> runs{{"metal_pan", 0.004}, {"metal_wrench", 0.004}, {"metal_pan", 0.002},
+                                                           {"metal_pan", 0.008}, {"metal_pan", 0.015}, {"metal_pan", 0.03}};
+    for (std::size_t run = 0; run < runs.size(); ++run) {
+      ev::StickEvalOptions so;
+      so.scene.stick_material = runs[run].first;
+      so.scene.front_gap_m = runs[run].second;
+      int pictures = 0;
+      const auto r = ev::run_stick_case(
+          *tool_scanner, args.trials, args.seed, so,
+          [&](const ev::StickTrial& t, const ev::StickScene& scene, const ev::SimulatedScan& s,
+              const lc::ReflectanceClusteringResult& with, const lc::ReflectanceClusteringResult& without) {
+            csv << fmt::format("{},{},{:.4f},{:.4f}\n", so.scene.stick_material, t.seed, t.iou_reflectance, t.iou_distance_only);
+            if (run > 1 || pictures >= args.pictures) return;
+            ++pictures;
+            std::vector<std::string> kind(s.scan.size(), "none");
+            for (std::size_t i = 0; i < kind.size(); ++i) {
+              if (s.truth_object[i] == scene.stick) kind[i] = s.truth_mixed[i] ? "stick_mixed" : "stick";
+              if (s.truth_object[i] == scene.panel) kind[i] = s.truth_mixed[i] ? "panel_mixed" : "panel";
+            }
+            const int bw = with.brightest >= 0 ? with.clusters[static_cast<std::size_t>(with.brightest)].id : -1;
+            const std::string stem = fmt::format("stick_{}_{}", so.scene.stick_material, t.seed);
+            write_scan(args.out / "scans" / (stem + "_reflectance.csv"), s, with.labels, {}, kind, bw);
+            write_scan(args.out / "scans" / (stem + "_distance.csv"), s, without.labels, {}, kind, -1);
+          });
+      std::cout << fmt::format("| {} | {:.0f} mm | {} | {} |\n", so.scene.stick_material, so.scene.front_gap_m * 1e3,
+                               rate(r.reflectance_correct), rate(r.distance_only_correct));
+      json << fmt::format("{}\n    {{\"material\": \"{}\", \"front_gap_m\": {}, \"reflectance\": {}, \"distance_only\": {}}}",
+                          first ? "" : ",", so.scene.stick_material, so.scene.front_gap_m, rate_json(r.reflectance_correct),
+                          rate_json(r.distance_only_correct));
       first = false;
     }
     json << "\n  ]";
@@ -191,7 +264,7 @@ int main(int argc, char** argv) {
     std::ofstream sweeps(args.out / "wrench_sweeps.csv");
     sweeps << "seed,pitch_deg,reflectance,true_pitch_deg,best_pitch_deg\n";
     int pictures = 0;
-    const auto r = ev::run_wrench_case(*scanner, args.trials, args.seed, {},
+    const auto r = ev::run_wrench_case(*tool_scanner, args.trials, args.seed, {},
                                        [&](const ev::WrenchTrial& t, const std::vector<lc::AlignmentSample>& sweep) {
                                          csv << fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.seed,
                                                             lc::to_string(t.outcome), t.true_pitch_rad / kDeg,

@@ -190,7 +190,7 @@ WrenchResult run_wrench_case(Scanner& scanner, int trials, std::uint64_t seed0, 
     std::uint64_t k = 0;
     for (double p = o.sweep_from_deg; p <= o.sweep_to_deg + 1e-9; p += o.sweep_step_deg, ++k) {
       const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor(p * kDeg), seed * 1000 + k);
-      const SurfaceReflectance r = surface_reflectance(s.scan, o.clustering);
+      const SurfaceReflectance r = surface_reflectance(s.scan, o.surface);
       if (r.found) sweep.push_back({p * kDeg, r.reflectance});
     }
     const AlignmentResult a = find_alignment(sweep, o.alignment);

@@ -134,7 +134,7 @@ struct WrenchResult {
 
 struct WrenchEvalOptions {
   WrenchOptions scene;
-  ReflectanceClusteringParams clustering;
+  SurfaceReflectanceParams surface;
   AlignmentParams alignment;
   double sweep_from_deg = -16.0, sweep_to_deg = 16.0, sweep_step_deg = 2.0;
 };

@@ -84,7 +84,7 @@ struct StickOptions {
   double stick_thickness_m = 0.003;
   double lateral_m = 0.04;               ///< stick centre within +- this of the axis [m]
   double max_tilt_deg = 4.0;             ///< stick and panel each tilted up to this
-  const char* stick_material = "metal_wrench";
+  const char* stick_material = "metal_pan";  ///< brushed (broad lobe); "metal_wrench" is polished
   const char* panel_material = "cardboard";
 };
 

@@ -1,5 +1,6 @@
 #include "sim_scanner.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
@@ -25,38 +26,63 @@ std::string resolve(const std::string& config) {
   return (std::filesystem::path(TINYLINE_SOURCE_DIR) / "sim/config/sensors" / p).string();
 }
 
+sim::SensorParams load(const SimScannerOptions& o) {
+  sim::SensorParams p = sim::load_sensor_params(resolve(o.sensor_config));
+  if (!o.raw_pulses.empty()) p.acquisition.raw_pulses = o.raw_pulses;
+  if (const auto why = p.validate(); !why.empty()) throw std::runtime_error("sim scanner: " + why);
+  return p;
+}
+
 class SimScanner : public Scanner {
  public:
   explicit SimScanner(const SimScannerOptions& o)
-      : options_(o), params_(sim::load_sensor_params(resolve(o.sensor_config))), sensor_(params_) {
+      : options_(o), params_(load(o)), sensor_(params_) {
     // The calibration the driver would load: the declared model fitted to a
     // white-paper rail over every effective pixel (per-pixel R_sen).
+    // Rows carry the set's start time, so that the fitter's frames are the
+    // sets and it keeps, per pixel and set, the read-out the driver would use
+    // (the sim's rail CSV stamps each read-out with its own time).
     sim::CalibrationRail rail(params_);
-    sim::RailSweep sweep;
-    for (double d = 0.05; d <= o.calibration_max_m + 1e-9; d += o.calibration_step_m) sweep.distances_m.push_back(d);
-    sweep.sets_per_distance = o.calibration_sets;
-    sweep.schedule = params_.acquisition.raw_pulses;
-    sweep.pixels.clear();
-    for (int p = params_.lens.dark_pixels; p < params_.lens.pixels - params_.lens.dark_pixels; ++p) sweep.pixels.push_back(p);
-    sweep.t_start_s = o.t_start_s;
-    sweep.first_index = 1u << 30;  // not the scans' indices
-    const auto rows = sim::run_sweep(rail, sweep);
+    std::vector<int> pixels;
+    for (int p = params_.lens.dark_pixels; p < params_.lens.pixels - params_.lens.dark_pixels; ++p) pixels.push_back(p);
     tld::CalibrationDataset data;
     data.source = "simulated white-paper rail";
-    for (const auto& r : rows) {
-      tld::Readout ro;
-      ro.a = r.a;
-      ro.b = r.b;
-      ro.pulses = r.pulses;
-      ro.temperature_c = r.temperature_c;
-      ro.pixel = r.pixel;
-      ro.t_s = r.t_s;
-      data.add(ro, r.distance_m);
+    double t = o.t_start_s;
+    std::uint64_t index = 1u << 30;  // not the scans' indices
+    for (double d = 0.05; d <= o.calibration_max_m + 1e-9; d += o.calibration_step_m) {
+      rail.set_target_distance(d);
+      for (int k = 0; k < o.calibration_sets; ++k) {
+        const sim::SensorSet set = rail.measure(t, params_.acquisition.raw_pulses, index++);
+        for (const auto& r : sim::calibration_rows(set, rail.world(), pixels)) {
+          tld::Readout ro;
+          ro.a = r.a;
+          ro.b = r.b;
+          ro.pulses = r.pulses;
+          ro.temperature_c = r.temperature_c;
+          ro.pixel = r.pixel;
+          ro.t_s = set.t_start_s;
+          data.add(ro, r.distance_m);
+        }
+        t += std::max(0.05, set.t_end_s - set.t_start_s);
+      }
     }
     const auto fit = tld::fit_declared_model(data);
     if (!fit.ok) throw std::runtime_error("sim scanner: calibration fit failed: " + fit.reason);
     model_ = fit.model;
     calibration_rmse_m_ = fit.rmse_m;
+    // White paper's reflectance figure, the reference of the dark threshold:
+    // the rail's pixels near the axis between 15 and 45 cm.
+    std::vector<double> white;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      const auto& r = data.readouts[i];
+      if (data.distance_m[i] < 0.15 || data.distance_m[i] > 0.45 || std::abs(r.pixel - params_.lens.pixels / 2) > 40) continue;
+      if (model_.validity().check(r) != tld::ValidityRule::Verdict::kValid) continue;
+      const double d_cm = 100.0 * data.distance_m[i];
+      white.push_back(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));
+    }
+    if (white.empty()) throw std::runtime_error("sim scanner: no valid white-paper read-out between 15 and 45 cm");
+    std::nth_element(white.begin(), white.begin() + static_cast<std::ptrdiff_t>(white.size() / 2), white.end());
+    white_reflectance_ = white[white.size() / 2];
     for (int p = 0; p < sensor_.pixels(); ++p) {
       if (!sensor_.is_dark(p)) pixels_.push_back(p);
     }
@@ -92,10 +118,12 @@ class SimScanner : public Scanner {
         ro.t_s = r.t_s;
         if (model_.validity().check(ro) != tld::ValidityRule::Verdict::kValid) continue;
         const double d = model_.distance_m(ro);
-        if (std::isfinite(d) && d > 0.0) {
+        const double d_cm = 100.0 * d;
+        const double reflectance = d_cm * d_cm * (ro.a + ro.b) / (ro.pulses / 10.0);
+        if (std::isfinite(d) && d >= options_.min_range_m && d <= options_.max_range_m &&
+            reflectance >= options_.min_reflectance_of_white * white_reflectance_) {
           s.scan.range_m[k] = d;
-          const double d_cm = 100.0 * d;
-          s.scan.reflectance[k] = d_cm * d_cm * (ro.a + ro.b) / (ro.pulses / 10.0);
+          s.scan.reflectance[k] = reflectance;
         }
         break;
       }
@@ -105,10 +133,12 @@ class SimScanner : public Scanner {
 
   std::string describe() const override {
     return fmt::format("simulated {} ({} mm lens, fan +-{:.0f} deg, {} px), raw mode {} pulses, driver processing with a "
-                       "declared model fitted to a white-paper rail 5-{:.0f} cm (in-sample RMSE {:.1f} mm)",
+                       "declared model fitted to a white-paper rail 5-{:.0f} cm every {:.1f} cm (in-sample RMSE {:.1f} mm), returns below "
+                       "{:.0f} % of white paper's reflectance dropped",
                        params_.name, params_.lens.focal_mm, params_.emitter.fan_half_angle_deg, pixels_.size(),
                        fmt::join(params_.acquisition.raw_pulses, "/"), options_.calibration_max_m * 100,
-                       calibration_rmse_m_ * 1e3);
+                       options_.calibration_step_m * 100, calibration_rmse_m_ * 1e3,
+                       options_.min_reflectance_of_white * 100);
   }
 
  private:
@@ -117,6 +147,7 @@ class SimScanner : public Scanner {
   sim::TofLineSensor sensor_;
   tld::CalibrationModel model_;
   double calibration_rmse_m_ = 0.0;
+  double white_reflectance_ = 0.0;
   std::vector<int> pixels_;
 };
 

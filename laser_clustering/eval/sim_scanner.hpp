@@ -3,11 +3,13 @@
 // read-outs: per pixel the valid read-out with the most pulses (the validity
 // rule of calibration.hpp), distance from a CalibrationModel fitted by the
 // calibration tool's fitter (tiny_laser_driver/calibration_fit.hpp) to a
-// simulated white-paper rail, reflectance = distance_cm^2 (a + b) / (pulses / 10).
+// simulated white-paper rail, reflectance = distance_cm^2 (a + b) / (pulses / 10),
+// and pixels without a usable return marked invalid (see the options).
 #pragma once
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "harness.hpp"
 
@@ -16,12 +18,25 @@ namespace tinyline::laser_clustering::eval {
 struct SimScannerOptions {
   /// Sensor YAML (relative paths resolve against the source tree's sim/config/sensors).
   std::string sensor_config = "tiny_tof_8mm.yaml";
+  /// Raw-mode read-out schedule [pulses, ascending]; empty keeps the
+  /// sensor's. The firmware's buffer P_n is configurable (thesis 5.3.1):
+  /// close work needs fewer pulses than the default 20..700, which saturate
+  /// every pixel nearer than about 20 cm.
+  std::vector<int> raw_pulses;
   /// Sensor time of the scans [s]: warm by default (the driver delay has settled).
   double t_start_s = 3600.0;
   /// The calibration rail: white paper from 5 cm to this far, this step, sets per distance.
   double calibration_max_m = 1.0;
   double calibration_step_m = 0.025;
   int calibration_sets = 2;
+  /// A pixel whose reflectance figure is below this fraction of white
+  /// paper's is no return (STATUS_TOO_DARK): the leakage of the longest
+  /// read-out passes the wire protocol's validity rule in pixels that see
+  /// nothing, and lens halo lights pixels beside a bright object; both would
+  /// report ranges of nothing.
+  double min_reflectance_of_white = 0.02;
+  /// Ranges outside the sensor's span are no return (STATUS_OUT_OF_RANGE).
+  double min_range_m = 0.05, max_range_m = 2.0;
 };
 
 /// Builds the sensor and fits its calibration (a few seconds). Throws

@@ -103,9 +103,55 @@ AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const A
   return out;
 }
 
-SurfaceReflectance surface_reflectance(const LineScan& scan, const ReflectanceClusteringParams& params) {
+Validation validate(const SurfaceReflectanceParams& p) {
+  if (!(p.quantile > 0.0 && p.quantile <= 1.0)) return {false, fmt::format("quantile must be in (0, 1] (got {})", p.quantile)};
+  if (p.first_pixel < 0) return {false, fmt::format("first_pixel must be >= 0 (got {})", p.first_pixel)};
+  if (p.last_pixel >= 0 && p.last_pixel < p.first_pixel) {
+    return {false, fmt::format("last_pixel ({}) is before first_pixel ({})", p.last_pixel, p.first_pixel)};
+  }
+  if (p.method == SurfaceReflectanceParams::Method::kBrightestCluster) {
+    if (auto v = validate(p.clustering); !v.valid) return {false, "clustering: " + v.reason};
+  }
+  return {};
+}
+
+SurfaceReflectance surface_reflectance(const LineScan& scan, const SurfaceReflectanceParams& p) {
   SurfaceReflectance out;
-  const auto c = cluster_by_reflectance(scan, params);
+  if (auto v = validate(p); !v.valid) {
+    out.reason = v.reason;
+    return out;
+  }
+  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
+  if (scan.reflectance.size() != scan.size()) {
+    out.reason = fmt::format("the scan has {} reflectance values for {} pixels", scan.reflectance.size(), scan.size());
+    return out;
+  }
+  const auto n = static_cast<int>(scan.size());
+  const int first = std::min(p.first_pixel, n), last = p.last_pixel < 0 ? n - 1 : std::min(p.last_pixel, n - 1);
+  if (p.method == SurfaceReflectanceParams::Method::kTopQuantile) {
+    std::vector<double> v;
+    for (int i = first; i <= last; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      if (scan.valid(u) && std::isfinite(scan.reflectance[u]) && scan.reflectance[u] > 0.0) v.push_back(scan.reflectance[u]);
+    }
+    if (v.empty()) {
+      out.reason = fmt::format("no valid pixel with a reflectance in pixels {}..{}", first, last);
+      return out;
+    }
+    const auto k = static_cast<std::size_t>(std::ceil(p.quantile * static_cast<double>(v.size()))) - 1;
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    out.found = true;
+    out.reflectance = v[k];
+    return out;
+  }
+  LineScan roi;
+  for (int i = first; i <= last; ++i) {
+    const auto u = static_cast<std::size_t>(i);
+    roi.angle_rad.push_back(scan.angle_rad[u]);
+    roi.range_m.push_back(scan.range_m[u]);
+    roi.reflectance.push_back(scan.reflectance[u]);
+  }
+  const auto c = cluster_by_reflectance(roi, p.clustering);
   if (!c.ok) {
     out.reason = c.reason;
     return out;

@@ -33,6 +33,12 @@ Validation validate(const TwoStageParams& p) {
     return {false, fmt::format("edge.step_per_m must be finite and >= 0 (got {})", e.step_per_m)};
   }
   if (e.min_keep_px < 1) return {false, fmt::format("edge.min_keep_px must be >= 1 (got {})", e.min_keep_px)};
+  if (!std::isfinite(e.mixed_step_m) || e.mixed_step_m < 0.0) {
+    return {false, fmt::format("edge.mixed_step_m must be finite and >= 0 (got {})", e.mixed_step_m)};
+  }
+  if (!std::isfinite(e.smooth_step_m) || e.smooth_step_m < 0.0) {
+    return {false, fmt::format("edge.smooth_step_m must be finite and >= 0 (got {})", e.smooth_step_m)};
+  }
   if (e.smooth_half_width_px < 0) {
     return {false, fmt::format("edge.smooth_half_width_px must be >= 0 (got {})", e.smooth_half_width_px)};
   }
@@ -74,13 +80,8 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
 
   // Stage 2: the edge filter, run by run. A run is a stretch of valid pixels
   // of one group (invalid pixels inside it do not break it).
-  auto process_run = [&]() {
-    const int m = static_cast<int>(run_.size());
-    if (m == 0) return;
-    // The run's ranges, contiguous.
-    range_.resize(run_.size());
-    for (std::size_t k = 0; k < run_.size(); ++k) range_[k] = scan.range_m[static_cast<std::size_t>(run_[k])];
-    const double* r = range_.data();
+  // Peels the dragged ends of run positions [first, last] and smooths the rest.
+  auto process_piece = [&](const double* r, int first, int last) {
     auto median_of = [&](int from, int to) {  // inclusive run positions, at most kMaxReferencePx values
       std::array<double, kMaxReferencePx> v;
       const int cnt = to - from + 1;
@@ -88,7 +89,7 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
       std::nth_element(v.begin(), v.begin() + cnt / 2, v.begin() + cnt);
       return v[static_cast<std::size_t>(cnt / 2)];
     };
-    int lo = 0, hi = m - 1;
+    int lo = first, hi = last;
     for (int k = 0; k < e.edge_width_px && hi - lo + 1 > e.min_keep_px; ++k) {
       const double ref = median_of(lo + 1, std::min(hi, lo + e.reference_px));
       if (std::abs(r[lo] - ref) <= step(ref)) break;
@@ -101,11 +102,11 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
       out.fate[static_cast<std::size_t>(run_[static_cast<std::size_t>(hi)])] = PixelFate::kEdgeDropped;
       --hi;
     }
-    out.num_edge_dropped += lo + (m - 1 - hi);
+    out.num_edge_dropped += (lo - first) + (last - hi);
     // Smooth the kept points without averaging across a depth step.
     const int h = e.smooth_half_width_px;
     for (int k = lo; k <= hi; ++k) {
-      const double c = r[k], limit = step(c);
+      const double c = r[k], limit = e.smooth_step_m + e.step_per_m * c;
       double sum = 0.0;
       int cnt = 0;
       const int j_end = std::min(hi, k + h);
@@ -116,6 +117,32 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
       }
       out.smoothed_range_m[static_cast<std::size_t>(run_[static_cast<std::size_t>(k)])] = sum / cnt;
     }
+  };
+  auto process_run = [&]() {
+    const int m = static_cast<int>(run_.size());
+    if (m == 0) return;
+    // The run's ranges, contiguous.
+    range_.resize(run_.size());
+    for (std::size_t k = 0; k < run_.size(); ++k) range_[k] = scan.range_m[static_cast<std::size_t>(run_[k])];
+    const double* r = range_.data();
+    // Mixed pixels inside the run: a pixel between two depths (a pedicel 2 cm
+    // before a tomato) reads a range between them and would chain the two in
+    // stage 3. It is dropped when its neighbours differ by more than
+    // mixed_step_m (+ step_per_m * range) and it lies in the middle of that
+    // step (at least a quarter of it from either side); the run is cut there.
+    int first = 0;
+    for (int k = 1; k + 1 < m; ++k) {
+      const double span = r[k + 1] - r[k - 1];
+      const double lo_side = std::min(r[k - 1], r[k + 1]), hi_side = std::max(r[k - 1], r[k + 1]);
+      const bool mixed = std::abs(span) > e.mixed_step_m + e.step_per_m * lo_side &&
+                         r[k] - lo_side >= 0.25 * std::abs(span) && hi_side - r[k] >= 0.25 * std::abs(span);
+      if (!mixed) continue;
+      out.fate[static_cast<std::size_t>(run_[static_cast<std::size_t>(k)])] = PixelFate::kEdgeDropped;
+      ++out.num_edge_dropped;
+      if (k - 1 >= first) process_piece(r, first, k - 1);
+      first = k + 1;
+    }
+    if (first <= m - 1) process_piece(r, first, m - 1);
   };
   run_.clear();
   int run_group = kNoise;
@@ -193,7 +220,8 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     // Occlusion: one of the next two valid pixels beyond the end is in front
     // (two, because the first may be a mixed pixel between the two depths).
     auto in_front = [&](std::size_t edge_pixel, int dir) {
-      const double limit = out.smoothed_range_m[edge_pixel] - step(out.smoothed_range_m[edge_pixel]);
+      const double edge_r = out.smoothed_range_m[edge_pixel];
+      const double limit = edge_r - (e.mixed_step_m + e.step_per_m * edge_r);
       int seen = 0;
       for (auto j = static_cast<std::ptrdiff_t>(edge_pixel) + dir; j >= 0 && j < static_cast<std::ptrdiff_t>(n) && seen < 2;
            j += dir) {

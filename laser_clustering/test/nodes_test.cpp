@@ -222,6 +222,7 @@ TEST(LaserClusteringNodes, AlignmentSearchFindsThePitchOfAPitchSweep) {
   bus::NodeOptions o;
   o.name = "align";
   o.param("pitch_joint", std::string("wrist_pitch"));
+  o.param("surface_quantile", 0.99);  // the stick is about 3 % of the pixels
   h.add("alignment_search", o);
   std::vector<std::shared_ptr<const AlignmentResult>> got;
   auto sub = h.io->create_subscription<AlignmentResult>(

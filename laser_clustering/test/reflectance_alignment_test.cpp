@@ -135,7 +135,12 @@ TEST(ReflectanceClustering, BadInput) {
   EXPECT_EQ(r.brightest, -1);
   const auto sr = lc::surface_reflectance(dark);
   EXPECT_FALSE(sr.found);
-  EXPECT_THAT(sr.reason, HasSubstr("no valid pixels"));
+  EXPECT_THAT(sr.reason, HasSubstr("no valid pixel with a reflectance in pixels 0..255"));
+  lc::SurfaceReflectanceParams by_cluster;
+  by_cluster.method = lc::SurfaceReflectanceParams::Method::kBrightestCluster;
+  const auto sc = lc::surface_reflectance(dark, by_cluster);
+  EXPECT_FALSE(sc.found);
+  EXPECT_THAT(sc.reason, HasSubstr("no valid pixels"));
 }
 
 namespace {
@@ -215,7 +220,36 @@ TEST(AlignmentSearch, RepeatedPitchesAreAveraged) {
 
 TEST(AlignmentSearch, SurfaceReflectanceOfTheMetal) {
   const auto s = stick_scene(5, 0.004);
-  const auto r = lc::surface_reflectance(s.scan);
+  // The stick covers about 7 of 256 pixels: the top 2 % are metal.
+  lc::SurfaceReflectanceParams q;
+  q.quantile = 0.98;
+  const auto r = lc::surface_reflectance(s.scan, q);
   ASSERT_TRUE(r.found) << r.reason;
   EXPECT_NEAR(r.reflectance, 37.0, 4.0);
+  // The same from the brightest cluster.
+  lc::SurfaceReflectanceParams c;
+  c.method = lc::SurfaceReflectanceParams::Method::kBrightestCluster;
+  const auto rc = lc::surface_reflectance(s.scan, c);
+  ASSERT_TRUE(rc.found) << rc.reason;
+  EXPECT_NEAR(rc.reflectance, 37.0, 4.0);
+  // A region of interest without the stick sees the wall only.
+  lc::SurfaceReflectanceParams left = q;
+  left.last_pixel = 100;
+  const auto rl = lc::surface_reflectance(s.scan, left);
+  ASSERT_TRUE(rl.found);
+  EXPECT_LT(rl.reflectance, 7.0);
+}
+
+TEST(AlignmentSearch, SurfaceReflectanceRejectsBadParameters) {
+  const auto s = stick_scene(5, 0.004);
+  lc::SurfaceReflectanceParams p;
+  p.quantile = 0.0;
+  EXPECT_THAT(lc::surface_reflectance(s.scan, p).reason, HasSubstr("quantile must be in (0, 1]"));
+  p = {};
+  p.first_pixel = 50;
+  p.last_pixel = 10;
+  EXPECT_THAT(lc::surface_reflectance(s.scan, p).reason, HasSubstr("last_pixel (10) is before first_pixel (50)"));
+  lc::LineScan no_refl = s.scan;
+  no_refl.reflectance.clear();
+  EXPECT_THAT(lc::surface_reflectance(no_refl).reason, HasSubstr("0 reflectance values for 256 pixels"));
 }

@@ -52,14 +52,35 @@ struct AlignmentResult {
 /// Samples at the same pitch are averaged.
 [[nodiscard]] AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const AlignmentParams& params = {});
 
-/// The target surface's reflectance in one scan: the median reflectance of
-/// the brightest reflectance cluster (the metal, Table 3.2).
+/// How one scan's target reflectance is measured.
+struct SurfaceReflectanceParams {
+  enum class Method {
+    /// The `quantile` of the valid pixels' reflectance in the region: the
+    /// brightest surface in view (a metal's specular return) without
+    /// segmenting it. Robust when the metal is no brighter than its
+    /// background away from the peak (a polished wrench on a grey panel).
+    kTopQuantile,
+    /// The median reflectance of the brightest reflectance cluster: needs
+    /// the metal to separate from its background at every pitch.
+    kBrightestCluster,
+  };
+  Method method = Method::kTopQuantile;
+  double quantile = 0.95;  ///< kTopQuantile, in (0, 1]
+  /// Region of interest, pixel indices inclusive (last_pixel < 0: to the end).
+  int first_pixel = 0;
+  int last_pixel = -1;
+  ReflectanceClusteringParams clustering;  ///< kBrightestCluster
+};
+
+[[nodiscard]] Validation validate(const SurfaceReflectanceParams& params);
+
 struct SurfaceReflectance {
   bool found = false;
   double reflectance = 0.0;
-  int cluster = -1;  ///< index into the clustering's clusters
+  int cluster = -1;  ///< kBrightestCluster: index into the clustering's clusters
   std::string reason;
 };
-[[nodiscard]] SurfaceReflectance surface_reflectance(const LineScan& scan, const ReflectanceClusteringParams& params = {});
+/// One alignment sample's reflectance from a scan.
+[[nodiscard]] SurfaceReflectance surface_reflectance(const LineScan& scan, const SurfaceReflectanceParams& params = {});
 
 }  // namespace tinyline::laser_clustering

@@ -20,9 +20,12 @@
 
 namespace tinyline::laser_clustering {
 
+/// Defaults tuned on simulated Figure 5.8 B scenes (docs/laser_clustering.md):
+/// eps about three times the spread of adjacent pixels' distances at 30 cm,
+/// so a surface chains whatever its range noise.
 struct ReflectanceClusteringParams {
   /// eps in metres of position (and metre-equivalents of scaled log reflectance).
-  DbscanParams dbscan{0.006, 4};
+  DbscanParams dbscan{0.015, 5};
   /// Reflectance factor that weighs as much as eps of distance; > 1.
   double reflectance_ratio_at_eps = 1.6;
   /// false: cluster on distance alone (the baseline that fails on Figure 5.8 B).

@@ -3,10 +3,11 @@
 //      objects that may touch each other; the trails of mixed pixels at an
 //      object's emitter-side edge ("distance drag", up to tens of cm) are too
 //      sparse to hold core points, so they cannot bridge groups;
-//   2. the edge filter peels, from both ends of every run of a group, the
-//      points that step away from the run's inner points (the dragged, high-
-//      variance edge pixels), then smooths the kept ranges without crossing
-//      depth steps;
+//   2. the edge filter drops the mixed pixels inside every run of a group
+//      (a range half-way down a depth step) and peels, from both ends of each
+//      piece, the points that step away from its inner points (the dragged,
+//      high-variance edge pixels), then smooths the kept ranges without
+//      crossing depth steps;
 //   3. DBSCAN with a small eps inside each group separates the objects
 //      ("each ladder means one cluster").
 // Metres everywhere; pixels only where a count of pixels is meant.
@@ -29,21 +30,30 @@ struct EdgeFilterParams {
   /// Inner points the candidate is compared with (their median); 1 to 16.
   int reference_px = 3;
   /// A candidate is dragged when it differs from that median by more than
-  /// step_m + step_per_m * range (the range noise grows with range, Table 3.1).
-  double step_m = 0.006;
+  /// step_m + step_per_m * range: about three times the sensor's range noise
+  /// (4-7 mm at 10-50 cm, Table 3.1), which grows with range. Tuned on the
+  /// simulator (docs/laser_clustering.md).
+  double step_m = 0.018;
   double step_per_m = 0.03;
   /// Points a run keeps at least, however dragged its ends look.
   int min_keep_px = 2;
+  /// Inside a run, a pixel whose two neighbours differ by more than
+  /// mixed_step_m + step_per_m * range, and whose own range lies in the
+  /// middle half of that step, is a mixed pixel: dropped, and the run is
+  /// cut there (so objects touching in depth do not chain in stage 3).
+  double mixed_step_m = 0.015;
   /// Half width of the range smoothing [pixels]; 0 turns it off. Each kept
   /// range becomes the mean of the kept ranges within this many pixels of the
-  /// same run that lie within the step threshold of it (a depth step is
-  /// never averaged across).
+  /// same run that lie within smooth_step_m + step_per_m * range of it, so a
+  /// depth step (a pedicel 2 cm before a tomato) is not averaged across.
   int smooth_half_width_px = 2;
+  double smooth_step_m = 0.012;
 };
 
+/// Defaults tuned on simulated truss scans (held-out seeds, docs/laser_clustering.md).
 struct TwoStageParams {
   /// Stage 1: object groups [m]; large eps, large count.
-  DbscanParams groups{0.025, 4};
+  DbscanParams groups{0.03, 4};
   EdgeFilterParams edge;
   /// Stage 3: objects inside each group [m]; small eps.
   DbscanParams objects{0.008, 2};
@@ -77,7 +87,8 @@ struct ScanCluster {
   /// field of view may cut it, so its width is a lower bound.
   bool touches_fov_edge = false;
   /// One of the two valid pixels just beyond that end is nearer than it by
-  /// more than the edge filter's step threshold: something in front hides part of it.
+  /// more than the mixed-pixel step (EdgeFilterParams::mixed_step_m + step_per_m
+  /// * range): something in front hides part of it.
   bool occluded_low = false;
   bool occluded_high = false;
 };

@@ -113,6 +113,12 @@ TwoStageParams declare_two_stage(bus::Node& n) {
   p.edge.smooth_half_width_px = n.declare_parameter("smooth_half_width_px", d.edge.smooth_half_width_px,
                                                     "half width of the range smoothing [px] (0: off)",
                                                     ParamConstraints::range(0, 32));
+  p.edge.mixed_step_m = n.declare_parameter("mixed_step_m", d.edge.mixed_step_m,
+                                            "a pixel half-way down a depth step larger than this (+ edge_step_per_m * range) is mixed [m]",
+                                            ParamConstraints::range(0.0, 1.0));
+  p.edge.smooth_step_m = n.declare_parameter("smooth_step_m", d.edge.smooth_step_m,
+                                             "smoothing never averages ranges further apart than this (+ edge_step_per_m * range) [m]",
+                                             ParamConstraints::range(0.0, 1.0));
   p.objects.eps = n.declare_parameter("objects_eps_m", d.objects.eps, "stage-3 (objects) DBSCAN radius [m]",
                                       ParamConstraints::range(1e-4, 2.0));
   p.objects.min_points = n.declare_parameter("objects_min_points", d.objects.min_points,
@@ -193,6 +199,27 @@ AlignmentParams declare_alignment(bus::Node& n) {
   p.min_peak_ratio = n.declare_parameter("min_peak_ratio", d.min_peak_ratio,
                                          "peak over the sweep's median needed to count as a peak",
                                          ParamConstraints::range(1.0, 1000.0));
+  check(n, validate(p));
+  return p;
+}
+
+SurfaceReflectanceParams declare_surface_reflectance(bus::Node& n) {
+  using bus::ParamConstraints;
+  const SurfaceReflectanceParams d;
+  SurfaceReflectanceParams p;
+  const std::string method = n.declare_parameter<std::string>(
+      "surface_method", "top_quantile",
+      "how a scan's target reflectance is measured: top_quantile of the pixels, or the brightest_cluster's median",
+      ParamConstraints::one_of({"top_quantile", "brightest_cluster"}));
+  p.method = method == "top_quantile" ? SurfaceReflectanceParams::Method::kTopQuantile
+                                      : SurfaceReflectanceParams::Method::kBrightestCluster;
+  p.quantile = n.declare_parameter("surface_quantile", d.quantile, "top_quantile: the quantile taken",
+                                   ParamConstraints::range(0.01, 1.0));
+  p.first_pixel = n.declare_parameter("roi_first_pixel", d.first_pixel, "region of interest, first pixel",
+                                      ParamConstraints::range(0, 4096));
+  p.last_pixel = n.declare_parameter("roi_last_pixel", d.last_pixel, "region of interest, last pixel (-1: to the end)",
+                                     ParamConstraints::range(-1, 4096));
+  p.clustering = declare_reflectance(n);
   check(n, validate(p));
   return p;
 }

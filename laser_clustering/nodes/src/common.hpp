@@ -32,5 +32,6 @@ TwoStageParams declare_two_stage(bus::Node& node);
 PedicelFinderParams declare_pedicel_finder(bus::Node& node);
 ReflectanceClusteringParams declare_reflectance(bus::Node& node);
 AlignmentParams declare_alignment(bus::Node& node);
+SurfaceReflectanceParams declare_surface_reflectance(bus::Node& node);
 
 }  // namespace tinyline::laser_clustering::nodes

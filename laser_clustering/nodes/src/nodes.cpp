@@ -137,7 +137,7 @@ void ReflectanceClustererNode::on_scan(const msgs::LineScan& m) {
 // ---------------------------------------------------------------------------- alignment_search
 
 AlignmentSearchNode::AlignmentSearchNode(bus::NodeOptions o)
-    : Node(std::move(o)), clustering_(nodes::declare_reflectance(*this)), params_(nodes::declare_alignment(*this)) {
+    : Node(std::move(o)), surface_(nodes::declare_surface_reflectance(*this)), params_(nodes::declare_alignment(*this)) {
   joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch",
                                           "joint of sensor_msgs/JointState whose position is the gripper pitch [rad]");
   window_s_ = declare_parameter("window_s", 10.0, "samples older than this (vs the newest scan) leave the sweep [s]",
@@ -185,8 +185,8 @@ void AlignmentSearchNode::on_scan(const msgs::LineScan& m) {
   if (!nearest || std::abs(bus::to_seconds(nearest->first - stamp)) > max_joint_age_s_) {
     return publish_invalid("no '" + joint_ + "' reading within max_joint_age_s of the scan");
   }
-  const SurfaceReflectance s = surface_reflectance(scan_, clustering_);
-  if (!s.found) return publish_invalid("no reflectance cluster in the scan: " + s.reason);
+  const SurfaceReflectance s = surface_reflectance(scan_, surface_);
+  if (!s.found) return publish_invalid("no surface reflectance in the scan: " + s.reason);
   samples_.emplace_back(stamp, AlignmentSample{nearest->second, s.reflectance});
   while (!samples_.empty() && bus::to_seconds(stamp - samples_.front().first) > window_s_) samples_.pop_front();
   std::vector<AlignmentSample> sweep;

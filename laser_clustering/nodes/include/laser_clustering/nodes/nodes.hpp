@@ -85,7 +85,7 @@ class AlignmentSearchNode : public bus::Node {
  private:
   void on_joints(const sensor_msgs::msg::JointState& msg);
   void on_scan(const tinyline_msgs::msg::LineScan& msg);
-  ReflectanceClusteringParams clustering_;
+  SurfaceReflectanceParams surface_;
   AlignmentParams params_;
   std::string joint_;
   double window_s_ = 0.0;
