@@ -26,14 +26,14 @@ std::string drop_key(DropReason r) { return fmt::format("drops_{}", to_string(r)
 // ---------------------------------------------------------------------------- calibration
 
 std::string default_calibration_path() {
-  const std::string rel = "tiny_laser_driver/calibration/sim_default.yaml";
+  const std::string rel = "tiny_laser_driver/calibration/sim_tiny_tof_8mm.yaml";
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
     const fs::path installed = exe.parent_path().parent_path() / "share/tinyline" / rel;
     if (fs::exists(installed, ec)) return installed.string();
   }
-  return std::string(TINYLINE_DRIVER_CONFIG_DIR) + "/calibration/sim_default.yaml";
+  return std::string(TINYLINE_DRIVER_CONFIG_DIR) + "/calibration/sim_tiny_tof_8mm.yaml";
 }
 
 CalibrationModel load_calibration(const std::string& spec) {
