@@ -10,6 +10,8 @@
 
 #include <tiny_laser_driver/public_driver_sensors.hpp>
 
+#include "sim_port.hpp"
+
 namespace tinyline::tiny_laser_driver {
 
 namespace fs = std::filesystem;
@@ -113,6 +115,9 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
 
   io::PortOptions po;
   po.serial.baud = p.baud;
+  po.mode = mode_;
+  po.laser_on_at_start = p.sequence_slot < 0;
+  detail::register_sim_port_scheme();
   try {
     opener_ = io::make_port_opener(p.port, po);  // parses the spec; opens nothing
   } catch (const std::invalid_argument& e) {
@@ -419,6 +424,7 @@ void LaserDriver::publish_diagnostics() {
   kv("temperature_c", fmt::format("{:.1f}", s.last_temperature_c));
   kv("connects", std::to_string(s.connects));
   kv("disconnects", std::to_string(s.disconnects));
+  kv("open_failures", std::to_string(s.open_failures));
   kv("laser", s.laser_on ? (*s.laser_on ? "on" : "off") : "not commanded");
   kv("commands_sent", std::to_string(s.commands_sent));
   kv("last_error", s.last_error_message);
