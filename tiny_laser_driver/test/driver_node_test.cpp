@@ -406,6 +406,8 @@ TEST(LaserDriverNode, BadSettingsSayWhatIsWrong) {
   EXPECT_THROW(unknown->on_start(), std::runtime_error);
   auto known = make({{"calibration", std::string("public:K")}, {"threaded", false}});
   EXPECT_NO_THROW(known->on_start());
+  auto shipped = make({{"calibration", std::string("default")}, {"threaded", false}});
+  EXPECT_NO_THROW(shipped->on_start());
 }
 
 TEST(LaserDriverNode, IsRegisteredForLaunchFiles) {

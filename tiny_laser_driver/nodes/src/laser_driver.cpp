@@ -10,6 +10,8 @@
 
 #include <tiny_laser_driver/public_driver_sensors.hpp>
 
+#include "sim_port.hpp"
+
 namespace tinyline::tiny_laser_driver {
 
 namespace fs = std::filesystem;
@@ -26,14 +28,14 @@ std::string drop_key(DropReason r) { return fmt::format("drops_{}", to_string(r)
 // ---------------------------------------------------------------------------- calibration
 
 std::string default_calibration_path() {
-  const std::string rel = "tiny_laser_driver/calibration/sim_default.yaml";
+  const std::string rel = "tiny_laser_driver/calibration/sim_tiny_tof_8mm.yaml";
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
     const fs::path installed = exe.parent_path().parent_path() / "share/tinyline" / rel;
     if (fs::exists(installed, ec)) return installed.string();
   }
-  return std::string(TINYLINE_DRIVER_CONFIG_DIR) + "/calibration/sim_default.yaml";
+  return std::string(TINYLINE_DRIVER_CONFIG_DIR) + "/calibration/sim_tiny_tof_8mm.yaml";
 }
 
 CalibrationModel load_calibration(const std::string& spec) {
@@ -113,6 +115,9 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
 
   io::PortOptions po;
   po.serial.baud = p.baud;
+  po.mode = mode_;
+  po.laser_on_at_start = p.sequence_slot < 0;
+  detail::register_sim_port_scheme();
   try {
     opener_ = io::make_port_opener(p.port, po);  // parses the spec; opens nothing
   } catch (const std::invalid_argument& e) {
@@ -419,6 +424,7 @@ void LaserDriver::publish_diagnostics() {
   kv("temperature_c", fmt::format("{:.1f}", s.last_temperature_c));
   kv("connects", std::to_string(s.connects));
   kv("disconnects", std::to_string(s.disconnects));
+  kv("open_failures", std::to_string(s.open_failures));
   kv("laser", s.laser_on ? (*s.laser_on ? "on" : "off") : "not commanded");
   kv("commands_sent", std::to_string(s.commands_sent));
   kv("last_error", s.last_error_message);

@@ -17,12 +17,17 @@
 #include <tiny_laser_driver/io/byte_stream.hpp>
 #include <tiny_laser_driver/io/serial_port.hpp>
 #include <tiny_laser_driver/io/usb_discovery.hpp>
+#include <tiny_laser_driver/protocol.hpp>
 
 namespace tinyline::tiny_laser_driver::io {
 
 struct PortOptions {
   SerialOptions serial;
   DiscoveryOptions discovery;
+  /// For schemes that start a device (sim:): the mode it should stream in,
+  /// and whether its laser starts on (off in sequence mode).
+  StreamMode mode = StreamMode::Raw;
+  bool laser_on_at_start = true;
 };
 
 /// Opens (and after a disconnect, reopens) one port.
