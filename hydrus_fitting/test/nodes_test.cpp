@@ -12,6 +12,7 @@
 
 #include "hydrus_fitting/nodes/circle_fitter_node.hpp"
 #include "hydrus_fitting/nodes/register.hpp"
+#include "hydrus_fitting/nodes/sequencer_node.hpp"
 #include "planar_scene.hpp"
 
 namespace hf = tinyline::hydrus_fitting;
@@ -178,4 +179,119 @@ TEST(HydrusFittingNodes, CircleFitterNeedsAValidRobotDescription) {
   } catch (const std::exception& e) {
     EXPECT_THAT(e.what(), HasSubstr("/nonexistent/hydrus.yaml: file: cannot open"));
   }
+}
+
+namespace {
+
+using tinyline::diagnostic_msgs::msg::DiagnosticArray;
+using tinyline::tinyline_msgs::msg::LaserCommand;
+
+std::string value_of(const DiagnosticArray& d, const std::string& key) {
+  for (const auto& s : d.status)
+    for (const auto& kv : s.values)
+      if (kv.key == key) return kv.value;
+  return "";
+}
+
+struct SequencerRig {
+  Harness h;
+  hf::RobotModel model = hf::RobotModel::load(kConfig);
+  std::vector<std::shared_ptr<const LaserCommand>> cmds;
+  std::vector<std::shared_ptr<const DiagnosticArray>> diags;
+  std::shared_ptr<bus::Subscription<LaserCommand>> cmd_sub;
+  std::shared_ptr<bus::Subscription<DiagnosticArray>> diag_sub;
+  std::shared_ptr<bus::Publisher<JointState>> joints;
+  std::shared_ptr<bus::Publisher<CircleFit>> circle;
+  std::shared_ptr<hf::SequencerNode> node;
+
+  explicit SequencerRig(const std::string& mode) {
+    bus::NodeOptions o;
+    o.name = "sequencer";
+    o.param("robot_description", kConfig).param("mode", mode).param("set_period_s", 0.018).param("guard_s", 0.002);
+    o.param("object_max_age_s", 10.0);
+    node = std::dynamic_pointer_cast<hf::SequencerNode>(h.add("sequencer", o));
+    cmd_sub = h.io->create_subscription<LaserCommand>(
+        "laser_command", bus::QoS::keep_last(1000), [this](const std::shared_ptr<const LaserCommand>& m) { cmds.push_back(m); });
+    diag_sub = h.io->create_subscription<DiagnosticArray>(
+        "diagnostics", bus::QoS::keep_last(100), [this](const std::shared_ptr<const DiagnosticArray>& m) { diags.push_back(m); });
+    joints = h.io->create_publisher<JointState>("joint_states");
+    circle = h.io->create_publisher<CircleFit>("circle");
+    advance(0.0);  // starts the sim clock and the node
+  }
+  void advance(double t_s) { h.ex.advance_to(bus::Time::from_seconds(t_s)); }
+};
+
+}  // namespace
+
+TEST(HydrusFittingNodes, SequencerColoursTheSquareIntoTwoSlots) {
+  SequencerRig r("colouring");
+  // The square around a 12 cm cylinder, and the object estimate.
+  for (int k = 0; k <= 40; ++k) r.joints->publish(joints_msg(r.model, 0.05 * k, kPi / 2));
+  auto c = std::make_unique<CircleFit>();
+  c->header.stamp = bus::Time::from_seconds(0.0).to_msg();
+  c->status = CircleFit::STATUS_OK;
+  c->centre.x = 0.25;
+  c->centre.y = 0.25;
+  c->radius_m = 0.12;
+  r.circle->publish(std::move(c));
+  r.h.ex.spin_until_idle();
+  r.advance(0.2);  // ten 20 ms slots
+  ASSERT_GE(r.cmds.size(), 9u);
+  EXPECT_EQ(r.node->schedule().name, "colouring");
+  ASSERT_EQ(r.node->schedule().slot_count(), 2);
+  // Opposite sensors together, alternating: {laser1, laser3} then {laser2, laser4}.
+  hf::Sequencer check(r.model);
+  (void)check.update(std::vector<double>(3, kPi / 2), hf::Circle{{0.25, 0.25}, 0.12});
+  int on_count[4] = {0, 0, 0, 0};
+  for (const auto& m : r.cmds) {
+    ASSERT_EQ(m->sensors.size(), 4u);
+    ASSERT_EQ(m->laser_on.size(), 4u);
+    for (int i = 0; i < 4; ++i) {
+      on_count[i] += m->laser_on[static_cast<std::size_t>(i)];
+      for (int j = i + 1; j < 4; ++j) {
+        EXPECT_FALSE(m->laser_on[static_cast<std::size_t>(i)] && m->laser_on[static_cast<std::size_t>(j)] &&
+                     check.graph().conflict(i, j))
+            << "sensors " << i << " and " << j << " emit together but conflict";
+      }
+    }
+    EXPECT_EQ(m->active_slots.size(), 2u);
+  }
+  // Every sensor emits in half of the slots (twice the thesis's quarter).
+  const auto slots = static_cast<int>(r.cmds.size());
+  for (const int k : on_count) EXPECT_NEAR(k, slots / 2.0, 1.0);
+  r.advance(1.01);
+  ASSERT_FALSE(r.diags.empty());
+  EXPECT_EQ(value_of(*r.diags.back(), "laser1.rate_hz"), "25.00");
+  EXPECT_EQ(value_of(*r.diags.back(), "laser1.thesis_rate_hz"), "12.50");
+}
+
+TEST(HydrusFittingNodes, SequencerFallsBackToTimeSlicingWithoutJoints) {
+  SequencerRig r("colouring");
+  r.advance(0.1);
+  ASSERT_GE(r.cmds.size(), 4u);
+  for (const auto& m : r.cmds) {
+    int on = 0;
+    for (const bool b : m->laser_on) on += b;
+    EXPECT_EQ(on, 1);  // one sensor per slot: always safe
+  }
+  int warnings = 0;
+  for (const auto& rec : r.h.log->records()) warnings += rec.text.find("one sensor per slot") != std::string::npos;
+  EXPECT_EQ(warnings, 1);
+}
+
+TEST(HydrusFittingNodes, SequencerModesTimeSlicingAndAllOn) {
+  {
+    SequencerRig r("time_slicing");
+    r.joints->publish(joints_msg(r.model, 0.0, kPi / 2));
+    r.advance(0.16);  // eight slots: each sensor twice, in order
+    ASSERT_GE(r.cmds.size(), 8u);
+    for (std::size_t k = 0; k < 8; ++k) {
+      for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(r.cmds[k]->laser_on[i], i == k % 4) << k;
+    }
+  }
+  SequencerRig r("all_on");
+  r.advance(0.1);
+  ASSERT_FALSE(r.cmds.empty());
+  for (const auto& m : r.cmds)
+    for (const bool b : m->laser_on) EXPECT_TRUE(b);
 }

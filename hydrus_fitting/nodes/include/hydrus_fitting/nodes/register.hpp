@@ -5,7 +5,7 @@
 
 namespace tinyline::hydrus_fitting {
 
-/// circle_fitter (and sequencer once the laser command message is on main).
+/// circle_fitter, sequencer.
 void register_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::hydrus_fitting
