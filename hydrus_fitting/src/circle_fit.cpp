@@ -6,6 +6,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <fmt/format.h>
 
 #include "hydrus_fitting/detail/random.hpp"
@@ -326,6 +327,19 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
     rss += d * d;
   }
   f.rms_residual_m = std::sqrt(rss / n);
+  if (params.remove_radius_bias && !known && n > p) {
+    // Per point the tangential variance equals the normal one (isotropic):
+    // s^2 sigma_i^2, s^2 the a-posteriori variance factor; the radius is
+    // the weighted mean distance, so its bias is sum w s^2 sigma^2 / (2 r sum w).
+    double wsum = 0.0;
+    for (const Eigen::Index i : idx) wsum += weight(i);
+    const double s2 = cost / (n - p);
+    const double bias = s2 * n / (2.0 * f.circle.radius_m * wsum);
+    if (std::isfinite(bias) && bias < 0.5 * f.circle.radius_m) {
+      f.circle.radius_m -= bias;
+      f.radius_bias_removed_m = bias;
+    }
+  }
   // Covariance: (J^T W J)^-1, scaled by the weighted residual variance when asked.
   const bool use_residuals = params.covariance_from_residuals || sigma_m.empty();
   const double dof = static_cast<double>(n - p);
@@ -339,6 +353,41 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
     if (lu.isInvertible()) f.covariance = s2 * lu.inverse();
   }
   return f;
+}
+
+Eigen::Vector3d remove_essential_bias(const Eigen::Ref<const Eigen::Matrix2Xd>& points, CircleFit& fit,
+                                      std::span<const double> sigma_m, std::span<const double> tangential_sd_m,
+                                      std::span<const std::uint8_t> mask) {
+  const auto n = static_cast<std::size_t>(points.cols());
+  if (!fit.ok() || tangential_sd_m.size() != n || (!sigma_m.empty() && sigma_m.size() != n) ||
+      (!mask.empty() && mask.size() != n) || !(fit.circle.radius_m > 0.0)) {
+    return Eigen::Vector3d::Zero();
+  }
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!mask.empty() && !mask[i]) continue;
+    const Eigen::Vector2d p = points.col(static_cast<Eigen::Index>(i));
+    if (!finite(p) || !std::isfinite(tangential_sd_m[i])) continue;
+    const double w = sigma_m.empty() ? 1.0 : 1.0 / (sigma_m[i] * sigma_m[i]);
+    if (!std::isfinite(w)) continue;
+    const Eigen::Vector2d dv = p - fit.circle.centre_m;
+    const double rho = dv.norm();
+    if (!(rho > 0.0)) continue;
+    const Eigen::Vector3d j(-dv.x() / rho, -dv.y() / rho, -1.0);
+    const double b = tangential_sd_m[i] * tangential_sd_m[i] / (2.0 * fit.circle.radius_m);
+    H.noalias() += w * j * j.transpose();
+    g += w * b * j;
+  }
+  Eigen::FullPivLU<Eigen::Matrix3d> lu(H);
+  if (!lu.isInvertible()) return Eigen::Vector3d::Zero();
+  // E[d] = b at the truth; the fit absorbed it as -H^-1 J^T W b: add it back.
+  const Eigen::Vector3d shift = lu.solve(g);
+  if (!shift.allFinite() || std::abs(shift(2)) > 0.5 * fit.circle.radius_m) return Eigen::Vector3d::Zero();
+  fit.circle.centre_m += shift.head<2>();
+  fit.circle.radius_m += shift(2);
+  fit.radius_bias_removed_m -= shift(2);
+  return shift;
 }
 
 CircleFit fit_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RefineParams& params,
@@ -399,6 +448,11 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
     return invalid(fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
   if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols()))
     return invalid(fmt::format("sigma_m has {} entries for {} points", sigma_m.size(), points.cols()));
+  for (std::size_t i = 0; i < sigma_m.size(); ++i)
+    if (!(sigma_m[i] > 0.0) || !std::isfinite(sigma_m[i]))
+      return invalid(fmt::format("sigma_m[{}] = {} is not a finite positive SD", i, sigma_m[i]));
+  if (!(params.inlier_threshold_sigmas >= 0.0))
+    return invalid(fmt::format("inlier_threshold_sigmas must be >= 0, got {}", params.inlier_threshold_sigmas));
   const bool use_views = !viewpoints.origins_m.empty();
   if (use_views) {
     if (viewpoints.sensor_of_point.size() != static_cast<std::size_t>(points.cols()))
@@ -441,15 +495,27 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
   const double T = params.inlier_threshold_m;
   const double T2 = T * T;
   const Eigen::Vector2d* vp = use_views ? viewpoints.origins_m.data() : nullptr;
+  // With per-point sigmas, support and score are in units of each point's
+  // sigma (a near point with 4 mm noise must not accept 2 cm residuals a far
+  // one would); the absolute threshold still caps.
+  const bool per_point = !sigma_m.empty() && params.inlier_threshold_sigmas > 0.0;
+  const double k2 = params.inlier_threshold_sigmas * params.inlier_threshold_sigmas;
+  const double trunc = per_point ? k2 : T2;  // MSAC truncation, in score units
+  auto unit2 = [&](int i) {
+    if (!per_point) return 1.0;
+    const double sg = sigma_m[static_cast<std::size_t>(i)];
+    return sg * sg;
+  };
 
-  // A point supports circle c when it is within T of it and, with viewpoints,
-  // faces its sensor (outward normal towards the viewpoint).
+  // A point supports circle c when it is within the threshold of it and, with
+  // viewpoints, faces its sensor (outward normal towards the viewpoint).
   auto supports = [&](int i, const Circle& c, double* d2out) {
     const Eigen::Vector2d p = points.col(i);
     const Eigen::Vector2d dv = p - c.centre_m;
     const double d = dv.norm() - c.radius_m;
     *d2out = d * d;
     if (d * d > T2) return false;
+    if (per_point && d * d > k2 * unit2(i)) return false;
     if (vp) {
       const Eigen::Vector2d& o = vp[viewpoints.sensor_of_point[static_cast<std::size_t>(i)]];
       if (dv.dot(o - p) <= 0.0) return false;
@@ -469,10 +535,10 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
     for (const int i : idx) {
       double d2;
       if (supports(i, c, &d2)) {
-        sc += d2;
+        sc += d2 / unit2(i);
         ++r.inliers;
       } else {
-        sc += T2;
+        sc += trunc;
       }
       if (sc > bound) return Consensus{};
     }

@@ -38,10 +38,69 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
   Viewpoints views;
   if (params_.use_viewpoints) views = {c.views, c.view_of_point};
   e.fit = fit_circle_robust(c.points_m(), params_.robust, sigma, views);
+  if (e.fit.ok() && params_.incidence_weighting) {
+    // Twice: the second pass takes the incidences from the better circle.
+    refine_with_incidence(e.fit, false);
+    refine_with_incidence(e.fit, params_.remove_radius_bias);
+  } else if (e.fit.ok() && params_.remove_radius_bias) {
+    refine_with_incidence(e.fit, true);
+  }
   if (!e.fit.ok() && e.scans_fused == 0 && !scans.empty()) {
     e.fit.reason = fmt::format("no scan could be fused ({}); {}", e.scans.front().reason, e.fit.reason);
   }
   return e;
+}
+
+void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
+  const FusedCloud& c = fuser_.cloud();
+  const auto pts = c.points_m();
+  // Inliers with their range, normal and tangential noise for the fitted circle.
+  in_xy_.clear();
+  sr_.clear();
+  sn_.clear();
+  st_.clear();
+  for (int i = 0; i < c.size(); ++i) {
+    if (!fit.inlier_mask[static_cast<std::size_t>(i)]) continue;
+    const Eigen::Vector2d p = pts.col(i);
+    const Eigen::Vector2d o = c.views[static_cast<std::size_t>(c.view_of_point[static_cast<std::size_t>(i)])];
+    const Eigen::Vector2d ray = (p - o).normalized();
+    // Incidence and range where the ray meets the fitted circle, not at the
+    // noisy point: weights that depend on a point's own noise bias the fit
+    // (points pushed inside along a grazing ray would look more grazing,
+    // get more weight, and pull the radius in).
+    const Eigen::Vector2d oc = fit.circle.centre_m - o;
+    const double along = oc.dot(ray);
+    const double perp2 = std::max(0.0, oc.squaredNorm() - along * along);
+    const double R2 = fit.circle.radius_m * fit.circle.radius_m;
+    const double cosa = perp2 < R2 ? std::sqrt(1.0 - perp2 / R2) : 0.0;
+    const double range = perp2 < R2 ? along - std::sqrt(R2 - perp2) : (p - o).norm();
+    const double sr = fuser_.params().noise.sd_at(range > 0.0 ? range : (p - o).norm());
+    in_xy_.push_back(p.x());
+    in_xy_.push_back(p.y());
+    sr_.push_back(sr);
+    sn_.push_back(sr * std::max(cosa, params_.min_cos_incidence));
+    st_.push_back(sr * std::sqrt(std::max(0.0, 1.0 - cosa * cosa)));
+  }
+  const Eigen::Map<const Eigen::Matrix2Xd> in(in_xy_.data(), 2, static_cast<Eigen::Index>(sr_.size()));
+  std::span<const double> w;
+  if (params_.incidence_weighting) {
+    w = sn_;
+  } else if (params_.weight_by_range) {
+    w = sr_;
+  }
+  if (params_.incidence_weighting) {
+    RefineParams rp = params_.robust.refine;
+    rp.known_radius_m = params_.robust.known_radius_m;
+    const CircleFit refined = refine_circle(in, fit.circle, rp, w);
+    if (!refined.ok()) return;
+    fit.circle = refined.circle;
+    fit.covariance = refined.covariance;
+    fit.rms_residual_m = refined.rms_residual_m;
+    fit.converged = refined.converged;
+  }
+  if (remove_bias && !params_.robust.known_radius_m) {
+    (void)remove_essential_bias(in, fit, w, st_);
+  }
 }
 
 }  // namespace tinyline::hydrus_fitting

@@ -59,6 +59,7 @@ struct CircleFit {
   int non_finite = 0;                 ///< input points skipped for a NaN/inf coordinate
   int iterations = 0;                 ///< LM iterations (refine) or hypotheses drawn (robust)
   bool converged = false;             ///< LM met its tolerance (refine, robust)
+  double radius_bias_removed_m = 0.0; ///< subtracted from the radius (RefineParams::remove_radius_bias)
   std::vector<std::uint8_t> inlier_mask;  ///< robust fit: 1 per input point in the consensus set
 
   [[nodiscard]] bool ok() const { return status == FitStatus::kOk; }
@@ -82,6 +83,12 @@ struct RefineParams {
   /// Covariance scale: true uses the residuals (sigma^2 = weighted RSS /
   /// (n - p)); false uses the per-point sigmas as given (a-priori).
   bool covariance_from_residuals = true;
+  /// Remove the geometric fit's essential radius bias (Al-Sharadqah &
+  /// Chernov 2009): noise across the normal moves points outwards on average,
+  /// so r is too large by sigma_t^2 / (2 r). Assumes isotropic noise (sigma_t
+  /// = the normal SD, estimated from the residuals); for noise along known
+  /// rays, CircleEstimator corrects with the tangential part instead.
+  bool remove_radius_bias = false;
 };
 
 /// Geometric fit from an initial circle. `sigma_m`, if not empty, is the
@@ -91,6 +98,17 @@ struct RefineParams {
 [[nodiscard]] CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
                                       const RefineParams& params = {}, std::span<const double> sigma_m = {});
 
+/// Removes the essential bias of a geometric fit (Al-Sharadqah & Chernov
+/// 2009) when the noise across the circle's normal is known per point: such
+/// noise moves a point outwards by sigma_t^2 / (2 r) on average, which the
+/// fit turns into a radius (and, when uneven, a centre) bias. Shifts `fit`
+/// by (J^T W J)^-1 J^T W b, b_i = sigma_t,i^2 / (2 r), over the points with
+/// mask 1 (all when the mask is empty); weights 1/sigma_m^2 as in the fit.
+/// Returns the shift (cx, cy, r) applied.
+Eigen::Vector3d remove_essential_bias(const Eigen::Ref<const Eigen::Matrix2Xd>& points, CircleFit& fit,
+                                      std::span<const double> sigma_m, std::span<const double> tangential_sd_m,
+                                      std::span<const std::uint8_t> mask = {});
+
 /// Hyper, then geometric refinement: the non-robust best fit.
 [[nodiscard]] CircleFit fit_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RefineParams& params = {},
                                    std::span<const double> sigma_m = {});
@@ -99,6 +117,10 @@ struct RobustCircleParams {
   /// Orthogonal distance under which a point supports a circle [m]; about 3x
   /// the range noise (Table 3.1: 0.4-1 cm SD at 0.2-1 m).
   double inlier_threshold_m = 0.02;
+  /// With per-point sigmas (sigma_m), a point supports a circle only within
+  /// this many of its own sigma (and within inlier_threshold_m), and MSAC
+  /// scores residuals in sigma units. 0: the absolute threshold alone.
+  double inlier_threshold_sigmas = 3.0;
   /// Accepted radii [m]; hypotheses outside are skipped, a final fit outside
   /// is kRadiusOutOfRange.
   double min_radius_m = 0.01;

@@ -21,6 +21,14 @@ struct CircleEstimatorParams {
   RobustCircleParams robust;
   bool use_viewpoints = true;     ///< reject circles through points their sensor could not see
   bool weight_by_range = true;    ///< per-point sigma from fusion.noise (else equal weights)
+  /// Range noise moves a point along its ray; across the surface that is
+  /// sigma_r cos(incidence) (what the fit feels) and sigma_r sin(incidence)
+  /// (what biases the radius). After the robust fit, refit the inliers with
+  /// sigma_r max(cos, min_cos_incidence) -- the maximum-likelihood weights --
+  /// and remove the essential bias of the tangential part.
+  bool incidence_weighting = true;
+  double min_cos_incidence = 0.1;
+  bool remove_radius_bias = true;
   /// Scans older than the newest one by more than this are left out [s]: a
   /// sensor that stopped sending must not hold the estimate.
   double max_scan_skew_s = 0.25;
@@ -48,8 +56,10 @@ class CircleEstimator {
   [[nodiscard]] const CircleEstimatorParams& params() const { return params_; }
 
  private:
+  void refine_with_incidence(CircleFit& fit, bool remove_bias);
   CircleEstimatorParams params_;
   ScanFuser fuser_;
+  std::vector<double> in_xy_, sr_, sn_, st_;  // reused per update
 };
 
 }  // namespace tinyline::hydrus_fitting

@@ -1,0 +1,77 @@
+// The Monte-Carlo studies of docs/hydrus_fitting.md, written as CSV.
+//
+//   hydrus_eval kcr        [--trials N] [--out FILE]
+//   hydrus_eval robustness [--trials N] [--out FILE]
+//   hydrus_eval ray_noise  [--trials N] [--out FILE]
+//
+// scripts/plots/hydrus_kcr.py and hydrus_robustness.py read the CSVs and
+// write the tables and figures of the document.
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <string>
+
+#include "montecarlo.hpp"
+
+namespace ev = tinyline::hydrus_fitting::eval;
+
+namespace {
+
+int usage() {
+  std::cerr << "usage: hydrus_eval kcr|robustness|ray_noise [--trials N] [--out FILE]\n";
+  return 2;
+}
+
+bool write(const std::string& path, const std::string& text) {
+  if (path.empty()) {
+    std::cout << text;
+    return true;
+  }
+  std::ofstream f(path);
+  f << text;
+  if (!f) {
+    std::cerr << "hydrus_eval: cannot write " << path << "\n";
+    return false;
+  }
+  std::cerr << "wrote " << path << "\n";
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) return usage();
+  const std::string cmd = argv[1];
+  int trials = -1;
+  std::string out;
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--trials" && i + 1 < argc) {
+      trials = std::atoi(argv[++i]);
+      if (trials <= 0) return usage();
+    } else if (a == "--out" && i + 1 < argc) {
+      out = argv[++i];
+    } else {
+      return usage();
+    }
+  }
+  if (cmd == "kcr") {
+    ev::KcrStudyParams p;
+    if (trials > 0) p.trials = trials;
+    return write(out, ev::kcr_csv(ev::kcr_study(p))) ? 0 : 1;
+  }
+  if (cmd == "robustness") {
+    ev::RobustnessParams p;
+    p.robot_description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
+    if (trials > 0) p.trials = trials;
+    return write(out, ev::robustness_csv(ev::robustness_study(p))) ? 0 : 1;
+  }
+  if (cmd == "ray_noise") {
+    ev::RayNoiseParams p;
+    p.robot_description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
+    if (trials > 0) p.trials = trials;
+    return write(out, ev::ray_noise_csv(ev::ray_noise_study(p))) ? 0 : 1;
+  }
+  return usage();
+}

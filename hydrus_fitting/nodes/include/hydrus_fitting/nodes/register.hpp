@@ -1,0 +1,11 @@
+// Registers the hydrus_fitting nodes by name (launch files, `tinyline run`).
+#pragma once
+
+#include <tinyline/bus/registry.hpp>
+
+namespace tinyline::hydrus_fitting {
+
+/// circle_fitter, sequencer.
+void register_nodes(bus::NodeRegistry& registry);
+
+}  // namespace tinyline::hydrus_fitting

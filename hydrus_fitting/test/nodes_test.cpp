@@ -1,0 +1,297 @@
+// The hydrus_fitting nodes on the bus: built by name, fed JointState and
+// LineScan messages (exact planar scenes with Table 3.1 noise), stepped by
+// the deterministic executor on sim time (no sleeps).
+#include <cmath>
+#include <numbers>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <tinyline/bus/executor.hpp>
+#include <tinyline/bus/registry.hpp>
+
+#include "hydrus_fitting/nodes/circle_fitter_node.hpp"
+#include "hydrus_fitting/nodes/register.hpp"
+#include "hydrus_fitting/nodes/sequencer_node.hpp"
+#include "planar_scene.hpp"
+
+namespace hf = tinyline::hydrus_fitting;
+namespace ev = tinyline::hydrus_fitting::eval;
+namespace bus = tinyline::bus;
+using tinyline::sensor_msgs::msg::JointState;
+using tinyline::tinyline_msgs::msg::CircleFit;
+using tinyline::tinyline_msgs::msg::LineScan;
+using tinyline::visualization_msgs::msg::MarkerArray;
+using ::testing::HasSubstr;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+const std::string kConfig = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
+
+struct Harness {
+  std::shared_ptr<bus::CaptureSink> log = std::make_shared<bus::CaptureSink>();  // before ctx: it uses it
+  std::shared_ptr<bus::Context> ctx;
+  bus::DeterministicExecutor ex;
+  bus::NodeRegistry registry;
+  std::shared_ptr<bus::Node> io;
+
+  Harness() : ctx(make_ctx(log)), ex(ctx->clock()) {
+    hf::register_nodes(registry);
+    bus::NodeOptions o;
+    o.name = "io";
+    o.context = ctx;
+    io = std::make_shared<bus::Node>(o);
+    ex.add_node(io);
+  }
+  static std::shared_ptr<bus::Context> make_ctx(std::shared_ptr<bus::CaptureSink> sink) {
+    bus::ContextOptions o;
+    o.clock = bus::ClockType::Sim;
+    o.log_sink = std::move(sink);
+    return bus::Context::create(o);
+  }
+  std::shared_ptr<bus::Node> add(const std::string& type, bus::NodeOptions o) {
+    o.context = ctx;
+    auto n = registry.create("hydrus_fitting", type, std::move(o));
+    ex.add_node(n);
+    return n;
+  }
+};
+
+std::unique_ptr<JointState> joints_msg(const hf::RobotModel& m, double t_s, double q) {
+  auto j = std::make_unique<JointState>();
+  j->header.stamp = bus::Time::from_seconds(t_s).to_msg();
+  j->name = m.joint_names();
+  j->position.assign(m.joint_names().size(), q);
+  return j;
+}
+
+std::unique_ptr<LineScan> scan_msg(const ev::SyntheticScan& s, double t_s) {
+  auto m = std::make_unique<LineScan>();
+  m->header.stamp = bus::Time::from_seconds(t_s).to_msg();
+  m->header.frame_id = s.sensor;
+  for (std::size_t i = 0; i < s.range_m.size(); ++i) {
+    m->angles.push_back(static_cast<float>(s.angle_rad[i]));
+    const bool valid = std::isfinite(s.range_m[i]);
+    m->distance_m.push_back(valid ? static_cast<float>(s.range_m[i]) : std::nanf(""));
+    m->status.push_back(valid ? LineScan::STATUS_VALID : LineScan::STATUS_OUT_OF_RANGE);
+  }
+  return m;
+}
+
+}  // namespace
+
+TEST(HydrusFittingNodes, CircleFitterIsRegistered) {
+  bus::NodeRegistry r;
+  hf::register_nodes(r);
+  EXPECT_NE(r.find("hydrus_fitting", "circle_fitter"), nullptr);
+}
+
+TEST(HydrusFittingNodes, CircleFitterFusesFourSensorsAndPublishesTheCircle) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "fitter";
+  o.param("robot_description", kConfig);
+  o.remap("scans", "/hydrus/scans").remap("circle", "/hydrus/circle");
+  h.add("circle_fitter", o);
+  std::vector<std::shared_ptr<const CircleFit>> got;
+  std::vector<std::shared_ptr<const MarkerArray>> markers;
+  auto sub = h.io->create_subscription<CircleFit>("/hydrus/circle", bus::QoS::keep_last(20),
+                                                  [&](const std::shared_ptr<const CircleFit>& m) { got.push_back(m); });
+  auto msub = h.io->create_subscription<MarkerArray>(
+      "markers", bus::QoS::keep_last(20), [&](const std::shared_ptr<const MarkerArray>& m) { markers.push_back(m); });
+  auto scans = h.io->create_publisher<LineScan>("/hydrus/scans");
+  auto joints = h.io->create_publisher<JointState>("joint_states");
+
+  const auto model = hf::RobotModel::load(kConfig);
+  const double q = 60.0 * kPi / 180.0;
+  const hf::Circle truth{{0.25, 0.433}, 0.15};
+  hf::detail::SplitMix64 rng(7);
+  const auto s = ev::scan_all(model, {q, q, q}, {{truth}, {}, true}, {}, rng);
+  joints->publish(joints_msg(model, 1.0, q));
+  for (std::size_t k = 0; k < s.size(); ++k) scans->publish(scan_msg(s[k], 1.0 + 0.004 * static_cast<double>(k)));
+  h.ex.spin_until_idle();
+
+  ASSERT_EQ(got.size(), 4u);  // one estimate per scan
+  const auto& last = *got.back();
+  EXPECT_EQ(last.status, CircleFit::STATUS_OK) << last.reason;
+  EXPECT_EQ(last.scans, 4u);
+  EXPECT_EQ(last.header.frame_id, "base");
+  EXPECT_NEAR(last.centre.x, 0.25, 0.005);
+  EXPECT_NEAR(last.centre.y, 0.433, 0.005);
+  EXPECT_NEAR(last.radius_m, 0.15, 0.005);
+  EXPECT_GT(last.covariance[0], 0.0);
+  EXPECT_GT(last.inliers, 300u);
+  ASSERT_FALSE(markers.empty());
+  ASSERT_EQ(markers.back()->markers.size(), 3u);  // cylinder, points, links
+  EXPECT_EQ(markers.back()->markers[0].type, tinyline::visualization_msgs::msg::Marker::CYLINDER);
+  EXPECT_NEAR(markers.back()->markers[0].scale.x, 2 * last.radius_m, 1e-12);
+}
+
+TEST(HydrusFittingNodes, CircleFitterReportsUnknownSensorsAndStaleJoints) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "fitter";
+  o.param("robot_description", kConfig);
+  auto node = std::dynamic_pointer_cast<hf::CircleFitterNode>(h.add("circle_fitter", o));
+  std::vector<std::shared_ptr<const CircleFit>> got;
+  auto sub = h.io->create_subscription<CircleFit>("circle", bus::QoS::keep_last(20),
+                                                  [&](const std::shared_ptr<const CircleFit>& m) { got.push_back(m); });
+  auto scans = h.io->create_publisher<LineScan>("scans");
+  auto joints = h.io->create_publisher<JointState>("joint_states");
+  const auto model = hf::RobotModel::load(kConfig);
+  hf::detail::SplitMix64 rng(1);
+  auto s = ev::scan_all(model, {1.0, 1.0, 1.0}, {{{{0.25, 0.43}, 0.15}}, {}, true}, {}, rng);
+  // A sensor the description does not know: ignored, said once, never a crash.
+  s[0].sensor = "laser_on_the_tail";
+  scans->publish(scan_msg(s[0], 1.0));
+  scans->publish(scan_msg(s[0], 1.1));
+  h.ex.spin_until_idle();
+  EXPECT_TRUE(got.empty());
+  EXPECT_EQ(node->unknown_sensors().at("laser_on_the_tail"), 2u);
+  int errors = 0;
+  for (const auto& r : h.log->records()) errors += r.text.find("'laser_on_the_tail'") != std::string::npos;
+  EXPECT_EQ(errors, 1);
+  // Joint states a second older than the scan: the estimate says why.
+  joints->publish(joints_msg(model, 1.0, 1.0));
+  scans->publish(scan_msg(s[1], 2.0));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_NE(got[0]->status, CircleFit::STATUS_OK);
+  EXPECT_THAT(got[0]->reason, HasSubstr("older than the scan"));
+}
+
+TEST(HydrusFittingNodes, CircleFitterNeedsAValidRobotDescription) {
+  {
+    Harness h;
+    bus::NodeOptions o;
+    o.name = "fitter";
+    EXPECT_THROW(h.add("circle_fitter", o), bus::ParamError);  // robot_description is required
+  }
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "fitter";
+  o.param("robot_description", std::string("/nonexistent/hydrus.yaml"));
+  h.add("circle_fitter", o);
+  try {
+    h.ex.spin_until_idle();
+    FAIL() << "started without a robot description";
+  } catch (const std::exception& e) {
+    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/hydrus.yaml: file: cannot open"));
+  }
+}
+
+namespace {
+
+using tinyline::diagnostic_msgs::msg::DiagnosticArray;
+using tinyline::tinyline_msgs::msg::LaserCommand;
+
+std::string value_of(const DiagnosticArray& d, const std::string& key) {
+  for (const auto& s : d.status)
+    for (const auto& kv : s.values)
+      if (kv.key == key) return kv.value;
+  return "";
+}
+
+struct SequencerRig {
+  Harness h;
+  hf::RobotModel model = hf::RobotModel::load(kConfig);
+  std::vector<std::shared_ptr<const LaserCommand>> cmds;
+  std::vector<std::shared_ptr<const DiagnosticArray>> diags;
+  std::shared_ptr<bus::Subscription<LaserCommand>> cmd_sub;
+  std::shared_ptr<bus::Subscription<DiagnosticArray>> diag_sub;
+  std::shared_ptr<bus::Publisher<JointState>> joints;
+  std::shared_ptr<bus::Publisher<CircleFit>> circle;
+  std::shared_ptr<hf::SequencerNode> node;
+
+  explicit SequencerRig(const std::string& mode) {
+    bus::NodeOptions o;
+    o.name = "sequencer";
+    o.param("robot_description", kConfig).param("mode", mode).param("set_period_s", 0.018).param("guard_s", 0.002);
+    o.param("object_max_age_s", 10.0);
+    node = std::dynamic_pointer_cast<hf::SequencerNode>(h.add("sequencer", o));
+    cmd_sub = h.io->create_subscription<LaserCommand>(
+        "laser_command", bus::QoS::keep_last(1000), [this](const std::shared_ptr<const LaserCommand>& m) { cmds.push_back(m); });
+    diag_sub = h.io->create_subscription<DiagnosticArray>(
+        "diagnostics", bus::QoS::keep_last(100), [this](const std::shared_ptr<const DiagnosticArray>& m) { diags.push_back(m); });
+    joints = h.io->create_publisher<JointState>("joint_states");
+    circle = h.io->create_publisher<CircleFit>("circle");
+    advance(0.0);  // starts the sim clock and the node
+  }
+  void advance(double t_s) { h.ex.advance_to(bus::Time::from_seconds(t_s)); }
+};
+
+}  // namespace
+
+TEST(HydrusFittingNodes, SequencerColoursTheSquareIntoTwoSlots) {
+  SequencerRig r("colouring");
+  // The square around a 12 cm cylinder, and the object estimate.
+  for (int k = 0; k <= 40; ++k) r.joints->publish(joints_msg(r.model, 0.05 * k, kPi / 2));
+  auto c = std::make_unique<CircleFit>();
+  c->header.stamp = bus::Time::from_seconds(0.0).to_msg();
+  c->status = CircleFit::STATUS_OK;
+  c->centre.x = 0.25;
+  c->centre.y = 0.25;
+  c->radius_m = 0.12;
+  r.circle->publish(std::move(c));
+  r.h.ex.spin_until_idle();
+  r.advance(0.2);  // ten 20 ms slots
+  ASSERT_GE(r.cmds.size(), 9u);
+  EXPECT_EQ(r.node->schedule().name, "colouring");
+  ASSERT_EQ(r.node->schedule().slot_count(), 2);
+  // Opposite sensors together, alternating: {laser1, laser3} then {laser2, laser4}.
+  hf::Sequencer check(r.model);
+  (void)check.update(std::vector<double>(3, kPi / 2), hf::Circle{{0.25, 0.25}, 0.12});
+  int on_count[4] = {0, 0, 0, 0};
+  for (const auto& m : r.cmds) {
+    ASSERT_EQ(m->sensors.size(), 4u);
+    ASSERT_EQ(m->laser_on.size(), 4u);
+    for (int i = 0; i < 4; ++i) {
+      on_count[i] += m->laser_on[static_cast<std::size_t>(i)];
+      for (int j = i + 1; j < 4; ++j) {
+        EXPECT_FALSE(m->laser_on[static_cast<std::size_t>(i)] && m->laser_on[static_cast<std::size_t>(j)] &&
+                     check.graph().conflict(i, j))
+            << "sensors " << i << " and " << j << " emit together but conflict";
+      }
+    }
+    EXPECT_EQ(m->active_slots.size(), 2u);
+  }
+  // Every sensor emits in half of the slots (twice the thesis's quarter).
+  const auto slots = static_cast<int>(r.cmds.size());
+  for (const int k : on_count) EXPECT_NEAR(k, slots / 2.0, 1.0);
+  r.advance(1.01);
+  ASSERT_FALSE(r.diags.empty());
+  EXPECT_EQ(value_of(*r.diags.back(), "laser1.rate_hz"), "25.00");
+  EXPECT_EQ(value_of(*r.diags.back(), "laser1.thesis_rate_hz"), "12.50");
+}
+
+TEST(HydrusFittingNodes, SequencerFallsBackToTimeSlicingWithoutJoints) {
+  SequencerRig r("colouring");
+  r.advance(0.1);
+  ASSERT_GE(r.cmds.size(), 4u);
+  for (const auto& m : r.cmds) {
+    int on = 0;
+    for (const bool b : m->laser_on) on += b;
+    EXPECT_EQ(on, 1);  // one sensor per slot: always safe
+  }
+  int warnings = 0;
+  for (const auto& rec : r.h.log->records()) warnings += rec.text.find("one sensor per slot") != std::string::npos;
+  EXPECT_EQ(warnings, 1);
+}
+
+TEST(HydrusFittingNodes, SequencerModesTimeSlicingAndAllOn) {
+  {
+    SequencerRig r("time_slicing");
+    r.joints->publish(joints_msg(r.model, 0.0, kPi / 2));
+    r.advance(0.16);  // eight slots: each sensor twice, in order
+    ASSERT_GE(r.cmds.size(), 8u);
+    for (std::size_t k = 0; k < 8; ++k) {
+      for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(r.cmds[k]->laser_on[i], i == k % 4) << k;
+    }
+  }
+  SequencerRig r("all_on");
+  r.advance(0.1);
+  ASSERT_FALSE(r.cmds.empty());
+  for (const auto& m : r.cmds)
+    for (const bool b : m->laser_on) EXPECT_TRUE(b);
+}
