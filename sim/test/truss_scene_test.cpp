@@ -42,15 +42,19 @@ TEST(Truss, EveryClassSettlesWithoutOverlapAndKeepsItsGeometry) {
         EXPECT_GE(a.radius_m, 0.025);
         EXPECT_LE(a.radius_m, 0.040);
         EXPECT_NEAR(a.pedicel_dir.norm(), 1.0, 1e-12);
-        // The centre lies on the pedicel line, pedicel length + radius from the anchor.
+        // The centre lies on the pedicel line, pedicel length + polar radius from the anchor.
         const double arm = (a.anchor_m - a.centre_m).norm();
-        EXPECT_NEAR((a.anchor_m - a.calyx_m).norm() + a.radius_m, arm, 1e-9);
+        EXPECT_NEAR((a.anchor_m - a.calyx_m).norm() + a.polar_radius_m, arm, 1e-9);
+        // An oblate fruit of the drawn volume.
+        EXPECT_NEAR(std::cbrt(a.equatorial_radius_m * a.equatorial_radius_m * a.polar_radius_m), a.radius_m, 1e-9);
+        EXPECT_LE(a.polar_radius_m, a.equatorial_radius_m);
+        EXPECT_GE(a.polar_radius_m, 0.82 * a.equatorial_radius_m - 1e-9);
         EXPECT_LT(angle_deg(a.anchor_m - a.centre_m, a.pedicel_dir), 1e-4);
         // Hanging: the pedicel leaves the fruit upwards, or at least not steeply down.
         EXPECT_GT(a.pedicel_dir.z(), -0.5);
         for (int j = i + 1; j < n; ++j) {
           const auto& b = t.tomatoes[std::size_t(j)];
-          EXPECT_GE((a.centre_m - b.centre_m).norm(), a.radius_m + b.radius_m - 1e-4) << i << " overlaps " << j;
+          EXPECT_GE((a.centre_m - b.centre_m).norm(), a.bounding_radius_m + b.bounding_radius_m - 1e-4) << i << " overlaps " << j;
         }
       }
       if (c == TrussClass::kA) {
@@ -150,11 +154,17 @@ TEST(Truss, SceneFilesLoadWithTruth) {
     const TrussTruth truth = truss_truth_from_scene(s);
     ASSERT_FALSE(truth.tomatoes.empty()) << f;
     EXPECT_EQ(truth.seed, 1u);
-    // The truth matches the world: each centre is inside a red sphere.
+    // The truth matches the world: from each centre, the first surface in
+    // any direction is that fruit's skin, between its polar and equatorial radii.
     for (const auto& t : truth.tomatoes) {
-      const auto inside = s.world.containing(t.centre_m);
-      ASSERT_FALSE(inside.empty());
-      EXPECT_NE(s.world.object(inside.front()).name.find("tomato"), std::string::npos);
+      const Eigen::Vector3d dirs[] = {Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, -1, 0), Eigen::Vector3d(0.3, 0.2, -1).normalized()};
+      for (const Eigen::Vector3d& dir : dirs) {
+        const auto hit = s.world.raycast({t.centre_m, dir});
+        ASSERT_TRUE(hit);
+        EXPECT_NE(s.world.object(hit->object).name.find("tomato"), std::string::npos);
+        EXPECT_GE(hit->t_m, 0.99 * t.polar_radius_m);
+        EXPECT_LE(hit->t_m, 1.04 * t.equatorial_radius_m);
+      }
     }
   }
   const Scene b = load_scene(src("sim/config/scenes/truss_b.yaml"));

@@ -64,8 +64,8 @@ struct DepthDistortion {
 /// A material whose colour has a glossy highlight (skin of a tomato).
 struct Gloss {
   std::string material_prefix = "tomato";  ///< applies to every material whose name starts with this
-  double strength = 0.35;                  ///< white specular weight at the lobe's peak [0, 1]
-  double exponent = 60.0;                  ///< Blinn-Phong exponent (larger = smaller highlight)
+  double strength = 0.3;                   ///< white specular weight at the lobe's peak [0, 1]
+  double exponent = 30.0;                  ///< Blinn-Phong exponent (larger = smaller highlight)
 };
 
 struct RgbdCameraParams {

@@ -50,12 +50,16 @@ Eigen::Vector3d down_tilted(double tilt, double az) {
 struct Pendulum {
   Eigen::Vector3d anchor;
   double pedicel_m = 0.0;  // anchor to calyx
-  double radius_m = 0.0;
+  double radius_m = 0.0;   // bounding radius: what contacts see
+  double polar_m = 0.0;    // centre to calyx
   double mass_kg = 0.0;
   double stiffness = 0.0;  // [N m / rad]
   Eigen::Vector3d rest;    // unit
   Eigen::Vector3d d;       // unit, anchor -> centre
-  double arm() const { return pedicel_m + radius_m; }
+  // Shape (see TrussTomato).
+  double r_eq = 0.0, equatorial = 0.0, rib = 0.0, rib_phase = 0.0;
+  int lobes = 5;
+  double arm() const { return pedicel_m + polar_m; }
   Eigen::Vector3d centre() const { return anchor + arm() * d; }
   Eigen::Vector3d calyx() const { return anchor + pedicel_m * d; }
 };
@@ -312,6 +316,40 @@ Eigen::Isometry3d pose_from(const Eigen::Vector3d& t, const Eigen::Matrix3d& R) 
   return T;
 }
 
+// The fruit's surface in its own frame (z towards the calyx): an oblate
+// spheroid (equatorial a, polar c) with `lobes` shallow ribs, 24 x 16 facets
+// (sagitta under 1% of the radius), cut into 8 x 4 patches that become
+// separate objects: a ray then tests only the patches whose bounding spheres
+// it passes (a few dozen facets) instead of all 720.
+std::vector<MeshShape> fruit_patches(const TrussTomato& t) {
+  constexpr int kRings = 16, kSegs = 24, kPatchRings = 4, kPatchSegs = 3;
+  auto vertex = [&](int r, int k) {
+    const double theta = M_PI * r / kRings, phi = 2.0 * M_PI * k / kSegs;
+    const double rr = 1.0 + t.rib_amplitude * std::pow(std::sin(theta), 2) * std::cos(t.lobes * phi + t.rib_phase_rad);
+    return Eigen::Vector3d(t.equatorial_radius_m * rr * std::sin(theta) * std::cos(phi),
+                           t.equatorial_radius_m * rr * std::sin(theta) * std::sin(phi), t.polar_radius_m * std::cos(theta));
+  };
+  std::vector<MeshShape> patches;
+  for (int r0 = 0; r0 < kRings; r0 += kPatchRings) {
+    for (int k0 = 0; k0 < kSegs; k0 += kPatchSegs) {
+      MeshShape m;
+      auto add = [&](const Eigen::Vector3d& v) {
+        m.vertices.push_back(v);
+        return static_cast<int>(m.vertices.size()) - 1;
+      };
+      for (int r = r0; r < r0 + kPatchRings; ++r) {
+        for (int k = k0; k < k0 + kPatchSegs; ++k) {
+          const Eigen::Vector3d a = vertex(r, k), b = vertex(r + 1, k), c = vertex(r + 1, k + 1), d = vertex(r, k + 1);
+          if (r > 0) m.triangles.emplace_back(add(a), add(c), add(d));         // not at the calyx pole
+          if (r + 1 < kRings) m.triangles.emplace_back(add(a), add(b), add(c)); // not at the blossom pole
+        }
+      }
+      patches.push_back(std::move(m));
+    }
+  }
+  return patches;
+}
+
 Eigen::Matrix3d random_rotation(Rng& rng) {
   Eigen::Quaterniond q(rng.normal(), rng.normal(), rng.normal(), rng.normal());
   q.normalize();
@@ -386,9 +424,18 @@ Layout draw_layout(const TrussParams& P, int n, Rng& rng) {
     const double spur_side = (i % 2 == 0 ? 1.0 : -1.0);
     p.anchor = on + Eigen::Vector3d(0, spur_side * rng.uniform(0.0, 0.006) + depth_scatter * rng.uniform(-1, 1),
                                     -P.peduncle_radius_m - 0.001);
-    p.radius_m = rng.uniform(P.radius_min_m, P.radius_max_m);
+    // An oblate, slightly ribbed fruit of volume-equivalent radius r_eq.
+    p.r_eq = rng.uniform(P.radius_min_m, P.radius_max_m);
+    const double flat = rng.uniform(P.flatness_min, P.flatness_max);
+    p.equatorial = p.r_eq / std::cbrt(flat);
+    p.polar_m = flat * p.equatorial;
+    p.rib = rng.uniform(0.0, P.rib_max);
+    p.lobes = rng.integer(5, 6);
+    p.rib_phase = rng.uniform(0.0, 2.0 * M_PI);
+    if (!P.mesh_fruit) p.equatorial = p.polar_m = p.r_eq, p.rib = 0.0;
+    p.radius_m = std::max(p.equatorial * (1.0 + p.rib), p.polar_m);
     p.pedicel_m = rng.uniform(P.pedicel_length_min_m, P.pedicel_length_max_m);
-    p.mass_kg = P.density_kg_m3 * 4.0 / 3.0 * M_PI * std::pow(p.radius_m, 3);
+    p.mass_kg = P.density_kg_m3 * 4.0 / 3.0 * M_PI * std::pow(p.r_eq, 3);
     p.stiffness = rng.uniform(P.stiffness_ratio_min, P.stiffness_ratio_max) * p.mass_kg * kG * p.arm();
     const double tilt = rng.uniform(0.0, P.rest_tilt_max_deg * M_PI / 180.0);
     // In depth-scattered classes some fruit hang towards or away from the camera.
@@ -416,6 +463,9 @@ std::string TrussParams::validate() const {
   if (!(pedicel_length_min_m > 0.005) || !(pedicel_length_max_m >= pedicel_length_min_m) || pedicel_length_max_m > 0.15)
     return "pedicel lengths must satisfy 0.005 < min <= max <= 0.15 m";
   if (!(pedicel_radius_m > 0) || !(peduncle_radius_m > 0)) return "pedicel and peduncle radii must be > 0";
+  if (!(flatness_min >= 0.5) || !(flatness_max >= flatness_min) || !(flatness_max <= 1.2))
+    return "flatness must satisfy 0.5 <= flatness_min <= flatness_max <= 1.2";
+  if (!(rib_max >= 0 && rib_max <= 0.1)) return "rib_max must be in [0, 0.1]";
   if (!(density_kg_m3 > 0)) return "density_kg_m3 must be > 0";
   if (!(stiffness_ratio_min >= 0) || !(stiffness_ratio_max >= stiffness_ratio_min)) return "stiffness ratios must be 0 <= min <= max";
   if (!(rest_tilt_max_deg >= 0 && rest_tilt_max_deg <= 80)) return "rest_tilt_max_deg must be in [0, 80]";
@@ -475,7 +525,13 @@ Truss make_truss(const TrussParams& params) {
     const Pendulum& p = L.pendulums[i];
     TrussTomato t;
     t.centre_m = p.centre();
-    t.radius_m = p.radius_m;
+    t.radius_m = p.r_eq;
+    t.equatorial_radius_m = p.equatorial;
+    t.polar_radius_m = p.polar_m;
+    t.rib_amplitude = p.rib;
+    t.lobes = p.lobes;
+    t.rib_phase_rad = p.rib_phase;
+    t.bounding_radius_m = p.radius_m;
     t.mass_kg = p.mass_kg;
     t.anchor_m = p.anchor;
     t.calyx_m = p.calyx();
@@ -515,20 +571,32 @@ void add_fruit(const Truss& T, World& world) {
   const std::string& nm = T.params.name;
   for (std::size_t i = 0; i < T.tomatoes.size(); ++i) {
     const TrussTomato& t = T.tomatoes[i];
-    Object s;
-    s.name = t.object_name;
-    s.shape = SphereShape{t.radius_m};
-    s.T_world_object = pose_from(t.centre_m, Eigen::Matrix3d::Identity());
-    s.material = need(world, T.materials[i].name);
-    world.add(std::move(s));
+    const Eigen::Matrix3d up_to_axis = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), t.pedicel_dir).toRotationMatrix();
+    const MaterialId skin = need(world, T.materials[i].name);
+    if (T.params.mesh_fruit) {
+      int k = 0;
+      for (auto& patch : fruit_patches(t)) {
+        Object s;
+        s.name = t.object_name + "_p" + std::to_string(k++);
+        s.shape = std::move(patch);
+        s.T_world_object = pose_from(t.centre_m, up_to_axis);
+        s.material = skin;
+        world.add(std::move(s));
+      }
+    } else {
+      Object s;
+      s.name = t.object_name;
+      s.shape = SphereShape{t.radius_m};
+      s.T_world_object = pose_from(t.centre_m, Eigen::Matrix3d::Identity());
+      s.material = skin;
+      world.add(std::move(s));
+    }
     world.add(rod(nm + "_pedicel_" + std::to_string(i), t.anchor_m, t.calyx_m, T.params.pedicel_radius_m, stem));
     // Sepals: a thin green disc on the fruit's top, around the calyx.
     Object c;
     c.name = nm + "_calyx_" + std::to_string(i);
     c.shape = CylinderShape{0.45 * t.radius_m, 0.002};
-    const Eigen::Vector3d axis = t.pedicel_dir;
-    c.T_world_object = pose_from(t.centre_m + (t.radius_m - 0.003) * axis,
-                                 Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), axis).toRotationMatrix());
+    c.T_world_object = pose_from(t.centre_m + (t.polar_radius_m - 0.002) * t.pedicel_dir, up_to_axis);
     c.material = stem;
     world.add(std::move(c));
   }
@@ -638,8 +706,9 @@ std::vector<TrussTomato> add_to_world(const Truss& T, World& world) {
 
 void write_truth(const Truss& T, Scene& scene, const std::vector<TrussTomato>& distractors) {
   auto& tr = scene.truth;
-  std::vector<double> centres, radii, dirs, anchors, forces, contacts;
+  std::vector<double> centres, radii, dirs, anchors, forces, contacts, shapes;
   for (const auto& t : T.tomatoes) {
+    shapes.insert(shapes.end(), {t.equatorial_radius_m, t.polar_radius_m, t.rib_amplitude});
     centres.insert(centres.end(), {t.centre_m.x(), t.centre_m.y(), t.centre_m.z()});
     radii.push_back(t.radius_m);
     dirs.insert(dirs.end(), {t.pedicel_dir.x(), t.pedicel_dir.y(), t.pedicel_dir.z()});
@@ -649,6 +718,7 @@ void write_truth(const Truss& T, Scene& scene, const std::vector<TrussTomato>& d
   for (const auto& c : T.contacts) contacts.insert(contacts.end(), {double(c.i), double(c.j), double(int(c.kind)), c.force_n});
   tr["truss_tomato_centres_m"] = centres;
   tr["truss_tomato_radii_m"] = radii;
+  tr["truss_tomato_shapes_m"] = shapes;
   tr["truss_pedicel_dirs"] = dirs;
   tr["truss_pedicel_anchors_m"] = anchors;
   tr["truss_pedicel_forces_n"] = forces;
@@ -688,6 +758,13 @@ TrussTruth truss_truth_from_scene(const Scene& scene) {
     t.pedicel_dir = {dirs[3 * i], dirs[3 * i + 1], dirs[3 * i + 2]};
     t.anchor_m = {anchors[3 * i], anchors[3 * i + 1], anchors[3 * i + 2]};
     t.pedicel_force_n = {forces[3 * i], forces[3 * i + 1], forces[3 * i + 2]};
+    if (const auto it = scene.truth.find("truss_tomato_shapes_m"); it != scene.truth.end() && it->second.size() == 3 * n) {
+      t.equatorial_radius_m = it->second[3 * i];
+      t.polar_radius_m = it->second[3 * i + 1];
+      t.rib_amplitude = it->second[3 * i + 2];
+    } else {
+      t.equatorial_radius_m = t.polar_radius_m = t.radius_m;
+    }
     out.tomatoes.push_back(t);
   }
   if (scene.truth.count("truss_contacts")) {

@@ -47,8 +47,14 @@ struct TrussParams {
   std::uint64_t seed = 1;
   std::string name = "truss";           ///< object name prefix
   Eigen::Vector3d origin_m{0, 0, 1.2};  ///< where the peduncle leaves the main stem [m]
-  double radius_min_m = 0.025;          ///< tomato radius range [m]
+  double radius_min_m = 0.025;          ///< tomato radius range (volume-equivalent sphere) [m]
   double radius_max_m = 0.040;
+  /// Real fruit are not spheres: polar / equatorial radius drawn in this
+  /// range (round tomatoes are slightly oblate) ...
+  double flatness_min = 0.82;
+  double flatness_max = 0.98;
+  double rib_max = 0.03;                ///< ... with up to this relative rib depth (5-6 lobes)
+  bool mesh_fruit = true;               ///< false: perfect spheres (flatness and ribs ignored)
   double pedicel_length_min_m = 0.012;  ///< anchor to calyx [m]
   double pedicel_length_max_m = 0.035;
   double pedicel_radius_m = 0.003;      ///< 6 mm pedicels (measured.yaml tomato.pedicel_diameter_m)
@@ -74,7 +80,13 @@ struct TrussParams {
 
 struct TrussTomato {
   Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
-  double radius_m = 0.0;
+  double radius_m = 0.0;             ///< radius of the sphere of equal volume [m]
+  double equatorial_radius_m = 0.0;  ///< the fruit's shape: oblate spheroid ...
+  double polar_radius_m = 0.0;       ///< ... whose axis is the pedicel direction ...
+  double rib_amplitude = 0.0;        ///< ... with ribs of this relative depth
+  int lobes = 5;
+  double rib_phase_rad = 0.0;
+  double bounding_radius_m = 0.0;    ///< what contacts see
   double mass_kg = 0.0;
   Eigen::Vector3d anchor_m = Eigen::Vector3d::Zero();  ///< where the pedicel leaves the peduncle
   Eigen::Vector3d calyx_m = Eigen::Vector3d::Zero();   ///< where it enters the fruit
@@ -84,7 +96,9 @@ struct TrussTomato {
   /// Force of the pedicel on the fruit at rest [N] (balances gravity and
   /// contacts, Eq. 4.22). Not parallel to pedicel_dir when the pedicel bends.
   Eigen::Vector3d pedicel_force_n = Eigen::Vector3d::Zero();
-  std::string object_name;  ///< its sphere in the world
+  /// Its object in the world; a meshed fruit is several objects named
+  /// object_name + "_p<k>" (patches), a spherical one exactly object_name.
+  std::string object_name;
 };
 
 enum class ContactKind : int {
@@ -127,7 +141,8 @@ std::vector<TrussTomato> add_to_world(const Truss& truss, World& world);
 
 /// Ground truth as scene.truth entries (flattened vectors), read back by
 /// truss_truth_from_scene():
-///   truss_tomato_centres_m [3n], truss_tomato_radii_m [n], truss_pedicel_dirs [3n],
+///   truss_tomato_centres_m [3n], truss_tomato_radii_m [n] (volume-equivalent),
+///   truss_tomato_shapes_m [3n: equatorial, polar, rib], truss_pedicel_dirs [3n],
 ///   truss_pedicel_anchors_m [3n], truss_pedicel_forces_n [3n],
 ///   truss_contacts [4m: i, j, kind (ContactKind), force],
 ///   truss_camera_pose [7: x y z qx qy qz qw], truss_class [1: 0 A, 1 B, 2 C], truss_seed [1],

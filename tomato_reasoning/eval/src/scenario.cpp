@@ -1,0 +1,100 @@
+#include "tomato_reasoning/eval/scenario.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace tinyline::tomato_reasoning::eval {
+
+ColorCloud to_cloud(const sim::RgbdFrame& f) {
+  ColorCloud c;
+  c.width = f.width;
+  c.height = f.height;
+  c.xyz.resize(f.size());
+  c.rgb = f.rgb;
+  for (std::size_t i = 0; i < f.size(); ++i) c.xyz[i] = f.point(i);
+  return c;
+}
+
+namespace {
+std::uint64_t mix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+double unit_normal(std::uint64_t key) {
+  const double u1 = (static_cast<double>(mix(key) >> 11) + 0.5) * 0x1.0p-53;
+  const double u2 = (static_cast<double>(mix(key + 1) >> 11) + 0.5) * 0x1.0p-53;
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+}
+}  // namespace
+
+Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed, const ScenarioOptions& o) {
+  Scenario s;
+  s.complexity = complexity;
+  s.seed = seed;
+  sim::TrussParams p;
+  p.complexity = complexity;
+  p.seed = seed;
+  s.truss = sim::make_truss(p);
+  const auto second = sim::add_to_world(s.truss, s.world);
+  const sim::RgbdCamera camera(o.camera);
+  std::vector<Eigen::Isometry3d> T_world_camera{s.truss.T_world_camera};
+  if (o.views >= 2) {
+    // Orbit the fruit's centroid about the vertical, away from the first view's yaw.
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& t : s.truss.tomatoes) mean += t.centre_m;
+    mean /= static_cast<double>(s.truss.tomatoes.size());
+    const Eigen::Vector3d eye0 = s.truss.T_world_camera.translation();
+    const double side = (eye0 - mean).x() > 0 ? -1.0 : 1.0;
+    const Eigen::AngleAxisd orbit(side * o.second_view_yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ());
+    const Eigen::Vector3d eye1 = mean + orbit * (eye0 - mean);
+    T_world_camera.push_back(sim::look_at(eye1, mean));
+  }
+  const Eigen::Isometry3d T_ref_world = T_world_camera.front().inverse();
+  for (std::size_t v = 0; v < T_world_camera.size(); ++v) {
+    s.frames.push_back(camera.render(s.world, T_world_camera[v], seed * 16 + v));
+    s.clouds.push_back(to_cloud(s.frames.back()));
+    Eigen::Isometry3d T = T_ref_world * T_world_camera[v];
+    if (v > 0) {
+      // The pose the pipeline believes: off by the calibration residual.
+      const std::uint64_t key = mix(seed * 977 + v);
+      const Eigen::Vector3d dt(unit_normal(key), unit_normal(key + 10), unit_normal(key + 20));
+      const Eigen::Vector3d dr(unit_normal(key + 30), unit_normal(key + 40), unit_normal(key + 50));
+      Eigen::Isometry3d E = Eigen::Isometry3d::Identity();
+      E.linear() = Eigen::AngleAxisd(dr.norm() * o.pose_noise_deg * M_PI / 180.0, dr.normalized()).toRotationMatrix();
+      E.translation() = o.pose_noise_m * dt;
+      T = T * E;
+    }
+    s.T_ref_camera.push_back(T);
+  }
+  const Eigen::Isometry3d& T_cam_world = T_ref_world;
+  s.gravity_camera = T_cam_world.linear() * Eigen::Vector3d(0, 0, -1);
+  for (const auto& t : s.truss.tomatoes) {
+    TruthTomato x;
+    x.centre_m = T_cam_world * t.centre_m;
+    x.radius_m = t.radius_m;
+    x.pedicel_dir = T_cam_world.linear() * t.pedicel_dir;
+    x.pedicel_force_n = T_cam_world.linear() * t.pedicel_force_n;
+    std::vector<std::uint8_t> mine(s.world.size(), 0);
+    for (std::size_t k = 0; k < s.world.size(); ++k)
+      mine[k] = s.world.object(static_cast<sim::ObjectId>(k)).name.rfind(t.object_name, 0) == 0;
+    for (std::size_t v = 0; v < s.frames.size(); ++v) {
+      int n = 0;
+      for (auto id : s.frames[v].object) n += id != sim::kNoObject && mine[static_cast<std::size_t>(id)];
+      if (v == 0) x.visible_pixels = n;
+      x.visible_pixels_any = std::max(x.visible_pixels_any, n);
+    }
+    s.truth.push_back(x);
+  }
+  for (const auto& c : s.truss.contacts) {
+    if (c.kind != sim::ContactKind::kFruit) continue;
+    s.contacts.emplace_back(c.i, c.j);
+    ++s.truth[static_cast<std::size_t>(c.i)].edges;
+    ++s.truth[static_cast<std::size_t>(c.j)].edges;
+  }
+  for (const auto& d : second) s.distractors.push_back(T_cam_world * d.centre_m);
+  return s;
+}
+
+}  // namespace tinyline::tomato_reasoning::eval

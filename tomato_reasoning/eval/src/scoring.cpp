@@ -1,0 +1,222 @@
+#include "tomato_reasoning/eval/scoring.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include <Eigen/Geometry>
+
+namespace tinyline::tomato_reasoning::eval {
+
+namespace {
+double deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+}
+}  // namespace
+
+double percentile(std::vector<double> v, double pct) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return std::isnan(x); }), v.end());
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const double pos = pct / 100.0 * static_cast<double>(v.size() - 1);
+  const std::size_t lo = static_cast<std::size_t>(std::floor(pos));
+  const std::size_t hi = std::min(v.size() - 1, lo + 1);
+  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+}
+
+TrussScore score_truss(const Scenario& s, const PipelineResult& r, const ScoreParams& p) {
+  TrussScore out;
+  out.complexity = static_cast<char>(s.complexity);
+  out.seed = s.seed;
+  out.ok = r.ok;
+  out.stage = r.stage;
+  out.reason = r.reason;
+  out.times = r.times;
+  out.truth = static_cast<int>(s.truth.size());
+  out.detections = static_cast<int>(r.tomatoes.size());
+  const auto& K = s.frame().intrinsics;
+
+  // Greedy matching by distance: true tomatoes are >= 5 cm apart, so a
+  // sphere within 1 cm of one cannot be within 1 cm of another.
+  struct Pair {
+    double d;
+    int t, k;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t t = 0; t < s.truth.size(); ++t)
+    for (std::size_t k = 0; k < r.tomatoes.size(); ++k)
+      pairs.push_back({(r.tomatoes[k].fit.sphere.centre - s.truth[t].centre_m).norm(), int(t), int(k)});
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.d < b.d; });
+  std::vector<int> det_of(s.truth.size(), -1), truth_of(r.tomatoes.size(), -1);
+  for (const auto& pr : pairs) {
+    if (pr.d > p.match_distance_m) break;
+    if (det_of[std::size_t(pr.t)] >= 0 || truth_of[std::size_t(pr.k)] >= 0) continue;
+    det_of[std::size_t(pr.t)] = pr.k;
+    truth_of[std::size_t(pr.k)] = pr.t;
+  }
+
+  for (std::size_t t = 0; t < s.truth.size(); ++t) {
+    const TruthTomato& tr = s.truth[t];
+    TomatoScore ts;
+    ts.truth = int(t);
+    const double z = tr.centre_m.z();
+    const double disc_px = z > tr.radius_m ? M_PI * std::pow(K.fx * tr.radius_m / std::sqrt(z * z - tr.radius_m * tr.radius_m), 2) : 0;
+    // The best view's share (equal distances: the orbit keeps the range).
+    ts.visible_share = disc_px > 0 ? std::min(1.0, tr.visible_pixels_any / disc_px) : 0.0;
+    ts.edges_true = tr.edges;
+    ts.gravity_only_error_deg = deg(-s.gravity_camera, tr.pedicel_dir);
+    const bool visible = ts.visible_share >= p.visible_share;
+    out.visible += visible;
+    const int k = det_of[t];
+    if (k >= 0) {
+      const Tomato& d = r.tomatoes[std::size_t(k)];
+      ts.detection = k;
+      ++out.detected;
+      out.visible_detected += visible;
+      ts.centre_error_m = (d.fit.sphere.centre - tr.centre_m).norm();
+      ts.radius_error_m = d.fit.sphere.radius_m - tr.radius_m;
+      ts.edges_estimated = d.pedicel.edges;
+      ts.pedicel_error_deg = deg(d.pedicel.expected_dir, tr.pedicel_dir);
+      if (tr.pedicel_force_n.norm() > 1e-9) ts.force_dir_error_deg = deg(d.pedicel.expected_dir, tr.pedicel_force_n);
+      ts.truth_in_hpd = d.pedicel.distribution.in_hpd(tr.pedicel_dir, p.hpd_mass);
+      ts.spread50_deg = d.pedicel.spread50_deg;
+      ts.cut_coverage = d.cut.coverage;
+      ts.cut_covers_truth = std::cos(d.cut.half_angle_rad) <= d.cut.direction.dot(tr.pedicel_dir.normalized());
+      ts.pick_rank = d.pick_rank;
+    }
+    out.tomatoes.push_back(ts);
+  }
+  for (std::size_t k = 0; k < r.tomatoes.size(); ++k) {
+    if (truth_of[k] >= 0) continue;
+    ++out.unmatched;
+    for (const auto& c : s.distractors) {
+      if ((r.tomatoes[k].fit.sphere.centre - c).norm() < 0.03) {
+        ++out.on_distractor;
+        break;
+      }
+    }
+  }
+  // Contact graph among detected tomatoes.
+  std::set<std::pair<int, int>> truth_edges;
+  for (const auto& [i, j] : s.contacts) truth_edges.insert({std::min(i, j), std::max(i, j)});
+  std::set<std::pair<int, int>> est_edges;
+  for (const auto& e : r.edges) {
+    const int a = truth_of[std::size_t(e.i)], b = truth_of[std::size_t(e.j)];
+    if (a < 0 || b < 0) continue;  // edges to spurious spheres are not scored
+    est_edges.insert({std::min(a, b), std::max(a, b)});
+  }
+  for (const auto& e : est_edges) (truth_edges.count(e) ? out.edges_tp : out.edges_fp)++;
+  for (const auto& e : truth_edges)
+    if (det_of[std::size_t(e.first)] >= 0 && det_of[std::size_t(e.second)] >= 0 && !est_edges.count(e)) ++out.edges_fn;
+  out.first_pick_real = !r.pick_order.empty() && truth_of[std::size_t(r.pick_order.front())] >= 0;
+  return out;
+}
+
+Summary summarize(const std::vector<TrussScore>& scores) {
+  Summary s;
+  std::vector<double> ce, re, pe, ge, ms;
+  int hpd = 0, hpd_n = 0, cover = 0;
+  double cov_sum = 0;
+  int tp = 0, fp = 0, fn = 0;
+  for (const auto& t : scores) {
+    ++s.trusses;
+    s.truth += t.truth;
+    s.detected += t.detected;
+    s.visible += t.visible;
+    s.visible_detected += t.visible_detected;
+    s.detections += t.detections;
+    s.unmatched += t.unmatched;
+    tp += t.edges_tp;
+    fp += t.edges_fp;
+    fn += t.edges_fn;
+    if (t.ok) ms.push_back(t.times.total_ms());
+    for (const auto& x : t.tomatoes) {
+      ge.push_back(x.gravity_only_error_deg);
+      if (x.detection < 0) continue;
+      ce.push_back(1000 * x.centre_error_m);
+      re.push_back(1000 * std::abs(x.radius_error_m));
+      pe.push_back(x.pedicel_error_deg);
+      hpd += x.truth_in_hpd;
+      cover += x.cut_covers_truth;
+      cov_sum += x.cut_coverage;
+      ++hpd_n;
+    }
+  }
+  s.centre_median_mm = percentile(ce, 50);
+  s.centre_p95_mm = percentile(ce, 95);
+  s.radius_median_mm = percentile(re, 50);
+  s.radius_p95_mm = percentile(re, 95);
+  s.pedicel_median_deg = percentile(pe, 50);
+  s.pedicel_p95_deg = percentile(pe, 95);
+  s.gravity_only_median_deg = percentile(ge, 50);
+  s.gravity_only_p95_deg = percentile(ge, 95);
+  if (hpd_n > 0) {
+    s.hpd_hit_rate = double(hpd) / hpd_n;
+    s.cut_cover_rate = double(cover) / hpd_n;
+    s.mean_cut_coverage = cov_sum / hpd_n;
+  }
+  if (tp + fp > 0) s.edge_precision = double(tp) / (tp + fp);
+  if (tp + fn > 0) s.edge_recall = double(tp) / (tp + fn);
+  s.total_ms_median = percentile(ms, 50);
+  s.total_ms_p95 = percentile(ms, 95);
+  return s;
+}
+
+std::string csv_header() {
+  return "class,seed,truth,detection,visible_share,centre_error_mm,radius_error_mm,edges_true,edges_estimated,"
+         "pedicel_error_deg,gravity_only_error_deg,force_dir_error_deg,truth_in_hpd50,spread50_deg,cut_coverage,"
+         "cut_covers_truth,pick_rank\n";
+}
+
+std::string csv_rows(const TrussScore& s) {
+  std::ostringstream o;
+  o.precision(6);
+  for (const auto& t : s.tomatoes) {
+    o << s.complexity << ',' << s.seed << ',' << t.truth << ',' << t.detection << ',' << t.visible_share << ','
+      << 1000 * t.centre_error_m << ',' << 1000 * t.radius_error_m << ',' << t.edges_true << ',' << t.edges_estimated << ','
+      << t.pedicel_error_deg << ',' << t.gravity_only_error_deg << ',' << t.force_dir_error_deg << ',' << int(t.truth_in_hpd)
+      << ',' << t.spread50_deg << ',' << t.cut_coverage << ',' << int(t.cut_covers_truth) << ',' << t.pick_rank << '\n';
+  }
+  return o.str();
+}
+
+std::string to_json(const Summary& s) {
+  std::ostringstream o;
+  o.precision(6);
+  auto num = [&](const char* k, double v, bool last = false) {
+    o << "  \"" << k << "\": ";
+    if (std::isnan(v)) o << "null";
+    else o << v;
+    o << (last ? "\n" : ",\n");
+  };
+  o << "{\n";
+  num("trusses", s.trusses);
+  num("truth", s.truth);
+  num("detected", s.detected);
+  num("detection_rate", s.truth ? double(s.detected) / s.truth : NAN);
+  num("visible", s.visible);
+  num("visible_detected", s.visible_detected);
+  num("visible_detection_rate", s.visible ? double(s.visible_detected) / s.visible : NAN);
+  num("detections", s.detections);
+  num("unmatched", s.unmatched);
+  num("centre_median_mm", s.centre_median_mm);
+  num("centre_p95_mm", s.centre_p95_mm);
+  num("radius_median_mm", s.radius_median_mm);
+  num("radius_p95_mm", s.radius_p95_mm);
+  num("pedicel_median_deg", s.pedicel_median_deg);
+  num("pedicel_p95_deg", s.pedicel_p95_deg);
+  num("gravity_only_median_deg", s.gravity_only_median_deg);
+  num("gravity_only_p95_deg", s.gravity_only_p95_deg);
+  num("hpd50_hit_rate", s.hpd_hit_rate);
+  num("cut_cover_rate", s.cut_cover_rate);
+  num("mean_cut_coverage", s.mean_cut_coverage);
+  num("edge_precision", s.edge_precision);
+  num("edge_recall", s.edge_recall);
+  num("total_ms_median", s.total_ms_median);
+  num("total_ms_p95", s.total_ms_p95, true);
+  o << "}\n";
+  return o.str();
+}
+
+}  // namespace tinyline::tomato_reasoning::eval

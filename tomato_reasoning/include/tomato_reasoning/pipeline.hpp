@@ -1,0 +1,100 @@
+// The whole vision pipeline of thesis Figure 4.4 on one RGB-D frame:
+// HSI filter -> branch clustering -> smoothing -> sphere segmentation ->
+// contact graph, pedicel distributions, pick order, cut plans. Every stage is
+// usable on its own (see the stage headers); this runs them in order with
+// one parameter struct, times each stage, and says where and why it stopped
+// when it produces nothing.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "tomato_reasoning/branch_clustering.hpp"
+#include "tomato_reasoning/cloud.hpp"
+#include "tomato_reasoning/hsi_filter.hpp"
+#include "tomato_reasoning/reasoning.hpp"
+#include "tomato_reasoning/smoothing.hpp"
+#include "tomato_reasoning/sphere_ransac.hpp"
+
+namespace tinyline::tomato_reasoning {
+
+struct PipelineParams {
+  HsiFilterParams hsi;
+  BranchClusteringParams branch;
+  SmoothingParams smoothing;
+  SphereRansacParams spheres;
+  ForceModelParams force;
+  PickOrderParams pick;
+  CutParams cut;
+  /// Unit direction of gravity in the cloud's frame (a level camera's
+  /// optical frame: +y). Normalised on use.
+  Eigen::Vector3d gravity{0, 1, 0};
+};
+
+[[nodiscard]] std::string validate(const PipelineParams& p);
+
+struct StageTimes {
+  double hsi_ms = 0, branch_ms = 0, smoothing_ms = 0, spheres_ms = 0, reasoning_ms = 0;
+  [[nodiscard]] double total_ms() const { return hsi_ms + branch_ms + smoothing_ms + spheres_ms + reasoning_ms; }
+};
+
+struct Tomato {
+  SphereFit fit;
+  PedicelEstimate pedicel;
+  CutPlan cut;
+  PickCost cost;
+  int pick_rank = -1;  ///< 0 = pick first
+};
+
+/// One camera view for a multi-view run: its cloud (in the camera's frame)
+/// and the camera's pose in the reference frame the results are given in.
+struct View {
+  const ColorCloud* cloud = nullptr;
+  Eigen::Isometry3d T_ref_camera = Eigen::Isometry3d::Identity();
+};
+
+struct PipelineResult {
+  bool ok = false;      ///< false: nothing found (see stage and reason) or bad input
+  std::string stage;    ///< where it stopped: "input", "hsi", "branch", "smoothing", "spheres" or "" when ok
+  std::string reason;
+  std::size_t finite_points = 0;
+  std::size_t red_points = 0;
+  /// The HSI-filtered points of every view in the reference frame (what the
+  /// branch clusters' indices refer to), and the view each came from.
+  std::vector<Eigen::Vector3f> red_xyz;
+  std::vector<std::uint8_t> red_view;
+  std::vector<Eigen::Vector3f> viewpoints;  ///< camera origins in the reference frame
+  BranchResult branch;
+  SmoothedCloud smoothed;
+  SphereSegmentation segmentation;
+  std::vector<ContactEdge> edges;
+  std::vector<Tomato> tomatoes;  ///< in segmentation order
+  std::vector<int> pick_order;   ///< indices into tomatoes, first to pick first
+  StageTimes times;
+};
+
+class TomatoPipeline {
+ public:
+  /// Throws std::invalid_argument with the reason on bad parameters.
+  explicit TomatoPipeline(PipelineParams params = {});
+  [[nodiscard]] const PipelineParams& params() const { return params_; }
+
+  /// One view; the camera is at the origin of the cloud's frame, which is
+  /// the reference frame.
+  [[nodiscard]] PipelineResult run(const ColorCloud& cloud) const;
+  /// Several views of one branch (thesis 4.5: two hand-camera views), merged
+  /// in the reference frame (`gravity` is given in that frame). At most 255 views.
+  [[nodiscard]] PipelineResult run(const std::vector<View>& views) const;
+  /// From spheres onwards (the reasoning of 4.3.3 alone), for spheres found
+  /// elsewhere.
+  [[nodiscard]] PipelineResult reason_about(const std::vector<SphereFit>& spheres) const;
+
+ private:
+  void reason(PipelineResult& r) const;
+  PipelineParams params_;
+};
+
+}  // namespace tinyline::tomato_reasoning

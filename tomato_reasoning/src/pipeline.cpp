@@ -1,0 +1,149 @@
+#include "tomato_reasoning/pipeline.hpp"
+
+#include <chrono>
+#include <stdexcept>
+
+namespace tinyline::tomato_reasoning {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+}  // namespace
+
+std::string validate(const PipelineParams& p) {
+  for (const auto& [what, why] : {std::pair{"hsi", validate(p.hsi)}, {"branch", validate(p.branch)},
+                                  {"smoothing", validate(p.smoothing)}, {"spheres", validate(p.spheres)},
+                                  {"force", validate(p.force)}}) {
+    if (!why.empty()) return std::string(what) + ": " + why;
+  }
+  if (!p.gravity.allFinite() || !(p.gravity.norm() > 1e-9)) return "gravity must be a finite, non-zero vector";
+  if (!(p.cut.scissor_opening_m > 0) || !(p.cut.cut_offset_m >= 0) || p.cut.candidates < 1)
+    return "cut: scissor_opening_m > 0, cut_offset_m >= 0 and candidates >= 1";
+  return {};
+}
+
+TomatoPipeline::TomatoPipeline(PipelineParams params) : params_(std::move(params)) {
+  if (const std::string why = validate(params_); !why.empty()) throw std::invalid_argument("tomato pipeline: " + why);
+}
+
+PipelineResult TomatoPipeline::run(const ColorCloud& cloud) const {
+  View v;
+  v.cloud = &cloud;
+  return run(std::vector<View>{v});
+}
+
+PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
+  PipelineResult r;
+  auto stop = [&](const char* stage, std::string why) {
+    r.stage = stage;
+    r.reason = std::move(why);
+    return r;
+  };
+  if (views.empty()) return stop("input", "no views");
+  if (views.size() > 255) return stop("input", "more than 255 views");
+  std::size_t total = 0;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    const std::string name = views.size() > 1 ? "view " + std::to_string(v) + ": " : "";
+    if (!views[v].cloud) return stop("input", name + "no cloud");
+    if (const std::string why = check_cloud(*views[v].cloud); !why.empty()) return stop("input", name + "malformed cloud: " + why);
+    if (!views[v].T_ref_camera.matrix().allFinite()) return stop("input", name + "camera pose is not finite");
+    total += views[v].cloud->size();
+  }
+  if (total == 0) return stop("input", "empty cloud");
+
+  // HSI filter per view, red points into the reference frame.
+  auto t0 = Clock::now();
+  std::string hsi_reason;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    const HsiFilterResult hsi = filter_hsi(*views[v].cloud, params_.hsi);
+    r.finite_points += hsi.finite;
+    if (hsi.indices.empty() && hsi_reason.empty()) hsi_reason = hsi.reason;
+    const Eigen::Isometry3f T = views[v].T_ref_camera.cast<float>();
+    for (int k : hsi.indices) {
+      r.red_xyz.push_back(T * views[v].cloud->xyz[static_cast<std::size_t>(k)]);
+      r.red_view.push_back(static_cast<std::uint8_t>(v));
+    }
+    r.viewpoints.push_back(T.translation());
+  }
+  r.times.hsi_ms = ms_since(t0);
+  r.red_points = r.red_xyz.size();
+  if (r.red_xyz.empty()) return stop("hsi", hsi_reason);
+
+  t0 = Clock::now();
+  ColorCloud red;
+  red.xyz = r.red_xyz;
+  red.rgb.assign(red.xyz.size(), Rgb{0, 0, 0});
+  red.width = static_cast<int>(red.xyz.size());
+  Indices all(red.xyz.size());
+  for (std::size_t k = 0; k < all.size(); ++k) all[k] = static_cast<int>(k);
+  r.branch = cluster_branches(red, all, params_.branch, r.viewpoints);
+  r.times.branch_ms = ms_since(t0);
+  const Cluster* branch = r.branch.branch();
+  if (!branch) return stop("branch", r.branch.reason);
+
+  t0 = Clock::now();
+  r.smoothed = smooth_mls(r.red_xyz, branch->indices, params_.smoothing, r.viewpoints, r.red_view);
+  r.times.smoothing_ms = ms_since(t0);
+  if (r.smoothed.points.empty()) return stop("smoothing", r.smoothed.reason);
+
+  t0 = Clock::now();
+  r.segmentation = segment_spheres(r.smoothed.points, r.smoothed.normals, params_.spheres, r.viewpoints);
+  r.times.spheres_ms = ms_since(t0);
+  if (r.segmentation.spheres.empty()) return stop("spheres", "no sphere found: " + r.segmentation.stop_reason);
+
+  t0 = Clock::now();
+  for (const auto& f : r.segmentation.spheres) {
+    Tomato t;
+    t.fit = f;
+    r.tomatoes.push_back(std::move(t));
+  }
+  reason(r);
+  r.times.reasoning_ms = ms_since(t0);
+  r.ok = true;
+  return r;
+}
+
+PipelineResult TomatoPipeline::reason_about(const std::vector<SphereFit>& spheres) const {
+  PipelineResult r;
+  if (spheres.empty()) {
+    r.stage = "spheres";
+    r.reason = "no spheres to reason about";
+    return r;
+  }
+  const auto t0 = Clock::now();
+  for (const auto& f : spheres) {
+    if (!f.sphere.centre.allFinite() || !(f.sphere.radius_m > 0)) {
+      r.stage = "input";
+      r.reason = "a sphere has a non-finite centre or a radius <= 0";
+      r.tomatoes.clear();
+      return r;
+    }
+    Tomato t;
+    t.fit = f;
+    r.tomatoes.push_back(std::move(t));
+  }
+  reason(r);
+  r.times.reasoning_ms = ms_since(t0);
+  r.ok = true;
+  return r;
+}
+
+void TomatoPipeline::reason(PipelineResult& r) const {
+  std::vector<Sphere> spheres;
+  for (const auto& t : r.tomatoes) spheres.push_back(t.fit.sphere);
+  r.edges = contact_graph(spheres, params_.force.contact_tolerance_m);
+  const auto peds = estimate_pedicels(spheres, r.edges, params_.gravity, params_.force);
+  const auto costs = pick_order(spheres, peds, params_.gravity, params_.pick);
+  for (std::size_t i = 0; i < r.tomatoes.size(); ++i) {
+    r.tomatoes[i].pedicel = peds[i];
+    r.tomatoes[i].cut = plan_cut(spheres, static_cast<int>(i), peds[i], params_.cut);
+  }
+  for (std::size_t rank = 0; rank < costs.size(); ++rank) {
+    Tomato& t = r.tomatoes[static_cast<std::size_t>(costs[rank].sphere)];
+    t.cost = costs[rank];
+    t.pick_rank = static_cast<int>(rank);
+    r.pick_order.push_back(costs[rank].sphere);
+  }
+}
+
+}  // namespace tinyline::tomato_reasoning
