@@ -96,7 +96,31 @@ PublishStatus Topic::publish(std::shared_ptr<const void> msg, const MessageInfo&
       ++st.failed;
     }
   }
+  if (has_taps_.load(std::memory_order_acquire)) {
+    std::shared_lock lk(taps_mu_);
+    for (const auto& [id, tap] : taps_) tap(msg, info);
+  }
   return st;
+}
+
+int Topic::add_tap(Tap tap) {
+  std::deque<QueuedMessage> latched;
+  {
+    std::lock_guard lk(mu_);
+    latched = latched_;
+  }
+  for (const auto& m : latched) tap(m.msg, m.info);
+  std::unique_lock lk(taps_mu_);
+  const int id = next_tap_++;
+  taps_.emplace_back(id, std::move(tap));
+  has_taps_.store(true, std::memory_order_release);
+  return id;
+}
+
+void Topic::remove_tap(int id) {
+  std::unique_lock lk(taps_mu_);  // waits for a publish() inside the tap
+  std::erase_if(taps_, [id](const auto& p) { return p.first == id; });
+  has_taps_.store(!taps_.empty(), std::memory_order_release);
 }
 
 void Topic::add_subscription(const std::shared_ptr<SubscriptionBase>& s) {

@@ -624,3 +624,52 @@ TEST(Executor, AStopThatComesBeforeTheSpinningThreadStartsIsNotLost) {
     again.wait();
   }
 }
+
+TEST(Topic, TapsSeeEveryPublishAfterLocalDeliveryGetLatchedHistoryAndStopWhenRemoved) {
+  auto ctx = sim_context();
+  auto n = make_node(ctx, "n");
+  auto pub = n->create_publisher<StringMsg>("/t", QoS::keep_last(2).latched());
+  pub->publish(text("old"));
+  pub->publish(text("latched"));
+  std::vector<std::string> seen;
+  std::vector<std::size_t> queued_when_tapped;
+  auto sub = n->create_subscription<StringMsg>("/t", QoS::keep_last(10), [](const StringMsg&) {});
+  auto topic = ctx->graph().find("/t");
+  const int id = topic->add_tap([&](const std::shared_ptr<const void>& m, const bus::MessageInfo&) {
+    seen.push_back(static_cast<const StringMsg*>(m.get())->data);
+    queued_when_tapped.push_back(sub->queued());
+  });
+  EXPECT_EQ(seen, (std::vector<std::string>{"old", "latched"}));
+  pub->publish(text("live"));
+  ASSERT_EQ(seen.size(), 3u);
+  EXPECT_EQ(seen.back(), "live");
+  EXPECT_EQ(queued_when_tapped.back(), 1u) << "the local subscriber is served first";
+  topic->remove_tap(id);
+  pub->publish(text("after"));
+  EXPECT_EQ(seen.size(), 3u);
+}
+
+TEST(Topic, RemovingATapWaitsForACallInProgress) {
+  auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
+  auto n = make_node(ctx, "n");
+  auto pub = n->create_publisher<StringMsg>("/t");
+  auto topic = ctx->graph().find("/t");
+  std::promise<void> entered, release;
+  auto release_f = release.get_future().share();
+  std::atomic<bool> finished{false};
+  const int id = topic->add_tap([&](const std::shared_ptr<const void>&, const bus::MessageInfo&) {
+    entered.set_value();
+    release_f.wait();
+    finished.store(true);
+  });
+  auto publishing = std::async(std::launch::async, [&] { pub->publish(text("x")); });
+  entered.get_future().wait();
+  auto removing = std::async(std::launch::async, [&] {
+    topic->remove_tap(id);
+    return finished.load();
+  });
+  EXPECT_EQ(removing.wait_for(50ms), std::future_status::timeout) << "remove_tap returned during the call";
+  release.set_value();
+  EXPECT_TRUE(removing.get()) << "remove_tap returned before the call finished";
+  publishing.get();
+}

@@ -197,3 +197,16 @@ TEST(MultiHost, TwoNetworkNamespacesJoinedByAVethPairRunOneGraph) {
   EXPECT_TRUE(p.find("[host_b] [INFO]") && p.find("remote publisher in process 'host_a'")) << p.output();
   std::filesystem::remove_all(work);
 }
+
+TEST(TopicTools, ASingleNodeStartedWithRunDdsJoinsALaunchedGraph) {
+  const auto env = dds_env();
+  ChildProcess graph(cli({"launch", kLaunchDir + "chain.launch.yaml", "count:=0", "rate_hz:=20", "--no-table"}), env);
+  ASSERT_TRUE(graph.wait_for_text("data: \"pulse 1\"", 30s)) << graph.output();
+  ChildProcess node(cli({"run", "tinyline", "echo", "--name", "visitor", "-r", "input:=/chain/raw", "--dds",
+                         "--no-table"}),
+                    env);
+  ASSERT_TRUE(node.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), 30s)) << node.output();
+  EXPECT_TRUE(node.find("remote publisher in process 'source'")) << node.output();
+  interrupt_and_expect_clean_exit(node);
+  interrupt_and_expect_clean_exit(graph);
+}

@@ -1,6 +1,7 @@
 // tinyline run PKG TYPE [-p name:=value] [-r from:=to] [--name N] [--ns NS] [--duration S]
 #include <fmt/format.h>
 
+#include <tinyline/dds/bridge.hpp>
 #include <tinyline/tools/command.hpp>
 
 #include "../src/args.hpp"
@@ -20,10 +21,12 @@ options:
   --ns NS          namespace (default: /)
   --duration S     stop after S seconds
   --no-table       no live topic table
+  --dds            put the node's topics on DDS (ROS_DOMAIN_ID, CYCLONEDDS_URI;
+                   loopback by default), to join a graph started elsewhere
 )";
 
 int cmd_run(const std::vector<std::string>& argv) {
-  Args a(argv, {"-p", "-r", "--name", "--ns", "--duration", "--threads"}, {"--no-table", "--help", "-h"});
+  Args a(argv, {"-p", "-r", "--name", "--ns", "--duration", "--threads"}, {"--no-table", "--dds", "--help", "-h"});
   if (a.flag("--help") || a.flag("-h")) {
     fmt::print("{}", kHelp);
     return 0;
@@ -50,11 +53,21 @@ int cmd_run(const std::vector<std::string>& argv) {
     fmt::print(stderr, "{}\n", e.what());
     return 1;
   }
+  std::vector<std::shared_ptr<bus::Node>> nodes{node};
   RunOptions ro;
+  if (a.flag("--dds")) {
+    dds::BridgeOptions bo;
+    bo.settings = dds::Settings::from_environment();
+    bo.settings.process_name = node->full_name();
+    bo.selection.all = true;
+    auto bridge = dds::Bridge::create(ctx, bo);
+    nodes.push_back(bridge);
+    ro.before_spin = [bridge] { bridge->start(); };
+  }
   if (a.value("--duration")) ro.duration_s = a.number("--duration", 0);
   ro.threads = static_cast<int>(a.number("--threads", 1));
   ro.table = !a.flag("--no-table");
-  return run_nodes(ctx, {node}, ro);
+  return run_nodes(ctx, nodes, ro);
 }
 
 const CommandRegistration kRun{"run", "run one node of a registered type", &cmd_run};

@@ -20,9 +20,7 @@ bool TopicSelection::selects(const std::string& topic) const {
 
 namespace {
 
-thread_local bool t_in_sync = false;
-
-constexpr std::size_t kOutQueueMin = 256;  // messages (shared pointers) between a publisher and the DDS writer  // the bridge's own endpoints must not re-enter sync_topic
+thread_local bool t_in_sync = false;  // the bridge's own endpoints must not re-enter sync_topic
 
 std::atomic<std::uint32_t> g_next_origin{0xdd500001u};
 
@@ -88,12 +86,13 @@ struct Bridge::Link {
   std::atomic<bool> writer_latched{false};
   dds_entity_t read_cond = 0;
   EndpointQos wq, rq;
-  std::shared_ptr<bus::GenericSubscription> out;  // local -> DDS (kept for the bridge's life)
-  std::shared_ptr<bus::GenericPublisher> in;      // DDS -> local
+  std::shared_ptr<bus::Topic> local;            // the local topic
+  int tap = 0;                                  // local -> DDS, on the publishers' threads
+  std::shared_ptr<bus::GenericPublisher> in;    // DDS -> local
   std::atomic<std::size_t> remote_readers{0}, remote_writers{0};
   std::atomic<std::uint64_t> sent{0}, unmatched{0}, received{0}, decode_errors{0}, write_errors{0},
       incompatible{0};
-  std::size_t last_size = 64;  // serialization buffer guess (out callback only)
+  std::atomic<std::size_t> last_size{64};  // serialization buffer guess
   std::mutex peers_mu;
   std::map<dds_instance_handle_t, Identity> readers_seen, writers_seen;
 };
@@ -238,6 +237,15 @@ void Bridge::attach_graph(const std::weak_ptr<Bridge>& self) {
 
 Bridge::~Bridge() {
   context().graph().remove_on_endpoints_changed(graph_listener_);
+  {
+    // No publisher may be inside send() once the links go: remove_tap waits.
+    std::lock_guard sync(sync_mu_);
+    std::lock_guard lk(mu_);
+    for (auto& l : links_) {
+      if (l->tap != 0) l->local->remove_tap(l->tap);
+      l->tap = 0;
+    }
+  }
   on_stop();
   // Entities go before the links their listeners point to.
   participant_.reset();
@@ -338,23 +346,16 @@ void Bridge::sync_topic(const std::string& name) {
     L.writer_latched.store(wq.transient_local);
     L.writer.store(w);
     BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
-    if (!L.out) {
-      // The bridge is one more local subscriber, with the publishers' own QoS
-      // (a latched topic replays its history to it, a reliable one waits for it).
-      // Its queue holds pointers, not copies: deep enough that a burst the
-      // local subscribers absorb reaches the DDS writer too, whose own
-      // history then applies the publishers' depth as in ROS 2.
-      const auto depth = std::max<std::size_t>(static_cast<std::size_t>(wq.depth), kOutQueueMin);
-      bus::QoS sq = wq.keep_all ? bus::QoS::reliable(depth, std::chrono::duration_cast<bus::Duration>(wq.max_blocking))
-                                : bus::QoS::keep_last(depth);
-      sq.transient_local = wq.transient_local;
+    if (L.tap == 0) {
+      // Publishers of the topic send on their own thread, once local
+      // subscribers have the message; a latched topic replays its history
+      // into the (transient-local) writer here.
       Link* raw = l.get();
-      L.out = create_generic_subscription(
-          name, *L.type, sq,
-          [raw](const std::shared_ptr<const void>& m, const msg::TypeSupport&, const bus::MessageInfo&) {
-            raw->bridge->send(*raw, m);
-          });
-      L.out->ignore_origin = origin_;
+      const std::uint32_t own = origin_;
+      L.local = topic;
+      L.tap = topic->add_tap([raw, own](const std::shared_ptr<const void>& m, const bus::MessageInfo& info) {
+        if (info.origin != own) raw->bridge->send(*raw, m);
+      });
     }
   }
 
@@ -401,7 +402,7 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     return;
   }
   std::vector<std::uint8_t> buf;
-  buf.reserve(l.last_size);
+  buf.reserve(l.last_size.load(std::memory_order_relaxed));
   try {
     l.type->serialize(m.get(), buf);
   } catch (const std::exception& e) {
@@ -410,7 +411,7 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     }
     return;
   }
-  l.last_size = buf.size();
+  l.last_size.store(buf.size(), std::memory_order_relaxed);
   ddsi_serdata* sd = detail::make_serdata(l.topic.sertype, std::move(buf));
   const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
   if (rc < 0) {

@@ -11,6 +11,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <shared_mutex>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,15 @@ class Topic {
   void add_publisher(const QoS& offered);
   void remove_publisher();
 
+  /// A transport's view of every message published here: called on the
+  /// publishing thread, after the local subscribers got it (the DDS bridge
+  /// serializes and sends here, as ROS 2 does inside publish()). A new tap is
+  /// first handed the latched messages. After remove_tap() returns, the tap
+  /// is not running and will not run again.
+  using Tap = std::function<void(const std::shared_ptr<const void>& msg, const MessageInfo& info)>;
+  int add_tap(Tap tap);
+  void remove_tap(int id);
+
   std::size_t publisher_count() const { return publishers_.load(); }
   std::size_t subscription_count() const;
   std::uint64_t published() const { return published_.load(std::memory_order_relaxed); }
@@ -114,6 +124,12 @@ class Topic {
   // Transient-local: the last messages published, for late subscribers.
   std::atomic<std::size_t> latched_depth_{0};
   std::deque<QueuedMessage> latched_;
+  // Taps: publish() holds taps_mu_ shared while calling them, so removal
+  // waits for a call in progress. has_taps_ keeps the common case lock-free.
+  std::shared_mutex taps_mu_;
+  std::vector<std::pair<int, Tap>> taps_;
+  std::atomic<bool> has_taps_{false};
+  int next_tap_ = 1;
 };
 
 /// A row of `tinyline topic list` / the launch table.

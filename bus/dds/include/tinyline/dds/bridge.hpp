@@ -2,14 +2,16 @@
 // process onto DDS and back.
 //
 //   local publisher --shared_ptr--> local subscribers          (zero copy, as before)
-//                   \--> bridge: serialize once --> DDS writer "rt/<topic>"
-//   DDS reader "rt/<topic>" --> bridge: deserialize once --> local subscribers
+//                   \--> topic tap: serialize once --> DDS writer "rt/<topic>"
+//   DDS reader "rt/<topic>" --> receive thread: deserialize once --> local subscribers
 //
 // Only topics with a local endpoint get DDS endpoints: a DDS writer when the
-// process publishes the topic, a reader when it subscribes to it. Messages the
-// bridge injects carry its origin, and its own subscription ignores that
-// origin, so nothing is echoed back; DDS readers ignore writers of their own
-// participant. A writer with no matched reader skips serialization entirely.
+// process publishes the topic, a reader when it subscribes to it. Sending
+// happens inside publish(), on the publisher's thread, after the local
+// subscribers have the message (as in ROS 2); a writer with no matched reader
+// skips serialization entirely. Messages the bridge injects carry its origin
+// and its tap ignores that origin, so nothing is echoed back; DDS readers
+// ignore writers of their own participant.
 //
 // QoS maps one to one (keep-last depth or keep-all, reliable or best effort,
 // volatile or transient local), so DDS matching rules apply across processes
@@ -91,9 +93,8 @@ EndpointQos requested_qos(const std::vector<bus::QoS>& subscribers);
 /// requesting `requested` (the ROS 2 / DDS rules), or empty if it will.
 std::string incompatibility(const EndpointQos& offered, const EndpointQos& requested);
 
-/// Add it to the executor like any node: its subscription callbacks are what
-/// writes local messages to DDS. Received messages are published from its own
-/// receive thread.
+/// It needs no executor: sending runs on the publishers' threads, receiving on
+/// its own thread (adding it to one is harmless; on_start() calls start()).
 class Bridge : public bus::Node {
  public:
   /// Creates the participant and starts the receive thread; DDS endpoints are
