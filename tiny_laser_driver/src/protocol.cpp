@@ -210,9 +210,11 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
     return;
   }
   ++stats_.frames;
-  // Set membership from the indices: a set starts after a flagged last frame
-  // or where the index does not rise. A set seen only in part counts once.
-  const bool new_set = prev_index_ < 0 || index <= prev_index_;
+  // Set membership: a set starts after a flagged last frame, or where neither
+  // the index nor the pulses rise (every set accumulates the same pulse
+  // schedule). A corrupted index alone (pulses still rising) is damage inside
+  // the set, not a new one, so a set seen only in part counts once.
+  const bool new_set = prev_index_ < 0 || (index <= prev_index_ && pulses <= prev_pulses_);
   if (new_set) {
     abandon_pending();  // the previous set lost its tail
     broken_ = false;
@@ -229,6 +231,7 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
     broken_ = true;
   }
   prev_index_ = index;
+  prev_pulses_ = pulses;
   if (broken_) {
     ++stats_.frames_discarded;
   } else {

@@ -317,6 +317,42 @@ TEST(Protocol, TwoNeighbouringBrokenSetsCountTwice) {
   EXPECT_EQ(p.stats().frames_discarded, 8u);
 }
 
+TEST(Protocol, EverySingleBitFlipInTheFramingCostsOneSetCountedOnce) {
+  // Three sets; one bit of a framing byte (header, index word, packed word,
+  // ender) of one frame of the middle set flips. The books must balance:
+  // published + incomplete = 3, whatever the flip. (A corrupted index used to
+  // look like the start of a new set, counting one damaged set twice.)
+  const Bytes clean = [] {
+    Bytes b;
+    for (int s = 0; s < 3; ++s) append(b, make_set(450, s));
+    return b;
+  }();
+  int published_middle = 0;
+  for (std::size_t frame = 0; frame < 5; ++frame) {
+    for (std::size_t off : {0u, 1u, 2u, 3u, 4u, 5u, 1094u, 1095u}) {
+      for (int bit = 0; bit < 8; ++bit) {
+        Bytes b = clean;
+        b[5 * tl::kRawFrameBytes + frame * tl::kRawFrameBytes + off] ^= static_cast<std::uint8_t>(1u << bit);
+        tl::Parser p;
+        p.feed(b);
+        const auto sets = drain(p);
+        const std::string where = "frame " + std::to_string(frame) + " byte " + std::to_string(off) + " bit " +
+                                  std::to_string(bit);
+        EXPECT_EQ(sets.size() + d(p, tl::DropReason::kIncompleteSet), 3u) << where;
+        ASSERT_GE(sets.size(), 2u) << where;  // the neighbours are never touched
+        EXPECT_EQ(sets.front().frames[0].a[0], make_frame(0, 450, 0).a[0]) << where;
+        EXPECT_EQ(sets.back().frames[0].a[0], make_frame(0, 450, 2).a[0]) << where;
+        if (sets.size() == 3) {
+          // Only a packed-word flip that keeps the pulses rising can pass.
+          EXPECT_TRUE(off == 4 || off == 5) << where;
+          ++published_middle;
+        }
+      }
+    }
+  }
+  EXPECT_LT(published_middle, 5 * 16);  // most packed-word flips break the pulse order
+}
+
 TEST(Protocol, FramesWithImpossibleFieldsAreDropped) {
   Bytes stream;
   auto zero_pulses = make_frame(2, 450, 1);

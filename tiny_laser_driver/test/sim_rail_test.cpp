@@ -79,21 +79,21 @@ Score score(const std::string& sensor_yaml, const std::string& calibration, doub
 }  // namespace
 
 TEST(SimRail, DefaultCalibrationMeasuresTheSimulatedRailWithinItsError) {
-  // Held-out RMSE of the shipped calibration: 3.58 cm (config/calibration/README.md).
+  // Held-out RMSE of the shipped calibration: 3.28 cm (config/calibration/README.md).
   const Score s = score(TINYLINE_SOURCE_DIR "/sim/config/sensors/tiny_tof_8mm.yaml", "default", 8.0,
                         {0.3, 0.55, 0.8, 1.1, 1.4, 1.7});
   RecordProperty("rmse_cm", std::to_string(s.rmse_cm));
-  EXPECT_LT(s.rmse_cm, 3.58 * 1.25) << "rmse " << s.rmse_cm << " cm";
+  EXPECT_LT(s.rmse_cm, 3.28 * 1.25) << "rmse " << s.rmse_cm << " cm";
   EXPECT_LT(std::abs(s.bias_cm), 1.0) << "bias " << s.bias_cm << " cm";
   EXPECT_GT(s.valid_share, 0.8) << "valid share " << s.valid_share;
 }
 
 TEST(SimRail, TheWideLensSensorHasItsOwnCalibration) {
-  // Held-out RMSE 6.31 cm (README.md).
+  // Held-out RMSE 6.41 cm (README.md).
   const Score s = score(TINYLINE_SOURCE_DIR "/sim/config/sensors/tiny_tof_3p6mm.yaml",
                         TINYLINE_SOURCE_DIR "/tiny_laser_driver/config/calibration/sim_tiny_tof_3p6mm.yaml", 3.6,
                         {0.3, 0.55, 0.8, 1.1, 1.4});
-  EXPECT_LT(s.rmse_cm, 6.31 * 1.25) << "rmse " << s.rmse_cm << " cm";
+  EXPECT_LT(s.rmse_cm, 6.41 * 1.25) << "rmse " << s.rmse_cm << " cm";
   EXPECT_LT(std::abs(s.bias_cm), 1.5) << "bias " << s.bias_cm << " cm";
   EXPECT_GT(s.valid_share, 0.6) << "valid share " << s.valid_share;
 }

@@ -129,7 +129,10 @@ struct ParserStats {
 /// A frame whose ender is wrong is dropped and the hunt resumes one byte
 /// after its header, so a header inside the corrupt frame is not missed; the
 /// bytes the hunt then skips count as garbage. A raw set is published only
-/// whole: frames 0..n-1 in order, the last one flagged, pulses rising.
+/// whole: frames 0..n-1 in order, the last one flagged, pulses rising. Each
+/// set sent is counted once, published or kIncompleteSet, whichever single
+/// framing field a bit flip damages (a frame whose index does not rise
+/// starts a new set only if its pulses do not rise either).
 class Parser {
  public:
   struct Options {
@@ -171,6 +174,7 @@ class Parser {
   std::vector<RawFrame> pending_;   // frames of the set being assembled
   bool broken_ = false;             // the current set is already counted as incomplete
   int prev_index_ = -1;             // index of the previous frame of the current set (-1: at a set boundary)
+  std::uint16_t prev_pulses_ = 0;   // its pulses
   std::vector<RawSet> sets_;
   std::vector<DistanceFrame> distances_;
   std::size_t sets_taken_ = 0;
