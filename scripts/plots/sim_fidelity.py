@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
+SCAN_SCENES = ["stick_far_background", "stick_near_background", "wrench_panel"]
 STEPS = sorted((ROOT / "sim/config/fidelity/loop").glob("step*.yaml"))
 LABELS = {
     "step0_first_guess": "0 first guess",
@@ -53,7 +54,7 @@ def run(args):
             print(f"running {tool.name} on {step.name}", file=sys.stderr)
             subprocess.run([str(tool), "--sensor", str(step), "--json", str(out)], check=False,
                            stdout=subprocess.DEVNULL)
-    for scene in ["stick_far_background", "wrench_panel"]:
+    for scene in SCAN_SCENES:
         out = data / f"scan_{scene}.json"
         if not args.no_run:
             subprocess.run([str(scan), str(ROOT / f"sim/config/scenes/{scene}.yaml"), "--out", str(out)], check=True)
@@ -168,9 +169,10 @@ def loop(runs, img):
 
 
 def scans(data, img):
-    fig, axs = plt.subplots(2, 1, figsize=(7, 5.5), sharex=False)
-    for ax, scene, title in zip(axs, ["stick_far_background", "wrench_panel"],
-                                ["stick 10 cm before a board (Fig. 5.8 A): drag on the emitter (+x) side",
+    fig, axs = plt.subplots(len(SCAN_SCENES), 1, figsize=(7, 2.75 * len(SCAN_SCENES)), sharex=False)
+    for ax, scene, title in zip(axs, SCAN_SCENES,
+                                ["stick 10 cm before a board (Fig. 5.8 A): baseline shadow and mixed edge pixels",
+                                 "stick 2 mm before the board (Fig. 5.8 B): lost in distance, plain in reflectance",
                                  "wrench on a panel: same distance, much more light"]):
         j = json.loads((data / f"scan_{scene}.json").read_text())
         px = [p for p in j["pixels"] if 8 <= p["i"] < 264]
