@@ -49,6 +49,18 @@ TEST(Fidelity, LastLoopStepIsTheShippedSensor) {
   EXPECT_EQ(to_yaml(last), to_yaml(shipped));
 }
 
+TEST(Fidelity, Step5CandidateChangesOnlyTheChannelOffset) {
+  // docs/simulator_fidelity.md proposes it as the next shipped sensor; it must
+  // stay the shipped sensor plus one re-tuned offset, or its figures there lie.
+  SensorParams cand = load_sensor_params(src("config/fidelity/candidates/step5_offset_retune.yaml"));
+  SensorParams shipped = load_sensor_params(src("config/sensors/tiny_tof_8mm.yaml"));
+  EXPECT_DOUBLE_EQ(cand.pixel.adc_offset_b, -1.25);
+  EXPECT_NE(cand.pixel.adc_offset_b, shipped.pixel.adc_offset_b);
+  cand.name = shipped.name;
+  cand.pixel.adc_offset_b = shipped.pixel.adc_offset_b;
+  EXPECT_EQ(to_yaml(cand), to_yaml(shipped));
+}
+
 TEST(Fidelity, SelectionRuleOfTheDriver) {
   SensorSet s;
   s.readouts.resize(3);

@@ -7,6 +7,7 @@
 // Exit code 0 when every goal of issue 4 is met, 1 when one is missed, 2 on bad usage.
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -76,7 +77,15 @@ int main(int argc, char** argv) {
     if (a == "--sensor") sensor_path = next();
     else if (a == "--measured") measured_path = next();
     else if (a == "--json") json_path = next();
-    else if (a == "--seed") opt.seed_offset = std::stoull(next());
+    else if (a == "--seed") {
+      const std::string v = next();
+      char* end = nullptr;
+      opt.seed_offset = std::strtoull(v.c_str(), &end, 10);
+      if (v.empty() || *end != '\0' || v[0] == '-') {
+        std::cerr << "sim_fidelity: --seed takes a non-negative integer, not '" << v << "'\n";
+        return 2;
+      }
+    }
     else if (a == "--tune") tune = next();
     else {
       std::cerr << "usage: sim_fidelity --sensor FILE [--measured FILE] [--json OUT] [--seed N]\n";
