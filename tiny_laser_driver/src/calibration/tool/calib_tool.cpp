@@ -429,7 +429,7 @@ std::string report_markdown(const ReportContext& c, const std::string& dir, cons
   }
   if (!r.rounds.empty()) {
     md += fmt::format("## Candidates of the first round\n\nAccepted when the gain exceeds {:.0f}% and z exceeds {:.2f} "
-                      "(one-sided, alpha {} shared over the round's candidates).\n\n",
+                      "(one-sided, alpha {} shared over the round's tests: two paired statistics per candidate).\n\n",
                       100.0 * p.min_relative_gain, r.z_threshold, p.alpha);
     md += "| covariate | form | CV RMSE | gain | z | passes |\n|---|---|---|---|---|---|\n";
     for (const auto& s : r.rounds.front()) {
