@@ -27,8 +27,11 @@
 #include <sim/sensor_params.hpp>
 #include <tiny_laser_driver/calibration_discovery.hpp>
 
+#include "sim_rail_session.hpp"
+
 namespace tl = tinyline::tiny_laser_driver;
 namespace sim = tinyline::sim;
+namespace tt = tinyline::tiny_laser_driver::testing;
 using ::testing::HasSubstr;
 
 namespace {
@@ -127,50 +130,14 @@ RailPlan matte_surfaces_plan() {
   return plan;
 }
 
-// What the thesis measured before fitting (3.3.3), as sim_rail_csv --constants does:
-// the leakage per pulse with the laser off in the dark, and the sensitivity ratio
-// Rsen under even ambient light (laser off). Fitting them from rail data instead
-// leaves Vle and the per-pixel Rsen poorly separated, and the error that leaves
-// falls with the amplitude (the loop then names amplitude_per_pulse on a sensor
-// with nothing undeclared).
+// Leakage and Rsen measured apart, as the thesis did (sim_rail_session.hpp).
 tl::DiscoveryParams measured_constants(const sim::SensorParams& params) {
-  sim::RailParams rp;
-  rp.target_width_m = 4.0;
-  sim::MeasureOptions off;
-  off.laser_on = false;
-  const int dark = params.lens.dark_pixels, n = params.lens.pixels;
-  double spb = 0.0, spp = 0.0;
-  {
-    const sim::CalibrationRail rail(params, rp);
-    const std::vector<int> schedule{100, 400, 700};
-    for (int k = 0; k < 5; ++k) {
-      const auto set = rail.measure(3600.0, schedule, 900000 + static_cast<std::uint64_t>(k), off);
-      for (const auto& r : set.readouts) {
-        for (int px = dark; px < n - dark; ++px) {
-          spb += r.pulses * r.b[static_cast<std::size_t>(px)];
-          spp += static_cast<double>(r.pulses) * r.pulses;
-        }
-      }
-    }
-  }
-  double sa = 0.0, sb = 0.0;
-  {
-    sim::SensorParams lit = params;
-    lit.environment.ambient_charge_per_pulse = 0.3;
-    const sim::CalibrationRail lamp(lit, rp);
-    for (int k = 0; k < 5; ++k) {
-      const auto set = lamp.measure(3600.0, std::vector<int>{400}, 910000 + static_cast<std::uint64_t>(k), off);
-      for (int px = dark; px < n - dark; ++px) {
-        sa += set.readouts[0].a[static_cast<std::size_t>(px)];
-        sb += set.readouts[0].b[static_cast<std::size_t>(px)];
-      }
-    }
-  }
+  const auto c = tt::measure_rail_constants(params);
   tl::DiscoveryParams p;
   p.declared.fit_leakage = false;
   p.declared.leakage_offset = 0.0;
-  p.declared.leakage_per_pulse = spb / spp;
-  p.declared.sensitivity_ratio = sb / sa;
+  p.declared.leakage_per_pulse = c.leakage_per_pulse;
+  p.declared.sensitivity_ratio = c.sensitivity_ratio;
   return p;
 }
 

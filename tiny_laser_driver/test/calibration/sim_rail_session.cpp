@@ -8,6 +8,7 @@
 #include <tinyline/bus/registry.hpp>
 
 #include <sim/nodes/register.hpp>
+#include <sim/rail.hpp>
 #include <sim/system.hpp>
 
 namespace tinyline::tiny_laser_driver::testing {
@@ -86,6 +87,43 @@ SimRailSessionResult record_sim_rail_session(const SimRailSession& s) {
     out.error = e.what();
   }
   return out;
+}
+
+RailConstants measure_rail_constants(const tinyline::sim::SensorParams& params) {
+  namespace sim = tinyline::sim;
+  sim::RailParams rp;
+  rp.target_width_m = 4.0;
+  sim::MeasureOptions off;
+  off.laser_on = false;
+  const int dark = params.lens.dark_pixels, n = params.lens.pixels;
+  double spb = 0.0, spp = 0.0;
+  {
+    const sim::CalibrationRail rail(params, rp);
+    const std::vector<int> schedule{100, 400, 700};
+    for (int k = 0; k < 5; ++k) {
+      const auto set = rail.measure(3600.0, schedule, 900000 + static_cast<std::uint64_t>(k), off);
+      for (const auto& r : set.readouts) {
+        for (int px = dark; px < n - dark; ++px) {
+          spb += r.pulses * r.b[static_cast<std::size_t>(px)];
+          spp += static_cast<double>(r.pulses) * r.pulses;
+        }
+      }
+    }
+  }
+  double sa = 0.0, sb = 0.0;
+  {
+    sim::SensorParams lit = params;
+    lit.environment.ambient_charge_per_pulse = 0.3;
+    const sim::CalibrationRail lamp(lit, rp);
+    for (int k = 0; k < 5; ++k) {
+      const auto set = lamp.measure(3600.0, std::vector<int>{400}, 910000 + static_cast<std::uint64_t>(k), off);
+      for (int px = dark; px < n - dark; ++px) {
+        sa += set.readouts[0].a[static_cast<std::size_t>(px)];
+        sb += set.readouts[0].b[static_cast<std::size_t>(px)];
+      }
+    }
+  }
+  return {spp > 0.0 ? spb / spp : 0.0, sa > 0.0 ? sb / sa : 1.0};
 }
 
 }  // namespace tinyline::tiny_laser_driver::testing

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <sim/sensor_params.hpp>
+
 namespace tinyline::tiny_laser_driver::testing {
 
 struct SimRailSession {
@@ -30,5 +32,17 @@ struct SimRailSessionResult {
 
 /// Records the session; never throws (error says what failed).
 [[nodiscard]] SimRailSessionResult record_sim_rail_session(const SimRailSession& session);
+
+/// What the thesis measured before fitting (3.3.3), as `sim_rail_csv --constants`
+/// does on the simulated sensor: the leakage per pulse with the laser off in the
+/// dark (b regressed on the pulses through 0), and the sensitivity ratio under
+/// even ambient light with the laser off (sum b / sum a). Fitting both from rail
+/// data instead leaves Vle and the per-pixel Rsen poorly separated, and the error
+/// that leaves falls with the amplitude.
+struct RailConstants {
+  double leakage_per_pulse = 0.0;  ///< [charge_unit per pulse]
+  double sensitivity_ratio = 1.0;
+};
+[[nodiscard]] RailConstants measure_rail_constants(const tinyline::sim::SensorParams& params);
 
 }  // namespace tinyline::tiny_laser_driver::testing
