@@ -19,6 +19,8 @@
 
 #include <tiny_laser_driver/calibration_collect.hpp>
 #include <tiny_laser_driver/calibration_tool.hpp>
+#include <tiny_laser_driver/scan_processor.hpp>
+#include <tinyline/bag/reader.hpp>
 
 #include "sim_rail_session.hpp"
 
@@ -197,4 +199,79 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
   EXPECT_EQ(calib({"collect", tmp / "raw_only.mcap", "-o", tmp / "x.csv"}, out, err), 1);
   EXPECT_THAT(err, HasSubstr("tinyline calib collect: error:"));
   EXPECT_FALSE(fs::exists(tmp / "x.csv"));
+}
+
+TEST(CalibrationCollect, TheModelTheToolWritesIsTheModelTheDriverApplies) {
+  // collect -> fit --discover -> the YAML into the driver's ScanProcessor, which
+  // processes the raw scans of a second session: per pixel the same distance as
+  // the model the tool evaluated, and the same error against the truth.
+  TempDir tmp;
+  const auto train = session(tmp / "rail.mcap", 0.15, 2.0, 0.05);
+  const auto test = session(tmp / "heldout.mcap", 0.175, 1.975, 0.1);
+  ASSERT_TRUE(tt::record_sim_rail_session(train).error.empty());
+  ASSERT_TRUE(tt::record_sim_rail_session(test).error.empty());
+  std::string out, err;
+  ASSERT_EQ(calib({"collect", train.bag_path, "-o", tmp / "rail.csv", "--pixel-step", "2"}, out, err), 0) << err;
+  ASSERT_EQ(calib({"collect", test.bag_path, "-o", tmp / "heldout.csv"}, out, err), 0) << err;
+  ASSERT_EQ(calib({"fit", tmp / "rail.csv", "-o", tmp / "calib.yaml", "--discover"}, out, err), 0) << err;
+  ASSERT_EQ(calib({"eval", tmp / "heldout.csv", "--calib", tmp / "calib.yaml"}, out, err), 0) << err;
+  const double tool_rmse = json_field(out, "rmse_m");
+  const double tool_n = json_field(out, "n");
+
+  const auto model = tl::CalibrationModel::load(tmp / "calib.yaml");
+  tl::OpticsParams optics;
+  optics.focal_mm = 8.0;
+  const tl::ScanProcessor processor(model, optics);
+  const auto data = tl::read_calibration_csv(tmp / "heldout.csv");
+  std::map<std::pair<double, int>, std::vector<std::size_t>> rows;  // (t_s, pixel) -> rows
+  for (std::size_t i = 0; i < data.size(); ++i) rows[{data.readouts[i].t_s, data.readouts[i].pixel}].push_back(i);
+
+  namespace bag = tinyline::bag;
+  bag::Reader reader;
+  ASSERT_TRUE(reader.open(test.bag_path).ok());
+  bag::ReadOptions ro;
+  ro.topics = {"/rail/raw_scan"};
+  double t0 = -1.0, sse = 0.0;
+  std::size_t compared = 0;
+  const auto status = reader.for_each(ro, [&](const bag::MessageView& v) {
+    tinyline::tinyline_msgs::msg::RawScan m;
+    EXPECT_TRUE(tinyline::msg::deserialize(v.message.data, m).ok);
+    const double stamp = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec;
+    if (t0 < 0) t0 = stamp;
+    tl::RawSet set;
+    for (std::size_t k = 0; k < m.pulses.size(); ++k) {
+      tl::RawFrame f;
+      f.index = static_cast<std::uint16_t>(k);
+      f.last = k + 1 == m.pulses.size();
+      f.pulses = m.pulses[k];
+      f.temperature_decic = static_cast<std::uint16_t>(std::lround(m.temperature_c * 10.0));
+      for (std::size_t i = 0; i < tl::kPixels; ++i) {
+        f.a[i] = m.a[k * m.pixels + i];
+        f.b[i] = m.b[k * m.pixels + i];
+      }
+      set.frames.push_back(f);
+    }
+    const double t_s = stamp - t0;
+    const auto scan = processor.process(set, t_s);
+    for (std::size_t px = tl::kDarkPixels; px < tl::kPixels - tl::kDarkPixels; ++px) {
+      if (scan.status[px] != tl::PixelStatus::kValid) continue;
+      const auto it = rows.find({t_s, static_cast<int>(px)});
+      if (it == rows.end()) continue;
+      for (std::size_t i : it->second) {
+        if (data.readouts[i].pulses != scan.pulses[px]) continue;
+        tl::Readout r = data.readouts[i];
+        r.temperature_c = scan.temperature_c;  // the driver reads the set's temperature in 0.1 degC
+        EXPECT_NEAR(scan.distance_m[px], model.distance_m(r), 1e-5) << "pixel " << px << " at " << t_s << " s";
+        const double e = scan.distance_m[px] - data.distance_m[i];
+        sse += e * e;
+        ++compared;
+      }
+    }
+    return true;
+  });
+  ASSERT_TRUE(status.ok()) << status.str();
+  ASSERT_GT(compared, 0.9 * tool_n);
+  EXPECT_NEAR(std::sqrt(sse / static_cast<double>(compared)), tool_rmse, 0.05 * tool_rmse);
+  std::cout << "driver: " << compared << " pixels, RMSE " << std::sqrt(sse / static_cast<double>(compared))
+            << " m; tool eval: " << tool_n << " read-outs, RMSE " << tool_rmse << " m\n";
 }
