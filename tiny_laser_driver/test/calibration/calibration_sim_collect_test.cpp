@@ -16,6 +16,7 @@
 
 #include <tinyline/bag/ros2.hpp>
 #include <tinyline/msg/tinyline_msgs/raw_scan.hpp>
+#include <tinyline/msg/tinyline_msgs/scan_truth.hpp>
 
 #include <tiny_laser_driver/calibration_collect.hpp>
 #include <tiny_laser_driver/calibration_tool.hpp>
@@ -180,9 +181,44 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
     tl::CollectParams p;
     p.raw_topic = "/other";
     EXPECT_THAT(tl::collect_calibration_data(tmp / "raw_only.mcap", p).reason,
+                HasSubstr("no tinyline_msgs/msg/RawScan topic '/other'"));
+  }
+  // A truth that cannot belong to its scan (10 pixels of truth for 272 of charges).
+  {
+    namespace bag = tinyline::bag;
+    bag::ros2::Ros2Writer w;
+    ASSERT_TRUE(w.open(tmp / "sizes.mcap").ok());
+    bag::ChannelId raw = 0, truth = 0;
+    ASSERT_TRUE(w.add_topic("/raw", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::RawScan>(), raw).ok());
+    ASSERT_TRUE(w.add_topic("/truth", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::ScanTruth>(), truth).ok());
+    tinyline::tinyline_msgs::msg::RawScan m;
+    m.header.frame_id = "laser";
+    m.header.stamp.sec = 5;
+    m.pixels = 272;
+    m.pulses = {100};
+    m.a.assign(272, 500);
+    m.b.assign(272, 500);
+    tinyline::tinyline_msgs::msg::ScanTruth t;
+    t.header = m.header;
+    t.sensor = "laser";
+    t.range_m.assign(10, 0.5f);
+    ASSERT_TRUE(w.write(raw, m, 5'000'000'000, 5'000'000'000).ok());
+    ASSERT_TRUE(w.write(truth, t, 5'000'000'000, 5'000'000'000).ok());
+    ASSERT_TRUE(w.close().ok());
+    const auto r = tl::collect_calibration_data(tmp / "sizes.mcap");
+    EXPECT_FALSE(r.ok);
+    EXPECT_EQ(r.bad_scans, 1u);
+    EXPECT_THAT(r.reason, HasSubstr("no rows"));
+    ASSERT_FALSE(r.notes.empty());
+    EXPECT_THAT(r.notes.front(), HasSubstr("272 pixels x 1 read-outs, a 272 and b 272 values, truth of 10 pixels"));
+  }
+  {
+    tl::CollectParams p;
+    p.raw_topic = "/other";
+    EXPECT_THAT(tl::collect_calibration_data(tmp / "raw_only.mcap", p).reason,
                 HasSubstr("no tinyline_msgs/msg/RawScan topic '/other' (its tinyline_msgs/msg/RawScan topics: /tiny/raw)"));
   }
-  // A session whose truths are further from their scans than allowed: nothing pairs.
+  // A good session asked for the wrong sensor or an impossible pixel step.
   {
     auto s = session(tmp / "rail.mcap", 0.3, 0.5, 0.1);
     ASSERT_TRUE(tt::record_sim_rail_session(s).error.empty());

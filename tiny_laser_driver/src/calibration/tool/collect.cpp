@@ -15,6 +15,7 @@
 #include <tinyline/msg/type_support.hpp>
 
 #include <tiny_laser_driver/calibration_collect.hpp>
+#include <tiny_laser_driver/protocol.hpp>
 
 namespace tinyline::tiny_laser_driver {
 
@@ -180,7 +181,7 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
     const RawScan& r = *scan;
     const ScanTruth& t = *best->msg;
     const std::size_t n = r.pixels, k = r.pulses.size();
-    if (n == 0 || k == 0 || r.a.size() != n * k || r.b.size() != n * k || t.range_m.size() != n ||
+    if (n == 0 || n > kPixels || k == 0 || r.a.size() != n * k || r.b.size() != n * k || t.range_m.size() != n ||
         t.flags.size() != n || t.material.size() != n || t.incidence_rad.size() != n) {
       ++out.bad_scans;
       if (sizes_note++ == 0) {
