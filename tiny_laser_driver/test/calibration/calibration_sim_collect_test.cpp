@@ -122,6 +122,25 @@ TEST(CalibrationCollect, ARecordedSimulatedRailSessionBecomesTheCalibrationCsv) 
   }
   EXPECT_DOUBLE_EQ(by_set.begin()->first, 0.0);
 
+  // --incidence: the ray's angle to the (square-on) target is the pixel's field angle.
+  tl::CollectParams inc;
+  inc.incidence_column = true;
+  inc.pixel_step = 8;
+  const auto ri = tl::collect_calibration_data(s.bag_path, inc);
+  ASSERT_TRUE(ri.ok) << ri.reason;
+  ASSERT_EQ(ri.data.extra_names, std::vector<std::string>{"incidence_deg"});
+  EXPECT_LT(ri.data.size(), d.size() / 6);
+  for (std::size_t i = 0; i < ri.data.size(); ++i) {
+    const auto& ro = ri.data.readouts[i];
+    ASSERT_EQ(ro.extra.size(), 1u);
+    if (ri.data.materials[static_cast<std::size_t>(ri.data.material[i])] != "white_paper") continue;
+    if (ro.pixel == 136) {
+      EXPECT_LT(ro.extra[0], 0.5);
+    } else if (ro.pixel == 8) {
+      EXPECT_NEAR(ro.extra[0], 17.7, 1.0);  // atan(2.56 mm / 8 mm)
+    }
+  }
+
   // The CSV round trip and the tool: collect -> fit -> eval on another session.
   std::string out, err;
   ASSERT_EQ(calib({"collect", s.bag_path, "-o", tmp / "rail.csv"}, out, err), 0) << err;
