@@ -1,4 +1,4 @@
-// tinyline calib fit|diagnose|eval: the calibration tool (issue 6). The logic
+// tinyline calib fit|diagnose|eval|collect: the calibration tool (issue 6). The logic
 // lives in tiny_laser_driver's calibration_tool library; this file finds the
 // plot script and its Python and hands over.
 #include <cstdlib>
@@ -27,7 +27,7 @@ int cmd_calib(const std::vector<std::string>& args) {
   return tiny_laser_driver::run_calib_command(args, std::cout, std::cerr, env);
 }
 
-const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval", &cmd_calib};
+const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &cmd_calib};
 
 }  // namespace
 }  // namespace tinyline::tools

@@ -20,8 +20,11 @@
 //
 // Acceptance margin: the best candidate must (1) lower the cross-validated
 // squared error in a paired comparison over groups with z above the one-sided
-// Bonferroni threshold for the number of candidates tried in the round
-// (family-wise false-acceptance rate `alpha` per round), and (2) remove at
+// Bonferroni threshold for the number of tests made in the round (family-wise
+// false-acceptance rate `alpha` per round; two statistics per candidate, the
+// larger counts: the per-group log ratio of squared errors, which weighs every
+// group the same, and the per-group squared error removed, which sees an
+// effect that lives in a few groups only, e.g. one dark surface), and (2) remove at
 // least `min_relative_gain` of the squared error: smaller gains are within what
 // a term's extrapolation at run time could cost. Finally every accepted term
 // must also lower the held-out error, else it is dropped: on data without an

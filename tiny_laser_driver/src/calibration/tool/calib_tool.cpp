@@ -1,4 +1,4 @@
-// `tinyline calib`: fit, diagnose, eval.
+// `tinyline calib`: fit, diagnose, eval, collect.
 #include <spawn.h>
 #include <sys/wait.h>
 
@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include <tiny_laser_driver/calibration_collect.hpp>
 #include <tiny_laser_driver/calibration_discovery.hpp>
 #include <tiny_laser_driver/calibration_tool.hpp>
 
@@ -152,6 +153,8 @@ constexpr const char* kUsage =
     "      the residual analysis of a calibration on data, alone\n"
     "  eval DATA.csv --calib CALIB.yaml [--select driver|all]\n"
     "      prints {\"n\", \"rmse_m\", \"bias_m\", \"p95_abs_m\"} over the valid read-outs\n"
+    "  collect BAG -o DATA.csv [options]\n"
+    "      a recorded bag (raw scans + the simulator's scan_truth) -> the calibration CSV\n"
     "\n"
     "fit options:\n"
     "  --degree N                 polynomial degree of Eq. 3.18 (default 6)\n"
@@ -166,7 +169,14 @@ constexpr const char* kUsage =
     "  --group-by auto|distance|frame   cross-validation groups (default auto)\n"
     "  --folds K                  (default 5)   --seed N   (default 1)   --max-terms N (default 4)\n"
     "  --exclude a,b,...          covariates never tried\n"
-    "  --json                     print the summary as JSON\n";
+    "  --json                     print the summary as JSON\n"
+    "collect options:\n"
+    "  --raw-topic T / --truth-topic T   RawScan / ScanTruth topics (default: the bag's only one)\n"
+    "  --sensor NAME              the sensor whose sets to take (default: the raw scans' one frame)\n"
+    "  --max-gap S                largest stamp gap of a scan and its truth (default 0.01 s)\n"
+    "  --pixel-step N             every N-th effective pixel (default 1)\n"
+    "  --keep-mixed               keep pixels whose footprint spans several surfaces\n"
+    "  --incidence                add an incidence_deg column (angle of the ray to the surface normal)\n";
 
 std::vector<std::string> split_list(const std::string& s) {
   std::vector<std::string> out;
@@ -419,7 +429,7 @@ std::string report_markdown(const ReportContext& c, const std::string& dir, cons
   }
   if (!r.rounds.empty()) {
     md += fmt::format("## Candidates of the first round\n\nAccepted when the gain exceeds {:.0f}% and z exceeds {:.2f} "
-                      "(one-sided, alpha {} shared over the round's candidates).\n\n",
+                      "(one-sided, alpha {} shared over the round's tests: two paired statistics per candidate).\n\n",
                       100.0 * p.min_relative_gain, r.z_threshold, p.alpha);
     md += "| covariate | form | CV RMSE | gain | z | passes |\n|---|---|---|---|---|---|\n";
     for (const auto& s : r.rounds.front()) {
@@ -624,6 +634,44 @@ int cmd_eval(const std::vector<std::string>& argv, std::ostream& out, std::ostre
   return 0;
 }
 
+int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {
+  const Options o(argv, {"-o", "--output", "--raw-topic", "--truth-topic", "--sensor", "--max-gap", "--pixel-step"},
+                  {"--keep-mixed", "--incidence"});
+  if (o.positional().size() != 1) throw UsageError("collect needs exactly one BAG");
+  const auto output = o.value("-o") ? o.value("-o") : o.value("--output");
+  if (!output) throw UsageError("collect needs -o DATA.csv");
+#ifdef TINYLINE_CALIB_HAVE_BAG
+  CollectParams p;
+  p.raw_topic = o.value("--raw-topic").value_or("");
+  p.truth_topic = o.value("--truth-topic").value_or("");
+  p.sensor = o.value("--sensor").value_or("");
+  p.max_pair_gap_s = o.number("--max-gap", p.max_pair_gap_s);
+  if (p.max_pair_gap_s < 0.0) throw UsageError("--max-gap must not be negative");
+  p.pixel_step = o.integer("--pixel-step", p.pixel_step, 1, 256);
+  p.keep_mixed = o.flag("--keep-mixed");
+  p.incidence_column = o.flag("--incidence");
+  const auto r = collect_calibration_data(o.positional()[0], p);
+  for (const auto& n : r.notes) err << "note: " << n << "\n";
+  if (!r.ok) {
+    err << fmt::format("tinyline calib collect: error: {}\n", r.reason);
+    return 1;
+  }
+  write_calibration_csv(r.data, *output);
+  std::size_t materials = r.data.materials.size();
+  out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.positional()[0], r.raw_scans,
+                     r.raw_topic, r.truths, r.truth_topic, r.paired);
+  out << fmt::format("pixels left out per set: {} dark, {} without a range, {} unlit, {} mixed (totals over sets)\n",
+                     r.dark_pixels, r.no_range, r.unlit, r.mixed);
+  out << fmt::format("wrote {} rows ({} material{}) to {}\n", r.data.size(), materials, materials == 1 ? "" : "s",
+                     *output);
+  return 0;
+#else
+  (void)out;
+  err << "tinyline calib collect: error: this build has no bag reader (bus/bag)\n";
+  return 1;
+#endif
+}
+
 }  // namespace
 
 int run_calib_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
@@ -642,6 +690,7 @@ int run_calib_command(const std::vector<std::string>& args, std::ostream& out, s
     if (sub == "fit") return cmd_fit(rest, out, err, env);
     if (sub == "diagnose") return cmd_diagnose(rest, out, err, env);
     if (sub == "eval") return cmd_eval(rest, out, err);
+    if (sub == "collect") return cmd_collect(rest, out, err);
     err << fmt::format("tinyline calib: unknown command '{}'\n\n{}", sub, kUsage);
     return 2;
   } catch (const UsageError& e) {

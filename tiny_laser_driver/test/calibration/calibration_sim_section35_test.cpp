@@ -1,0 +1,133 @@
+// Thesis section 3.5 on the simulator's data: regressions of distance on the
+// charge ratio of the two central pixels (135, 136) of the thesis-fidelity
+// 8 mm sensor (sim/config/sensors/tiny_tof_8mm.yaml) on the simulated rail,
+// white paper, 5-200 cm, warm: fixed discharge (40 %, 20 %: one read-out per
+// set, its pulse count chosen per distance) and multi-discharge (the five raw
+// read-outs 20-700 pulses, K_i = 1). Rsen and Vle measured apart first, as the
+// thesis did. The table printed is the one in docs/calibration.md beside the
+// thesis's figures (measured.yaml calibration_fits_cm).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+
+#include <sim/rail.hpp>
+#include <sim/sensor_params.hpp>
+#include <tiny_laser_driver/calibration_fit.hpp>
+
+#include "sim_rail_session.hpp"
+
+namespace tl = tinyline::tiny_laser_driver;
+namespace sim = tinyline::sim;
+namespace tt = tinyline::tiny_laser_driver::testing;
+
+namespace {
+
+struct Figures {
+  const char* name;
+  double var_cm2 = 0.0, sd_cm = 0.0;  // in-sample residual, as the thesis reports
+  double heldout_sd_cm = 0.0;         // 5 folds over the interior target distances
+  std::size_t n = 0;
+  double thesis_var = 0.0, thesis_sd = 0.0;
+};
+
+sim::SensorParams sensor() {
+  return sim::load_sensor_params(std::string(TINYLINE_SOURCE_DIR) + "/sim/config/sensors/tiny_tof_8mm.yaml");
+}
+
+tl::CalibrationDataset rail(std::optional<double> discharge, std::uint64_t first_index) {
+  sim::RailParams rp;
+  rp.target_width_m = 4.0;
+  const sim::CalibrationRail r(sensor(), rp);
+  sim::RailSweep sweep;
+  for (int k = 1; k <= 40; ++k) sweep.distances_m.push_back(0.05 * k);
+  sweep.sets_per_distance = 10;
+  sweep.discharge_fraction = discharge;
+  sweep.first_index = first_index;
+  tl::CalibrationDataset data;
+  data.source = "simulated rail";
+  for (const auto& row : sim::run_sweep(r, sweep)) {
+    tl::Readout ro;
+    ro.a = row.a;
+    ro.b = row.b;
+    ro.pulses = row.pulses;
+    ro.temperature_c = row.temperature_c;
+    ro.pixel = row.pixel;
+    ro.t_s = row.t_s;
+    data.add(std::move(ro), row.distance_m);
+  }
+  return data;
+}
+
+Figures fit(const char* name, const tl::CalibrationDataset& data, int degree, double thesis_var, double thesis_sd) {
+  static const tt::RailConstants c = tt::measure_rail_constants(sensor());
+  tl::DeclaredFitParams p;
+  p.degree = degree;
+  p.sensitivity_ratio_mode = tl::SensitivityRatioMode::kFixed;
+  p.sensitivity_ratio = c.sensitivity_ratio;
+  p.fit_leakage = false;
+  p.leakage_per_pulse = c.leakage_per_pulse;
+  p.fit_temperature = false;  // warm: the thesis's 3.5 data hold no warm-up
+  p.selection = tl::ReadoutSelection::kAll;  // every valid read-out of the data set (Eq. 3.20, K = 1)
+  Figures f;
+  f.name = name;
+  f.thesis_var = thesis_var;
+  f.thesis_sd = thesis_sd;
+  const auto r = tl::fit_declared_model(data, p);
+  EXPECT_TRUE(r.ok) << name << ": " << r.reason;
+  if (!r.ok) return f;
+  const auto s_in = tl::evaluate_model(r.model, data, {}, tl::ReadoutSelection::kAll);
+  f.n = s_in.n;
+  f.sd_cm = s_in.sd_m * 100.0;
+  f.var_cm2 = f.sd_cm * f.sd_cm;
+  const auto groups = tl::target_distance_groups(data);
+  const int n_groups = *std::max_element(groups.begin(), groups.end()) + 1;
+  std::vector<double> residuals;
+  for (int fold = 0; fold < 5; ++fold) {
+    std::vector<std::size_t> train, test;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      const int g = groups[i];
+      const bool interior = g > 0 && g < n_groups - 1;
+      (interior && g % 5 == fold ? test : train).push_back(i);
+    }
+    const auto rf = tl::fit_calibration_model(data, train, p, {});
+    EXPECT_TRUE(rf.ok) << rf.reason;
+    const auto res = tl::model_residuals(rf.model, data, tl::select_readouts(data, test, p.validity, p.selection));
+    for (double v : res) {
+      if (std::isfinite(v)) residuals.push_back(v);
+    }
+  }
+  f.heldout_sd_cm = tl::error_stats(residuals).sd_m * 100.0;
+  return f;
+}
+
+}  // namespace
+
+TEST(CalibrationSimSection35, FitDegreeAndDischargeOnTheSimulatedSensor) {
+  const auto d40 = rail(0.4, 1000000);
+  const auto d20 = rail(0.2, 2000000);
+  const auto multi = rail(std::nullopt, 3000000);
+  const Figures lin = fit("linear (Eq. 3.16), 40 %", d40, 1, 29.3814, std::sqrt(29.3814));
+  const Figures p3 = fit("degree 3, 40 %", d40, 3, 1.6863, 1.2986);
+  const Figures p6 = fit("degree 6, 40 %", d40, 6, 0.7424, 0.8616);
+  const Figures p6_20 = fit("degree 6, 20 %", d20, 6, 1.442, 1.20);
+  const Figures p6_multi = fit("degree 6, multi-discharge", multi, 6, 3.4618, 1.8606);
+
+  std::printf("\n| fit | var [cm^2] | SD [cm] | held-out SD [cm] | read-outs | thesis var | thesis SD |\n");
+  std::printf("|---|---|---|---|---|---|---|\n");
+  for (const auto* f : {&lin, &p3, &p6, &p6_20, &p6_multi}) {
+    std::printf("| %s | %.3f | %.3f | %.3f | %zu | %.4f | %.4f |\n", f->name, f->var_cm2, f->sd_cm, f->heldout_sd_cm,
+                f->n, f->thesis_var, f->thesis_sd);
+  }
+  // The simulated read-out noise (about 4.7 cm at 40 % discharge, five times the
+  // thesis's 0.86 cm) dominates every polynomial fit, so only the orderings that
+  // survive it are held: a line is far off, the degree-6 fit is no worse than
+  // degree 3, and half the charge (20 %) is noisier than 40 %. Multi-discharge vs
+  // fixed 40 % is printed, not held (a few percent apart here).
+  EXPECT_GT(lin.sd_cm, 1.3 * p6.sd_cm);
+  EXPECT_GT(lin.heldout_sd_cm, 1.3 * p6.heldout_sd_cm);
+  EXPECT_GE(p3.sd_cm, p6.sd_cm);
+  EXPECT_GT(p6_20.sd_cm, p6.sd_cm);
+  EXPECT_GT(p6_20.heldout_sd_cm, p6.heldout_sd_cm);
+}
