@@ -17,7 +17,7 @@ void check(const bus::Node& node, const Validation& v) {
 
 }  // namespace
 
-std::string to_core(const tinyline_msgs::msg::LineScan& m, LineScan& out) {
+std::string to_core(const tinyline_msgs::msg::LineScan& m, LineScan& out, double min_reflectance) {
   const std::size_t n = m.distance_m.size();
   if (m.angles.size() != n || m.status.size() != n || (!m.reflectance.empty() && m.reflectance.size() != n)) {
     return fmt::format("LineScan arrays disagree: {} angles, {} distances, {} statuses, {} reflectances",
@@ -32,8 +32,19 @@ std::string to_core(const tinyline_msgs::msg::LineScan& m, LineScan& out) {
                        m.distance_m[i] > 0.0f;
     out.range_m[i] = valid ? static_cast<double>(m.distance_m[i]) : kNaN;
   }
-  for (std::size_t i = 0; i < m.reflectance.size(); ++i) out.reflectance[i] = m.reflectance[i];
+  for (std::size_t i = 0; i < m.reflectance.size(); ++i) {
+    out.reflectance[i] = m.reflectance[i];
+    // NaN reflectance fails the comparison too: no light figure, no return.
+    if (min_reflectance > 0.0 && !(out.reflectance[i] >= min_reflectance)) out.range_m[i] = kNaN;
+  }
   return {};
+}
+
+double declare_min_reflectance(bus::Node& n) {
+  return n.declare_parameter("min_reflectance", 0.0,
+                             "pixels whose reflectance figure (distance_cm^2 (a + b) / (pulses / 10)) is below this "
+                             "are no return (0: off)",
+                             bus::ParamConstraints::range(0.0, 1e9));
 }
 
 namespace {
