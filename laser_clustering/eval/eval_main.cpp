@@ -21,6 +21,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "harness.hpp"
 #include "sim_scanner.hpp"
@@ -40,13 +41,15 @@ struct Args {
   std::set<std::string> cases{"random_offset", "recognition_error", "stick", "wrench"};
   int pictures = 4;        ///< scans of the first K trials of each case
   int failure_pictures = 4;  ///< and of the first K truss trials that did not align
+  std::vector<int> raw_pulses = {3, 8, 25, 80, 250};  ///< raw-mode schedule of both sensors [pulses]
+  std::string write_calibration;  ///< write the gripper sensor's calibration here and stop
   bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
 };
 
 [[noreturn]] void usage(const std::string& why) {
   std::cerr << "laser_clustering_eval: " << why
             << "\nusage: laser_clustering_eval [--trials N] [--seed S] [--out DIR] [--cases a,b,...] [--pictures K]\n"
-               "                             [--failure-pictures K] [--ablation]\n"
+               "                             [--failure-pictures K] [--ablation] [--write-calibration FILE]\n"
                "cases: random_offset, recognition_error, stick, wrench\n";
   std::exit(2);
 }
@@ -75,6 +78,12 @@ Args parse(int argc, char** argv) {
       a.pictures = static_cast<int>(integer(value(), 0));
     } else if (k == "--failure-pictures") {
       a.failure_pictures = static_cast<int>(integer(value(), 0));
+    } else if (k == "--raw-pulses") {
+      a.raw_pulses.clear();
+      std::stringstream ss(value());
+      for (std::string c; std::getline(ss, c, ',');) a.raw_pulses.push_back(static_cast<int>(integer(c, 1)));
+    } else if (k == "--write-calibration") {
+      a.write_calibration = value();
     } else if (k == "--ablation") {
       a.ablation = true;
     } else if (k == "--cases") {
@@ -124,10 +133,19 @@ int main(int argc, char** argv) {
   gripper.sensor_config = "tiny_tof_3p6mm.yaml";
   tools.sensor_config = "tiny_tof_8mm.yaml";
   for (auto* o : {&gripper, &tools}) {
-    o->raw_pulses = {3, 8, 25, 80, 250};
+    o->raw_pulses = args.raw_pulses;
     o->calibration_max_m = 0.6;
     o->calibration_step_m = 0.01;
     o->calibration_sets = 3;
+  }
+  if (!args.write_calibration.empty()) {
+    const auto c = ev::write_sim_calibration(gripper, args.write_calibration);
+    std::cout << fmt::format("wrote {}: {} sensor, raw pulses {}, rail 5-{:.0f} cm every {:.0f} mm, in-sample RMSE {:.1f} mm; "
+                             "white paper's reflectance figure {:.1f} (2 %: {:.1f})\n",
+                             args.write_calibration, gripper.sensor_config, fmt::join(gripper.raw_pulses, "/"),
+                             gripper.calibration_max_m * 100, gripper.calibration_step_m * 1000, c.rmse_m * 1e3,
+                             c.white_reflectance, 0.02 * c.white_reflectance);
+    return 0;
   }
   const bool trusses = args.cases.count("random_offset") || args.cases.count("recognition_error");
   const bool metal = args.cases.count("stick") || args.cases.count("wrench");

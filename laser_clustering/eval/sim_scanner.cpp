@@ -168,4 +168,12 @@ class SimScanner : public Scanner {
 
 std::unique_ptr<Scanner> make_sim_scanner(const SimScannerOptions& options) { return std::make_unique<SimScanner>(options); }
 
+SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, const std::string& path) {
+  const sim::SensorParams params = load(options);
+  const Calibration c = calibrate(options, params);
+  c.model.save(path);
+  const tld::ScanProcessor processor(c.model, optics(params));
+  return {c.rmse_m, white_reflectance(options, params, processor)};
+}
+
 }  // namespace tinyline::laser_clustering::eval

@@ -45,4 +45,15 @@ struct SimScannerOptions {
 /// std::runtime_error when the sensor config cannot be read or the fit fails.
 [[nodiscard]] std::unique_ptr<Scanner> make_sim_scanner(const SimScannerOptions& options = {});
 
+struct SimCalibrationSummary {
+  double rmse_m = 0.0;             ///< in-sample RMSE of the fit on the rail [m]
+  double white_reflectance = 0.0;  ///< white paper's reflectance figure through the driver's processing
+};
+
+/// Fits the calibration the scanner uses and writes it where the driver's
+/// `calibration` parameter reads it (CalibrationModel::save), so that a
+/// launch file on the simulator processes scans exactly as the evaluation
+/// does. Throws std::runtime_error as make_sim_scanner.
+SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, const std::string& path);
+
 }  // namespace tinyline::laser_clustering::eval

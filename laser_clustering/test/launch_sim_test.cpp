@@ -12,6 +12,7 @@
 #include <tinyline/bus/executor.hpp>
 #include <tinyline/bus/registry.hpp>
 #include <tinyline/launch/launch.hpp>
+#include <tinyline/msg/geometry_msgs/point_stamped.hpp>
 #include <tinyline/msg/sensor_msgs/joint_state.hpp>
 #include <tinyline/msg/tinyline_msgs/alignment_result.hpp>
 #include <tinyline/msg/tinyline_msgs/pedicel_detection.hpp>
@@ -98,4 +99,71 @@ TEST(LaserClusteringLaunch, WrenchAlignFindsTheSquarePitchAndTurnsTheGripperToIt
     ASSERT_FALSE(states.empty());
     EXPECT_DOUBLE_EQ(states.back(), a.best_pitch_rad) << "the arm is at the aligned pitch";
   }
+}
+
+namespace {
+
+struct PedicelRun {
+  std::vector<PedicelDetection> detections;
+};
+
+PedicelRun run_pedicel_guide(std::map<std::string, std::string> args, double seconds) {
+  Launched l("pedicel_guide.launch.yaml", std::move(args));
+  PedicelRun r;
+  auto sub = l.io->create_subscription<PedicelDetection>("/gripper/pedicel", bus::QoS::keep_last(200),
+                                                         [&](const PedicelDetection& m) { r.detections.push_back(m); });
+  l.run_for(seconds);
+  return r;
+}
+
+}  // namespace
+
+// 4.4.2 end to end: the scene's target pedicel (6 mm, 2 cm beside the blade
+// throat at 15 cm) with a neighbour 6.5 cm off and a tomato edge in view;
+// every scan must say "move 2 cm", with the pedicel's width.
+TEST(LaserClusteringLaunch, PedicelGuideTellsTheGripperToMoveTwoCentimetres) {
+  const PedicelRun r = run_pedicel_guide({}, 0.5);
+  ASSERT_GE(r.detections.size(), 30u);
+  int move = 0;
+  for (const auto& d : r.detections) {
+    if (d.outcome != PedicelDetection::MOVE) continue;
+    ++move;
+    EXPECT_NEAR(d.lateral_offset_m, 0.02, 0.004) << "the target pedicel is 2 cm beside the throat";
+    EXPECT_NEAR(d.position.z, 0.15, 0.02) << "at the throat's depth (the calibration's spread: about 1 cm)";
+    EXPECT_NEAR(d.width_m, 0.006, 0.004);
+    EXPECT_GT(d.confidence, 0.3);
+  }
+  EXPECT_GE(move, static_cast<int>(r.detections.size()) * 95 / 100) << "a move in at least 95 % of the scans";
+}
+
+// The same scene with the throat on the pedicel: cut here.
+TEST(LaserClusteringLaunch, PedicelGuideSaysCutHereWhenThePedicelIsBetweenTheBlades) {
+  const PedicelRun r = run_pedicel_guide({{"scissor_centre_x_m", "0.02"}}, 0.5);
+  ASSERT_GE(r.detections.size(), 30u);
+  int cut = 0;
+  for (const auto& d : r.detections) cut += d.outcome == PedicelDetection::CUT_HERE;
+  EXPECT_GE(cut, static_cast<int>(r.detections.size()) * 95 / 100);
+}
+
+// With the vision's expectation (expected_pedicel) on the neighbour, the
+// finder centres the neighbour instead: the expectation replaces the throat.
+TEST(LaserClusteringLaunch, PedicelGuideFollowsTheVisionsExpectedPedicel) {
+  Launched l("pedicel_guide.launch.yaml", {});
+  std::vector<PedicelDetection> detections;
+  auto sub = l.io->create_subscription<PedicelDetection>("/gripper/pedicel", bus::QoS::keep_last(200),
+                                                         [&](const PedicelDetection& m) { detections.push_back(m); });
+  auto pub = l.io->create_publisher<tinyline::geometry_msgs::msg::PointStamped>("/gripper/expected_pedicel");
+  auto p = std::make_unique<tinyline::geometry_msgs::msg::PointStamped>();
+  p->header.stamp = l.ctx->clock().now().to_msg();
+  p->header.frame_id = "gripper_laser";
+  p->point.x = -0.04;  // the neighbour is at x = -0.045, z = 0.165
+  p->point.z = 0.16;
+  pub->publish(std::move(p));
+  l.run_for(0.5);
+  ASSERT_GE(detections.size(), 30u);
+  int on_neighbour = 0;
+  for (const auto& d : detections) {
+    on_neighbour += d.outcome == PedicelDetection::MOVE && std::abs(d.lateral_offset_m - -0.045) < 0.004;
+  }
+  EXPECT_GE(on_neighbour, static_cast<int>(detections.size()) * 95 / 100);
 }
