@@ -2,7 +2,8 @@
 //
 //   laser_clustering_eval [--trials 200] [--seed 1] [--out out/laser_clustering_eval]
 //                         [--cases random_offset,recognition_error,stick,wrench] [--pictures 4]
-//                         [--failure-pictures 4] [--ablation]
+//                         [--failure-pictures 4] [--ablation] [--raw-pulses 3,8,25,80,250]
+//   laser_clustering_eval --write-calibration FILE [--raw-pulses ...]
 //
 // Prints the Markdown tables of the doc; writes summary.json, one CSV per
 // case with every trial, and the scans of the first --pictures trials of
@@ -49,7 +50,8 @@ struct Args {
 [[noreturn]] void usage(const std::string& why) {
   std::cerr << "laser_clustering_eval: " << why
             << "\nusage: laser_clustering_eval [--trials N] [--seed S] [--out DIR] [--cases a,b,...] [--pictures K]\n"
-               "                             [--failure-pictures K] [--ablation] [--write-calibration FILE]\n"
+               "                             [--failure-pictures K] [--ablation] [--raw-pulses P1,P2,...]\n"
+               "                             [--write-calibration FILE]\n"
                "cases: random_offset, recognition_error, stick, wrench\n";
   std::exit(2);
 }
