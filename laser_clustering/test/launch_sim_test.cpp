@@ -167,3 +167,24 @@ TEST(LaserClusteringLaunch, PedicelGuideFollowsTheVisionsExpectedPedicel) {
   }
   EXPECT_GE(on_neighbour, static_cast<int>(detections.size()) * 95 / 100);
 }
+
+TEST(LaserClusteringLaunch, SimGripperPitchNeedsItsSceneAndNamesWhatIsWrong) {
+  auto ctx = Launched::make_ctx();
+  bus::DeterministicExecutor ex(ctx->clock());
+  bus::NodeRegistry registry;
+  tinyline::laser_clustering::register_nodes(registry);
+  bus::NodeOptions o;
+  o.name = "arm";
+  o.context = ctx;
+  try {
+    ex.add_node(registry.create("laser_clustering", "sim_gripper_pitch", o));
+    ex.spin_until_idle();
+    FAIL() << "expected the start to fail";
+  } catch (const std::exception& e) {  // the executor wraps it: "node '/arm' failed to start: ..."
+    EXPECT_NE(std::string(e.what()).find("'scene' is required"), std::string::npos) << e.what();
+  }
+  bus::NodeOptions limits = o;
+  limits.name = "arm2";
+  limits.param("min_pitch_deg", 10.0).param("max_pitch_deg", -10.0);
+  EXPECT_THROW((void)registry.create("laser_clustering", "sim_gripper_pitch", limits), bus::ParamError);
+}
