@@ -128,6 +128,8 @@ class SimScanner : public Scanner {
     s.scan.reflectance.resize(n);
     s.truth_object.resize(n);
     s.truth_mixed.resize(n);
+    saturated_.assign(n, 0);
+    intensity_.assign(n, 0.0);
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const double dark = options_.min_reflectance_of_white * white_reflectance_;
     for (std::size_t k = 0; k < n; ++k) {
@@ -140,7 +142,12 @@ class SimScanner : public Scanner {
       const bool keep = valid && d >= options_.min_range_m && d <= options_.max_range_m && refl >= dark;
       s.scan.range_m[k] = keep ? d : nan;
       s.scan.reflectance[k] = keep ? refl : nan;
+      saturated_[k] = processed_.status[p] == tld::PixelStatus::kSaturated;
+      intensity_[k] = processed_.intensity[p];
     }
+    // Saturated pixels: their fewest-pulse light as a reflectance lower bound,
+    // as the nodes do (line_scan.hpp).
+    (void)saturated_reflectance_bound(s.scan, saturated_, intensity_);
     return s;
   }
 
@@ -162,6 +169,8 @@ class SimScanner : public Scanner {
   tld::ScanProcessor processor_;
   tld::ProcessedScan processed_;
   double white_reflectance_ = 0.0;
+  std::vector<std::uint8_t> saturated_;
+  std::vector<double> intensity_;
 };
 
 }  // namespace
