@@ -2,7 +2,8 @@
 //
 //   laser_clustering_eval [--trials 200] [--seed 1] [--out out/laser_clustering_eval]
 //                         [--cases random_offset,recognition_error,stick,wrench] [--pictures 4]
-//                         [--failure-pictures 4] [--ablation]
+//                         [--failure-pictures 4] [--ablation] [--raw-pulses 3,8,25,80,250]
+//   laser_clustering_eval --write-calibration FILE [--raw-pulses ...]
 //
 // Prints the Markdown tables of the doc; writes summary.json, one CSV per
 // case with every trial, and the scans of the first --pictures trials of
@@ -21,6 +22,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "harness.hpp"
 #include "sim_scanner.hpp"
@@ -40,13 +42,16 @@ struct Args {
   std::set<std::string> cases{"random_offset", "recognition_error", "stick", "wrench"};
   int pictures = 4;        ///< scans of the first K trials of each case
   int failure_pictures = 4;  ///< and of the first K truss trials that did not align
+  std::vector<int> raw_pulses = {3, 8, 25, 80, 250};  ///< raw-mode schedule of both sensors [pulses]
+  std::string write_calibration;  ///< write the gripper sensor's calibration here and stop
   bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
 };
 
 [[noreturn]] void usage(const std::string& why) {
   std::cerr << "laser_clustering_eval: " << why
             << "\nusage: laser_clustering_eval [--trials N] [--seed S] [--out DIR] [--cases a,b,...] [--pictures K]\n"
-               "                             [--failure-pictures K] [--ablation]\n"
+               "                             [--failure-pictures K] [--ablation] [--raw-pulses P1,P2,...]\n"
+               "                             [--write-calibration FILE]\n"
                "cases: random_offset, recognition_error, stick, wrench\n";
   std::exit(2);
 }
@@ -75,6 +80,12 @@ Args parse(int argc, char** argv) {
       a.pictures = static_cast<int>(integer(value(), 0));
     } else if (k == "--failure-pictures") {
       a.failure_pictures = static_cast<int>(integer(value(), 0));
+    } else if (k == "--raw-pulses") {
+      a.raw_pulses.clear();
+      std::stringstream ss(value());
+      for (std::string c; std::getline(ss, c, ',');) a.raw_pulses.push_back(static_cast<int>(integer(c, 1)));
+    } else if (k == "--write-calibration") {
+      a.write_calibration = value();
     } else if (k == "--ablation") {
       a.ablation = true;
     } else if (k == "--cases") {
@@ -124,10 +135,19 @@ int main(int argc, char** argv) {
   gripper.sensor_config = "tiny_tof_3p6mm.yaml";
   tools.sensor_config = "tiny_tof_8mm.yaml";
   for (auto* o : {&gripper, &tools}) {
-    o->raw_pulses = {3, 8, 25, 80, 250};
+    o->raw_pulses = args.raw_pulses;
     o->calibration_max_m = 0.6;
     o->calibration_step_m = 0.01;
     o->calibration_sets = 3;
+  }
+  if (!args.write_calibration.empty()) {
+    const auto c = ev::write_sim_calibration(gripper, args.write_calibration);
+    std::cout << fmt::format("wrote {}: {} sensor, raw pulses {}, rail 5-{:.0f} cm every {:.0f} mm, in-sample RMSE {:.1f} mm; "
+                             "white paper's reflectance figure {:.1f} (2 %: {:.1f})\n",
+                             args.write_calibration, gripper.sensor_config, fmt::join(gripper.raw_pulses, "/"),
+                             gripper.calibration_max_m * 100, gripper.calibration_step_m * 1000, c.rmse_m * 1e3,
+                             c.white_reflectance, 0.02 * c.white_reflectance);
+    return 0;
   }
   const bool trusses = args.cases.count("random_offset") || args.cases.count("recognition_error");
   const bool metal = args.cases.count("stick") || args.cases.count("wrench");
@@ -146,14 +166,15 @@ int main(int argc, char** argv) {
                                 std::pair{std::string("recognition_error"), ev::TrussCase::kRecognitionError}}) {
     if (!args.cases.count(name)) continue;
     std::ofstream csv(args.out / ("trials_" + name + ".csv"));
-    csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible\n";
+    csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible,neighbour_nearer\n";
     int pictures = 0, failures = 0;
     const auto r = ev::run_truss_case(
         c, *truss_scanner, args.trials, args.seed, {},
         [&](const ev::TrussTrial& t, const ev::TrussScene& scene, const ev::SimulatedScan& s, const lc::TwoStageResult& o,
             const lc::PedicelDetection& d) {
-          csv << fmt::format("{},{},{},{},{:.5f},{:.3f},{}\n", t.seed, ev::to_string(t.verdict), lc::to_string(t.outcome),
-                             t.chosen_kind, t.lateral_error_m, t.confidence, t.target_visible ? 1 : 0);
+          csv << fmt::format("{},{},{},{},{:.5f},{:.3f},{},{}\n", t.seed, ev::to_string(t.verdict), lc::to_string(t.outcome),
+                             t.chosen_kind, t.lateral_error_m, t.confidence, t.target_visible ? 1 : 0,
+                             t.neighbour_nearer ? 1 : 0);
           const bool failure = t.verdict != ev::Verdict::kAligned && failures < args.failure_pictures;
           if (pictures >= args.pictures && !failure) return;
           ++(failure ? failures : pictures);
@@ -165,9 +186,14 @@ int main(int argc, char** argv) {
         });
     std::cout << "## " << name << "\n\n| verdict | rate [95 % CI] |\n|---|---|\n"
               << "| aligned | " << rate(r.aligned) << " |\n| wrong | " << rate(r.wrong) << " |\n| out of view | "
-              << rate(r.out_of_view) << " |\n| missed (in view, no move) | " << rate(r.missed) << " |\n\n";
-    json << fmt::format(",\n  \"{}\": {{\"aligned\": {}, \"wrong\": {}, \"out_of_view\": {}, \"missed\": {}}}", name,
-                        rate_json(r.aligned), rate_json(r.wrong), rate_json(r.out_of_view), rate_json(r.missed));
+              << rate(r.out_of_view) << " |\n| missed (in view, no move) | " << rate(r.missed) << " |\n"
+              << "| a neighbour pedicel nearer the expected point than the target (ambiguous) | " << rate(r.ambiguous)
+              << " |\n| aligned among the unambiguous trials | " << rate(r.aligned_unambiguous) << " |\n\n";
+    json << fmt::format(
+        ",\n  \"{}\": {{\"aligned\": {}, \"wrong\": {}, \"out_of_view\": {}, \"missed\": {}, \"ambiguous\": {}, "
+        "\"aligned_unambiguous\": {}}}",
+        name, rate_json(r.aligned), rate_json(r.wrong), rate_json(r.out_of_view), rate_json(r.missed), rate_json(r.ambiguous),
+        rate_json(r.aligned_unambiguous));
   }
 
   if (args.ablation && truss_scanner) {
@@ -211,7 +237,16 @@ int main(int argc, char** argv) {
                           i ? "," : "", variants[i].name, rate_json(a.aligned), rate_json(b.aligned));
     }
     json << "\n  ]";
-    std::cout << "\n";
+    // The recognition-error case as the thesis's robot met it: the nearest
+    // pedicel to the throat, without the tomato-based expectation.
+    ev::TrussEvalOptions nearest;
+    nearest.use_expectation = false;
+    const auto n = ev::run_truss_case(ev::TrussCase::kRecognitionError, *truss_scanner, args.trials, args.seed, nearest);
+    std::cout << "\nrecognition error without the tomato-based expectation (nearest pedicel to the throat): aligned "
+              << rate(n.aligned) << ", wrong " << rate(n.wrong) << ", missed or out of view "
+              << rate(ev::wilson(n.missed.k + n.out_of_view.k, n.missed.n)) << "\n\n";
+    json << fmt::format(",\n  \"recognition_error_nearest\": {{\"aligned\": {}, \"wrong\": {}}}", rate_json(n.aligned),
+                        rate_json(n.wrong));
   }
 
   if (args.cases.count("stick")) {

@@ -5,6 +5,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <variant>
 
 namespace tinyline::laser_clustering::eval {
 
@@ -86,13 +87,16 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
   finder.scissors.centre_z_m = o.scene.throat_z_m;
   LineScanClusterer clusterer(o.clustering);
   int counts[4] = {0, 0, 0, 0};
+  int ambiguous = 0, unambiguous = 0, aligned_unambiguous = 0;
   for (int t = 0; t < trials; ++t) {
     const std::uint64_t seed = seed0 + static_cast<std::uint64_t>(t);
     const TrussScene scene = make_truss_scene(c, seed, o.scene);
     const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor, seed);
     const TwoStageResult objects = clusterer.run(s.scan);
     std::optional<PedicelExpectation> expectation;
-    if (scene.truth.use_expectation) expectation = PedicelExpectation{scene.truth.expected_xz_m, scene.truth.expected_sd_m};
+    if (scene.truth.use_expectation && o.use_expectation) {
+      expectation = PedicelExpectation{scene.truth.expected_xz_m, scene.truth.expected_sd_m};
+    }
     const PedicelDetection d = find_pedicel(s.scan, objects, finder, expectation);
 
     TrussTrial trial;
@@ -117,7 +121,28 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       trial.chosen_kind = "none";
       trial.verdict = trial.target_visible ? Verdict::kMissed : Verdict::kOutOfView;
     }
+    // Geometric ambiguity: where each pedicel's axis crosses the laser plane.
+    {
+      const Eigen::Isometry3d T_sensor_world = scene.T_world_sensor.inverse();
+      const Eigen::Vector2d expected = expectation ? scene.truth.expected_xz_m
+                                                   : Eigen::Vector2d(finder.scissors.centre_x_m, finder.scissors.centre_z_m);
+      const Eigen::Vector3d& tgt = scene.truth.target_in_sensor;
+      const double target_d = (Eigen::Vector2d(tgt.x(), tgt.z()) - expected).norm();
+      for (const auto id : scene.truth.pedicels) {
+        if (id == scene.truth.target_pedicel) continue;
+        const auto& rod = std::get<sim::RodShape>(scene.world.object(id).shape);
+        const Eigen::Vector3d p0 = T_sensor_world * rod.p0, p1 = T_sensor_world * rod.p1;
+        if ((p0.y() < 0.0) == (p1.y() < 0.0)) continue;  // does not reach the plane
+        const Eigen::Vector3d c = p0 + (-p0.y() / (p1.y() - p0.y())) * (p1 - p0);
+        if ((Eigen::Vector2d(c.x(), c.z()) - expected).norm() < target_d) trial.neighbour_nearer = true;
+      }
+    }
     ++counts[static_cast<int>(trial.verdict)];
+    ambiguous += trial.neighbour_nearer;
+    if (!trial.neighbour_nearer) {
+      ++unambiguous;
+      aligned_unambiguous += trial.verdict == Verdict::kAligned;
+    }
     if (on_trial) on_trial(trial, scene, s, objects, d);
     out.trials.push_back(std::move(trial));
   }
@@ -125,6 +150,8 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
   out.wrong = wilson(counts[1], trials);
   out.out_of_view = wilson(counts[2], trials);
   out.missed = wilson(counts[3], trials);
+  out.ambiguous = wilson(ambiguous, trials);
+  out.aligned_unambiguous = wilson(aligned_unambiguous, unambiguous);
   return out;
 }
 

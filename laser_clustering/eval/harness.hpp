@@ -64,6 +64,10 @@ struct TrussTrial {
   double lateral_error_m = 0.0;           ///< target vs throat after the move (aligned/wrong with a move)
   double confidence = 0.0;
   bool target_visible = false;
+  /// Another pedicel crosses the laser plane nearer the expected point (the
+  /// throat, or the case's expectation) than the target: a finder that takes
+  /// the nearest pedicel cannot be right (the thesis's "nearby pedicels").
+  bool neighbour_nearer = false;
 };
 
 /// "target", "pedicel", "tomato", "stem", "leaf" or "none" for a ground-truth object of a truss scene.
@@ -72,6 +76,8 @@ struct TrussTrial {
 struct TrussResult {
   std::vector<TrussTrial> trials;
   Rate aligned, wrong, out_of_view, missed;
+  Rate ambiguous;              ///< trials with neighbour_nearer
+  Rate aligned_unambiguous;    ///< aligned among the others
 };
 
 struct TrussEvalOptions {
@@ -81,6 +87,9 @@ struct TrussEvalOptions {
   /// The move succeeds when the target's axis ends within opening/2 minus
   /// its radius of the throat's line, and within this of the throat's depth.
   double depth_tolerance_m = 0.02;
+  /// Hand the case's expectation (kRecognitionError: from the tomato) to the
+  /// finder; false: the finder looks for the pedicel nearest the throat.
+  bool use_expectation = true;
 };
 
 /// Runs `trials` seeded trials (seed0, seed0 + 1, ...). `on_trial` (optional)

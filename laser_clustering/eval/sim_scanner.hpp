@@ -1,10 +1,11 @@
 // The evaluation's scanner: the project's simulated TOF line sensor
-// (sim/tof_sensor.hpp) in raw mode, and the driver's processing of its
-// read-outs: per pixel the valid read-out with the most pulses (the validity
-// rule of calibration.hpp), distance from a CalibrationModel fitted by the
-// calibration tool's fitter (tiny_laser_driver/calibration_fit.hpp) to a
-// simulated white-paper rail, reflectance = distance_cm^2 (a + b) / (pulses / 10),
-// and pixels without a usable return marked invalid (see the options).
+// (sim/tof_sensor.hpp) in raw mode, its sets as wire frames
+// (sim/firmware.hpp), processed by the driver's ScanProcessor
+// (tiny_laser_driver/scan_processor.hpp: per pixel the read-out with the
+// most pulses that is not saturated, the calibration, validity, reflectance
+// = distance_cm^2 (a + b) / (pulses / 10)) with a calibration the calibration
+// tool's fitter fits to a simulated white-paper rail over the working range;
+// then pixels without a usable return dropped (see the options).
 #pragma once
 
 #include <memory>
@@ -21,7 +22,8 @@ struct SimScannerOptions {
   /// Raw-mode read-out schedule [pulses, ascending]; empty keeps the
   /// sensor's. The firmware's buffer P_n is configurable (thesis 5.3.1):
   /// close work needs fewer pulses than the default 20..700, which saturate
-  /// every pixel nearer than about 20 cm.
+  /// every pixel nearer than about 20 cm. (The shipped calibrations of the
+  /// simulated sensors cover 15-200 cm: the working range here is nearer.)
   std::vector<int> raw_pulses;
   /// Sensor time of the scans [s]: warm by default (the driver delay has settled).
   double t_start_s = 3600.0;
@@ -42,5 +44,16 @@ struct SimScannerOptions {
 /// Builds the sensor and fits its calibration (a few seconds). Throws
 /// std::runtime_error when the sensor config cannot be read or the fit fails.
 [[nodiscard]] std::unique_ptr<Scanner> make_sim_scanner(const SimScannerOptions& options = {});
+
+struct SimCalibrationSummary {
+  double rmse_m = 0.0;             ///< in-sample RMSE of the fit on the rail [m]
+  double white_reflectance = 0.0;  ///< white paper's reflectance figure through the driver's processing
+};
+
+/// Fits the calibration the scanner uses and writes it where the driver's
+/// `calibration` parameter reads it (CalibrationModel::save), so that a
+/// launch file on the simulator processes scans exactly as the evaluation
+/// does. Throws std::runtime_error as make_sim_scanner.
+SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, const std::string& path);
 
 }  // namespace tinyline::laser_clustering::eval

@@ -132,7 +132,11 @@ SurfaceReflectance surface_reflectance(const LineScan& scan, const SurfaceReflec
     std::vector<double> v;
     for (int i = first; i <= last; ++i) {
       const auto u = static_cast<std::size_t>(i);
-      if (scan.valid(u) && std::isfinite(scan.reflectance[u]) && scan.reflectance[u] > 0.0) v.push_back(scan.reflectance[u]);
+      // Invalid pixels with a finite figure are saturated ones' lower bounds:
+      // the peak itself when the metal faces the sensor (line_scan.hpp).
+      if ((scan.valid(u) || p.use_saturated) && std::isfinite(scan.reflectance[u]) && scan.reflectance[u] > 0.0) {
+        v.push_back(scan.reflectance[u]);
+      }
     }
     if (v.empty()) {
       out.reason = fmt::format("no valid pixel with a reflectance in pixels {}..{}", first, last);

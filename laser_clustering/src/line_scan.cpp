@@ -14,6 +14,28 @@ std::size_t LineScan::num_valid() const {
   return n;
 }
 
+std::size_t saturated_reflectance_bound(LineScan& scan, const std::vector<std::uint8_t>& saturated,
+                                        const std::vector<double>& intensity, int max_gap_px) {
+  const std::size_t n = scan.size();
+  if (saturated.size() != n || intensity.size() != n || scan.reflectance.size() != n || max_gap_px < 1) return 0;
+  std::size_t bounded = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!saturated[i] || scan.valid(i) || !(intensity[i] > 0.0) || !std::isfinite(intensity[i])) continue;
+    // The nearest valid pixel on either side, the nearer one first.
+    double range = std::numeric_limits<double>::quiet_NaN();
+    for (int g = 1; g <= max_gap_px && !std::isfinite(range); ++g) {
+      const auto gap = static_cast<std::size_t>(g);
+      if (i >= gap && scan.valid(i - gap)) range = scan.range_m[i - gap];
+      else if (i + gap < n && scan.valid(i + gap)) range = scan.range_m[i + gap];
+    }
+    if (!std::isfinite(range)) continue;
+    const double d_cm = 100.0 * range;
+    scan.reflectance[i] = d_cm * d_cm * intensity[i] * 10.0;  // measured.yaml's figure with pulses/10 folded in
+    ++bounded;
+  }
+  return bounded;
+}
+
 double LineScan::pixel_pitch_rad() const {
   if (angle_rad.size() < 2) return std::numeric_limits<double>::quiet_NaN();
   std::vector<double> d(angle_rad.size() - 1);

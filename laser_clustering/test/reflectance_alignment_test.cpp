@@ -133,7 +133,15 @@ TEST(ReflectanceClustering, BadInput) {
   r = lc::cluster_by_reflectance(dark);
   EXPECT_TRUE(r.ok);
   EXPECT_EQ(r.brightest, -1);
-  const auto sr = lc::surface_reflectance(dark);
+  // Finite figures on invalid pixels are saturated pixels' lower bounds
+  // (line_scan.hpp): without them, or when told not to use them, nothing.
+  lc::SurfaceReflectanceParams valid_only;
+  valid_only.use_saturated = false;
+  auto sr = lc::surface_reflectance(dark, valid_only);
+  EXPECT_FALSE(sr.found);
+  EXPECT_THAT(sr.reason, HasSubstr("no valid pixel with a reflectance in pixels 0..255"));
+  for (auto& x : dark.reflectance) x = std::numeric_limits<double>::quiet_NaN();
+  sr = lc::surface_reflectance(dark);
   EXPECT_FALSE(sr.found);
   EXPECT_THAT(sr.reason, HasSubstr("no valid pixel with a reflectance in pixels 0..255"));
   lc::SurfaceReflectanceParams by_cluster;
@@ -252,4 +260,50 @@ TEST(AlignmentSearch, SurfaceReflectanceRejectsBadParameters) {
   lc::LineScan no_refl = s.scan;
   no_refl.reflectance.clear();
   EXPECT_THAT(lc::surface_reflectance(no_refl).reason, HasSubstr("0 reflectance values for 256 pixels"));
+}
+
+// A specular peak that saturates: its pixels have no distance; their
+// fewest-pulse light at the neighbours' range bounds their reflectance from
+// below, and the top quantile then sees the peak instead of its shoulders.
+TEST(AlignmentSearch, SaturatedPixelsCountAsLowerBoundsOfThePeak) {
+  lc::LineScan s;
+  const std::size_t n = 40;
+  std::vector<std::uint8_t> saturated(n, 0);
+  std::vector<double> intensity(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    s.angle_rad.push_back(-0.2 + 0.01 * static_cast<double>(i));
+    s.range_m.push_back(0.25);
+    s.reflectance.push_back(i >= 15 && i < 25 ? 9000.0 : 3000.0);  // metal shoulders, then panel
+  }
+  for (std::size_t i = 18; i < 22; ++i) {  // the peak saturates: no range, no figure
+    s.range_m[i] = std::numeric_limits<double>::quiet_NaN();
+    s.reflectance[i] = std::numeric_limits<double>::quiet_NaN();
+    saturated[i] = 1;
+    intensity[i] = 30.0;  // charge_unit per pulse at the fewest-pulse read-out, clipped
+  }
+  saturated[0] = 1;  // saturated but valid (inconsistent input): left alone
+  intensity[0] = 30.0;
+  lc::LineScan bounded = s;
+  EXPECT_EQ(lc::saturated_reflectance_bound(bounded, saturated, intensity), 4u);
+  // 25 cm: 625 cm^2 * 30 * 10 = 187500, above every valid pixel.
+  for (std::size_t i = 18; i < 22; ++i) EXPECT_DOUBLE_EQ(bounded.reflectance[i], 625.0 * 30.0 * 10.0);
+  EXPECT_DOUBLE_EQ(bounded.reflectance[0], 3000.0);
+  EXPECT_FALSE(bounded.valid(19)) << "a bound, not a distance";
+
+  lc::SurfaceReflectanceParams p;
+  p.quantile = 0.95;
+  const auto with = lc::surface_reflectance(bounded, p);
+  ASSERT_TRUE(with.found) << with.reason;
+  EXPECT_DOUBLE_EQ(with.reflectance, 187500.0);
+  p.use_saturated = false;
+  const auto without = lc::surface_reflectance(bounded, p);
+  ASSERT_TRUE(without.found);
+  EXPECT_DOUBLE_EQ(without.reflectance, 9000.0) << "the shoulders only";
+
+  // No valid neighbour within the gap: no bound. Mismatched sizes: nothing done.
+  lc::LineScan lonely = s;
+  for (std::size_t i = 10; i < 30; ++i) lonely.range_m[i] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(lc::saturated_reflectance_bound(lonely, saturated, intensity, 4), 0u);
+  intensity.pop_back();
+  EXPECT_EQ(lc::saturated_reflectance_bound(bounded, saturated, intensity), 0u);
 }

@@ -37,7 +37,7 @@ def read(path):
              "chosen": r["chosen"] == "1", "truth": r["truth"]} for r in rows]
 
 
-def scan_figure(rows, title, out):
+def scan_figure(rows, title, out, show_reflectance=False):
     fig, (ax, bx) = plt.subplots(2, 1, figsize=(8, 7.5), gridspec_kw={"height_ratios": [1, 1.3]})
     px = [r["pixel"] for r in rows]
     ax.plot(px, [r["range"] for r in rows], color="#1f77b4", lw=0.8, label="raw range")
@@ -55,6 +55,11 @@ def scan_figure(rows, title, out):
     # What each pixel's central ray hits, as ticks along the bottom.
     ax.scatter(px, [0.0] * len(px), marker="|", s=30, c=[TRUTH_COLOURS.get(r["truth"], "#bbbbbb") for r in rows])
     ax.set_ylim(bottom=0.0)
+    if show_reflectance:
+        rx = ax.twinx()
+        rx.plot(px, [r["refl"] for r in rows], color="#9467bd", lw=0.8, alpha=0.8)
+        rx.set_ylabel("reflectance (driver's figure)", color="#9467bd")
+        rx.set_ylim(bottom=0.0)
     ax.set_xlabel("pixel")
     ax.set_ylabel("range [m]")
     ax.set_title(title, fontsize=9)
@@ -110,7 +115,8 @@ def main():
         stem = os.path.splitext(os.path.basename(path))[0]
         if args.only and stem not in args.only:
             continue
-        scan_figure(read(path), stem.replace("_", " "), os.path.join(args.out, f"clustering_{stem}.png"))
+        scan_figure(read(path), stem.replace("_", " "), os.path.join(args.out, f"clustering_{stem}.png"),
+                    show_reflectance=stem.startswith("stick"))
     sweeps = os.path.join(args.dir, "wrench_sweeps.csv")
     if os.path.exists(sweeps) and (not args.only or "wrench_sweeps" in args.only):
         sweep_figure(sweeps, os.path.join(args.out, "clustering_wrench_sweeps.png"))

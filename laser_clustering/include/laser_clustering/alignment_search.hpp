@@ -66,6 +66,11 @@ struct SurfaceReflectanceParams {
   };
   Method method = Method::kTopQuantile;
   double quantile = 0.95;  ///< kTopQuantile, in (0, 1]
+  /// kTopQuantile: also count invalid pixels with a finite reflectance, the
+  /// lower bounds of saturated pixels (saturated_reflectance_bound): else a
+  /// specular peak that saturates even the fewest-pulse read-out vanishes
+  /// from the sweep exactly at its maximum.
+  bool use_saturated = true;
   /// Region of interest, pixel indices inclusive (last_pixel < 0: to the end).
   int first_pixel = 0;
   int last_pixel = -1;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
@@ -18,7 +19,8 @@ struct LineScan {
   /// Range along the ray [m]; NaN (or anything not finite and > 0) marks an invalid pixel.
   std::vector<double> range_m;
   /// The driver's reflectance figure (distance_cm^2 (a+b) / (pulses/10)) per
-  /// pixel; empty when the scan carries none.
+  /// pixel; empty when the scan carries none. On an invalid pixel a finite
+  /// value is a lower bound: a saturated pixel (see saturated_reflectance_bound).
   std::vector<double> reflectance;
 
   [[nodiscard]] std::size_t size() const { return range_m.size(); }
@@ -31,6 +33,19 @@ struct LineScan {
   /// pixel is this times the range); NaN with fewer than two angles.
   [[nodiscard]] double pixel_pitch_rad() const;
 };
+
+/// A saturated pixel has no distance, and its light is a lower bound (the
+/// fewest-pulse read-out's charges, clipped): the brightest returns, a
+/// metal's specular peak, are exactly the ones that saturate. This gives
+/// such a pixel the reflectance figure of that light at the range of the
+/// nearest valid pixel within max_gap_px (same surface, about the same
+/// range), as a lower bound of its reflectance: reflectance[i] =
+/// (100 range)^2 * intensity[i] * 10, intensity in charge_unit per pulse.
+/// Pixels that are not saturated, or without a valid neighbour that near,
+/// keep their value. Returns how many pixels got a bound. `saturated` and
+/// `intensity` have the scan's size (else nothing is done and 0 returned).
+std::size_t saturated_reflectance_bound(LineScan& scan, const std::vector<std::uint8_t>& saturated,
+                                        const std::vector<double>& intensity, int max_gap_px = 4);
 
 /// Empty when the scan is well formed, else what is wrong: mismatched
 /// lengths, non-finite angles, or angles that are not strictly monotone.

@@ -10,6 +10,9 @@ namespace tinyline::laser_clustering::nodes {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// to_core's scratch (nodes call it from their own callbacks, never concurrently per thread).
+thread_local std::vector<std::uint8_t> saturated_;
+thread_local std::vector<double> intensity_;
 
 void check(const bus::Node& node, const Validation& v) {
   if (!v.valid) throw bus::ParamError({}, fmt::format("node '{}': {}", node.full_name(), v.reason));
@@ -17,7 +20,7 @@ void check(const bus::Node& node, const Validation& v) {
 
 }  // namespace
 
-std::string to_core(const tinyline_msgs::msg::LineScan& m, LineScan& out) {
+std::string to_core(const tinyline_msgs::msg::LineScan& m, LineScan& out, double min_reflectance) {
   const std::size_t n = m.distance_m.size();
   if (m.angles.size() != n || m.status.size() != n || (!m.reflectance.empty() && m.reflectance.size() != n)) {
     return fmt::format("LineScan arrays disagree: {} angles, {} distances, {} statuses, {} reflectances",
@@ -32,8 +35,32 @@ std::string to_core(const tinyline_msgs::msg::LineScan& m, LineScan& out) {
                        m.distance_m[i] > 0.0f;
     out.range_m[i] = valid ? static_cast<double>(m.distance_m[i]) : kNaN;
   }
-  for (std::size_t i = 0; i < m.reflectance.size(); ++i) out.reflectance[i] = m.reflectance[i];
+  for (std::size_t i = 0; i < m.reflectance.size(); ++i) {
+    out.reflectance[i] = m.reflectance[i];
+    // NaN reflectance fails the comparison too: no light figure, no return.
+    if (min_reflectance > 0.0 && !(out.reflectance[i] >= min_reflectance)) out.range_m[i] = kNaN;
+    if (!out.valid(i)) out.reflectance[i] = kNaN;  // a finite figure on an invalid pixel means a bound
+  }
+  // Saturated pixels: their fewest-pulse light as a reflectance lower bound.
+  if (!m.reflectance.empty() && m.intensity.size() == n) {
+    saturated_.assign(n, 0);
+    intensity_.resize(n);
+    bool any = false;
+    for (std::size_t i = 0; i < n; ++i) {
+      saturated_[i] = m.status[i] == tinyline_msgs::msg::LineScan::STATUS_SATURATED;
+      any = any || saturated_[i];
+      intensity_[i] = m.intensity[i];
+    }
+    if (any) (void)saturated_reflectance_bound(out, saturated_, intensity_);
+  }
   return {};
+}
+
+double declare_min_reflectance(bus::Node& n) {
+  return n.declare_parameter("min_reflectance", 0.0,
+                             "pixels whose reflectance figure (distance_cm^2 (a + b) / (pulses / 10)) is below this "
+                             "are no return (0: off)",
+                             bus::ParamConstraints::range(0.0, 1e9));
 }
 
 namespace {
@@ -215,6 +242,8 @@ SurfaceReflectanceParams declare_surface_reflectance(bus::Node& n) {
                                       : SurfaceReflectanceParams::Method::kBrightestCluster;
   p.quantile = n.declare_parameter("surface_quantile", d.quantile, "top_quantile: the quantile taken",
                                    ParamConstraints::range(0.01, 1.0));
+  p.use_saturated = n.declare_parameter("surface_use_saturated", d.use_saturated,
+                                       "top_quantile: count saturated pixels at their reflectance lower bound");
   p.first_pixel = n.declare_parameter("roi_first_pixel", d.first_pixel, "region of interest, first pixel",
                                       ParamConstraints::range(0, 4096));
   p.last_pixel = n.declare_parameter("roi_last_pixel", d.last_pixel, "region of interest, last pixel (-1: to the end)",

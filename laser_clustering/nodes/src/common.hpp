@@ -16,10 +16,17 @@
 namespace tinyline::laser_clustering::nodes {
 
 /// Fills `out` (reusing its buffers) from a LineScan message: a pixel is
-/// valid when its status is STATUS_VALID and its distance finite and > 0.
-/// Returns an empty string, or what is wrong with the message (array
-/// lengths that disagree).
-std::string to_core(const tinyline_msgs::msg::LineScan& msg, LineScan& out);
+/// valid when its status is STATUS_VALID, its distance finite and > 0 and,
+/// when the message has reflectances and min_reflectance > 0, its
+/// reflectance at least min_reflectance. Returns an empty string, or what is
+/// wrong with the message (array lengths that disagree).
+std::string to_core(const tinyline_msgs::msg::LineScan& msg, LineScan& out, double min_reflectance = 0.0);
+
+/// Declares `min_reflectance`: returns dimmer than this count as no return.
+/// The wire protocol's validity rule lets through pixels that see nothing
+/// (the leakage of the longest read-out) and pixels lit by lens halo beside
+/// a bright near object; both report ranges of nothing (docs/laser_clustering.md).
+double declare_min_reflectance(bus::Node& node);
 
 /// The message of a two-stage clustering.
 void to_msg(const TwoStageResult& r, tinyline_msgs::msg::LineClusters& out);

@@ -1,11 +1,18 @@
 #include "laser_clustering/nodes/nodes.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <numbers>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "common.hpp"
 #include "laser_clustering/nodes/register.hpp"
+#ifdef TINYLINE_LASER_CLUSTERING_HAVE_SIM
+#include "sim_gripper.hpp"
+#endif
 
 namespace tinyline::laser_clustering {
 
@@ -35,6 +42,7 @@ static_assert(wire(AlignmentOutcome::kInvalidInput) == msgs::AlignmentResult::IN
 
 LineClustererNode::LineClustererNode(bus::NodeOptions o)
     : Node(std::move(o)), clusterer_(nodes::declare_two_stage(*this)) {
+  min_reflectance_ = nodes::declare_min_reflectance(*this);
   pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
                                        [this](const msgs::LineScan& m) { on_scan(m); });
@@ -43,7 +51,7 @@ LineClustererNode::LineClustererNode(bus::NodeOptions o)
 void LineClustererNode::on_scan(const msgs::LineScan& m) {
   auto out = std::make_unique<msgs::LineClusters>();
   out->header = m.header;
-  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+  if (const auto bad = nodes::to_core(m, scan_, min_reflectance_); !bad.empty()) {
     logger().warn("{}", bad);
     out->brightest = -1;
     out->note = bad;
@@ -57,6 +65,7 @@ void LineClustererNode::on_scan(const msgs::LineScan& m) {
 
 PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
     : Node(std::move(o)), clusterer_(nodes::declare_two_stage(*this)), finder_(nodes::declare_pedicel_finder(*this)) {
+  min_reflectance_ = nodes::declare_min_reflectance(*this);
   expectation_sd_m_ = declare_parameter("expectation_sd_m", 0.015,
                                         "how far off the vision's expected pedicel may be [m]",
                                         ParamConstraints::range(1e-4, 1.0));
@@ -78,7 +87,7 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
   auto det = std::make_unique<msgs::PedicelDetection>();
   det->header = m.header;
   det->cluster = -1;
-  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+  if (const auto bad = nodes::to_core(m, scan_, min_reflectance_); !bad.empty()) {
     logger().warn("{}", bad);
     det->outcome = msgs::PedicelDetection::INVALID_INPUT;
     det->reason = bad;
@@ -116,6 +125,7 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
 
 ReflectanceClustererNode::ReflectanceClustererNode(bus::NodeOptions o)
     : Node(std::move(o)), params_(nodes::declare_reflectance(*this)) {
+  min_reflectance_ = nodes::declare_min_reflectance(*this);
   pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
                                        [this](const msgs::LineScan& m) { on_scan(m); });
@@ -124,7 +134,7 @@ ReflectanceClustererNode::ReflectanceClustererNode(bus::NodeOptions o)
 void ReflectanceClustererNode::on_scan(const msgs::LineScan& m) {
   auto out = std::make_unique<msgs::LineClusters>();
   out->header = m.header;
-  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+  if (const auto bad = nodes::to_core(m, scan_, min_reflectance_); !bad.empty()) {
     logger().warn("{}", bad);
     out->brightest = -1;
     out->note = bad;
@@ -138,6 +148,7 @@ void ReflectanceClustererNode::on_scan(const msgs::LineScan& m) {
 
 AlignmentSearchNode::AlignmentSearchNode(bus::NodeOptions o)
     : Node(std::move(o)), surface_(nodes::declare_surface_reflectance(*this)), params_(nodes::declare_alignment(*this)) {
+  min_reflectance_ = nodes::declare_min_reflectance(*this);
   joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch",
                                           "joint of sensor_msgs/JointState whose position is the gripper pitch [rad]");
   window_s_ = declare_parameter("window_s", 10.0, "samples older than this (vs the newest scan) leave the sweep [s]",
@@ -171,7 +182,7 @@ void AlignmentSearchNode::on_scan(const msgs::LineScan& m) {
     out->num_samples = static_cast<std::uint32_t>(samples_.size());
     pub_->publish(std::move(out));
   };
-  if (const auto bad = nodes::to_core(m, scan_); !bad.empty()) {
+  if (const auto bad = nodes::to_core(m, scan_, min_reflectance_); !bad.empty()) {
     logger().warn("{}", bad);
     return publish_invalid(bad);
   }
@@ -203,6 +214,67 @@ void AlignmentSearchNode::on_scan(const msgs::LineScan& m) {
   pub_->publish(std::move(out));
 }
 
+// ---------------------------------------------------------------------------- pitch_sweep
+
+PitchSweepNode::PitchSweepNode(bus::NodeOptions o) : Node(std::move(o)) {
+  joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch", "the joint commanded [rad]");
+  const double from = declare_parameter("from_deg", -16.0, "first pitch of the sweep [deg]",
+                                        ParamConstraints::range(-90.0, 90.0));
+  const double to = declare_parameter("to_deg", 16.0, "last pitch of the sweep [deg]", ParamConstraints::range(-90.0, 90.0));
+  const double step = declare_parameter("step_deg", 2.0, "pitch step [deg]", ParamConstraints::range(0.01, 90.0));
+  const double dwell = declare_parameter("dwell_s", 0.3, "time at each pitch: several scans [s]",
+                                         ParamConstraints::range(0.001, 60.0));
+  if (!(to > from)) {
+    throw bus::ParamError({}, fmt::format("node '{}': to_deg ({}) must be above from_deg ({})", full_name(), to, from));
+  }
+  const int steps = static_cast<int>(std::floor((to - from) / step + 1e-9));
+  if (steps < 2) {
+    throw bus::ParamError({}, fmt::format("node '{}': the sweep {}..{} deg in {} deg steps has {} pitches; the "
+                                          "alignment search needs at least 3", full_name(), from, to, step, steps + 1));
+  }
+  for (int k = 0; k <= steps; ++k) pitches_rad_.push_back((from + k * step) * std::numbers::pi / 180.0);
+  command_pub_ = create_publisher<sensor_msgs::msg::JointState>("joint_command", bus::QoS::keep_last(10));
+  aligned_pub_ = create_publisher<msgs::AlignmentResult>("aligned", bus::QoS::keep_last(10));
+  alignment_sub_ = create_subscription<msgs::AlignmentResult>(
+      "alignment", bus::QoS::keep_last(kScanQueue), [this](const msgs::AlignmentResult& m) { latest_ = m; });
+  // One step per period: the first command one dwell after start, the
+  // verdict one dwell after the last (its scans are in by then).
+  timer_ = create_timer(std::chrono::nanoseconds(static_cast<std::int64_t>(dwell * 1e9)), [this] { tick(); });
+}
+
+void PitchSweepNode::command(double pitch_rad) {
+  auto m = std::make_unique<sensor_msgs::msg::JointState>();
+  m->header.stamp = now().to_msg();
+  m->name = {joint_};
+  m->position = {pitch_rad};
+  command_pub_->publish(std::move(m));
+}
+
+void PitchSweepNode::tick() {
+  if (state_ == State::kDone) return;
+  if (next_ < pitches_rad_.size()) {
+    command(pitches_rad_[next_++]);
+    return;
+  }
+  state_ = State::kDone;
+  timer_->cancel();
+  auto out = std::make_unique<msgs::AlignmentResult>();
+  if (latest_) *out = *latest_;
+  else {
+    out->outcome = msgs::AlignmentResult::INVALID_INPUT;
+    out->reason = "no alignment result arrived during the sweep (is alignment_search running on this scan?)";
+  }
+  out->header.stamp = now().to_msg();
+  if (out->outcome == msgs::AlignmentResult::FOUND) {
+    command(out->best_pitch_rad);
+    logger().info("aligned: pitch {:.2f} deg ({} samples, peak reflectance {:.1f})",
+                  out->best_pitch_rad * 180.0 / std::numbers::pi, out->num_samples, out->peak_reflectance);
+  } else {
+    logger().warn("sweep ended without an alignment: {}", out->reason);
+  }
+  aligned_pub_->publish(std::move(out));
+}
+
 // ---------------------------------------------------------------------------- registry
 
 void register_nodes(bus::NodeRegistry& r) {
@@ -214,6 +286,11 @@ void register_nodes(bus::NodeRegistry& r) {
                                   "DBSCAN on position and reflectance (scan -> clusters), thesis 5.3");
   r.add<AlignmentSearchNode>("laser_clustering", "alignment_search",
                              "pitch of maximum surface reflectance (scan + joint_states -> alignment), 5.3.2");
+  r.add<PitchSweepNode>("laser_clustering", "pitch_sweep",
+                        "sweeps the gripper pitch (joint_command), then commands the pitch alignment found, 5.3.2");
+#ifdef TINYLINE_LASER_CLUSTERING_HAVE_SIM
+  nodes::register_sim_nodes(r);
+#endif
 }
 
 }  // namespace tinyline::laser_clustering

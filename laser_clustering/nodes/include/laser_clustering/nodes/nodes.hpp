@@ -8,7 +8,9 @@
 #include <deque>
 #include <memory>
 #include <optional>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include <tinyline/bus/node.hpp>
 #include <tinyline/msg/geometry_msgs/point_stamped.hpp>
@@ -35,6 +37,7 @@ class LineClustererNode : public bus::Node {
   void on_scan(const tinyline_msgs::msg::LineScan& msg);
   LineScanClusterer clusterer_;
   LineScan scan_;  // reused buffers
+  double min_reflectance_ = 0.0;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
 };
@@ -55,6 +58,7 @@ class PedicelFinderNode : public bus::Node {
   double expectation_max_age_s_ = 0.0;
   std::optional<std::pair<bus::Time, Eigen::Vector2d>> expected_;
   LineScan scan_;
+  double min_reflectance_ = 0.0;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::PedicelDetection>> pub_;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> clusters_pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
@@ -70,6 +74,7 @@ class ReflectanceClustererNode : public bus::Node {
   void on_scan(const tinyline_msgs::msg::LineScan& msg);
   ReflectanceClusteringParams params_;
   LineScan scan_;
+  double min_reflectance_ = 0.0;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
 };
@@ -93,9 +98,39 @@ class AlignmentSearchNode : public bus::Node {
   std::deque<std::pair<bus::Time, double>> pitch_;    // joint history (stamp, rad)
   std::deque<std::pair<bus::Time, AlignmentSample>> samples_;
   LineScan scan_;
+  double min_reflectance_ = 0.0;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::AlignmentResult>> pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
   std::shared_ptr<bus::Subscription<sensor_msgs::msg::JointState>> joints_sub_;
+};
+
+/// The gripper's side of 5.3.2: sweeps the pitch joint (joint_command,
+/// sensor_msgs/JointState with one position) from from_deg to to_deg in
+/// step_deg steps, holding each for dwell_s, then takes the alignment
+/// search's newest result (alignment) and, when it found a peak, commands
+/// that pitch: the gripper faces the tool squarely and can grasp. The result
+/// it acted on goes out once on `aligned` (a copy of the AlignmentResult;
+/// AT_SWEEP_EDGE / NO_PEAK / INVALID_INPUT leave the gripper at the sweep's
+/// end, and `reason` says why).
+class PitchSweepNode : public bus::Node {
+ public:
+  explicit PitchSweepNode(bus::NodeOptions options);
+
+  enum class State { kSweeping, kDone };
+  [[nodiscard]] State state() const { return state_; }
+
+ private:
+  void tick();
+  void command(double pitch_rad);
+  std::string joint_;
+  std::vector<double> pitches_rad_;
+  std::size_t next_ = 0;
+  State state_ = State::kSweeping;
+  std::optional<tinyline_msgs::msg::AlignmentResult> latest_;
+  std::shared_ptr<bus::Publisher<sensor_msgs::msg::JointState>> command_pub_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::AlignmentResult>> aligned_pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::AlignmentResult>> alignment_sub_;
+  std::shared_ptr<bus::Timer> timer_;
 };
 
 }  // namespace tinyline::laser_clustering

@@ -5,7 +5,8 @@
 
 namespace tinyline::laser_clustering {
 
-/// line_clusterer, pedicel_finder, reflectance_clusterer, alignment_search.
+/// line_clusterer, pedicel_finder, reflectance_clusterer, alignment_search,
+/// pitch_sweep; sim_gripper_pitch when built with the simulator.
 void register_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::laser_clustering

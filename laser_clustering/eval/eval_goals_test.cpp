@@ -1,0 +1,82 @@
+// The evaluation of docs/laser_clustering.md as a test: 200 seeded trials per
+// case on the simulated sensor (the same seeds and scanners as
+// laser_clustering_eval), failing when a goal of the issue is missed or a
+// documented figure regresses. Seconds, not minutes: the sensor model is fast.
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "harness.hpp"
+#include "sim_scanner.hpp"
+
+namespace ev = tinyline::laser_clustering::eval;
+
+namespace {
+
+constexpr int kTrials = 200;
+constexpr std::uint64_t kSeed = 1;
+
+ev::SimScannerOptions options(const char* config, std::vector<int> pulses = {3, 8, 25, 80, 250}) {
+  ev::SimScannerOptions o;
+  o.sensor_config = config;
+  o.raw_pulses = std::move(pulses);
+  o.calibration_max_m = 0.6;
+  o.calibration_step_m = 0.01;
+  o.calibration_sets = 3;
+  return o;
+}
+
+ev::Scanner& gripper() {
+  static auto s = ev::make_sim_scanner(options("tiny_tof_3p6mm.yaml"));
+  return *s;
+}
+ev::Scanner& tools() {
+  static auto s = ev::make_sim_scanner(options("tiny_tof_8mm.yaml"));
+  return *s;
+}
+
+}  // namespace
+
+TEST(EvalGoals, RecognitionErrorCaseAlignsAtLeast85Percent) {
+  const auto r = ev::run_truss_case(ev::TrussCase::kRecognitionError, gripper(), kTrials, kSeed);
+  EXPECT_GE(r.aligned.p, 0.85) << "issue goal";
+  EXPECT_GE(r.aligned.k, 195) << "documented: 199/200";
+}
+
+TEST(EvalGoals, RandomOffsetCaseHoldsItsDocumentedFigures) {
+  // The issue's goal (97 % aligned, <= 1 % wrong) is not met: about one
+  // trial in ten is geometrically ambiguous (docs). What the finder controls,
+  // it gets right; these floors catch regressions.
+  const auto r = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
+  EXPECT_GE(r.aligned.k, 170) << "documented: 177/200";
+  EXPECT_GE(r.aligned_unambiguous.p, 0.93) << "documented: 174/179";
+  EXPECT_EQ(r.out_of_view.k + r.missed.k, 0);
+}
+
+TEST(EvalGoals, BrushedStickSeparatesByReflectanceNotByDistanceAlone) {
+  ev::StickEvalOptions o;
+  o.scene.stick_material = "metal_pan";
+  o.scene.front_gap_m = 0.004;
+  const auto r = ev::run_stick_case(tools(), kTrials, kSeed, o);
+  EXPECT_GE(r.reflectance_correct.p, 0.95) << "issue goal";
+  EXPECT_LE(r.distance_only_correct.p, 0.80) << "distance alone should fail often";
+}
+
+TEST(EvalGoals, WrenchMedianPitchErrorUnderOneDegree) {
+  const auto r = ev::run_wrench_case(tools(), kTrials, kSeed);
+  EXPECT_LE(r.median_error_deg, 1.0) << "issue goal";
+  EXPECT_LE(r.median_error_deg, 0.2) << "documented: 0.10 deg";
+  EXPECT_LT(r.median_error_deg, r.median_step_error_deg) << "the refinement must beat the raw 2 degree steps";
+  EXPECT_GE(r.within_1deg.k, 185) << "documented: 194/200";
+}
+
+// On a schedule the wire can command (pulses in tens), the polished wrench's
+// peak saturates at 20-30 cm; counting saturated pixels as lower bounds keeps
+// the median within the goal (docs: 0.27 deg; 1.74 deg without the bounds).
+TEST(EvalGoals, WrenchOnAWireScheduleMedianUnderOneDegree) {
+  auto scanner = ev::make_sim_scanner(options("tiny_tof_8mm.yaml", {10, 20, 50, 120, 300}));
+  const auto r = ev::run_wrench_case(*scanner, kTrials, kSeed);
+  EXPECT_LE(r.median_error_deg, 1.0) << "issue goal";
+  EXPECT_LE(r.median_error_deg, 0.45) << "documented: 0.27 deg";
+  EXPECT_GE(r.within_1deg.k, 120) << "documented: 130/200";
+}
