@@ -13,6 +13,12 @@
 #include <fmt/format.h>
 
 #include <tinyline/dds/settings.hpp>
+#ifdef TINYLINE_DDS_PIPELINE_TEST
+#include <cmath>
+
+#include <tinyline/bag/ros2.hpp>
+#include <tinyline/msg/tinyline_msgs/raw_scan.hpp>
+#endif
 
 #include "child_process.hpp"
 
@@ -210,3 +216,117 @@ TEST(TopicTools, ASingleNodeStartedWithRunDdsJoinsALaunchedGraph) {
   interrupt_and_expect_clean_exit(node);
   interrupt_and_expect_clean_exit(graph);
 }
+
+#ifdef TINYLINE_DDS_PIPELINE_TEST
+namespace {
+
+/// A bag of `n` raw scans (tinyline_msgs/RawScan on /tiny/raw, 10 Hz) of a
+/// scene the K sensor's public calibration turns into ranges: a wall at about
+/// 1.2 m, a bright object near 0.45 m that moves a pixel per scan, a dimmer one
+/// near 0.8 m; every read-out level as the sensor sends it (the top ones
+/// saturate on the bright object), a little deterministic noise.
+void write_raw_bag(const std::string& path, int n) {
+  namespace bag = tinyline::bag;
+  bag::ros2::Ros2Writer w;
+  ASSERT_TRUE(w.open(path).ok());
+  bag::ChannelId ch = 0;
+  ASSERT_TRUE(w.add_topic("/tiny/raw", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::RawScan>(), ch).ok());
+  constexpr std::uint16_t kPulses[5] = {20, 100, 200, 400, 700};
+  constexpr int kPixels = 272;
+  for (int s = 0; s < n; ++s) {
+    tinyline::tinyline_msgs::msg::RawScan m;
+    const std::int64_t t_ns = 1'000'000'000'000LL + s * 100'000'000LL;
+    m.header.stamp.sec = static_cast<std::int32_t>(t_ns / 1'000'000'000);
+    m.header.stamp.nanosec = static_cast<std::uint32_t>(t_ns % 1'000'000'000);
+    m.header.frame_id = "tiny";
+    m.set_index = static_cast<std::uint32_t>(s);
+    m.temperature_c = 44.0f;  // the K calibration's stable temperature: no offset
+    m.pixels = kPixels;
+    m.pulses.assign(std::begin(kPulses), std::end(kPulses));
+    m.a.resize(5 * kPixels);
+    m.b.resize(5 * kPixels);
+    for (int p = 0; p < kPixels; ++p) {
+      double k = 0.72, per_pulse = 0.15;  // charge ratio b/(a+b), charge per pulse [charge unit]
+      if (p >= 60 + s && p < 100 + s) k = 0.56, per_pulse = 0.5;
+      if (p >= 170 && p < 185) k = 0.63, per_pulse = 0.3;
+      k += 0.003 * std::sin(1.7 * p + 0.9 * s);
+      for (int i = 0; i < 5; ++i) {
+        const double sum = std::min(per_pulse * kPulses[i], 480.0);
+        m.a[static_cast<std::size_t>(i * kPixels + p)] = static_cast<std::int16_t>(std::lround(10.0 * sum * (1.0 - k)));
+        m.b[static_cast<std::size_t>(i * kPixels + p)] = static_cast<std::int16_t>(std::lround(10.0 * sum * k));
+      }
+    }
+    ASSERT_TRUE(w.write(ch, m, static_cast<bag::Timestamp>(t_ns), static_cast<bag::Timestamp>(t_ns),
+                        static_cast<std::uint32_t>(s + 1))
+                    .ok());
+  }
+  ASSERT_TRUE(w.close().ok());
+}
+
+/// The YAML of every message the echo node `sink` printed, one string each.
+std::vector<std::string> echoed_messages(const std::vector<std::string>& lines, const std::string& topic) {
+  std::vector<std::string> out;
+  const std::string start = "[/sink]: " + topic + ":";
+  std::string* cur = nullptr;
+  for (const auto& l : lines) {
+    if (l.size() >= start.size() && l.compare(l.size() - start.size(), start.size(), start) == 0) {
+      out.emplace_back();
+      cur = &out.back();
+    } else if (cur != nullptr && l == "---") {
+      cur = nullptr;
+    } else if (cur != nullptr) {
+      *cur += l + "\n";
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(MultiProcess, DriverAndClusteringInTwoProcessesGiveWhatOneProcessGivesOnAReplayedBag) {
+  const auto env = dds_env();
+  const int n = 24;
+  const std::string work = fmt::format("{}/tl_pipeline_{}", ::testing::TempDir(), getpid());
+  std::filesystem::create_directories(work);
+  const std::string bag_path = work + "/raw.mcap";
+  write_raw_bag(bag_path, n);
+  const std::string launch_file = kLaunchDir + "driver_clustering.launch.yaml";
+  const std::string sink_start = "[/sink]: /tiny/clusters:";
+
+  std::vector<std::string> one, two;
+  {
+    ChildProcess p(cli({"launch", launch_file, "bag:=" + bag_path, "driver_process:=", "clustering_process:=",
+                        "--no-table"}),
+                   env);
+    ASSERT_TRUE(p.wait_for_count(sink_start, n, 60s)) << p.output();
+    interrupt_and_expect_clean_exit(p);
+    EXPECT_EQ(p.find("[launch] started process"), std::nullopt) << "one process expected";
+    one = echoed_messages(p.lines(), "/tiny/clusters");
+  }
+  {
+    ChildProcess p(cli({"launch", launch_file, "bag:=" + bag_path, "--no-table"}), env);
+    ASSERT_TRUE(p.wait_for_count(sink_start, n, 60s)) << p.output();
+    ASSERT_TRUE(p.find("[launch] started process 'driver'"));
+    ASSERT_TRUE(p.find("[launch] started process 'clustering'"));
+    interrupt_and_expect_clean_exit(p);
+    two = echoed_messages(p.lines(), "/tiny/clusters");
+    // The scans crossed from the driver's process to the clusterer's over DDS
+    // (every one of them), and the clusters came back to this one.
+    EXPECT_TRUE(p.wait_for_line(std::regex(fmt::format(R"(^\[driver\] /tiny/scan +[0-9]+ +[0-9]+ +{} +0 )", n)), 1s))
+        << p.output();
+    EXPECT_TRUE(
+        p.wait_for_line(std::regex(fmt::format(R"(^\[clustering\] /tiny/scan +[0-9]+ +[0-9]+ +0 +{} )", n)), 1s))
+        << p.output();
+    EXPECT_TRUE(p.wait_for_line(std::regex(fmt::format(R"(^/tiny/clusters +[0-9]+ +[0-9]+ +0 +{} )", n)), 1s))
+        << p.output();
+  }
+  ASSERT_EQ(one.size(), static_cast<std::size_t>(n));
+  // Not an empty comparison: the scans hold objects and the clusterer found them.
+  std::size_t with_clusters = 0;
+  for (const auto& m : one) with_clusters += m.find("clusters:\n") != std::string::npos ? 1 : 0;
+  EXPECT_EQ(with_clusters, static_cast<std::size_t>(n)) << one.front();
+  ASSERT_EQ(two.size(), one.size());
+  for (std::size_t i = 0; i < one.size(); ++i) EXPECT_EQ(two[i], one[i]) << "message " << i;
+  std::filesystem::remove_all(work);
+}
+#endif
