@@ -3,8 +3,10 @@
 // One process runs the nodes without a process group; each group gets a child
 // process (this same executable with --process NAME), supervised here. Topics
 // crossing processes travel over DDS (docs/dds.md).
+#include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -43,6 +45,9 @@ options:
   --process NAME      run only this process group (what the supervisor starts;
                       also how to start one group on another machine)
   --dds-wait S        longest wait for DDS peers before nodes start (default 10)
+  --start-gate        with --process: once the peers are matched, print a ready
+                      line and start the nodes when stdin gets a line (the
+                      supervisor does this so all processes start together)
   --respawn-delay S   wait before restarting a crashed process (default 1)
   --grace S           after Ctrl-C, wait this long before killing (default 5)
 )";
@@ -52,6 +57,29 @@ std::string self_exe() {
   const auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
   if (ec) throw std::runtime_error("cannot find this executable (/proc/self/exe): " + ec.message());
   return p.string();
+}
+
+/// A supervised child at the start gate: says it is ready, then waits for
+/// the supervisor's line on stdin (EOF, Ctrl-C or `limit` also let it go).
+void wait_at_start_gate(std::chrono::milliseconds limit, const bus::Logger& log) {
+  fmt::print("{}\n", kReadyLine);
+  std::fflush(stdout);
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!interrupted()) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      log.warn("the supervisor did not open the start gate within {:.1f} s; starting anyway", limit.count() / 1000.0);
+      return;
+    }
+    pollfd p{STDIN_FILENO, POLLIN, 0};
+    const int n = ::poll(&p, 1, static_cast<int>(std::min<long>(left.count(), 100)));
+    if (n > 0) {
+      char c[16];
+      (void)!read(STDIN_FILENO, c, sizeof(c));  // a line or EOF: go
+      return;
+    }
+  }
 }
 
 std::string dds_table(const std::vector<dds::LinkStats>& links) {
@@ -67,7 +95,7 @@ std::string dds_table(const std::vector<dds::LinkStats>& links) {
 
 int cmd_launch(const std::vector<std::string>& argv) {
   Args a(argv, {"--duration", "--threads", "--process", "--dds-wait", "--respawn-delay", "--grace"},
-         {"--no-table", "--check", "--help", "-h"});
+         {"--no-table", "--check", "--help", "-h", "--start-gate"});
   if (a.flag("--help") || a.flag("-h")) {
     fmt::print("{}", kHelp);
     return 0;
@@ -144,9 +172,10 @@ int cmd_launch(const std::vector<std::string>& argv) {
       c.name = p.name;
       c.nodes = p.nodes;
       c.respawn = p.respawn;
+      c.gated = true;
       c.argv = {self_exe(), "launch", file};
       for (std::size_t i = 1; i < a.positional().size(); ++i) c.argv.push_back(a.positional()[i]);
-      c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--threads",
+      c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--start-gate", "--threads",
                                    std::to_string(static_cast<int>(a.number("--threads", 2))), "--dds-wait",
                                    fmt::format("{}", a.number("--dds-wait", 10.0))});
       supervisor->start(std::move(c));
@@ -157,18 +186,37 @@ int cmd_launch(const std::vector<std::string>& argv) {
   if (a.value("--duration")) ro.duration_s = a.number("--duration", 0);
   ro.threads = static_cast<int>(a.number("--threads", 2));
   ro.table = !a.flag("--no-table");
-  if (bridge) {
-    const auto wait_ms = std::chrono::milliseconds(static_cast<long>(a.number("--dds-wait", 10.0) * 1000));
-    ro.before_spin = [&] {
+  const auto wait_ms = std::chrono::milliseconds(static_cast<long>(a.number("--dds-wait", 10.0) * 1000));
+  const bool gated = only && a.flag("--start-gate");
+  ro.before_spin = [&] {
+    if (bridge) {
       bridge->start();
-      if (mine.expect.empty()) return;
-      const auto r = bridge->wait_for_peers(mine.expect, wait_ms);
-      if (!r.ok) {
-        bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait_ms.count() / 1000.0,
-                              r.missing);
+      if (!mine.expect.empty()) {
+        const auto r = bridge->wait_for_peers(mine.expect, wait_ms);
+        if (!r.ok) {
+          bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait_ms.count() / 1000.0,
+                                r.missing);
+        }
       }
-    };
-  }
+    }
+    // Matched peers are not running peers: a process that matched early
+    // would start its sources while another still waits for its own peers,
+    // with nothing yet taking its messages off the queues. So every process
+    // waits at a gate the supervisor opens once all of them are ready.
+    const auto gate_limit = 2 * wait_ms + std::chrono::seconds(20);  // a child's start-up and its own wait
+    if (gated) wait_at_start_gate(gate_limit + std::chrono::seconds(10), ctx->logger("/launch"));
+    if (!only && graph.has_groups()) {
+      const auto deadline = std::chrono::steady_clock::now() + gate_limit;
+      while (!supervisor->all_ready() && !interrupted() && std::chrono::steady_clock::now() < deadline) {
+        supervisor->poll(std::chrono::milliseconds(20));
+      }
+      if (const auto late = supervisor->not_ready(); !late.empty() && !interrupted()) {
+        fmt::print(stderr, "[launch] starting although process(es) {} did not get ready within {:.1f} s\n",
+                   fmt::join(late, ", "), gate_limit.count() / 1000.0);
+      }
+      supervisor->open_gates();
+    }
+  };
   ro.before_stop = [&] {
     if (bridge) bridge->expect_departures();  // the other processes are stopping too
     supervisor->stop_all();
