@@ -71,11 +71,12 @@ void interrupt_and_expect_clean_exit(ChildProcess& p) {
 
 TEST(MultiProcess, ThreeProcessesOverDdsPrintWhatOneProcessPrints) {
   const auto env = dds_env();
-  const int n = 40;
+  // 20 Hz: the relay's and echo's queues of 10 ride out a half-second stall.
+  const int n = 30;
   std::vector<std::string> one, three;
   {
     ChildProcess p(cli({"launch", kLaunchDir + "chain.launch.yaml", "source_process:=", "relay_process:=",
-                             fmt::format("count:={}", n), "--no-table"}),
+                             fmt::format("count:={}", n), "rate_hz:=20", "--no-table"}),
                    env);
     ASSERT_TRUE(p.wait_for_text(fmt::format("data: \"pulse {}\"", n), 30s)) << p.output();
     interrupt_and_expect_clean_exit(p);
@@ -83,7 +84,8 @@ TEST(MultiProcess, ThreeProcessesOverDdsPrintWhatOneProcessPrints) {
     EXPECT_EQ(p.find("[launch] started process"), std::nullopt) << "one process expected";
   }
   {
-    ChildProcess p(cli({"launch", kLaunchDir + "chain.launch.yaml", fmt::format("count:={}", n), "--no-table"}),
+    ChildProcess p(cli({"launch", kLaunchDir + "chain.launch.yaml", fmt::format("count:={}", n), "rate_hz:=20",
+                        "--no-table"}),
                    env);
     ASSERT_TRUE(p.wait_for_text(fmt::format("data: \"pulse {}\"", n), 30s)) << p.output();
     ASSERT_TRUE(p.find("[launch] started process 'source'"));
@@ -150,14 +152,24 @@ TEST(TopicTools, ListEchoAndHzSeeARunningMultiProcessGraph) {
   const auto env = dds_env();
   ChildProcess graph(cli({"launch", kLaunchDir + "chain.launch.yaml", "count:=0", "rate_hz:=20", "--no-table"}),
                      env);
-  ASSERT_TRUE(graph.wait_for_text("data: \"pulse 2\"", 30s)) << graph.output();
+  ASSERT_TRUE(graph.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), 30s)) << graph.output();
 
-  ChildProcess list(cli({"topic", "list"}), env);
-  ASSERT_TRUE(list.wait_exit(30s)) << list.output();
-  EXPECT_TRUE(list.wait_for_line(std::regex(R"(^/chain/raw +std_msgs/msg/String +1 +1 +relay, source$)"), 1s))
-      << list.output();
-  EXPECT_TRUE(list.wait_for_line(std::regex(R"(^/chain/relayed +std_msgs/msg/String +1 +1 +chain, relay$)"), 1s))
-      << list.output();
+  // Discovery takes its time on a loaded machine: list again until both
+  // processes' endpoints are in (a deadline, not a sleep).
+  const std::regex raw_line(R"(^/chain/raw +std_msgs/msg/String +1 +1 +relay, source$)");
+  const std::regex relayed_line(R"(^/chain/relayed +std_msgs/msg/String +1 +1 +chain, relay$)");
+  std::string listed;
+  for (const auto deadline = std::chrono::steady_clock::now() + 30s; std::chrono::steady_clock::now() < deadline;) {
+    ChildProcess list(cli({"topic", "list"}), env);
+    ASSERT_TRUE(list.wait_exit(30s)) << list.output();
+    listed = list.output();
+    if (list.wait_for_line(raw_line, 0ms) && list.wait_for_line(relayed_line, 0ms)) break;
+  }
+  EXPECT_TRUE(std::regex_search(listed, std::regex(R"((^|\n)/chain/raw +std_msgs/msg/String +1 +1 +relay, source\n)")))
+      << listed;
+  EXPECT_TRUE(
+      std::regex_search(listed, std::regex(R"((^|\n)/chain/relayed +std_msgs/msg/String +1 +1 +chain, relay\n)")))
+      << listed;
 
   ChildProcess echo(cli({"topic", "echo", "/chain/relayed", "--count", "3"}), env);
   const auto st = echo.wait_exit(30s);
@@ -171,13 +183,17 @@ TEST(TopicTools, ListEchoAndHzSeeARunningMultiProcessGraph) {
 
   ChildProcess hz(cli({"topic", "hz", "/chain/raw", "--duration", "2.5"}), env);
   ASSERT_TRUE(hz.wait_exit(30s)) << hz.output();
-  // The last report covers the whole run (the first second may start with
-  // two samples that arrive together as the reader joins).
+  // The last report covers the whole run. The pulse's wall-clock timer runs
+  // late and catches up on a loaded machine (or under TSan), so the band is
+  // wide; it still catches a period reported as a rate, or every message
+  // counted twice.
   std::string rate_line;
   for (const auto& l : hz.lines())
     if (l.rfind("average rate: ", 0) == 0) rate_line = l;
   ASSERT_FALSE(rate_line.empty()) << hz.output();
-  EXPECT_NEAR(std::stod(rate_line.substr(14)), 20.0, 1.0) << hz.output();
+  const double rate = std::stod(rate_line.substr(14));
+  EXPECT_GT(rate, 12.0) << hz.output();
+  EXPECT_LT(rate, 32.0) << hz.output();
 
   ChildProcess missing(cli({"topic", "echo", "/chain/nothing", "--wait", "0.5"}), env);
   const auto mst = missing.wait_exit(30s);
@@ -207,7 +223,7 @@ TEST(MultiHost, TwoNetworkNamespacesJoinedByAVethPairRunOneGraph) {
 TEST(TopicTools, ASingleNodeStartedWithRunDdsJoinsALaunchedGraph) {
   const auto env = dds_env();
   ChildProcess graph(cli({"launch", kLaunchDir + "chain.launch.yaml", "count:=0", "rate_hz:=20", "--no-table"}), env);
-  ASSERT_TRUE(graph.wait_for_text("data: \"pulse 1\"", 30s)) << graph.output();
+  ASSERT_TRUE(graph.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), 30s)) << graph.output();
   ChildProcess node(cli({"run", "tinyline", "echo", "--name", "visitor", "-r", "input:=/chain/raw", "--dds",
                          "--no-table"}),
                     env);
@@ -220,7 +236,7 @@ TEST(TopicTools, ASingleNodeStartedWithRunDdsJoinsALaunchedGraph) {
 #ifdef TINYLINE_DDS_PIPELINE_TEST
 namespace {
 
-/// A bag of `n` raw scans (tinyline_msgs/RawScan on /tiny/raw, 10 Hz) of a
+/// A bag of `n` raw scans (tinyline_msgs/RawScan on /tiny/raw, 5 Hz) of a
 /// scene the K sensor's public calibration turns into ranges: a wall at about
 /// 1.2 m, a bright object near 0.45 m that moves a pixel per scan, a dimmer one
 /// near 0.8 m; every read-out level as the sensor sends it (the top ones
@@ -235,7 +251,7 @@ void write_raw_bag(const std::string& path, int n) {
   constexpr int kPixels = 272;
   for (int s = 0; s < n; ++s) {
     tinyline::tinyline_msgs::msg::RawScan m;
-    const std::int64_t t_ns = 1'000'000'000'000LL + s * 100'000'000LL;
+    const std::int64_t t_ns = 1'000'000'000'000LL + s * 200'000'000LL;
     m.header.stamp.sec = static_cast<std::int32_t>(t_ns / 1'000'000'000);
     m.header.stamp.nanosec = static_cast<std::uint32_t>(t_ns % 1'000'000'000);
     m.header.frame_id = "tiny";
@@ -285,7 +301,9 @@ std::vector<std::string> echoed_messages(const std::vector<std::string>& lines, 
 
 TEST(MultiProcess, DriverAndClusteringInTwoProcessesGiveWhatOneProcessGivesOnAReplayedBag) {
   const auto env = dds_env();
-  const int n = 24;
+  // 5 Hz: the clusterer's queue of 5 scans rides out a one-second stall of a
+  // loaded machine (the nodes keep the last N, as they would live).
+  const int n = 12;
   const std::string work = fmt::format("{}/tl_pipeline_{}", ::testing::TempDir(), getpid());
   std::filesystem::create_directories(work);
   const std::string bag_path = work + "/raw.mcap";

@@ -418,7 +418,9 @@ std::vector<DiscoveredEndpoint> Discovery::settle(std::chrono::milliseconds sett
     for (const auto& e : v) k += e.dds_topic + (e.writer ? "W" : "R") + e.participant + ";";
     return k;
   };
-  while (SC::now() - start < timeout && SC::now() - last_change < settle) {
+  // Nothing found yet is not settled: discovery may simply be slow (a loaded
+  // machine); only the timeout ends a wait that finds nothing.
+  while (SC::now() - start < timeout && (SC::now() - last_change < settle || last.empty())) {
     dds_waitset_wait(ws, nullptr, 0, DDS_MSECS(20));
     auto now = snapshot();
     if (key(now) != key(last)) {
