@@ -453,6 +453,7 @@ void Bridge::receive_loop() {
         ddsi_serdata* sd = nullptr;
         dds_sample_info_t info;
         if (dds_takecdr(reader, &sd, 1, &info, DDS_ANY_STATE) <= 0) break;
+        detail::taking_over(sd);
         if (info.valid_data) {
           std::shared_ptr<void> msg;
           try {
@@ -474,6 +475,7 @@ void Bridge::receive_loop() {
             l->received.fetch_add(1, std::memory_order_relaxed);
           }
         }
+        detail::handing_over(sd);
         ddsi_serdata_unref(sd);
       }
     }

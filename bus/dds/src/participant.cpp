@@ -257,6 +257,7 @@ std::size_t RawReader::take(std::chrono::nanoseconds timeout, const std::functio
     ddsi_serdata* sd = nullptr;
     dds_sample_info_t info;
     if (dds_takecdr(reader_, &sd, 1, &info, DDS_ANY_STATE) <= 0) break;
+    detail::taking_over(sd);
     if (info.valid_data) {
       RawSample s;
       s.cdr = detail::serdata_bytes(sd);
@@ -266,10 +267,12 @@ std::size_t RawReader::take(std::chrono::nanoseconds timeout, const std::functio
       try {
         fn(s);
       } catch (...) {
+        detail::handing_over(sd);
         ddsi_serdata_unref(sd);
         throw;
       }
     }
+    detail::handing_over(sd);
     ddsi_serdata_unref(sd);
   }
   return n;
