@@ -75,6 +75,10 @@ def main():
     deadline = time.monotonic() + 30
     if mode == "sub":
         reader = DataReader(dp, t, qos=qos)
+        # Ready once this reader knows the writer: a best-effort reader drops
+        # data from a writer it has not discovered yet (nothing is resent).
+        while not reader.get_matched_publications() and time.monotonic() < deadline:
+            time.sleep(0.005)
         print("READY", flush=True)
         got = 0
         while got < n and time.monotonic() < deadline:

@@ -377,6 +377,9 @@ TEST(DdsBridge, ASensorDataPublisherReachesDefaultAndBestEffortSubscribersAsInOn
   c.run();
   ok = a.bridge->wait_for_peers({{"/scan", 2, 0}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing << a.sink->dump();
+  // Best effort resends nothing: c must know the writer before it is sent.
+  ok = c.bridge->wait_for_peers({{"/scan", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing << c.sink->dump();
   EXPECT_FALSE(c.stats("/scan").reader_qos.reliable);
   pub->publish(text("scan 21"));
   ASSERT_TRUE(b.signal->wait_for([&] { return loose.size() >= 1; }, 10s)) << c.sink->dump();
