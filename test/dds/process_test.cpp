@@ -143,6 +143,13 @@ TEST(MultiProcess, AKilledProcessIsReportedAndARestartedPublisherIsRediscovered)
   ASSERT_TRUE(p.wait_for_line(std::regex("^data: \"pulse 1\""), 15s, at_restart)) << p.output();
   ASSERT_TRUE(p.wait_for_text(fmt::format("lost the remote publisher in process 'source' (pid {}", source), 15s))
       << p.output();
+  // The restart did not wait for the dead sink: it rejoined with the peers still there.
+  EXPECT_TRUE(p.find("[source] [INFO]", at_restart) &&
+              p.wait_for_text("rejoined the running graph with the peers still there (/loss/beat: 1 of 2 remote "
+                              "subscriber(s)",
+                              1s, at_restart))
+      << p.output();
+  EXPECT_EQ(p.find("starting without every DDS peer"), std::nullopt) << p.output();
   EXPECT_EQ(p.find("[launch] process 'sink'", *p.find("[launch] process 'sink'") + 1), std::nullopt)
       << "the sink (no respawn) was restarted";
   interrupt_and_expect_clean_exit(p);

@@ -45,6 +45,8 @@ options:
   --process NAME      run only this process group (what the supervisor starts;
                       also how to start one group on another machine)
   --dds-wait S        longest wait for DDS peers before nodes start (default 10)
+  --rejoin            with --process: a restart into a running graph; wait only
+                      for the peers still alive (discovery settles), not for all
   --start-gate        with --process: once the peers are matched, print a ready
                       line and start the nodes when stdin gets a line (the
                       supervisor does this so all processes start together)
@@ -82,6 +84,49 @@ void wait_at_start_gate(std::chrono::milliseconds limit, const bus::Logger& log)
   }
 }
 
+/// A restart into a running graph: peers that died stay gone, so waiting
+/// for every planned one would stall until `limit`. Waits until everything
+/// planned is matched, or the counts stayed the same for half a second with
+/// each expected kind of peer matched at least once (two seconds if some
+/// kind has no match at all: its only peer may be gone), and says what it
+/// started without.
+void wait_for_live_peers(const dds::Bridge& bridge, const std::vector<dds::PeerExpectation>& expect,
+                         std::chrono::milliseconds limit, const bus::Logger& log) {
+  using SC = std::chrono::steady_clock;
+  const auto deadline = SC::now() + limit;
+  std::string last;
+  auto last_change = SC::now();
+  for (;;) {
+    const auto stats = bridge.stats();
+    bool all = true, some = true;
+    std::string counts, short_of;
+    for (const auto& e : expect) {
+      std::size_t r = 0, w = 0;
+      for (const auto& s : stats)
+        if (s.topic == e.topic) r = s.remote_readers, w = s.remote_writers;
+      all = all && r >= e.readers && w >= e.writers;
+      some = some && (e.readers == 0 || r > 0) && (e.writers == 0 || w > 0);
+      counts += fmt::format("{}:{}/{};", e.topic, r, w);
+      if (r < e.readers || w < e.writers) {
+        short_of += fmt::format("{}{}: {} of {} remote subscriber(s), {} of {} remote publisher(s)",
+                                short_of.empty() ? "" : "; ", e.topic, r, e.readers, w, e.writers);
+      }
+    }
+    if (all) return;
+    if (counts != last) {
+      last = counts;
+      last_change = SC::now();
+    }
+    const auto stable = SC::now() - last_change;
+    if ((some && stable >= std::chrono::milliseconds(500)) || stable >= std::chrono::seconds(2) ||
+        SC::now() >= deadline || interrupted()) {
+      log.info("rejoined the running graph with the peers still there ({})", short_of);
+      return;
+    }
+    ::poll(nullptr, 0, 20);  // discovery has no event to wait on here: a bounded poll of the counts
+  }
+}
+
 std::string dds_table(const std::vector<dds::LinkStats>& links) {
   std::string s = fmt::format("over DDS:\n{:<34} {:>11} {:>11} {:>10} {:>10} {:>9} {:>7}\n", "topic", "remote subs",
                               "remote pubs", "sent", "received", "no reader", "errors");
@@ -95,7 +140,7 @@ std::string dds_table(const std::vector<dds::LinkStats>& links) {
 
 int cmd_launch(const std::vector<std::string>& argv) {
   Args a(argv, {"--duration", "--threads", "--process", "--dds-wait", "--respawn-delay", "--grace"},
-         {"--no-table", "--check", "--help", "-h", "--start-gate"});
+         {"--no-table", "--check", "--help", "-h", "--start-gate", "--rejoin"});
   if (a.flag("--help") || a.flag("-h")) {
     fmt::print("{}", kHelp);
     return 0;
@@ -173,6 +218,7 @@ int cmd_launch(const std::vector<std::string>& argv) {
       c.nodes = p.nodes;
       c.respawn = p.respawn;
       c.gated = true;
+      c.restart_args = {"--rejoin"};
       c.argv = {self_exe(), "launch", file};
       for (std::size_t i = 1; i < a.positional().size(); ++i) c.argv.push_back(a.positional()[i]);
       c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--start-gate", "--threads",
@@ -191,7 +237,9 @@ int cmd_launch(const std::vector<std::string>& argv) {
   ro.before_spin = [&] {
     if (bridge) {
       bridge->start();
-      if (!mine.expect.empty()) {
+      if (!mine.expect.empty() && a.flag("--rejoin")) {
+        wait_for_live_peers(*bridge, mine.expect, wait_ms, bridge->logger());
+      } else if (!mine.expect.empty()) {
         const auto r = bridge->wait_for_peers(mine.expect, wait_ms);
         if (!r.ok) {
           bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait_ms.count() / 1000.0,

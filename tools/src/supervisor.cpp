@@ -64,8 +64,10 @@ void Supervisor::spawn(Child& c) {
     for (int fd : {out[0], out[1], err[0], err[1]}) close(fd);
     throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
   }
+  std::vector<std::string> args = c.spec.argv;
+  if (c.starts > 0) args.insert(args.end(), c.spec.restart_args.begin(), c.spec.restart_args.end());
   std::vector<char*> argv;
-  for (auto& a : c.spec.argv) argv.push_back(a.data());
+  for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   const pid_t parent = getpid();
   const pid_t pid = fork();

@@ -29,6 +29,8 @@ struct ChildSpec {
   /// opens the gates (its stdin gets a line), so no process starts its
   /// sources while another is still waiting for its own peers.
   bool gated = false;
+  /// Appended to argv when the child is restarted (launch: --rejoin).
+  std::vector<std::string> restart_args;
 };
 
 /// What a gated child prints (alone on a line of its stdout) when it is ready;
