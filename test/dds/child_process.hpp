@@ -103,6 +103,16 @@ class ChildProcess {
     }, timeout);
     return found;
   }
+  /// Waits until `n` lines contain `needle`; true if they did in time.
+  bool wait_for_count(const std::string& needle, std::size_t n, std::chrono::milliseconds timeout) {
+    bool ok = false;
+    wait([&] {
+      std::size_t c = 0;
+      for (const auto& l : lines_) c += l.find(needle) != std::string::npos ? 1 : 0;
+      return ok = c >= n;
+    }, timeout);
+    return ok;
+  }
   /// Index of the first line containing `needle` at or after `from`, if any.
   std::optional<std::size_t> find(const std::string& needle, std::size_t from = 0) const {
     std::lock_guard lk(mu_);

@@ -102,9 +102,10 @@ std::pair<dds::Settings, std::vector<std::string>> settings() {
   return {s, {fmt::format("ROS_DOMAIN_ID={}", s.domain_id), "CYCLONEDDS_URI=" + s.config}};
 }
 
-std::vector<std::string> python(const std::string& mode, const std::string& topic, int n) {
+std::vector<std::string> python(const std::string& mode, const std::string& topic, int n,
+                                const std::string& reliability = "reliable") {
   return {TINYLINE_VENV_PYTHON, std::string(TINYLINE_SOURCE_DIR) + "/test/dds/ros2_laserscan.py", mode, topic,
-          std::to_string(n)};
+          std::to_string(n), reliability};
 }
 
 }  // namespace
@@ -152,4 +153,36 @@ TEST(Ros2Interop, OurSubscriberDecodesLaserScansAPythonPublisherSends) {
   ASSERT_EQ(sent.size(), 4u) << py.output();
   EXPECT_EQ(got.items(), sent);
   for (const auto& st2 : g.bridge->stats()) EXPECT_EQ(st2.decode_errors, 0u) << st2.topic;
+}
+
+TEST(Ros2Interop, Ros2SensorDataAndDefaultProfileSubscribersBothReceiveADriversScans) {
+  // The driver publishes LaserScan with QoS::sensor_data(). A ROS 2 node
+  // subscribing with SensorDataQoS (best effort) and one with the default
+  // profile (reliable) must both match it, as they would a ROS 2 driver.
+  if (access(TINYLINE_VENV_PYTHON, X_OK) != 0) GTEST_SKIP() << "no test venv at " << TINYLINE_VENV_PYTHON;
+  auto [s, env] = settings();
+  Graph g(s);
+  auto pub = g.node->create_publisher<LaserScan>("/tiny/laser_scan", bus::QoS::sensor_data());
+  g.run();
+  tlt::ChildProcess reliable(python("sub", "/tiny/laser_scan", 5, "reliable"), env);
+  tlt::ChildProcess best_effort(python("sub", "/tiny/laser_scan", 5, "best_effort"), env);
+  ASSERT_TRUE(reliable.wait_for_text("READY", 60s)) << reliable.output();
+  ASSERT_TRUE(best_effort.wait_for_text("READY", 60s)) << best_effort.output();
+  const auto w = g.bridge->wait_for_peers({{"/tiny/laser_scan", 2, 0}}, 30s);
+  ASSERT_TRUE(w.ok) << w.missing << "\n" << g.sink->dump() << reliable.output() << best_effort.output();
+  std::vector<std::string> sent;
+  for (int i = 0; i < 5; ++i) {
+    auto m = std::make_unique<LaserScan>(scan(i));
+    sent.push_back(line(*m));
+    pub->publish(std::move(m));
+  }
+  for (auto* py : {&reliable, &best_effort}) {
+    const auto st = py->wait_exit(60s);
+    ASSERT_TRUE(st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0) << py->output();
+    std::vector<std::string> got;
+    for (const auto& l : py->lines())
+      if (l.rfind("SCAN|", 0) == 0) got.push_back(l);
+    EXPECT_EQ(got, sent);
+  }
+  for (const auto& st : g.bridge->stats()) EXPECT_EQ(st.incompatible, 0u) << st.topic;
 }

@@ -2,7 +2,10 @@
 bundled Cyclone DDS and CDR code) talking to tinyline with types named the way
 ROS 2 names them.
 
-  python ros2_laserscan.py sub TOPIC N   print N LaserScans received on DDS topic rt/TOPIC
+  python ros2_laserscan.py sub TOPIC N [best_effort]
+                                         print N LaserScans received on DDS topic rt/TOPIC
+                                         (reliable as ROS 2's default profile, or best effort as
+                                         its SensorDataQoS)
   python ros2_laserscan.py pub TOPIC N   publish N LaserScans once a reader matched
 
 Each scan is one line: "SCAN|<sec>|<nanosec>|<frame_id>|<9 float fields>|<ranges>|<intensities>"
@@ -66,11 +69,16 @@ def main():
     mode, topic, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
     dp = DomainParticipant(int(os.environ.get("ROS_DOMAIN_ID", "0")))
     t = Topic(dp, "rt/" + topic.lstrip("/"), LaserScan)
-    qos = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepLast(50),
-              Policy.DataRepresentation(use_cdrv0_representation=True))
+    best_effort = len(sys.argv) > 4 and sys.argv[4] == "best_effort"
+    reliability = Policy.Reliability.BestEffort if best_effort else Policy.Reliability.Reliable(duration(seconds=1))
+    qos = Qos(reliability, Policy.History.KeepLast(50), Policy.DataRepresentation(use_cdrv0_representation=True))
     deadline = time.monotonic() + 30
     if mode == "sub":
         reader = DataReader(dp, t, qos=qos)
+        # Ready once this reader knows the writer: a best-effort reader drops
+        # data from a writer it has not discovered yet (nothing is resent).
+        while not reader.get_matched_publications() and time.monotonic() < deadline:
+            time.sleep(0.005)
         print("READY", flush=True)
         got = 0
         while got < n and time.monotonic() < deadline:

@@ -3,8 +3,10 @@
 // One process runs the nodes without a process group; each group gets a child
 // process (this same executable with --process NAME), supervised here. Topics
 // crossing processes travel over DDS (docs/dds.md).
+#include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -43,6 +45,11 @@ options:
   --process NAME      run only this process group (what the supervisor starts;
                       also how to start one group on another machine)
   --dds-wait S        longest wait for DDS peers before nodes start (default 10)
+  --rejoin            with --process: a restart into a running graph; wait only
+                      for the peers still alive (discovery settles), not for all
+  --start-gate        with --process: once the peers are matched, print a ready
+                      line and start the nodes when stdin gets a line (the
+                      supervisor does this so all processes start together)
   --respawn-delay S   wait before restarting a crashed process (default 1)
   --grace S           after Ctrl-C, wait this long before killing (default 5)
 )";
@@ -52,6 +59,72 @@ std::string self_exe() {
   const auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
   if (ec) throw std::runtime_error("cannot find this executable (/proc/self/exe): " + ec.message());
   return p.string();
+}
+
+/// A supervised child at the start gate: says it is ready, then waits for
+/// the supervisor's line on stdin (EOF, Ctrl-C or `limit` also let it go).
+void wait_at_start_gate(std::chrono::milliseconds limit, const bus::Logger& log) {
+  fmt::print("{}\n", kReadyLine);
+  std::fflush(stdout);
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!interrupted()) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      log.warn("the supervisor did not open the start gate within {:.1f} s; starting anyway", limit.count() / 1000.0);
+      return;
+    }
+    pollfd p{STDIN_FILENO, POLLIN, 0};
+    const int n = ::poll(&p, 1, static_cast<int>(std::min<long>(left.count(), 100)));
+    if (n > 0) {
+      char c[16];
+      (void)!read(STDIN_FILENO, c, sizeof(c));  // a line or EOF: go
+      return;
+    }
+  }
+}
+
+/// A restart into a running graph: peers that died stay gone, so waiting
+/// for every planned one would stall until `limit`. Waits until everything
+/// planned is matched, or the counts stayed the same for half a second with
+/// each expected kind of peer matched at least once (two seconds if some
+/// kind has no match at all: its only peer may be gone), and says what it
+/// started without.
+void wait_for_live_peers(const dds::Bridge& bridge, const std::vector<dds::PeerExpectation>& expect,
+                         std::chrono::milliseconds limit, const bus::Logger& log) {
+  using SC = std::chrono::steady_clock;
+  const auto deadline = SC::now() + limit;
+  std::string last;
+  auto last_change = SC::now();
+  for (;;) {
+    const auto stats = bridge.stats();
+    bool all = true, some = true;
+    std::string counts, short_of;
+    for (const auto& e : expect) {
+      std::size_t r = 0, w = 0;
+      for (const auto& s : stats)
+        if (s.topic == e.topic) r = s.remote_readers, w = s.remote_writers;
+      all = all && r >= e.readers && w >= e.writers;
+      some = some && (e.readers == 0 || r > 0) && (e.writers == 0 || w > 0);
+      counts += fmt::format("{}:{}/{};", e.topic, r, w);
+      if (r < e.readers || w < e.writers) {
+        short_of += fmt::format("{}{}: {} of {} remote subscriber(s), {} of {} remote publisher(s)",
+                                short_of.empty() ? "" : "; ", e.topic, r, e.readers, w, e.writers);
+      }
+    }
+    if (all) return;
+    if (counts != last) {
+      last = counts;
+      last_change = SC::now();
+    }
+    const auto stable = SC::now() - last_change;
+    if ((some && stable >= std::chrono::milliseconds(500)) || stable >= std::chrono::seconds(2) ||
+        SC::now() >= deadline || interrupted()) {
+      log.info("rejoined the running graph with the peers still there ({})", short_of);
+      return;
+    }
+    ::poll(nullptr, 0, 20);  // discovery has no event to wait on here: a bounded poll of the counts
+  }
 }
 
 std::string dds_table(const std::vector<dds::LinkStats>& links) {
@@ -67,7 +140,7 @@ std::string dds_table(const std::vector<dds::LinkStats>& links) {
 
 int cmd_launch(const std::vector<std::string>& argv) {
   Args a(argv, {"--duration", "--threads", "--process", "--dds-wait", "--respawn-delay", "--grace"},
-         {"--no-table", "--check", "--help", "-h"});
+         {"--no-table", "--check", "--help", "-h", "--start-gate", "--rejoin"});
   if (a.flag("--help") || a.flag("-h")) {
     fmt::print("{}", kHelp);
     return 0;
@@ -144,9 +217,11 @@ int cmd_launch(const std::vector<std::string>& argv) {
       c.name = p.name;
       c.nodes = p.nodes;
       c.respawn = p.respawn;
+      c.gated = true;
+      c.restart_args = {"--rejoin"};
       c.argv = {self_exe(), "launch", file};
       for (std::size_t i = 1; i < a.positional().size(); ++i) c.argv.push_back(a.positional()[i]);
-      c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--threads",
+      c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--start-gate", "--threads",
                                    std::to_string(static_cast<int>(a.number("--threads", 2))), "--dds-wait",
                                    fmt::format("{}", a.number("--dds-wait", 10.0))});
       supervisor->start(std::move(c));
@@ -157,18 +232,39 @@ int cmd_launch(const std::vector<std::string>& argv) {
   if (a.value("--duration")) ro.duration_s = a.number("--duration", 0);
   ro.threads = static_cast<int>(a.number("--threads", 2));
   ro.table = !a.flag("--no-table");
-  if (bridge) {
-    const auto wait_ms = std::chrono::milliseconds(static_cast<long>(a.number("--dds-wait", 10.0) * 1000));
-    ro.before_spin = [&] {
+  const auto wait_ms = std::chrono::milliseconds(static_cast<long>(a.number("--dds-wait", 10.0) * 1000));
+  const bool gated = only && a.flag("--start-gate");
+  ro.before_spin = [&] {
+    if (bridge) {
       bridge->start();
-      if (mine.expect.empty()) return;
-      const auto r = bridge->wait_for_peers(mine.expect, wait_ms);
-      if (!r.ok) {
-        bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait_ms.count() / 1000.0,
-                              r.missing);
+      if (!mine.expect.empty() && a.flag("--rejoin")) {
+        wait_for_live_peers(*bridge, mine.expect, wait_ms, bridge->logger());
+      } else if (!mine.expect.empty()) {
+        const auto r = bridge->wait_for_peers(mine.expect, wait_ms);
+        if (!r.ok) {
+          bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait_ms.count() / 1000.0,
+                                r.missing);
+        }
       }
-    };
-  }
+    }
+    // Matched peers are not running peers: a process that matched early
+    // would start its sources while another still waits for its own peers,
+    // with nothing yet taking its messages off the queues. So every process
+    // waits at a gate the supervisor opens once all of them are ready.
+    const auto gate_limit = 2 * wait_ms + std::chrono::seconds(20);  // a child's start-up and its own wait
+    if (gated) wait_at_start_gate(gate_limit + std::chrono::seconds(10), ctx->logger("/launch"));
+    if (!only && graph.has_groups()) {
+      const auto deadline = std::chrono::steady_clock::now() + gate_limit;
+      while (!supervisor->all_ready() && !interrupted() && std::chrono::steady_clock::now() < deadline) {
+        supervisor->poll(std::chrono::milliseconds(20));
+      }
+      if (const auto late = supervisor->not_ready(); !late.empty() && !interrupted()) {
+        fmt::print(stderr, "[launch] starting although process(es) {} did not get ready within {:.1f} s\n",
+                   fmt::join(late, ", "), gate_limit.count() / 1000.0);
+      }
+      supervisor->open_gates();
+    }
+  };
   ro.before_stop = [&] {
     if (bridge) bridge->expect_departures();  // the other processes are stopping too
     supervisor->stop_all();

@@ -24,8 +24,9 @@ class Echo : public bus::Node {
     const auto type = declare_parameter<std::string>("type", "std_msgs/msg/String", "message type of the topic");
     const int max_array = declare_parameter("max_array", 16, "elements of long arrays to show (0: all)",
                                             bus::ParamConstraints::at_least(0));
+    const int depth = declare_parameter("depth", 10, "queue depth", bus::ParamConstraints::at_least(1));
     sub_ = create_generic_subscription(
-        "input", type_param(*this, type), bus::QoS::keep_last(10),
+        "input", type_param(*this, type), bus::QoS::keep_last(static_cast<std::size_t>(depth)),
         [this, max_array](const std::shared_ptr<const void>& m, const msg::TypeSupport& ts, const bus::MessageInfo&) {
           msg::YamlWriter y(static_cast<std::size_t>(max_array));
           ts.to_yaml(m.get(), y);

@@ -36,6 +36,8 @@ std::string topic_table(const bus::Graph& graph, bus::RateMonitor& rates, bus::T
   return s;
 }
 
+bool interrupted() { return g_signal.load() != 0; }
+
 int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::shared_ptr<bus::Node>>& nodes,
               const RunOptions& options) {
   bus::MultiThreadedExecutor ex(ctx->clock(), std::max(1, options.threads));

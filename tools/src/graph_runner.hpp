@@ -35,6 +35,9 @@ struct RunOptions {
 int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::shared_ptr<bus::Node>>& nodes,
               const RunOptions& options);
 
+/// Ctrl-C (SIGINT) or SIGTERM arrived during run_nodes (before_spin may poll it).
+bool interrupted();
+
 /// The topic table as text (the live view and the final summary).
 std::string topic_table(const bus::Graph& graph, bus::RateMonitor& rates, bus::Time wall_now);
 

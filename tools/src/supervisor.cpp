@@ -21,6 +21,8 @@ struct Supervisor::Child {
   ChildSpec spec;
   pid_t pid = -1;
   int out = -1, err = -1;  // read ends of its stdout / stderr pipes
+  int gate = -1;           // write end of its stdin while it waits at the start gate
+  bool ready = false;      // it printed kReadyLine
   std::string out_buf, err_buf;
   bool stop_requested = false;
   std::optional<SteadyClock::time_point> restart_at;
@@ -33,7 +35,10 @@ std::string describe_exit(int st) {
   return "stopped";
 }
 
-Supervisor::Supervisor(SupervisorOptions options) : options_(options) {}
+Supervisor::Supervisor(SupervisorOptions options) : options_(options) {
+  // A gate write to a child that just died must fail with EPIPE, not kill us.
+  signal(SIGPIPE, SIG_IGN);
+}
 
 Supervisor::~Supervisor() { stop_all(); }
 
@@ -54,13 +59,21 @@ void Supervisor::spawn(Child& c) {
   }
   // Everything the child needs is prepared before fork: between fork and exec
   // only async-signal-safe calls (the executor's threads may hold locks).
+  int gate[2] = {-1, -1};
+  if (c.spec.gated && pipe2(gate, O_CLOEXEC) != 0) {
+    for (int fd : {out[0], out[1], err[0], err[1]}) close(fd);
+    throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
+  }
+  std::vector<std::string> args = c.spec.argv;
+  if (c.starts > 0) args.insert(args.end(), c.spec.restart_args.begin(), c.spec.restart_args.end());
   std::vector<char*> argv;
-  for (auto& a : c.spec.argv) argv.push_back(a.data());
+  for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) {
-    for (int fd : {out[0], out[1], err[0], err[1]}) close(fd);
+    for (int fd : {out[0], out[1], err[0], err[1], gate[0], gate[1]})
+      if (fd >= 0) close(fd);
     throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
   }
   if (pid == 0) {
@@ -69,7 +82,9 @@ void Supervisor::spawn(Child& c) {
     if (getppid() != parent) _exit(127);  // the supervisor died before prctl
     dup2(out[1], STDOUT_FILENO);
     dup2(err[1], STDERR_FILENO);
+    if (gate[0] >= 0) dup2(gate[0], STDIN_FILENO);
     signal(SIGINT, SIG_DFL);
+    signal(SIGPIPE, SIG_DFL);
     signal(SIGTERM, SIG_DFL);
     execv(argv[0], argv.data());
     const char msg[] = "exec failed\n";
@@ -78,6 +93,14 @@ void Supervisor::spawn(Child& c) {
   }
   close(out[1]);
   close(err[1]);
+  if (gate[0] >= 0) close(gate[0]);
+  c.gate = gate[1];
+  c.ready = false;
+  if (gates_open_ && c.gate >= 0) {  // a restart into a running graph: no one to wait for
+    (void)!write(c.gate, "go\n", 3);
+    close(c.gate);
+    c.gate = -1;
+  }
   fcntl(out[0], F_SETFL, O_NONBLOCK);
   fcntl(err[0], F_SETFL, O_NONBLOCK);
   c.pid = pid;
@@ -111,7 +134,12 @@ void Supervisor::forward(Child& c, int& fd, bool drain) {
   std::size_t start = 0;
   std::string lines;
   for (std::size_t nl; (nl = buf.find('\n', start)) != std::string::npos; start = nl + 1) {
-    lines += fmt::format("[{}] {}\n", c.spec.name, std::string_view(buf).substr(start, nl - start));
+    const std::string_view line = std::string_view(buf).substr(start, nl - start);
+    if (is_out && line == kReadyLine) {
+      c.ready = true;
+      continue;
+    }
+    lines += fmt::format("[{}] {}\n", c.spec.name, line);
   }
   buf.erase(0, start);
   if (eof && !buf.empty()) {
@@ -183,6 +211,10 @@ void Supervisor::reap(bool stopping) {
       if (*fd >= 0) forward(*c, *fd, true);
     const pid_t pid = c->pid;
     c->pid = -1;
+    if (c->gate >= 0) {
+      close(c->gate);
+      c->gate = -1;
+    }
     const bool clean = WIFEXITED(st) && WEXITSTATUS(st) == 0;
     if (c->stop_requested || stopping) {
       if (!clean && !(WIFSIGNALED(st) && (WTERMSIG(st) == SIGINT || WTERMSIG(st) == SIGKILL))) {
@@ -231,6 +263,25 @@ void Supervisor::stop_all() {
     }
   }
   reap(true);
+}
+
+bool Supervisor::all_ready() const { return not_ready().empty(); }
+
+std::vector<std::string> Supervisor::not_ready() const {
+  std::vector<std::string> out;
+  for (const auto& c : children_)
+    if (c->spec.gated && c->pid > 0 && !c->ready) out.push_back(c->spec.name);
+  return out;
+}
+
+void Supervisor::open_gates() {
+  gates_open_ = true;
+  for (auto& c : children_) {
+    if (c->gate < 0) continue;
+    (void)!write(c->gate, "go\n", 3);  // EPIPE if it just died: reap() reports that
+    close(c->gate);
+    c->gate = -1;
+  }
 }
 
 std::size_t Supervisor::running() const {

@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tinyline::tools {
@@ -23,7 +24,18 @@ struct ChildSpec {
   std::vector<std::string> argv;   ///< argv[0] is the executable path
   std::vector<std::string> nodes;  ///< its nodes, for reports
   bool respawn = false;
+  /// The child runs `tinyline launch ... --start-gate`: it prints kReadyLine
+  /// once its DDS peers are matched and starts its nodes when the supervisor
+  /// opens the gates (its stdin gets a line), so no process starts its
+  /// sources while another is still waiting for its own peers.
+  bool gated = false;
+  /// Appended to argv when the child is restarted (launch: --rejoin).
+  std::vector<std::string> restart_args;
 };
+
+/// What a gated child prints (alone on a line of its stdout) when it is ready;
+/// the supervisor does not forward it.
+inline constexpr std::string_view kReadyLine = "[tinyline launch: ready]";
 
 struct SupervisorOptions {
   double respawn_delay_s = 1.0;  ///< wait before restarting a dead child
@@ -48,6 +60,13 @@ class Supervisor {
   /// period; forwards what they print on the way out.
   void stop_all();
 
+  /// Every gated child still running has said it is ready.
+  bool all_ready() const;
+  /// Names of the gated children still running that have not said so.
+  std::vector<std::string> not_ready() const;
+  /// Lets every gated child start its nodes; children started (or restarted)
+  /// later start as soon as they are ready.
+  void open_gates();
   /// Children that died on their own (not stopped by us), counted per death.
   int failures() const { return failures_; }
   /// Children running now.
@@ -63,6 +82,7 @@ class Supervisor {
   SupervisorOptions options_;
   std::vector<std::unique_ptr<Child>> children_;
   int failures_ = 0;
+  bool gates_open_ = false;
 };
 
 /// "exited with code 3" / "was killed by signal 9 (Killed)".

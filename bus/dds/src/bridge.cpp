@@ -37,11 +37,15 @@ bool worth_logging(std::uint64_t count) { return count == 1 || count % 100 == 0;
 
 EndpointQos offered_qos(const std::vector<bus::QoS>& pubs) {
   EndpointQos e;
-  e.reliable = false;
+  // Every writer offers reliable: under DDS's request/offered rule a reliable
+  // offer serves best-effort readers too (they get best-effort delivery), and
+  // it costs nothing until a reliable reader matches. So best effort stays the
+  // subscriber's choice, as in one process, where a sensor_data() publisher
+  // reaches a default subscriber: splitting a graph must not cut that edge.
+  e.reliable = true;
   e.depth = 1;
   e.max_blocking = std::chrono::nanoseconds(0);
   for (const auto& q : pubs) {
-    e.reliable |= !q.best_effort;
     e.transient_local |= q.transient_local;
     e.keep_all |= q.history == bus::QoS::History::Reliable;
     e.depth = std::max(e.depth, static_cast<int>(q.depth));
@@ -202,7 +206,8 @@ struct BridgeAccess {
     l->incompatible.fetch_add(1);
     l->bridge->logger().warn(
         "{}: a remote publisher offers QoS the local subscribers cannot accept ({}); nothing arrives from it. "
-        "Requested here: {} (a best-effort publisher needs best-effort subscribers, QoS::sensor_data())",
+        "Requested here: {} (a best-effort publisher of another program needs best-effort subscribers here, "
+        "QoS::sensor_data(); a volatile one cannot serve latched subscribers)",
         l->name, detail::policy_name(st.last_policy_id), l->rq.describe());
   }
 };
@@ -448,6 +453,7 @@ void Bridge::receive_loop() {
         ddsi_serdata* sd = nullptr;
         dds_sample_info_t info;
         if (dds_takecdr(reader, &sd, 1, &info, DDS_ANY_STATE) <= 0) break;
+        detail::taking_over(sd);
         if (info.valid_data) {
           std::shared_ptr<void> msg;
           try {
@@ -469,6 +475,7 @@ void Bridge::receive_loop() {
             l->received.fetch_add(1, std::memory_order_relaxed);
           }
         }
+        detail::handing_over(sd);
         ddsi_serdata_unref(sd);
       }
     }

@@ -257,6 +257,7 @@ std::size_t RawReader::take(std::chrono::nanoseconds timeout, const std::functio
     ddsi_serdata* sd = nullptr;
     dds_sample_info_t info;
     if (dds_takecdr(reader_, &sd, 1, &info, DDS_ANY_STATE) <= 0) break;
+    detail::taking_over(sd);
     if (info.valid_data) {
       RawSample s;
       s.cdr = detail::serdata_bytes(sd);
@@ -266,10 +267,12 @@ std::size_t RawReader::take(std::chrono::nanoseconds timeout, const std::functio
       try {
         fn(s);
       } catch (...) {
+        detail::handing_over(sd);
         ddsi_serdata_unref(sd);
         throw;
       }
     }
+    detail::handing_over(sd);
     ddsi_serdata_unref(sd);
   }
   return n;
@@ -418,7 +421,9 @@ std::vector<DiscoveredEndpoint> Discovery::settle(std::chrono::milliseconds sett
     for (const auto& e : v) k += e.dds_topic + (e.writer ? "W" : "R") + e.participant + ";";
     return k;
   };
-  while (SC::now() - start < timeout && SC::now() - last_change < settle) {
+  // Nothing found yet is not settled: discovery may simply be slow (a loaded
+  // machine); only the timeout ends a wait that finds nothing.
+  while (SC::now() - start < timeout && (SC::now() - last_change < settle || last.empty())) {
     dds_waitset_wait(ws, nullptr, 0, DDS_MSECS(20));
     auto now = snapshot();
     if (key(now) != key(last)) {

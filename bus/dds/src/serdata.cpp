@@ -6,7 +6,39 @@
 #include <cstring>
 #include <new>
 
+#if defined(__SANITIZE_THREAD__)
+extern "C" void __tsan_acquire(void* addr);
+extern "C" void __tsan_release(void* addr);
+
+// Cyclone DDS (Debian's libddsc) is not instrumented: TSan sees its libc
+// calls but not its atomics, so Cyclone's own buffer and mutex life cycles
+// look racy. Each entry names a Cyclone-internal frame (or, for sd_free, the
+// free our sertype does when Cyclone's reference count says so), never code
+// of ours that shares data between our threads. Every binary linking
+// tinyline::dds under TSan gets these (TSan asks for them at start).
+extern "C" const char* __tsan_default_suppressions() {
+  return "race:ddsrt_recvmsg\n"     // receive buffers reused by Cyclone
+         "race:ddsrt_sendmsg\n"     // transmit buffers freed by Cyclone's gc thread
+         "race:ddsrt_mutex_destroy\n"
+         "race:ddsrt_mutex_lock\n"  // mutexes in memory Cyclone published with its atomics
+         "race:sd_free\n"           // a sample freed on Cyclone's last unref
+         "race_top:^strcmp$\n";     // Cyclone's gc frees a name another Cyclone thread compares (frames without symbols)
+}
+#endif
+
 namespace tinyline::dds::detail {
+
+void handing_over([[maybe_unused]] const ddsi_serdata* d) {
+#if defined(__SANITIZE_THREAD__)
+  __tsan_release(const_cast<ddsi_serdata*>(d));
+#endif
+}
+
+void taking_over([[maybe_unused]] const ddsi_serdata* d) {
+#if defined(__SANITIZE_THREAD__)
+  __tsan_acquire(const_cast<ddsi_serdata*>(d));
+#endif
+}
 
 namespace {
 
@@ -64,6 +96,7 @@ ddsi_serdata* sd_from_ser(const ddsi_sertype* type, ddsi_serdata_kind kind, cons
     delete d;
     return nullptr;
   }
+  handing_over(d);
   return d;
 }
 
@@ -80,6 +113,7 @@ ddsi_serdata* sd_from_ser_iov(const ddsi_sertype* type, ddsi_serdata_kind kind, 
     delete d;
     return nullptr;
   }
+  handing_over(d);
   return d;
 }
 
@@ -103,18 +137,24 @@ ddsi_serdata* sd_to_untyped(const ddsi_serdata* d) {
 }
 
 void sd_to_ser(const ddsi_serdata* d, std::size_t off, std::size_t sz, void* buf) {
+  taking_over(d);
   std::memcpy(buf, static_cast<const Serdata*>(d)->bytes.data() + off, sz);
 }
 
 ddsi_serdata* sd_to_ser_ref(const ddsi_serdata* d, std::size_t off, std::size_t sz, ddsrt_iovec_t* ref) {
+  taking_over(d);
   ref->iov_base = const_cast<std::uint8_t*>(static_cast<const Serdata*>(d)->bytes.data() + off);
   ref->iov_len = static_cast<ddsrt_iov_len_t>(sz);
   return ddsi_serdata_ref(d);
 }
 
-void sd_to_ser_unref(ddsi_serdata* d, const ddsrt_iovec_t*) { ddsi_serdata_unref(d); }
+void sd_to_ser_unref(ddsi_serdata* d, const ddsrt_iovec_t*) {
+  handing_over(d);  // the transmit thread is done reading
+  ddsi_serdata_unref(d);
+}
 
 bool sd_to_sample(const ddsi_serdata* d, void* sample, void**, void*) {
+  taking_over(d);
   auto* out = static_cast<Sample*>(sample);
   const auto& b = static_cast<const Serdata*>(d)->bytes;
   if (d->kind == SDK_DATA) {
@@ -130,7 +170,10 @@ bool sd_untyped_to_sample(const ddsi_sertype*, const ddsi_serdata*, void* sample
   return true;
 }
 
-void sd_free(ddsi_serdata* d) { delete static_cast<Serdata*>(d); }
+void sd_free(ddsi_serdata* d) {
+  taking_over(d);  // every thread that used it handed it over before its unref
+  delete static_cast<Serdata*>(d);
+}
 
 std::size_t sd_print(const ddsi_sertype* type, const ddsi_serdata* d, char* buf, std::size_t size) {
   const auto* t = sertype_of(type);
@@ -254,6 +297,7 @@ ddsi_serdata* make_serdata(const ddsi_sertype* type, std::vector<std::uint8_t>&&
   auto* d = new_serdata(type, SDK_DATA);
   d->bytes = std::move(encapsulated_cdr);
   pad(d->bytes);
+  handing_over(d);  // to dds_writecdr
   return d;
 }
 

@@ -37,4 +37,13 @@ ddsi_serdata* make_serdata(const ddsi_sertype* type, std::vector<std::uint8_t>&&
 /// The bytes of a sample of one of our sertypes.
 std::span<const std::uint8_t> serdata_bytes(const ddsi_serdata* d);
 
+/// Thread-sanitizer hand-over marks. Cyclone is not instrumented, so TSan
+/// cannot see that its reference counting orders our writes of a sample's
+/// bytes before another thread reads or frees them. `handing_over` goes
+/// before a reference leaves our code (dds_writecdr, ddsi_serdata_unref),
+/// `taking_over` where a thread starts using a sample Cyclone gave it.
+/// Both compile to nothing without TSan.
+void handing_over(const ddsi_serdata* d);
+void taking_over(const ddsi_serdata* d);
+
 }  // namespace tinyline::dds::detail

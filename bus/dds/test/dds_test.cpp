@@ -348,20 +348,66 @@ TEST(DdsBridge, ALatchedTopicReachesASubscriberThatJoinsLater) {
   EXPECT_TRUE(b.stats("/map").reader_qos.transient_local);
 }
 
-TEST(DdsBridge, IncompatibleQosIsReportedWithThePolicyNotSilentlyDropped) {
+TEST(DdsBridge, ASensorDataPublisherReachesDefaultAndBestEffortSubscribersAsInOneProcess) {
+  // The driver publishes with QoS::sensor_data(), a clusterer subscribes with
+  // keep_last: in one process that edge works, so split over DDS it must too.
   const auto s = test_settings("x");
   Side a("a", s), b("b", s);
   auto pub = a.node("sensor")->create_publisher<StringMsg>("/scan", bus::QoS::sensor_data());
-  auto sub = b.node("strict")->create_subscription<StringMsg>("/scan", bus::QoS::keep_last(5), [](const StringMsg&) {});
+  tinyline::testing::Inbox<std::string> strict(b.signal), loose(b.signal);
+  auto s1 = b.node("strict")->create_subscription<StringMsg>("/scan", bus::QoS::keep_last(100),
+                                                             [&](const StringMsg& m) { strict.push(m.data); });
   a.run();
   b.run();
-  ASSERT_TRUE(b.signal->wait_for([&] { return b.sink->contains(bus::LogLevel::Warn, "reliability"); }, 10s))
+  auto ok = a.bridge->wait_for_peers({{"/scan", 1, 0}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing << a.sink->dump();
+  EXPECT_TRUE(a.stats("/scan").writer_qos.reliable) << "a reliable offer serves every reader";
+  EXPECT_TRUE(b.stats("/scan").reader_qos.reliable);
+  for (int i = 1; i <= 20; ++i) pub->publish(text("scan " + std::to_string(i)));
+  ASSERT_TRUE(b.signal->wait_for([&] { return strict.size() >= 20; }, 10s)) << b.sink->dump();
+  EXPECT_EQ(strict.items().front(), "scan 1");
+  EXPECT_EQ(strict.items().back(), "scan 20");
+  EXPECT_EQ(b.stats("/scan").incompatible, 0u);
+  EXPECT_FALSE(b.sink->contains(bus::LogLevel::Warn, "QoS"));
+
+  // A best-effort subscriber in a third graph matches the same writer.
+  Side c("c", s);
+  auto s2 = c.node("loose")->create_subscription<StringMsg>("/scan", bus::QoS::sensor_data(100),
+                                                            [&](const StringMsg& m) { loose.push(m.data); });
+  c.run();
+  ok = a.bridge->wait_for_peers({{"/scan", 2, 0}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing << a.sink->dump();
+  // Best effort resends nothing: c must know the writer before it is sent.
+  ok = c.bridge->wait_for_peers({{"/scan", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing << c.sink->dump();
+  EXPECT_FALSE(c.stats("/scan").reader_qos.reliable);
+  pub->publish(text("scan 21"));
+  ASSERT_TRUE(b.signal->wait_for([&] { return loose.size() >= 1; }, 10s)) << c.sink->dump();
+  EXPECT_EQ(loose.items().back(), "scan 21");
+}
+
+TEST(DdsBridge, IncompatibleQosIsReportedWithThePolicyNotSilentlyDropped) {
+  // A latched subscriber requires transient local; a volatile publisher
+  // cannot give it (DDS and ROS 2 refuse the pair): both sides say so.
+  const auto s = test_settings("x");
+  Side a("a", s), b("b", s);
+  auto pub = a.node("talker")->create_publisher<StringMsg>("/map", bus::QoS::keep_last(5));
+  auto sub = b.node("strict")->create_subscription<StringMsg>("/map", bus::QoS::keep_last(5).latched(),
+                                                              [](const StringMsg&) {});
+  a.run();
+  b.run();
+  ASSERT_TRUE(b.signal->wait_for([&] { return b.sink->contains(bus::LogLevel::Warn, "durability"); }, 10s))
       << b.sink->dump();
-  EXPECT_TRUE(b.sink->contains(bus::LogLevel::Warn, "/scan: a remote publisher offers QoS"));
-  EXPECT_GE(b.stats("/scan").incompatible, 1u);
+  EXPECT_TRUE(b.sink->contains(bus::LogLevel::Warn, "/map: a remote publisher offers QoS"));
+  EXPECT_GE(b.stats("/map").incompatible, 1u);
   ASSERT_TRUE(a.signal->wait_for([&] { return a.sink->contains(bus::LogLevel::Warn, "a remote subscriber requests"); },
                                  10s))
       << a.sink->dump();
+  EXPECT_EQ(dds::incompatibility(dds::offered_qos({bus::QoS::keep_last(5)}),
+                                 dds::requested_qos({bus::QoS::keep_last(5).latched()})),
+            "the subscribers require transient local (latched), the publishers are volatile");
+  EXPECT_EQ(dds::incompatibility(dds::offered_qos({bus::QoS::sensor_data()}), dds::requested_qos({bus::QoS::keep_last()})),
+            "");
 }
 
 TEST(DdsBridge, BytesThatDoNotDecodeAreDroppedAndReportedAndLaterOnesStillArrive) {

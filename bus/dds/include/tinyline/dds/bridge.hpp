@@ -82,7 +82,10 @@ struct WaitResult {
 };
 
 /// The QoS the bridge's DDS writer offers for these local publishers: the
-/// strongest of them, so it serves every reader one of them would.
+/// strongest of them, so it serves every reader one of them would, and
+/// always reliable (a reliable offer serves best-effort readers as well, so a
+/// sensor_data() publisher reaches a default subscriber in another process
+/// as it does in its own).
 EndpointQos offered_qos(const std::vector<bus::QoS>& publishers);
 /// The QoS its DDS reader requests for these local subscribers: reliability
 /// and durability only if every one of them needs it (a stronger request
