@@ -660,48 +660,46 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
 
   Circle current = best;
   int count = select(current, 0.0);
-  CircleFit fit;
-  bool have_fit = false;
+  bool moved = false;
   const int rounds = std::max(1, params.local_optimisation_rounds) + (params.final_threshold_sigmas > 0.0 ? 3 : 0);
   for (int round = 0; round < rounds; ++round) {
     gather();
-    CircleFit f;
-    if (known || have_fit) {
-      // Continue from the current circle (the algebraic fit cannot hold a
-      // known radius, and after the first round the start is already good).
-      f = refine_circle(inl, current, rp, inl_sigma);
+    // Re-selection rounds use the algebraic fit: cheap, and within a small
+    // fraction of the ML fit at these noise levels. A known radius needs LM.
+    std::optional<Circle> next;
+    if (known) {
+      const CircleFit f = refine_circle(inl, current, rp, inl_sigma);
+      if (f.ok()) next = f.circle;
     } else {
       const CircleFit h = fit_circle_hyper(inl);
-      f = refine_circle(inl, h.ok() ? h.circle : current, rp, inl_sigma);
+      if (h.ok()) next = h.circle;
     }
-    if (!f.ok()) break;
+    if (!next) break;  // e.g. a collinear consensus set: keep the hypothesis
     const std::vector<std::uint8_t> before = mask;
     const int before_count = count;
-    const double limit = adaptive_limit(f.circle);
-    const int k = select(f.circle, limit);
-    if (limit == 0.0 && k < before_count && have_fit) {
-      mask = before;  // the refit lost support: keep the previous set and fit
+    const double limit = adaptive_limit(*next);
+    const int k = select(*next, limit);
+    if (limit == 0.0 && k < before_count && moved) {
+      mask = before;  // the refit lost support: keep the previous set
       count = before_count;
       break;
     }
-    fit = std::move(f);
-    have_fit = true;
-    current = fit.circle;
+    current = *next;
+    moved = true;
     count = k;
     if (mask == before) break;
   }
-  if (!have_fit) {
-    // The consensus set could not be refined (e.g. it is collinear): report
-    // the hypothesis itself.
+  // The final fit on the final set: geometric (ML) unless the caller refits.
+  gather();
+  CircleFit fit;
+  if (params.final_geometric_fit || known) fit = refine_circle(inl, current, rp, inl_sigma);
+  if (!fit.ok()) {
     fit = CircleFit{};
     fit.status = FitStatus::kOk;
     fit.circle = current;
-    count = select(current, 0.0);
-  } else if (count != fit.points_used) {
-    // The last selection differs from the set fitted last: fit it once more.
-    gather();
-    CircleFit f = refine_circle(inl, fit.circle, rp, inl_sigma);
-    if (f.ok()) fit = std::move(f);
+    double ss = 0.0;
+    for (Eigen::Index j = 0; j < inl.cols(); ++j) ss += std::pow((inl.col(j) - current.centre_m).norm() - current.radius_m, 2);
+    fit.rms_residual_m = inl.cols() ? std::sqrt(ss / static_cast<double>(inl.cols())) : 0.0;
   }
   fit.iterations = drawn;
   fit.non_finite = non_finite;

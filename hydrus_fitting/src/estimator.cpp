@@ -8,7 +8,10 @@
 namespace tinyline::hydrus_fitting {
 
 CircleEstimator::CircleEstimator(const RobotModel& model, CircleEstimatorParams params)
-    : params_(std::move(params)), fuser_(model, params_.fusion) {}
+    : params_(std::move(params)), fuser_(model, params_.fusion) {
+  // The incidence refit replaces the robust fit's own final LM.
+  if (params_.incidence_weighting) params_.robust.final_geometric_fit = false;
+}
 
 CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const JointStateBuffer& joints) {
   CircleEstimate e;
