@@ -296,11 +296,17 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
         continue;
       }
       const Eigen::Vector3d cand = theta + delta;
-      const double c = (cand(2) > 0.0) ? evaluate(cand, nullptr, nullptr) : std::numeric_limits<double>::infinity();
+      // The candidate's gradient system comes in the same pass as its cost:
+      // near the minimum almost every step is accepted.
+      Eigen::Matrix3d Hc;
+      Eigen::Vector3d gc;
+      const double c = (cand(2) > 0.0) ? evaluate(cand, &Hc, &gc) : std::numeric_limits<double>::infinity();
       if (c <= cost) {
         theta = cand;
         const double old = cost;
-        cost = evaluate(theta, &H, &g);
+        cost = c;
+        H = Hc;
+        g = gc;
         lambda = std::max(lambda * 0.1, 1e-12);
         accepted = true;
         if (delta.norm() < params.step_tolerance_m || old - c <= 1e-15 * old) converged = true;
