@@ -10,7 +10,6 @@
 #include <fmt/format.h>
 
 #include <sim/firmware.hpp>
-#include <sim/scenes/hydrus.hpp>
 #include <sim/system.hpp>
 #include <tiny_laser_driver/calibration.hpp>
 #include <tiny_laser_driver/scan_processor.hpp>
@@ -18,6 +17,7 @@
 #include "hydrus_fitting/estimator.hpp"
 #include "hydrus_fitting/robot_model.hpp"
 #include "hydrus_fitting/sequencer.hpp"
+#include "hydrus_fitting/simulated_hydrus.hpp"
 
 namespace tinyline::hydrus_fitting::eval {
 
@@ -47,23 +47,16 @@ SimStudyResult sim_study(const SimStudyParams& p) {
 
   const RobotModel model = RobotModel::load(p.robot_description);
   sim::SimulatedSystem sys(sim::load_scene(p.scene_path));
-  const auto truth_centre = sys.with_scene([](const sim::Scene& s) { return s.truth.at("cylinder_centre_m"); });
-  const double truth_radius = sys.with_scene([](const sim::Scene& s) { return s.truth.at("cylinder_radius_m").at(0); });
-  const double height = sys.with_scene([](const sim::Scene& s) { return s.truth.at("sensing_height_m").at(0); });
-  const Eigen::Vector2d centre_world(truth_centre.at(0), truth_centre.at(1));
+  SimulatedHydrus robot(sys, model);  // throws naming what the scene lacks
+  const double truth_radius = robot.cylinder_radius_m();
+  const auto cylinder_id = sys.with_scene([](const sim::Scene& s) { return s.world.find("cylinder"); });
+  if (!cylinder_id) throw std::runtime_error("sim_study: scene " + p.scene_path + " has no object 'cylinder'");
+  const sim::ObjectId cylinder = *cylinder_id;
 
-  // The robot description's sensors and links in the simulated world.
   std::vector<SensorRun> sensors(model.sensors().size());
   for (std::size_t s = 0; s < sensors.size(); ++s) {
     sensors[s].name = model.sensors()[s].name;
-    sensors[s].sim_index = sys.sensor_index(sensors[s].name);  // throws naming the scene's sensors
-  }
-  std::vector<sim::ObjectId> link_objects;
-  for (const auto& l : model.links()) {
-    const auto id = sys.with_scene([&](const sim::Scene& s) { return s.world.find(l.name); });
-    if (!id) throw std::runtime_error(fmt::format("sim_study: scene {} has no object '{}' (a link of {})", p.scene_path,
-                                                  l.name, p.robot_description));
-    link_objects.push_back(*id);
+    sensors[s].sim_index = robot.sim_sensor(s);
   }
 
   const auto& sp = sys.sensor(sensors.front().sim_index).params();
@@ -76,22 +69,7 @@ SimStudyResult sim_study(const SimStudyParams& p) {
 
   auto place = [&](double t) {
     const RobotPose2D pose = approach_pose(p.approach, t);
-    const Kinematics k = model.forward(pose.joints_rad);
-    const Eigen::Isometry2d Twb = pose.T_world_base();
-    for (std::size_t s = 0; s < sensors.size(); ++s) {
-      const Eigen::Isometry2d T = Twb * k.T_base_sensor[s];
-      sys.set_sensor_pose(sensors[s].sim_index,
-                          sim::planar_sensor_frame(T.translation(), Eigen::Rotation2Dd(T.linear()).angle(), height,
-                                                   model.sensors()[s].line_axis_left));
-    }
-    for (std::size_t l = 0; l < link_objects.size(); ++l) {
-      const Eigen::Isometry2d T = Twb * k.T_base_link[l];
-      const Eigen::Vector2d c = T * Eigen::Vector2d(0.5 * model.links()[l].length_m, 0.0);
-      Eigen::Isometry3d box = Eigen::Isometry3d::Identity();
-      box.linear() = Eigen::AngleAxisd(Eigen::Rotation2Dd(T.linear()).angle(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-      box.translation() = Eigen::Vector3d(c.x(), c.y(), height);
-      sys.set_object_pose(link_objects[l], box);
-    }
+    robot.place(pose);
     return pose;
   };
 
@@ -150,7 +128,11 @@ SimStudyResult sim_study(const SimStudyParams& p) {
     u.colours = colours;
     for (const int s : active) {
       SensorRun& r = sensors[static_cast<std::size_t>(s)];
-      const sim::SensorSet set = sys.measure(r.sim_index, t, pulses, p.seed * 1000003ULL + r.index++);
+      // The scene's sensors are one calibrated unit (same per-pixel
+      // constants): the set index alone seeds the noise, so each sensor gets
+      // its own index range to keep their noise independent.
+      const std::uint64_t index = p.seed * 1000003ULL + (r.sim_index + 1) * 100000007ULL + r.index++;
+      const sim::SensorSet set = sys.measure(r.sim_index, t, pulses, index);
       drv::RawSet raw;
       raw.frames = sim::raw_frames(set);
       const drv::ProcessedScan scan = processor.process(raw, sys.sensor_time(t));
@@ -159,7 +141,8 @@ SimStudyResult sim_study(const SimStudyParams& p) {
       for (std::size_t i = 0; i < drv::kPixels; ++i) {
         const bool ok = scan.status[i] == drv::PixelStatus::kValid;
         r.range[i] = ok ? static_cast<double>(scan.distance_m[i]) : std::numeric_limits<double>::quiet_NaN();
-        if (!ok || i >= set.truth.size() || !std::isfinite(set.truth[i].range_m)) continue;
+        // Corruption is judged on the cylinder's clean pixels (not mixed with the background).
+        if (!ok || i >= set.truth.size() || set.truth[i].object != cylinder || set.truth[i].mixed) continue;
         ++u.valid_pixels;
         ++r.valid;
         if (std::abs(r.range[i] - set.truth[i].range_m) > p.corrupt_threshold_m) {
@@ -181,7 +164,7 @@ SimStudyResult sim_study(const SimStudyParams& p) {
     const CircleEstimate e = estimator.estimate(views, joints);
     // The truth in the robot frame at the newest scan's time.
     const RobotPose2D pose_now = approach_pose(p.approach, static_cast<double>(e.stamp_ns) * 1e-9);
-    const Eigen::Vector2d truth = pose_now.T_world_base().inverse() * centre_world;
+    const Eigen::Vector2d truth = robot.centre_in_base(pose_now);
     u.status = static_cast<int>(e.fit.status);
     u.true_x_m = truth.x();
     u.true_y_m = truth.y();

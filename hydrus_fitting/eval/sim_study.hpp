@@ -24,7 +24,7 @@ namespace tinyline::hydrus_fitting::eval {
 struct SimStudyParams {
   std::string scene_path;          ///< sim/config/scenes/hydrus4_grasp.yaml
   std::string robot_description;   ///< hydrus_fitting/config/hydrus4.yaml
-  std::string calibration_path;    ///< tiny_laser_driver/config/calibration/sim_tiny_tof_8mm.yaml
+  std::string calibration_path;    ///< tiny_laser_driver/config/calibration/sim_tiny_tof_3p6mm.yaml
   std::string schedule = "colouring";  ///< all_on | time_slicing | colouring
   ApproachParams approach;
   double start_s = 0.0;            ///< simulate [start_s, end_s) of the manoeuvre
@@ -45,7 +45,7 @@ struct SimUpdate {
   int points = 0, inliers = 0, self_filtered = 0;
   int sets = 0;                    ///< sets measured for this update
   int crosstalk_pulses = 0;        ///< over those sets
-  int valid_pixels = 0, corrupted_pixels = 0;  ///< over those sets (truth on any surface)
+  int valid_pixels = 0, corrupted_pixels = 0;  ///< over those sets: valid pixels on the cylinder (not mixed)
   int colours = 0;                 ///< slots in the schedule at this time
 };
 

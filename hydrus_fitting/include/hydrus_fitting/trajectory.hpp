@@ -20,12 +20,18 @@ struct RobotPose2D {
 
 struct ApproachParams {
   int joints = 3;
-  Eigen::Vector2d grasp_base_xy_m{-0.25, -0.25};  ///< where the base stops (world)
+  /// Where the base stops (world): with 0.5 m links and 60 deg joints the
+  /// chain is 4 sides of a hexagon whose centre (0.25, 0.433) in the base
+  /// frame is then the world origin (the cylinder's axis in the scene).
+  Eigen::Vector2d grasp_base_xy_m{-0.25, -0.4330127018922193};
   double base_yaw_rad = 0.0;
   Eigen::Vector2d approach_direction{0.0, 1.0};   ///< direction of flight (world, normalised on use)
   double start_distance_m = 0.75;                 ///< the base starts this far before the grasp point
-  double open_joint_rad = 0.5235987755982988;     ///< 30 deg while flying in
-  double closed_joint_rad = 1.4835298641951802;   ///< 85 deg around the object
+  double open_joint_rad = 0.3490658503988659;     ///< 20 deg while flying in
+  /// 60 deg around the object: the sensors end 28 cm from a 10 cm radius
+  /// cylinder, inside the sensor's characterised range (Table 3.1: 20-125 cm);
+  /// closer, the simulated 3.6 mm sensor saturates at its shortest read-out.
+  double closed_joint_rad = 1.0471975511965976;
   double approach_s = 6.0;
   double close_s = 4.0;
   double hold_s = 2.0;
