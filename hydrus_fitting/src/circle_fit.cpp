@@ -252,23 +252,44 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   };
 
   Eigen::Vector3d theta(initial.centre_m.x(), initial.centre_m.y(), known ? *params.known_radius_m : initial.radius_m);
-  // Cost, gradient system (J^T W J, J^T W d) at theta.
+  // The used points and their weights, contiguous: every LM pass reads them.
+  std::vector<double> px(static_cast<std::size_t>(n)), py(px.size()), pw(px.size());
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Index i = idx[static_cast<std::size_t>(k)];
+    px[static_cast<std::size_t>(k)] = points(0, i);
+    py[static_cast<std::size_t>(k)] = points(1, i);
+    pw[static_cast<std::size_t>(k)] = weight(i);
+  }
+  // Cost, gradient system (J^T W J, J^T W d) at theta; J_i = -(u_x, u_y, 1),
+  // u the unit vector from the centre to the point. The six distinct entries
+  // of the symmetric J^T W J are summed as scalars.
   auto evaluate = [&](const Eigen::Vector3d& t, Eigen::Matrix3d* H, Eigen::Vector3d* g) {
     double cost = 0.0;
-    if (H) H->setZero();
-    if (g) g->setZero();
-    for (const Eigen::Index i : idx) {
-      const Eigen::Vector2d dv = points.col(i) - t.head<2>();
-      const double rho = dv.norm();
-      const double d = rho - t(2);
-      const double w = weight(i);
+    double hxx = 0, hxy = 0, hxr = 0, hyy = 0, hyr = 0, hrr = 0, gx = 0, gy = 0, gr = 0;
+    const double cx = t(0), cy = t(1), r = t(2);
+    for (std::size_t k = 0; k < px.size(); ++k) {
+      const double dx = px[k] - cx, dy = py[k] - cy;
+      const double rho = std::sqrt(dx * dx + dy * dy);
+      const double d = rho - r;
+      const double w = pw[k];
       cost += w * d * d;
       if (H) {
-        const Eigen::Vector2d u = rho > 0.0 ? Eigen::Vector2d(dv / rho) : Eigen::Vector2d::Zero();
-        const Eigen::Vector3d j(-u.x(), -u.y(), -1.0);
-        H->noalias() += w * j * j.transpose();
-        *g += w * d * j;
+        const double inv = rho > 0.0 ? 1.0 / rho : 0.0;
+        const double ux = dx * inv, uy = dy * inv;
+        hxx += w * ux * ux;
+        hxy += w * ux * uy;
+        hyy += w * uy * uy;
+        hxr += w * ux;
+        hyr += w * uy;
+        hrr += w;
+        gx -= w * d * ux;
+        gy -= w * d * uy;
+        gr -= w * d;
       }
+    }
+    if (H) {
+      *H << hxx, hxy, hxr, hxy, hyy, hyr, hxr, hyr, hrr;
+      *g << gx, gy, gr;
     }
     return cost;
   };
