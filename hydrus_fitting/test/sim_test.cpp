@@ -157,7 +157,8 @@ TEST(HydrusSim, CrosstalkWithoutSequencingIsGoneWithTheColouringSchedule) {
 // Rates per sensor in the same world: all on runs at the set rate; the
 // sequenced schedules at 1 / (slots x slot). Around the cylinder with 76 deg
 // fans every pair of sensors conflicts, so the colouring needs as many slots
-// as the thesis's time slicing; it is never slower.
+// as the thesis's time slicing; it is not slower (but for the turn a sensor
+// loses when a changed schedule restarts at its first slot).
 TEST(HydrusSim, RatesFollowTheScheduleAndColouringIsNeverSlower) {
   const double t0 = ApproachParams{}.approach_s + ApproachParams{}.close_s;
   const auto on = eval::sim_study(study("all_on", t0, t0 + 0.5));
@@ -169,7 +170,8 @@ TEST(HydrusSim, RatesFollowTheScheduleAndColouringIsNeverSlower) {
   for (std::size_t s = 0; s < 4; ++s) {
     EXPECT_NEAR(on.sensors[s].rate_hz, 1.0 / set_s, 0.1 / set_s);
     EXPECT_NEAR(slicing.sensors[s].rate_hz, 1.0 / (4 * (set_s + 0.002)), 0.3 / (4 * (set_s + 0.002)));
-    EXPECT_GE(colour.sensors[s].sets, slicing.sensors[s].sets) << colour.sensors[s].sensor;
+    // A changed schedule restarts at its first slot: a sensor may lose one turn per change.
+    EXPECT_GE(colour.sensors[s].sets + 1, slicing.sensors[s].sets) << colour.sensors[s].sensor;
   }
   EXPECT_EQ(colour.updates.back().colours, 4);
 }
