@@ -4,7 +4,7 @@
 //   hydrus_eval robustness [--trials N] [--out FILE]
 //   hydrus_eval ray_noise  [--trials N] [--out FILE]
 //
-// scripts/plots/hydrus_kcr.py and hydrus_robustness.py read the CSVs and
+// scripts/plots/hydrus_kcr.py (figure and table) and hydrus_tables.py read the CSVs and
 // write the tables and figures of the document.
 #include <cstdio>
 #include <cstdlib>

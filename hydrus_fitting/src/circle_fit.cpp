@@ -252,23 +252,44 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   };
 
   Eigen::Vector3d theta(initial.centre_m.x(), initial.centre_m.y(), known ? *params.known_radius_m : initial.radius_m);
-  // Cost, gradient system (J^T W J, J^T W d) at theta.
+  // The used points and their weights, contiguous: every LM pass reads them.
+  std::vector<double> px(static_cast<std::size_t>(n)), py(px.size()), pw(px.size());
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Index i = idx[static_cast<std::size_t>(k)];
+    px[static_cast<std::size_t>(k)] = points(0, i);
+    py[static_cast<std::size_t>(k)] = points(1, i);
+    pw[static_cast<std::size_t>(k)] = weight(i);
+  }
+  // Cost, gradient system (J^T W J, J^T W d) at theta; J_i = -(u_x, u_y, 1),
+  // u the unit vector from the centre to the point. The six distinct entries
+  // of the symmetric J^T W J are summed as scalars.
   auto evaluate = [&](const Eigen::Vector3d& t, Eigen::Matrix3d* H, Eigen::Vector3d* g) {
     double cost = 0.0;
-    if (H) H->setZero();
-    if (g) g->setZero();
-    for (const Eigen::Index i : idx) {
-      const Eigen::Vector2d dv = points.col(i) - t.head<2>();
-      const double rho = dv.norm();
-      const double d = rho - t(2);
-      const double w = weight(i);
+    double hxx = 0, hxy = 0, hxr = 0, hyy = 0, hyr = 0, hrr = 0, gx = 0, gy = 0, gr = 0;
+    const double cx = t(0), cy = t(1), r = t(2);
+    for (std::size_t k = 0; k < px.size(); ++k) {
+      const double dx = px[k] - cx, dy = py[k] - cy;
+      const double rho = std::sqrt(dx * dx + dy * dy);
+      const double d = rho - r;
+      const double w = pw[k];
       cost += w * d * d;
       if (H) {
-        const Eigen::Vector2d u = rho > 0.0 ? Eigen::Vector2d(dv / rho) : Eigen::Vector2d::Zero();
-        const Eigen::Vector3d j(-u.x(), -u.y(), -1.0);
-        H->noalias() += w * j * j.transpose();
-        *g += w * d * j;
+        const double inv = rho > 0.0 ? 1.0 / rho : 0.0;
+        const double ux = dx * inv, uy = dy * inv;
+        hxx += w * ux * ux;
+        hxy += w * ux * uy;
+        hyy += w * uy * uy;
+        hxr += w * ux;
+        hyr += w * uy;
+        hrr += w;
+        gx -= w * d * ux;
+        gy -= w * d * uy;
+        gr -= w * d;
       }
+    }
+    if (H) {
+      *H << hxx, hxy, hxr, hxy, hyy, hyr, hxr, hyr, hrr;
+      *g << gx, gy, gr;
     }
     return cost;
   };
@@ -296,11 +317,17 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
         continue;
       }
       const Eigen::Vector3d cand = theta + delta;
-      const double c = (cand(2) > 0.0) ? evaluate(cand, nullptr, nullptr) : std::numeric_limits<double>::infinity();
+      // The candidate's gradient system comes in the same pass as its cost:
+      // near the minimum almost every step is accepted.
+      Eigen::Matrix3d Hc;
+      Eigen::Vector3d gc;
+      const double c = (cand(2) > 0.0) ? evaluate(cand, &Hc, &gc) : std::numeric_limits<double>::infinity();
       if (c <= cost) {
         theta = cand;
         const double old = cost;
-        cost = evaluate(theta, &H, &g);
+        cost = c;
+        H = Hc;
+        g = gc;
         lambda = std::max(lambda * 0.1, 1e-12);
         accepted = true;
         if (delta.norm() < params.step_tolerance_m || old - c <= 1e-15 * old) converged = true;
@@ -660,48 +687,46 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
 
   Circle current = best;
   int count = select(current, 0.0);
-  CircleFit fit;
-  bool have_fit = false;
+  bool moved = false;
   const int rounds = std::max(1, params.local_optimisation_rounds) + (params.final_threshold_sigmas > 0.0 ? 3 : 0);
   for (int round = 0; round < rounds; ++round) {
     gather();
-    CircleFit f;
-    if (known || have_fit) {
-      // Continue from the current circle (the algebraic fit cannot hold a
-      // known radius, and after the first round the start is already good).
-      f = refine_circle(inl, current, rp, inl_sigma);
+    // Re-selection rounds use the algebraic fit: cheap, and within a small
+    // fraction of the ML fit at these noise levels. A known radius needs LM.
+    std::optional<Circle> next;
+    if (known) {
+      const CircleFit f = refine_circle(inl, current, rp, inl_sigma);
+      if (f.ok()) next = f.circle;
     } else {
       const CircleFit h = fit_circle_hyper(inl);
-      f = refine_circle(inl, h.ok() ? h.circle : current, rp, inl_sigma);
+      if (h.ok()) next = h.circle;
     }
-    if (!f.ok()) break;
+    if (!next) break;  // e.g. a collinear consensus set: keep the hypothesis
     const std::vector<std::uint8_t> before = mask;
     const int before_count = count;
-    const double limit = adaptive_limit(f.circle);
-    const int k = select(f.circle, limit);
-    if (limit == 0.0 && k < before_count && have_fit) {
-      mask = before;  // the refit lost support: keep the previous set and fit
+    const double limit = adaptive_limit(*next);
+    const int k = select(*next, limit);
+    if (limit == 0.0 && k < before_count && moved) {
+      mask = before;  // the refit lost support: keep the previous set
       count = before_count;
       break;
     }
-    fit = std::move(f);
-    have_fit = true;
-    current = fit.circle;
+    current = *next;
+    moved = true;
     count = k;
     if (mask == before) break;
   }
-  if (!have_fit) {
-    // The consensus set could not be refined (e.g. it is collinear): report
-    // the hypothesis itself.
+  // The final fit on the final set: geometric (ML) unless the caller refits.
+  gather();
+  CircleFit fit;
+  if (params.final_geometric_fit || known) fit = refine_circle(inl, current, rp, inl_sigma);
+  if (!fit.ok()) {
     fit = CircleFit{};
     fit.status = FitStatus::kOk;
     fit.circle = current;
-    count = select(current, 0.0);
-  } else if (count != fit.points_used) {
-    // The last selection differs from the set fitted last: fit it once more.
-    gather();
-    CircleFit f = refine_circle(inl, fit.circle, rp, inl_sigma);
-    if (f.ok()) fit = std::move(f);
+    double ss = 0.0;
+    for (Eigen::Index j = 0; j < inl.cols(); ++j) ss += std::pow((inl.col(j) - current.centre_m).norm() - current.radius_m, 2);
+    fit.rms_residual_m = inl.cols() ? std::sqrt(ss / static_cast<double>(inl.cols())) : 0.0;
   }
   fit.iterations = drawn;
   fit.non_finite = non_finite;

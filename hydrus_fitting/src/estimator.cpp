@@ -8,7 +8,10 @@
 namespace tinyline::hydrus_fitting {
 
 CircleEstimator::CircleEstimator(const RobotModel& model, CircleEstimatorParams params)
-    : params_(std::move(params)), fuser_(model, params_.fusion) {}
+    : params_(std::move(params)), fuser_(model, params_.fusion) {
+  // The incidence refit replaces the robust fit's own final LM.
+  if (params_.incidence_weighting) params_.robust.final_geometric_fit = false;
+}
 
 CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const JointStateBuffer& joints) {
   CircleEstimate e;
@@ -91,8 +94,19 @@ void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
   if (params_.incidence_weighting) {
     RefineParams rp = params_.robust.refine;
     rp.known_radius_m = params_.robust.known_radius_m;
-    const CircleFit refined = refine_circle(in, fit.circle, rp, w);
-    if (!refined.ok()) return;
+    // A local refinement of the consensus set: on a short, noisy arc it can
+    // run off (huge radius, far centre). Such a result is refused: the
+    // refit must keep the radius limits and stay within one radius of the
+    // robust circle; else the range-weighted fit is tried, else the robust
+    // circle stays as it is.
+    const auto acceptable = [&](const CircleFit& f) {
+      return f.ok() && f.circle.radius_m >= params_.robust.min_radius_m &&
+             f.circle.radius_m <= params_.robust.max_radius_m &&
+             (f.circle.centre_m - fit.circle.centre_m).norm() <= fit.circle.radius_m;
+    };
+    CircleFit refined = refine_circle(in, fit.circle, rp, w);
+    if (!acceptable(refined)) refined = refine_circle(in, fit.circle, rp, std::span<const double>(sr_));
+    if (!acceptable(refined)) return;
     fit.circle = refined.circle;
     fit.covariance = refined.covariance;
     fit.rms_residual_m = refined.rms_residual_m;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -30,10 +31,12 @@ const char* to_string(ScanStatus s) {
 
 namespace {
 
-/// A link's footprint as a test in its own frame: x in [-m, L + m], |y| <= w/2 + m.
+/// A link's footprint as a test in its own frame: x in [-m, L + m], |y| <= w/2 + m,
+/// behind a base-frame bounding box that rejects most points with four compares.
 struct Footprint {
   Eigen::Isometry2d T_link_base;
   double x_max, half_width;
+  Eigen::Vector2d lo, hi;  // bounding box in the base frame
 };
 
 std::vector<Footprint> footprints(const RobotModel& model, const Kinematics& k, double margin_m) {
@@ -41,13 +44,23 @@ std::vector<Footprint> footprints(const RobotModel& model, const Kinematics& k, 
   f.reserve(model.links().size());
   for (std::size_t i = 0; i < model.links().size(); ++i) {
     const auto& l = model.links()[i];
-    f.push_back({k.T_base_link[i].inverse(), l.length_m + margin_m, 0.5 * l.width_m + margin_m});
+    Footprint fp{k.T_base_link[i].inverse(), l.length_m + margin_m, 0.5 * l.width_m + margin_m, {}, {}};
+    fp.lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    fp.hi = -fp.lo;
+    for (const double x : {-margin_m, fp.x_max})
+      for (const double y : {-fp.half_width, fp.half_width}) {
+        const Eigen::Vector2d c = k.T_base_link[i] * Eigen::Vector2d(x, y);
+        fp.lo = fp.lo.cwiseMin(c);
+        fp.hi = fp.hi.cwiseMax(c);
+      }
+    f.push_back(fp);
   }
   return f;
 }
 
 bool inside(const std::vector<Footprint>& fs, const Eigen::Vector2d& p, double margin_m) {
   for (const auto& f : fs) {
+    if (p.x() < f.lo.x() || p.y() < f.lo.y() || p.x() > f.hi.x() || p.y() > f.hi.y()) continue;
     const Eigen::Vector2d q = f.T_link_base * p;
     if (q.x() >= -margin_m && q.x() <= f.x_max && std::abs(q.y()) <= f.half_width) return true;
   }
@@ -60,13 +73,15 @@ bool on_robot(const RobotModel& model, const Kinematics& k, const Eigen::Vector2
   return inside(footprints(model, k, margin_m), p, margin_m);
 }
 
-ScanFuser::ScanFuser(const RobotModel& model, FusionParams params) : model_(&model), params_(std::move(params)) {
+ScanFuser::ScanFuser(const RobotModel& model, FusionParams params)
+    : model_(&model), params_(std::move(params)), trig_(model.sensors().size()) {
   if (!(params_.self_filter_margin_m >= 0.0))
     throw std::invalid_argument(fmt::format("fusion: self_filter_margin_m must be >= 0, got {}",
                                             params_.self_filter_margin_m));
 }
 
 void ScanFuser::clear() {
+  // (the per-sensor trig cache survives: it depends on the angles only)
   cloud_.xy_m.clear();
   cloud_.sigma_m.clear();
   cloud_.range_m.clear();
@@ -139,6 +154,16 @@ ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<
   const Eigen::Vector2d t = T.translation();
   const double side = spec.line_axis_left ? 1.0 : -1.0;
 
+  Trig& tr = trig_[static_cast<std::size_t>(sensor)];
+  if (!std::equal(tr.angle.begin(), tr.angle.end(), scan.angle_rad.begin(), scan.angle_rad.end())) {
+    tr.angle.assign(scan.angle_rad.begin(), scan.angle_rad.end());
+    tr.c.resize(tr.angle.size());
+    tr.s.resize(tr.angle.size());
+    for (std::size_t i = 0; i < tr.angle.size(); ++i) {
+      tr.c[i] = std::cos(tr.angle[i]);
+      tr.s[i] = side * std::sin(tr.angle[i]);
+    }
+  }
   cloud_.xy_m.reserve(cloud_.xy_m.size() + 2 * scan.range_m.size());
   for (std::size_t i = 0; i < scan.range_m.size(); ++i) {
     const double r = scan.range_m[i];
@@ -151,7 +176,7 @@ ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<
       ++out.out_of_range;
       continue;
     }
-    const Eigen::Vector2d p = t + R * Eigen::Vector2d(r * std::cos(a), side * r * std::sin(a));
+    const Eigen::Vector2d p = t + R * Eigen::Vector2d(r * tr.c[i], r * tr.s[i]);
     if (!fps.empty() && inside(fps, p, margin)) {
       ++out.self_filtered;
       continue;

@@ -10,8 +10,9 @@
 //                        This is the maximum-likelihood fit under Gaussian
 //                        noise; it reaches the KCR bound to first order.
 //   fit_circle_robust    MSAC on minimal samples (3 points, or 2 with a known
-//                        radius), then Hyper + geometric refinement on the
-//                        consensus set, repeated while the set changes.
+//                        radius), then Hyper fits of the consensus set,
+//                        re-selected while it changes, and a final geometric
+//                        refinement.
 //   kcr_bound            the KCR lower bound (Chernov & Lesort 2004) of the
 //                        covariance of (centre, radius) for given true points
 //                        and noise.
@@ -130,7 +131,7 @@ struct RobustCircleParams {
   int max_iterations = 1000;          ///< hypotheses at most
   double confidence = 0.999;          ///< adaptive stop: P(an all-inlier sample was drawn)
   int min_inliers = 5;                ///< a consensus set smaller than this is kNoConsensus
-  int local_optimisation_rounds = 3;  ///< Hyper + LM on the set, re-select, at most this often
+  int local_optimisation_rounds = 3;  ///< Hyper fit of the set, re-select, at most this often
   /// After each local-optimisation fit the consensus set is
   /// re-selected with the tighter of inlier_threshold_m and this many robust
   /// SDs of its own residuals (1.4826 MAD, per-point sigmas normalised out),
@@ -138,6 +139,10 @@ struct RobustCircleParams {
   /// extra rounds allowed for it). 0 disables.
   double final_threshold_sigmas = 3.0;
   std::uint64_t seed = 1;             ///< sampling is deterministic for a seed
+  /// End with the geometric (LM) fit of the consensus set, which gives the
+  /// covariance. Off: the algebraic fit of the last round is returned (no
+  /// covariance), for callers that refit the inliers themselves.
+  bool final_geometric_fit = true;
   RefineParams refine;                ///< known_radius_m here is ignored: set it above
 };
 

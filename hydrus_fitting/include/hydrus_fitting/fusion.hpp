@@ -104,6 +104,12 @@ class ScanFuser {
   const RobotModel* model_;
   FusionParams params_;
   FusedCloud cloud_;
+  // A sensor's pixel angles are the same scan after scan: their sines and
+  // cosines are kept per sensor and reused while the angles match.
+  struct Trig {
+    std::vector<double> angle, c, s;
+  };
+  std::vector<Trig> trig_;
 };
 
 }  // namespace tinyline::hydrus_fitting

@@ -5,7 +5,7 @@
 
 namespace tinyline::hydrus_fitting {
 
-/// circle_fitter, sequencer.
+/// circle_fitter, sequencer, and hydrus_sim when built with the simulator.
 void register_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::hydrus_fitting

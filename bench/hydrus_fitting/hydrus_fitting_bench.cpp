@@ -1,0 +1,164 @@
+// hydrus_fitting benchmarks. Per update with 4 sensors (4 x 256 pixels): the
+// full CircleEstimator (fusion at each scan's joint angles, self-filter,
+// weighted MSAC with viewpoints, incidence refit, bias removal) beside the
+// plain Kasa fit on the same fused points (the cheapest fit there is, and
+// biased), and the pieces in between. Two scenes: the open chain around a
+// cylinder (no outliers), and the closed ring seeing its own links and
+// clutter (about half the points are outliers before the self-filter).
+//
+// Run: build/bench/hydrus_fitting/hydrus_fitting_bench
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "hydrus_fitting/estimator.hpp"
+#include "hydrus_fitting/sequencer.hpp"
+#include "planar_scene.hpp"
+
+namespace hf = tinyline::hydrus_fitting;
+namespace ev = tinyline::hydrus_fitting::eval;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr int kUpdates = 32;  // distinct noise draws cycled through
+
+struct Scene {
+  hf::RobotModel model = hf::RobotModel::load(std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml");
+  hf::JointStateBuffer joints{model.joint_names()};
+  std::vector<std::vector<ev::SyntheticScan>> updates;
+  std::vector<std::vector<hf::ScanView>> views;
+  std::vector<double> q;
+
+  Scene(double joint_deg, const ev::PlanarWorld& world) {
+    const double a = joint_deg * kPi / 180.0;
+    q.assign(model.joint_names().size(), a);
+    (void)joints.add(0, model.joint_names(), q);
+    hf::detail::SplitMix64 rng(1);
+    for (int u = 0; u < kUpdates; ++u) updates.push_back(ev::scan_all(model, q, world, {}, rng));
+    for (const auto& u : updates) {
+      std::vector<hf::ScanView> v;
+      for (const auto& s : u) v.push_back({s.sensor, 0, s.angle_rad, s.range_m});
+      views.push_back(std::move(v));
+    }
+  }
+};
+
+const Scene& open_chain() {
+  static const Scene s(60.0, {{{{0.25, 0.433}, 0.15}}, {}, false});
+  return s;
+}
+const Scene& closed_ring() {
+  // Thin cylinder in the square; the sensors see the links across it and two small objects.
+  static const Scene s(90.0, {{{{0.27, 0.24}, 0.07}, {{0.10, 0.40}, 0.03}, {{0.40, 0.10}, 0.03}}, {}, true});
+  return s;
+}
+
+void run_estimator(benchmark::State& state, const Scene& s) {
+  hf::CircleEstimator est(s.model);
+  std::size_t k = 0;
+  int points = 0;
+  for (auto _ : state) {
+    const auto e = est.estimate(s.views[k++ % kUpdates], s.joints);
+    benchmark::DoNotOptimize(e.fit.circle.radius_m);
+    points = e.points;
+  }
+  state.counters["points"] = points;
+}
+
+void run_fusion_kasa(benchmark::State& state, const Scene& s) {
+  hf::ScanFuser fuser(s.model);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    fuser.clear();
+    for (const auto& v : s.views[k++ % kUpdates]) (void)fuser.add(v, s.joints);
+    const auto f = hf::fit_circle_kasa(fuser.cloud().points_m());
+    benchmark::DoNotOptimize(f.circle.radius_m);
+  }
+  state.counters["points"] = fuser.cloud().size();
+}
+
+/// The fused clouds, for the fit-only benchmarks.
+std::vector<hf::FusedCloud> clouds(const Scene& s) {
+  std::vector<hf::FusedCloud> c;
+  hf::ScanFuser fuser(s.model);
+  for (const auto& v : s.views) {
+    fuser.clear();
+    for (const auto& x : v) (void)fuser.add(x, s.joints);
+    c.push_back(fuser.cloud());
+  }
+  return c;
+}
+
+}  // namespace
+
+// ---- the figure of the issue: fusion + fit per update, 4 sensors, one core.
+static void BM_Update_Estimator_OpenChain(benchmark::State& s) { run_estimator(s, open_chain()); }
+BENCHMARK(BM_Update_Estimator_OpenChain)->Unit(benchmark::kMicrosecond);
+static void BM_Update_FusionKasa_OpenChain(benchmark::State& s) { run_fusion_kasa(s, open_chain()); }
+BENCHMARK(BM_Update_FusionKasa_OpenChain)->Unit(benchmark::kMicrosecond);
+static void BM_Update_Estimator_ClosedRingWithOutliers(benchmark::State& s) { run_estimator(s, closed_ring()); }
+BENCHMARK(BM_Update_Estimator_ClosedRingWithOutliers)->Unit(benchmark::kMicrosecond);
+static void BM_Update_FusionKasa_ClosedRingWithOutliers(benchmark::State& s) { run_fusion_kasa(s, closed_ring()); }
+BENCHMARK(BM_Update_FusionKasa_ClosedRingWithOutliers)->Unit(benchmark::kMicrosecond);
+
+// ---- the pieces, on the open chain's fused clouds.
+static void BM_Piece_FusionOnly(benchmark::State& state) {
+  const Scene& s = open_chain();
+  hf::ScanFuser fuser(s.model);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    fuser.clear();
+    for (const auto& v : s.views[k++ % kUpdates]) (void)fuser.add(v, s.joints);
+    benchmark::DoNotOptimize(fuser.cloud().xy_m.data());
+  }
+}
+BENCHMARK(BM_Piece_FusionOnly)->Unit(benchmark::kMicrosecond);
+
+template <class Fit>
+void run_fit(benchmark::State& state, Fit fit) {
+  static const auto c = clouds(open_chain());
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto& cl = c[k++ % c.size()];
+    const auto f = fit(cl);
+    benchmark::DoNotOptimize(f.circle.radius_m);
+  }
+}
+static void BM_Piece_Kasa(benchmark::State& s) {
+  run_fit(s, [](const hf::FusedCloud& c) { return hf::fit_circle_kasa(c.points_m()); });
+}
+BENCHMARK(BM_Piece_Kasa)->Unit(benchmark::kMicrosecond);
+static void BM_Piece_Hyper(benchmark::State& s) {
+  run_fit(s, [](const hf::FusedCloud& c) { return hf::fit_circle_hyper(c.points_m()); });
+}
+BENCHMARK(BM_Piece_Hyper)->Unit(benchmark::kMicrosecond);
+static void BM_Piece_HyperPlusGeometric(benchmark::State& s) {
+  run_fit(s, [](const hf::FusedCloud& c) { return hf::fit_circle(c.points_m(), {}, c.sigma_m); });
+}
+BENCHMARK(BM_Piece_HyperPlusGeometric)->Unit(benchmark::kMicrosecond);
+static void BM_Piece_RobustWithViewpoints(benchmark::State& s) {
+  run_fit(s, [](const hf::FusedCloud& c) {
+    return hf::fit_circle_robust(c.points_m(), {}, c.sigma_m, {c.views, c.view_of_point});
+  });
+}
+BENCHMARK(BM_Piece_RobustWithViewpoints)->Unit(benchmark::kMicrosecond);
+
+// ---- the sequencer: interference graph + colouring + schedule for 4 sensors.
+static void BM_Sequencer_Rebuild(benchmark::State& state) {
+  const Scene& s = open_chain();
+  const hf::Circle object{{0.25, 0.433}, 0.15};
+  std::size_t k = 0;
+  for (auto _ : state) {
+    hf::Sequencer seq(s.model);
+    std::vector<double> q = s.q;
+    q[0] += 1e-3 * static_cast<double>(k++ % 7);
+    benchmark::DoNotOptimize(seq.update(q, object));
+  }
+}
+BENCHMARK(BM_Sequencer_Rebuild)->Unit(benchmark::kMicrosecond);
+
+BENCHMARK_MAIN();
