@@ -50,6 +50,7 @@ play options:
   --start S          skip the first S seconds of the bag
   --clock            publish /clock (rosgraph_msgs/Clock) and drive sim time
   --clock-hz H       /clock rate between messages (default 100)
+  --duration S       stop after S seconds of playing (default: the bag's end, or Ctrl-C with --loop)
 
 `bag record` records the topics of its own process: those of --launch, and
 those a transport bridges in. To record inside a running launch file, add a
@@ -289,7 +290,7 @@ int cmd_recover(const std::vector<std::string>& argv) {
 int cmd_play(const std::vector<std::string>& argv_in) {
   std::vector<std::string> argv = argv_in;
   const std::vector<std::string> topics = take_list(argv, "--topics");
-  Args a(argv, {"--rate", "--start", "--clock-hz"}, {"--loop", "--clock", "--help", "-h"});
+  Args a(argv, {"--rate", "--start", "--clock-hz", "--duration"}, {"--loop", "--clock", "--help", "-h"});
   if (a.positional().size() != 1) throw UsageError("expected FILE (tinyline bag --help)");
   bag::PlayerOptions po;
   po.path = a.positional()[0];
@@ -300,6 +301,8 @@ int cmd_play(const std::vector<std::string>& argv_in) {
   po.clock = a.flag("--clock");
   po.clock_hz = a.number("--clock-hz", 100.0);
   if (po.rate < 0) throw UsageError("--rate must be >= 0");
+  const double duration = a.number("--duration", 0);
+  if (duration < 0) throw UsageError("--duration must be >= 0");
   auto ctx = bus::Context::create(bus::ContextOptions{po.clock ? bus::ClockType::Sim : bus::ClockType::Wall, nullptr});
   bus::NodeOptions no;
   no.name = "player";
@@ -316,7 +319,11 @@ int cmd_play(const std::vector<std::string>& argv_in) {
   ex.add_node(player);
   std::thread spinner([&] { ex.spin(); });
   SignalScope sig;
+  const auto started = std::chrono::steady_clock::now();
   while (g_signal.load() == 0 && !player->wait_finished(std::chrono::milliseconds(200))) {
+    if (duration > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count() >= duration) {
+      break;
+    }
     const auto st = player->stats();
     const double total = static_cast<double>(st.bag_end - st.bag_start) * 1e-9;
     const double at = st.position >= st.bag_start ? static_cast<double>(st.position - st.bag_start) * 1e-9 : 0.0;

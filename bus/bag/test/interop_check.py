@@ -12,6 +12,11 @@
                     without a summary, plus DIR/<name>.expected.json.
   compare DIR       compares DIR/<name>.actual.yaml (what tinyline decoded)
                     with DIR/<name>.expected.json.
+  check-echo TINYLINE BAG
+                    `TINYLINE bag echo BAG TOPIC --full` for every topic of
+                    BAG: the output must be YAML (a general parser reads it),
+                    one document per message, each equal to the message as
+                    `mcap-ros2-support` decodes it.
 
 Exit status 0 when everything matches; every mismatch is printed with the
 file, the message index and the field path.
@@ -532,7 +537,56 @@ def compare(directory: Path) -> None:
             print(f'ok   {name}: tinyline decoded all {len(expected)} messages to the written values')
 
 
+# ---------------------------------------------------------------------------- check-echo
+
+
+def check_echo(tinyline: Path, bag: Path) -> None:
+    import subprocess
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    self_test()
+    by_topic: dict[str, list] = {}
+    with bag.open('rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for _, channel, _, decoded in reader.iter_decoded_messages(log_time_order=True):
+            by_topic.setdefault(channel.topic, []).append(norm(decoded))
+    if not by_topic:
+        fail(f'{bag}: no messages')
+    general = YAML(typ='safe', pure=True)
+    for topic, expected in sorted(by_topic.items()):
+        run = subprocess.run([str(tinyline), 'bag', 'echo', str(bag), topic, '--full'],
+                             capture_output=True, text=True, check=False)
+        if run.returncode != 0:
+            fail(f'echo {topic}: exit {run.returncode}: {run.stderr.strip()}')
+            continue
+        # The general (slow, pure Python) parser reads the first documents, the
+        # fast one all; both must agree where both ran.
+        cut = run.stdout.find('\n---', 50_000)
+        head = run.stdout if cut < 0 else run.stdout[:cut + 1]
+        slow = [d for d in general.load_all(head) if d is not None]
+        fast = parse_docs(re.sub(r'^--- #.*$', '---', run.stdout, flags=re.M))  # the fast parser knows no comments
+        if not slow:
+            fail(f'echo {topic}: a general YAML parser finds no document')
+        elif (d := same(slow, fast[:len(slow)], f'echo {topic}')) is not None:
+            fail(f'echo {topic}: general and fast YAML parsers disagree: {d}')
+        n_before = len(FAILURES)
+        if len(fast) != len(expected):
+            fail(f'echo {topic}: {len(fast)} documents, {len(expected)} messages in the bag')
+        for i, (got, exp) in enumerate(zip(fast, expected)):
+            if (d := same(got, exp, f'echo {topic}[{i}]')) is not None:
+                fail(d)
+                break
+        if len(FAILURES) == n_before:
+            print(f'ok   echo {topic}: {len(fast)} YAML documents equal the mcap-ros2-support decoding '
+                  f'({len(slow)} also read by a general YAML parser)')
+
+
 def main() -> int:
+    if len(sys.argv) == 4 and sys.argv[1] == 'check-echo':
+        check_echo(Path(sys.argv[2]), Path(sys.argv[3]))
+        print(f'{len(FAILURES)} failure(s)' if FAILURES else 'all echo output agrees')
+        return 1 if FAILURES else 0
     if len(sys.argv) != 3 or sys.argv[1] not in ('check-ours', 'write-theirs', 'compare'):
         print(__doc__)
         return 2
