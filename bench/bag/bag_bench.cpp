@@ -154,13 +154,16 @@ BENCHMARK(BM_Record)
     ->ComputeStatistics("min", min_of);
 
 // The recorder's path: the caller only queues; compression and I/O on the writer thread.
-// Arg 0: the 2 s of traffic handed over as one burst (every copy alive at once);
-// arg N: sustained, the caller waiting while N MB are queued, as traffic
+// First arg 0: the 2 s of traffic handed over as one burst (every copy alive at
+// once); N: sustained, the caller waiting while N MB are queued, as traffic
 // arriving no faster than the writer drains it keeps the queue short.
+// Second arg: 1 the copies go into buffers recycled by the writer thread (as
+// the recorder does), 0 every copy is a fresh allocation (the reference).
 void BM_RecordAsync(benchmark::State& state) {
   const auto& traffic = record_traffic();
   const std::string path = tmp_path("async.mcap");
   const std::uint64_t max_queued = static_cast<std::uint64_t>(state.range(0)) << 20;
+  const bool recycle = state.range(1) != 0;
   std::uint64_t dropped = 0;
   std::uint64_t high_water = 0;
   const long faults0 = minor_faults();
@@ -169,6 +172,7 @@ void BM_RecordAsync(benchmark::State& state) {
     bag::AsyncWriterOptions o;
     o.writer.compression = bag::Compression::Lz4;
     o.max_queue_bytes = 1ULL << 31;  // measure throughput, not the budget
+    if (!recycle) o.recycle_per_topic = 0;
     if (!w.open(path, o).ok()) std::abort();
     bag::AsyncWriter::TopicId ids[5];
     for (int k = 0; k < 5; ++k) ids[k] = w.add_topic(bench::kTopics[k].name, bench::kTopics[k].type());
@@ -177,7 +181,9 @@ void BM_RecordAsync(benchmark::State& state) {
         std::this_thread::sleep_for(std::chrono::microseconds(100));  // not spinning: CPU is measured
       }
       const auto t = static_cast<bag::Timestamp>(m.t_ns);
-      (void)w.push(ids[m.topic], m.cdr, t, t, 0);  // a copy, as the recorder's serialization makes one
+      auto copy = w.take_buffer(ids[m.topic]);  // as the recorder serializes into a recycled buffer
+      copy.assign(m.cdr.begin(), m.cdr.end());
+      (void)w.push(ids[m.topic], std::move(copy), t, t, 0);
     }
     high_water = std::max(high_water, w.stats().max_queued_bytes);
     if (!w.close().ok()) std::abort();
@@ -189,7 +195,8 @@ void BM_RecordAsync(benchmark::State& state) {
   state.counters["dropped"] = static_cast<double>(dropped);
   state.counters["faults"] = static_cast<double>(minor_faults() - faults0) / static_cast<double>(state.iterations());
   state.counters["queued_MB"] = static_cast<double>(high_water) / 1e6;
-  state.SetLabel(max_queued > 0 ? "lz4, sustained" : "lz4, one burst");
+  state.SetLabel(std::string(max_queued > 0 ? "lz4, sustained" : "lz4, one burst") +
+                 (recycle ? ", recycled buffers" : ", fresh buffers"));
 }
 // The part of RecordAsync that is not the writer's: a fresh copy of every message's
 // bytes, as the recorder's serialization makes one, freed when written.
@@ -208,8 +215,9 @@ BENCHMARK(BM_CopyOnly)->Unit(benchmark::kMillisecond)->UseRealTime()->ComputeSta
 
 // CPU of the whole process: the writer thread does the compression and I/O.
 BENCHMARK(BM_RecordAsync)
-    ->Arg(0)
-    ->Arg(16)
+    ->Args({0, 1})
+    ->Args({16, 1})
+    ->Args({16, 0})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime()

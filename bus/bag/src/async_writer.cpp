@@ -53,6 +53,16 @@ AsyncWriter::TopicId AsyncWriter::add_topic(const std::string& topic, const msg:
   return topics_.size() - 1;
 }
 
+std::vector<std::uint8_t> AsyncWriter::take_buffer(TopicId topic) {
+  std::lock_guard lk(mu_);
+  if (topic >= topics_.size() || topics_[topic]->spare.empty()) return {};
+  auto& spare = topics_[topic]->spare;
+  std::vector<std::uint8_t> b = std::move(spare.back());
+  spare.pop_back();
+  recycled_bytes_ -= b.capacity();
+  return b;
+}
+
 bool AsyncWriter::push(TopicId topic, std::vector<std::uint8_t> cdr, Timestamp log_time, Timestamp publish_time,
                        std::uint32_t sequence) {
   {
@@ -106,7 +116,6 @@ void AsyncWriter::run() {
       if (failed.ok()) ++written;
     }
     const std::uint64_t lost = batch.size() - written;
-    batch.clear();
     Writer& w = writer_.writer();
     if (failed.ok() && w.stats().chunks == chunks && options_.flush_interval_s > 0 && w.open_chunk_bytes() > 0 &&
         Clock::now() - last_chunk >= interval) {
@@ -126,7 +135,19 @@ void AsyncWriter::run() {
       stats_.dropped += lost;
       stats_.file = w.stats();
       if (!failed.ok() && error_.ok()) error_ = failed;
+      for (auto& item : batch) {  // keep some buffers for the callers' next copies
+        auto& spare = topics_[item.topic]->spare;
+        const std::uint64_t cap = item.cdr.capacity();
+        if (cap == 0 || spare.size() >= options_.recycle_per_topic ||
+            recycled_bytes_ + cap > options_.max_recycled_bytes) {
+          continue;
+        }
+        item.cdr.clear();
+        spare.push_back(std::move(item.cdr));
+        recycled_bytes_ += cap;
+      }
     }
+    batch.clear();  // frees the rest outside the lock
     if (stop) return;
   }
 }

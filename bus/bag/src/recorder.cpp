@@ -122,7 +122,7 @@ void Recorder::subscribe(const std::shared_ptr<bus::Topic>& topic) {
 
 void Recorder::on_message(AsyncWriter::TopicId id, const std::string& topic, const std::shared_ptr<const void>& m,
                           const msg::TypeSupport& type, const bus::MessageInfo& info) {
-  std::vector<std::uint8_t> cdr;
+  std::vector<std::uint8_t> cdr = writer_.take_buffer(id);  // a recycled one: no fresh pages to map
   type.serialize(m.get(), cdr);
   const auto log_time = static_cast<Timestamp>(std::max<std::int64_t>(0, now().ns));
   const auto pub_time = static_cast<Timestamp>(std::max<std::int64_t>(0, info.publish_time.ns));

@@ -29,6 +29,12 @@ struct AsyncWriterOptions {
   /// Close the open chunk when none was closed for this long [s], so the file
   /// on disk never lags far behind (0: only when the chunk is full).
   double flush_interval_s = 1.0;
+  /// Written messages' buffers kept per topic for take_buffer(), so steady
+  /// traffic reuses memory instead of having the kernel map and zero fresh
+  /// pages for every copy (a 4.9 MB point cloud is 1,200 page faults).
+  std::size_t recycle_per_topic = 4;
+  /// Bound on the bytes (capacity) kept for reuse over all topics.
+  std::uint64_t max_recycled_bytes = 64ULL << 20;
   /// Called on the writer thread after each chunk reached the file.
   std::function<void(const WriterStats&)> on_chunk;
 };
@@ -61,6 +67,11 @@ class AsyncWriter {
   TopicId add_topic(const std::string& topic, const msg::TypeSupport& type,
                     std::vector<ros2::QosProfile> offered = {ros2::QosProfile{}});
 
+  /// An empty buffer to serialize `topic`'s next message into: one a written
+  /// message of that topic left behind (capacity kept) when there is one,
+  /// else a new one. Thread-safe.
+  [[nodiscard]] std::vector<std::uint8_t> take_buffer(TopicId topic);
+
   /// Queues one message (encapsulated CDR). Returns false when it was refused:
   /// the queue is over its budget, the file failed, or the writer is closed.
   /// Never waits for I/O.
@@ -91,6 +102,7 @@ class AsyncWriter {
     const msg::TypeSupport* type = nullptr;
     std::vector<ros2::QosProfile> offered;
     ChannelId channel = 0;  // writer thread only
+    std::vector<std::vector<std::uint8_t>> spare;  // written buffers for take_buffer (under mu_)
   };
 
   Status start(std::unique_ptr<Writable> out, AsyncWriterOptions options);
@@ -109,6 +121,7 @@ class AsyncWriter {
   bool stopping_ = false;
   Status error_;
   AsyncWriterStats stats_;
+  std::uint64_t recycled_bytes_ = 0;  // capacity held in the topics' spare buffers
 };
 
 }  // namespace tinyline::bag
