@@ -70,6 +70,13 @@ Verification verify(const PickPose& pose, const FinderAnswer& a, const PickPoseP
       }
       const Eigen::Matrix3d R = pose.T_ref_laser.linear();
       v.move = R * Eigen::Vector3d(a.lateral_offset_m, 0.0, a.depth_offset_m);
+      if (v.move.norm() > p.max_move_m) {
+        v.outcome = Verification::Outcome::kNothingFound;
+        v.reason = "the finder's pedicel is " + std::to_string(std::lround(1000 * v.move.norm())) +
+                   " mm from the plan, beyond max_move_m: another pedicel or a stem (" + a.reason + ")";
+        v.move.setZero();
+        return v;
+      }
       v.T_ref_laser_final.translation() += v.move;
       v.cut_point = v.T_ref_laser_final * Eigen::Vector3d(0, 0, p.throat_z_m);
       v.outcome = a.outcome == O::kCutHere ? Verification::Outcome::kCutHere : Verification::Outcome::kMove;

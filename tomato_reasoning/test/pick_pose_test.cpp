@@ -67,6 +67,12 @@ TEST(Verify, NothingFoundOutOfViewAndBadAnswersDoNotCut) {
   EXPECT_FALSE(v.will_cut());
   EXPECT_NE(v.reason.find("non-finite"), std::string::npos);
   EXPECT_FALSE(verify(PickPose{}, FinderAnswer{}).will_cut());
+  // A pedicel far beyond what the vision can be off by is someone else's.
+  a.lateral_offset_m = 0.18;
+  a.depth_offset_m = 0.0;
+  const Verification far = verify(pose, a);
+  EXPECT_EQ(far.outcome, Verification::Outcome::kNothingFound);
+  EXPECT_NE(far.reason.find("max_move_m"), std::string::npos);
 }
 
 }  // namespace

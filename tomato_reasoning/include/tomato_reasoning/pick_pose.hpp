@@ -29,6 +29,10 @@ struct PickPoseParams {
   /// Where the robot comes from, in the reference frame (e.g. the camera or
   /// the shoulder): the laser looks from this side towards the cut.
   Eigen::Vector3d approach_from{0, 0, 0};
+  /// A move longer than this is not trusted [m]: the vision is rarely that
+  /// far off (Table 4.3 tried offsets up to 5 cm), so the finder has chosen
+  /// another pedicel or a stem; the verification then says nothing found.
+  double max_move_m = 0.05;
 };
 
 struct PickPose {

@@ -67,8 +67,8 @@ class TrussCameraNode : public bus::Node {
     scenario_ = std::make_unique<eval::Scenario>(eval::make_scenario(class_, std::uint64_t(seed_)));
     logger().info("truss class {} seed {}: {} tomatoes, camera {:.2f} m away", char(class_), seed_, scenario_->truth.size(),
                   scenario_->truss.params.camera_distance_m);
+    // The first frame one period after start: every node (the recorder too) is listening by then.
     timer_ = create_timer(std::chrono::nanoseconds(std::int64_t(1e9 / rate_hz_)), [this] { tick(); });
-    tick();
   }
 
  private:

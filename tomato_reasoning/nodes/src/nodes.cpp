@@ -299,6 +299,8 @@ void TomatoDetectorNode::on_cloud(const sensor_msgs::msg::PointCloud2& m) {
 PickVerifierNode::PickVerifierNode(bus::NodeOptions o) : Node(std::move(o)) {
   params_.throat_z_m = declare_parameter("throat_z_m", params_.throat_z_m, "blade throat along the hand laser's axis [m]",
                                          ParamConstraints::range(0.01, 1.0));
+  params_.max_move_m = declare_parameter("max_move_m", params_.max_move_m, "a longer move is not trusted: nothing found [m]",
+                                         ParamConstraints::range(0.0, 1.0));
   max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)", ParamConstraints::range(0, 1000));
   pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pick_pose");
   expected_pub_ = create_publisher<geometry_msgs::msg::PointStamped>("expected_pedicel");
