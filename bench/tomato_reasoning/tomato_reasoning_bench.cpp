@@ -206,8 +206,40 @@ void BM_PlainPcl(benchmark::State& state, char cls) {
   state.counters["spheres_per_truth"] = double(found) / double(std::max(1L, truth));
 }
 
+// The simulated RGB-D camera: one VGA frame of a class C truss (z-buffer,
+// depth noise, missing depth at edges, colours), beside the reference of one
+// world ray cast per pixel (depth only, no noise or colour).
+void BM_RgbdCameraVga(benchmark::State& state) {
+  const eval::Scenario& s = frames('C').front().scenario;
+  const sim::RgbdCamera camera;
+  std::uint64_t k = 0;
+  for (auto _ : state) {
+    const sim::RgbdFrame f = camera.render(s.world, s.truss.T_world_camera, k++);
+    benchmark::DoNotOptimize(f.rgb.data());
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+void BM_RaycastPerPixelVga(benchmark::State& state) {
+  const eval::Scenario& s = frames('C').front().scenario;
+  const sim::PinholeIntrinsics in;
+  const Eigen::Isometry3d& T = s.truss.T_world_camera;
+  for (auto _ : state) {
+    double sum = 0;
+    for (int v = 0; v < in.height; ++v)
+      for (int u = 0; u < in.width; ++u) {
+        const auto hit = s.world.raycast(sim::Ray{T.translation(), T.linear() * in.ray(u, v)});
+        if (hit) sum += hit->t_m;
+      }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
 }  // namespace
 
+BENCHMARK(BM_RgbdCameraVga)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_RaycastPerPixelVga)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK_CAPTURE(BM_Tinyline, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
 BENCHMARK_CAPTURE(BM_PlainPcl, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
 BENCHMARK_CAPTURE(BM_Tinyline, class_B, 'B')->Unit(benchmark::kMillisecond)->Iterations(8);
