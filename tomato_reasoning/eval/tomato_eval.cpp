@@ -23,6 +23,9 @@
 #include "tomato_reasoning/eval/scoring.hpp"
 #include "tomato_reasoning/eval/variants.hpp"
 #include "tomato_reasoning/pipeline.hpp"
+#ifdef TINYLINE_TOMATO_HAVE_LASER
+#include "tomato_reasoning/eval/verification.hpp"
+#endif
 
 using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
@@ -56,7 +59,9 @@ std::vector<std::uint64_t> parse_seeds(const std::string& s) {
 void usage() {
   std::puts(
       "usage: tomato_eval --classes A,B,C --seeds 1-100 --out DIR [--variant NAME]... [--set key=value]...\n"
-      "                   [--kappa-sweep k1,k2,...] [--views 1|2] [--pose-noise M,DEG] [--quiet]\n"
+      "                   [--kappa-sweep k1,k2,...] [--views 1|2] [--pose-noise M,DEG] [--verify] [--quiet]\n"
+      "--verify: laser verification of every detected tomato's pick (first variant), as recognised and with a\n"
+      "          random offset < 5 cm (Table 4.3), written to DIR/verification.csv\n"
       "variants: ");
   for (const auto& v : eval::variant_names()) std::printf("  %s\n", v.c_str());
   std::puts("keys for --set:");
@@ -73,6 +78,7 @@ int main(int argc, char** argv) {
   std::vector<std::pair<std::string, std::string>> sets;
   std::vector<double> kappas;
   bool quiet = false;
+  bool verify = false;
   eval::ScenarioOptions scenario;
   try {
     for (int i = 1; i < argc; ++i) {
@@ -100,6 +106,8 @@ int main(int argc, char** argv) {
         if (v.size() != 2) throw std::invalid_argument("--pose-noise wants METRES,DEGREES");
         scenario.pose_noise_m = std::stod(v[0]);
         scenario.pose_noise_deg = std::stod(v[1]);
+      } else if (a == "--verify") {
+        verify = true;
       } else if (a == "--quiet") quiet = true;
       else if (a == "--help" || a == "-h") {
         usage();
@@ -139,6 +147,26 @@ int main(int argc, char** argv) {
     r.csv << eval::csv_header();
     runs.push_back(std::move(r));
   }
+#ifdef TINYLINE_TOMATO_HAVE_LASER
+  std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
+  std::ofstream vcsv;
+  std::map<std::string, std::map<std::string, int>> vcount;  // case -> verdict -> n
+  std::map<std::string, int> vision_ok;
+  if (verify) {
+    eval::VerificationOptions vo;
+    as_recognised = std::make_unique<eval::VerificationHarness>(vo);
+    vo.random_offset_m = 0.05;
+    with_offset = std::make_unique<eval::VerificationHarness>(vo);
+    std::printf("hand laser: %s\n", as_recognised->describe().c_str());
+    vcsv.open(out_dir + "/verification.csv");
+    vcsv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,depth_error_mm,move_mm,confidence,reason\n";
+  }
+#else
+  if (verify) {
+    std::fprintf(stderr, "tomato_eval: built without laser_clustering's evaluation scanner: --verify unavailable\n");
+    return 2;
+  }
+#endif
   // kappa sweep: hits of the truth in the HPD50 region per kappa, from the
   // first variant's draws (the draws do not depend on kappa).
   std::vector<int> kappa_hits(kappas.size(), 0);
@@ -170,6 +198,22 @@ int main(int argc, char** argv) {
                       static_cast<unsigned long long>(seed), ts.truth, ts.detected, ts.unmatched, ts.times.total_ms(),
                       ts.ok ? "" : (ts.stage + ": " + ts.reason).c_str());
         }
+#ifdef TINYLINE_TOMATO_HAVE_LASER
+        if (verify && &run == &runs.front()) {
+          for (auto* h : {as_recognised.get(), with_offset.get()}) {
+            const std::string name = h == as_recognised.get() ? "as_recognised" : "random_offset";
+            for (const auto& t : h->run(sc, res)) {
+              vcount[name][eval::to_string(t.verdict)]++;
+              vcount[name]["trials"]++;
+              vision_ok[name] += t.vision_on_pedicel;
+              vcsv << name << ',' << t.complexity << ',' << t.seed << ',' << t.truth << ',' << t.pick_rank << ','
+                   << t.offset_m << ',' << int(t.vision_on_pedicel) << ',' << to_string(t.outcome) << ','
+                   << eval::to_string(t.verdict) << ',' << int(t.on_pedicel) << ',' << 1000 * t.lateral_error_m << ','
+                   << 1000 * t.depth_error_m << ',' << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << "\"\n";
+            }
+          }
+        }
+#endif
         run.by_class[*cls.c_str()].push_back(ts);
         run.scores.push_back(ts);
       }
@@ -199,6 +243,17 @@ int main(int argc, char** argv) {
     row("all", all);
     js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
   }
+#ifdef TINYLINE_TOMATO_HAVE_LASER
+  if (verify) {
+    std::printf("\nlaser verification (%s): picks of detected tomatoes\n%-15s %7s %9s %9s %9s %9s %12s\n", runs.front().name.c_str(),
+                "case", "trials", "aligned", "wrong", "out_view", "nothing", "vision_only");
+    for (auto& [name, c] : vcount) {
+      const double n = std::max(1, c["trials"]);
+      std::printf("%-15s %7d %8.1f%% %8.1f%% %8.1f%% %8.1f%% %11.1f%%\n", name.c_str(), c["trials"], 100 * c["aligned"] / n,
+                  100 * c["wrong"] / n, 100 * c["out_of_view"] / n, 100 * c["nothing_found"] / n, 100 * vision_ok[name] / n);
+    }
+  }
+#endif
   if (!kappas.empty()) {
     std::ofstream ks(out_dir + "/kappa_sweep.csv");
     ks << "kappa,hpd50_hit_rate,n\n";

@@ -126,7 +126,7 @@ TEST(CutPlan, CoversAtLeastAsMuchAsTheExpectationAndStaysOutsideOtherFruit) {
     const CutPlan c = plan_cut(s, i, peds[std::size_t(i)]);
     EXPECT_GE(c.coverage + 1e-12, c.expected_coverage);
     EXPECT_GT(c.coverage, 0.0);
-    EXPECT_NEAR(c.half_angle_rad, std::atan2(0.01, 0.045), 1e-12);
+    EXPECT_NEAR(c.half_angle_rad, std::atan2(0.01, 0.03 + CutParams{}.cut_offset_m), 1e-12);
     if (!c.blocked) {
       for (int j = 0; j < 3; ++j)
         if (j != i) {

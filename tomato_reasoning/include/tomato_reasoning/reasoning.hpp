@@ -127,7 +127,9 @@ struct PickCost {
 
 struct CutParams {
   double scissor_opening_m = 0.02;  ///< measured.yaml tomato.scissor_opening_m
-  double cut_offset_m = 0.015;      ///< cut this far beyond the fruit's surface along the pedicel [m]
+  /// Cut this far beyond the fruit's surface along the pedicel [m]: close
+  /// to the calyx, where the pedicel surely is (pedicels are 1-4 cm long).
+  double cut_offset_m = 0.008;
   int candidates = 200;             ///< directions tried (draws of the distribution)
 };
 

@@ -1,0 +1,102 @@
+#!/usr/bin/env python3
+"""The harvesting demo's picture: the camera's view of the truss with the
+fitted spheres, expected pedicel directions, pick order and the laser
+verification's cuts, read back from the MCAP the demo recorded
+(launch/tomato_harvest.launch.yaml).
+
+usage: .venv/bin/python scripts/plots/tomato_scene.py BAG.mcap [--out tomato_harvest.png]
+"""
+import argparse
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from mcap.reader import make_reader  # noqa: E402
+from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+
+OUTCOMES = {0: "cut here", 1: "moved", 2: "nothing found", 3: "out of view", 4: "failed"}
+
+
+def first_messages(path):
+    cloud, tomatoes, verifications = None, None, []
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for _schema, channel, _message, m in reader.iter_decoded_messages(
+                topics=["/camera/points", "/tomatoes", "/harvest/verification"]):
+            if channel.topic == "/camera/points" and cloud is None:
+                cloud = m
+            elif channel.topic == "/tomatoes" and tomatoes is None and len(m.tomatoes) > 0:
+                tomatoes = m
+            elif channel.topic == "/harvest/verification":
+                verifications.append(m)
+    return cloud, tomatoes, verifications
+
+
+def decode_cloud(m):
+    raw = np.frombuffer(bytes(m.data), dtype=np.uint8).reshape(m.height, m.width, m.point_step)
+    xyz = raw[:, :, 0:12].copy().view(np.float32).reshape(m.height, m.width, 3)
+    rgb = raw[:, :, 12:16].copy().view(np.uint32).reshape(m.height, m.width)
+    img = np.stack([(rgb >> 16) & 255, (rgb >> 8) & 255, rgb & 255], axis=-1).astype(np.uint8)
+    return xyz, img
+
+
+def intrinsics(xyz):
+    """Pinhole fx, fy, cx, cy fitted to the organised cloud (u = fx x/z + cx)."""
+    h, w, _ = xyz.shape
+    v, u = np.mgrid[0:h, 0:w]
+    ok = np.isfinite(xyz[:, :, 2]) & (xyz[:, :, 2] > 0)
+    a = xyz[:, :, 0][ok] / xyz[:, :, 2][ok]
+    b = xyz[:, :, 1][ok] / xyz[:, :, 2][ok]
+    fx, cx = np.polyfit(a, u[ok], 1)
+    fy, cy = np.polyfit(b, v[ok], 1)
+    return fx, fy, cx, cy
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bag")
+    ap.add_argument("--out", default="tomato_harvest.png")
+    args = ap.parse_args()
+    cloud, tomatoes, verifications = first_messages(args.bag)
+    if cloud is None:
+        sys.exit(f"{args.bag}: no /camera/points message")
+    xyz, img = decode_cloud(cloud)
+    fx, fy, cx, cy = intrinsics(xyz)
+
+    def project(p):
+        return fx * p[0] / p[2] + cx, fy * p[1] / p[2] + cy
+
+    fig, ax = plt.subplots(figsize=(9, 7))
+    ax.imshow(img)
+    ax.set_axis_off()
+    title = "simulated truss"
+    if tomatoes is not None:
+        title = f"{len(tomatoes.tomatoes)} tomatoes, pick order {list(tomatoes.pick_order)}"
+        for k, t in enumerate(tomatoes.tomatoes):
+            c = np.array([t.centre.x, t.centre.y, t.centre.z])
+            u, v = project(c)
+            r_px = fx * t.radius_m / c[2]
+            ax.add_patch(plt.Circle((u, v), r_px, fill=False, ec="yellow", lw=1.5))
+            d = np.array([t.pedicel_direction.x, t.pedicel_direction.y, t.pedicel_direction.z])
+            u0, v0 = project(c + t.radius_m * d)
+            u1, v1 = project(c + (t.radius_m + 0.04) * d)
+            ax.annotate("", xy=(u1, v1), xytext=(u0, v0), arrowprops=dict(arrowstyle="->", color="lime", lw=2))
+            ax.text(u, v, f"#{t.pick_rank + 1}", color="white", ha="center", va="center", fontsize=12, weight="bold")
+            cu, cv = project([t.cut_point.x, t.cut_point.y, t.cut_point.z])
+            ax.plot(cu, cv, "x", color="yellow", ms=8, mew=2)
+    for m in verifications:
+        cu, cv = project([m.cut_point.x, m.cut_point.y, m.cut_point.z])
+        colour = "cyan" if m.outcome in (0, 1) else "magenta"
+        ax.plot(cu, cv, "o", mfc="none", mec=colour, ms=10, mew=2)
+        ax.text(cu + 8, cv, OUTCOMES.get(m.outcome, "?"), color=colour, fontsize=8)
+    ax.set_title(title + "\nyellow: spheres, planned cuts (x); green: expected pedicels; cyan: cuts after laser verification")
+    fig.tight_layout()
+    fig.savefig(args.out, dpi=110)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,170 @@
+#include "tomato_reasoning/eval/verification.hpp"
+
+#include <cmath>
+
+#include <laser_clustering/pedicel_finder.hpp>
+#include <laser_clustering/two_stage.hpp>
+
+#include "harness.hpp"
+#include "sim_scanner.hpp"
+
+namespace tinyline::tomato_reasoning::eval {
+
+namespace lc = tinyline::laser_clustering;
+
+namespace {
+
+std::uint64_t mix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+double uniform(std::uint64_t key) { return (static_cast<double>(mix(key) >> 11) + 0.5) * 0x1.0p-53; }
+
+FinderAnswer::Outcome convert(lc::PedicelOutcome o) {
+  switch (o) {
+    case lc::PedicelOutcome::kCutHere: return FinderAnswer::Outcome::kCutHere;
+    case lc::PedicelOutcome::kMove: return FinderAnswer::Outcome::kMove;
+    case lc::PedicelOutcome::kNothingToCut: return FinderAnswer::Outcome::kNothingToCut;
+    case lc::PedicelOutcome::kOutOfView: return FinderAnswer::Outcome::kOutOfView;
+    case lc::PedicelOutcome::kInvalidInput: return FinderAnswer::Outcome::kInvalidInput;
+  }
+  return FinderAnswer::Outcome::kInvalidInput;
+}
+
+// Where a pedicel segment (a -> b, reference frame) crosses the laser's
+// scan plane (y = 0), in laser coordinates; false when it does not.
+bool crossing(const Eigen::Isometry3d& T_ref_laser, const Eigen::Vector3d& a, const Eigen::Vector3d& b, Eigen::Vector3d& at) {
+  const Eigen::Isometry3d T = T_ref_laser.inverse();
+  const Eigen::Vector3d pa = T * a, pb = T * b;
+  if ((pa.y() > 0) == (pb.y() > 0)) return false;
+  const double t = pa.y() / (pa.y() - pb.y());
+  at = pa + t * (pb - pa);
+  return true;
+}
+
+}  // namespace
+
+const char* to_string(PickVerdict v) {
+  switch (v) {
+    case PickVerdict::kAligned: return "aligned";
+    case PickVerdict::kWrong: return "wrong";
+    case PickVerdict::kOutOfView: return "out_of_view";
+    case PickVerdict::kNothingFound: return "nothing_found";
+  }
+  return "?";
+}
+
+VerificationHarness::VerificationHarness(VerificationOptions o) : o_(std::move(o)) {
+  lc::eval::SimScannerOptions so;
+  so.sensor_config = o_.sensor_config;
+  so.raw_pulses = o_.raw_pulses;
+  so.calibration_max_m = o_.calibration_max_m;
+  so.calibration_step_m = o_.calibration_step_m;
+  so.calibration_sets = o_.calibration_sets;
+  scanner_ = lc::eval::make_sim_scanner(so);
+}
+
+VerificationHarness::~VerificationHarness() = default;
+
+std::string VerificationHarness::describe() const { return scanner_->describe(); }
+
+std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const PipelineResult& r, double match_m) {
+  std::vector<VerificationTrial> out;
+  const Eigen::Isometry3d T_world_ref = s.truss.T_world_camera;  // the first view is the reference
+  const Eigen::Isometry3d T_ref_world = T_world_ref.inverse();
+  // True pedicels (anchor -> calyx) in the reference frame; the target's
+  // index is the truth index, the others are neighbours.
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> pedicels;
+  for (const auto& t : s.truss.tomatoes) pedicels.emplace_back(T_ref_world * t.anchor_m, T_ref_world * t.calyx_m);
+  lc::PedicelFinderParams finder;
+  finder.scissors.centre_z_m = o_.pose.throat_z_m;
+  finder.scissors.opening_m = o_.scissor_opening_m;
+  PickPoseParams pose_params = o_.pose;
+  pose_params.approach_from = Eigen::Vector3d::Zero();  // from the camera's side
+
+  // Harvesting goes in pick order: a picked fruit (with its pedicel and
+  // sepals) is gone before the next scan.
+  sim::World world = s.world;
+  auto remove_fruit = [&](int truth) {
+    const std::string& name = s.truss.tomatoes[static_cast<std::size_t>(truth)].object_name;
+    const std::string prefix = s.truss.params.name + "_";
+    const std::string idx = name.substr(name.rfind('_') + 1);
+    for (std::size_t o = 0; o < world.size(); ++o) {
+      const std::string& n = world.object(static_cast<sim::ObjectId>(o)).name;
+      if (n.rfind(name, 0) == 0 || n == prefix + "pedicel_" + idx || n == prefix + "calyx_" + idx) {
+        Eigen::Isometry3d far = world.object(static_cast<sim::ObjectId>(o)).T_world_object;
+        far.translation() += Eigen::Vector3d(0, 0, -100);
+        world.set_pose(static_cast<sim::ObjectId>(o), far);
+      }
+    }
+  };
+  for (int rank = 0; rank < static_cast<int>(r.pick_order.size()); ++rank) {
+    const int k = r.pick_order[static_cast<std::size_t>(rank)];
+    const Tomato& det = r.tomatoes[static_cast<std::size_t>(k)];
+    int truth = -1;
+    for (std::size_t t = 0; t < s.truth.size(); ++t)
+      if ((det.fit.sphere.centre - s.truth[t].centre_m).norm() <= match_m) truth = static_cast<int>(t);
+    if (truth < 0) continue;  // spheres that are no tomato are not picked in this evaluation
+    VerificationTrial trial;
+    trial.complexity = static_cast<char>(s.complexity);
+    trial.seed = s.seed;
+    trial.truth = truth;
+    trial.pick_rank = rank;
+    PickPose pose = picking_pose(r, k, pose_params);
+    if (!pose.ok()) continue;
+    if (o_.random_offset_m > 0) {
+      // Uniform in the disc square to the pedicel (the laser's x-z plane).
+      const std::uint64_t key = mix(s.seed * 7919 + static_cast<std::uint64_t>(k) * 31 + 5);
+      const double rad = o_.random_offset_m * std::sqrt(uniform(key)), ang = 2 * M_PI * uniform(key + 1);
+      const Eigen::Vector3d off = pose.T_ref_laser.linear() * Eigen::Vector3d(rad * std::cos(ang), 0, rad * std::sin(ang));
+      pose.T_ref_laser.translation() += off;
+      pose.cut_point += off;
+      trial.offset_m = rad;
+    }
+    auto throat_on = [&](const Eigen::Isometry3d& T_ref_laser, int which, double* lateral, double* depth = nullptr) {
+      Eigen::Vector3d at;
+      if (!crossing(T_ref_laser, pedicels[std::size_t(which)].first, pedicels[std::size_t(which)].second, at)) return false;
+      if (lateral) *lateral = at.x();
+      if (depth) *depth = at.z() - o_.pose.throat_z_m;
+      return std::abs(at.x()) <= 0.5 * o_.scissor_opening_m && std::abs(at.z() - o_.pose.throat_z_m) <= o_.depth_tolerance_m;
+    };
+    trial.vision_on_pedicel = throat_on(pose.T_ref_laser, truth, nullptr);
+
+    const lc::eval::SimulatedScan scan =
+        scanner_->scan(world, T_world_ref * pose.T_ref_laser, s.seed * 1000 + static_cast<std::uint64_t>(k));
+    const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
+    lc::PedicelExpectation expect;
+    expect.position_xz_m = Eigen::Vector2d(0.0, o_.pose.throat_z_m);
+    expect.sd_m = o_.expectation_sd_m;
+    const lc::PedicelDetection d = lc::find_pedicel(scan.scan, objects, finder, expect);
+    FinderAnswer a;
+    a.outcome = convert(d.outcome);
+    a.lateral_offset_m = d.lateral_offset_m;
+    a.depth_offset_m = d.depth_offset_m;
+    a.pedicel_x_m = d.position_xz_m.x();
+    a.pedicel_z_m = d.position_xz_m.y();
+    a.confidence = d.confidence;
+    a.reason = d.reason;
+    const Verification v = verify(pose, a, o_.pose);
+    trial.outcome = v.outcome;
+    trial.confidence = v.confidence;
+    trial.reason = v.reason;
+    if (v.will_cut()) {
+      double lateral = NAN, depth = NAN;
+      trial.on_pedicel = throat_on(v.T_ref_laser_final, truth, &lateral, &depth);
+      trial.lateral_error_m = lateral;
+      trial.depth_error_m = depth;
+      trial.move_m = v.move.norm();
+      trial.verdict = trial.on_pedicel ? PickVerdict::kAligned : PickVerdict::kWrong;
+    } else {
+      trial.verdict = v.outcome == Verification::Outcome::kOutOfView ? PickVerdict::kOutOfView : PickVerdict::kNothingFound;
+    }
+    out.push_back(trial);
+    remove_fruit(truth);  // picked (or given up on): the robot moves on
+  }
+  return out;
+}
+
+}  // namespace tinyline::tomato_reasoning::eval

@@ -1,0 +1,81 @@
+// Picking pose and laser verification geometry (thesis 4.4, Figure 4.10):
+// where the hand goes so that the tiny laser on it scans across the expected
+// pedicel with the scissors' throat on it, and what a pedicel finder's answer
+// at that pose means for the cut.
+//
+// The hand laser's frame is the sensor's: z forward along the optical axis,
+// x along the laser line, y = z x x. The line sweeps the laser's x-z plane;
+// the blade throat sits at (0, 0, throat_z_m) in it (laser_clustering's
+// ScissorGeometry), the blades cutting along +z. At the picking pose the
+// laser's y axis lies along the expected pedicel (the line cuts across it),
+// its z axis points from the robot's side towards the cut (level, as far as
+// the pedicel allows), and the throat sits on the planned cut point.
+//
+// The pedicel finder (laser_clustering, a separate package) looks at the
+// scan; its answer comes back here as plain numbers (FinderAnswer) so that
+// this core does not depend on it.
+#pragma once
+
+#include <string>
+
+#include <Eigen/Geometry>
+
+#include "tomato_reasoning/pipeline.hpp"
+
+namespace tinyline::tomato_reasoning {
+
+struct PickPoseParams {
+  double throat_z_m = 0.12;  ///< blade throat along the laser's optical axis [m] (laser_clustering ScissorGeometry)
+  /// Where the robot comes from, in the reference frame (e.g. the camera or
+  /// the shoulder): the laser looks from this side towards the cut.
+  Eigen::Vector3d approach_from{0, 0, 0};
+  /// A move longer than this is not trusted [m]: the vision is rarely that
+  /// far off (Table 4.3 tried offsets up to 5 cm), so the finder has chosen
+  /// another pedicel or a stem; the verification then says nothing found.
+  double max_move_m = 0.05;
+};
+
+struct PickPose {
+  int tomato = -1;                    ///< index into PipelineResult::tomatoes
+  Eigen::Isometry3d T_ref_laser = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d cut_point = Eigen::Vector3d::Zero();     ///< reference frame [m]
+  Eigen::Vector3d pedicel_axis = Eigen::Vector3d::UnitZ(); ///< expected pedicel direction (unit)
+  std::string reason;                 ///< why there is no pose (tomato index out of range)
+  [[nodiscard]] bool ok() const { return tomato >= 0; }
+};
+
+/// The picking pose for tomato `index` of a pipeline result (its cut plan).
+[[nodiscard]] PickPose picking_pose(const PipelineResult& result, int index, const PickPoseParams& params = {});
+/// The same from a cut point and pedicel direction.
+[[nodiscard]] PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis,
+                                    const PickPoseParams& params = {});
+
+/// What the pedicel finder said about the scan at the picking pose (laser
+/// frame offsets, as laser_clustering::PedicelDetection gives them).
+struct FinderAnswer {
+  enum class Outcome { kCutHere, kMove, kNothingToCut, kOutOfView, kInvalidInput };
+  Outcome outcome = Outcome::kInvalidInput;
+  double lateral_offset_m = 0.0;  ///< gripper move along laser x that centres the pedicel [m]
+  double depth_offset_m = 0.0;    ///< ... along laser z [m]
+  double pedicel_x_m = 0.0;       ///< the pedicel found, laser frame [m]
+  double pedicel_z_m = 0.0;
+  double confidence = 0.0;
+  std::string reason;
+};
+
+/// The verification's decision (thesis 4.4: cut here, move by this much, or nothing found).
+struct Verification {
+  enum class Outcome { kCutHere, kMove, kNothingFound, kOutOfView, kFailed };
+  Outcome outcome = Outcome::kFailed;
+  Eigen::Vector3d move = Eigen::Vector3d::Zero();        ///< gripper translation, reference frame [m]
+  Eigen::Vector3d cut_point = Eigen::Vector3d::Zero();   ///< where the blades will meet, reference frame [m]
+  Eigen::Isometry3d T_ref_laser_final = Eigen::Isometry3d::Identity();  ///< the pose after the move
+  double confidence = 0.0;
+  std::string reason;
+  [[nodiscard]] bool will_cut() const { return outcome == Outcome::kCutHere || outcome == Outcome::kMove; }
+};
+[[nodiscard]] const char* to_string(Verification::Outcome o);
+
+[[nodiscard]] Verification verify(const PickPose& pose, const FinderAnswer& answer, const PickPoseParams& params = {});
+
+}  // namespace tinyline::tomato_reasoning

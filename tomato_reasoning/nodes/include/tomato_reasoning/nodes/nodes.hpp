@@ -1,0 +1,84 @@
+// Nodes of tomato_reasoning: thin shells that convert messages, call the
+// core (pipeline.hpp, pick_pose.hpp) and publish.
+//
+// tomato_detector  cloud (sensor_msgs/PointCloud2, XYZ + RGB) -> tomatoes
+//                  (tinyline_msgs/TomatoEstimates: spheres, pedicel
+//                  estimates, pick order, cut plans) and markers
+//                  (visualization_msgs/MarkerArray: spheres, pedicel arrows,
+//                  contact edges, pick ranks) for Foxglove.
+// pick_verifier    tomatoes -> for each tomato in pick order: the hand
+//                  laser's picking pose (`pick_pose`, PoseStamped) and the
+//                  expected pedicel in the laser's frame (`expected_pedicel`,
+//                  for laser_clustering's pedicel_finder); then the finder's
+//                  answer (`pedicel`) -> `verification` (PickVerification:
+//                  cut here, move by this much, or nothing found), markers,
+//                  and a summary in the log when every pick is verified.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <tinyline/bus/node.hpp>
+#include <tinyline/msg/geometry_msgs/point_stamped.hpp>
+#include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
+#include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
+#include <tinyline/msg/tinyline_msgs/pedicel_detection.hpp>
+#include <tinyline/msg/tinyline_msgs/pick_verification.hpp>
+#include <tinyline/msg/tinyline_msgs/tomato_estimates.hpp>
+#include <tinyline/msg/visualization_msgs/marker_array.hpp>
+
+#include "tomato_reasoning/cloud.hpp"
+#include "tomato_reasoning/pick_pose.hpp"
+#include "tomato_reasoning/pipeline.hpp"
+
+namespace tinyline::tomato_reasoning::nodes {
+
+/// PointCloud2 with float32 x, y, z and rgb (packed as PCL does, or as
+/// uint32) -> ColorCloud; empty when fine, else what is wrong.
+[[nodiscard]] std::string to_core(const sensor_msgs::msg::PointCloud2& m, ColorCloud& out);
+/// ColorCloud -> PointCloud2 (x, y, z, rgb float32, organised when the cloud is).
+void to_msg(const ColorCloud& c, sensor_msgs::msg::PointCloud2& out);
+void to_msg(const PipelineResult& r, const Eigen::Vector3d& gravity, tinyline_msgs::msg::TomatoEstimates& out);
+/// Spheres, expected pedicel arrows, contact edges and pick ranks.
+void to_markers(const tinyline_msgs::msg::TomatoEstimates& t, visualization_msgs::msg::MarkerArray& out);
+
+class TomatoDetectorNode : public bus::Node {
+ public:
+  explicit TomatoDetectorNode(bus::NodeOptions options);
+
+ private:
+  void on_cloud(const sensor_msgs::msg::PointCloud2& m);
+  std::unique_ptr<TomatoPipeline> pipeline_;
+  ColorCloud cloud_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::TomatoEstimates>> pub_;
+  std::shared_ptr<bus::Publisher<visualization_msgs::msg::MarkerArray>> markers_pub_;
+  std::shared_ptr<bus::Subscription<sensor_msgs::msg::PointCloud2>> sub_;
+};
+
+class PickVerifierNode : public bus::Node {
+ public:
+  explicit PickVerifierNode(bus::NodeOptions options);
+
+ private:
+  void on_tomatoes(const tinyline_msgs::msg::TomatoEstimates& m);
+  void on_pedicel(const tinyline_msgs::msg::PedicelDetection& m);
+  void next_pick();
+  void summary();
+  PickPoseParams params_;
+  int max_picks_ = 0;
+  std::optional<tinyline_msgs::msg::TomatoEstimates> estimates_;
+  std::size_t rank_ = 0;
+  bool waiting_ = false, done_ = false;
+  PickPose pose_;
+  std::vector<tinyline_msgs::msg::PickVerification> results_;
+  std::shared_ptr<bus::Publisher<geometry_msgs::msg::PoseStamped>> pose_pub_;
+  std::shared_ptr<bus::Publisher<geometry_msgs::msg::PointStamped>> expected_pub_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::PickVerification>> result_pub_;
+  std::shared_ptr<bus::Publisher<visualization_msgs::msg::MarkerArray>> markers_pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::TomatoEstimates>> tomatoes_sub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::PedicelDetection>> pedicel_sub_;
+};
+
+}  // namespace tinyline::tomato_reasoning::nodes

@@ -1,0 +1,456 @@
+#include "tomato_reasoning/nodes/nodes.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+
+#include "tomato_reasoning/nodes/register.hpp"
+
+namespace tinyline::tomato_reasoning::nodes {
+
+namespace msgs = tinyline_msgs::msg;
+using bus::ParamConstraints;
+using visualization_msgs::msg::Marker;
+
+namespace {
+
+geometry_msgs::msg::Point point(const Eigen::Vector3d& p) {
+  geometry_msgs::msg::Point m;
+  m.x = p.x();
+  m.y = p.y();
+  m.z = p.z();
+  return m;
+}
+geometry_msgs::msg::Vector3 vec(const Eigen::Vector3d& p) {
+  geometry_msgs::msg::Vector3 m;
+  m.x = p.x();
+  m.y = p.y();
+  m.z = p.z();
+  return m;
+}
+Eigen::Vector3d eig(const geometry_msgs::msg::Point& p) { return {p.x, p.y, p.z}; }
+Eigen::Vector3d eig(const geometry_msgs::msg::Vector3& p) { return {p.x, p.y, p.z}; }
+geometry_msgs::msg::Pose pose(const Eigen::Isometry3d& T) {
+  geometry_msgs::msg::Pose p;
+  p.position = point(T.translation());
+  const Eigen::Quaterniond q(T.linear());
+  p.orientation.x = q.x();
+  p.orientation.y = q.y();
+  p.orientation.z = q.z();
+  p.orientation.w = q.w();
+  return p;
+}
+std_msgs::msg::ColorRGBA colour(float r, float g, float b, float a = 1.0f) {
+  std_msgs::msg::ColorRGBA c;
+  c.r = r;
+  c.g = g;
+  c.b = b;
+  c.a = a;
+  return c;
+}
+Marker marker(const std_msgs::msg::Header& h, const std::string& ns, int id, int type) {
+  Marker m;
+  m.header = h;
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = Marker::ADD;
+  m.pose.orientation.w = 1.0;
+  return m;
+}
+Marker arrow(const std_msgs::msg::Header& h, const std::string& ns, int id, const Eigen::Vector3d& from,
+             const Eigen::Vector3d& to, const std_msgs::msg::ColorRGBA& c, double shaft_m) {
+  Marker m = marker(h, ns, id, Marker::ARROW);
+  m.points = {point(from), point(to)};
+  m.scale.x = shaft_m;
+  m.scale.y = 2 * shaft_m;
+  m.scale.z = 3 * shaft_m;
+  m.color = c;
+  return m;
+}
+
+std::vector<std::function<void(bus::NodeRegistry&)>>& extras() {
+  static std::vector<std::function<void(bus::NodeRegistry&)>> list;
+  return list;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------- conversions
+
+std::string to_core(const sensor_msgs::msg::PointCloud2& m, ColorCloud& out) {
+  using sensor_msgs::msg::PointField;
+  const std::size_t n = std::size_t(m.width) * m.height;
+  int ox = -1, oy = -1, oz = -1, orgb = -1;
+  for (const auto& f : m.fields) {
+    const bool f32 = f.datatype == PointField::FLOAT32, u32 = f.datatype == PointField::UINT32;
+    if (f.name == "x" && f32) ox = int(f.offset);
+    if (f.name == "y" && f32) oy = int(f.offset);
+    if (f.name == "z" && f32) oz = int(f.offset);
+    if ((f.name == "rgb" || f.name == "rgba") && (f32 || u32)) orgb = int(f.offset);
+  }
+  if (ox < 0 || oy < 0 || oz < 0 || orgb < 0) return "PointCloud2 needs float32 fields x, y, z and an rgb field";
+  if (m.is_bigendian) return "PointCloud2 is big-endian";
+  if (m.point_step < 16 || std::size_t(std::max({ox, oy, oz, orgb})) + 4 > m.point_step)
+    return "PointCloud2 point_step " + std::to_string(m.point_step) + " is shorter than its fields";
+  if (m.row_step < std::size_t(m.width) * m.point_step || m.data.size() < std::size_t(m.row_step) * m.height)
+    return "PointCloud2 holds " + std::to_string(m.data.size()) + " bytes, too few for " + std::to_string(m.width) + " x " +
+           std::to_string(m.height) + " points";
+  out.width = int(m.width);
+  out.height = int(m.height);
+  out.xyz.resize(n);
+  out.rgb.resize(n);
+  for (std::uint32_t r = 0; r < m.height; ++r)
+    for (std::uint32_t c = 0; c < m.width; ++c) {
+      const std::uint8_t* p = m.data.data() + std::size_t(r) * m.row_step + std::size_t(c) * m.point_step;
+      float x, y, z;
+      std::uint32_t rgb;
+      std::memcpy(&x, p + ox, 4);
+      std::memcpy(&y, p + oy, 4);
+      std::memcpy(&z, p + oz, 4);
+      std::memcpy(&rgb, p + orgb, 4);
+      const std::size_t i = std::size_t(r) * m.width + c;
+      out.xyz[i] = Eigen::Vector3f(x, y, z);
+      out.rgb[i] = Rgb{std::uint8_t(rgb >> 16), std::uint8_t(rgb >> 8), std::uint8_t(rgb)};
+    }
+  return {};
+}
+
+void to_msg(const ColorCloud& c, sensor_msgs::msg::PointCloud2& out) {
+  using sensor_msgs::msg::PointField;
+  out.height = std::uint32_t(std::max(1, c.height));
+  out.width = std::uint32_t(c.size() / out.height);
+  out.fields.clear();
+  const char* names[] = {"x", "y", "z", "rgb"};
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    PointField f;
+    f.name = names[k];
+    f.offset = 4 * k;
+    f.datatype = PointField::FLOAT32;
+    f.count = 1;
+    out.fields.push_back(f);
+  }
+  out.is_bigendian = false;
+  out.point_step = 16;
+  out.row_step = out.point_step * out.width;
+  out.data.resize(std::size_t(out.row_step) * out.height);
+  bool dense = true;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    std::uint8_t* p = out.data.data() + 16 * i;
+    std::memcpy(p, c.xyz[i].data(), 12);
+    const std::uint32_t rgb = (std::uint32_t(c.rgb[i][0]) << 16) | (std::uint32_t(c.rgb[i][1]) << 8) | c.rgb[i][2];
+    std::memcpy(p + 12, &rgb, 4);
+    dense = dense && c.finite(i);
+  }
+  out.is_dense = dense;
+}
+
+void to_msg(const PipelineResult& r, const Eigen::Vector3d& gravity, msgs::TomatoEstimates& out) {
+  out.tomatoes.clear();
+  out.gravity = vec(gravity.normalized());
+  out.stage = r.stage;
+  out.reason = r.reason;
+  out.finite_points = std::uint32_t(r.finite_points);
+  out.red_points = std::uint32_t(r.red_points);
+  out.hsi_ms = r.times.hsi_ms;
+  out.branch_ms = r.times.branch_ms;
+  out.smoothing_ms = r.times.smoothing_ms;
+  out.spheres_ms = r.times.spheres_ms;
+  out.reasoning_ms = r.times.reasoning_ms;
+  for (const auto& t : r.tomatoes) {
+    msgs::TomatoEstimate e;
+    e.centre = point(t.fit.sphere.centre);
+    e.radius_m = t.fit.sphere.radius_m;
+    e.inliers = std::uint32_t(t.fit.inliers.size());
+    e.rms_m = t.fit.rms_m;
+    e.radius_at_limit = t.fit.radius_at_limit;
+    e.pedicel_direction = vec(t.pedicel.expected_dir);
+    e.pedicel_spread50_deg = t.pedicel.spread50_deg;
+    e.pedicel_spread90_deg = t.pedicel.spread90_deg;
+    e.pick_rank = t.pick_rank;
+    e.pick_cost = t.cost.cost;
+    e.cut_point = point(t.cut.point);
+    e.cut_direction = vec(t.cut.direction);
+    e.cut_coverage = t.cut.coverage;
+    e.cut_blocked = t.cut.blocked;
+    out.tomatoes.push_back(std::move(e));
+  }
+  for (const auto& edge : r.edges) {
+    out.tomatoes[std::size_t(edge.i)].contacts.push_back(edge.j);
+    out.tomatoes[std::size_t(edge.j)].contacts.push_back(edge.i);
+  }
+  out.pick_order.assign(r.pick_order.begin(), r.pick_order.end());
+}
+
+void to_markers(const msgs::TomatoEstimates& t, visualization_msgs::msg::MarkerArray& out) {
+  Marker clear;
+  clear.header = t.header;
+  clear.action = Marker::DELETEALL;
+  out.markers.push_back(clear);
+  for (std::size_t i = 0; i < t.tomatoes.size(); ++i) {
+    const auto& e = t.tomatoes[i];
+    const int id = int(i);
+    Marker s = marker(t.header, "tomatoes", id, Marker::SPHERE);
+    s.pose.position = e.centre;
+    s.scale.x = s.scale.y = s.scale.z = 2 * e.radius_m;
+    s.color = colour(0.9f, 0.15f, 0.1f, 0.6f);
+    out.markers.push_back(s);
+    const Eigen::Vector3d c = eig(e.centre), d = eig(e.pedicel_direction);
+    out.markers.push_back(arrow(t.header, "pedicels", id, c + e.radius_m * d, c + (e.radius_m + 0.04) * d,
+                                colour(0.1f, 0.8f, 0.2f), 0.003));
+    out.markers.push_back(arrow(t.header, "cuts", id, c, eig(e.cut_point), colour(0.9f, 0.9f, 0.1f), 0.0015));
+    Marker label = marker(t.header, "pick_rank", id, Marker::TEXT_VIEW_FACING);
+    label.pose.position = point(c - 1.3 * e.radius_m * eig(t.gravity));
+    label.scale.z = 0.02;
+    label.color = colour(1, 1, 1);
+    label.text = "#" + std::to_string(e.pick_rank + 1);
+    out.markers.push_back(label);
+  }
+  Marker edges = marker(t.header, "contacts", 0, Marker::LINE_LIST);
+  edges.scale.x = 0.002;
+  edges.color = colour(0.2f, 0.5f, 1.0f);
+  for (std::size_t i = 0; i < t.tomatoes.size(); ++i)
+    for (int j : t.tomatoes[i].contacts)
+      if (std::size_t(j) > i) {
+        edges.points.push_back(t.tomatoes[i].centre);
+        edges.points.push_back(t.tomatoes[std::size_t(j)].centre);
+      }
+  if (!edges.points.empty()) out.markers.push_back(edges);
+}
+
+// ---------------------------------------------------------------------------- tomato_detector
+
+TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) {
+  PipelineParams p;  // defaults live in the core's structs
+  p.hsi.h_min_deg = declare_parameter("hsi.h_min_deg", p.hsi.h_min_deg, "HSI filter hue range, low end [deg]",
+                                      ParamConstraints::range(-180.0, 180.0));
+  p.hsi.h_max_deg = declare_parameter("hsi.h_max_deg", p.hsi.h_max_deg, "... high end [deg]", ParamConstraints::range(-180.0, 180.0));
+  p.hsi.s_min = declare_parameter("hsi.s_min", p.hsi.s_min, "saturation range, low end [0, 255]", ParamConstraints::range(0, 255));
+  p.hsi.s_max = declare_parameter("hsi.s_max", p.hsi.s_max, "... high end", ParamConstraints::range(0, 255));
+  p.hsi.i_min = declare_parameter("hsi.i_min", p.hsi.i_min, "intensity range, low end [0, 255]", ParamConstraints::range(0, 255));
+  p.hsi.i_max = declare_parameter("hsi.i_max", p.hsi.i_max, "... high end", ParamConstraints::range(0, 255));
+  p.branch.tolerance_m = declare_parameter("branch.tolerance_m", p.branch.tolerance_m,
+                                           "Euclidean branch clustering distance (Eq. 4.9) [m]", ParamConstraints::range(1e-3, 1.0));
+  p.branch.max_range_m = declare_parameter("branch.max_range_m", p.branch.max_range_m, "farthest feasible branch [m]",
+                                           ParamConstraints::range(0.05, 10.0));
+  p.spheres.radius_min_m = declare_parameter("spheres.radius_min_m", p.spheres.radius_min_m, "smallest tomato radius [m]",
+                                             ParamConstraints::range(0.005, 0.2));
+  p.spheres.radius_max_m = declare_parameter("spheres.radius_max_m", p.spheres.radius_max_m, "largest tomato radius [m]",
+                                             ParamConstraints::range(0.005, 0.2));
+  p.force.contact_tolerance_m = declare_parameter("force.contact_tolerance_m", p.force.contact_tolerance_m,
+                                                  "contact graph tolerance d_e (Eq. 4.17) [m]", ParamConstraints::range(0.0, 0.1));
+  p.force.eps_mean = declare_parameter("force.eps_mean", p.force.eps_mean, "interaction weight mean (Eq. 4.19)",
+                                       ParamConstraints::range(0.0, 1.0));
+  p.force.eps_variance = declare_parameter("force.eps_variance", p.force.eps_variance, "interaction weight variance (Eq. 4.19)",
+                                           ParamConstraints::range(1e-6, 10.0));
+  p.force.kernel_kappa = declare_parameter("force.kernel_kappa", p.force.kernel_kappa,
+                                           "vMF kernel concentration of the pedicel distribution (0: the thesis's model)",
+                                           ParamConstraints::range(0.0, 1e6));
+  p.force.samples = declare_parameter("force.samples", p.force.samples, "Monte Carlo draws per tomato", ParamConstraints::range(1, 100000));
+  p.pick.w_energy_per_m = declare_parameter("pick.w_energy_per_m", p.pick.w_energy_per_m, "Eq. 4.23 sigma_1 [1/m]",
+                                            ParamConstraints::range(0.0, 1e6));
+  p.pick.w_edges = declare_parameter("pick.w_edges", p.pick.w_edges, "Eq. 4.23 sigma_2 [per edge]", ParamConstraints::range(0.0, 1e6));
+  p.pick.w_angle_per_rad = declare_parameter("pick.w_angle_per_rad", p.pick.w_angle_per_rad, "Eq. 4.23 sigma_3 [1/rad]",
+                                             ParamConstraints::range(0.0, 1e6));
+  p.cut.scissor_opening_m = declare_parameter("cut.scissor_opening_m", p.cut.scissor_opening_m, "blade opening [m]",
+                                              ParamConstraints::range(1e-3, 0.2));
+  p.cut.cut_offset_m = declare_parameter("cut.cut_offset_m", p.cut.cut_offset_m, "cut beyond the fruit's surface [m]",
+                                         ParamConstraints::range(0.0, 0.1));
+  const auto g = declare_parameter<std::vector<double>>("gravity", {p.gravity.x(), p.gravity.y(), p.gravity.z()},
+                                                        "gravity direction in the cloud's frame (3 numbers)");
+  if (g.size() != 3 || !(Eigen::Vector3d(g[0], g[1], g[2]).norm() > 0))
+    throw bus::ParamError({}, "node '" + full_name() + "': gravity needs 3 numbers, not all zero");
+  p.gravity = Eigen::Vector3d(g[0], g[1], g[2]).normalized();
+  try {
+    pipeline_ = std::make_unique<TomatoPipeline>(p);
+  } catch (const std::invalid_argument& e) {
+    throw bus::ParamError({}, "node '" + full_name() + "': " + e.what());
+  }
+  pub_ = create_publisher<msgs::TomatoEstimates>("tomatoes");
+  markers_pub_ = create_publisher<visualization_msgs::msg::MarkerArray>("markers");
+  sub_ = create_subscription<sensor_msgs::msg::PointCloud2>("cloud", bus::QoS::keep_last(2),
+                                                            [this](const sensor_msgs::msg::PointCloud2& m) { on_cloud(m); });
+}
+
+void TomatoDetectorNode::on_cloud(const sensor_msgs::msg::PointCloud2& m) {
+  auto out = std::make_unique<msgs::TomatoEstimates>();
+  out->header = m.header;
+  if (const auto bad = to_core(m, cloud_); !bad.empty()) {
+    logger().warn("{}", bad);
+    out->stage = "input";
+    out->reason = bad;
+    out->gravity = vec(pipeline_->params().gravity);
+  } else {
+    const PipelineResult r = pipeline_->run(cloud_);
+    to_msg(r, pipeline_->params().gravity, *out);
+    if (!r.ok) logger().info("no tomatoes ({}): {}", r.stage, r.reason);
+  }
+  if (markers_pub_->subscription_count() > 0) {
+    auto mk = std::make_unique<visualization_msgs::msg::MarkerArray>();
+    to_markers(*out, *mk);
+    markers_pub_->publish(std::move(mk));
+  }
+  pub_->publish(std::move(out));
+}
+
+// ---------------------------------------------------------------------------- pick_verifier
+
+PickVerifierNode::PickVerifierNode(bus::NodeOptions o) : Node(std::move(o)) {
+  params_.throat_z_m = declare_parameter("throat_z_m", params_.throat_z_m, "blade throat along the hand laser's axis [m]",
+                                         ParamConstraints::range(0.01, 1.0));
+  params_.max_move_m = declare_parameter("max_move_m", params_.max_move_m, "a longer move is not trusted: nothing found [m]",
+                                         ParamConstraints::range(0.0, 1.0));
+  max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)", ParamConstraints::range(0, 1000));
+  pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pick_pose");
+  expected_pub_ = create_publisher<geometry_msgs::msg::PointStamped>("expected_pedicel");
+  result_pub_ = create_publisher<msgs::PickVerification>("verification", bus::QoS::keep_last(64));
+  markers_pub_ = create_publisher<visualization_msgs::msg::MarkerArray>("markers");
+  tomatoes_sub_ = create_subscription<msgs::TomatoEstimates>(
+      "tomatoes", bus::QoS::keep_last(2), [this](const msgs::TomatoEstimates& m) { on_tomatoes(m); });
+  pedicel_sub_ = create_subscription<msgs::PedicelDetection>(
+      "pedicel", bus::QoS::keep_last(5), [this](const msgs::PedicelDetection& m) { on_pedicel(m); });
+}
+
+void PickVerifierNode::on_tomatoes(const msgs::TomatoEstimates& m) {
+  if (estimates_) return;  // one harvest per run: the first estimate with tomatoes
+  if (m.tomatoes.empty()) {
+    logger().info("no tomatoes to pick yet ({}: {})", m.stage, m.reason);
+    return;
+  }
+  estimates_ = m;
+  rank_ = 0;
+  std::string order;
+  for (int k : m.pick_order) order += (order.empty() ? "" : " ") + std::to_string(k);
+  logger().info("{} tomatoes found; pick order [{}]", m.tomatoes.size(), order);
+  for (int k : m.pick_order) {
+    const auto& e = m.tomatoes[std::size_t(k)];
+    logger().info("  tomato {}: centre ({:.3f}, {:.3f}, {:.3f}) m, r {:.1f} mm, {} contacts, pedicel ({:+.2f}, {:+.2f}, {:+.2f}) "
+                  "+-{:.0f} deg, cut at ({:.3f}, {:.3f}, {:.3f}) covering {:.0f}%",
+                  k, e.centre.x, e.centre.y, e.centre.z, 1000 * e.radius_m, e.contacts.size(), e.pedicel_direction.x,
+                  e.pedicel_direction.y, e.pedicel_direction.z, e.pedicel_spread50_deg, e.cut_point.x, e.cut_point.y,
+                  e.cut_point.z, 100 * e.cut_coverage);
+  }
+  next_pick();
+}
+
+void PickVerifierNode::next_pick() {
+  const auto& m = *estimates_;
+  const std::size_t n = max_picks_ > 0 ? std::min<std::size_t>(std::size_t(max_picks_), m.pick_order.size()) : m.pick_order.size();
+  if (rank_ >= n) {
+    summary();
+    return;
+  }
+  const int k = m.pick_order[rank_];
+  const auto& e = m.tomatoes[std::size_t(k)];
+  pose_ = picking_pose(eig(e.cut_point), eig(e.cut_direction), params_);
+  pose_.tomato = pose_.ok() ? k : -1;
+  if (!pose_.ok()) {
+    msgs::PickVerification v;
+    v.header = m.header;
+    v.tomato = k;
+    v.pick_rank = int(rank_);
+    v.outcome = msgs::PickVerification::FAILED;
+    v.reason = "no picking pose: " + pose_.reason;
+    results_.push_back(v);
+    result_pub_->publish(std::make_unique<msgs::PickVerification>(v));
+    ++rank_;
+    return next_pick();
+  }
+  // The finder's prior: the pedicel at the blade throat (laser frame).
+  auto expected = std::make_unique<geometry_msgs::msg::PointStamped>();
+  expected->header.stamp = now().to_msg();
+  expected->header.frame_id = "hand_laser";
+  expected->point.z = params_.throat_z_m;
+  expected_pub_->publish(std::move(expected));
+  auto p = std::make_unique<geometry_msgs::msg::PoseStamped>();
+  p->header.stamp = now().to_msg();
+  p->header.frame_id = m.header.frame_id;
+  p->pose = pose(pose_.T_ref_laser);
+  waiting_ = true;
+  pose_pub_->publish(std::move(p));
+}
+
+void PickVerifierNode::on_pedicel(const msgs::PedicelDetection& d) {
+  if (!waiting_ || !estimates_) return;
+  waiting_ = false;
+  FinderAnswer a;
+  switch (d.outcome) {
+    case msgs::PedicelDetection::CUT_HERE: a.outcome = FinderAnswer::Outcome::kCutHere; break;
+    case msgs::PedicelDetection::MOVE: a.outcome = FinderAnswer::Outcome::kMove; break;
+    case msgs::PedicelDetection::NOTHING_TO_CUT: a.outcome = FinderAnswer::Outcome::kNothingToCut; break;
+    case msgs::PedicelDetection::OUT_OF_VIEW: a.outcome = FinderAnswer::Outcome::kOutOfView; break;
+    default: a.outcome = FinderAnswer::Outcome::kInvalidInput; break;
+  }
+  a.lateral_offset_m = d.lateral_offset_m;
+  a.depth_offset_m = d.depth_offset_m;
+  a.pedicel_x_m = d.position.x;
+  a.pedicel_z_m = d.position.z;
+  a.confidence = d.confidence;
+  a.reason = d.reason;
+  const Verification v = verify(pose_, a, params_);
+  const auto& m = *estimates_;
+  msgs::PickVerification out;
+  out.header.stamp = d.header.stamp;
+  out.header.frame_id = m.header.frame_id;
+  out.tomato = pose_.tomato;
+  out.pick_rank = int(rank_);
+  out.laser_pose = pose(pose_.T_ref_laser);
+  out.planned_cut = point(pose_.cut_point);
+  out.outcome = std::uint8_t(v.outcome);
+  static_assert(int(Verification::Outcome::kCutHere) == msgs::PickVerification::CUT_HERE);
+  static_assert(int(Verification::Outcome::kFailed) == msgs::PickVerification::FAILED);
+  out.reason = v.reason;
+  out.move = vec(v.move);
+  out.cut_point = point(v.cut_point);
+  out.confidence = v.confidence;
+  logger().info("pick {} (tomato {}): {}{} ({})", rank_ + 1, pose_.tomato, to_string(v.outcome),
+                v.outcome == Verification::Outcome::kMove ? " by " + std::to_string(int(std::lround(1000 * v.move.norm()))) + " mm" : "",
+                v.reason);
+  if (markers_pub_->subscription_count() > 0) {
+    auto mk = std::make_unique<visualization_msgs::msg::MarkerArray>();
+    std_msgs::msg::Header h = out.header;
+    const int id = int(rank_);
+    const Eigen::Vector3d o = pose_.T_ref_laser.translation();
+    mk->markers.push_back(arrow(h, "hand_laser", id, o, pose_.cut_point, colour(0.2f, 0.9f, 0.9f), 0.002));
+    if (v.will_cut()) mk->markers.push_back(arrow(h, "verified_cut", id, pose_.cut_point, v.cut_point, colour(1, 0.4f, 1), 0.002));
+    markers_pub_->publish(std::move(mk));
+  }
+  results_.push_back(out);
+  result_pub_->publish(std::make_unique<msgs::PickVerification>(out));
+  ++rank_;
+  next_pick();
+}
+
+void PickVerifierNode::summary() {
+  if (done_) return;
+  done_ = true;
+  int cut = 0, moved = 0, nothing = 0;
+  for (const auto& r : results_) {
+    cut += r.outcome == msgs::PickVerification::CUT_HERE;
+    moved += r.outcome == msgs::PickVerification::MOVE;
+    nothing += r.outcome != msgs::PickVerification::CUT_HERE && r.outcome != msgs::PickVerification::MOVE;
+  }
+  logger().info("harvest summary: {} tomatoes, {} picks verified by the hand laser: {} cut as planned, {} after a move, "
+                "{} nothing found",
+                estimates_->tomatoes.size(), results_.size(), cut, moved, nothing);
+}
+
+}  // namespace tinyline::tomato_reasoning::nodes
+
+namespace tinyline::tomato_reasoning {
+
+bool add_extra_nodes(std::function<void(bus::NodeRegistry&)> registrar) {
+  nodes::extras().push_back(std::move(registrar));
+  return true;
+}
+
+void register_nodes(bus::NodeRegistry& r) {
+  r.add<nodes::TomatoDetectorNode>("tomato_reasoning", "tomato_detector",
+                                   "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
+  r.add<nodes::PickVerifierNode>("tomato_reasoning", "pick_verifier",
+                                 "picking poses in order, the hand laser's pedicel finding -> cut here / move / nothing (4.4)");
+  for (const auto& f : nodes::extras()) f(r);
+}
+
+}  // namespace tinyline::tomato_reasoning

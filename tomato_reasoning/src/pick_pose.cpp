@@ -1,0 +1,92 @@
+#include "tomato_reasoning/pick_pose.hpp"
+
+#include <cmath>
+
+namespace tinyline::tomato_reasoning {
+
+PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis, const PickPoseParams& p) {
+  PickPose pose;
+  if (!cut_point.allFinite() || !pedicel_axis.allFinite() || !(pedicel_axis.norm() > 1e-9)) {
+    pose.reason = "cut point or pedicel direction not finite";
+    return pose;
+  }
+  const Eigen::Vector3d y = pedicel_axis.normalized();  // the line cuts across the pedicel
+  // Look from the robot's side, square to the pedicel.
+  Eigen::Vector3d z = cut_point - p.approach_from;
+  z -= z.dot(y) * y;
+  if (z.norm() < 1e-6) z = y.unitOrthogonal();  // approaching along the pedicel: any square direction
+  z.normalize();
+  const Eigen::Vector3d x = y.cross(z);
+  pose.T_ref_laser.linear().col(0) = x;
+  pose.T_ref_laser.linear().col(1) = y;
+  pose.T_ref_laser.linear().col(2) = z;
+  pose.T_ref_laser.translation() = cut_point - p.throat_z_m * z;  // the throat on the cut point
+  pose.cut_point = cut_point;
+  pose.pedicel_axis = y;
+  pose.tomato = 0;
+  return pose;
+}
+
+PickPose picking_pose(const PipelineResult& r, int index, const PickPoseParams& p) {
+  if (index < 0 || static_cast<std::size_t>(index) >= r.tomatoes.size()) {
+    PickPose pose;
+    pose.reason = "tomato " + std::to_string(index) + " of " + std::to_string(r.tomatoes.size());
+    return pose;
+  }
+  const Tomato& t = r.tomatoes[static_cast<std::size_t>(index)];
+  PickPose pose = picking_pose(t.cut.point, t.cut.direction, p);
+  if (pose.ok()) pose.tomato = index;
+  return pose;
+}
+
+const char* to_string(Verification::Outcome o) {
+  switch (o) {
+    case Verification::Outcome::kCutHere: return "cut_here";
+    case Verification::Outcome::kMove: return "move";
+    case Verification::Outcome::kNothingFound: return "nothing_found";
+    case Verification::Outcome::kOutOfView: return "out_of_view";
+    case Verification::Outcome::kFailed: return "failed";
+  }
+  return "?";
+}
+
+Verification verify(const PickPose& pose, const FinderAnswer& a, const PickPoseParams& p) {
+  Verification v;
+  v.confidence = a.confidence;
+  v.reason = a.reason;
+  v.T_ref_laser_final = pose.T_ref_laser;
+  v.cut_point = pose.cut_point;
+  if (!pose.ok()) {
+    v.reason = "no picking pose: " + pose.reason;
+    return v;
+  }
+  using O = FinderAnswer::Outcome;
+  switch (a.outcome) {
+    case O::kCutHere:
+    case O::kMove: {
+      if (!std::isfinite(a.lateral_offset_m) || !std::isfinite(a.depth_offset_m)) {
+        v.reason = "pedicel finder gave a non-finite move";
+        return v;
+      }
+      const Eigen::Matrix3d R = pose.T_ref_laser.linear();
+      v.move = R * Eigen::Vector3d(a.lateral_offset_m, 0.0, a.depth_offset_m);
+      if (v.move.norm() > p.max_move_m) {
+        v.outcome = Verification::Outcome::kNothingFound;
+        v.reason = "the finder's pedicel is " + std::to_string(std::lround(1000 * v.move.norm())) +
+                   " mm from the plan, beyond max_move_m: another pedicel or a stem (" + a.reason + ")";
+        v.move.setZero();
+        return v;
+      }
+      v.T_ref_laser_final.translation() += v.move;
+      v.cut_point = v.T_ref_laser_final * Eigen::Vector3d(0, 0, p.throat_z_m);
+      v.outcome = a.outcome == O::kCutHere ? Verification::Outcome::kCutHere : Verification::Outcome::kMove;
+      return v;
+    }
+    case O::kNothingToCut: v.outcome = Verification::Outcome::kNothingFound; return v;
+    case O::kOutOfView: v.outcome = Verification::Outcome::kOutOfView; return v;
+    case O::kInvalidInput: v.outcome = Verification::Outcome::kFailed; return v;
+  }
+  return v;
+}
+
+}  // namespace tinyline::tomato_reasoning

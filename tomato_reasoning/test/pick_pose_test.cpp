@@ -1,0 +1,79 @@
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "tomato_reasoning/pick_pose.hpp"
+
+namespace tinyline::tomato_reasoning {
+namespace {
+
+TEST(PickingPose, PutsTheThroatOnTheCutWithTheLineAcrossThePedicel) {
+  PickPoseParams p;
+  p.approach_from = Eigen::Vector3d(0, 0, 0);
+  const Eigen::Vector3d cut(0.05, -0.02, 0.45), pedicel = Eigen::Vector3d(0.2, -1.0, 0.1).normalized();
+  const PickPose pose = picking_pose(cut, pedicel, p);
+  ASSERT_TRUE(pose.ok()) << pose.reason;
+  EXPECT_LT((pose.T_ref_laser * Eigen::Vector3d(0, 0, p.throat_z_m) - cut).norm(), 1e-12);
+  const Eigen::Matrix3d R = pose.T_ref_laser.linear();
+  EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+  EXPECT_NEAR(R.col(1).dot(pedicel), 1.0, 1e-12);   // the laser plane (x-z) is square to the pedicel
+  EXPECT_GT(R.col(2).dot(cut - p.approach_from), 0.0);  // looking from the robot's side
+}
+
+TEST(PickingPose, BadInputGivesNoPoseAndTheReason) {
+  const double nan = std::nan("");
+  EXPECT_FALSE(picking_pose(Eigen::Vector3d(nan, 0, 0.4), Eigen::Vector3d::UnitY()).ok());
+  EXPECT_FALSE(picking_pose(Eigen::Vector3d(0, 0, 0.4), Eigen::Vector3d::Zero()).ok());
+  // Approaching along the pedicel still gives a proper frame.
+  const PickPose along = picking_pose(Eigen::Vector3d(0, 0, 0.4), Eigen::Vector3d::UnitZ());
+  ASSERT_TRUE(along.ok());
+  EXPECT_NEAR(along.T_ref_laser.linear().determinant(), 1.0, 1e-12);
+  PipelineResult empty;
+  const PickPose none = picking_pose(empty, 0);
+  EXPECT_FALSE(none.ok());
+  EXPECT_NE(none.reason.find("of 0"), std::string::npos);
+}
+
+TEST(Verify, MovesTheThroatOntoThePedicelTheFinderSaw) {
+  PickPoseParams p;
+  const PickPose pose = picking_pose(Eigen::Vector3d(0.0, 0.0, 0.5), Eigen::Vector3d::UnitY(), p);
+  ASSERT_TRUE(pose.ok());
+  FinderAnswer a;
+  a.outcome = FinderAnswer::Outcome::kMove;
+  a.lateral_offset_m = 0.012;
+  a.depth_offset_m = -0.004;
+  a.confidence = 0.8;
+  const Verification v = verify(pose, a, p);
+  ASSERT_TRUE(v.will_cut());
+  EXPECT_EQ(v.outcome, Verification::Outcome::kMove);
+  // The pedicel the finder saw, in the reference frame, is where the blades now meet.
+  const Eigen::Vector3d seen = pose.T_ref_laser * Eigen::Vector3d(0.012, 0, p.throat_z_m - 0.004);
+  EXPECT_LT((v.cut_point - seen).norm(), 1e-12);
+  EXPECT_NEAR(v.move.norm(), std::hypot(0.012, 0.004), 1e-12);
+  EXPECT_STREQ(to_string(v.outcome), "move");
+}
+
+TEST(Verify, NothingFoundOutOfViewAndBadAnswersDoNotCut) {
+  const PickPose pose = picking_pose(Eigen::Vector3d(0.0, 0.0, 0.5), Eigen::Vector3d::UnitY());
+  FinderAnswer a;
+  a.outcome = FinderAnswer::Outcome::kNothingToCut;
+  EXPECT_EQ(verify(pose, a).outcome, Verification::Outcome::kNothingFound);
+  a.outcome = FinderAnswer::Outcome::kOutOfView;
+  EXPECT_EQ(verify(pose, a).outcome, Verification::Outcome::kOutOfView);
+  a.outcome = FinderAnswer::Outcome::kMove;
+  a.lateral_offset_m = std::nan("");
+  const Verification v = verify(pose, a);
+  EXPECT_FALSE(v.will_cut());
+  EXPECT_NE(v.reason.find("non-finite"), std::string::npos);
+  EXPECT_FALSE(verify(PickPose{}, FinderAnswer{}).will_cut());
+  // A pedicel far beyond what the vision can be off by is someone else's.
+  a.lateral_offset_m = 0.18;
+  a.depth_offset_m = 0.0;
+  const Verification far = verify(pose, a);
+  EXPECT_EQ(far.outcome, Verification::Outcome::kNothingFound);
+  EXPECT_NE(far.reason.find("max_move_m"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tinyline::tomato_reasoning
