@@ -44,13 +44,24 @@ TEST(EvalGoals, RecognitionErrorCaseAlignsAtLeast85Percent) {
 }
 
 TEST(EvalGoals, RandomOffsetCaseHoldsItsDocumentedFigures) {
-  // The goal (97 % aligned, <= 1 % wrong) is not met: about one
-  // trial in ten is geometrically ambiguous (docs). What the finder controls,
-  // it gets right; these floors catch regressions.
+  // The goal (97 % aligned, <= 1 % wrong) is not met: 21 of 200
+  // trials have a neighbour nearer the throat than the target (docs). The
+  // vision's truss layout resolves 12 of them (190/200); these floors catch
+  // regressions.
   const auto r = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
-  EXPECT_GE(r.aligned.k, 170) << "documented: 177/200";
-  EXPECT_GE(r.aligned_unambiguous.p, 0.93) << "documented: 174/179";
+  EXPECT_GE(r.aligned.k, 186) << "documented: 190/200";
+  EXPECT_GE(r.aligned_unambiguous.p, 0.95) << "documented: 176/179";
   EXPECT_EQ(r.out_of_view.k + r.missed.k, 0);
+}
+
+TEST(EvalGoals, TrussLayoutBeatsTheNearestPedicelOnTheSameTrials) {
+  ev::TrussEvalOptions nearest;
+  nearest.use_layout = false;
+  const auto before = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed, nearest);
+  const auto after = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
+  EXPECT_GE(before.aligned.k, 170) << "documented: 177/200";
+  EXPECT_GE(after.aligned.k, before.aligned.k + 8) << "documented: 190 vs 177";
+  EXPECT_LT(after.wrong.k, before.wrong.k);
 }
 
 TEST(EvalGoals, BrushedStickSeparatesByReflectanceNotByDistanceAlone) {

@@ -237,6 +237,16 @@ int main(int argc, char** argv) {
                           i ? "," : "", variants[i].name, rate_json(a.aligned), rate_json(b.aligned));
     }
     json << "\n  ]";
+    // The random-offset case without the vision's truss layout (the nearest
+    // pedicel to the throat, the thesis's rule): the before of the layout test.
+    ev::TrussEvalOptions no_layout;
+    no_layout.use_layout = false;
+    const auto l = ev::run_truss_case(ev::TrussCase::kRandomOffset, *truss_scanner, args.trials, args.seed, no_layout);
+    std::cout << "\nrandom offset without the truss layout (nearest pedicel to the throat): aligned " << rate(l.aligned)
+              << ", wrong " << rate(l.wrong) << ", aligned among the unambiguous trials " << rate(l.aligned_unambiguous)
+              << "\n";
+    json << fmt::format(",\n  \"random_offset_no_layout\": {{\"aligned\": {}, \"wrong\": {}}}", rate_json(l.aligned),
+                        rate_json(l.wrong));
     // The recognition-error case as the thesis's robot met it: the nearest
     // pedicel to the throat, without the tomato-based expectation.
     ev::TrussEvalOptions nearest;

@@ -94,8 +94,12 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
     const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor, seed);
     const TwoStageResult objects = clusterer.run(s.scan);
     std::optional<PedicelExpectation> expectation;
-    if (scene.truth.use_expectation && o.use_expectation) {
-      expectation = PedicelExpectation{scene.truth.expected_xz_m, scene.truth.expected_sd_m};
+    const bool layout = o.use_layout && !scene.truth.neighbours_expected.empty();
+    if (o.use_expectation && (scene.truth.use_expectation || layout)) {
+      // kRandomOffset has no expectation of its own: the throat, with the finder's search spread.
+      expectation = PedicelExpectation{scene.truth.expected_xz_m,
+                                       scene.truth.use_expectation ? scene.truth.expected_sd_m : finder.search_sd_m, {}, 0.015};
+      if (layout) expectation->neighbours = scene.truth.neighbours_expected;
     }
     const PedicelDetection d = find_pedicel(s.scan, objects, finder, expectation);
 

@@ -90,6 +90,10 @@ struct TrussEvalOptions {
   /// Hand the case's expectation (kRecognitionError: from the tomato) to the
   /// finder; false: the finder looks for the pedicel nearest the throat.
   bool use_expectation = true;
+  /// Hand the vision's layout of the truss's other pedicels too
+  /// (TrussTruth::neighbours_expected_xz_m; for kRandomOffset with the throat
+  /// as the target's expectation); false: the target's expectation alone.
+  bool use_layout = true;
 };
 
 /// Runs `trials` seeded trials (seed0, seed0 + 1, ...). `on_trial` (optional)

@@ -167,6 +167,35 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
   } else {
     s.truth.expected_xz_m = Eigen::Vector2d(0.0, o.throat_z_m);
   }
+  // The vision's view of the whole truss: every tomato within a few mm, each
+  // pedicel expected right above its tomato (as for the recognition-error
+  // target). Its own stream, so the scene and the gripper stay as they were.
+  {
+    Rng vision(seed ^ 0x9e3779b97f4a7c15ULL);
+    std::vector<Eigen::Vector3d> estimate;
+    std::vector<double> top_y;  // the tomato's top, below the laser plane (y = 0) when positive
+    for (const auto& h : hangings) {
+      const Eigen::Vector3d noise(vision.normal(o.tomato_estimate_sd_m), vision.normal(o.tomato_estimate_sd_m),
+                                  vision.normal(o.tomato_estimate_sd_m));
+      estimate.push_back(h.tomato_centre + noise);
+      top_y.push_back(estimate.back().y() - h.tomato_radius);
+      estimate.back().y() = 0.0;
+    }
+    const Eigen::Isometry3d T_sensor_world = s.T_world_sensor.inverse();
+    for (std::size_t i = 1; i < estimate.size(); ++i) {
+      // A tomato whose top reaches the plane puts itself, not its pedicel, in the scan.
+      if (top_y[i] < -o.expected_tomato_in_plane_m) continue;
+      Eigen::Vector3d e;
+      if (c == TrussCase::kRandomOffset) {
+        // The offset moved the whole recognition result: the target's
+        // expectation is the throat, the layout around it is the vision's.
+        e = Eigen::Vector3d(0.0, 0.0, o.throat_z_m) + (estimate[i] - estimate[0]);
+      } else {
+        e = T_sensor_world * estimate[i];
+      }
+      s.truth.neighbours_expected.push_back({Eigen::Vector2d(e.x(), e.z()), top_y[i] < o.expected_pedicel_clearance_m});
+    }
+  }
   s.truth.target_in_sensor = s.T_world_sensor.inverse() * cross;
   return s;
 }

@@ -20,6 +20,8 @@
 
 #include <sim/world.hpp>
 
+#include "laser_clustering/pedicel_finder.hpp"
+
 namespace tinyline::laser_clustering::eval {
 
 /// The two cases of Table 4.3.
@@ -51,6 +53,11 @@ struct TrussOptions {
   double recognition_offset_m[2] = {0.02, 0.06};
   double recognition_yaw_deg = 30.0;
   double tomato_estimate_sd_m = 0.005;
+  /// The vision expects a neighbour's pedicel in the laser plane when its
+  /// tomato's top is at least this far below the plane, maybe there when
+  /// less, and not at all when the tomato's top reaches this far above [m].
+  double expected_pedicel_clearance_m = 0.015;
+  double expected_tomato_in_plane_m = 0.005;
 };
 
 struct TrussTruth {
@@ -67,6 +74,12 @@ struct TrussTruth {
   Eigen::Vector2d expected_xz_m = Eigen::Vector2d::Zero();
   double expected_sd_m = 0.0;
   bool use_expectation = false;
+  /// The truss's other pedicels where the vision expects them (above each
+  /// tomato it detected, 5 mm noise), in the sensor frame, moved with the
+  /// vision's error: kRandomOffset puts the target's expectation on the
+  /// throat and the neighbours where the vision's layout puts them from
+  /// there. Drawn from their own random stream: the scenes do not change.
+  std::vector<PedicelExpectation::Neighbour> neighbours_expected;
 };
 
 struct TrussScene {

@@ -253,6 +253,7 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
   half_window_.resize(n_all);
   index_.resize(n_all);
   core_.resize(n_all);
+  adjacent_.resize(n_all);
   block_lo_.assign(n_all / kBlock + 1, kInf);
   block_hi_.assign(n_all / kBlock + 1, -kInf);
   std::size_t m = 0;
@@ -291,6 +292,20 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
     block_lo_[b] = std::min(block_lo_[b], ri - eps_wide);
     block_hi_[b] = std::max(block_hi_[b], ri + eps_wide);
     index_[m] = static_cast<int>(i);
+    if (m > 0) {  // the squared distance to the previous valid pixel (see adjacent_ below)
+      double t = x_[m] - x_[m - 1];
+      double s2 = t * t;
+      t = z_[m] - z_[m - 1];
+      s2 += t * t;
+      if constexpr (with_f) {
+        t = f_[m] - f_[m - 1];
+        s2 += t * t;
+      }
+      if constexpr (with_g) {
+        if (g_[m] != g_[m - 1]) s2 = kInf;
+      }
+      adjacent_[m - 1] = s2;
+    }
     ++m;
   }
   const int n = static_cast<int>(m);
@@ -354,10 +369,9 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
     return true;
   };
 
-  // Adjacent pixels are the likeliest neighbours: their squared distances,
-  // once, serve the core test and the run links below.
-  adjacent_.resize(n_all);
-  for (int k = 0; k + 1 < n; ++k) adjacent_[static_cast<std::size_t>(k)] = d2(k, k + 1);
+  // Adjacent pixels are the likeliest neighbours: their squared distances
+  // (adjacent_[k] for k, k+1, computed in the pass above, the same sum as
+  // d2), once, serve the core test and the run links below.
   auto adjacent_within = [&](int k) { return adjacent_[static_cast<std::size_t>(k)] <= eps2; };  // k, k+1
 
   // Core flags: the adjacent pixels first, then walks outwards from there
@@ -366,11 +380,18 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
   for (int i = 0; i < n; ++i) {
     int count = 1 + (i > 0 && adjacent_within(i - 1)) + (i + 1 < n && adjacent_within(i));
     if (count < params.min_points) {
-      auto counter = [&](int j) {
-        count += d2(i, j) <= eps2;
-        return count < params.min_points;
-      };
-      if (walk_right(i, i + 2, counter)) walk_left(i, i - 2, counter);
+      // The next pixel but one, directly: on a surface it settles the core
+      // test (stage 1: 3 + 1). Exact: a pixel outside the bearing window or
+      // in a block at another depth is farther than eps anyway.
+      const bool next2 = i + 2 < n;
+      count += next2 && d2(i, i + 2) <= eps2;
+      if (count < params.min_points) {
+        auto counter = [&](int j) {
+          count += d2(i, j) <= eps2;
+          return count < params.min_points;
+        };
+        if (walk_right(i, i + 3, counter)) walk_left(i, i - 2, counter);
+      }
     }
     const std::uint8_t c = count >= params.min_points ? 1 : 0;
     core_[static_cast<std::size_t>(i)] = c;
@@ -399,6 +420,9 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
   for (int i = 0; i < n; ++i) {
     if (!core(i)) continue;
     int skip_to = run_end_[static_cast<std::size_t>(i)] + 1;
+    // Most pixels of a run end their window before the run does.
+    const double limit = theta_[static_cast<std::size_t>(i)] + half_window_[static_cast<std::size_t>(i)];
+    if (skip_to < n && theta_[static_cast<std::size_t>(skip_to)] > limit) continue;
     while (skip_to < n) {
       const int from = skip_to;
       skip_to = -1;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include <fmt/format.h>
 
@@ -36,12 +37,94 @@ Validation validate(const PedicelFinderParams& p) {
   if (!std::isfinite(p.scissors.centre_x_m) || !std::isfinite(p.scissors.centre_z_m)) {
     return {false, "scissors.centre_x_m and centre_z_m must be finite"};
   }
+  if (!(p.layout_miss_factor > 0.0 && p.layout_miss_factor <= 1.0) ||
+      !(p.layout_extra_factor > 0.0 && p.layout_extra_factor <= 1.0)) {
+    return {false, fmt::format("layout_miss_factor and layout_extra_factor must be in (0, 1] (got {} and {})",
+                               p.layout_miss_factor, p.layout_extra_factor)};
+  }
   if (!std::isfinite(p.blade_margin_m) || p.blade_margin_m < 0.0 || !std::isfinite(p.depth_tolerance_m) ||
       p.depth_tolerance_m < 0.0) {
     return {false, "blade_margin_m and depth_tolerance_m must be finite and >= 0"};
   }
   return {};
 }
+
+namespace {
+
+// The truss layout test: candidate j taken for the target moves the vision's
+// layout onto it; the move is then refined on every expected neighbour that
+// met a candidate (the target's own expectation is as uncertain as theirs, so
+// one pair alone must not fix it). Every expected pedicel that lands in view
+// should meet a candidate there (else layout_miss_factor, softly), and every
+// other candidate should be one of them (else layout_extra_factor). The
+// vision's common offset cancels; what is left is its relative error.
+void score_layout(const LineScan& scan, const PedicelExpectation& e, const PedicelFinderParams& p,
+                  std::vector<PedicelCandidate>& cands) {
+  double lo = scan.angle_rad.front(), hi = scan.angle_rad.back();
+  if (lo > hi) std::swap(lo, hi);
+  const double inv_var = 1.0 / (e.neighbour_sd_m * e.neighbour_sd_m);
+  const double gate2 = 9.0 * e.neighbour_sd_m * e.neighbour_sd_m;  // 3 sd: farther is no match
+  auto match = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return std::exp(-0.5 * (a - b).squaredNorm() * inv_var); };
+  // An expected pedicel can be missing without blame when it would lie
+  // within a few pixels of the view's edge (a cut object is no candidate) or
+  // behind something nearer on its bearing (a tomato in front).
+  const bool rising = scan.angle_rad.back() > scan.angle_rad.front();
+  const auto npx = static_cast<std::ptrdiff_t>(scan.size());
+  constexpr std::ptrdiff_t kEdgePx = 3, kNearPx = 2;
+  auto in_view = [&](const Eigen::Vector2d& q) {
+    const double angle = std::atan2(q.x(), q.y()), range = q.norm();
+    if (!(angle > lo && angle < hi) || range < p.min_range_m || range > p.max_range_m) return false;
+    const auto it = rising ? std::lower_bound(scan.angle_rad.begin(), scan.angle_rad.end(), angle)
+                           : std::lower_bound(scan.angle_rad.begin(), scan.angle_rad.end(), angle, std::greater<>());
+    const std::ptrdiff_t i = it - scan.angle_rad.begin();
+    if (i < kEdgePx || i >= npx - kEdgePx) return false;
+    for (std::ptrdiff_t k = std::max<std::ptrdiff_t>(0, i - kNearPx); k <= std::min(npx - 1, i + kNearPx); ++k) {
+      const auto u = static_cast<std::size_t>(k);
+      if (scan.valid(u) && scan.range_m[u] < range - p.occlusion_margin_m) return false;
+    }
+    return true;
+  };
+  const std::size_t n = e.neighbours.size();
+  std::vector<int> nearest(n);
+  std::vector<double> explained(cands.size());
+  for (std::size_t j = 0; j < cands.size(); ++j) {
+    Eigen::Vector2d shift = cands[j].position_xz_m - e.position_xz_m;
+    for (int pass = 0; pass < 2; ++pass) {  // match, refit the shift on the matches, match again
+      Eigen::Vector2d sum = cands[j].position_xz_m - e.position_xz_m;
+      int pairs = 1;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
+        nearest[i] = -1;
+        double best = gate2;
+        for (std::size_t k = 0; k < cands.size(); ++k) {
+          const double d2 = (cands[k].position_xz_m - q).squaredNorm();
+          if (k != j && d2 < best) best = d2, nearest[i] = static_cast<int>(k);
+        }
+        if (nearest[i] >= 0) sum += cands[static_cast<std::size_t>(nearest[i])].position_xz_m - e.neighbours[i].position_xz_m, ++pairs;
+      }
+      shift = sum / pairs;
+    }
+    double score = match(cands[j].position_xz_m, e.position_xz_m + shift);
+    std::fill(explained.begin(), explained.end(), 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
+      double best = 0.0;
+      for (std::size_t k = 0; k < cands.size(); ++k) {
+        if (k == j) continue;
+        const double m = match(cands[k].position_xz_m, q);
+        best = std::max(best, m);
+        explained[k] = std::max(explained[k], m);
+      }
+      if (!e.neighbours[i].may_be_absent && in_view(q)) score *= p.layout_miss_factor + (1.0 - p.layout_miss_factor) * best;
+    }
+    for (std::size_t k = 0; k < cands.size(); ++k) {
+      if (k != j) score *= p.layout_extra_factor + (1.0 - p.layout_extra_factor) * explained[k];
+    }
+    cands[j].layout_score = score;
+  }
+}
+
+}  // namespace
 
 PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
                               const std::optional<PedicelExpectation>& expectation) {
@@ -54,6 +137,18 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
                       expectation->sd_m <= 0.0)) {
     d.reason = "expectation must have a finite position and sd_m > 0";
     return d;
+  }
+  if (expectation && !expectation->neighbours.empty()) {
+    if (!std::isfinite(expectation->neighbour_sd_m) || expectation->neighbour_sd_m <= 0.0) {
+      d.reason = fmt::format("expectation neighbour_sd_m must be > 0 (got {})", expectation->neighbour_sd_m);
+      return d;
+    }
+    for (std::size_t i = 0; i < expectation->neighbours.size(); ++i) {
+      if (!expectation->neighbours[i].position_xz_m.allFinite()) {
+        d.reason = fmt::format("expectation neighbour {} has a non-finite position", i);
+        return d;
+      }
+    }
   }
   if (!objects.ok) {
     d.reason = "clustering failed: " + objects.reason;
@@ -98,9 +193,10 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
     cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
     const double zp = (c.centroid_xz_m - expected).norm() / sd;
     cand.position_score = std::exp(-0.5 * zp * zp);
-    cand.weight = cand.shape_score * cand.isolation * cand.position_score;
     d.candidates.push_back(cand);
   }
+  if (expectation && !expectation->neighbours.empty()) score_layout(scan, *expectation, p, d.candidates);
+  for (auto& cand : d.candidates) cand.weight = cand.shape_score * cand.isolation * cand.position_score * cand.layout_score;
   std::stable_sort(d.candidates.begin(), d.candidates.end(),
                    [](const PedicelCandidate& a, const PedicelCandidate& b) { return a.weight > b.weight; });
   if (d.candidates.empty()) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <utility>
 
@@ -58,7 +59,18 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     out.reason = valid_.reason;
     return out;
   }
-  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
+  // A sensor's pixel angles are the same scan after scan: check them once.
+  const bool same_angles = checked_angle_.size() == scan.angle_rad.size() && !checked_angle_.empty() &&
+                           std::memcmp(checked_angle_.data(), scan.angle_rad.data(), checked_angle_.size() * sizeof(double)) == 0;
+  if (same_angles && scan.range_m.size() == scan.angle_rad.size() &&
+      (scan.reflectance.empty() || scan.reflectance.size() == scan.range_m.size())) {
+    // checked before
+  } else if (out.reason = check_scan(scan); !out.reason.empty()) {
+    checked_angle_.clear();
+    return out;
+  } else {
+    checked_angle_.assign(scan.angle_rad.begin(), scan.angle_rad.end());
+  }
   const std::size_t n = scan.size();
   const auto& e = params_.edge;
   auto step = [&](double r) { return e.step_m + e.step_per_m * r; };
@@ -78,13 +90,21 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     out.fate[i] = groups.labels[i] == kNoise ? PixelFate::kNotGrouped : PixelFate::kKept;
   }
 
+  int run_group = kNoise;  // the group of the run being filtered
   // Stage 2: the edge filter, run by run. A run is a stretch of valid pixels
   // of one group (invalid pixels inside it do not break it).
   // Peels the dragged ends of run positions [first, last] and smooths the rest.
   auto process_piece = [&](const double* r, int first, int last) {
     auto median_of = [&](int from, int to) {  // inclusive run positions, at most kMaxReferencePx values
-      std::array<double, kMaxReferencePx> v;
       const int cnt = to - from + 1;
+      // The default reference (3 points) without a selection: the same element nth_element picks.
+      if (cnt == 1) return r[from];
+      if (cnt == 2) return std::max(r[from], r[from + 1]);
+      if (cnt == 3) {
+        const double a = r[from], b = r[from + 1], c = r[from + 2];
+        return std::max(std::min(a, b), std::min(std::max(a, b), c));
+      }
+      std::array<double, kMaxReferencePx> v;
       std::copy(r + from, r + to + 1, v.begin());
       std::nth_element(v.begin(), v.begin() + cnt / 2, v.begin() + cnt);
       return v[static_cast<std::size_t>(cnt / 2)];
@@ -115,7 +135,9 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
         sum += near ? r[j] : 0.0;
         cnt += near;
       }
-      out.smoothed_range_m[static_cast<std::size_t>(run_[static_cast<std::size_t>(k)])] = sum / cnt;
+      const auto px = static_cast<std::size_t>(run_[static_cast<std::size_t>(k)]);
+      out.smoothed_range_m[px] = sum / cnt;
+      group_[px] = run_group;
     }
   };
   auto process_run = [&]() {
@@ -145,7 +167,7 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     if (first <= m - 1) process_piece(r, first, m - 1);
   };
   run_.clear();
-  int run_group = kNoise;
+  group_.assign(n, -1);  // stage 3's groups: the kept pixels' (process_piece fills them)
   for (std::size_t i = 0; i < n; ++i) {
     const int g = groups.labels[i];
     if (g == kInvalid) continue;
@@ -159,10 +181,6 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   process_run();
 
   // Stage 3: small-eps DBSCAN inside each group, on the smoothed ranges.
-  group_.assign(n, -1);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (out.fate[i] == PixelFate::kKept) group_[i] = groups.labels[i];
-  }
   DbscanResult objects = dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects);
   if (!objects.ok) {
     out.ok = false;
@@ -180,8 +198,12 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   const auto& sin_a = dbscan_.sin_angle();
   const auto& cos_a = dbscan_.cos_angle();
   out.clusters.assign(static_cast<std::size_t>(objects.num_clusters), ScanCluster{});
-  std::vector<double> sum_r2(out.clusters.size(), 0.0), sum_refl(out.clusters.size(), 0.0);
-  std::vector<int> n_refl(out.clusters.size(), 0);
+  std::vector<double>& sum_r2 = sum_r2_;
+  std::vector<double>& sum_refl = sum_refl_;
+  std::vector<int>& n_refl = n_refl_;
+  sum_r2.assign(out.clusters.size(), 0.0);
+  sum_refl.assign(out.clusters.size(), 0.0);
+  n_refl.assign(out.clusters.size(), 0);
   bool any_valid = false;
   for (std::size_t i = 0; i < n; ++i) {
     any_valid = any_valid || scan.valid(i);

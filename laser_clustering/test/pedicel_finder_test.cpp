@@ -75,10 +75,42 @@ TEST(PedicelFinder, NearestOfTwoPedicelsWinsAndAmbiguityLowersConfidence) {
 
 TEST(PedicelFinder, ExpectationFromVisionOverridesTheThroat) {
   const auto s = synth_scan({{0.01, 0.12, 0.003, 6.0, 1}, {0.05, 0.12, 0.003, 6.0, 2}}, with_wall(4));
-  lc::PedicelExpectation e{{0.045, 0.12}, 0.015};
+  lc::PedicelExpectation e{{0.045, 0.12}, 0.015, {}, 0.015};
   const auto d = detect(s.scan, {}, e);
   ASSERT_EQ(d.outcome, PedicelOutcome::kMove);
   EXPECT_NEAR(d.position_xz_m.x(), 0.05, 0.0015);
+}
+
+// Table 4.3's random offset: the target 4 cm off the throat, its neighbour
+// (5 cm to its left) nearer the throat. The nearest pedicel is the wrong one;
+// the vision's layout of the truss, shifted onto each candidate, is not.
+TEST(PedicelFinder, TrussLayoutPicksTheTargetOverANearerNeighbour) {
+  const auto s = synth_scan({{-0.01, 0.12, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}}, with_wall(4));
+  const auto nearest = detect(s.scan);
+  ASSERT_EQ(nearest.outcome, PedicelOutcome::kMove);
+  EXPECT_NEAR(nearest.position_xz_m.x(), -0.01, 0.0015) << "without the layout the nearest wins";
+
+  lc::PedicelExpectation e{{0.0, 0.12}, 0.03, {}, 0.015};
+  e.neighbours.push_back({{-0.05, 0.12}, false});
+  const auto d = detect(s.scan, {}, e);
+  ASSERT_EQ(d.outcome, PedicelOutcome::kMove) << d.reason;
+  EXPECT_NEAR(d.position_xz_m.x(), 0.04, 0.0015);
+  ASSERT_EQ(d.candidates.size(), 2u);
+  EXPECT_GT(d.candidates[0].layout_score, 2.0 * d.candidates[1].layout_score);
+
+  // A neighbour that may not cross the plane explains a candidate but is
+  // never missed: taking the nearer pedicel then costs only the unexplained
+  // target (x 0.5), too little to overturn the position prior.
+  e.neighbours.front().may_be_absent = true;
+  const auto m = detect(s.scan, {}, e);
+  EXPECT_NEAR(m.position_xz_m.x(), -0.01, 0.0015);
+  EXPECT_LT(m.confidence, nearest.confidence) << "the unexplained target makes it less sure";
+
+  // A neighbour with a non-finite position is invalid input.
+  e.neighbours.push_back({{std::numeric_limits<double>::quiet_NaN(), 0.12}, false});
+  const auto bad = detect(s.scan, {}, e);
+  EXPECT_EQ(bad.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_THAT(bad.reason, HasSubstr("neighbour 1"));
 }
 
 TEST(PedicelFinder, TomatoesAndStemsAloneAreNothingToCut) {
@@ -143,7 +175,7 @@ TEST(PedicelFinder, BadInputIsInvalidInputWithAReason) {
   EXPECT_EQ(d.outcome, PedicelOutcome::kInvalidInput);
   EXPECT_THAT(d.reason, HasSubstr("clustering failed"));
   // A NaN expectation.
-  d = detect(s.scan, {}, lc::PedicelExpectation{{std::numeric_limits<double>::quiet_NaN(), 0.1}, 0.01});
+  d = detect(s.scan, {}, lc::PedicelExpectation{{std::numeric_limits<double>::quiet_NaN(), 0.1}, 0.01, {}, 0.015});
   EXPECT_EQ(d.outcome, PedicelOutcome::kInvalidInput);
   EXPECT_STREQ(lc::to_string(d.outcome), "invalid_input");
 }

@@ -46,6 +46,15 @@ struct PedicelFinderParams {
   double blade_margin_m = 0.004;
   /// ... and within this of the throat's depth (the blades are long) [m].
   double depth_tolerance_m = 0.015;
+  /// Truss layout (PedicelExpectation::neighbours): the factor for an
+  /// expected neighbour that falls in view with no pedicel near it (occluded
+  /// by a tomato, missed), and for a pedicel-like object that no expected
+  /// pedicel explains (a tomato edge, a pedicel the vision did not see).
+  double layout_miss_factor = 0.25;
+  double layout_extra_factor = 0.5;
+  /// An expected pedicel behind a return this much nearer on its bearing is
+  /// hidden, not missing [m].
+  double occlusion_margin_m = 0.02;
   ScissorGeometry scissors;
 };
 
@@ -56,6 +65,21 @@ struct PedicelFinderParams {
 struct PedicelExpectation {
   Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();
   double sd_m = 0.03;  ///< how far off it may be [m]
+  /// The truss's other pedicels where the vision expects them, in the same
+  /// frame (e.g. above each detected tomato, thesis 4.4.1). The vision's
+  /// estimate may be off as a whole by one offset (its error and the arm's,
+  /// Table 4.3's "random offset"), but the layout of the truss moves with it:
+  /// each candidate taken for the target shifts the layout onto itself, and a
+  /// neighbour that is nearer the expected point than the target then fails
+  /// to explain where the others are. Empty: position alone ranks candidates.
+  struct Neighbour {
+    Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();
+    /// Its tomato reaches near the laser plane: the pedicel may cross the
+    /// plane or not, so it explains a candidate but is never missed.
+    bool may_be_absent = false;
+  };
+  std::vector<Neighbour> neighbours;
+  double neighbour_sd_m = 0.015;  ///< error of a neighbour's place relative to the target's [m]
 };
 
 enum class PedicelOutcome {
@@ -74,7 +98,10 @@ struct PedicelCandidate {
   double shape_score = 0.0;  ///< width fit to the prior, in (0, 1]
   double isolation = 0.0;    ///< 1 free on both sides, 0.5 per occluded side
   double position_score = 0.0;  ///< closeness to the expected point, in (0, 1]
-  double weight = 0.0;       ///< product of the three
+  /// How well the expected truss layout, shifted onto this candidate, meets
+  /// the other candidates (1 without a layout), in (0, 1].
+  double layout_score = 1.0;
+  double weight = 0.0;       ///< product of the four
 };
 
 struct PedicelDetection {

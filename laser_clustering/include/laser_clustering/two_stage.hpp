@@ -116,8 +116,8 @@ class LineScanClusterer {
   TwoStageParams params_;
   Validation valid_;
   OrderedScanDbscan dbscan_;
-  std::vector<double> range_;
-  std::vector<int> run_, group_;
+  std::vector<double> range_, checked_angle_, sum_r2_, sum_refl_;
+  std::vector<int> run_, group_, n_refl_;
 };
 
 /// One-shot convenience.

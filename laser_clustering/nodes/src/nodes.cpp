@@ -98,7 +98,7 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
   std::optional<PedicelExpectation> expectation;
   const bus::Time stamp = bus::Time::from_msg(m.header.stamp);
   if (expected_ && std::abs(bus::to_seconds(stamp - expected_->first)) <= expectation_max_age_s_) {
-    expectation = PedicelExpectation{expected_->second, expectation_sd_m_};
+    expectation = PedicelExpectation{expected_->second, expectation_sd_m_, {}, 0.015};
   }
   const auto d = find_pedicel(scan_, objects, finder_, expectation);
   det->outcome = wire(d.outcome);
