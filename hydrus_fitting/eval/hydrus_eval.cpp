@@ -13,6 +13,7 @@
 #include <string>
 
 #include "montecarlo.hpp"
+#include "write_output.hpp"
 
 namespace ev = tinyline::hydrus_fitting::eval;
 
@@ -23,20 +24,7 @@ int usage() {
   return 2;
 }
 
-bool write(const std::string& path, const std::string& text) {
-  if (path.empty()) {
-    std::cout << text;
-    return true;
-  }
-  std::ofstream f(path);
-  f << text;
-  if (!f) {
-    std::cerr << "hydrus_eval: cannot write " << path << "\n";
-    return false;
-  }
-  std::cerr << "wrote " << path << "\n";
-  return true;
-}
+bool write(const std::string& path, const std::string& text) { return ev::write_output("hydrus_eval", path, text); }
 
 }  // namespace
 

@@ -16,6 +16,8 @@
 #include <sim/sensor_params.hpp>
 #include <tiny_laser_driver/calibration_fit.hpp>
 
+#include "section35_figures.hpp"
+
 #include "sim_rail_session.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
@@ -24,13 +26,7 @@ namespace tt = tinyline::tiny_laser_driver::testing;
 
 namespace {
 
-struct Figures {
-  const char* name;
-  double var_cm2 = 0.0, sd_cm = 0.0;  // in-sample residual, as the thesis reports
-  double heldout_sd_cm = 0.0;         // 5 folds over the interior target distances
-  std::size_t n = 0;
-  double thesis_var = 0.0, thesis_sd = 0.0;
-};
+using Figures = tt::Section35Figures;
 
 sim::SensorParams sensor() {
   return sim::load_sensor_params(std::string(TINYLINE_SOURCE_DIR) + "/sim/config/sensors/tiny_tof_8mm.yaml");
@@ -70,36 +66,7 @@ Figures fit(const char* name, const tl::CalibrationDataset& data, int degree, do
   p.leakage_per_pulse = c.leakage_per_pulse;
   p.fit_temperature = false;  // warm: the thesis's 3.5 data hold no warm-up
   p.selection = tl::ReadoutSelection::kAll;  // every valid read-out of the data set (Eq. 3.20, K = 1)
-  Figures f;
-  f.name = name;
-  f.thesis_var = thesis_var;
-  f.thesis_sd = thesis_sd;
-  const auto r = tl::fit_declared_model(data, p);
-  EXPECT_TRUE(r.ok) << name << ": " << r.reason;
-  if (!r.ok) return f;
-  const auto s_in = tl::evaluate_model(r.model, data, {}, tl::ReadoutSelection::kAll);
-  f.n = s_in.n;
-  f.sd_cm = s_in.sd_m * 100.0;
-  f.var_cm2 = f.sd_cm * f.sd_cm;
-  const auto groups = tl::target_distance_groups(data);
-  const int n_groups = *std::max_element(groups.begin(), groups.end()) + 1;
-  std::vector<double> residuals;
-  for (int fold = 0; fold < 5; ++fold) {
-    std::vector<std::size_t> train, test;
-    for (std::size_t i = 0; i < data.size(); ++i) {
-      const int g = groups[i];
-      const bool interior = g > 0 && g < n_groups - 1;
-      (interior && g % 5 == fold ? test : train).push_back(i);
-    }
-    const auto rf = tl::fit_calibration_model(data, train, p, {});
-    EXPECT_TRUE(rf.ok) << rf.reason;
-    const auto res = tl::model_residuals(rf.model, data, tl::select_readouts(data, test, p.validity, p.selection));
-    for (double v : res) {
-      if (std::isfinite(v)) residuals.push_back(v);
-    }
-  }
-  f.heldout_sd_cm = tl::error_stats(residuals).sd_m * 100.0;
-  return f;
+  return tt::section35_figures(name, data, p, thesis_var, thesis_sd);
 }
 
 }  // namespace

@@ -1,0 +1,60 @@
+// Section 3.5's figures for one fit of the declared model: the in-sample
+// residual the thesis reports, and the held-out one (5 folds over the
+// interior target distances). Shared by the synthetic-sensor and the
+// simulator versions of the reproduction.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include <tiny_laser_driver/calibration_fit.hpp>
+
+namespace tinyline::tiny_laser_driver::testing {
+
+struct Section35Figures {
+  const char* name = "";
+  double var_cm2 = 0.0, sd_cm = 0.0;  // in-sample residual, as the thesis reports
+  double heldout_sd_cm = 0.0;         // 5 folds over the interior target distances
+  std::size_t n = 0;
+  double thesis_var = 0.0, thesis_sd = 0.0;
+};
+
+inline Section35Figures section35_figures(const char* name, const CalibrationDataset& data,
+                                          const DeclaredFitParams& p, double thesis_var, double thesis_sd) {
+  Section35Figures f;
+  f.name = name;
+  f.thesis_var = thesis_var;
+  f.thesis_sd = thesis_sd;
+  const auto r = fit_declared_model(data, p);
+  EXPECT_TRUE(r.ok) << name << ": " << r.reason;
+  if (!r.ok) return f;
+  const auto s_in = evaluate_model(r.model, data, {}, ReadoutSelection::kAll);
+  f.n = s_in.n;
+  f.sd_cm = s_in.sd_m * 100.0;
+  f.var_cm2 = f.sd_cm * f.sd_cm;
+  // Held out: each fifth of the interior target distances predicted by a fit on the rest.
+  const auto groups = target_distance_groups(data);
+  const int n_groups = *std::max_element(groups.begin(), groups.end()) + 1;
+  std::vector<double> residuals;
+  for (int fold = 0; fold < 5; ++fold) {
+    std::vector<std::size_t> train, test;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      const int g = groups[i];
+      const bool interior = g > 0 && g < n_groups - 1;
+      (interior && g % 5 == fold ? test : train).push_back(i);
+    }
+    const auto rf = fit_calibration_model(data, train, p, {});
+    EXPECT_TRUE(rf.ok) << rf.reason;
+    const auto res = model_residuals(rf.model, data, select_readouts(data, test, p.validity, p.selection));
+    for (double v : res) {
+      if (std::isfinite(v)) residuals.push_back(v);
+    }
+  }
+  f.heldout_sd_cm = error_stats(residuals).sd_m * 100.0;
+  return f;
+}
+
+}  // namespace tinyline::tiny_laser_driver::testing
