@@ -155,8 +155,10 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   std::shared_ptr<detail::ExecutorCore> core_;
   bool scheduled_ = false;  // in the FIFO of a deterministic executor
   bool dead_ = false;
-  std::atomic<std::size_t> pending_count_{0};
-  std::atomic<bool> running_{false};
+  // Own cache lines: workers poll pending_count_ while a publisher holds mu_
+  // and writes the queues; sharing a line would bounce it mid-publish.
+  alignas(64) std::atomic<std::size_t> pending_count_{0};
+  alignas(64) std::atomic<bool> running_{false};
   std::atomic<bool> shutdown_waiting_{false};
   std::atomic<std::thread::id> running_thread_{};
   std::atomic<bool> unbounded_reliable_{false};
