@@ -383,14 +383,15 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
       // The next pixel but one, directly: on a surface it settles the core
       // test (stage 1: 3 + 1). Exact: a pixel outside the bearing window or
       // in a block at another depth is farther than eps anyway.
-      const bool next2 = i + 2 < n;
-      count += next2 && d2(i, i + 2) <= eps2;
+      // Then the previous pixel but one (the last pixel of a surface).
+      count += i + 2 < n && d2(i, i + 2) <= eps2;
+      if (count < params.min_points) count += i >= 2 && d2(i, i - 2) <= eps2;
       if (count < params.min_points) {
         auto counter = [&](int j) {
           count += d2(i, j) <= eps2;
           return count < params.min_points;
         };
-        if (walk_right(i, i + 3, counter)) walk_left(i, i - 2, counter);
+        if (walk_right(i, i + 3, counter)) walk_left(i, i - 3, counter);
       }
     }
     const std::uint8_t c = count >= params.min_points ? 1 : 0;
