@@ -383,14 +383,15 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
       // The next pixel but one, directly: on a surface it settles the core
       // test (stage 1: 3 + 1). Exact: a pixel outside the bearing window or
       // in a block at another depth is farther than eps anyway.
-      const bool next2 = i + 2 < n;
-      count += next2 && d2(i, i + 2) <= eps2;
+      // Then the previous pixel but one (the last pixel of a surface).
+      count += i + 2 < n && d2(i, i + 2) <= eps2;
+      if (count < params.min_points) count += i >= 2 && d2(i, i - 2) <= eps2;
       if (count < params.min_points) {
         auto counter = [&](int j) {
           count += d2(i, j) <= eps2;
           return count < params.min_points;
         };
-        if (walk_right(i, i + 3, counter)) walk_left(i, i - 2, counter);
+        if (walk_right(i, i + 3, counter)) walk_left(i, i - 3, counter);
       }
     }
     const std::uint8_t c = count >= params.min_points ? 1 : 0;
@@ -404,7 +405,9 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
   // is one run), joined up front under their last pixel. Then each core
   // pixel looks beyond its run for core pixels within eps; once it meets
   // one, that pixel's whole run is joined and jumped over. On a surface
-  // this is O(1) per pixel instead of a window's worth.
+  // this is O(1) per pixel instead of a window's worth. Both this pass and
+  // the labelling go run by run (the next run's bearing loaded once, one
+  // find per run): per-pixel bookkeeping was a fifth of a pass.
   run_end_.resize(static_cast<std::size_t>(n));
   parent_.resize(static_cast<std::size_t>(n));
   size_.resize(static_cast<std::size_t>(n));
@@ -417,32 +420,46 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
     if (linked) ++size_[static_cast<std::size_t>(run_end_[u])];
   }
   detail::DisjointSets sets(parent_, size_);
-  for (int i = 0; i < n; ++i) {
-    if (!core(i)) continue;
-    int skip_to = run_end_[static_cast<std::size_t>(i)] + 1;
-    // Most pixels of a run end their window before the run does.
-    const double limit = theta_[static_cast<std::size_t>(i)] + half_window_[static_cast<std::size_t>(i)];
-    if (skip_to < n && theta_[static_cast<std::size_t>(skip_to)] > limit) continue;
-    while (skip_to < n) {
-      const int from = skip_to;
-      skip_to = -1;
-      walk_right(i, from, [&](int j) {
-        if (!core(j) || d2(i, j) > eps2) return true;
-        sets.unite(i, j);
-        skip_to = run_end_[static_cast<std::size_t>(j)] + 1;
-        return false;
-      });
-      if (skip_to < 0) break;
+  for (int first = 0; first < n;) {  // run by run
+    if (!core(first)) {
+      ++first;
+      continue;
     }
+    const int last = run_end_[static_cast<std::size_t>(first)];
+    const int next = last + 1;
+    if (next >= n) break;  // the last run: nothing beyond it
+    const double next_theta = theta_[static_cast<std::size_t>(next)];
+    for (int i = first; i <= last; ++i) {
+      // Most pixels of a run end their window before the run does.
+      if (next_theta > theta_[static_cast<std::size_t>(i)] + half_window_[static_cast<std::size_t>(i)]) continue;
+      int skip_to = next;
+      while (skip_to < n) {
+        const int from = skip_to;
+        skip_to = -1;
+        walk_right(i, from, [&](int j) {
+          if (!core(j) || d2(i, j) > eps2) return true;
+          sets.unite(i, j);
+          skip_to = run_end_[static_cast<std::size_t>(j)] + 1;
+          return false;
+        });
+        if (skip_to < 0) break;
+      }
+    }
+    first = next;
   }
   // Clusters in the order of their lowest-indexed core point.
   cluster_of_root_.assign(static_cast<std::size_t>(n), -1);
   int clusters = 0;
-  for (int i = 0; i < n; ++i) {
-    if (!core(i)) continue;
-    int& c = cluster_of_root_[static_cast<std::size_t>(sets.find(i))];
+  // A run's pixels share a root: one find per run.
+  for (int i = 0; i < n;) {
+    if (!core(i)) {
+      ++i;
+      continue;
+    }
+    const int last = run_end_[static_cast<std::size_t>(i)];
+    int& c = cluster_of_root_[static_cast<std::size_t>(sets.find(last))];
     if (c < 0) c = clusters++;
-    r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
+    for (; i <= last; ++i) r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
   }
   // Border points: the lowest-numbered cluster among core points within eps.
   std::size_t num_noise = 0;
