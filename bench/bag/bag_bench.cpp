@@ -242,23 +242,28 @@ BENCHMARK(BM_Crc32)->Arg(1)->Arg(0)->ComputeStatistics("min", min_of);
 // 10 s of all five topics, lz4, written once.
 constexpr double kReadSeconds = 10.0;
 
+// Writes `seconds` of the realistic traffic on the first `n_topics` topics of
+// bench::kTopics to a bag in the temporary directory.
+std::string write_traffic_bag(const char* name, double seconds, bool with_cloud, bool with_extra, int n_topics) {
+  const std::string p = tmp_path(name);
+  const auto traffic = tinyline::bench::make_traffic(seconds, with_cloud, with_extra);
+  bag::ros2::Ros2Writer w;
+  if (!w.open(p, bag::WriterOptions{}).ok()) std::abort();
+  std::vector<bag::ChannelId> ids(static_cast<std::size_t>(n_topics));
+  for (int k = 0; k < n_topics; ++k) {
+    if (!w.add_topic(bench::kTopics[k].name, bench::kTopics[k].type(), ids[static_cast<std::size_t>(k)]).ok())
+      std::abort();
+  }
+  for (const auto& m : traffic) {
+    const auto t = static_cast<bag::Timestamp>(m.t_ns);
+    if (!w.write_serialized(ids[static_cast<std::size_t>(m.topic)], m.cdr, t, t).ok()) std::abort();
+  }
+  if (!w.close().ok()) std::abort();
+  return p;
+}
+
 const std::string& read_bag() {
-  static const std::string path = [] {
-    const std::string p = tmp_path("read.mcap");
-    const auto traffic = tinyline::bench::make_traffic(kReadSeconds, /*with_cloud=*/true);
-    bag::ros2::Ros2Writer w;
-    if (!w.open(p, bag::WriterOptions{}).ok()) std::abort();
-    bag::ChannelId ids[5];
-    for (int k = 0; k < 5; ++k) {
-      if (!w.add_topic(bench::kTopics[k].name, bench::kTopics[k].type(), ids[k]).ok()) std::abort();
-    }
-    for (const auto& m : traffic) {
-      const auto t = static_cast<bag::Timestamp>(m.t_ns);
-      if (!w.write_serialized(ids[m.topic], m.cdr, t, t).ok()) std::abort();
-    }
-    if (!w.close().ok()) std::abort();
-    return p;
-  }();
+  static const std::string path = write_traffic_bag("read.mcap", kReadSeconds, /*with_cloud=*/true, /*with_extra=*/true, 5);
   return path;
 }
 
@@ -295,26 +300,12 @@ BENCHMARK(BM_LinearRead_OneTopicOfFive)->Unit(benchmark::kMillisecond)->UseRealT
 // ---------------------------------------------------------------------------- replay
 
 // 60 s of the laser topics (raw scans at 36 Hz, line scans at 100 Hz).
+constexpr double kLaserSeconds = 60.0;
 const std::string& laser_bag() {
-  static const std::string path = [] {
-    const std::string p = tmp_path("laser.mcap");
-    const auto traffic = tinyline::bench::make_traffic(60.0, /*with_cloud=*/false, /*with_extra=*/false);
-    bag::ros2::Ros2Writer w;
-    if (!w.open(p, bag::WriterOptions{}).ok()) std::abort();
-    bag::ChannelId ids[2];
-    for (int k = 0; k < 2; ++k) {
-      if (!w.add_topic(bench::kTopics[k].name, bench::kTopics[k].type(), ids[k]).ok()) std::abort();
-    }
-    for (const auto& m : traffic) {
-      const auto t = static_cast<bag::Timestamp>(m.t_ns);
-      if (!w.write_serialized(ids[m.topic], m.cdr, t, t).ok()) std::abort();
-    }
-    if (!w.close().ok()) std::abort();
-    return p;
-  }();
+  static const std::string path =
+      write_traffic_bag("laser.mcap", kLaserSeconds, /*with_cloud=*/false, /*with_extra=*/false, 2);
   return path;
 }
-constexpr double kLaserSeconds = 60.0;
 
 // A node that touches every scan (sums its ranges), as a consumer would.
 class ScanSink : public bus::Node {
