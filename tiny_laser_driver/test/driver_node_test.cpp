@@ -18,7 +18,10 @@
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 #include <tiny_laser_driver/nodes/register.hpp>
 
+#include "synthetic_raw_set.hpp"
+
 namespace tl = tinyline::tiny_laser_driver;
+namespace tt = tinyline::tiny_laser_driver::testing;
 namespace bus = tinyline::bus;
 namespace io = tl::io;
 namespace fs = std::filesystem;
@@ -32,27 +35,15 @@ using tinyline::tinyline_msgs::msg::RawScan;
 
 namespace {
 
-constexpr std::uint16_t kPulses[5] = {20, 100, 200, 400, 700};
 constexpr double kByteS = 10.0 / 2'000'000;
 
 // A set whose effective pixels see k = b / (a + b) = 0.1 + 0.001 * p.
 Bytes make_set(int seed = 0) {
-  Bytes out;
-  for (int i = 0; i < 5; ++i) {
-    tl::RawFrame f;
-    f.index = static_cast<std::uint16_t>(i);
-    f.last = i == 4;
-    f.pulses = kPulses[i];
-    f.temperature_decic = 450;
-    for (std::size_t p = 0; p < tl::kPixels; ++p) {
-      const double k = 0.1 + 0.001 * static_cast<double>(p);
-      const double sum = 0.3 * kPulses[i] + 0.001 * seed;  // 210 charge units at 700 pulses
-      f.a[p] = static_cast<std::int16_t>(std::lround(10.0 * sum * (1.0 - k)));
-      f.b[p] = static_cast<std::int16_t>(std::lround(10.0 * sum * k));
-    }
-    tl::encode_raw_frame(f, out);
-  }
-  return out;
+  return tt::encode_synthetic_set(450, [seed](std::uint16_t pulses, std::size_t p) {
+    const double k = 0.1 + 0.001 * static_cast<double>(p);
+    const double sum = 0.3 * pulses + 0.001 * seed;  // 210 charge units at 700 pulses
+    return std::pair{sum, k};
+  });
 }
 
 struct TempDir {

@@ -19,7 +19,10 @@
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 #include <tiny_laser_driver/nodes/raw_processor.hpp>
 
+#include "synthetic_raw_set.hpp"
+
 namespace tl = tinyline::tiny_laser_driver;
+namespace tt = tinyline::tiny_laser_driver::testing;
 namespace bus = tinyline::bus;
 namespace bag = tinyline::bag;
 namespace io = tl::io;
@@ -32,29 +35,9 @@ using tinyline::tinyline_msgs::msg::RawScan;
 
 namespace {
 
-constexpr std::uint16_t kPulses[5] = {20, 100, 200, 400, 700};
-
 // A varied set: ratio, light and temperature change with the seed and pixel,
 // some pixels saturate at the top read-outs, some are too dark.
-Bytes make_set(int seed) {
-  Bytes out;
-  for (int i = 0; i < 5; ++i) {
-    tl::RawFrame f;
-    f.index = static_cast<std::uint16_t>(i);
-    f.last = i == 4;
-    f.pulses = kPulses[i];
-    f.temperature_decic = static_cast<std::uint16_t>(400 + seed % 50);
-    for (std::size_t p = 0; p < tl::kPixels; ++p) {
-      const double k = 0.48 + 0.3 * std::fmod(0.37 * seed + 0.011 * p, 1.0);
-      const double per_pulse = 0.02 + 0.6 * std::fmod(0.13 * seed + 0.007 * p, 1.0);
-      const double sum = std::min(per_pulse * kPulses[i], 480.0);
-      f.a[p] = static_cast<std::int16_t>(std::lround(10.0 * sum * (1.0 - k)));
-      f.b[p] = static_cast<std::int16_t>(std::lround(10.0 * sum * k));
-    }
-    tl::encode_raw_frame(f, out);
-  }
-  return out;
-}
+Bytes make_set(int seed) { return tt::varied_set(seed, static_cast<std::uint16_t>(400 + seed % 50)); }
 
 template <class T>
 Bytes cdr(const T& m) {
