@@ -137,6 +137,46 @@ void expect_whole(const RawScan& r) {
   EXPECT_EQ(r.pulses.size(), 5u);
 }
 
+// The driver (threaded: false, the shipped default calibration) on a sim-clock
+// context stepped by a deterministic executor, and a listener keeping every
+// calibrated and raw scan it publishes.
+struct SteppedDriver {
+  explicit SteppedDriver(const std::string& port) {
+    ctx->clock().set_sim_time(bus::Time::from_seconds(10.0));
+    bus::NodeOptions d;
+    d.context = ctx;
+    d.name = "laser";
+    d.param("port", port).param("calibration", std::string("default")).param("focal_mm", 8.0)
+        .param("threaded", false);
+    driver = std::make_shared<tl::LaserDriver>(d);
+    bus::NodeOptions l;
+    l.context = ctx;
+    l.name = "listener";
+    listener = std::make_shared<bus::Node>(l);
+    const auto q = bus::QoS::keep_last(10000);
+    s1 = listener->create_subscription<LineScan>(
+        "/scan", q, [this](const std::shared_ptr<const LineScan>& m) { scans.push_back(m); });
+    s2 = listener->create_subscription<RawScan>(
+        "/raw", q, [this](const std::shared_ptr<const RawScan>& m) { raws.push_back(m); });
+    ex.add_node(driver);
+    ex.add_node(listener);
+    ex.spin_until_idle();  // on_start
+  }
+  static bus::ContextOptions sim_clock() {
+    bus::ContextOptions co;
+    co.clock = bus::ClockType::Sim;
+    co.log_sink = std::make_shared<bus::CaptureSink>();
+    return co;
+  }
+  std::shared_ptr<bus::Context> ctx = bus::Context::create(sim_clock());
+  bus::DeterministicExecutor ex{ctx->clock()};
+  std::shared_ptr<tl::LaserDriver> driver;
+  std::shared_ptr<bus::Node> listener;
+  std::vector<std::shared_ptr<const LineScan>> scans;
+  std::vector<std::shared_ptr<const RawScan>> raws;
+  std::shared_ptr<bus::SubscriptionBase> s1, s2;
+};
+
 }  // namespace
 
 TEST(EndToEnd, RailScansMatchGroundTruthWithinTheCalibrationError) {
@@ -183,34 +223,10 @@ TEST(EndToEnd, OnePercentByteCorruptionCostsOnlyWholeSetsAndEveryOneIsCounted) {
   const auto& sensor = system->sensor(0).params();
   const std::vector<int>& schedule = sensor.acquisition.raw_pulses;
 
-  bus::ContextOptions co;
-  co.clock = bus::ClockType::Sim;
-  co.log_sink = std::make_shared<bus::CaptureSink>();
-  const auto ctx = bus::Context::create(co);
-  ctx->clock().set_sim_time(bus::Time::from_seconds(10.0));
-  bus::DeterministicExecutor ex(ctx->clock());
   const auto link = tl::io::MemoryLink::create("e2e_corruption");
   tl::io::register_memory_link("e2e_corruption", link);
-  bus::NodeOptions d;
-  d.context = ctx;
-  d.name = "laser";
-  d.param("port", std::string("mem:e2e_corruption")).param("calibration", std::string("default"))
-      .param("focal_mm", 8.0).param("threaded", false);
-  const auto driver = std::make_shared<tl::LaserDriver>(d);
-  bus::NodeOptions l;
-  l.context = ctx;
-  l.name = "listener";
-  const auto listener = std::make_shared<bus::Node>(l);
-  std::vector<std::shared_ptr<const LineScan>> scans;
-  std::vector<std::shared_ptr<const RawScan>> raws;
-  const auto q = bus::QoS::keep_last(10000);
-  const auto s1 = listener->create_subscription<LineScan>(
-      "/scan", q, [&](const std::shared_ptr<const LineScan>& m) { scans.push_back(m); });
-  const auto s2 = listener->create_subscription<RawScan>(
-      "/raw", q, [&](const std::shared_ptr<const RawScan>& m) { raws.push_back(m); });
-  ex.add_node(driver);
-  ex.add_node(listener);
-  ex.spin_until_idle();  // on_start
+  SteppedDriver h("mem:e2e_corruption");
+  auto& [ctx, ex, driver, listener, scans, raws, s1, s2] = h;
   driver->pump(0ms);     // connects
   ASSERT_TRUE(driver->status().connected);
 
@@ -312,32 +328,8 @@ TEST(EndToEnd, UnplugAndReplugWhileStreamingResumesWithinASecond) {
   sim::VirtualDevice device(system, o);
   device.start();
 
-  bus::ContextOptions co;
-  co.clock = bus::ClockType::Sim;
-  co.log_sink = std::make_shared<bus::CaptureSink>();
-  const auto ctx = bus::Context::create(co);
-  ctx->clock().set_sim_time(bus::Time::from_seconds(10.0));
-  bus::DeterministicExecutor ex(ctx->clock());
-  bus::NodeOptions d;
-  d.context = ctx;
-  d.name = "laser";
-  d.param("port", o.link_path).param("calibration", std::string("default")).param("focal_mm", 8.0)
-      .param("threaded", false);
-  const auto driver = std::make_shared<tl::LaserDriver>(d);
-  bus::NodeOptions l;
-  l.context = ctx;
-  l.name = "listener";
-  const auto listener = std::make_shared<bus::Node>(l);
-  std::vector<std::shared_ptr<const LineScan>> scans;
-  std::vector<std::shared_ptr<const RawScan>> raws;
-  const auto q = bus::QoS::keep_last(10000);
-  const auto s1 = listener->create_subscription<LineScan>(
-      "/scan", q, [&](const std::shared_ptr<const LineScan>& m) { scans.push_back(m); });
-  const auto s2 = listener->create_subscription<RawScan>(
-      "/raw", q, [&](const std::shared_ptr<const RawScan>& m) { raws.push_back(m); });
-  ex.add_node(driver);
-  ex.add_node(listener);
-  ex.spin_until_idle();  // on_start
+  SteppedDriver h(o.link_path);
+  auto& [ctx, ex, driver, listener, scans, raws, s1, s2] = h;
   auto step = [&] {
     ex.advance_to(ctx->clock().now() + 10ms);
     driver->pump(driver->status().connected ? 100ms : 0ms);
