@@ -7,8 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <tinyline/bus/executor.hpp>
-#include <tinyline/bus/registry.hpp>
+#include <tinyline/bus/testing.hpp>
 
 #include "hydrus_fitting/nodes/circle_fitter_node.hpp"
 #include "hydrus_fitting/nodes/register.hpp"
@@ -29,32 +28,11 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 const std::string kConfig = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
 
-struct Harness {
-  std::shared_ptr<bus::CaptureSink> log = std::make_shared<bus::CaptureSink>();  // before ctx: it uses it
-  std::shared_ptr<bus::Context> ctx;
-  bus::DeterministicExecutor ex;
-  bus::NodeRegistry registry;
-  std::shared_ptr<bus::Node> io;
-
-  Harness() : ctx(make_ctx(log)), ex(ctx->clock()) {
-    hf::register_nodes(registry);
-    bus::NodeOptions o;
-    o.name = "io";
-    o.context = ctx;
-    io = std::make_shared<bus::Node>(o);
-    ex.add_node(io);
-  }
-  static std::shared_ptr<bus::Context> make_ctx(std::shared_ptr<bus::CaptureSink> sink) {
-    bus::ContextOptions o;
-    o.clock = bus::ClockType::Sim;
-    o.log_sink = std::move(sink);
-    return bus::Context::create(o);
-  }
+// The hydrus_fitting nodes on stepped sim time (bus/testing.hpp).
+struct Harness : bus::testing::NodeRig {
+  Harness() : NodeRig({&hf::register_nodes}) {}
   std::shared_ptr<bus::Node> add(const std::string& type, bus::NodeOptions o) {
-    o.context = ctx;
-    auto n = registry.create("hydrus_fitting", type, std::move(o));
-    ex.add_node(n);
-    return n;
+    return NodeRig::add("hydrus_fitting", type, std::move(o));
   }
 };
 

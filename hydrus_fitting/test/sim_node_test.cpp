@@ -5,8 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include <tinyline/bus/executor.hpp>
-#include <tinyline/bus/registry.hpp>
+#include <tinyline/bus/testing.hpp>
 
 #include <sim/system.hpp>
 
@@ -23,41 +22,13 @@ namespace {
 
 const std::string kSrc = TINYLINE_SOURCE_DIR;
 
-struct Rig {
-  std::shared_ptr<bus::CaptureSink> log = std::make_shared<bus::CaptureSink>();
-  std::shared_ptr<bus::Context> ctx;
-  bus::DeterministicExecutor ex;
-  bus::NodeRegistry registry;
-  std::shared_ptr<bus::Node> io;
-  std::vector<std::shared_ptr<const JointState>> joints;
-  std::vector<std::shared_ptr<const CircleFit>> truth;
-  std::shared_ptr<bus::Subscription<JointState>> joint_sub;
-  std::shared_ptr<bus::Subscription<CircleFit>> truth_sub;
-
-  Rig() : ctx(make_ctx(log)), ex(ctx->clock()) {
-    hf::register_nodes(registry);
-    bus::NodeOptions o;
-    o.name = "io";
-    o.context = ctx;
-    io = std::make_shared<bus::Node>(o);
-    ex.add_node(io);
-    joint_sub = io->create_subscription<JointState>(
-        "joint_states", bus::QoS::keep_last(10000), [this](const std::shared_ptr<const JointState>& m) { joints.push_back(m); });
-    truth_sub = io->create_subscription<CircleFit>(
-        "truth", bus::QoS::keep_last(10000), [this](const std::shared_ptr<const CircleFit>& m) { truth.push_back(m); });
-  }
-  static std::shared_ptr<bus::Context> make_ctx(std::shared_ptr<bus::CaptureSink> sink) {
-    bus::ContextOptions o;
-    o.clock = bus::ClockType::Sim;
-    o.log_sink = std::move(sink);
-    return bus::Context::create(o);
-  }
-  std::shared_ptr<bus::Node> add(bus::NodeOptions o) {
-    o.context = ctx;
-    auto n = registry.create("hydrus_fitting", "hydrus_sim", std::move(o));
-    ex.add_node(n);
-    return n;
-  }
+// The hydrus_sim node on stepped sim time (bus/testing.hpp), with its joint
+// states and ground truth kept.
+struct Rig : bus::testing::NodeRig {
+  Rig() : NodeRig({&hf::register_nodes}) {}
+  std::vector<std::shared_ptr<const JointState>>& joints = collect<JointState>("joint_states");
+  std::vector<std::shared_ptr<const CircleFit>>& truth = collect<CircleFit>("truth");
+  std::shared_ptr<bus::Node> add(bus::NodeOptions o) { return NodeRig::add("hydrus_fitting", "hydrus_sim", std::move(o)); }
 };
 
 }  // namespace

@@ -7,8 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <tinyline/bus/executor.hpp>
-#include <tinyline/bus/registry.hpp>
+#include <tinyline/bus/testing.hpp>
 
 #include "laser_clustering/nodes/nodes.hpp"
 #include "laser_clustering/nodes/register.hpp"
@@ -26,31 +25,12 @@ using ::testing::HasSubstr;
 
 namespace {
 
-struct Harness {
-  std::shared_ptr<bus::Context> ctx;
-  bus::DeterministicExecutor ex;
-  bus::NodeRegistry registry;
-  std::shared_ptr<bus::Node> io;  // publishes inputs, receives outputs
-
-  Harness() : ctx(make_ctx()), ex(ctx->clock()) {
-    lc::register_nodes(registry);
-    bus::NodeOptions o;
-    o.name = "io";
-    o.context = ctx;
-    io = std::make_shared<bus::Node>(o);
-    ex.add_node(io);
-  }
-  static std::shared_ptr<bus::Context> make_ctx() {
-    bus::ContextOptions o;
-    o.clock = bus::ClockType::Sim;
-    o.log_sink = std::make_shared<bus::CaptureSink>();
-    return bus::Context::create(o);
-  }
+// The laser_clustering nodes on stepped sim time (bus/testing.hpp); `io`
+// publishes inputs and receives outputs.
+struct Harness : bus::testing::NodeRig {
+  Harness() : NodeRig({&lc::register_nodes}) {}
   std::shared_ptr<bus::Node> add(const std::string& type, bus::NodeOptions o) {
-    o.context = ctx;
-    auto n = registry.create("laser_clustering", type, std::move(o));
-    ex.add_node(n);
-    return n;
+    return NodeRig::add("laser_clustering", type, std::move(o));
   }
 };
 

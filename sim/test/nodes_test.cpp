@@ -4,8 +4,7 @@
 
 #include <cmath>
 
-#include <tinyline/bus/executor.hpp>
-#include <tinyline/bus/registry.hpp>
+#include <tinyline/bus/testing.hpp>
 
 #include "sim/nodes/nodes.hpp"
 #include "sim/nodes/register.hpp"
@@ -20,42 +19,15 @@ namespace {
 
 std::string scene_path() { return std::string(TINYLINE_SOURCE_DIR) + "/sim/config/scenes/calibration_rail.yaml"; }
 
-struct Harness {
-  std::shared_ptr<bus::Context> ctx;
-  bus::DeterministicExecutor ex;
-  bus::NodeRegistry registry;
-  std::shared_ptr<bus::Node> io;
-  std::vector<std::shared_ptr<const RawScan>> raw;
-  std::vector<std::shared_ptr<const ScanTruth>> truth;
-  std::vector<std::shared_ptr<const SceneTruth>> objects;
-  std::vector<std::shared_ptr<void>> subs;
-
-  Harness() : ctx(make_ctx()), ex(ctx->clock()) {
-    register_nodes(registry);
-    bus::NodeOptions o;
-    o.name = "io";
-    o.context = ctx;
-    io = std::make_shared<bus::Node>(o);
-    subs.push_back(io->create_subscription<RawScan>("raw_scan", bus::QoS::keep_last(100),
-                                                    [this](const std::shared_ptr<const RawScan>& m) { raw.push_back(m); }));
-    subs.push_back(io->create_subscription<ScanTruth>("scan_truth", bus::QoS::keep_last(100),
-                                                      [this](const std::shared_ptr<const ScanTruth>& m) { truth.push_back(m); }));
-    subs.push_back(io->create_subscription<SceneTruth>("objects", bus::QoS::keep_last(100),
-                                                       [this](const std::shared_ptr<const SceneTruth>& m) { objects.push_back(m); }));
-    ex.add_node(io);
-    ctx->clock().set_sim_time(bus::Time::from_seconds(100.0));
-  }
-  static std::shared_ptr<bus::Context> make_ctx() {
-    bus::ContextOptions o;
-    o.clock = bus::ClockType::Sim;
-    o.log_sink = std::make_shared<bus::CaptureSink>();
-    return bus::Context::create(o);
-  }
+// The sim nodes on stepped sim time from t = 100 s (bus/testing.hpp), with
+// everything they publish kept.
+struct Harness : bus::testing::NodeRig {
+  Harness() : NodeRig({&register_nodes}, bus::Time::from_seconds(100.0)) {}
+  std::vector<std::shared_ptr<const RawScan>>& raw = collect<RawScan>("raw_scan", bus::QoS::keep_last(100));
+  std::vector<std::shared_ptr<const ScanTruth>>& truth = collect<ScanTruth>("scan_truth", bus::QoS::keep_last(100));
+  std::vector<std::shared_ptr<const SceneTruth>>& objects = collect<SceneTruth>("objects", bus::QoS::keep_last(100));
   std::shared_ptr<bus::Node> add(const std::string& type, bus::NodeOptions o) {
-    o.context = ctx;
-    auto n = registry.create("sim", type, std::move(o));
-    ex.add_node(n);
-    return n;
+    return NodeRig::add("sim", type, std::move(o));
   }
 };
 

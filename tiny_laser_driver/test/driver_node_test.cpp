@@ -14,6 +14,7 @@
 
 #include <tinyline/bus/context.hpp>
 #include <tinyline/bus/executor.hpp>
+#include <tinyline/bus/testing.hpp>
 
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 #include <tiny_laser_driver/nodes/register.hpp>
@@ -58,39 +59,29 @@ struct TempDir {
   }
 };
 
-// A small fixture: a sim-clock context, a deterministic executor, an in-memory
-// device reachable as mem:NAME, the driver, and listeners on its topics.
-struct Rig {
+// A small fixture: the stepped sim-time graph of bus/testing.hpp from
+// t = 100 s, an in-memory device reachable as mem:NAME, the driver, and
+// everything it publishes kept (`io` also commands it).
+struct Rig : bus::testing::NodeRig {
   TempDir tmp;
   std::string calib;
-  std::shared_ptr<bus::CaptureSink> log = std::make_shared<bus::CaptureSink>();
-  std::shared_ptr<bus::Context> ctx;
-  std::unique_ptr<bus::DeterministicExecutor> ex;
   std::shared_ptr<io::MemoryLink> link;
   std::string link_name;
   std::shared_ptr<tl::LaserDriver> driver;
-  std::shared_ptr<bus::Node> listener;
-  std::vector<std::shared_ptr<const RawScan>> raws;
+  std::vector<std::shared_ptr<const RawScan>>& raws = collect<RawScan>("/raw", bus::QoS::keep_last(1000));
   std::vector<std::shared_ptr<const LineScan>> scans;
-  std::vector<std::shared_ptr<const LaserScan>> laser_scans;
-  std::vector<std::shared_ptr<const DiagnosticArray>> diags;
   std::vector<bus::Time> scan_seen_at;  // sim time when each LineScan arrived
-  std::shared_ptr<bus::Subscription<RawScan>> s1;
-  std::shared_ptr<bus::Subscription<LineScan>> s2;
-  std::shared_ptr<bus::Subscription<LaserScan>> s3;
-  std::shared_ptr<bus::Subscription<DiagnosticArray>> s4;
+  std::vector<std::shared_ptr<const LaserScan>>& laser_scans = collect<LaserScan>("/laser_scan", bus::QoS::keep_last(1000));
+  std::vector<std::shared_ptr<const DiagnosticArray>>& diags =
+      collect<DiagnosticArray>("/diagnostics", bus::QoS::keep_last(1000));
+  std::shared_ptr<bus::Subscription<LineScan>> scan_sub;
   std::shared_ptr<bus::Publisher<LaserCommand>> commands;
 
-  explicit Rig(std::vector<std::pair<std::string, bus::ParamValue>> extra = {}, bool start = true) {
+  explicit Rig(std::vector<std::pair<std::string, bus::ParamValue>> extra = {}, bool start = true)
+      : NodeRig({}, bus::Time::from_seconds(100.0)) {
     calib = (tmp.path / "linear.yaml").string();
     // distance_cm = 300 k: the expected distance of pixel p is 3 (0.1 + 0.001 p) m.
     tl::CalibrationModel::from_public_driver({0, 0, 0, 0, 0, 300, 0}, {}, 450, 0).save(calib);
-    bus::ContextOptions co;
-    co.clock = bus::ClockType::Sim;
-    co.log_sink = log;
-    ctx = bus::Context::create(co);
-    ctx->clock().set_sim_time(bus::Time::from_seconds(100.0));
-    ex = std::make_unique<bus::DeterministicExecutor>(ctx->clock());
     static int counter = 0;
     link_name = "rig" + std::to_string(++counter);
     link = io::MemoryLink::create(link_name);
@@ -101,24 +92,13 @@ struct Rig {
     o.param("port", "mem:" + link_name).param("calibration", calib).param("threaded", false);
     for (auto& [k, v] : extra) o.param(k, v);
     driver = std::make_shared<tl::LaserDriver>(o);
-    bus::NodeOptions lo;
-    lo.context = ctx;
-    lo.name = "listener";
-    listener = std::make_shared<bus::Node>(lo);
-    const auto q = bus::QoS::keep_last(1000);
-    s1 = listener->create_subscription<RawScan>("/raw", q, [this](const std::shared_ptr<const RawScan>& m) { raws.push_back(m); });
-    s2 = listener->create_subscription<LineScan>("/scan", q, [this](const std::shared_ptr<const LineScan>& m) {
+    scan_sub = io->create_subscription<LineScan>("/scan", bus::QoS::keep_last(1000), [this](const std::shared_ptr<const LineScan>& m) {
       scans.push_back(m);
       scan_seen_at.push_back(ctx->clock().now());
     });
-    s3 = listener->create_subscription<LaserScan>("/laser_scan", q,
-                                                  [this](const std::shared_ptr<const LaserScan>& m) { laser_scans.push_back(m); });
-    s4 = listener->create_subscription<DiagnosticArray>("/diagnostics", q,
-                                                        [this](const std::shared_ptr<const DiagnosticArray>& m) { diags.push_back(m); });
-    commands = listener->create_publisher<LaserCommand>("/laser_command");
-    ex->add_node(driver);
-    ex->add_node(listener);
-    if (start) ex->spin_until_idle();  // runs on_start
+    commands = io->create_publisher<LaserCommand>("/laser_command");
+    add(driver);
+    if (start) ex.spin_until_idle();  // runs on_start
   }
   ~Rig() { io::unregister_memory_link(link_name); }
 
@@ -129,11 +109,11 @@ struct Rig {
       driver->pump(0ms);
       if (link->queued() == 0) break;
     }
-    ex->spin_until_idle();
+    ex.spin_until_idle();
   }
   // Moves sim time on by dt (firing timers), then steps.
   void advance(double dt_s) {
-    ex->advance_to(now() + bus::from_seconds(dt_s));
+    ex.advance_to(now() + bus::from_seconds(dt_s));
     step();
   }
   std::string diag_value(const std::string& key) const {
@@ -211,7 +191,7 @@ TEST(LaserDriverNode, StampsAreTheLastByteTimeMinusTheTransmissionTime) {
   EXPECT_EQ(rig.scans[0]->header.stamp, rig.raws[0]->header.stamp);
 
   // A third set read 10 ms later: scan_time is the spacing of the stamps.
-  rig.ex->advance_to(t + 10ms);
+  rig.ex.advance_to(t + 10ms);
   rig.link->push(make_set(2));
   rig.step();
   ASSERT_EQ(rig.laser_scans.size(), 3u);
@@ -292,7 +272,7 @@ TEST(LaserDriverNode, SequenceModeFollowsTheSlotAndNameOrders) {
     m->sensors = std::move(names);
     m->laser_on = std::move(on);
     rig.commands->publish(std::move(m));
-    rig.ex->spin_until_idle();
+    rig.ex.spin_until_idle();
     rig.step();
   };
   order({2});
@@ -324,7 +304,7 @@ TEST(LaserDriverNode, NotInSequenceModeItSendsNothing) {
   auto m = std::make_unique<LaserCommand>();
   m->active_slots = {0, 1, 2};
   rig.commands->publish(std::move(m));
-  rig.ex->spin_until_idle();
+  rig.ex.spin_until_idle();
   rig.step();
   EXPECT_TRUE(rig.link->take_written().empty());
 }
@@ -332,14 +312,14 @@ TEST(LaserDriverNode, NotInSequenceModeItSendsNothing) {
 TEST(LaserDriverNode, DiagnosticsReportRateDropsAndTheLinkState) {
   Rig rig;
   rig.step();
-  rig.ex->advance_to(rig.now() + 1s);  // a first report to count from
+  rig.ex.advance_to(rig.now() + 1s);  // a first report to count from
   Bytes good = make_set(0);
   Bytes bad = make_set(1);
   bad[1094] = 0;  // a wrong ender: its set is lost
   for (int i = 0; i < 10; ++i) {
     rig.link->push(i == 4 ? bad : good);
     rig.step();
-    rig.ex->advance_to(rig.now() + 100ms);  // the last one reaches the next report
+    rig.ex.advance_to(rig.now() + 100ms);  // the last one reaches the next report
   }
   ASSERT_GE(rig.diags.size(), 2u);
   const auto& st = rig.diags.back()->status.at(0);
@@ -357,7 +337,7 @@ TEST(LaserDriverNode, DiagnosticsReportRateDropsAndTheLinkState) {
 
   rig.link->unplug();
   rig.step();
-  rig.ex->advance_to(rig.now() + 1s);
+  rig.ex.advance_to(rig.now() + 1s);
   const auto& down = rig.diags.back()->status.at(0);
   EXPECT_EQ(down.level, tinyline::diagnostic_msgs::msg::DiagnosticStatus::ERROR);
   EXPECT_NE(down.message.find("no device"), std::string::npos) << down.message;

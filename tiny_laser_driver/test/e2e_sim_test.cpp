@@ -25,6 +25,7 @@
 #include <sim/virtual_device.hpp>
 #include <tinyline/bus/context.hpp>
 #include <tinyline/bus/executor.hpp>
+#include <tinyline/bus/testing.hpp>
 
 #include <tiny_laser_driver/io/port.hpp>
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
@@ -137,44 +138,22 @@ void expect_whole(const RawScan& r) {
   EXPECT_EQ(r.pulses.size(), 5u);
 }
 
-// The driver (threaded: false, the shipped default calibration) on a sim-clock
-// context stepped by a deterministic executor, and a listener keeping every
-// calibrated and raw scan it publishes.
-struct SteppedDriver {
-  explicit SteppedDriver(const std::string& port) {
-    ctx->clock().set_sim_time(bus::Time::from_seconds(10.0));
+// The driver (threaded: false, the shipped default calibration) on the stepped
+// sim-time graph of bus/testing.hpp, with every calibrated and raw scan it
+// publishes kept.
+struct SteppedDriver : bus::testing::NodeRig {
+  explicit SteppedDriver(const std::string& port) : NodeRig({}, bus::Time::from_seconds(10.0)) {
     bus::NodeOptions d;
     d.context = ctx;
     d.name = "laser";
     d.param("port", port).param("calibration", std::string("default")).param("focal_mm", 8.0)
         .param("threaded", false);
-    driver = std::make_shared<tl::LaserDriver>(d);
-    bus::NodeOptions l;
-    l.context = ctx;
-    l.name = "listener";
-    listener = std::make_shared<bus::Node>(l);
-    const auto q = bus::QoS::keep_last(10000);
-    s1 = listener->create_subscription<LineScan>(
-        "/scan", q, [this](const std::shared_ptr<const LineScan>& m) { scans.push_back(m); });
-    s2 = listener->create_subscription<RawScan>(
-        "/raw", q, [this](const std::shared_ptr<const RawScan>& m) { raws.push_back(m); });
-    ex.add_node(driver);
-    ex.add_node(listener);
+    driver = add(std::make_shared<tl::LaserDriver>(d));
     ex.spin_until_idle();  // on_start
   }
-  static bus::ContextOptions sim_clock() {
-    bus::ContextOptions co;
-    co.clock = bus::ClockType::Sim;
-    co.log_sink = std::make_shared<bus::CaptureSink>();
-    return co;
-  }
-  std::shared_ptr<bus::Context> ctx = bus::Context::create(sim_clock());
-  bus::DeterministicExecutor ex{ctx->clock()};
   std::shared_ptr<tl::LaserDriver> driver;
-  std::shared_ptr<bus::Node> listener;
-  std::vector<std::shared_ptr<const LineScan>> scans;
-  std::vector<std::shared_ptr<const RawScan>> raws;
-  std::shared_ptr<bus::SubscriptionBase> s1, s2;
+  std::vector<std::shared_ptr<const LineScan>>& scans = collect<LineScan>("/scan");
+  std::vector<std::shared_ptr<const RawScan>>& raws = collect<RawScan>("/raw");
 };
 
 }  // namespace
@@ -226,7 +205,11 @@ TEST(EndToEnd, OnePercentByteCorruptionCostsOnlyWholeSetsAndEveryOneIsCounted) {
   const auto link = tl::io::MemoryLink::create("e2e_corruption");
   tl::io::register_memory_link("e2e_corruption", link);
   SteppedDriver h("mem:e2e_corruption");
-  auto& [ctx, ex, driver, listener, scans, raws, s1, s2] = h;
+  auto& ctx = h.ctx;
+  auto& ex = h.ex;
+  auto& driver = h.driver;
+  auto& scans = h.scans;
+  auto& raws = h.raws;
   driver->pump(0ms);     // connects
   ASSERT_TRUE(driver->status().connected);
 
@@ -329,7 +312,11 @@ TEST(EndToEnd, UnplugAndReplugWhileStreamingResumesWithinASecond) {
   device.start();
 
   SteppedDriver h(o.link_path);
-  auto& [ctx, ex, driver, listener, scans, raws, s1, s2] = h;
+  auto& ctx = h.ctx;
+  auto& ex = h.ex;
+  auto& driver = h.driver;
+  auto& scans = h.scans;
+  auto& raws = h.raws;
   auto step = [&] {
     ex.advance_to(ctx->clock().now() + 10ms);
     driver->pump(driver->status().connected ? 100ms : 0ms);

@@ -8,8 +8,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <tinyline/bus/executor.hpp>
-#include <tinyline/bus/registry.hpp>
+#include <tinyline/bus/testing.hpp>
 
 #include <laser_clustering/nodes/register.hpp>
 
@@ -25,32 +24,10 @@ using tinyline::visualization_msgs::msg::MarkerArray;
 
 namespace {
 
-struct Harness {
-  std::shared_ptr<bus::CaptureSink> log = std::make_shared<bus::CaptureSink>();  // before ctx: it is built with it
-  std::shared_ptr<bus::Context> ctx;
-  bus::DeterministicExecutor ex;
-  bus::NodeRegistry registry;
-  std::shared_ptr<bus::Node> io;
-
-  Harness() : ctx(make_ctx(log)), ex(ctx->clock()) {
-    tr::register_nodes(registry);
-    tinyline::laser_clustering::register_nodes(registry);
-    bus::NodeOptions o;
-    o.name = "io";
-    o.context = ctx;
-    io = std::make_shared<bus::Node>(o);
-    ex.add_node(io);
-  }
-  static std::shared_ptr<bus::Context> make_ctx(std::shared_ptr<bus::CaptureSink> sink) {
-    bus::ContextOptions o;
-    o.clock = bus::ClockType::Sim;
-    o.log_sink = std::move(sink);
-    return bus::Context::create(o);
-  }
-  void add(const std::string& pkg, const std::string& type, bus::NodeOptions o) {
-    o.context = ctx;
-    ex.add_node(registry.create(pkg, type, std::move(o)));
-  }
+// The tomato_reasoning and laser_clustering nodes on stepped sim time
+// (bus/testing.hpp).
+struct Harness : bus::testing::NodeRig {
+  Harness() : NodeRig({&tr::register_nodes, &tinyline::laser_clustering::register_nodes}) {}
 };
 
 }  // namespace
