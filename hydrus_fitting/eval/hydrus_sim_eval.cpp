@@ -3,10 +3,11 @@
 //
 //   hydrus_sim_eval [--schedules all_on,time_slicing,colouring] [--start S] [--end S]
 //                   [--scene YAML] [--robot YAML] [--calibration YAML]
-//                   [--updates FILE] [--rates FILE] [--base-motion]
+//                   [--updates FILE] [--rates FILE] [--no-base-motion]
 //
-// --base-motion gives the estimator the base's pose, so that each scan is
-// moved by the base's own motion to the update's newest scan.
+// The estimator gets the base's pose, as circle_fitter does in the launch
+// file, so that each scan is moved by the base's own motion to the update's
+// newest scan; --no-base-motion leaves the scans where the joints put them.
 //
 // Paths default to the source tree's hydrus4_grasp scene, hydrus4 robot and
 // the simulated 3.6 mm sensor's calibration.
@@ -28,7 +29,7 @@ namespace {
 
 int usage() {
   std::cerr << "usage: hydrus_sim_eval [--schedules all_on,time_slicing,colouring] [--start S] [--end S] [--scene YAML] "
-               "[--robot YAML] [--calibration YAML] [--updates FILE] [--rates FILE] [--base-motion]\n";
+               "[--robot YAML] [--calibration YAML] [--updates FILE] [--rates FILE] [--no-base-motion]\n";
   return 2;
 }
 
@@ -43,11 +44,11 @@ int main(int argc, char** argv) {
   std::string robot = src + "/hydrus_fitting/config/hydrus4.yaml";
   std::string calibration = src + "/tiny_laser_driver/config/calibration/sim_tiny_tof_3p6mm.yaml";
   double start_s = 0.0, end_s = -1.0;
-  bool base_motion = false;
+  bool base_motion = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--base-motion") {
-      base_motion = true;
+    if (a == "--no-base-motion") {
+      base_motion = false;
       continue;
     }
     if (i + 1 >= argc) return usage();
