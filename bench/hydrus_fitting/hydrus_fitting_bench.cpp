@@ -4,7 +4,10 @@
 // plain Kasa fit on the same fused points (the cheapest fit there is, and
 // biased), and the pieces in between. Two scenes: the open chain around a
 // cylinder (no outliers), and the closed ring seeing its own links and
-// clutter (about half the points are outliers before the self-filter).
+// clutter (about half the points are outliers before the self-filter). And
+// the open chain flying past the cylinder at 0.125 m/s with the scans 30 ms
+// apart, with the base's poses (each scan moved to the newest one's base
+// frame) and, as its reference, without.
 //
 // Run: build/bench/hydrus_fitting/hydrus_fitting_bench
 #include <cmath>
@@ -61,12 +64,66 @@ void run_estimator(benchmark::State& state, const Scene& s) {
   hf::CircleEstimator est(s.model);
   std::size_t k = 0;
   int points = 0;
+  double hyp = 0, inl = 0, n = 0;
   for (auto _ : state) {
     const auto e = est.estimate(s.views[k++ % kUpdates], s.joints);
     benchmark::DoNotOptimize(e.fit.circle.radius_m);
     points = e.points;
+    hyp += e.fit.iterations;
+    inl += e.fit.points_used;
+    ++n;
   }
   state.counters["points"] = points;
+  state.counters["hypotheses"] = hyp / n;
+  state.counters["inliers"] = inl / n;
+}
+
+/// The open chain with the base flying at 0.125 m/s past the cylinder: the
+/// scans 30 ms apart (sequence mode), each of the cylinder where it was then,
+/// and the base's poses, so the estimator moves each scan to the newest one's
+/// base frame.
+void run_estimator_moving_base(benchmark::State& state, bool use_poses, double speed_m_s = 0.125) {
+  const Scene& s = open_chain();
+  hf::JointStateBuffer joints(s.model.joint_names());
+  hf::BasePoseBuffer poses;
+  for (int i = 0; i <= 12; ++i) {
+    const std::int64_t t = 10'000'000LL * i;
+    (void)joints.add(t, s.model.joint_names(), s.q);
+    (void)poses.add(t, {0.0, speed_m_s * 1e-9 * static_cast<double>(t)}, 0.0);
+  }
+  const int n = static_cast<int>(s.model.sensors().size());
+  const Eigen::Vector2d fixed(0.25, 0.433 + speed_m_s * 0.03 * (n - 1));  // at (0.25, 0.433) for the newest scan
+  hf::detail::SplitMix64 rng(1);
+  std::vector<std::vector<ev::SyntheticScan>> scans(kUpdates);
+  std::vector<std::vector<hf::ScanView>> views(kUpdates);
+  for (int u = 0; u < kUpdates; ++u) {
+    for (int i = 0; i < n; ++i) {
+      const ev::PlanarWorld world{{hf::Circle{fixed - Eigen::Vector2d(0.0, speed_m_s * 0.03 * i), 0.15}}, {}, false};
+      scans[u].push_back(ev::scan_all(s.model, s.q, world, {}, rng)[static_cast<std::size_t>(i)]);
+    }
+    for (int i = 0; i < n; ++i) {
+      const auto& sc = scans[u][static_cast<std::size_t>(i)];
+      views[u].push_back({sc.sensor, 30'000'000LL * i, sc.angle_rad, sc.range_m});
+    }
+  }
+  hf::CircleEstimator est(s.model);
+  std::size_t k = 0;
+  int points = 0;
+  bool moved = false;
+  double hyp = 0, inl = 0, runs = 0;
+  for (auto _ : state) {
+    const auto e = est.estimate(views[k++ % kUpdates], joints, use_poses ? &poses : nullptr);
+    benchmark::DoNotOptimize(e.fit.circle.radius_m);
+    points = e.points;
+    moved = e.base_motion_compensated || !use_poses;
+    hyp += e.fit.iterations;
+    inl += e.fit.points_used;
+    ++runs;
+  }
+  state.counters["points"] = points;
+  state.counters["hypotheses"] = hyp / runs;
+  state.counters["inliers"] = inl / runs;
+  if (!moved) state.SkipWithError("the scans were not moved by the base's motion");
 }
 
 void run_fusion_kasa(benchmark::State& state, const Scene& s) {
@@ -98,6 +155,13 @@ std::vector<hf::FusedCloud> clouds(const Scene& s) {
 // ---- the figure of the issue: fusion + fit per update, 4 sensors, one core.
 static void BM_Update_Estimator_OpenChain(benchmark::State& s) { run_estimator(s, open_chain()); }
 BENCHMARK(BM_Update_Estimator_OpenChain)->Unit(benchmark::kMicrosecond);
+static void BM_Update_Estimator_OpenChain_BaseMotion(benchmark::State& s) { run_estimator_moving_base(s, true); }
+BENCHMARK(BM_Update_Estimator_OpenChain_BaseMotion)->Unit(benchmark::kMicrosecond);
+static void BM_Update_Estimator_OpenChain_MovingNoPoses(benchmark::State& s) { run_estimator_moving_base(s, false); }
+BENCHMARK(BM_Update_Estimator_OpenChain_MovingNoPoses)->Unit(benchmark::kMicrosecond);
+// The compensation's own cost: a base standing still, its poses given.
+static void BM_Update_Estimator_OpenChain_StaticWithPoses(benchmark::State& s) { run_estimator_moving_base(s, true, 0.0); }
+BENCHMARK(BM_Update_Estimator_OpenChain_StaticWithPoses)->Unit(benchmark::kMicrosecond);
 static void BM_Update_FusionKasa_OpenChain(benchmark::State& s) { run_fusion_kasa(s, open_chain()); }
 BENCHMARK(BM_Update_FusionKasa_OpenChain)->Unit(benchmark::kMicrosecond);
 static void BM_Update_Estimator_ClosedRingWithOutliers(benchmark::State& s) { run_estimator(s, closed_ring()); }

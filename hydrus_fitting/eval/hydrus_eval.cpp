@@ -3,6 +3,7 @@
 //   hydrus_eval kcr        [--trials N] [--out FILE]
 //   hydrus_eval robustness [--trials N] [--out FILE]
 //   hydrus_eval ray_noise  [--trials N] [--out FILE]
+//   hydrus_eval second_order [--trials N] [--out FILE]   (N noise draws)
 //
 // scripts/plots/hydrus_kcr.py (figure and table) and hydrus_tables.py read the CSVs and
 // write the tables and figures of the document.
@@ -20,7 +21,7 @@ namespace ev = tinyline::hydrus_fitting::eval;
 namespace {
 
 int usage() {
-  std::cerr << "usage: hydrus_eval kcr|robustness|ray_noise [--trials N] [--out FILE]\n";
+  std::cerr << "usage: hydrus_eval kcr|robustness|ray_noise|second_order [--trials N] [--out FILE]\n";
   return 2;
 }
 
@@ -60,6 +61,11 @@ int main(int argc, char** argv) {
     p.robot_description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
     if (trials > 0) p.trials = trials;
     return write(out, ev::ray_noise_csv(ev::ray_noise_study(p))) ? 0 : 1;
+  }
+  if (cmd == "second_order") {
+    ev::SecondOrderParams p;
+    if (trials > 0) p.draws = trials;
+    return write(out, ev::second_order_csv(ev::second_order_study(p))) ? 0 : 1;
   }
   return usage();
 }

@@ -3,7 +3,11 @@
 //
 //   hydrus_sim_eval [--schedules all_on,time_slicing,colouring] [--start S] [--end S]
 //                   [--scene YAML] [--robot YAML] [--calibration YAML]
-//                   [--updates FILE] [--rates FILE]
+//                   [--updates FILE] [--rates FILE] [--no-base-motion]
+//
+// The estimator gets the base's pose, as circle_fitter does in the launch
+// file, so that each scan is moved by the base's own motion to the update's
+// newest scan; --no-base-motion leaves the scans where the joints put them.
 //
 // Paths default to the source tree's hydrus4_grasp scene, hydrus4 robot and
 // the simulated 3.6 mm sensor's calibration.
@@ -25,7 +29,7 @@ namespace {
 
 int usage() {
   std::cerr << "usage: hydrus_sim_eval [--schedules all_on,time_slicing,colouring] [--start S] [--end S] [--scene YAML] "
-               "[--robot YAML] [--calibration YAML] [--updates FILE] [--rates FILE]\n";
+               "[--robot YAML] [--calibration YAML] [--updates FILE] [--rates FILE] [--no-base-motion]\n";
   return 2;
 }
 
@@ -40,8 +44,13 @@ int main(int argc, char** argv) {
   std::string robot = src + "/hydrus_fitting/config/hydrus4.yaml";
   std::string calibration = src + "/tiny_laser_driver/config/calibration/sim_tiny_tof_3p6mm.yaml";
   double start_s = 0.0, end_s = -1.0;
+  bool base_motion = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
+    if (a == "--no-base-motion") {
+      base_motion = false;
+      continue;
+    }
     if (i + 1 >= argc) return usage();
     if (a == "--schedules") {
       schedules = argv[++i];
@@ -83,6 +92,7 @@ int main(int argc, char** argv) {
       p.schedule = name;
       p.start_s = start_s;
       p.end_s = end_s;
+      p.base_motion = base_motion;
       const auto t0 = std::chrono::steady_clock::now();
       runs.push_back(ev::sim_study(p));
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include <fmt/format.h>
@@ -142,6 +143,255 @@ std::string kcr_csv(const std::vector<KcrRow>& rows) {
     s += fmt::format("{},{},{},{},{}", r.arc_deg, r.sigma_m, to_string(r.method), r.trials, r.failed);
     for (const auto* v : {r.kcr_sd, r.rmse, r.spread, r.bias, r.ratio, r.reported_sd_ratio})
       for (int k = 0; k < 3; ++k) s += fmt::format(",{:.6g}", v[k]);
+    s += "\n";
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------------------- second order
+
+namespace {
+
+/// The geometric fit polished to rounding precision (Gauss-Newton from
+/// `start` until the step vanishes): its Taylor coefficients are read off
+/// differences of such fits, which LM's stopping tolerance would blur.
+Eigen::Vector3d geometric_exact(const Eigen::Matrix2Xd& pts, Eigen::Vector3d t) {
+  for (int it = 0; it < 200; ++it) {
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (Eigen::Index i = 0; i < pts.cols(); ++i) {
+      const Eigen::Vector2d dv = pts.col(i) - t.head<2>();
+      const double rho = dv.norm();
+      const Eigen::Vector3d J(-dv.x() / rho, -dv.y() / rho, -1.0);
+      H.noalias() += J * J.transpose();
+      g += J * (rho - t(2));
+    }
+    const Eigen::Vector3d step = -H.ldlt().solve(g);
+    t += step;
+    if (step.norm() < 1e-16) break;
+  }
+  return t;
+}
+
+/// The best the kcr_study metric can get from shifting every estimate by one
+/// constant (any bias correction): 1.4826 x half the shortest interval that
+/// holds half of the errors (for a Gaussian, its SD).
+double shorth_rms(std::vector<double> e) {
+  if (e.size() < 2) return std::nan("");
+  std::sort(e.begin(), e.end());
+  const std::size_t h = (e.size() + 1) / 2;
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i + h - 1 < e.size(); ++i) best = std::min(best, e[i + h - 1] - e[i]);
+  return 1.4826 * 0.5 * best;
+}
+
+/// The geometric fit refitted with the arc's ends weighted down, w = 1 -
+/// 0.5 s^2 (s: a point's angle about the fitted centre from the middle of
+/// the arc, over the half-span). Not first-order efficient, but it trades a
+/// little of the first-order variance for less of the second-order
+/// normal-times-tangential term, which is larger at the ends of a short arc.
+/// The shape was chosen on other draws (seed 5) than the study's.
+CircleFit end_weighted_fit(const Eigen::Matrix2Xd& pts) {
+  const CircleFit f = fit_circle(pts);
+  if (!f.ok()) return f;
+  Eigen::Vector2d m = Eigen::Vector2d::Zero();
+  for (Eigen::Index i = 0; i < pts.cols(); ++i) m += (pts.col(i) - f.circle.centre_m).normalized();
+  const double mid = std::atan2(m.y(), m.x());
+  std::vector<double> ang(static_cast<std::size_t>(pts.cols()));
+  double half = 0.0;
+  for (Eigen::Index i = 0; i < pts.cols(); ++i) {
+    const Eigen::Vector2d d = pts.col(i) - f.circle.centre_m;
+    ang[static_cast<std::size_t>(i)] = std::remainder(std::atan2(d.y(), d.x()) - mid, 2 * kPi);
+    half = std::max(half, std::abs(ang[static_cast<std::size_t>(i)]));
+  }
+  std::vector<double> sd(ang.size());
+  for (std::size_t i = 0; i < ang.size(); ++i) {
+    const double s = ang[i] / half;
+    sd[i] = 1.0 / std::sqrt(std::max(0.05, 1.0 - 0.5 * s * s));
+  }
+  return refine_circle(pts, f.circle, {}, sd);
+}
+
+double robust_rms(const std::vector<double>& e) {
+  std::vector<double> a;
+  a.reserve(e.size());
+  for (const double x : e) a.push_back(std::abs(x));
+  return 1.4826 * median(a);
+}
+
+}  // namespace
+
+std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
+  std::vector<SecondOrderRow> rows;
+  const Circle truth{{0.0, 0.0}, p.radius_m};
+  const Eigen::Vector3d theta0(truth.centre_m.x(), truth.centre_m.y(), truth.radius_m);
+  constexpr int kNodes = 9;  // s = -4h..4h, a degree-8 polynomial through them
+  Eigen::Matrix<double, kNodes, kNodes> V;
+  for (int j = 0; j < kNodes; ++j)
+    for (int k = 0; k < kNodes; ++k) V(j, k) = std::pow(static_cast<double>(j - 4), k);
+  const Eigen::Matrix<double, kNodes, kNodes> Vinv = V.fullPivLu().inverse();
+  const char* methods[] = {"geometric", "hyper", "end_weighted"};
+  // a1, a2, a3 (columns) of the fit of exact + s e, from fits at s = -4h..4h
+  // continued outwards from the truth.
+  auto taylor = [&](const Eigen::Matrix2Xd& exact, const Eigen::Matrix2Xd& e, bool geo) {
+    Eigen::Matrix<double, kNodes, 3> th;
+    for (const int dir : {1, -1}) {
+      Eigen::Vector3d prev = theta0;
+      for (int j = 0; j <= 4; ++j) {
+        const Eigen::Matrix2Xd q = exact + (dir * j * p.step_m) * e;
+        if (geo) {
+          prev = geometric_exact(q, prev);
+        } else {
+          const CircleFit h = fit_circle_hyper(q);
+          prev = Eigen::Vector3d(h.circle.centre_m.x(), h.circle.centre_m.y(), h.circle.radius_m);
+        }
+        th.row(4 + dir * j) = prev.transpose();
+      }
+    }
+    const Eigen::Matrix<double, kNodes, 3> c = Vinv * th;
+    Eigen::Matrix3d a;
+    for (int k = 1; k <= 3; ++k) a.col(k - 1) = c.row(k).transpose() / std::pow(p.step_m, k);
+    return a;
+  };
+  for (const double arc : p.arcs_deg) {
+    const Eigen::Matrix2Xd exact = arc_points(truth, arc, p.points);
+    for (int m = 0; m < 3; ++m) {
+      const bool geo = (m == 0);
+      const bool expand = (m < 2);  // the Taylor series of the two smooth fits; the weighted one by Monte-Carlo only
+      // Per draw: a1, a2, a3 (3 components each) and the estimator's error at every sigma.
+      std::vector<Eigen::Matrix3d> coef;  // columns a1 a2 a3
+      std::vector<Eigen::Vector3d> cross_of_draw;  // the normal x tangential part of a2
+      std::vector<std::vector<Eigen::Vector3d>> err(p.sigmas_m.size());
+      Eigen::Vector3d En2 = Eigen::Vector3d::Zero(), Et2 = En2, Ex2 = En2;  // E[a2^2] of the normal, tangential, cross parts
+      detail::SplitMix64 rng(p.seed + static_cast<std::uint64_t>(arc * 1000));
+      Eigen::Matrix2Xd e(2, p.points), q(2, p.points);
+      for (int t = 0; t < p.draws; ++t) {
+        for (int i = 0; i < p.points; ++i) e.col(i) = Eigen::Vector2d(rng.gaussian(), rng.gaussian());
+        if (expand) {
+          const Eigen::Matrix3d a = taylor(exact, e, geo);
+          // The second-order term split by the noise's normal and tangential
+          // parts (at the true points): a2(e) = a2(n) + a2(t) + cross.
+          Eigen::Matrix2Xd en(2, p.points), et(2, p.points);
+          for (int i = 0; i < p.points; ++i) {
+            const Eigen::Vector2d u = (exact.col(i) - truth.centre_m).normalized();
+            en.col(i) = u * u.dot(e.col(i));
+            et.col(i) = e.col(i) - en.col(i);
+          }
+          const Eigen::Vector3d a2n = taylor(exact, en, geo).col(1), a2t = taylor(exact, et, geo).col(1);
+          const Eigen::Vector3d cross = a.col(1) - a2n - a2t;
+          En2 += a2n.cwiseProduct(a2n);
+          Et2 += a2t.cwiseProduct(a2t);
+          Ex2 += cross.cwiseProduct(cross);
+          coef.push_back(a);
+          cross_of_draw.push_back(cross);
+        }
+        for (std::size_t si = 0; si < p.sigmas_m.size(); ++si) {
+          q = exact + p.sigmas_m[si] * e;
+          const CircleFit f = geo ? fit_circle(q) : (m == 1 ? fit_circle_hyper(q) : end_weighted_fit(q));
+          Eigen::Vector3d d = Eigen::Vector3d::Constant(std::nan(""));
+          if (f.ok()) d = Eigen::Vector3d(f.circle.centre_m.x(), f.circle.centre_m.y(), f.circle.radius_m) - theta0;
+          err[si].push_back(d);
+        }
+      }
+      // Expectations over the draws.
+      Eigen::Vector3d Ea1sq = Eigen::Vector3d::Zero(), Ea2sq = Ea1sq, Ea1a3 = Ea1sq, Ea2 = Ea1sq;
+      for (const auto& a : coef) {
+        Ea1sq += a.col(0).cwiseProduct(a.col(0));
+        Ea2sq += a.col(1).cwiseProduct(a.col(1));
+        Ea1a3 += a.col(0).cwiseProduct(a.col(2));
+        Ea2 += a.col(1);
+      }
+      const double nd = std::max<double>(1.0, static_cast<double>(coef.size()));
+      Ea1sq /= nd;
+      Ea2sq /= nd;
+      Ea1a3 /= nd;
+      Ea2 /= nd;
+      En2 /= nd;
+      Et2 /= nd;
+      Ex2 /= nd;
+      for (std::size_t si = 0; si < p.sigmas_m.size(); ++si) {
+        const double s = p.sigmas_m[si];
+        const std::vector<double> sig{s};
+        const KcrBound b = kcr_bound(exact, truth, sig, false);
+        SecondOrderRow row;
+        row.arc_deg = arc;
+        row.sigma_m = s;
+        row.method = methods[m];
+        row.draws = p.draws;
+        for (int k = 0; k < 3; ++k) {
+          const double kcr = std::sqrt(b.covariance(k, k));
+          const double kcr2 = kcr * kcr;
+          row.kcr_sd[k] = kcr;
+          const double first = s * s * Ea1sq(k);
+          const double s4 = s * s * s * s;
+          row.first_order[k] = std::sqrt(first) / kcr;
+          row.second_order[k] = std::sqrt(std::max(0.0, first + s4 * (Ea2sq(k) + 2.0 * Ea1a3(k)))) / kcr;
+          row.mse_terms[k][0] = s4 * Ea2sq(k) / kcr2;
+          row.mse_terms[k][1] = 2.0 * s4 * Ea1a3(k) / kcr2;
+          row.mse_terms[k][2] = s4 * Ea2(k) * Ea2(k) / kcr2;
+          row.bias2[k] = s * s * Ea2(k) / kcr;
+          row.a2_split[k][0] = s4 * En2(k) / kcr2;
+          row.a2_split[k][1] = s4 * Et2(k) / kcr2;
+          row.a2_split[k][2] = s4 * Ex2(k) / kcr2;
+          std::vector<double> full, s2, s3, forced;
+          double sum = 0, sumsq = 0;
+          int n = 0;
+          for (std::size_t t = 0; t < err[si].size(); ++t) {
+            if (t < coef.size()) {
+              const double y2 = s * coef[t](k, 0) + s * s * coef[t](k, 1);
+              s2.push_back(y2);
+              s3.push_back(y2 + s * s * s * coef[t](k, 2));
+              forced.push_back(s * coef[t](k, 0) + s * s * cross_of_draw[t](k));
+            }
+            const double x = err[si][t](k);
+            if (std::isnan(x)) continue;
+            full.push_back(x);
+            sum += x;
+            sumsq += x * x;
+            ++n;
+          }
+          row.mc_rms[k] = n ? std::sqrt(sumsq / n) / kcr : std::nan("");
+          row.mc_mean_bias[k] = n ? sum / n / kcr : std::nan("");
+          row.mc_robust[k] = robust_rms(full) / kcr;
+          row.mc_shorth[k] = shorth_rms(full) / kcr;
+          row.series2_robust[k] = robust_rms(s2) / kcr;
+          row.series3_robust[k] = robust_rms(s3) / kcr;
+          row.forced_robust[k] = robust_rms(forced) / kcr;
+          row.forced_shorth[k] = shorth_rms(forced) / kcr;
+          if (!expand) {
+            for (double* v : {&row.first_order[k], &row.second_order[k], &row.mse_terms[k][0], &row.mse_terms[k][1],
+                              &row.mse_terms[k][2], &row.a2_split[k][0], &row.a2_split[k][1], &row.a2_split[k][2],
+                              &row.bias2[k], &row.series2_robust[k], &row.series3_robust[k],
+                              &row.forced_robust[k], &row.forced_shorth[k]})
+              *v = std::nan("");
+          }
+        }
+        rows.push_back(row);
+      }
+    }
+  }
+  return rows;
+}
+
+std::string second_order_csv(const std::vector<SecondOrderRow>& rows) {
+  std::string s = "arc_deg,sigma_m,method,draws";
+  for (const char* f : {"kcr_sd", "first_order", "second_order", "mse_a2sq", "mse_2a1a3", "mse_bias2", "a2sq_normal",
+                        "a2sq_tangential", "a2sq_cross", "bias2",
+                        "mc_rms", "mc_mean_bias", "mc_robust", "mc_shorth", "series2_robust", "series3_robust", "forced_robust", "forced_shorth"})
+    for (const char* c : {"cx", "cy", "r"}) s += fmt::format(",{}_{}", f, c);
+  s += "\n";
+  for (const auto& r : rows) {
+    s += fmt::format("{},{},{},{}", r.arc_deg, r.sigma_m, r.method, r.draws);
+    for (int k = 0; k < 3; ++k) s += fmt::format(",{:.6g}", r.kcr_sd[k]);
+    for (const auto* v : {r.first_order, r.second_order})
+      for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", v[k]);
+    for (int t = 0; t < 3; ++t)
+      for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", r.mse_terms[k][t]);
+    for (int t = 0; t < 3; ++t)
+      for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", r.a2_split[k][t]);
+    for (const auto* v : {r.bias2, r.mc_rms, r.mc_mean_bias, r.mc_robust, r.mc_shorth, r.series2_robust, r.series3_robust,
+                          r.forced_robust, r.forced_shorth})
+      for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", v[k]);
     s += "\n";
   }
   return s;

@@ -74,6 +74,7 @@ SimStudyResult sim_study(const SimStudyParams& p) {
   };
 
   JointStateBuffer joints(model.joint_names(), JointBufferParams{0.05, 5.0});
+  BasePoseBuffer base_poses(BasePoseBufferParams{0.05, 5.0});
   CircleEstimator estimator(model);
   SequencerParams seq_params;
   seq_params.timing.set_period_s = set_s;
@@ -93,6 +94,8 @@ SimStudyResult sim_study(const SimStudyParams& p) {
     for (; next_joint_t <= t + 1e-9; next_joint_t += 0.01) {
       const RobotPose2D q = approach_pose(p.approach, next_joint_t);
       joints.add(to_ns(next_joint_t), model.joint_names(), q.joints_rad);
+      const Eigen::Isometry2d T = q.T_world_base();
+      base_poses.add(to_ns(next_joint_t), T.translation(), std::atan2(T.linear()(1, 0), T.linear()(0, 0)));
     }
   };
   if (p.schedule == "all_on")
@@ -100,7 +103,9 @@ SimStudyResult sim_study(const SimStudyParams& p) {
 
   int slot = 0;
   for (double t = p.start_s; t + set_s <= end + 1e-9; t += slot_s) {
-    const RobotPose2D pose = place(t);
+    // The robot stands where it is in the middle of the set: the time the
+    // scan is stamped with, and the mean of its pose over the accumulation.
+    const RobotPose2D pose = place(t + 0.5 * set_s);
     feed_joints_until(t + set_s);
     // Who emits in this slot.
     std::vector<int> active;
@@ -161,7 +166,7 @@ SimStudyResult sim_study(const SimStudyParams& p) {
     std::vector<ScanView> views;
     for (const auto& r : sensors)
       if (r.have) views.push_back({r.name, r.stamp_ns, r.angle, r.range});
-    const CircleEstimate e = estimator.estimate(views, joints);
+    const CircleEstimate e = estimator.estimate(views, joints, p.base_motion ? &base_poses : nullptr);
     // The truth in the robot frame at the newest scan's time.
     const RobotPose2D pose_now = approach_pose(p.approach, static_cast<double>(e.stamp_ns) * 1e-9);
     const Eigen::Vector2d truth = robot.centre_in_base(pose_now);

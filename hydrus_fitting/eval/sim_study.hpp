@@ -31,6 +31,10 @@ struct SimStudyParams {
   double end_s = -1.0;             ///< < 0: its whole duration
   double guard_s = 0.002;          ///< between slots (command latency)
   double corrupt_threshold_m = 0.05;  ///< a pixel whose range is off the truth by more is corrupted
+  /// Give the estimator the base's pose (every 10 ms, like the joint
+  /// states), so each scan is moved by the base's motion to the newest one's
+  /// time, as circle_fitter does with hydrus_sim's base_pose.
+  bool base_motion = true;
   std::uint64_t seed = 1;
 };
 

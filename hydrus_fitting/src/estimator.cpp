@@ -13,14 +13,33 @@ CircleEstimator::CircleEstimator(const RobotModel& model, CircleEstimatorParams 
   if (params_.incidence_weighting) params_.robust.final_geometric_fit = false;
 }
 
-CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const JointStateBuffer& joints) {
+CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const JointStateBuffer& joints,
+                                         const BasePoseBuffer* base_poses) {
   CircleEstimate e;
   fuser_.clear();
   std::int64_t newest = std::numeric_limits<std::int64_t>::min();
   for (const auto& s : scans) newest = std::max(newest, s.stamp_ns);
   e.stamp_ns = scans.empty() ? 0 : newest;
   const auto skew_ns = static_cast<std::int64_t>(params_.max_scan_skew_s * 1e9);
-  for (const auto& s : scans) {
+  // The base's motion from each scan's time to the newest: all or none.
+  motion_.assign(scans.size(), Eigen::Isometry2d::Identity());
+  if (base_poses && !scans.empty()) {
+    e.base_motion_compensated = true;
+    for (std::size_t i = 0; i < scans.size() && e.base_motion_compensated; ++i) {
+      if (newest - scans[i].stamp_ns > skew_ns) continue;  // left out below
+      const BasePoseLookup m = base_poses->motion(scans[i].stamp_ns, newest);
+      if (!m.ok) {
+        e.base_motion_compensated = false;
+        e.base_motion_reason = fmt::format("scan of '{}': {}; no scan moved by the base's motion", scans[i].sensor,
+                                           m.reason);
+        motion_.assign(scans.size(), Eigen::Isometry2d::Identity());
+      } else {
+        motion_[i] = m.T_fixed_base;
+      }
+    }
+  }
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const ScanView& s = scans[i];
     if (newest - s.stamp_ns > skew_ns) {
       ScanOutcome o;
       o.status = ScanStatus::kJointState;
@@ -30,7 +49,7 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
       e.scans.push_back(std::move(o));
       continue;
     }
-    e.scans.push_back(fuser_.add(s, joints));
+    e.scans.push_back(fuser_.add(s, joints, motion_[i]));
     if (e.scans.back().ok()) ++e.scans_fused;
   }
   const FusedCloud& c = fuser_.cloud();

@@ -92,7 +92,7 @@ void ScanFuser::clear() {
   cloud_.self_filtered = 0;
 }
 
-ScanOutcome ScanFuser::add(const ScanView& scan, const JointStateBuffer& joints) {
+ScanOutcome ScanFuser::add(const ScanView& scan, const JointStateBuffer& joints, const Eigen::Isometry2d& T_ref_base) {
   ScanOutcome out;
   const auto sensor = model_->sensor_index(scan.sensor);
   if (!sensor) {
@@ -116,10 +116,11 @@ ScanOutcome ScanFuser::add(const ScanView& scan, const JointStateBuffer& joints)
     out.reason = q.reason;
     return out;
   }
-  return add_resolved(scan, *sensor, q.positions);
+  return add_resolved(scan, *sensor, q.positions, T_ref_base);
 }
 
-ScanOutcome ScanFuser::add(const ScanView& scan, std::span<const double> joint_positions) {
+ScanOutcome ScanFuser::add(const ScanView& scan, std::span<const double> joint_positions,
+                           const Eigen::Isometry2d& T_ref_base) {
   ScanOutcome out;
   const auto sensor = model_->sensor_index(scan.sensor);
   if (!sensor) {
@@ -132,10 +133,11 @@ ScanOutcome ScanFuser::add(const ScanView& scan, std::span<const double> joint_p
     out.reason = fmt::format("{} joint positions for {} joints", joint_positions.size(), model_->joint_names().size());
     return out;
   }
-  return add_resolved(scan, *sensor, joint_positions);
+  return add_resolved(scan, *sensor, joint_positions, T_ref_base);
 }
 
-ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<const double> q) {
+ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<const double> q,
+                                    const Eigen::Isometry2d& T_ref_base) {
   ScanOutcome out;
   out.sensor = sensor;
   if (scan.angle_rad.size() != scan.range_m.size()) {
@@ -153,6 +155,8 @@ ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<
   const Eigen::Matrix2d R = T.linear();
   const Eigen::Vector2d t = T.translation();
   const double side = spec.line_axis_left ? 1.0 : -1.0;
+  const Eigen::Matrix2d Rm = T_ref_base.linear();
+  const Eigen::Vector2d tm = T_ref_base.translation();
 
   Trig& tr = trig_[static_cast<std::size_t>(sensor)];
   if (!std::equal(tr.angle.begin(), tr.angle.end(), scan.angle_rad.begin(), scan.angle_rad.end())) {
@@ -181,14 +185,15 @@ ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<
       ++out.self_filtered;
       continue;
     }
-    cloud_.xy_m.push_back(p.x());
-    cloud_.xy_m.push_back(p.y());
+    const Eigen::Vector2d pr = tm + Rm * p;
+    cloud_.xy_m.push_back(pr.x());
+    cloud_.xy_m.push_back(pr.y());
     cloud_.sigma_m.push_back(params_.noise.sd_at(r));
     cloud_.range_m.push_back(r);
     cloud_.view_of_point.push_back(view);
     ++out.added;
   }
-  cloud_.views.push_back(t);
+  cloud_.views.push_back(T_ref_base * t);
   cloud_.view_sensor.push_back(sensor);
   cloud_.view_stamp_ns.push_back(scan.stamp_ns);
   cloud_.self_filtered += out.self_filtered;

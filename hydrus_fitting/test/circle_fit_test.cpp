@@ -14,6 +14,7 @@
 
 #include "hydrus_fitting/circle_fit.hpp"
 #include "hydrus_fitting/detail/random.hpp"
+#include "montecarlo.hpp"
 
 namespace hf = tinyline::hydrus_fitting;
 using ::testing::HasSubstr;
@@ -339,4 +340,35 @@ TEST(CircleFit, TaubinAndHyperAgreeToFirstOrder) {
   const auto t = hf::fit_circle_taubin(p);
   ASSERT_TRUE(h.ok() && t.ok());
   EXPECT_LT((h.circle.centre_m - t.circle.centre_m).norm(), 1e-3);
+}
+
+// The second-order analysis of docs/hydrus_fitting.md: its first-order term
+// must be the KCR bound (the Taylor coefficients are read right), and the
+// normal x tangential part of the second-order term must be the same for the
+// geometric and the Hyper fit (it depends only on the efficient first-order
+// influence, which both share) while their normal x normal parts differ.
+TEST(CircleFitSecondOrder, FirstOrderIsTheBoundAndTheCrossTermIsShared) {
+  namespace ev = tinyline::hydrus_fitting::eval;
+  ev::SecondOrderParams p;
+  p.arcs_deg = {90};
+  p.sigmas_m = {0.019593};
+  p.draws = 300;
+  const auto rows = ev::second_order_study(p);
+  ASSERT_EQ(rows.size(), 3u);  // geometric, hyper, end_weighted
+  const auto& geo = rows[0];
+  const auto& hyp = rows[1];
+  ASSERT_EQ(geo.method, "geometric");
+  ASSERT_EQ(hyp.method, "hyper");
+  for (int k = 0; k < 3; ++k) {
+    // 300 draws: the sample variance of a1 is within ~10 % of the bound's.
+    EXPECT_NEAR(geo.first_order[k], 1.0, 0.1) << k;
+    EXPECT_NEAR(hyp.first_order[k], geo.first_order[k], 1e-6) << k;  // same draws, same first-order term
+    EXPECT_NEAR(hyp.a2_split[k][2], geo.a2_split[k][2], 1e-6 + 1e-4 * geo.a2_split[k][2]) << k;
+  }
+  // At 90 deg and 19.6 mm the cross term is most of the second-order term
+  // of the centre's y and the radius, and Hyper's normal x normal part is larger.
+  for (const int k : {1, 2}) {
+    EXPECT_GT(geo.a2_split[k][2], 0.5 * geo.mse_terms[k][0]) << k;
+    EXPECT_GT(hyp.a2_split[k][0], geo.a2_split[k][0]) << k;
+  }
 }

@@ -139,6 +139,61 @@ TEST(HydrusFittingNodes, CircleFitterReportsUnknownSensorsAndStaleJoints) {
   EXPECT_THAT(got[0]->reason, HasSubstr("older than the scan"));
 }
 
+TEST(HydrusFittingNodes, CircleFitterMovesScansByTheBasePose) {
+  // The base flies along +y at 0.125 m/s turning at 0.2 rad/s past a
+  // cylinder that stands still; the four scans are 30 ms apart.
+  const auto model = hf::RobotModel::load(kConfig);
+  const double q = 60.0 * kPi / 180.0;
+  auto base = [](double t) {
+    return Eigen::Isometry2d(Eigen::Translation2d(0.0, 0.125 * t) * Eigen::Rotation2Dd(0.2 * (t - 1.0)));
+  };
+  const Eigen::Vector2d fixed = base(1.09) * Eigen::Vector2d(0.25, 0.433);
+  const Eigen::Vector2d truth_now = base(1.09).inverse() * fixed;
+  std::vector<ev::SyntheticScan> s;
+  hf::detail::SplitMix64 rng(1);
+  ev::SyntheticScanParams exact;
+  exact.noise_scale = 0.0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const double t = 1.0 + 0.03 * static_cast<double>(k);
+    const ev::PlanarWorld world{{hf::Circle{base(t).inverse() * fixed, 0.15}}, {}, false};
+    s.push_back(ev::scan_all(model, {q, q, q}, world, exact, rng)[k]);
+  }
+  auto run = [&](bool with_poses) {
+    Harness h;
+    bus::NodeOptions o;
+    o.name = "fitter";
+    o.param("robot_description", kConfig);
+    h.add("circle_fitter", o);
+    std::vector<std::shared_ptr<const CircleFit>> got;
+    auto sub = h.io->create_subscription<CircleFit>(
+        "circle", bus::QoS::keep_last(20), [&](const std::shared_ptr<const CircleFit>& m) { got.push_back(m); });
+    auto scans = h.io->create_publisher<LineScan>("scans");
+    auto joints = h.io->create_publisher<JointState>("joint_states");
+    auto poses = h.io->create_publisher<tinyline::geometry_msgs::msg::PoseStamped>("base_pose");
+    for (int i = 0; i <= 30; ++i) {
+      const double t = 0.9 + 0.01 * i;
+      joints->publish(joints_msg(model, t, q));
+      if (!with_poses) continue;
+      auto p = std::make_unique<tinyline::geometry_msgs::msg::PoseStamped>();
+      p->header.stamp = bus::Time::from_seconds(t).to_msg();
+      p->pose.position.x = base(t).translation().x();
+      p->pose.position.y = base(t).translation().y();
+      p->pose.orientation.z = std::sin(0.1 * (t - 1.0));  // yaw 0.2 (t - 1)
+      p->pose.orientation.w = std::cos(0.1 * (t - 1.0));
+      poses->publish(std::move(p));
+    }
+    h.ex.spin_until_idle();
+    for (std::size_t k = 0; k < s.size(); ++k) scans->publish(scan_msg(s[k], 1.0 + 0.03 * static_cast<double>(k)));
+    h.ex.spin_until_idle();
+    EXPECT_EQ(got.size(), 4u);
+    return got.empty() ? 1.0 : std::hypot(got.back()->centre.x - truth_now.x(), got.back()->centre.y - truth_now.y());
+  };
+  const double smeared = run(false);
+  const double moved = run(true);
+  EXPECT_GT(smeared, 0.003);
+  EXPECT_LT(moved, 0.0005) << "without base poses " << smeared;
+}
+
 TEST(HydrusFittingNodes, CircleFitterNeedsAValidRobotDescription) {
   {
     Harness h;

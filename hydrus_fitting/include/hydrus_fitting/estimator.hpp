@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "hydrus_fitting/base_motion.hpp"
 #include "hydrus_fitting/circle_fit.hpp"
 #include "hydrus_fitting/fusion.hpp"
 #include "hydrus_fitting/robot_model.hpp"
@@ -41,6 +42,12 @@ struct CircleEstimate {
   int points = 0;                  ///< fused points offered to the fit
   int self_filtered = 0;
   std::int64_t stamp_ns = 0;       ///< newest scan offered
+  /// With base poses: every fused scan was moved into the base frame at
+  /// stamp_ns. False when none were given, or (with the reason) when a pose
+  /// was missing for a scan or the reference: then no scan is moved, since
+  /// mixing moved and unmoved scans is worse than moving none.
+  bool base_motion_compensated = false;
+  std::string base_motion_reason;
 };
 
 class CircleEstimator {
@@ -48,9 +55,12 @@ class CircleEstimator {
   CircleEstimator(const RobotModel& model, CircleEstimatorParams params = {});
 
   /// Fuses `scans` (typically the latest of each sensor) with the joint
-  /// states at their stamps, then fits. Never throws on bad data: every
-  /// problem is in the outcome.
-  [[nodiscard]] CircleEstimate estimate(std::span<const ScanView> scans, const JointStateBuffer& joints);
+  /// states at their stamps, then fits. With `base_poses`, each scan is
+  /// first moved by the base's own motion from its stamp to the newest
+  /// scan's (the circle is then in the base frame at stamp_ns). Never throws
+  /// on bad data: every problem is in the outcome.
+  [[nodiscard]] CircleEstimate estimate(std::span<const ScanView> scans, const JointStateBuffer& joints,
+                                        const BasePoseBuffer* base_poses = nullptr);
   /// The points of the last estimate (base frame).
   [[nodiscard]] const FusedCloud& cloud() const { return fuser_.cloud(); }
   [[nodiscard]] const CircleEstimatorParams& params() const { return params_; }
@@ -60,6 +70,7 @@ class CircleEstimator {
   CircleEstimatorParams params_;
   ScanFuser fuser_;
   std::vector<double> in_xy_, sr_, sn_, st_;  // reused per update
+  std::vector<Eigen::Isometry2d> motion_;     // per scan offered: base frame at its stamp -> at the newest
 };
 
 }  // namespace tinyline::hydrus_fitting

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "hydrus_fitting/robot_model.hpp"
 
@@ -91,16 +92,23 @@ class ScanFuser {
   void clear();
   /// Places one scan with the joint angles at its timestamp. A scan of an
   /// unknown sensor or without a usable joint state adds nothing and says why.
-  ScanOutcome add(const ScanView& scan, const JointStateBuffer& joints);
+  /// `T_ref_base` then moves its points and its sensor's origin from the base
+  /// frame at the scan's time into the cloud's frame (the base at the
+  /// update's reference time: BasePoseBuffer::motion); the self-filter works
+  /// before, with the links where they were at the scan's time.
+  ScanOutcome add(const ScanView& scan, const JointStateBuffer& joints,
+                  const Eigen::Isometry2d& T_ref_base = Eigen::Isometry2d::Identity());
   /// The same with the joint angles given (one per joint of the model).
-  ScanOutcome add(const ScanView& scan, std::span<const double> joint_positions);
+  ScanOutcome add(const ScanView& scan, std::span<const double> joint_positions,
+                  const Eigen::Isometry2d& T_ref_base = Eigen::Isometry2d::Identity());
 
   [[nodiscard]] const FusedCloud& cloud() const { return cloud_; }
   [[nodiscard]] const RobotModel& model() const { return *model_; }
   [[nodiscard]] const FusionParams& params() const { return params_; }
 
  private:
-  ScanOutcome add_resolved(const ScanView& scan, int sensor, std::span<const double> q);
+  ScanOutcome add_resolved(const ScanView& scan, int sensor, std::span<const double> q,
+                           const Eigen::Isometry2d& T_ref_base);
   const RobotModel* model_;
   FusionParams params_;
   FusedCloud cloud_;

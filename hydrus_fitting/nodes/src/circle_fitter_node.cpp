@@ -98,6 +98,9 @@ CircleFitterNode::CircleFitterNode(bus::NodeOptions o) : Node(std::move(o)) {
                                          ParamConstraints::range(0.0, 10.0));
   joint_history_s_ = declare_parameter("joint_history_s", jb.history_s, "joint states kept [s]",
                                        ParamConstraints::range(0.01, 600.0));
+  base_pose_tolerance_s_ = declare_parameter("base_pose_tolerance_s", BasePoseBufferParams{}.tolerance_s,
+                                             "a scan may be this much newer than the newest base_pose [s]",
+                                             ParamConstraints::range(0.0, 10.0));
   marker_height_m_ = declare_parameter("marker_height_m", 0.3, "height of the cylinder marker [m]",
                                        ParamConstraints::range(0.0, 10.0));
   publish_points_ = declare_parameter("publish_points", true, "add the fused points and the links to the markers");
@@ -108,6 +111,8 @@ CircleFitterNode::CircleFitterNode(bus::NodeOptions o) : Node(std::move(o)) {
                                                   [this](const msgs::LineScan& m) { on_scan(m); });
   joint_sub_ = create_subscription<sensor_msgs::msg::JointState>(
       "joint_states", bus::QoS::keep_last(50), [this](const sensor_msgs::msg::JointState& m) { on_joints(m); });
+  base_pose_sub_ = create_subscription<geometry_msgs::msg::PoseStamped>(
+      "base_pose", bus::QoS::keep_last(50), [this](const geometry_msgs::msg::PoseStamped& m) { on_base_pose(m); });
 }
 
 void CircleFitterNode::on_start() {
@@ -115,6 +120,7 @@ void CircleFitterNode::on_start() {
   model_ = std::make_unique<RobotModel>(RobotModel::load(description_path_));
   joints_ = std::make_unique<JointStateBuffer>(model_->joint_names(),
                                                JointBufferParams{joint_tolerance_s_, joint_history_s_});
+  base_poses_ = std::make_unique<BasePoseBuffer>(BasePoseBufferParams{base_pose_tolerance_s_, joint_history_s_});
   estimator_ = std::make_unique<CircleEstimator>(*model_, params_);
   latest_.assign(model_->sensors().size(), std::nullopt);
   logger().info("robot '{}': {} links, {} sensors ({})", model_->name(), model_->links().size(),
@@ -127,6 +133,18 @@ void CircleFitterNode::on_joints(const sensor_msgs::msg::JointState& m) {
   if (!r.reason.empty() && r.reason != last_joint_warning_) {
     logger().warn("joint_states: {}", r.reason);  // once per distinct problem
     last_joint_warning_ = r.reason;
+  }
+}
+
+void CircleFitterNode::on_base_pose(const geometry_msgs::msg::PoseStamped& m) {
+  if (!base_poses_) return;
+  // Yaw of the quaternion about the fixed frame's z (the sensing plane is level).
+  const auto& o = m.pose.orientation;
+  const double yaw = std::atan2(2.0 * (o.w * o.z + o.x * o.y), 1.0 - 2.0 * (o.y * o.y + o.z * o.z));
+  if (!base_poses_->add(bus::Time::from_msg(m.header.stamp).ns, {m.pose.position.x, m.pose.position.y}, yaw) &&
+      last_base_warning_ != "non-finite") {
+    logger().warn("base_pose: a pose with a non-finite position or orientation was ignored");
+    last_base_warning_ = "non-finite";
   }
 }
 
@@ -165,7 +183,12 @@ void CircleFitterNode::on_scan(const msgs::LineScan& m) {
     if (!latest_[s]) continue;
     views.push_back({model_->sensors()[s].name, latest_[s]->stamp_ns, latest_[s]->angle, latest_[s]->range});
   }
-  publish(estimator_->estimate(views, *joints_));
+  const CircleEstimate e = estimator_->estimate(views, *joints_, base_poses_->empty() ? nullptr : base_poses_.get());
+  if (!e.base_motion_reason.empty() && e.base_motion_reason != last_base_warning_) {
+    logger().warn("base_pose: {}", e.base_motion_reason);  // once per distinct problem
+    last_base_warning_ = e.base_motion_reason;
+  }
+  publish(e);
 }
 
 void CircleFitterNode::publish(const CircleEstimate& e) {

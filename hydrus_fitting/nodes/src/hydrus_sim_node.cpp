@@ -48,6 +48,7 @@ HydrusSimNode::HydrusSimNode(bus::NodeOptions o) : Node(std::move(o)) {
   approach_.hold_s = declare_parameter("hold_s", d.hold_s, "holding [s]", ParamConstraints::range(0.0, 3600.0));
   joint_pub_ = create_publisher<sensor_msgs::msg::JointState>("joint_states");
   truth_pub_ = create_publisher<msgs::CircleFit>("truth");
+  base_pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("base_pose");
 }
 
 void HydrusSimNode::on_start() {
@@ -84,6 +85,17 @@ void HydrusSimNode::tick() {
   js->name = model_->joint_names();
   js->position = pose.joints_rad;
   joint_pub_->publish(std::move(js));
+
+  // The base in the scene's fixed frame, as odometry would give it.
+  auto bp = std::make_unique<geometry_msgs::msg::PoseStamped>();
+  bp->header.stamp = now_t.to_msg();
+  bp->header.frame_id = "world";
+  bp->pose.position.x = pose.base_xy_m.x();
+  bp->pose.position.y = pose.base_xy_m.y();
+  bp->pose.position.z = model_->sensor_height_m();
+  bp->pose.orientation.z = std::sin(0.5 * pose.base_yaw_rad);
+  bp->pose.orientation.w = std::cos(0.5 * pose.base_yaw_rad);
+  base_pose_pub_->publish(std::move(bp));
 
   auto truth = std::make_unique<msgs::CircleFit>();
   truth->header.stamp = now_t.to_msg();

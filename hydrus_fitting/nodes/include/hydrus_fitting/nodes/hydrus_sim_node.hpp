@@ -7,6 +7,7 @@
 //
 //   joint_states  sensor_msgs/JointState   the joint angles (robot description's names), at rate_hz
 //   truth         tinyline_msgs/CircleFit  the true cylinder in the robot frame (for scoring)
+//   base_pose     geometry_msgs/PoseStamped  the base in the scene's fixed frame ("world"), as odometry
 //
 // Built only when the simulator is (TARGET tinyline::sim_core).
 #pragma once
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include <tinyline/bus/node.hpp>
+#include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
 #include <tinyline/msg/sensor_msgs/joint_state.hpp>
 #include <tinyline/msg/tinyline_msgs/circle_fit.hpp>
 
@@ -54,6 +56,7 @@ class HydrusSimNode : public bus::Node {
   double last_t_ = 0.0;
   std::shared_ptr<bus::Publisher<sensor_msgs::msg::JointState>> joint_pub_;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::CircleFit>> truth_pub_;
+  std::shared_ptr<bus::Publisher<geometry_msgs::msg::PoseStamped>> base_pose_pub_;
   std::shared_ptr<bus::Timer> timer_;
 };
 
