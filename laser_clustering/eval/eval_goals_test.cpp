@@ -16,7 +16,9 @@ namespace {
 constexpr int kTrials = 200;
 constexpr std::uint64_t kSeed = 1;
 
-ev::SimScannerOptions options(const char* config, std::vector<int> pulses = {3, 8, 25, 80, 250}) {
+// The evaluation's headline schedule: one a real sensor can run (the wire
+// sets pulses in tens).
+ev::SimScannerOptions options(const char* config, std::vector<int> pulses = {10, 20, 50, 120, 300}) {
   ev::SimScannerOptions o;
   o.sensor_config = config;
   o.raw_pulses = std::move(pulses);
@@ -40,17 +42,16 @@ ev::Scanner& tools() {
 TEST(EvalGoals, RecognitionErrorCaseAlignsAtLeast85Percent) {
   const auto r = ev::run_truss_case(ev::TrussCase::kRecognitionError, gripper(), kTrials, kSeed);
   EXPECT_GE(r.aligned.p, 0.85) << "issue goal";
-  EXPECT_GE(r.aligned.k, 195) << "documented: 199/200";
+  EXPECT_GE(r.aligned.k, 195) << "documented: 200/200";
 }
 
 TEST(EvalGoals, RandomOffsetCaseHoldsItsDocumentedFigures) {
-  // The issue's goal (97 % aligned, <= 1 % wrong) is not met: 21 of 200
-  // trials have a neighbour nearer the throat than the target (docs). The
-  // vision's truss layout resolves 12 of them (190/200); these floors catch
-  // regressions.
+  // The issue's goal (97 % aligned, <= 1 % wrong) is not met on these seeds:
+  // 21 of 200 trials have a neighbour nearer the throat than the target
+  // (docs). These floors catch regressions.
   const auto r = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
-  EXPECT_GE(r.aligned.k, 186) << "documented: 190/200";
-  EXPECT_GE(r.aligned_unambiguous.p, 0.95) << "documented: 176/179";
+  EXPECT_GE(r.aligned.k, 186) << "documented: 189/200";
+  EXPECT_GE(r.aligned_unambiguous.p, 0.95) << "documented: 174/179";
   EXPECT_EQ(r.out_of_view.k + r.missed.k, 0);
 }
 
@@ -59,9 +60,22 @@ TEST(EvalGoals, TrussLayoutBeatsTheNearestPedicelOnTheSameTrials) {
   nearest.use_layout = false;
   const auto before = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed, nearest);
   const auto after = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
-  EXPECT_GE(before.aligned.k, 170) << "documented: 177/200";
-  EXPECT_GE(after.aligned.k, before.aligned.k + 8) << "documented: 190 vs 177";
+  EXPECT_GE(before.aligned.k, 170) << "documented: 176/200";
+  EXPECT_GE(after.aligned.k, before.aligned.k + 8) << "documented: 189 vs 176";
   EXPECT_LT(after.wrong.k, before.wrong.k);
+}
+
+TEST(EvalGoals, ClosedLoopBeatsTheFirstScanAlone) {
+  // Move, scan again, re-centre (4.5): the second scan, from nearer the
+  // pedicel, corrects the first one's range bias at 10-20 cm.
+  ev::TrussEvalOptions first;
+  first.rescans = 0;
+  for (const auto c : {ev::TrussCase::kRandomOffset, ev::TrussCase::kRecognitionError}) {
+    const auto before = ev::run_truss_case(c, gripper(), kTrials, kSeed, first);
+    const auto after = ev::run_truss_case(c, gripper(), kTrials, kSeed);
+    EXPECT_LT(after.wrong.k, before.wrong.k) << "documented: 11 vs 14 and 0 vs 14";
+    EXPECT_GT(after.aligned.k, before.aligned.k);
+  }
 }
 
 TEST(EvalGoals, BrushedStickSeparatesByReflectanceNotByDistanceAlone) {
@@ -76,18 +90,19 @@ TEST(EvalGoals, BrushedStickSeparatesByReflectanceNotByDistanceAlone) {
 TEST(EvalGoals, WrenchMedianPitchErrorUnderOneDegree) {
   const auto r = ev::run_wrench_case(tools(), kTrials, kSeed);
   EXPECT_LE(r.median_error_deg, 1.0) << "issue goal";
-  EXPECT_LE(r.median_error_deg, 0.2) << "documented: 0.10 deg";
+  // The polished wrench's peak saturates at 20-30 cm even at 10 pulses;
+  // counting saturated pixels as lower bounds keeps the median within the
+  // goal (docs: 0.27 deg; 1.74 deg without the bounds).
+  EXPECT_LE(r.median_error_deg, 0.45) << "documented: 0.27 deg";
   EXPECT_LT(r.median_error_deg, r.median_step_error_deg) << "the refinement must beat the raw 2 degree steps";
-  EXPECT_GE(r.within_1deg.k, 185) << "documented: 194/200";
+  EXPECT_GE(r.within_1deg.k, 120) << "documented: 130/200";
 }
 
-// On a schedule the wire can command (pulses in tens), the polished wrench's
-// peak saturates at 20-30 cm; counting saturated pixels as lower bounds keeps
-// the median within the goal (docs: 0.27 deg; 1.74 deg without the bounds).
-TEST(EvalGoals, WrenchOnAWireScheduleMedianUnderOneDegree) {
-  auto scanner = ev::make_sim_scanner(options("tiny_tof_8mm.yaml", {10, 20, 50, 120, 300}));
+// The simulator's finer schedule (3/8/25/80/250 pulses, not commandable on
+// the wire) saturates nothing: the sweep's peak is whole (docs: 0.10 deg).
+TEST(EvalGoals, WrenchOnTheSimulatorsFinerScheduleMedianUnderTwoTenthsOfADegree) {
+  auto scanner = ev::make_sim_scanner(options("tiny_tof_8mm.yaml", {3, 8, 25, 80, 250}));
   const auto r = ev::run_wrench_case(*scanner, kTrials, kSeed);
-  EXPECT_LE(r.median_error_deg, 1.0) << "issue goal";
-  EXPECT_LE(r.median_error_deg, 0.45) << "documented: 0.27 deg";
-  EXPECT_GE(r.within_1deg.k, 120) << "documented: 130/200";
+  EXPECT_LE(r.median_error_deg, 0.2) << "documented: 0.10 deg";
+  EXPECT_GE(r.within_1deg.k, 185) << "documented: 194/200";
 }

@@ -12,6 +12,8 @@ namespace tinyline::laser_clustering::eval {
 namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// A re-scan's noise index: far from every first scan's (the seeds).
+constexpr std::uint64_t kRescanSeedStride = 1000003;
 
 // The ground-truth object most of a cluster's pixels hit (kNoObject if none).
 sim::ObjectId majority_object(const std::vector<int>& labels, int cluster, const SimulatedScan& s) {
@@ -112,11 +114,33 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
     trial.target_visible = target_pixels >= 2;
     if (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove) {
       trial.chosen = majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s);
+      // The closed loop (4.5): after a move, scan again from where the
+      // gripper now is and re-centre on what the finder sees there.
+      Eigen::Isometry3d T_world_sensor = scene.T_world_sensor;
+      PedicelDetection last = d;
+      std::optional<PedicelExpectation> belief = expectation;
+      for (int k = 0; k < o.rescans && last.outcome == PedicelOutcome::kMove; ++k) {
+        T_world_sensor = T_world_sensor * Eigen::Translation3d(last.lateral_offset_m, 0.0, last.depth_offset_m);
+        belief = expectation_after_centring(finder, belief);
+        const SimulatedScan again =
+            scanner.scan(scene.world, T_world_sensor, seed + kRescanSeedStride * static_cast<std::uint64_t>(k + 1));
+        const TwoStageResult objects_again = clusterer.run(again.scan);
+        const PedicelDetection d_again = find_pedicel(again.scan, objects_again, finder, belief);
+        ++trial.rescans;
+        if (d_again.outcome != PedicelOutcome::kCutHere && d_again.outcome != PedicelOutcome::kMove) {
+          // Lost it: the gripper stays where the last move put it.
+          last.lateral_offset_m = last.depth_offset_m = 0.0;
+          break;
+        }
+        trial.chosen = majority_object(objects_again.labels,
+                                       objects_again.clusters[static_cast<std::size_t>(d_again.cluster)].id, again);
+        last = d_again;
+      }
       trial.chosen_kind = object_kind(scene, trial.chosen);
-      // Where the target ends up relative to the throat after the move.
-      const Eigen::Vector3d& tgt = scene.truth.target_in_sensor;
-      const double lateral = tgt.x() - (finder.scissors.centre_x_m + d.lateral_offset_m);
-      const double depth = tgt.z() - (finder.scissors.centre_z_m + d.depth_offset_m);
+      // Where the target ends up relative to the throat after the last move.
+      const Eigen::Vector3d tgt = T_world_sensor.inverse() * (scene.T_world_sensor * scene.truth.target_in_sensor);
+      const double lateral = tgt.x() - (finder.scissors.centre_x_m + last.lateral_offset_m);
+      const double depth = tgt.z() - (finder.scissors.centre_z_m + last.depth_offset_m);
       trial.lateral_error_m = lateral;
       const bool between = std::abs(lateral) <= finder.scissors.opening_m / 2 - scene.truth.target_radius_m &&
                            std::abs(depth) <= o.depth_tolerance_m;

@@ -68,6 +68,7 @@ struct TrussTrial {
   /// throat, or the case's expectation) than the target: a finder that takes
   /// the nearest pedicel cannot be right (the thesis's "nearby pedicels").
   bool neighbour_nearer = false;
+  int rescans = 0;  ///< scans after the first (TrussEvalOptions::rescans)
 };
 
 /// "target", "pedicel", "tomato", "stem", "leaf" or "none" for a ground-truth object of a truss scene.
@@ -94,10 +95,15 @@ struct TrussEvalOptions {
   /// (TrussTruth::neighbours_expected_xz_m; for kRandomOffset with the throat
   /// as the target's expectation); false: the target's expectation alone.
   bool use_layout = true;
+  /// The closed loop of 4.5: after a move, up to this many further scans,
+  /// each re-centring on the pedicel the finder sees in the throat
+  /// (expectation_after_centring). 0: the first scan's move alone.
+  int rescans = 1;
 };
 
 /// Runs `trials` seeded trials (seed0, seed0 + 1, ...). `on_trial` (optional)
-/// sees every trial with its scan and clustering, for pictures.
+/// sees every trial with its first scan and clustering, for pictures; the
+/// verdict is the closed loop's.
 using TrussObserver = std::function<void(const TrussTrial&, const TrussScene&, const SimulatedScan&,
                                          const TwoStageResult&, const PedicelDetection&)>;
 [[nodiscard]] TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint64_t seed0,

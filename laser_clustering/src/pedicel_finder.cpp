@@ -42,6 +42,7 @@ Validation validate(const PedicelFinderParams& p) {
     return {false, fmt::format("layout_miss_factor and layout_extra_factor must be in (0, 1] (got {} and {})",
                                p.layout_miss_factor, p.layout_extra_factor)};
   }
+  if (!positive(p.recentre_sd_m)) return {false, fmt::format("recentre_sd_m must be > 0 (got {})", p.recentre_sd_m)};
   if (!std::isfinite(p.blade_margin_m) || p.blade_margin_m < 0.0 || !std::isfinite(p.depth_tolerance_m) ||
       p.depth_tolerance_m < 0.0) {
     return {false, "blade_margin_m and depth_tolerance_m must be finite and >= 0"};
@@ -125,6 +126,22 @@ void score_layout(const LineScan& scan, const PedicelExpectation& e, const Pedic
 }
 
 }  // namespace
+
+PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before) {
+  PedicelExpectation e;
+  e.position_xz_m = Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m);
+  e.sd_m = p.recentre_sd_m;
+  if (before) {
+    // The move put the chosen pedicel where the throat is: whatever the
+    // layout expected around the old expected point, it now expects around
+    // the throat (the vision's common offset is gone with the move).
+    const Eigen::Vector2d shift = e.position_xz_m - before->position_xz_m;
+    e.neighbours = before->neighbours;
+    for (auto& nb : e.neighbours) nb.position_xz_m += shift;
+    e.neighbour_sd_m = before->neighbour_sd_m;
+  }
+  return e;
+}
 
 PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
                               const std::optional<PedicelExpectation>& expectation) {

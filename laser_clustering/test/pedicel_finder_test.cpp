@@ -100,17 +100,55 @@ TEST(PedicelFinder, TrussLayoutPicksTheTargetOverANearerNeighbour) {
 
   // A neighbour that may not cross the plane explains a candidate but is
   // never missed: taking the nearer pedicel then costs only the unexplained
-  // target (x 0.5), too little to overturn the position prior.
+  // target (x 0.3), which still overturns the position prior (0.95 x 0.3
+  // against 0.41), by less than when the neighbour had to be there.
   e.neighbours.front().may_be_absent = true;
   const auto m = detect(s.scan, {}, e);
-  EXPECT_NEAR(m.position_xz_m.x(), -0.01, 0.0015);
-  EXPECT_LT(m.confidence, nearest.confidence) << "the unexplained target makes it less sure";
+  EXPECT_NEAR(m.position_xz_m.x(), 0.04, 0.0015);
+  ASSERT_EQ(m.candidates.size(), 2u);
+  EXPECT_LT(m.candidates[0].weight / m.candidates[1].weight, d.candidates[0].weight / d.candidates[1].weight);
+  EXPECT_LT(m.confidence, d.confidence) << "the weaker layout evidence makes it less sure";
 
   // A neighbour with a non-finite position is invalid input.
   e.neighbours.push_back({{std::numeric_limits<double>::quiet_NaN(), 0.12}, false});
   const auto bad = detect(s.scan, {}, e);
   EXPECT_EQ(bad.outcome, PedicelOutcome::kInvalidInput);
   EXPECT_THAT(bad.reason, HasSubstr("neighbour 1"));
+}
+
+TEST(PedicelFinder, AfterCentringThePedicelIsExpectedInTheThroatWithTheLayoutMovedAlong) {
+  lc::PedicelFinderParams p;
+  p.scissors.centre_x_m = 0.01;
+  p.recentre_sd_m = 0.008;
+  // Without a layout: the throat, with the re-centring spread.
+  const auto bare = lc::expectation_after_centring(p, std::nullopt);
+  EXPECT_EQ(bare.position_xz_m, Eigen::Vector2d(0.01, 0.12));
+  EXPECT_DOUBLE_EQ(bare.sd_m, 0.008);
+  EXPECT_TRUE(bare.neighbours.empty());
+  // With one: each neighbour keeps its place relative to the expected pedicel.
+  lc::PedicelExpectation before{{0.03, 0.14}, 0.03, {}, 0.012};
+  before.neighbours.push_back({{-0.03, 0.15}, true});
+  const auto after = lc::expectation_after_centring(p, before);
+  EXPECT_EQ(after.position_xz_m, Eigen::Vector2d(0.01, 0.12));
+  ASSERT_EQ(after.neighbours.size(), 1u);
+  EXPECT_NEAR(after.neighbours[0].position_xz_m.x(), -0.05, 1e-12);
+  EXPECT_NEAR(after.neighbours[0].position_xz_m.y(), 0.13, 1e-12);
+  EXPECT_TRUE(after.neighbours[0].may_be_absent);
+  EXPECT_DOUBLE_EQ(after.neighbour_sd_m, 0.012);
+
+  // The second scan of the loop: the gripper moved onto the pedicel it chose
+  // (here 2 cm short in depth, as a biased first range would leave it); the
+  // finder re-centres on it, not on the neighbour 4 cm off.
+  const auto s = synth_scan({{0.012, 0.142, 0.003, 6.0, 1}, {-0.03, 0.125, 0.003, 6.0, 2}}, with_wall(9));
+  const auto d = detect(s.scan, p, lc::expectation_after_centring(p, std::nullopt));
+  ASSERT_EQ(d.outcome, PedicelOutcome::kMove) << d.reason;
+  EXPECT_NEAR(d.lateral_offset_m, 0.002, 0.0015);
+  EXPECT_NEAR(d.depth_offset_m, 0.02 - 0.002, 0.003);
+
+  p.recentre_sd_m = 0.0;
+  const auto bad = detect(s.scan, p);
+  EXPECT_EQ(bad.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_THAT(bad.reason, HasSubstr("recentre_sd_m must be > 0"));
 }
 
 TEST(PedicelFinder, TomatoesAndStemsAloneAreNothingToCut) {

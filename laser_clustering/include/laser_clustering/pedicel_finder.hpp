@@ -51,10 +51,14 @@ struct PedicelFinderParams {
   /// by a tomato, missed), and for a pedicel-like object that no expected
   /// pedicel explains (a tomato edge, a pedicel the vision did not see).
   double layout_miss_factor = 0.25;
-  double layout_extra_factor = 0.5;
+  double layout_extra_factor = 0.3;
   /// An expected pedicel behind a return this much nearer on its bearing is
   /// hidden, not missing [m].
   double occlusion_margin_m = 0.02;
+  /// After the gripper centred a pedicel (expectation_after_centring): how
+  /// far it may still be from the throat, the measurement's error rather than
+  /// the vision's [m].
+  double recentre_sd_m = 0.01;
   ScissorGeometry scissors;
 };
 
@@ -122,6 +126,15 @@ struct PedicelDetection {
   double confidence = 0.0;
   std::vector<PedicelCandidate> candidates;  ///< every candidate considered, best first
 };
+
+/// The closed loop of thesis 4.5 (move, scan again, re-centre): what to
+/// expect in the next scan once the gripper has made a detection's move. The
+/// chosen pedicel is then expected in the blade throat, within
+/// `params.recentre_sd_m`, and the truss layout of `before` (if any) moves
+/// with it, keeping each neighbour where it was relative to the expected
+/// pedicel. Without `before` the expected pedicel was the throat itself.
+[[nodiscard]] PedicelExpectation expectation_after_centring(const PedicelFinderParams& params,
+                                                            const std::optional<PedicelExpectation>& before);
 
 /// Picks the pedicel among `objects` (from the same scan). `expectation`
 /// replaces the blade throat as the expected position when given.
