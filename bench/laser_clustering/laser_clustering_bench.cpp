@@ -43,11 +43,12 @@ const std::vector<Eigen::MatrixXd>& scan_points() {
 
 void BM_TwoStagePlusPedicel(benchmark::State& state) {
   lc::LineScanClusterer clusterer;
+  lc::TwoStageResult objects;  // kept: as a node's loop would
   const lc::PedicelFinderParams finder;
   std::size_t k = 0;
   for (auto _ : state) {
     const auto& s = scans()[k++ % kScans];
-    const auto objects = clusterer.run(s);
+    clusterer.run(s, objects);
     const auto pedicel = lc::find_pedicel(s, objects, finder);
     benchmark::DoNotOptimize(pedicel.lateral_offset_m);
   }
@@ -56,9 +57,10 @@ BENCHMARK(BM_TwoStagePlusPedicel);
 
 void BM_TwoStageOnly(benchmark::State& state) {
   lc::LineScanClusterer clusterer;
+  lc::TwoStageResult objects;
   std::size_t k = 0;
   for (auto _ : state) {
-    const auto objects = clusterer.run(scans()[k++ % kScans]);
+    clusterer.run(scans()[k++ % kScans], objects);
     benchmark::DoNotOptimize(objects.clusters.data());
   }
 }
@@ -67,11 +69,12 @@ BENCHMARK(BM_TwoStageOnly);
 // One ordered-scan DBSCAN pass with the stage-1 parameters.
 void BM_OrderedScanDbscanStage1(benchmark::State& state) {
   lc::OrderedScanDbscan d;
+  lc::DbscanResult r;
   const lc::TwoStageParams p;
   std::size_t k = 0;
   for (auto _ : state) {
     const auto& s = scans()[k++ % kScans];
-    const auto r = d.run({s.angle_rad, s.range_m, {}, {}}, p.groups);
+    d.run({s.angle_rad, s.range_m, {}, {}}, p.groups, r);
     benchmark::DoNotOptimize(r.labels.data());
   }
 }

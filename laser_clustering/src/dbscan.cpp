@@ -195,21 +195,34 @@ Eigen::MatrixXd to_points(const OrderedScanPoints& s) {
 
 DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanParams& params) {
   DbscanResult r;
+  run(scan, params, r);
+  return r;
+}
+
+void OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r) {
+  r.ok = false;
+  r.reason.clear();
+  r.labels.clear();
+  r.is_core.clear();
+  r.num_clusters = 0;
+  r.num_core = r.num_noise = r.num_invalid = 0;
   if (auto v = validate(params); !v.valid) {
     r.reason = v.reason;
-    return r;
+    return;
   }
-  if (r.reason = check_scan_shape(scan); !r.reason.empty()) return r;
+  if (r.reason = check_scan_shape(scan); !r.reason.empty()) return;
   // One instantiation per input shape keeps the inner loops free of the
   // feature and group branches.
   const bool f = !scan.feature.empty(), g = !scan.group.empty();
-  if (f) return g ? run_impl<true, true>(scan, params) : run_impl<true, false>(scan, params);
-  return g ? run_impl<false, true>(scan, params) : run_impl<false, false>(scan, params);
+  if (f) {
+    g ? run_impl<true, true>(scan, params, r) : run_impl<true, false>(scan, params, r);
+  } else {
+    g ? run_impl<false, true>(scan, params, r) : run_impl<false, false>(scan, params, r);
+  }
 }
 
 template <bool with_f, bool with_g>
-DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanParams& params) {
-  DbscanResult r;
+void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r) {
   const std::size_t n_all = scan.range_m.size();
   const double eps = params.eps;
   const double eps2 = eps * eps;
@@ -277,7 +290,7 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
         r.reason = fmt::format(
             "pixel angles must be strictly monotone over valid pixels: pixel {} at {} rad after pixel {} at {} rad", i,
             ti, index_[m - 1], theta_[m - 1]);
-        return r;
+        return;
       }
     }
     x_[m] = ri * sin_[i];
@@ -480,7 +493,6 @@ DbscanResult OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const Db
   }
   r.num_clusters = clusters;
   detail::finish(r, num_core, num_noise, n_all - m);
-  return r;
 }
 
 DbscanResult dbscan_ordered_scan(const OrderedScanPoints& scan, const DbscanParams& params) {

@@ -55,9 +55,23 @@ TwoStageResult cluster_line_scan(const LineScan& scan, const TwoStageParams& par
 
 TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   TwoStageResult out;
+  run(scan, out);
+  return out;
+}
+
+void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
+  out.ok = false;
+  out.reason.clear();
+  out.group_labels.clear();
+  out.fate.clear();
+  out.smoothed_range_m.clear();
+  out.labels.clear();
+  out.clusters.clear();
+  out.num_groups = 0;
+  out.num_edge_dropped = 0;
   if (!valid_.valid) {
     out.reason = valid_.reason;
-    return out;
+    return;
   }
   // A sensor's pixel angles are the same scan after scan: check them once.
   const bool same_angles = checked_angle_.size() == scan.angle_rad.size() && !checked_angle_.empty() &&
@@ -67,7 +81,7 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     // checked before
   } else if (out.reason = check_scan(scan); !out.reason.empty()) {
     checked_angle_.clear();
-    return out;
+    return;
   } else {
     checked_angle_.assign(scan.angle_rad.begin(), scan.angle_rad.end());
   }
@@ -76,10 +90,11 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   auto step = [&](double r) { return e.step_m + e.step_per_m * r; };
 
   // Stage 1: object groups.
-  DbscanResult groups = dbscan_.run({scan.angle_rad, scan.range_m, {}, {}}, params_.groups);
+  const DbscanResult& groups = groups_;
+  dbscan_.run({scan.angle_rad, scan.range_m, {}, {}}, params_.groups, groups_);
   if (!groups.ok) {
     out.reason = "stage 1: " + groups.reason;
-    return out;
+    return;
   }
   out.ok = true;
   out.num_groups = groups.num_clusters;
@@ -181,13 +196,14 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   process_run();
 
   // Stage 3: small-eps DBSCAN inside each group, on the smoothed ranges.
-  DbscanResult objects = dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects);
+  const DbscanResult& objects = objects_;
+  dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects, objects_);
   if (!objects.ok) {
     out.ok = false;
     out.reason = "stage 3: " + objects.reason;
-    return out;
+    return;
   }
-  out.labels = std::move(objects.labels);
+  out.labels.assign(objects.labels.begin(), objects.labels.end());
   // Dropped and ungrouped pixels are noise to the caller, not invalid.
   for (std::size_t i = 0; i < n; ++i) {
     if (out.labels[i] == kInvalid && out.fate[i] != PixelFate::kInvalid) out.labels[i] = kNoise;
@@ -205,27 +221,60 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
   sum_refl.assign(out.clusters.size(), 0.0);
   n_refl.assign(out.clusters.size(), 0);
   bool any_valid = false;
+  // The sums of a stretch of pixels with one label stay in registers and go
+  // back to their cluster when the label changes (an object is one stretch
+  // unless something cuts it): the same additions in the same order as
+  // adding to the cluster pixel by pixel, without a store and a reload each.
+  const bool with_refl = !scan.reflectance.empty();
+  int cur = -1, cnt = 0, last = -1, refl_cnt = 0;
+  double sx = 0.0, sz = 0.0, sr = 0.0, sr2 = 0.0, srefl = 0.0;
+  auto flush = [&]() {
+    if (cur < 0) return;
+    const auto u = static_cast<std::size_t>(cur);
+    auto& c = out.clusters[u];
+    c.num_points = cnt;
+    c.last_pixel = last;
+    c.centroid_xz_m = Eigen::Vector2d(sx, sz);
+    c.mean_range_m = sr;
+    sum_r2[u] = sr2;
+    sum_refl[u] = srefl;
+    n_refl[u] = refl_cnt;
+  };
   for (std::size_t i = 0; i < n; ++i) {
     any_valid = any_valid || scan.valid(i);
     const int l = out.labels[i];
     if (l < 0) continue;
-    auto& c = out.clusters[static_cast<std::size_t>(l)];
-    const double rr = out.smoothed_range_m[i];
-    if (c.num_points == 0) {
-      c.id = l;
-      c.group = groups.labels[i];
-      c.first_pixel = static_cast<int>(i);
+    if (l != cur) {
+      flush();
+      cur = l;
+      const auto u = static_cast<std::size_t>(l);
+      auto& c = out.clusters[u];
+      if (c.num_points == 0) {
+        c.id = l;
+        c.group = groups.labels[i];
+        c.first_pixel = static_cast<int>(i);
+      }
+      cnt = c.num_points;
+      sx = c.centroid_xz_m.x();
+      sz = c.centroid_xz_m.y();
+      sr = c.mean_range_m;
+      sr2 = sum_r2[u];
+      srefl = sum_refl[u];
+      refl_cnt = n_refl[u];
     }
-    c.last_pixel = static_cast<int>(i);
-    ++c.num_points;
-    c.centroid_xz_m += Eigen::Vector2d(rr * sin_a[i], rr * cos_a[i]);
-    c.mean_range_m += rr;
-    sum_r2[static_cast<std::size_t>(l)] += rr * rr;
-    if (!scan.reflectance.empty() && std::isfinite(scan.reflectance[i])) {
-      sum_refl[static_cast<std::size_t>(l)] += scan.reflectance[i];
-      ++n_refl[static_cast<std::size_t>(l)];
+    const double rr = out.smoothed_range_m[i];
+    last = static_cast<int>(i);
+    ++cnt;
+    sx += rr * sin_a[i];
+    sz += rr * cos_a[i];
+    sr += rr;
+    sr2 += rr * rr;
+    if (with_refl && std::isfinite(scan.reflectance[i])) {
+      srefl += scan.reflectance[i];
+      ++refl_cnt;
     }
   }
+  flush();
   for (std::size_t l = 0; l < out.clusters.size(); ++l) {
     auto& c = out.clusters[l];
     const double k = c.num_points;
@@ -257,13 +306,12 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
     c.occluded_low = in_front(f, -1);
     c.occluded_high = in_front(b, +1);
   }
-  out.group_labels = std::move(groups.labels);
+  out.group_labels.assign(groups.labels.begin(), groups.labels.end());
   if (n == 0) {
     out.reason = "empty scan";
   } else if (!any_valid) {
     out.reason = "no valid pixels";
   }
-  return out;
 }
 
 }  // namespace tinyline::laser_clustering

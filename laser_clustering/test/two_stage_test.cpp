@@ -243,3 +243,61 @@ TEST(TwoStage, GroupsKeepStageThreeInsideThem) {
     }
   }
 }
+
+TEST(TwoStage, AReusedResultIsTheSameAsAFreshOne) {
+  // A node keeps one result and one clusterer scan after scan: every field
+  // must come out as a fresh run's, also after a malformed scan and after a
+  // scan with more objects than the next.
+  lc::LineScanClusterer reused_clusterer;
+  lc::TwoStageResult kept;
+  std::vector<lc::LineScan> scans;
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    SynthParams sp;
+    sp.seed = seed;
+    sp.drag_m = 0.05;
+    sp.wall_z_m = 0.3 + 0.05 * seed;
+    std::vector<Disc> discs{{0.01 * seed - 0.03, 0.12, 0.003, 6.0, 1}};
+    if (seed % 2) discs.push_back({-0.04, 0.2, 0.03, 6.0, 2});
+    scans.push_back(synth_scan(discs, sp).scan);
+    if (seed == 3) {  // a malformed one in between
+      lc::LineScan bad = scans.back();
+      bad.range_m.pop_back();
+      scans.push_back(bad);
+    }
+  }
+  for (std::size_t k = 0; k < scans.size(); ++k) {
+    SCOPED_TRACE(k);
+    reused_clusterer.run(scans[k], kept);
+    const lc::TwoStageResult fresh = lc::cluster_line_scan(scans[k]);
+    EXPECT_EQ(kept.ok, fresh.ok);
+    EXPECT_EQ(kept.reason, fresh.reason);
+    EXPECT_EQ(kept.group_labels, fresh.group_labels);
+    EXPECT_EQ(kept.fate, fresh.fate);
+    EXPECT_EQ(kept.labels, fresh.labels);
+    ASSERT_EQ(kept.smoothed_range_m.size(), fresh.smoothed_range_m.size());
+    for (std::size_t i = 0; i < kept.smoothed_range_m.size(); ++i) {
+      const double a = kept.smoothed_range_m[i], b = fresh.smoothed_range_m[i];
+      EXPECT_TRUE((std::isnan(a) && std::isnan(b)) || a == b) << "pixel " << i;
+    }
+    EXPECT_EQ(kept.num_groups, fresh.num_groups);
+    EXPECT_EQ(kept.num_edge_dropped, fresh.num_edge_dropped);
+    ASSERT_EQ(kept.clusters.size(), fresh.clusters.size());
+    for (std::size_t c = 0; c < kept.clusters.size(); ++c) {
+      const auto &a = kept.clusters[c], &b = fresh.clusters[c];
+      EXPECT_EQ(a.first_pixel, b.first_pixel);
+      EXPECT_EQ(a.last_pixel, b.last_pixel);
+      EXPECT_EQ(a.num_points, b.num_points);
+      EXPECT_EQ(a.centroid_xz_m, b.centroid_xz_m);  // bit for bit
+      EXPECT_EQ(a.mean_range_m, b.mean_range_m);
+      EXPECT_EQ(a.range_sd_m, b.range_sd_m);
+      EXPECT_EQ(a.width_m, b.width_m);
+      EXPECT_TRUE((std::isnan(a.mean_reflectance) && std::isnan(b.mean_reflectance)) ||
+                  a.mean_reflectance == b.mean_reflectance);
+      EXPECT_EQ(a.occluded_low, b.occluded_low);
+      EXPECT_EQ(a.occluded_high, b.occluded_high);
+    }
+    if (k == 3) {
+      EXPECT_FALSE(kept.ok) << "the malformed scan";
+    }
+  }
+}

@@ -106,6 +106,9 @@ struct OrderedScanPoints {
 class OrderedScanDbscan {
  public:
   [[nodiscard]] DbscanResult run(const OrderedScanPoints& scan, const DbscanParams& params);
+  /// The same into `out`, reusing its storage: a loop that keeps one result
+  /// allocates nothing per scan.
+  void run(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& out);
   /// sin and cos of the angles of the last scan run (cached: a sensor's
   /// pixel angles are the same scan after scan); callers that need the
   /// points' coordinates reuse them.
@@ -114,7 +117,7 @@ class OrderedScanDbscan {
 
  private:
   template <bool with_feature, bool with_group>
-  DbscanResult run_impl(const OrderedScanPoints& scan, const DbscanParams& params);
+  void run_impl(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r);
   std::vector<double> trig_angle_, sin_, cos_;  // cached per sensor geometry
   std::vector<double> x_, z_, f_, theta_, range_, half_window_, block_lo_, block_hi_, adjacent_;
   std::vector<int> g_, index_, run_end_, parent_, size_, cluster_of_root_;

@@ -111,11 +111,15 @@ class LineScanClusterer {
   explicit LineScanClusterer(TwoStageParams params = {});
   [[nodiscard]] const TwoStageParams& params() const { return params_; }
   [[nodiscard]] TwoStageResult run(const LineScan& scan);
+  /// The same into `out`, reusing its storage: a loop that keeps one result
+  /// allocates nothing per scan once the sizes settle.
+  void run(const LineScan& scan, TwoStageResult& out);
 
  private:
   TwoStageParams params_;
   Validation valid_;
   OrderedScanDbscan dbscan_;
+  DbscanResult groups_, objects_;  // the two DBSCAN passes' results, reused
   std::vector<double> range_, checked_angle_, sum_r2_, sum_refl_;
   std::vector<int> run_, group_, n_refl_;
 };
