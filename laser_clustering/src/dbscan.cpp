@@ -475,9 +475,19 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     for (; i <= last; ++i) r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
   }
   // Border points: the lowest-numbered cluster among core points within eps.
+  // With min_points <= 2 there are none: a point within eps of a core point
+  // has two neighbours (itself and that one), so it is core itself, and every
+  // non-core point is noise without a search (stage 3 of the two-stage
+  // clustering runs with 2).
   std::size_t num_noise = 0;
+  const bool borders_possible = params.min_points > 2;
   for (int i = 0; i < n; ++i) {
     if (core(i)) continue;
+    if (!borders_possible) {
+      r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = kNoise;
+      ++num_noise;
+      continue;
+    }
     int best = kNoise;
     auto consider = [&](int j) {
       if (core(j)) {
