@@ -21,6 +21,7 @@ using tinyline::tinyline_msgs::msg::AlignmentResult;
 using tinyline::tinyline_msgs::msg::LineClusters;
 using tinyline::tinyline_msgs::msg::LineScan;
 using tinyline::tinyline_msgs::msg::PedicelDetection;
+using tinyline::tinyline_msgs::msg::PedicelLayout;
 using ::testing::HasSubstr;
 
 namespace {
@@ -141,6 +142,57 @@ TEST(LaserClusteringNodes, PedicelFinderReportsTheMoveAndHonoursTheExpectation) 
   ASSERT_EQ(got.size(), 4u);
   EXPECT_EQ(got[3]->outcome, PedicelDetection::OUT_OF_VIEW);
   EXPECT_THAT(got[3]->reason, HasSubstr("no return between"));
+}
+
+TEST(LaserClusteringNodes, PedicelFinderTakesTheVisionsTrussLayout) {
+  // The scene of PedicelFinder.TrussLayoutPicksTheTargetOverANearerNeighbour:
+  // the nearer pedicel (-1 cm) wins on position alone; a layout that puts a
+  // neighbour 5 cm to -x of the target makes the one at +4 cm the target.
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "finder";
+  o.param("scissor_centre_z_m", 0.12);
+  h.add("pedicel_finder", o);
+  std::vector<std::shared_ptr<const PedicelDetection>> got;
+  auto sub = h.io->create_subscription<PedicelDetection>(
+      "pedicel", bus::QoS::keep_last(10), [&](const std::shared_ptr<const PedicelDetection>& m) { got.push_back(m); });
+  auto pub = h.io->create_publisher<LineScan>("scan");
+  auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.4;
+  sp.seed = 4;
+  const auto two = lc::test::synth_scan({{-0.01, 0.12, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}}, sp);
+  auto make = [](double stamp_s) {
+    auto l = std::make_unique<PedicelLayout>();
+    l->header.stamp = bus::Time::from_seconds(stamp_s).to_msg();
+    l->expected.z = 0.12;
+    l->expected_sd_m = 0.03;  // the throat, off by up to a few cm
+    l->neighbours.resize(1);
+    l->neighbours[0].x = -0.05;
+    l->neighbours[0].z = 0.12;
+    l->may_be_absent = {false};
+    return l;
+  };
+
+  pub->publish(to_msg(two.scan, 1.0));  // no layout yet
+  h.ex.spin_until_idle();
+  auto broken = make(1.9);
+  broken->may_be_absent.clear();  // one neighbour, no flag: dropped whole
+  layout->publish(std::move(broken));
+  h.ex.spin_until_idle();
+  pub->publish(to_msg(two.scan, 2.0));
+  h.ex.spin_until_idle();
+  layout->publish(make(2.9));
+  h.ex.spin_until_idle();
+  pub->publish(to_msg(two.scan, 3.0));
+  pub->publish(to_msg(two.scan, 3600.0));  // stale again
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 4u);
+  EXPECT_NEAR(got[0]->position.x, -0.01, 0.002) << "position alone: the nearer";
+  EXPECT_NEAR(got[1]->position.x, -0.01, 0.002) << "the malformed layout is ignored";
+  EXPECT_NEAR(got[2]->position.x, 0.04, 0.002) << "the layout picks the target";
+  EXPECT_EQ(got[2]->outcome, PedicelDetection::MOVE);
+  EXPECT_NEAR(got[3]->position.x, -0.01, 0.002) << "a stale layout is ignored";
 }
 
 TEST(LaserClusteringNodes, BadParametersStopTheNodeWithTheReason) {

@@ -76,10 +76,42 @@ PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
   clusters_pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
                                        [this](const msgs::LineScan& m) { on_scan(m); });
+  // The laser plane is x-z: the points' y (off the plane) is not used.
   expected_sub_ = create_subscription<geometry_msgs::msg::PointStamped>(
       "expected_pedicel", bus::QoS::keep_last(1), [this](const geometry_msgs::msg::PointStamped& p) {
-        // The laser plane is x-z: the point's y (off the plane) is not used.
-        expected_ = std::make_pair(bus::Time::from_msg(p.header.stamp), Eigen::Vector2d(p.point.x, p.point.z));
+        expected_ = std::make_pair(bus::Time::from_msg(p.header.stamp),
+                                   PedicelExpectation{Eigen::Vector2d(p.point.x, p.point.z), expectation_sd_m_, {}, 0.015});
+      });
+  layout_sub_ = create_subscription<msgs::PedicelLayout>(
+      "expected_layout", bus::QoS::keep_last(1), [this](const msgs::PedicelLayout& l) {
+        // A malformed layout is dropped whole, with the reason: half a
+        // layout would blame the wrong candidates.
+        const auto finite = [](const geometry_msgs::msg::Point& p) { return std::isfinite(p.x) && std::isfinite(p.z); };
+        std::string bad;
+        if (l.may_be_absent.size() != l.neighbours.size()) {
+          bad = fmt::format("{} neighbours but {} may_be_absent flags", l.neighbours.size(), l.may_be_absent.size());
+        } else if (!finite(l.expected)) {
+          bad = "a non-finite expected pedicel";
+        } else if (!(std::isfinite(l.expected_sd_m) && l.expected_sd_m >= 0.0) ||
+                   !(std::isfinite(l.neighbour_sd_m) && l.neighbour_sd_m >= 0.0)) {
+          bad = fmt::format("expected_sd_m and neighbour_sd_m must be finite and >= 0 (got {} and {})", l.expected_sd_m,
+                            l.neighbour_sd_m);
+        }
+        for (std::size_t i = 0; bad.empty() && i < l.neighbours.size(); ++i) {
+          if (!finite(l.neighbours[i])) bad = fmt::format("neighbour {} is not finite", i);
+        }
+        if (!bad.empty()) {
+          logger().warn("expected_layout ignored: {}", bad);
+          return;
+        }
+        PedicelExpectation e;
+        e.position_xz_m = Eigen::Vector2d(l.expected.x, l.expected.z);
+        e.sd_m = l.expected_sd_m > 0.0 ? l.expected_sd_m : expectation_sd_m_;
+        if (l.neighbour_sd_m > 0.0) e.neighbour_sd_m = l.neighbour_sd_m;
+        for (std::size_t i = 0; i < l.neighbours.size(); ++i) {
+          e.neighbours.push_back({Eigen::Vector2d(l.neighbours[i].x, l.neighbours[i].z), static_cast<bool>(l.may_be_absent[i])});
+        }
+        expected_ = std::make_pair(bus::Time::from_msg(l.header.stamp), std::move(e));
       });
 }
 
@@ -98,7 +130,7 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
   std::optional<PedicelExpectation> expectation;
   const bus::Time stamp = bus::Time::from_msg(m.header.stamp);
   if (expected_ && std::abs(bus::to_seconds(stamp - expected_->first)) <= expectation_max_age_s_) {
-    expectation = PedicelExpectation{expected_->second, expectation_sd_m_, {}, 0.015};
+    expectation = expected_->second;
   }
   const auto d = find_pedicel(scan_, objects, finder_, expectation);
   det->outcome = wire(d.outcome);

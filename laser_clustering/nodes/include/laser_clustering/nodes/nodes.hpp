@@ -19,6 +19,7 @@
 #include <tinyline/msg/tinyline_msgs/line_clusters.hpp>
 #include <tinyline/msg/tinyline_msgs/line_scan.hpp>
 #include <tinyline/msg/tinyline_msgs/pedicel_detection.hpp>
+#include <tinyline/msg/tinyline_msgs/pedicel_layout.hpp>
 
 #include "laser_clustering/alignment_search.hpp"
 #include "laser_clustering/pedicel_finder.hpp"
@@ -45,7 +46,9 @@ class LineClustererNode : public bus::Node {
 /// scan -> pedicel (tinyline_msgs/PedicelDetection) and clusters: the
 /// pedicel finder of 4.4.2 / 4.5. An optional expected_pedicel
 /// (geometry_msgs/PointStamped in the scan's frame, from the vision side)
-/// replaces the blade throat as the expected position while it is recent.
+/// replaces the blade throat as the expected position while it is recent;
+/// or expected_layout (tinyline_msgs/PedicelLayout), which adds where the
+/// truss's other pedicels are expected. The newest of the two counts.
 class PedicelFinderNode : public bus::Node {
  public:
   explicit PedicelFinderNode(bus::NodeOptions options);
@@ -56,13 +59,15 @@ class PedicelFinderNode : public bus::Node {
   PedicelFinderParams finder_;
   double expectation_sd_m_ = 0.0;
   double expectation_max_age_s_ = 0.0;
-  std::optional<std::pair<bus::Time, Eigen::Vector2d>> expected_;
+  // The newest expectation from either topic, with its stamp.
+  std::optional<std::pair<bus::Time, PedicelExpectation>> expected_;
   LineScan scan_;
   double min_reflectance_ = 0.0;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::PedicelDetection>> pub_;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> clusters_pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
   std::shared_ptr<bus::Subscription<geometry_msgs::msg::PointStamped>> expected_sub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::PedicelLayout>> layout_sub_;
 };
 
 /// scan -> clusters: DBSCAN on position and reflectance (thesis 5.3, Fig. 5.8).
