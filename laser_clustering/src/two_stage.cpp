@@ -98,12 +98,8 @@ void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
   }
   out.ok = true;
   out.num_groups = groups.num_clusters;
-  out.fate.assign(n, PixelFate::kInvalid);
+  out.fate.assign(n, PixelFate::kInvalid);  // set per pixel in the run pass below
   out.smoothed_range_m.assign(n, kNaN);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (groups.labels[i] == kInvalid) continue;
-    out.fate[i] = groups.labels[i] == kNoise ? PixelFate::kNotGrouped : PixelFate::kKept;
-  }
 
   int run_group = kNoise;  // the group of the run being filtered
   // Stage 2: the edge filter, run by run. A run is a stretch of valid pixels
@@ -186,6 +182,8 @@ void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
   for (std::size_t i = 0; i < n; ++i) {
     const int g = groups.labels[i];
     if (g == kInvalid) continue;
+    // Before any edge drop: process_run() only touches pixels before i.
+    out.fate[i] = g == kNoise ? PixelFate::kNotGrouped : PixelFate::kKept;
     if (g != run_group) {
       process_run();
       run_.clear();
@@ -204,10 +202,6 @@ void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
     return;
   }
   out.labels.assign(objects.labels.begin(), objects.labels.end());
-  // Dropped and ungrouped pixels are noise to the caller, not invalid.
-  for (std::size_t i = 0; i < n; ++i) {
-    if (out.labels[i] == kInvalid && out.fate[i] != PixelFate::kInvalid) out.labels[i] = kNoise;
-  }
 
   // Per-object summaries (the sines and cosines of the angles are the
   // clusterer's cached ones).
@@ -243,7 +237,11 @@ void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
   for (std::size_t i = 0; i < n; ++i) {
     any_valid = any_valid || scan.valid(i);
     const int l = out.labels[i];
-    if (l < 0) continue;
+    if (l < 0) {
+      // Dropped and ungrouped pixels are noise to the caller, not invalid.
+      if (l == kInvalid && out.fate[i] != PixelFate::kInvalid) out.labels[i] = kNoise;
+      continue;
+    }
     if (l != cur) {
       flush();
       cur = l;
