@@ -56,7 +56,8 @@ void LineClustererNode::on_scan(const msgs::LineScan& m) {
     out->brightest = -1;
     out->note = bad;
   } else {
-    nodes::to_msg(clusterer_.run(scan_), *out);
+    clusterer_.run(scan_, objects_);
+    nodes::to_msg(objects_, *out);
   }
   pub_->publish(std::move(out));
 }
@@ -126,7 +127,8 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
     pub_->publish(std::move(det));
     return;
   }
-  const TwoStageResult objects = clusterer_.run(scan_);
+  clusterer_.run(scan_, objects_);
+  const TwoStageResult& objects = objects_;
   std::optional<PedicelExpectation> expectation;
   const bus::Time stamp = bus::Time::from_msg(m.header.stamp);
   if (expected_ && std::abs(bus::to_seconds(stamp - expected_->first)) <= expectation_max_age_s_) {

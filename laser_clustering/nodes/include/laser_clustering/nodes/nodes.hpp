@@ -38,6 +38,7 @@ class LineClustererNode : public bus::Node {
   void on_scan(const tinyline_msgs::msg::LineScan& msg);
   LineScanClusterer clusterer_;
   LineScan scan_;  // reused buffers
+  TwoStageResult objects_;
   double min_reflectance_ = 0.0;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
@@ -56,6 +57,7 @@ class PedicelFinderNode : public bus::Node {
  private:
   void on_scan(const tinyline_msgs::msg::LineScan& msg);
   LineScanClusterer clusterer_;
+  TwoStageResult objects_;  // reused buffers
   PedicelFinderParams finder_;
   double expectation_sd_m_ = 0.0;
   double expectation_max_age_s_ = 0.0;
