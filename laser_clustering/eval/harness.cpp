@@ -121,7 +121,8 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       std::optional<PedicelExpectation> belief = expectation;
       for (int k = 0; k < o.rescans && last.outcome == PedicelOutcome::kMove; ++k) {
         T_world_sensor = T_world_sensor * Eigen::Translation3d(last.lateral_offset_m, 0.0, last.depth_offset_m);
-        belief = expectation_after_centring(finder, belief);
+        belief = o.carry_runners_up ? expectation_after_centring(finder, belief, last)
+                                    : expectation_after_centring(finder, belief);
         const SimulatedScan again =
             scanner.scan(scene.world, T_world_sensor, seed + kRescanSeedStride * static_cast<std::uint64_t>(k + 1));
         const TwoStageResult objects_again = clusterer.run(again.scan);

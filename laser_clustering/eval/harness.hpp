@@ -97,8 +97,13 @@ struct TrussEvalOptions {
   bool use_layout = true;
   /// The closed loop of 4.5: after a move, up to this many further scans,
   /// each re-centring on the pedicel the finder sees in the throat
-  /// (expectation_after_centring). 0: the first scan's move alone.
-  int rescans = 1;
+  /// (expectation_after_centring). 0: the first scan's move alone. Two: a
+  /// re-scan may switch to a runner-up, and the next one re-centres on it.
+  int rescans = 2;
+  /// Each re-scan's expectation carries the previous scan's runners-up with
+  /// their weights (expectation_after_centring with the detection); false:
+  /// the chosen pedicel alone, the before of that change.
+  bool carry_runners_up = true;
 };
 
 /// Runs `trials` seeded trials (seed0, seed0 + 1, ...). `on_trial` (optional)

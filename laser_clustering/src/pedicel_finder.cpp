@@ -143,6 +143,22 @@ PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, cons
   return e;
 }
 
+PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before,
+                                              const PedicelDetection& moved) {
+  PedicelExpectation e = expectation_after_centring(p, before);
+  if (moved.candidates.empty() || !(moved.candidates.front().weight > 0.0)) return e;
+  // The runners-up stay where the move put them, with their weight against
+  // the chosen one's: the next scan, from elsewhere, may see the pedicel
+  // that tells them apart (its layout factor), and then re-centres on the
+  // one it favours.
+  const PedicelCandidate& best = moved.candidates.front();
+  for (std::size_t k = 1; k < moved.candidates.size(); ++k) {
+    const PedicelCandidate& c = moved.candidates[k];
+    e.alternatives.push_back({c.position_xz_m - best.position_xz_m + e.position_xz_m, c.weight / best.weight});
+  }
+  return e;
+}
+
 PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
                               const std::optional<PedicelExpectation>& expectation) {
   PedicelDetection d;
@@ -163,6 +179,16 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
     for (std::size_t i = 0; i < expectation->neighbours.size(); ++i) {
       if (!expectation->neighbours[i].position_xz_m.allFinite()) {
         d.reason = fmt::format("expectation neighbour {} has a non-finite position", i);
+        return d;
+      }
+    }
+  }
+  if (expectation) {
+    for (std::size_t i = 0; i < expectation->alternatives.size(); ++i) {
+      const auto& alt = expectation->alternatives[i];
+      if (!alt.position_xz_m.allFinite() || !(alt.weight > 0.0 && alt.weight <= 1.0)) {
+        d.reason = fmt::format("expectation alternative {} needs a finite position and a weight in (0, 1] (got {})", i,
+                               alt.weight);
         return d;
       }
     }
@@ -210,6 +236,12 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
     cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
     const double zp = (c.centroid_xz_m - expected).norm() / sd;
     cand.position_score = std::exp(-0.5 * zp * zp);
+    if (expectation) {
+      for (const auto& alt : expectation->alternatives) {
+        const double za = (c.centroid_xz_m - alt.position_xz_m).norm() / sd;
+        cand.position_score = std::max(cand.position_score, alt.weight * std::exp(-0.5 * za * za));
+      }
+    }
     d.candidates.push_back(cand);
   }
   if (expectation && !expectation->neighbours.empty()) score_layout(scan, *expectation, p, d.candidates);

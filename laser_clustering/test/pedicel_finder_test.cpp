@@ -151,6 +151,58 @@ TEST(PedicelFinder, AfterCentringThePedicelIsExpectedInTheThroatWithTheLayoutMov
   EXPECT_THAT(bad.reason, HasSubstr("recentre_sd_m must be > 0"));
 }
 
+// The loop carries the first scan's runners-up along: after the move onto
+// the chosen pedicel, each stays where the move put it, with its weight
+// against the chosen one's, and the next scan's layout can overturn the
+// choice (the 1 cm re-centring prior alone never would).
+TEST(PedicelFinder, RunnersUpCarriedIntoTheNextScanCanWinOnItsLayout) {
+  lc::PedicelFinderParams p;  // throat at (0, 0.12)
+  lc::PedicelExpectation before{{0.0, 0.12}, 0.03, {}, 0.015};
+  before.neighbours.push_back({{-0.05, 0.12}, false});
+  lc::PedicelDetection first;
+  first.candidates.resize(3);
+  first.candidates[0].position_xz_m = {0.02, 0.13};
+  first.candidates[0].weight = 0.4;
+  first.candidates[1].position_xz_m = {0.07, 0.125};
+  first.candidates[1].weight = 0.2;
+  first.candidates[2].position_xz_m = {-0.03, 0.12};
+  first.candidates[2].weight = 0.04;
+  const auto after = lc::expectation_after_centring(p, before, first);
+  EXPECT_EQ(after.position_xz_m, Eigen::Vector2d(0.0, 0.12));
+  EXPECT_DOUBLE_EQ(after.sd_m, p.recentre_sd_m);
+  ASSERT_EQ(after.neighbours.size(), 1u);
+  ASSERT_EQ(after.alternatives.size(), 2u);
+  EXPECT_NEAR(after.alternatives[0].position_xz_m.x(), 0.05, 1e-12);
+  EXPECT_NEAR(after.alternatives[0].position_xz_m.y(), 0.115, 1e-12);
+  EXPECT_DOUBLE_EQ(after.alternatives[0].weight, 0.5);
+  EXPECT_NEAR(after.alternatives[1].position_xz_m.x(), -0.05, 1e-12);
+  EXPECT_DOUBLE_EQ(after.alternatives[1].weight, 0.1);
+  // Nothing chosen, nothing carried.
+  EXPECT_TRUE(lc::expectation_after_centring(p, before, lc::PedicelDetection{}).alternatives.empty());
+
+  // The next scan: the chosen pedicel in the throat, the runner-up 5 cm to
+  // +x, and nothing where the layout wants the chosen one's neighbour
+  // (-5 cm): the runner-up explains the chosen one as its neighbour.
+  const auto s = synth_scan({{0.0, 0.12, 0.003, 6.0, 1}, {0.05, 0.12, 0.003, 6.0, 2}}, with_wall(10));
+  lc::PedicelExpectation e = lc::expectation_after_centring(p, before);
+  const auto stay = detect(s.scan, p, e);
+  ASSERT_EQ(stay.outcome, PedicelOutcome::kCutHere) << "without the runner-up: " << stay.reason;
+  e.alternatives.push_back({{0.05, 0.12}, 0.5});
+  const auto moved = detect(s.scan, p, e);
+  ASSERT_EQ(moved.outcome, PedicelOutcome::kMove) << moved.reason;
+  EXPECT_NEAR(moved.lateral_offset_m, 0.05, 0.0015);
+  // A runner-up the first scan barely considered does not.
+  e.alternatives.back().weight = 0.02;
+  EXPECT_EQ(detect(s.scan, p, e).outcome, PedicelOutcome::kCutHere);
+
+  e.alternatives.back().weight = 0.0;
+  const auto bad = detect(s.scan, p, e);
+  EXPECT_EQ(bad.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_THAT(bad.reason, HasSubstr("alternative 0"));
+  e.alternatives.back() = {{std::numeric_limits<double>::quiet_NaN(), 0.12}, 0.5};
+  EXPECT_EQ(detect(s.scan, p, e).outcome, PedicelOutcome::kInvalidInput);
+}
+
 TEST(PedicelFinder, TomatoesAndStemsAloneAreNothingToCut) {
   // A tomato (3 cm radius) and a 2 cm stem: objects in range, none 6 mm wide.
   const auto s = synth_scan({{-0.03, 0.2, 0.03, 6.0, 1}, {0.05, 0.15, 0.01, 6.0, 2}}, with_wall(5));

@@ -84,6 +84,14 @@ struct PedicelExpectation {
   };
   std::vector<Neighbour> neighbours;
   double neighbour_sd_m = 0.015;  ///< error of a neighbour's place relative to the target's [m]
+  /// Other places the pedicel may be, each with its weight relative to
+  /// position_xz_m's (in (0, 1]), within sd_m too (e.g. the previous scan's
+  /// runners-up, expectation_after_centring).
+  struct Alternative {
+    Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();
+    double weight = 1.0;
+  };
+  std::vector<Alternative> alternatives{};
 };
 
 enum class PedicelOutcome {
@@ -135,6 +143,9 @@ struct PedicelDetection {
 /// pedicel. Without `before` the expected pedicel was the throat itself.
 [[nodiscard]] PedicelExpectation expectation_after_centring(const PedicelFinderParams& params,
                                                             const std::optional<PedicelExpectation>& before);
+[[nodiscard]] PedicelExpectation expectation_after_centring(const PedicelFinderParams& params,
+                                                            const std::optional<PedicelExpectation>& before,
+                                                            const PedicelDetection& moved);
 
 /// Picks the pedicel among `objects` (from the same scan). `expectation`
 /// replaces the blade throat as the expected position when given.
