@@ -143,6 +143,10 @@ struct PedicelDetection {
 /// pedicel. Without `before` the expected pedicel was the throat itself.
 [[nodiscard]] PedicelExpectation expectation_after_centring(const PedicelFinderParams& params,
                                                             const std::optional<PedicelExpectation>& before);
+/// The same, carrying `moved`'s runners-up along as `alternatives`: each
+/// where the move put it, weighted by its weight over the chosen one's. The
+/// next scan, from elsewhere, may see the pedicel that tells them apart, and
+/// its layout can then overturn the choice (one more scan re-centres).
 [[nodiscard]] PedicelExpectation expectation_after_centring(const PedicelFinderParams& params,
                                                             const std::optional<PedicelExpectation>& before,
                                                             const PedicelDetection& moved);
