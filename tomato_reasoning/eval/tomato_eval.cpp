@@ -66,11 +66,14 @@ std::vector<std::uint64_t> parse_seeds(const std::string& s) {
 void usage() {
   std::puts(
       "usage: tomato_eval --classes A,B,C --seeds 1-100 --out DIR [--variant NAME]... [--set key=value]...\n"
-      "                   [--kappa-sweep k1,k2,...] [--fit-kappa] [--views 1|2] [--pose-noise M,DEG] [--verify] [--quiet]\n"
+      "                   [--kappa-sweep k1,k2,...] [--fit-kappa] [--views 1|2] [--pose-noise M,DEG] [--verify]\n"
+      "                   [--verify-set key=value]... [--quiet]\n"
       "--fit-kappa: fit force.kernel_kappa on these seeds (HPD50 coverage closest to 50 %, log grid 2..1000),\n"
       "          written to DIR/kappa_fit.csv\n"
       "--verify: laser verification of every detected tomato's pick (first variant), as recognised and with a\n"
       "          random offset < 5 cm (Table 4.3), written to DIR/verification.csv\n"
+      "--verify-set key=value: the verification's options (pulses=10,20,50,120,300 expectation_sd_m=0.015\n"
+      "          max_move_m=0.05 max_turn_deg=60), e.g. to rerun a before/after row\n"
       "variants: ");
   for (const auto& v : eval::variant_names()) std::printf("  %s\n", v.c_str());
   std::puts("keys for --set:");
@@ -89,6 +92,7 @@ int main(int argc, char** argv) {
   bool quiet = false;
   bool verify = false;
   bool fit_kappa = false;
+  std::vector<std::pair<std::string, std::string>> verify_sets;
   eval::ScenarioOptions scenario;
   try {
     for (int i = 1; i < argc; ++i) {
@@ -120,6 +124,11 @@ int main(int argc, char** argv) {
         scenario.pose_noise_deg = std::stod(v[1]);
       } else if (a == "--verify") {
         verify = true;
+      } else if (a == "--verify-set") {
+        const std::string kv = next();
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos) throw std::invalid_argument("--verify-set wants key=value, got '" + kv + "'");
+        verify_sets.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
       } else if (a == "--quiet") quiet = true;
       else if (a == "--help" || a == "-h") {
         usage();
@@ -171,6 +180,12 @@ int main(int argc, char** argv) {
   std::map<std::string, int> vision_ok;
   if (verify) {
     eval::VerificationOptions vo;
+    try {
+      for (const auto& [k, v] : verify_sets) eval::set_verification_option(vo, k, v);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "tomato_eval: --verify-set: %s\n", e.what());
+      return 2;
+    }
     as_recognised = std::make_unique<eval::VerificationHarness>(vo);
     vo.random_offset_m = 0.05;
     with_offset = std::make_unique<eval::VerificationHarness>(vo);

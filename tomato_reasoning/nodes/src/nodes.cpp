@@ -245,7 +245,8 @@ TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) 
   p.force.eps_variance = declare_parameter("force.eps_variance", p.force.eps_variance, "interaction weight variance (Eq. 4.19)",
                                            ParamConstraints::range(1e-6, 10.0));
   p.force.kernel_kappa = declare_parameter("force.kernel_kappa", p.force.kernel_kappa,
-                                           "vMF kernel concentration of the pedicel distribution (0: the thesis's model)",
+                                           "vMF kernel concentration of the pedicel distribution (default: fitted for "
+                                           "calibrated HPD regions; 0: the thesis's model)",
                                            ParamConstraints::range(0.0, 1e6));
   p.force.samples = declare_parameter("force.samples", p.force.samples, "Monte Carlo draws per tomato", ParamConstraints::range(1, 100000));
   p.pick.w_energy_per_m = declare_parameter("pick.w_energy_per_m", p.pick.w_energy_per_m, "Eq. 4.23 sigma_1 [1/m]",
@@ -382,6 +383,13 @@ PickVerifierNode::PickVerifierNode(bus::NodeOptions o) : Node(std::move(o)) {
                                          ParamConstraints::range(0.01, 1.0));
   params_.max_move_m = declare_parameter("max_move_m", params_.max_move_m, "a longer move is not trusted: nothing found [m]",
                                          ParamConstraints::range(0.0, 1.0));
+  params_.max_turn_deg = declare_parameter("max_turn_deg", params_.max_turn_deg,
+                                           "turn the picking pose about the pedicel by up to this to see past a fruit [deg] "
+                                           "(0: straight approach)",
+                                           ParamConstraints::range(0.0, 180.0));
+  params_.view_clearance_m = declare_parameter("view_clearance_m", params_.view_clearance_m,
+                                               "the laser's view of the throat clears other fruit by this [m]",
+                                               ParamConstraints::range(0.0, 0.1));
   max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)", ParamConstraints::range(0, 1000));
   pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pick_pose");
   expected_pub_ = create_publisher<geometry_msgs::msg::PointStamped>("expected_pedicel");
@@ -424,7 +432,14 @@ void PickVerifierNode::next_pick() {
   }
   const int k = m.pick_order[rank_];
   const auto& e = m.tomatoes[std::size_t(k)];
-  pose_ = picking_pose(eig(e.cut_point), eig(e.cut_direction), params_);
+  std::vector<Sphere> fruit;  // turn past a fruit that blocks the laser's view
+  for (const auto& o : m.tomatoes) {
+    Sphere s;
+    s.centre = eig(o.centre);
+    s.radius_m = o.radius_m;
+    fruit.push_back(s);
+  }
+  pose_ = picking_pose(eig(e.cut_point), eig(e.cut_direction), fruit, params_);
   pose_.tomato = pose_.ok() ? k : -1;
   if (!pose_.ok()) {
     msgs::PickVerification v;
