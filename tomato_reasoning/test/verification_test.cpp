@@ -14,8 +14,6 @@ using namespace tinyline::tomato_reasoning;
 #ifdef TINYLINE_TOMATO_HAVE_LASER
 TEST(LaserVerification, ConfirmsOrRelocatesThePedicelOfSimpleTrusses) {
   eval::VerificationOptions o;
-  o.calibration_sets = 1;  // a lighter calibration rail than the scoring's (seconds less)
-  o.calibration_step_m = 0.02;
   eval::VerificationHarness as_recognised(o);
   o.random_offset_m = 0.05;
   eval::VerificationHarness offset(o);

@@ -76,13 +76,17 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
     const double v = number(value);
     if (!(v > 0)) throw std::invalid_argument("option '" + key + "' must be > 0");
     (key == "max_move_m" ? o.pose.max_move_m : o.expectation_sd_m) = v;
+  } else if (key == "calibration_max_m") {
+    const double v = number(value);
+    if (!(v > 0.1 && v <= 2.0)) throw std::invalid_argument("option 'calibration_max_m' must be in (0.1, 2] m");
+    o.calibration_max_m = v;
   } else if (key == "max_turn_deg") {  // 0: the straight approach, whatever is in front
     const double v = number(value);
     if (!(v >= 0 && v <= 180)) throw std::invalid_argument("option 'max_turn_deg' must be in [0, 180]");
     o.pose.max_turn_deg = v;
   } else {
     throw std::invalid_argument("unknown option '" + key +
-                                "' (pulses, expectation_sd_m, max_move_m, max_turn_deg)");
+                                "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m)");
   }
 }
 
