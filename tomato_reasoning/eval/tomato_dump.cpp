@@ -13,6 +13,7 @@
 //                      gravity-aligned frame (z up; Figure 4.5), 72 x 36
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -25,8 +26,8 @@ using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
 
 int main(int argc, char** argv) {
-  if (argc != 4) {
-    std::fprintf(stderr, "usage: tomato_dump CLASS SEED OUT_DIR\n");
+  if (argc != 4 && argc != 5) {
+    std::fprintf(stderr, "usage: tomato_dump CLASS SEED OUT_DIR [KERNEL_KAPPA]   (default: the fitted force.kernel_kappa)\n");
     return 2;
   }
   const auto cls = sim::parse_truss_class(argv[1]);
@@ -40,6 +41,14 @@ int main(int argc, char** argv) {
   const eval::Scenario s = eval::make_scenario(*cls, seed);
   PipelineParams p;
   p.gravity = s.gravity_camera;
+  if (argc == 5) {
+    char* end = nullptr;
+    p.force.kernel_kappa = std::strtod(argv[4], &end);
+    if (end == argv[4] || *end != '\0' || !(p.force.kernel_kappa >= 0)) {
+      std::fprintf(stderr, "tomato_dump: KERNEL_KAPPA '%s' is not a number >= 0\n", argv[4]);
+      return 2;
+    }
+  }
   const PipelineResult r = TomatoPipeline(p).run(s.cloud());
   std::printf("class %c seed %llu: %zu true tomatoes, %zu spheres (%s%s%s)\n", char(*cls), static_cast<unsigned long long>(seed),
               s.truth.size(), r.tomatoes.size(), r.ok ? "ok" : r.stage.c_str(), r.ok ? "" : ": ", r.reason.c_str());

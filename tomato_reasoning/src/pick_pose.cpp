@@ -1,6 +1,8 @@
 #include "tomato_reasoning/pick_pose.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace tinyline::tomato_reasoning {
 
@@ -27,14 +29,56 @@ PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& p
   return pose;
 }
 
+PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis, const std::vector<Sphere>& fruit,
+                      const PickPoseParams& p) {
+  const PickPose pose = picking_pose(cut_point, pedicel_axis, p);
+  if (!pose.ok() || !(p.max_turn_deg > 0)) return pose;
+  // How far the laser's rays to the throat (and a blade opening either side)
+  // pass from the fruit that cut the scan plane [m]; negative: blocked.
+  auto clearance = [&](const Eigen::Isometry3d& T_ref_laser) {
+    const Eigen::Isometry3d T = T_ref_laser.inverse();
+    double worst = std::numeric_limits<double>::infinity();
+    for (const Sphere& o : fruit) {
+      const Eigen::Vector3d c = T * o.centre;
+      const double r2 = o.radius_m * o.radius_m - c.y() * c.y();
+      if (!(r2 > 0)) continue;  // off the plane (or not finite)
+      const Eigen::Vector2d q(c.x(), c.z());
+      for (double dx : {-0.02, 0.0, 0.02}) {
+        const Eigen::Vector2d end(dx, p.throat_z_m);
+        const double s = std::clamp(q.dot(end) / end.squaredNorm(), 0.0, 1.0);
+        worst = std::min(worst, (q - s * end).norm() - std::sqrt(r2));
+      }
+    }
+    return worst;
+  };
+  PickPose best = pose;
+  double best_clear = clearance(pose.T_ref_laser);
+  if (best_clear >= p.view_clearance_m) return pose;
+  // The smallest turn that clears the view, else the clearest.
+  for (double step = 15.0; step <= p.max_turn_deg + 1e-9; step += 15.0) {
+    for (double sign : {1.0, -1.0}) {
+      PickPose turned = pose;
+      const Eigen::Matrix3d R = Eigen::AngleAxisd(sign * step * M_PI / 180.0, pose.pedicel_axis).toRotationMatrix();
+      turned.T_ref_laser.linear() = R * pose.T_ref_laser.linear();
+      turned.T_ref_laser.translation() = pose.cut_point - p.throat_z_m * turned.T_ref_laser.linear().col(2);
+      const double c = clearance(turned.T_ref_laser);
+      if (c >= p.view_clearance_m) return turned;
+      if (c > best_clear) best = turned, best_clear = c;
+    }
+  }
+  return best;
+}
+
 PickPose picking_pose(const PipelineResult& r, int index, const PickPoseParams& p) {
   if (index < 0 || static_cast<std::size_t>(index) >= r.tomatoes.size()) {
     PickPose pose;
     pose.reason = "tomato " + std::to_string(index) + " of " + std::to_string(r.tomatoes.size());
     return pose;
   }
+  std::vector<Sphere> fruit;
+  for (const Tomato& t : r.tomatoes) fruit.push_back(t.fit.sphere);
   const Tomato& t = r.tomatoes[static_cast<std::size_t>(index)];
-  PickPose pose = picking_pose(t.cut.point, t.cut.direction, p);
+  PickPose pose = picking_pose(t.cut.point, t.cut.direction, fruit, p);
   if (pose.ok()) pose.tomato = index;
   return pose;
 }

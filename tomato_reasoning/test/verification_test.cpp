@@ -14,8 +14,6 @@ using namespace tinyline::tomato_reasoning;
 #ifdef TINYLINE_TOMATO_HAVE_LASER
 TEST(LaserVerification, ConfirmsOrRelocatesThePedicelOfSimpleTrusses) {
   eval::VerificationOptions o;
-  o.calibration_sets = 1;  // a lighter calibration rail than the scoring's (seconds less)
-  o.calibration_step_m = 0.02;
   eval::VerificationHarness as_recognised(o);
   o.random_offset_m = 0.05;
   eval::VerificationHarness offset(o);
@@ -47,5 +45,30 @@ TEST(LaserVerification, ConfirmsOrRelocatesThePedicelOfSimpleTrusses) {
   // Up to 5 cm off, vision alone rarely ends on the pedicel; the laser moves it there.
   EXPECT_GT(offset_aligned, offset_vision);
   EXPECT_GE(2 * offset_aligned, offset_trials);
+}
+
+TEST(LaserVerification, OptionsBySettingParseOrSayWhatIsWrong) {
+  eval::VerificationOptions o;
+  EXPECT_EQ(o.raw_pulses, (std::vector<int>{10, 20, 50, 120, 300}));  // realisable: pulse counts in tens
+  eval::set_verification_option(o, "pulses", "3,8,25,80,250");
+  EXPECT_EQ(o.raw_pulses, (std::vector<int>{3, 8, 25, 80, 250}));
+  eval::set_verification_option(o, "max_move_m", "0.08");
+  EXPECT_DOUBLE_EQ(o.pose.max_move_m, 0.08);
+  eval::set_verification_option(o, "max_turn_deg", "0");
+  EXPECT_DOUBLE_EQ(o.pose.max_turn_deg, 0.0);
+  auto why = [&](const std::string& k, const std::string& v) {
+    try {
+      eval::set_verification_option(o, k, v);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(why("pulses", "10,x").find("not a number"), std::string::npos);
+  EXPECT_NE(why("pulses", "10,,20").find("not a number"), std::string::npos);
+  EXPECT_NE(why("pulses", "2.5").find("whole"), std::string::npos);
+  EXPECT_NE(why("max_move_m", "-1").find("> 0"), std::string::npos);
+  EXPECT_NE(why("max_turn_deg", "nan").find("not a number"), std::string::npos);
+  EXPECT_NE(why("kappa", "1").find("unknown option"), std::string::npos);
 }
 #endif

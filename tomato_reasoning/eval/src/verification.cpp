@@ -1,6 +1,8 @@
 #include "tomato_reasoning/eval/verification.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include <laser_clustering/pedicel_finder.hpp>
 #include <laser_clustering/two_stage.hpp>
@@ -45,6 +47,48 @@ bool crossing(const Eigen::Isometry3d& T_ref_laser, const Eigen::Vector3d& a, co
 }
 
 }  // namespace
+
+void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value) {
+  auto number = [&](const std::string& text) {
+    std::size_t used = 0;
+    double v = NAN;
+    try {
+      v = std::stod(text, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != text.size() || !std::isfinite(v))
+      throw std::invalid_argument("option '" + key + "': '" + text + "' is not a number");
+    return v;
+  };
+  if (key == "pulses") {
+    std::vector<int> pulses;
+    std::size_t from = 0;
+    while (from <= value.size()) {
+      const std::size_t comma = std::min(value.find(',', from), value.size());
+      const double n = number(value.substr(from, comma - from));
+      if (!(n >= 1) || n != std::floor(n)) throw std::invalid_argument("option 'pulses': counts must be whole and >= 1");
+      pulses.push_back(static_cast<int>(n));
+      from = comma + 1;
+    }
+    o.raw_pulses = pulses;
+  } else if (key == "expectation_sd_m" || key == "max_move_m") {
+    const double v = number(value);
+    if (!(v > 0)) throw std::invalid_argument("option '" + key + "' must be > 0");
+    (key == "max_move_m" ? o.pose.max_move_m : o.expectation_sd_m) = v;
+  } else if (key == "calibration_max_m") {
+    const double v = number(value);
+    if (!(v > 0.1 && v <= 2.0)) throw std::invalid_argument("option 'calibration_max_m' must be in (0.1, 2] m");
+    o.calibration_max_m = v;
+  } else if (key == "max_turn_deg") {  // 0: the straight approach, whatever is in front
+    const double v = number(value);
+    if (!(v >= 0 && v <= 180)) throw std::invalid_argument("option 'max_turn_deg' must be in [0, 180]");
+    o.pose.max_turn_deg = v;
+  } else {
+    throw std::invalid_argument("unknown option '" + key +
+                                "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m)");
+  }
+}
 
 const char* to_string(PickVerdict v) {
   switch (v) {

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -33,6 +34,12 @@ struct PickPoseParams {
   /// far off (Table 4.3 tried offsets up to 5 cm), so the finder has chosen
   /// another pedicel or a stem; the verification then says nothing found.
   double max_move_m = 0.05;
+  /// The laser's view of the throat along its scan plane must clear the
+  /// other tomatoes by this much [m]: the pose may turn about the pedicel, by
+  /// up to max_turn_deg from the straight approach, to see past a fruit in
+  /// front (0: always the straight approach).
+  double view_clearance_m = 0.01;
+  double max_turn_deg = 60.0;
 };
 
 struct PickPose {
@@ -44,11 +51,15 @@ struct PickPose {
   [[nodiscard]] bool ok() const { return tomato >= 0; }
 };
 
-/// The picking pose for tomato `index` of a pipeline result (its cut plan).
+/// The picking pose for tomato `index` of a pipeline result (its cut plan),
+/// turned about the pedicel when a fruit of the result blocks the view.
 [[nodiscard]] PickPose picking_pose(const PipelineResult& result, int index, const PickPoseParams& params = {});
-/// The same from a cut point and pedicel direction.
+/// The same from a cut point and pedicel direction (the straight approach).
 [[nodiscard]] PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis,
                                     const PickPoseParams& params = {});
+/// ... turned about the pedicel when one of `fruit` blocks the view.
+[[nodiscard]] PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis,
+                                    const std::vector<Sphere>& fruit, const PickPoseParams& params = {});
 
 /// What the pedicel finder said about the scan at the picking pose (laser
 /// frame offsets, as laser_clustering::PedicelDetection gives them).

@@ -3,7 +3,11 @@
 // tomato_reasoning/truss_camera  a seeded truss of class A, B or C seen by the
 //     simulated RGB-D camera: `cloud` (PointCloud2, organised XYZRGB in the
 //     camera's optical frame) and `truth` (MarkerArray: the true spheres and
-//     pedicels) at rate_hz.
+//     pedicels) at rate_hz. With `views: 2` also the second hand-camera view
+//     of the thesis's robot (4.5; it orbits the truss by 35 deg): `cloud2`
+//     and `cloud2_pose` (its pose in `cloud`'s frame as the robot knows it,
+//     off by the calibration residual), published before `cloud` with the
+//     same stamp.
 // tomato_reasoning/hand_laser    the tiny laser on the hand in the same truss:
 //     on `pick_pose` (PoseStamped, camera frame) it scans from that pose
 //     (the project's TOF sensor model and the driver's processing) and
@@ -60,13 +64,21 @@ class TrussCameraNode : public bus::Node {
     seed_ = declare_parameter("seed", 1, "truss seed (the same seed gives the same truss)", ParamConstraints::range(0, 1 << 30));
     rate_hz_ = declare_parameter("rate_hz", 1.0, "frames per second", ParamConstraints::range(0.01, 30.0));
     frame_id_ = declare_parameter<std::string>("frame_id", "camera", "the camera's optical frame");
+    views_ = declare_parameter("views", 1, "1: one hand-camera view (cloud); 2: also cloud2 and cloud2_pose",
+                               ParamConstraints::range(1, 2));
     cloud_pub_ = create_publisher<sensor_msgs::msg::PointCloud2>("cloud");
+    if (views_ == 2) {
+      cloud2_pub_ = create_publisher<sensor_msgs::msg::PointCloud2>("cloud2");
+      pose2_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("cloud2_pose");
+    }
     truth_pub_ = create_publisher<visualization_msgs::msg::MarkerArray>("truth");
   }
   void on_start() override {
-    scenario_ = std::make_unique<eval::Scenario>(eval::make_scenario(class_, std::uint64_t(seed_)));
-    logger().info("truss class {} seed {}: {} tomatoes, camera {:.2f} m away", char(class_), seed_, scenario_->truth.size(),
-                  scenario_->truss.params.camera_distance_m);
+    eval::ScenarioOptions so;
+    so.views = views_;
+    scenario_ = std::make_unique<eval::Scenario>(eval::make_scenario(class_, std::uint64_t(seed_), so));
+    logger().info("truss class {} seed {}: {} tomatoes, camera {:.2f} m away, {} view(s)", char(class_), seed_,
+                  scenario_->truth.size(), scenario_->truss.params.camera_distance_m, views_);
     // The first frame one period after start: every node (the recorder too) is listening by then.
     timer_ = create_timer(std::chrono::nanoseconds(std::int64_t(1e9 / rate_hz_)), [this] { tick(); });
   }
@@ -77,6 +89,22 @@ class TrussCameraNode : public bus::Node {
     c->header.stamp = now().to_msg();
     c->header.frame_id = frame_id_;
     to_msg(scenario_->cloud(), *c);
+    if (views_ == 2) {
+      // The second view first: the detector fuses when the reference cloud arrives.
+      auto c2 = std::make_unique<sensor_msgs::msg::PointCloud2>();
+      c2->header.stamp = c->header.stamp;
+      c2->header.frame_id = frame_id_ + "_2";
+      to_msg(scenario_->clouds[1], *c2);
+      auto p2 = std::make_unique<geometry_msgs::msg::PoseStamped>();
+      p2->header.stamp = c->header.stamp;
+      p2->header.frame_id = frame_id_;
+      const Eigen::Isometry3d& T = scenario_->T_ref_camera[1];
+      const Eigen::Quaterniond q(T.linear());
+      p2->pose.position.x = T.translation().x(), p2->pose.position.y = T.translation().y(), p2->pose.position.z = T.translation().z();
+      p2->pose.orientation.w = q.w(), p2->pose.orientation.x = q.x(), p2->pose.orientation.y = q.y(), p2->pose.orientation.z = q.z();
+      cloud2_pub_->publish(std::move(c2));
+      pose2_pub_->publish(std::move(p2));
+    }
     auto t = std::make_unique<visualization_msgs::msg::MarkerArray>();
     for (std::size_t i = 0; i < scenario_->truth.size(); ++i) {
       const auto& x = scenario_->truth[i];
@@ -101,9 +129,11 @@ class TrussCameraNode : public bus::Node {
   sim::TrussClass class_ = sim::TrussClass::kB;
   int seed_ = 1;
   double rate_hz_ = 1.0;
+  int views_ = 1;
   std::string frame_id_;
   std::unique_ptr<eval::Scenario> scenario_;
-  std::shared_ptr<bus::Publisher<sensor_msgs::msg::PointCloud2>> cloud_pub_;
+  std::shared_ptr<bus::Publisher<sensor_msgs::msg::PointCloud2>> cloud_pub_, cloud2_pub_;
+  std::shared_ptr<bus::Publisher<geometry_msgs::msg::PoseStamped>> pose2_pub_;
   std::shared_ptr<bus::Publisher<visualization_msgs::msg::MarkerArray>> truth_pub_;
   std::shared_ptr<bus::Timer> timer_;
 };

@@ -245,7 +245,8 @@ TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) 
   p.force.eps_variance = declare_parameter("force.eps_variance", p.force.eps_variance, "interaction weight variance (Eq. 4.19)",
                                            ParamConstraints::range(1e-6, 10.0));
   p.force.kernel_kappa = declare_parameter("force.kernel_kappa", p.force.kernel_kappa,
-                                           "vMF kernel concentration of the pedicel distribution (0: the thesis's model)",
+                                           "vMF kernel concentration of the pedicel distribution (default: fitted for "
+                                           "calibrated HPD regions; 0: the thesis's model)",
                                            ParamConstraints::range(0.0, 1e6));
   p.force.samples = declare_parameter("force.samples", p.force.samples, "Monte Carlo draws per tomato", ParamConstraints::range(1, 100000));
   p.pick.w_energy_per_m = declare_parameter("pick.w_energy_per_m", p.pick.w_energy_per_m, "Eq. 4.23 sigma_1 [1/m]",
@@ -267,25 +268,106 @@ TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) 
   } catch (const std::invalid_argument& e) {
     throw bus::ParamError({}, "node '" + full_name() + "': " + e.what());
   }
+  views_ = declare_parameter("views", 1,
+                              "camera views fused per detection: 1 (cloud), or 2 (cloud + cloud2 at cloud2_pose), as the "
+                              "thesis's robot (4.5)",
+                              ParamConstraints::range(1, 2));
   pub_ = create_publisher<msgs::TomatoEstimates>("tomatoes");
   markers_pub_ = create_publisher<visualization_msgs::msg::MarkerArray>("markers");
   sub_ = create_subscription<sensor_msgs::msg::PointCloud2>("cloud", bus::QoS::keep_last(2),
                                                             [this](const sensor_msgs::msg::PointCloud2& m) { on_cloud(m); });
+  if (views_ == 2) {
+    sub2_ = create_subscription<sensor_msgs::msg::PointCloud2>("cloud2", bus::QoS::keep_last(2),
+                                                               [this](const sensor_msgs::msg::PointCloud2& m) { on_cloud2(m); });
+    pose2_sub_ = create_subscription<geometry_msgs::msg::PoseStamped>(
+        "cloud2_pose", bus::QoS::keep_last(4), [this](const geometry_msgs::msg::PoseStamped& m) { on_cloud2_pose(m); });
+  }
 }
 
+namespace {
+bool same_stamp(const std_msgs::msg::Header& a, const std_msgs::msg::Header& b) {
+  return a.stamp.sec == b.stamp.sec && a.stamp.nanosec == b.stamp.nanosec;
+}
+}  // namespace
+
 void TomatoDetectorNode::on_cloud(const sensor_msgs::msg::PointCloud2& m) {
-  auto out = std::make_unique<msgs::TomatoEstimates>();
-  out->header = m.header;
-  if (const auto bad = to_core(m, cloud_); !bad.empty()) {
-    logger().warn("{}", bad);
+  header_ = m.header;
+  if (auto bad = to_core(m, cloud_); !bad.empty()) {
+    // Said at once (whatever the other view brings): this cloud cannot be used.
+    auto out = std::make_unique<msgs::TomatoEstimates>();
+    out->header = m.header;
     out->stage = "input";
-    out->reason = bad;
+    out->reason = views_ == 2 ? "view 0 (cloud): " + bad : bad;
     out->gravity = vec(pipeline_->params().gravity);
+    logger().warn("{}", out->reason);
+    header_.reset();
+    publish(std::move(out));
+    return;
+  }
+  detect();
+}
+
+void TomatoDetectorNode::on_cloud2(const sensor_msgs::msg::PointCloud2& m) {
+  header2_ = m.header;
+  bad_ = to_core(m, cloud2_);
+  if (!bad_.empty()) bad_ = "view 1 (cloud2): " + bad_;
+  detect();
+}
+
+void TomatoDetectorNode::on_cloud2_pose(const geometry_msgs::msg::PoseStamped& m) {
+  const auto& q = m.pose.orientation;
+  const Eigen::Quaterniond rot(q.w, q.x, q.y, q.z);
+  const Eigen::Vector3d t(m.pose.position.x, m.pose.position.y, m.pose.position.z);
+  pose2_header_ = m.header;
+  if (!rot.coeffs().allFinite() || !t.allFinite() || std::abs(rot.norm() - 1.0) > 1e-3) {
+    // Not normalised silently: a bad quaternion means a broken pose source.
+    T_ref_camera2_.matrix().setConstant(std::numeric_limits<double>::quiet_NaN());
   } else {
+    T_ref_camera2_ = Eigen::Isometry3d::Identity();
+    T_ref_camera2_.linear() = rot.normalized().toRotationMatrix();
+    T_ref_camera2_.translation() = t;
+  }
+  detect();
+}
+
+void TomatoDetectorNode::detect() {
+  if (!header_) return;
+  auto out = std::make_unique<msgs::TomatoEstimates>();
+  out->header = *header_;
+  if (views_ == 1) {
     const PipelineResult r = pipeline_->run(cloud_);
     to_msg(r, pipeline_->params().gravity, *out);
     if (!r.ok) logger().info("no tomatoes ({}): {}", r.stage, r.reason);
+  } else {
+    // One detection per stamp: wait for the other view and its pose.
+    if (!header2_ || !pose2_header_ || !same_stamp(*header_, *header2_) || !same_stamp(*header_, *pose2_header_)) return;
+    if (!bad_.empty()) {
+      out->stage = "input";
+      out->reason = bad_;
+      out->gravity = vec(pipeline_->params().gravity);
+      logger().warn("{}", bad_);
+    } else if (!T_ref_camera2_.matrix().allFinite()) {
+      out->stage = "input";
+      out->reason = "cloud2_pose is not a finite pose with a unit quaternion";
+      out->gravity = vec(pipeline_->params().gravity);
+      logger().warn("{}", out->reason);
+    } else {
+      View v0, v1;
+      v0.cloud = &cloud_;
+      v1.cloud = &cloud2_;
+      v1.T_ref_camera = T_ref_camera2_;
+      const PipelineResult r = pipeline_->run(std::vector<View>{v0, v1});
+      to_msg(r, pipeline_->params().gravity, *out);
+      if (!r.ok) logger().info("no tomatoes ({}): {}", r.stage, r.reason);
+    }
   }
+  header_.reset();
+  header2_.reset();
+  pose2_header_.reset();
+  publish(std::move(out));
+}
+
+void TomatoDetectorNode::publish(std::unique_ptr<msgs::TomatoEstimates> out) {
   if (markers_pub_->subscription_count() > 0) {
     auto mk = std::make_unique<visualization_msgs::msg::MarkerArray>();
     to_markers(*out, *mk);
@@ -301,6 +383,13 @@ PickVerifierNode::PickVerifierNode(bus::NodeOptions o) : Node(std::move(o)) {
                                          ParamConstraints::range(0.01, 1.0));
   params_.max_move_m = declare_parameter("max_move_m", params_.max_move_m, "a longer move is not trusted: nothing found [m]",
                                          ParamConstraints::range(0.0, 1.0));
+  params_.max_turn_deg = declare_parameter("max_turn_deg", params_.max_turn_deg,
+                                           "turn the picking pose about the pedicel by up to this to see past a fruit [deg] "
+                                           "(0: straight approach)",
+                                           ParamConstraints::range(0.0, 180.0));
+  params_.view_clearance_m = declare_parameter("view_clearance_m", params_.view_clearance_m,
+                                               "the laser's view of the throat clears other fruit by this [m]",
+                                               ParamConstraints::range(0.0, 0.1));
   max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)", ParamConstraints::range(0, 1000));
   pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pick_pose");
   expected_pub_ = create_publisher<geometry_msgs::msg::PointStamped>("expected_pedicel");
@@ -343,7 +432,14 @@ void PickVerifierNode::next_pick() {
   }
   const int k = m.pick_order[rank_];
   const auto& e = m.tomatoes[std::size_t(k)];
-  pose_ = picking_pose(eig(e.cut_point), eig(e.cut_direction), params_);
+  std::vector<Sphere> fruit;  // turn past a fruit that blocks the laser's view
+  for (const auto& o : m.tomatoes) {
+    Sphere s;
+    s.centre = eig(o.centre);
+    s.radius_m = o.radius_m;
+    fruit.push_back(s);
+  }
+  pose_ = picking_pose(eig(e.cut_point), eig(e.cut_direction), fruit, params_);
   pose_.tomato = pose_.ok() ? k : -1;
   if (!pose_.ok()) {
     msgs::PickVerification v;

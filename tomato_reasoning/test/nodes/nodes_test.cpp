@@ -13,10 +13,12 @@
 #include <laser_clustering/nodes/register.hpp>
 
 #include "tomato_reasoning/nodes/nodes.hpp"
+#include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/nodes/register.hpp"
 
 namespace bus = tinyline::bus;
 namespace tr = tinyline::tomato_reasoning;
+using tinyline::geometry_msgs::msg::PoseStamped;
 using tinyline::sensor_msgs::msg::PointCloud2;
 using tinyline::tinyline_msgs::msg::PickVerification;
 using tinyline::tinyline_msgs::msg::TomatoEstimates;
@@ -89,10 +91,13 @@ TEST(TomatoNodes, HarvestPipelineFindsOrdersAndVerifiesEveryTomato) {
   Harness h;
   bus::NodeOptions cam, det, ver, laser, finder;
   cam.name = "camera";
-  cam.param("truss_class", std::string("A")).param("seed", std::int64_t(3)).param("rate_hz", 1.0);
-  cam.remap("cloud", "/camera/cloud").remap("truth", "/camera/truth");
+  // Two hand-camera views, as the launch file (and the thesis's robot).
+  cam.param("truss_class", std::string("A")).param("seed", std::int64_t(3)).param("rate_hz", 1.0).param("views", std::int64_t(2));
+  cam.remap("cloud", "/camera/cloud").remap("cloud2", "/camera2/cloud").remap("cloud2_pose", "/camera2/pose");
+  cam.remap("truth", "/camera/truth");
   det.name = "detector";
-  det.remap("cloud", "/camera/cloud").remap("tomatoes", "/tomatoes").remap("markers", "/tomatoes/markers");
+  det.param("views", std::int64_t(2)).remap("cloud", "/camera/cloud").remap("cloud2", "/camera2/cloud");
+  det.remap("cloud2_pose", "/camera2/pose").remap("tomatoes", "/tomatoes").remap("markers", "/tomatoes/markers");
   ver.name = "verifier";
   ver.remap("tomatoes", "/tomatoes").remap("pick_pose", "/hand/pick_pose").remap("expected_pedicel", "/hand/expected_pedicel");
   ver.remap("pedicel", "/hand/pedicel").remap("verification", "/verification").remap("markers", "/verification/markers");
@@ -139,4 +144,110 @@ TEST(TomatoNodes, HarvestPipelineFindsOrdersAndVerifiesEveryTomato) {
   ASSERT_FALSE(markers.empty());
   EXPECT_GE(markers.front()->markers.size(), 1 + 4 * t.tomatoes.size());
   EXPECT_TRUE(h.log->contains(bus::LogLevel::Info, "harvest summary"));
+}
+
+// The thesis's robot took two hand-camera views (4.5): the camera publishes
+// the second view and its pose, the detector with views: 2 fuses them, and on
+// dense class C trusses it finds fruit the one-view detector on the same
+// first view cannot see.
+TEST(TomatoNodes, TwoViewDetectorFusesTheSecondViewAtItsPose) {
+  int truth = 0, found_one = 0, found_two = 0;
+  for (std::int64_t seed : {1002, 1004}) {  // the core test's trusses (Pipeline.TwoViewsRecoverFruitOneViewCannotSee)
+    Harness h;
+    bus::NodeOptions cam, one, two;
+    cam.name = "camera";
+    cam.param("truss_class", std::string("C")).param("seed", seed).param("rate_hz", 1.0).param("views", std::int64_t(2));
+    one.name = "one_view";
+    one.remap("tomatoes", "/one/tomatoes");
+    two.name = "two_views";
+    two.param("views", std::int64_t(2)).remap("tomatoes", "/two/tomatoes");
+    h.add("tomato_reasoning", "truss_camera", cam);
+    h.add("tomato_reasoning", "tomato_detector", one);
+    h.add("tomato_reasoning", "tomato_detector", two);
+    std::vector<std::shared_ptr<const TomatoEstimates>> got1, got2;
+    auto s1 = h.io->create_subscription<TomatoEstimates>("/one/tomatoes", bus::QoS::keep_last(4),
+                                                         [&](const std::shared_ptr<const TomatoEstimates>& m) { got1.push_back(m); });
+    auto s2 = h.io->create_subscription<TomatoEstimates>("/two/tomatoes", bus::QoS::keep_last(4),
+                                                         [&](const std::shared_ptr<const TomatoEstimates>& m) { got2.push_back(m); });
+    h.ex.advance_to(bus::Time::from_seconds(100.0));  // starts the nodes; the first frame one period later
+    h.ex.advance_to(bus::Time::from_seconds(101.0));
+    h.ex.spin_until_idle();
+    ASSERT_EQ(got1.size(), 1u);
+    ASSERT_EQ(got2.size(), 1u);
+    EXPECT_EQ(got2.front()->header.frame_id, "camera");  // results in the first view's frame
+    tr::eval::ScenarioOptions so;
+    so.views = 2;
+    const auto sc = tr::eval::make_scenario(tinyline::sim::TrussClass::kC, std::uint64_t(seed), so);
+    auto detected = [&](const TomatoEstimates& m) {
+      int n = 0;
+      for (const auto& t : sc.truth) {
+        bool hit = false;
+        for (const auto& e : m.tomatoes)
+          hit |= (Eigen::Vector3d(e.centre.x, e.centre.y, e.centre.z) - t.centre_m).norm() <= 0.01;
+        n += hit;
+      }
+      return n;
+    };
+    truth += int(sc.truth.size());
+    found_one += detected(*got1.front());
+    found_two += detected(*got2.front());
+  }
+  EXPECT_GT(found_two, found_one);
+  EXPECT_GE(found_two, truth - 1);
+}
+
+TEST(TomatoNodes, TwoViewDetectorWaitsForBothViewsAndRejectsABadPose) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "detector";
+  o.param("views", std::int64_t(2));
+  h.add("tomato_reasoning", "tomato_detector", o);
+  std::vector<std::shared_ptr<const TomatoEstimates>> got;
+  auto sub = h.io->create_subscription<TomatoEstimates>("tomatoes", bus::QoS::keep_last(10),
+                                                        [&](const std::shared_ptr<const TomatoEstimates>& m) { got.push_back(m); });
+  auto cloud = h.io->create_publisher<PointCloud2>("cloud");
+  auto cloud2 = h.io->create_publisher<PointCloud2>("cloud2");
+  auto pose2 = h.io->create_publisher<PoseStamped>("cloud2_pose");
+  h.ex.spin_until_idle();
+  tr::ColorCloud red;
+  for (int i = 0; i < 400; ++i) red.push_back({0.002f * float(i % 20), 0.002f * float(i / 20), 0.5f}, {200, 40, 30});
+  auto send_cloud = [&](auto& pub, int sec) {
+    auto m = std::make_unique<PointCloud2>();
+    tr::nodes::to_msg(red, *m);
+    m->header.stamp.sec = sec;
+    pub->publish(std::move(m));
+  };
+  auto send_pose = [&](int sec, double qw) {
+    auto p = std::make_unique<PoseStamped>();
+    p->header.stamp.sec = sec;
+    p->pose.orientation.w = qw;
+    pose2->publish(std::move(p));
+  };
+  send_cloud(cloud, 1);
+  send_cloud(cloud2, 1);
+  h.ex.spin_until_idle();
+  EXPECT_TRUE(got.empty());  // no pose for the second view yet
+  send_pose(2, 1.0);         // another stamp: still waiting
+  h.ex.spin_until_idle();
+  EXPECT_TRUE(got.empty());
+  send_pose(1, 0.5);  // not a unit quaternion
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0]->stage, "input");
+  EXPECT_NE(got[0]->reason.find("cloud2_pose"), std::string::npos) << got[0]->reason;
+  send_cloud(cloud2, 3);
+  send_pose(3, 1.0);
+  auto broken = std::make_unique<PointCloud2>();  // a reference view without fields: said at once
+  broken->header.stamp.sec = 3;
+  cloud->publish(std::move(broken));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[1]->stage, "input");
+  EXPECT_NE(got[1]->reason.find("view 0"), std::string::npos) << got[1]->reason;
+  send_cloud(cloud, 4);
+  send_cloud(cloud2, 4);
+  send_pose(4, 1.0);  // both views of one stamp at a good pose: a detection runs
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 3u);
+  EXPECT_NE(got[2]->stage, "input") << got[2]->reason;
 }

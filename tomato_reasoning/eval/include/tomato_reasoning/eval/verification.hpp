@@ -32,14 +32,23 @@ struct VerificationOptions {
   /// laser_clustering's evaluation configures its gripper scanner (the
   /// default 20..700 pulses saturate every pixel nearer than about 20 cm).
   std::string sensor_config = "tiny_tof_3p6mm.yaml";
-  std::vector<int> raw_pulses{3, 8, 25, 80, 250};
-  double calibration_max_m = 0.6;
+  /// Pulse counts of the raw read-outs, realisable on the wire (multiples of 10).
+  std::vector<int> raw_pulses{10, 20, 50, 120, 300};
+  /// The calibration rail spans the finder's working range (5-35 cm): fitted
+  /// out to 60 cm, the 10..300-pulse read-outs put pedicels 15 mm too far
+  /// (median), so the blades closed short of them.
+  double calibration_max_m = 0.35;
   double calibration_step_m = 0.01;
   int calibration_sets = 3;
   /// How far the pedicel may be from the throat, for the finder's ranking [m]
   /// (laser_clustering's pedicel_finder node default).
   double expectation_sd_m = 0.015;
 };
+
+/// Sets one option by name (pulses=10,20,50,120,300,
+/// expectation_sd_m, max_move_m, max_turn_deg); throws
+/// std::invalid_argument saying what is wrong.
+void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value);
 
 /// Table 4.3's columns, plus the verifier's "nothing found".
 enum class PickVerdict { kAligned, kWrong, kOutOfView, kNothingFound };

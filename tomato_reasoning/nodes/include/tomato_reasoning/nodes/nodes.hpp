@@ -5,7 +5,12 @@
 //                  (tinyline_msgs/TomatoEstimates: spheres, pedicel
 //                  estimates, pick order, cut plans) and markers
 //                  (visualization_msgs/MarkerArray: spheres, pedicel arrows,
-//                  contact edges, pick ranks) for Foxglove.
+//                  contact edges, pick ranks) for Foxglove. With `views: 2`
+//                  (the thesis's robot, 4.5) it fuses a second view: `cloud2`
+//                  and `cloud2_pose` (PoseStamped: that camera's pose in
+//                  `cloud`'s frame, as the kinematics and the hand-camera
+//                  calibration give it); the three with the same stamp make
+//                  one detection, in `cloud`'s frame.
 // pick_verifier    tomatoes -> for each tomato in pick order: the hand
 //                  laser's picking pose (`pick_pose`, PoseStamped) and the
 //                  expected pedicel in the laser's frame (`expected_pedicel`,
@@ -50,11 +55,21 @@ class TomatoDetectorNode : public bus::Node {
 
  private:
   void on_cloud(const sensor_msgs::msg::PointCloud2& m);
+  void on_cloud2(const sensor_msgs::msg::PointCloud2& m);
+  void on_cloud2_pose(const geometry_msgs::msg::PoseStamped& m);
+  void detect();  ///< when every view of one stamp is in
+  void publish(std::unique_ptr<tinyline_msgs::msg::TomatoEstimates> out);
   std::unique_ptr<TomatoPipeline> pipeline_;
-  ColorCloud cloud_;
+  int views_ = 1;
+  // The latest of each input; a detection takes the three of one stamp.
+  std::optional<std_msgs::msg::Header> header_, header2_, pose2_header_;
+  std::string bad_;  ///< why the latest input cannot be used (empty: fine)
+  ColorCloud cloud_, cloud2_;
+  Eigen::Isometry3d T_ref_camera2_ = Eigen::Isometry3d::Identity();
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::TomatoEstimates>> pub_;
   std::shared_ptr<bus::Publisher<visualization_msgs::msg::MarkerArray>> markers_pub_;
-  std::shared_ptr<bus::Subscription<sensor_msgs::msg::PointCloud2>> sub_;
+  std::shared_ptr<bus::Subscription<sensor_msgs::msg::PointCloud2>> sub_, sub2_;
+  std::shared_ptr<bus::Subscription<geometry_msgs::msg::PoseStamped>> pose2_sub_;
 };
 
 class PickVerifierNode : public bus::Node {
