@@ -253,84 +253,105 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
 
   Eigen::Vector3d theta(initial.centre_m.x(), initial.centre_m.y(), known ? *params.known_radius_m : initial.radius_m);
   // The used points and their weights, contiguous: every LM pass reads them.
-  std::vector<double> px(static_cast<std::size_t>(n)), py(px.size()), pw(px.size());
+  std::vector<double> buf(3 * static_cast<std::size_t>(n));
+  double* const px = buf.data();
+  double* const py = px + n;
+  double* const pw = py + n;
   for (int k = 0; k < n; ++k) {
     const Eigen::Index i = idx[static_cast<std::size_t>(k)];
-    px[static_cast<std::size_t>(k)] = points(0, i);
-    py[static_cast<std::size_t>(k)] = points(1, i);
-    pw[static_cast<std::size_t>(k)] = weight(i);
+    px[k] = points(0, i);
+    py[k] = points(1, i);
+    pw[k] = weight(i);
   }
-  // Cost, gradient system (J^T W J, J^T W d) at theta; J_i = -(u_x, u_y, 1),
-  // u the unit vector from the centre to the point. The six distinct entries
-  // of the symmetric J^T W J are summed as scalars.
-  auto evaluate = [&](const Eigen::Vector3d& t, Eigen::Matrix3d* H, Eigen::Vector3d* g) {
-    double cost = 0.0;
-    double hxx = 0, hxy = 0, hxr = 0, hyy = 0, hyr = 0, hrr = 0, gx = 0, gy = 0, gr = 0;
+  // Cost, gradient system (J^T W J, J^T W d) and the unweighted residual sum
+  // of squares at t, in one pass; J_i = -(u_x, u_y, 1), u the unit vector
+  // from the centre to the point. Two points per step in SIMD lanes (each
+  // lane sums its own points; the lanes are added at the end). A point at
+  // the centre has u = 0: dx = dy = 0 times a finite inverse.
+  struct Pass {
+    double cost = 0.0, rss = 0.0;
+    Eigen::Matrix3d H;
+    Eigen::Vector3d g;
+  };
+  auto evaluate = [&](const Eigen::Vector3d& t) {
+    using A2 = Eigen::Array2d;
     const double cx = t(0), cy = t(1), r = t(2);
-    for (std::size_t k = 0; k < px.size(); ++k) {
-      const double dx = px[k] - cx, dy = py[k] - cy;
-      const double rho = std::sqrt(dx * dx + dy * dy);
-      const double d = rho - r;
-      const double w = pw[k];
-      cost += w * d * d;
-      if (H) {
-        const double inv = rho > 0.0 ? 1.0 / rho : 0.0;
-        const double ux = dx * inv, uy = dy * inv;
-        hxx += w * ux * ux;
-        hxy += w * ux * uy;
-        hyy += w * uy * uy;
-        hxr += w * ux;
-        hyr += w * uy;
-        hrr += w;
-        gx -= w * d * ux;
-        gy -= w * d * uy;
-        gr -= w * d;
-      }
+    A2 cost = A2::Zero(), rss = A2::Zero(), hxx = A2::Zero(), hxy = A2::Zero(), hyy = A2::Zero(),
+       hxr = A2::Zero(), hyr = A2::Zero(), hrr = A2::Zero(), gx = A2::Zero(), gy = A2::Zero(), gr = A2::Zero();
+    const auto point = [&](const auto& dx, const auto& dy, const auto& w, const auto& rho) {
+      const auto d = (rho - r).eval();
+      const auto inv = rho.max(std::numeric_limits<double>::min()).inverse().eval();
+      const auto ux = (dx * inv).eval(), uy = (dy * inv).eval();
+      const auto wd = (w * d).eval(), wux = (w * ux).eval(), wuy = (w * uy).eval();
+      cost += wd * d;
+      rss += d * d;
+      hxx += wux * ux;
+      hxy += wux * uy;
+      hyy += wuy * uy;
+      hxr += wux;
+      hyr += wuy;
+      hrr += w;
+      gx -= wd * ux;
+      gy -= wd * uy;
+      gr -= wd;
+    };
+    int k = 0;
+    for (; k + 1 < n; k += 2) {
+      const A2 dx = A2::Map(px + k) - cx, dy = A2::Map(py + k) - cy;
+      point(dx, dy, A2::Map(pw + k), (dx * dx + dy * dy).sqrt().eval());
     }
-    if (H) {
-      *H << hxx, hxy, hxr, hxy, hyy, hyr, hxr, hyr, hrr;
-      *g << gx, gy, gr;
+    if (k < n) {  // the odd point, in lane 0 (lane 1 adds zeros)
+      const A2 dx(px[k] - cx, 0.0), dy(py[k] - cy, 0.0), w(pw[k], 0.0);
+      const A2 rho((dx * dx + dy * dy).sqrt()(0), r);
+      point(dx, dy, w, rho);
     }
-    return cost;
+    Pass out;
+    out.cost = cost.sum();
+    out.rss = rss.sum();
+    out.H << hxx.sum(), hxy.sum(), hxr.sum(), hxy.sum(), hyy.sum(), hyr.sum(), hxr.sum(), hyr.sum(), hrr.sum();
+    out.g << gx.sum(), gy.sum(), gr.sum();
+    return out;
   };
 
-  Eigen::Matrix3d H;
-  Eigen::Vector3d g;
-  double cost = evaluate(theta, &H, &g);
+  Pass at = evaluate(theta);  // always the pass at theta
   double lambda = params.initial_lambda;
   bool converged = false;
   int it = 0;
   for (; it < params.max_iterations && !converged; ++it) {
     // Try steps with growing damping until one lowers the cost.
     bool accepted = false;
-    for (int tries = 0; tries < 20 && !accepted; ++tries) {
-      Eigen::Matrix3d A = H;
-      for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(H(k, k), 1e-12);
+    for (int tries = 0; tries < 20 && !accepted && !converged; ++tries) {
+      Eigen::Matrix3d A = at.H;
+      for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(at.H(k, k), 1e-12);
       Eigen::Vector3d delta = Eigen::Vector3d::Zero();
       if (known) {
-        delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-g.head<2>());
+        delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-at.g.head<2>());
       } else {
-        delta = A.ldlt().solve(-g);
+        delta = A.ldlt().solve(-at.g);
       }
       if (!delta.allFinite()) {
         lambda *= 10.0;
         continue;
       }
+      // A step under the tolerance is not worth a pass over the points: its
+      // cost differs from the current one at rounding level, so the test
+      // would reject it about half the time and grow the damping for nothing.
+      if (delta.norm() < params.step_tolerance_m) {
+        converged = true;
+        break;
+      }
       const Eigen::Vector3d cand = theta + delta;
       // The candidate's gradient system comes in the same pass as its cost:
       // near the minimum almost every step is accepted.
-      Eigen::Matrix3d Hc;
-      Eigen::Vector3d gc;
-      const double c = (cand(2) > 0.0) ? evaluate(cand, &Hc, &gc) : std::numeric_limits<double>::infinity();
-      if (c <= cost) {
+      Pass next;
+      if (cand(2) > 0.0) next = evaluate(cand);
+      if (cand(2) > 0.0 && next.cost <= at.cost) {
         theta = cand;
-        const double old = cost;
-        cost = c;
-        H = Hc;
-        g = gc;
+        const double old = at.cost;
+        at = next;
         lambda = std::max(lambda * 0.1, 1e-12);
         accepted = true;
-        if (delta.norm() < params.step_tolerance_m || old - c <= 1e-15 * old) converged = true;
+        if (old - at.cost <= 1e-15 * old) converged = true;
       } else {
         lambda *= 10.0;
       }
@@ -339,6 +360,8 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
       converged = true;  // no descent direction left: at a minimum to rounding
     }
   }
+  const double cost = at.cost;
+  const Eigen::Matrix3d& H = at.H;
 
   CircleFit f;
   f.status = FitStatus::kOk;
@@ -348,18 +371,13 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   f.non_finite = non_finite;
   f.iterations = it;
   f.converged = converged;
-  double rss = 0.0;
-  for (const Eigen::Index i : idx) {
-    const double d = (points.col(i) - f.circle.centre_m).norm() - f.circle.radius_m;
-    rss += d * d;
-  }
-  f.rms_residual_m = std::sqrt(rss / n);
+  f.rms_residual_m = std::sqrt(at.rss / n);
   if (params.remove_radius_bias && !known && n > p) {
     // Per point the tangential variance equals the normal one (isotropic):
     // s^2 sigma_i^2, s^2 the a-posteriori variance factor; the radius is
     // the weighted mean distance, so its bias is sum w s^2 sigma^2 / (2 r sum w).
     double wsum = 0.0;
-    for (const Eigen::Index i : idx) wsum += weight(i);
+    for (int k = 0; k < n; ++k) wsum += pw[k];
     const double s2 = cost / (n - p);
     const double bias = s2 * n / (2.0 * f.circle.radius_m * wsum);
     if (std::isfinite(bias) && bias < 0.5 * f.circle.radius_m) {
