@@ -54,6 +54,17 @@ struct Normalised {
   int non_finite = 0;
 };
 
+/// Centres n.q (filled with finite points) on its mean, scales it to unit RMS distance.
+void centre_and_scale(Normalised& n) {
+  const auto k = n.q.cols();
+  if (k == 0) return;
+  n.mean = n.q.rowwise().mean();
+  n.q.colwise() -= n.mean;
+  const double ms = n.q.squaredNorm() / static_cast<double>(k);
+  n.scale = ms > 0.0 ? std::sqrt(ms) : 1.0;
+  n.q /= n.scale;
+}
+
 Normalised normalise(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
   Normalised n;
   n.q.resize(2, points.cols());
@@ -66,19 +77,19 @@ Normalised normalise(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
     }
   }
   n.q.conservativeResize(2, k);
-  if (k == 0) return n;
-  n.mean = n.q.rowwise().mean();
-  n.q.colwise() -= n.mean;
-  const double ms = n.q.squaredNorm() / static_cast<double>(k);
-  n.scale = ms > 0.0 ? std::sqrt(ms) : 1.0;
-  n.q /= n.scale;
+  centre_and_scale(n);
   return n;
 }
 
 /// Smallest over largest eigenvalue of the (normalised) scatter matrix: 0 for
 /// points on a line, 1 for an isotropic spread.
 double planarity(const Eigen::Matrix2Xd& q) {
-  const Eigen::Matrix2d s = q * q.transpose();
+  // Three sums: q q^T as a general product goes through the blocked GEMM
+  // kernel, which costs more than the sums for a 2 x n matrix.
+  Eigen::Matrix2d s;
+  s(0, 0) = q.row(0).squaredNorm();
+  s(1, 1) = q.row(1).squaredNorm();
+  s(0, 1) = s(1, 0) = q.row(0).dot(q.row(1));
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(s, Eigen::EigenvaluesOnly);
   const double hi = es.eigenvalues()(1);
   return hi > 0.0 ? es.eigenvalues()(0) / hi : 0.0;
@@ -98,19 +109,25 @@ double rms_distance(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circ
 
 /// Circle from the algebraic parameters A (A0 z + A1 x + A2 y + A3 = 0) in
 /// normalised coordinates, mapped back. Fails on a line (A0 ~ 0).
-CircleFit from_algebraic(const Eigen::Vector4d& A, const Normalised& n, const Eigen::Ref<const Eigen::Matrix2Xd>& points,
-                         const char* method) {
+std::optional<Circle> circle_from_algebraic(const Eigen::Vector4d& A, const Normalised& n) {
   const double disc = A(1) * A(1) + A(2) * A(2) - 4.0 * A(0) * A(3);
   const double r_norm = std::sqrt(std::max(disc, 0.0)) / (2.0 * std::abs(A(0)));
-  if (!std::isfinite(r_norm) || r_norm > kLineRadiusRatio || disc <= 0.0) {
+  if (!std::isfinite(r_norm) || r_norm > kLineRadiusRatio || disc <= 0.0) return std::nullopt;
+  return Circle{n.mean + n.scale * Eigen::Vector2d(-A(1) / (2.0 * A(0)), -A(2) / (2.0 * A(0))), n.scale * r_norm};
+}
+
+/// The same as a fit result, with the RMS distance of `points`.
+CircleFit from_algebraic(const Eigen::Vector4d& A, const Normalised& n, const Eigen::Ref<const Eigen::Matrix2Xd>& points,
+                         const char* method) {
+  const auto circle = circle_from_algebraic(A, n);
+  if (!circle) {
     return failed(FitStatus::kCollinear,
                   fmt::format("{} fit: the {} points are collinear (no finite circle fits them)", method, n.q.cols()),
                   n.non_finite);
   }
   CircleFit f;
   f.status = FitStatus::kOk;
-  f.circle.centre_m = n.mean + n.scale * Eigen::Vector2d(-A(1) / (2.0 * A(0)), -A(2) / (2.0 * A(0)));
-  f.circle.radius_m = n.scale * r_norm;
+  f.circle = *circle;
   f.points_used = static_cast<int>(n.q.cols());
   f.non_finite = n.non_finite;
   f.rms_residual_m = rms_distance(points, f.circle);
@@ -149,18 +166,29 @@ CircleFit fit_circle_kasa(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
   return from_algebraic(Eigen::Vector4d(1.0, x(0), x(1), x(2)), n, points, "Kasa");
 }
 
-CircleFit fit_circle_hyper(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
-  const Normalised n = normalise(points);
-  if (auto bad = check_algebraic_input(n, "Hyper")) return *bad;
-  // Moments of Z = [z x y 1] (data centred, so mean x = mean y = 0).
-  Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+namespace {
+
+/// The Hyper fit's algebraic parameters for checked, normalised points.
+Eigen::Vector4d hyper_parameters(const Normalised& n) {
+  // Moments of Z = [z x y 1] (data centred, so mean x = mean y = 0): the ten
+  // distinct sums of the symmetric u u^T, each added in point order.
+  double zz = 0, zx = 0, zy = 0, xx = 0, xy = 0, yy = 0, sx = 0, sy = 0;
   double zbar = 0.0;
   for (Eigen::Index i = 0; i < n.q.cols(); ++i) {
+    const double x = n.q(0, i), y = n.q(1, i);
     const double z = n.q.col(i).squaredNorm();
-    const Eigen::Vector4d u(z, n.q(0, i), n.q(1, i), 1.0);
-    M.noalias() += u * u.transpose();
+    zz += z * z;
+    zx += z * x;
+    zy += z * y;
+    xx += x * x;
+    xy += x * y;
+    yy += y * y;
+    sx += x;
+    sy += y;
     zbar += z;
   }
+  Eigen::Matrix4d M;
+  M << zz, zx, zy, zbar, zx, xx, xy, sx, zy, xy, yy, sy, zbar, sx, sy, static_cast<double>(n.q.cols());
   const double k = static_cast<double>(n.q.cols());
   M /= k;
   zbar /= k;
@@ -189,7 +217,15 @@ CircleFit fit_circle_hyper(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> gs(0.5 * (S + S.transpose()));
     A = Winv * gs.eigenvectors().col(1);
   }
-  return from_algebraic(A, n, points, "Hyper");
+  return A;
+}
+
+}  // namespace
+
+CircleFit fit_circle_hyper(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
+  const Normalised n = normalise(points);
+  if (auto bad = check_algebraic_input(n, "Hyper")) return *bad;
+  return from_algebraic(hyper_parameters(n), n, points, "Hyper");
 }
 
 CircleFit fit_circle_taubin(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
@@ -253,84 +289,105 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
 
   Eigen::Vector3d theta(initial.centre_m.x(), initial.centre_m.y(), known ? *params.known_radius_m : initial.radius_m);
   // The used points and their weights, contiguous: every LM pass reads them.
-  std::vector<double> px(static_cast<std::size_t>(n)), py(px.size()), pw(px.size());
+  std::vector<double> buf(3 * static_cast<std::size_t>(n));
+  double* const px = buf.data();
+  double* const py = px + n;
+  double* const pw = py + n;
   for (int k = 0; k < n; ++k) {
     const Eigen::Index i = idx[static_cast<std::size_t>(k)];
-    px[static_cast<std::size_t>(k)] = points(0, i);
-    py[static_cast<std::size_t>(k)] = points(1, i);
-    pw[static_cast<std::size_t>(k)] = weight(i);
+    px[k] = points(0, i);
+    py[k] = points(1, i);
+    pw[k] = weight(i);
   }
-  // Cost, gradient system (J^T W J, J^T W d) at theta; J_i = -(u_x, u_y, 1),
-  // u the unit vector from the centre to the point. The six distinct entries
-  // of the symmetric J^T W J are summed as scalars.
-  auto evaluate = [&](const Eigen::Vector3d& t, Eigen::Matrix3d* H, Eigen::Vector3d* g) {
-    double cost = 0.0;
-    double hxx = 0, hxy = 0, hxr = 0, hyy = 0, hyr = 0, hrr = 0, gx = 0, gy = 0, gr = 0;
+  // Cost, gradient system (J^T W J, J^T W d) and the unweighted residual sum
+  // of squares at t, in one pass; J_i = -(u_x, u_y, 1), u the unit vector
+  // from the centre to the point. Two points per step in SIMD lanes (each
+  // lane sums its own points; the lanes are added at the end). A point at
+  // the centre has u = 0: dx = dy = 0 times a finite inverse.
+  struct Pass {
+    double cost = 0.0, rss = 0.0;
+    Eigen::Matrix3d H;
+    Eigen::Vector3d g;
+  };
+  auto evaluate = [&](const Eigen::Vector3d& t) {
+    using A2 = Eigen::Array2d;
     const double cx = t(0), cy = t(1), r = t(2);
-    for (std::size_t k = 0; k < px.size(); ++k) {
-      const double dx = px[k] - cx, dy = py[k] - cy;
-      const double rho = std::sqrt(dx * dx + dy * dy);
-      const double d = rho - r;
-      const double w = pw[k];
-      cost += w * d * d;
-      if (H) {
-        const double inv = rho > 0.0 ? 1.0 / rho : 0.0;
-        const double ux = dx * inv, uy = dy * inv;
-        hxx += w * ux * ux;
-        hxy += w * ux * uy;
-        hyy += w * uy * uy;
-        hxr += w * ux;
-        hyr += w * uy;
-        hrr += w;
-        gx -= w * d * ux;
-        gy -= w * d * uy;
-        gr -= w * d;
-      }
+    A2 cost = A2::Zero(), rss = A2::Zero(), hxx = A2::Zero(), hxy = A2::Zero(), hyy = A2::Zero(),
+       hxr = A2::Zero(), hyr = A2::Zero(), hrr = A2::Zero(), gx = A2::Zero(), gy = A2::Zero(), gr = A2::Zero();
+    const auto point = [&](const auto& dx, const auto& dy, const auto& w, const auto& rho) {
+      const auto d = (rho - r).eval();
+      const auto inv = rho.max(std::numeric_limits<double>::min()).inverse().eval();
+      const auto ux = (dx * inv).eval(), uy = (dy * inv).eval();
+      const auto wd = (w * d).eval(), wux = (w * ux).eval(), wuy = (w * uy).eval();
+      cost += wd * d;
+      rss += d * d;
+      hxx += wux * ux;
+      hxy += wux * uy;
+      hyy += wuy * uy;
+      hxr += wux;
+      hyr += wuy;
+      hrr += w;
+      gx -= wd * ux;
+      gy -= wd * uy;
+      gr -= wd;
+    };
+    int k = 0;
+    for (; k + 1 < n; k += 2) {
+      const A2 dx = A2::Map(px + k) - cx, dy = A2::Map(py + k) - cy;
+      point(dx, dy, A2::Map(pw + k), (dx * dx + dy * dy).sqrt().eval());
     }
-    if (H) {
-      *H << hxx, hxy, hxr, hxy, hyy, hyr, hxr, hyr, hrr;
-      *g << gx, gy, gr;
+    if (k < n) {  // the odd point, in lane 0 (lane 1 adds zeros)
+      const A2 dx(px[k] - cx, 0.0), dy(py[k] - cy, 0.0), w(pw[k], 0.0);
+      const A2 rho((dx * dx + dy * dy).sqrt()(0), r);
+      point(dx, dy, w, rho);
     }
-    return cost;
+    Pass out;
+    out.cost = cost.sum();
+    out.rss = rss.sum();
+    out.H << hxx.sum(), hxy.sum(), hxr.sum(), hxy.sum(), hyy.sum(), hyr.sum(), hxr.sum(), hyr.sum(), hrr.sum();
+    out.g << gx.sum(), gy.sum(), gr.sum();
+    return out;
   };
 
-  Eigen::Matrix3d H;
-  Eigen::Vector3d g;
-  double cost = evaluate(theta, &H, &g);
+  Pass at = evaluate(theta);  // always the pass at theta
   double lambda = params.initial_lambda;
   bool converged = false;
   int it = 0;
   for (; it < params.max_iterations && !converged; ++it) {
     // Try steps with growing damping until one lowers the cost.
     bool accepted = false;
-    for (int tries = 0; tries < 20 && !accepted; ++tries) {
-      Eigen::Matrix3d A = H;
-      for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(H(k, k), 1e-12);
+    for (int tries = 0; tries < 20 && !accepted && !converged; ++tries) {
+      Eigen::Matrix3d A = at.H;
+      for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(at.H(k, k), 1e-12);
       Eigen::Vector3d delta = Eigen::Vector3d::Zero();
       if (known) {
-        delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-g.head<2>());
+        delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-at.g.head<2>());
       } else {
-        delta = A.ldlt().solve(-g);
+        delta = A.ldlt().solve(-at.g);
       }
       if (!delta.allFinite()) {
         lambda *= 10.0;
         continue;
       }
+      // A step under the tolerance is not worth a pass over the points: its
+      // cost differs from the current one at rounding level, so the test
+      // would reject it about half the time and grow the damping for nothing.
+      if (delta.norm() < params.step_tolerance_m) {
+        converged = true;
+        break;
+      }
       const Eigen::Vector3d cand = theta + delta;
       // The candidate's gradient system comes in the same pass as its cost:
       // near the minimum almost every step is accepted.
-      Eigen::Matrix3d Hc;
-      Eigen::Vector3d gc;
-      const double c = (cand(2) > 0.0) ? evaluate(cand, &Hc, &gc) : std::numeric_limits<double>::infinity();
-      if (c <= cost) {
+      Pass next;
+      if (cand(2) > 0.0) next = evaluate(cand);
+      if (cand(2) > 0.0 && next.cost <= at.cost) {
         theta = cand;
-        const double old = cost;
-        cost = c;
-        H = Hc;
-        g = gc;
+        const double old = at.cost;
+        at = next;
         lambda = std::max(lambda * 0.1, 1e-12);
         accepted = true;
-        if (delta.norm() < params.step_tolerance_m || old - c <= 1e-15 * old) converged = true;
+        if (old - at.cost <= 1e-15 * old) converged = true;
       } else {
         lambda *= 10.0;
       }
@@ -339,6 +396,8 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
       converged = true;  // no descent direction left: at a minimum to rounding
     }
   }
+  const double cost = at.cost;
+  const Eigen::Matrix3d& H = at.H;
 
   CircleFit f;
   f.status = FitStatus::kOk;
@@ -348,18 +407,13 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   f.non_finite = non_finite;
   f.iterations = it;
   f.converged = converged;
-  double rss = 0.0;
-  for (const Eigen::Index i : idx) {
-    const double d = (points.col(i) - f.circle.centre_m).norm() - f.circle.radius_m;
-    rss += d * d;
-  }
-  f.rms_residual_m = std::sqrt(rss / n);
+  f.rms_residual_m = std::sqrt(at.rss / n);
   if (params.remove_radius_bias && !known && n > p) {
     // Per point the tangential variance equals the normal one (isotropic):
     // s^2 sigma_i^2, s^2 the a-posteriori variance factor; the radius is
     // the weighted mean distance, so its bias is sum w s^2 sigma^2 / (2 r sum w).
     double wsum = 0.0;
-    for (const Eigen::Index i : idx) wsum += weight(i);
+    for (int k = 0; k < n; ++k) wsum += pw[k];
     const double s2 = cost / (n - p);
     const double bias = s2 * n / (2.0 * f.circle.radius_m * wsum);
     if (std::isfinite(bias) && bias < 0.5 * f.circle.radius_m) {
@@ -510,15 +564,6 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
                               non_finite ? fmt::format(" ({} non-finite skipped)", non_finite) : ""),
                   non_finite);
   }
-  {
-    Eigen::Matrix2Xd q(2, n);
-    for (int k = 0; k < n; ++k) q.col(k) = points.col(idx[static_cast<std::size_t>(k)]);
-    q.colwise() -= q.rowwise().mean();
-    if (planarity(q) < kCollinearPlanarity && !known) {
-      return failed(FitStatus::kCollinear, fmt::format("the {} points are collinear", n), non_finite);
-    }
-  }
-
   const double T = params.inlier_threshold_m;
   const double T2 = T * T;
   const Eigen::Vector2d* vp = use_views ? viewpoints.origins_m.data() : nullptr;
@@ -528,25 +573,49 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
   const bool per_point = !sigma_m.empty() && params.inlier_threshold_sigmas > 0.0;
   const double k2 = params.inlier_threshold_sigmas * params.inlier_threshold_sigmas;
   const double trunc = per_point ? k2 : T2;  // MSAC truncation, in score units
-  auto unit2 = [&](int i) {
-    if (!per_point) return 1.0;
-    const double sg = sigma_m[static_cast<std::size_t>(i)];
-    return sg * sg;
-  };
 
-  // A point supports circle c when it is within the threshold of it and, with
-  // viewpoints, faces its sensor (outward normal towards the viewpoint).
-  auto supports = [&](int i, const Circle& c, double* d2out) {
-    const Eigen::Vector2d p = points.col(i);
-    const Eigen::Vector2d dv = p - c.centre_m;
-    const double d = dv.norm() - c.radius_m;
-    *d2out = d * d;
-    if (d * d > T2) return false;
-    if (per_point && d * d > k2 * unit2(i)) return false;
-    if (vp) {
-      const Eigen::Vector2d& o = vp[viewpoints.sensor_of_point[static_cast<std::size_t>(i)]];
-      if (dv.dot(o - p) <= 0.0) return false;
+  // Every pass below reads the finite points in order, so what it needs of
+  // each is laid out contiguously once: coordinates, the squared support
+  // limit min(T^2, k^2 sigma^2), the score unit (sigma^2, or 1), sigma (1
+  // without sigmas), its sensor's origin, and the residual of the last pass.
+  const auto un = static_cast<std::size_t>(n);
+  std::vector<double> buf(8 * un);
+  double* const x = buf.data();
+  double* const y = x + n;
+  double* const lim2 = y + n;
+  double* const unit2 = lim2 + n;
+  double* const sg = unit2 + n;
+  double* const ox = sg + n;
+  double* const oy = ox + n;
+  double* const res = oy + n;
+  for (int k = 0; k < n; ++k) {
+    const auto i = static_cast<std::size_t>(idx[static_cast<std::size_t>(k)]);
+    x[k] = points(0, idx[static_cast<std::size_t>(k)]);
+    y[k] = points(1, idx[static_cast<std::size_t>(k)]);
+    sg[k] = sigma_m.empty() ? 1.0 : sigma_m[i];
+    unit2[k] = per_point ? sg[k] * sg[k] : 1.0;
+    lim2[k] = per_point ? std::min(T2, k2 * unit2[k]) : T2;
+    ox[k] = vp ? vp[viewpoints.sensor_of_point[i]].x() : 0.0;
+    oy[k] = vp ? vp[viewpoints.sensor_of_point[i]].y() : 0.0;
+  }
+  if (!known) {
+    Eigen::Matrix2Xd q(2, n);
+    q.row(0) = Eigen::Map<const Eigen::RowVectorXd>(x, n);
+    q.row(1) = Eigen::Map<const Eigen::RowVectorXd>(y, n);
+    q.colwise() -= q.rowwise().mean();
+    if (planarity(q) < kCollinearPlanarity) {
+      return failed(FitStatus::kCollinear, fmt::format("the {} points are collinear", n), non_finite);
     }
+  }
+
+  // Point k supports circle c when it is within its limit of it and, with
+  // viewpoints, faces its sensor (outward normal towards the viewpoint).
+  // *d is its signed distance to the circle.
+  auto supports = [&](int k, const Circle& c, double* d) {
+    const double dx = x[k] - c.centre_m.x(), dy = y[k] - c.centre_m.y();
+    *d = std::sqrt(dx * dx + dy * dy) - c.radius_m;
+    if (*d * *d > lim2[k]) return false;
+    if (vp && dx * (ox[k] - x[k]) + dy * (oy[k] - y[k]) <= 0.0) return false;
     return true;
   };
   auto viewpoints_outside = [&](const Circle& c) {
@@ -559,10 +628,10 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
   auto score = [&](const Circle& c, double bound) {
     Consensus r;
     double sc = 0.0;
-    for (const int i : idx) {
-      double d2;
-      if (supports(i, c, &d2)) {
-        sc += d2 / unit2(i);
+    for (int k = 0; k < n; ++k) {
+      double d;
+      if (supports(k, c, &d)) {
+        sc += d * d / unit2[k];
         ++r.inliers;
       } else {
         sc += trunc;
@@ -601,14 +670,15 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
     }
   };
 
+  const auto un64 = static_cast<std::uint64_t>(n);
   while (drawn < needed && drawn < params.max_iterations) {
     ++drawn;
-    const int a = idx[rng.below(static_cast<std::uint64_t>(n))];
-    int b = idx[rng.below(static_cast<std::uint64_t>(n))];
+    const auto a = static_cast<int>(rng.below(un64));
+    const auto b = static_cast<int>(rng.below(un64));
     if (b == a) continue;
+    const Eigen::Vector2d pa(x[a], y[a]), pb(x[b], y[b]);
     if (known) {
       // Two centres at distance R from both points (mirror images).
-      const Eigen::Vector2d pa = points.col(a), pb = points.col(b);
       const double R = *params.known_radius_m;
       const double half = 0.5 * (pb - pa).norm();
       if (half > R || half == 0.0) continue;
@@ -618,9 +688,9 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
       consider(Circle{mid + h * perp, R});
       consider(Circle{mid - h * perp, R});
     } else {
-      const int c = idx[rng.below(static_cast<std::uint64_t>(n))];
+      const auto c = static_cast<int>(rng.below(un64));
       if (c == a || c == b) continue;
-      const auto circ = circle_through(points.col(a), points.col(b), points.col(c));
+      const auto circ = circle_through(pa, pb, Eigen::Vector2d(x[c], y[c]));
       if (!circ) continue;
       consider(*circ);
     }
@@ -642,29 +712,33 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
   // first selection uses inlier_threshold_m; later ones also the set's own
   // residual scale (final_threshold_sigmas), so clutter just inside a
   // generous threshold (worst: a point on the unobserved side of a short arc,
-  // which has high leverage) cannot hold the fit.
-  std::vector<std::uint8_t> mask(static_cast<std::size_t>(points.cols()), 0);
-  auto sig = [&](int i) { return sigma_m.empty() ? 1.0 : sigma_m[static_cast<std::size_t>(i)]; };
-  auto select = [&](const Circle& c, double scaled_limit) {
-    std::fill(mask.begin(), mask.end(), 0);
-    int k = 0;
-    for (const int i : idx) {
-      double d2;
-      if (!supports(i, c, &d2)) continue;
-      if (scaled_limit > 0.0 && std::sqrt(d2) > scaled_limit * sig(i)) continue;
-      mask[static_cast<std::size_t>(i)] = 1;
-      ++k;
-    }
-    return k;
+  // which has high leverage) cannot hold the fit. Each candidate circle
+  // costs one pass over the points (residuals and support), which both the
+  // scale and the selection read.
+  std::vector<std::uint8_t> mask(un, 0), before(un, 0), support(un, 0);  // per finite point
+  auto residuals = [&](const Circle& c) {
+    for (int k = 0; k < n; ++k) support[static_cast<std::size_t>(k)] = supports(k, c, &res[k]) ? 1 : 0;
   };
-  // Robust scale of the normalised residuals of the current set, times the factor.
-  auto adaptive_limit = [&](const Circle& c) {
-    if (!(params.final_threshold_sigmas > 0.0)) return 0.0;
-    std::vector<double> e;
-    for (const int i : idx) {
-      if (!mask[static_cast<std::size_t>(i)]) continue;
-      e.push_back(std::abs((points.col(i) - c.centre_m).norm() - c.radius_m) / sig(i));
+  // The set of the last residual pass's circle: its supporters, within
+  // scaled_limit of their own sigma when > 0.
+  auto select = [&](double scaled_limit) {
+    int count = 0;
+    for (int k = 0; k < n; ++k) {
+      const auto uk = static_cast<std::size_t>(k);
+      mask[uk] = support[uk] && !(scaled_limit > 0.0 && std::abs(res[k]) > scaled_limit * sg[k]) ? 1 : 0;
+      count += mask[uk];
     }
+    return count;
+  };
+  // Robust scale of the current set's normalised residuals to the last
+  // residual pass's circle, times the factor.
+  std::vector<double> e;
+  e.reserve(un);
+  auto adaptive_limit = [&]() {
+    if (!(params.final_threshold_sigmas > 0.0)) return 0.0;
+    e.clear();
+    for (int k = 0; k < n; ++k)
+      if (mask[static_cast<std::size_t>(k)]) e.push_back(std::abs(res[k]) / sg[k]);
     if (e.size() < static_cast<std::size_t>(2 * s)) return 0.0;
     std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
     return params.final_threshold_sigmas * 1.4826 * e[e.size() / 2];
@@ -673,39 +747,55 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
   rp.known_radius_m = params.known_radius_m;
   Eigen::Matrix2Xd inl;
   std::vector<double> inl_sigma;
-  auto gather = [&]() {
-    const auto k = std::count(mask.begin(), mask.end(), 1);
-    inl.resize(2, k);
+  auto gather = [&](int count) {
+    inl.resize(2, count);
     inl_sigma.clear();
     Eigen::Index j = 0;
-    for (Eigen::Index i = 0; i < points.cols(); ++i) {
-      if (!mask[static_cast<std::size_t>(i)]) continue;
-      inl.col(j++) = points.col(i);
-      if (!sigma_m.empty()) inl_sigma.push_back(sigma_m[static_cast<std::size_t>(i)]);
+    for (int k = 0; k < n; ++k) {
+      if (!mask[static_cast<std::size_t>(k)]) continue;
+      inl(0, j) = x[k];
+      inl(1, j++) = y[k];
+      if (!sigma_m.empty()) inl_sigma.push_back(sg[k]);
     }
+  };
+  // The Hyper fit of the set (what fit_circle_hyper gives for the gathered
+  // set), normalised straight from the contiguous points.
+  Normalised set;
+  auto hyper_of_set = [&](int count) -> std::optional<Circle> {
+    set.q.resize(2, count);
+    Eigen::Index j = 0;
+    for (int k = 0; k < n; ++k) {
+      if (!mask[static_cast<std::size_t>(k)]) continue;
+      set.q(0, j) = x[k];
+      set.q(1, j++) = y[k];
+    }
+    centre_and_scale(set);
+    if (count < 3 || planarity(set.q) < kCollinearPlanarity) return std::nullopt;
+    return circle_from_algebraic(hyper_parameters(set), set);
   };
 
   Circle current = best;
-  int count = select(current, 0.0);
+  residuals(current);
+  int count = select(0.0);
   bool moved = false;
   const int rounds = std::max(1, params.local_optimisation_rounds) + (params.final_threshold_sigmas > 0.0 ? 3 : 0);
   for (int round = 0; round < rounds; ++round) {
-    gather();
     // Re-selection rounds use the algebraic fit: cheap, and within a small
     // fraction of the ML fit at these noise levels. A known radius needs LM.
     std::optional<Circle> next;
     if (known) {
+      gather(count);
       const CircleFit f = refine_circle(inl, current, rp, inl_sigma);
       if (f.ok()) next = f.circle;
     } else {
-      const CircleFit h = fit_circle_hyper(inl);
-      if (h.ok()) next = h.circle;
+      next = hyper_of_set(count);
     }
     if (!next) break;  // e.g. a collinear consensus set: keep the hypothesis
-    const std::vector<std::uint8_t> before = mask;
+    before = mask;
     const int before_count = count;
-    const double limit = adaptive_limit(*next);
-    const int k = select(*next, limit);
+    residuals(*next);
+    const double limit = adaptive_limit();
+    const int k = select(limit);
     if (limit == 0.0 && k < before_count && moved) {
       mask = before;  // the refit lost support: keep the previous set
       count = before_count;
@@ -717,20 +807,28 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
     if (mask == before) break;
   }
   // The final fit on the final set: geometric (ML) unless the caller refits.
-  gather();
   CircleFit fit;
-  if (params.final_geometric_fit || known) fit = refine_circle(inl, current, rp, inl_sigma);
+  if (params.final_geometric_fit || known) {
+    gather(count);
+    fit = refine_circle(inl, current, rp, inl_sigma);
+  }
   if (!fit.ok()) {
     fit = CircleFit{};
     fit.status = FitStatus::kOk;
     fit.circle = current;
     double ss = 0.0;
-    for (Eigen::Index j = 0; j < inl.cols(); ++j) ss += std::pow((inl.col(j) - current.centre_m).norm() - current.radius_m, 2);
-    fit.rms_residual_m = inl.cols() ? std::sqrt(ss / static_cast<double>(inl.cols())) : 0.0;
+    for (int k = 0; k < n; ++k) {
+      if (!mask[static_cast<std::size_t>(k)]) continue;
+      const double dx = x[k] - current.centre_m.x(), dy = y[k] - current.centre_m.y();
+      const double d = std::sqrt(dx * dx + dy * dy) - current.radius_m;
+      ss += d * d;
+    }
+    fit.rms_residual_m = count ? std::sqrt(ss / count) : 0.0;
   }
   fit.iterations = drawn;
   fit.non_finite = non_finite;
-  fit.inlier_mask = mask;
+  fit.inlier_mask.assign(static_cast<std::size_t>(points.cols()), 0);
+  for (int k = 0; k < n; ++k) fit.inlier_mask[static_cast<std::size_t>(idx[static_cast<std::size_t>(k)])] = mask[static_cast<std::size_t>(k)];
   fit.points_used = count;
   if (count < params.min_inliers) {
     fit.status = FitStatus::kNoConsensus;

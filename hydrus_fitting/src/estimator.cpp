@@ -60,6 +60,7 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
   Viewpoints views;
   if (params_.use_viewpoints) views = {c.views, c.view_of_point};
   e.fit = fit_circle_robust(c.points_m(), params_.robust, sigma, views);
+  if (e.fit.ok() && (params_.incidence_weighting || params_.remove_radius_bias)) gather_inliers(e.fit);
   if (e.fit.ok() && params_.incidence_weighting) {
     // Twice: the second pass takes the incidences from the better circle.
     refine_with_incidence(e.fit, false);
@@ -73,19 +74,38 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
   return e;
 }
 
-void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
+void CircleEstimator::gather_inliers(const CircleFit& fit) {
   const FusedCloud& c = fuser_.cloud();
   const auto pts = c.points_m();
-  // Inliers with their range, normal and tangential noise for the fitted circle.
+  // What does not depend on the circle, once for both refits: each inlier,
+  // its sensor's origin, the unit ray to it and its distance from the sensor.
   in_xy_.clear();
-  sr_.clear();
-  sn_.clear();
-  st_.clear();
+  in_o_.clear();
+  in_ray_.clear();
+  in_dist_.clear();
   for (int i = 0; i < c.size(); ++i) {
     if (!fit.inlier_mask[static_cast<std::size_t>(i)]) continue;
     const Eigen::Vector2d p = pts.col(i);
     const Eigen::Vector2d o = c.views[static_cast<std::size_t>(c.view_of_point[static_cast<std::size_t>(i)])];
-    const Eigen::Vector2d ray = (p - o).normalized();
+    in_xy_.push_back(p.x());
+    in_xy_.push_back(p.y());
+    in_o_.push_back(o);
+    in_ray_.push_back((p - o).normalized());
+    in_dist_.push_back((p - o).norm());
+  }
+}
+
+void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
+  // The inliers' range, normal and tangential noise for the fitted circle.
+  const std::size_t m = in_o_.size();
+  sr_.resize(m);
+  sn_.resize(m);
+  st_.resize(m);
+  const double R2 = fit.circle.radius_m * fit.circle.radius_m;
+  const RangeNoiseModel& noise = fuser_.params().noise;
+  for (std::size_t j = 0; j < m; ++j) {
+    const Eigen::Vector2d& o = in_o_[j];
+    const Eigen::Vector2d& ray = in_ray_[j];
     // Incidence and range where the ray meets the fitted circle, not at the
     // noisy point: weights that depend on a point's own noise bias the fit
     // (points pushed inside along a grazing ray would look more grazing,
@@ -93,15 +113,12 @@ void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
     const Eigen::Vector2d oc = fit.circle.centre_m - o;
     const double along = oc.dot(ray);
     const double perp2 = std::max(0.0, oc.squaredNorm() - along * along);
-    const double R2 = fit.circle.radius_m * fit.circle.radius_m;
     const double cosa = perp2 < R2 ? std::sqrt(1.0 - perp2 / R2) : 0.0;
-    const double range = perp2 < R2 ? along - std::sqrt(R2 - perp2) : (p - o).norm();
-    const double sr = fuser_.params().noise.sd_at(range > 0.0 ? range : (p - o).norm());
-    in_xy_.push_back(p.x());
-    in_xy_.push_back(p.y());
-    sr_.push_back(sr);
-    sn_.push_back(sr * std::max(cosa, params_.min_cos_incidence));
-    st_.push_back(sr * std::sqrt(std::max(0.0, 1.0 - cosa * cosa)));
+    const double range = perp2 < R2 ? along - std::sqrt(R2 - perp2) : in_dist_[j];
+    const double sr = noise.sd_at(range > 0.0 ? range : in_dist_[j]);
+    sr_[j] = sr;
+    sn_[j] = sr * std::max(cosa, params_.min_cos_incidence);
+    st_[j] = sr * std::sqrt(std::max(0.0, 1.0 - cosa * cosa));
   }
   const Eigen::Map<const Eigen::Matrix2Xd> in(in_xy_.data(), 2, static_cast<Eigen::Index>(sr_.size()));
   std::span<const double> w;

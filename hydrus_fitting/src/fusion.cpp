@@ -12,8 +12,10 @@ double RangeNoiseModel::sd_at(double range_m) const {
   if (range_sd_m.empty()) return 0.0;
   if (range_m <= range_sd_m.front().first) return range_sd_m.front().second;
   if (range_m >= range_sd_m.back().first) return range_sd_m.back().second;
-  const auto hi = std::upper_bound(range_sd_m.begin(), range_sd_m.end(), range_m,
-                                   [](double r, const std::pair<double, double>& e) { return r < e.first; });
+  // The first entry beyond range_m (a handful of entries: a linear scan beats
+  // a binary search, and every fused point asks).
+  auto hi = range_sd_m.begin() + 1;
+  while (!(range_m < hi->first)) ++hi;
   const auto lo = std::prev(hi);
   const double w = (range_m - lo->first) / (hi->first - lo->first);
   return (1.0 - w) * lo->second + w * hi->second;

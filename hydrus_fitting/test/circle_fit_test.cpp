@@ -212,6 +212,33 @@ TEST(CircleFit, GeometricFitReachesTheKcrBoundAndReportsItsCovariance) {
   EXPECT_NEAR(median(rep_sd_x) / std::sqrt(bound.covariance(0, 0)), 1.0, 0.06);
 }
 
+// The LM stops at a step shorter than step_tolerance_m without taking it
+// (such a step changes the cost at rounding level), and still converges to
+// the truth on exact points with the default tolerance; an odd number of
+// points exercises the SIMD pass's last lane.
+TEST(CircleFit, RefineStopsAtAStepUnderTheTolerance) {
+  const hf::Circle truth{{0.3, -0.1}, 0.15};
+  const Eigen::Matrix2Xd p = arc(truth, 180.0, 51);
+  const hf::Circle start{truth.centre_m + Eigen::Vector2d(5e-4, -3e-4), truth.radius_m + 2e-4};
+  hf::RefineParams loose;
+  loose.step_tolerance_m = 1e-2;  // the first step (under 1 mm) is under it
+  const auto f = hf::refine_circle(p, start, loose);
+  ASSERT_TRUE(f.ok()) << f.reason;
+  EXPECT_TRUE(f.converged);
+  EXPECT_EQ(f.iterations, 1);
+  EXPECT_EQ(f.circle.centre_m, start.centre_m);
+  EXPECT_EQ(f.circle.radius_m, start.radius_m);
+
+  const auto g = hf::refine_circle(p, start);
+  ASSERT_TRUE(g.ok()) << g.reason;
+  EXPECT_TRUE(g.converged);
+  EXPECT_LT(g.iterations, 10);
+  EXPECT_NEAR(g.circle.centre_m.x(), truth.centre_m.x(), 1e-12);
+  EXPECT_NEAR(g.circle.centre_m.y(), truth.centre_m.y(), 1e-12);
+  EXPECT_NEAR(g.circle.radius_m, truth.radius_m, 1e-12);
+  EXPECT_LT(g.rms_residual_m, 1e-12);
+}
+
 TEST(CircleFit, KnownRadiusFitsOnlyTheCentre) {
   hf::detail::SplitMix64 rng(8);
   const auto truth = arc(kTruth, 45, 30);

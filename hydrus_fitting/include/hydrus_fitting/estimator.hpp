@@ -66,10 +66,15 @@ class CircleEstimator {
   [[nodiscard]] const CircleEstimatorParams& params() const { return params_; }
 
  private:
+  void gather_inliers(const CircleFit& fit);
   void refine_with_incidence(CircleFit& fit, bool remove_bias);
   CircleEstimatorParams params_;
   ScanFuser fuser_;
-  std::vector<double> in_xy_, sr_, sn_, st_;  // reused per update
+  // Reused per update: the robust fit's inliers (x0, y0, x1, ...), their
+  // sensor's origin, unit ray and distance from it; per refit their range,
+  // normal and tangential noise SDs.
+  std::vector<double> in_xy_, in_dist_, sr_, sn_, st_;
+  std::vector<Eigen::Vector2d> in_o_, in_ray_;
   std::vector<Eigen::Isometry2d> motion_;     // per scan offered: base frame at its stamp -> at the newest
 };
 
