@@ -59,7 +59,10 @@ struct ExecutorCore {
   /// Publisher side, after queueing work: wake one sleeping worker if any.
   void wake() {
     if (sleepers.load(std::memory_order_seq_cst) > 0) {
-      std::lock_guard lk(mu);
+      // Taking the lock orders us after a worker between its last look and
+      // its wait; notifying after releasing it spares the woken worker from
+      // blocking on the lock we still hold (a second futex round trip).
+      { std::lock_guard lk(mu); }
       cv.notify_one();
     }
   }
