@@ -89,6 +89,28 @@ void BM_Bus_SameThread(benchmark::State& state) {
 }
 BENCHMARK(BM_Bus_SameThread)->Arg(64)->Arg(8192);
 
+// ---------------------------------------------------------------------------- the publisher's own costs
+//
+// What publish() spends besides the queue (same thread): the wall-clock read
+// for MessageInfo, and publish() of one shared message to a topic without
+// subscribers (that clock read, the sequence number, the subscription
+// snapshot under the topic's lock, the reference count).
+
+void BM_Cost_ClockRead(benchmark::State& state) {
+  auto ctx = quiet_context();
+  for (auto _ : state) benchmark::DoNotOptimize(ctx->clock().now());
+}
+BENCHMARK(BM_Cost_ClockRead);
+
+void BM_Cost_PublishNoSubscriber(benchmark::State& state) {
+  auto ctx = quiet_context();
+  auto n = node(ctx, "n");
+  auto pub = n->create_publisher<StringMsg>("t");
+  auto msg = std::shared_ptr<const StringMsg>(payload(64));
+  for (auto _ : state) pub->publish(msg);
+}
+BENCHMARK(BM_Cost_PublishNoSubscriber);
+
 // ---------------------------------------------------------------------------- across threads, latency
 
 constexpr int kLatencySamples = 20000;

@@ -32,43 +32,78 @@ Executor* current_executor() {
 
 // ---------------------------------------------------------------------------- CallbackGroup
 
-std::shared_ptr<detail::ExecutorCore> CallbackGroup::push_locked(Entry e, bool* enter_fifo) {
-  pending_.push_back(std::move(e));
-  pending_count_.fetch_add(1, std::memory_order_seq_cst);  // pairs with a worker's sleepers++ (Dekker)
-  *enter_fifo = false;
-  if (core_ && core_->fifo && !scheduled_ && !running_.load(std::memory_order_relaxed)) {
-    scheduled_ = true;
-    *enter_fifo = true;
-  }
-  return core_;
-}
-
-void CallbackGroup::announce(const std::shared_ptr<detail::ExecutorCore>& core, bool enter_fifo) {
-  if (!core) return;
-  if (enter_fifo) {
-    std::lock_guard lk(core->mu);
-    core->ready.push_back(shared_from_this());
-  } else if (!core->fifo) {
+void CallbackGroup::announce() {
+  detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
+  if (core == nullptr) return;
+  if (!core->fifo) {
     core->wake();
+    return;
+  }
+  // Deterministic: enter the FIFO unless already in it or running (the
+  // executor re-queues a group that still has work after its turn).
+  if (running_.load(std::memory_order_seq_cst) || scheduled_.exchange(true, std::memory_order_seq_cst)) return;
+  auto self = shared_from_this();
+  std::lock_guard lk(core->mu);
+  if (core_raw_.load(std::memory_order_acquire) == core) {
+    core->ready.push_back(std::move(self));
+  } else {
+    scheduled_.store(false);  // detached meanwhile
   }
 }
 
 void CallbackGroup::notify(const std::shared_ptr<Timer>& timer) {
-  std::shared_ptr<detail::ExecutorCore> core;
-  bool enter_fifo = false;
   {
     std::lock_guard lk(mu_);
-    if (dead_) return;
-    core = push_locked(Entry{nullptr, timer}, &enter_fifo);
+    if (dead()) return;
+    ticks_.push_back(Tick{next_stamp(), timer});
+    ticks_size_.fetch_add(1, std::memory_order_seq_cst);  // seq_cst: see MessageRing::try_push
   }
-  announce(core, enter_fifo);
+  announce();
 }
 
-bool CallbackGroup::try_run(std::size_t max, std::size_t* ran) {
+void CallbackGroup::add_subscription(const std::shared_ptr<SubscriptionBase>& s) {
+  std::lock_guard lk(mu_);
+  if (dead()) return;
+  auto next = std::make_shared<SubList>(*subs_);
+  next->push_back(s);
+  subs_ = std::move(next);
+  subs_version_.fetch_add(1, std::memory_order_release);
+}
+
+void CallbackGroup::remove_subscription(const SubscriptionBase* s) {
+  std::shared_ptr<const SubList> old;  // released outside the lock: it may hold the last reference
+  std::lock_guard lk(mu_);
+  auto next = std::make_shared<SubList>();
+  for (const auto& x : *subs_)
+    if (x.get() != s) next->push_back(x);
+  if (next->size() == subs_->size()) return;
+  old = std::exchange(subs_, std::move(next));
+  subs_version_.fetch_add(1, std::memory_order_release);
+}
+
+std::shared_ptr<const CallbackGroup::SubList> CallbackGroup::subscriptions(std::uint64_t* version) const {
+  std::lock_guard lk(mu_);
+  if (version) *version = subs_version_.load(std::memory_order_relaxed);
+  return subs_;
+}
+
+bool CallbackGroup::has_work(const SubList& subs) const {
+  if (ticks_size_.load(std::memory_order_seq_cst) != 0) return true;
+  for (const auto& s : subs)
+    if (s->front_stamp()) return true;
+  return false;
+}
+
+bool CallbackGroup::try_run(std::size_t max, std::size_t* ran, const SubList* subs) {
   bool expected = false;
   if (!running_.compare_exchange_strong(expected, true, std::memory_order_acq_rel)) return false;
   running_thread_.store(std::this_thread::get_id());
-  const std::size_t n = run_claimed(max);
+  std::shared_ptr<const SubList> own;
+  if (subs == nullptr) {
+    own = subscriptions();
+    subs = own.get();
+  }
+  const std::size_t n = run_claimed(max, *subs);
   running_thread_.store(std::thread::id{});
   running_.store(false, std::memory_order_seq_cst);
   if (shutdown_waiting_.load(std::memory_order_seq_cst)) {
@@ -79,61 +114,69 @@ bool CallbackGroup::try_run(std::size_t max, std::size_t* ran) {
   return true;
 }
 
-std::size_t CallbackGroup::run_claimed(std::size_t max) {
-  {
-    std::lock_guard lk(mu_);
-    if (dead_) return 0;
-    const std::size_t n = std::min(max, pending_.size());
-    for (std::size_t i = 0; i < n; ++i) {
-      Entry e = std::move(pending_.front());
-      pending_.pop_front();
-      if (e.sub != nullptr) {
-        // A keep-last drop may have taken this entry's message already.
-        if (!e.sub->queue_.empty() && !e.sub->cancelled_) {
-          batch_.push_back(Taken{e.sub, std::move(e.sub->queue_.front()), nullptr});
-          e.sub->queue_.pop_front();
-        }
-      } else {
-        batch_.push_back(Taken{nullptr, {}, std::move(e.timer)});
-      }
-    }
-    pending_count_.fetch_sub(n, std::memory_order_release);
+template <class F>
+void CallbackGroup::guarded(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& ex) {
+    errors_.fetch_add(1);
+    if (on_error) on_error(ex.what());
+  } catch (...) {
+    errors_.fetch_add(1);
+    if (on_error) on_error("unknown exception");
   }
+}
+
+std::size_t CallbackGroup::run_claimed(std::size_t max, const SubList& subs) {
   std::size_t ran = 0;
-  for (auto& t : batch_) {
-    try {
-      if (t.sub != nullptr) {
-        if (t.sub->qos_.history == QoS::History::Reliable) t.sub->room_.notify_one();
-        t.sub->dispatch(t.m.msg, t.m.info);
-        ++ran;
-      } else if (t.timer && !t.timer->cancelled()) {
-        t.timer->fired_.fetch_add(1, std::memory_order_relaxed);
-        t.timer->cb_();
-        ++ran;
+  while (ran < max && !dead()) {
+    // The oldest stamp goes first: arrival order across the group's queues.
+    SubscriptionBase* best = nullptr;
+    std::uint64_t best_stamp = 0;
+    for (const auto& s : subs) {
+      if (const auto st = s->front_stamp(); st && (best == nullptr || *st < best_stamp)) {
+        best = s.get();
+        best_stamp = *st;
       }
-    } catch (const std::exception& ex) {
-      errors_.fetch_add(1);
-      if (on_error) on_error(ex.what());
-    } catch (...) {
-      errors_.fetch_add(1);
-      if (on_error) on_error("unknown exception");
     }
+    if (ticks_size_.load(std::memory_order_acquire) != 0) {
+      std::shared_ptr<Timer> timer;
+      {
+        std::lock_guard lk(mu_);
+        if (!ticks_.empty() && (best == nullptr || ticks_.front().stamp < best_stamp)) {
+          timer = std::move(ticks_.front().timer);
+          ticks_.pop_front();
+          ticks_size_.fetch_sub(1, std::memory_order_relaxed);
+        }
+      }
+      if (timer) {
+        if (!timer->cancelled()) {
+          timer->fired_.fetch_add(1, std::memory_order_relaxed);
+          guarded([&] { timer->cb_(); });
+          ++ran;
+        }
+        continue;
+      }
+    }
+    if (best == nullptr) break;
+    QueuedMessage m;
+    if (!best->pop(&m)) continue;  // a keep-last publisher dropped it meanwhile: choose again
+    best->made_room();
+    if (best->cancelled_.load(std::memory_order_acquire)) continue;
+    guarded([&] { best->dispatch(std::move(m.msg), m.info); });
+    ++ran;
   }
-  batch_.clear();
   return ran;
 }
 
 void CallbackGroup::attach(std::shared_ptr<detail::ExecutorCore> core, bool unbounded_reliable) {
-  bool enter_fifo = false;
   {
     std::lock_guard lk(mu_);
     if (core_ && core_ != core) throw std::logic_error("node '" + owner_ + "' is already in an executor");
     core_ = core;
+    if (std::find(cores_seen_.begin(), cores_seen_.end(), core) == cores_seen_.end()) cores_seen_.push_back(core);
     unbounded_reliable_.store(unbounded_reliable);
-    if (core_->fifo && !pending_.empty() && !scheduled_ && !dead_) {
-      scheduled_ = true;
-      enter_fifo = true;
-    }
+    core_raw_.store(core.get(), std::memory_order_release);
   }
   {
     std::lock_guard lk(core->mu);
@@ -141,9 +184,15 @@ void CallbackGroup::attach(std::shared_ptr<detail::ExecutorCore> core, bool unbo
       core->groups.push_back(shared_from_this());
       core->groups_version.fetch_add(1);
     }
-    if (enter_fifo) core->ready.push_back(shared_from_this());
   }
-  if (!core->fifo) core->wake_all();
+  if (core->fifo) {
+    if (has_work() && !dead() && !scheduled_.exchange(true)) {
+      std::lock_guard lk(core->mu);
+      core->ready.push_back(shared_from_this());
+    }
+  } else {
+    core->wake_all();
+  }
 }
 
 void CallbackGroup::detach() {
@@ -151,26 +200,33 @@ void CallbackGroup::detach() {
   {
     std::lock_guard lk(mu_);
     core.swap(core_);
-    scheduled_ = false;
+    core_raw_.store(nullptr, std::memory_order_release);
   }
   if (!core) return;
   std::lock_guard lk(core->mu);
   std::erase(core->groups, shared_from_this());
   std::erase(core->ready, shared_from_this());
+  scheduled_.store(false);
   core->groups_version.fetch_add(1);
 }
 
 void CallbackGroup::shutdown() {
+  std::shared_ptr<const SubList> subs;
   {
     std::unique_lock lk(mu_);
-    dead_ = true;
-    pending_.clear();
-    pending_count_.store(0);
+    dead_.store(true, std::memory_order_seq_cst);
+    ticks_.clear();
+    ticks_size_.store(0);
     if (running_thread_.load() != std::this_thread::get_id()) {
       shutdown_waiting_.store(true, std::memory_order_seq_cst);
       idle_.wait(lk, [&] { return !running_.load(std::memory_order_seq_cst); });
     }
+    // Listing a subscription keeps it alive; it keeps this group alive.
+    subs = std::exchange(subs_, std::make_shared<SubList>());
+    subs_version_.fetch_add(1, std::memory_order_release);
   }
+  for (const auto& s : *subs) s->clear();  // queued messages go now, not with the last handle
+  subs.reset();
   detach();
 }
 
@@ -186,8 +242,8 @@ Executor* CallbackGroup::executor() const {
 }
 
 bool CallbackGroup::drained_by_this_thread_only() const {
-  // Called with mu_ held (from SubscriptionBase::enqueue): reads core_ directly.
-  return core_ && core_.get() == tl_core && core_->threads == 1;
+  const detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
+  return core != nullptr && core == tl_core && core->threads == 1;
 }
 
 // ---------------------------------------------------------------------------- Executor
@@ -302,21 +358,48 @@ std::optional<Time> Executor::fire_due_timers(Time now, bool catch_up) {
   return next;
 }
 
-bool Executor::run_some_group(std::vector<std::shared_ptr<CallbackGroup>>& local, std::uint64_t& version,
-                              std::size_t& cursor) {
-  const std::uint64_t v = core_->groups_version.load(std::memory_order_acquire);
-  if (v != version) {
-    std::lock_guard lk(core_->mu);
-    local = core_->groups;
-    version = core_->groups_version.load();
+void Executor::refresh(View& v) {
+  const std::uint64_t gv = core_->groups_version.load(std::memory_order_acquire);
+  if (gv != v.version) {
+    std::vector<std::shared_ptr<CallbackGroup>> groups;
+    {
+      std::lock_guard lk(core_->mu);
+      groups = core_->groups;
+      v.version = core_->groups_version.load();
+    }
+    std::vector<View::Group> next;
+    for (auto& g : groups) {
+      View::Group e;
+      for (auto& old : v.groups)
+        if (old.g == g) e = std::move(old);
+      e.g = std::move(g);
+      next.push_back(std::move(e));
+    }
+    v.groups = std::move(next);
   }
-  const std::size_t n = local.size();
+  for (auto& e : v.groups) {
+    if (e.g->subscriptions_version() != e.version) e.subs = e.g->subscriptions(&e.version);
+  }
+}
+
+bool Executor::any_pending(View& v) {
+  if (core_->groups_version.load(std::memory_order_relaxed) != v.version) return true;
+  for (const auto& e : v.groups) {
+    if (e.g->subscriptions_version() != e.version) return true;
+    if (e.g->has_work(*e.subs)) return true;
+  }
+  return false;
+}
+
+bool Executor::run_some_group(View& v) {
+  refresh(v);
+  const std::size_t n = v.groups.size();
   for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t i = (cursor + k) % n;
-    CallbackGroup& g = *local[i];
-    if (g.pending() == 0) continue;
-    if (g.try_run(options_.batch)) {
-      cursor = (i + 1) % n;  // round robin: the next scan starts after it
+    const std::size_t i = (v.cursor + k) % n;
+    const View::Group& e = v.groups[i];
+    if (!e.g->has_work(*e.subs)) continue;
+    if (e.g->try_run(options_.batch, nullptr, e.subs.get())) {
+      v.cursor = (i + 1) % n;  // round robin: the next scan starts after it
       return true;
     }
   }
@@ -326,18 +409,11 @@ bool Executor::run_some_group(std::vector<std::shared_ptr<CallbackGroup>>& local
 void Executor::worker_loop() {
   constexpr Duration kIdleWait = std::chrono::milliseconds(100);
   CoreScope scope(core_.get());
-  std::vector<std::shared_ptr<CallbackGroup>> local;
-  std::uint64_t version = ~std::uint64_t{0};
-  std::size_t cursor = 0;
-  auto any_pending = [&] {
-    for (const auto& g : local)
-      if (g->pending() != 0) return true;
-    return false;
-  };
+  View view;
   while (!stop_.load()) {
     const Time now = clock_.now();
     const auto next = fire_due_timers(now, clock_.is_sim());
-    if (run_some_group(local, version, cursor)) continue;
+    if (run_some_group(view)) continue;
     Duration wait = kIdleWait;
     if (next && !clock_.is_sim()) wait = std::clamp<Duration>(*next - now, Duration::zero(), kIdleWait);
     if (wait.count() == 0) continue;
@@ -347,7 +423,7 @@ void Executor::worker_loop() {
     const auto spin_end = std::chrono::steady_clock::now() + std::min(options_.spin, wait);
     bool found = false;
     for (unsigned polls = 0; !stop_.load(std::memory_order_relaxed); ++polls) {
-      if (any_pending() || core_->groups_version.load(std::memory_order_relaxed) != version) {
+      if (any_pending(view)) {
         found = true;
         break;
       }
@@ -357,16 +433,14 @@ void Executor::worker_loop() {
     // A message found while polling runs at once; timers are looked at on
     // the next turn (one message's callback later at most).
     if (found) {
-      run_some_group(local, version, cursor);
+      run_some_group(view);
       continue;
     }
-    // Sleep. Announce it first, then look once more: a publisher increments a
-    // pending count and then reads `sleepers`, so one of the two sees the other.
+    // Sleep. Announce it first, then look once more: a publisher queues a
+    // message and then reads `sleepers`, so one of the two sees the other.
     std::unique_lock lk(core_->mu);
     core_->sleepers.fetch_add(1, std::memory_order_seq_cst);
-    core_->cv.wait_for(lk, wait, [&] {
-      return stop_.load() || any_pending() || core_->groups_version.load() != version;
-    });
+    core_->cv.wait_for(lk, wait, [&] { return stop_.load() || any_pending(view); });
     core_->sleepers.fetch_sub(1, std::memory_order_seq_cst);
   }
 }
@@ -384,11 +458,9 @@ std::size_t Executor::spin_some() {
   start_pending_nodes();
   fire_due_timers(clock_.now(), clock_.is_sim());
   CoreScope scope(core_.get());
-  std::vector<std::shared_ptr<CallbackGroup>> local;
-  std::uint64_t version = ~std::uint64_t{0};
-  std::size_t cursor = 0;
+  View view;
   std::size_t n = 0;
-  while (run_some_group(local, version, cursor)) ++n;
+  while (run_some_group(view)) ++n;
   return n;
 }
 
@@ -421,22 +493,13 @@ std::size_t DeterministicExecutor::spin_until_idle() {
       g = std::move(core_->ready.front());
       core_->ready.pop_front();
     }
-    {
-      std::lock_guard lk(g->mu_);
-      g->scheduled_ = false;
-    }
+    g->scheduled_.store(false, std::memory_order_seq_cst);
     std::size_t ran = 0;
     g->try_run(1, &ran);
     n += ran;
-    bool again = false;
-    {
-      std::lock_guard lk(g->mu_);
-      if (!g->pending_.empty() && !g->scheduled_ && !g->dead_ && g->core_ == core_) {
-        g->scheduled_ = true;
-        again = true;
-      }
-    }
-    if (again) {
+    // A publisher that saw the group running left the re-queueing to us.
+    if (g->core_raw_.load(std::memory_order_acquire) == core_.get() && !g->dead() && g->has_work() &&
+        !g->scheduled_.exchange(true, std::memory_order_seq_cst)) {
       std::lock_guard lk(core_->mu);
       core_->ready.push_back(g);
     }

@@ -13,19 +13,27 @@ namespace tinyline::bus {
 
 SubscriptionBase::SubscriptionBase(std::string topic, const msg::TypeSupport* type, QoS qos,
                                    std::shared_ptr<CallbackGroup> group)
-    : topic_(std::move(topic)), type_(type), qos_(qos), group_(std::move(group)) {
+    : topic_(std::move(topic)),
+      type_(type),
+      qos_(qos),
+      group_(std::move(group)),
+      ring_(std::min(qos.depth, kMaxRing)) {
   if (qos_.depth == 0) throw std::invalid_argument("subscription to '" + topic_ + "': QoS depth must be at least 1");
 }
 
 bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why) {
   if (ignore_origin != 0 && info.origin == ignore_origin) return true;
   CallbackGroup& g = *group_;
-  std::unique_lock lk(g.mu_);
-  if (cancelled_ || g.dead_) return true;
-  if (queue_.size() >= qos_.depth) {
+  if (cancelled_.load(std::memory_order_acquire) || g.dead()) return true;
+  if (full()) {
     if (qos_.history == QoS::History::KeepLast) {
-      queue_.pop_front();  // its pending entry finds the queue one shorter and is skipped
-      dropped_.fetch_add(1, std::memory_order_relaxed);
+      // Drop the oldest. The worker may take one meanwhile; either way the
+      // queue ends at most `depth` long, and only what we pop counts as dropped.
+      QueuedMessage old;
+      while (full() && pop(&old)) {
+        dropped_.fetch_add(1, std::memory_order_relaxed);
+        old.msg.reset();
+      }
     } else if (!g.unbounded_reliable()) {
       // Reliable: wait for room, unless this thread is the one that must make it.
       if (g.running_here() || g.drained_by_this_thread_only()) {
@@ -38,8 +46,18 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
         }
         return false;
       }
-      if (!room_.wait_for(lk, qos_.max_block,
-                          [&] { return queue_.size() < qos_.depth || cancelled_ || g.dead_; })) {
+      // Announce the wait before reading the size: the worker advances the
+      // head before reading `waiting_` (both seq_cst), so one sees the other.
+      waiting_.fetch_add(1, std::memory_order_seq_cst);
+      bool room;
+      {
+        std::unique_lock lk(slow_mu_);
+        room = room_.wait_for(lk, qos_.max_block, [&] {
+          return size() < qos_.depth || cancelled_.load(std::memory_order_acquire) || g.dead();
+        });
+      }
+      waiting_.fetch_sub(1, std::memory_order_relaxed);
+      if (!room) {
         timeouts_.fetch_add(1, std::memory_order_relaxed);
         if (why) {
           *why = fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, g.owner(),
@@ -47,30 +65,69 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
         }
         return false;
       }
-      if (cancelled_ || g.dead_) return true;
+      if (cancelled_.load(std::memory_order_acquire) || g.dead()) return true;
     }
   }
-  queue_.push_back(QueuedMessage{std::move(msg), info});
+  QueuedMessage m{std::move(msg), info};
+  push(m, g.next_stamp());
   received_.fetch_add(1, std::memory_order_relaxed);
-  bool enter_fifo = false;
-  auto core = g.push_locked(CallbackGroup::Entry{this, nullptr}, &enter_fifo);
-  lk.unlock();
-  g.announce(core, enter_fifo);
+  g.announce();
   return true;
 }
 
-std::size_t SubscriptionBase::queued() const {
-  std::lock_guard lk(group_->mu_);
-  return queue_.size();
+void SubscriptionBase::push(QueuedMessage& m, std::uint64_t stamp) {
+  if (overflow_size_.load(std::memory_order_acquire) == 0 && ring_.try_push(m, stamp)) return;
+  std::lock_guard lk(slow_mu_);
+  overflow_.push_back(Stamped{std::move(m), stamp});
+  overflow_size_.fetch_add(1, std::memory_order_seq_cst);  // seq_cst: see MessageRing::try_push
 }
 
+bool SubscriptionBase::pop(QueuedMessage* out) {
+  if (ring_.try_pop(out)) return true;
+  // The overflow holds only messages newer than the ring's: take from it only
+  // once the ring is empty, not while a publisher is still writing its head.
+  if (overflow_size_.load(std::memory_order_acquire) == 0 || ring_.size() != 0) return false;
+  std::lock_guard lk(slow_mu_);
+  if (overflow_.empty()) return false;
+  *out = std::move(overflow_.front().m);
+  overflow_.pop_front();
+  overflow_size_.fetch_sub(1, std::memory_order_seq_cst);
+  return true;
+}
+
+std::optional<std::uint64_t> SubscriptionBase::front_stamp() {
+  if (auto s = ring_.front_stamp()) return s;
+  if (overflow_size_.load(std::memory_order_acquire) == 0 || ring_.size() != 0) return std::nullopt;
+  std::lock_guard lk(slow_mu_);
+  if (overflow_.empty()) return std::nullopt;
+  return overflow_.front().stamp;
+}
+
+void SubscriptionBase::made_room() {
+  if (qos_.history != QoS::History::Reliable) return;
+  if (waiting_.load(std::memory_order_seq_cst) == 0) return;
+  std::lock_guard lk(slow_mu_);  // a publisher between its check and its wait holds it
+  room_.notify_one();
+}
+
+void SubscriptionBase::clear() {
+  QueuedMessage m;
+  while (ring_.try_pop(&m)) m.msg.reset();
+  std::lock_guard lk(slow_mu_);
+  overflow_.clear();
+  overflow_size_.store(0, std::memory_order_seq_cst);
+}
+
+std::size_t SubscriptionBase::queued() const { return size(); }
+
 void SubscriptionBase::cancel() {
+  cancelled_.store(true, std::memory_order_seq_cst);
+  clear();
   {
-    std::lock_guard lk(group_->mu_);
-    cancelled_ = true;
-    queue_.clear();
+    std::lock_guard lk(slow_mu_);
+    room_.notify_all();
   }
-  room_.notify_all();
+  group_->remove_subscription(this);
 }
 
 // ---------------------------------------------------------------------------- Topic
@@ -88,15 +145,19 @@ PublishStatus Topic::publish(std::shared_ptr<const void> msg, const MessageInfo&
     while (latched_.size() > latched_depth_.load()) latched_.pop_front();
   }
   const auto subs = snapshot();
+  const bool taps = has_taps_.load(std::memory_order_acquire);
   PublishStatus st;
-  for (const auto& s : *subs) {
-    if (s->enqueue(msg, info, why)) {
+  for (std::size_t i = 0; i < subs->size(); ++i) {
+    // The last one without taps takes the publisher's reference: one
+    // reference-count round trip less, and the worker alone touches the count.
+    const bool last = i + 1 == subs->size() && !taps;
+    if ((*subs)[i]->enqueue(last ? std::move(msg) : msg, info, why)) {
       ++st.delivered;
     } else {
       ++st.failed;
     }
   }
-  if (has_taps_.load(std::memory_order_acquire)) {
+  if (taps) {
     std::shared_lock lk(taps_mu_);
     for (const auto& [id, tap] : taps_) tap(msg, info);
   }

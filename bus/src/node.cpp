@@ -58,6 +58,7 @@ void Node::attach_subscription(const std::shared_ptr<Topic>& t, const std::share
     subs_.emplace_back(t, s);
     sub_info_.push_back(EndpointInfo{t->name(), std::string(t->type().name), s->qos()});
   }
+  group_->add_subscription(s);  // before the topic: its queue is polled from its first message
   t->add_subscription(s);
   context_->graph().endpoints_changed(t->name());
 }

@@ -37,27 +37,32 @@ class CallbackGroup;
 
 namespace detail {
 /// What an executor shares with the groups attached to it (a separate object,
-/// so a publisher racing an executor's destruction never touches freed memory).
+/// so a publisher racing an executor's destruction never touches freed memory:
+/// a group keeps every core it was attached to alive).
 ///
-/// Real-time executors: workers scan their groups' pending counts; a
-/// publisher only wakes a sleeping worker. Delivering a message then costs one
-/// lock (the group's) and a few cache-line transfers, no queue hand-off.
+/// Real-time executors: workers poll their groups' subscription queues; a
+/// publisher only wakes a sleeping worker. Delivering a message then moves
+/// one queue slot between cores, no lock and no hand-off.
 /// Deterministic executors: groups with work wait in a FIFO, in arrival order.
 struct ExecutorCore {
   std::mutex mu;
   std::condition_variable cv;
   bool fifo = false;
   std::deque<std::shared_ptr<CallbackGroup>> ready;  ///< fifo mode only
-  std::atomic<int> sleepers{0};                      ///< workers asleep on cv
   int threads = 1;
   Executor* owner = nullptr;  ///< nulled when the executor goes away (under mu)
   std::vector<std::shared_ptr<CallbackGroup>> groups;  ///< attached (under mu)
   std::atomic<std::uint64_t> groups_version{0};
+  // Read by every publish, written only when a worker sleeps: its own line.
+  alignas(64) std::atomic<int> sleepers{0};  ///< workers asleep on cv
 
   /// Publisher side, after queueing work: wake one sleeping worker if any.
   void wake() {
     if (sleepers.load(std::memory_order_seq_cst) > 0) {
-      std::lock_guard lk(mu);
+      // Taking the lock orders us after a worker between its last look and
+      // its wait; notifying after releasing it spares the woken worker from
+      // blocking on the lock we still hold (a second futex round trip).
+      { std::lock_guard lk(mu); }
       cv.notify_one();
     }
   }
@@ -92,10 +97,13 @@ class Timer {
   Time next_due_;
 };
 
-/// The unit of mutual exclusion: one per node. Its lock also guards the
-/// queues of the node's subscriptions, so queueing a message takes one lock.
+/// The unit of mutual exclusion: one per node. Messages wait in the queues of
+/// its subscriptions (lock-free rings); every message and timer tick gets a
+/// stamp from the group, and the group runs them in stamp order.
 class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
  public:
+  using SubList = std::vector<std::shared_ptr<SubscriptionBase>>;
+
   explicit CallbackGroup(std::string owner) : owner_(std::move(owner)) {}
 
   const std::string& owner() const { return owner_; }
@@ -103,16 +111,27 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   /// Queues a timer tick (subscriptions queue through SubscriptionBase::enqueue).
   void notify(const std::shared_ptr<Timer>& timer);
 
+  /// The subscriptions whose queues this group drains. Listing one keeps it
+  /// alive until cancel() or shutdown() takes it off.
+  void add_subscription(const std::shared_ptr<SubscriptionBase>& s);
+  void remove_subscription(const SubscriptionBase* s);
+  /// The current list and its version (the version changes with the list).
+  std::shared_ptr<const SubList> subscriptions(std::uint64_t* version = nullptr) const;
+  std::uint64_t subscriptions_version() const { return subs_version_.load(std::memory_order_acquire); }
+
   /// Claims the group and runs up to `max` pending callbacks. Returns false if
-  /// another thread is running it; `ran` gets the number run.
-  bool try_run(std::size_t max, std::size_t* ran = nullptr);
-  /// Messages and ticks waiting (may count messages a keep-last queue dropped).
-  std::size_t pending() const { return pending_count_.load(std::memory_order_acquire); }
+  /// another thread is running it; `ran` gets the number run. `subs` is the
+  /// caller's copy of subscriptions() (fetched here when null).
+  bool try_run(std::size_t max, std::size_t* ran = nullptr, const SubList* subs = nullptr);
+  /// True when a message or a tick waits (`subs` as for try_run).
+  bool has_work(const SubList& subs) const;
+  bool has_work() const { return has_work(*subscriptions()); }
 
   void attach(std::shared_ptr<detail::ExecutorCore> core, bool unbounded_reliable);
   void detach();
   /// Stops all future callbacks and waits for a running one to finish.
   void shutdown();
+  bool dead() const { return dead_.load(std::memory_order_acquire); }
 
   /// The executor this group is attached to (nullptr if none).
   Executor* executor() const;
@@ -132,37 +151,42 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
  private:
   friend class SubscriptionBase;
   friend class DeterministicExecutor;
-  struct Entry {
-    SubscriptionBase* sub = nullptr;
+  struct Tick {
+    std::uint64_t stamp = 0;
     std::shared_ptr<Timer> timer;
   };
-  struct Taken {
-    SubscriptionBase* sub = nullptr;
-    QueuedMessage m;
-    std::shared_ptr<Timer> timer;
-  };
-  /// With mu_ held: records a new entry; returns the core to notify (and
-  /// whether the group must enter the FIFO).
-  std::shared_ptr<detail::ExecutorCore> push_locked(Entry e, bool* enter_fifo);
-  void announce(const std::shared_ptr<detail::ExecutorCore>& core, bool enter_fifo);
-  std::size_t run_claimed(std::size_t max);
+  /// Publisher side: the arrival stamp of a new message or tick.
+  std::uint64_t next_stamp() { return next_stamp_.fetch_add(1, std::memory_order_relaxed); }
+  /// Publisher side, after queueing: wakes a worker or enters the FIFO.
+  void announce();
+  std::size_t run_claimed(std::size_t max, const SubList& subs);
+  /// Runs a callback, catching and counting what it throws.
+  template <class F>
+  void guarded(F&& f);
 
-  std::string owner_;
+  // Read-mostly.
+  const std::string owner_;
+  std::atomic<detail::ExecutorCore*> core_raw_{nullptr};  ///< the attached core (lock-free read)
+  std::atomic<bool> dead_{false};
+  std::atomic<std::uint64_t> subs_version_{0};
+  std::atomic<std::size_t> ticks_size_{0};
+  std::atomic<bool> unbounded_reliable_{false};
+  // Under mu_.
   mutable std::mutex mu_;
   std::condition_variable idle_;
-  std::deque<Entry> pending_;
-  std::vector<Taken> batch_;
+  std::shared_ptr<const SubList> subs_ = std::make_shared<SubList>();
+  std::deque<Tick> ticks_;
   std::shared_ptr<detail::ExecutorCore> core_;
-  bool scheduled_ = false;  // in the FIFO of a deterministic executor
-  bool dead_ = false;
-  // Own cache lines: workers poll pending_count_ while a publisher holds mu_
-  // and writes the queues; sharing a line would bounce it mid-publish.
-  alignas(64) std::atomic<std::size_t> pending_count_{0};
+  std::vector<std::shared_ptr<detail::ExecutorCore>> cores_seen_;  // keeps core_raw_ valid for racing publishers
+  // Publishers write it on every message.
+  alignas(64) std::atomic<std::uint64_t> next_stamp_{0};
+  // The running worker writes these.
   alignas(64) std::atomic<bool> running_{false};
-  std::atomic<bool> shutdown_waiting_{false};
   std::atomic<std::thread::id> running_thread_{};
-  std::atomic<bool> unbounded_reliable_{false};
+  std::atomic<bool> shutdown_waiting_{false};
   std::atomic<std::uint64_t> errors_{0};
+  // Deterministic executors: in the FIFO already.
+  alignas(64) std::atomic<bool> scheduled_{false};
 };
 
 struct ExecutorOptions {
@@ -201,9 +225,24 @@ class Executor {
  protected:
   /// Calls on_start() of every node added since the last call.
   void start_pending_nodes();
+  /// A worker's copies of the attached groups and their subscription lists
+  /// (refreshed when a version changes), so polling takes no lock.
+  struct View {
+    struct Group {
+      std::shared_ptr<CallbackGroup> g;
+      std::shared_ptr<const CallbackGroup::SubList> subs;
+      std::uint64_t version = ~std::uint64_t{0};
+    };
+    std::vector<Group> groups;
+    std::uint64_t version = ~std::uint64_t{0};
+    std::size_t cursor = 0;
+  };
+  /// Brings `v` up to date with the attached groups and their subscriptions.
+  void refresh(View& v);
+  /// True when some group of `v` has work (or the group list changed).
+  bool any_pending(View& v);
   /// Runs one batch of some group with work; false if none had any.
-  bool run_some_group(std::vector<std::shared_ptr<CallbackGroup>>& local, std::uint64_t& version,
-                      std::size_t& cursor);
+  bool run_some_group(View& v);
   /// Hands due timers to their groups; returns the next due time if any.
   std::optional<Time> fire_due_timers(Time now, bool catch_up);
   /// The worker loop of spin().

@@ -11,10 +11,12 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <string>
 #include <vector>
 
+#include <tinyline/bus/detail/message_ring.hpp>
 #include <tinyline/bus/message_info.hpp>
 #include <tinyline/bus/qos.hpp>
 #include <tinyline/bus/time.hpp>
@@ -61,17 +63,50 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
 
  protected:
   friend class CallbackGroup;
-  virtual void dispatch(const std::shared_ptr<const void>& msg, const MessageInfo& info) = 0;
+  /// Runs the callback; takes the message so the reference count is not touched.
+  virtual void dispatch(std::shared_ptr<const void>&& msg, const MessageInfo& info) = 0;
 
  private:
-  std::string topic_;
-  const msg::TypeSupport* type_;
-  QoS qos_;
-  std::shared_ptr<CallbackGroup> group_;
-  std::condition_variable room_;     // reliable: publishers wait here (with the group's lock)
-  std::deque<QueuedMessage> queue_;  // guarded by the group's lock
-  bool cancelled_ = false;           // guarded by the group's lock
-  std::atomic<std::uint64_t> received_{0};
+  // The queue: a lock-free ring in the common case; a locked overflow deque
+  // behind it for queues deeper than the ring and for the unbounded reliable
+  // queues of a deterministic executor. While the overflow holds anything,
+  // new messages go there too, so the order stays the publish order.
+  static constexpr std::size_t kMaxRing = 1024;
+  /// The stamp of the oldest queued message, if any (consumer side).
+  std::optional<std::uint64_t> front_stamp();
+  /// Takes the oldest queued message (the worker, or a keep-last publisher evicting it).
+  bool pop(QueuedMessage* out);
+  void push(QueuedMessage& m, std::uint64_t stamp);
+  std::size_t size() const { return ring_.size() + overflow_size_.load(std::memory_order_seq_cst); }
+  /// size() >= depth, cheaply on the publisher's side.
+  bool full() {
+    const std::size_t o = overflow_size_.load(std::memory_order_seq_cst);
+    return o >= qos_.depth || ring_.size_reaches(qos_.depth - o);
+  }
+  void clear();
+  /// Consumer side, after taking a message: wakes a reliable publisher waiting for room.
+  void made_room();
+
+  struct Stamped {
+    QueuedMessage m;
+    std::uint64_t stamp = 0;
+  };
+
+  // Read-mostly (both sides).
+  const std::string topic_;
+  const msg::TypeSupport* const type_;
+  const QoS qos_;
+  const std::shared_ptr<CallbackGroup> group_;
+  std::atomic<bool> cancelled_{false};
+  std::atomic<std::size_t> overflow_size_{0};  ///< changes only when the ring overflows
+  detail::MessageRing ring_;
+  // Slow paths: the overflow and reliable publishers waiting for room.
+  std::mutex slow_mu_;
+  std::deque<Stamped> overflow_;  // guarded by slow_mu_
+  std::condition_variable room_;  // reliable: publishers wait here (with slow_mu_)
+  std::atomic<int> waiting_{0};   // publishers inside room_.wait
+  // Written by publishers on every message: kept off the lines the worker reads.
+  alignas(64) std::atomic<std::uint64_t> received_{0};
   std::atomic<std::uint64_t> dropped_{0};
   std::atomic<std::uint64_t> timeouts_{0};
 };

@@ -109,8 +109,8 @@ class Subscription : public SubscriptionBase {
       : SubscriptionBase(std::move(topic), &msg::type_support<T>(), qos, std::move(group)), cb_(std::move(cb)) {}
 
  protected:
-  void dispatch(const std::shared_ptr<const void>& m, const MessageInfo& info) override {
-    cb_(std::static_pointer_cast<const T>(m), info);
+  void dispatch(std::shared_ptr<const void>&& m, const MessageInfo& info) override {
+    cb_(std::static_pointer_cast<const T>(std::move(m)), info);
   }
 
  private:
@@ -125,7 +125,7 @@ class GenericSubscription : public SubscriptionBase {
       : SubscriptionBase(std::move(topic), type, qos, std::move(group)), cb_(std::move(cb)) {}
 
  protected:
-  void dispatch(const std::shared_ptr<const void>& m, const MessageInfo& info) override { cb_(m, type(), info); }
+  void dispatch(std::shared_ptr<const void>&& m, const MessageInfo& info) override { cb_(m, type(), info); }
 
  private:
   Callback cb_;
