@@ -72,12 +72,8 @@ TEST(HydrusFittingNodes, CircleFitterFusesFourSensorsAndPublishesTheCircle) {
   o.param("robot_description", kConfig);
   o.remap("scans", "/hydrus/scans").remap("circle", "/hydrus/circle");
   h.add("circle_fitter", o);
-  std::vector<std::shared_ptr<const CircleFit>> got;
-  std::vector<std::shared_ptr<const MarkerArray>> markers;
-  auto sub = h.io->create_subscription<CircleFit>("/hydrus/circle", bus::QoS::keep_last(20),
-                                                  [&](const std::shared_ptr<const CircleFit>& m) { got.push_back(m); });
-  auto msub = h.io->create_subscription<MarkerArray>(
-      "markers", bus::QoS::keep_last(20), [&](const std::shared_ptr<const MarkerArray>& m) { markers.push_back(m); });
+  auto& got = h.collect<CircleFit>("/hydrus/circle", bus::QoS::keep_last(20));
+  auto& markers = h.collect<MarkerArray>("markers", bus::QoS::keep_last(20));
   auto scans = h.io->create_publisher<LineScan>("/hydrus/scans");
   auto joints = h.io->create_publisher<JointState>("joint_states");
 
@@ -112,9 +108,7 @@ TEST(HydrusFittingNodes, CircleFitterReportsUnknownSensorsAndStaleJoints) {
   o.name = "fitter";
   o.param("robot_description", kConfig);
   auto node = std::dynamic_pointer_cast<hf::CircleFitterNode>(h.add("circle_fitter", o));
-  std::vector<std::shared_ptr<const CircleFit>> got;
-  auto sub = h.io->create_subscription<CircleFit>("circle", bus::QoS::keep_last(20),
-                                                  [&](const std::shared_ptr<const CircleFit>& m) { got.push_back(m); });
+  auto& got = h.collect<CircleFit>("circle", bus::QoS::keep_last(20));
   auto scans = h.io->create_publisher<LineScan>("scans");
   auto joints = h.io->create_publisher<JointState>("joint_states");
   const auto model = hf::RobotModel::load(kConfig);
@@ -164,9 +158,7 @@ TEST(HydrusFittingNodes, CircleFitterMovesScansByTheBasePose) {
     o.name = "fitter";
     o.param("robot_description", kConfig);
     h.add("circle_fitter", o);
-    std::vector<std::shared_ptr<const CircleFit>> got;
-    auto sub = h.io->create_subscription<CircleFit>(
-        "circle", bus::QoS::keep_last(20), [&](const std::shared_ptr<const CircleFit>& m) { got.push_back(m); });
+    auto& got = h.collect<CircleFit>("circle", bus::QoS::keep_last(20));
     auto scans = h.io->create_publisher<LineScan>("scans");
     auto joints = h.io->create_publisher<JointState>("joint_states");
     auto poses = h.io->create_publisher<tinyline::geometry_msgs::msg::PoseStamped>("base_pose");

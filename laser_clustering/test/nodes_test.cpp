@@ -72,9 +72,7 @@ TEST(LaserClusteringNodes, LineClustererPublishesObjectsAndNotesBadScans) {
   o.name = "clusterer";
   o.remap("scan", "/laser/scan").remap("clusters", "/laser/clusters").param("objects_eps_m", 0.008);
   h.add("line_clusterer", o);
-  std::vector<std::shared_ptr<const LineClusters>> got;
-  auto sub = h.io->create_subscription<LineClusters>("/laser/clusters", bus::QoS::keep_last(10),
-                                                      [&](const std::shared_ptr<const LineClusters>& m) { got.push_back(m); });
+  auto& got = h.collect<LineClusters>("/laser/clusters", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("/laser/scan");
   const auto s = pedicel_scene(0.02);
   pub->publish(to_msg(s.scan, 1.0));
@@ -103,9 +101,7 @@ TEST(LaserClusteringNodes, PedicelFinderReportsTheMoveAndHonoursTheExpectation) 
   o.name = "finder";
   o.param("scissor_centre_z_m", 0.12);
   h.add("pedicel_finder", o);
-  std::vector<std::shared_ptr<const PedicelDetection>> got;
-  auto sub = h.io->create_subscription<PedicelDetection>(
-      "pedicel", bus::QoS::keep_last(10), [&](const std::shared_ptr<const PedicelDetection>& m) { got.push_back(m); });
+  auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto expected = h.io->create_publisher<PointStamped>("expected_pedicel");
 
@@ -153,9 +149,7 @@ TEST(LaserClusteringNodes, PedicelFinderTakesTheVisionsTrussLayout) {
   o.name = "finder";
   o.param("scissor_centre_z_m", 0.12);
   h.add("pedicel_finder", o);
-  std::vector<std::shared_ptr<const PedicelDetection>> got;
-  auto sub = h.io->create_subscription<PedicelDetection>(
-      "pedicel", bus::QoS::keep_last(10), [&](const std::shared_ptr<const PedicelDetection>& m) { got.push_back(m); });
+  auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
   lc::test::SynthParams sp;
@@ -256,9 +250,7 @@ TEST(LaserClusteringNodes, AlignmentSearchFindsThePitchOfAPitchSweep) {
   o.param("pitch_joint", std::string("wrist_pitch"));
   o.param("surface_quantile", 0.99);  // the stick is about 3 % of the pixels
   h.add("alignment_search", o);
-  std::vector<std::shared_ptr<const AlignmentResult>> got;
-  auto sub = h.io->create_subscription<AlignmentResult>(
-      "alignment", bus::QoS::keep_last(100), [&](const std::shared_ptr<const AlignmentResult>& m) { got.push_back(m); });
+  auto& got = h.collect<AlignmentResult>("alignment", bus::QoS::keep_last(100));
   auto scans = h.io->create_publisher<LineScan>("scan");
   auto joints = h.io->create_publisher<JointState>("joint_states");
   const double deg = std::numbers::pi / 180.0, best = 3.3 * deg;
@@ -293,9 +285,7 @@ TEST(LaserClusteringNodes, MinReflectanceDropsDimReturns) {
   o.name = "clusterer";
   o.param("min_reflectance", 10.0);
   h.add("line_clusterer", o);
-  std::vector<std::shared_ptr<const LineClusters>> got;
-  auto sub = h.io->create_subscription<LineClusters>("clusters", bus::QoS::keep_last(10),
-                                                      [&](const std::shared_ptr<const LineClusters>& m) { got.push_back(m); });
+  auto& got = h.collect<LineClusters>("clusters", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto bright = to_msg(pedicel_scene(0.02).scan, 1.0);
   bright->reflectance.assign(bright->distance_m.size(), 20.0f);

@@ -68,9 +68,7 @@ TEST(TomatoNodes, DetectorSaysWhyABadCloudHasNoTomatoes) {
   bus::NodeOptions o;
   o.name = "detector";
   h.add("tomato_reasoning", "tomato_detector", o);
-  std::vector<std::shared_ptr<const TomatoEstimates>> got;
-  auto sub = h.io->create_subscription<TomatoEstimates>("tomatoes", bus::QoS::keep_last(10),
-                                                        [&](const std::shared_ptr<const TomatoEstimates>& m) { got.push_back(m); });
+  auto& got = h.collect<TomatoEstimates>("tomatoes", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<PointCloud2>("cloud");
   h.ex.spin_until_idle();
   pub->publish(std::make_unique<PointCloud2>());  // no fields
@@ -112,15 +110,9 @@ TEST(TomatoNodes, HarvestPipelineFindsOrdersAndVerifiesEveryTomato) {
   h.add("tomato_reasoning", "pick_verifier", ver);
   h.add("tomato_reasoning", "hand_laser", laser);
   h.add("laser_clustering", "pedicel_finder", finder);
-  std::vector<std::shared_ptr<const TomatoEstimates>> tomatoes;
-  std::vector<std::shared_ptr<const PickVerification>> verified;
-  std::vector<std::shared_ptr<const MarkerArray>> markers;
-  auto s1 = h.io->create_subscription<TomatoEstimates>("/tomatoes", bus::QoS::keep_last(10),
-                                                       [&](const std::shared_ptr<const TomatoEstimates>& m) { tomatoes.push_back(m); });
-  auto s2 = h.io->create_subscription<PickVerification>("/verification", bus::QoS::keep_last(10),
-                                                        [&](const std::shared_ptr<const PickVerification>& m) { verified.push_back(m); });
-  auto s3 = h.io->create_subscription<MarkerArray>("/tomatoes/markers", bus::QoS::keep_last(10),
-                                                   [&](const std::shared_ptr<const MarkerArray>& m) { markers.push_back(m); });
+  auto& tomatoes = h.collect<TomatoEstimates>("/tomatoes", bus::QoS::keep_last(10));
+  auto& verified = h.collect<PickVerification>("/verification", bus::QoS::keep_last(10));
+  auto& markers = h.collect<MarkerArray>("/tomatoes/markers", bus::QoS::keep_last(10));
   h.ex.advance_to(bus::Time::from_seconds(100.0));  // starts the nodes; timers count from here
   EXPECT_TRUE(tomatoes.empty());  // the camera's first frame comes one period after start
   h.ex.advance_to(bus::Time::from_seconds(101.0));
@@ -202,9 +194,7 @@ TEST(TomatoNodes, TwoViewDetectorWaitsForBothViewsAndRejectsABadPose) {
   o.name = "detector";
   o.param("views", std::int64_t(2));
   h.add("tomato_reasoning", "tomato_detector", o);
-  std::vector<std::shared_ptr<const TomatoEstimates>> got;
-  auto sub = h.io->create_subscription<TomatoEstimates>("tomatoes", bus::QoS::keep_last(10),
-                                                        [&](const std::shared_ptr<const TomatoEstimates>& m) { got.push_back(m); });
+  auto& got = h.collect<TomatoEstimates>("tomatoes", bus::QoS::keep_last(10));
   auto cloud = h.io->create_publisher<PointCloud2>("cloud");
   auto cloud2 = h.io->create_publisher<PointCloud2>("cloud2");
   auto pose2 = h.io->create_publisher<PoseStamped>("cloud2_pose");
