@@ -22,8 +22,6 @@ namespace {
 
 constexpr int kCentre = 136;
 
-using Figures = tt::Section35Figures;
-
 tl::CalibrationDataset rail(double fixed_discharge, std::uint64_t seed) {
   tt::SyntheticSensor s;
   auto plan = tt::default_rail();
@@ -35,7 +33,7 @@ tl::CalibrationDataset rail(double fixed_discharge, std::uint64_t seed) {
   return tt::simulate_rail(s, plan);
 }
 
-Figures fit(const char* name, const tl::CalibrationDataset& data, int degree, double thesis_var, double thesis_sd) {
+tl::DeclaredFitParams fit_params(int degree) {
   // Rsen and Vle measured apart, as the thesis did: with the laser off the pixel reads
   // ambient light and leakage only (dark_charges), Rsen = b / a, Vle = b / pulses.
   const tt::SyntheticSensor s;
@@ -47,7 +45,7 @@ Figures fit(const char* name, const tl::CalibrationDataset& data, int degree, do
   p.fit_leakage = false;
   p.leakage_per_pulse = dark.b / 500.0;
   p.selection = tl::ReadoutSelection::kAll;  // every read-out of the data set (Eq. 3.20, K = 1)
-  return tt::section35_figures(name, data, p, thesis_var, thesis_sd);
+  return p;
 }
 
 }  // namespace
@@ -56,19 +54,7 @@ TEST(CalibrationSection35, FitDegreeAndDischargeOrderingOfTheThesis) {
   const auto d40 = rail(0.4, 11);
   const auto d20 = rail(0.2, 12);
   const auto multi = rail(0.0, 13);
-  // measured.yaml calibration_fits_cm: the thesis gives "sd over 5" for the linear fit.
-  const Figures lin = fit("linear (Eq. 3.16), 40 %", d40, 1, 29.3814, std::sqrt(29.3814));
-  const Figures p3 = fit("degree 3, 40 %", d40, 3, 1.6863, 1.2986);
-  const Figures p6 = fit("degree 6, 40 %", d40, 6, 0.7424, 0.8616);
-  const Figures p6_20 = fit("degree 6, 20 %", d20, 6, 1.442, 1.20);
-  const Figures p6_multi = fit("degree 6, multi-discharge", multi, 6, 3.4618, 1.8606);
-
-  std::printf("\n| fit | var [cm^2] | SD [cm] | held-out SD [cm] | read-outs | thesis var | thesis SD |\n");
-  std::printf("|---|---|---|---|---|---|---|\n");
-  for (const auto* f : {&lin, &p3, &p6, &p6_20, &p6_multi}) {
-    std::printf("| %s | %.3f | %.3f | %.3f | %zu | %.4f | %.4f |\n", f->name, f->var_cm2, f->sd_cm, f->heldout_sd_cm,
-                f->n, f->thesis_var, f->thesis_sd);
-  }
+  const auto [lin, p3, p6, p6_20, p6_multi] = tt::section35_table(d40, d20, multi, fit_params);
   EXPECT_GT(lin.sd_cm, 2.0 * p3.sd_cm);
   EXPECT_GT(p3.sd_cm, p6.sd_cm);
   EXPECT_GT(p6_20.sd_cm, p6.sd_cm);

@@ -26,8 +26,6 @@ namespace tt = tinyline::tiny_laser_driver::testing;
 
 namespace {
 
-using Figures = tt::Section35Figures;
-
 sim::SensorParams sensor() {
   return sim::load_sensor_params(std::string(TINYLINE_SOURCE_DIR) + "/sim/config/sensors/tiny_tof_8mm.yaml");
 }
@@ -56,7 +54,7 @@ tl::CalibrationDataset rail(std::optional<double> discharge, std::uint64_t first
   return data;
 }
 
-Figures fit(const char* name, const tl::CalibrationDataset& data, int degree, double thesis_var, double thesis_sd) {
+tl::DeclaredFitParams fit_params(int degree) {
   static const tt::RailConstants c = tt::measure_rail_constants(sensor());
   tl::DeclaredFitParams p;
   p.degree = degree;
@@ -66,7 +64,7 @@ Figures fit(const char* name, const tl::CalibrationDataset& data, int degree, do
   p.leakage_per_pulse = c.leakage_per_pulse;
   p.fit_temperature = false;  // warm: the thesis's 3.5 data hold no warm-up
   p.selection = tl::ReadoutSelection::kAll;  // every valid read-out of the data set (Eq. 3.20, K = 1)
-  return tt::section35_figures(name, data, p, thesis_var, thesis_sd);
+  return p;
 }
 
 }  // namespace
@@ -75,18 +73,7 @@ TEST(CalibrationSimSection35, FitDegreeAndDischargeOnTheSimulatedSensor) {
   const auto d40 = rail(0.4, 1000000);
   const auto d20 = rail(0.2, 2000000);
   const auto multi = rail(std::nullopt, 3000000);
-  const Figures lin = fit("linear (Eq. 3.16), 40 %", d40, 1, 29.3814, std::sqrt(29.3814));
-  const Figures p3 = fit("degree 3, 40 %", d40, 3, 1.6863, 1.2986);
-  const Figures p6 = fit("degree 6, 40 %", d40, 6, 0.7424, 0.8616);
-  const Figures p6_20 = fit("degree 6, 20 %", d20, 6, 1.442, 1.20);
-  const Figures p6_multi = fit("degree 6, multi-discharge", multi, 6, 3.4618, 1.8606);
-
-  std::printf("\n| fit | var [cm^2] | SD [cm] | held-out SD [cm] | read-outs | thesis var | thesis SD |\n");
-  std::printf("|---|---|---|---|---|---|---|\n");
-  for (const auto* f : {&lin, &p3, &p6, &p6_20, &p6_multi}) {
-    std::printf("| %s | %.3f | %.3f | %.3f | %zu | %.4f | %.4f |\n", f->name, f->var_cm2, f->sd_cm, f->heldout_sd_cm,
-                f->n, f->thesis_var, f->thesis_sd);
-  }
+  const auto [lin, p3, p6, p6_20, p6_multi] = tt::section35_table(d40, d20, multi, fit_params);
   // The simulated read-out noise (about 4.7 cm at 40 % discharge, five times the
   // thesis's 0.86 cm) dominates every polynomial fit, so only the orderings that
   // survive it are held: a line is far off, the degree-6 fit is no worse than

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -55,6 +56,32 @@ inline Section35Figures section35_figures(const char* name, const CalibrationDat
   }
   f.heldout_sd_cm = error_stats(residuals).sd_m * 100.0;
   return f;
+}
+
+/// The five fits of section 3.5 beside the thesis's figures (measured.yaml
+/// calibration_fits_cm; the thesis gives "sd over 5" for the linear fit), each
+/// fitted with `params(degree)`, and printed as the table in docs/calibration.md.
+struct Section35Table {
+  Section35Figures lin, p3, p6, p6_20, p6_multi;
+};
+
+template <class ParamsForDegree>
+Section35Table section35_table(const CalibrationDataset& d40, const CalibrationDataset& d20,
+                               const CalibrationDataset& multi, ParamsForDegree params) {
+  const Section35Table t{
+      section35_figures("linear (Eq. 3.16), 40 %", d40, params(1), 29.3814, std::sqrt(29.3814)),
+      section35_figures("degree 3, 40 %", d40, params(3), 1.6863, 1.2986),
+      section35_figures("degree 6, 40 %", d40, params(6), 0.7424, 0.8616),
+      section35_figures("degree 6, 20 %", d20, params(6), 1.442, 1.20),
+      section35_figures("degree 6, multi-discharge", multi, params(6), 3.4618, 1.8606),
+  };
+  std::printf("\n| fit | var [cm^2] | SD [cm] | held-out SD [cm] | read-outs | thesis var | thesis SD |\n");
+  std::printf("|---|---|---|---|---|---|---|\n");
+  for (const auto* f : {&t.lin, &t.p3, &t.p6, &t.p6_20, &t.p6_multi}) {
+    std::printf("| %s | %.3f | %.3f | %.3f | %zu | %.4f | %.4f |\n", f->name, f->var_cm2, f->sd_cm, f->heldout_sd_cm,
+                f->n, f->thesis_var, f->thesis_sd);
+  }
+  return t;
 }
 
 }  // namespace tinyline::tiny_laser_driver::testing
