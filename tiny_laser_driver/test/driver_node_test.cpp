@@ -20,6 +20,7 @@
 #include <tiny_laser_driver/nodes/register.hpp>
 
 #include "synthetic_raw_set.hpp"
+#include "temp_dir.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
 namespace tt = tinyline::tiny_laser_driver::testing;
@@ -47,17 +48,7 @@ Bytes make_set(int seed = 0) {
   });
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/tinyline_driver_XXXXXX";
-    path = ::mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
 
 // A small fixture: the stepped sim-time graph of bus/testing.hpp from
 // t = 100 s, an in-memory device reachable as mem:NAME, the driver, and

@@ -20,6 +20,7 @@
 #include <tiny_laser_driver/nodes/raw_processor.hpp>
 
 #include "synthetic_raw_set.hpp"
+#include "temp_dir.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
 namespace tt = tinyline::tiny_laser_driver::testing;
@@ -46,17 +47,7 @@ Bytes cdr(const T& m) {
   return out;
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/tinyline_replay_XXXXXX";
-    path = ::mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
 
 }  // namespace
 

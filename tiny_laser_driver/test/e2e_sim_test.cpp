@@ -30,6 +30,8 @@
 #include <tiny_laser_driver/io/port.hpp>
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 
+#include "temp_dir.hpp"
+
 namespace tl = tinyline::tiny_laser_driver;
 namespace sim = tinyline::sim;
 namespace bus = tinyline::bus;
@@ -42,17 +44,7 @@ namespace {
 
 constexpr auto kPatience = 60s;  // generous: the machine may be shared; a pass is usually a few seconds
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/tinyline_e2e_XXXXXX";
-    path = ::mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
 
 // The calibration rail scene (white paper at 0.5 m, 8 mm sensor) on a virtual
 // device, and the driver reading it.

@@ -14,6 +14,8 @@
 
 #include <tiny_laser_driver/io/port.hpp>
 
+#include "temp_dir.hpp"
+
 namespace io = tinyline::tiny_laser_driver::io;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -57,17 +59,7 @@ Bytes read_n(io::ByteStream& s, std::size_t n) {
   return out;
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/tinyline_io_XXXXXX";
-    path = ::mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
 
 void write_file(const fs::path& p, const std::string& text) {
   fs::create_directories(p.parent_path());

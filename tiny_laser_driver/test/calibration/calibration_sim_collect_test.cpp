@@ -24,6 +24,7 @@
 #include <tinyline/bag/reader.hpp>
 
 #include "sim_rail_session.hpp"
+#include "../temp_dir.hpp"
 
 namespace fs = std::filesystem;
 namespace tl = tinyline::tiny_laser_driver;
@@ -32,18 +33,7 @@ using ::testing::HasSubstr;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/tinyline_calib_collect_XXXXXX";
-    path = ::mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string operator/(const std::string& f) const { return (path / f).string(); }
-};
+using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
 
 std::string rail_scene() { return std::string(TINYLINE_SOURCE_DIR) + "/sim/config/scenes/calibration_rail.yaml"; }
 
