@@ -73,45 +73,57 @@ int matched(const eval::Scenario& s, const std::vector<Eigen::Vector3d>& centres
   return n;
 }
 
+// Per-stage times and detections over the frames one benchmark ran, reported
+// as its counters under the same names for both pipelines.
+struct FrameTally {
+  double hsi = 0, branch = 0, smooth = 0, spheres = 0, reasoning = 0;  // [ms]
+  long detected = 0, truth = 0, frames = 0, found = 0;
+
+  void add_detections(const eval::Scenario& s, const std::vector<Eigen::Vector3d>& centres) {
+    detected += matched(s, centres);
+    found += long(centres.size());
+    truth += long(s.truth.size());
+    ++frames;
+  }
+  void report(benchmark::State& state, bool with_reasoning) const {
+    const double n = double(std::max(1L, frames));
+    state.counters["hsi_ms"] = hsi / n;
+    state.counters["branch_ms"] = branch / n;
+    state.counters["smoothing_ms"] = smooth / n;
+    state.counters["spheres_ms"] = spheres / n;
+    if (with_reasoning) state.counters["reasoning_ms"] = reasoning / n;
+    state.counters["spheres_per_truth"] = double(found) / double(std::max(1L, truth));
+    state.counters["detected_pct"] = 100.0 * double(detected) / double(std::max(1L, truth));
+  }
+};
+
 using Clock = std::chrono::steady_clock;
 double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); }
 
 void BM_Tinyline(benchmark::State& state, char cls) {
   const auto& fs = frames(cls);
   std::size_t k = 0;
-  double hsi = 0, branch = 0, smooth = 0, spheres = 0, reasoning = 0;
-  long detected = 0, truth = 0, frames_run = 0, found = 0;
+  FrameTally tally;
   for (auto _ : state) {
     const Frame& f = fs[k++ % fs.size()];
     PipelineParams p;
     p.gravity = f.scenario.gravity_camera;
     const PipelineResult r = TomatoPipeline(p).run(f.scenario.cloud());
     benchmark::DoNotOptimize(r.tomatoes.data());
-    hsi += r.times.hsi_ms, branch += r.times.branch_ms, smooth += r.times.smoothing_ms, spheres += r.times.spheres_ms,
-        reasoning += r.times.reasoning_ms;
+    tally.hsi += r.times.hsi_ms, tally.branch += r.times.branch_ms, tally.smooth += r.times.smoothing_ms,
+        tally.spheres += r.times.spheres_ms, tally.reasoning += r.times.reasoning_ms;
     std::vector<Eigen::Vector3d> c;
     for (const auto& t : r.tomatoes) c.push_back(t.fit.sphere.centre);
-    detected += matched(f.scenario, c);
-    found += long(c.size());
-    truth += long(f.scenario.truth.size());
-    ++frames_run;
+    tally.add_detections(f.scenario, c);
   }
-  const double n = double(std::max(1L, frames_run));
-  state.counters["hsi_ms"] = hsi / n;
-  state.counters["branch_ms"] = branch / n;
-  state.counters["smoothing_ms"] = smooth / n;
-  state.counters["spheres_ms"] = spheres / n;
-  state.counters["reasoning_ms"] = reasoning / n;
-  state.counters["spheres_per_truth"] = double(found) / double(std::max(1L, truth));
-  state.counters["detected_pct"] = 100.0 * double(detected) / double(std::max(1L, truth));
+  tally.report(state, /*with_reasoning=*/true);
 }
 
 void BM_PlainPcl(benchmark::State& state, char cls) {
   using P = pcl::PointXYZRGB;
   const auto& fs = frames(cls);
   std::size_t k = 0;
-  double hsi = 0, branch = 0, smooth = 0, spheres = 0;
-  long detected = 0, truth = 0, frames_run = 0, found = 0;
+  FrameTally tally;
   for (auto _ : state) {
     const Frame& f = fs[k++ % fs.size()];
     const auto t0 = Clock::now();
@@ -191,19 +203,10 @@ void BM_PlainPcl(benchmark::State& state, char cls) {
     }
     const auto t4 = Clock::now();
     benchmark::DoNotOptimize(centres.data());
-    hsi += ms(t0, t1), branch += ms(t1, t2), smooth += ms(t2, t3), spheres += ms(t3, t4);
-    detected += matched(f.scenario, centres);
-    found += long(centres.size());
-    truth += long(f.scenario.truth.size());
-    ++frames_run;
+    tally.hsi += ms(t0, t1), tally.branch += ms(t1, t2), tally.smooth += ms(t2, t3), tally.spheres += ms(t3, t4);
+    tally.add_detections(f.scenario, centres);
   }
-  const double n = double(std::max(1L, frames_run));
-  state.counters["hsi_ms"] = hsi / n;
-  state.counters["branch_ms"] = branch / n;
-  state.counters["smoothing_ms"] = smooth / n;
-  state.counters["spheres_ms"] = spheres / n;
-  state.counters["detected_pct"] = 100.0 * double(detected) / double(std::max(1L, truth));
-  state.counters["spheres_per_truth"] = double(found) / double(std::max(1L, truth));
+  tally.report(state, /*with_reasoning=*/false);
 }
 
 // The simulated RGB-D camera: one VGA frame of a class C truss (z-buffer,
