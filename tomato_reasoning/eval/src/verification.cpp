@@ -100,15 +100,17 @@ const char* to_string(PickVerdict v) {
   return "?";
 }
 
-VerificationHarness::VerificationHarness(VerificationOptions o) : o_(std::move(o)) {
+std::unique_ptr<lc::eval::Scanner> make_hand_laser(const VerificationOptions& o) {
   lc::eval::SimScannerOptions so;
-  so.sensor_config = o_.sensor_config;
-  so.raw_pulses = o_.raw_pulses;
-  so.calibration_max_m = o_.calibration_max_m;
-  so.calibration_step_m = o_.calibration_step_m;
-  so.calibration_sets = o_.calibration_sets;
-  scanner_ = lc::eval::make_sim_scanner(so);
+  so.sensor_config = o.sensor_config;
+  so.raw_pulses = o.raw_pulses;
+  so.calibration_max_m = o.calibration_max_m;
+  so.calibration_step_m = o.calibration_step_m;
+  so.calibration_sets = o.calibration_sets;
+  return lc::eval::make_sim_scanner(so);
 }
+
+VerificationHarness::VerificationHarness(VerificationOptions o) : o_(std::move(o)), scanner_(make_hand_laser(o_)) {}
 
 VerificationHarness::~VerificationHarness() = default;
 

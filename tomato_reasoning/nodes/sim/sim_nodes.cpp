@@ -156,14 +156,7 @@ class HandLaserNode : public bus::Node {
     p.seed = std::uint64_t(seed_);
     truss_ = sim::make_truss(p);
     (void)sim::add_to_world(truss_, world_);
-    const eval::VerificationOptions v;  // the hand laser the scoring uses
-    laser_clustering::eval::SimScannerOptions so;
-    so.sensor_config = v.sensor_config;
-    so.raw_pulses = v.raw_pulses;
-    so.calibration_max_m = v.calibration_max_m;
-    so.calibration_step_m = v.calibration_step_m;
-    so.calibration_sets = v.calibration_sets;
-    scanner_ = laser_clustering::eval::make_sim_scanner(so);
+    scanner_ = eval::make_hand_laser(eval::VerificationOptions{});  // the hand laser the scoring uses
     logger().info("hand laser: {}", scanner_->describe());
   }
 

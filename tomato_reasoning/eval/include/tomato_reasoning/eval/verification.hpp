@@ -45,6 +45,11 @@ struct VerificationOptions {
   double expectation_sd_m = 0.015;
 };
 
+/// The simulated hand laser these options describe (sensor, read-out schedule,
+/// calibration rail), as the scoring and the hand_laser node both build it.
+/// Throws std::runtime_error as laser_clustering::eval::make_sim_scanner.
+[[nodiscard]] std::unique_ptr<laser_clustering::eval::Scanner> make_hand_laser(const VerificationOptions& o);
+
 /// Sets one option by name (pulses=10,20,50,120,300,
 /// expectation_sd_m, max_move_m, max_turn_deg); throws
 /// std::invalid_argument saying what is wrong.
