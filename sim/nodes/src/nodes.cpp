@@ -4,6 +4,8 @@
 #include <limits>
 #include <variant>
 
+#include <tinyline/msg/eigen.hpp>
+
 #include "sim/nodes/register.hpp"
 
 namespace tinyline::sim::nodes {
@@ -11,19 +13,6 @@ namespace tinyline::sim::nodes {
 namespace msgs = tinyline_msgs::msg;
 
 namespace {
-
-geometry_msgs::msg::Pose pose_msg(const Eigen::Isometry3d& T) {
-  geometry_msgs::msg::Pose p;
-  p.position.x = T.translation().x();
-  p.position.y = T.translation().y();
-  p.position.z = T.translation().z();
-  const Eigen::Quaterniond q(T.linear());
-  p.orientation.x = q.x();
-  p.orientation.y = q.y();
-  p.orientation.z = q.z();
-  p.orientation.w = q.w();
-  return p;
-}
 
 std::int16_t wire(double v) { return static_cast<std::int16_t>(std::clamp(std::lround(v * 10.0), -32768L, 32767L)); }
 
@@ -52,7 +41,7 @@ void to_msg(const SensorSet& set, const std::string& sensor, const World& world,
   out.sensor = sensor;
   out.set_index = set.index;
   out.temperature_c = static_cast<float>(set.true_temperature_c);
-  out.sensor_pose = pose_msg(set.T_world_sensor);
+  out.sensor_pose = tinyline::msg::to_pose(set.T_world_sensor);
   out.crosstalk_pulses = static_cast<std::uint32_t>(std::max(0, set.crosstalk_pulses));
   const std::size_t n = set.truth.size();
   out.range_m.resize(n);
@@ -86,7 +75,7 @@ void to_msg(const Scene& scene, msgs::SceneTruth& out) {
     t.name = o.name;
     t.shape = shape_name(o.shape);
     t.material = w.materials().get(o.material).name;
-    t.pose = pose_msg(o.T_world_object);
+    t.pose = tinyline::msg::to_pose(o.T_world_object);
     std::visit(
         [&](const auto& s) {
           using S = std::decay_t<decltype(s)>;

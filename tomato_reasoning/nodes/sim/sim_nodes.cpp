@@ -30,6 +30,8 @@
 #include <harness.hpp>
 #include <sim_scanner.hpp>
 
+#include <tinyline/msg/eigen.hpp>
+
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/eval/verification.hpp"
 #include "tomato_reasoning/nodes/nodes.hpp"
@@ -46,13 +48,6 @@ sim::TrussClass truss_class(const bus::Node& n, const std::string& s) {
   const auto c = sim::parse_truss_class(s);
   if (!c) throw bus::ParamError({}, "node '" + n.full_name() + "': truss_class '" + s + "' is not A, B or C");
   return *c;
-}
-
-Eigen::Isometry3d iso(const geometry_msgs::msg::Pose& p) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z).normalized().toRotationMatrix();
-  T.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
-  return T;
 }
 
 }  // namespace
@@ -98,10 +93,7 @@ class TrussCameraNode : public bus::Node {
       auto p2 = std::make_unique<geometry_msgs::msg::PoseStamped>();
       p2->header.stamp = c->header.stamp;
       p2->header.frame_id = frame_id_;
-      const Eigen::Isometry3d& T = scenario_->T_ref_camera[1];
-      const Eigen::Quaterniond q(T.linear());
-      p2->pose.position.x = T.translation().x(), p2->pose.position.y = T.translation().y(), p2->pose.position.z = T.translation().z();
-      p2->pose.orientation.w = q.w(), p2->pose.orientation.x = q.x(), p2->pose.orientation.y = q.y(), p2->pose.orientation.z = q.z();
+      p2->pose = tinyline::msg::to_pose(scenario_->T_ref_camera[1]);
       cloud2_pub_->publish(std::move(c2));
       pose2_pub_->publish(std::move(p2));
     }
@@ -162,7 +154,7 @@ class HandLaserNode : public bus::Node {
 
  private:
   void on_pose(const geometry_msgs::msg::PoseStamped& m) {
-    const Eigen::Isometry3d T_world_laser = truss_.T_world_camera * iso(m.pose);
+    const Eigen::Isometry3d T_world_laser = truss_.T_world_camera * tinyline::msg::to_isometry(m.pose);
     const auto s = scanner_->scan(world_, T_world_laser, index_);
     auto out = std::make_unique<msgs::LineScan>();
     out->header.stamp = m.header.stamp;  // the scan answers this pose

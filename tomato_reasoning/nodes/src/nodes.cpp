@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include <tinyline/msg/eigen.hpp>
+
 #include "tomato_reasoning/nodes/register.hpp"
 
 namespace tinyline::tomato_reasoning::nodes {
@@ -15,13 +17,9 @@ using visualization_msgs::msg::Marker;
 
 namespace {
 
-geometry_msgs::msg::Point point(const Eigen::Vector3d& p) {
-  geometry_msgs::msg::Point m;
-  m.x = p.x();
-  m.y = p.y();
-  m.z = p.z();
-  return m;
-}
+using tinyline::msg::to_point;
+using tinyline::msg::to_pose;
+
 geometry_msgs::msg::Vector3 vec(const Eigen::Vector3d& p) {
   geometry_msgs::msg::Vector3 m;
   m.x = p.x();
@@ -31,16 +29,6 @@ geometry_msgs::msg::Vector3 vec(const Eigen::Vector3d& p) {
 }
 Eigen::Vector3d eig(const geometry_msgs::msg::Point& p) { return {p.x, p.y, p.z}; }
 Eigen::Vector3d eig(const geometry_msgs::msg::Vector3& p) { return {p.x, p.y, p.z}; }
-geometry_msgs::msg::Pose pose(const Eigen::Isometry3d& T) {
-  geometry_msgs::msg::Pose p;
-  p.position = point(T.translation());
-  const Eigen::Quaterniond q(T.linear());
-  p.orientation.x = q.x();
-  p.orientation.y = q.y();
-  p.orientation.z = q.z();
-  p.orientation.w = q.w();
-  return p;
-}
 std_msgs::msg::ColorRGBA colour(float r, float g, float b, float a = 1.0f) {
   std_msgs::msg::ColorRGBA c;
   c.r = r;
@@ -62,7 +50,7 @@ Marker marker(const std_msgs::msg::Header& h, const std::string& ns, int id, int
 Marker arrow(const std_msgs::msg::Header& h, const std::string& ns, int id, const Eigen::Vector3d& from,
              const Eigen::Vector3d& to, const std_msgs::msg::ColorRGBA& c, double shaft_m) {
   Marker m = marker(h, ns, id, Marker::ARROW);
-  m.points = {point(from), point(to)};
+  m.points = {to_point(from), to_point(to)};
   m.scale.x = shaft_m;
   m.scale.y = 2 * shaft_m;
   m.scale.z = 3 * shaft_m;
@@ -160,7 +148,7 @@ void to_msg(const PipelineResult& r, const Eigen::Vector3d& gravity, msgs::Tomat
   out.reasoning_ms = r.times.reasoning_ms;
   for (const auto& t : r.tomatoes) {
     msgs::TomatoEstimate e;
-    e.centre = point(t.fit.sphere.centre);
+    e.centre = to_point(t.fit.sphere.centre);
     e.radius_m = t.fit.sphere.radius_m;
     e.inliers = std::uint32_t(t.fit.inliers.size());
     e.rms_m = t.fit.rms_m;
@@ -170,7 +158,7 @@ void to_msg(const PipelineResult& r, const Eigen::Vector3d& gravity, msgs::Tomat
     e.pedicel_spread90_deg = t.pedicel.spread90_deg;
     e.pick_rank = t.pick_rank;
     e.pick_cost = t.cost.cost;
-    e.cut_point = point(t.cut.point);
+    e.cut_point = to_point(t.cut.point);
     e.cut_direction = vec(t.cut.direction);
     e.cut_coverage = t.cut.coverage;
     e.cut_blocked = t.cut.blocked;
@@ -201,7 +189,7 @@ void to_markers(const msgs::TomatoEstimates& t, visualization_msgs::msg::MarkerA
                                 colour(0.1f, 0.8f, 0.2f), 0.003));
     out.markers.push_back(arrow(t.header, "cuts", id, c, eig(e.cut_point), colour(0.9f, 0.9f, 0.1f), 0.0015));
     Marker label = marker(t.header, "pick_rank", id, Marker::TEXT_VIEW_FACING);
-    label.pose.position = point(c - 1.3 * e.radius_m * eig(t.gravity));
+    label.pose.position = to_point(c - 1.3 * e.radius_m * eig(t.gravity));
     label.scale.z = 0.02;
     label.color = colour(1, 1, 1);
     label.text = "#" + std::to_string(e.pick_rank + 1);
@@ -323,9 +311,7 @@ void TomatoDetectorNode::on_cloud2_pose(const geometry_msgs::msg::PoseStamped& m
     // Not normalised silently: a bad quaternion means a broken pose source.
     T_ref_camera2_.matrix().setConstant(std::numeric_limits<double>::quiet_NaN());
   } else {
-    T_ref_camera2_ = Eigen::Isometry3d::Identity();
-    T_ref_camera2_.linear() = rot.normalized().toRotationMatrix();
-    T_ref_camera2_.translation() = t;
+    T_ref_camera2_ = tinyline::msg::to_isometry(m.pose);
   }
   detect();
 }
@@ -462,7 +448,7 @@ void PickVerifierNode::next_pick() {
   auto p = std::make_unique<geometry_msgs::msg::PoseStamped>();
   p->header.stamp = now().to_msg();
   p->header.frame_id = m.header.frame_id;
-  p->pose = pose(pose_.T_ref_laser);
+  p->pose = to_pose(pose_.T_ref_laser);
   waiting_ = true;
   pose_pub_->publish(std::move(p));
 }
@@ -491,14 +477,14 @@ void PickVerifierNode::on_pedicel(const msgs::PedicelDetection& d) {
   out.header.frame_id = m.header.frame_id;
   out.tomato = pose_.tomato;
   out.pick_rank = int(rank_);
-  out.laser_pose = pose(pose_.T_ref_laser);
-  out.planned_cut = point(pose_.cut_point);
+  out.laser_pose = to_pose(pose_.T_ref_laser);
+  out.planned_cut = to_point(pose_.cut_point);
   out.outcome = std::uint8_t(v.outcome);
   static_assert(int(Verification::Outcome::kCutHere) == msgs::PickVerification::CUT_HERE);
   static_assert(int(Verification::Outcome::kFailed) == msgs::PickVerification::FAILED);
   out.reason = v.reason;
   out.move = vec(v.move);
-  out.cut_point = point(v.cut_point);
+  out.cut_point = to_point(v.cut_point);
   out.confidence = v.confidence;
   logger().info("pick {} (tomato {}): {}{} ({})", rank_ + 1, pose_.tomato, to_string(v.outcome),
                 v.outcome == Verification::Outcome::kMove ? " by " + std::to_string(int(std::lround(1000 * v.move.norm()))) + " mm" : "",
