@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "../../src/rng.hpp"  // the core's splitmix64 hash
+
 namespace tinyline::tomato_reasoning::eval {
 
 ColorCloud to_cloud(const sim::RgbdFrame& f) {
@@ -16,15 +18,10 @@ ColorCloud to_cloud(const sim::RgbdFrame& f) {
 }
 
 namespace {
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
+using detail::mix;
 double unit_normal(std::uint64_t key) {
-  const double u1 = (static_cast<double>(mix(key) >> 11) + 0.5) * 0x1.0p-53;
-  const double u2 = (static_cast<double>(mix(key + 1) >> 11) + 0.5) * 0x1.0p-53;
+  const double u1 = detail::unit_uniform(mix(key));
+  const double u2 = detail::unit_uniform(mix(key + 1));
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
 }
 }  // namespace

@@ -9,6 +9,7 @@
 
 #include "harness.hpp"
 #include "sim_scanner.hpp"
+#include "../../src/rng.hpp"  // the core's splitmix64 hash
 
 namespace tinyline::tomato_reasoning::eval {
 
@@ -16,13 +17,8 @@ namespace lc = tinyline::laser_clustering;
 
 namespace {
 
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-double uniform(std::uint64_t key) { return (static_cast<double>(mix(key) >> 11) + 0.5) * 0x1.0p-53; }
+using detail::mix;
+double uniform(std::uint64_t key) { return detail::unit_uniform(mix(key)); }
 
 FinderAnswer::Outcome convert(lc::PedicelOutcome o) {
   switch (o) {
