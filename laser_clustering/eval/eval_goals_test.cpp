@@ -42,37 +42,59 @@ ev::Scanner& tools() {
 TEST(EvalGoals, RecognitionErrorCaseAlignsAtLeast85Percent) {
   const auto r = ev::run_truss_case(ev::TrussCase::kRecognitionError, gripper(), kTrials, kSeed);
   EXPECT_GE(r.aligned.p, 0.85) << "issue goal";
-  EXPECT_GE(r.aligned.k, 195) << "documented: 200/200";
+  EXPECT_GE(r.aligned.k, 195) << "documented: 199/200";
 }
 
-TEST(EvalGoals, RandomOffsetCaseHoldsItsDocumentedFigures) {
-  // The issue's goal (97 % aligned, <= 1 % wrong) is not met on these seeds:
-  // 21 of 200 trials have a neighbour nearer the throat than the target
-  // (docs). These floors catch regressions.
+TEST(EvalGoals, RandomOffsetCaseAlignsAtLeast97PercentAndGoesWrongAtMostOnePercent) {
+  // With the tomato look (register the vision's tomatoes on a scan through
+  // them, then decide): the issue's goal.
   const auto r = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
-  EXPECT_GE(r.aligned.k, 190) << "documented: 193/200";
-  EXPECT_GE(r.aligned_unambiguous.p, 0.95) << "documented: 174/179";
-  EXPECT_EQ(r.out_of_view.k + r.missed.k, 0);
+  EXPECT_GE(r.aligned.p, 0.97) << "issue goal; documented: 200/200";
+  EXPECT_LE(r.wrong.p, 0.01) << "issue goal; documented: 0/200";
 }
+
+TEST(EvalGoals, TheTomatoLookBeatsThePedicelPlaneAlone) {
+  ev::TrussEvalOptions no_look;
+  no_look.tomato_look = false;
+  const auto before = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed, no_look);
+  const auto after = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
+  EXPECT_GE(before.aligned.k, 190) << "documented: 193/200";
+  EXPECT_GE(after.aligned.k, before.aligned.k + 4) << "documented: 200 vs 193";
+  EXPECT_LE(after.wrong.k, before.wrong.k - 4) << "documented: 0 vs 7";
+  int registered = 0;
+  for (const auto& t : after.trials) registered += t.registered;
+  EXPECT_GE(registered, 150) << "most looks register the truss (documented: 176/200)";
+}
+
+// The finder's own steps, each against the one before it, with the pedicel
+// plane alone (no tomato look): the befores of the figures in the docs.
+namespace {
+ev::TrussEvalOptions pedicel_plane_only() {
+  ev::TrussEvalOptions o;
+  o.tomato_look = false;
+  return o;
+}
+}  // namespace
 
 TEST(EvalGoals, TrussLayoutBeatsTheNearestPedicelOnTheSameTrials) {
-  ev::TrussEvalOptions nearest;
+  ev::TrussEvalOptions nearest = pedicel_plane_only();
   nearest.use_layout = false;
   const auto before = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed, nearest);
-  const auto after = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
+  const auto after = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed, pedicel_plane_only());
   EXPECT_GE(before.aligned.k, 170) << "documented: 176/200";
   EXPECT_GE(after.aligned.k, before.aligned.k + 8) << "documented: 193 vs 176";
   EXPECT_LT(after.wrong.k, before.wrong.k);
+  EXPECT_GE(after.aligned_unambiguous.p, 0.95) << "documented: 175/179";
 }
 
 TEST(EvalGoals, ClosedLoopBeatsTheFirstScanAlone) {
   // Move, scan again, re-centre (4.5): the second scan, from nearer the
   // pedicel, corrects the first one's range bias at 10-20 cm.
-  ev::TrussEvalOptions first;
+  ev::TrussEvalOptions first = pedicel_plane_only();
   first.rescans = 0;
   for (const auto c : {ev::TrussCase::kRandomOffset, ev::TrussCase::kRecognitionError}) {
     const auto before = ev::run_truss_case(c, gripper(), kTrials, kSeed, first);
-    const auto after = ev::run_truss_case(c, gripper(), kTrials, kSeed);
+    const auto after = ev::run_truss_case(c, gripper(), kTrials, kSeed, pedicel_plane_only());
     EXPECT_LT(after.wrong.k, before.wrong.k) << "documented: 7 vs 14 and 0 vs 14";
     EXPECT_GT(after.aligned.k, before.aligned.k);
   }
@@ -82,13 +104,13 @@ TEST(EvalGoals, CarryingTheRunnersUpIntoTheReScansBeatsReCentringOnTheFirstChoic
   // A re-scan from where the first move put the gripper may see the pedicel
   // that tells the first scan's hypotheses apart; carried along with their
   // weights, a runner-up can then win (and the next re-scan re-centres).
-  ev::TrussEvalOptions chosen_only;
+  ev::TrussEvalOptions chosen_only = pedicel_plane_only();
   chosen_only.carry_runners_up = false;
   const auto before = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed, chosen_only);
-  const auto after = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
+  const auto after = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed, pedicel_plane_only());
   EXPECT_GT(after.aligned.k, before.aligned.k) << "documented: 193 vs 189";
   EXPECT_LT(after.wrong.k, before.wrong.k) << "documented: 7 vs 11";
-  const auto r = ev::run_truss_case(ev::TrussCase::kRecognitionError, gripper(), kTrials, kSeed);
+  const auto r = ev::run_truss_case(ev::TrussCase::kRecognitionError, gripper(), kTrials, kSeed, pedicel_plane_only());
   EXPECT_EQ(r.wrong.k, 0) << "documented: 0/200 either way";
 }
 

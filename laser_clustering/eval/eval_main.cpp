@@ -3,6 +3,7 @@
 //   laser_clustering_eval [--trials 200] [--seed 1] [--out out/laser_clustering_eval]
 //                         [--cases random_offset,recognition_error,stick,wrench] [--pictures 4]
 //                         [--failure-pictures 4] [--ablation] [--raw-pulses 10,20,50,120,300] [--rescans 2]
+//                         [--no-tomato-look]
 //   laser_clustering_eval --write-calibration FILE [--raw-pulses ...]
 //
 // Prints the Markdown tables of the doc; writes summary.json, one CSV per
@@ -46,6 +47,7 @@ struct Args {
   /// real sensor can run (the wire sets pulses in tens, wire_protocol.md).
   std::vector<int> raw_pulses = {10, 20, 50, 120, 300};
   int rescans = 2;  ///< truss cases: scans after the first move (TrussEvalOptions::rescans)
+  bool tomato_look = true;  ///< TrussEvalOptions::tomato_look
   std::string write_calibration;  ///< write the gripper sensor's calibration here and stop
   bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
 };
@@ -54,7 +56,7 @@ struct Args {
   std::cerr << "laser_clustering_eval: " << why
             << "\nusage: laser_clustering_eval [--trials N] [--seed S] [--out DIR] [--cases a,b,...] [--pictures K]\n"
                "                             [--failure-pictures K] [--ablation] [--raw-pulses P1,P2,...] [--rescans N]\n"
-               "                             [--write-calibration FILE]\n"
+               "                             [--no-tomato-look] [--write-calibration FILE]\n"
                "cases: random_offset, recognition_error, stick, wrench\n";
   std::exit(2);
 }
@@ -87,6 +89,8 @@ Args parse(int argc, char** argv) {
       a.raw_pulses.clear();
       std::stringstream ss(value());
       for (std::string c; std::getline(ss, c, ',');) a.raw_pulses.push_back(static_cast<int>(integer(c, 1)));
+    } else if (k == "--no-tomato-look") {
+      a.tomato_look = false;
     } else if (k == "--rescans") {
       a.rescans = static_cast<int>(integer(value(), 0));
     } else if (k == "--write-calibration") {
@@ -161,7 +165,10 @@ int main(int argc, char** argv) {
   std::cout << "# laser_clustering evaluation\n\n";
   if (truss_scanner) std::cout << "trusses: " << truss_scanner->describe() << "\n\n";
   if (tool_scanner) std::cout << "stick and wrench: " << tool_scanner->describe() << "\n\n";
-  if (trusses) std::cout << "truss cases: closed loop with up to " << args.rescans << " re-scan(s) after a move\n\n";
+  if (trusses) {
+    std::cout << "truss cases: closed loop with up to " << args.rescans << " re-scan(s) after a move, "
+              << (args.tomato_look ? "with" : "without") << " the tomato look\n\n";
+  }
   std::cout << "trials per case: " << args.trials << ", seeds " << args.seed << " .. "
             << args.seed + static_cast<std::uint64_t>(args.trials) - 1 << "\n\n";
   std::ofstream json(args.out / "summary.json");
@@ -172,17 +179,18 @@ int main(int argc, char** argv) {
                                 std::pair{std::string("recognition_error"), ev::TrussCase::kRecognitionError}}) {
     if (!args.cases.count(name)) continue;
     std::ofstream csv(args.out / ("trials_" + name + ".csv"));
-    csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible,neighbour_nearer\n";
+    csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible,neighbour_nearer,looked,registered\n";
     int pictures = 0, failures = 0;
     ev::TrussEvalOptions options;
     options.rescans = args.rescans;
+    options.tomato_look = args.tomato_look;
     const auto r = ev::run_truss_case(
         c, *truss_scanner, args.trials, args.seed, options,
         [&](const ev::TrussTrial& t, const ev::TrussScene& scene, const ev::SimulatedScan& s, const lc::TwoStageResult& o,
             const lc::PedicelDetection& d) {
-          csv << fmt::format("{},{},{},{},{:.5f},{:.3f},{},{}\n", t.seed, ev::to_string(t.verdict), lc::to_string(t.outcome),
+          csv << fmt::format("{},{},{},{},{:.5f},{:.3f},{},{},{},{}\n", t.seed, ev::to_string(t.verdict), lc::to_string(t.outcome),
                              t.chosen_kind, t.lateral_error_m, t.confidence, t.target_visible ? 1 : 0,
-                             t.neighbour_nearer ? 1 : 0);
+                             t.neighbour_nearer ? 1 : 0, t.looked ? 1 : 0, t.registered ? 1 : 0);
           const bool failure = t.verdict != ev::Verdict::kAligned && failures < args.failure_pictures;
           if (pictures >= args.pictures && !failure) return;
           ++(failure ? failures : pictures);
@@ -231,11 +239,26 @@ int main(int argc, char** argv) {
     one.edge.mixed_step_m = 1e9;
     one.edge.smooth_half_width_px = 0;
     variants.push_back({"one-stage baseline: DBSCAN 8 mm / 2 only", one});
+    // The tomato look against the pedicel plane alone (everything else the
+    // default): the before of the look.
+    {
+      ev::TrussEvalOptions no_look;
+      no_look.tomato_look = false;
+      const auto a = ev::run_truss_case(ev::TrussCase::kRandomOffset, *truss_scanner, args.trials, args.seed, no_look);
+      const auto b = ev::run_truss_case(ev::TrussCase::kRecognitionError, *truss_scanner, args.trials, args.seed, no_look);
+      std::cout << "without the tomato look (the pedicel plane alone): random offset aligned " << rate(a.aligned) << ", wrong "
+                << rate(a.wrong) << "; recognition error aligned " << rate(b.aligned) << ", wrong " << rate(b.wrong) << "\n\n"
+                << "(the rows below are the finder's own steps, all without the tomato look)\n\n";
+      json << fmt::format(",\n  \"without_tomato_look\": {{\"random_offset_aligned\": {}, \"random_offset_wrong\": {}, "
+                          "\"recognition_error_aligned\": {}}}",
+                          rate_json(a.aligned), rate_json(a.wrong), rate_json(b.aligned));
+    }
     std::cout << "## ablation (truss cases, same seeds)\n\n| clustering | random offset: aligned | wrong | recognition error: "
                  "aligned | wrong |\n|---|---|---|---|---|\n";
     json << ",\n  \"ablation\": [";
     for (std::size_t i = 0; i < variants.size(); ++i) {
       ev::TrussEvalOptions o;
+      o.tomato_look = false;  // the finder's own steps, before the tomato look
       o.clustering = variants[i].p;
       o.rescans = args.rescans;
       const auto a = ev::run_truss_case(ev::TrussCase::kRandomOffset, *truss_scanner, args.trials, args.seed, o);
@@ -249,6 +272,7 @@ int main(int argc, char** argv) {
     // The random-offset case without the vision's truss layout (the nearest
     // pedicel to the throat, the thesis's rule): the before of the layout test.
     ev::TrussEvalOptions no_layout;
+    no_layout.tomato_look = false;  // the finder's own steps, before the tomato look
     no_layout.use_layout = false;
     no_layout.rescans = args.rescans;
     const auto l = ev::run_truss_case(ev::TrussCase::kRandomOffset, *truss_scanner, args.trials, args.seed, no_layout);
@@ -260,6 +284,7 @@ int main(int argc, char** argv) {
     // The closed loop re-centring on the first choice alone (the runners-up
     // not carried into the re-scans): the before of carrying them.
     ev::TrussEvalOptions chosen_only;
+    chosen_only.tomato_look = false;  // the finder's own steps, before the tomato look
     chosen_only.carry_runners_up = false;
     chosen_only.rescans = args.rescans;
     const auto c1 = ev::run_truss_case(ev::TrussCase::kRandomOffset, *truss_scanner, args.trials, args.seed, chosen_only);
@@ -273,6 +298,7 @@ int main(int argc, char** argv) {
     // Both truss cases from the first scan alone (no closed loop): the before
     // of the re-scan.
     ev::TrussEvalOptions single;
+    single.tomato_look = false;  // the finder's own steps, before the tomato look
     single.rescans = 0;
     const auto s1 = ev::run_truss_case(ev::TrussCase::kRandomOffset, *truss_scanner, args.trials, args.seed, single);
     const auto s2 = ev::run_truss_case(ev::TrussCase::kRecognitionError, *truss_scanner, args.trials, args.seed, single);
@@ -284,6 +310,7 @@ int main(int argc, char** argv) {
     // The recognition-error case as the thesis's robot met it: the nearest
     // pedicel to the throat, without the tomato-based expectation.
     ev::TrussEvalOptions nearest;
+    nearest.tomato_look = false;  // the finder's own steps, before the tomato look
     nearest.use_expectation = false;
     nearest.rescans = args.rescans;
     const auto n = ev::run_truss_case(ev::TrussCase::kRecognitionError, *truss_scanner, args.trials, args.seed, nearest);

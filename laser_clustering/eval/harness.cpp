@@ -103,26 +103,65 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
                                        scene.truth.use_expectation ? scene.truth.expected_sd_m : finder.search_sd_m, {}, 0.015};
       if (layout) expectation->neighbours = scene.truth.neighbours_expected;
     }
-    const PedicelDetection d = find_pedicel(s.scan, objects, finder, expectation);
+    PedicelDetection d = find_pedicel(s.scan, objects, finder, expectation);
+    bool looked = false, registered = false, blind = false;
+    if (o.tomato_look && expectation && !scene.truth.tomatoes_expected.empty() &&
+        (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove)) {
+      // Before moving: lower the plane through the target's tomato (y is
+      // down), back off out of the sensor's short-range bias, and register
+      // the vision's tomatoes there.
+      looked = true;
+      const double down = scene.truth.tomatoes_expected.front().centre_m.y();
+      std::vector<ExpectedTomato> tomatoes = scene.truth.tomatoes_expected;
+      for (auto& t : tomatoes) t.centre_m += Eigen::Vector3d(0.0, -down, o.look_back_m);
+      const SimulatedScan look = scanner.scan(scene.world, scene.T_world_sensor * Eigen::Translation3d(0.0, down, -o.look_back_m),
+                                              seed + kRescanSeedStride * 97);
+      const TomatoRegistration reg = register_tomatoes(look.scan, tomatoes, o.registration);
+      if (reg.ok) {
+        registered = true;
+        expectation->position_xz_m += reg.shift_xz_m;
+        expectation->sd_m = o.registered_sd_m;
+        expectation->gate_sd = o.registered_gate_sd;
+        for (auto& nb : expectation->neighbours) nb.position_xz_m += reg.shift_xz_m;
+        d = find_pedicel(s.scan, objects, finder, expectation);
+        if (d.outcome == PedicelOutcome::kNothingToCut && o.blind_move) {
+          // Nothing pedicel-like where the registered truss puts the target
+          // (hidden from here): go there and look again.
+          blind = true;
+          d.outcome = PedicelOutcome::kMove;
+          d.cluster = -1;
+          d.candidates.clear();
+          d.lateral_offset_m = expectation->position_xz_m.x() - finder.scissors.centre_x_m;
+          d.depth_offset_m = expectation->position_xz_m.y() - finder.scissors.centre_z_m;
+        }
+      }
+    }
 
     TrussTrial trial;
     trial.seed = seed;
     trial.outcome = d.outcome;
     trial.confidence = d.confidence;
+    trial.looked = looked;
+    trial.registered = registered;
     int target_pixels = 0;
     for (const auto id : s.truth_object) target_pixels += id == scene.truth.target_pedicel;
     trial.target_visible = target_pixels >= 2;
     if (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove) {
-      trial.chosen = majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s);
-      // The closed loop (4.5): after a move, scan again from where the
-      // gripper now is and re-centre on what the finder sees there.
+      trial.chosen = d.cluster >= 0 ? majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s)
+                                    : sim::kNoObject;
       Eigen::Isometry3d T_world_sensor = scene.T_world_sensor;
       PedicelDetection last = d;
       std::optional<PedicelExpectation> belief = expectation;
+      // The closed loop (4.5): after a move, scan again from where the
+      // gripper now is and re-centre on what the finder sees there.
       for (int k = 0; k < o.rescans && last.outcome == PedicelOutcome::kMove; ++k) {
         T_world_sensor = T_world_sensor * Eigen::Translation3d(last.lateral_offset_m, 0.0, last.depth_offset_m);
         belief = o.carry_runners_up ? expectation_after_centring(finder, belief, last)
                                     : expectation_after_centring(finder, belief);
+        if (k == 0 && blind) {  // the move went to the registered expectation, not to a seen pedicel
+          belief->sd_m = o.registered_sd_m;
+          belief->gate_sd = o.registered_gate_sd;
+        }
         const SimulatedScan again =
             scanner.scan(scene.world, T_world_sensor, seed + kRescanSeedStride * static_cast<std::uint64_t>(k + 1));
         const TwoStageResult objects_again = clusterer.run(again.scan);
@@ -146,6 +185,10 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       const bool between = std::abs(lateral) <= finder.scissors.opening_m / 2 - scene.truth.target_radius_m &&
                            std::abs(depth) <= o.depth_tolerance_m;
       trial.verdict = trial.chosen == scene.truth.target_pedicel && between ? Verdict::kAligned : Verdict::kWrong;
+      if (blind && trial.chosen == sim::kNoObject) {  // the look from there found nothing either: no cut
+        trial.outcome = PedicelOutcome::kNothingToCut;
+        trial.verdict = trial.target_visible ? Verdict::kMissed : Verdict::kOutOfView;
+      }
     } else {
       trial.chosen_kind = "none";
       trial.verdict = trial.target_visible ? Verdict::kMissed : Verdict::kOutOfView;

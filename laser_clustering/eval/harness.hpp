@@ -17,6 +17,7 @@
 #include "laser_clustering/line_scan.hpp"
 #include "laser_clustering/pedicel_finder.hpp"
 #include "laser_clustering/reflectance_clustering.hpp"
+#include "laser_clustering/tomato_registration.hpp"
 #include "laser_clustering/two_stage.hpp"
 #include "scenes.hpp"
 
@@ -69,6 +70,8 @@ struct TrussTrial {
   /// the nearest pedicel cannot be right (the thesis's "nearby pedicels").
   bool neighbour_nearer = false;
   int rescans = 0;  ///< scans after the first (TrussEvalOptions::rescans)
+  bool looked = false;      ///< a look through the tomatoes was taken (TrussEvalOptions::tomato_look)
+  bool registered = false;  ///< ... and registered the vision's tomatoes
 };
 
 /// "target", "pedicel", "tomato", "stem", "leaf" or "none" for a ground-truth object of a truss scene.
@@ -104,6 +107,22 @@ struct TrussEvalOptions {
   /// their weights (expectation_after_centring with the detection); false:
   /// the chosen pedicel alone, the before of that change.
   bool carry_runners_up = true;
+  /// The tomato look (docs/laser_clustering.md): before the first move the
+  /// gripper lowers the laser plane to the target tomato's expected centre
+  /// and backs off look_back_m (out of the sensor's short-range bias),
+  /// registers the vision's tomatoes to that scan (register_tomatoes), and
+  /// when that gives a clear shift, the target's expectation and the layout
+  /// move by it (the target then expected within registered_sd_m, gated at
+  /// registered_gate_sd) and the finder decides again on the first scan.
+  /// false: no look, the before of it.
+  bool tomato_look = true;
+  double look_back_m = 0.08;
+  double registered_sd_m = 0.012;
+  double registered_gate_sd = 4.0;  ///< PedicelExpectation::gate_sd of a registered expectation
+  /// When nothing pedicel-like lies within that gate, move the throat to the
+  /// registered expectation and let the closed loop look from there.
+  bool blind_move = true;
+  TomatoRegistrationParams registration;
 };
 
 /// Runs `trials` seeded trials (seed0, seed0 + 1, ...). `on_trial` (optional)

@@ -182,6 +182,15 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
       estimate.back().y() = 0.0;
     }
     const Eigen::Isometry3d T_sensor_world = s.T_world_sensor.inverse();
+    Rng radius_noise(seed ^ 0x5851f42d4c957f2dULL);
+    for (std::size_t i = 0; i < estimate.size(); ++i) {
+      const Eigen::Vector3d centre(estimate[i].x(), top_y[i] + hangings[i].tomato_radius, estimate[i].z());
+      const Eigen::Vector3d e = c == TrussCase::kRandomOffset
+                                    ? Eigen::Vector3d(0.0, 0.0, o.throat_z_m) + (centre - Eigen::Vector3d(estimate[0].x(), 0.0, estimate[0].z()))
+                                    : Eigen::Vector3d(T_sensor_world * centre);
+      s.truth.tomatoes_expected.push_back(
+          {e, std::max(0.005, hangings[i].tomato_radius + radius_noise.normal(o.tomato_radius_sd_m))});
+    }
     for (std::size_t i = 1; i < estimate.size(); ++i) {
       // A tomato whose top reaches the plane puts itself, not its pedicel, in the scan.
       if (top_y[i] < -o.expected_tomato_in_plane_m) continue;

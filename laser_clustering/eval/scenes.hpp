@@ -21,6 +21,7 @@
 #include <sim/world.hpp>
 
 #include "laser_clustering/pedicel_finder.hpp"
+#include "laser_clustering/tomato_registration.hpp"
 
 namespace tinyline::laser_clustering::eval {
 
@@ -53,6 +54,7 @@ struct TrussOptions {
   double recognition_offset_m[2] = {0.02, 0.06};
   double recognition_yaw_deg = 30.0;
   double tomato_estimate_sd_m = 0.005;
+  double tomato_radius_sd_m = 0.002;  ///< the vision's error on a tomato's radius [m]
   /// The vision expects a neighbour's pedicel in the laser plane when its
   /// tomato's top is at least this far below the plane, maybe there when
   /// less, and not at all when the tomato's top reaches this far above [m].
@@ -80,6 +82,11 @@ struct TrussTruth {
   /// throat and the neighbours where the vision's layout puts them from
   /// there. Drawn from their own random stream: the scenes do not change.
   std::vector<PedicelExpectation::Neighbour> neighbours_expected;
+  /// Every tomato where the vision sees it (the same estimates as the
+  /// layout's, target's first), in the sensor frame and moved with the same
+  /// error, with its radius estimate (tomato_radius_sd_m): what a scan
+  /// through the tomatoes is registered against (register_tomatoes).
+  std::vector<ExpectedTomato> tomatoes_expected;
 };
 
 struct TrussScene {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -143,20 +144,48 @@ PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, cons
   return e;
 }
 
-PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before,
-                                              const PedicelDetection& moved) {
-  PedicelExpectation e = expectation_after_centring(p, before);
-  if (moved.candidates.empty() || !(moved.candidates.front().weight > 0.0)) return e;
+PedicelExpectation expectation_after_move(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before,
+                                          const PedicelDetection& seen, const Eigen::Vector2d& move_xz_m) {
+  PedicelExpectation e;
+  e.sd_m = p.recentre_sd_m;
+  if (seen.candidates.empty() || !(seen.candidates.front().weight > 0.0)) {
+    // Nothing was chosen: what was expected moves with the gripper.
+    if (before) {
+      e = *before;
+      e.position_xz_m -= move_xz_m;
+      for (auto& nb : e.neighbours) nb.position_xz_m -= move_xz_m;
+      for (auto& alt : e.alternatives) alt.position_xz_m -= move_xz_m;
+    } else {
+      e.position_xz_m = Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m) - move_xz_m;
+      e.sd_m = p.search_sd_m;
+    }
+    return e;
+  }
+  const PedicelCandidate& best = seen.candidates.front();
+  e.position_xz_m = best.position_xz_m - move_xz_m;
+  if (before) {
+    // The layout was expected around before's point; it now hangs on the
+    // chosen pedicel (the vision's common offset is gone with the choice).
+    const Eigen::Vector2d shift = e.position_xz_m - before->position_xz_m;
+    e.neighbours = before->neighbours;
+    for (auto& nb : e.neighbours) nb.position_xz_m += shift;
+    e.neighbour_sd_m = before->neighbour_sd_m;
+  }
   // The runners-up stay where the move put them, with their weight against
   // the chosen one's: the next scan, from elsewhere, may see the pedicel
-  // that tells them apart (its layout factor), and then re-centres on the
-  // one it favours.
-  const PedicelCandidate& best = moved.candidates.front();
-  for (std::size_t k = 1; k < moved.candidates.size(); ++k) {
-    const PedicelCandidate& c = moved.candidates[k];
-    e.alternatives.push_back({c.position_xz_m - best.position_xz_m + e.position_xz_m, c.weight / best.weight});
+  // that tells them apart (its layout factor).
+  for (std::size_t k = 1; k < seen.candidates.size(); ++k) {
+    const PedicelCandidate& c = seen.candidates[k];
+    if (c.weight > 0.0) e.alternatives.push_back({c.position_xz_m - move_xz_m, c.weight / best.weight});
   }
   return e;
+}
+
+PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before,
+                                              const PedicelDetection& moved) {
+  if (moved.candidates.empty() || !(moved.candidates.front().weight > 0.0)) return expectation_after_centring(p, before);
+  const Eigen::Vector2d throat(p.scissors.centre_x_m, p.scissors.centre_z_m);
+  return expectation_after_move(p, before, moved, moved.candidates.front().position_xz_m - throat);
 }
 
 PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
@@ -182,6 +211,10 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
         return d;
       }
     }
+  }
+  if (expectation && !(expectation->gate_sd > 0.0)) {
+    d.reason = fmt::format("expectation gate_sd must be > 0 (got {})", expectation->gate_sd);
+    return d;
   }
   if (expectation) {
     for (std::size_t i = 0; i < expectation->alternatives.size(); ++i) {
@@ -217,7 +250,9 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
   const Eigen::Vector2d expected =
       expectation ? expectation->position_xz_m : Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m);
   const double sd = expectation ? expectation->sd_m : p.search_sd_m;
-  int in_range_objects = 0, cut_by_edge = 0;
+  const double gate_sd = expectation ? expectation->gate_sd : std::numeric_limits<double>::infinity();
+  int in_range_objects = 0, cut_by_edge = 0, beyond_gate = 0;
+  double nearest_beyond_m = std::numeric_limits<double>::infinity();
   for (std::size_t k = 0; k < objects.clusters.size(); ++k) {
     const ScanCluster& c = objects.clusters[k];
     if (c.mean_range_m < p.min_range_m || c.mean_range_m > p.max_range_m) continue;
@@ -235,12 +270,19 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
     cand.shape_score = std::exp(-0.5 * zw * zw);
     cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
     const double zp = (c.centroid_xz_m - expected).norm() / sd;
+    double z_min = zp;
     cand.position_score = std::exp(-0.5 * zp * zp);
     if (expectation) {
       for (const auto& alt : expectation->alternatives) {
         const double za = (c.centroid_xz_m - alt.position_xz_m).norm() / sd;
+        z_min = std::min(z_min, za);
         cand.position_score = std::max(cand.position_score, alt.weight * std::exp(-0.5 * za * za));
       }
+    }
+    if (z_min > gate_sd) {
+      ++beyond_gate;
+      nearest_beyond_m = std::min(nearest_beyond_m, z_min * sd);
+      continue;
     }
     d.candidates.push_back(cand);
   }
@@ -249,7 +291,12 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
   std::stable_sort(d.candidates.begin(), d.candidates.end(),
                    [](const PedicelCandidate& a, const PedicelCandidate& b) { return a.weight > b.weight; });
   if (d.candidates.empty()) {
-    if (cut_by_edge > 0) {
+    if (beyond_gate > 0) {
+      d.outcome = PedicelOutcome::kNothingToCut;
+      d.reason = fmt::format("{} pedicel-like object{} in view, none within {:.3f} m ({} sd) of where the pedicel is expected "
+                             "(nearest {:.3f} m)",
+                             beyond_gate, beyond_gate == 1 ? "" : "s", gate_sd * sd, gate_sd, nearest_beyond_m);
+    } else if (cut_by_edge > 0) {
       d.outcome = PedicelOutcome::kOutOfView;
       d.reason = fmt::format("the only pedicel-sized object{} cut by the edge of the field of view",
                              cut_by_edge > 1 ? "s are" : " is");

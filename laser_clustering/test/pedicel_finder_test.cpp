@@ -203,6 +203,68 @@ TEST(PedicelFinder, RunnersUpCarriedIntoTheNextScanCanWinOnItsLayout) {
   EXPECT_EQ(detect(s.scan, p, e).outcome, PedicelOutcome::kInvalidInput);
 }
 
+// A move that centres nothing (backing off, lowering the plane to look at
+// the tomatoes): every candidate is expected where the move put it.
+TEST(PedicelFinder, AfterAMoveTheCandidatesAreExpectedWhereTheMovePutThem) {
+  lc::PedicelFinderParams p;  // throat at (0, 0.12)
+  lc::PedicelDetection seen;
+  seen.candidates.resize(3);
+  seen.candidates[0].position_xz_m = {0.02, 0.13};
+  seen.candidates[0].weight = 0.5;
+  seen.candidates[1].position_xz_m = {-0.04, 0.12};
+  seen.candidates[1].weight = 0.1;
+  seen.candidates[2].position_xz_m = {0.08, 0.15};
+  seen.candidates[2].weight = 0.0;  // weightless: not carried (an alternative needs a weight in (0, 1])
+  lc::PedicelExpectation before{{0.0, 0.12}, 0.03, {}, 0.015};
+  before.neighbours.push_back({{0.06, 0.12}, false});
+  const Eigen::Vector2d back(0.0, -0.08);
+  const auto e = lc::expectation_after_move(p, before, seen, back);
+  EXPECT_NEAR((e.position_xz_m - Eigen::Vector2d(0.02, 0.21)).norm(), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(e.sd_m, p.recentre_sd_m);
+  ASSERT_EQ(e.alternatives.size(), 1u);
+  EXPECT_NEAR((e.alternatives[0].position_xz_m - Eigen::Vector2d(-0.04, 0.20)).norm(), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(e.alternatives[0].weight, 0.2);
+  ASSERT_EQ(e.neighbours.size(), 1u);  // the layout hangs on the chosen pedicel
+  EXPECT_NEAR((e.neighbours[0].position_xz_m - Eigen::Vector2d(0.08, 0.21)).norm(), 0.0, 1e-12);
+  // Centring is the move that takes the chosen pedicel to the throat.
+  const auto c = lc::expectation_after_centring(p, before, seen);
+  const auto m = lc::expectation_after_move(p, before, seen, Eigen::Vector2d(0.02, 0.01));
+  EXPECT_NEAR((c.position_xz_m - m.position_xz_m).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((c.position_xz_m - Eigen::Vector2d(0.0, 0.12)).norm(), 0.0, 1e-12);
+  ASSERT_EQ(c.alternatives.size(), m.alternatives.size());
+  EXPECT_NEAR((c.alternatives[0].position_xz_m - m.alternatives[0].position_xz_m).norm(), 0.0, 1e-12);
+  // Nothing chosen: what was expected moves with the gripper.
+  const auto none = lc::expectation_after_move(p, before, lc::PedicelDetection{}, back);
+  EXPECT_NEAR((none.position_xz_m - Eigen::Vector2d(0.0, 0.20)).norm(), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(none.sd_m, 0.03);
+}
+
+// An expectation sure of itself (the truss registered on its tomatoes)
+// gates: a pedicel far from it is not the one looked for, and the answer is
+// "nothing to cut here", not a move to it.
+TEST(PedicelFinder, AGatedExpectationDoesNotMoveToAPedicelFarFromIt) {
+  const auto s = synth_scan({{0.06, 0.125, 0.003, 6.0, 1}}, with_wall(21));
+  lc::PedicelExpectation e{{0.0, 0.12}, 0.012, {}, 0.015};
+  const auto open = detect(s.scan, {}, e);
+  ASSERT_EQ(open.outcome, PedicelOutcome::kMove) << open.reason;
+  e.gate_sd = 4.0;  // 4.8 cm
+  const auto gated = detect(s.scan, {}, e);
+  EXPECT_EQ(gated.outcome, PedicelOutcome::kNothingToCut);
+  EXPECT_THAT(gated.reason, HasSubstr("none within 0.048 m"));
+  EXPECT_TRUE(gated.candidates.empty());
+  // Within the gate it is a candidate as before.
+  e.position_xz_m = {0.03, 0.12};
+  EXPECT_EQ(detect(s.scan, {}, e).outcome, PedicelOutcome::kMove);
+  // An alternative near it opens the gate there too.
+  e.position_xz_m = {0.0, 0.12};
+  e.alternatives.push_back({{0.055, 0.125}, 0.5});
+  EXPECT_EQ(detect(s.scan, {}, e).outcome, PedicelOutcome::kMove);
+  e.gate_sd = 0.0;
+  const auto bad = detect(s.scan, {}, e);
+  EXPECT_EQ(bad.outcome, PedicelOutcome::kInvalidInput);
+  EXPECT_THAT(bad.reason, HasSubstr("gate_sd"));
+}
+
 TEST(PedicelFinder, TomatoesAndStemsAloneAreNothingToCut) {
   // A tomato (3 cm radius) and a 2 cm stem: objects in range, none 6 mm wide.
   const auto s = synth_scan({{-0.03, 0.2, 0.03, 6.0, 1}, {0.05, 0.15, 0.01, 6.0, 2}}, with_wall(5));

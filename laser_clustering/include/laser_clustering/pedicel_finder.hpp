@@ -12,6 +12,7 @@
 // the second as a trial lost to the field of view (Table 4.3).
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -92,6 +93,12 @@ struct PedicelExpectation {
     double weight = 1.0;
   };
   std::vector<Alternative> alternatives{};
+  /// A candidate farther than gate_sd x sd_m from position_xz_m (and from
+  /// every alternative) is not the pedicel looked for; with none nearer the
+  /// outcome is kNothingToCut (nothing to cut where the pedicel should be),
+  /// not a move to whatever else is in view. Infinity: no gate. An
+  /// expectation fixed by register_tomatoes is sure enough to set one.
+  double gate_sd = std::numeric_limits<double>::infinity();
 };
 
 enum class PedicelOutcome {
@@ -150,6 +157,17 @@ struct PedicelDetection {
 [[nodiscard]] PedicelExpectation expectation_after_centring(const PedicelFinderParams& params,
                                                             const std::optional<PedicelExpectation>& before,
                                                             const PedicelDetection& moved);
+
+/// The gripper moved by `move_xz_m` (laser frame: lateral x, depth z)
+/// without centring anything, e.g. backed off to widen the view: every
+/// candidate of `seen` is expected where the move put it, the chosen one as
+/// `position_xz_m` within `params.recentre_sd_m` and the runners-up as
+/// `alternatives` with their weights over the chosen one's; the layout of
+/// `before` (if any) moves with the chosen one. expectation_after_centring
+/// with a detection is this with the move that centres the chosen pedicel.
+[[nodiscard]] PedicelExpectation expectation_after_move(const PedicelFinderParams& params,
+                                                        const std::optional<PedicelExpectation>& before,
+                                                        const PedicelDetection& seen, const Eigen::Vector2d& move_xz_m);
 
 /// Picks the pedicel among `objects` (from the same scan). `expectation`
 /// replaces the blade throat as the expected position when given.

@@ -1,0 +1,233 @@
+#include "laser_clustering/tomato_registration.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include <Eigen/LU>
+#include <fmt/format.h>
+
+namespace tinyline::laser_clustering {
+
+Validation validate(const TomatoRegistrationParams& p) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!positive(p.max_shift_m)) return {false, fmt::format("max_shift_m must be > 0 (got {})", p.max_shift_m)};
+  if (!positive(p.grid_step_m) || p.grid_step_m > p.max_shift_m) {
+    return {false, fmt::format("grid_step_m must be in (0, max_shift_m] (got {})", p.grid_step_m)};
+  }
+  if (!positive(p.inlier_m)) return {false, fmt::format("inlier_m must be > 0 (got {})", p.inlier_m)};
+  if (!std::isfinite(p.min_section_radius_m) || p.min_section_radius_m < 0.0) {
+    return {false, fmt::format("min_section_radius_m must be >= 0 (got {})", p.min_section_radius_m)};
+  }
+  if (!std::isfinite(p.min_range_m) || p.min_range_m < 0.0 || !positive(p.max_range_m) || p.max_range_m <= p.min_range_m) {
+    return {false, fmt::format("need 0 <= min_range_m < max_range_m (got {} and {})", p.min_range_m, p.max_range_m)};
+  }
+  if (p.min_tomatoes < 1 || p.min_points_per_tomato < 1) {
+    return {false, fmt::format("min_tomatoes and min_points_per_tomato must be >= 1 (got {} and {})", p.min_tomatoes,
+                               p.min_points_per_tomato)};
+  }
+  if (!std::isfinite(p.distinct_shift_m) || p.distinct_shift_m < 0.0) {
+    return {false, fmt::format("distinct_shift_m must be >= 0 (got {})", p.distinct_shift_m)};
+  }
+  if (!(p.ambiguity_ratio > 0.0 && p.ambiguity_ratio <= 1.0)) {
+    return {false, fmt::format("ambiguity_ratio must be in (0, 1] (got {})", p.ambiguity_ratio)};
+  }
+  return {};
+}
+
+namespace {
+
+struct Section {
+  Eigen::Vector2d centre;  // in the plane (x, z)
+  double radius;
+};
+
+// The nearest shifted near arc to p: its index and the signed radial
+// residual |p - c| - r; index -1 when p lies on no circle's near half.
+struct Nearest {
+  int section = -1;
+  double residual = 0.0;
+  Eigen::Vector2d v = Eigen::Vector2d::Zero();  // p - shifted centre
+};
+
+Nearest nearest_arc(const Eigen::Vector2d& p, const std::vector<Section>& sections, const Eigen::Vector2d& shift) {
+  Nearest best;
+  double best_abs = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < sections.size(); ++i) {
+    const Eigen::Vector2d c = sections[i].centre + shift;
+    const Eigen::Vector2d v = p - c;
+    if (v.dot(c) >= 0.0) continue;  // the far half: the sensor cannot see it
+    const double r = v.norm() - sections[i].radius;
+    if (std::abs(r) < best_abs) {
+      best_abs = std::abs(r);
+      best = {static_cast<int>(i), r, v};
+    }
+  }
+  return best;
+}
+
+struct Ray {
+  Eigen::Vector2d u;  // unit direction (x, z)
+  double range;       // measured; NaN: no return
+};
+
+// Pixels that see through a shifted cross-section's middle: the return
+// (or its absence) lies more than the margin behind the near arc.
+double violations(const std::vector<Ray>& rays, const std::vector<Section>& sections, const Eigen::Vector2d& shift,
+                  const TomatoRegistrationParams& p, int* count = nullptr) {
+  double cost = 0.0;
+  int n = 0;
+  for (const Section& sec : sections) {
+    const Eigen::Vector2d c = sec.centre + shift;
+    const double core2 = p.core_fraction * p.core_fraction * sec.radius * sec.radius, cc = c.squaredNorm();
+    for (const Ray& r : rays) {
+      const double uc = r.u.dot(c);
+      if (uc <= 0.0) continue;
+      const double off2 = cc - uc * uc;  // squared distance of the centre from the ray
+      if (off2 > core2) continue;
+      const double near = uc - std::sqrt(sec.radius * sec.radius - off2);
+      if (!std::isfinite(r.range)) {
+        cost += p.no_return_cost;
+        ++n;
+      } else if (r.range > near + p.free_space_margin_m) {
+        cost += p.violation_cost;
+        ++n;
+      }
+    }
+  }
+  if (count) *count = n;
+  return cost;
+}
+
+double support(const std::vector<Eigen::Vector2d>& points, const std::vector<Ray>& rays, const std::vector<Section>& sections,
+               const Eigen::Vector2d& shift, const TomatoRegistrationParams& p) {
+  const double inv = 1.0 / (p.inlier_m * p.inlier_m);
+  double s = 0.0;
+  for (const auto& q : points) {
+    const Nearest n = nearest_arc(q, sections, shift);
+    if (n.section >= 0) s += std::max(0.0, 1.0 - n.residual * n.residual * inv);
+  }
+  return s - violations(rays, sections, shift, p);
+}
+
+}  // namespace
+
+TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const ExpectedTomato> tomatoes,
+                                     const TomatoRegistrationParams& p) {
+  TomatoRegistration out;
+  if (auto v = validate(p); !v.valid) {
+    out.reason = v.reason;
+    return out;
+  }
+  if (scan.angle_rad.size() != scan.range_m.size()) {
+    out.reason = fmt::format("scan has {} angles for {} ranges", scan.angle_rad.size(), scan.range_m.size());
+    return out;
+  }
+  std::vector<Section> sections;
+  for (std::size_t i = 0; i < tomatoes.size(); ++i) {
+    const ExpectedTomato& t = tomatoes[i];
+    if (!t.centre_m.allFinite() || !(std::isfinite(t.radius_m) && t.radius_m > 0.0)) {
+      out.reason = fmt::format("tomato {} needs a finite centre and a radius > 0 (got {})", i, t.radius_m);
+      return out;
+    }
+    const double h = t.centre_m.y();
+    if (std::abs(h) >= t.radius_m) continue;
+    const double r = std::sqrt(t.radius_m * t.radius_m - h * h);
+    if (r >= p.min_section_radius_m) sections.push_back({Eigen::Vector2d(t.centre_m.x(), t.centre_m.z()), r});
+  }
+  out.tomatoes_in_plane = static_cast<int>(sections.size());
+  if (sections.empty()) {
+    out.reason = fmt::format("none of the {} tomatoes is cut by the laser plane wider than {:.3f} m", tomatoes.size(),
+                             p.min_section_radius_m);
+    return out;
+  }
+  std::vector<Eigen::Vector2d> points;
+  std::vector<Ray> rays;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    const Eigen::Vector2d u(std::sin(scan.angle_rad[i]), std::cos(scan.angle_rad[i]));
+    if (!u.allFinite()) {
+      out.reason = fmt::format("pixel {} has a non-finite angle", i);
+      return out;
+    }
+    rays.push_back({u, scan.valid(i) ? scan.range_m[i] : std::numeric_limits<double>::quiet_NaN()});
+    if (!scan.valid(i) || scan.range_m[i] < p.min_range_m || scan.range_m[i] > p.max_range_m) continue;
+    points.push_back(scan.range_m[i] * u);
+  }
+  if (points.empty()) {
+    out.reason = fmt::format("no return between {:.3f} and {:.3f} m", p.min_range_m, p.max_range_m);
+    return out;
+  }
+
+  // Coarse: every shift on the grid within the disc.
+  struct Cell {
+    Eigen::Vector2d shift;
+    double support;
+  };
+  std::vector<Cell> cells;
+  const int n = static_cast<int>(std::floor(p.max_shift_m / p.grid_step_m));
+  for (int ix = -n; ix <= n; ++ix) {
+    for (int iz = -n; iz <= n; ++iz) {
+      const Eigen::Vector2d s(ix * p.grid_step_m, iz * p.grid_step_m);
+      if (s.norm() > p.max_shift_m + 1e-12) continue;
+      cells.push_back({s, support(points, rays, sections, s, p)});
+    }
+  }
+  const auto best = std::max_element(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.support < b.support; });
+  Eigen::Vector2d shift = best->shift;
+  for (const Cell& c : cells) {
+    if ((c.shift - best->shift).norm() > p.distinct_shift_m && c.support > out.runner_up_support) {
+      out.runner_up_support = c.support;
+      out.runner_up_shift_xz_m = c.shift;
+    }
+  }
+
+  // Fine: Gauss-Newton on the shift, each inlier weighted by Tukey's biweight.
+  for (int iter = 0; iter < 8; ++iter) {
+    Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d b = Eigen::Vector2d::Zero();
+    for (const auto& q : points) {
+      const Nearest nn = nearest_arc(q, sections, shift);
+      if (nn.section < 0 || std::abs(nn.residual) >= p.inlier_m) continue;
+      const double u = nn.residual / p.inlier_m, w = (1.0 - u * u) * (1.0 - u * u);
+      const Eigen::Vector2d J = -nn.v / std::max(nn.v.norm(), 1e-9);  // d residual / d shift
+      A += w * J * J.transpose();
+      b -= w * J * nn.residual;
+    }
+    if (A.determinant() <= 1e-12) break;
+    const Eigen::Vector2d step = A.inverse() * b;  // 2 x 2, determinant checked above
+    shift += step;
+    if (step.norm() < 1e-6) break;
+  }
+
+  std::vector<int> per_section(sections.size(), 0);
+  double sum2 = 0.0;
+  for (const auto& q : points) {
+    const Nearest nn = nearest_arc(q, sections, shift);
+    if (nn.section < 0 || std::abs(nn.residual) >= p.inlier_m) continue;
+    ++per_section[static_cast<std::size_t>(nn.section)];
+    ++out.inliers;
+    sum2 += nn.residual * nn.residual;
+  }
+  out.shift_xz_m = shift;
+  out.support = support(points, rays, sections, shift, p);
+  violations(rays, sections, shift, p, &out.violations);
+  out.rms_m = out.inliers ? std::sqrt(sum2 / out.inliers) : 0.0;
+  for (const int k : per_section) out.tomatoes_matched += k >= p.min_points_per_tomato;
+  if (out.tomatoes_matched < p.min_tomatoes) {
+    out.reason = fmt::format("{} of {} tomatoes in the plane met by the scan, need {}", out.tomatoes_matched,
+                             out.tomatoes_in_plane, p.min_tomatoes);
+    return out;
+  }
+  if (out.runner_up_support >= p.ambiguity_ratio * out.support) {
+    out.reason = fmt::format("ambiguous: a shift {:.3f} m away has {:.0f} % of the best's support",
+                             (out.runner_up_shift_xz_m - shift).norm(), 100.0 * out.runner_up_support / out.support);
+    return out;
+  }
+  out.ok = true;
+  out.reason = fmt::format("{} of {} tomatoes matched, {} returns, RMS {:.4f} m, {} pixels see through", out.tomatoes_matched,
+                           out.tomatoes_in_plane, out.inliers, out.rms_m, out.violations);
+  return out;
+}
+
+}  // namespace tinyline::laser_clustering
