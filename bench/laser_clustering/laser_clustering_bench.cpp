@@ -19,6 +19,7 @@
 #include "bench_scenes.hpp"
 #include "laser_clustering/dbscan.hpp"
 #include "laser_clustering/pedicel_finder.hpp"
+#include "laser_clustering/tomato_registration.hpp"
 #include "laser_clustering/two_stage.hpp"
 
 namespace lc = tinyline::laser_clustering;
@@ -65,6 +66,28 @@ void BM_TwoStageOnly(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_TwoStageOnly);
+
+// The tomato look's registration: once per pick (not per scan), on a scan
+// through four tomatoes with the vision's layout 3 cm off. Beside it in the
+// same run: BM_TwoStagePlusPedicel, the per-scan work, and the sensor's
+// frame period (10 ms at 100 Hz) is the budget it must fit.
+void BM_RegisterTomatoes(benchmark::State& state) {
+  const std::vector<lc::test::Disc> truth{{-0.11, 0.23, 0.028, 6.0, 1}, {-0.04, 0.21, 0.033, 6.0, 2},
+                                          {0.035, 0.24, 0.026, 6.0, 3}, {0.10, 0.22, 0.031, 6.0, 4}};
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.45;
+  sp.noise_sd_m = 0.003;
+  const auto scan = lc::test::synth_scan(truth, sp).scan;
+  std::vector<lc::ExpectedTomato> expected;
+  for (const auto& d : truth) expected.push_back({Eigen::Vector3d(d.x_m - 0.03, 0.0, d.z_m + 0.01), d.radius_m});
+  const lc::TomatoRegistrationParams params;
+  for (auto _ : state) {
+    const auto r = lc::register_tomatoes(scan, expected, params);
+    if (!r.ok) state.SkipWithError(r.reason.c_str());
+    benchmark::DoNotOptimize(r.shift_xz_m.data());
+  }
+}
+BENCHMARK(BM_RegisterTomatoes)->Unit(benchmark::kMicrosecond);
 
 // One ordered-scan DBSCAN pass with the stage-1 parameters.
 void BM_OrderedScanDbscanStage1(benchmark::State& state) {

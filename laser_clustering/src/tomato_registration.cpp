@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
+#include <utility>
 #include <vector>
 
 #include <Eigen/LU>
@@ -69,23 +71,46 @@ Nearest nearest_arc(const Eigen::Vector2d& p, const std::vector<Section>& sectio
 
 struct Ray {
   Eigen::Vector2d u;  // unit direction (x, z)
+  double angle;       // its bearing [rad], ascending over rays
   double range;       // measured; NaN: no return
 };
 
-// Pixels that see through a shifted cross-section's middle: the return
-// (or its absence) lies more than the margin behind the near arc.
+struct Point {
+  Eigen::Vector2d p;
+  double angle;  // ascending over points
+};
+
+// The index range of `v` (ascending by .angle) with bearings within
+// half_width of bearing.
+template <class T>
+std::pair<std::size_t, std::size_t> window(const std::vector<T>& v, double bearing, double half_width) {
+  auto by_angle = [](const T& a, double b) { return a.angle < b; };
+  const auto lo = std::lower_bound(v.begin(), v.end(), bearing - half_width, by_angle);
+  const auto hi = std::lower_bound(lo, v.end(), bearing + half_width, by_angle);
+  return {static_cast<std::size_t>(lo - v.begin()), static_cast<std::size_t>(hi - v.begin())};
+}
+
+double half_angle(double radius, double distance) {
+  return radius >= distance ? std::numbers::pi : std::asin(radius / distance);
+}
+
+// Pixels that see through a shifted cross-section's middle (within
+// core_fraction of its radius from the centre): the return (or its
+// absence) lies more than the margin behind the near arc.
 double violations(const std::vector<Ray>& rays, const std::vector<Section>& sections, const Eigen::Vector2d& shift,
                   const TomatoRegistrationParams& p, int* count = nullptr) {
   double cost = 0.0;
   int n = 0;
   for (const Section& sec : sections) {
     const Eigen::Vector2d c = sec.centre + shift;
-    const double core2 = p.core_fraction * p.core_fraction * sec.radius * sec.radius, cc = c.squaredNorm();
-    for (const Ray& r : rays) {
+    const double core = p.core_fraction * sec.radius, cc = c.squaredNorm();
+    const auto [lo, hi] = window(rays, std::atan2(c.x(), c.y()), half_angle(core, std::sqrt(cc)));
+    for (std::size_t k = lo; k < hi; ++k) {
+      const Ray& r = rays[k];
       const double uc = r.u.dot(c);
       if (uc <= 0.0) continue;
       const double off2 = cc - uc * uc;  // squared distance of the centre from the ray
-      if (off2 > core2) continue;
+      if (off2 > core * core) continue;
       const double near = uc - std::sqrt(sec.radius * sec.radius - off2);
       if (!std::isfinite(r.range)) {
         cost += p.no_return_cost;
@@ -100,14 +125,25 @@ double violations(const std::vector<Ray>& rays, const std::vector<Section>& sect
   return cost;
 }
 
-double support(const std::vector<Eigen::Vector2d>& points, const std::vector<Ray>& rays, const std::vector<Section>& sections,
-               const Eigen::Vector2d& shift, const TomatoRegistrationParams& p) {
+// Sum over the returns of 1 - (d / inlier_m)^2 for d the distance to the
+// nearest shifted near arc (those within inlier_m), less the free-space
+// violations. Only returns within a section's bearing window can be within
+// inlier_m of it; `best` is scratch.
+double support(const std::vector<Point>& points, const std::vector<Ray>& rays, const std::vector<Section>& sections,
+               const Eigen::Vector2d& shift, const TomatoRegistrationParams& p, std::vector<double>& best) {
+  best.assign(points.size(), p.inlier_m);
+  for (const Section& sec : sections) {
+    const Eigen::Vector2d c = sec.centre + shift;
+    const auto [lo, hi] = window(points, std::atan2(c.x(), c.y()), half_angle(sec.radius + p.inlier_m, c.norm()));
+    for (std::size_t k = lo; k < hi; ++k) {
+      const Eigen::Vector2d v = points[k].p - c;
+      if (v.dot(c) >= 0.0) continue;  // the far half: the sensor cannot see it
+      best[k] = std::min(best[k], std::abs(v.norm() - sec.radius));
+    }
+  }
   const double inv = 1.0 / (p.inlier_m * p.inlier_m);
   double s = 0.0;
-  for (const auto& q : points) {
-    const Nearest n = nearest_arc(q, sections, shift);
-    if (n.section >= 0) s += std::max(0.0, 1.0 - n.residual * n.residual * inv);
-  }
+  for (const double d : best) s += 1.0 - d * d * inv;  // 0 for returns on no arc
   return s - violations(rays, sections, shift, p);
 }
 
@@ -142,52 +178,66 @@ TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const Expec
                              p.min_section_radius_m);
     return out;
   }
-  std::vector<Eigen::Vector2d> points;
+  std::vector<Point> points;
   std::vector<Ray> rays;
-  for (std::size_t i = 0; i < scan.size(); ++i) {
-    const Eigen::Vector2d u(std::sin(scan.angle_rad[i]), std::cos(scan.angle_rad[i]));
-    if (!u.allFinite()) {
-      out.reason = fmt::format("pixel {} has a non-finite angle", i);
+  const bool descending = scan.size() > 1 && scan.angle_rad.front() > scan.angle_rad.back();
+  for (std::size_t k = 0; k < scan.size(); ++k) {
+    const std::size_t i = descending ? scan.size() - 1 - k : k;
+    const double a = scan.angle_rad[i];
+    if (!std::isfinite(a) || (!rays.empty() && !(a > rays.back().angle))) {
+      out.reason = fmt::format("pixel {} has a non-finite or non-monotone angle ({})", i, a);
       return out;
     }
-    rays.push_back({u, scan.valid(i) ? scan.range_m[i] : std::numeric_limits<double>::quiet_NaN()});
+    const Eigen::Vector2d u(std::sin(a), std::cos(a));
+    rays.push_back({u, a, scan.valid(i) ? scan.range_m[i] : std::numeric_limits<double>::quiet_NaN()});
     if (!scan.valid(i) || scan.range_m[i] < p.min_range_m || scan.range_m[i] > p.max_range_m) continue;
-    points.push_back(scan.range_m[i] * u);
+    points.push_back({scan.range_m[i] * u, a});
   }
   if (points.empty()) {
     out.reason = fmt::format("no return between {:.3f} and {:.3f} m", p.min_range_m, p.max_range_m);
     return out;
   }
 
-  // Coarse: every shift on the grid within the disc.
+  // Coarse: every shift on the grid within the disc; then a grid four
+  // times finer around the best coarse cell.
   struct Cell {
     Eigen::Vector2d shift;
     double support;
   };
+  std::vector<double> scratch;
   std::vector<Cell> cells;
   const int n = static_cast<int>(std::floor(p.max_shift_m / p.grid_step_m));
   for (int ix = -n; ix <= n; ++ix) {
     for (int iz = -n; iz <= n; ++iz) {
       const Eigen::Vector2d s(ix * p.grid_step_m, iz * p.grid_step_m);
       if (s.norm() > p.max_shift_m + 1e-12) continue;
-      cells.push_back({s, support(points, rays, sections, s, p)});
+      cells.push_back({s, support(points, rays, sections, s, p, scratch)});
     }
   }
   const auto best = std::max_element(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.support < b.support; });
-  Eigen::Vector2d shift = best->shift;
   for (const Cell& c : cells) {
     if ((c.shift - best->shift).norm() > p.distinct_shift_m && c.support > out.runner_up_support) {
       out.runner_up_support = c.support;
       out.runner_up_shift_xz_m = c.shift;
     }
   }
+  Cell fine = *best;
+  const double step = p.grid_step_m / 4.0;
+  for (int ix = -4; ix <= 4; ++ix) {
+    for (int iz = -4; iz <= 4; ++iz) {
+      const Eigen::Vector2d s = best->shift + Eigen::Vector2d(ix * step, iz * step);
+      const double v = support(points, rays, sections, s, p, scratch);
+      if (v > fine.support) fine = {s, v};
+    }
+  }
+  Eigen::Vector2d shift = fine.shift;
 
   // Fine: Gauss-Newton on the shift, each inlier weighted by Tukey's biweight.
   for (int iter = 0; iter < 8; ++iter) {
     Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
     Eigen::Vector2d b = Eigen::Vector2d::Zero();
     for (const auto& q : points) {
-      const Nearest nn = nearest_arc(q, sections, shift);
+      const Nearest nn = nearest_arc(q.p, sections, shift);
       if (nn.section < 0 || std::abs(nn.residual) >= p.inlier_m) continue;
       const double u = nn.residual / p.inlier_m, w = (1.0 - u * u) * (1.0 - u * u);
       const Eigen::Vector2d J = -nn.v / std::max(nn.v.norm(), 1e-9);  // d residual / d shift
@@ -203,14 +253,14 @@ TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const Expec
   std::vector<int> per_section(sections.size(), 0);
   double sum2 = 0.0;
   for (const auto& q : points) {
-    const Nearest nn = nearest_arc(q, sections, shift);
+    const Nearest nn = nearest_arc(q.p, sections, shift);
     if (nn.section < 0 || std::abs(nn.residual) >= p.inlier_m) continue;
     ++per_section[static_cast<std::size_t>(nn.section)];
     ++out.inliers;
     sum2 += nn.residual * nn.residual;
   }
   out.shift_xz_m = shift;
-  out.support = support(points, rays, sections, shift, p);
+  out.support = support(points, rays, sections, shift, p, scratch);
   violations(rays, sections, shift, p, &out.violations);
   out.rms_m = out.inliers ? std::sqrt(sum2 / out.inliers) : 0.0;
   for (const int k : per_section) out.tomatoes_matched += k >= p.min_points_per_tomato;

@@ -38,7 +38,7 @@ struct TomatoRegistrationParams {
   /// plane [m] (Table 4.3's offsets are under 5 cm; a pedicel hangs up to
   /// 2 cm off its tomato's vertical).
   double max_shift_m = 0.07;
-  double grid_step_m = 0.0025;   ///< coarse search step [m]; then refined
+  double grid_step_m = 0.0025;   ///< coarse search step [m]; then a 4x finer grid around the best, then Gauss-Newton
   /// A return within this of a shifted cross-section's near arc supports the
   /// shift (range noise, calibration bias, the vision's per-tomato error) [m].
   double inlier_m = 0.01;
