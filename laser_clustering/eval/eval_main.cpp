@@ -180,7 +180,7 @@ int main(int argc, char** argv) {
     if (!args.cases.count(name)) continue;
     std::ofstream csv(args.out / ("trials_" + name + ".csv"));
     csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible,neighbour_nearer,looked,registered\n";
-    int pictures = 0, failures = 0;
+    int pictures = 0, failures = 0, looks = 0;
     ev::TrussEvalOptions options;
     options.rescans = args.rescans;
     options.tomato_look = args.tomato_look;
@@ -199,6 +199,22 @@ int main(int argc, char** argv) {
           const int chosen = d.cluster >= 0 ? o.clusters[static_cast<std::size_t>(d.cluster)].id : -1;
           write_scan(args.out / "scans" / fmt::format("{}_{}_{}.csv", name, t.seed, ev::to_string(t.verdict)), s, o.labels,
                      o.smoothed_range_m, kind, chosen);
+        },
+        [&](std::uint64_t seed, const ev::TrussScene& scene, const ev::SimulatedScan& look,
+            const std::vector<lc::ExpectedTomato>& tomatoes, const lc::TomatoRegistration& reg) {
+          if (looks >= args.pictures) return;
+          ++looks;
+          std::vector<std::string> kind(look.scan.size());
+          for (std::size_t i = 0; i < kind.size(); ++i) kind[i] = ev::object_kind(scene, look.truth_object[i]);
+          const std::vector<int> none(look.scan.size(), lc::kNoise);
+          const std::string stem = fmt::format("look_{}_{}", name, seed);
+          write_scan(args.out / "scans" / (stem + ".csv"), look, none, {}, kind, -1);
+          std::ofstream t(args.out / "scans" / (stem + "_tomatoes.csv"));
+          t << "expected_x_m,expected_z_m,height_m,radius_m,registered,shift_x_m,shift_z_m\n";
+          for (const auto& e : tomatoes) {
+            t << fmt::format("{:.5f},{:.5f},{:.5f},{:.5f},{},{:.5f},{:.5f}\n", e.centre_m.x(), e.centre_m.z(), e.centre_m.y(),
+                             e.radius_m, reg.ok ? 1 : 0, reg.shift_xz_m.x(), reg.shift_xz_m.y());
+          }
         });
     std::cout << "## " << name << "\n\n| verdict | rate [95 % CI] |\n|---|---|\n"
               << "| aligned | " << rate(r.aligned) << " |\n| wrong | " << rate(r.wrong) << " |\n| out of view | "

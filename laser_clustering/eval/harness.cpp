@@ -82,7 +82,7 @@ const char* to_string(Verdict v) {
 }
 
 TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint64_t seed0, const TrussEvalOptions& o,
-                           const TrussObserver& on_trial) {
+                           const TrussObserver& on_trial, const LookObserver& on_look) {
   TrussResult out;
   PedicelFinderParams finder = o.finder;
   finder.scissors.centre_x_m = 0.0;
@@ -116,7 +116,13 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       for (auto& t : tomatoes) t.centre_m += Eigen::Vector3d(0.0, -down, o.look_back_m);
       const SimulatedScan look = scanner.scan(scene.world, scene.T_world_sensor * Eigen::Translation3d(0.0, down, -o.look_back_m),
                                               seed + kRescanSeedStride * 97);
-      const TomatoRegistration reg = register_tomatoes(look.scan, tomatoes, o.registration);
+      // The vision's common offset is searched as far as the expectation's
+      // own spread allows (3 sd): a tomato-based expectation (kRecognitionError)
+      // is good to 1.5 cm, a shifted recognition (kRandomOffset) is not.
+      TomatoRegistrationParams registration = o.registration;
+      registration.max_shift_m = std::min(registration.max_shift_m, o.registration_search_sd * expectation->sd_m);
+      const TomatoRegistration reg = register_tomatoes(look.scan, tomatoes, registration);
+      if (on_look) on_look(seed, scene, look, tomatoes, reg);
       if (reg.ok) {
         registered = true;
         expectation->position_xz_m += reg.shift_xz_m;

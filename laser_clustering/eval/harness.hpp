@@ -123,6 +123,9 @@ struct TrussEvalOptions {
   /// registered expectation and let the closed loop look from there.
   bool blind_move = true;
   TomatoRegistrationParams registration;
+  /// The registration searches the common offset within this many of the
+  /// expectation's sd (and registration.max_shift_m).
+  double registration_search_sd = 3.0;
 };
 
 /// Runs `trials` seeded trials (seed0, seed0 + 1, ...). `on_trial` (optional)
@@ -130,8 +133,13 @@ struct TrussEvalOptions {
 /// verdict is the closed loop's.
 using TrussObserver = std::function<void(const TrussTrial&, const TrussScene&, const SimulatedScan&,
                                          const TwoStageResult&, const PedicelDetection&)>;
+/// Sees each tomato look (TrussEvalOptions::tomato_look): its scan, the
+/// vision's tomatoes in that scan's frame, and the registration.
+using LookObserver = std::function<void(std::uint64_t seed, const TrussScene&, const SimulatedScan& look,
+                                        const std::vector<ExpectedTomato>& tomatoes, const TomatoRegistration&)>;
 [[nodiscard]] TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint64_t seed0,
-                                         const TrussEvalOptions& o = {}, const TrussObserver& on_trial = {});
+                                         const TrussEvalOptions& o = {}, const TrussObserver& on_trial = {},
+                                         const LookObserver& on_look = {});
 
 // ---------------------------------------------------------------------------- Figure 5.8 B
 

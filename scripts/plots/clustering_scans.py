@@ -5,7 +5,8 @@ Reads the scans the evaluation wrote (laser_clustering_eval --out DIR:
 DIR/scans/*.csv, DIR/wrench_sweeps.csv) and draws, per scan, the thesis's
 Figure 4.6 view (range per pixel: raw, filtered, each cluster a "ladder"
 step) above a plan view of the points coloured by what the simulator says
-they hit; plus the wrench pitch sweeps.
+they hit; per tomato look (scans/look_*.csv) the plan view with the vision's
+tomatoes before and after the registration; plus the wrench pitch sweeps.
 
 usage: .venv/bin/python scripts/plots/clustering_scans.py DIR [--out docs/img] [--only NAME ...]
 """
@@ -82,6 +83,40 @@ def scan_figure(rows, title, out, show_reflectance=False):
     plt.close(fig)
 
 
+def look_figure(rows, tomatoes_path, title, out):
+    """A tomato look: the scan through the tomatoes in plan view, the vision's
+    tomato cross-sections where it expected them (dashed) and where the
+    registration moved them (solid)."""
+    with open(tomatoes_path) as f:
+        tomatoes = list(csv.DictReader(f))
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for kind in sorted({r["truth"] for r in rows}):
+        pts = [r for r in rows if r["truth"] == kind and not math.isnan(r["range"])]
+        ax.plot([r["range"] * math.sin(r["angle"]) * 100 for r in pts], [r["range"] * math.cos(r["angle"]) * 100 for r in pts],
+                ".", ms=4, color=TRUTH_COLOURS.get(kind, "#bbbbbb"), label=f"hits {kind}")
+    for k, t in enumerate(tomatoes):
+        h, radius = float(t["height_m"]), float(t["radius_m"])
+        if abs(h) >= radius:
+            continue
+        r = math.sqrt(radius * radius - h * h) * 100
+        x, z = float(t["expected_x_m"]) * 100, float(t["expected_z_m"]) * 100
+        ax.add_patch(plt.Circle((x, z), r, fill=False, ls="--", color="#7f7f7f", label="vision's tomatoes" if k == 0 else None))
+        if t["registered"] == "1":
+            dx, dz = float(t["shift_x_m"]) * 100, float(t["shift_z_m"]) * 100
+            ax.add_patch(plt.Circle((x + dx, z + dz), r, fill=False, color="#d62728", lw=1.5,
+                                    label="registered" if k == 0 else None))
+    ax.plot([0], [0], "k^", ms=8, label="laser")
+    ax.set_xlabel("x along the line [cm]")
+    ax.set_ylabel("z forward [cm]")
+    ax.set_title(title, fontsize=9)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=7, loc="upper right", ncol=2)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
 def sweep_figure(path, out):
     sweeps = {}
     with open(path) as f:
@@ -113,7 +148,11 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     for path in sorted(glob.glob(os.path.join(args.dir, "scans", "*.csv"))):
         stem = os.path.splitext(os.path.basename(path))[0]
-        if args.only and stem not in args.only:
+        if args.only and stem not in args.only or stem.endswith("_tomatoes"):
+            continue
+        if stem.startswith("look_"):
+            look_figure(read(path), path.replace(".csv", "_tomatoes.csv"), stem.replace("_", " ") + ": the tomato look",
+                        os.path.join(args.out, f"clustering_{stem}.png"))
             continue
         scan_figure(read(path), stem.replace("_", " "), os.path.join(args.out, f"clustering_{stem}.png"),
                     show_reflectance=stem.startswith("stick"))
