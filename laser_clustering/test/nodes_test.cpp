@@ -2,6 +2,8 @@
 // parameters, fed LineScan messages, stepped by the deterministic executor
 // on sim time (no sleeps).
 #include <cmath>
+#include <functional>
+#include <limits>
 #include <numbers>
 
 #include <gmock/gmock.h>
@@ -187,6 +189,168 @@ TEST(LaserClusteringNodes, PedicelFinderTakesTheVisionsTrussLayout) {
   EXPECT_NEAR(got[2]->position.x, 0.04, 0.002) << "the layout picks the target";
   EXPECT_EQ(got[2]->outcome, PedicelDetection::MOVE);
   EXPECT_NEAR(got[3]->position.x, -0.01, 0.002) << "a stale layout is ignored";
+}
+
+namespace {
+
+// What the node's scan conversion gives the core (float on the wire).
+lc::LineScan through_the_wire(const lc::LineScan& s) {
+  lc::LineScan out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    out.angle_rad.push_back(static_cast<float>(s.angle_rad[i]));
+    out.range_m.push_back(s.valid(i) ? static_cast<double>(static_cast<float>(s.range_m[i]))
+                                     : std::numeric_limits<double>::quiet_NaN());
+    if (!s.reflectance.empty()) {
+      out.reflectance.push_back(s.valid(i) ? static_cast<double>(static_cast<float>(s.reflectance[i]))
+                                           : std::numeric_limits<double>::quiet_NaN());
+    }
+  }
+  return out;
+}
+
+std::unique_ptr<PedicelLayout> layout_at(double stamp_s, double x, double z, double sd) {
+  auto l = std::make_unique<PedicelLayout>();
+  l->header.stamp = bus::Time::from_seconds(stamp_s).to_msg();
+  l->header.frame_id = "laser";
+  l->expected.x = x;
+  l->expected.z = z;
+  l->expected_sd_m = sd;
+  return l;
+}
+
+}  // namespace
+
+// The closed loop's runners-up on the bus: a PedicelLayout's alternatives
+// reach the core as PedicelExpectation::alternatives, and the node answers
+// what the core answers with the same expectation.
+TEST(LaserClusteringNodes, PedicelFinderCarriesTheLayoutsRunnersUpToTheCore) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "finder";
+  o.param("scissor_centre_z_m", 0.12);
+  h.add("pedicel_finder", o);
+  auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
+  auto pub = h.io->create_publisher<LineScan>("scan");
+  auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.4;
+  sp.seed = 9;
+  // Two pedicels; the expected point (-3 cm) is nearer the one at -1 cm, the
+  // previous scan's runner-up sits on the one at +4 cm.
+  const auto two = lc::test::synth_scan({{-0.01, 0.12, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}}, sp);
+
+  layout->publish(layout_at(0.9, -0.03, 0.12, 0.03));
+  h.ex.spin_until_idle();
+  pub->publish(to_msg(two.scan, 1.0));
+  h.ex.spin_until_idle();
+  auto with_runner_up = layout_at(1.9, -0.03, 0.12, 0.03);
+  with_runner_up->alternatives.resize(1);
+  with_runner_up->alternatives[0].x = 0.041;
+  with_runner_up->alternatives[0].z = 0.121;
+  with_runner_up->alternative_weights = {0.9};
+  layout->publish(std::move(with_runner_up));
+  h.ex.spin_until_idle();
+  pub->publish(to_msg(two.scan, 2.0));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_NEAR(got[0]->position.x, -0.01, 0.002) << "without the runner-up: the one nearer the expected point";
+  EXPECT_NEAR(got[1]->position.x, 0.04, 0.002) << "the runner-up's place wins";
+
+  // The core with the same expectation, on the same (float) scan.
+  lc::PedicelFinderParams fp;
+  fp.scissors.centre_z_m = 0.12;
+  lc::PedicelExpectation e{{-0.03, 0.12}, 0.03, {}, 0.015};
+  e.alternatives.push_back({{0.041, 0.121}, 0.9});
+  const auto scan = through_the_wire(two.scan);
+  lc::LineScanClusterer clusterer;
+  const auto core = lc::find_pedicel(scan, clusterer.run(scan), fp, e);
+  const auto& node = *got[1];
+  EXPECT_EQ(node.outcome, static_cast<std::uint8_t>(core.outcome)) << core.reason;
+  EXPECT_EQ(node.reason, core.reason);
+  EXPECT_EQ(node.cluster, core.cluster);
+  EXPECT_DOUBLE_EQ(node.position.x, core.position_xz_m.x());
+  EXPECT_DOUBLE_EQ(node.position.z, core.position_xz_m.y());
+  EXPECT_DOUBLE_EQ(node.lateral_offset_m, core.lateral_offset_m);
+  EXPECT_DOUBLE_EQ(node.confidence, core.confidence);
+  EXPECT_EQ(node.num_candidates, core.candidates.size());
+}
+
+// A layout sure of itself (registered on the tomatoes) gates: a pedicel far
+// from it is nothing to cut, not a move; gate_sd 0 is no gate; a bad
+// runner-up or gate drops the layout whole, with what and where.
+TEST(LaserClusteringNodes, PedicelFinderGatesOnTheLayoutAndDropsABadOne) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "finder";
+  o.param("scissor_centre_z_m", 0.12);
+  h.add("pedicel_finder", o);
+  auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(20));
+  auto pub = h.io->create_publisher<LineScan>("scan");
+  auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.4;
+  sp.seed = 21;
+  const auto far = lc::test::synth_scan({{0.06, 0.125, 0.003, 6.0, 1}}, sp);
+  double t = 1.0;
+  auto detect = [&](std::unique_ptr<PedicelLayout> l) {
+    l->header.stamp = bus::Time::from_seconds(t - 0.05).to_msg();
+    layout->publish(std::move(l));
+    h.ex.spin_until_idle();
+    pub->publish(to_msg(far.scan, t));
+    h.ex.spin_until_idle();
+    t += 1.0;
+    return got.back();
+  };
+
+  auto gated = layout_at(0, 0.0, 0.12, 0.012);
+  gated->gate_sd = 4.0;  // 4.8 cm: the pedicel is 6 cm off
+  const auto g = detect(std::move(gated));
+  EXPECT_EQ(g->outcome, PedicelDetection::NOTHING_TO_CUT) << g->reason;
+  EXPECT_THAT(g->reason, HasSubstr("none within 0.048 m"));
+  EXPECT_EQ(g->num_candidates, 0u);
+
+  const auto open = detect(layout_at(0, 0.0, 0.12, 0.012));  // gate_sd 0: no gate
+  EXPECT_EQ(open->outcome, PedicelDetection::MOVE) << open->reason;
+  EXPECT_NEAR(open->position.x, 0.06, 0.002);
+
+  // A runner-up near the pedicel opens the gate there.
+  auto alt = layout_at(0, 0.0, 0.12, 0.012);
+  alt->gate_sd = 4.0;
+  alt->alternatives.resize(1);
+  alt->alternatives[0].x = 0.055;
+  alt->alternatives[0].z = 0.125;
+  alt->alternative_weights = {0.5};
+  EXPECT_EQ(detect(std::move(alt))->outcome, PedicelDetection::MOVE);
+
+  // Malformed layouts are dropped whole: the previous (gated, opened by its
+  // runner-up) one still counts, and the warning says what and where.
+  struct Bad {
+    std::function<void(PedicelLayout&)> spoil;
+    const char* says;
+  };
+  const std::vector<Bad> bad{
+      {[](PedicelLayout& l) { l.alternative_weights.clear(); }, "1 alternatives but 0 alternative_weights"},
+      {[](PedicelLayout& l) { l.alternative_weights[0] = 1.5; }, "alternative 0 has weight 1.5"},
+      {[](PedicelLayout& l) { l.alternative_weights[0] = 0.0; }, "alternative 0 has weight 0"},
+      {[](PedicelLayout& l) { l.alternatives[0].z = std::nan(""); }, "alternative 0 is not finite"},
+      {[](PedicelLayout& l) { l.gate_sd = -1.0; }, "gate_sd must be finite and >= 0"},
+      {[](PedicelLayout& l) { l.gate_sd = std::nan(""); }, "gate_sd must be finite and >= 0"},
+  };
+  for (const auto& b : bad) {
+    auto l = layout_at(0, 0.0, 0.12, 0.012);
+    l->alternatives.resize(1);
+    l->alternatives[0].x = -0.03;
+    l->alternatives[0].z = 0.12;
+    l->alternative_weights = {0.5};
+    b.spoil(*l);
+    // Dropped: the runner-up-opened gate of the last good layout still lets
+    // the pedicel through (a spoiled one taken would gate it out or fail).
+    const auto d = detect(std::move(l));
+    EXPECT_EQ(d->outcome, PedicelDetection::MOVE) << b.says << ": " << d->reason;
+    EXPECT_TRUE(h.log->contains(bus::LogLevel::Warn, b.says)) << b.says;
+  }
+  EXPECT_TRUE(h.log->contains(bus::LogLevel::Warn, "expected_layout (stamp"));
+  EXPECT_TRUE(h.log->contains(bus::LogLevel::Warn, "frame 'laser') ignored"));
 }
 
 TEST(LaserClusteringNodes, BadParametersStopTheNodeWithTheReason) {

@@ -101,8 +101,24 @@ PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
         for (std::size_t i = 0; bad.empty() && i < l.neighbours.size(); ++i) {
           if (!finite(l.neighbours[i])) bad = fmt::format("neighbour {} is not finite", i);
         }
+        if (bad.empty() && l.alternative_weights.size() != l.alternatives.size()) {
+          bad = fmt::format("{} alternatives but {} alternative_weights", l.alternatives.size(),
+                            l.alternative_weights.size());
+        }
+        for (std::size_t i = 0; bad.empty() && i < l.alternatives.size(); ++i) {
+          // The core's rule (PedicelExpectation::Alternative): a runner-up
+          // never outweighs the expected pedicel, and weightless is absent.
+          if (!finite(l.alternatives[i])) bad = fmt::format("alternative {} is not finite", i);
+          else if (!(l.alternative_weights[i] > 0.0 && l.alternative_weights[i] <= 1.0)) {
+            bad = fmt::format("alternative {} has weight {}; a weight must be in (0, 1]", i, l.alternative_weights[i]);
+          }
+        }
+        if (bad.empty() && !(std::isfinite(l.gate_sd) && l.gate_sd >= 0.0)) {
+          bad = fmt::format("gate_sd must be finite and >= 0 (0: no gate), got {}", l.gate_sd);
+        }
         if (!bad.empty()) {
-          logger().warn("expected_layout ignored: {}", bad);
+          logger().warn("expected_layout (stamp {:.3f} s, frame '{}') ignored: {}",
+                        bus::Time::from_msg(l.header.stamp).seconds(), l.header.frame_id, bad);
           return;
         }
         PedicelExpectation e;
@@ -112,6 +128,10 @@ PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
         for (std::size_t i = 0; i < l.neighbours.size(); ++i) {
           e.neighbours.push_back({Eigen::Vector2d(l.neighbours[i].x, l.neighbours[i].z), static_cast<bool>(l.may_be_absent[i])});
         }
+        for (std::size_t i = 0; i < l.alternatives.size(); ++i) {
+          e.alternatives.push_back({Eigen::Vector2d(l.alternatives[i].x, l.alternatives[i].z), l.alternative_weights[i]});
+        }
+        if (l.gate_sd > 0.0) e.gate_sd = l.gate_sd;  // 0 on the wire: the core's default, no gate
         expected_ = std::make_pair(bus::Time::from_msg(l.header.stamp), std::move(e));
       });
 }
