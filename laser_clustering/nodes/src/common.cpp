@@ -253,4 +253,51 @@ SurfaceReflectanceParams declare_surface_reflectance(bus::Node& n) {
   return p;
 }
 
+TomatoRegistrationParams declare_tomato_registration(bus::Node& n) {
+  using bus::ParamConstraints;
+  const TomatoRegistrationParams d;
+  TomatoRegistrationParams p;
+  p.max_shift_m = n.declare_parameter("max_shift_m", d.max_shift_m,
+                                      "the vision's common offset is searched within this of zero, in the plane [m]",
+                                      ParamConstraints::range(1e-4, 1.0));
+  p.grid_step_m = n.declare_parameter("grid_step_m", d.grid_step_m, "coarse search step, then refined [m]",
+                                      ParamConstraints::range(1e-4, 1.0));
+  p.inlier_m = n.declare_parameter("inlier_m", d.inlier_m,
+                                   "a return within this of a shifted tomato's near arc supports the shift [m]",
+                                   ParamConstraints::range(1e-4, 0.2));
+  p.min_section_radius_m = n.declare_parameter("min_section_radius_m", d.min_section_radius_m,
+                                               "tomato cross-sections narrower than this are left out [m]",
+                                               ParamConstraints::range(0.0, 0.5));
+  p.min_range_m = n.declare_parameter("min_range_m", d.min_range_m, "returns nearer than this are ignored [m]",
+                                      ParamConstraints::range(0.0, 3.0));
+  p.max_range_m = n.declare_parameter("max_range_m", d.max_range_m, "returns farther than this are ignored [m]",
+                                      ParamConstraints::range(0.0, 3.0));
+  p.core_fraction = n.declare_parameter("core_fraction", d.core_fraction,
+                                        "free space: a ray within this fraction of a shifted section's radius of its "
+                                        "centre must hit it",
+                                        ParamConstraints::range(0.0, 1.0));
+  p.free_space_margin_m = n.declare_parameter("free_space_margin_m", d.free_space_margin_m,
+                                              "free space: a return this far behind the near arc sees through it [m]",
+                                              ParamConstraints::range(0.0, 1.0));
+  p.violation_cost = n.declare_parameter("violation_cost", d.violation_cost,
+                                         "support an inlier's worth lost per pixel that sees through a tomato",
+                                         ParamConstraints::range(0.0, 100.0));
+  p.no_return_cost = n.declare_parameter("no_return_cost", d.no_return_cost,
+                                         "the same for a pixel with no valid return there",
+                                         ParamConstraints::range(0.0, 100.0));
+  p.min_tomatoes = n.declare_parameter("min_tomatoes", d.min_tomatoes,
+                                       "tomatoes the best shift must meet for a registration",
+                                       ParamConstraints::range(1, 256));
+  p.min_points_per_tomato = n.declare_parameter("min_points_per_tomato", d.min_points_per_tomato,
+                                                "returns a met tomato shows at least", ParamConstraints::range(1, 256));
+  p.distinct_shift_m = n.declare_parameter("distinct_shift_m", d.distinct_shift_m,
+                                           "a second-best shift farther than this from the best is a rival [m]",
+                                           ParamConstraints::range(0.0, 1.0));
+  p.ambiguity_ratio = n.declare_parameter("ambiguity_ratio", d.ambiguity_ratio,
+                                          "a rival with this share of the best's support makes it ambiguous",
+                                          ParamConstraints::range(1e-3, 1.0));
+  check(n, validate(p));
+  return p;
+}
+
 }  // namespace tinyline::laser_clustering::nodes

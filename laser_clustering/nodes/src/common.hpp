@@ -11,6 +11,7 @@
 #include "laser_clustering/alignment_search.hpp"
 #include "laser_clustering/pedicel_finder.hpp"
 #include "laser_clustering/reflectance_clustering.hpp"
+#include "laser_clustering/tomato_registration.hpp"
 #include "laser_clustering/two_stage.hpp"
 
 namespace tinyline::laser_clustering::nodes {
@@ -40,5 +41,6 @@ PedicelFinderParams declare_pedicel_finder(bus::Node& node);
 ReflectanceClusteringParams declare_reflectance(bus::Node& node);
 AlignmentParams declare_alignment(bus::Node& node);
 SurfaceReflectanceParams declare_surface_reflectance(bus::Node& node);
+TomatoRegistrationParams declare_tomato_registration(bus::Node& node);
 
 }  // namespace tinyline::laser_clustering::nodes

@@ -175,6 +175,97 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
   }
 }
 
+// ---------------------------------------------------------------------------- tomato_registration
+
+TomatoRegistrationNode::TomatoRegistrationNode(bus::NodeOptions o)
+    : Node(std::move(o)), params_(nodes::declare_tomato_registration(*this)) {
+  min_reflectance_ = nodes::declare_min_reflectance(*this);
+  expectation_max_age_s_ = declare_parameter("expectation_max_age_s", 1.0,
+                                             "expected tomatoes further than this from a scan's stamp are stale: the "
+                                             "gripper may have moved since [s]",
+                                             ParamConstraints::range(0.0, 3600.0));
+  pub_ = create_publisher<msgs::TrussRegistration>("truss_registration");
+  tomatoes_sub_ = create_subscription<msgs::ExpectedTomatoes>(
+      "expected_tomatoes", bus::QoS::keep_last(1), [this](const msgs::ExpectedTomatoes& m) { on_tomatoes(m); });
+  sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
+                                       [this](const msgs::LineScan& m) { on_scan(m); });
+}
+
+void TomatoRegistrationNode::on_tomatoes(const msgs::ExpectedTomatoes& m) {
+  // The newest message replaces the last even when malformed: the old
+  // tomatoes belong to an older look, and registering a new scan on them
+  // would answer a question nobody asked. The malformed one answers each
+  // scan with why.
+  Expected e{bus::Time::from_msg(m.header.stamp), m.header.frame_id, {}, {}};
+  if (m.radii_m.size() != m.centres.size()) {
+    e.malformed = fmt::format("{} centres but {} radii_m", m.centres.size(), m.radii_m.size());
+  }
+  for (std::size_t i = 0; e.malformed.empty() && i < m.centres.size(); ++i) {
+    const auto& c = m.centres[i];
+    const double r = m.radii_m[i];
+    if (!(std::isfinite(c.x) && std::isfinite(c.y) && std::isfinite(c.z))) {
+      e.malformed = fmt::format("tomato {} has a non-finite centre ({}, {}, {})", i, c.x, c.y, c.z);
+    } else if (!(std::isfinite(r) && r > 0.0)) {
+      e.malformed = fmt::format("tomato {} has radius {}; it must be finite and > 0", i, r);
+    } else {
+      e.tomatoes.push_back({Eigen::Vector3d(c.x, c.y, c.z), r});
+    }
+  }
+  if (!e.malformed.empty()) {
+    e.tomatoes.clear();
+    logger().warn("expected_tomatoes (stamp {:.3f} s, frame '{}') malformed; scans of that frame get ok = false with why: {}",
+                  e.stamp.seconds(), e.frame_id, e.malformed);
+  }
+  expected_ = std::move(e);
+}
+
+void TomatoRegistrationNode::skip(Miss miss, const std::string& why) {
+  ++scans_without_tomatoes_;
+  auto& warned = warned_[static_cast<std::size_t>(miss)];
+  if (warned) return;
+  warned = true;
+  logger().warn("scan not registered (warned once for this cause; scans_without_tomatoes counts them): {}", why);
+}
+
+void TomatoRegistrationNode::on_scan(const msgs::LineScan& m) {
+  const bus::Time stamp = bus::Time::from_msg(m.header.stamp);
+  if (!expected_) return skip(Miss::kNoneYet, "no expected_tomatoes received yet");
+  if (expected_->frame_id != m.header.frame_id) {
+    return skip(Miss::kOtherFrame, fmt::format("the expected_tomatoes are in frame '{}', the scan in '{}'",
+                                               expected_->frame_id, m.header.frame_id));
+  }
+  if (const double age = std::abs(bus::to_seconds(stamp - expected_->stamp)); age > expectation_max_age_s_) {
+    return skip(Miss::kStale, fmt::format("the expected_tomatoes (stamp {:.3f} s) are {:.3f} s from the scan "
+                                          "(expectation_max_age_s {})",
+                                          expected_->stamp.seconds(), age, expectation_max_age_s_));
+  }
+  auto out = std::make_unique<msgs::TrussRegistration>();
+  out->header = m.header;
+  out->expected_stamp = expected_->stamp.to_msg();
+  if (!expected_->malformed.empty()) {
+    out->reason = "expected_tomatoes malformed: " + expected_->malformed;
+  } else if (const auto bad = nodes::to_core(m, scan_, min_reflectance_); !bad.empty()) {
+    logger().warn("{}", bad);
+    out->reason = bad;
+  } else {
+    const TomatoRegistration r = register_tomatoes(scan_, expected_->tomatoes, params_);
+    out->ok = r.ok;
+    out->reason = r.reason;
+    out->shift_x_m = r.shift_xz_m.x();
+    out->shift_z_m = r.shift_xz_m.y();
+    out->tomatoes_in_plane = r.tomatoes_in_plane;
+    out->tomatoes_matched = r.tomatoes_matched;
+    out->inliers = r.inliers;
+    out->rms_m = r.rms_m;
+    out->support = r.support;
+    out->runner_up_support = r.runner_up_support;
+    out->violations = r.violations;
+    out->runner_up_shift_x_m = r.runner_up_shift_xz_m.x();
+    out->runner_up_shift_z_m = r.runner_up_shift_xz_m.y();
+  }
+  pub_->publish(std::move(out));
+}
+
 // ---------------------------------------------------------------------------- reflectance_clusterer
 
 ReflectanceClustererNode::ReflectanceClustererNode(bus::NodeOptions o)
@@ -336,6 +427,9 @@ void register_nodes(bus::NodeRegistry& r) {
                            "two-stage DBSCAN of line scans (scan -> clusters), thesis 4.4.2");
   r.add<PedicelFinderNode>("laser_clustering", "pedicel_finder",
                            "pedicel and the scissor move that centres it (scan -> pedicel, clusters)");
+  r.add<TomatoRegistrationNode>("laser_clustering", "tomato_registration",
+                                "the vision's tomatoes registered on a scan through them: its common offset "
+                                "(scan + expected_tomatoes -> truss_registration)");
   r.add<ReflectanceClustererNode>("laser_clustering", "reflectance_clusterer",
                                   "DBSCAN on position and reflectance (scan -> clusters), thesis 5.3");
   r.add<AlignmentSearchNode>("laser_clustering", "alignment_search",

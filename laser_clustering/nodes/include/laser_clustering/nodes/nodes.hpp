@@ -5,6 +5,8 @@
 // register_nodes().
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <deque>
 #include <memory>
 #include <optional>
@@ -16,14 +18,17 @@
 #include <tinyline/msg/geometry_msgs/point_stamped.hpp>
 #include <tinyline/msg/sensor_msgs/joint_state.hpp>
 #include <tinyline/msg/tinyline_msgs/alignment_result.hpp>
+#include <tinyline/msg/tinyline_msgs/expected_tomatoes.hpp>
 #include <tinyline/msg/tinyline_msgs/line_clusters.hpp>
 #include <tinyline/msg/tinyline_msgs/line_scan.hpp>
 #include <tinyline/msg/tinyline_msgs/pedicel_detection.hpp>
 #include <tinyline/msg/tinyline_msgs/pedicel_layout.hpp>
+#include <tinyline/msg/tinyline_msgs/truss_registration.hpp>
 
 #include "laser_clustering/alignment_search.hpp"
 #include "laser_clustering/pedicel_finder.hpp"
 #include "laser_clustering/reflectance_clustering.hpp"
+#include "laser_clustering/tomato_registration.hpp"
 #include "laser_clustering/two_stage.hpp"
 
 namespace tinyline::laser_clustering {
@@ -49,7 +54,9 @@ class LineClustererNode : public bus::Node {
 /// (geometry_msgs/PointStamped in the scan's frame, from the vision side)
 /// replaces the blade throat as the expected position while it is recent;
 /// or expected_layout (tinyline_msgs/PedicelLayout), which adds where the
-/// truss's other pedicels are expected. The newest of the two counts.
+/// truss's other pedicels are expected, the previous scan's runners-up and a
+/// gate (a pedicel far from every expected place is nothing to cut). The
+/// newest of the two counts.
 class PedicelFinderNode : public bus::Node {
  public:
   explicit PedicelFinderNode(bus::NodeOptions options);
@@ -70,6 +77,46 @@ class PedicelFinderNode : public bus::Node {
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
   std::shared_ptr<bus::Subscription<geometry_msgs::msg::PointStamped>> expected_sub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::PedicelLayout>> layout_sub_;
+};
+
+/// scan + expected_tomatoes (tinyline_msgs/ExpectedTomatoes: the vision's
+/// tomatoes in the scan's laser frame) -> truss_registration
+/// (tinyline_msgs/TrussRegistration): the tomato look. With the laser plane
+/// lowered through the truss's tomatoes, the vision's tomatoes fitted to the
+/// scan give the vision's common offset (register_tomatoes), which moves and
+/// gates the pedicel expectation (PedicelLayout's expected and gate_sd).
+/// The newest expected tomatoes serve every scan of their frame within
+/// expectation_max_age_s of their stamp; a scan without such tomatoes is not
+/// registered (nothing was asked): it is counted, and each kind of miss (none
+/// yet, another frame, stale) is warned about once.
+class TomatoRegistrationNode : public bus::Node {
+ public:
+  explicit TomatoRegistrationNode(bus::NodeOptions options);
+
+  /// Scans that found no expected tomatoes of their frame and age.
+  [[nodiscard]] std::uint64_t scans_without_tomatoes() const { return scans_without_tomatoes_; }
+
+ private:
+  void on_tomatoes(const tinyline_msgs::msg::ExpectedTomatoes& msg);
+  void on_scan(const tinyline_msgs::msg::LineScan& msg);
+  enum class Miss { kNoneYet, kOtherFrame, kStale };
+  void skip(Miss miss, const std::string& why);
+  TomatoRegistrationParams params_;
+  double expectation_max_age_s_ = 0.0;
+  double min_reflectance_ = 0.0;
+  struct Expected {
+    bus::Time stamp;
+    std::string frame_id;
+    std::vector<ExpectedTomato> tomatoes;
+    std::string malformed;  // what is wrong with the message, when it is
+  };
+  std::optional<Expected> expected_;
+  std::uint64_t scans_without_tomatoes_ = 0;
+  std::array<bool, 3> warned_{};  // per Miss
+  LineScan scan_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::TrussRegistration>> pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::ExpectedTomatoes>> tomatoes_sub_;
 };
 
 /// scan -> clusters: DBSCAN on position and reflectance (thesis 5.3, Fig. 5.8).
