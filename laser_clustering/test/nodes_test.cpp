@@ -409,9 +409,11 @@ std::size_t warnings_with(const bus::CaptureSink& log, std::string_view needle) 
 struct TomatoLook {
   Harness h;
   std::shared_ptr<lc::TomatoRegistrationNode> node;
-  std::vector<std::shared_ptr<const TrussRegistration>>& got = h.collect<TrussRegistration>("truss_registration", bus::QoS::keep_last(20));
+  std::vector<std::shared_ptr<const TrussRegistration>>& got =
+      h.collect<TrussRegistration>("truss_registration", bus::QoS::keep_last(20));
   std::shared_ptr<bus::Publisher<LineScan>> scan = h.io->create_publisher<LineScan>("scan");
-  std::shared_ptr<bus::Publisher<ExpectedTomatoes>> tomatoes = h.io->create_publisher<ExpectedTomatoes>("expected_tomatoes");
+  std::shared_ptr<bus::Publisher<ExpectedTomatoes>> tomatoes =
+      h.io->create_publisher<ExpectedTomatoes>("expected_tomatoes");
 
   explicit TomatoLook(bus::NodeOptions o = {}) {
     o.name = "look";

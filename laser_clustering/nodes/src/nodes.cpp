@@ -129,7 +129,8 @@ PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
           e.neighbours.push_back({Eigen::Vector2d(l.neighbours[i].x, l.neighbours[i].z), static_cast<bool>(l.may_be_absent[i])});
         }
         for (std::size_t i = 0; i < l.alternatives.size(); ++i) {
-          e.alternatives.push_back({Eigen::Vector2d(l.alternatives[i].x, l.alternatives[i].z), l.alternative_weights[i]});
+          e.alternatives.push_back(
+              {Eigen::Vector2d(l.alternatives[i].x, l.alternatives[i].z), l.alternative_weights[i]});
         }
         if (l.gate_sd > 0.0) e.gate_sd = l.gate_sd;  // 0 on the wire: the core's default, no gate
         expected_ = std::make_pair(bus::Time::from_msg(l.header.stamp), std::move(e));
@@ -213,7 +214,8 @@ void TomatoRegistrationNode::on_tomatoes(const msgs::ExpectedTomatoes& m) {
   }
   if (!e.malformed.empty()) {
     e.tomatoes.clear();
-    logger().warn("expected_tomatoes (stamp {:.3f} s, frame '{}') malformed; scans of that frame get ok = false with why: {}",
+    logger().warn("expected_tomatoes (stamp {:.3f} s, frame '{}') malformed; scans of that frame get ok = false "
+                  "with why: {}",
                   e.stamp.seconds(), e.frame_id, e.malformed);
   }
   expected_ = std::move(e);
