@@ -468,6 +468,22 @@ TEST(LaserClusteringNodes, TomatoRegistrationAnswersWhatTheCoreAnswers) {
   ASSERT_EQ(look.got.size(), 2u);
   EXPECT_DOUBLE_EQ(look.got[1]->shift_x_m, core.shift_xz_m.x());
   EXPECT_EQ(look.node->scans_without_tomatoes(), 0u);
+
+  // The caller's search bound replaces the node's (that it reaches the
+  // core: TomatoRegistrationAnswersBadInputWithAReason's too_narrow).
+  auto narrow = tomatoes_msg(vision_tomatoes(offset), 1.95);
+  narrow->max_shift_m = 0.02;
+  look.send(std::move(narrow));
+  look.send(to_msg(s.scan, 2.0));
+  ASSERT_EQ(look.got.size(), 3u);
+  lc::TomatoRegistrationParams p;
+  p.max_shift_m = 0.02;
+  const auto bounded = lc::register_tomatoes(through_the_wire(s.scan), vision_tomatoes(offset), p);
+  EXPECT_EQ(look.got[2]->ok, bounded.ok);
+  EXPECT_EQ(look.got[2]->reason, bounded.reason);
+  EXPECT_DOUBLE_EQ(look.got[2]->shift_x_m, bounded.shift_xz_m.x());
+  EXPECT_DOUBLE_EQ(look.got[2]->shift_z_m, bounded.shift_xz_m.y());
+  EXPECT_DOUBLE_EQ(look.got[2]->support, bounded.support);
 }
 
 // A scan with no tomatoes of its frame and age asked nothing: no answer,
@@ -534,6 +550,23 @@ TEST(LaserClusteringNodes, TomatoRegistrationAnswersBadInputWithAReason) {
   look.send(to_msg(s.scan, 4.0));
   ASSERT_EQ(look.got.size(), 4u);
   EXPECT_THAT(look.got[3]->reason, HasSubstr("4 centres but 3 radii_m"));
+
+  auto negative_bound = tomatoes_msg(good, 4.5);
+  negative_bound->max_shift_m = -0.01;
+  look.send(std::move(negative_bound));
+  look.send(to_msg(s.scan, 4.5));
+  ASSERT_EQ(look.got.size(), 5u);
+  EXPECT_THAT(look.got[4]->reason, HasSubstr("max_shift_m must be finite and >= 0"));
+  look.got.pop_back();
+
+  auto too_narrow = tomatoes_msg(good, 4.6);  // finer than the node's grid step: the core says so
+  too_narrow->max_shift_m = 0.001;
+  look.send(std::move(too_narrow));
+  look.send(to_msg(s.scan, 4.6));
+  ASSERT_EQ(look.got.size(), 5u);
+  EXPECT_FALSE(look.got[4]->ok);
+  EXPECT_THAT(look.got[4]->reason, HasSubstr("grid_step_m must be in (0, max_shift_m]"));
+  look.got.pop_back();
 
   look.send(tomatoes_msg({}, 5.0));  // the vision saw none: the core's answer
   look.send(to_msg(s.scan, 5.0));

@@ -197,9 +197,11 @@ void TomatoRegistrationNode::on_tomatoes(const msgs::ExpectedTomatoes& m) {
   // tomatoes belong to an older look, and registering a new scan on them
   // would answer a question nobody asked. The malformed one answers each
   // scan with why.
-  Expected e{bus::Time::from_msg(m.header.stamp), m.header.frame_id, {}, {}};
+  Expected e{bus::Time::from_msg(m.header.stamp), m.header.frame_id, {}, m.max_shift_m, {}};
   if (m.radii_m.size() != m.centres.size()) {
     e.malformed = fmt::format("{} centres but {} radii_m", m.centres.size(), m.radii_m.size());
+  } else if (!(std::isfinite(m.max_shift_m) && m.max_shift_m >= 0.0)) {
+    e.malformed = fmt::format("max_shift_m must be finite and >= 0 (0: the node's), got {}", m.max_shift_m);
   }
   for (std::size_t i = 0; e.malformed.empty() && i < m.centres.size(); ++i) {
     const auto& c = m.centres[i];
@@ -250,7 +252,9 @@ void TomatoRegistrationNode::on_scan(const msgs::LineScan& m) {
     logger().warn("{}", bad);
     out->reason = bad;
   } else {
-    const TomatoRegistration r = register_tomatoes(scan_, expected_->tomatoes, params_);
+    TomatoRegistrationParams params = params_;
+    if (expected_->max_shift_m > 0.0) params.max_shift_m = expected_->max_shift_m;  // checked by the core
+    const TomatoRegistration r = register_tomatoes(scan_, expected_->tomatoes, params);
     out->ok = r.ok;
     out->reason = r.reason;
     out->shift_x_m = r.shift_xz_m.x();

@@ -108,7 +108,8 @@ class TomatoRegistrationNode : public bus::Node {
     bus::Time stamp;
     std::string frame_id;
     std::vector<ExpectedTomato> tomatoes;
-    std::string malformed;  // what is wrong with the message, when it is
+    double max_shift_m = 0.0;  // the message's; 0: the node's
+    std::string malformed;     // what is wrong with the message, when it is
   };
   std::optional<Expected> expected_;
   std::uint64_t scans_without_tomatoes_ = 0;
