@@ -11,6 +11,7 @@
 
 #include <tinyline/bus/testing.hpp>
 
+#include "laser_clustering/nodes/conversions.hpp"
 #include "laser_clustering/nodes/nodes.hpp"
 #include "laser_clustering/nodes/register.hpp"
 #include "laser_clustering/tomato_registration.hpp"
@@ -277,6 +278,171 @@ TEST(LaserClusteringNodes, PedicelFinderCarriesTheLayoutsRunnersUpToTheCore) {
   EXPECT_DOUBLE_EQ(node.lateral_offset_m, core.lateral_offset_m);
   EXPECT_DOUBLE_EQ(node.confidence, core.confidence);
   EXPECT_EQ(node.num_candidates, core.candidates.size());
+}
+
+namespace {
+
+void expect_same(const PedicelDetection& node, const lc::PedicelDetection& core) {
+  EXPECT_EQ(node.outcome, static_cast<std::uint8_t>(core.outcome)) << core.reason;
+  EXPECT_EQ(node.reason, core.reason);
+  EXPECT_EQ(node.cluster, core.cluster);
+  EXPECT_DOUBLE_EQ(node.position.x, core.position_xz_m.x());
+  EXPECT_DOUBLE_EQ(node.position.z, core.position_xz_m.y());
+  EXPECT_DOUBLE_EQ(node.lateral_offset_m, core.lateral_offset_m);
+  EXPECT_DOUBLE_EQ(node.depth_offset_m, core.depth_offset_m);
+  EXPECT_DOUBLE_EQ(node.confidence, core.confidence);
+  ASSERT_EQ(node.candidates.size(), core.candidates.size());
+  ASSERT_EQ(node.candidate_weights.size(), core.candidates.size());
+  ASSERT_EQ(node.candidate_widths_m.size(), core.candidates.size());
+  for (std::size_t k = 0; k < core.candidates.size(); ++k) {
+    EXPECT_DOUBLE_EQ(node.candidates[k].x, core.candidates[k].position_xz_m.x()) << k;
+    EXPECT_DOUBLE_EQ(node.candidates[k].z, core.candidates[k].position_xz_m.y()) << k;
+    EXPECT_DOUBLE_EQ(node.candidate_weights[k], core.candidates[k].weight) << k;
+    EXPECT_DOUBLE_EQ(node.candidate_widths_m[k], core.candidates[k].width_m) << k;
+  }
+}
+
+}  // namespace
+
+// The closed loop of 4.5 run by a controller on the bus: it reads the
+// finder's detection (candidates and their weights), asks the core where to
+// look after the move (expectation_after_centring, runners-up carried) and
+// publishes that as the next layout; the finder's second answer is the
+// core's own loop's.
+TEST(LaserClusteringNodes, AControllerOnTheBusClosesTheLoopAsTheCoreDoes) {
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "finder";
+  o.param("scissor_centre_z_m", 0.12);
+  h.add("pedicel_finder", o);
+  auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
+  auto pub = h.io->create_publisher<LineScan>("scan");
+  auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
+  lc::PedicelFinderParams fp;
+  fp.scissors.centre_z_m = 0.12;
+  lc::test::SynthParams sp;
+  sp.wall_z_m = 0.4;
+  sp.seed = 17;
+  // Two pedicels 5 cm apart and a neighbour expected 5 cm to -x of the target.
+  const std::vector<lc::test::Disc> truss{{-0.01, 0.125, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}};
+  lc::PedicelExpectation first{{-0.03, 0.12}, 0.03, {}, 0.015};
+  first.neighbours.push_back({{-0.08, 0.12}, true});
+
+  auto l1 = std::make_unique<PedicelLayout>();
+  lc::to_msg(first, *l1);
+  l1->header.stamp = bus::Time::from_seconds(0.95).to_msg();
+  layout->publish(std::move(l1));
+  h.ex.spin_until_idle();
+  const auto scan1 = lc::test::synth_scan(truss, sp);
+  pub->publish(to_msg(scan1.scan, 1.0));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 1u);
+  const auto s1 = through_the_wire(scan1.scan);
+  lc::LineScanClusterer clusterer;
+  const auto core1 = lc::find_pedicel(s1, clusterer.run(s1), fp, first);
+  expect_same(*got[0], core1);
+  ASSERT_EQ(core1.outcome, lc::PedicelOutcome::kMove) << core1.reason;
+  ASSERT_GE(core1.candidates.size(), 2u) << "a runner-up to carry";
+
+  // The controller: detection message -> core -> next layout message.
+  lc::PedicelDetection seen;
+  ASSERT_EQ(lc::from_msg(*got[0], seen), "");
+  lc::PedicelExpectation before;
+  {
+    PedicelLayout echo;
+    lc::to_msg(first, echo);
+    ASSERT_EQ(lc::from_msg(echo, 0.015, before), "");
+  }
+  const auto next = lc::expectation_after_centring(fp, before, seen);
+  const auto next_core = lc::expectation_after_centring(fp, first, core1);
+  ASSERT_EQ(next.alternatives.size(), next_core.alternatives.size());
+  ASSERT_FALSE(next.alternatives.empty());
+  for (std::size_t k = 0; k < next.alternatives.size(); ++k) {
+    EXPECT_EQ(next.alternatives[k].position_xz_m, next_core.alternatives[k].position_xz_m);
+    EXPECT_DOUBLE_EQ(next.alternatives[k].weight, next_core.alternatives[k].weight);
+  }
+  EXPECT_EQ(next.position_xz_m, next_core.position_xz_m);
+  ASSERT_EQ(next.neighbours.size(), 1u);
+  EXPECT_EQ(next.neighbours[0].position_xz_m, next_core.neighbours[0].position_xz_m);
+  auto l2 = std::make_unique<PedicelLayout>();
+  lc::to_msg(next, *l2);
+  l2->header.stamp = bus::Time::from_seconds(1.95).to_msg();
+  layout->publish(std::move(l2));
+  h.ex.spin_until_idle();
+
+  // The gripper made the move: the truss is now where the move put it.
+  const Eigen::Vector2d move = core1.position_xz_m - Eigen::Vector2d(fp.scissors.centre_x_m, fp.scissors.centre_z_m);
+  std::vector<lc::test::Disc> moved = truss;
+  for (auto& d : moved) {
+    d.x_m -= move.x();
+    d.z_m -= move.y();
+  }
+  sp.seed = 18;
+  const auto scan2 = lc::test::synth_scan(moved, sp);
+  pub->publish(to_msg(scan2.scan, 2.0));
+  h.ex.spin_until_idle();
+  ASSERT_EQ(got.size(), 2u);
+  const auto s2 = through_the_wire(scan2.scan);
+  expect_same(*got[1], lc::find_pedicel(s2, clusterer.run(s2), fp, next_core));
+}
+
+// The conversions a controller uses: a layout and a detection survive the
+// trip through their messages, and a malformed detection says what is wrong.
+TEST(LaserClusteringNodes, PedicelMessagesRoundTripAndNameWhatIsWrong) {
+  lc::PedicelExpectation e{{0.01, 0.13}, 0.012, {}, 0.02};
+  e.neighbours.push_back({{-0.05, 0.12}, false});
+  e.neighbours.push_back({{0.06, 0.14}, true});
+  e.alternatives.push_back({{0.03, 0.125}, 0.4});
+  e.gate_sd = 4.0;
+  PedicelLayout l;
+  lc::to_msg(e, l);
+  lc::PedicelExpectation back;
+  ASSERT_EQ(lc::from_msg(l, 0.5, back), "");
+  EXPECT_EQ(back.position_xz_m, e.position_xz_m);
+  EXPECT_DOUBLE_EQ(back.sd_m, 0.012);
+  EXPECT_DOUBLE_EQ(back.neighbour_sd_m, 0.02);
+  ASSERT_EQ(back.neighbours.size(), 2u);
+  EXPECT_EQ(back.neighbours[1].position_xz_m, e.neighbours[1].position_xz_m);
+  EXPECT_TRUE(back.neighbours[1].may_be_absent);
+  ASSERT_EQ(back.alternatives.size(), 1u);
+  EXPECT_DOUBLE_EQ(back.alternatives[0].weight, 0.4);
+  EXPECT_DOUBLE_EQ(back.gate_sd, 4.0);
+  e.gate_sd = std::numeric_limits<double>::infinity();
+  lc::to_msg(e, l);
+  EXPECT_DOUBLE_EQ(l.gate_sd, 0.0) << "no gate goes on the wire as 0";
+  ASSERT_EQ(lc::from_msg(l, 0.5, back), "");
+  EXPECT_TRUE(std::isinf(back.gate_sd));
+  l.alternative_weights[0] = 2.0;
+  EXPECT_THAT(lc::from_msg(l, 0.5, back), HasSubstr("alternative 0 has weight 2"));
+  EXPECT_TRUE(std::isinf(back.gate_sd)) << "a bad layout leaves the expectation alone";
+
+  lc::PedicelDetection d;
+  d.outcome = lc::PedicelOutcome::kMove;
+  d.reason = "moved";
+  d.cluster = 3;
+  d.position_xz_m = {0.02, 0.13};
+  d.candidates.resize(2);
+  d.candidates[0].position_xz_m = {0.02, 0.13};
+  d.candidates[0].weight = 0.6;
+  d.candidates[0].width_m = 0.006;
+  d.candidates[1].position_xz_m = {-0.04, 0.12};
+  d.candidates[1].weight = 0.2;
+  d.candidates[1].width_m = 0.007;
+  PedicelDetection m;
+  lc::to_msg(d, m);
+  EXPECT_EQ(m.num_candidates, 2u);
+  lc::PedicelDetection dd;
+  ASSERT_EQ(lc::from_msg(m, dd), "");
+  EXPECT_EQ(dd.outcome, lc::PedicelOutcome::kMove);
+  EXPECT_EQ(dd.cluster, 3);
+  ASSERT_EQ(dd.candidates.size(), 2u);
+  EXPECT_EQ(dd.candidates[1].position_xz_m, d.candidates[1].position_xz_m);
+  EXPECT_DOUBLE_EQ(dd.candidates[1].weight, 0.2);
+  EXPECT_DOUBLE_EQ(dd.candidates[1].width_m, 0.007);
+  m.candidate_widths_m.pop_back();
+  EXPECT_THAT(lc::from_msg(m, dd), HasSubstr("2 candidates but 2 candidate_weights and 1 candidate_widths_m"));
+  m.outcome = 9;
+  EXPECT_THAT(lc::from_msg(m, dd), HasSubstr("unknown outcome 9"));
 }
 
 // A layout sure of itself (registered on the tomatoes) gates: a pedicel far

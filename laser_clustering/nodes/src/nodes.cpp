@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "common.hpp"
+#include "laser_clustering/nodes/conversions.hpp"
 #include "laser_clustering/nodes/register.hpp"
 #ifdef TINYLINE_LASER_CLUSTERING_HAVE_SIM
 #include "sim_gripper.hpp"
@@ -25,13 +26,7 @@ namespace {
 constexpr std::size_t kScanQueue = 5;
 
 // The outcomes go on the wire as their enum values.
-constexpr std::uint8_t wire(PedicelOutcome o) { return static_cast<std::uint8_t>(o); }
 constexpr std::uint8_t wire(AlignmentOutcome o) { return static_cast<std::uint8_t>(o); }
-static_assert(wire(PedicelOutcome::kCutHere) == msgs::PedicelDetection::CUT_HERE);
-static_assert(wire(PedicelOutcome::kMove) == msgs::PedicelDetection::MOVE);
-static_assert(wire(PedicelOutcome::kNothingToCut) == msgs::PedicelDetection::NOTHING_TO_CUT);
-static_assert(wire(PedicelOutcome::kOutOfView) == msgs::PedicelDetection::OUT_OF_VIEW);
-static_assert(wire(PedicelOutcome::kInvalidInput) == msgs::PedicelDetection::INVALID_INPUT);
 static_assert(wire(AlignmentOutcome::kFound) == msgs::AlignmentResult::FOUND);
 static_assert(wire(AlignmentOutcome::kAtSweepEdge) == msgs::AlignmentResult::AT_SWEEP_EDGE);
 static_assert(wire(AlignmentOutcome::kNoPeak) == msgs::AlignmentResult::NO_PEAK);
@@ -87,52 +82,12 @@ PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
       "expected_layout", bus::QoS::keep_last(1), [this](const msgs::PedicelLayout& l) {
         // A malformed layout is dropped whole, with the reason: half a
         // layout would blame the wrong candidates.
-        const auto finite = [](const geometry_msgs::msg::Point& p) { return std::isfinite(p.x) && std::isfinite(p.z); };
-        std::string bad;
-        if (l.may_be_absent.size() != l.neighbours.size()) {
-          bad = fmt::format("{} neighbours but {} may_be_absent flags", l.neighbours.size(), l.may_be_absent.size());
-        } else if (!finite(l.expected)) {
-          bad = "a non-finite expected pedicel";
-        } else if (!(std::isfinite(l.expected_sd_m) && l.expected_sd_m >= 0.0) ||
-                   !(std::isfinite(l.neighbour_sd_m) && l.neighbour_sd_m >= 0.0)) {
-          bad = fmt::format("expected_sd_m and neighbour_sd_m must be finite and >= 0 (got {} and {})", l.expected_sd_m,
-                            l.neighbour_sd_m);
-        }
-        for (std::size_t i = 0; bad.empty() && i < l.neighbours.size(); ++i) {
-          if (!finite(l.neighbours[i])) bad = fmt::format("neighbour {} is not finite", i);
-        }
-        if (bad.empty() && l.alternative_weights.size() != l.alternatives.size()) {
-          bad = fmt::format("{} alternatives but {} alternative_weights", l.alternatives.size(),
-                            l.alternative_weights.size());
-        }
-        for (std::size_t i = 0; bad.empty() && i < l.alternatives.size(); ++i) {
-          // The core's rule (PedicelExpectation::Alternative): a runner-up
-          // never outweighs the expected pedicel, and weightless is absent.
-          if (!finite(l.alternatives[i])) bad = fmt::format("alternative {} is not finite", i);
-          else if (!(l.alternative_weights[i] > 0.0 && l.alternative_weights[i] <= 1.0)) {
-            bad = fmt::format("alternative {} has weight {}; a weight must be in (0, 1]", i, l.alternative_weights[i]);
-          }
-        }
-        if (bad.empty() && !(std::isfinite(l.gate_sd) && l.gate_sd >= 0.0)) {
-          bad = fmt::format("gate_sd must be finite and >= 0 (0: no gate), got {}", l.gate_sd);
-        }
-        if (!bad.empty()) {
+        PedicelExpectation e;
+        if (const auto bad = from_msg(l, expectation_sd_m_, e); !bad.empty()) {
           logger().warn("expected_layout (stamp {:.3f} s, frame '{}') ignored: {}",
                         bus::Time::from_msg(l.header.stamp).seconds(), l.header.frame_id, bad);
           return;
         }
-        PedicelExpectation e;
-        e.position_xz_m = Eigen::Vector2d(l.expected.x, l.expected.z);
-        e.sd_m = l.expected_sd_m > 0.0 ? l.expected_sd_m : expectation_sd_m_;
-        if (l.neighbour_sd_m > 0.0) e.neighbour_sd_m = l.neighbour_sd_m;
-        for (std::size_t i = 0; i < l.neighbours.size(); ++i) {
-          e.neighbours.push_back({Eigen::Vector2d(l.neighbours[i].x, l.neighbours[i].z), static_cast<bool>(l.may_be_absent[i])});
-        }
-        for (std::size_t i = 0; i < l.alternatives.size(); ++i) {
-          e.alternatives.push_back(
-              {Eigen::Vector2d(l.alternatives[i].x, l.alternatives[i].z), l.alternative_weights[i]});
-        }
-        if (l.gate_sd > 0.0) e.gate_sd = l.gate_sd;  // 0 on the wire: the core's default, no gate
         expected_ = std::make_pair(bus::Time::from_msg(l.header.stamp), std::move(e));
       });
 }
@@ -155,18 +110,7 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
   if (expected_ && std::abs(bus::to_seconds(stamp - expected_->first)) <= expectation_max_age_s_) {
     expectation = expected_->second;
   }
-  const auto d = find_pedicel(scan_, objects, finder_, expectation);
-  det->outcome = wire(d.outcome);
-  det->reason = d.reason;
-  det->cluster = d.cluster;
-  det->position.x = d.position_xz_m.x();
-  det->position.z = d.position_xz_m.y();
-  det->width_m = d.width_m;
-  det->lateral_offset_m = d.lateral_offset_m;
-  det->depth_offset_m = d.depth_offset_m;
-  det->angle_rad = d.angle_rad;
-  det->confidence = d.confidence;
-  det->num_candidates = static_cast<std::uint32_t>(d.candidates.size());
+  to_msg(find_pedicel(scan_, objects, finder_, expectation), *det);
   pub_->publish(std::move(det));
   if (clusters_pub_->subscription_count() > 0) {
     auto c = std::make_unique<msgs::LineClusters>();
