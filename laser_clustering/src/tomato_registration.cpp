@@ -25,6 +25,15 @@ Validation validate(const TomatoRegistrationParams& p) {
   if (!std::isfinite(p.min_range_m) || p.min_range_m < 0.0 || !positive(p.max_range_m) || p.max_range_m <= p.min_range_m) {
     return {false, fmt::format("need 0 <= min_range_m < max_range_m (got {} and {})", p.min_range_m, p.max_range_m)};
   }
+  if (!(p.core_fraction > 0.0 && p.core_fraction <= 1.0)) {
+    return {false, fmt::format("core_fraction must be in (0, 1] (got {})", p.core_fraction)};
+  }
+  if (!(std::isfinite(p.free_space_margin_m) && p.free_space_margin_m >= 0.0) ||
+      !(std::isfinite(p.violation_cost) && p.violation_cost >= 0.0) ||
+      !(std::isfinite(p.no_return_cost) && p.no_return_cost >= 0.0)) {
+    return {false, fmt::format("free_space_margin_m, violation_cost and no_return_cost must be finite and >= 0 (got {}, {}, {})",
+                               p.free_space_margin_m, p.violation_cost, p.no_return_cost)};
+  }
   if (p.min_tomatoes < 1 || p.min_points_per_tomato < 1) {
     return {false, fmt::format("min_tomatoes and min_points_per_tomato must be >= 1 (got {} and {})", p.min_tomatoes,
                                p.min_points_per_tomato)};

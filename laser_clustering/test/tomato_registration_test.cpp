@@ -129,6 +129,12 @@ TEST(TomatoRegistration, BadInputIsAnErrorWithAReasonNeverACrash) {
   p.inlier_m = nan;
   EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("inlier_m"));
   p = {};
+  p.core_fraction = 0.0;
+  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("core_fraction"));
+  p = {};
+  p.violation_cost = -1.0;
+  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("violation_cost"));
+  p = {};
   p.ambiguity_ratio = 1.5;
   EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("ambiguity_ratio"));
 

@@ -36,7 +36,8 @@ struct ExpectedTomato {
 struct TomatoRegistrationParams {
   /// The vision's common offset is searched within this of zero, in the
   /// plane [m] (Table 4.3's offsets are under 5 cm; a pedicel hangs up to
-  /// 2 cm off its tomato's vertical).
+  /// 2 cm off its tomato's vertical). It bounds the grid search; the
+  /// refinement follows the returns and may end a little beyond it.
   double max_shift_m = 0.07;
   double grid_step_m = 0.0025;   ///< coarse search step [m]; then a 4x finer grid around the best, then Gauss-Newton
   /// A return within this of a shifted cross-section's near arc supports the
