@@ -288,8 +288,13 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
   }
   if (expectation && !expectation->neighbours.empty()) score_layout(scan, *expectation, p, d.candidates);
   for (auto& cand : d.candidates) cand.weight = cand.shape_score * cand.isolation * cand.position_score * cand.layout_score;
-  std::stable_sort(d.candidates.begin(), d.candidates.end(),
-                   [](const PedicelCandidate& a, const PedicelCandidate& b) { return a.weight > b.weight; });
+  // Best first, ties in scan order: an insertion sort (a scan holds a few
+  // candidates; std::stable_sort would allocate its buffer every scan).
+  for (std::size_t i = 1; i < d.candidates.size(); ++i) {
+    for (std::size_t j = i; j > 0 && d.candidates[j].weight > d.candidates[j - 1].weight; --j) {
+      std::swap(d.candidates[j], d.candidates[j - 1]);
+    }
+  }
   if (d.candidates.empty()) {
     if (beyond_gate > 0) {
       d.outcome = PedicelOutcome::kNothingToCut;
