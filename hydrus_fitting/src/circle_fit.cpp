@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -21,6 +22,14 @@ const char* to_string(FitStatus s) {
     case FitStatus::kNoConsensus: return "no_consensus";
     case FitStatus::kRadiusOutOfRange: return "radius_out_of_range";
     case FitStatus::kInvalidParams: return "invalid_params";
+  }
+  return "unknown";
+}
+
+const char* to_string(ArcCorrection c) {
+  switch (c) {
+    case ArcCorrection::kNone: return "none";
+    case ArcCorrection::kSecondOrder: return "second_order";
   }
   return "unknown";
 }
@@ -149,6 +158,55 @@ std::optional<CircleFit> check_algebraic_input(const Normalised& n, const char* 
   return std::nullopt;
 }
 
+// Second-order correction: end weights below this are not worth a refit;
+// no point's weight drops below this fraction.
+constexpr double kMinEndWeight = 1e-3;
+constexpr double kMinRelativeWeight = 0.05;
+
+std::optional<std::string> check(const SecondOrderCorrection& so) {
+  const auto bad = [](double v) { return !std::isfinite(v); };
+  if (bad(so.end_weight) || so.end_weight < 0.0)
+    return fmt::format("second_order.end_weight must be >= 0, got {}", so.end_weight);
+  if (bad(so.max_end_weight) || so.max_end_weight < 0.0 || so.max_end_weight > 1.0)
+    return fmt::format("second_order.max_end_weight must be in [0, 1], got {}", so.max_end_weight);
+  if (bad(so.reference_sigma_over_r) || !(so.reference_sigma_over_r > 0.0))
+    return fmt::format("second_order.reference_sigma_over_r must be > 0, got {}", so.reference_sigma_over_r);
+  if (bad(so.full_weighting_arc_deg) || bad(so.no_weighting_arc_deg) || so.full_weighting_arc_deg < 0.0 ||
+      so.no_weighting_arc_deg < so.full_weighting_arc_deg)
+    return fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
+                       so.full_weighting_arc_deg, so.no_weighting_arc_deg);
+  if (bad(so.mode_shift) || so.mode_shift < 0.0)
+    return fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift);
+  if (bad(so.max_shift_sds) || so.max_shift_sds < 0.0)
+    return fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds);
+  return std::nullopt;
+}
+
+/// The arc n points cover about `centre`: 2 pi minus the largest angular gap
+/// between neighbouring points, and the direction of its middle. Fills `ang`
+/// with each point's angle [rad].
+struct ArcSpan {
+  double span_rad = 0.0;
+  double mid_rad = 0.0;
+};
+ArcSpan arc_span(const double* px, const double* py, int n, const Eigen::Vector2d& centre, std::vector<double>& ang) {
+  const auto un = static_cast<std::size_t>(n);
+  ang.resize(un);
+  for (std::size_t k = 0; k < un; ++k) ang[k] = std::atan2(py[k] - centre.y(), px[k] - centre.x());
+  std::vector<double> sorted(ang);
+  std::sort(sorted.begin(), sorted.end());
+  constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  double gap = sorted.front() + kTwoPi - sorted.back();  // across +-pi
+  double gap_start = sorted.back();
+  for (std::size_t k = 1; k < un; ++k) {
+    if (sorted[k] - sorted[k - 1] > gap) {
+      gap = sorted[k] - sorted[k - 1];
+      gap_start = sorted[k - 1];
+    }
+  }
+  return ArcSpan{kTwoPi - gap, gap_start + 0.5 * gap + std::numbers::pi};
+}
+
 }  // namespace
 
 CircleFit fit_circle_kasa(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
@@ -259,6 +317,9 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   if (params.max_iterations < 1) {
     return failed(FitStatus::kInvalidParams, fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
   }
+  if (params.correction == ArcCorrection::kSecondOrder) {
+    if (auto bad = check(params.second_order)) return failed(FitStatus::kInvalidParams, *bad);
+  }
   const int p = known ? 2 : 3;
   // Finite points with a finite, positive sigma.
   std::vector<Eigen::Index> idx;
@@ -293,6 +354,7 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   double* const px = buf.data();
   double* const py = px + n;
   double* const pw = py + n;
+  std::vector<double> ang;  // second-order correction: each point's angle about the centre [rad]
   for (int k = 0; k < n; ++k) {
     const Eigen::Index i = idx[static_cast<std::size_t>(k)];
     px[k] = points(0, i);
@@ -349,55 +411,67 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
     return out;
   };
 
-  Pass at = evaluate(theta);  // always the pass at theta
-  double lambda = params.initial_lambda;
+  // Levenberg-Marquardt from t with the current weights pw; `at` ends as
+  // the pass at the final t.
+  Pass at;
   bool converged = false;
   int it = 0;
-  for (; it < params.max_iterations && !converged; ++it) {
-    // Try steps with growing damping until one lowers the cost.
-    bool accepted = false;
-    for (int tries = 0; tries < 20 && !accepted && !converged; ++tries) {
-      Eigen::Matrix3d A = at.H;
-      for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(at.H(k, k), 1e-12);
-      Eigen::Vector3d delta = Eigen::Vector3d::Zero();
-      if (known) {
-        delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-at.g.head<2>());
-      } else {
-        delta = A.ldlt().solve(-at.g);
+  auto run_lm = [&](Eigen::Vector3d& t) {
+    at = evaluate(t);  // always the pass at t
+    double lambda = params.initial_lambda;
+    converged = false;
+    it = 0;
+    for (; it < params.max_iterations && !converged; ++it) {
+      // Try steps with growing damping until one lowers the cost.
+      bool accepted = false;
+      for (int tries = 0; tries < 20 && !accepted && !converged; ++tries) {
+        Eigen::Matrix3d A = at.H;
+        for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(at.H(k, k), 1e-12);
+        Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+        if (known) {
+          delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-at.g.head<2>());
+        } else {
+          delta = A.ldlt().solve(-at.g);
+        }
+        if (!delta.allFinite()) {
+          lambda *= 10.0;
+          continue;
+        }
+        // A step under the tolerance is not worth a pass over the points: its
+        // cost differs from the current one at rounding level, so the test
+        // would reject it about half the time and grow the damping for nothing.
+        if (delta.norm() < params.step_tolerance_m) {
+          converged = true;
+          break;
+        }
+        const Eigen::Vector3d cand = t + delta;
+        // The candidate's gradient system comes in the same pass as its cost:
+        // near the minimum almost every step is accepted.
+        Pass next;
+        if (cand(2) > 0.0) next = evaluate(cand);
+        if (cand(2) > 0.0 && next.cost <= at.cost) {
+          t = cand;
+          const double old = at.cost;
+          at = next;
+          lambda = std::max(lambda * 0.1, 1e-12);
+          accepted = true;
+          if (old - at.cost <= 1e-15 * old) converged = true;
+        } else {
+          lambda *= 10.0;
+        }
       }
-      if (!delta.allFinite()) {
-        lambda *= 10.0;
-        continue;
-      }
-      // A step under the tolerance is not worth a pass over the points: its
-      // cost differs from the current one at rounding level, so the test
-      // would reject it about half the time and grow the damping for nothing.
-      if (delta.norm() < params.step_tolerance_m) {
-        converged = true;
-        break;
-      }
-      const Eigen::Vector3d cand = theta + delta;
-      // The candidate's gradient system comes in the same pass as its cost:
-      // near the minimum almost every step is accepted.
-      Pass next;
-      if (cand(2) > 0.0) next = evaluate(cand);
-      if (cand(2) > 0.0 && next.cost <= at.cost) {
-        theta = cand;
-        const double old = at.cost;
-        at = next;
-        lambda = std::max(lambda * 0.1, 1e-12);
-        accepted = true;
-        if (old - at.cost <= 1e-15 * old) converged = true;
-      } else {
-        lambda *= 10.0;
+      if (!accepted) {
+        converged = true;  // no descent direction left: at a minimum to rounding
       }
     }
-    if (!accepted) {
-      converged = true;  // no descent direction left: at a minimum to rounding
-    }
-  }
+  };
+  run_lm(theta);
+  // The ML fit's first-order quantities, before any second-order refit:
+  // the covariance and, for the essential bias, the weighted cost and sum.
   const double cost = at.cost;
-  const Eigen::Matrix3d& H = at.H;
+  const Eigen::Matrix3d H = at.H;
+  double wsum = 0.0;
+  for (int k = 0; k < n; ++k) wsum += pw[k];
 
   CircleFit f;
   f.status = FitStatus::kOk;
@@ -408,19 +482,6 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   f.iterations = it;
   f.converged = converged;
   f.rms_residual_m = std::sqrt(at.rss / n);
-  if (params.remove_radius_bias && !known && n > p) {
-    // Per point the tangential variance equals the normal one (isotropic):
-    // s^2 sigma_i^2, s^2 the a-posteriori variance factor; the radius is
-    // the weighted mean distance, so its bias is sum w s^2 sigma^2 / (2 r sum w).
-    double wsum = 0.0;
-    for (int k = 0; k < n; ++k) wsum += pw[k];
-    const double s2 = cost / (n - p);
-    const double bias = s2 * n / (2.0 * f.circle.radius_m * wsum);
-    if (std::isfinite(bias) && bias < 0.5 * f.circle.radius_m) {
-      f.circle.radius_m -= bias;
-      f.radius_bias_removed_m = bias;
-    }
-  }
   // Covariance: (J^T W J)^-1, scaled by the weighted residual variance when asked.
   const bool use_residuals = params.covariance_from_residuals || sigma_m.empty();
   const double dof = static_cast<double>(n - p);
@@ -432,6 +493,63 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   } else {
     Eigen::FullPivLU<Eigen::Matrix3d> lu(H);
     if (lu.isInvertible()) f.covariance = s2 * lu.inverse();
+  }
+  if (params.correction == ArcCorrection::kSecondOrder && !known && n > p) {
+    const SecondOrderCorrection& so = params.second_order;
+    // 1. End weighting, by the noise over the radius seen in the residuals.
+    const double q = std::sqrt(at.rss / dof) / f.circle.radius_m;
+    const double qr = q / so.reference_sigma_over_r;
+    const double k_noise = std::min(so.max_end_weight, so.end_weight * qr * qr);
+    if (k_noise > kMinEndWeight) {
+      const ArcSpan arc = arc_span(px, py, n, f.circle.centre_m, ang);
+      const double span_deg = arc.span_rad * 180.0 / std::numbers::pi;
+      const double fade = so.no_weighting_arc_deg > so.full_weighting_arc_deg
+                              ? std::clamp((so.no_weighting_arc_deg - span_deg) /
+                                               (so.no_weighting_arc_deg - so.full_weighting_arc_deg),
+                                           0.0, 1.0)
+                              : (span_deg < so.full_weighting_arc_deg ? 1.0 : 0.0);
+      const double k_end = k_noise * fade;
+      if (k_end > kMinEndWeight && arc.span_rad > 0.0) {
+        for (int k = 0; k < n; ++k) {
+          const double u = std::remainder(ang[static_cast<std::size_t>(k)] - arc.mid_rad, 2.0 * std::numbers::pi) /
+                           (0.5 * arc.span_rad);
+          pw[k] *= std::max(kMinRelativeWeight, 1.0 - k_end * u * u);
+        }
+        Eigen::Vector3d t2 = theta;
+        run_lm(t2);
+        if (t2.allFinite() && t2(2) > 0.0) {
+          f.circle.centre_m = t2.head<2>();
+          f.circle.radius_m = t2(2);
+          f.iterations += it;
+          f.converged = f.converged && converged;
+          f.rms_residual_m = std::sqrt(at.rss / n);
+          f.end_weight_applied = k_end;
+        }
+      }
+    }
+    // 2. Mode shift: theta -= gamma Cov(theta, r) / r, |shift of r| capped.
+    const double var_r = f.covariance(2, 2);
+    if (so.mode_shift > 0.0 && var_r > 0.0 && std::isfinite(var_r)) {
+      const double r = f.circle.radius_m;
+      const double rel = std::sqrt(var_r) / r;
+      const double gamma = std::min(so.mode_shift, so.max_shift_sds / rel);
+      const Eigen::Vector3d shift = -gamma * f.covariance.col(2) / r;
+      if (shift.allFinite()) {
+        f.circle.centre_m += shift.head<2>();
+        f.circle.radius_m += shift(2);
+        f.mode_shift_m = shift;
+      }
+    }
+  }
+  if (params.remove_radius_bias && !known && n > p) {
+    // Per point the tangential variance equals the normal one (isotropic):
+    // s^2 sigma_i^2, s^2 the a-posteriori variance factor; the radius is
+    // the weighted mean distance, so its bias is sum w s^2 sigma^2 / (2 r sum w).
+    const double bias = (cost / dof) * n / (2.0 * f.circle.radius_m * wsum);
+    if (std::isfinite(bias) && bias < 0.5 * f.circle.radius_m) {
+      f.circle.radius_m -= bias;
+      f.radius_bias_removed_m = bias;
+    }
   }
   return f;
 }
