@@ -60,22 +60,29 @@ const Scene& closed_ring() {
   return s;
 }
 
-void run_estimator(benchmark::State& state, const Scene& s) {
-  hf::CircleEstimator est(s.model);
+/// `correction`: the final refit's (CircleEstimatorParams::arc_correction);
+/// kNone is the plain refit, the reference for its cost in the same run.
+void run_estimator(benchmark::State& state, const Scene& s,
+                   hf::ArcCorrection correction = hf::CircleEstimatorParams{}.arc_correction) {
+  hf::CircleEstimatorParams p;
+  p.arc_correction = correction;
+  hf::CircleEstimator est(s.model, p);
   std::size_t k = 0;
   int points = 0;
-  double hyp = 0, inl = 0, n = 0;
+  double hyp = 0, inl = 0, n = 0, end_weighted = 0;
   for (auto _ : state) {
     const auto e = est.estimate(s.views[k++ % kUpdates], s.joints);
     benchmark::DoNotOptimize(e.fit.circle.radius_m);
     points = e.points;
     hyp += e.fit.iterations;
     inl += e.fit.points_used;
+    end_weighted += e.fit.end_weight_applied > 0.0 ? 1.0 : 0.0;
     ++n;
   }
   state.counters["points"] = points;
   state.counters["hypotheses"] = hyp / n;
   state.counters["inliers"] = inl / n;
+  state.counters["end_weighted"] = end_weighted / n;  // fraction of updates with the end-weighted refit
 }
 
 /// The open chain with the base flying at 0.125 m/s past the cylinder: the
@@ -162,10 +169,18 @@ BENCHMARK(BM_Update_Estimator_OpenChain_MovingNoPoses)->Unit(benchmark::kMicrose
 // The compensation's own cost: a base standing still, its poses given.
 static void BM_Update_Estimator_OpenChain_StaticWithPoses(benchmark::State& s) { run_estimator_moving_base(s, true, 0.0); }
 BENCHMARK(BM_Update_Estimator_OpenChain_StaticWithPoses)->Unit(benchmark::kMicrosecond);
+static void BM_Update_Estimator_OpenChain_PlainRefit(benchmark::State& s) {
+  run_estimator(s, open_chain(), hf::ArcCorrection::kNone);
+}
+BENCHMARK(BM_Update_Estimator_OpenChain_PlainRefit)->Unit(benchmark::kMicrosecond);
 static void BM_Update_FusionKasa_OpenChain(benchmark::State& s) { run_fusion_kasa(s, open_chain()); }
 BENCHMARK(BM_Update_FusionKasa_OpenChain)->Unit(benchmark::kMicrosecond);
 static void BM_Update_Estimator_ClosedRingWithOutliers(benchmark::State& s) { run_estimator(s, closed_ring()); }
 BENCHMARK(BM_Update_Estimator_ClosedRingWithOutliers)->Unit(benchmark::kMicrosecond);
+static void BM_Update_Estimator_ClosedRingWithOutliers_PlainRefit(benchmark::State& s) {
+  run_estimator(s, closed_ring(), hf::ArcCorrection::kNone);
+}
+BENCHMARK(BM_Update_Estimator_ClosedRingWithOutliers_PlainRefit)->Unit(benchmark::kMicrosecond);
 static void BM_Update_FusionKasa_ClosedRingWithOutliers(benchmark::State& s) { run_fusion_kasa(s, closed_ring()); }
 BENCHMARK(BM_Update_FusionKasa_ClosedRingWithOutliers)->Unit(benchmark::kMicrosecond);
 

@@ -575,9 +575,11 @@ std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
       struct V {
         const char* name;
         bool kasa, incidence, bias;
+        ArcCorrection correction = ArcCorrection::kNone;
       };
       for (const V v : {V{"kasa", true, false, false}, V{"msac", false, false, false},
-                        V{"msac_incidence", false, true, false}, V{"estimator", false, true, true}}) {
+                        V{"msac_incidence", false, true, false}, V{"estimator_plain_refit", false, true, true},
+                        V{"estimator", false, true, true, ArcCorrection::kSecondOrder}}) {
         RayNoiseRow row;
         row.joint_deg = jd;
         row.noise_scale = scale;
@@ -591,6 +593,7 @@ std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
         CircleEstimatorParams ep;
         ep.incidence_weighting = v.incidence;
         ep.remove_radius_bias = v.bias;
+        ep.arc_correction = v.correction;
         ep.robust.inlier_threshold_m = 0.1;  // no outliers here: keep every point
         CircleEstimator est(model, ep);
         JointStateBuffer jb(model.joint_names());

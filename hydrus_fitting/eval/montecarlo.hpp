@@ -143,7 +143,7 @@ struct RayNoiseParams {
 
 struct RayNoiseRow {
   double joint_deg = 0, noise_scale = 0;
-  std::string variant;             ///< kasa | msac | msac_incidence | estimator (incidence + bias removal)
+  std::string variant;             ///< kasa | msac | msac_incidence | estimator_plain_refit (incidence + bias removal) | estimator (+ second-order correction)
   int points = 0;                  ///< true points on the cylinder
   double arc_deg = 0;              ///< angular extent covered (union over the sensors)
   int trials = 0, failed = 0;
