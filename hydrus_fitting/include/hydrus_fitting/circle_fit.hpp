@@ -108,8 +108,8 @@ struct SecondOrderCorrection {
   double end_weight = 0.6;                ///< k at sigma/r = reference_sigma_over_r (0: no refit)
   double reference_sigma_over_r = 0.13;
   double max_end_weight = 1.0;            ///< k at most (weights stay >= 5 %)
-  double full_weighting_arc_deg = 180.0;  ///< end weighting fades out between these arcs [deg]
-  double no_weighting_arc_deg = 270.0;
+  double full_weighting_arc_deg = 150.0;  ///< end weighting fades out between these arcs [deg]
+  double no_weighting_arc_deg = 240.0;
   double mode_shift = 2.5;                ///< gamma (0: no shift)
   double max_shift_sds = 0.5;             ///< |radius shift| <= this many SDs of the fitted radius
 };
