@@ -78,6 +78,10 @@ int main(int argc, char** argv) {
       return usage();
     }
   }
+  if ((seed >= 0 || !arcs.empty() || !sigmas.empty()) && cmd != "kcr" && cmd != "second_order") {
+    std::cerr << "hydrus_eval " << cmd << ": --seed, --arcs and --sigmas are for kcr and second_order only\n";
+    return 2;
+  }
   if (cmd == "kcr") {
     ev::KcrStudyParams p;
     if (trials > 0) p.trials = trials;
