@@ -164,6 +164,12 @@ std::optional<CircleFit> check_algebraic_input(const Normalised& n, const char* 
 constexpr double kMinEndWeight = 1e-3;
 constexpr double kMinRelativeWeight = 0.05;
 
+/// 1 up to `full`, 0 from `none`, linear between (a step when they are equal).
+double fade(double x, double full, double none) {
+  if (none > full) return std::clamp((none - x) / (none - full), 0.0, 1.0);
+  return x < full ? 1.0 : 0.0;
+}
+
 std::optional<std::string> check(const SecondOrderCorrection& so) {
   const auto bad = [](double v) { return !std::isfinite(v); };
   if (bad(so.end_weight) || so.end_weight < 0.0)
@@ -176,6 +182,10 @@ std::optional<std::string> check(const SecondOrderCorrection& so) {
       so.no_weighting_arc_deg < so.full_weighting_arc_deg)
     return fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
                        so.full_weighting_arc_deg, so.no_weighting_arc_deg);
+  if (bad(so.full_weighting_rel_sd_r) || bad(so.no_weighting_rel_sd_r) || so.full_weighting_rel_sd_r < 0.0 ||
+      so.no_weighting_rel_sd_r < so.full_weighting_rel_sd_r)
+    return fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
+                       so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r);
   if (bad(so.mode_shift) || so.mode_shift < 0.0)
     return fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift);
   if (bad(so.max_shift_sds) || so.max_shift_sds < 0.0)
@@ -526,16 +536,14 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
     // 1. End weighting, by the noise over the radius seen in the residuals.
     const double q = std::sqrt(at.rss / dof) / f.circle.radius_m;
     const double qr = q / so.reference_sigma_over_r;
-    const double k_noise = std::min(so.max_end_weight, so.end_weight * qr * qr);
+    const double var_r0 = f.covariance(2, 2);
+    const double rel_sd_r = var_r0 > 0.0 ? std::sqrt(var_r0) / f.circle.radius_m : 0.0;
+    const double k_noise = std::min(so.max_end_weight, so.end_weight * qr * qr) *
+                           fade(rel_sd_r, so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r);
     if (k_noise > kMinEndWeight) {
       const ArcSpan arc = arc_span(px, py, n, f.circle.centre_m, ang);
       const double span_deg = arc.span_rad * 180.0 / std::numbers::pi;
-      const double fade = so.no_weighting_arc_deg > so.full_weighting_arc_deg
-                              ? std::clamp((so.no_weighting_arc_deg - span_deg) /
-                                               (so.no_weighting_arc_deg - so.full_weighting_arc_deg),
-                                           0.0, 1.0)
-                              : (span_deg < so.full_weighting_arc_deg ? 1.0 : 0.0);
-      const double k_end = k_noise * fade;
+      const double k_end = k_noise * fade(span_deg, so.full_weighting_arc_deg, so.no_weighting_arc_deg);
       if (k_end > kMinEndWeight && arc.span_rad > 0.0) {
         for (int k = 0; k < n; ++k) {
           const double u = std::remainder(ang[static_cast<std::size_t>(k)] - arc.mid_rad, 2.0 * std::numbers::pi) /

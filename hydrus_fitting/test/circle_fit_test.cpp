@@ -480,6 +480,11 @@ TEST(CircleFitSecondOrder, BadParametersAreNamedAndAKnownRadiusIsLeftAlone) {
   EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
   EXPECT_THAT(f.reason, HasSubstr("no_weighting_arc_deg"));
   rp.second_order = {};
+  rp.second_order.full_weighting_rel_sd_r = 0.3;  // above no_weighting_rel_sd_r
+  f = hf::refine_circle(p, kTruth, rp);
+  EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
+  EXPECT_THAT(f.reason, HasSubstr("rel_sd_r"));
+  rp.second_order = {};
   rp.second_order.mode_shift = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(hf::refine_circle(p, kTruth, rp).status, hf::FitStatus::kInvalidParams);
   // A known radius: the correction does not apply (centre-only fit).
