@@ -6,7 +6,8 @@
 //   hydrus_eval second_order [--trials N] [--out FILE]   (N noise draws)
 //
 // kcr and second_order also take --seed N, --arcs DEG,DEG,... and
-// --sigmas M,M,... (noise SDs [m]) to run a part of the grid or other draws.
+// --sigmas M,M,... (noise SDs [m]) to run a part of the grid or other draws,
+// and --points N (points per arc).
 //
 // scripts/plots/hydrus_kcr.py (figure and table) and hydrus_tables.py read the CSVs and
 // write the tables and figures of the document.
@@ -27,7 +28,7 @@ namespace {
 
 int usage() {
   std::cerr << "usage: hydrus_eval kcr|robustness|ray_noise|second_order [--trials N] [--out FILE]\n"
-               "         kcr, second_order: [--seed N] [--arcs DEG,...] [--sigmas M,...]\n";
+               "         kcr, second_order: [--seed N] [--arcs DEG,...] [--sigmas M,...] [--points N]\n";
   return 2;
 }
 
@@ -56,6 +57,7 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   int trials = -1;
   long long seed = -1;
+  int points = -1;
   std::vector<double> arcs, sigmas;
   std::string out;
   for (int i = 2; i < argc; ++i) {
@@ -66,6 +68,9 @@ int main(int argc, char** argv) {
     } else if (a == "--seed" && i + 1 < argc) {
       seed = std::atoll(argv[++i]);
       if (seed < 0) return usage();
+    } else if (a == "--points" && i + 1 < argc) {
+      points = std::atoi(argv[++i]);
+      if (points < 3) return usage();
     } else if (a == "--arcs" && i + 1 < argc) {
       arcs = parse_list(argv[++i]);
       if (arcs.empty()) return usage();
@@ -78,8 +83,8 @@ int main(int argc, char** argv) {
       return usage();
     }
   }
-  if ((seed >= 0 || !arcs.empty() || !sigmas.empty()) && cmd != "kcr" && cmd != "second_order") {
-    std::cerr << "hydrus_eval " << cmd << ": --seed, --arcs and --sigmas are for kcr and second_order only\n";
+  if ((seed >= 0 || points > 0 || !arcs.empty() || !sigmas.empty()) && cmd != "kcr" && cmd != "second_order") {
+    std::cerr << "hydrus_eval " << cmd << ": --seed, --points, --arcs and --sigmas are for kcr and second_order only\n";
     return 2;
   }
   if (cmd == "kcr") {
@@ -88,6 +93,7 @@ int main(int argc, char** argv) {
     if (seed >= 0) p.seed = static_cast<std::uint64_t>(seed);
     if (!arcs.empty()) p.arcs_deg = arcs;
     if (!sigmas.empty()) p.sigmas_m = sigmas;
+    if (points > 0) p.points = points;
     return write(out, ev::kcr_csv(ev::kcr_study(p))) ? 0 : 1;
   }
   if (cmd == "robustness") {
@@ -108,6 +114,7 @@ int main(int argc, char** argv) {
     if (seed >= 0) p.seed = static_cast<std::uint64_t>(seed);
     if (!arcs.empty()) p.arcs_deg = arcs;
     if (!sigmas.empty()) p.sigmas_m = sigmas;
+    if (points > 0) p.points = points;
     return write(out, ev::second_order_csv(ev::second_order_study(p))) ? 0 : 1;
   }
   return usage();
