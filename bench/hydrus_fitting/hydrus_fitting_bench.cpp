@@ -17,6 +17,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "hydrus_fitting/detail/random.hpp"
 #include "hydrus_fitting/estimator.hpp"
 #include "hydrus_fitting/sequencer.hpp"
 #include "planar_scene.hpp"
@@ -60,22 +61,29 @@ const Scene& closed_ring() {
   return s;
 }
 
-void run_estimator(benchmark::State& state, const Scene& s) {
-  hf::CircleEstimator est(s.model);
+/// `correction`: the final refit's (CircleEstimatorParams::arc_correction);
+/// kNone is the plain refit, the reference for its cost in the same run.
+void run_estimator(benchmark::State& state, const Scene& s,
+                   hf::ArcCorrection correction = hf::CircleEstimatorParams{}.arc_correction) {
+  hf::CircleEstimatorParams p;
+  p.arc_correction = correction;
+  hf::CircleEstimator est(s.model, p);
   std::size_t k = 0;
   int points = 0;
-  double hyp = 0, inl = 0, n = 0;
+  double hyp = 0, inl = 0, n = 0, end_weighted = 0;
   for (auto _ : state) {
     const auto e = est.estimate(s.views[k++ % kUpdates], s.joints);
     benchmark::DoNotOptimize(e.fit.circle.radius_m);
     points = e.points;
     hyp += e.fit.iterations;
     inl += e.fit.points_used;
+    end_weighted += e.fit.end_weight_applied > 0.0 ? 1.0 : 0.0;
     ++n;
   }
   state.counters["points"] = points;
   state.counters["hypotheses"] = hyp / n;
   state.counters["inliers"] = inl / n;
+  state.counters["end_weighted"] = end_weighted / n;  // fraction of updates with the end-weighted refit
 }
 
 /// The open chain with the base flying at 0.125 m/s past the cylinder: the
@@ -162,12 +170,59 @@ BENCHMARK(BM_Update_Estimator_OpenChain_MovingNoPoses)->Unit(benchmark::kMicrose
 // The compensation's own cost: a base standing still, its poses given.
 static void BM_Update_Estimator_OpenChain_StaticWithPoses(benchmark::State& s) { run_estimator_moving_base(s, true, 0.0); }
 BENCHMARK(BM_Update_Estimator_OpenChain_StaticWithPoses)->Unit(benchmark::kMicrosecond);
+static void BM_Update_Estimator_OpenChain_PlainRefit(benchmark::State& s) {
+  run_estimator(s, open_chain(), hf::ArcCorrection::kNone);
+}
+BENCHMARK(BM_Update_Estimator_OpenChain_PlainRefit)->Unit(benchmark::kMicrosecond);
 static void BM_Update_FusionKasa_OpenChain(benchmark::State& s) { run_fusion_kasa(s, open_chain()); }
 BENCHMARK(BM_Update_FusionKasa_OpenChain)->Unit(benchmark::kMicrosecond);
 static void BM_Update_Estimator_ClosedRingWithOutliers(benchmark::State& s) { run_estimator(s, closed_ring()); }
 BENCHMARK(BM_Update_Estimator_ClosedRingWithOutliers)->Unit(benchmark::kMicrosecond);
+static void BM_Update_Estimator_ClosedRingWithOutliers_PlainRefit(benchmark::State& s) {
+  run_estimator(s, closed_ring(), hf::ArcCorrection::kNone);
+}
+BENCHMARK(BM_Update_Estimator_ClosedRingWithOutliers_PlainRefit)->Unit(benchmark::kMicrosecond);
 static void BM_Update_FusionKasa_ClosedRingWithOutliers(benchmark::State& s) { run_fusion_kasa(s, closed_ring()); }
 BENCHMARK(BM_Update_FusionKasa_ClosedRingWithOutliers)->Unit(benchmark::kMicrosecond);
+
+// ---- the second-order correction where it acts: 100 points on a 120 deg
+// arc of a 15 cm circle with 19.6 mm noise (the KCR study's cell), 64 noise
+// draws cycled; Hyper + geometric LM with the essential bias removed, without
+// and with the correction (end-weighted refit and mode shift).
+static void run_arc_fit(benchmark::State& state, hf::ArcCorrection correction) {
+  static const std::vector<Eigen::Matrix2Xd> draws = [] {
+    std::vector<Eigen::Matrix2Xd> d;
+    hf::detail::SplitMix64 rng(9);
+    for (int t = 0; t < 64; ++t) {
+      Eigen::Matrix2Xd p(2, 100);
+      for (int i = 0; i < 100; ++i) {
+        const double a = std::numbers::pi / 2 + (i / 99.0 - 0.5) * 2.0 * std::numbers::pi / 3.0;
+        p.col(i) = Eigen::Vector2d(0.15 * std::cos(a) + 0.019593 * rng.gaussian(),
+                                   0.15 * std::sin(a) + 0.019593 * rng.gaussian());
+      }
+      d.push_back(p);
+    }
+    return d;
+  }();
+  hf::RefineParams rp;
+  rp.remove_radius_bias = true;
+  rp.correction = correction;
+  std::size_t k = 0;
+  double weighted = 0, n = 0;
+  for (auto _ : state) {
+    const auto f = hf::fit_circle(draws[k++ % draws.size()], rp);
+    benchmark::DoNotOptimize(f.circle.radius_m);
+    weighted += f.end_weight_applied > 0.0 ? 1.0 : 0.0;
+    ++n;
+  }
+  state.counters["end_weighted"] = weighted / n;
+}
+static void BM_Piece_Arc120_Sigma19mm_Plain(benchmark::State& s) { run_arc_fit(s, hf::ArcCorrection::kNone); }
+BENCHMARK(BM_Piece_Arc120_Sigma19mm_Plain)->Unit(benchmark::kMicrosecond);
+static void BM_Piece_Arc120_Sigma19mm_SecondOrder(benchmark::State& s) {
+  run_arc_fit(s, hf::ArcCorrection::kSecondOrder);
+}
+BENCHMARK(BM_Piece_Arc120_Sigma19mm_SecondOrder)->Unit(benchmark::kMicrosecond);
 
 // ---- the pieces, on the open chain's fused clouds.
 static void BM_Piece_FusionOnly(benchmark::State& state) {

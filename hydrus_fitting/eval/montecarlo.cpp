@@ -38,6 +38,14 @@ Eigen::Matrix2Xd arc_points(const Circle& c, double arc_deg, int n) {
   return p;
 }
 
+/// What the kcr_study's geometric_second_order (and second_order_study's) runs.
+RefineParams second_order_params() {
+  RefineParams rp;
+  rp.remove_radius_bias = true;
+  rp.correction = ArcCorrection::kSecondOrder;
+  return rp;
+}
+
 }  // namespace
 
 const char* to_string(Method m) {
@@ -46,6 +54,7 @@ const char* to_string(Method m) {
     case Method::kHyper: return "hyper";
     case Method::kGeometric: return "geometric";
     case Method::kGeometricUnbiased: return "geometric_unbiased";
+    case Method::kGeometricSecondOrder: return "geometric_second_order";
     case Method::kRobust: return "robust";
     case Method::kKnownRadius: return "known_radius";
   }
@@ -87,6 +96,7 @@ std::vector<KcrRow> kcr_study(const KcrStudyParams& p) {
               f = fit_circle(noisy, rp);
               break;
             }
+            case Method::kGeometricSecondOrder: f = fit_circle(noisy, second_order_params()); break;
             case Method::kRobust: {
               RobustCircleParams rp;
               rp.inlier_threshold_m = 4.0 * sigma;  // the node's rule: a few SDs of the range noise
@@ -230,7 +240,7 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
   for (int j = 0; j < kNodes; ++j)
     for (int k = 0; k < kNodes; ++k) V(j, k) = std::pow(static_cast<double>(j - 4), k);
   const Eigen::Matrix<double, kNodes, kNodes> Vinv = V.fullPivLu().inverse();
-  const char* methods[] = {"geometric", "hyper", "end_weighted"};
+  const char* methods[] = {"geometric", "hyper", "end_weighted", "geometric_second_order"};
   // a1, a2, a3 (columns) of the fit of exact + s e, from fits at s = -4h..4h
   // continued outwards from the truth.
   auto taylor = [&](const Eigen::Matrix2Xd& exact, const Eigen::Matrix2Xd& e, bool geo) {
@@ -255,7 +265,7 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
   };
   for (const double arc : p.arcs_deg) {
     const Eigen::Matrix2Xd exact = arc_points(truth, arc, p.points);
-    for (int m = 0; m < 3; ++m) {
+    for (int m = 0; m < 4; ++m) {
       const bool geo = (m == 0);
       const bool expand = (m < 2);  // the Taylor series of the two smooth fits; the weighted one by Monte-Carlo only
       // Per draw: a1, a2, a3 (3 components each) and the estimator's error at every sigma.
@@ -287,7 +297,13 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
         }
         for (std::size_t si = 0; si < p.sigmas_m.size(); ++si) {
           q = exact + p.sigmas_m[si] * e;
-          const CircleFit f = geo ? fit_circle(q) : (m == 1 ? fit_circle_hyper(q) : end_weighted_fit(q));
+          CircleFit f;
+          switch (m) {
+            case 0: f = fit_circle(q); break;
+            case 1: f = fit_circle_hyper(q); break;
+            case 2: f = end_weighted_fit(q); break;
+            default: f = fit_circle(q, second_order_params()); break;
+          }
           Eigen::Vector3d d = Eigen::Vector3d::Constant(std::nan(""));
           if (f.ok()) d = Eigen::Vector3d(f.circle.centre_m.x(), f.circle.centre_m.y(), f.circle.radius_m) - theta0;
           err[si].push_back(d);
@@ -559,9 +575,11 @@ std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
       struct V {
         const char* name;
         bool kasa, incidence, bias;
+        ArcCorrection correction = ArcCorrection::kNone;
       };
       for (const V v : {V{"kasa", true, false, false}, V{"msac", false, false, false},
-                        V{"msac_incidence", false, true, false}, V{"estimator", false, true, true}}) {
+                        V{"msac_incidence", false, true, false}, V{"estimator_plain_refit", false, true, true},
+                        V{"estimator", false, true, true, ArcCorrection::kSecondOrder}}) {
         RayNoiseRow row;
         row.joint_deg = jd;
         row.noise_scale = scale;
@@ -575,6 +593,7 @@ std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
         CircleEstimatorParams ep;
         ep.incidence_weighting = v.incidence;
         ep.remove_radius_bias = v.bias;
+        ep.arc_correction = v.correction;
         ep.robust.inlier_threshold_m = 0.1;  // no outliers here: keep every point
         CircleEstimator est(model, ep);
         JointStateBuffer jb(model.joint_names());

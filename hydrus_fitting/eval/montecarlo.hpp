@@ -21,15 +21,17 @@
 
 namespace tinyline::hydrus_fitting::eval {
 
-enum class Method { kKasa, kHyper, kGeometric, kGeometricUnbiased, kRobust, kKnownRadius };
+/// kGeometricSecondOrder: geometric_unbiased with RefineParams::correction =
+/// kSecondOrder (what CircleEstimator's final refit runs).
+enum class Method { kKasa, kHyper, kGeometric, kGeometricUnbiased, kGeometricSecondOrder, kRobust, kKnownRadius };
 const char* to_string(Method m);
 
 struct KcrStudyParams {
   std::vector<double> arcs_deg{30, 45, 60, 90, 120, 180, 270, 360};
   /// Table 3.1 SDs at 20.5, 50, 100, 125 cm [m].
   std::vector<double> sigmas_m{0.003625, 0.006164, 0.010480, 0.019593};
-  std::vector<Method> methods{Method::kKasa,   Method::kHyper,  Method::kGeometric, Method::kGeometricUnbiased,
-                              Method::kRobust, Method::kKnownRadius};
+  std::vector<Method> methods{Method::kKasa,   Method::kHyper,        Method::kGeometric, Method::kGeometricUnbiased,
+                              Method::kGeometricSecondOrder, Method::kRobust, Method::kKnownRadius};
   double radius_m = 0.15;
   int points = 100;          ///< evenly spaced over the arc
   int trials = 2000;
@@ -74,7 +76,7 @@ struct SecondOrderParams {
 
 struct SecondOrderRow {
   double arc_deg = 0, sigma_m = 0;
-  std::string method;           ///< geometric | hyper | end_weighted (Monte-Carlo only: no series)
+  std::string method;           ///< geometric | hyper | end_weighted | geometric_second_order (the last two Monte-Carlo only: no series)
   int draws = 0;
   double kcr_sd[3] = {0, 0, 0};
   double first_order[3] = {0, 0, 0};   ///< sigma sqrt(E[a1^2]) / kcr_sd
@@ -141,7 +143,7 @@ struct RayNoiseParams {
 
 struct RayNoiseRow {
   double joint_deg = 0, noise_scale = 0;
-  std::string variant;             ///< kasa | msac | msac_incidence | estimator (incidence + bias removal)
+  std::string variant;             ///< kasa | msac | msac_incidence | estimator_plain_refit (incidence + bias removal) | estimator (+ second-order correction)
   int points = 0;                  ///< true points on the cylinder
   double arc_deg = 0;              ///< angular extent covered (union over the sensors)
   int trials = 0, failed = 0;

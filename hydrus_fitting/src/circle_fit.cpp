@@ -1,8 +1,10 @@
 #include "hydrus_fitting/circle_fit.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -21,6 +23,14 @@ const char* to_string(FitStatus s) {
     case FitStatus::kNoConsensus: return "no_consensus";
     case FitStatus::kRadiusOutOfRange: return "radius_out_of_range";
     case FitStatus::kInvalidParams: return "invalid_params";
+  }
+  return "unknown";
+}
+
+const char* to_string(ArcCorrection c) {
+  switch (c) {
+    case ArcCorrection::kNone: return "none";
+    case ArcCorrection::kSecondOrder: return "second_order";
   }
   return "unknown";
 }
@@ -149,6 +159,91 @@ std::optional<CircleFit> check_algebraic_input(const Normalised& n, const char* 
   return std::nullopt;
 }
 
+// Second-order correction: end weights below this are not worth a refit;
+// no point's weight drops below this fraction.
+constexpr double kMinEndWeight = 1e-3;
+constexpr double kMinRelativeWeight = 0.05;
+
+/// 1 up to `full`, 0 from `none`, linear between (a step when they are equal).
+double fade(double x, double full, double none) {
+  if (none > full) return std::clamp((none - x) / (none - full), 0.0, 1.0);
+  return x < full ? 1.0 : 0.0;
+}
+
+std::optional<std::string> check(const SecondOrderCorrection& so) {
+  const auto bad = [](double v) { return !std::isfinite(v); };
+  if (bad(so.end_weight) || so.end_weight < 0.0)
+    return fmt::format("second_order.end_weight must be >= 0, got {}", so.end_weight);
+  if (bad(so.max_end_weight) || so.max_end_weight < 0.0 || so.max_end_weight > 1.0)
+    return fmt::format("second_order.max_end_weight must be in [0, 1], got {}", so.max_end_weight);
+  if (bad(so.reference_sigma_over_r) || !(so.reference_sigma_over_r > 0.0))
+    return fmt::format("second_order.reference_sigma_over_r must be > 0, got {}", so.reference_sigma_over_r);
+  if (bad(so.full_weighting_arc_deg) || bad(so.no_weighting_arc_deg) || so.full_weighting_arc_deg < 0.0 ||
+      so.no_weighting_arc_deg < so.full_weighting_arc_deg)
+    return fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
+                       so.full_weighting_arc_deg, so.no_weighting_arc_deg);
+  if (bad(so.full_weighting_rel_sd_r) || bad(so.no_weighting_rel_sd_r) || so.full_weighting_rel_sd_r < 0.0 ||
+      so.no_weighting_rel_sd_r < so.full_weighting_rel_sd_r)
+    return fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
+                       so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r);
+  if (bad(so.mode_shift) || so.mode_shift < 0.0)
+    return fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift);
+  if (bad(so.max_shift_sds) || so.max_shift_sds < 0.0)
+    return fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds);
+  return std::nullopt;
+}
+
+/// The arc n points cover about `centre`: 2 pi minus the largest angular gap
+/// between neighbouring points, and the direction of its middle, to the
+/// resolution of kArcBins bins of angle (a sort would cost more than the
+/// refit it serves). Fills `ang` with each point's angle [rad].
+struct ArcSpan {
+  double span_rad = 0.0;
+  double mid_rad = 0.0;
+};
+constexpr int kArcBins = 720;
+
+/// atan2 to ~1e-5 rad (a minimax polynomial of atan on [0, 1], folded by
+/// octant): the arc's bins and end weights need no more, and std::atan2 on
+/// every point cost as much as the rest of the correction.
+double fast_atan2(double y, double x) {
+  const double ax = std::abs(x), ay = std::abs(y);
+  const double hi = std::max(ax, ay);
+  if (hi == 0.0) return 0.0;
+  const double t = std::min(ax, ay) / hi;
+  const double t2 = t * t;
+  double a = t * (0.9998660 + t2 * (-0.3302995 + t2 * (0.1801410 + t2 * (-0.0851330 + t2 * 0.0208351))));
+  if (ay > ax) a = 0.5 * std::numbers::pi - a;
+  if (x < 0.0) a = std::numbers::pi - a;
+  return y < 0.0 ? -a : a;
+}
+ArcSpan arc_span(const double* px, const double* py, int n, const Eigen::Vector2d& centre, std::vector<double>& ang) {
+  constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  constexpr double kBin = kTwoPi / kArcBins;
+  const auto un = static_cast<std::size_t>(n);
+  ang.resize(un);
+  std::array<bool, kArcBins> occupied{};
+  for (std::size_t k = 0; k < un; ++k) {
+    ang[k] = fast_atan2(py[k] - centre.y(), px[k] - centre.x());
+    const int b = std::clamp(static_cast<int>((ang[k] + std::numbers::pi) / kBin), 0, kArcBins - 1);
+    occupied[static_cast<std::size_t>(b)] = true;
+  }
+  // The longest run of empty bins, around the circle (two passes).
+  int best = 0, best_end = 0, run = 0;
+  for (int i = 0; i < 2 * kArcBins; ++i) {
+    if (occupied[static_cast<std::size_t>(i % kArcBins)]) {
+      run = 0;
+    } else if (++run > best) {
+      best = std::min(run, kArcBins);
+      best_end = i;
+    }
+  }
+  // The gap spans the empty run and, on average, half of each occupied bin at its ends.
+  const double gap = (best + 1) * kBin;
+  const double gap_mid = -std::numbers::pi + (best_end + 1 - 0.5 * best) * kBin;
+  return ArcSpan{std::max(0.0, kTwoPi - gap), gap_mid + std::numbers::pi};
+}
+
 }  // namespace
 
 CircleFit fit_circle_kasa(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
@@ -259,6 +354,9 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   if (params.max_iterations < 1) {
     return failed(FitStatus::kInvalidParams, fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
   }
+  if (params.correction == ArcCorrection::kSecondOrder) {
+    if (auto bad = check(params.second_order)) return failed(FitStatus::kInvalidParams, *bad);
+  }
   const int p = known ? 2 : 3;
   // Finite points with a finite, positive sigma.
   std::vector<Eigen::Index> idx;
@@ -293,6 +391,7 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   double* const px = buf.data();
   double* const py = px + n;
   double* const pw = py + n;
+  std::vector<double> ang;  // second-order correction: each point's angle about the centre [rad]
   for (int k = 0; k < n; ++k) {
     const Eigen::Index i = idx[static_cast<std::size_t>(k)];
     px[k] = points(0, i);
@@ -349,55 +448,67 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
     return out;
   };
 
-  Pass at = evaluate(theta);  // always the pass at theta
-  double lambda = params.initial_lambda;
+  // Levenberg-Marquardt from t with the current weights pw; `at` ends as
+  // the pass at the final t.
+  Pass at;
   bool converged = false;
   int it = 0;
-  for (; it < params.max_iterations && !converged; ++it) {
-    // Try steps with growing damping until one lowers the cost.
-    bool accepted = false;
-    for (int tries = 0; tries < 20 && !accepted && !converged; ++tries) {
-      Eigen::Matrix3d A = at.H;
-      for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(at.H(k, k), 1e-12);
-      Eigen::Vector3d delta = Eigen::Vector3d::Zero();
-      if (known) {
-        delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-at.g.head<2>());
-      } else {
-        delta = A.ldlt().solve(-at.g);
+  auto run_lm = [&](Eigen::Vector3d& t) {
+    at = evaluate(t);  // always the pass at t
+    double lambda = params.initial_lambda;
+    converged = false;
+    it = 0;
+    for (; it < params.max_iterations && !converged; ++it) {
+      // Try steps with growing damping until one lowers the cost.
+      bool accepted = false;
+      for (int tries = 0; tries < 20 && !accepted && !converged; ++tries) {
+        Eigen::Matrix3d A = at.H;
+        for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(at.H(k, k), 1e-12);
+        Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+        if (known) {
+          delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-at.g.head<2>());
+        } else {
+          delta = A.ldlt().solve(-at.g);
+        }
+        if (!delta.allFinite()) {
+          lambda *= 10.0;
+          continue;
+        }
+        // A step under the tolerance is not worth a pass over the points: its
+        // cost differs from the current one at rounding level, so the test
+        // would reject it about half the time and grow the damping for nothing.
+        if (delta.norm() < params.step_tolerance_m) {
+          converged = true;
+          break;
+        }
+        const Eigen::Vector3d cand = t + delta;
+        // The candidate's gradient system comes in the same pass as its cost:
+        // near the minimum almost every step is accepted.
+        Pass next;
+        if (cand(2) > 0.0) next = evaluate(cand);
+        if (cand(2) > 0.0 && next.cost <= at.cost) {
+          t = cand;
+          const double old = at.cost;
+          at = next;
+          lambda = std::max(lambda * 0.1, 1e-12);
+          accepted = true;
+          if (old - at.cost <= 1e-15 * old) converged = true;
+        } else {
+          lambda *= 10.0;
+        }
       }
-      if (!delta.allFinite()) {
-        lambda *= 10.0;
-        continue;
-      }
-      // A step under the tolerance is not worth a pass over the points: its
-      // cost differs from the current one at rounding level, so the test
-      // would reject it about half the time and grow the damping for nothing.
-      if (delta.norm() < params.step_tolerance_m) {
-        converged = true;
-        break;
-      }
-      const Eigen::Vector3d cand = theta + delta;
-      // The candidate's gradient system comes in the same pass as its cost:
-      // near the minimum almost every step is accepted.
-      Pass next;
-      if (cand(2) > 0.0) next = evaluate(cand);
-      if (cand(2) > 0.0 && next.cost <= at.cost) {
-        theta = cand;
-        const double old = at.cost;
-        at = next;
-        lambda = std::max(lambda * 0.1, 1e-12);
-        accepted = true;
-        if (old - at.cost <= 1e-15 * old) converged = true;
-      } else {
-        lambda *= 10.0;
+      if (!accepted) {
+        converged = true;  // no descent direction left: at a minimum to rounding
       }
     }
-    if (!accepted) {
-      converged = true;  // no descent direction left: at a minimum to rounding
-    }
-  }
+  };
+  run_lm(theta);
+  // The ML fit's first-order quantities, before any second-order refit:
+  // the covariance and, for the essential bias, the weighted cost and sum.
   const double cost = at.cost;
-  const Eigen::Matrix3d& H = at.H;
+  const Eigen::Matrix3d H = at.H;
+  double wsum = 0.0;
+  for (int k = 0; k < n; ++k) wsum += pw[k];
 
   CircleFit f;
   f.status = FitStatus::kOk;
@@ -408,19 +519,6 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   f.iterations = it;
   f.converged = converged;
   f.rms_residual_m = std::sqrt(at.rss / n);
-  if (params.remove_radius_bias && !known && n > p) {
-    // Per point the tangential variance equals the normal one (isotropic):
-    // s^2 sigma_i^2, s^2 the a-posteriori variance factor; the radius is
-    // the weighted mean distance, so its bias is sum w s^2 sigma^2 / (2 r sum w).
-    double wsum = 0.0;
-    for (int k = 0; k < n; ++k) wsum += pw[k];
-    const double s2 = cost / (n - p);
-    const double bias = s2 * n / (2.0 * f.circle.radius_m * wsum);
-    if (std::isfinite(bias) && bias < 0.5 * f.circle.radius_m) {
-      f.circle.radius_m -= bias;
-      f.radius_bias_removed_m = bias;
-    }
-  }
   // Covariance: (J^T W J)^-1, scaled by the weighted residual variance when asked.
   const bool use_residuals = params.covariance_from_residuals || sigma_m.empty();
   const double dof = static_cast<double>(n - p);
@@ -432,6 +530,61 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   } else {
     Eigen::FullPivLU<Eigen::Matrix3d> lu(H);
     if (lu.isInvertible()) f.covariance = s2 * lu.inverse();
+  }
+  if (params.correction == ArcCorrection::kSecondOrder && !known && n > p) {
+    const SecondOrderCorrection& so = params.second_order;
+    // 1. End weighting, by the noise over the radius seen in the residuals.
+    const double q = std::sqrt(at.rss / dof) / f.circle.radius_m;
+    const double qr = q / so.reference_sigma_over_r;
+    const double var_r0 = f.covariance(2, 2);
+    const double rel_sd_r = var_r0 > 0.0 ? std::sqrt(var_r0) / f.circle.radius_m : 0.0;
+    const double k_noise = std::min(so.max_end_weight, so.end_weight * qr * qr) *
+                           fade(rel_sd_r, so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r);
+    if (k_noise > kMinEndWeight) {
+      const ArcSpan arc = arc_span(px, py, n, f.circle.centre_m, ang);
+      const double span_deg = arc.span_rad * 180.0 / std::numbers::pi;
+      const double k_end = k_noise * fade(span_deg, so.full_weighting_arc_deg, so.no_weighting_arc_deg);
+      if (k_end > kMinEndWeight && arc.span_rad > 0.0) {
+        for (int k = 0; k < n; ++k) {
+          const double u = std::remainder(ang[static_cast<std::size_t>(k)] - arc.mid_rad, 2.0 * std::numbers::pi) /
+                           (0.5 * arc.span_rad);
+          pw[k] *= std::max(kMinRelativeWeight, 1.0 - k_end * u * u);
+        }
+        Eigen::Vector3d t2 = theta;
+        run_lm(t2);
+        if (t2.allFinite() && t2(2) > 0.0) {
+          f.circle.centre_m = t2.head<2>();
+          f.circle.radius_m = t2(2);
+          f.iterations += it;
+          f.converged = f.converged && converged;
+          f.rms_residual_m = std::sqrt(at.rss / n);
+          f.end_weight_applied = k_end;
+        }
+      }
+    }
+    // 2. Mode shift: theta -= gamma Cov(theta, r) / r, |shift of r| capped.
+    const double var_r = f.covariance(2, 2);
+    if (so.mode_shift > 0.0 && var_r > 0.0 && std::isfinite(var_r)) {
+      const double r = f.circle.radius_m;
+      const double rel = std::sqrt(var_r) / r;
+      const double gamma = std::min(so.mode_shift, so.max_shift_sds / rel);
+      const Eigen::Vector3d shift = -gamma * f.covariance.col(2) / r;
+      if (shift.allFinite()) {
+        f.circle.centre_m += shift.head<2>();
+        f.circle.radius_m += shift(2);
+        f.mode_shift_m = shift;
+      }
+    }
+  }
+  if (params.remove_radius_bias && !known && n > p) {
+    // Per point the tangential variance equals the normal one (isotropic):
+    // s^2 sigma_i^2, s^2 the a-posteriori variance factor; the radius is
+    // the weighted mean distance, so its bias is sum w s^2 sigma^2 / (2 r sum w).
+    const double bias = (cost / dof) * n / (2.0 * f.circle.radius_m * wsum);
+    if (std::isfinite(bias) && bias < 0.5 * f.circle.radius_m) {
+      f.circle.radius_m -= bias;
+      f.radius_bias_removed_m = bias;
+    }
   }
   return f;
 }

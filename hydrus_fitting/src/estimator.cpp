@@ -63,10 +63,10 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
   if (e.fit.ok() && (params_.incidence_weighting || params_.remove_radius_bias)) gather_inliers(e.fit);
   if (e.fit.ok() && params_.incidence_weighting) {
     // Twice: the second pass takes the incidences from the better circle.
-    refine_with_incidence(e.fit, false);
-    refine_with_incidence(e.fit, params_.remove_radius_bias);
+    refine_with_incidence(e.fit, false, false);
+    refine_with_incidence(e.fit, params_.remove_radius_bias, true);
   } else if (e.fit.ok() && params_.remove_radius_bias) {
-    refine_with_incidence(e.fit, true);
+    refine_with_incidence(e.fit, true, true);
   }
   if (!e.fit.ok() && e.scans_fused == 0 && !scans.empty()) {
     e.fit.reason = fmt::format("no scan could be fused ({}); {}", e.scans.front().reason, e.fit.reason);
@@ -95,7 +95,7 @@ void CircleEstimator::gather_inliers(const CircleFit& fit) {
   }
 }
 
-void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
+void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias, bool last) {
   // The inliers' range, normal and tangential noise for the fitted circle.
   const std::size_t m = in_o_.size();
   sr_.resize(m);
@@ -130,6 +130,9 @@ void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
   if (params_.incidence_weighting) {
     RefineParams rp = params_.robust.refine;
     rp.known_radius_m = params_.robust.known_radius_m;
+    // The second-order correction once, on the final refit: the first one
+    // only sets the incidences.
+    rp.correction = last ? params_.arc_correction : ArcCorrection::kNone;
     // A local refinement of the consensus set: on a short, noisy arc it can
     // run off (huge radius, far centre). Such a result is refused: the
     // refit must keep the radius limits and stay within one radius of the
@@ -145,6 +148,8 @@ void CircleEstimator::refine_with_incidence(CircleFit& fit, bool remove_bias) {
     if (!acceptable(refined)) return;
     fit.circle = refined.circle;
     fit.covariance = refined.covariance;
+    fit.end_weight_applied = refined.end_weight_applied;
+    fit.mode_shift_m = refined.mode_shift_m;
     fit.rms_residual_m = refined.rms_residual_m;
     fit.converged = refined.converged;
   }

@@ -381,7 +381,7 @@ TEST(CircleFitSecondOrder, FirstOrderIsTheBoundAndTheCrossTermIsShared) {
   p.sigmas_m = {0.019593};
   p.draws = 300;
   const auto rows = ev::second_order_study(p);
-  ASSERT_EQ(rows.size(), 3u);  // geometric, hyper, end_weighted
+  ASSERT_EQ(rows.size(), 4u);  // geometric, hyper, end_weighted, geometric_second_order
   const auto& geo = rows[0];
   const auto& hyp = rows[1];
   ASSERT_EQ(geo.method, "geometric");
@@ -398,4 +398,103 @@ TEST(CircleFitSecondOrder, FirstOrderIsTheBoundAndTheCrossTermIsShared) {
     EXPECT_GT(geo.a2_split[k][2], 0.5 * geo.mse_terms[k][0]) << k;
     EXPECT_GT(hyp.a2_split[k][0], geo.a2_split[k][0]) << k;
   }
+}
+
+// The goal's cell the plain fit misses (docs/hydrus_fitting.md): 19.6 mm
+// noise (sigma/r = 0.13) on a 120 deg arc. The second-order correction must
+// be within 10 % of the KCR bound there (worst of centre x, centre y,
+// radius, the study's robust metric) and better than the plain fit on the
+// same draws. Seed 3 is neither a seed the constants were chosen on (5, 7)
+// nor the reported one (1); 10 000 draws: ~1 % sampling error.
+TEST(CircleFitSecondOrder, WithinTenPercentOfTheBoundAtSigmaOverR013On120Degrees) {
+  namespace ev = tinyline::hydrus_fitting::eval;
+  ev::KcrStudyParams p;
+  p.arcs_deg = {120};
+  p.sigmas_m = {0.019593};
+  p.methods = {ev::Method::kGeometricUnbiased, ev::Method::kGeometricSecondOrder};
+  p.trials = 10000;
+  p.seed = 3;
+  const auto rows = ev::kcr_study(p);
+  ASSERT_EQ(rows.size(), 2u);
+  const auto worst = [](const ev::KcrRow& r) { return std::max({r.ratio[0], r.ratio[1], r.ratio[2]}); };
+  EXPECT_EQ(rows[1].failed, 0);
+  EXPECT_LE(worst(rows[1]), 1.10);
+  EXPECT_LT(worst(rows[1]), worst(rows[0]) - 0.02) << "plain " << worst(rows[0]) << ", corrected " << worst(rows[1]);
+}
+
+// Where the first-order bound is what the fits reach (small sigma/r) the
+// correction must leave the efficient fit alone, and on a closed circle
+// (no ends, no lean of the radius worth the name) nearly so at any noise.
+TEST(CircleFitSecondOrder, LeavesThePlainFitAloneAtLowNoiseAndOnAClosedCircle) {
+  const auto fmt_case = [](double arc_deg, double sigma_m) {
+    return "worst_sds_arc" + std::to_string(static_cast<int>(arc_deg)) + "_sigma_um" +
+           std::to_string(static_cast<int>(sigma_m * 1e6));
+  };
+  const hf::Circle truth{{0.0, 0.0}, 0.15};
+  hf::RefineParams plain;
+  plain.remove_radius_bias = true;
+  hf::RefineParams corrected = plain;
+  corrected.correction = hf::ArcCorrection::kSecondOrder;
+  struct Case {
+    double arc_deg, sigma_m, tolerance_sds;
+  };
+  // Tolerances in SDs of the KCR bound, per component and per draw.
+  for (const Case c : {Case{120, 0.001, 0.02}, Case{120, 0.003625, 0.1}, Case{90, 0.001, 0.03}, Case{360, 0.019593, 0.08}}) {
+    double worst = 0.0;
+    const Eigen::Matrix2Xd exact = arc(truth, c.arc_deg, 100);
+    const std::vector<double> sig{c.sigma_m};
+    const hf::KcrBound b = hf::kcr_bound(exact, truth, sig);
+    ASSERT_TRUE(b.ok);
+    hf::detail::SplitMix64 rng(11);
+    for (int t = 0; t < 200; ++t) {
+      const Eigen::Matrix2Xd q = noisy(exact, c.sigma_m, rng);
+      const hf::CircleFit a = hf::fit_circle(q, plain);
+      const hf::CircleFit f = hf::fit_circle(q, corrected);
+      ASSERT_TRUE(a.ok() && f.ok());
+      const Eigen::Vector3d d(f.circle.centre_m.x() - a.circle.centre_m.x(),
+                              f.circle.centre_m.y() - a.circle.centre_m.y(), f.circle.radius_m - a.circle.radius_m);
+      for (int k = 0; k < 3; ++k) {
+        ASSERT_LT(std::abs(d(k)), c.tolerance_sds * std::sqrt(b.covariance(k, k)))
+            << "arc " << c.arc_deg << " sigma " << c.sigma_m << " draw " << t << " component " << k;
+        worst = std::max(worst, std::abs(d(k)) / std::sqrt(b.covariance(k, k)));
+      }
+      if (c.arc_deg >= 360.0) {
+        EXPECT_EQ(f.end_weight_applied, 0.0);
+      }
+    }
+    RecordProperty(fmt_case(c.arc_deg, c.sigma_m), std::to_string(worst));
+  }
+}
+
+TEST(CircleFitSecondOrder, BadParametersAreNamedAndAKnownRadiusIsLeftAlone) {
+  const Eigen::Matrix2Xd p = arc(kTruth, 120, 50);
+  hf::RefineParams rp;
+  rp.correction = hf::ArcCorrection::kSecondOrder;
+  rp.second_order.end_weight = -1.0;
+  hf::CircleFit f = hf::refine_circle(p, kTruth, rp);
+  EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
+  EXPECT_THAT(f.reason, HasSubstr("end_weight"));
+  rp.second_order = {};
+  rp.second_order.no_weighting_arc_deg = 90.0;  // below full_weighting_arc_deg
+  f = hf::refine_circle(p, kTruth, rp);
+  EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
+  EXPECT_THAT(f.reason, HasSubstr("no_weighting_arc_deg"));
+  rp.second_order = {};
+  rp.second_order.full_weighting_rel_sd_r = 0.3;  // above no_weighting_rel_sd_r
+  f = hf::refine_circle(p, kTruth, rp);
+  EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
+  EXPECT_THAT(f.reason, HasSubstr("rel_sd_r"));
+  rp.second_order = {};
+  rp.second_order.mode_shift = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(hf::refine_circle(p, kTruth, rp).status, hf::FitStatus::kInvalidParams);
+  // A known radius: the correction does not apply (centre-only fit).
+  hf::detail::SplitMix64 rng(4);
+  const Eigen::Matrix2Xd q = noisy(p, 0.02, rng);
+  rp.second_order = {};
+  rp.known_radius_m = kTruth.radius_m;
+  f = hf::refine_circle(q, kTruth, rp);
+  ASSERT_TRUE(f.ok());
+  EXPECT_EQ(f.end_weight_applied, 0.0);
+  EXPECT_EQ(f.mode_shift_m, Eigen::Vector3d::Zero());
+  EXPECT_STREQ(hf::to_string(hf::ArcCorrection::kSecondOrder), "second_order");
 }

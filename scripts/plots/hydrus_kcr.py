@@ -18,9 +18,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-METHODS = ["kasa", "hyper", "geometric", "geometric_unbiased", "robust", "known_radius"]
+METHODS = ["kasa", "hyper", "geometric", "geometric_unbiased", "geometric_second_order", "robust", "known_radius"]
 COLOURS = {"kasa": "tab:red", "hyper": "tab:orange", "geometric": "tab:blue",
-           "geometric_unbiased": "tab:green", "robust": "tab:purple", "known_radius": "tab:grey"}
+           "geometric_unbiased": "tab:green", "geometric_second_order": "black", "robust": "tab:purple",
+           "known_radius": "tab:grey"}
 
 
 def main(argv):

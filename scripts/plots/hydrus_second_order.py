@@ -44,8 +44,8 @@ def main(argv):
                   f"| {f(r, 'a2sq_cross', c):.3f} | {f(r, 'a2sq_normal', c):.3f} | {f(r, 'a2sq_tangential', c):.3f} "
                   f"| {f(r, 'mse_bias2', c):.3f} |")
     print(f"\nEstimators, sigma {want} mm: metric / best constant shift:\n")
-    print("| arc | | geometric | Hyper | end-weighted | first order + the shared cross term |")
-    print("|---|---|---|---|---|---|")
+    print("| arc | | geometric | Hyper | end-weighted | first order + the shared cross term | second-order correction |")
+    print("|---|---|---|---|---|---|---|")
     for a in arcs:
         for c, name in comps:
             cells = []
@@ -54,6 +54,8 @@ def main(argv):
                 cells.append(f"{f(r, 'mc_robust', c):.3f} / {f(r, 'mc_shorth', c):.3f}" if r else "-")
             g = by.get((a, "geometric"))
             cells.append(f"{f(g, 'forced_robust', c):.3f} / {f(g, 'forced_shorth', c):.3f}" if g else "-")
+            r = by.get((a, "geometric_second_order"))
+            cells.append(f"{f(r, 'mc_robust', c):.3f} / {f(r, 'mc_shorth', c):.3f}" if r else "-")
             print(f"| {a} deg | {name} | " + " | ".join(cells) + " |")
     return 0
 

@@ -10,7 +10,7 @@ import sys
 from collections import defaultdict
 
 ROBUST = ["plain", "msac", "msac_views", "msac_views_selffilter", "msac_views_radius_prior", "msac_views_known_radius"]
-RAY = ["kasa", "msac", "msac_incidence", "estimator"]
+RAY = ["kasa", "msac", "msac_incidence", "estimator_plain_refit", "estimator"]
 
 
 def robustness(path):

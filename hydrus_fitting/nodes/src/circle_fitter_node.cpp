@@ -89,6 +89,12 @@ CircleFitterNode::CircleFitterNode(bus::NodeOptions o) : Node(std::move(o)) {
                                                 "floor of cos(incidence) in the weights", ParamConstraints::range(0.01, 1.0));
   params_.remove_radius_bias = declare_parameter("remove_radius_bias", d.remove_radius_bias,
                                                  "remove the geometric fit's essential radius bias");
+  params_.arc_correction =
+      declare_parameter("second_order_correction", d.arc_correction == ArcCorrection::kSecondOrder,
+                        "end weighting and mode shift of the final refit at large noise on short arcs "
+                        "(docs/hydrus_fitting.md); false: the plain maximum-likelihood refit")
+          ? ArcCorrection::kSecondOrder
+          : ArcCorrection::kNone;
   params_.max_scan_skew_s = declare_parameter("max_scan_skew_s", d.max_scan_skew_s,
                                               "scans older than the newest by more than this are left out [s]",
                                               ParamConstraints::range(0.0, 60.0));
