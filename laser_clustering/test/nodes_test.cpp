@@ -39,6 +39,13 @@ struct Harness : bus::testing::NodeRig {
   std::shared_ptr<bus::Node> add(const std::string& type, bus::NodeOptions o) {
     return NodeRig::add("laser_clustering", type, std::move(o));
   }
+  /// The pedicel finder as most tests run it: the blade throat 12 cm ahead.
+  void add_finder() {
+    bus::NodeOptions o;
+    o.name = "finder";
+    o.param("scissor_centre_z_m", 0.12);
+    add("pedicel_finder", o);
+  }
 };
 
 std::unique_ptr<LineScan> to_msg(const lc::LineScan& s, double t_s) {
@@ -55,11 +62,16 @@ std::unique_ptr<LineScan> to_msg(const lc::LineScan& s, double t_s) {
   return m;
 }
 
-lc::test::SynthScan pedicel_scene(double x, unsigned seed = 1) {
+// Discs before a wall 40 cm away.
+lc::test::SynthScan before_wall(const std::vector<lc::test::Disc>& discs, unsigned seed = 1) {
   lc::test::SynthParams sp;
   sp.wall_z_m = 0.40;
   sp.seed = seed;
-  return lc::test::synth_scan({{x, 0.13, 0.003, 6.0, 1}, {-0.08, 0.25, 0.03, 6.0, 2}}, sp);
+  return lc::test::synth_scan(discs, sp);
+}
+
+lc::test::SynthScan pedicel_scene(double x, unsigned seed = 1) {
+  return before_wall({{x, 0.13, 0.003, 6.0, 1}, {-0.08, 0.25, 0.03, 6.0, 2}}, seed);
 }
 
 }  // namespace
@@ -104,10 +116,7 @@ TEST(LaserClusteringNodes, LineClustererPublishesObjectsAndNotesBadScans) {
 
 TEST(LaserClusteringNodes, PedicelFinderReportsTheMoveAndHonoursTheExpectation) {
   Harness h;
-  bus::NodeOptions o;
-  o.name = "finder";
-  o.param("scissor_centre_z_m", 0.12);
-  h.add("pedicel_finder", o);
+  h.add_finder();
   auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto expected = h.io->create_publisher<PointStamped>("expected_pedicel");
@@ -120,9 +129,7 @@ TEST(LaserClusteringNodes, PedicelFinderReportsTheMoveAndHonoursTheExpectation) 
   EXPECT_GT(got[0]->confidence, 0.5);
 
   // Two pedicels; vision expects the one at +5 cm.
-  lc::test::SynthParams sp;
-  sp.wall_z_m = 0.4;
-  const auto two = lc::test::synth_scan({{0.005, 0.12, 0.003, 6.0, 1}, {0.05, 0.12, 0.003, 6.0, 2}}, sp);
+  const auto two = before_wall({{0.005, 0.12, 0.003, 6.0, 1}, {0.05, 0.12, 0.003, 6.0, 2}});
   auto p = std::make_unique<PointStamped>();
   p->header.stamp = bus::Time::from_seconds(1.95).to_msg();
   p->point.x = 0.048;
@@ -152,17 +159,11 @@ TEST(LaserClusteringNodes, PedicelFinderTakesTheVisionsTrussLayout) {
   // the nearer pedicel (-1 cm) wins on position alone; a layout that puts a
   // neighbour 5 cm to -x of the target makes the one at +4 cm the target.
   Harness h;
-  bus::NodeOptions o;
-  o.name = "finder";
-  o.param("scissor_centre_z_m", 0.12);
-  h.add("pedicel_finder", o);
+  h.add_finder();
   auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
-  lc::test::SynthParams sp;
-  sp.wall_z_m = 0.4;
-  sp.seed = 4;
-  const auto two = lc::test::synth_scan({{-0.01, 0.12, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}}, sp);
+  const auto two = before_wall({{-0.01, 0.12, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}}, 4);
   auto make = [](double stamp_s) {
     auto l = std::make_unique<PedicelLayout>();
     l->header.stamp = bus::Time::from_seconds(stamp_s).to_msg();
@@ -230,19 +231,13 @@ std::unique_ptr<PedicelLayout> layout_at(double stamp_s, double x, double z, dou
 // what the core answers with the same expectation.
 TEST(LaserClusteringNodes, PedicelFinderCarriesTheLayoutsRunnersUpToTheCore) {
   Harness h;
-  bus::NodeOptions o;
-  o.name = "finder";
-  o.param("scissor_centre_z_m", 0.12);
-  h.add("pedicel_finder", o);
+  h.add_finder();
   auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
-  lc::test::SynthParams sp;
-  sp.wall_z_m = 0.4;
-  sp.seed = 9;
   // Two pedicels; the expected point (-3 cm) is nearer the one at -1 cm, the
   // previous scan's runner-up sits on the one at +4 cm.
-  const auto two = lc::test::synth_scan({{-0.01, 0.12, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}}, sp);
+  const auto two = before_wall({{-0.01, 0.12, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}}, 9);
 
   layout->publish(layout_at(0.9, -0.03, 0.12, 0.03));
   h.ex.spin_until_idle();
@@ -311,18 +306,12 @@ void expect_same(const PedicelDetection& node, const lc::PedicelDetection& core)
 // core's own loop's.
 TEST(LaserClusteringNodes, AControllerOnTheBusClosesTheLoopAsTheCoreDoes) {
   Harness h;
-  bus::NodeOptions o;
-  o.name = "finder";
-  o.param("scissor_centre_z_m", 0.12);
-  h.add("pedicel_finder", o);
+  h.add_finder();
   auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(10));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
   lc::PedicelFinderParams fp;
   fp.scissors.centre_z_m = 0.12;
-  lc::test::SynthParams sp;
-  sp.wall_z_m = 0.4;
-  sp.seed = 17;
   // Two pedicels 5 cm apart and a neighbour expected 5 cm to -x of the target.
   const std::vector<lc::test::Disc> truss{{-0.01, 0.125, 0.003, 6.0, 1}, {0.04, 0.12, 0.003, 6.0, 2}};
   lc::PedicelExpectation first{{-0.03, 0.12}, 0.03, {}, 0.015};
@@ -333,7 +322,7 @@ TEST(LaserClusteringNodes, AControllerOnTheBusClosesTheLoopAsTheCoreDoes) {
   l1->header.stamp = bus::Time::from_seconds(0.95).to_msg();
   layout->publish(std::move(l1));
   h.ex.spin_until_idle();
-  const auto scan1 = lc::test::synth_scan(truss, sp);
+  const auto scan1 = before_wall(truss, 17);
   pub->publish(to_msg(scan1.scan, 1.0));
   h.ex.spin_until_idle();
   ASSERT_EQ(got.size(), 1u);
@@ -377,8 +366,7 @@ TEST(LaserClusteringNodes, AControllerOnTheBusClosesTheLoopAsTheCoreDoes) {
     d.x_m -= move.x();
     d.z_m -= move.y();
   }
-  sp.seed = 18;
-  const auto scan2 = lc::test::synth_scan(moved, sp);
+  const auto scan2 = before_wall(moved, 18);
   pub->publish(to_msg(scan2.scan, 2.0));
   h.ex.spin_until_idle();
   ASSERT_EQ(got.size(), 2u);
@@ -450,17 +438,11 @@ TEST(LaserClusteringNodes, PedicelMessagesRoundTripAndNameWhatIsWrong) {
 // runner-up or gate drops the layout whole, with what and where.
 TEST(LaserClusteringNodes, PedicelFinderGatesOnTheLayoutAndDropsABadOne) {
   Harness h;
-  bus::NodeOptions o;
-  o.name = "finder";
-  o.param("scissor_centre_z_m", 0.12);
-  h.add("pedicel_finder", o);
+  h.add_finder();
   auto& got = h.collect<PedicelDetection>("pedicel", bus::QoS::keep_last(20));
   auto pub = h.io->create_publisher<LineScan>("scan");
   auto layout = h.io->create_publisher<PedicelLayout>("expected_layout");
-  lc::test::SynthParams sp;
-  sp.wall_z_m = 0.4;
-  sp.seed = 21;
-  const auto far = lc::test::synth_scan({{0.06, 0.125, 0.003, 6.0, 1}}, sp);
+  const auto far = before_wall({{0.06, 0.125, 0.003, 6.0, 1}}, 21);
   double t = 1.0;
   auto detect = [&](std::unique_ptr<PedicelLayout> l) {
     l->header.stamp = bus::Time::from_seconds(t - 0.05).to_msg();

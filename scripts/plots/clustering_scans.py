@@ -38,6 +38,26 @@ def read(path):
              "chosen": r["chosen"] == "1", "truth": r["truth"]} for r in rows]
 
 
+def plan_points(ax, rows):
+    """The scan's points in the laser plane [cm], coloured by what each ray hits."""
+    for kind in sorted({r["truth"] for r in rows}):
+        pts = [r for r in rows if r["truth"] == kind and not math.isnan(r["range"])]
+        ax.plot([r["range"] * math.sin(r["angle"]) * 100 for r in pts], [r["range"] * math.cos(r["angle"]) * 100 for r in pts],
+                ".", ms=4, color=TRUTH_COLOURS.get(kind, "#bbbbbb"), label=f"hits {kind}")
+
+
+def finish_plan(fig, ax, out):
+    """Labels a plan view in the laser plane and writes the figure."""
+    ax.set_xlabel("x along the line [cm]")
+    ax.set_ylabel("z forward [cm]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=7, loc="upper right", ncol=2)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
 def scan_figure(rows, title, out, show_reflectance=False):
     fig, (ax, bx) = plt.subplots(2, 1, figsize=(8, 7.5), gridspec_kw={"height_ratios": [1, 1.3]})
     px = [r["pixel"] for r in rows]
@@ -65,22 +85,12 @@ def scan_figure(rows, title, out, show_reflectance=False):
     ax.set_ylabel("range [m]")
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
-    for kind in sorted({r["truth"] for r in rows}):
-        pts = [r for r in rows if r["truth"] == kind and not math.isnan(r["range"])]
-        bx.plot([r["range"] * math.sin(r["angle"]) * 100 for r in pts], [r["range"] * math.cos(r["angle"]) * 100 for r in pts],
-                ".", ms=4, color=TRUTH_COLOURS.get(kind, "#bbbbbb"), label=f"hits {kind}")
+    plan_points(bx, rows)
     ch = [r for r in rows if r["chosen"] and not math.isnan(r["range"])]
     if ch:
         bx.plot([r["range"] * math.sin(r["angle"]) * 100 for r in ch], [r["range"] * math.cos(r["angle"]) * 100 for r in ch],
                 "o", mfc="none", mec="black", ms=7, label="chosen cluster")
-    bx.set_xlabel("x along the line [cm]")
-    bx.set_ylabel("z forward [cm]")
-    bx.set_aspect("equal", adjustable="datalim")
-    bx.legend(fontsize=7, loc="upper right", ncol=2)
-    bx.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    finish_plan(fig, bx, out)
 
 
 def look_figure(rows, tomatoes_path, title, out):
@@ -90,10 +100,7 @@ def look_figure(rows, tomatoes_path, title, out):
     with open(tomatoes_path) as f:
         tomatoes = list(csv.DictReader(f))
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    for kind in sorted({r["truth"] for r in rows}):
-        pts = [r for r in rows if r["truth"] == kind and not math.isnan(r["range"])]
-        ax.plot([r["range"] * math.sin(r["angle"]) * 100 for r in pts], [r["range"] * math.cos(r["angle"]) * 100 for r in pts],
-                ".", ms=4, color=TRUTH_COLOURS.get(kind, "#bbbbbb"), label=f"hits {kind}")
+    plan_points(ax, rows)
     for k, t in enumerate(tomatoes):
         h, radius = float(t["height_m"]), float(t["radius_m"])
         if abs(h) >= radius:
@@ -106,15 +113,8 @@ def look_figure(rows, tomatoes_path, title, out):
             ax.add_patch(plt.Circle((x + dx, z + dz), r, fill=False, color="#d62728", lw=1.5,
                                     label="registered" if k == 0 else None))
     ax.plot([0], [0], "k^", ms=8, label="laser")
-    ax.set_xlabel("x along the line [cm]")
-    ax.set_ylabel("z forward [cm]")
     ax.set_title(title, fontsize=9)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.legend(fontsize=7, loc="upper right", ncol=2)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    finish_plan(fig, ax, out)
 
 
 def sweep_figure(path, out):
