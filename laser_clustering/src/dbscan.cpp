@@ -440,26 +440,31 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
   size_.resize(static_cast<std::size_t>(n));
   // run_lo_[k], run_hi_[k]: the least and greatest range from k to its run's
   // end (at a run's first pixel: the whole run's).
+  // The run's end, length and depth interval stay in registers (not a
+  // load-store chain through run_end_ and size_ per pixel).
   double lo = kInf, hi = -kInf;
+  int end = n - 1, length = 0;
   for (int k = n - 1; k >= 0; --k) {
     const auto u = static_cast<std::size_t>(k);
     const bool linked = core(k) && k + 1 < n && core(k + 1) && adjacent_within(k);
     const double rk = range_[u];
     if (linked) {
-      const auto e = static_cast<std::size_t>(run_end_[u + 1]);
-      run_end_[u] = static_cast<int>(e);
-      ++size_[e];
       lo = std::min(lo, rk);
       hi = std::max(hi, rk);
     } else {
-      run_end_[u] = k;
+      if (length > 0) size_[static_cast<std::size_t>(end)] = length;
+      end = k;
+      length = 0;
       lo = hi = rk;
     }
+    ++length;
+    run_end_[u] = end;
     run_lo_[u] = lo;
     run_hi_[u] = hi;
-    parent_[u] = run_end_[u];
+    parent_[u] = end;
     size_[u] = 1;
   }
+  if (length > 0) size_[static_cast<std::size_t>(end)] = length;
   detail::DisjointSets sets(parent_, size_);
   for (int first = 0; first < n;) {  // run by run
     if (!core(first)) {
