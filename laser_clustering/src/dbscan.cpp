@@ -244,7 +244,9 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
 
   // One pass over the pixels: compact the valid ones (same coordinates as
   // to_points()), check that their bearings are strictly monotone, and
-  // compute each one's bearing window and each block's depth interval.
+  // compute each block's depth interval (each pixel's bearing window only
+  // where a walk needs it, half_window() below: a division per pixel was a
+  // tenth of a pass).
   //
   // Window: a neighbour j of i satisfies |dtheta| <= asin(eps / r_i) <=
   // x + (pi/2 - 1) x^3 with x = eps / r_i (the cubic meets asin at 0 and 1
@@ -263,13 +265,13 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
   g_.resize(with_g ? n_all : 0);
   theta_.resize(n_all);
   range_.resize(n_all);
-  half_window_.resize(n_all);
   index_.resize(n_all);
   core_.resize(n_all);
   adjacent_.resize(n_all);
   block_lo_.assign(n_all / kBlock + 1, kInf);
   block_hi_.assign(n_all / kBlock + 1, -kInf);
   std::size_t m = 0;
+  double blo = kInf, bhi = -kInf;  // the current block's depth interval (kept in registers)
   double direction = 0.0;  // +1 ascending, -1 descending, 0 unknown yet
   for (std::size_t i = 0; i < n_all; ++i) {
     {
@@ -299,11 +301,12 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     if constexpr (with_g) g_[m] = scan.group[i];
     theta_[m] = ti;
     range_[m] = ri;
-    const double x = eps / ri;
-    half_window_[m] = x >= 1.0 ? std::numbers::pi * 2.0 : (x + kCubic * x * x * x) * (1.0 + 1e-9) + 1e-12;
     const std::size_t b = m / kBlock;
-    block_lo_[b] = std::min(block_lo_[b], ri - eps_wide);
-    block_hi_[b] = std::max(block_hi_[b], ri + eps_wide);
+    if (m % kBlock == 0) blo = kInf, bhi = -kInf;
+    blo = std::min(blo, ri - eps_wide);
+    bhi = std::max(bhi, ri + eps_wide);
+    block_lo_[b] = blo;
+    block_hi_[b] = bhi;
     index_[m] = static_cast<int>(i);
     if (m > 0) {  // the squared distance to the previous valid pixel (see adjacent_ below)
       double t = x_[m] - x_[m - 1];
@@ -326,6 +329,14 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     for (int k = 0; k < n; ++k) theta_[static_cast<std::size_t>(k)] = -theta_[static_cast<std::size_t>(k)];
   }
 
+  // The bearing half-window of a pixel at range r (see above); it grows
+  // with eps / r, in floating point too (every step rounds monotonically).
+  auto half_window_at = [&](double r) {
+    const double x = eps / r;
+    return x >= 1.0 ? std::numbers::pi * 2.0 : (x + kCubic * x * x * x) * (1.0 + 1e-9) + 1e-12;
+  };
+  auto half_window = [&](int i) { return half_window_at(range_[static_cast<std::size_t>(i)]); };
+
   // Squared distance; pixels of different groups are infinitely far apart.
   auto d2 = [&](int i, int j) {
     const auto u = static_cast<std::size_t>(i), v = static_cast<std::size_t>(j);
@@ -347,7 +358,7 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
   // false if visit stopped it.
   auto walk_right = [&](int i, int from, auto&& visit) {
     const auto u = static_cast<std::size_t>(i);
-    const double limit = theta_[u] + half_window_[u], ri = range_[u];
+    const double limit = theta_[u] + half_window(i), ri = range_[u];
     for (int j = from; j < n;) {
       if (theta_[static_cast<std::size_t>(j)] > limit) return true;
       const auto b = static_cast<std::size_t>(j) / kBlock;
@@ -365,7 +376,7 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
   };
   auto walk_left = [&](int i, int from, auto&& visit) {
     const auto u = static_cast<std::size_t>(i);
-    const double limit = theta_[u] - half_window_[u], ri = range_[u];
+    const double limit = theta_[u] - half_window(i), ri = range_[u];
     for (int j = from; j >= 0;) {
       if (theta_[static_cast<std::size_t>(j)] < limit) return true;
       const auto b = static_cast<std::size_t>(j) / kBlock;
@@ -416,22 +427,44 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
 
   // Core-core edges. Consecutive core pixels within eps form runs (a surface
   // is one run), joined up front under their last pixel. Then each core
-  // pixel looks beyond its run for core pixels within eps; once it meets
-  // one, that pixel's whole run is joined and jumped over. On a surface
-  // this is O(1) per pixel instead of a window's worth. Both this pass and
-  // the labelling go run by run (the next run's bearing loaded once, one
-  // find per run): per-pixel bookkeeping was a fifth of a pass.
+  // pixel whose bearing window reaches past its run looks there for core
+  // pixels within eps. Exact shortcuts, per run met rather than per pixel:
+  // a run already in this run's set, or whose depth interval (widened by
+  // eps) misses this pixel's range, holds no pair that could change the
+  // sets; after a union the rest of that run is jumped over too. Both this
+  // pass and the labelling go run by run (one find per run).
   run_end_.resize(static_cast<std::size_t>(n));
+  run_lo_.resize(static_cast<std::size_t>(n));
+  run_hi_.resize(static_cast<std::size_t>(n));
   parent_.resize(static_cast<std::size_t>(n));
   size_.resize(static_cast<std::size_t>(n));
+  // run_lo_[k], run_hi_[k]: the least and greatest range from k to its run's
+  // end (at a run's first pixel: the whole run's).
+  // The run's end, length and depth interval stay in registers (not a
+  // load-store chain through run_end_ and size_ per pixel).
+  double lo = kInf, hi = -kInf;
+  int end = n - 1, length = 0;
   for (int k = n - 1; k >= 0; --k) {
     const auto u = static_cast<std::size_t>(k);
     const bool linked = core(k) && k + 1 < n && core(k + 1) && adjacent_within(k);
-    run_end_[u] = linked ? run_end_[u + 1] : k;
-    parent_[u] = run_end_[u];
+    const double rk = range_[u];
+    if (linked) {
+      lo = std::min(lo, rk);
+      hi = std::max(hi, rk);
+    } else {
+      if (length > 0) size_[static_cast<std::size_t>(end)] = length;
+      end = k;
+      length = 0;
+      lo = hi = rk;
+    }
+    ++length;
+    run_end_[u] = end;
+    run_lo_[u] = lo;
+    run_hi_[u] = hi;
+    parent_[u] = end;
     size_[u] = 1;
-    if (linked) ++size_[static_cast<std::size_t>(run_end_[u])];
   }
+  if (length > 0) size_[static_cast<std::size_t>(end)] = length;
   detail::DisjointSets sets(parent_, size_);
   for (int first = 0; first < n;) {  // run by run
     if (!core(first)) {
@@ -442,20 +475,41 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     const int next = last + 1;
     if (next >= n) break;  // the last run: nothing beyond it
     const double next_theta = theta_[static_cast<std::size_t>(next)];
-    for (int i = first; i <= last; ++i) {
-      // Most pixels of a run end their window before the run does.
-      if (next_theta > theta_[static_cast<std::size_t>(i)] + half_window_[static_cast<std::size_t>(i)]) continue;
-      int skip_to = next;
-      while (skip_to < n) {
-        const int from = skip_to;
-        skip_to = -1;
-        walk_right(i, from, [&](int j) {
-          if (!core(j) || d2(i, j) > eps2) return true;
-          sets.unite(i, j);
-          skip_to = run_end_[static_cast<std::size_t>(j)] + 1;
-          return false;
-        });
-        if (skip_to < 0) break;
+    // Most pixels of a run end their window before the run does. The widest
+    // window in the run is its nearest pixel's: pixels before the last one
+    // it cannot carry past the run are skipped without a look.
+    const double widest = half_window_at(run_lo_[static_cast<std::size_t>(first)]);
+    int start = last;
+    while (start > first && theta_[static_cast<std::size_t>(start - 1)] + widest >= next_theta) --start;
+    int root = -1;  // this run's set, looked up when first needed
+    for (int i = start; i <= last; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      const double limit = theta_[u] + half_window(i);
+      if (next_theta > limit) continue;
+      if (root < 0) root = sets.find(last);
+      const double ri = range_[u];
+      for (int j = next; j < n && theta_[static_cast<std::size_t>(j)] <= limit;) {
+        if (!core(j)) {
+          ++j;
+          continue;
+        }
+        // j starts a run here (the walk enters core pixels only after a
+        // non-core one or a run's end): its bounds are the whole run's.
+        const int e = run_end_[static_cast<std::size_t>(j)];
+        const auto uj = static_cast<std::size_t>(j);
+        if (ri < run_lo_[uj] - eps_wide || ri > run_hi_[uj] + eps_wide || sets.find(e) == root) {
+          j = e + 1;
+          continue;
+        }
+        for (; j <= e; ++j) {
+          if (theta_[static_cast<std::size_t>(j)] > limit) break;
+          if (d2(i, j) <= eps2) {
+            sets.unite(i, j);
+            root = sets.find(last);
+            j = e + 1;
+            break;
+          }
+        }
       }
     }
     first = next;

@@ -238,6 +238,47 @@ TEST(Dbscan, OrderedScanFastPathMatchesBruteForce) {
   }
 }
 
+// The run-joining pass's shortcuts (a run already joined, a run at another
+// depth, a window that cannot reach past its run) are exact: a wall cut into
+// many runs by thin near objects (pedicels), some gaps narrower than eps and
+// some wider, must cluster as brute force does, with stage 1's eps and
+// min_points and around them.
+TEST(Dbscan, OrderedScanMatchesBruteForceOnSurfacesCutByThinObjects) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> g(0.0, 1.0);
+  lc::OrderedScanDbscan fast;
+  const double fov = 40.0 * std::numbers::pi / 180.0;
+  for (int trial = 0; trial < 300; ++trial) {
+    TestScan s;
+    const int pixels = 256;
+    const double wall = 0.15 + 0.5 * u(rng), tilt = 0.2 * (u(rng) - 0.5);
+    int in_object = 0;
+    double object_r = 0.0;
+    for (int i = 0; i < pixels; ++i) {
+      const double a = -fov / 2 + fov * i / (pixels - 1);
+      s.angle.push_back(trial % 2 ? -a : a);
+      if (in_object == 0 && u(rng) < 0.06) {
+        in_object = 1 + static_cast<int>(6 * u(rng));
+        object_r = wall - (0.005 + 0.08 * u(rng));
+      }
+      double r = wall + tilt * a + 0.002 * g(rng);
+      if (in_object > 0) {
+        --in_object;
+        r = object_r + 0.001 * g(rng);
+      }
+      if (u(rng) < 0.02) r = std::numeric_limits<double>::quiet_NaN();
+      s.range.push_back(r);
+      s.feature.push_back(0.01 * g(rng));
+    }
+    const bool with_feature = trial % 5 == 4;
+    lc::OrderedScanPoints scan{s.angle, s.range, with_feature ? std::span<const double>(s.feature) : std::span<const double>()};
+    const lc::DbscanParams params{0.01 + 0.005 * (trial % 7), 2 + trial % 5};
+    const auto ref = lc::dbscan_brute_force(lc::to_points(scan), params);
+    expect_same(fast.run(scan, params), ref, "cut surfaces: ordered scan vs brute force");
+  }
+}
+
 TEST(Dbscan, OrderedScanWithEpsLargerThanRangeSearchesEverything) {
   // eps beyond the range: every pixel may neighbour every other.
   std::vector<double> angle{-1.0, -0.5, 0.0, 0.5, 1.0}, range{0.1, 0.1, 0.1, 0.1, 0.1};

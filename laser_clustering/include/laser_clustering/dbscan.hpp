@@ -119,7 +119,7 @@ class OrderedScanDbscan {
   template <bool with_feature, bool with_group>
   void run_impl(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r);
   std::vector<double> trig_angle_, sin_, cos_;  // cached per sensor geometry
-  std::vector<double> x_, z_, f_, theta_, range_, half_window_, block_lo_, block_hi_, adjacent_;
+  std::vector<double> x_, z_, f_, theta_, range_, block_lo_, block_hi_, adjacent_, run_lo_, run_hi_;
   std::vector<int> g_, index_, run_end_, parent_, size_, cluster_of_root_;
   std::vector<std::uint8_t> core_;
 };
