@@ -10,6 +10,7 @@
 // case with every trial, and the scans of the first --pictures trials of
 // each case (scans/*.csv) for scripts/plots/clustering_scans.py.
 #include <cmath>
+#include <system_error>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -135,7 +136,11 @@ void write_scan(const fs::path& path, const ev::SimulatedScan& s, const std::vec
 
 int main(int argc, char** argv) {
   const Args args = parse(argc, argv);
-  fs::create_directories(args.out / "scans");
+  if (std::error_code ec; !fs::create_directories(args.out / "scans", ec) && ec) {
+    std::cerr << "laser_clustering_eval: cannot create the output directory " << (args.out / "scans") << ": "
+              << ec.message() << "\n";
+    return 2;
+  }
   // The harvesting gripper's sensor works at 8-25 cm: the wide 3.6 mm lens;
   // the tool-grasping tasks at 20-35 cm: the 8 mm lens. Both with a raw-mode
   // schedule short enough for close range (the default 20..700 pulses
