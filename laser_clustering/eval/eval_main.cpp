@@ -132,6 +132,13 @@ void write_scan(const fs::path& path, const ev::SimulatedScan& s, const std::vec
   }
 }
 
+// What each pixel's central ray hits in a truss scene ("target", "tomato", ...).
+std::vector<std::string> truth_kinds(const ev::TrussScene& scene, const ev::SimulatedScan& s) {
+  std::vector<std::string> kind(s.scan.size());
+  for (std::size_t i = 0; i < kind.size(); ++i) kind[i] = ev::object_kind(scene, s.truth_object[i]);
+  return kind;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -199,8 +206,7 @@ int main(int argc, char** argv) {
           const bool failure = t.verdict != ev::Verdict::kAligned && failures < args.failure_pictures;
           if (pictures >= args.pictures && !failure) return;
           ++(failure ? failures : pictures);
-          std::vector<std::string> kind(s.scan.size());
-          for (std::size_t i = 0; i < kind.size(); ++i) kind[i] = ev::object_kind(scene, s.truth_object[i]);
+          const std::vector<std::string> kind = truth_kinds(scene, s);
           const int chosen = d.cluster >= 0 ? o.clusters[static_cast<std::size_t>(d.cluster)].id : -1;
           write_scan(args.out / "scans" / fmt::format("{}_{}_{}.csv", name, t.seed, ev::to_string(t.verdict)), s, o.labels,
                      o.smoothed_range_m, kind, chosen);
@@ -209,8 +215,7 @@ int main(int argc, char** argv) {
             const std::vector<lc::ExpectedTomato>& tomatoes, const lc::TomatoRegistration& reg) {
           if (looks >= args.pictures) return;
           ++looks;
-          std::vector<std::string> kind(look.scan.size());
-          for (std::size_t i = 0; i < kind.size(); ++i) kind[i] = ev::object_kind(scene, look.truth_object[i]);
+          const std::vector<std::string> kind = truth_kinds(scene, look);
           const std::vector<int> none(look.scan.size(), lc::kNoise);
           const std::string stem = fmt::format("look_{}_{}", name, seed);
           write_scan(args.out / "scans" / (stem + ".csv"), look, none, {}, kind, -1);

@@ -125,10 +125,9 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       if (on_look) on_look(seed, scene, look, tomatoes, reg);
       if (reg.ok) {
         registered = true;
-        expectation->position_xz_m += reg.shift_xz_m;
+        expectation = shifted(*expectation, reg.shift_xz_m);
         expectation->sd_m = o.registered_sd_m;
         expectation->gate_sd = o.registered_gate_sd;
-        for (auto& nb : expectation->neighbours) nb.position_xz_m += reg.shift_xz_m;
         d = find_pedicel(s.scan, objects, finder, expectation);
         if (d.outcome == PedicelOutcome::kNothingToCut && o.blind_move) {
           // Nothing pedicel-like where the registered truss puts the target
@@ -162,11 +161,13 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       // gripper now is and re-centre on what the finder sees there.
       for (int k = 0; k < o.rescans && last.outcome == PedicelOutcome::kMove; ++k) {
         T_world_sensor = T_world_sensor * Eigen::Translation3d(last.lateral_offset_m, 0.0, last.depth_offset_m);
-        belief = o.carry_runners_up ? expectation_after_centring(finder, belief, last)
-                                    : expectation_after_centring(finder, belief);
-        if (k == 0 && blind) {  // the move went to the registered expectation, not to a seen pedicel
-          belief->sd_m = o.registered_sd_m;
-          belief->gate_sd = o.registered_gate_sd;
+        if (k == 0 && blind) {
+          // The move went to the registered expectation, not to a seen
+          // pedicel: that expectation, its spread and gate, moves along.
+          belief = expectation_after_move(finder, belief, last, {last.lateral_offset_m, last.depth_offset_m});
+        } else {
+          belief = o.carry_runners_up ? expectation_after_centring(finder, belief, last)
+                                      : expectation_after_centring(finder, belief);
         }
         const SimulatedScan again =
             scanner.scan(scene.world, T_world_sensor, seed + kRescanSeedStride * static_cast<std::uint64_t>(k + 1));

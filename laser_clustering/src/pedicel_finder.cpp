@@ -144,6 +144,13 @@ PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, cons
   return e;
 }
 
+PedicelExpectation shifted(PedicelExpectation e, const Eigen::Vector2d& by) {
+  e.position_xz_m += by;
+  for (auto& nb : e.neighbours) nb.position_xz_m += by;
+  for (auto& alt : e.alternatives) alt.position_xz_m += by;
+  return e;
+}
+
 PedicelExpectation expectation_after_move(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before,
                                           const PedicelDetection& seen, const Eigen::Vector2d& move_xz_m) {
   PedicelExpectation e;
@@ -151,10 +158,7 @@ PedicelExpectation expectation_after_move(const PedicelFinderParams& p, const st
   if (seen.candidates.empty() || !(seen.candidates.front().weight > 0.0)) {
     // Nothing was chosen: what was expected moves with the gripper.
     if (before) {
-      e = *before;
-      e.position_xz_m -= move_xz_m;
-      for (auto& nb : e.neighbours) nb.position_xz_m -= move_xz_m;
-      for (auto& alt : e.alternatives) alt.position_xz_m -= move_xz_m;
+      e = shifted(*before, -move_xz_m);
     } else {
       e.position_xz_m = Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m) - move_xz_m;
       e.sd_m = p.search_sd_m;

@@ -136,10 +136,12 @@ double violations(const std::vector<Ray>& rays, const std::vector<Section>& sect
 
 // Sum over the returns of 1 - (d / inlier_m)^2 for d the distance to the
 // nearest shifted near arc (those within inlier_m), less the free-space
-// violations. Only returns within a section's bearing window can be within
-// inlier_m of it; `best` is scratch.
+// violations (their count into *violation_count when given). Only returns
+// within a section's bearing window can be within inlier_m of it; `best` is
+// scratch.
 double support(const std::vector<Point>& points, const std::vector<Ray>& rays, const std::vector<Section>& sections,
-               const Eigen::Vector2d& shift, const TomatoRegistrationParams& p, std::vector<double>& best) {
+               const Eigen::Vector2d& shift, const TomatoRegistrationParams& p, std::vector<double>& best,
+               int* violation_count = nullptr) {
   best.assign(points.size(), p.inlier_m);
   for (const Section& sec : sections) {
     const Eigen::Vector2d c = sec.centre + shift;
@@ -153,7 +155,7 @@ double support(const std::vector<Point>& points, const std::vector<Ray>& rays, c
   const double inv = 1.0 / (p.inlier_m * p.inlier_m);
   double s = 0.0;
   for (const double d : best) s += 1.0 - d * d * inv;  // 0 for returns on no arc
-  return s - violations(rays, sections, shift, p);
+  return s - violations(rays, sections, shift, p, violation_count);
 }
 
 }  // namespace
@@ -269,8 +271,7 @@ TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const Expec
     sum2 += nn.residual * nn.residual;
   }
   out.shift_xz_m = shift;
-  out.support = support(points, rays, sections, shift, p, scratch);
-  violations(rays, sections, shift, p, &out.violations);
+  out.support = support(points, rays, sections, shift, p, scratch, &out.violations);
   out.rms_m = out.inliers ? std::sqrt(sum2 / out.inliers) : 0.0;
   for (const int k : per_section) out.tomatoes_matched += k >= p.min_points_per_tomato;
   if (out.tomatoes_matched < p.min_tomatoes) {

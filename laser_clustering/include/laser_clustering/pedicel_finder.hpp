@@ -142,6 +142,11 @@ struct PedicelDetection {
   std::vector<PedicelCandidate> candidates;  ///< every candidate considered, best first
 };
 
+/// `e` with every place it holds (the expected point, the neighbours, the
+/// alternatives) moved by `by` in the plane [m]: the vision's offset found
+/// by register_tomatoes, or minus a move of the gripper.
+[[nodiscard]] PedicelExpectation shifted(PedicelExpectation e, const Eigen::Vector2d& by);
+
 /// The closed loop of thesis 4.5 (move, scan again, re-centre): what to
 /// expect in the next scan once the gripper has made a detection's move. The
 /// chosen pedicel is then expected in the blade throat, within
