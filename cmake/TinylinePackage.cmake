@@ -2,8 +2,9 @@
 #
 #   tinyline_core_library(<name> SOURCES ... [DEPS ...])
 #       The algorithm core. Include dir <pkg>/include. It may depend on Eigen,
-#       PCL, FLANN, OpenCV, yaml-cpp, fmt and other cores, never on the bus or
-#       the messages: configure fails if it tries (the layering rule).
+#       PCL, FLANN, OpenCV, yaml-cpp, fmt, other cores and tinyline::common
+#       (linked to every core and node library), never on the bus or the
+#       messages: configure fails if it tries (the layering rule).
 #   tinyline_node_library(<name> SOURCES ... [DEPS ...])
 #       Thin nodes. Adds tinyline::bus and tinyline::msgs. Include dir <pkg>/nodes/include.
 #   tinyline_test(<name> SOURCES ... [LIBS ...] [LABELS ...])
@@ -13,6 +14,11 @@
 # exported so a downstream project can find_package(tinyline).
 
 set(_TL_FORBIDDEN_IN_CORE tinyline::bus tinyline::msgs tinyline_bus tinyline_msgs)
+
+# Every core and node library, for the layering tests (test/layering).
+function(tinyline_layered_library target)
+  set_property(GLOBAL APPEND PROPERTY TINYLINE_LAYERED_LIBRARIES ${target})
+endfunction()
 
 function(_tinyline_export target name)
   add_library(tinyline::${name} ALIAS ${target})
@@ -36,9 +42,10 @@ function(tinyline_core_library name)
   target_include_directories(${target} PUBLIC
     $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
-  target_link_libraries(${target} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::common PRIVATE ${ARG_PRIVATE_DEPS})
   tinyline_apply_flags(${target})
   _tinyline_export(${target} ${name})
+  tinyline_layered_library(${target})
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/include)
     install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   endif()
@@ -51,9 +58,10 @@ function(tinyline_node_library name)
   target_include_directories(${target} PUBLIC
     $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/nodes/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
-  target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::bus tinyline::msgs PRIVATE ${ARG_PRIVATE_DEPS})
+  target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::bus tinyline::msgs tinyline::common PRIVATE ${ARG_PRIVATE_DEPS})
   tinyline_apply_flags(${target})
   _tinyline_export(${target} ${name})
+  tinyline_layered_library(${target})
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include)
     install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   endif()
