@@ -48,6 +48,10 @@ Node::~Node() {
 
 std::string Node::full_name() const { return (ns_ == "/" ? "" : ns_) + "/" + name_; }
 
+void Node::require_valid(const common::Validation& v) const {
+  if (!v.valid) throw ParamError({}, "node '" + full_name() + "': " + v.reason);
+}
+
 std::string Node::resolve_topic(const std::string& name) const {
   return apply_remaps(resolve_name(name, ns_, name_), remaps_, ns_, name_);
 }

@@ -80,7 +80,7 @@ TEST(HydrusFittingNodes, CircleFitterFusesFourSensorsAndPublishesTheCircle) {
   const auto model = hf::RobotModel::load(kConfig);
   const double q = 60.0 * kPi / 180.0;
   const hf::Circle truth{{0.25, 0.433}, 0.15};
-  hf::detail::SplitMix64 rng(7);
+  tinyline::common::SplitMixRandom rng(7);
   const auto s = ev::scan_all(model, {q, q, q}, {{truth}, {}, true}, {}, rng);
   joints->publish(joints_msg(model, 1.0, q));
   for (std::size_t k = 0; k < s.size(); ++k) scans->publish(scan_msg(s[k], 1.0 + 0.004 * static_cast<double>(k)));
@@ -112,7 +112,7 @@ TEST(HydrusFittingNodes, CircleFitterReportsUnknownSensorsAndStaleJoints) {
   auto scans = h.io->create_publisher<LineScan>("scans");
   auto joints = h.io->create_publisher<JointState>("joint_states");
   const auto model = hf::RobotModel::load(kConfig);
-  hf::detail::SplitMix64 rng(1);
+  tinyline::common::SplitMixRandom rng(1);
   auto s = ev::scan_all(model, {1.0, 1.0, 1.0}, {{{{0.25, 0.43}, 0.15}}, {}, true}, {}, rng);
   // A sensor the description does not know: ignored, said once, never a crash.
   s[0].sensor = "laser_on_the_tail";
@@ -144,7 +144,7 @@ TEST(HydrusFittingNodes, CircleFitterMovesScansByTheBasePose) {
   const Eigen::Vector2d fixed = base(1.09) * Eigen::Vector2d(0.25, 0.433);
   const Eigen::Vector2d truth_now = base(1.09).inverse() * fixed;
   std::vector<ev::SyntheticScan> s;
-  hf::detail::SplitMix64 rng(1);
+  tinyline::common::SplitMixRandom rng(1);
   ev::SyntheticScanParams exact;
   exact.noise_scale = 0.0;
   for (std::size_t k = 0; k < 4; ++k) {

@@ -32,7 +32,7 @@ std::string resolve(const std::string& config) {
 sim::SensorParams load(const SimScannerOptions& o) {
   sim::SensorParams p = sim::load_sensor_params(resolve(o.sensor_config));
   if (!o.raw_pulses.empty()) p.acquisition.raw_pulses = o.raw_pulses;
-  if (const auto why = p.validate(); !why.empty()) throw std::runtime_error("sim scanner: " + why);
+  if (const common::Validation why = p.validate(); !why.valid) throw std::runtime_error("sim scanner: " + why.reason);
   return p;
 }
 

@@ -202,7 +202,7 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
     p.effects.clear();  // a file's list replaces its base's list
     for (const auto& item : e->items()) p.effects.push_back(read_effect(item));
   }
-  if (const std::string why = p.validate(); !why.empty()) n.fail(why);
+  if (const common::Validation why = p.validate(); !why.valid) n.fail(why.reason);
 }
 
 SensorParams load_sensor_params(const std::string& path) {
@@ -224,14 +224,14 @@ SensorParams load_sensor_params(const std::string& path) {
   return p;
 }
 
-std::string SensorParams::validate() const {
-  if (lens.pixels <= 2 * lens.dark_pixels) return "lens.pixels must exceed twice lens.dark_pixels";
-  if (pixel.knee > pixel.full_scale) return "pixel.knee must not exceed pixel.full_scale";
-  if (pixel.adc_max < pixel.full_scale) return "pixel.adc_max must be at least pixel.full_scale";
-  if (pixel.adc_max * 10.0 > 32767.0) return "pixel.adc_max * 10 must fit the wire's int16";
-  if (thermal.warm_c < thermal.ambient_c - 50.0) return "thermal.warm_c is implausibly below thermal.ambient_c";
-  if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5) return "temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)";
-  return {};
+common::Validation SensorParams::validate() const {
+  if (lens.pixels <= 2 * lens.dark_pixels) return common::Validation::invalid("lens.pixels must exceed twice lens.dark_pixels");
+  if (pixel.knee > pixel.full_scale) return common::Validation::invalid("pixel.knee must not exceed pixel.full_scale");
+  if (pixel.adc_max < pixel.full_scale) return common::Validation::invalid("pixel.adc_max must be at least pixel.full_scale");
+  if (pixel.adc_max * 10.0 > 32767.0) return common::Validation::invalid("pixel.adc_max * 10 must fit the wire's int16");
+  if (thermal.warm_c < thermal.ambient_c - 50.0) return common::Validation::invalid("thermal.warm_c is implausibly below thermal.ambient_c");
+  if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5) return common::Validation::invalid("temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)");
+  return common::Validation::ok();
 }
 
 std::string to_yaml(const SensorParams& p) {

@@ -6,7 +6,7 @@
 #include <optional>
 #include <stdexcept>
 
-#include "random.hpp"
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::sim {
 
@@ -121,7 +121,7 @@ struct TofLineSensor::Impl {
       const auto need = static_cast<std::size_t>(t_s) + 2;
       if (path.empty()) path.push_back(0.0);
       if (path.size() < need) {
-        Rng rng(mix_seed(seed, 0xC0FFEEull + k, path.size()));
+        common::XoshiroRandom rng(common::mix_seed(seed, 0xC0FFEEull + k, path.size()));
         while (path.size() < need) path.push_back(path.back() + c.random_walk_per_sqrt_s * rng.normal());
       }
       const auto i = static_cast<std::size_t>(t_s);
@@ -133,7 +133,7 @@ struct TofLineSensor::Impl {
 };
 
 TofLineSensor::TofLineSensor(SensorParams params) : params_(std::move(params)), impl_(std::make_unique<Impl>()) {
-  if (const std::string why = params_.validate(); !why.empty()) throw std::invalid_argument("sensor parameters: " + why);
+  if (const common::Validation why = params_.validate(); !why.valid) throw std::invalid_argument("sensor parameters: " + why.reason);
   Impl& m = *impl_;
   const auto& lens = params_.lens;
   m.n = lens.pixels;
@@ -162,7 +162,7 @@ TofLineSensor::TofLineSensor(SensorParams params) : params_(std::move(params)), 
   }
 
   // Per-pixel constants (R_sen, V_le, PRNU) from the seed.
-  Rng rng(mix_seed(params_.seed, 0x5E45ull, 0));
+  common::XoshiroRandom rng(common::mix_seed(params_.seed, 0x5E45ull, 0));
   const auto& px = params_.pixel;
   for (int i = 0; i < m.n; ++i) {
     m.rsen.push_back(std::max(0.2, px.sensitivity_ratio * (1.0 + px.sensitivity_ratio_sd * rng.normal())));
@@ -248,7 +248,7 @@ TofLineSensor::TofLineSensor(SensorParams params) : params_(std::move(params)), 
                           },
                           [&](const MaterialBiasEffect& e) { m.material_bias = &e; },
                           [&](const FixedPatternEffect& e) {
-                            Rng r(mix_seed(e.seed, 0xF1CEDull, 0));
+                            common::XoshiroRandom r(common::mix_seed(e.seed, 0xF1CEDull, 0));
                             for (int i = 0; i < m.n; ++i) {
                               const double ramp = m.n > 1 ? (static_cast<double>(i) / (m.n - 1) - 0.5) * e.ramp_ps : 0.0;
                               m.skew_ns[static_cast<std::size_t>(i)] += 1e-3 * (e.sigma_ps * r.normal() + ramp);
@@ -645,7 +645,7 @@ SensorSet TofLineSensor::measure(const World& world, const Eigen::Isometry3d& T_
                   set.crosstalk_pulses);
   }
 
-  Rng rng(mix_seed(params_.seed, 0xA11CEull, index));
+  common::XoshiroRandom rng(common::mix_seed(params_.seed, 0xA11CEull, index));
   set.readouts.resize(nr);
   for (std::size_t k = 0; k < nr; ++k) {
     auto& r = set.readouts[k];

@@ -18,7 +18,7 @@
 
 #include <sim/firmware.hpp>
 
-#include "random.hpp"
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::sim {
 
@@ -32,7 +32,7 @@ struct VirtualDevice::State {
   bool host_present = false;
   double stall_until = -1.0;
   LinkFaults faults;
-  Rng fault_rng{1};
+  common::XoshiroRandom fault_rng{1};
   std::deque<std::vector<std::uint8_t>> tx;  // whole frames waiting to be sent
   std::size_t tx_bytes = 0;
   std::size_t tx_offset = 0;                 // bytes of tx.front() already sent
@@ -63,7 +63,7 @@ VirtualDevice::VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDev
   if (options_.single_shot_pulses < 10 || options_.single_shot_pulses > 990 || options_.single_shot_pulses % 10 != 0)
     throw std::invalid_argument("virtual device: single_shot_pulses must be a multiple of 10 in [10, 990]");
   state_->faults = options_.faults;
-  state_->fault_rng = Rng(options_.faults.seed);
+  state_->fault_rng = common::XoshiroRandom(options_.faults.seed);
 }
 
 std::unique_ptr<VirtualDevice> VirtualDevice::from_port(const std::string& port, VirtualDeviceOptions options) {
@@ -210,7 +210,7 @@ void VirtualDevice::stall(double seconds) {
 void VirtualDevice::set_faults(const LinkFaults& faults) {
   std::lock_guard lock(mu_);
   state_->faults = faults;
-  state_->fault_rng = Rng(faults.seed);
+  state_->fault_rng = common::XoshiroRandom(faults.seed);
 }
 
 VirtualDeviceStats VirtualDevice::stats() const {

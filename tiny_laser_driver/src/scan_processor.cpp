@@ -25,12 +25,12 @@ void clear_pixel(ProcessedScan& out, std::size_t p, PixelStatus s) {
 }
 }  // namespace
 
-std::string OpticsParams::validate() const {
-  if (!(focal_mm > 0.0) || !std::isfinite(focal_mm)) return fmt::format("focal_mm must be positive, got {}", focal_mm);
+common::Validation OpticsParams::validate() const {
+  if (!(focal_mm > 0.0) || !std::isfinite(focal_mm)) return common::Validation::invalid(fmt::format("focal_mm must be positive, got {}", focal_mm));
   if (!(sensor_length_mm > 0.0) || !std::isfinite(sensor_length_mm)) {
-    return fmt::format("sensor_length_mm must be positive, got {}", sensor_length_mm);
+    return common::Validation::invalid(fmt::format("sensor_length_mm must be positive, got {}", sensor_length_mm));
   }
-  return "";
+  return common::Validation::ok();
 }
 
 double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
@@ -41,7 +41,7 @@ double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
 
 ScanProcessor::ScanProcessor(CalibrationModel model, OpticsParams optics)
     : model_(std::move(model)), optics_(optics) {
-  if (const std::string why = optics_.validate(); !why.empty()) throw std::invalid_argument("optics: " + why);
+  if (const common::Validation why = optics_.validate(); !why.valid) throw std::invalid_argument("optics: " + why.reason);
   for (std::size_t p = 0; p < kPixels; ++p) angles_[p] = static_cast<float>(pixel_angle_rad(optics_, p));
 }
 

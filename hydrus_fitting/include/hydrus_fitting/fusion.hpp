@@ -16,6 +16,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <tinyline/common/validation.hpp>
+
 #include "hydrus_fitting/robot_model.hpp"
 
 namespace tinyline::hydrus_fitting {
@@ -36,6 +38,7 @@ struct FusionParams {
   double self_filter_margin_m = 0.03;
   RangeNoiseModel noise;
 };
+common::Validation validate(const FusionParams& params);
 
 /// One line scan in the robot description's terms (LineScan, converted).
 struct ScanView {

@@ -63,7 +63,7 @@ struct PedicelFinderParams {
   ScissorGeometry scissors;
 };
 
-[[nodiscard]] Validation validate(const PedicelFinderParams& params);
+common::Validation validate(const PedicelFinderParams& params);
 
 /// Where the caller expects the pedicel (e.g. projected from the vision
 /// system's tomato and pedicel estimate), overriding the blade throat.

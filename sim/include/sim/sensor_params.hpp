@@ -18,6 +18,8 @@
 
 #include <sim/effects.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::sim {
 
 class YamlNode;
@@ -114,7 +116,7 @@ struct SensorParams {
   std::uint64_t seed = 1;             ///< per-pixel constants and noise
 
   /// Why the parameters cannot work (empty when they can).
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 /// Reads a sensor YAML (see config/sensors/). Unknown keys, wrong types and

@@ -16,6 +16,8 @@
 #include <tiny_laser_driver/calibration.hpp>
 #include <tiny_laser_driver/protocol.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tiny_laser_driver {
 
 /// The receiver's optics: what maps a pixel to its ray.
@@ -24,7 +26,7 @@ struct OpticsParams {
   double sensor_length_mm = 5.12;  ///< length of the 256 effective pixels [mm] (measured.yaml)
 
   /// Why these cannot work (empty when they can).
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 /// Ray angle of pixel `pixel` (0-271, dark ones included) in the sensor's x-z

@@ -3,12 +3,15 @@
 // linear (polynomial, temperature coefficient, term coefficients).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <tuple>
+#include <utility>
 
 #include <fmt/format.h>
 
 #include <tiny_laser_driver/protocol.hpp>
+#include <tinyline/common/least_squares.hpp>
 
 #include "fit_engine.hpp"
 
@@ -368,47 +371,53 @@ void FitEngine::optimise_global() {
       *ps[j].value = std::clamp(t[static_cast<Eigen::Index>(j)] * ps[j].typical, ps[j].lo, ps[j].hi);
     }
   };
-  std::vector<double> r0, r1;
-  Eigen::VectorXd theta = get();
-  double cost = residual_cost(&r0);
-  double lambda = 1e-3;
-  constexpr double kStep = 1e-5;
-  const auto n = static_cast<Eigen::Index>(rows_.size());
-  for (int it = 0; it < 40; ++it) {
-    Eigen::MatrixXd jac(n, static_cast<Eigen::Index>(k));
-    for (std::size_t j = 0; j < k; ++j) {
-      Eigen::VectorXd t = theta;
-      t[static_cast<Eigen::Index>(j)] += kStep;
-      set(t);
-      residual_cost(&r1);
-      double* col = jac.data() + static_cast<std::size_t>(n) * j;
-      for (std::size_t i = 0; i < r1.size(); ++i) col[i] = (r1[i] - r0[i]) / kStep;
-    }
-    const Eigen::Map<const Eigen::VectorXd> f(r0.data(), n);
-    // r = sqrt(w)(y - pred): minimise |r|^2, step solves (J'J + lambda diag) d = -J'r.
-    const Eigen::MatrixXd a = jac.transpose() * jac;
-    const Eigen::VectorXd g = jac.transpose() * f;
-    bool improved = false;
-    while (lambda < 1e10) {
-      Eigen::MatrixXd damped = a;
-      for (Eigen::Index j = 0; j < damped.rows(); ++j) damped(j, j) += lambda * std::max(a(j, j), 1e-12);
-      const Eigen::VectorXd step = damped.ldlt().solve(-g);
-      const Eigen::VectorXd trial = theta + step;
-      set(trial);
-      const double c = residual_cost(&r1);
-      if (std::isfinite(c) && c < cost) {
-        const double gain = (cost - c) / std::max(cost, 1e-300);
-        theta = get();
-        cost = c;
-        r0.swap(r1);
-        lambda = std::max(lambda / 3.0, 1e-9);
-        improved = gain > 1e-10;
-        break;
+  // r = sqrt(w)(y - pred): minimise |r|^2 with a forward-difference Jacobian.
+  struct Problem {
+    FitEngine& engine;
+    decltype(get)& read;   // the parameters, scaled
+    decltype(set)& write;  // ... clamped into their ranges
+    std::vector<double> r0, r1;  // residuals at x, and at the last candidate
+
+    std::pair<Eigen::MatrixXd, Eigen::VectorXd> linearise(const Eigen::VectorXd& theta) {
+      constexpr double kStep = 1e-5;
+      const auto n = static_cast<Eigen::Index>(engine.rows_.size());
+      Eigen::MatrixXd jac(n, theta.size());
+      for (Eigen::Index j = 0; j < theta.size(); ++j) {
+        Eigen::VectorXd t = theta;
+        t[j] += kStep;
+        write(t);
+        engine.residual_cost(&r1);
+        double* col = jac.data() + static_cast<std::size_t>(n) * static_cast<std::size_t>(j);
+        for (std::size_t i = 0; i < r1.size(); ++i) col[i] = (r1[i] - r0[i]) / kStep;
       }
-      lambda *= 4.0;
+      const Eigen::Map<const Eigen::VectorXd> f(r0.data(), n);
+      return {jac.transpose() * jac, jac.transpose() * f};
     }
-    if (!improved) break;
-  }
+    // The parameters are clamped to their ranges: the accepted value is the clamped one.
+    double cost(Eigen::VectorXd& candidate) {
+      write(candidate);
+      const double c = engine.residual_cost(&r1);
+      candidate = read();
+      return c;
+    }
+    void accept() { r0.swap(r1); }
+    bool converged(double old_cost, double new_cost, const Eigen::VectorXd&) const {
+      return !((old_cost - new_cost) / std::max(old_cost, 1e-300) > 1e-10);
+    }
+  };
+  Problem problem{*this, get, set, {}, {}};
+  Eigen::VectorXd theta = get();
+  const double cost = residual_cost(&problem.r0);
+  common::LevenbergMarquardtSettings lm;
+  lm.max_iterations = 40;
+  lm.max_tries = std::numeric_limits<int>::max();
+  lm.max_lambda = 1e10;
+  lm.initial_lambda = 1e-3;
+  lm.increase = 4.0;
+  lm.decrease = 1.0;
+  lm.decrease_divisor = 3.0;
+  lm.min_lambda = 1e-9;
+  (void)common::levenberg_marquardt(problem, theta, cost, lm);
   set(theta);
   residual_cost(nullptr);
 }

@@ -9,7 +9,7 @@
 
 #include "harness.hpp"
 #include "sim_scanner.hpp"
-#include "../../src/rng.hpp"  // the core's splitmix64 hash
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning::eval {
 
@@ -17,8 +17,8 @@ namespace lc = tinyline::laser_clustering;
 
 namespace {
 
-using detail::mix;
-double uniform(std::uint64_t key) { return detail::unit_uniform(mix(key)); }
+using common::splitmix64;
+double uniform(std::uint64_t key) { return common::unit_open(splitmix64(key)); }
 
 FinderAnswer::Outcome convert(lc::PedicelOutcome o) {
   switch (o) {
@@ -158,7 +158,7 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
     if (!pose.ok()) continue;
     if (o_.random_offset_m > 0) {
       // Uniform in the disc square to the pedicel (the laser's x-z plane).
-      const std::uint64_t key = mix(s.seed * 7919 + static_cast<std::uint64_t>(k) * 31 + 5);
+      const std::uint64_t key = splitmix64(s.seed * 7919 + static_cast<std::uint64_t>(k) * 31 + 5);
       const double rad = o_.random_offset_m * std::sqrt(uniform(key)), ang = 2 * M_PI * uniform(key + 1);
       const Eigen::Vector3d off = pose.T_ref_laser.linear() * Eigen::Vector3d(rad * std::cos(ang), 0, rad * std::sin(ang));
       pose.T_ref_laser.translation() += off;

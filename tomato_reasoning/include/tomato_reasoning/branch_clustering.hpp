@@ -17,6 +17,8 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct BranchClusteringParams {
@@ -33,7 +35,7 @@ struct BranchClusteringParams {
   double max_extent_m = 0.6; ///< a cluster wider than this (bounding-box diagonal) is not one branch [m]
 };
 
-[[nodiscard]] std::string validate(const BranchClusteringParams& p);
+common::Validation validate(const BranchClusteringParams& p);
 
 struct Cluster {
   Indices indices;  ///< into the cloud

@@ -15,6 +15,8 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct HsiFilterParams {
@@ -27,7 +29,7 @@ struct HsiFilterParams {
 };
 
 /// Empty when usable, else why not.
-[[nodiscard]] std::string validate(const HsiFilterParams& p);
+common::Validation validate(const HsiFilterParams& p);
 
 struct Hsi {
   double h_deg = 0.0;

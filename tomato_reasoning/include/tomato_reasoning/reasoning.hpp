@@ -36,6 +36,8 @@
 
 #include "tomato_reasoning/sphere_ransac.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct ContactEdge {
@@ -61,7 +63,7 @@ struct ForceModelParams {
   std::uint64_t seed = 1;
 };
 
-[[nodiscard]] std::string validate(const ForceModelParams& p);
+common::Validation validate(const ForceModelParams& p);
 
 /// The distribution of one tomato's pedicel direction.
 class PedicelDistribution {

@@ -251,11 +251,8 @@ TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) 
   if (g.size() != 3 || !(Eigen::Vector3d(g[0], g[1], g[2]).norm() > 0))
     throw bus::ParamError({}, "node '" + full_name() + "': gravity needs 3 numbers, not all zero");
   p.gravity = Eigen::Vector3d(g[0], g[1], g[2]).normalized();
-  try {
-    pipeline_ = std::make_unique<TomatoPipeline>(p);
-  } catch (const std::invalid_argument& e) {
-    throw bus::ParamError({}, "node '" + full_name() + "': " + e.what());
-  }
+  require_valid(validate(p).within("tomato pipeline"));
+  pipeline_ = std::make_unique<TomatoPipeline>(p);
   views_ = declare_parameter("views", 1,
                               "camera views fused per detection: 1 (cloud), or 2 (cloud + cloud2 at cloud2_pose), as the "
                               "thesis's robot (4.5)",

@@ -19,6 +19,7 @@
 #include <tinyline/bus/names.hpp>
 #include <tinyline/bus/params.hpp>
 #include <tinyline/bus/qos.hpp>
+#include <tinyline/common/validation.hpp>
 #include <tinyline/msg/type_support.hpp>
 
 namespace tinyline::bus {
@@ -153,6 +154,10 @@ class Node {
   Clock& clock() { return context_->clock(); }
   Time now() const { return context_->clock().now(); }
   const Logger& logger() const { return logger_; }
+
+  /// A core's verdict on the parameters this node read: throws ParamError
+  /// "node '/ns/name': <reason>" when it is invalid.
+  void require_valid(const common::Validation& v) const;
 
   /// The topic a name given in code resolves to (namespace, ~, remaps).
   std::string resolve_topic(const std::string& name) const;

@@ -34,6 +34,8 @@
 #include <sim/scene.hpp>
 #include <sim/world.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::sim {
 
 enum class TrussClass : char { kA = 'A', kB = 'B', kC = 'C' };
@@ -75,7 +77,7 @@ struct TrussParams {
   double camera_jitter_m = 0.03;        ///< random lateral / vertical offset of the camera [m]
   double camera_yaw_jitter_deg = 10.0;
 
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 struct TrussTomato {
