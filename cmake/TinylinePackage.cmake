@@ -5,8 +5,9 @@
 #       PCL, FLANN, OpenCV, yaml-cpp, fmt, other cores and tinyline::common
 #       (linked to every core and node library), never on the bus or the
 #       messages: configure fails if it tries (the layering rule).
-#   tinyline_node_library(<name> SOURCES ... [DEPS ...])
+#   tinyline_node_library(<name> SOURCES ... [DEPS ...] [NOT_INSTALLED])
 #       Thin nodes. Adds tinyline::bus and tinyline::msgs. Include dir <pkg>/nodes/include.
+#       NOT_INSTALLED: for the build tree only (nodes on evaluation libraries).
 #   tinyline_test(<name> SOURCES ... [LIBS ...] [LABELS ...])
 #       A GoogleTest executable; each TEST() becomes a ctest entry.
 #
@@ -52,7 +53,7 @@ function(tinyline_core_library name)
 endfunction()
 
 function(tinyline_node_library name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "NOT_INSTALLED" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
   set(target tinyline_${name})
   add_library(${target} STATIC ${ARG_SOURCES})
   target_include_directories(${target} PUBLIC
@@ -60,8 +61,14 @@ function(tinyline_node_library name)
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::bus tinyline::msgs tinyline::common PRIVATE ${ARG_PRIVATE_DEPS})
   tinyline_apply_flags(${target})
-  _tinyline_export(${target} ${name})
   tinyline_layered_library(${target})
+  if(ARG_NOT_INSTALLED)
+    # For nodes built on libraries that are not installed (evaluation code):
+    # the build tree's tools and tests use them, a downstream project cannot.
+    add_library(tinyline::${name} ALIAS ${target})
+    return()
+  endif()
+  _tinyline_export(${target} ${name})
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include)
     install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   endif()

@@ -27,9 +27,10 @@
 #include <fmt/ranges.h>
 
 #include "harness.hpp"
-#include "sim_scanner.hpp"
+#include <sim/eval/scanner.hpp>
 
 namespace ev = tinyline::laser_clustering::eval;
+namespace sim = tinyline::sim;
 namespace lc = tinyline::laser_clustering;
 namespace fs = std::filesystem;
 
@@ -152,7 +153,7 @@ int main(int argc, char** argv) {
   // the tool-grasping tasks at 20-35 cm: the 8 mm lens. Both with a raw-mode
   // schedule short enough for close range (the default 20..700 pulses
   // saturates every pixel nearer than about 20 cm).
-  ev::SimScannerOptions gripper, tools;
+  sim::eval::SimScannerOptions gripper, tools;
   gripper.sensor_config = "tiny_tof_3p6mm.yaml";
   tools.sensor_config = "tiny_tof_8mm.yaml";
   for (auto* o : {&gripper, &tools}) {
@@ -162,7 +163,7 @@ int main(int argc, char** argv) {
     o->calibration_sets = 3;
   }
   if (!args.write_calibration.empty()) {
-    const auto c = ev::write_sim_calibration(gripper, args.write_calibration);
+    const auto c = sim::eval::write_sim_calibration(gripper, args.write_calibration);
     std::cout << fmt::format("wrote {}: {} sensor, raw pulses {}, rail 5-{:.0f} cm every {:.0f} mm, in-sample RMSE {:.1f} mm; "
                              "white paper's reflectance figure {:.1f} (2 %: {:.1f})\n",
                              args.write_calibration, gripper.sensor_config, fmt::join(gripper.raw_pulses, "/"),
@@ -172,8 +173,8 @@ int main(int argc, char** argv) {
   }
   const bool trusses = args.cases.count("random_offset") || args.cases.count("recognition_error");
   const bool metal = args.cases.count("stick") || args.cases.count("wrench");
-  std::unique_ptr<ev::Scanner> truss_scanner = trusses ? ev::make_sim_scanner(gripper) : nullptr;
-  std::unique_ptr<ev::Scanner> tool_scanner = metal ? ev::make_sim_scanner(tools) : nullptr;
+  std::unique_ptr<ev::Scanner> truss_scanner = trusses ? sim::eval::make_sim_scanner(gripper) : nullptr;
+  std::unique_ptr<ev::Scanner> tool_scanner = metal ? sim::eval::make_sim_scanner(tools) : nullptr;
   std::cout << "# laser_clustering evaluation\n\n";
   if (truss_scanner) std::cout << "trusses: " << truss_scanner->describe() << "\n\n";
   if (tool_scanner) std::cout << "stick and wrench: " << tool_scanner->describe() << "\n\n";

@@ -278,7 +278,7 @@ TEST(LaserClusteringLaunch, SimGripperPitchNeedsItsSceneAndNamesWhatIsWrong) {
   auto ctx = Launched::make_ctx();
   bus::DeterministicExecutor ex(ctx->clock());
   bus::NodeRegistry registry;
-  tinyline::laser_clustering::register_nodes(registry);
+  tinyline::sim::register_nodes(registry);
   bus::NodeOptions o;
   o.name = "arm";
   o.context = ctx;

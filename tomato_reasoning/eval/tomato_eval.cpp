@@ -30,9 +30,7 @@
 #include "tomato_reasoning/eval/scoring.hpp"
 #include "tomato_reasoning/eval/variants.hpp"
 #include "tomato_reasoning/pipeline.hpp"
-#ifdef TINYLINE_TOMATO_HAVE_LASER
 #include "tomato_reasoning/eval/verification.hpp"
-#endif
 
 using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
@@ -173,7 +171,6 @@ int main(int argc, char** argv) {
     r.csv << eval::csv_header();
     runs.push_back(std::move(r));
   }
-#ifdef TINYLINE_TOMATO_HAVE_LASER
   std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
   std::ofstream vcsv;
   std::map<std::string, std::map<std::string, int>> vcount;  // case -> verdict -> n
@@ -193,12 +190,6 @@ int main(int argc, char** argv) {
     vcsv.open(out_dir + "/verification.csv");
     vcsv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,depth_error_mm,move_mm,confidence,reason\n";
   }
-#else
-  if (verify) {
-    std::fprintf(stderr, "tomato_eval: built without laser_clustering's evaluation scanner: --verify unavailable\n");
-    return 2;
-  }
-#endif
   // kappa sweep: hits of the truth in the HPD50 region per kappa, from the
   // first variant's draws (the draws do not depend on kappa).
   std::vector<int> kappa_hits(kappas.size(), 0);
@@ -230,7 +221,6 @@ int main(int argc, char** argv) {
                       static_cast<unsigned long long>(seed), ts.truth, ts.detected, ts.unmatched, ts.times.total_ms(),
                       ts.ok ? "" : (ts.stage + ": " + ts.reason).c_str());
         }
-#ifdef TINYLINE_TOMATO_HAVE_LASER
         if (verify && &run == &runs.front()) {
           for (auto* h : {as_recognised.get(), with_offset.get()}) {
             const std::string name = h == as_recognised.get() ? "as_recognised" : "random_offset";
@@ -245,7 +235,6 @@ int main(int argc, char** argv) {
             }
           }
         }
-#endif
         run.by_class[*cls.c_str()].push_back(ts);
         run.scores.push_back(ts);
       }
@@ -275,7 +264,6 @@ int main(int argc, char** argv) {
     row("all", all);
     js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
   }
-#ifdef TINYLINE_TOMATO_HAVE_LASER
   if (verify) {
     std::printf("\nlaser verification (%s): picks of detected tomatoes\n%-15s %7s %9s %9s %9s %9s %12s\n", runs.front().name.c_str(),
                 "case", "trials", "aligned", "wrong", "out_view", "nothing", "vision_only");
@@ -285,7 +273,6 @@ int main(int argc, char** argv) {
                   100 * c["wrong"] / n, 100 * c["out_of_view"] / n, 100 * c["nothing_found"] / n, 100 * vision_ok[name] / n);
     }
   }
-#endif
   if (fit_kappa) {
     // Coverage falls with kappa (a narrower kernel, a smaller region), so the
     // grid point closest to 50 % is the fit; ties go to the smaller kappa.

@@ -10,8 +10,6 @@
 
 #include <tiny_laser_driver/public_driver_sensors.hpp>
 
-#include "sim_port.hpp"
-
 namespace tinyline::tiny_laser_driver {
 
 namespace fs = std::filesystem;
@@ -117,7 +115,6 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
   po.serial.baud = p.baud;
   po.mode = mode_;
   po.laser_on_at_start = p.sequence_slot < 0;
-  detail::register_sim_port_scheme();
   try {
     opener_ = io::make_port_opener(p.port, po);  // parses the spec; opens nothing
   } catch (const std::invalid_argument& e) {

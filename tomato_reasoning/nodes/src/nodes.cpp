@@ -58,11 +58,6 @@ Marker arrow(const std_msgs::msg::Header& h, const std::string& ns, int id, cons
   return m;
 }
 
-std::vector<std::function<void(bus::NodeRegistry&)>>& extras() {
-  static std::vector<std::function<void(bus::NodeRegistry&)>> list;
-  return list;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------- conversions
@@ -519,17 +514,11 @@ void PickVerifierNode::summary() {
 
 namespace tinyline::tomato_reasoning {
 
-bool add_extra_nodes(std::function<void(bus::NodeRegistry&)> registrar) {
-  nodes::extras().push_back(std::move(registrar));
-  return true;
-}
-
 void register_nodes(bus::NodeRegistry& r) {
   r.add<nodes::TomatoDetectorNode>("tomato_reasoning", "tomato_detector",
                                    "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
   r.add<nodes::PickVerifierNode>("tomato_reasoning", "pick_verifier",
                                  "picking poses in order, the hand laser's pedicel finding -> cut here / move / nothing (4.4)");
-  for (const auto& f : nodes::extras()) f(r);
 }
 
 }  // namespace tinyline::tomato_reasoning

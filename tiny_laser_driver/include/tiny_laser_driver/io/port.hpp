@@ -4,9 +4,9 @@
 //   usb:A50285BI      the sensor whose USB serial number is A50285BI, found
 //                     again (and its tty looked up again) at every reconnect
 //   SCHEME:ARG        a scheme registered at run time: "sim:SCENE.yaml" (the
-//                     simulator's virtual device, registered by the driver's
-//                     node library when built with the simulator), "mem:NAME"
-//                     (an in-memory link, for tests and embedding)
+//                     simulator's virtual device, registered by the simulator's
+//                     register_nodes(), which the `tinyline` tool calls),
+//                     "mem:NAME" (an in-memory link, for tests and embedding)
 #pragma once
 
 #include <functional>

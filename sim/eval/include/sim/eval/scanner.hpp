@@ -8,13 +8,33 @@
 // then pixels without a usable return dropped (see the options).
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "harness.hpp"
+#include <Eigen/Geometry>
 
-namespace tinyline::laser_clustering::eval {
+#include <laser_clustering/line_scan.hpp>
+#include <sim/world.hpp>
+
+namespace tinyline::sim::eval {
+
+/// One calibrated scan with the ground truth of every pixel.
+struct SimulatedScan {
+  laser_clustering::LineScan scan;
+  std::vector<ObjectId> truth_object;    ///< per pixel: what its central ray hits (kNoObject: nothing)
+  std::vector<std::uint8_t> truth_mixed;  ///< per pixel: its footprint spans several surfaces
+};
+
+/// Produces scans of a world from a sensor pose. `index` seeds the scan's noise.
+class Scanner {
+ public:
+  virtual ~Scanner() = default;
+  virtual SimulatedScan scan(const World& world, const Eigen::Isometry3d& T_world_sensor, std::uint64_t index) = 0;
+  /// One line for reports (sensor model, lens, calibration).
+  [[nodiscard]] virtual std::string describe() const = 0;
+};
 
 struct SimScannerOptions {
   /// Sensor YAML (relative paths resolve against the source tree's sim/config/sensors).
@@ -41,6 +61,7 @@ struct SimScannerOptions {
   double min_range_m = 0.05, max_range_m = 2.0;
 };
 
+/// The simulated sensor and the driver's processing, calibrated as above.
 /// Builds the sensor and fits its calibration (a few seconds). Throws
 /// std::runtime_error when the sensor config cannot be read or the fit fails.
 [[nodiscard]] std::unique_ptr<Scanner> make_sim_scanner(const SimScannerOptions& options = {});
@@ -56,4 +77,4 @@ struct SimCalibrationSummary {
 /// does. Throws std::runtime_error as make_sim_scanner.
 SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, const std::string& path);
 
-}  // namespace tinyline::laser_clustering::eval
+}  // namespace tinyline::sim::eval

@@ -9,7 +9,7 @@
 //   truth         tinyline_msgs/CircleFit  the true cylinder in the robot frame (for scoring)
 //   base_pose     geometry_msgs/PoseStamped  the base in the scene's fixed frame ("world"), as odometry
 //
-// Built only when the simulator is (TARGET tinyline::sim_core).
+// Registered as hydrus_fitting/hydrus_sim (launch/hydrus_grasp.launch.yaml).
 #pragma once
 
 #include <memory>
@@ -21,16 +21,17 @@
 #include <tinyline/msg/sensor_msgs/joint_state.hpp>
 #include <tinyline/msg/tinyline_msgs/circle_fit.hpp>
 
-#include "hydrus_fitting/robot_model.hpp"
-#include "hydrus_fitting/trajectory.hpp"
+#include <hydrus_fitting/robot_model.hpp>
+#include <hydrus_fitting/trajectory.hpp>
 
 namespace tinyline::sim {
 class SimulatedSystem;
-}
-
-namespace tinyline::hydrus_fitting {
-
+namespace eval {
 class SimulatedHydrus;
+}
+}  // namespace tinyline::sim
+
+namespace tinyline::sim::nodes {
 
 class HydrusSimNode : public bus::Node {
  public:
@@ -47,10 +48,10 @@ class HydrusSimNode : public bus::Node {
   std::string scene_path_, description_path_, frame_id_;
   double rate_hz_ = 100.0;
   bool loop_ = true;
-  ApproachParams approach_;
-  std::unique_ptr<RobotModel> model_;
-  std::shared_ptr<sim::SimulatedSystem> system_;
-  std::unique_ptr<SimulatedHydrus> robot_;
+  hydrus_fitting::ApproachParams approach_;
+  std::unique_ptr<hydrus_fitting::RobotModel> model_;
+  std::shared_ptr<SimulatedSystem> system_;
+  std::unique_ptr<eval::SimulatedHydrus> robot_;
   bus::Time start_{};
   bool started_ = false;
   double last_t_ = 0.0;
@@ -60,4 +61,4 @@ class HydrusSimNode : public bus::Node {
   std::shared_ptr<bus::Timer> timer_;
 };
 
-}  // namespace tinyline::hydrus_fitting
+}  // namespace tinyline::sim::nodes

@@ -1,4 +1,4 @@
-#include "sim_scanner.hpp"
+#include <sim/eval/scanner.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -17,7 +17,7 @@
 #include <tiny_laser_driver/calibration_fit.hpp>
 #include <tiny_laser_driver/scan_processor.hpp>
 
-namespace tinyline::laser_clustering::eval {
+namespace tinyline::sim::eval {
 
 namespace {
 
@@ -147,7 +147,7 @@ class SimScanner : public Scanner {
     }
     // Saturated pixels: their fewest-pulse light as a reflectance lower bound,
     // as the nodes do (line_scan.hpp).
-    (void)saturated_reflectance_bound(s.scan, saturated_, intensity_);
+    (void)laser_clustering::saturated_reflectance_bound(s.scan, saturated_, intensity_);
     return s;
   }
 
@@ -185,4 +185,4 @@ SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, co
   return {c.rmse_m, white_reflectance(options, params, processor)};
 }
 
-}  // namespace tinyline::laser_clustering::eval
+}  // namespace tinyline::sim::eval

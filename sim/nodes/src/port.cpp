@@ -1,22 +1,20 @@
-// The `sim:SCENE.yaml[#sensor]` port: the simulator's virtual device started
-// in-process, opened through its pseudo-terminal like a real port. Built when
-// the simulator's virtual device is part of the build.
-#include "sim_port.hpp"
+#include <sim/nodes/port.hpp>
+
+#include "parts.hpp"
 
 #include <mutex>
 
 #include <fmt/format.h>
 
+#include <sim/virtual_device.hpp>
 #include <tiny_laser_driver/io/port.hpp>
 
-#if TINYLINE_DRIVER_HAVE_SIM
-#include <sim/virtual_device.hpp>
-#endif
+namespace tinyline::sim {
 
-namespace tinyline::tiny_laser_driver::detail {
-
-#if TINYLINE_DRIVER_HAVE_SIM
 namespace {
+
+namespace io = tiny_laser_driver::io;
+using tiny_laser_driver::StreamMode;
 
 class SimOpener : public io::PortOpener {
  public:
@@ -28,12 +26,12 @@ class SimOpener : public io::PortOpener {
   io::OpenResult open() override {
     if (!device_) {
       // Started on the first open (on_start), never in a constructor: no I/O before then.
-      sim::VirtualDeviceOptions o;
+      VirtualDeviceOptions o;
       o.baud = options_.serial.baud;
-      o.mode = options_.mode == StreamMode::Raw ? sim::FirmwareMode::kRaw : sim::FirmwareMode::kDistance;
+      o.mode = options_.mode == StreamMode::Raw ? FirmwareMode::kRaw : FirmwareMode::kDistance;
       o.laser_on = options_.laser_on_at_start;
       try {
-        auto dev = sim::VirtualDevice::from_port("sim:" + arg_, o);
+        auto dev = VirtualDevice::from_port("sim:" + arg_, o);
         dev->start();
         device_ = std::move(dev);
       } catch (const std::exception& e) {
@@ -50,12 +48,12 @@ class SimOpener : public io::PortOpener {
  private:
   std::string arg_;
   io::PortOptions options_;
-  std::unique_ptr<sim::VirtualDevice> device_;
+  std::unique_ptr<VirtualDevice> device_;
 };
 
 }  // namespace
 
-void register_sim_port_scheme() {
+void register_port_scheme() {
   static std::once_flag once;
   std::call_once(once, [] {
     io::register_port_scheme("sim", [](const std::string& arg, const io::PortOptions& o) -> std::unique_ptr<io::PortOpener> {
@@ -63,8 +61,6 @@ void register_sim_port_scheme() {
     });
   });
 }
-#else
-void register_sim_port_scheme() {}
-#endif
+void nodes::register_port(bus::NodeRegistry&) { register_port_scheme(); }
 
-}  // namespace tinyline::tiny_laser_driver::detail
+}  // namespace tinyline::sim

@@ -1,4 +1,6 @@
-#include "sim_gripper.hpp"
+#include <sim/nodes/gripper_pitch_node.hpp>
+
+#include "parts.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -7,7 +9,7 @@
 
 #include <fmt/format.h>
 
-namespace tinyline::laser_clustering::nodes {
+namespace tinyline::sim::nodes {
 
 namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
@@ -78,10 +80,10 @@ void SimGripperPitchNode::publish_state() {
   state_pub_->publish(std::move(s));
 }
 
-void register_sim_nodes(bus::NodeRegistry& r) {
+void register_gripper_nodes(bus::NodeRegistry& r) {
   r.add<SimGripperPitchNode>("laser_clustering", "sim_gripper_pitch",
                              "simulator only: a gripper pitch joint carrying a scene's sensor (joint_command -> "
                              "sensor pose, joint_states)");
 }
 
-}  // namespace tinyline::laser_clustering::nodes
+}  // namespace tinyline::sim::nodes

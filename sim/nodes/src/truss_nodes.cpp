@@ -14,8 +14,8 @@
 //     publishes `scan` (tinyline_msgs/LineScan); a `verification` that cuts
 //     harvests the fruit (it leaves the world with its pedicel).
 //
-// Not installed (they need the evaluation libraries); they join the node
-// registry through add_extra_nodes() when linked into the `tinyline` tool.
+// Registered under tomato_reasoning/ (launch/tomato_harvest.launch.yaml); the
+// scenario and the hand laser are the tomato evaluation's (tomato_reasoning/eval).
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -27,20 +27,21 @@
 #include <tinyline/msg/tinyline_msgs/pick_verification.hpp>
 #include <tinyline/msg/visualization_msgs/marker_array.hpp>
 
-#include <harness.hpp>
-#include <sim_scanner.hpp>
-
 #include <tinyline/msg/eigen.hpp>
 
-#include "tomato_reasoning/eval/scenario.hpp"
-#include "tomato_reasoning/eval/verification.hpp"
-#include "tomato_reasoning/nodes/nodes.hpp"
-#include "tomato_reasoning/nodes/register.hpp"
+#include <sim/eval/scanner.hpp>
+#include <tomato_reasoning/eval/scenario.hpp>
+#include <tomato_reasoning/eval/verification.hpp>
+#include <tomato_reasoning/nodes/nodes.hpp>
 
-namespace tinyline::tomato_reasoning::nodes {
+#include "parts.hpp"
+
+namespace tinyline::sim::nodes {
 
 namespace msgs = tinyline_msgs::msg;
+namespace te = tomato_reasoning::eval;
 using bus::ParamConstraints;
+using tomato_reasoning::nodes::to_msg;
 
 namespace {
 
@@ -69,9 +70,9 @@ class TrussCameraNode : public bus::Node {
     truth_pub_ = create_publisher<visualization_msgs::msg::MarkerArray>("truth");
   }
   void on_start() override {
-    eval::ScenarioOptions so;
+    te::ScenarioOptions so;
     so.views = views_;
-    scenario_ = std::make_unique<eval::Scenario>(eval::make_scenario(class_, std::uint64_t(seed_), so));
+    scenario_ = std::make_unique<te::Scenario>(te::make_scenario(class_, std::uint64_t(seed_), so));
     logger().info("truss class {} seed {}: {} tomatoes, camera {:.2f} m away, {} view(s)", char(class_), seed_,
                   scenario_->truth.size(), scenario_->truss.params.camera_distance_m, views_);
     // The first frame one period after start: every node (the recorder too) is listening by then.
@@ -123,7 +124,7 @@ class TrussCameraNode : public bus::Node {
   double rate_hz_ = 1.0;
   int views_ = 1;
   std::string frame_id_;
-  std::unique_ptr<eval::Scenario> scenario_;
+  std::unique_ptr<te::Scenario> scenario_;
   std::shared_ptr<bus::Publisher<sensor_msgs::msg::PointCloud2>> cloud_pub_, cloud2_pub_;
   std::shared_ptr<bus::Publisher<geometry_msgs::msg::PoseStamped>> pose2_pub_;
   std::shared_ptr<bus::Publisher<visualization_msgs::msg::MarkerArray>> truth_pub_;
@@ -148,7 +149,7 @@ class HandLaserNode : public bus::Node {
     p.seed = std::uint64_t(seed_);
     truss_ = sim::make_truss(p);
     (void)sim::add_to_world(truss_, world_);
-    scanner_ = eval::make_hand_laser(eval::VerificationOptions{});  // the hand laser the scoring uses
+    scanner_ = te::make_hand_laser(te::VerificationOptions{});  // the hand laser the scoring uses
     logger().info("hand laser: {}", scanner_->describe());
   }
 
@@ -203,21 +204,18 @@ class HandLaserNode : public bus::Node {
   std::string frame_id_;
   sim::Truss truss_;
   sim::World world_;
-  std::unique_ptr<laser_clustering::eval::Scanner> scanner_;
+  std::unique_ptr<eval::Scanner> scanner_;
   std::uint64_t index_ = 0;
   std::shared_ptr<bus::Publisher<msgs::LineScan>> scan_pub_;
   std::shared_ptr<bus::Subscription<geometry_msgs::msg::PoseStamped>> pose_sub_;
   std::shared_ptr<bus::Subscription<msgs::PickVerification>> verification_sub_;
 };
 
-namespace {
-// Runs at static initialisation: this object library is linked whole.
-const bool registered = add_extra_nodes([](bus::NodeRegistry& r) {
+void register_truss_nodes(bus::NodeRegistry& r) {
   r.add<TrussCameraNode>("tomato_reasoning", "truss_camera",
                          "simulated RGB-D camera on a seeded tomato truss (class A/B/C): cloud + truth markers");
   r.add<HandLaserNode>("tomato_reasoning", "hand_laser",
                        "simulated tiny laser on the hand in the same truss: pick_pose -> scan; harvests verified cuts");
-});
-}  // namespace
+}
 
-}  // namespace tinyline::tomato_reasoning::nodes
+}  // namespace tinyline::sim::nodes

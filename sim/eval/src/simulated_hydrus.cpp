@@ -1,4 +1,4 @@
-#include "hydrus_fitting/simulated_hydrus.hpp"
+#include <sim/eval/simulated_hydrus.hpp>
 
 #include <stdexcept>
 
@@ -6,7 +6,11 @@
 
 #include <sim/scenes/hydrus.hpp>
 
-namespace tinyline::hydrus_fitting {
+namespace tinyline::sim::eval {
+
+using hydrus_fitting::RobotModel;
+using hydrus_fitting::Kinematics;
+using hydrus_fitting::RobotPose2D;
 
 SimulatedHydrus::SimulatedHydrus(sim::SimulatedSystem& system, const RobotModel& model)
     : system_(&system), model_(&model) {
@@ -58,4 +62,4 @@ void SimulatedHydrus::place(const RobotPose2D& pose) {
   }
 }
 
-}  // namespace tinyline::hydrus_fitting
+}  // namespace tinyline::sim::eval

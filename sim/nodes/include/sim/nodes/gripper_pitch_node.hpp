@@ -1,7 +1,7 @@
-// A gripper pitch joint for the simulator (built when the simulator is): it
-// carries a scene's tiny TOF sensor, so that the pitch sweep of 5.3.2 runs
-// end to end on simulated scans (launch/wrench_align.launch.yaml). Not an
-// algorithm: the robot's arm controller stands here on a real robot.
+// A gripper pitch joint for the simulator: it carries a scene's tiny TOF
+// sensor, so that the pitch sweep of 5.3.2 runs end to end on simulated scans
+// (launch/wrench_align.launch.yaml, as laser_clustering/sim_gripper_pitch).
+// Not an algorithm: the robot's arm controller stands here on a real robot.
 #pragma once
 
 #include <memory>
@@ -11,10 +11,9 @@
 
 #include <sim/system.hpp>
 #include <tinyline/bus/node.hpp>
-#include <tinyline/bus/registry.hpp>
 #include <tinyline/msg/sensor_msgs/joint_state.hpp>
 
-namespace tinyline::laser_clustering::nodes {
+namespace tinyline::sim::nodes {
 
 /// joint_command (sensor_msgs/JointState, the pitch_joint's position) ->
 /// the scene sensor's pose: rotated about its own x axis (along the pixel
@@ -34,7 +33,7 @@ class SimGripperPitchNode : public bus::Node {
   std::string scene_path_, sensor_name_, joint_;
   double pivot_behind_m_ = 0.0, mount_pitch_rad_ = 0.0, pitch_rad_ = 0.0;
   double min_pitch_rad_ = 0.0, max_pitch_rad_ = 0.0, rate_hz_ = 0.0;
-  std::shared_ptr<sim::SimulatedSystem> system_;
+  std::shared_ptr<SimulatedSystem> system_;
   std::size_t sensor_ = 0;
   Eigen::Isometry3d T_base_ = Eigen::Isometry3d::Identity();  // the scene's sensor pose
   std::shared_ptr<bus::Publisher<sensor_msgs::msg::JointState>> state_pub_;
@@ -42,6 +41,4 @@ class SimGripperPitchNode : public bus::Node {
   std::shared_ptr<bus::Timer> timer_;
 };
 
-void register_sim_nodes(bus::NodeRegistry& registry);
-
-}  // namespace tinyline::laser_clustering::nodes
+}  // namespace tinyline::sim::nodes

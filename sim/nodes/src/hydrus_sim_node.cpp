@@ -1,15 +1,21 @@
-#include "hydrus_fitting/nodes/hydrus_sim_node.hpp"
+#include <sim/nodes/hydrus_sim_node.hpp>
+
+#include "parts.hpp"
 
 #include <cmath>
 #include <numbers>
 
 #include <fmt/format.h>
 
+#include <sim/eval/simulated_hydrus.hpp>
 #include <sim/system.hpp>
+#include <tinyline/bus/registry.hpp>
 
-#include "hydrus_fitting/simulated_hydrus.hpp"
+namespace tinyline::sim::nodes {
 
-namespace tinyline::hydrus_fitting {
+using hydrus_fitting::ApproachParams;
+using hydrus_fitting::RobotModel;
+using hydrus_fitting::RobotPose2D;
 
 using bus::ParamConstraints;
 namespace msgs = tinyline_msgs::msg;
@@ -57,7 +63,7 @@ void HydrusSimNode::on_start() {
   approach_.joints = static_cast<int>(model_->joint_names().size());
   // The same system as the drivers' `sim:` devices of this process.
   system_ = sim::SimulatedSystem::shared(scene_path_);
-  robot_ = std::make_unique<SimulatedHydrus>(*system_, *model_);
+  robot_ = std::make_unique<eval::SimulatedHydrus>(*system_, *model_);
   robot_->place(approach_pose(approach_, 0.0));
   logger().info("flying '{}' in scene '{}': {} s manoeuvre{}", model_->name(), system_->scene_name(),
                 approach_.duration_s(), loop_ ? ", looped" : "");
@@ -110,4 +116,10 @@ void HydrusSimNode::tick() {
   truth_pub_->publish(std::move(truth));
 }
 
-}  // namespace tinyline::hydrus_fitting
+void register_hydrus_nodes(bus::NodeRegistry& r) {
+  r.add<HydrusSimNode>("hydrus_fitting", "hydrus_sim",
+                       "flies the simulated Hydrus of a scene through the grasp: moves its links and sensors, "
+                       "publishes joint states and the true cylinder");
+}
+
+}  // namespace tinyline::sim::nodes
