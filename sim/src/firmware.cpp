@@ -4,8 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
-#include <tiny_laser_driver/calibration_data.hpp>
-#include <tiny_laser_driver/calibration_fit.hpp>
+#include <tiny_laser_calibration/data.hpp>
+#include <tiny_laser_calibration/fit.hpp>
 
 #include <sim/fidelity.hpp>
 #include <sim/rail.hpp>
@@ -13,6 +13,7 @@
 namespace tinyline::sim {
 
 namespace tld = tiny_laser_driver;
+namespace cal = tiny_laser_calibration;
 
 tld::CalibrationModel factory_calibration(const SensorParams& params) {
   // A white-paper sweep without noise, across the line and through the
@@ -21,7 +22,7 @@ tld::CalibrationModel factory_calibration(const SensorParams& params) {
   CalibrationRail rail(params);
   MeasureOptions clean;
   clean.noise = false;
-  tld::CalibrationDataset data;
+  cal::CalibrationDataset data;
   data.source = "factory sweep";
   const int n = rail.sensor().pixels(), dark = params.lens.dark_pixels;
   std::vector<int> pixels;
@@ -49,15 +50,15 @@ tld::CalibrationModel factory_calibration(const SensorParams& params) {
       }
     }
   }
-  tld::DeclaredFitParams fp;
+  cal::DeclaredFitParams fp;
   fp.degree = 6;
-  fp.sensitivity_ratio_mode = tld::SensitivityRatioMode::kFixed;  // the public driver's k = b / (a + b)
+  fp.sensitivity_ratio_mode = cal::SensitivityRatioMode::kFixed;  // the public driver's k = b / (a + b)
   fp.sensitivity_ratio = 1.0;
   fp.fit_leakage = true;
   fp.fit_temperature = true;
   fp.temperature_reference_c = params.thermal.warm_c;
-  fp.selection = tld::ReadoutSelection::kDriver;
-  const tld::DeclaredFitResult fit = tld::fit_declared_model(data, fp);
+  fp.selection = cal::ReadoutSelection::kDriver;
+  const cal::DeclaredFitResult fit = cal::fit_declared_model(data, fp);
   if (!fit.ok) throw std::runtime_error("factory calibration failed: " + fit.reason);
   return fit.model;
 }

@@ -20,7 +20,6 @@
 #include <tiny_laser_driver/nodes/register.hpp>
 
 #include "synthetic_raw_set.hpp"
-#include "temp_dir.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
 namespace tt = tinyline::tiny_laser_driver::testing;
@@ -48,7 +47,7 @@ Bytes make_set(int seed = 0) {
   });
 }
 
-using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
+using TempDir = tinyline::bus::testing::TempDir;
 
 // A small fixture: the stepped sim-time graph of bus/testing.hpp from
 // t = 100 s, an in-memory device reachable as mem:NAME, the driver, and

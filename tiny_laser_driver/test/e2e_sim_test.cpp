@@ -30,7 +30,6 @@
 #include <tiny_laser_driver/io/port.hpp>
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 
-#include "temp_dir.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
 namespace sim = tinyline::sim;
@@ -44,7 +43,7 @@ namespace {
 
 constexpr auto kPatience = 60s;  // generous: the machine may be shared; a pass is usually a few seconds
 
-using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
+using TempDir = tinyline::bus::testing::TempDir;
 
 // The calibration rail scene (white paper at 0.5 m, 8 mm sensor) on a virtual
 // device, and the driver reading it.

@@ -14,7 +14,7 @@
 #include <sim/rail.hpp>
 #include <sim/tof_sensor.hpp>
 #include <tiny_laser_driver/calibration.hpp>
-#include <tiny_laser_driver/calibration_fit.hpp>
+#include <tiny_laser_calibration/fit.hpp>
 #include <tiny_laser_driver/scan_processor.hpp>
 
 namespace tinyline::sim::eval {
@@ -22,6 +22,7 @@ namespace tinyline::sim::eval {
 namespace {
 
 namespace tld = tinyline::tiny_laser_driver;
+namespace cal = tinyline::tiny_laser_calibration;
 
 std::string resolve(const std::string& config) {
   const std::filesystem::path p(config);
@@ -63,7 +64,7 @@ Calibration calibrate(const SimScannerOptions& o, const sim::SensorParams& param
   sim::CalibrationRail rail(params);
   std::vector<int> pixels;
   for (int p = params.lens.dark_pixels; p < params.lens.pixels - params.lens.dark_pixels; ++p) pixels.push_back(p);
-  tld::CalibrationDataset data;
+  cal::CalibrationDataset data;
   data.source = "simulated white-paper rail";
   double t = o.t_start_s;
   std::uint64_t index = 1u << 30;  // not the scans' indices
@@ -84,7 +85,7 @@ Calibration calibrate(const SimScannerOptions& o, const sim::SensorParams& param
       t += std::max(0.05, set.t_end_s - set.t_start_s);
     }
   }
-  const auto fit = tld::fit_declared_model(data);
+  const auto fit = cal::fit_declared_model(data);
   if (!fit.ok) throw std::runtime_error("sim scanner: calibration fit failed: " + fit.reason);
   return {fit.model, fit.rmse_m};
 }

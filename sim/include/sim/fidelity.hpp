@@ -10,7 +10,7 @@
 //    to 40 % or 20 %); one data point per distance = the mean read-out of 10
 //    sets; "multi-discharge" pools 10-80 %. Fits: linear (Eq. 3.16), 3rd and
 //    6th degree polynomial in X (Eq. 3.18), made by the project's calibration
-//    fitter (tiny_laser_driver/calibration_fit.hpp) with R_sen and V_le fixed
+//    fitter (tiny_laser_calibration/fit.hpp) with R_sen and V_le fixed
 //    to the measured constants.
 //  * Table 3.1: white paper at 20.5-125 cm, continuous raw mode (the default
 //    read-out schedule), per pixel the read-out with the most pulses that is
