@@ -8,6 +8,8 @@
 
 #include <tiny_laser_driver/protocol.hpp>
 
+#include <tinyline/common/cli.hpp>
+
 namespace tl = tinyline::tiny_laser_driver;
 
 namespace {
@@ -48,11 +50,10 @@ void write(const std::string& dir, const std::string& name, std::uint8_t mode, c
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s SEED_DIR\n", argv[0]);
-    return 2;
-  }
-  const std::string dir = argv[1];
+  std::string dir;
+  CLI::App app{"Writes the seed corpus of the driver's parser fuzzer.", "driver_parser_fuzz_seeds"};
+  app.add_option("SEED_DIR", dir, "directory to write into")->required();
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   const std::uint8_t raw5 = 4 << 1;  // readouts 5, raw mode
   auto two = raw_set(1);
   const auto second = raw_set(2);
