@@ -48,7 +48,7 @@ struct Args {
   int pictures = 4;        ///< scans of the first K trials of each case
   int failure_pictures = 4;  ///< and of the first K truss trials that did not align
   /// Raw-mode schedule of both sensors [pulses]: the nearest to close work a
-  /// real sensor can run (the wire sets pulses in tens, wire_protocol.md).
+  /// real sensor can run (the wire sets pulses in tens, tiny_laser_driver/protocol.hpp).
   std::vector<int> raw_pulses = {10, 20, 50, 120, 300};
   int rescans = 2;  ///< truss cases: scans after the first move (TrussEvalOptions::rescans)
   bool tomato_look = true;  ///< TrussEvalOptions::tomato_look

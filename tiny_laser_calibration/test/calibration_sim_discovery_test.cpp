@@ -1,4 +1,4 @@
-// The residual loop (issue 6) on data from the simulator (sim/), with its
+// The residual loop on data from the simulator (sim/), with its
 // pluggable effects (sim/effects.hpp) configured per sensor instance: the
 // declared-physics sensor (sim/config/sensors/tiny_tof_declared.yaml) plus one
 // undeclared effect at a time, on the simulated calibration rail
@@ -114,7 +114,7 @@ cal::CalibrationDataset simulate(const sim::SensorParams& params, const RailPlan
   return data;
 }
 
-// Table 3.2's matte surfaces and their mean reading at 30 cm [cm] (measured.yaml).
+// Table 3.2's matte surfaces and their mean reading at 30 cm [cm].
 const std::vector<std::pair<std::string, double>> kTable32MatteCm = {
     {"white_paper", 30.0705}, {"black_cushion", 30.7909}, {"cloth_bag", 30.9971}, {"styrofoam", 30.9759},
     {"white_towel", 30.3708}, {"cardboard", 31.0308},     {"ic_foam", 39.8339}};
@@ -206,7 +206,7 @@ TEST(CalibrationSimDiscovery, NullCaseNamesNothingAndKeepsTheError) {
 }
 
 TEST(CalibrationSimDiscovery, MaterialBiasOfTable32IsNamed) {
-  // Table 3.2 (measured.yaml materials_at_30cm): calibrated on white paper at 30.07 cm,
+  // Table 3.2: calibrated on white paper at 30.07 cm,
   // other surfaces read up to +9.8 cm long (IC foam). As subsurface path per material
   // (a range offset is half the extra optical path). The driver cannot know the
   // material, so the term must follow what it can measure: the surface's albedo.

@@ -97,7 +97,7 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
       const double d_m = ev.distance_m;
       const double d_cm = 100.0 * d_m;
       out.distance_m[p] = static_cast<float>(d_m);
-      out.reflectance[p] = static_cast<float>(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));  // measured.yaml
+      out.reflectance[p] = static_cast<float>(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));  // the sensor's reflectance figure
       out.status[p] = PixelStatus::kValid;
       ++out.valid;
       continue;

@@ -2,7 +2,7 @@
 //
 // Distance-only mode (thesis 4.4.1, Algorithm 2): the firmware reads the
 // capacitors at each count of its accumulation buffer (default
-// measured.yaml's firmware_accumulation_pulses: 10, 100, 200, 400, 550, 700),
+// the firmware's accumulation buffer: 10, 100, 200, 400, 550, 700),
 // keeps per pixel the read-out with the most pulses that is valid under the
 // public driver's rule, and maps it to a distance with its on-board
 // calibration. The on-board calibration is the public driver's form: one

@@ -1,5 +1,5 @@
 // The simulated sensor behind a pseudo-terminal that speaks the real serial
-// framing (reference/wire_protocol.md, tiny_laser_driver/protocol.hpp), so a
+// framing (tiny_laser_driver/protocol.hpp), so a
 // driver cannot tell it from the hardware. docs/simulator.md lists the bytes.
 //
 //   auto sys = SimulatedSystem::from_file("sim/config/scenes/calibration_rail.yaml");

@@ -23,7 +23,7 @@ namespace tinyline::tiny_laser_driver {
 /// The receiver's optics: what maps a pixel to its ray.
 struct OpticsParams {
   double focal_mm = 3.6;           ///< receiver lens focal length [mm] (3.6 or 8 mm shipped)
-  double sensor_length_mm = 5.12;  ///< length of the 256 effective pixels [mm] (measured.yaml)
+  double sensor_length_mm = 5.12;  ///< length of the 256 effective pixels [mm] (the sensor's data)
 
   /// Why these cannot work (empty when they can).
   common::Validation validate() const;
@@ -48,7 +48,7 @@ struct ProcessedScan {
   static constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
   std::array<float, kPixels> distance_m{};    ///< along the pixel's ray; NaN unless kValid
   std::array<float, kPixels> intensity{};     ///< (a + b) / pulses of the chosen read-out [charge_unit per pulse]
-  std::array<float, kPixels> reflectance{};   ///< distance_cm^2 (a + b) / (pulses / 10) (measured.yaml); NaN unless kValid
+  std::array<float, kPixels> reflectance{};   ///< distance_cm^2 (a + b) / (pulses / 10) (the sensor's reflectance figure); NaN unless kValid
   std::array<std::uint16_t, kPixels> pulses{};  ///< pulses of the chosen read-out (0: none)
   std::array<std::int8_t, kPixels> readout{};   ///< index of the chosen read-out in the set (-1: none)
   std::array<PixelStatus, kPixels> status{};
