@@ -1,13 +1,13 @@
 #include <sim/nodes/port.hpp>
 
-#include "parts.hpp"
-
 #include <mutex>
 
 #include <fmt/format.h>
 
 #include <sim/virtual_device.hpp>
 #include <tiny_laser_driver/io/port.hpp>
+
+#include "parts.hpp"
 
 namespace tinyline::sim {
 
@@ -61,6 +61,7 @@ void register_port_scheme() {
     });
   });
 }
+
 void nodes::register_port(bus::NodeRegistry&) { register_port_scheme(); }
 
 }  // namespace tinyline::sim

@@ -73,6 +73,7 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
   p.optics.sensor_length_mm = declare_parameter("sensor_length_mm", d.optics.sensor_length_mm,
                                                 "length of the 256 effective pixels [mm]",
                                                 ParamConstraints::range(0.1, 100.0));
+  require_valid(p.optics.validate().within("optics"));
   p.frame_id = declare_parameter("frame_id", d.frame_id, "frame of RawScan/LineScan: z forward, x along the line");
   p.scan_frame_id = declare_parameter("scan_frame_id", d.scan_frame_id,
                                       "frame of the LaserScan (x = sensor z, y = sensor x); empty: frame_id + '_scan'");
