@@ -234,8 +234,6 @@ void VirtualDevice::on_set(std::function<void(const SensorSet&)> callback) {
 }
 
 void VirtualDevice::run() {
-  const SensorParams& params = system_->sensor(sensor_).params();
-  const double rate = params.emitter.pulse_rate_hz;
   while (!stop_.load()) {
     double sleep_s = 0.001;
     {
@@ -243,199 +241,234 @@ void VirtualDevice::run() {
       State& s = *state_;
       const double now = system_->now();
       if (!s.plugged) {
-        s.set.reset();
-        // Unpowered: nothing happens until replug().
+        s.set.reset();  // unpowered: nothing happens until replug()
       } else {
-        // Host presence: a hang-up on the master means nobody has the port open.
-        pollfd p{s.master, POLLIN, 0};
-        ::poll(&p, 1, 0);
-        const bool present = !(p.revents & POLLHUP);
-        if (present && !s.host_present) ++s.stats.host_opens;
-        if (!present && s.host_present) {
-          // The host closed the port: what it did not read is gone.
-          s.stats.frames_no_host += s.tx.size();
-          s.tx.clear();
-          s.tx_bytes = 0;
-          s.tx_offset = 0;
-          tcflush(s.master, TCIOFLUSH);
-        }
-        s.host_present = present;
-
-        // Host commands.
-        if (present && (p.revents & POLLIN)) {
-          std::uint8_t buf[256];
-          const ssize_t n = ::read(s.master, buf, sizeof buf);
-          if (n > 0) s.commands.feed(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)));
-        }
-        const std::uint64_t garbage_before = s.commands.garbage();
-        while (auto c = s.commands.next()) {
-          using K = tld::HostCommand::Kind;
-          ++s.stats.commands;
-          switch (c->kind) {
-            case K::Reset:
-            case K::FramedReset:
-              s.mode = FirmwareMode::kSingleShot;
-              s.shot_pulses = std::clamp((c->value + 5) / 10 * 10, 10, 990);
-              s.set.reset();
-              s.frames.clear();
-              system_->set_emitting(sensor_, false, now);
-              break;
-            case K::Sample:
-            case K::FramedSample:
-              if (s.mode == FirmwareMode::kSingleShot) s.shot_requested = true;
-              break;
-            case K::SampleRestart:
-              if (s.mode == FirmwareMode::kSingleShot) {
-                s.shot_requested = true;
-              } else {
-                s.set.reset();  // restart the pulse timers: a new set from now
-                s.frames.clear();
-              }
-              break;
-            case K::Laser:
-              s.laser = c->value != 0;
-              s.set.reset();
-              s.frames.clear();
-              system_->set_emitting(sensor_, false, now);
-              break;
-            case K::StreamMode:
-              s.mode = c->value == 0 ? FirmwareMode::kDistance : FirmwareMode::kRaw;
-              s.set.reset();
-              s.frames.clear();
-              break;
-            case K::Unknown:
-              --s.stats.commands;
-              ++s.stats.command_garbage;
-              break;
-          }
-        }
-        s.stats.command_garbage += s.commands.garbage() - garbage_before;
-
-        // Firmware: start a set when due.
-        auto enqueue = [&](std::vector<std::uint8_t> bytes) {
-          if (!s.host_present) {
-            ++s.stats.frames_no_host;
-            return;
-          }
-          if (s.tx_bytes + bytes.size() > options_.tx_buffer_bytes) {
-            ++s.stats.frames_overflowed;
-            return;
-          }
-          s.tx_bytes += bytes.size();
-          s.tx.push_back(std::move(bytes));
-        };
-        auto begin_set = [&](double t0, const std::vector<int>& pulses) {
-          system_->set_emitting(sensor_, true, t0);
-          SensorSet set = system_->measure(sensor_, t0, pulses, s.index++, true);
-          ++s.stats.sets;
-          if (s.on_set) s.on_set(set);
-          system_->notify(sensor_, set);
-          s.frames = raw_frames(set);
-          s.next_frame = 0;
-          s.set = std::move(set);
-        };
-        if (!s.set) {
-          if (s.mode == FirmwareMode::kSingleShot) {
-            if (s.shot_requested) {
-              s.shot_requested = false;
-              begin_set(now, {s.shot_pulses});
-            }
-          } else if (s.laser) {
-            begin_set(now, s.mode == FirmwareMode::kRaw ? params.acquisition.raw_pulses : params.acquisition.distance_pulses);
-          }
-        }
-        // Read-outs that completed: their frames go to the transmit queue.
-        while (s.set) {
-          const SensorSet& set = *s.set;
-          if (s.mode == FirmwareMode::kDistance) {
-            if (now < set.t_end_s - system_->sensor_time(0.0)) break;
-            if (!s.onboard) s.onboard = factory_calibration(params);
-            tld::DistanceFrame f;
-            const auto mm = firmware_distances_mm(set, *s.onboard);
-            for (std::size_t i = 0; i < std::min(mm.size(), tld::kPixels); ++i) f.distance[i] = mm[i];
-            std::vector<std::uint8_t> bytes;
-            tld::encode_distance_frame(f, bytes);
-            enqueue(std::move(bytes));
-          } else {
-            if (s.next_frame >= s.frames.size()) {
-              s.set.reset();
-              break;
-            }
-            const double t_ready = set.t_start_s - system_->sensor_time(0.0) + s.frames[s.next_frame].pulses / rate;
-            if (now < t_ready) {
-              sleep_s = std::min(sleep_s, t_ready - now);
-              break;
-            }
-            std::vector<std::uint8_t> bytes;
-            tld::encode_raw_frame(s.frames[s.next_frame], bytes);
-            enqueue(std::move(bytes));
-            ++s.next_frame;
-            if (s.next_frame < s.frames.size()) continue;
-          }
-          // Set complete: in continuous modes the next one starts where this ended.
-          const double t_end = set.t_end_s - system_->sensor_time(0.0);
-          const bool continuous = s.mode != FirmwareMode::kSingleShot && s.laser;
-          s.set.reset();
-          if (!continuous) {
-            system_->set_emitting(sensor_, false, t_end);
-            break;
-          }
-          begin_set(t_end, s.mode == FirmwareMode::kRaw ? params.acquisition.raw_pulses : params.acquisition.distance_pulses);
-        }
-
-        // Link: pace the queued bytes at baud / 10.
-        if (now < s.stall_until) {
-          s.last_write_t = now;
-        } else if (s.host_present && !s.tx.empty()) {
-          double budget = (now - s.last_write_t) * options_.baud / 10.0;
-          budget = std::min(budget, 4096.0);
-          std::vector<std::uint8_t> out;
-          while (budget >= 1.0 && !s.tx.empty()) {
-            auto& front = s.tx.front();
-            const std::size_t take = std::min<std::size_t>(static_cast<std::size_t>(budget), front.size() - s.tx_offset);
-            out.insert(out.end(), front.begin() + static_cast<std::ptrdiff_t>(s.tx_offset),
-                       front.begin() + static_cast<std::ptrdiff_t>(s.tx_offset + take));
-            s.tx_offset += take;
-            budget -= static_cast<double>(take);
-            if (s.tx_offset == front.size()) {
-              s.tx_bytes -= front.size();
-              s.tx.pop_front();
-              s.tx_offset = 0;
-              ++s.stats.frames_sent;
-            }
-          }
-          const double sent_time = static_cast<double>(out.size()) * 10.0 / options_.baud;
-          s.last_write_t = std::min(now, s.last_write_t + sent_time);
-          // Faults, then the pty.
-          std::vector<std::uint8_t> wire;
-          wire.reserve(out.size());
-          for (std::uint8_t b : out) {
-            if (s.faults.byte_drop_rate > 0.0 && s.fault_rng.uniform() < s.faults.byte_drop_rate) {
-              ++s.stats.bytes_dropped;
-              continue;
-            }
-            if (s.faults.byte_error_rate > 0.0 && s.fault_rng.uniform() < s.faults.byte_error_rate) {
-              b ^= static_cast<std::uint8_t>(1u << (s.fault_rng.next() % 8));
-              ++s.stats.bytes_corrupted;
-            }
-            wire.push_back(b);
-          }
-          std::size_t off = 0;
-          while (off < wire.size()) {
-            const ssize_t w = ::write(s.master, wire.data() + off, wire.size() - off);
-            if (w <= 0) break;  // pty full: the host lags; the rest is lost like an overrun FTDI buffer
-            off += static_cast<std::size_t>(w);
-          }
-          s.stats.bytes_sent += off;
-          s.stats.bytes_overrun += wire.size() - off;
-        } else {
-          s.last_write_t = now;
-        }
+        poll_host();
+        apply_commands(now);
+        run_firmware(now, sleep_s);
+        run_link(now);
         if (!s.tx.empty()) sleep_s = std::min(sleep_s, 0.0005);
       }
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(std::max(1e-4, sleep_s)));
   }
+}
+
+void VirtualDevice::poll_host() {
+  State& s = *state_;
+  // Host presence: a hang-up on the master means nobody has the port open.
+  pollfd p{s.master, POLLIN, 0};
+  ::poll(&p, 1, 0);
+  const bool present = !(p.revents & POLLHUP);
+  if (present && !s.host_present) ++s.stats.host_opens;
+  if (!present && s.host_present) {
+    // The host closed the port: what it did not read is gone.
+    s.stats.frames_no_host += s.tx.size();
+    s.tx.clear();
+    s.tx_bytes = 0;
+    s.tx_offset = 0;
+    tcflush(s.master, TCIOFLUSH);
+  }
+  s.host_present = present;
+  if (present && (p.revents & POLLIN)) {
+    std::uint8_t buf[256];
+    const ssize_t n = ::read(s.master, buf, sizeof buf);
+    if (n > 0) s.commands.feed(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)));
+  }
+}
+
+void VirtualDevice::apply_commands(double now) {
+  State& s = *state_;
+  const std::uint64_t garbage_before = s.commands.garbage();
+  while (auto c = s.commands.next()) {
+    using K = tld::HostCommand::Kind;
+    ++s.stats.commands;
+    switch (c->kind) {
+      case K::Reset:
+      case K::FramedReset:
+        s.mode = FirmwareMode::kSingleShot;
+        s.shot_pulses = std::clamp((c->value + 5) / 10 * 10, 10, 990);
+        s.set.reset();
+        s.frames.clear();
+        system_->set_emitting(sensor_, false, now);
+        break;
+      case K::Sample:
+      case K::FramedSample:
+        if (s.mode == FirmwareMode::kSingleShot) s.shot_requested = true;
+        break;
+      case K::SampleRestart:
+        if (s.mode == FirmwareMode::kSingleShot) {
+          s.shot_requested = true;
+        } else {
+          s.set.reset();  // restart the pulse timers: a new set from now
+          s.frames.clear();
+        }
+        break;
+      case K::Laser:
+        s.laser = c->value != 0;
+        s.set.reset();
+        s.frames.clear();
+        system_->set_emitting(sensor_, false, now);
+        break;
+      case K::StreamMode:
+        s.mode = c->value == 0 ? FirmwareMode::kDistance : FirmwareMode::kRaw;
+        s.set.reset();
+        s.frames.clear();
+        break;
+      case K::Unknown:
+        --s.stats.commands;
+        ++s.stats.command_garbage;
+        break;
+    }
+  }
+  s.stats.command_garbage += s.commands.garbage() - garbage_before;
+}
+
+void VirtualDevice::enqueue(std::vector<std::uint8_t> bytes) {
+  State& s = *state_;
+  if (!s.host_present) {
+    ++s.stats.frames_no_host;
+    return;
+  }
+  if (s.tx_bytes + bytes.size() > options_.tx_buffer_bytes) {
+    ++s.stats.frames_overflowed;
+    return;
+  }
+  s.tx_bytes += bytes.size();
+  s.tx.push_back(std::move(bytes));
+}
+
+void VirtualDevice::begin_set(double t0, const std::vector<int>& pulses) {
+  State& s = *state_;
+  system_->set_emitting(sensor_, true, t0);
+  SensorSet set = system_->measure(sensor_, t0, pulses, s.index++, true);
+  ++s.stats.sets;
+  if (s.on_set) s.on_set(set);
+  system_->notify(sensor_, set);
+  s.frames = raw_frames(set);
+  s.next_frame = 0;
+  s.set = std::move(set);
+}
+
+const std::vector<int>& VirtualDevice::streaming_pulses() const {
+  const auto& acq = system_->sensor(sensor_).params().acquisition;
+  return state_->mode == FirmwareMode::kRaw ? acq.raw_pulses : acq.distance_pulses;
+}
+
+void VirtualDevice::run_firmware(double now, double& sleep_s) {
+  State& s = *state_;
+  // Start a set when due.
+  if (!s.set) {
+    if (s.mode == FirmwareMode::kSingleShot) {
+      if (s.shot_requested) {
+        s.shot_requested = false;
+        begin_set(now, {s.shot_pulses});
+      }
+    } else if (s.laser) {
+      begin_set(now, streaming_pulses());
+    }
+  }
+  // Read-outs that completed: their frames go to the transmit queue.
+  while (s.set) {
+    if (!emit_due_frames(now, sleep_s)) break;
+    // Set complete: in continuous modes the next one starts where this ended.
+    const double t_end = s.set->t_end_s - system_->sensor_time(0.0);
+    const bool continuous = s.mode != FirmwareMode::kSingleShot && s.laser;
+    s.set.reset();
+    if (!continuous) {
+      system_->set_emitting(sensor_, false, t_end);
+      break;
+    }
+    begin_set(t_end, streaming_pulses());
+  }
+}
+
+bool VirtualDevice::emit_due_frames(double now, double& sleep_s) {
+  State& s = *state_;
+  const SensorSet& set = *s.set;
+  if (s.mode == FirmwareMode::kDistance) {
+    if (now < set.t_end_s - system_->sensor_time(0.0)) return false;
+    if (!s.onboard) s.onboard = factory_calibration(system_->sensor(sensor_).params());
+    tld::DistanceFrame f;
+    const auto mm = firmware_distances_mm(set, *s.onboard);
+    for (std::size_t i = 0; i < std::min(mm.size(), tld::kPixels); ++i) f.distance[i] = mm[i];
+    std::vector<std::uint8_t> bytes;
+    tld::encode_distance_frame(f, bytes);
+    enqueue(std::move(bytes));
+    return true;
+  }
+  const double rate = system_->sensor(sensor_).params().emitter.pulse_rate_hz;
+  while (s.next_frame < s.frames.size()) {
+    const double t_ready = set.t_start_s - system_->sensor_time(0.0) + s.frames[s.next_frame].pulses / rate;
+    if (now < t_ready) {
+      sleep_s = std::min(sleep_s, t_ready - now);
+      return false;
+    }
+    std::vector<std::uint8_t> bytes;
+    tld::encode_raw_frame(s.frames[s.next_frame], bytes);
+    enqueue(std::move(bytes));
+    ++s.next_frame;
+  }
+  return true;
+}
+
+void VirtualDevice::run_link(double now) {
+  State& s = *state_;
+  // Pace the queued bytes at baud / 10.
+  if (now < s.stall_until || !s.host_present || s.tx.empty()) {
+    s.last_write_t = now;
+    return;
+  }
+  double budget = (now - s.last_write_t) * options_.baud / 10.0;
+  budget = std::min(budget, 4096.0);
+  std::vector<std::uint8_t> out;
+  while (budget >= 1.0 && !s.tx.empty()) {
+    auto& front = s.tx.front();
+    const std::size_t take = std::min<std::size_t>(static_cast<std::size_t>(budget), front.size() - s.tx_offset);
+    out.insert(out.end(), front.begin() + static_cast<std::ptrdiff_t>(s.tx_offset),
+               front.begin() + static_cast<std::ptrdiff_t>(s.tx_offset + take));
+    s.tx_offset += take;
+    budget -= static_cast<double>(take);
+    if (s.tx_offset == front.size()) {
+      s.tx_bytes -= front.size();
+      s.tx.pop_front();
+      s.tx_offset = 0;
+      ++s.stats.frames_sent;
+    }
+  }
+  const double sent_time = static_cast<double>(out.size()) * 10.0 / options_.baud;
+  s.last_write_t = std::min(now, s.last_write_t + sent_time);
+  write_to_host(apply_faults(out));
+}
+
+std::vector<std::uint8_t> VirtualDevice::apply_faults(const std::vector<std::uint8_t>& out) {
+  State& s = *state_;
+  std::vector<std::uint8_t> wire;
+  wire.reserve(out.size());
+  for (std::uint8_t b : out) {
+    if (s.faults.byte_drop_rate > 0.0 && s.fault_rng.uniform() < s.faults.byte_drop_rate) {
+      ++s.stats.bytes_dropped;
+      continue;
+    }
+    if (s.faults.byte_error_rate > 0.0 && s.fault_rng.uniform() < s.faults.byte_error_rate) {
+      b ^= static_cast<std::uint8_t>(1u << (s.fault_rng.next() % 8));
+      ++s.stats.bytes_corrupted;
+    }
+    wire.push_back(b);
+  }
+  return wire;
+}
+
+void VirtualDevice::write_to_host(const std::vector<std::uint8_t>& wire) {
+  State& s = *state_;
+  std::size_t off = 0;
+  while (off < wire.size()) {
+    const ssize_t w = ::write(s.master, wire.data() + off, wire.size() - off);
+    if (w <= 0) break;  // pty full: the host lags; the rest is lost like an overrun FTDI buffer
+    off += static_cast<std::size_t>(w);
+  }
+  s.stats.bytes_sent += off;
+  s.stats.bytes_overrun += wire.size() - off;
 }
 
 }  // namespace tinyline::sim

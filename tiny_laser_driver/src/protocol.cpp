@@ -114,6 +114,15 @@ bool ender_at(const std::uint8_t* f, std::size_t len) { return f[len - 2] == kEn
 void Parser::feed(std::span<const std::uint8_t> bytes) {
   stats_.bytes += bytes.size();
   if (bytes.empty()) return;
+  append(bytes);
+  while (true) {
+    skip_to_header();
+    if (buffered() < 2) break;  // nothing, or a lone first header byte
+    if (!take_frame()) break;   // the frame at start_ is not complete yet
+  }
+}
+
+void Parser::append(std::span<const std::uint8_t> bytes) {
   // Drop what is parsed before appending; what is left is at most one partial
   // frame, so this costs O(frame) per consumed frame, linear overall.
   if (start_ > 0) {
@@ -122,66 +131,63 @@ void Parser::feed(std::span<const std::uint8_t> bytes) {
     start_ = 0;
   }
   buf_.insert(buf_.end(), bytes.begin(), bytes.end());
+}
 
+void Parser::skip_to_header() {
+  const std::uint8_t* base = buf_.data();
+  const std::size_t end = buf_.size();
+  std::size_t p = start_;
+  while (p < end) {
+    const void* hit = std::memchr(base + p, kHeader[0], end - p);
+    if (hit == nullptr) {
+      p = end;
+      break;
+    }
+    p = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - base);
+    if (p + 1 >= end || base[p + 1] == kHeader[1]) break;  // a header, or a first byte to keep
+    ++p;
+  }
+  if (p > start_) {
+    drop(DropReason::kGarbage, p - start_);
+    start_ = p;
+  }
+}
+
+bool Parser::take_frame() {
+  // The decisions below depend only on the frame's bytes, never on how
+  // many have arrived beyond what each needs: output is chunking-independent.
   const bool raw = options_.mode == StreamMode::Raw;
   const std::size_t own = raw ? kRawFrameBytes : kDistanceFrameBytes;
   const std::size_t other = raw ? kDistanceFrameBytes : kRawFrameBytes;
-  const std::uint8_t* base = buf_.data();
-  const std::size_t end = buf_.size();
-  while (true) {
-    // Hunt for the two-byte header.
-    std::size_t p = start_;
-    while (p < end) {
-      const void* hit = std::memchr(base + p, kHeader[0], end - p);
-      if (hit == nullptr) {
-        p = end;
-        break;
-      }
-      p = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - base);
-      if (p + 1 >= end || base[p + 1] == kHeader[1]) break;  // a header, or a first byte to keep
-      ++p;
-    }
-    if (p > start_) {
-      drop(DropReason::kGarbage, p - start_);
-      start_ = p;
-    }
-    const std::size_t avail = end - start_;
-    if (avail < 2) break;  // nothing, or a lone first header byte
-    const std::uint8_t* f = base + start_;
-    // The decisions below depend only on the frame's bytes, never on how
-    // many have arrived beyond what each needs: output is chunking-independent.
-    if (raw) {
-      // A distance frame's ender sits where a raw frame carries A[270], which
-      // no ADC value can make 0x2B2A: an unambiguous sign of the other mode.
-      if (avail < kDistanceFrameBytes) break;
-      if (ender_at(f, kDistanceFrameBytes)) {
-        drop(DropReason::kWrongMode);
-        start_ += kDistanceFrameBytes;
-        continue;
-      }
-      if (avail < own) break;
-      if (ender_at(f, own)) {
-        consume_frame(f, buf_origin_ + start_ + own);
-        start_ += own;
-        continue;
-      }
-    } else {
-      if (avail < own) break;
-      if (ender_at(f, own)) {
-        consume_frame(f, buf_origin_ + start_ + own);
-        start_ += own;
-        continue;
-      }
-      if (avail < other) break;  // may be a raw frame: wait for its ender position
-      if (ender_at(f, other)) {
-        drop(DropReason::kWrongMode);
-        start_ += other;
-        continue;
-      }
-    }
-    drop(DropReason::kBadEnder);
-    start_ += 2;  // resume the hunt inside the bad frame: a real header may be there
+  const std::size_t avail = buffered();
+  const std::uint8_t* f = buf_.data() + start_;
+  if (raw) {
+    // A distance frame's ender sits where a raw frame carries A[270], which
+    // no ADC value can make 0x2B2A: an unambiguous sign of the other mode.
+    if (avail < kDistanceFrameBytes) return false;
+    if (ender_at(f, kDistanceFrameBytes)) return skip_frame(DropReason::kWrongMode, kDistanceFrameBytes);
+    if (avail < own) return false;
+    if (ender_at(f, own)) return accept_frame(own);
+  } else {
+    if (avail < own) return false;
+    if (ender_at(f, own)) return accept_frame(own);
+    if (avail < other) return false;  // may be a raw frame: wait for its ender position
+    if (ender_at(f, other)) return skip_frame(DropReason::kWrongMode, other);
   }
+  // Resume the hunt inside the bad frame: a real header may be there.
+  return skip_frame(DropReason::kBadEnder, 2);
+}
+
+bool Parser::accept_frame(std::size_t len) {
+  consume_frame(buf_.data() + start_, buf_origin_ + start_ + len);
+  start_ += len;
+  return true;
+}
+
+bool Parser::skip_frame(DropReason why, std::size_t len) {
+  drop(why);
+  start_ += len;
+  return true;
 }
 
 void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
@@ -210,6 +216,16 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
     return;
   }
   ++stats_.frames;
+  place_in_set(index, pulses);
+  if (broken_) {
+    ++stats_.frames_discarded;
+  } else {
+    keep_raw_frame(p, index, last, packed, end_byte);
+  }
+  if (last) close_set();
+}
+
+void Parser::place_in_set(std::uint16_t index, std::uint16_t pulses) {
   // Set membership: a set starts after a flagged last frame, or where neither
   // the index nor the pulses rise (every set accumulates the same pulse
   // schedule). A corrupted index alone (pulses still rising) is damage inside
@@ -232,42 +248,43 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
   }
   prev_index_ = index;
   prev_pulses_ = pulses;
-  if (broken_) {
-    ++stats_.frames_discarded;
-  } else {
-    RawFrame& r = pending_.emplace_back();
-    r.index = index;
-    r.last = last;
-    r.temperature_decic = packed / 100;
-    r.pulses = pulses;
-    r.end_byte = end_byte;
-    get_i16_array(p + 4, r.a);
-    get_i16_array(p + 4 + 2 * kPixels, r.b);
-    std::uint64_t impossible = 0;
-    for (std::size_t i = 0; i < kPixels; ++i) {
-      impossible += static_cast<std::uint64_t>(std::abs(r.a[i]) > kMaxRawMagnitude) +
-                    static_cast<std::uint64_t>(std::abs(r.b[i]) > kMaxRawMagnitude);
-    }
-    stats_.impossible_values += impossible;
-    if (pending_.size() == options_.readouts_per_set && !last) {
-      abandon_pending();  // full but not flagged: the flag is part of the framing
-      broken_ = true;
+}
+
+void Parser::keep_raw_frame(const std::uint8_t* p, std::uint16_t index, bool last, std::uint16_t packed,
+                            std::uint64_t end_byte) {
+  RawFrame& r = pending_.emplace_back();
+  r.index = index;
+  r.last = last;
+  r.temperature_decic = packed / 100;
+  r.pulses = static_cast<std::uint16_t>((packed % 100) * 10);
+  r.end_byte = end_byte;
+  get_i16_array(p + 4, r.a);
+  get_i16_array(p + 4 + 2 * kPixels, r.b);
+  std::uint64_t impossible = 0;
+  for (std::size_t i = 0; i < kPixels; ++i) {
+    impossible += static_cast<std::uint64_t>(std::abs(r.a[i]) > kMaxRawMagnitude) +
+                  static_cast<std::uint64_t>(std::abs(r.b[i]) > kMaxRawMagnitude);
+  }
+  stats_.impossible_values += impossible;
+  if (pending_.size() == options_.readouts_per_set && !last) {
+    abandon_pending();  // full but not flagged: the flag is part of the framing
+    broken_ = true;
+  }
+}
+
+void Parser::close_set() {
+  if (!broken_) {
+    if (pending_.size() == options_.readouts_per_set) {
+      sets_.push_back(RawSet{std::move(pending_), stats_.sets + stats_.dropped(DropReason::kIncompleteSet)});
+      pending_ = {};
+      pending_.reserve(options_.readouts_per_set);
+      ++stats_.sets;
+    } else {
+      abandon_pending();  // flagged before all members came
     }
   }
-  if (last) {
-    if (!broken_) {
-      if (pending_.size() == options_.readouts_per_set) {
-        sets_.push_back(RawSet{std::move(pending_), stats_.sets + stats_.dropped(DropReason::kIncompleteSet)});
-        pending_ = {};
-        pending_.reserve(options_.readouts_per_set);
-        ++stats_.sets;
-      } else {
-        abandon_pending();  // flagged before all members came
-      }
-    }
-    broken_ = false;
-    prev_index_ = -1;
-  }
+  broken_ = false;
+  prev_index_ = -1;
 }
 
 std::optional<RawSet> Parser::next_set() {

@@ -34,6 +34,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <sim/system.hpp>
 
@@ -119,7 +120,19 @@ class VirtualDevice {
 
  private:
   struct State;
+  // The firmware thread's loop and its steps (each called with mu_ held).
   void run();
+  void poll_host();
+  void apply_commands(double now);
+  void run_firmware(double now, double& sleep_s);
+  void begin_set(double t0, const std::vector<int>& pulses);
+  [[nodiscard]] const std::vector<int>& streaming_pulses() const;
+  /// Queues the frames of the current set whose read-outs are done; true when the set is complete.
+  bool emit_due_frames(double now, double& sleep_s);
+  void enqueue(std::vector<std::uint8_t> bytes);
+  void run_link(double now);
+  std::vector<std::uint8_t> apply_faults(const std::vector<std::uint8_t>& out);
+  void write_to_host(const std::vector<std::uint8_t>& wire);
   void open_pty();
   void close_pty();
 

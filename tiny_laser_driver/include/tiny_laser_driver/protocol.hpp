@@ -163,7 +163,18 @@ class Parser {
   void reset();
 
  private:
+  // Steps of feed().
+  void append(std::span<const std::uint8_t> bytes);
+  void skip_to_header();                                  // counts what it skips as garbage
+  bool take_frame();                                      // false: the frame at start_ is not complete yet
+  bool accept_frame(std::size_t len);
+  bool skip_frame(DropReason why, std::size_t len);
+  // Steps of a raw frame's way into a set.
   void consume_frame(const std::uint8_t* frame, std::uint64_t end_byte);
+  void place_in_set(std::uint16_t index, std::uint16_t pulses);
+  void keep_raw_frame(const std::uint8_t* p, std::uint16_t index, bool last, std::uint16_t packed,
+                      std::uint64_t end_byte);
+  void close_set();                                       // after a frame flagged last
   void abandon_pending();
   void drop(DropReason r, std::uint64_t n = 1) { stats_.drops[static_cast<std::size_t>(r)] += n; }
 
