@@ -22,8 +22,16 @@ void put_i16_array(std::vector<std::uint8_t>& out, const std::array<std::int16_t
   for (std::int16_t x : v) put_u16(out, static_cast<std::uint16_t>(x));
 }
 
+void put_u16_array(std::vector<std::uint8_t>& out, const std::array<std::uint16_t, kPixels>& v) {
+  for (std::uint16_t x : v) put_u16(out, x);
+}
+
 void get_i16_array(const std::uint8_t* p, std::array<std::int16_t, kPixels>& v) {
   for (std::size_t i = 0; i < kPixels; ++i) v[i] = static_cast<std::int16_t>(get_u16(p + 2 * i));
+}
+
+void get_u16_array(const std::uint8_t* p, std::array<std::uint16_t, kPixels>& v) {
+  for (std::size_t i = 0; i < kPixels; ++i) v[i] = get_u16(p + 2 * i);
 }
 
 }  // namespace
@@ -32,7 +40,6 @@ std::string_view to_string(DropReason r) {
   switch (r) {
     case DropReason::kGarbage: return "garbage_bytes";
     case DropReason::kBadEnder: return "bad_ender";
-    case DropReason::kWrongMode: return "wrong_mode";
     case DropReason::kBadField: return "bad_field";
     case DropReason::kIncompleteSet: return "incomplete_set";
     case DropReason::kTruncated: return "truncated";
@@ -58,10 +65,10 @@ void encode_raw_frame(const RawFrame& f, std::vector<std::uint8_t>& out) {
   }
   const std::uint32_t packed = static_cast<std::uint32_t>(f.temperature_decic) * 100 + f.pulses / 10;
   if (packed > 0xFFFF) throw std::invalid_argument("raw frame temperature too high for the packed word (about 65.5 degC)");
-  if (f.index + (f.last ? kLastFrameFlag : 0) > 0xFFFF) throw std::invalid_argument("raw frame index too large");
+  if (f.index >= kLastFrameFlag) throw std::invalid_argument("raw frame index must be below 100");
   out.reserve(out.size() + kRawFrameBytes);
   out.insert(out.end(), std::begin(kHeader), std::end(kHeader));
-  put_u16(out, static_cast<std::uint16_t>(f.index + (f.last ? kLastFrameFlag : 0)));
+  put_u16(out, last_frame_word(f.index, f.last));
   put_u16(out, static_cast<std::uint16_t>(packed));
   put_i16_array(out, f.a);
   put_i16_array(out, f.b);
@@ -71,7 +78,7 @@ void encode_raw_frame(const RawFrame& f, std::vector<std::uint8_t>& out) {
 void encode_distance_frame(const DistanceFrame& f, std::vector<std::uint8_t>& out) {
   out.reserve(out.size() + kDistanceFrameBytes);
   out.insert(out.end(), std::begin(kHeader), std::end(kHeader));
-  put_i16_array(out, f.distance);
+  put_u16_array(out, f.distance);
   out.insert(out.end(), std::begin(kEnder), std::end(kEnder));
 }
 
@@ -156,30 +163,22 @@ void Parser::skip_to_header() {
 bool Parser::take_frame() {
   // The decisions below depend only on the frame's bytes, never on how
   // many have arrived beyond what each needs: output is chunking-independent.
-  const bool raw = options_.mode == StreamMode::Raw;
-  const std::size_t own = raw ? kRawFrameBytes : kDistanceFrameBytes;
-  const std::size_t other = raw ? kDistanceFrameBytes : kRawFrameBytes;
   const std::size_t avail = buffered();
   const std::uint8_t* f = buf_.data() + start_;
-  if (raw) {
-    // A distance frame's ender sits where a raw frame carries A[270], which
-    // no ADC value can make 0x2B2A: an unambiguous sign of the other mode.
-    if (avail < kDistanceFrameBytes) return false;
-    if (ender_at(f, kDistanceFrameBytes)) return skip_frame(DropReason::kWrongMode, kDistanceFrameBytes);
-    if (avail < own) return false;
-    if (ender_at(f, own)) return accept_frame(own);
-  } else {
-    if (avail < own) return false;
-    if (ender_at(f, own)) return accept_frame(own);
-    if (avail < other) return false;  // may be a raw frame: wait for its ender position
-    if (ender_at(f, other)) return skip_frame(DropReason::kWrongMode, other);
-  }
+  if (avail < kDistanceFrameBytes) return false;
+  if (ender_at(f, kDistanceFrameBytes)) return accept_frame(kDistanceFrameBytes);
+  if (avail < kRawFrameBytes) return false;  // may be a raw frame: wait for its ender position
+  if (ender_at(f, kRawFrameBytes)) return accept_frame(kRawFrameBytes);
   // Resume the hunt inside the bad frame: a real header may be there.
   return skip_frame(DropReason::kBadEnder, 2);
 }
 
 bool Parser::accept_frame(std::size_t len) {
-  consume_frame(buf_.data() + start_, buf_origin_ + start_ + len);
+  if (len == kDistanceFrameBytes) {
+    consume_distance(buf_.data() + start_, buf_origin_ + start_ + len);
+  } else {
+    consume_frame(buf_.data() + start_, buf_origin_ + start_ + len);
+  }
   start_ += len;
   return true;
 }
@@ -190,20 +189,23 @@ bool Parser::skip_frame(DropReason why, std::size_t len) {
   return true;
 }
 
+void Parser::consume_distance(const std::uint8_t* frame, std::uint64_t end_byte) {
+  DistanceFrame& d = distances_.emplace_back();
+  get_u16_array(frame + 2, d.distance);
+  d.end_byte = end_byte;
+  d.sequence = stats_.frames + stats_.frames_dropped();
+  ++stats_.frames;
+  ++stats_.distance_frames;
+}
+
 void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
   const std::uint8_t* p = frame + 2;
-  if (options_.mode == StreamMode::Distance) {
-    DistanceFrame& d = distances_.emplace_back();
-    get_i16_array(p, d.distance);
-    d.end_byte = end_byte;
-    d.sequence = stats_.frames + stats_.frames_dropped();
-    ++stats_.frames;
-    return;
-  }
   const std::uint16_t index_word = get_u16(p);
   const std::uint16_t packed = get_u16(p + 2);
-  const bool last = index_word >= kLastFrameFlag;
-  const std::uint16_t index = static_cast<std::uint16_t>(last ? index_word - kLastFrameFlag : index_word);
+  // Last when above 100, as the public driver reads it; a set of one sends 101.
+  const bool last = index_word > kLastFrameFlag;
+  std::uint16_t index = static_cast<std::uint16_t>(last ? index_word - kLastFrameFlag : index_word);
+  if (last && options_.readouts_per_set == 1 && index == 1) index = 0;
   const std::uint16_t pulses = static_cast<std::uint16_t>((packed % 100) * 10);
   if (index >= options_.readouts_per_set || pulses == 0) {
     // Its set is unknown; the set being assembled cannot complete without it.
@@ -216,6 +218,7 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
     return;
   }
   ++stats_.frames;
+  ++stats_.raw_frames;
   place_in_set(index, pulses);
   if (broken_) {
     ++stats_.frames_discarded;
