@@ -102,7 +102,31 @@ EffectSpec read_effect(const YamlNode& n) {
   n.at("type").fail("unknown effect type '" + type + "' (known: " + known + ")");
 }
 
+void read_firmware(const YamlNode& f, FirmwareParams& x) {
+  f.check_keys({"profile", "tick_s", "cycle_ticks", "sensitivity_ratio", "compensated_pixel", "compensated_pixel_factor",
+                "saturation_charge"});
+  if (auto pr = f.find("profile")) {
+    const auto profile = firmware_profile_from_string(pr->as_string());
+    if (!profile) pr->fail("unknown firmware profile '" + pr->as_string() + "' (known: thesis_raw, published)");
+    x.profile = *profile;
+  }
+  x.tick_s = f.in_range("tick_s", x.tick_s, 1e-6, 1.0);
+  x.cycle_ticks = static_cast<int>(f.in_range("cycle_ticks", x.cycle_ticks, 10, 1000000));
+  x.sensitivity_ratio = f.in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
+  x.compensated_pixel = static_cast<int>(f.in_range("compensated_pixel", x.compensated_pixel, -1, 4095));
+  x.compensated_pixel_factor = f.in_range("compensated_pixel_factor", x.compensated_pixel_factor, 0.1, 10.0);
+  x.saturation_charge = f.positive("saturation_charge", x.saturation_charge);
+}
+
 }  // namespace
+
+const char* to_string(FirmwareProfile p) { return p == FirmwareProfile::kPublished ? "published" : "thesis_raw"; }
+
+std::optional<FirmwareProfile> firmware_profile_from_string(std::string_view s) {
+  if (s == "thesis_raw") return FirmwareProfile::kThesisRaw;
+  if (s == "published") return FirmwareProfile::kPublished;
+  return std::nullopt;
+}
 
 const char* effect_type(const EffectSpec& e) {
   return std::visit(Overloaded{[](const TrapDelayEffect&) { return "trap_delay"; },
@@ -120,7 +144,8 @@ std::vector<std::string> effect_types() {
 }
 
 void apply_sensor_params(const YamlNode& n, SensorParams& p) {
-  n.check_keys({"base", "name", "seed", "lens", "emitter", "pixel", "thermal", "acquisition", "environment", "effects"});
+  n.check_keys({"base", "name", "seed", "lens", "emitter", "pixel", "thermal", "acquisition", "environment", "firmware",
+                "effects"});
   p.name = n.get_string("name", p.name);
   if (auto s = n.find("seed")) {
     const double v = s->as_double();
@@ -198,6 +223,7 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
     e->check_keys({"ambient_charge_per_pulse"});
     p.environment.ambient_charge_per_pulse = e->non_negative("ambient_charge_per_pulse", p.environment.ambient_charge_per_pulse);
   }
+  if (auto f = n.find("firmware")) read_firmware(*f, p.firmware);
   if (auto e = n.find("effects")) {
     p.effects.clear();  // a file's list replaces its base's list
     for (const auto& item : e->items()) p.effects.push_back(read_effect(item));
@@ -231,6 +257,7 @@ common::Validation SensorParams::validate() const {
   if (pixel.adc_max * 10.0 > 32767.0) return common::Validation::invalid("pixel.adc_max * 10 must fit the wire's int16");
   if (thermal.warm_c < thermal.ambient_c - 50.0) return common::Validation::invalid("thermal.warm_c is implausibly below thermal.ambient_c");
   if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5) return common::Validation::invalid("temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)");
+  if (firmware.compensated_pixel >= lens.pixels) return common::Validation::invalid("firmware.compensated_pixel must be a pixel (or -1: none)");
   return common::Validation::ok();
 }
 
@@ -269,6 +296,11 @@ std::string to_yaml(const SensorParams& p) {
   s << "acquisition:\n  raw_pulses: " << list(p.acquisition.raw_pulses)
     << "\n  distance_pulses: " << list(p.acquisition.distance_pulses) << "\n";
   s << "environment:\n  ambient_charge_per_pulse: " << p.environment.ambient_charge_per_pulse << "\n";
+  const auto& f = p.firmware;
+  s << "firmware:\n  profile: " << to_string(f.profile) << "\n  tick_s: " << f.tick_s << "\n  cycle_ticks: " << f.cycle_ticks
+    << "\n  sensitivity_ratio: " << f.sensitivity_ratio << "\n  compensated_pixel: " << f.compensated_pixel
+    << "\n  compensated_pixel_factor: " << f.compensated_pixel_factor << "\n  saturation_charge: " << f.saturation_charge
+    << "\n";
   s << "effects:";
   if (p.effects.empty()) s << " []";
   s << "\n";

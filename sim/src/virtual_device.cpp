@@ -49,9 +49,19 @@ struct VirtualDevice::State {
   std::size_t next_frame = 0;
   std::uint64_t index = 0;
   std::optional<tld::CalibrationModel> onboard;  // distance mode, made on first use
+  std::uint64_t frames_made = 0;
+  std::uint64_t garbage_seen = 0;                // the command parser's garbage count already in stats
+
+  // Published firmware: one frame buffer, sent round and round by the DMA.
+  std::optional<PublishedFirmware> published;    // made in start()
+  std::vector<std::uint8_t> txbuff;              // the frame buffer (header, 272 words, ender)
+  bool dma_running = false;                      // from the end of the first cycle on
+  std::size_t dma_pos = 0;                       // next byte of txbuff the DMA sends
+  double cycle_start = 0.0;                      // shared time the current cycle began
 
   VirtualDeviceStats stats;
   std::function<void(const SensorSet&)> on_set;
+  std::function<void(const WireTruth&)> on_wire;
 };
 
 VirtualDevice::VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDeviceOptions options)
@@ -64,6 +74,7 @@ VirtualDevice::VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDev
     throw std::invalid_argument("virtual device: single_shot_pulses must be a multiple of 10 in [10, 990]");
   state_->faults = options_.faults;
   state_->fault_rng = common::XoshiroRandom(options_.faults.seed);
+  profile_ = options_.firmware.value_or(system_->sensor(sensor_).params().firmware.profile);
 }
 
 std::unique_ptr<VirtualDevice> VirtualDevice::from_port(const std::string& port, VirtualDeviceOptions options) {
@@ -144,13 +155,14 @@ void VirtualDevice::start() {
   {
     std::lock_guard lock(mu_);
     State& s = *state_;
-    s.mode = options_.mode;
-    s.laser = options_.laser_on;
-    s.shot_pulses = options_.single_shot_pulses;
-    // The on-board calibration takes a moment: make it before streaming starts.
-    if (s.mode == FirmwareMode::kDistance && !s.onboard) s.onboard = factory_calibration(system_->sensor(sensor_).params());
+    // The on-board calibrations take a moment: make them before streaming starts.
+    const SensorParams& params = system_->sensor(sensor_).params();
+    if (profile_ == FirmwareProfile::kPublished && !s.published) s.published.emplace(params);
+    if (profile_ == FirmwareProfile::kThesisRaw && options_.mode == FirmwareMode::kDistance && !s.onboard) {
+      s.onboard = factory_calibration(params);
+    }
     open_pty();
-    s.last_write_t = system_->now();
+    power_on(system_->now());
   }
   stop_ = false;
   running_ = true;
@@ -172,6 +184,11 @@ std::string VirtualDevice::path() const {
   return options_.link_path.empty() ? state_->pty_name : options_.link_path;
 }
 
+std::string VirtualDevice::pty_path() const {
+  std::lock_guard lock(mu_);
+  return state_->plugged ? state_->pty_name : std::string();
+}
+
 void VirtualDevice::unplug() {
   std::lock_guard lock(mu_);
   State& s = *state_;
@@ -186,15 +203,25 @@ void VirtualDevice::replug() {
   std::lock_guard lock(mu_);
   State& s = *state_;
   if (s.plugged) return;
-  // Power-on: the firmware starts over in its initial mode.
-  s.mode = options_.mode;
-  s.laser = options_.laser_on;
+  open_pty();
+  power_on(system_->now());
+  ++s.stats.replugs;
+}
+
+void VirtualDevice::power_on(double now) {
+  // The firmware starts over in its initial mode.
+  State& s = *state_;
+  s.mode = profile_ == FirmwareProfile::kPublished ? FirmwareMode::kDistance : options_.mode;
+  s.laser = profile_ == FirmwareProfile::kPublished || options_.laser_on;
   s.shot_pulses = options_.single_shot_pulses;
   s.shot_requested = false;
   s.commands = tld::CommandParser{};
-  open_pty();
-  s.last_write_t = system_->now();
-  ++s.stats.replugs;
+  s.garbage_seen = 0;
+  s.last_write_t = now;
+  s.txbuff.assign(tld::kDistanceFrameBytes, 0);
+  s.dma_running = false;
+  s.dma_pos = 0;
+  s.cycle_start = now;
 }
 
 bool VirtualDevice::plugged() const {
@@ -233,6 +260,11 @@ void VirtualDevice::on_set(std::function<void(const SensorSet&)> callback) {
   state_->on_set = std::move(callback);
 }
 
+void VirtualDevice::on_wire(std::function<void(const WireTruth&)> callback) {
+  std::lock_guard lock(mu_);
+  state_->on_wire = std::move(callback);
+}
+
 void VirtualDevice::run() {
   while (!stop_.load()) {
     double sleep_s = 0.001;
@@ -245,8 +277,14 @@ void VirtualDevice::run() {
       } else {
         poll_host();
         apply_commands(now);
-        run_firmware(now, sleep_s);
-        run_link(now);
+        if (profile_ == FirmwareProfile::kPublished) {
+          run_published(now);
+          run_dma_link(now);
+          if (s.dma_running) sleep_s = std::min(sleep_s, 0.0005);
+        } else {
+          run_firmware(now, sleep_s);
+          run_link(now);
+        }
         if (!s.tx.empty()) sleep_s = std::min(sleep_s, 0.0005);
       }
     }
@@ -273,55 +311,168 @@ void VirtualDevice::poll_host() {
   if (present && (p.revents & POLLIN)) {
     std::uint8_t buf[256];
     const ssize_t n = ::read(s.master, buf, sizeof buf);
-    if (n > 0) s.commands.feed(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)));
+    if (n > 0) {
+      s.stats.bytes_received += static_cast<std::uint64_t>(n);
+      s.commands.feed(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)));
+    }
   }
 }
 
 void VirtualDevice::apply_commands(double now) {
   State& s = *state_;
-  const std::uint64_t garbage_before = s.commands.garbage();
   while (auto c = s.commands.next()) {
-    using K = tld::HostCommand::Kind;
+    if (c->kind == tld::HostCommand::Kind::Unknown) {
+      ++s.stats.command_garbage;
+      continue;
+    }
     ++s.stats.commands;
-    switch (c->kind) {
-      case K::Reset:
-      case K::FramedReset:
-        s.mode = FirmwareMode::kSingleShot;
-        s.shot_pulses = std::clamp((c->value + 5) / 10 * 10, 10, 990);
-        s.set.reset();
+    if (profile_ == FirmwareProfile::kPublished) {
+      // Its receive is armed once for two bytes and never again, and the
+      // framed decoder is never called: every command is ignored.
+      ++s.stats.commands_ignored;
+      continue;
+    }
+    apply_command(*c, now);
+  }
+  // The parser's byte-level garbage (bytes that start no command), counted
+  // since the last look; it grows when feed() sees the bytes.
+  s.stats.command_garbage += s.commands.garbage() - s.garbage_seen;
+  s.garbage_seen = s.commands.garbage();
+}
+
+void VirtualDevice::apply_command(const tld::HostCommand& c, double now) {
+  State& s = *state_;
+  using K = tld::HostCommand::Kind;
+  switch (c.kind) {
+    case K::Reset:
+    case K::FramedReset:
+      s.mode = FirmwareMode::kSingleShot;
+      s.shot_pulses = std::clamp((c.value + 5) / 10 * 10, 10, 990);
+      s.set.reset();
+      s.frames.clear();
+      system_->set_emitting(sensor_, false, now);
+      break;
+    case K::Sample:
+    case K::FramedSample:
+      if (s.mode == FirmwareMode::kSingleShot) s.shot_requested = true;
+      break;
+    case K::SampleRestart:
+      if (s.mode == FirmwareMode::kSingleShot) {
+        s.shot_requested = true;
+      } else {
+        s.set.reset();  // restart the pulse timers: a new set from now
         s.frames.clear();
-        system_->set_emitting(sensor_, false, now);
-        break;
-      case K::Sample:
-      case K::FramedSample:
-        if (s.mode == FirmwareMode::kSingleShot) s.shot_requested = true;
-        break;
-      case K::SampleRestart:
-        if (s.mode == FirmwareMode::kSingleShot) {
-          s.shot_requested = true;
-        } else {
-          s.set.reset();  // restart the pulse timers: a new set from now
-          s.frames.clear();
-        }
-        break;
-      case K::Laser:
-        s.laser = c->value != 0;
-        s.set.reset();
-        s.frames.clear();
-        system_->set_emitting(sensor_, false, now);
-        break;
-      case K::StreamMode:
-        s.mode = c->value == 0 ? FirmwareMode::kDistance : FirmwareMode::kRaw;
-        s.set.reset();
-        s.frames.clear();
-        break;
-      case K::Unknown:
-        --s.stats.commands;
-        ++s.stats.command_garbage;
-        break;
+      }
+      break;
+    case K::Laser:
+      s.laser = c.value != 0;
+      s.set.reset();
+      s.frames.clear();
+      system_->set_emitting(sensor_, false, now);
+      break;
+    case K::StreamMode:
+      s.mode = c.value == 0 ? FirmwareMode::kDistance : FirmwareMode::kRaw;
+      if (s.mode == FirmwareMode::kDistance && !s.onboard) s.onboard = factory_calibration(system_->sensor(sensor_).params());
+      s.set.reset();
+      s.frames.clear();
+      break;
+    case K::Unknown:
+      break;
+  }
+}
+
+void VirtualDevice::emit_distance_frame(const SensorSet& set, double now) {
+  State& s = *state_;
+  if (!s.onboard) s.onboard = factory_calibration(system_->sensor(sensor_).params());
+  tld::DistanceFrame f;
+  const auto units = firmware_distances(set, *s.onboard);
+  for (std::size_t i = 0; i < std::min(units.size(), tld::kPixels); ++i) f.distance[i] = units[i];
+  std::vector<std::uint8_t> bytes;
+  tld::encode_distance_frame(f, bytes);
+  WireTruth truth;
+  truth.kind = WireTruth::Kind::kDistanceFrame;
+  truth.distance = &f;
+  truth.queued = s.host_present && s.tx_bytes + bytes.size() <= options_.tx_buffer_bytes;
+  tell_wire(truth, now);
+  enqueue(std::move(bytes));
+}
+
+void VirtualDevice::tell_wire(WireTruth truth, double now) {
+  State& s = *state_;
+  truth.sequence = s.frames_made++;
+  truth.t_s = now;
+  if (s.on_wire) s.on_wire(truth);
+}
+
+void VirtualDevice::run_published(double now) {
+  State& s = *state_;
+  const FirmwareParams& fw = s.published->params();
+  const double cycle_s = fw.cycle_s();
+  if (now < s.cycle_start + cycle_s) return;
+  if (now > s.cycle_start + 10.0 * cycle_s) s.cycle_start = now - cycle_s;  // the thread fell far behind: skip ahead
+  // The cycle that just ended: the laser pulsed through the read-out
+  // schedule, then the firmware measured the ambient level without it.
+  const auto& pulses = system_->sensor(sensor_).params().acquisition.distance_pulses;
+  const double t0 = s.cycle_start;
+  const double t_dark = t0 + system_->sensor(sensor_).accumulation_time_s(pulses.back());
+  system_->set_emitting(sensor_, true, t0);
+  system_->set_emitting(sensor_, false, t_dark);
+  const SensorSet lit = system_->measure(sensor_, t0, pulses, s.index++, true);
+  const SensorSet dark = system_->measure(sensor_, t_dark, pulses, s.index++, false);
+  const PublishedCycle cycle = s.published->compute(lit, dark);
+  ++s.stats.sets;
+  ++s.stats.cycles;
+  if (s.on_set) s.on_set(lit);
+  system_->notify(sensor_, lit);
+  WireTruth truth;
+  truth.kind = WireTruth::Kind::kPublishedCycle;
+  truth.cycle = &cycle;
+  truth.firmware = &*s.published;
+  tell_wire(truth, now);
+  // The new words go into the buffer the DMA is reading: a frame in flight
+  // goes out with its first part old and the rest new.
+  tld::DistanceFrame f;
+  f.distance = cycle.distance;
+  std::vector<std::uint8_t> bytes;
+  tld::encode_distance_frame(f, bytes);
+  std::copy(bytes.begin(), bytes.end(), s.txbuff.begin());
+  if (!s.dma_running) {
+    s.dma_running = true;
+    s.dma_pos = 0;
+    s.last_write_t = now;
+  }
+  s.cycle_start += cycle_s;
+}
+
+void VirtualDevice::run_dma_link(double now) {
+  State& s = *state_;
+  if (!s.dma_running) {
+    s.last_write_t = now;
+    return;
+  }
+  // The UART sends at baud / 10 bytes per second, whether anyone listens or not.
+  const double byte_s = 10.0 / options_.baud;
+  if (now - s.last_write_t > 4096 * byte_s) s.last_write_t = now - 4096 * byte_s;
+  const auto n = static_cast<std::size_t>((now - s.last_write_t) / byte_s);
+  if (n == 0) return;
+  s.last_write_t += static_cast<double>(n) * byte_s;
+  std::vector<std::uint8_t> out(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    out[i] = s.txbuff[s.dma_pos];
+    if (++s.dma_pos == s.txbuff.size()) {
+      s.dma_pos = 0;
+      ++s.stats.frames_sent;
     }
   }
-  s.stats.command_garbage += s.commands.garbage() - garbage_before;
+  if (!s.host_present) {
+    s.stats.bytes_no_host += n;
+    return;
+  }
+  if (now < s.stall_until) {
+    s.stats.bytes_overrun += n;  // the adapter's buffer overflows while the USB side stalls
+    return;
+  }
+  write_to_host(apply_faults(out));
 }
 
 void VirtualDevice::enqueue(std::vector<std::uint8_t> bytes) {
@@ -388,13 +539,7 @@ bool VirtualDevice::emit_due_frames(double now, double& sleep_s) {
   const SensorSet& set = *s.set;
   if (s.mode == FirmwareMode::kDistance) {
     if (now < set.t_end_s - system_->sensor_time(0.0)) return false;
-    if (!s.onboard) s.onboard = factory_calibration(system_->sensor(sensor_).params());
-    tld::DistanceFrame f;
-    const auto mm = firmware_distances_mm(set, *s.onboard);
-    for (std::size_t i = 0; i < std::min(mm.size(), tld::kPixels); ++i) f.distance[i] = mm[i];
-    std::vector<std::uint8_t> bytes;
-    tld::encode_distance_frame(f, bytes);
-    enqueue(std::move(bytes));
+    emit_distance_frame(set, now);
     return true;
   }
   const double rate = system_->sensor(sensor_).params().emitter.pulse_rate_hz;
@@ -406,6 +551,11 @@ bool VirtualDevice::emit_due_frames(double now, double& sleep_s) {
     }
     std::vector<std::uint8_t> bytes;
     tld::encode_raw_frame(s.frames[s.next_frame], bytes);
+    WireTruth truth;
+    truth.kind = WireTruth::Kind::kRawFrame;
+    truth.raw = &s.frames[s.next_frame];
+    truth.queued = s.host_present && s.tx_bytes + bytes.size() <= options_.tx_buffer_bytes;
+    tell_wire(truth, now);
     enqueue(std::move(bytes));
     ++s.next_frame;
   }
