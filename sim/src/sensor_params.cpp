@@ -102,6 +102,58 @@ EffectSpec read_effect(const YamlNode& n) {
   n.at("type").fail("unknown effect type '" + type + "' (known: " + known + ")");
 }
 
+void read_lens(const YamlNode* l, LensParams& x) {
+  l->check_keys({"focal_mm", "sensor_length_mm", "pixels", "dark_pixels", "subrays_per_pixel", "psf_sigma_px",
+                 "halo_fraction", "halo_length_px", "vignetting_cos_power", "pixel_height_mm"});
+  x.focal_mm = l->in_range("focal_mm", x.focal_mm, 0.5, 100.0);
+  x.sensor_length_mm = l->in_range("sensor_length_mm", x.sensor_length_mm, 0.1, 100.0);
+  x.pixels = static_cast<int>(l->in_range("pixels", x.pixels, 3, 4096));
+  x.dark_pixels = static_cast<int>(l->in_range("dark_pixels", x.dark_pixels, 0, 64));
+  x.subrays_per_pixel = static_cast<int>(l->in_range("subrays_per_pixel", x.subrays_per_pixel, 1, 16));
+  x.psf_sigma_px = l->in_range("psf_sigma_px", x.psf_sigma_px, 0.0, 20.0);
+  x.halo_fraction = l->in_range("halo_fraction", x.halo_fraction, 0.0, 0.5);
+  x.halo_length_px = l->in_range("halo_length_px", x.halo_length_px, 0.1, 200.0);
+  x.vignetting_cos_power = l->in_range("vignetting_cos_power", x.vignetting_cos_power, 0.0, 8.0);
+  x.pixel_height_mm = l->in_range("pixel_height_mm", x.pixel_height_mm, 0.001, 20.0);
+}
+
+void read_emitter(const YamlNode* e, EmitterParams& x) {
+  e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "sheet_thickness_mm", "sheet_divergence_deg", "pulse_width_ns", "pulse_rise_exponent",
+                 "pulse_fall_exponent", "diffusion_tail_ns", "pulse_rate_hz", "charge_per_pulse_1m"});
+  x.baseline_m = e->in_range("baseline_m", x.baseline_m, -0.2, 0.2);
+  x.fan_half_angle_deg = e->in_range("fan_half_angle_deg", x.fan_half_angle_deg, 0.5, 89.0);
+  x.fan_edge_deg = e->in_range("fan_edge_deg", x.fan_edge_deg, 0.0, 30.0);
+  x.sheet_thickness_mm = e->in_range("sheet_thickness_mm", x.sheet_thickness_mm, 0.0, 100.0);
+  x.sheet_divergence_deg = e->in_range("sheet_divergence_deg", x.sheet_divergence_deg, 0.0, 45.0);
+  x.pulse_width_ns = e->in_range("pulse_width_ns", x.pulse_width_ns, 1.0, 1000.0);
+  x.pulse_rise_exponent = e->in_range("pulse_rise_exponent", x.pulse_rise_exponent, 0.0, 10.0);
+  x.pulse_fall_exponent = e->in_range("pulse_fall_exponent", x.pulse_fall_exponent, 0.0, 10.0);
+  x.diffusion_tail_ns = e->in_range("diffusion_tail_ns", x.diffusion_tail_ns, 0.0, 100.0);
+  x.pulse_rate_hz = e->in_range("pulse_rate_hz", x.pulse_rate_hz, 1.0, 1.0e7);
+  x.charge_per_pulse_1m = e->non_negative("charge_per_pulse_1m", x.charge_per_pulse_1m);
+}
+
+void read_pixel(const YamlNode* q, PixelParams& x) {
+  q->check_keys({"gate_split_ns", "sensitivity_ratio", "sensitivity_ratio_sd", "leakage_per_ms", "leakage_sd",
+                 "prnu_sd", "full_scale", "knee", "nonlinearity", "read_noise", "shot_noise_gain", "transfer_noise_per_pulse", "adc_offset_a", "adc_offset_b", "adc_lsb", "adc_max"});
+  x.gate_split_ns = q->in_range("gate_split_ns", x.gate_split_ns, -1000.0, 1000.0);
+  x.sensitivity_ratio = q->in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
+  x.sensitivity_ratio_sd = q->in_range("sensitivity_ratio_sd", x.sensitivity_ratio_sd, 0.0, 0.5);
+  x.leakage_per_ms = q->non_negative("leakage_per_ms", x.leakage_per_ms);
+  x.leakage_sd = q->in_range("leakage_sd", x.leakage_sd, 0.0, 1.0);
+  x.prnu_sd = q->in_range("prnu_sd", x.prnu_sd, 0.0, 0.5);
+  x.full_scale = q->positive("full_scale", x.full_scale);
+  x.knee = q->positive("knee", x.knee);
+  x.nonlinearity = q->in_range("nonlinearity", x.nonlinearity, 0.0, 0.5);
+  x.read_noise = q->non_negative("read_noise", x.read_noise);
+  x.shot_noise_gain = q->non_negative("shot_noise_gain", x.shot_noise_gain);
+  x.transfer_noise_per_pulse = q->non_negative("transfer_noise_per_pulse", x.transfer_noise_per_pulse);
+  x.adc_offset_a = q->in_range("adc_offset_a", x.adc_offset_a, -50.0, 50.0);
+  x.adc_offset_b = q->in_range("adc_offset_b", x.adc_offset_b, -50.0, 50.0);
+  x.adc_lsb = q->positive("adc_lsb", x.adc_lsb);
+  x.adc_max = q->positive("adc_max", x.adc_max);
+}
+
 void read_firmware(const YamlNode& f, FirmwareParams& x) {
   f.check_keys({"profile", "tick_s", "cycle_ticks", "sensitivity_ratio", "compensated_pixel", "compensated_pixel_factor",
                 "saturation_charge"});
@@ -152,58 +204,9 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
     if (v < 0 || v > 1.8e19 || v != std::floor(v)) s->fail("seed must be a non-negative integer");
     p.seed = static_cast<std::uint64_t>(v);
   }
-  if (auto l = n.find("lens")) {
-    l->check_keys({"focal_mm", "sensor_length_mm", "pixels", "dark_pixels", "subrays_per_pixel", "psf_sigma_px",
-                   "halo_fraction", "halo_length_px", "vignetting_cos_power", "pixel_height_mm"});
-    auto& x = p.lens;
-    x.focal_mm = l->in_range("focal_mm", x.focal_mm, 0.5, 100.0);
-    x.sensor_length_mm = l->in_range("sensor_length_mm", x.sensor_length_mm, 0.1, 100.0);
-    x.pixels = static_cast<int>(l->in_range("pixels", x.pixels, 3, 4096));
-    x.dark_pixels = static_cast<int>(l->in_range("dark_pixels", x.dark_pixels, 0, 64));
-    x.subrays_per_pixel = static_cast<int>(l->in_range("subrays_per_pixel", x.subrays_per_pixel, 1, 16));
-    x.psf_sigma_px = l->in_range("psf_sigma_px", x.psf_sigma_px, 0.0, 20.0);
-    x.halo_fraction = l->in_range("halo_fraction", x.halo_fraction, 0.0, 0.5);
-    x.halo_length_px = l->in_range("halo_length_px", x.halo_length_px, 0.1, 200.0);
-    x.vignetting_cos_power = l->in_range("vignetting_cos_power", x.vignetting_cos_power, 0.0, 8.0);
-    x.pixel_height_mm = l->in_range("pixel_height_mm", x.pixel_height_mm, 0.001, 20.0);
-  }
-  if (auto e = n.find("emitter")) {
-    e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "sheet_thickness_mm", "sheet_divergence_deg", "pulse_width_ns", "pulse_rise_exponent",
-                   "pulse_fall_exponent", "diffusion_tail_ns", "pulse_rate_hz", "charge_per_pulse_1m"});
-    auto& x = p.emitter;
-    x.baseline_m = e->in_range("baseline_m", x.baseline_m, -0.2, 0.2);
-    x.fan_half_angle_deg = e->in_range("fan_half_angle_deg", x.fan_half_angle_deg, 0.5, 89.0);
-    x.fan_edge_deg = e->in_range("fan_edge_deg", x.fan_edge_deg, 0.0, 30.0);
-    x.sheet_thickness_mm = e->in_range("sheet_thickness_mm", x.sheet_thickness_mm, 0.0, 100.0);
-    x.sheet_divergence_deg = e->in_range("sheet_divergence_deg", x.sheet_divergence_deg, 0.0, 45.0);
-    x.pulse_width_ns = e->in_range("pulse_width_ns", x.pulse_width_ns, 1.0, 1000.0);
-    x.pulse_rise_exponent = e->in_range("pulse_rise_exponent", x.pulse_rise_exponent, 0.0, 10.0);
-    x.pulse_fall_exponent = e->in_range("pulse_fall_exponent", x.pulse_fall_exponent, 0.0, 10.0);
-    x.diffusion_tail_ns = e->in_range("diffusion_tail_ns", x.diffusion_tail_ns, 0.0, 100.0);
-    x.pulse_rate_hz = e->in_range("pulse_rate_hz", x.pulse_rate_hz, 1.0, 1.0e7);
-    x.charge_per_pulse_1m = e->non_negative("charge_per_pulse_1m", x.charge_per_pulse_1m);
-  }
-  if (auto q = n.find("pixel")) {
-    q->check_keys({"gate_split_ns", "sensitivity_ratio", "sensitivity_ratio_sd", "leakage_per_ms", "leakage_sd",
-                   "prnu_sd", "full_scale", "knee", "nonlinearity", "read_noise", "shot_noise_gain", "transfer_noise_per_pulse", "adc_offset_a", "adc_offset_b", "adc_lsb", "adc_max"});
-    auto& x = p.pixel;
-    x.gate_split_ns = q->in_range("gate_split_ns", x.gate_split_ns, -1000.0, 1000.0);
-    x.sensitivity_ratio = q->in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
-    x.sensitivity_ratio_sd = q->in_range("sensitivity_ratio_sd", x.sensitivity_ratio_sd, 0.0, 0.5);
-    x.leakage_per_ms = q->non_negative("leakage_per_ms", x.leakage_per_ms);
-    x.leakage_sd = q->in_range("leakage_sd", x.leakage_sd, 0.0, 1.0);
-    x.prnu_sd = q->in_range("prnu_sd", x.prnu_sd, 0.0, 0.5);
-    x.full_scale = q->positive("full_scale", x.full_scale);
-    x.knee = q->positive("knee", x.knee);
-    x.nonlinearity = q->in_range("nonlinearity", x.nonlinearity, 0.0, 0.5);
-    x.read_noise = q->non_negative("read_noise", x.read_noise);
-    x.shot_noise_gain = q->non_negative("shot_noise_gain", x.shot_noise_gain);
-    x.transfer_noise_per_pulse = q->non_negative("transfer_noise_per_pulse", x.transfer_noise_per_pulse);
-    x.adc_offset_a = q->in_range("adc_offset_a", x.adc_offset_a, -50.0, 50.0);
-    x.adc_offset_b = q->in_range("adc_offset_b", x.adc_offset_b, -50.0, 50.0);
-    x.adc_lsb = q->positive("adc_lsb", x.adc_lsb);
-    x.adc_max = q->positive("adc_max", x.adc_max);
-  }
+  if (auto l = n.find("lens")) read_lens(&*l, p.lens);
+  if (auto e = n.find("emitter")) read_emitter(&*e, p.emitter);
+  if (auto q = n.find("pixel")) read_pixel(&*q, p.pixel);
   if (auto t = n.find("thermal")) {
     t->check_keys({"ambient_c", "warm_c", "time_constant_s", "reference_c", "delay_drift_ns_per_c", "reading_noise_c"});
     auto& x = p.thermal;

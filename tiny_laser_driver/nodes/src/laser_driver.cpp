@@ -56,7 +56,7 @@ CalibrationModel load_calibration(const std::string& spec) {
 
 // ---------------------------------------------------------------------------- node
 
-LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
+void LaserDriver::declare_params() {
   using bus::ParamConstraints;
   const DriverParams d;  // defaults live in the struct
   DriverParams& p = params_;
@@ -110,7 +110,12 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
                                         ParamConstraints::range(0.01, 3600.0));
   p.threaded = declare_parameter("threaded", d.threaded,
                                  "run the I/O thread; false: the embedding code calls pump()");
-  p.publish_raw = declare_parameter("publish_raw", d.publish_raw, "publish tinyline_msgs/RawScan (raw mode)");
+  p.publish_raw = declare_parameter("publish_raw", d.publish_raw, "publish tinyline_msgs/RawScan (raw sets)");
+}
+
+LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
+  declare_params();
+  DriverParams& p = params_;
   if (p.reconnect_max_s < p.reconnect_min_s) {
     throw bus::ParamError({}, fmt::format("node '{}': reconnect_max_s ({}) is below reconnect_min_s ({})", full_name(),
                                           p.reconnect_max_s, p.reconnect_min_s));

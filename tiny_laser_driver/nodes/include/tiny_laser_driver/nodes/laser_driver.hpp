@@ -121,6 +121,7 @@ class LaserDriver : public bus::Node {
   [[nodiscard]] const DriverParams& params() const { return params_; }
 
  private:
+  void declare_params();  // fills params_ from the node's parameters
   void run();
   void try_open(bus::Time now);
   void lost(const io::IoStatus& why);
