@@ -62,7 +62,12 @@ struct VirtualDevice::State {
   VirtualDeviceStats stats;
   std::function<void(const SensorSet&)> on_set;
   std::function<void(const WireTruth&)> on_wire;
+  std::vector<std::uint8_t> to_host;             // bytes the pty could not take yet
 };
+
+namespace {
+constexpr std::size_t kHostBufferBytes = 65536;  // what a host's serial driver holds for a slow reader
+}  // namespace
 
 VirtualDevice::VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDeviceOptions options)
     : system_(std::move(system)), options_(std::move(options)), state_(std::make_unique<State>()) {
@@ -148,6 +153,7 @@ void VirtualDevice::close_pty() {
   s.tx.clear();
   s.tx_bytes = 0;
   s.tx_offset = 0;
+  s.to_host.clear();
 }
 
 void VirtualDevice::start() {
@@ -285,7 +291,8 @@ void VirtualDevice::run() {
           run_firmware(now, sleep_s);
           run_link(now);
         }
-        if (!s.tx.empty()) sleep_s = std::min(sleep_s, 0.0005);
+        if (s.host_present && !s.to_host.empty()) flush_to_host();
+        if (!s.tx.empty() || !s.to_host.empty()) sleep_s = std::min(sleep_s, 0.0005);
       }
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(std::max(1e-4, sleep_s)));
@@ -305,6 +312,7 @@ void VirtualDevice::poll_host() {
     s.tx.clear();
     s.tx_bytes = 0;
     s.tx_offset = 0;
+    s.to_host.clear();
     tcflush(s.master, TCIOFLUSH);
   }
   s.host_present = present;
@@ -452,26 +460,31 @@ void VirtualDevice::run_dma_link(double now) {
   }
   // The UART sends at baud / 10 bytes per second, whether anyone listens or not.
   const double byte_s = 10.0 / options_.baud;
-  if (now - s.last_write_t > 4096 * byte_s) s.last_write_t = now - 4096 * byte_s;
+  // A thread that ran late still sends what the UART sent meanwhile (up to a
+  // host buffer's worth; beyond it is a suspend, not a link).
+  if (now - s.last_write_t > kHostBufferBytes * byte_s) s.last_write_t = now - kHostBufferBytes * byte_s;
   const auto n = static_cast<std::size_t>((now - s.last_write_t) / byte_s);
   if (n == 0) return;
   s.last_write_t += static_cast<double>(n) * byte_s;
   std::vector<std::uint8_t> out(n);
+  std::uint64_t frames = 0;
   for (std::size_t i = 0; i < n; ++i) {
     out[i] = s.txbuff[s.dma_pos];
     if (++s.dma_pos == s.txbuff.size()) {
       s.dma_pos = 0;
-      ++s.stats.frames_sent;
+      ++frames;
     }
   }
   if (!s.host_present) {
     s.stats.bytes_no_host += n;
+    s.stats.frames_no_host += frames;
     return;
   }
   if (now < s.stall_until) {
     s.stats.bytes_overrun += n;  // the adapter's buffer overflows while the USB side stalls
     return;
   }
+  s.stats.frames_sent += frames;
   write_to_host(apply_faults(out));
 }
 
@@ -611,14 +624,27 @@ std::vector<std::uint8_t> VirtualDevice::apply_faults(const std::vector<std::uin
 
 void VirtualDevice::write_to_host(const std::vector<std::uint8_t>& wire) {
   State& s = *state_;
+  // Bytes wait in the host's receive buffer (the kernel's, behind the
+  // adapter) while the host is slow to read; beyond it the oldest are lost.
+  s.to_host.insert(s.to_host.end(), wire.begin(), wire.end());
+  if (s.to_host.size() > kHostBufferBytes) {
+    const std::size_t lost = s.to_host.size() - kHostBufferBytes;
+    s.to_host.erase(s.to_host.begin(), s.to_host.begin() + static_cast<std::ptrdiff_t>(lost));
+    s.stats.bytes_overrun += lost;
+  }
+  flush_to_host();
+}
+
+void VirtualDevice::flush_to_host() {
+  State& s = *state_;
   std::size_t off = 0;
-  while (off < wire.size()) {
-    const ssize_t w = ::write(s.master, wire.data() + off, wire.size() - off);
-    if (w <= 0) break;  // pty full: the host lags; the rest is lost like an overrun FTDI buffer
+  while (off < s.to_host.size()) {
+    const ssize_t w = ::write(s.master, s.to_host.data() + off, s.to_host.size() - off);
+    if (w <= 0) break;  // the pty is full: the rest waits for the host to read
     off += static_cast<std::size_t>(w);
   }
+  s.to_host.erase(s.to_host.begin(), s.to_host.begin() + static_cast<std::ptrdiff_t>(off));
   s.stats.bytes_sent += off;
-  s.stats.bytes_overrun += wire.size() - off;
 }
 
 }  // namespace tinyline::sim

@@ -308,10 +308,10 @@ TEST(VirtualDevice, ThePublishedFirmwareRepeatsItsFrameAndIgnoresCommands) {
   host.send(tld::cmd_stream_mode(tld::StreamMode::Raw));
   tld::Parser parser;
   std::vector<tld::DistanceFrame> frames;
-  host.read_until(parser, 3.0, [&] {
+  host.read_until(parser, 5.0, [&] {
     while (auto f = parser.next_distance()) frames.push_back(*f);
     std::lock_guard lock(mu);
-    return cycles.size() >= 4;
+    return cycles.size() >= 4 && frames.size() >= 60;
   });
   ASSERT_GE(frames.size(), 60u);  // about 365 frames a second against about 10 updates
   EXPECT_FALSE(parser.next_set());  // never a raw frame

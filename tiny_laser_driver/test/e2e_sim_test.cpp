@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <condition_variable>
 #include <filesystem>
 #include <mutex>
@@ -175,7 +176,15 @@ TEST(EndToEnd, RailScansMatchGroundTruthWithinTheCalibrationError) {
       ++n;
     }
   }
+  int by_status[6] = {0, 0, 0, 0, 0, 0};
+  for (const auto& s : scans) {
+    for (std::size_t p = tl::kDarkPixels; p < tl::kPixels - tl::kDarkPixels; ++p) {
+      if (std::isfinite(truth[p]) && s->status[p] < 6) ++by_status[s->status[p]];
+    }
+  }
   const double rmse = std::sqrt(se / n), bias = sum / n;
+  std::printf("rail, thesis firmware: %zu scans, statuses valid %d saturated %d too dark %d out of range %d stale %d\n",
+              scans.size(), by_status[0], by_status[1], by_status[2], by_status[4], by_status[5]);
   // The shipped calibration's held-out RMSE (config/calibration/README.md), with room for sampling.
   EXPECT_LT(rmse, 3.28 * 1.25) << "rmse " << rmse << " cm over " << n << " pixels";
   EXPECT_LT(std::abs(bias), 1.0) << "bias " << bias << " cm";
@@ -210,6 +219,9 @@ TEST(EndToEnd, ThePublishedFirmwaresScansMatchGroundTruthWithDefaultParameters) 
   std::sort(errors.begin(), errors.end());
   const double median = errors[errors.size() / 2];
   const double p90 = std::max(std::abs(errors[errors.size() / 20]), std::abs(errors[errors.size() * 19 / 20]));
+  std::printf("published firmware, %zu scans of %llu cycles: median error %.2f cm, 90%% within %.2f cm, valid %.3f\n",
+              scans.size(), static_cast<unsigned long long>(cycles), median, p90,
+              static_cast<double>(errors.size()) / seen);
   // One polynomial for all pixels (the firmware's): each pixel's own sensitivity ratio is a fixed offset.
   EXPECT_LT(std::abs(median), 1.5) << "median error " << median << " cm";
   EXPECT_LT(p90, 8.0) << "90% of the errors within " << p90 << " cm";

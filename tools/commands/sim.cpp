@@ -133,9 +133,11 @@ class KeyReader {
 
 std::string status_line(const sim::VirtualDevice& dev, double elapsed_s) {
   const auto s = dev.stats();
-  return fmt::format("{:.1f} s  {}  sent {} frames ({} bytes)  received {} bytes: {} commands ({} ignored), {} garbage",
-                     elapsed_s, dev.plugged() ? "plugged" : "UNPLUGGED", s.frames_sent, s.bytes_sent, s.bytes_received,
-                     s.commands, s.commands_ignored, s.command_garbage);
+  return fmt::format(
+      "{:.1f} s  {}  sent {} frames ({} bytes, {} lost to a slow host)  received {} bytes: {} commands ({} ignored), "
+      "{} garbage",
+      elapsed_s, dev.plugged() ? "plugged" : "UNPLUGGED", s.frames_sent, s.bytes_sent, s.bytes_overrun, s.bytes_received,
+      s.commands, s.commands_ignored, s.command_garbage);
 }
 
 void announce(const sim::VirtualDevice& dev, const ServeOptions& o) {
@@ -198,13 +200,19 @@ int serve(const ServeOptions& o) {
     if (o.duration_s > 0 && elapsed >= o.duration_s) break;
     if (now - last_status >= std::chrono::milliseconds(keys.tty() ? 200 : 1000)) {
       last_status = now;
-      fmt::print(keys.tty() ? "\r{}\033[K" : "{}\n", status_line(dev, elapsed));
+      const std::string line = status_line(dev, elapsed);
+      if (keys.tty()) {
+        fmt::print("\r{}\033[K", line);  // one line, redrawn
+      } else {
+        fmt::print("{}\n", line);
+      }
       std::fflush(stdout);
     }
   }
+  const std::string last = status_line(dev, std::chrono::duration<double>(Clock::now() - t0).count());
   dev.stop();
   if (truth) truth->close();
-  fmt::print("\nstopped: {}\n", status_line(dev, std::chrono::duration<double>(Clock::now() - t0).count()));
+  fmt::print("\nstopped: {}\n", last);
   return 0;
 }
 

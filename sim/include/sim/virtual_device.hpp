@@ -101,7 +101,7 @@ struct VirtualDeviceStats {
   std::uint64_t bytes_sent = 0;
   std::uint64_t bytes_corrupted = 0;   ///< bytes sent with a flipped bit
   std::uint64_t bytes_dropped = 0;     ///< bytes the fault injector removed
-  std::uint64_t bytes_overrun = 0;     ///< bytes lost because the pty was full (host not reading)
+  std::uint64_t bytes_overrun = 0;     ///< bytes lost because the host did not read (beyond 64 KB waiting)
   std::uint64_t bytes_received = 0;    ///< host bytes read
   std::uint64_t commands = 0;          ///< host commands understood
   std::uint64_t commands_ignored = 0;  ///< of those, not acted on (the published firmware ignores them all)
@@ -178,6 +178,7 @@ class VirtualDevice {
   void run_link(double now);
   std::vector<std::uint8_t> apply_faults(const std::vector<std::uint8_t>& out);
   void write_to_host(const std::vector<std::uint8_t>& wire);
+  void flush_to_host();
   void open_pty();
   void close_pty();
 

@@ -1,6 +1,7 @@
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -370,10 +371,11 @@ void LaserDriver::take_set(const RawSet& set, std::uint64_t chunk_end, bus::Time
   const bus::Time stamp = stamp_of(set.end_byte(), chunk_end, t_recv, StreamMode::Raw);
   if (!first_stamp_) first_stamp_ = stamp;
   processor_->process(set, (stamp - *first_stamp_).count() * 1e-9, scan_);
-  std::array<std::uint32_t, kPixels> values{};  // the last read-out's charges: what a stuck ADC repeats
-  const RawFrame& top = set.frames.back();
+  // A valid pixel's distance, to the bit: a stuck read-out repeats it exactly,
+  // noise never does (a saturated read-out's constant value is not a distance).
+  std::array<std::uint32_t, kPixels> values{};
   for (std::size_t p = 0; p < kPixels; ++p) {
-    values[p] = (static_cast<std::uint32_t>(static_cast<std::uint16_t>(top.a[p])) << 16) | static_cast<std::uint16_t>(top.b[p]);
+    if (scan_.status[p] == PixelStatus::kValid) values[p] = std::bit_cast<std::uint32_t>(scan_.distance_m[p]);
   }
   apply_stale(stale_.update(values), scan_);
   std::array<std::uint16_t, 128> pulses{};
