@@ -43,7 +43,7 @@ int main(int argc, char** argv) {
     const TofLineSensor sensor(m->params);
     const SensorSet set = sensor.measure(s.world, m->T_world_sensor, t, m->params.acquisition.raw_pulses, index);
     const auto model = factory_calibration(m->params);
-    const auto mm = firmware_distances_mm(set, model);
+    const auto units = firmware_distances(set, model);  // 0.1 mm
     std::ofstream file;
     if (!out_path.empty()) file.open(out_path);
     std::ostream& o = out_path.empty() ? std::cout : file;
@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
       for (std::size_t k = 0; k < set.readouts.size(); ++k) o << (k ? "," : "") << set.readouts[k].a[u];
       o << "], \"b\": [";
       for (std::size_t k = 0; k < set.readouts.size(); ++k) o << (k ? "," : "") << set.readouts[k].b[u];
-      o << "], \"selected\": " << sel << ", \"distance\": " << (mm[u] > 0 ? num(mm[u] / 1000.0) : "null") << "}"
+      o << "], \"selected\": " << sel << ", \"distance\": " << (units[u] > 0 ? num(units[u] / 1e4) : "null") << "}"
         << (i + 1 < sensor.pixels() ? ",\n" : "\n");
     }
     o << " ]}\n";

@@ -1,6 +1,6 @@
 // Writes seed inputs for driver_parser_fuzz into the directory given: raw
 // sets and distance frames, clean and with the damage a serial link does.
-// Input layout: byte 0 = (readouts - 1) << 1 | distance_mode, byte 1 = chunking seed.
+// Input layout: byte 0 = (readouts - 1) << 1 (bit 0 unused), byte 1 = chunking seed.
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -34,7 +34,7 @@ std::vector<std::uint8_t> raw_set(int seed) {
 
 std::vector<std::uint8_t> distance_frame(int seed) {
   tl::DistanceFrame d;
-  for (std::size_t p = 0; p < tl::kPixels; ++p) d.distance[p] = static_cast<std::int16_t>((seed + p) % 2000);
+  for (std::size_t p = 0; p < tl::kPixels; ++p) d.distance[p] = static_cast<std::uint16_t>((seed + p) % 2000);
   std::vector<std::uint8_t> out;
   tl::encode_distance_frame(d, out);
   return out;

@@ -14,7 +14,6 @@ namespace tinyline::sim {
 namespace {
 
 namespace io = tiny_laser_driver::io;
-using tiny_laser_driver::StreamMode;
 
 class SimOpener : public io::PortOpener {
  public:
@@ -28,7 +27,6 @@ class SimOpener : public io::PortOpener {
       // Started on the first open (on_start), never in a constructor: no I/O before then.
       VirtualDeviceOptions o;
       o.baud = options_.serial.baud;
-      o.mode = options_.mode == StreamMode::Raw ? FirmwareMode::kRaw : FirmwareMode::kDistance;
       o.laser_on = options_.laser_on_at_start;
       try {
         auto dev = VirtualDevice::from_port("sim:" + arg_, o);

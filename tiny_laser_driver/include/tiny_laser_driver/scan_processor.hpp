@@ -41,6 +41,7 @@ enum class PixelStatus : std::uint8_t {
   kTooDark = 2,     ///< the highest non-saturated read-out has too little light
   kDarkPixel = 3,   ///< one of the 8 masked pixels at each end
   kOutOfRange = 4,  ///< the charge ratio lies outside the calibrated range
+  kStale = 5,       ///< the value has not changed for many fresh measurements while its neighbours' have
 };
 
 /// One processed scan. Arrays are indexed by transmitted pixel (0-271).
@@ -53,7 +54,7 @@ struct ProcessedScan {
   std::array<std::int8_t, kPixels> readout{};   ///< index of the chosen read-out in the set (-1: none)
   std::array<PixelStatus, kPixels> status{};
   double temperature_c = std::numeric_limits<double>::quiet_NaN();  ///< MCU temperature of the set
-  int valid = 0, saturated = 0, too_dark = 0, out_of_range = 0;     ///< counts over the 256 effective pixels
+  int valid = 0, saturated = 0, too_dark = 0, out_of_range = 0, stale = 0;  ///< counts over the 256 effective pixels
 
   /// Share of the effective pixels saturated at every read-out.
   [[nodiscard]] double saturated_share() const { return saturated / static_cast<double>(kPixels - 2 * kDarkPixels); }
@@ -69,8 +70,8 @@ class ScanProcessor {
   void process(const RawSet& set, double t_s, ProcessedScan& out) const;
   [[nodiscard]] ProcessedScan process(const RawSet& set, double t_s = 0.0) const;
 
-  /// A distance-only frame (firmware distances in units of `unit_m`, 0 = invalid):
-  /// distance and status only (no intensity in that mode).
+  /// A distance-only frame (unsigned firmware distances in units of
+  /// `unit_m`, 0 = invalid): distance and status only (no intensity in that mode).
   void process_distance(const DistanceFrame& frame, double unit_m, ProcessedScan& out) const;
 
   [[nodiscard]] const std::array<float, kPixels>& angles_rad() const { return angles_; }
