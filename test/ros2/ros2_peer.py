@@ -1,6 +1,8 @@
 """A real ROS 2 Jazzy node (rclpy on Fast DDS, default settings) for the
 interop tests: it publishes, subscribes and round-trips messages of the
-standard types tinyline mirrors, and reports what it sees, one line per fact.
+standard types tinyline mirrors (and tinyline_msgs/LineScan, from the
+interface package built with rosidl), and reports what it sees, one line per
+fact.
 
   ros2_peer.py roundtrip --type T --out /in --back /out --count N
       publishes message i on OUT and expects it back, field for field, on BACK
@@ -98,12 +100,28 @@ def make_marker_array(i):
     return MarkerArray(markers=markers)
 
 
+def make_line_scan(i):
+    from tinyline_msgs.msg import LineScan  # built from msg/ros2/tinyline_msgs (PYTHONPATH)
+    n = 256
+    return LineScan(header=header(i, "laser"), set_index=i, temperature_c=44.5,
+                    angles=[-0.609375 + k / 210.0 for k in range(n)], distance_m=[0.05 + k / 128.0 for k in range(n)],
+                    intensity=[float(k % 50) for k in range(n)], reflectance=[0.25] * n,
+                    pulses=[(20, 100, 200, 400, 700)[k % 5] for k in range(n)],
+                    status=[LineScan.STATUS_VALID if k % 9 else LineScan.STATUS_SATURATED for k in range(n)])
+
+
+def line_scan_type():
+    from tinyline_msgs.msg import LineScan
+    return LineScan
+
+
 TYPES = {
     "string": (String, make_string, lambda m: int(m.data.split()[2].rstrip(":"))),
     "laser_scan": (LaserScan, make_laser_scan, lambda m: m.header.stamp.sec - BASE_SEC),
     "point_cloud2": (PointCloud2, make_point_cloud2, lambda m: m.header.stamp.sec - BASE_SEC),
     "diagnostic_array": (DiagnosticArray, make_diagnostic_array, lambda m: m.header.stamp.sec - BASE_SEC),
     "marker_array": (MarkerArray, make_marker_array, lambda m: m.markers[0].id),
+    "line_scan": (line_scan_type, make_line_scan, lambda m: m.set_index),
 }
 
 
@@ -158,6 +176,8 @@ class Peer:
         rclpy.init()
         self.node = rclpy.create_node("ros2_peer")
         self.msg_type, self.make, self.index = TYPES[args.type]
+        if not hasattr(self.msg_type, "get_fields_and_field_types"):
+            self.msg_type = self.msg_type()  # a type that needs its package imported first
 
     def spin_until(self, done, step=0.05):
         while not done() and time.monotonic() < self.deadline:

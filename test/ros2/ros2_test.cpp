@@ -417,3 +417,74 @@ TEST(Ros2Client, Ros2SeesOurEndpointsWithTheirTypeAndTypeHash) {
                                     msg::type_support<sensor_msgs::msg::LaserScan>().type_hash)))
       << info.output();
 }
+
+// ------------------------------------------------------------------ type hashes and the interface package
+
+namespace {
+
+/// Every generated type's "name hash" line, as type_hashes.py reads them.
+std::string write_our_hashes(const std::string& path, const std::string& only_pkg = "") {
+  std::ofstream f(path);
+  for (const auto* ts : msg::all_type_supports()) {
+    const bool ours = ts->name.rfind("tinyline_msgs/", 0) == 0;
+    if (only_pkg.empty() ? !ours : ts->name.rfind(only_pkg + "/", 0) == 0) f << ts->name << " " << ts->type_hash << "\n";
+  }
+  return path;
+}
+
+std::size_t count_lines(const ChildProcess& p, const std::string& prefix) {
+  const auto lines = p.lines();
+  return static_cast<std::size_t>(
+      std::count_if(lines.begin(), lines.end(), [&](const std::string& l) { return l.rfind(prefix, 0) == 0; }));
+}
+
+std::string venv_prefix() { return std::filesystem::path(TINYLINE_VENV_PYTHON).parent_path().parent_path().string(); }
+
+}  // namespace
+
+TEST(Ros2TypeHashes, EveryMirroredStandardTypeHashesAsTheRos2WheelsShipIt) {
+  if (access(TINYLINE_VENV_PYTHON, X_OK) != 0) GTEST_SKIP() << "no test venv at " << TINYLINE_VENV_PYTHON;
+  // The independent proof that a mirrored type is ROS 2's, field for field:
+  // its hash equals the hash_string of the type description rosidl shipped.
+  const std::string ours = write_our_hashes(fmt::format("{}/tl_hashes_{}.txt", ::testing::TempDir(), getpid()));
+  std::size_t standard = 0;
+  for (const auto* ts : msg::all_type_supports()) standard += ts->name.rfind("tinyline_msgs/", 0) == 0 ? 0 : 1;
+  ChildProcess check({TINYLINE_VENV_PYTHON, kHere + "type_hashes.py", ours, venv_prefix() + "/share", "--require",
+                      "builtin_interfaces", "std_msgs", "geometry_msgs", "sensor_msgs", "diagnostic_msgs",
+                      "visualization_msgs", "rosgraph_msgs"});
+  EXPECT_TRUE(exited_ok(check, 120s)) << check.output();
+  EXPECT_EQ(count_lines(check, "OK "), standard) << check.output();
+  EXPECT_GE(standard, 20u);
+  std::filesystem::remove(ours);
+}
+
+TEST(Ros2InterfacePackage, AWorkspaceBuildsTinylineMsgsFromOurMsgFilesAndExchangesThemWithUs) {
+  REQUIRE_ROS2_SANDBOX();
+  // msg/ros2/tinyline_msgs built as a ROS 2 workspace builds it (ament_cmake,
+  // rosidl_generate_interfaces over our .msg files) with the wheels' tools.
+  const std::string work = std::string(TINYLINE_BINARY_DIR) + "/test/ros2/tinyline_msgs_ws";
+  ChildProcess build({"/bin/bash", kHere + "build_interface_package.sh", venv_prefix(), TINYLINE_SOURCE_DIR, work});
+  ASSERT_TRUE(exited_ok(build, 540s)) << build.output();
+  const std::string install = work + "/install";
+
+  // rosidl's hashes of our types are the ones our generator computed.
+  const std::string ours =
+      write_our_hashes(fmt::format("{}/tl_own_hashes_{}.txt", ::testing::TempDir(), getpid()), "tinyline_msgs");
+  ChildProcess check({TINYLINE_VENV_PYTHON, kHere + "type_hashes.py", ours, install + "/share", "--require",
+                      "tinyline_msgs"});
+  EXPECT_TRUE(exited_ok(check, 120s)) << check.output();
+  EXPECT_EQ(count_lines(check, "OK "), 17u) << check.output();
+  std::filesystem::remove(ours);
+
+  // A ROS 2 node using the built package exchanges LineScans with tinyline.
+  ChildProcess relay(cli({"run", "tinyline", "relay", "--dds", "-p", "type:=tinyline_msgs/msg/LineScan", "-r",
+                          "input:=/ros2/line_scan/in", "-r", "output:=/ros2/line_scan/out", "--no-table"}));
+  const std::vector<std::string> env = {
+      "PYTHONPATH=" + install + "/lib/python3.11/site-packages", "LD_LIBRARY_PATH=" + install + "/lib",
+      "AMENT_PREFIX_PATH=" + install + ":" + venv_prefix()};
+  ChildProcess rt(peer({"roundtrip", "--type", "line_scan", "--out", "/ros2/line_scan/in", "--back",
+                        "/ros2/line_scan/out", "--count", "5"}),
+                  env);
+  EXPECT_TRUE(exited_ok(rt, kDiscovery + 60s)) << rt.output() << relay.output();
+  EXPECT_TRUE(rt.find("ROUNDTRIP OK 5")) << rt.output();
+}
