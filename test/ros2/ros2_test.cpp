@@ -123,6 +123,12 @@ std::vector<int> got(const ChildProcess& p) {
   return out;
 }
 
+std::size_t count_lines(const ChildProcess& p, const std::string& prefix) {
+  const auto lines = p.lines();
+  return static_cast<std::size_t>(
+      std::count_if(lines.begin(), lines.end(), [&](const std::string& l) { return l.rfind(prefix, 0) == 0; }));
+}
+
 std::vector<int> one_to(int n) {
   std::vector<int> v;
   for (int i = 1; i <= n; ++i) v.push_back(i);
@@ -223,6 +229,27 @@ TEST(Ros2Discovery, DifferentDomainsAndDiscoveryOffKeepGraphsApart) {
 }
 
 // ------------------------------------------------------------------ messages and QoS
+
+TEST(Ros2Client, TheLaserDemosScansReachADefaultRos2Subscriber) {
+  REQUIRE_ROS2_SANDBOX();
+  // The newcomer's first try: the shipped demo as it is, and what
+  // `ros2 topic echo /laser/laser_scan` subscribes with.
+  const std::string bag = fmt::format("{}/tl_ros2_demo_{}.mcap", ::testing::TempDir(), getpid());
+  ChildProcess demo(cli({"launch", std::string(TINYLINE_SOURCE_DIR) + "/launch/laser_demo.launch.yaml",
+                         "bag:=" + bag, "--no-table"}));
+  ChildProcess echo(peer({"sub", "--type", "laser_scan", "--topic", "/laser/laser_scan", "--count", "5", "--any"}));
+  ASSERT_TRUE(exited_ok(echo, kDiscovery + 60s)) << echo.output() << demo.output();
+  const auto lines = echo.lines();
+  for (const auto& l : lines) {
+    if (l.rfind("HEARD", 0) != 0) continue;
+    // 256 pixels of the simulated sensor, its frame, its limits.
+    const std::regex scan(R"(^HEARD frame=laser_scan ranges=256 in_range=[0-9]+ angles=-0\.[0-9]+\.\.0\.[0-9]+ )"
+                          R"(limits=0\.050\.\.3\.000$)");
+    EXPECT_TRUE(std::regex_search(l, scan)) << l;
+  }
+  EXPECT_EQ(count_lines(echo, "HEARD "), 5u) << echo.output();
+  std::filesystem::remove(bag);
+}
 
 TEST(Ros2Client, EveryMirroredStandardTypeRoundTripsFieldForFieldThroughATinylineProcess) {
   REQUIRE_ROS2_SANDBOX();
@@ -430,12 +457,6 @@ std::string write_our_hashes(const std::string& path, const std::string& only_pk
     if (only_pkg.empty() ? !ours : ts->name.rfind(only_pkg + "/", 0) == 0) f << ts->name << " " << ts->type_hash << "\n";
   }
   return path;
-}
-
-std::size_t count_lines(const ChildProcess& p, const std::string& prefix) {
-  const auto lines = p.lines();
-  return static_cast<std::size_t>(
-      std::count_if(lines.begin(), lines.end(), [&](const std::string& l) { return l.rfind(prefix, 0) == 0; }));
 }
 
 std::string venv_prefix() { return std::filesystem::path(TINYLINE_VENV_PYTHON).parent_path().parent_path().string(); }
