@@ -171,17 +171,22 @@ std::string discovery_config(DiscoveryRange range, const std::vector<std::string
 
 std::string this_machine_config(const std::vector<std::string>& interfaces, const std::vector<std::string>& static_peers,
                                 const std::string& tag, int max_participants) {
-  std::string nics = "<NetworkInterface address=\"127.0.0.1\"/>";
+  const bool local = static_peers.empty();
+  // Cyclone prefers loopback (priority 2) wherever it reaches a participant,
+  // so processes here keep talking if a card goes away; it also sends to a
+  // static peer through the highest-priority interface, where loopback
+  // cannot reach another machine: with peers it yields to the cards.
+  std::string nics;
   for (std::size_t i = 0; i < interfaces.size() && i < 3; ++i) {
     nics += "<NetworkInterface name=\"" + xml_escape(interfaces[i]) + "\"/>";
   }
+  nics += local ? "<NetworkInterface address=\"127.0.0.1\"/>" : "<NetworkInterface address=\"127.0.0.1\" priority=\"0\"/>";
   // Unicast discovery needs a participant index per process (its ports); the
   // peer 127.0.0.1 makes discovery probe the first `max_participants` of them.
   // Loopback has a 64 KiB MTU: fragments of 60 kB instead of Cyclone's
   // 1344 B, and room for 4 MB of unacknowledged data per writer, move
   // 64 KiB..1 MiB messages several times faster; they would only hurt on the
   // way to a static peer on another machine.
-  const bool local = static_peers.empty();
   return fmt::format(
       "<CycloneDDS><Domain Id=\"any\">"
       "<General><Interfaces>{}</Interfaces><AllowMulticast>false</AllowMulticast>{}</General>{}"

@@ -142,8 +142,8 @@ TEST(DdsSettings, ByDefaultThisMachineOnlyKnowingItsInterfacesButSendingOnlyToLo
   // Loopback and the cards are interfaces (so a ROS 2 node announcing only
   // its card's address is accepted), multicast is off, the only peer is
   // loopback: nothing is sent to the network unless a participant answers.
-  EXPECT_TRUE(has(c, "<Interfaces><NetworkInterface address=\"127.0.0.1\"/><NetworkInterface name=\"eth0\"/>"
-                     "<NetworkInterface name=\"wlan0\"/></Interfaces>"))
+  EXPECT_TRUE(has(c, "<Interfaces><NetworkInterface name=\"eth0\"/><NetworkInterface name=\"wlan0\"/>"
+                     "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"))
       << c;
   EXPECT_TRUE(has(c, "<AllowMulticast>false</AllowMulticast>")) << c;
   EXPECT_TRUE(has(c, "<Peers><Peer address=\"127.0.0.1\"/></Peers>")) << c;
@@ -203,6 +203,8 @@ TEST(DdsSettings, DiscoveryRangeAndStaticPeersAreHonouredAsRmwCycloneddsHonoursT
         << c;
     EXPECT_TRUE(has(c, "<AllowMulticast>false</AllowMulticast>")) << c;
     EXPECT_FALSE(has(c, "FragmentSize")) << "loopback-sized fragments on the way to another machine: " << c;
+    // Cyclone sends to a peer through its highest-priority interface.
+    EXPECT_TRUE(has(c, "<NetworkInterface address=\"127.0.0.1\" priority=\"0\"/>")) << c;
   }
   {
     Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"}, {"ROS_STATIC_PEERS", "10.0.0.2"},
