@@ -156,6 +156,28 @@ TEST(Ros2Discovery, ADefaultRos2NodeAndADefaultTinylineProcessFindEachOtherBothW
   EXPECT_TRUE(echo.find("remote publisher in a participant that is not tinyline connected")) << echo.output();
 }
 
+TEST(Ros2Discovery, ANodeOnRmwCycloneddsDefaultsFindsUsToo) {
+  REQUIRE_ROS2_SANDBOX();
+  // ROS 2's other middleware: Jazzy's rmw_cyclonedds_cpp runs Cyclone DDS
+  // 0.10, as we do, and sets it up for ROS 2's default range this way
+  // (multicast on one card, participant index auto, at most 32; its
+  // check_create_domain). A tinyline process with exactly that configuration
+  // plays the ROS 2 node, both ways.
+  const std::vector<std::string> rmw_subnet = {
+      "CYCLONEDDS_URI=<CycloneDDS><Domain><Discovery><ParticipantIndex>auto</ParticipantIndex>"
+      "<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>"};
+  ChildProcess ours(cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/cyclone/ours", "-p", "rate_hz:=20",
+                         "--no-table"}));
+  ChildProcess theirs(cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/cyclone/theirs", "-p", "rate_hz:=20",
+                           "--name", "rmw_pulse", "--no-table"}),
+                      rmw_subnet);
+  ChildProcess their_echo(cli({"run", "tinyline", "echo", "--dds", "-r", "input:=/cyclone/ours", "--no-table"}),
+                          rmw_subnet);
+  ChildProcess our_echo(cli({"run", "tinyline", "echo", "--dds", "-r", "input:=/cyclone/theirs", "--no-table"}));
+  EXPECT_TRUE(their_echo.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), kDiscovery)) << their_echo.output();
+  EXPECT_TRUE(our_echo.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), kDiscovery)) << our_echo.output();
+}
+
 TEST(Ros2Discovery, NothingLeavesTheMachineByDefault) {
   REQUIRE_ROS2_SANDBOX();
   // Two tinyline processes with the defaults talk; the card sends nothing:
