@@ -21,7 +21,7 @@
 #include <tinyline/msg/sensor_msgs/laser_scan.hpp>
 #include <tinyline/msg/std_msgs/string.hpp>
 
-#include "../../bus/dds/test/waiting.hpp"
+#include "../dds/bridged_graph.hpp"
 #include "../dds/child_process.hpp"
 
 using namespace tinyline;
@@ -64,44 +64,14 @@ bool exited_ok(ChildProcess& p, std::chrono::milliseconds timeout) {
   return st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0;
 }
 
-/// A tinyline process in this test process: a context, its DDS bridge with
-/// the settings of the environment (the defaults, in the sandbox), a node.
-struct Graph {
-  std::shared_ptr<tlt::Signal> signal = std::make_shared<tlt::Signal>();
-  std::shared_ptr<tlt::SignallingSink> sink = std::make_shared<tlt::SignallingSink>(signal);
-  std::shared_ptr<bus::Context> ctx;
-  std::shared_ptr<dds::Bridge> bridge;
-  std::shared_ptr<bus::Node> node;
-  std::unique_ptr<bus::MultiThreadedExecutor> ex;
-  std::thread spinner;
-
-  Graph() {
-    bus::ContextOptions co;
-    co.log_sink = sink;
-    ctx = bus::Context::create(co);
-    dds::BridgeOptions bo;
-    bo.settings = dds::Settings::from_environment();
-    bo.settings.process_name = "tinyline_test";
-    bo.selection.all = true;
-    bridge = dds::Bridge::create(ctx, bo);
-    bus::NodeOptions no;
-    no.name = "ros2_side";
-    no.context = ctx;
-    node = std::make_shared<bus::Node>(no);
-  }
-  void run() {
-    bridge->start();
-    ex = std::make_unique<bus::MultiThreadedExecutor>(ctx->clock(), 2);
-    ex->add_node(bridge);
-    ex->add_node(node);
-    spinner = std::thread([this] { ex->spin(); });
-  }
-  bool logged(bus::LogLevel level, const std::string& text, std::chrono::milliseconds timeout) {
-    return signal->wait_for([&] { return sink->contains(level, text); }, timeout);
-  }
-  ~Graph() {
-    if (ex) ex->stop();
-    if (spinner.joinable()) spinner.join();
+/// A tinyline process in this test process with the settings of the
+/// environment (the defaults, in the sandbox).
+struct Graph : tlt::BridgedGraph {
+  Graph() : BridgedGraph(settings(), "ros2_side") {}
+  static dds::Settings settings() {
+    dds::Settings s = dds::Settings::from_environment();
+    s.process_name = "tinyline_test";
+    return s;
   }
 };
 
