@@ -400,7 +400,9 @@ TEST(Ros2Client, AKilledRos2NodeIsNoticedAndARestartedOneReconnects) {
   const auto items = in.items();
   for (std::size_t k = before; k < before + 3; ++k) {
     const std::string index = items[k].substr(std::string("tinyline interop ").size());
-    EXPECT_TRUE(second.find("SENT " + index.substr(0, index.find(':')))) << items[k] << "\n" << second.output();
+    // Its line may still be on the way through the pipe when the message is here.
+    EXPECT_TRUE(second.wait_for_line(std::regex("^SENT " + index.substr(0, index.find(':')) + "$"), 10s))
+        << items[k] << "\n" << second.output();
     if (k > before) {
       EXPECT_EQ(std::stoi(index), std::stoi(items[k - 1].substr(17)) + 1) << items[k];
     }

@@ -509,6 +509,9 @@ TEST(DdsBridge, ASensorDataPublisherReachesDefaultAndBestEffortSubscribersAsInOn
   pub->publish(text("scan 21"));
   ASSERT_TRUE(b.signal->wait_for([&] { return loose.size() >= 1; }, 10s)) << c.sink->dump();
   EXPECT_EQ(loose.items().back(), "scan 21");
+  // The inboxes go before the graphs: no callback may still be filling them.
+  c.stop();
+  b.stop();
 }
 
 TEST(DdsBridge, IncompatibleQosIsReportedWithThePolicyNotSilentlyDropped) {
