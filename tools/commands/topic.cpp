@@ -66,6 +66,7 @@ dds::Settings settings_from(const Args& a) {
   dds::Settings s = dds::Settings::from_environment();
   if (a.value("--domain")) s.domain_id = dds::check_domain_id(static_cast<long long>(a.number("--domain", 0)), "--domain");
   s.process_name = "tinyline topic";
+  for (const auto& note : s.notes) fmt::print(stderr, "tinyline topic: {}\n", note);
   return s;
 }
 
