@@ -60,6 +60,9 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
 
   /// Detaches from the executor so no more callbacks run (node destruction).
   void cancel();
+  /// Wakes reliable publishers waiting for room, so they look again whether
+  /// to go on waiting (the executor that drains the queue may have stopped).
+  void wake_publishers();
 
  protected:
   friend class CallbackGroup;
@@ -86,6 +89,8 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
   void clear();
   /// Consumer side, after taking a message: wakes a reliable publisher waiting for room.
   void made_room();
+  /// Why a reliable publish failed: the executor draining the queue stops.
+  std::string stopping_reason(const CallbackGroup& g) const;
 
   struct Stamped {
     QueuedMessage m;
