@@ -12,7 +12,9 @@ AsyncWriter::~AsyncWriter() {
 
 Status AsyncWriter::open(const std::string& path, AsyncWriterOptions options) {
   auto f = std::make_unique<FileWritable>();
-  if (Status s = f->open(path); !s.ok()) return s;
+  FileWritableOptions fo;
+  fo.keep_partial = true;  // a recording that fails half-way is still worth recovering
+  if (Status s = f->open(path, fo); !s.ok()) return s;
   return start(std::move(f), std::move(options));
 }
 

@@ -109,16 +109,17 @@ Status recover(Readable& in, Writable& out, const RecoverOptions& options, Recov
 
 Status recover(const std::string& in_path, const std::string& out_path, const RecoverOptions& options,
                RecoverReport& report) {
-  if (in_path == out_path) {
-    return {StatusCode::InvalidArgument, fmt::format("recover: input and output are the same file ({})", in_path)};
-  }
   FileReadable in;
   if (Status s = in.open(in_path); !s.ok()) return s;
   FileWritable out;
-  if (Status s = out.open(out_path); !s.ok()) return s;
-  Status s = recover(in, out, options, report);
-  Status closed = out.close();
-  return s.ok() ? closed : s;
+  FileWritableOptions fo;
+  fo.inputs = {in_path};  // never the file being recovered
+  if (Status s = out.open(out_path, fo); !s.ok()) return s;
+  if (Status s = recover(in, out, options, report); !s.ok()) {
+    out.abandon();  // an existing output stays as it was
+    return s;
+  }
+  return out.close();
 }
 
 }  // namespace tinyline::bag

@@ -372,8 +372,11 @@ Status Writer::close() {
     if (result.ok()) result = out_->write(tail);
     stats_.file_bytes = out_->size();
   }
-  Status closed = out_->close();
-  if (result.ok()) result = closed;
+  if (result.ok()) {
+    result = out_->close();
+  } else {
+    out_->abandon();  // an unfinished file never replaces what the path held
+  }
   closed_out_ = std::move(out_);
   if (!result.ok()) error_ = result;
   return result;
