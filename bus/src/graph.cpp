@@ -119,12 +119,18 @@ void SubscriptionBase::made_room() {
   room_.notify_one();
 }
 
-void SubscriptionBase::clear() {
+std::size_t SubscriptionBase::clear() {
+  std::size_t n = 0;
   QueuedMessage m;
-  while (ring_.try_pop(&m)) m.msg.reset();
+  while (ring_.try_pop(&m)) {
+    m.msg.reset();
+    ++n;
+  }
   std::lock_guard lk(slow_mu_);
+  n += overflow_.size();
   overflow_.clear();
   overflow_size_.store(0, std::memory_order_seq_cst);
+  return n;
 }
 
 std::size_t SubscriptionBase::queued() const { return size(); }
@@ -139,14 +145,15 @@ void SubscriptionBase::wake_publishers() {
   room_.notify_all();
 }
 
-void SubscriptionBase::cancel() {
+std::size_t SubscriptionBase::cancel() {
   cancelled_.store(true, std::memory_order_seq_cst);
-  clear();
+  const std::size_t discarded = clear();
   {
     std::lock_guard lk(slow_mu_);
     room_.notify_all();
   }
   group_->remove_subscription(this);
+  return discarded;
 }
 
 // ---------------------------------------------------------------------------- Topic

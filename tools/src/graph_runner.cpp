@@ -84,11 +84,13 @@ int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::s
   if (options.before_stop) options.before_stop();
   ex.stop();
   spinner.join();
+  bool stop_failed = false;  // a recorder that could not finish its file, say
   for (auto it = nodes.rbegin(); it != nodes.rend(); ++it) {
     try {
       (*it)->on_stop();
     } catch (const std::exception& e) {
       fmt::print(stderr, "node '{}' failed to stop cleanly: {}\n", (*it)->full_name(), e.what());
+      stop_failed = true;
     }
   }
   if (options.on_stopping) options.on_stopping();
@@ -108,7 +110,7 @@ int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::s
     fmt::print("{:<34} {:<34} {:>10} {:>9.1f} {:>8}\n", t.name, t.type, t.published,
                elapsed > 0 ? static_cast<double>(t.published) / elapsed : 0.0, t.dropped + t.timeouts);
   }
-  return 0;
+  return stop_failed ? 1 : 0;
 }
 
 }  // namespace tinyline::tools

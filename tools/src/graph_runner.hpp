@@ -31,7 +31,7 @@ struct RunOptions {
   std::function<void()> on_stopping;
 };
 
-/// Runs the nodes; returns the exit code (0, or 1 if a node failed to start).
+/// Runs the nodes; returns the exit code (0, or 1 if a node failed to start or to stop cleanly).
 int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::shared_ptr<bus::Node>>& nodes,
               const RunOptions& options);
 

@@ -164,5 +164,74 @@ TEST(BagFiles, TwoRecordersOnOnePathTheSecondFailsWithAClearError) {
   EXPECT_TRUE(r.verify().ok()) << r.verify().str();
 }
 
+
+TEST(BagFiles, ARecorderGivenARelativeTopicRecordsItLikeRos) {
+  // `tinyline bag record -o x.mcap demo/raw` used to record nothing: the
+  // name was compared with "/demo/raw" as given.
+  const auto d = scratch("relative");
+  auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Sim, std::make_shared<bus::CaptureSink>()});
+  bus::DeterministicExecutor ex(ctx->clock());
+  RecorderOptions ro;
+  ro.path = (d / "rel.mcap").string();
+  ro.topics = {"demo/raw"};
+  auto rec = std::make_shared<Recorder>(opts(ctx, "recorder"), ro);
+  auto src = std::make_shared<bus::Node>(opts(ctx, "src"));
+  auto pub = src->create_publisher<std_msgs::msg::String>("/demo/raw");
+  ex.add_node(rec);
+  ex.add_node(src);
+  ex.advance_to(bus::Time::from_seconds(1));
+  for (int i = 0; i < 3; ++i) {
+    pub->publish(std::make_unique<std_msgs::msg::String>());
+    ex.spin_until_idle();
+  }
+  ASSERT_TRUE(rec->stop().ok());
+  EXPECT_EQ(rec->stats().written, 3U);
+  // In a namespace, relative names resolve against it; bad names stop the build.
+  bus::NodeOptions ns = opts(ctx, "r2");
+  ns.ns = "/robot";
+  ns.param("topics", std::vector<std::string>{"scan", "/abs", "~/own"});
+  Recorder r2(ns);
+  EXPECT_THROW(Recorder(opts(ctx, "r3").param("topics", std::vector<std::string>{"bad name"})), bus::ParamError);
+}
+
+TEST(BagFiles, ARecorderThatCannotFinishItsFileFailsItsStop) {
+  // A full disk used to end a launch with exit code 0: on_stop() swallowed it.
+  struct FailingSink : Writable {
+    Status write(std::span<const std::uint8_t> b) override {
+      if (size_ + b.size() > 2000) return {StatusCode::WriteFailed, "sink: No space left on device"};
+      size_ += b.size();
+      return {};
+    }
+    Status flush() override { return {}; }
+    Status close() override { return {}; }
+    std::uint64_t size() const override { return size_; }
+    const std::string& name() const override { return name_; }
+    std::uint64_t size_ = 0;
+    std::string name_ = "full.mcap";
+  };
+  auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Sim, std::make_shared<bus::CaptureSink>()});
+  bus::DeterministicExecutor ex(ctx->clock());
+  RecorderOptions ro;
+  ro.writer.writer.chunk_size_bytes = 1024;
+  auto rec = std::make_shared<Recorder>(opts(ctx, "recorder"), ro, std::make_unique<FailingSink>());
+  auto src = std::make_shared<bus::Node>(opts(ctx, "src"));
+  auto pub = src->create_publisher<std_msgs::msg::String>("/x");
+  ex.add_node(rec);
+  ex.add_node(src);
+  ex.advance_to(bus::Time::from_seconds(1));
+  for (int i = 0; i < 50; ++i) {
+    auto m = std::make_unique<std_msgs::msg::String>();
+    m->data = std::string(100, 'x');
+    pub->publish(std::move(m));
+    ex.spin_until_idle();
+  }
+  try {
+    rec->on_stop();
+    FAIL() << "on_stop() reported success for a file it could not write";
+  } catch (const BagError& e) {
+    EXPECT_NE(std::string(e.what()).find("No space left on device"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace tinyline::bag
