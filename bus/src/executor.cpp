@@ -322,6 +322,15 @@ void Executor::start_pending_nodes() {
     std::lock_guard lk(nodes_mu_);
     todo.swap(unstarted_);
   }
+  // Every node checks its inputs before any starts: a bad calibration must
+  // not leave a recorder that already began.
+  for (auto& n : todo) {
+    try {
+      n->on_configure();
+    } catch (const std::exception& e) {
+      throw std::runtime_error("node '" + n->full_name() + "' failed to configure: " + e.what());
+    }
+  }
   for (auto& n : todo) {
     try {
       n->on_start();

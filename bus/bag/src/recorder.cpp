@@ -47,7 +47,8 @@ std::vector<std::string> resolved(const bus::Node& n, const std::vector<std::str
 
 // Declares the recorder's parameters with `d` as defaults and returns the result.
 RecorderOptions declare(bus::Node& n, RecorderOptions d) {
-  d.path = n.declare_parameter<std::string>("path", d.path, "output MCAP file (empty: tinyline_<date>_<time>.mcap)");
+  d.path = n.declare_parameter<std::string>("path", d.path, "output MCAP file (empty: tinyline_<date>_<time>.mcap)",
+                                            bus::ParamConstraints::output_file());
   d.topics = n.declare_parameter<std::vector<std::string>>("topics", d.topics, "topics to record (empty: all)");
   d.exclude = n.declare_parameter<std::vector<std::string>>("exclude", d.exclude, "topics never recorded");
   d.queue_depth = static_cast<std::size_t>(n.declare_parameter<int>(

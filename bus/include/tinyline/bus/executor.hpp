@@ -235,7 +235,7 @@ class Executor {
   void add_timer(const std::shared_ptr<Timer>& t, const std::shared_ptr<CallbackGroup>& g);
 
  protected:
-  /// Calls on_start() of every node added since the last call.
+  /// Calls on_configure() of every node added since the last call, then their on_start().
   void start_pending_nodes();
   /// A worker's copies of the attached groups and their subscription lists
   /// (refreshed when a version changes), so polling takes no lock.
