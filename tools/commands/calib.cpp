@@ -1,4 +1,4 @@
-// tinyline calib fit|diagnose|eval|collect: the calibration tool (issue 6). The logic
+// tinyline calib fit|diagnose|eval|collect: the calibration tool. The logic
 // lives in tiny_laser_driver's calibration_tool library; this file finds the
 // plot script and its Python and hands over.
 #include <cstdlib>
@@ -8,10 +8,12 @@
 #include <tiny_laser_driver/calibration_tool.hpp>
 #include <tinyline/tools/command.hpp>
 
+#include "../src/cli.hpp"
+
 namespace tinyline::tools {
 namespace {
 
-int cmd_calib(const std::vector<std::string>& args) {
+int calib(const std::vector<std::string>& args) {
   namespace fs = std::filesystem;
   tiny_laser_driver::CalibToolEnv env;
   const fs::path share = share_dir();
@@ -27,7 +29,16 @@ int cmd_calib(const std::vector<std::string>& args) {
   return tiny_laser_driver::run_calib_command(args, std::cout, std::cerr, env);
 }
 
-const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &cmd_calib};
+// The calibration tool parses its own arguments (tiny_laser_driver's
+// calibration_tool): everything after `calib`, --help included, goes to it.
+CommandRun setup_calib(CLI::App& cmd) {
+  cmd.set_help_flag();
+  cmd.prefix_command();
+  cmd.allow_extras();
+  return [&cmd] { return calib(cmd.remaining()); };
+}
+
+const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &setup_calib};
 
 }  // namespace
 }  // namespace tinyline::tools

@@ -95,8 +95,26 @@ EOF
   [ "$(cat "$work/after.txt")" = previous ] || fail "the existing file was replaced"
 }
 
+# A FIFO or /dev/zero where a file is expected: refused at once, naming it
+# (a FIFO used to block forever, /dev/zero to be read until memory ran out).
+odd_inputs() {
+  mkfifo "$work/pipe.yaml" || skip "no mkfifo"
+  printf 'launch:\n- include: {file: pipe.yaml}\n' > "$work/inc.launch.yaml"
+  printf 'launch:\n- include: {file: /dev/zero}\n' > "$work/zero.launch.yaml"
+  for args in "launch $work/pipe.yaml" "launch $work/inc.launch.yaml" "launch /dev/zero" \
+              "launch $work/zero.launch.yaml" "bag info $work/pipe.yaml" "bag play $work/pipe.yaml" \
+              "bag recover $work/pipe.yaml $work/out.mcap"; do
+    timeout 20 "$tl" $args > "$work/out.txt" 2>&1
+    rc=$?
+    [ $rc -eq 124 ] && fail "$args: still waiting after 20 s"
+    [ $rc -eq 1 ] || fail "$args: exit code $rc, not 1"
+    grep -q "is a FIFO, not a regular file\|is a character device, not a regular file" "$work/out.txt" ||
+      fail "$args: the message does not say what is wrong"
+  done
+}
+
 case "$case_name" in
-  recorder_load | ctrl_c | full_disk) "$case_name" ;;
+  recorder_load | ctrl_c | full_disk | odd_inputs) "$case_name" ;;
   *) echo "unknown case $case_name" >&2; exit 2 ;;
 esac
 echo "ok: $case_name"
