@@ -126,6 +126,15 @@ class LinearReader {
   bool data_end_seen() const;
   bool footer_seen() const;
 
+  /// Recovery: definitions known from elsewhere (the summary, under its own
+  /// CRC). Messages on these channels resolve even when the file's own
+  /// records are lost; a record of the file that disagrees is replaced by the
+  /// known one (and noted in problems()).
+  void know(const std::map<SchemaId, Schema>& schemas, const std::map<ChannelId, Channel>& channels);
+  /// Recovery: reads the one chunk at `offset` next (a chunk index points
+  /// there), then ends. For chunks a damaged record made the linear pass miss.
+  bool read_chunk_at(std::uint64_t offset);
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
