@@ -115,6 +115,9 @@ class Writer {
                     std::uint64_t uncompressed_size, std::string_view comp);
   static constexpr std::uint8_t kSkipAfterIncompressible = 15;
   Status fail(Status s);
+  /// The summary records (schemas, channels, statistics, indexes), noting each group in `offsets`.
+  std::vector<std::uint8_t> summary_section(std::uint64_t summary_start, std::vector<SummaryOffset>& offsets);
+  Status write_summary_and_footer();
 
   WriterOptions options_;
   std::unique_ptr<Writable> out_;
