@@ -1,5 +1,6 @@
 #include <tinyline/launch/launch.hpp>
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -37,19 +38,46 @@ std::string read_input(const LoadOptions& o, const std::string& path, std::strin
   }
 }
 
-// One YAML document: a second one would be ignored silently, so it is an error.
+// Notes where each document starts; builds nothing.
+class DocumentMarks : public YAML::EventHandler {
+ public:
+  std::vector<YAML::Mark> starts;
+  void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
+// One YAML document: a second one would be ignored silently, so it is an
+// error. (Not YAML::LoadAll: yaml-cpp 0.7 loops forever on a stray ',', so
+// the parser is asked for the second document only.)
 YAML::Node parse_one_document(const std::string& text, const std::string& file, std::string_view what) {
-  std::vector<YAML::Node> docs;
+  YAML::Node root;
   try {
-    docs = YAML::LoadAll(text);
+    root = YAML::Load(text);
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    DocumentMarks marks;
+    for (int i = 0; i < 3 && parser.HandleNextDocument(marks); ++i) {
+      const auto n = marks.starts.size();
+      if (n > 1 && marks.starts[n - 1].pos <= marks.starts[n - 2].pos) {
+        // yaml-cpp hands out empty documents for ever after a stray ','.
+        throw LaunchError(mark_of(file, marks.starts.back()), "YAML syntax error: a ',' outside any [ ] or { }");
+      }
+    }
+    if (marks.starts.size() > 1) {
+      throw LaunchError(mark_of(file, marks.starts[1]),
+                        fmt::format("a second YAML document ('---'): a {} holds one", what));
+    }
   } catch (const YAML::Exception& e) {
     throw LaunchError(mark_of(file, e.mark), "YAML syntax error: " + e.msg);
   }
-  if (docs.size() > 1) {
-    throw LaunchError(mark_of(file, docs[1].Mark()),
-                      fmt::format("a second YAML document ('---'): a {} holds one", what));
-  }
-  return docs.empty() ? YAML::Node() : docs[0];
+  return root;
 }
 
 // A key given twice in one mapping: yaml-cpp keeps both, lookups see the first.
@@ -368,6 +396,7 @@ struct Loader {
       if (v["namespace"]) {
         try {
           inner.ns = bus::join_namespace(s.ns, str(s, v["namespace"], "namespace"));
+          if (inner.ns != "/") bus::validate_name(inner.ns, "namespace");
         } catch (const std::invalid_argument& e) {
           fail(s, v["namespace"], e.what());
         }
@@ -415,7 +444,7 @@ struct Loader {
       if (ns != "/") bus::validate_name(ns, "namespace");
       return ns;
     } catch (const std::invalid_argument& e) {
-      fail(s, v["namespace"], e.what());
+      fail(s, v["namespace"] ? v["namespace"] : v, e.what());
     }
   }
 
@@ -594,7 +623,7 @@ std::vector<bus::ParamOverride> load_param_file(const std::string& path, const s
       const bool wild = key == "/**";
       const bool exact = key == node_full_name || key == short_name || key == node_full_name.substr(1);
       if (wild_pass ? !wild : !exact) continue;
-      const YAML::Node params = kv.second["ros__parameters"];
+      const YAML::Node params = kv.second.IsMap() ? kv.second["ros__parameters"] : YAML::Node();
       if (!params || !params.IsMap()) {
         throw LaunchError(mark_of(path, kv.second.Mark()), "entry '" + key + "' needs a 'ros__parameters' mapping");
       }

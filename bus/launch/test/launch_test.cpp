@@ -152,7 +152,7 @@ TEST_F(LaunchTest, GoldenErrorMessages) {
     EXPECT_EQ(got, expected) << "for " << file;
     ++checked;
   }
-  EXPECT_EQ(checked, 17);
+  EXPECT_EQ(checked, 18);
 }
 
 TEST_F(LaunchTest, ArgsSubstitutionsGroupsAndRemaps) {
@@ -370,7 +370,7 @@ TEST_F(LaunchTest, AParameterFileWithARepeatedKeyOrASecondDocumentIsAnError) {
   EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "dup.yaml").string(), "/t"); }),
             (d / "dup.yaml").string() + ":4:5: key 'count' given twice in ros__parameters (first at line 3)");
   EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "docs.yaml").string(), "/t"); }),
-            (d / "docs.yaml").string() + ":5:1: a second YAML document ('---'): a parameter file holds one");
+            (d / "docs.yaml").string() + ":4:1: a second YAML document ('---'): a parameter file holds one");
 }
 
 TEST_F(LaunchTest, AMissingInputFileStopsTheLaunchAtTheLineThatNamesIt) {
@@ -428,4 +428,23 @@ TEST_F(LaunchTest, TwoNodesWritingOneFileOrOneWritingAnothersInputAreRefused) {
                     "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + out + "2}]}\n");
             }),
             "no error");
+}
+
+TEST_F(LaunchTest, AParameterFileEntryThatIsNoMappingIsAnErrorWithItsLine) {
+  // Found by the fuzzer: indexing the scalar threw yaml-cpp's BadSubscript,
+  // which reached the user as "error: yaml-cpp: ..." without the file.
+  const fs::path d = scratch("scalar_entry");
+  std::ofstream(d / "p.yaml") << "/t:\n  just text\n";
+  EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "p.yaml").string(), "/t"); }),
+            (d / "p.yaml").string() + ":2:3: entry '/t' needs a 'ros__parameters' mapping");
+}
+
+TEST_F(LaunchTest, AnInvalidGroupNamespaceIsAnErrorAtItsLine) {
+  // Found by the fuzzer: the group's namespace was checked only at a node
+  // without one of its own, whose missing 'namespace' key then threw
+  // yaml-cpp's InvalidNode ("error: invalid node") instead of a located error.
+  const std::string yaml = "launch:\n- group:\n    namespace: \"bad-ns\"\n    children:\n"
+                           "    - node: {pkg: demo, exec: talker}\n";
+  EXPECT_EQ(error_of([&] { (void)launch::load_launch_string(yaml, "g.yaml"); }),
+            "g.yaml:3:16: namespace '/bad-ns' is invalid: character '-' is not allowed (letters, digits, '_' and '/')");
 }
