@@ -28,6 +28,8 @@
 #include <sim/virtual_device.hpp>
 #include <tinyline/tools/command.hpp>
 
+#include "../src/cli.hpp"
+
 namespace {
 
 namespace sim = tinyline::sim;
@@ -216,25 +218,7 @@ int serve(const ServeOptions& o) {
   return 0;
 }
 
-int cmd_sim(const std::vector<std::string>& args) {
-  CLI::App app{"The simulated sensor on a pseudo-terminal (docs/driver.md, \"tinyline sim serve\")", "tinyline sim"};
-  app.require_subcommand(1);
-  ServeOptions o;
-  auto* s = app.add_subcommand("serve", "serve one sensor of a scene on a pty any serial program can open");
-  s->add_option("scene", o.scene, "scene YAML (sim/config/scenes/...)")->required()->check(CLI::ExistingFile);
-  s->add_option("--sensor", o.sensor, "sensor name in the scene (default: the first)");
-  s->add_option("--link", o.link, "make PATH a symlink to the pty (kept across unplug/replug)");
-  s->add_option("--firmware", o.firmware, "override the sensor's firmware profile")
-      ->check(CLI::IsMember({"published", "thesis_raw"}));
-  s->add_option("--truth", o.truth, "write what the firmware sent, one JSON object per line, to FILE");
-  s->add_option("--baud", o.baud, "link rate [bit/s]")->check(CLI::Range(1200.0, 12e6));
-  s->add_option("--duration", o.duration_s, "stop after this many seconds (0: until stopped)")->check(CLI::NonNegativeNumber);
-  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them last first
-  try {
-    app.parse(reversed);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+int run_serve(const ServeOptions& o) {
   struct sigaction stop {};
   stop.sa_handler = on_stop_signal;
   sigaction(SIGINT, &stop, nullptr);
@@ -245,8 +229,29 @@ int cmd_sim(const std::vector<std::string>& args) {
   return serve(o);
 }
 
+tinyline::tools::CommandRun setup_serve(CLI::App& cmd) {
+  namespace cli = tinyline::tools::cli;
+  auto o = std::make_shared<ServeOptions>();
+  cmd.add_option("scene", o->scene, "scene YAML (sim/config/scenes/...)")->required()->check(CLI::ExistingFile);
+  cmd.add_option("--sensor", o->sensor, "sensor name in the scene (default: the first)");
+  cmd.add_option("--link", o->link, "make PATH a symlink to the pty (kept across unplug/replug)");
+  cmd.add_option("--firmware", o->firmware, "override the sensor's firmware profile")
+      ->check(CLI::IsMember({"published", "thesis_raw"}));
+  cmd.add_option("--truth", o->truth, "write what the firmware sent, one JSON object per line, to FILE");
+  cmd.add_option("--baud", o->baud, "link rate [bit/s]")->check(cli::finite_above(1200.0, true, 12e6));
+  cmd.add_option("--duration", o->duration_s, "stop after this many seconds (0: until stopped)")
+      ->check(cli::non_negative());
+  cmd.footer("docs/driver.md, \"tinyline sim serve\"");
+  return [o] { return run_serve(*o); };
+}
+
+tinyline::tools::CommandRun setup_sim(CLI::App& cmd) {
+  return tinyline::tools::cli::nested(
+      cmd, {{"serve", "serve one sensor of a scene on a pty any serial program can open", &setup_serve}});
+}
+
 const tinyline::tools::CommandRegistration kSim{"sim", "the simulated sensor on a pty: tinyline sim serve SCENE.yaml",
-                                                &cmd_sim};
+                                                &setup_sim};
 
 }  // namespace
 

@@ -178,11 +178,10 @@ std::optional<std::string> damage_in(const Schema& s) {
   if (s.name.empty() || !is_text(s.name)) return "its name is no text";
   if (!is_identifier(s.encoding)) return "its encoding '" + s.encoding + "' is no encoding name";
   if (s.encoding == "ros2msg" || s.encoding == "ros2idl") {
-    for (const char c : s.name) {
-      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '/')) {
-        return "'" + s.name + "' is no ROS 2 type name (pkg/msg/Type)";
-      }
-    }
+    // pkg/msg/Type: lower-case package and interface folder, a capitalised type.
+    const bool type_name = std::count(s.name.begin(), s.name.end(), '/') == 2 &&
+                           s.name.find_first_of("[<") == std::string::npos && is_field_type(s.name);
+    if (!type_name) return "'" + s.name + "' is no ROS 2 type name (pkg/msg/Type)";
     if (s.encoding == "ros2msg") return ros2msg_damage(s.data, s.name);
     if (!valid_utf8(s.data)) return "its text is not UTF-8";
   }

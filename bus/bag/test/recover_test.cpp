@@ -169,5 +169,26 @@ TEST(Recover, WithoutASummaryStringsThatCannotBeRightAreRefusedNotCopied) {
   }
 }
 
+TEST(Recover, WithoutASummaryASchemaNameWithACapitalisedPackageIsRefused) {
+  // One bit (0x20) turns "std_msgs" into "std_msgS": still text, still
+  // UTF-8, but no ROS 2 package, and a ROS 2 reader would reject the file.
+  const Bytes good = make_bag(false);
+  std::size_t name_at = 0;
+  for (const auto& r : leading_records(good)) {
+    if (r.op != static_cast<std::uint8_t>(Opcode::Schema)) continue;
+    const auto* begin = good.data() + r.offset;
+    name_at = static_cast<std::size_t>(std::search(begin, begin + 9 + r.length, "std_msgs/", "std_msgs/" + 9) - good.data());
+    break;
+  }
+  ASSERT_NE(name_at, 0U);
+  Bytes f = good;
+  f[name_at + 7] ^= 0x20;
+  const Recovered got = recover_bytes(f);
+  EXPECT_TRUE(mentions(got.report, "no ROS 2 type name")) << "the damaged schema is reported";
+  if (got.status.ok()) {
+    EXPECT_TRUE(got.topics.empty()) << "no channel may keep a schema that cannot be right";
+  }
+}
+
 }  // namespace
 }  // namespace tinyline::bag
