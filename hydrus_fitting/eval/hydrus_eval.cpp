@@ -41,14 +41,14 @@ void add_options(CLI::App& study, Request& r, bool grid) {
   study.add_option("--trials", r.trials, "trials (second_order: noise draws)")->check(CLI::Range(1, 1 << 30));
   study.add_option("--out", r.out, "CSV file to write (default: stdout)");
   if (!grid) return;
-  study.add_option("--seed", r.seed, "seed of the noise draws")->check(tinyline::common::kNonNegative);
+  study.add_option("--seed", r.seed, "seed of the noise draws")->check(tinyline::common::non_negative());
   study.add_option("--points", r.points, "points per arc")->check(CLI::Range(3, 1 << 20));
   study.add_option("--arcs", r.arcs_deg, "arcs [deg], comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::kPositive);
+      ->check(tinyline::common::positive());
   study.add_option("--sigmas", r.sigmas_m, "noise SDs [m], comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::kPositive);
+      ->check(tinyline::common::positive());
 }
 
 template <class Params>

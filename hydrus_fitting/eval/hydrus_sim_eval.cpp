@@ -48,10 +48,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"all_on", "time_slicing", "colouring"}))
       ->capture_default_str();
   app.add_option("--start", start_s, "simulate the manoeuvre from this time [s]")
-      ->check(tinyline::common::kNonNegative)
+      ->check(tinyline::common::non_negative())
       ->capture_default_str();
   app.add_option("--end", end_s, "... to this time [s]; < 0: its whole duration")
-      ->check(tinyline::common::kFinite)
+      ->check(tinyline::common::finite())
       ->capture_default_str();
   app.add_option("--scene", scene, "scene YAML")->capture_default_str();
   app.add_option("--robot", robot, "robot description YAML")->capture_default_str();

@@ -62,7 +62,7 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
                "writes summary.json, one CSV per case and the scans of the first trials.",
                "laser_clustering_eval"};
   app.add_option("--trials", a.trials, "trials per case")->check(CLI::Range(1, 1 << 30))->capture_default_str();
-  app.add_option("--seed", a.seed, "seed of the first trial")->check(tinyline::common::kNonNegative)->capture_default_str();
+  app.add_option("--seed", a.seed, "seed of the first trial")->check(tinyline::common::non_negative())->capture_default_str();
   app.add_option("--out", a.out, "output directory")->capture_default_str();
   std::vector<std::string> cases(a.cases.begin(), a.cases.end());
   app.add_option("--cases", cases, "comma-separated cases")
@@ -70,18 +70,18 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
       ->check(CLI::IsMember({"random_offset", "recognition_error", "stick", "wrench"}))
       ->capture_default_str();
   app.add_option("--pictures", a.pictures, "scans of the first K trials of each case")
-      ->check(tinyline::common::kNonNegative)
+      ->check(tinyline::common::non_negative())
       ->capture_default_str();
   app.add_option("--failure-pictures", a.failure_pictures, "and of the first K truss trials that did not align")
-      ->check(tinyline::common::kNonNegative)
+      ->check(tinyline::common::non_negative())
       ->capture_default_str();
   app.add_flag("--ablation", a.ablation, "also the truss cases under earlier parameter sets and a one-stage baseline");
   app.add_option("--raw-pulses", a.raw_pulses, "raw-mode read-out schedule of both sensors [pulses], comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::kPositive)
+      ->check(tinyline::common::positive())
       ->capture_default_str();
   app.add_option("--rescans", a.rescans, "truss cases: scans after the first move")
-      ->check(tinyline::common::kNonNegative)
+      ->check(tinyline::common::non_negative())
       ->capture_default_str();
   bool no_tomato_look = false;
   app.add_flag("--no-tomato-look", no_tomato_look, "no look through the tomatoes before a blind move");

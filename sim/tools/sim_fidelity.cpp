@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
   app.add_option("--measured", measured_path, "the thesis's measured figures (YAML)")->capture_default_str();
   app.add_option("--json", json_path, "also write the report as JSON here");
   app.add_option("--seed", opt.seed_offset, "offset of every experiment's seed")
-      ->check(tinyline::common::kNonNegative)
+      ->check(tinyline::common::non_negative())
       ->capture_default_str();
   app.add_option("--tune", tune, "tune one group of the sensor's constants instead")
       ->check(CLI::IsMember({"trap", "noise", "offset"}));

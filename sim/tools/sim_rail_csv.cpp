@@ -40,14 +40,14 @@ int main(int argc, char** argv) {
                "sim_rail_csv"};
   app.add_option("--sensor", sensor, "sensor YAML")->required();
   app.add_option("-o", out, "CSV file to write (required unless --constants)");
-  app.add_option("--from", from, "nearest target distance [m]")->check(tinyline::common::kPositive)->capture_default_str();
-  app.add_option("--to", to, "farthest target distance [m]")->check(tinyline::common::kPositive)->capture_default_str();
-  app.add_option("--step", step, "distance step [m]")->check(tinyline::common::kPositive)->capture_default_str();
+  app.add_option("--from", from, "nearest target distance [m]")->check(tinyline::common::positive())->capture_default_str();
+  app.add_option("--to", to, "farthest target distance [m]")->check(tinyline::common::positive())->capture_default_str();
+  app.add_option("--step", step, "distance step [m]")->check(tinyline::common::positive())->capture_default_str();
   app.add_option("--visits", visits, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--sets", sets, "sets per visit")->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")->check(CLI::Range(1, 256))->capture_default_str();
   app.add_option("--material", material, "target material")->capture_default_str();
-  app.add_option("--seed", seed, "seed of the visiting order")->check(tinyline::common::kNonNegative)->capture_default_str();
+  app.add_option("--seed", seed, "seed of the visiting order")->check(tinyline::common::non_negative())->capture_default_str();
   app.add_flag("--constants", constants, "measure the leakage per pulse and Rsen instead (laser off)");
   if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   if (out.empty() && !constants) {

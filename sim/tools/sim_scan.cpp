@@ -28,9 +28,9 @@ int main(int argc, char** argv) {
   app.add_option("SCENE", scene_path, "scene YAML")->required();
   app.add_option("--sensor", sensor_name, "sensor name in the scene (default: the first)");
   app.add_option("--time", t, "sensor time of the set [s]")
-      ->check(tinyline::common::kNonNegative)
+      ->check(tinyline::common::non_negative())
       ->capture_default_str();
-  app.add_option("--index", index, "set index (seeds its noise)")->check(tinyline::common::kNonNegative)->capture_default_str();
+  app.add_option("--index", index, "set index (seeds its noise)")->check(tinyline::common::non_negative())->capture_default_str();
   app.add_option("--out", out_path, "JSON file to write (default: stdout)");
   if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   try {

@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
   app.add_option("--passes", plan.passes, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")->check(CLI::Range(1, 256))->capture_default_str();
   app.add_option("--seed", plan.seed, "seed of the visiting order and the noise")
-      ->check(tinyline::common::kNonNegative)
+      ->check(tinyline::common::non_negative())
       ->capture_default_str();
   if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   for (const std::string& e : effects) {

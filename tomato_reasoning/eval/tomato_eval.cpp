@@ -129,7 +129,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   app.add_option("--set", sets, "pipeline parameter key=value (repeatable)");
   app.add_option("--kappa-sweep", r.kappas, "force.kernel_kappa values to score, comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::kNonNegative);
+      ->check(tinyline::common::non_negative());
   app.add_flag("--fit-kappa", r.fit_kappa,
                "fit force.kernel_kappa on these seeds (HPD50 coverage closest to 50 %, log grid 2..1000), written to "
                "DIR/kappa_fit.csv");
@@ -137,7 +137,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   app.add_option("--pose-noise", pose_noise, "the second view's pose error: METRES,DEGREES")
       ->delimiter(',')
       ->expected(2)
-      ->check(tinyline::common::kNonNegative);
+      ->check(tinyline::common::non_negative());
   app.add_flag("--verify", r.verify,
                "laser verification of every detected tomato's pick (first variant), as recognised and with a random "
                "offset < 5 cm (Table 4.3), written to DIR/verification.csv");

@@ -232,7 +232,7 @@ CommandRun setup_echo(CLI::App& cmd) {
   auto a = std::make_shared<EchoArgs>();
   cmd.add_option("file", a->path, "the bag")->required();
   cmd.add_option("topic", a->topic, "the topic to print")->required();
-  cmd.add_option("--limit", a->limit, "print at most N messages (0: all)")->check(cli::count());
+  cmd.add_option("--limit", a->limit, "print at most N messages (0: all)")->check(common::count());
   cmd.add_flag("--full", a->full, "print long arrays whole (default: the first 32 elements)");
   cmd.footer("Prints a topic's messages as YAML.");
   return [a] { return echo(*a); };
@@ -330,20 +330,20 @@ CommandRun setup_play(CLI::App& cmd) {
   cmd.add_option("file", p.path, "the bag")->required();
   cmd.add_option("--rate", p.rate, "playback speed, x real time (0: as fast as possible)")
       ->capture_default_str()
-      ->check(cli::non_negative());
+      ->check(common::non_negative());
   cmd.add_flag("--loop", p.loop, "start over at the end");
   cmd.add_option("--topics", p.topics, "play only these topics (T T ... or T,T)")->delimiter(',')->expected(1, 10000);
   cmd.add_option("--start", p.start_offset_s, "skip the first S seconds of the bag")
       ->type_name("S")
-      ->check(cli::non_negative());
+      ->check(common::non_negative());
   cmd.add_flag("--clock", p.clock, "publish /clock (rosgraph_msgs/Clock) and drive sim time");
   cmd.add_option("--clock-hz", p.clock_hz, "/clock rate between messages")
       ->capture_default_str()
-      ->check(cli::finite_above(0.1, true, 10000.0));
+      ->check(common::finite_above(0.1, true, 10000.0));
   cmd.add_option("--duration", a->duration_s,
                  "stop after S seconds of playing (default: the bag's end, or Ctrl-C with --loop)")
       ->type_name("S")
-      ->check(cli::seconds());
+      ->check(common::seconds());
   cmd.footer("Publishes a bag's messages on their topics.");
   return [a] { return play(*a); };
 }
@@ -443,10 +443,10 @@ CommandRun setup_record(CLI::App& cmd) {
   add_compression(cmd, a->compression);
   cmd.add_option("--chunk-size", a->chunk_kib, "uncompressed chunk size [KiB]")
       ->capture_default_str()
-      ->check(cli::whole(1, 1 << 20));
+      ->check(common::whole(1, 1 << 20));
   cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")
       ->type_name("S")
-      ->check(cli::seconds());
+      ->check(common::seconds());
   cmd.footer(
       "`bag record` records the topics of its own process: those of --launch, and those a transport bridges in.\n"
       "To record inside a running launch file, add a node {pkg: bag, exec: recorder} to it (parameters:\n"

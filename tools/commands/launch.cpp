@@ -290,8 +290,8 @@ CommandRun setup_launch(CLI::App& cmd) {
   auto a = std::make_shared<LaunchArgs>();
   cmd.add_option("file", a->file, "the launch file")->required();
   cmd.add_option("args", a->assignments, "launch arguments, name:=value")->type_name("NAME:=VALUE");
-  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(cli::seconds());
-  cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(cli::threads());
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(common::seconds());
+  cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(common::threads());
   cmd.add_flag("--no-table", a->no_table, "no live table");
   cmd.add_flag("--check", a->check, "validate the file, build its nodes and load their inputs, then exit");
   cmd.add_option("--process", a->process,
@@ -299,7 +299,7 @@ CommandRun setup_launch(CLI::App& cmd) {
                  "machine)");
   cmd.add_option("--dds-wait", a->dds_wait_s, "longest wait for DDS peers before nodes start [s]")
       ->capture_default_str()
-      ->check(cli::non_negative());
+      ->check(common::non_negative());
   cmd.add_flag("--rejoin", a->rejoin,
                "with --process: a restart into a running graph; wait only for the peers still alive");
   cmd.add_flag("--start-gate", a->start_gate,
@@ -307,10 +307,10 @@ CommandRun setup_launch(CLI::App& cmd) {
                "a line (the supervisor does this so all processes start together)");
   cmd.add_option("--respawn-delay", a->respawn_delay_s, "wait before restarting a crashed process [s]")
       ->capture_default_str()
-      ->check(cli::non_negative());
+      ->check(common::non_negative());
   cmd.add_option("--grace", a->grace_s, "after Ctrl-C, wait this long before killing [s]")
       ->capture_default_str()
-      ->check(cli::non_negative());
+      ->check(common::non_negative());
   cmd.footer(
       "Runs the nodes of a launch file (ROS 2 YAML launch shape) and shows a live table of topics with rates and\n"
       "drops. Stops on Ctrl-C or after --duration. Nothing starts unless the whole file is valid and every node's\n"

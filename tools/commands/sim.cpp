@@ -231,6 +231,7 @@ int run_serve(const ServeOptions& o) {
 
 tinyline::tools::CommandRun setup_serve(CLI::App& cmd) {
   namespace cli = tinyline::tools::cli;
+  namespace common = tinyline::common;
   auto o = std::make_shared<ServeOptions>();
   cmd.add_option("scene", o->scene, "scene YAML (sim/config/scenes/...)")->required()->check(CLI::ExistingFile);
   cmd.add_option("--sensor", o->sensor, "sensor name in the scene (default: the first)");
@@ -238,9 +239,9 @@ tinyline::tools::CommandRun setup_serve(CLI::App& cmd) {
   cmd.add_option("--firmware", o->firmware, "override the sensor's firmware profile")
       ->check(CLI::IsMember({"published", "thesis_raw"}));
   cmd.add_option("--truth", o->truth, "write what the firmware sent, one JSON object per line, to FILE");
-  cmd.add_option("--baud", o->baud, "link rate [bit/s]")->check(cli::finite_above(1200.0, true, 12e6));
+  cmd.add_option("--baud", o->baud, "link rate [bit/s]")->check(common::finite_above(1200.0, true, 12e6));
   cmd.add_option("--duration", o->duration_s, "stop after this many seconds (0: until stopped)")
-      ->check(cli::non_negative());
+      ->check(common::non_negative());
   cmd.footer("docs/driver.md, \"tinyline sim serve\"");
   return [o] { return run_serve(*o); };
 }

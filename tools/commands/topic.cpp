@@ -256,8 +256,8 @@ void add_common(CLI::App& cmd, TopicArgs& a, double wait_default) {
   cmd.add_option("--wait", a.wait_s, "how long to wait for discovery / a publisher [s]")
       ->type_name("S")
       ->capture_default_str()
-      ->check(cli::non_negative());
-  cmd.add_option("--domain", a.domain, "DDS domain (default ROS_DOMAIN_ID or 0)")->check(cli::whole(0, 232));
+      ->check(common::non_negative());
+  cmd.add_option("--domain", a.domain, "DDS domain (default ROS_DOMAIN_ID or 0)")->check(common::whole(0, 232));
 }
 
 void add_topic(CLI::App& cmd, TopicArgs& a) {
@@ -280,11 +280,11 @@ CommandRun setup_echo(CLI::App& cmd) {
   auto a = std::make_shared<TopicArgs>();
   add_topic(cmd, *a);
   add_common(cmd, *a, 10.0);
-  cmd.add_option("--count", a->count, "stop after N messages (0: Ctrl-C)")->check(cli::count());
+  cmd.add_option("--count", a->count, "stop after N messages (0: Ctrl-C)")->check(common::count());
   cmd.add_option("--type", a->type, "decode as this type, pkg/msg/Type (default: the publisher's)");
   cmd.add_option("--max-array", a->max_array, "elements of long arrays to show (0: all)")
       ->capture_default_str()
-      ->check(cli::count());
+      ->check(common::count());
   return guarded("echo", &cmd_echo, a);
 }
 
@@ -292,9 +292,9 @@ CommandRun setup_hz(CLI::App& cmd) {
   auto a = std::make_shared<TopicArgs>();
   add_topic(cmd, *a);
   add_common(cmd, *a, 10.0);
-  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(cli::seconds());
-  cmd.add_option("--messages", a->messages, "stop after N messages (0: Ctrl-C)")->check(cli::count());
-  cmd.add_option("--window", a->window, "rate over the last N messages")->capture_default_str()->check(cli::whole(2, 100000000));
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(common::seconds());
+  cmd.add_option("--messages", a->messages, "stop after N messages (0: Ctrl-C)")->check(common::count());
+  cmd.add_option("--window", a->window, "rate over the last N messages")->capture_default_str()->check(common::whole(2, 100000000));
   return guarded("hz", &cmd_hz, a);
 }
 

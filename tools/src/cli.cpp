@@ -1,49 +1,8 @@
 #include "cli.hpp"
 
-#include <cerrno>
-#include <cmath>
-#include <cstdlib>
 #include <memory>
 
-#include <fmt/format.h>
-
 namespace tinyline::tools::cli {
-
-CLI::Validator finite_above(double lo, bool inclusive, double hi) {
-  const bool bounded = hi < std::numeric_limits<double>::max();
-  const std::string desc = bounded ? fmt::format("{}..{}", lo, hi) : fmt::format("NUMBER {} {}", inclusive ? ">=" : ">", lo);
-  return CLI::Validator(
-      [lo, inclusive, hi](std::string& text) -> std::string {
-        char* end = nullptr;
-        const double v = std::strtod(text.c_str(), &end);
-        if (text.empty() || end == nullptr || *end != '\0') return fmt::format("'{}' is not a number", text);
-        if (!std::isfinite(v)) return fmt::format("'{}' is not a finite number", text);
-        if (inclusive ? v < lo : v <= lo) {
-          return fmt::format("{} must be {} {}", text, inclusive ? "at least" : "greater than", lo);
-        }
-        if (v > hi) return fmt::format("{} must be at most {}", text, hi);
-        return {};
-      },
-      desc);
-}
-
-CLI::Validator whole(long long lo, long long hi) {
-  const std::string desc = hi == std::numeric_limits<long long>::max() ? fmt::format("N >= {}", lo)
-                                                                         : fmt::format("{}..{}", lo, hi);
-  return CLI::Validator(
-      [lo, hi](std::string& text) -> std::string {
-        char* end = nullptr;
-        errno = 0;
-        const long long v = std::strtoll(text.c_str(), &end, 10);
-        if (text.empty() || *end != '\0') return fmt::format("'{}' is not a whole number", text);
-        if (errno == ERANGE || v < lo || v > hi) {
-          return hi == std::numeric_limits<long long>::max() ? fmt::format("{} must be at least {}", text, lo)
-                                                             : fmt::format("{} is outside {}..{}", text, lo, hi);
-        }
-        return {};
-      },
-      desc);
-}
 
 std::pair<std::string, std::string> split_assignment(const std::string& s) {
   const auto at = s.find(":=");

@@ -1,35 +1,19 @@
-// What the sub-commands' command lines share (CLI11): checks for the numbers
-// they take, name:=value arguments, and nested commands (bag record, topic
-// list). Every number is checked when parsed: a bad one is a usage error
-// naming the option, never a silent default or a run that ignores it.
+// What only the sub-commands' command lines share (CLI11): name:=value
+// arguments and nested commands (bag record, topic list). The checks for
+// numbers are every program's: <tinyline/common/cli.hpp>.
 #pragma once
 
-#include <limits>
 #include <map>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <tinyline/common/cli.hpp>
 
 #include <tinyline/tools/command.hpp>
 
 namespace tinyline::tools::cli {
-
-/// A finite number > `lo` (or >= with `inclusive`) and <= `hi`: NaN and
-/// infinities are refused, as is anything out of bounds.
-CLI::Validator finite_above(double lo, bool inclusive, double hi = std::numeric_limits<double>::max());
-/// A duration in seconds: finite and > 0.
-inline CLI::Validator seconds() { return finite_above(0.0, false); }
-/// A wait, offset or rate that may be 0: finite and >= 0.
-inline CLI::Validator non_negative() { return finite_above(0.0, true); }
-/// A whole number in [lo, hi].
-CLI::Validator whole(long long lo, long long hi);
-/// A count that may be 0 (0 often means "no limit").
-inline CLI::Validator count() { return whole(0, std::numeric_limits<long long>::max()); }
-/// Executor threads: 1..kMaxThreads.
-inline constexpr int kMaxThreads = 256;
-inline CLI::Validator threads() { return whole(1, kMaxThreads); }
 
 /// "name:=value" -> {name, value}; throws UsageError otherwise.
 std::pair<std::string, std::string> split_assignment(const std::string& s);
