@@ -1,4 +1,8 @@
 // tinyline nodes | tinyline describe PKG/TYPE
+#include <algorithm>
+#include <memory>
+#include <string>
+
 #include <fmt/format.h>
 
 #include <tinyline/tools/command.hpp>
@@ -16,50 +20,107 @@ CommandRun setup_nodes(CLI::App& cmd) {
   };
 }
 
-int describe(const std::string& full) {
+// A node of type `full` (PKG/TYPE) built with its defaults, on a sim clock
+// that logs nowhere; nullptr (with the reason on stderr) if it cannot be.
+std::shared_ptr<bus::Node> build_default(const std::string& full) {
   const auto slash = full.find('/');
   if (slash == std::string::npos) throw UsageError("expected PKG/TYPE, got '" + full + "'");
   bus::ContextOptions co;
   co.clock = bus::ClockType::Sim;
-  auto sink = std::make_shared<bus::CaptureSink>();
-  co.log_sink = sink;
-  auto ctx = bus::Context::create(co);
+  co.log_sink = std::make_shared<bus::CaptureSink>();
   bus::NodeOptions o;
-  o.context = ctx;
+  o.context = bus::Context::create(co);
   o.name = full.substr(slash + 1);
-  std::shared_ptr<bus::Node> n;
   try {
-    n = node_registry().create(full.substr(0, slash), full.substr(slash + 1), o);
+    return node_registry().create(full.substr(0, slash), full.substr(slash + 1), o);
   } catch (const bus::ParamError& e) {
     fmt::print(stderr, "{}\n", e.what());
-    return 1;
+    return nullptr;
   }
+}
+
+std::string range_of(const bus::ParamConstraints& c) {
+  std::string range;
+  if (c.min) range += fmt::format(" min {}", *c.min);
+  if (c.max) range += fmt::format(" max {}", *c.max);
+  if (!c.choices.empty()) {
+    range += " one of";
+    for (const auto& w : c.choices) range += " " + w;
+  }
+  return range.empty() ? range : range.substr(1);
+}
+
+void print_text(const std::string& full, const bus::Node& n) {
+  const auto slash = full.find('/');
   const auto* info = node_registry().find(full.substr(0, slash), full.substr(slash + 1));
   fmt::print("{}: {}\n\nparameters:\n", full, info->description);
-  for (const auto& p : n->parameters()) {
-    std::string range;
-    if (p.constraints.min) range += fmt::format(" min {}", *p.constraints.min);
-    if (p.constraints.max) range += fmt::format(" max {}", *p.constraints.max);
-    if (!p.constraints.choices.empty()) {
-      range += " one of";
-      for (const auto& c : p.constraints.choices) range += " " + c;
-    }
-    fmt::print("  {:<24} {:<13} default {}{}\n      {}\n", p.name, bus::to_string(p.type),
-               bus::format_value(p.default_value), range.empty() ? "" : " (" + range.substr(1) + ")", p.description);
+  for (const auto& p : n.parameters()) {
+    const std::string range = range_of(p.constraints);
+    const std::string unit = p.constraints.unit.empty() ? "" : " [" + p.constraints.unit + "]";
+    fmt::print("  {:<24} {:<13} default {}{}\n      {}{}\n", p.name, bus::to_string(p.type),
+               bus::format_value(p.default_value), range.empty() ? "" : " (" + range + ")", p.description, unit);
   }
-  const auto d = n->describe();
+  const auto d = n.describe();
   fmt::print("\npublishes:\n");
   for (const auto& e : d.publishers) fmt::print("  {:<30} {:<36} {}\n", e.topic, e.type, e.qos.describe());
   fmt::print("\nsubscribes:\n");
   for (const auto& e : d.subscriptions) fmt::print("  {:<30} {:<36} {}\n", e.topic, e.type, e.qos.describe());
+}
+
+// The parameters as the docs' table (docs/parameters.md is this, for every type).
+void print_markdown(const std::string& full, const bus::Node& n) {
+  const auto slash = full.find('/');
+  const auto* info = node_registry().find(full.substr(0, slash), full.substr(slash + 1));
+  fmt::print("## `{}`\n\n{}\n\n", full, info->description);
+  if (n.parameters().empty()) {
+    fmt::print("No parameters.\n\n");
+    return;
+  }
+  fmt::print("| parameter | type | default | range | unit | description |\n|---|---|---|---|---|---|\n");
+  for (const auto& p : n.parameters()) {
+    std::string what = p.description;
+    for (std::size_t at = 0; (at = what.find('|', at)) != std::string::npos; at += 2) what.replace(at, 1, "\\|");
+    fmt::print("| `{}` | {} | `{}` | {} | {} | {} |\n", p.name, bus::to_string(p.type),
+               bus::format_value(p.default_value), range_of(p.constraints), p.constraints.unit, what);
+  }
+  fmt::print("\n");
+}
+
+int describe(const std::string& full, bool markdown) {
+  const auto n = build_default(full);
+  if (!n) return 1;
+  markdown ? print_markdown(full, *n) : print_text(full, *n);
   return 0;
 }
 
+// Every registered type as markdown: the text of docs/parameters.md.
+int describe_all() {
+  fmt::print("# Node parameters\n\n"
+             "Every node type's parameters: name, type, default, range, unit and what it means. This file is made\n"
+             "by `tinyline describe --all --markdown > docs/parameters.md` from the settings' tables the nodes\n"
+             "declare their parameters from; the test `params.docs_match_the_tables` fails when it is out of date.\n\n");
+  int rc = 0;
+  for (const auto* t : node_registry().all()) rc = std::max(rc, describe(t->full_name(), true));
+  return rc;
+}
+
 CommandRun setup_describe(CLI::App& cmd) {
-  auto type = std::make_shared<std::string>();
-  cmd.add_option("type", *type, "the node type, PKG/TYPE (tinyline nodes lists them)")->required();
-  cmd.footer("Shows a node type's parameters (type, default, range, description) and its topics with types and QoS.");
-  return [type] { return describe(*type); };
+  struct Args {
+    std::string type;
+    bool markdown = false;
+    bool all = false;
+  };
+  auto a = std::make_shared<Args>();
+  cmd.add_option("type", a->type, "the node type, PKG/TYPE (tinyline nodes lists them)");
+  cmd.add_flag("--markdown", a->markdown, "print the parameters as a markdown table (the docs' form)");
+  cmd.add_flag("--all", a->all, "every registered node type (with --markdown: docs/parameters.md)");
+  cmd.footer("Shows a node type's parameters (type, default, range, unit, description) and its topics with types "
+             "and QoS.");
+  return [a] {
+    if (a->all == !a->type.empty()) throw UsageError("give either a node type (PKG/TYPE) or --all");
+    if (a->all && !a->markdown) throw UsageError("--all needs --markdown");
+    return a->all ? describe_all() : describe(a->type, a->markdown);
+  };
 }
 
 const CommandRegistration kNodes{"nodes", "list registered node types", &setup_nodes};

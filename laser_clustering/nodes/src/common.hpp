@@ -1,5 +1,6 @@
 // Shared pieces of the laser_clustering nodes: message <-> core conversions
-// and the parameter declarations of the core structs (defaults from them).
+// and the one parameter no core struct holds. The core settings are declared
+// from their tables (laser_clustering/param_tables.hpp).
 #pragma once
 
 #include <string>
@@ -33,14 +34,5 @@ double declare_min_reflectance(bus::Node& node);
 void to_msg(const TwoStageResult& r, tinyline_msgs::msg::LineClusters& out);
 /// The message of a reflectance clustering.
 void to_msg(const ReflectanceClusteringResult& r, tinyline_msgs::msg::LineClusters& out);
-
-/// Declares the TwoStageParams parameters (defaults from the struct) and
-/// validates them together; throws bus::ParamError with the reason.
-TwoStageParams declare_two_stage(bus::Node& node);
-PedicelFinderParams declare_pedicel_finder(bus::Node& node);
-ReflectanceClusteringParams declare_reflectance(bus::Node& node);
-AlignmentParams declare_alignment(bus::Node& node);
-SurfaceReflectanceParams declare_surface_reflectance(bus::Node& node);
-TomatoRegistrationParams declare_tomato_registration(bus::Node& node);
 
 }  // namespace tinyline::laser_clustering::nodes

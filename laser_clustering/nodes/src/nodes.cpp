@@ -8,7 +8,10 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bus/param_table.hpp>
+
 #include "common.hpp"
+#include "laser_clustering/param_tables.hpp"
 #include "laser_clustering/nodes/conversions.hpp"
 #include "laser_clustering/nodes/register.hpp"
 
@@ -33,7 +36,7 @@ static_assert(wire(AlignmentOutcome::kInvalidInput) == msgs::AlignmentResult::IN
 // ---------------------------------------------------------------------------- line_clusterer
 
 LineClustererNode::LineClustererNode(bus::NodeOptions o)
-    : Node(std::move(o)), clusterer_(nodes::declare_two_stage(*this)) {
+    : Node(std::move(o)), clusterer_(bus::declared_settings<TwoStageParams>(*this)) {
   min_reflectance_ = nodes::declare_min_reflectance(*this);
   pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
@@ -57,7 +60,9 @@ void LineClustererNode::on_scan(const msgs::LineScan& m) {
 // ---------------------------------------------------------------------------- pedicel_finder
 
 PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
-    : Node(std::move(o)), clusterer_(nodes::declare_two_stage(*this)), finder_(nodes::declare_pedicel_finder(*this)) {
+    : Node(std::move(o)),
+      clusterer_(bus::declared_settings<TwoStageParams>(*this)),
+      finder_(bus::declared_settings<PedicelFinderParams>(*this)) {
   min_reflectance_ = nodes::declare_min_reflectance(*this);
   expectation_sd_m_ = declare_parameter("expectation_sd_m", 0.015,
                                         "how far off the vision's expected pedicel may be [m]",
@@ -120,7 +125,7 @@ void PedicelFinderNode::on_scan(const msgs::LineScan& m) {
 // ---------------------------------------------------------------------------- tomato_registration
 
 TomatoRegistrationNode::TomatoRegistrationNode(bus::NodeOptions o)
-    : Node(std::move(o)), params_(nodes::declare_tomato_registration(*this)) {
+    : Node(std::move(o)), params_(bus::declared_settings<TomatoRegistrationParams>(*this)) {
   min_reflectance_ = nodes::declare_min_reflectance(*this);
   expectation_max_age_s_ = declare_parameter("expectation_max_age_s", 1.0,
                                              "expected tomatoes further than this from a scan's stamp are stale: the "
@@ -216,7 +221,7 @@ void TomatoRegistrationNode::on_scan(const msgs::LineScan& m) {
 // ---------------------------------------------------------------------------- reflectance_clusterer
 
 ReflectanceClustererNode::ReflectanceClustererNode(bus::NodeOptions o)
-    : Node(std::move(o)), params_(nodes::declare_reflectance(*this)) {
+    : Node(std::move(o)), params_(bus::declared_settings<ReflectanceClusteringParams>(*this)) {
   min_reflectance_ = nodes::declare_min_reflectance(*this);
   pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
@@ -239,7 +244,9 @@ void ReflectanceClustererNode::on_scan(const msgs::LineScan& m) {
 // ---------------------------------------------------------------------------- alignment_search
 
 AlignmentSearchNode::AlignmentSearchNode(bus::NodeOptions o)
-    : Node(std::move(o)), surface_(nodes::declare_surface_reflectance(*this)), params_(nodes::declare_alignment(*this)) {
+    : Node(std::move(o)),
+      surface_(bus::declared_settings<SurfaceReflectanceParams>(*this)),
+      params_(bus::declared_settings<AlignmentParams>(*this)) {
   min_reflectance_ = nodes::declare_min_reflectance(*this);
   joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch",
                                           "joint of sensor_msgs/JointState whose position is the gripper pitch [rad]");

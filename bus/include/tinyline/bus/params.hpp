@@ -57,6 +57,9 @@ struct ParamConstraints {
   /// Values that name no file: exact words ("default"), or prefixes ending
   /// in ':' ("public:"). The empty string never names a file.
   std::vector<std::string> not_a_file;
+  /// The unit of a number ("m", "px", "s"), shown by `tinyline describe`
+  /// and in the docs' tables; not a constraint, it travels with them.
+  std::string unit;
 
   static ParamConstraints range(double lo, double hi) {
     ParamConstraints c;

@@ -1,0 +1,90 @@
+// A node declares a core's settings from the settings' table
+// (<tinyline/common/param_table.hpp>): every field becomes a parameter with
+// the table's name, unit, range and description, its default read from the
+// struct, its value written back into it. One call per settings struct:
+//
+//   clusterer_(bus::declared_settings<TwoStageParams>(*this))
+#pragma once
+
+#include <cstdint>
+#include <cstddef>
+#include <iterator>
+#include <string_view>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include <tinyline/bus/node.hpp>
+#include <tinyline/common/param_table.hpp>
+
+namespace tinyline::bus {
+
+/// The bus's constraints for a table entry: its range and unit.
+inline ParamConstraints constraints_of(const common::Param& p) {
+  ParamConstraints c;
+  c.min = p.min;
+  c.max = p.max;
+  c.unit = std::string(p.unit);
+  return c;
+}
+
+/// Declares one field as a parameter and stores the value given.
+template <class T>
+void declare_field(Node& node, T& field, const common::Param& p) {
+  const std::string name(p.name);
+  const std::string what(p.description);
+  if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, double> || std::is_same_v<T, int> ||
+                std::is_same_v<T, float> || std::is_same_v<T, std::string> || std::is_same_v<T, std::int64_t> ||
+                std::is_same_v<T, std::vector<double>> || std::is_same_v<T, std::vector<std::string>>) {
+    field = node.declare_parameter(name, field, what, constraints_of(p));
+  } else if constexpr (std::is_integral_v<T>) {
+    field = static_cast<T>(node.declare_parameter<std::int64_t>(name, static_cast<std::int64_t>(field), what,
+                                                                constraints_of(p)));
+  } else {
+    static_assert(std::is_same_v<T, void>, "a parameter table field of a type the bus cannot declare");
+  }
+}
+
+/// Declares a field that holds one of a few words (an enum).
+template <class E, std::size_t N>
+void declare_field(Node& node, E& field, const common::Param& p, const common::Choice<E> (&words)[N]) {
+  std::vector<std::string> allowed;
+  for (const auto& w : words) allowed.emplace_back(w.word);
+  ParamConstraints c = ParamConstraints::one_of(allowed);
+  c.unit = std::string(p.unit);
+  const std::string chosen = node.declare_parameter(std::string(p.name), std::string(common::word_of(field, words)),
+                                                    std::string(p.description), std::move(c));
+  for (const auto& w : words)
+    if (w.word == chosen) field = w.value;
+}
+
+/// Declares a text field that holds one of a few words.
+template <std::size_t N>
+void declare_field(Node& node, std::string& field, const common::Param& p, const std::string_view (&words)[N]) {
+  ParamConstraints c = ParamConstraints::one_of(std::vector<std::string>(std::begin(words), std::end(words)));
+  c.unit = std::string(p.unit);
+  field = node.declare_parameter(std::string(p.name), field, std::string(p.description), std::move(c));
+}
+
+/// Declares every field of `settings`' table on `node` (see above).
+template <class S>
+void declare_params(Node& node, S& settings) {
+  auto declare = [&node](auto& field, const common::Param& p, auto&&... words) {
+    declare_field(node, field, p, words...);
+  };
+  for_each_param(settings, declare);
+}
+
+/// The settings of a core as this node's parameters give them: the struct's
+/// defaults, overridden from the launch file, each checked against its
+/// table's range, and all of them against the core's rules (`validate(s)`,
+/// found next to the struct); throws ParamError naming what is wrong.
+template <class S>
+[[nodiscard]] S declared_settings(Node& node) {
+  S settings;
+  declare_params(node, settings);
+  node.require_valid(validate(settings));
+  return settings;
+}
+
+}  // namespace tinyline::bus
