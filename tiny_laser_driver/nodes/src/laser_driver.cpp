@@ -9,6 +9,9 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bus/param_table.hpp>
+
+#include <tiny_laser_driver/nodes/param_tables.hpp>
 #include <tiny_laser_driver/public_driver_sensors.hpp>
 
 namespace tinyline::tiny_laser_driver {
@@ -58,61 +61,8 @@ CalibrationModel load_calibration(const std::string& spec) {
 // ---------------------------------------------------------------------------- node
 
 void LaserDriver::declare_params() {
-  using bus::ParamConstraints;
-  const DriverParams d;  // defaults live in the struct
-  DriverParams& p = params_;
-  p.port = declare_parameter("port", d.port, "/dev/ttyUSB0 (a path), usb:SERIAL (found by USB serial number), "
-                                             "sim:SCENE.yaml (simulated sensor in-process), mem:NAME (tests)");
-  p.mode = declare_parameter("mode", d.mode,
-                             "the frames expected, only checked and reported (both kinds are always read): auto "
-                             "(either), raw (the host computes distance from all read-outs) or distance (the firmware "
-                             "sends distances)",
-                             ParamConstraints::one_of({"auto", "raw", "distance"}));
-  p.baud = declare_parameter("baud", d.baud, "link rate [bit/s] (the sensor's FT232R: 2000000)",
-                             ParamConstraints::range(1200, 12'000'000));
-  p.readouts_per_set = declare_parameter("readouts_per_set", d.readouts_per_set,
-                                         "raw mode: read-outs (frames) per set", ParamConstraints::range(1, 99));
-  p.optics.focal_mm = declare_parameter("focal_mm", d.optics.focal_mm, "receiver lens focal length [mm] (3.6 or 8)",
-                                        ParamConstraints::range(0.5, 100.0));
-  p.optics.sensor_length_mm = declare_parameter("sensor_length_mm", d.optics.sensor_length_mm,
-                                                "length of the 256 effective pixels [mm]",
-                                                ParamConstraints::range(0.1, 100.0));
-  require_valid(p.optics.validate().within("optics"));
-  p.frame_id = declare_parameter("frame_id", d.frame_id, "frame of RawScan/LineScan: z forward, x along the line");
-  p.scan_frame_id = declare_parameter("scan_frame_id", d.scan_frame_id,
-                                      "frame of the LaserScan (x = sensor z, y = sensor x); empty: frame_id + '_scan'");
-  p.calibration = declare_parameter("calibration", d.calibration,
-                                    "calibration YAML (tinyline calib fit), public:NAME (R J S K T of the public "
-                                    "driver), or default (the simulated sensor's)");
-  p.distance_unit_m = declare_parameter("distance_unit_m", d.distance_unit_m,
-                                        "distance frames: unit of the firmware's distances [m] (the published "
-                                        "firmware: 0.1 mm)",
-                                        ParamConstraints::range(1e-6, 1.0));
-  p.stale_after = declare_parameter("stale_after", d.stale_after,
-                                    "fresh measurements a pixel's value may stay unchanged while its neighbours' "
-                                    "change before it is flagged stale",
-                                    ParamConstraints::range(2, 100000));
-  p.sensor_name = declare_parameter("sensor_name", d.sensor_name,
-                                    "name in LaserCommand.sensors; empty: the node's name");
-  p.sequence_slot = declare_parameter("sequence_slot", d.sequence_slot,
-                                      "sequence mode slot (thesis 6.2.1): >= 0 keeps the laser off until a "
-                                      "LaserCommand lists the slot; -1: not in sequence mode",
-                                      ParamConstraints::range(-1, 65535));
-  p.send_stream_mode = declare_parameter("send_stream_mode", d.send_stream_mode,
-                                         "send the stream-mode command (0x11, a tinyline extension) on connect");
-  p.reconnect_min_s = declare_parameter("reconnect_min_s", d.reconnect_min_s, "first retry after a disconnect [s]",
-                                        ParamConstraints::range(0.001, 60.0));
-  p.reconnect_max_s = declare_parameter("reconnect_max_s", d.reconnect_max_s,
-                                        "longest wait between reconnect attempts [s]",
-                                        ParamConstraints::range(0.001, 600.0));
-  p.diagnostics_period_s = declare_parameter("diagnostics_period_s", d.diagnostics_period_s,
-                                             "diagnostics period [s]", ParamConstraints::range(0.01, 3600.0));
-  p.stall_timeout_s = declare_parameter("stall_timeout_s", d.stall_timeout_s,
-                                        "connected but no complete frame for this long: WARN [s]",
-                                        ParamConstraints::range(0.01, 3600.0));
-  p.threaded = declare_parameter("threaded", d.threaded,
-                                 "run the I/O thread; false: the embedding code calls pump()");
-  p.publish_raw = declare_parameter("publish_raw", d.publish_raw, "publish tinyline_msgs/RawScan (raw sets)");
+  bus::declare_params(*this, params_);  // the table: tiny_laser_driver/nodes/param_tables.hpp
+  require_valid(params_.optics.validate().within("optics"));
 }
 
 LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {

@@ -1,19 +1,17 @@
 #include <tiny_laser_driver/nodes/raw_processor.hpp>
 
+#include <tinyline/bus/param_table.hpp>
+
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
+#include <tiny_laser_driver/param_tables.hpp>
 
 namespace tinyline::tiny_laser_driver {
 
 RawProcessor::RawProcessor(bus::NodeOptions options) : Node(std::move(options)) {
-  using bus::ParamConstraints;
   const DriverParams d;  // the same defaults as the driver
   calibration_ = declare_parameter("calibration", d.calibration,
                                    "calibration YAML, public:NAME, or default (the simulated sensor's)");
-  optics_.focal_mm = declare_parameter("focal_mm", d.optics.focal_mm, "receiver lens focal length [mm]",
-                                       ParamConstraints::range(0.5, 100.0));
-  optics_.sensor_length_mm = declare_parameter("sensor_length_mm", d.optics.sensor_length_mm,
-                                               "length of the 256 effective pixels [mm]",
-                                               ParamConstraints::range(0.1, 100.0));
+  bus::declare_params(*this, optics_);  // the table: tiny_laser_driver/param_tables.hpp
   require_valid(optics_.validate().within("optics"));
   scan_frame_id_ = declare_parameter("scan_frame_id", d.scan_frame_id,
                                      "frame of the LaserScan; empty: the raw scan's frame_id + '_scan'");
