@@ -24,7 +24,7 @@ void for_each_param(S& p, V&& v) {
   v(p.mode,
     {"mode", "", {}, {},
      "the frames expected, only checked and reported (both kinds are always read): auto (either), raw (the host "
-     "computes distance from all read-outs) or distance (the firmware sends distances)"},
+     "computes distance from all read-outs, thesis 5.3.1) or distance (the firmware sends distances, 4.4.1)"},
     kDriverModes);
   v(p.baud, {"baud", "bit/s", 1200, 12'000'000, "link rate (the sensor's FT232R: 2000000)"});
   v(p.readouts_per_set, {"readouts_per_set", "", 1, 99, "raw mode: read-outs (frames) per set"});
@@ -34,7 +34,7 @@ void for_each_param(S& p, V&& v) {
                       "frame of the LaserScan (x = sensor z, y = sensor x); empty: frame_id + '_scan'"});
   v(p.calibration, {"calibration", "", {}, {},
                     "calibration YAML (tinyline calib fit), public:NAME (R J S K T of the public driver), or default "
-                    "(the simulated sensor's)"});
+                    "(the simulated 8 mm sensor's)"});
   v(p.distance_unit_m, {"distance_unit_m", "m", 1e-6, 1.0,
                         "distance frames: unit of the firmware's distances (the published firmware: 0.1 mm)"});
   v(p.stale_after, {"stale_after", "", 2, 100000,
@@ -45,7 +45,7 @@ void for_each_param(S& p, V&& v) {
                       "sequence mode slot (thesis 6.2.1): >= 0 keeps the laser off until a LaserCommand lists the "
                       "slot; -1: not in sequence mode"});
   v(p.send_stream_mode, {"send_stream_mode", "", {}, {},
-                         "send the stream-mode command (0x11, a tinyline extension) on connect"});
+                         "send the stream-mode command (0x11, a tinyline extension) for `mode` on connect (not with auto)"});
   v(p.reconnect_min_s, {"reconnect_min_s", "s", 0.001, 60.0, "first retry after a disconnect"});
   v(p.reconnect_max_s, {"reconnect_max_s", "s", 0.001, 600.0, "longest wait between reconnect attempts"});
   v(p.diagnostics_period_s, {"diagnostics_period_s", "s", 0.01, 3600.0, "diagnostics period"});
