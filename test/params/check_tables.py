@@ -14,7 +14,10 @@ import sys
 import tempfile
 
 # Settings structs of a core that no node declares, and why.
-NOT_NODE_SETTINGS = {}
+NOT_NODE_SETTINGS = {
+    "DepthCorrectionParams": "tomato_reasoning's camera calibration tool, not a node",
+    "HandToHeadParams": "tomato_reasoning's camera calibration tool, not a node",
+}
 
 TABLE = re.compile(r"SettingsOf<S,\s*(\w+)>\s*void for_each_param\(S& p, V&& v\) \{(.*?)\n\}", re.S)
 STRUCT = re.compile(r"^struct (\w+) \{(.*?)^\};", re.S | re.M)

@@ -5,9 +5,11 @@
 #include <limits>
 #include <stdexcept>
 
+#include <tinyline/bus/param_table.hpp>
 #include <tinyline/msg/eigen.hpp>
 
 #include "tomato_reasoning/nodes/register.hpp"
+#include "tomato_reasoning/param_tables.hpp"
 
 namespace tinyline::tomato_reasoning::nodes {
 
@@ -205,47 +207,10 @@ void to_markers(const msgs::TomatoEstimates& t, visualization_msgs::msg::MarkerA
 // ---------------------------------------------------------------------------- tomato_detector
 
 TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) {
-  PipelineParams p;  // defaults live in the core's structs
-  p.hsi.h_min_deg = declare_parameter("hsi.h_min_deg", p.hsi.h_min_deg, "HSI filter hue range, low end [deg]",
-                                      ParamConstraints::range(-180.0, 180.0));
-  p.hsi.h_max_deg = declare_parameter("hsi.h_max_deg", p.hsi.h_max_deg, "... high end [deg]", ParamConstraints::range(-180.0, 180.0));
-  p.hsi.s_min = declare_parameter("hsi.s_min", p.hsi.s_min, "saturation range, low end [0, 255]", ParamConstraints::range(0, 255));
-  p.hsi.s_max = declare_parameter("hsi.s_max", p.hsi.s_max, "... high end", ParamConstraints::range(0, 255));
-  p.hsi.i_min = declare_parameter("hsi.i_min", p.hsi.i_min, "intensity range, low end [0, 255]", ParamConstraints::range(0, 255));
-  p.hsi.i_max = declare_parameter("hsi.i_max", p.hsi.i_max, "... high end", ParamConstraints::range(0, 255));
-  p.branch.tolerance_m = declare_parameter("branch.tolerance_m", p.branch.tolerance_m,
-                                           "Euclidean branch clustering distance (Eq. 4.9) [m]", ParamConstraints::range(1e-3, 1.0));
-  p.branch.max_range_m = declare_parameter("branch.max_range_m", p.branch.max_range_m, "farthest feasible branch [m]",
-                                           ParamConstraints::range(0.05, 10.0));
-  p.spheres.radius_min_m = declare_parameter("spheres.radius_min_m", p.spheres.radius_min_m, "smallest tomato radius [m]",
-                                             ParamConstraints::range(0.005, 0.2));
-  p.spheres.radius_max_m = declare_parameter("spheres.radius_max_m", p.spheres.radius_max_m, "largest tomato radius [m]",
-                                             ParamConstraints::range(0.005, 0.2));
-  p.force.contact_tolerance_m = declare_parameter("force.contact_tolerance_m", p.force.contact_tolerance_m,
-                                                  "contact graph tolerance d_e (Eq. 4.17) [m]", ParamConstraints::range(0.0, 0.1));
-  p.force.eps_mean = declare_parameter("force.eps_mean", p.force.eps_mean, "interaction weight mean (Eq. 4.19)",
-                                       ParamConstraints::range(0.0, 1.0));
-  p.force.eps_variance = declare_parameter("force.eps_variance", p.force.eps_variance, "interaction weight variance (Eq. 4.19)",
-                                           ParamConstraints::range(1e-6, 10.0));
-  p.force.kernel_kappa = declare_parameter("force.kernel_kappa", p.force.kernel_kappa,
-                                           "vMF kernel concentration of the pedicel distribution (default: fitted for "
-                                           "calibrated HPD regions; 0: the thesis's model)",
-                                           ParamConstraints::range(0.0, 1e6));
-  p.force.samples = declare_parameter("force.samples", p.force.samples, "Monte Carlo draws per tomato", ParamConstraints::range(1, 100000));
-  p.pick.w_energy_per_m = declare_parameter("pick.w_energy_per_m", p.pick.w_energy_per_m, "Eq. 4.23 sigma_1 [1/m]",
-                                            ParamConstraints::range(0.0, 1e6));
-  p.pick.w_edges = declare_parameter("pick.w_edges", p.pick.w_edges, "Eq. 4.23 sigma_2 [per edge]", ParamConstraints::range(0.0, 1e6));
-  p.pick.w_angle_per_rad = declare_parameter("pick.w_angle_per_rad", p.pick.w_angle_per_rad, "Eq. 4.23 sigma_3 [1/rad]",
-                                             ParamConstraints::range(0.0, 1e6));
-  p.cut.scissor_opening_m = declare_parameter("cut.scissor_opening_m", p.cut.scissor_opening_m, "blade opening [m]",
-                                              ParamConstraints::range(1e-3, 0.2));
-  p.cut.cut_offset_m = declare_parameter("cut.cut_offset_m", p.cut.cut_offset_m, "cut beyond the fruit's surface [m]",
-                                         ParamConstraints::range(0.0, 0.1));
-  const auto g = declare_parameter<std::vector<double>>("gravity", {p.gravity.x(), p.gravity.y(), p.gravity.z()},
-                                                        "gravity direction in the cloud's frame (3 numbers)");
-  if (g.size() != 3 || !(Eigen::Vector3d(g[0], g[1], g[2]).norm() > 0))
-    throw bus::ParamError({}, "node '" + full_name() + "': gravity needs 3 numbers, not all zero");
-  p.gravity = Eigen::Vector3d(g[0], g[1], g[2]).normalized();
+  PipelineParams p;  // the core's defaults; the table: tomato_reasoning/param_tables.hpp
+  bus::declare_params(*this, p);
+  if (!(p.gravity.norm() > 0)) throw bus::ParamError({}, "node '" + full_name() + "': gravity must not be all zero");
+  p.gravity.normalize();
   require_valid(validate(p).within("tomato pipeline"));
   pipeline_ = std::make_unique<TomatoPipeline>(p);
   views_ = declare_parameter("views", 1,
@@ -357,17 +322,7 @@ void TomatoDetectorNode::publish(std::unique_ptr<msgs::TomatoEstimates> out) {
 // ---------------------------------------------------------------------------- pick_verifier
 
 PickVerifierNode::PickVerifierNode(bus::NodeOptions o) : Node(std::move(o)) {
-  params_.throat_z_m = declare_parameter("throat_z_m", params_.throat_z_m, "blade throat along the hand laser's axis [m]",
-                                         ParamConstraints::range(0.01, 1.0));
-  params_.max_move_m = declare_parameter("max_move_m", params_.max_move_m, "a longer move is not trusted: nothing found [m]",
-                                         ParamConstraints::range(0.0, 1.0));
-  params_.max_turn_deg = declare_parameter("max_turn_deg", params_.max_turn_deg,
-                                           "turn the picking pose about the pedicel by up to this to see past a fruit [deg] "
-                                           "(0: straight approach)",
-                                           ParamConstraints::range(0.0, 180.0));
-  params_.view_clearance_m = declare_parameter("view_clearance_m", params_.view_clearance_m,
-                                               "the laser's view of the throat clears other fruit by this [m]",
-                                               ParamConstraints::range(0.0, 0.1));
+  bus::declare_params(*this, params_);  // the table: tomato_reasoning/param_tables.hpp
   max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)", ParamConstraints::range(0, 1000));
   pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pick_pose");
   expected_pub_ = create_publisher<geometry_msgs::msg::PointStamped>("expected_pedicel");

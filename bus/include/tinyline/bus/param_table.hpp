@@ -14,6 +14,8 @@
 #include <type_traits>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include <tinyline/bus/node.hpp>
 #include <tinyline/common/param_table.hpp>
 
@@ -37,6 +39,16 @@ void declare_field(Node& node, T& field, const common::Param& p) {
                 std::is_same_v<T, float> || std::is_same_v<T, std::string> || std::is_same_v<T, std::int64_t> ||
                 std::is_same_v<T, std::vector<double>> || std::is_same_v<T, std::vector<std::string>>) {
     field = node.declare_parameter(name, field, what, constraints_of(p));
+  } else if constexpr (requires { T::RowsAtCompileTime; T::SizeAtCompileTime; }) {
+    // A fixed-size Eigen vector: an array of exactly that many numbers.
+    constexpr auto n = static_cast<std::size_t>(T::SizeAtCompileTime);
+    const std::vector<double> d(field.data(), field.data() + n);
+    const auto given = node.declare_parameter(name, d, what, constraints_of(p));
+    if (given.size() != n) {
+      throw ParamError({}, "node '" + node.full_name() + "': " + name + " needs " + std::to_string(n) +
+                               " numbers, got " + std::to_string(given.size()));
+    }
+    for (std::size_t i = 0; i < n; ++i) field[static_cast<Eigen::Index>(i)] = given[i];
   } else if constexpr (std::is_integral_v<T>) {
     field = static_cast<T>(node.declare_parameter<std::int64_t>(name, static_cast<std::int64_t>(field), what,
                                                                 constraints_of(p)));

@@ -1,0 +1,135 @@
+// The parameter tables of tomato_reasoning's settings: each field's name in
+// launch files, unit, range and meaning, described once
+// (<tinyline/common/param_table.hpp>). The nodes declare their parameters
+// from these, `tinyline describe` and docs/parameters.md show them.
+#pragma once
+
+#include <tinyline/common/param_table.hpp>
+
+#include "tomato_reasoning/branch_clustering.hpp"
+#include "tomato_reasoning/hsi_filter.hpp"
+#include "tomato_reasoning/pick_pose.hpp"
+#include "tomato_reasoning/pipeline.hpp"
+#include "tomato_reasoning/reasoning.hpp"
+#include "tomato_reasoning/smoothing.hpp"
+#include "tomato_reasoning/sphere_ransac.hpp"
+
+namespace tinyline::tomato_reasoning {
+
+template <class S, class V>
+  requires common::SettingsOf<S, HsiFilterParams>
+void for_each_param(S& p, V&& v) {
+  v(p.h_min_deg, {"h_min_deg", "deg", -180.0, 180.0, "HSI filter hue range, low end"});
+  v(p.h_max_deg, {"h_max_deg", "deg", -180.0, 180.0, "HSI filter hue range, high end"});
+  v(p.s_min, {"s_min", "", 0, 255, "saturation range, low end"});
+  v(p.s_max, {"s_max", "", 0, 255, "saturation range, high end"});
+  v(p.i_min, {"i_min", "", 0, 255, "intensity range, low end"});
+  v(p.i_max, {"i_max", "", 0, 255, "intensity range, high end"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, BranchClusteringParams>
+void for_each_param(S& p, V&& v) {
+  v(p.tolerance_m, {"tolerance_m", "m", 1e-3, 1.0, "Euclidean branch clustering distance (Eq. 4.9)"});
+  v(p.min_points, {"min_points", "", 1, 10'000'000, "points a branch has at least"});
+  v(p.min_range_m, {"min_range_m", "m", 0.0, 10.0, "nearest feasible branch (its centroid from the camera)"});
+  v(p.max_range_m, {"max_range_m", "m", 0.05, 10.0, "farthest feasible branch"});
+  v(p.max_extent_m, {"max_extent_m", "m", 1e-3, 10.0, "a cluster wider than this (bounding-box diagonal) is not one branch"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, SmoothingParams>
+void for_each_param(S& p, V&& v) {
+  v(p.voxel_m, {"voxel_m", "m", 0.0, 0.1, "voxel-grid thinning before smoothing (0: every point)"});
+  v(p.search_radius_m, {"search_radius_m", "m", 1e-4, 0.5, "MLS neighbourhood"});
+  v(p.polynomial_order, {"polynomial_order", "", 1, 2, "1: plane only; 2: quadratic height field"});
+  v(p.min_neighbours, {"min_neighbours", "", 3, 10000, "fewer neighbours (itself included): the point is dropped"});
+  v(p.project_points, {"project_points", "", {}, {}, "move points onto the fitted surface (false: normals only)"});
+}
+
+/// The words of SphereHypothesis.
+inline constexpr common::Choice<SphereHypothesis> kSphereHypotheses[] = {
+    {"four_points", SphereHypothesis::kFourPoints},
+    {"two_points_with_normals", SphereHypothesis::kTwoPointsWithNormals},
+};
+
+template <class S, class V>
+  requires common::SettingsOf<S, SphereRansacParams>
+void for_each_param(S& p, V&& v) {
+  v(p.radius_min_m, {"radius_min_m", "m", 0.005, 0.2, "smallest tomato radius"});
+  v(p.radius_max_m, {"radius_max_m", "m", 0.005, 0.2, "largest tomato radius"});
+  v(p.inlier_distance_m, {"inlier_distance_m", "m", 1e-5, 0.1, "|distance to the surface| of an inlier"});
+  v(p.normal_tolerance_deg, {"normal_tolerance_deg", "deg", -1.0, 89.9,
+                             "an inlier's normal lies within this of the radial direction (<= 0: off)"});
+  v(p.hypothesis, {"hypothesis", "", {}, {}, "minimal sample of a hypothesis"}, kSphereHypotheses);
+  v(p.max_iterations, {"max_iterations", "", 1, 1'000'000, "hypotheses per round at most"});
+  v(p.confidence, {"confidence", "", 0.5, 0.999999, "early stop: P(at least one all-inlier sample) (Eq. 4.15)"});
+  v(p.local_sampling, {"local_sampling", "", {}, {}, "draw a hypothesis's other points near its first"});
+  v(p.min_inliers, {"min_inliers", "", 4, 1'000'000, "inliers a sphere needs"});
+  v(p.min_remaining, {"min_remaining", "", 4, 1'000'000, "stop when fewer points remain"});
+  v(p.max_spheres, {"max_spheres", "", 1, 1000, "spheres at most"});
+  v(p.max_failed_rounds, {"max_failed_rounds", "", 1, 1000, "stop after this many rounds in a row without a sphere"});
+  v(p.max_overlap_m, {"max_overlap_m", "m", 0.0, 0.2, "a new sphere may reach this far into an accepted one"});
+  v(p.removal_factor, {"removal_factor", "", 1.0, 100.0,
+                       "points within this many inlier distances of an accepted sphere are removed with it"});
+  v(p.refine, {"refine", "", {}, {}, "geometric least squares within the radius range"});
+  v(p.seed, {"seed", "", 0, 2e9, "sampling seed (reproducible)"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, ForceModelParams>
+void for_each_param(S& p, V&& v) {
+  v(p.contact_tolerance_m, {"contact_tolerance_m", "m", 0.0, 0.1, "contact graph tolerance d_e (Eq. 4.17)"});
+  v(p.eps_mean, {"eps_mean", "", 0.0, 1.0, "interaction weight mean (Eq. 4.19)"});
+  v(p.eps_variance, {"eps_variance", "", 1e-6, 10.0, "interaction weight variance (Eq. 4.19)"});
+  v(p.eps_max, {"eps_max", "", 1e-6, 100.0, "interaction weights are truncated to [0, eps_max)"});
+  v(p.weight_exponent, {"weight_exponent", "", 0.0, 10.0, "a tomato's weight grows as radius^exponent"});
+  v(p.kernel_kappa, {"kernel_kappa", "", 0.0, 1e6,
+                     "vMF kernel concentration of the pedicel distribution (default: fitted for calibrated HPD "
+                     "regions; 0: the thesis's model)"});
+  v(p.samples, {"samples", "", 10, 100000, "Monte Carlo draws per tomato"});
+  v(p.seed, {"seed", "", 0, 2e9, "Monte Carlo seed (reproducible)"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, PickOrderParams>
+void for_each_param(S& p, V&& v) {
+  v(p.w_energy_per_m, {"w_energy_per_m", "1/m", 0.0, 1e6, "Eq. 4.23 sigma_1: per metre of height"});
+  v(p.w_edges, {"w_edges", "", 0.0, 1e6, "Eq. 4.23 sigma_2: per contact edge"});
+  v(p.w_angle_per_rad, {"w_angle_per_rad", "1/rad", 0.0, 1e6, "Eq. 4.23 sigma_3: per radian off straight up"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, CutParams>
+void for_each_param(S& p, V&& v) {
+  v(p.scissor_opening_m, {"scissor_opening_m", "m", 1e-3, 0.2, "blade opening"});
+  v(p.cut_offset_m, {"cut_offset_m", "m", 0.0, 0.1, "cut beyond the fruit's surface along the pedicel"});
+  v(p.candidates, {"candidates", "", 1, 100000, "cut directions tried (draws of the distribution)"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, PipelineParams>
+void for_each_param(S& p, V&& v) {
+  common::nest(p.hsi, "hsi.", v);
+  common::nest(p.branch, "branch.", v);
+  common::nest(p.smoothing, "smoothing.", v);
+  common::nest(p.spheres, "spheres.", v);
+  common::nest(p.force, "force.", v);
+  common::nest(p.pick, "pick.", v);
+  common::nest(p.cut, "cut.", v);
+  v(p.gravity, {"gravity", "", -1e6, 1e6, "gravity direction in the cloud's frame (3 numbers, normalised)"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, PickPoseParams>
+void for_each_param(S& p, V&& v) {
+  v(p.throat_z_m, {"throat_z_m", "m", 0.01, 1.0, "blade throat along the hand laser's axis"});
+  v(p.approach_from, {"approach_from", "m", -1e6, 1e6,
+                      "where the robot comes from, reference frame (3 numbers): the laser looks from this side"});
+  v(p.max_move_m, {"max_move_m", "m", 0.0, 1.0, "a longer move is not trusted: nothing found"});
+  v(p.view_clearance_m, {"view_clearance_m", "m", 0.0, 0.1, "the laser's view of the throat clears other fruit by this"});
+  v(p.max_turn_deg, {"max_turn_deg", "deg", 0.0, 180.0,
+                     "turn the picking pose about the pedicel by up to this to see past a fruit (0: straight approach)"});
+}
+
+}  // namespace tinyline::tomato_reasoning
