@@ -5,6 +5,9 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bus/param_table.hpp>
+
+#include "hydrus_fitting/param_tables.hpp"
 #include "hydrus_fitting/sequencer.hpp"
 
 namespace tinyline::hydrus_fitting {
@@ -46,74 +49,27 @@ geometry_msgs::msg::Point point(double x, double y, double z) {
 }  // namespace
 
 CircleFitterNode::CircleFitterNode(bus::NodeOptions o) : Node(std::move(o)) {
-  const CircleEstimatorParams d;  // defaults live in the core structs
   ParamConstraints required;
   required.required = true;
   description_path_ = declare_parameter<std::string>("robot_description", "",
                                                      "robot description YAML (links, joints, sensor mounts)", required);
   frame_id_ = declare_parameter<std::string>("frame_id", "base", "frame of the outputs: the robot description's base");
-  const double known = declare_parameter("known_radius_m", 0.0, "radius of the object if known [m]; 0: fit it",
-                                         ParamConstraints::range(0.0, 10.0));
-  if (known > 0.0) params_.robust.known_radius_m = known;
-  params_.robust.min_radius_m = declare_parameter("min_radius_m", d.robust.min_radius_m, "smallest accepted radius [m]",
-                                                  ParamConstraints::range(0.0, 10.0));
-  params_.robust.max_radius_m = declare_parameter("max_radius_m", d.robust.max_radius_m, "largest accepted radius [m]",
-                                                  ParamConstraints::range(1e-3, 100.0));
-  params_.robust.inlier_threshold_m =
-      declare_parameter("inlier_threshold_m", d.robust.inlier_threshold_m,
-                        "largest distance of a supporting point from the circle [m]", ParamConstraints::range(1e-4, 1.0));
-  params_.robust.inlier_threshold_sigmas =
-      declare_parameter("inlier_threshold_sigmas", d.robust.inlier_threshold_sigmas,
-                        "and at most this many of its range SDs (Table 3.1 model); 0: off", ParamConstraints::range(0.0, 100.0));
-  params_.robust.max_iterations = declare_parameter("max_iterations", d.robust.max_iterations,
-                                                    "MSAC hypotheses at most", ParamConstraints::range(1, 1e6));
-  params_.robust.confidence = declare_parameter("confidence", d.robust.confidence,
-                                                "MSAC stop: P(an all-inlier sample was drawn)",
-                                                ParamConstraints::range(0.5, 0.999999));
-  params_.robust.min_inliers = declare_parameter("min_inliers", d.robust.min_inliers,
-                                                 "a circle needs this many supporting points", ParamConstraints::range(3, 1e6));
-  params_.robust.seed = static_cast<std::uint64_t>(
-      declare_parameter("seed", 1, "MSAC sampling seed (deterministic)", ParamConstraints::range(0, 2e9)));
-  params_.fusion.self_filter = declare_parameter("self_filter", d.fusion.self_filter,
-                                                 "remove points on the robot's own links (thesis 6.2.3)");
-  params_.fusion.self_filter_margin_m =
-      declare_parameter("self_filter_margin_m", d.fusion.self_filter_margin_m,
-                        "clearance around each link's footprint [m]", ParamConstraints::range(0.0, 1.0));
-  params_.use_viewpoints = declare_parameter("use_viewpoints", d.use_viewpoints,
-                                             "reject circles through points their sensor could not have seen");
-  params_.weight_by_range = declare_parameter("weight_by_range", d.weight_by_range,
-                                              "weight points by the range noise at their distance");
-  params_.incidence_weighting = declare_parameter("incidence_weighting", d.incidence_weighting,
-                                                  "refit with the noise across the surface (range SD x cos incidence)");
-  params_.min_cos_incidence = declare_parameter("min_cos_incidence", d.min_cos_incidence,
-                                                "floor of cos(incidence) in the weights", ParamConstraints::range(0.01, 1.0));
-  params_.remove_radius_bias = declare_parameter("remove_radius_bias", d.remove_radius_bias,
-                                                 "remove the geometric fit's essential radius bias");
-  params_.arc_correction =
-      declare_parameter("second_order_correction", d.arc_correction == ArcCorrection::kSecondOrder,
-                        "end weighting and mode shift of the final refit at large noise on short arcs "
-                        "(docs/hydrus_fitting.md); false: the plain maximum-likelihood refit")
-          ? ArcCorrection::kSecondOrder
-          : ArcCorrection::kNone;
-  params_.max_scan_skew_s = declare_parameter("max_scan_skew_s", d.max_scan_skew_s,
-                                              "scans older than the newest by more than this are left out [s]",
-                                              ParamConstraints::range(0.0, 60.0));
-  const JointBufferParams jb;
-  joint_tolerance_s_ = declare_parameter("joint_tolerance_s", jb.tolerance_s,
-                                         "a scan may be this much newer than the newest joint state [s]",
-                                         ParamConstraints::range(0.0, 10.0));
-  joint_history_s_ = declare_parameter("joint_history_s", jb.history_s, "joint states kept [s]",
-                                       ParamConstraints::range(0.01, 600.0));
-  base_pose_tolerance_s_ = declare_parameter("base_pose_tolerance_s", BasePoseBufferParams{}.tolerance_s,
-                                             "a scan may be this much newer than the newest base_pose [s]",
-                                             ParamConstraints::range(0.0, 10.0));
+  bus::declare_params(*this, params_);  // the tables: hydrus_fitting/param_tables.hpp
+  JointBufferParams joints;
+  bus::declare_params(*this, joints, "joint_");
+  joint_tolerance_s_ = joints.tolerance_s;
+  joint_history_s_ = joints.history_s;
+  BasePoseBufferParams base_poses;
+  bus::declare_params(*this, base_poses, "base_pose_");
+  base_pose_tolerance_s_ = base_poses.tolerance_s;
+  base_pose_history_s_ = base_poses.history_s;
   marker_height_m_ = declare_parameter("marker_height_m", 0.3, "height of the cylinder marker [m]",
                                        ParamConstraints::range(0.0, 10.0));
   publish_points_ = declare_parameter("publish_points", true, "add the fused points and the links to the markers");
   require_valid(validate(params_.robust));
   require_valid(validate(params_.fusion));
-  require_valid(validate(JointBufferParams{joint_tolerance_s_, joint_history_s_}));
-  require_valid(validate(BasePoseBufferParams{base_pose_tolerance_s_, joint_history_s_}));
+  require_valid(validate(joints));
+  require_valid(validate(base_poses));
 
   circle_pub_ = create_publisher<msgs::CircleFit>("circle");
   marker_pub_ = create_publisher<vis::MarkerArray>("markers");
@@ -130,7 +86,7 @@ void CircleFitterNode::on_start() {
   model_ = std::make_unique<RobotModel>(RobotModel::load(description_path_));
   joints_ = std::make_unique<JointStateBuffer>(model_->joint_names(),
                                                JointBufferParams{joint_tolerance_s_, joint_history_s_});
-  base_poses_ = std::make_unique<BasePoseBuffer>(BasePoseBufferParams{base_pose_tolerance_s_, joint_history_s_});
+  base_poses_ = std::make_unique<BasePoseBuffer>(BasePoseBufferParams{base_pose_tolerance_s_, base_pose_history_s_});
   estimator_ = std::make_unique<CircleEstimator>(*model_, params_);
   latest_.assign(model_->sensors().size(), std::nullopt);
   logger().info("robot '{}': {} links, {} sensors ({})", model_->name(), model_->links().size(),

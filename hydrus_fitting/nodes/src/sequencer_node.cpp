@@ -5,6 +5,10 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bus/param_table.hpp>
+
+#include "hydrus_fitting/param_tables.hpp"
+
 namespace tinyline::hydrus_fitting {
 
 using bus::ParamConstraints;
@@ -12,7 +16,6 @@ namespace msgs = tinyline_msgs::msg;
 namespace diag = diagnostic_msgs::msg;
 
 SequencerNode::SequencerNode(bus::NodeOptions o) : Node(std::move(o)) {
-  const SequencerParams d;  // defaults live in the core structs
   ParamConstraints required;
   required.required = true;
   description_path_ = declare_parameter<std::string>("robot_description", "",
@@ -20,42 +23,14 @@ SequencerNode::SequencerNode(bus::NodeOptions o) : Node(std::move(o)) {
   mode_ = declare_parameter<std::string>("mode", "colouring",
                                          "colouring | time_slicing (thesis, rate/n) | all_on (no sequencing)",
                                          ParamConstraints::one_of({"colouring", "time_slicing", "all_on"}));
-  params_.timing.set_period_s = declare_parameter("set_period_s", d.timing.set_period_s,
-                                                  "one measurement set at the sensor's free-running rate [s]",
-                                                  ParamConstraints::range(1e-4, 10.0));
-  params_.timing.guard_s = declare_parameter("guard_s", d.timing.guard_s,
-                                             "margin per slot for the on/off commands to take effect [s]",
-                                             ParamConstraints::range(0.0, 10.0));
-  params_.fill = declare_parameter("fill", d.fill, "add each sensor to every other slot it conflicts with nobody in");
-  params_.links_occlude = declare_parameter("links_occlude", d.links_occlude, "the robot's links block light");
-  params_.interference.rays_per_fan = declare_parameter("rays_per_fan", d.interference.rays_per_fan,
-                                                        "rays cast across each emitter's fan",
-                                                        ParamConstraints::range(2, 100000));
-  params_.interference.step_m = declare_parameter("ray_step_m", d.interference.step_m,
-                                                  "sampling along rays that hit nothing known [m]",
-                                                  ParamConstraints::range(1e-3, 1.0));
-  params_.interference.angle_margin_rad = declare_parameter("angle_margin_rad", d.interference.angle_margin_rad,
-                                                            "widens every field of view and fan [rad]",
-                                                            ParamConstraints::range(0.0, 1.0));
-  params_.interference.occluder_shrink_m = declare_parameter("occluder_shrink_m", d.interference.occluder_shrink_m,
-                                                             "the object estimate is shrunk by this before occluding [m]",
-                                                             ParamConstraints::range(0.0, 1.0));
-  params_.recompute_translation_m = declare_parameter("recompute_translation_m", d.recompute_translation_m,
-                                                      "rebuild when a sensor moved this far [m]",
-                                                      ParamConstraints::range(0.0, 10.0));
-  params_.recompute_rotation_rad = declare_parameter("recompute_rotation_rad", d.recompute_rotation_rad,
-                                                     "or turned this much [rad]", ParamConstraints::range(0.0, 3.2));
-  params_.recompute_object_m = declare_parameter("recompute_object_m", d.recompute_object_m,
-                                                 "or the object estimate moved this far [m]",
-                                                 ParamConstraints::range(0.0, 10.0));
+  bus::declare_params(*this, params_);  // the tables: hydrus_fitting/param_tables.hpp
   object_max_age_s_ = declare_parameter("object_max_age_s", 0.5,
                                         "an object estimate older than this does not occlude [s]; 0: never use it",
                                         ParamConstraints::range(0.0, 3600.0));
   rate_window_s_ = declare_parameter("rate_window_s", 2.0, "window of the achieved-rate measurement [s]",
                                      ParamConstraints::range(0.1, 600.0));
-  joint_params_.tolerance_s = declare_parameter("joint_tolerance_s", 0.1,
-                                                "the schedule may use joint states this old [s]",
-                                                ParamConstraints::range(0.0, 60.0));
+  joint_params_.tolerance_s = 0.1;  // the schedule may use joint states this old: looser than a fit's
+  bus::declare_params(*this, joint_params_, "joint_");
   const double diag_period = declare_parameter("diagnostics_period_s", 1.0, "[s]", ParamConstraints::range(0.01, 3600.0));
   ignore_after_ = declare_parameter("ignore_after", 3,
                                     "scans read out well after a sensor was told off before it is taken as always "

@@ -9,9 +9,11 @@
 #include <cstdint>
 #include <cstddef>
 #include <iterator>
+#include <optional>
 #include <string_view>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -57,6 +59,34 @@ void declare_field(Node& node, T& field, const common::Param& p) {
   }
 }
 
+/// Declares an optional number: 0 (the default when unset) means none.
+inline void declare_field(Node& node, std::optional<double>& field, const common::Param& p) {
+  const double v = node.declare_parameter(std::string(p.name), field.value_or(0.0), std::string(p.description),
+                                          constraints_of(p));
+  field = v == 0.0 ? std::nullopt : std::optional<double>(v);
+}
+
+/// Declares a table of (x, y) pairs as one array, x0, y0, x1, y1, ...
+inline void declare_field(Node& node, std::vector<std::pair<double, double>>& field, const common::Param& p) {
+  std::vector<double> flat;
+  for (const auto& [x, y] : field) flat.insert(flat.end(), {x, y});
+  flat = node.declare_parameter(std::string(p.name), flat, std::string(p.description), constraints_of(p));
+  if (flat.empty() || flat.size() % 2 != 0) {
+    throw ParamError({}, "node '" + node.full_name() + "': " + std::string(p.name) +
+                             " needs pairs of numbers (x0, y0, x1, y1, ...), got " + std::to_string(flat.size()));
+  }
+  field.clear();
+  for (std::size_t i = 0; i < flat.size(); i += 2) field.emplace_back(flat[i], flat[i + 1]);
+}
+
+/// Declares a two-valued enum as a flag.
+template <class E>
+void declare_field(Node& node, E& field, const common::Param& p, const common::Flag<E>& flag) {
+  const bool on = node.declare_parameter(std::string(p.name), field == flag.on, std::string(p.description),
+                                         constraints_of(p));
+  field = on ? flag.on : flag.off;
+}
+
 /// Declares a field that holds one of a few words (an enum).
 template <class E, std::size_t N>
 void declare_field(Node& node, E& field, const common::Param& p, const common::Choice<E> (&words)[N]) {
@@ -78,13 +108,14 @@ void declare_field(Node& node, std::string& field, const common::Param& p, const
   field = node.declare_parameter(std::string(p.name), field, std::string(p.description), std::move(c));
 }
 
-/// Declares every field of `settings`' table on `node` (see above).
+/// Declares every field of `settings`' table on `node` (see above), the
+/// names prefixed with `prefix` when one node holds two of a kind.
 template <class S>
-void declare_params(Node& node, S& settings) {
+void declare_params(Node& node, S& settings, std::string_view prefix = {}) {
   auto declare = [&node](auto& field, const common::Param& p, auto&&... words) {
     declare_field(node, field, p, words...);
   };
-  for_each_param(settings, declare);
+  common::nest(settings, prefix, declare);
 }
 
 /// The settings of a core as this node's parameters give them: the struct's

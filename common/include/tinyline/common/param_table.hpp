@@ -14,7 +14,8 @@
 //
 // A struct that holds another shows the inner one's table, its names
 // prefixed: `common::nest(p.groups, "groups_", v, "stage 1: ")`. A field whose value is
-// one of a few words (an enum) passes the words: `v(p.method, {...}, kMethods)`.
+// one of a few words (an enum) passes the words: `v(p.method, {...}, kMethods)`;
+// an optional number is a parameter whose 0 means "none".
 // The visitors (the bus's declaration of node parameters, `within_table`
 // here) live with whoever needs them; a core needs only this header.
 #pragma once
@@ -48,6 +49,21 @@ struct Choice {
   std::string_view word;
   E value;
 };
+
+/// A field of a two-valued enum that a launch file sets as a flag:
+/// `v(p.correction, {...}, Flag{ArcCorrection::kNone, ArcCorrection::kSecondOrder})`.
+template <class E>
+struct Flag {
+  E off;
+  E on;
+};
+
+/// A field the table leaves out on purpose: its value comes from another
+/// field (named in `why`), so a parameter for it would be a second way to
+/// say one thing. Nothing is declared; the table says so where a reader
+/// looks for the field.
+template <class T>
+constexpr void not_a_parameter(const T& /*field*/, std::string_view /*why*/) {}
 
 /// `S` is `Settings`, const or not (a table serves readers and writers).
 template <class S, class Settings>

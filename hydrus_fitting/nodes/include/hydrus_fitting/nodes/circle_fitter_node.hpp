@@ -58,6 +58,7 @@ class CircleFitterNode : public bus::Node {
   double joint_tolerance_s_ = 0.0;
   double joint_history_s_ = 0.0;
   double base_pose_tolerance_s_ = 0.0;
+  double base_pose_history_s_ = 0.0;
   double marker_height_m_ = 0.0;
   bool publish_points_ = true;
   CircleEstimatorParams params_;
