@@ -22,6 +22,9 @@ CommandRun setup_nodes(CLI::App& cmd) {
 
 // A node of type `full` (PKG/TYPE) built with its defaults, on a sim clock
 // that logs nowhere; nullptr (with the reason on stderr) if it cannot be.
+// A required parameter (a file to read at start) has no default: it is
+// given an empty text here, only to see the declarations; constructors
+// read no files (they open them in on_start()).
 std::shared_ptr<bus::Node> build_default(const std::string& full) {
   const auto slash = full.find('/');
   if (slash == std::string::npos) throw UsageError("expected PKG/TYPE, got '" + full + "'");
@@ -31,11 +34,20 @@ std::shared_ptr<bus::Node> build_default(const std::string& full) {
   bus::NodeOptions o;
   o.context = bus::Context::create(co);
   o.name = full.substr(slash + 1);
-  try {
-    return node_registry().create(full.substr(0, slash), full.substr(slash + 1), o);
-  } catch (const bus::ParamError& e) {
-    fmt::print(stderr, "{}\n", e.what());
-    return nullptr;
+  constexpr std::string_view kRequired = "' is required";
+  for (int tries = 0;; ++tries) {
+    try {
+      return node_registry().create(full.substr(0, slash), full.substr(slash + 1), o);
+    } catch (const bus::ParamError& e) {
+      const std::string what = e.what();
+      const auto end = what.find(kRequired);
+      const auto start = end == std::string::npos ? end : what.rfind("parameter '", end);
+      if (start == std::string::npos || tries >= 16) {
+        fmt::print(stderr, "{}\n", what);
+        return nullptr;
+      }
+      o.param(what.substr(start + 11, end - start - 11), std::string());
+    }
   }
 }
 
@@ -50,6 +62,10 @@ std::string range_of(const bus::ParamConstraints& c) {
   return range.empty() ? range : range.substr(1);
 }
 
+std::string default_of(const bus::ParamDescriptor& p) {
+  return p.constraints.required ? "required" : "default " + bus::format_value(p.default_value);
+}
+
 void print_text(const std::string& full, const bus::Node& n) {
   const auto slash = full.find('/');
   const auto* info = node_registry().find(full.substr(0, slash), full.substr(slash + 1));
@@ -57,8 +73,8 @@ void print_text(const std::string& full, const bus::Node& n) {
   for (const auto& p : n.parameters()) {
     const std::string range = range_of(p.constraints);
     const std::string unit = p.constraints.unit.empty() ? "" : " [" + p.constraints.unit + "]";
-    fmt::print("  {:<24} {:<13} default {}{}\n      {}{}\n", p.name, bus::to_string(p.type),
-               bus::format_value(p.default_value), range.empty() ? "" : " (" + range + ")", p.description, unit);
+    fmt::print("  {:<24} {:<13} {}{}\n      {}{}\n", p.name, bus::to_string(p.type), default_of(p),
+               range.empty() ? "" : " (" + range + ")", p.description, unit);
   }
   const auto d = n.describe();
   fmt::print("\npublishes:\n");
@@ -80,8 +96,9 @@ void print_markdown(const std::string& full, const bus::Node& n) {
   for (const auto& p : n.parameters()) {
     std::string what = p.description;
     for (std::size_t at = 0; (at = what.find('|', at)) != std::string::npos; at += 2) what.replace(at, 1, "\\|");
-    fmt::print("| `{}` | {} | `{}` | {} | {} | {} |\n", p.name, bus::to_string(p.type),
-               bus::format_value(p.default_value), range_of(p.constraints), p.constraints.unit, what);
+    fmt::print("| `{}` | {} | {} | {} | {} | {} |\n", p.name, bus::to_string(p.type),
+               p.constraints.required ? "required" : "`" + bus::format_value(p.default_value) + "`",
+               range_of(p.constraints), p.constraints.unit, what);
   }
   fmt::print("\n");
 }
