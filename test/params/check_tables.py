@@ -18,7 +18,6 @@ NOT_NODE_SETTINGS = {
     "DepthCorrectionParams": "tomato_reasoning's camera calibration tool, not a node",
     "HandToHeadParams": "tomato_reasoning's camera calibration tool, not a node",
     "RectangleFitParams": "hydrus_fitting's rectangle fit, used by no node",
-    "ApproachParams": "declared by sim's hydrus_sim node in degrees (sim's nodes have no tables yet)",
 }
 
 TABLE = re.compile(r"SettingsOf<S,\s*(\w+)>\s*void for_each_param\(S& p, V&& v\) \{(.*?)\n\}", re.S)

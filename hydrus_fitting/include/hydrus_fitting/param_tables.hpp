@@ -12,6 +12,7 @@
 #include "hydrus_fitting/fusion.hpp"
 #include "hydrus_fitting/robot_model.hpp"
 #include "hydrus_fitting/sequencer.hpp"
+#include "hydrus_fitting/trajectory.hpp"
 
 namespace tinyline::hydrus_fitting {
 
@@ -135,6 +136,21 @@ void for_each_param(S& p, V&& v) {
   v(p.recompute_translation_m, {"recompute_translation_m", "m", 0.0, 10.0, "rebuild when a sensor moved this far"});
   v(p.recompute_rotation_rad, {"recompute_rotation_rad", "rad", 0.0, 3.2, "or turned this much"});
   v(p.recompute_object_m, {"recompute_object_m", "m", 0.0, 10.0, "or the object estimate moved this far"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, ApproachParams>
+void for_each_param(S& p, V&& v) {
+  common::not_a_parameter(p.joints, "the robot description's joints");
+  v(p.grasp_base_xy_m, {"grasp_base_xy_m", "m", -100.0, 100.0, "where the base stops, world x and y"});
+  v(p.base_yaw_rad, {"base_yaw_deg", "deg", -360.0, 360.0, "the base's yaw, world", common::kRadPerDeg});
+  v(p.approach_direction, {"approach_direction", "", -1e6, 1e6, "direction of flight, world x and y (normalised on use)"});
+  v(p.start_distance_m, {"start_distance_m", "m", 0.0, 100.0, "the base starts this far before the grasp point"});
+  v(p.open_joint_rad, {"open_joint_deg", "deg", -180.0, 180.0, "every joint while flying in", common::kRadPerDeg});
+  v(p.closed_joint_rad, {"closed_joint_deg", "deg", -180.0, 180.0, "every joint around the object", common::kRadPerDeg});
+  v(p.approach_s, {"approach_s", "s", 0.0, 3600.0, "flight in"});
+  v(p.close_s, {"close_s", "s", 0.0, 3600.0, "closing the links"});
+  v(p.hold_s, {"hold_s", "s", 0.0, 3600.0, "holding"});
 }
 
 }  // namespace tinyline::hydrus_fitting

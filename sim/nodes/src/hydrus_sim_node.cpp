@@ -3,13 +3,15 @@
 #include "parts.hpp"
 
 #include <cmath>
-#include <numbers>
 
 #include <fmt/format.h>
 
 #include <sim/eval/simulated_hydrus.hpp>
 #include <sim/system.hpp>
+#include <tinyline/bus/param_table.hpp>
 #include <tinyline/bus/registry.hpp>
+
+#include <hydrus_fitting/param_tables.hpp>
 
 namespace tinyline::sim::nodes {
 
@@ -20,12 +22,7 @@ using hydrus_fitting::RobotPose2D;
 using bus::ParamConstraints;
 namespace msgs = tinyline_msgs::msg;
 
-namespace {
-constexpr double kDeg = std::numbers::pi / 180.0;
-}
-
 HydrusSimNode::HydrusSimNode(bus::NodeOptions o) : Node(std::move(o)) {
-  const ApproachParams d;  // defaults live in the core struct
   ParamConstraints required;
   required.required = true;
   scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML with the Hydrus (sim/config/scenes/hydrus4_grasp.yaml)",
@@ -36,22 +33,8 @@ HydrusSimNode::HydrusSimNode(bus::NodeOptions o) : Node(std::move(o)) {
   rate_hz_ = declare_parameter("rate_hz", 100.0, "joint states (and pose updates) per second",
                                ParamConstraints::range(1.0, 1000.0));
   loop_ = declare_parameter("loop", true, "start the manoeuvre again when it ends");
-  approach_.grasp_base_xy_m.x() = declare_parameter("grasp_x_m", d.grasp_base_xy_m.x(), "where the base stops, world x [m]",
-                                                    ParamConstraints::range(-100.0, 100.0));
-  approach_.grasp_base_xy_m.y() = declare_parameter("grasp_y_m", d.grasp_base_xy_m.y(), "where the base stops, world y [m]",
-                                                    ParamConstraints::range(-100.0, 100.0));
-  approach_.start_distance_m = declare_parameter("start_distance_m", d.start_distance_m,
-                                                 "the base starts this far before the grasp point [m]",
-                                                 ParamConstraints::range(0.0, 100.0));
-  approach_.open_joint_rad = kDeg * declare_parameter("open_joint_deg", d.open_joint_rad / kDeg,
-                                                      "every joint while flying in [deg]",
-                                                      ParamConstraints::range(-180.0, 180.0));
-  approach_.closed_joint_rad = kDeg * declare_parameter("closed_joint_deg", d.closed_joint_rad / kDeg,
-                                                        "every joint around the object [deg]",
-                                                        ParamConstraints::range(-180.0, 180.0));
-  approach_.approach_s = declare_parameter("approach_s", d.approach_s, "flight in [s]", ParamConstraints::range(0.0, 3600.0));
-  approach_.close_s = declare_parameter("close_s", d.close_s, "closing the links [s]", ParamConstraints::range(0.0, 3600.0));
-  approach_.hold_s = declare_parameter("hold_s", d.hold_s, "holding [s]", ParamConstraints::range(0.0, 3600.0));
+  bus::declare_params(*this, approach_);  // the table: hydrus_fitting/param_tables.hpp
+  require_valid(approach_.validate());
   joint_pub_ = create_publisher<sensor_msgs::msg::JointState>("joint_states");
   truth_pub_ = create_publisher<msgs::CircleFit>("truth");
   base_pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("base_pose");

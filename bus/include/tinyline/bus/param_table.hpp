@@ -37,7 +37,10 @@ template <class T>
 void declare_field(Node& node, T& field, const common::Param& p) {
   const std::string name(p.name);
   const std::string what(p.description);
-  if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, double> || std::is_same_v<T, int> ||
+  if constexpr (std::is_floating_point_v<T>) {
+    // Declared in the parameter's unit: the field is the parameter times p.scale.
+    field = static_cast<T>(p.scale * node.declare_parameter<double>(name, field / p.scale, what, constraints_of(p)));
+  } else if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, double> || std::is_same_v<T, int> ||
                 std::is_same_v<T, float> || std::is_same_v<T, std::string> || std::is_same_v<T, std::int64_t> ||
                 std::is_same_v<T, std::vector<double>> || std::is_same_v<T, std::vector<std::string>>) {
     field = node.declare_parameter(name, field, what, constraints_of(p));

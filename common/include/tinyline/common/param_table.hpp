@@ -41,7 +41,13 @@ struct Param {
   std::optional<double> min{};   ///< numbers: the smallest value accepted
   std::optional<double> max{};   ///< numbers: the largest value accepted
   std::string_view description;  ///< one line, what it means
+  /// The field holds the parameter times this: a field in radians set in
+  /// degrees has kRadPerDeg (unit, min and max are the parameter's).
+  double scale = 1.0;
 };
+
+/// Param::scale of a field in radians whose parameter is in degrees.
+inline constexpr double kRadPerDeg = 3.14159265358979323846 / 180.0;
 
 /// One word of a field that takes a few words (an enum).
 template <class E>
@@ -119,7 +125,7 @@ template <class S>
     using T = std::remove_cvref_t<decltype(field)>;
     if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
       if (!out.valid) return;
-      const double v = static_cast<double>(field);
+      const double v = static_cast<double>(field) / p.scale;
       if (std::isnan(v) || (p.min && v < *p.min) || (p.max && v > *p.max)) {
         out = Validation::invalid(std::string(p.name) + " must be in [" + (p.min ? text(*p.min) : "-inf") + ", " +
                                   (p.max ? text(*p.max) : "inf") + "], got " + text(v));
