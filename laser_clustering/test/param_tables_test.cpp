@@ -62,7 +62,7 @@ TEST(ParamTables, AFieldOutsideItsTableIsNamedAsInLaunchFiles) {
   p.objects.eps = std::numeric_limits<double>::quiet_NaN();
   const auto v = common::within_table(p);
   ASSERT_FALSE(v.valid);
-  EXPECT_THAT(v.reason, HasSubstr("objects_eps_m must be in [0.0001, 2]"));
+  EXPECT_THAT(v.reason, HasSubstr("objects_eps_m must be in [1e-04, 2], got nan"));
   lc::PedicelFinderParams f;
   f.scissors.opening_m = 0.5;
   EXPECT_THAT(common::within_table(f).reason, HasSubstr("scissor_opening_m must be in [0.001, 0.2], got 0.5"));

@@ -1,5 +1,10 @@
 // tinyline nodes | tinyline describe PKG/TYPE
+#include <unistd.h>
+
 #include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 
@@ -25,6 +30,18 @@ CommandRun setup_nodes(CLI::App& cmd) {
 // A required parameter (a file to read at start) has no default: it is
 // given an empty text here, only to see the declarations; constructors
 // read no files (they open them in on_start()).
+// An empty regular file that lives as long as the program (removed at exit).
+std::string placeholder_file() {
+  static const std::filesystem::path path = [] {
+    auto p = std::filesystem::temp_directory_path() / ("tinyline_describe_" + std::to_string(::getpid()));
+    std::ofstream{p};
+    std::atexit([] { std::filesystem::remove(std::filesystem::temp_directory_path() /
+                                             ("tinyline_describe_" + std::to_string(::getpid()))); });
+    return p;
+  }();
+  return path.string();
+}
+
 std::shared_ptr<bus::Node> build_default(const std::string& full) {
   const auto slash = full.find('/');
   if (slash == std::string::npos) throw UsageError("expected PKG/TYPE, got '" + full + "'");
@@ -34,19 +51,25 @@ std::shared_ptr<bus::Node> build_default(const std::string& full) {
   bus::NodeOptions o;
   o.context = bus::Context::create(co);
   o.name = full.substr(slash + 1);
-  constexpr std::string_view kRequired = "' is required";
+  // The bus says "parameter 'NAME' is required" or "parameter 'NAME' (what) is required".
+  constexpr std::string_view kParameter = "parameter '";
   for (int tries = 0;; ++tries) {
     try {
       return node_registry().create(full.substr(0, slash), full.substr(slash + 1), o);
     } catch (const bus::ParamError& e) {
       const std::string what = e.what();
-      const auto end = what.find(kRequired);
-      const auto start = end == std::string::npos ? end : what.rfind("parameter '", end);
-      if (start == std::string::npos || tries >= 16) {
+      const auto required = what.find(" is required");
+      const auto start = required == std::string::npos ? required : what.rfind(kParameter, required);
+      const auto end = start == std::string::npos ? start : what.find('\'', start + kParameter.size());
+      if (end == std::string::npos || end > required || tries >= 16) {
         fmt::print(stderr, "{}\n", what);
         return nullptr;
       }
-      o.param(what.substr(start + 11, end - start - 11), std::string());
+      // An empty text first; a node that refuses it (a file it checks when
+      // built) gets an empty regular file.
+      const std::string name = what.substr(start + kParameter.size(), end - start - kParameter.size());
+      const bool again = std::any_of(o.params.begin(), o.params.end(), [&](const auto& p) { return p.name == name; });
+      o.param(name, again ? placeholder_file() : std::string());
     }
   }
 }
