@@ -1,17 +1,21 @@
-// The tomato pipeline per VGA frame, stage by stage, beside a plain PCL chain
-// with default settings on the same simulated clouds (docs/benchmarks.md):
+// The tomato pipeline per VGA frame beside a PCL chain that does the same
+// work with PCL's classes (docs/benchmarks.md, "Tomato reasoning"):
 //
-//   plain PCL: ConditionalRemoval with PackedHSIComparison (the thesis's HSI
-//   ranges) -> EuclideanClusterExtraction (6 cm, the closest cluster) ->
-//   MovingLeastSquares (1.2 cm, normals) -> SACSegmentation SACMODEL_SPHERE
-//   (RANSAC, 4 mm, radius 2.5-4 cm), repeated on the remaining points until
-//   fewer than 40 remain or no model is found.
+//   ConditionalRemoval with PackedHSIComparison (the thesis's HSI ranges)
+//   -> EuclideanClusterExtraction at the pipeline's tolerance (8 cm, at least
+//   150 points, the closest cluster) -> VoxelGrid at the pipeline's 3 mm ->
+//   MovingLeastSquares (1.2 cm, order 2, normals turned to the camera) ->
+//   SACSegmentationFromNormals SACMODEL_NORMAL_SPHERE (RANSAC, 4 mm, radius
+//   2.5-4 cm, 300 iterations), repeated on the remaining points until fewer
+//   than 40 remain or no model of 40 inliers is found.
 //
-// Both report per-stage milliseconds and the detections (a sphere within
-// 1 cm of a true centre) as counters, so speed is compared at the detection
-// each reaches.
+// BM_Tinyline and BM_PclChain run the whole chains and report per-stage
+// milliseconds and the detections (a sphere within 1 cm of a true centre);
+// the BM_Stage* pairs time one stage each, ours and PCL's, on the very same
+// input (what the pipeline handed that stage on the same frame), so the
+// ratio per stage compares like with like.
 //
-//   build/bench/tomato_reasoning/tomato_reasoning_bench --benchmark_min_time=2
+//   build/bench/tomato_reasoning/tomato_reasoning_bench
 #include <algorithm>
 #include <chrono>
 #include <vector>
@@ -21,6 +25,7 @@
 #include <pcl/ModelCoefficients.h>
 #include <pcl/filters/conditional_removal.h>
 #include <pcl/filters/extract_indices.h>
+#include <pcl/filters/voxel_grid.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/search/kdtree.h>
@@ -29,6 +34,7 @@
 #include <pcl/surface/mls.h>
 
 #include "tomato_reasoning/eval/scenario.hpp"
+#include "tomato_reasoning/pcl_conversions.hpp"
 #include "tomato_reasoning/pipeline.hpp"
 
 using namespace tinyline;
@@ -39,6 +45,12 @@ namespace {
 struct Frame {
   eval::Scenario scenario;
   pcl::PointCloud<pcl::PointXYZRGB>::Ptr pcl_cloud;
+  // What the pipeline handed each stage on this frame (the stage benchmarks' inputs).
+  PipelineParams params;
+  std::vector<Eigen::Vector3f> red;  ///< HSI-filtered points
+  Indices branch;                    ///< the chosen branch, into red
+  std::vector<Eigen::Vector3f> thinned;
+  SmoothedCloud smoothed;
 };
 
 const std::vector<Frame>& frames(char cls) {
@@ -46,19 +58,14 @@ const std::vector<Frame>& frames(char cls) {
   auto& out = cls == 'A' ? a : cls == 'B' ? b : c;
   if (out.empty()) {
     for (std::uint64_t seed = 1; seed <= 8; ++seed) {
-      Frame f{eval::make_scenario(*sim::parse_truss_class(std::string(1, cls)), seed), nullptr};
-      const ColorCloud& cc = f.scenario.cloud();
-      f.pcl_cloud.reset(new pcl::PointCloud<pcl::PointXYZRGB>(std::uint32_t(cc.width), std::uint32_t(cc.height)));
-      for (std::size_t i = 0; i < cc.size(); ++i) {
-        auto& p = (*f.pcl_cloud)[i];
-        p.x = cc.xyz[i].x();
-        p.y = cc.xyz[i].y();
-        p.z = cc.xyz[i].z();
-        p.r = cc.rgb[i][0];
-        p.g = cc.rgb[i][1];
-        p.b = cc.rgb[i][2];
-      }
-      f.pcl_cloud->is_dense = false;
+      Frame f{eval::make_scenario(*sim::parse_truss_class(std::string(1, cls)), seed), nullptr, {}, {}, {}, {}, {}};
+      f.pcl_cloud.reset(new pcl::PointCloud<pcl::PointXYZRGB>(to_pcl(f.scenario.cloud())));
+      f.params.gravity = f.scenario.gravity_camera;
+      const PipelineResult r = TomatoPipeline(f.params).run(f.scenario.cloud());
+      f.red = r.red_xyz;
+      if (const Cluster* br = r.branch.branch()) f.branch = br->indices;
+      f.thinned = voxel_thin(f.red, f.branch, f.params.smoothing.voxel_m);
+      f.smoothed = r.smoothed;
       out.push_back(std::move(f));
     }
   }
@@ -118,92 +125,261 @@ void BM_Tinyline(benchmark::State& state, char cls) {
   tally.report(state, /*with_reasoning=*/true);
 }
 
-void BM_PlainPcl(benchmark::State& state, char cls) {
-  using P = pcl::PointXYZRGB;
+// PCL's stages, with the pipeline's parameters.
+using P = pcl::PointXYZRGB;
+using PN = pcl::PointNormal;
+
+pcl::PointCloud<P>::Ptr pcl_hsi(const pcl::PointCloud<P>::ConstPtr& cloud, const HsiFilterParams& hp) {
+  // PCL's packed hue is int8 over [-180, 180) deg.
+  pcl::ConditionAnd<P>::Ptr cond(new pcl::ConditionAnd<P>);
+  auto add = [&](const char* f, pcl::ComparisonOps::CompareOp op, double v) {
+    cond->addComparison(pcl::PackedHSIComparison<P>::ConstPtr(new pcl::PackedHSIComparison<P>(f, op, v)));
+  };
+  add("h", pcl::ComparisonOps::GE, hp.h_min_deg * 128.0 / 180.0);
+  add("h", pcl::ComparisonOps::LE, hp.h_max_deg * 128.0 / 180.0);
+  add("s", pcl::ComparisonOps::GE, hp.s_min);
+  add("s", pcl::ComparisonOps::LE, hp.s_max);
+  add("i", pcl::ComparisonOps::GE, hp.i_min);
+  add("i", pcl::ComparisonOps::LE, hp.i_max);
+  pcl::ConditionalRemoval<P> removal;
+  removal.setCondition(cond);
+  removal.setInputCloud(cloud);
+  pcl::PointCloud<P>::Ptr red(new pcl::PointCloud<P>);
+  removal.filter(*red);  // drops NaN points too
+  return red;
+}
+
+template <typename PointT>
+pcl::PointCloud<PointT> as_pcl(const std::vector<Eigen::Vector3f>& pts, const Indices* indices = nullptr) {
+  pcl::PointCloud<PointT> out;
+  auto add = [&](const Eigen::Vector3f& q) {
+    PointT p;
+    p.x = q.x(), p.y = q.y(), p.z = q.z();
+    out.push_back(p);
+  };
+  if (indices) {
+    for (int k : *indices) add(pts[std::size_t(k)]);
+  } else {
+    for (const auto& q : pts) add(q);
+  }
+  return out;
+}
+
+// Euclidean clusters at the branch tolerance; the points of the one whose
+// centroid is closest to the camera.
+template <typename PointT>
+typename pcl::PointCloud<PointT>::Ptr pcl_branch(const typename pcl::PointCloud<PointT>::Ptr& red, const BranchClusteringParams& bp) {
+  typename pcl::PointCloud<PointT>::Ptr branch(new pcl::PointCloud<PointT>);
+  if (red->empty()) return branch;
+  typename pcl::search::KdTree<PointT>::Ptr tree(new pcl::search::KdTree<PointT>);
+  tree->setInputCloud(red);
+  std::vector<pcl::PointIndices> clusters;
+  pcl::EuclideanClusterExtraction<PointT> ec;
+  ec.setClusterTolerance(bp.tolerance_m);
+  ec.setMinClusterSize(bp.min_points);
+  ec.setSearchMethod(tree);
+  ec.setInputCloud(red);
+  ec.extract(clusters);
+  double best = 1e9;
+  for (const auto& c : clusters) {
+    Eigen::Vector3f m = Eigen::Vector3f::Zero();
+    for (int i : c.indices) m += (*red)[std::size_t(i)].getVector3fMap();
+    m /= float(c.indices.size());
+    if (m.norm() < best) {
+      best = m.norm();
+      pcl::copyPointCloud(*red, c, *branch);
+    }
+  }
+  return branch;
+}
+
+template <typename PointT>
+typename pcl::PointCloud<PointT>::Ptr pcl_thin(const typename pcl::PointCloud<PointT>::ConstPtr& in, double voxel_m) {
+  typename pcl::PointCloud<PointT>::Ptr out(new pcl::PointCloud<PointT>);
+  pcl::VoxelGrid<PointT> vg;
+  const float leaf = float(voxel_m);
+  vg.setLeafSize(leaf, leaf, leaf);
+  vg.setInputCloud(in);
+  vg.filter(*out);
+  return out;
+}
+
+// MLS with normals, turned to the camera at the origin as the pipeline's are.
+template <typename PointT>
+pcl::PointCloud<PN>::Ptr pcl_mls(const typename pcl::PointCloud<PointT>::Ptr& in, const SmoothingParams& sp) {
+  pcl::PointCloud<PN>::Ptr out(new pcl::PointCloud<PN>);
+  if (in->empty()) return out;
+  pcl::MovingLeastSquares<PointT, PN> mls;
+  typename pcl::search::KdTree<PointT>::Ptr tree(new pcl::search::KdTree<PointT>);
+  mls.setInputCloud(in);
+  mls.setSearchMethod(tree);
+  mls.setSearchRadius(sp.search_radius_m);
+  mls.setPolynomialOrder(sp.polynomial_order);
+  mls.setComputeNormals(true);
+  mls.process(*out);
+  for (auto& p : out->points)
+    if (p.getVector3fMap().dot(p.getNormalVector3fMap()) > 0) p.getNormalVector3fMap() *= -1.0f;
+  return out;
+}
+
+// Iterative SACSegmentationFromNormals with SACMODEL_NORMAL_SPHERE.
+std::vector<Eigen::Vector3d> pcl_spheres(pcl::PointCloud<PN>::Ptr rest, const SphereRansacParams& sp) {
+  std::vector<Eigen::Vector3d> centres;
+  for (int round = 0; round < sp.max_spheres && int(rest->size()) >= sp.min_remaining; ++round) {
+    pcl::SACSegmentationFromNormals<PN, PN> seg;
+    seg.setModelType(pcl::SACMODEL_NORMAL_SPHERE);
+    seg.setMethodType(pcl::SAC_RANSAC);
+    seg.setDistanceThreshold(sp.inlier_distance_m);
+    // Angle [rad] against distance [m]: a normal 35 deg off costs about 3 mm.
+    seg.setNormalDistanceWeight(0.005);
+    seg.setRadiusLimits(sp.radius_min_m, sp.radius_max_m);
+    seg.setMaxIterations(sp.max_iterations);
+    seg.setProbability(sp.confidence);
+    seg.setInputCloud(rest);
+    seg.setInputNormals(rest);
+    pcl::PointIndices::Ptr inliers(new pcl::PointIndices);
+    pcl::ModelCoefficients coef;
+    seg.segment(*inliers, coef);
+    if (int(inliers->indices.size()) < sp.min_inliers || coef.values.size() < 4) break;
+    centres.emplace_back(coef.values[0], coef.values[1], coef.values[2]);
+    pcl::PointCloud<PN>::Ptr next(new pcl::PointCloud<PN>);
+    pcl::ExtractIndices<PN> ex;
+    ex.setInputCloud(rest);
+    ex.setIndices(inliers);
+    ex.setNegative(true);
+    ex.filter(*next);
+    rest = next;
+  }
+  return centres;
+}
+
+void BM_PclChain(benchmark::State& state, char cls) {
   const auto& fs = frames(cls);
+  std::size_t k = 0;
+  FrameTally tally;
+  double thin_ms = 0;
+  for (auto _ : state) {
+    const Frame& f = fs[k++ % fs.size()];
+    const PipelineParams& pp = f.params;
+    const auto t0 = Clock::now();
+    const pcl::PointCloud<P>::Ptr red = pcl_hsi(f.pcl_cloud, pp.hsi);
+    const auto t1 = Clock::now();
+    const pcl::PointCloud<P>::Ptr branch = pcl_branch<P>(red, pp.branch);
+    const auto t2 = Clock::now();
+    const pcl::PointCloud<P>::Ptr thinned = pcl_thin<P>(branch, pp.smoothing.voxel_m);
+    const auto t3 = Clock::now();
+    const pcl::PointCloud<PN>::Ptr smoothed = pcl_mls<P>(thinned, pp.smoothing);
+    const auto t4 = Clock::now();
+    const std::vector<Eigen::Vector3d> centres = pcl_spheres(smoothed, pp.spheres);
+    const auto t5 = Clock::now();
+    benchmark::DoNotOptimize(centres.data());
+    thin_ms += ms(t2, t3);
+    tally.hsi += ms(t0, t1), tally.branch += ms(t1, t2), tally.smooth += ms(t2, t4), tally.spheres += ms(t4, t5);
+    tally.add_detections(f.scenario, centres);
+  }
+  tally.report(state, /*with_reasoning=*/false);
+  state.counters["thinning_ms"] = thin_ms / double(std::max<long>(1, tally.frames));
+}
+
+// One stage on the same input, ours (`pcl` false) or PCL's.
+void BM_StageHsi(benchmark::State& state, bool pcl) {
+  const auto& fs = frames('B');
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const Frame& f = fs[k++ % fs.size()];
+    if (pcl) {
+      benchmark::DoNotOptimize(pcl_hsi(f.pcl_cloud, f.params.hsi)->size());
+    } else {
+      benchmark::DoNotOptimize(filter_hsi(view_of(*f.pcl_cloud), f.params.hsi).indices.size());
+    }
+  }
+}
+
+void BM_StageBranch(benchmark::State& state, bool pcl) {
+  const auto& fs = frames('B');
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const Frame& f = fs[k++ % fs.size()];
+    if (pcl) {
+      state.PauseTiming();
+      pcl::PointCloud<pcl::PointXYZ>::Ptr red(new pcl::PointCloud<pcl::PointXYZ>(as_pcl<pcl::PointXYZ>(f.red)));
+      state.ResumeTiming();
+      benchmark::DoNotOptimize(pcl_branch<pcl::PointXYZ>(red, f.params.branch)->size());
+    } else {
+      state.PauseTiming();
+      ColorCloud red;
+      for (const auto& q : f.red) red.push_back(q, Rgb{0, 0, 0});
+      Indices all(red.size());
+      for (std::size_t i = 0; i < all.size(); ++i) all[i] = int(i);
+      state.ResumeTiming();
+      benchmark::DoNotOptimize(cluster_branches(red, all, f.params.branch).chosen);
+    }
+  }
+}
+
+void BM_StageThinning(benchmark::State& state, bool pcl) {
+  const auto& fs = frames('B');
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const Frame& f = fs[k++ % fs.size()];
+    if (pcl) {
+      state.PauseTiming();
+      pcl::PointCloud<pcl::PointXYZ>::Ptr branch(new pcl::PointCloud<pcl::PointXYZ>(as_pcl<pcl::PointXYZ>(f.red, &f.branch)));
+      state.ResumeTiming();
+      benchmark::DoNotOptimize(pcl_thin<pcl::PointXYZ>(branch, f.params.smoothing.voxel_m)->size());
+    } else {
+      benchmark::DoNotOptimize(voxel_thin(f.red, f.branch, f.params.smoothing.voxel_m).size());
+    }
+  }
+}
+
+void BM_StageMls(benchmark::State& state, bool pcl) {
+  const auto& fs = frames('B');
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const Frame& f = fs[k++ % fs.size()];
+    if (pcl) {
+      state.PauseTiming();
+      pcl::PointCloud<pcl::PointXYZ>::Ptr in(new pcl::PointCloud<pcl::PointXYZ>(as_pcl<pcl::PointXYZ>(f.thinned)));
+      state.ResumeTiming();
+      benchmark::DoNotOptimize(pcl_mls<pcl::PointXYZ>(in, f.params.smoothing)->size());
+    } else {
+      state.PauseTiming();
+      Indices all(f.thinned.size());
+      for (std::size_t i = 0; i < all.size(); ++i) all[i] = int(i);
+      SmoothingParams sp = f.params.smoothing;
+      sp.voxel_m = 0;  // already thinned
+      state.ResumeTiming();
+      benchmark::DoNotOptimize(smooth_mls(f.thinned, all, sp).points.size());
+    }
+  }
+}
+
+void BM_StageSpheres(benchmark::State& state, bool pcl) {
+  const auto& fs = frames('B');
   std::size_t k = 0;
   FrameTally tally;
   for (auto _ : state) {
     const Frame& f = fs[k++ % fs.size()];
-    const auto t0 = Clock::now();
-    // HSI filter: PCL's packed hue is int8 over [-180, 180) deg.
-    pcl::ConditionAnd<P>::Ptr cond(new pcl::ConditionAnd<P>);
-    const double h = 15.0 * 128.0 / 180.0;
-    cond->addComparison(pcl::PackedHSIComparison<P>::ConstPtr(new pcl::PackedHSIComparison<P>("h", pcl::ComparisonOps::GE, -h)));
-    cond->addComparison(pcl::PackedHSIComparison<P>::ConstPtr(new pcl::PackedHSIComparison<P>("h", pcl::ComparisonOps::LE, h)));
-    cond->addComparison(pcl::PackedHSIComparison<P>::ConstPtr(new pcl::PackedHSIComparison<P>("s", pcl::ComparisonOps::GE, 100)));
-    cond->addComparison(pcl::PackedHSIComparison<P>::ConstPtr(new pcl::PackedHSIComparison<P>("s", pcl::ComparisonOps::LE, 250)));
-    cond->addComparison(pcl::PackedHSIComparison<P>::ConstPtr(new pcl::PackedHSIComparison<P>("i", pcl::ComparisonOps::GE, 25)));
-    cond->addComparison(pcl::PackedHSIComparison<P>::ConstPtr(new pcl::PackedHSIComparison<P>("i", pcl::ComparisonOps::LE, 180)));
-    pcl::ConditionalRemoval<P> removal;
-    removal.setCondition(cond);
-    removal.setInputCloud(f.pcl_cloud);
-    pcl::PointCloud<P>::Ptr red(new pcl::PointCloud<P>);
-    removal.filter(*red);  // drops NaN points too
-    const auto t1 = Clock::now();
-    // Branch: Euclidean clusters at 6 cm, the one whose centroid is closest.
-    pcl::PointCloud<P>::Ptr branch_cloud(new pcl::PointCloud<P>);
-    if (!red->empty()) {
-      pcl::search::KdTree<P>::Ptr tree(new pcl::search::KdTree<P>);
-      tree->setInputCloud(red);
-      std::vector<pcl::PointIndices> clusters;
-      pcl::EuclideanClusterExtraction<P> ec;
-      ec.setClusterTolerance(0.06);
-      ec.setMinClusterSize(150);
-      ec.setSearchMethod(tree);
-      ec.setInputCloud(red);
-      ec.extract(clusters);
-      double best = 1e9;
-      for (const auto& c : clusters) {
-        Eigen::Vector3f m = Eigen::Vector3f::Zero();
-        for (int i : c.indices) m += (*red)[std::size_t(i)].getVector3fMap();
-        m /= float(c.indices.size());
-        if (m.norm() < best) {
-          best = m.norm();
-          pcl::copyPointCloud(*red, c, *branch_cloud);
-        }
-      }
-    }
-    const auto t2 = Clock::now();
-    // MLS smoothing with normals (PCL's defaults otherwise).
-    pcl::PointCloud<pcl::PointXYZRGBNormal>::Ptr smoothed(new pcl::PointCloud<pcl::PointXYZRGBNormal>);
-    if (!branch_cloud->empty()) {
-      pcl::MovingLeastSquares<P, pcl::PointXYZRGBNormal> mls;
-      pcl::search::KdTree<P>::Ptr tree(new pcl::search::KdTree<P>);
-      mls.setInputCloud(branch_cloud);
-      mls.setSearchMethod(tree);
-      mls.setSearchRadius(0.012);
-      mls.setComputeNormals(true);
-      mls.process(*smoothed);
-    }
-    const auto t3 = Clock::now();
-    // Iterative RANSAC spheres.
     std::vector<Eigen::Vector3d> centres;
-    pcl::PointCloud<pcl::PointXYZRGBNormal>::Ptr rest = smoothed;
-    for (int round = 0; round < 12 && rest->size() >= 40; ++round) {
-      pcl::SACSegmentation<pcl::PointXYZRGBNormal> seg;
-      seg.setModelType(pcl::SACMODEL_SPHERE);
-      seg.setMethodType(pcl::SAC_RANSAC);
-      seg.setDistanceThreshold(0.004);
-      seg.setRadiusLimits(0.025, 0.040);
-      seg.setInputCloud(rest);
-      pcl::PointIndices::Ptr inliers(new pcl::PointIndices);
-      pcl::ModelCoefficients coef;
-      seg.segment(*inliers, coef);
-      if (inliers->indices.size() < 40 || coef.values.size() < 4) break;
-      centres.emplace_back(coef.values[0], coef.values[1], coef.values[2]);
-      pcl::PointCloud<pcl::PointXYZRGBNormal>::Ptr next(new pcl::PointCloud<pcl::PointXYZRGBNormal>);
-      pcl::ExtractIndices<pcl::PointXYZRGBNormal> ex;
-      ex.setInputCloud(rest);
-      ex.setIndices(inliers);
-      ex.setNegative(true);
-      ex.filter(*next);
-      rest = next;
+    if (pcl) {
+      state.PauseTiming();
+      pcl::PointCloud<PN>::Ptr in(new pcl::PointCloud<PN>);
+      for (std::size_t i = 0; i < f.smoothed.size(); ++i) {
+        PN p;
+        p.getVector3fMap() = f.smoothed.points[i];
+        p.getNormalVector3fMap() = f.smoothed.normals[i];
+        in->push_back(p);
+      }
+      state.ResumeTiming();
+      centres = pcl_spheres(in, f.params.spheres);
+    } else {
+      for (const auto& s : segment_spheres(f.smoothed.points, f.smoothed.normals, f.params.spheres).spheres)
+        centres.push_back(s.sphere.centre);
     }
-    const auto t4 = Clock::now();
-    benchmark::DoNotOptimize(centres.data());
-    tally.hsi += ms(t0, t1), tally.branch += ms(t1, t2), tally.smooth += ms(t2, t3), tally.spheres += ms(t3, t4);
+    state.PauseTiming();
     tally.add_detections(f.scenario, centres);
+    state.ResumeTiming();
   }
   tally.report(state, /*with_reasoning=*/false);
 }
@@ -243,10 +419,21 @@ void BM_RaycastPerPixelVga(benchmark::State& state) {
 BENCHMARK(BM_RgbdCameraVga)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_RaycastPerPixelVga)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK_CAPTURE(BM_Tinyline, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
-BENCHMARK_CAPTURE(BM_PlainPcl, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
+BENCHMARK_CAPTURE(BM_PclChain, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
 BENCHMARK_CAPTURE(BM_Tinyline, class_B, 'B')->Unit(benchmark::kMillisecond)->Iterations(8);
-BENCHMARK_CAPTURE(BM_PlainPcl, class_B, 'B')->Unit(benchmark::kMillisecond)->Iterations(8);
+BENCHMARK_CAPTURE(BM_PclChain, class_B, 'B')->Unit(benchmark::kMillisecond)->Iterations(8);
 BENCHMARK_CAPTURE(BM_Tinyline, class_C, 'C')->Unit(benchmark::kMillisecond)->Iterations(8);
-BENCHMARK_CAPTURE(BM_PlainPcl, class_C, 'C')->Unit(benchmark::kMillisecond)->Iterations(8);
+BENCHMARK_CAPTURE(BM_PclChain, class_C, 'C')->Unit(benchmark::kMillisecond)->Iterations(8);
+// Stage by stage on class B's 8 frames (each iteration one frame), ours then PCL's.
+BENCHMARK_CAPTURE(BM_StageHsi, tinyline, false)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageHsi, pcl, true)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageBranch, tinyline, false)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageBranch, pcl, true)->Unit(benchmark::kMillisecond)->Iterations(8);
+BENCHMARK_CAPTURE(BM_StageThinning, tinyline, false)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageThinning, pcl, true)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageMls, tinyline, false)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageMls, pcl, true)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageSpheres, tinyline, false)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK_CAPTURE(BM_StageSpheres, pcl, true)->Unit(benchmark::kMillisecond)->Iterations(40);
 
 BENCHMARK_MAIN();

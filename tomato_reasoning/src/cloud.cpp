@@ -12,4 +12,27 @@ std::string check_cloud(const ColorCloud& c) {
   return {};
 }
 
+CloudView::CloudView(const ColorCloud& c) : problem(check_cloud(c)) {
+  if (!problem.empty() || c.empty()) return;
+  width = c.width;
+  height = c.height;
+  xyz = reinterpret_cast<const std::uint8_t*>(c.xyz.data());  // NOLINT: Vector3f is three packed floats
+  xyz_stride = sizeof(Eigen::Vector3f);
+  r = &c.rgb[0][0];
+  g = &c.rgb[0][1];
+  b = &c.rgb[0][2];
+  rgb_stride = sizeof(Rgb);
+}
+
+std::string check_view(const CloudView& v) {
+  if (!v.problem.empty()) return v.problem;
+  if (v.width < 0 || v.height < 1) return "cloud has width " + std::to_string(v.width) + ", height " + std::to_string(v.height);
+  if (v.empty()) return {};
+  if (!v.xyz || !v.r || !v.g || !v.b) return "cloud of " + std::to_string(v.size()) + " points has no point data";
+  if (v.xyz_stride < 3 * sizeof(float) && v.size() > 1)
+    return "point stride " + std::to_string(v.xyz_stride) + " bytes is shorter than x, y, z";
+  if (v.rgb_stride < 1 && v.size() > 1) return "colour stride is 0";
+  return {};
+}
+
 }  // namespace tinyline::tomato_reasoning

@@ -63,13 +63,13 @@ bool HsiFilter::passes(const Rgb& c) const {
   return left_of_min >= 0.0 || right_of_max >= 0.0;
 }
 
-HsiFilterResult filter_hsi(const ColorCloud& cloud, const HsiFilterParams& params) {
+HsiFilterResult filter_hsi(const CloudView& cloud, const HsiFilterParams& params) {
   HsiFilterResult r;
   if (const common::Validation why = validate(params); !why.valid) {
     r.reason = "bad HSI parameters: " + why.reason;
     return r;
   }
-  if (const std::string why = check_cloud(cloud); !why.empty()) {
+  if (const std::string why = check_view(cloud); !why.empty()) {
     r.reason = "malformed cloud: " + why;
     return r;
   }
@@ -82,7 +82,7 @@ HsiFilterResult filter_hsi(const ColorCloud& cloud, const HsiFilterParams& param
   for (std::size_t k = 0; k < cloud.size(); ++k) {
     if (!cloud.finite(k)) continue;
     ++r.finite;
-    if (f.passes(cloud.rgb[k])) r.indices.push_back(static_cast<int>(k));
+    if (f.passes(cloud.colour(k))) r.indices.push_back(static_cast<int>(k));
   }
   if (r.finite == 0) {
     r.reason = "no point of the cloud has depth (" + std::to_string(cloud.size()) + " points, all NaN)";

@@ -27,9 +27,9 @@ TomatoPipeline::TomatoPipeline(PipelineParams params) : params_(std::move(params
   if (const common::Validation why = validate(params_); !why.valid) throw std::invalid_argument("tomato pipeline: " + why.reason);
 }
 
-PipelineResult TomatoPipeline::run(const ColorCloud& cloud) const {
+PipelineResult TomatoPipeline::run(const CloudView& cloud) const {
   View v;
-  v.cloud = &cloud;
+  v.cloud = cloud;
   return run(std::vector<View>{v});
 }
 
@@ -45,10 +45,9 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   std::size_t total = 0;
   for (std::size_t v = 0; v < views.size(); ++v) {
     const std::string name = views.size() > 1 ? "view " + std::to_string(v) + ": " : "";
-    if (!views[v].cloud) return stop("input", name + "no cloud");
-    if (const std::string why = check_cloud(*views[v].cloud); !why.empty()) return stop("input", name + "malformed cloud: " + why);
+    if (const std::string why = check_view(views[v].cloud); !why.empty()) return stop("input", name + "malformed cloud: " + why);
     if (!views[v].T_ref_camera.matrix().allFinite()) return stop("input", name + "camera pose is not finite");
-    total += views[v].cloud->size();
+    total += views[v].cloud.size();
   }
   if (total == 0) return stop("input", "empty cloud");
 
@@ -56,12 +55,12 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   auto t0 = Clock::now();
   std::string hsi_reason;
   for (std::size_t v = 0; v < views.size(); ++v) {
-    const HsiFilterResult hsi = filter_hsi(*views[v].cloud, params_.hsi);
+    const HsiFilterResult hsi = filter_hsi(views[v].cloud, params_.hsi);
     r.finite_points += hsi.finite;
     if (hsi.indices.empty() && hsi_reason.empty()) hsi_reason = hsi.reason;
     const Eigen::Isometry3f T = views[v].T_ref_camera.cast<float>();
     for (int k : hsi.indices) {
-      r.red_xyz.push_back(T * views[v].cloud->xyz[static_cast<std::size_t>(k)]);
+      r.red_xyz.push_back(T * views[v].cloud.point(static_cast<std::size_t>(k)));
       r.red_view.push_back(static_cast<std::uint8_t>(v));
     }
     r.viewpoints.push_back(T.translation());

@@ -158,6 +158,280 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, c
   return segment_spheres(points, normals, P, std::vector<Eigen::Vector3f>{viewpoint});
 }
 
+namespace {
+
+// One run of the iterative RANSAC: the points, what is still alive, the
+// accepted spheres; each step of a round is a method.
+class SphereSegmenter {
+ public:
+  SphereSegmenter(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
+                  const SphereRansacParams& P, const std::vector<Eigen::Vector3f>& viewpoints, bool use_normals,
+                  Indices alive_list, SphereSegmentation& out)
+      : points_(points),
+        normals_(normals),
+        P_(P),
+        use_normals_(use_normals),
+        out_(out),
+        alive_list_(std::move(alive_list)),
+        alive_(points.size(), 0),
+        thr_(P.inlier_distance_m),
+        cos_tol_(P.normal_tolerance_deg > 0 ? std::cos(P.normal_tolerance_deg * M_PI / 180.0) : -2.0),
+        r_lo_(P.radius_min_m - thr_),
+        r_hi_(P.radius_max_m + thr_),
+        reach_(2.0 * P.radius_max_m),  // a hypothesis's points lie within one diameter
+        // Scoring looks only at cells that the sphere's shell can reach.
+        grid_(points, alive_list_, std::max(0.01, P.radius_max_m / 2.0)),
+        rng_(common::stream_seed(P.seed, 0x632be59bd9b4e019ULL)),
+        k_points_(P.hypothesis == SphereHypothesis::kFourPoints ? 4 : 2) {
+    for (int k : alive_list_) alive_[static_cast<std::size_t>(k)] = 1;
+    for (const auto& v : viewpoints) eyes_.push_back(v.cast<double>());
+  }
+
+  void run() {
+    int failed = 0;
+    while (start_round()) {
+      const Scored best = best_model_of_round();
+      if (best.count < P_.min_inliers) {
+        if (++failed >= P_.max_failed_rounds) {
+          out_.stop_reason = std::to_string(failed) + " round(s) without a model of >= " + std::to_string(P_.min_inliers) +
+                             " inliers (" + std::to_string(out_.remaining_points) + " points left)";
+          break;
+        }
+        continue;
+      }
+      if (!accept(best)) {
+        // Refinement moved it somewhere unacceptable: drop its points from
+        // sampling this round's way (keep them for others) by failing the round.
+        if (++failed >= P_.max_failed_rounds) {
+          out_.stop_reason = "the best models were refused (cap facing away or overlap) " + std::to_string(failed) + " times";
+          break;
+        }
+        continue;
+      }
+      failed = 0;
+    }
+  }
+
+ private:
+  struct Scored {
+    Sphere s;
+    int count = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  };
+
+  [[nodiscard]] Eigen::Vector3d pt(int k) const { return points_[static_cast<std::size_t>(k)].cast<double>(); }
+
+  // Largest cosine between (q - c) and (eye - c) over the viewpoints: > 0 when
+  // some camera sees the side of the sphere that q lies on.
+  [[nodiscard]] double facing(const Eigen::Vector3d& q, const Eigen::Vector3d& c) const {
+    double best = -2;
+    const Eigen::Vector3d a = (q - c).normalized();
+    for (const auto& e : eyes_) best = std::max(best, a.dot((e - c).normalized()));
+    return best;
+  }
+
+  // Inliers of sphere s among the alive points (optionally listing them).
+  Scored score(const Sphere& s, double dist_thr, Indices* list) const {
+    Scored r;
+    r.s = s;
+    const float lim = static_cast<float>(s.radius_m + dist_thr);
+    const Eigen::Vector3f c = s.centre.cast<float>();
+    const detail::CellKey lo = grid_.key_of(c - Eigen::Vector3f::Constant(lim));
+    const detail::CellKey hi = grid_.key_of(c + Eigen::Vector3f::Constant(lim));
+    for (int x = lo.x; x <= hi.x; ++x)
+      for (int y = lo.y; y <= hi.y; ++y)
+        for (int z = lo.z; z <= hi.z; ++z) {
+          const int cell = grid_.find({x, y, z});
+          if (cell < 0) continue;
+          for (const int* m = grid_.begin(std::size_t(cell)); m != grid_.end(std::size_t(cell)); ++m) {
+            if (!is_inlier(*m, s, dist_thr)) continue;
+            ++r.count;
+            r.sum += pt(*m);
+            if (list) list->push_back(*m);
+          }
+        }
+    return r;
+  }
+
+  [[nodiscard]] bool is_inlier(int m, const Sphere& s, double dist_thr) const {
+    const std::size_t k = static_cast<std::size_t>(m);
+    if (!alive_[k]) return false;
+    const Eigen::Vector3d d = points_[k].cast<double>() - s.centre;
+    const double dist = d.norm();
+    if (std::abs(dist - s.radius_m) > dist_thr || dist < 1e-9) return false;
+    return !(use_normals_ && cos_tol_ > -1.5 && normals_[k].cast<double>().dot(d) < cos_tol_ * dist);
+  }
+
+  // Would this sphere be acceptable as a tomato here?
+  bool plausible(const Scored& r, bool count_rejections) {
+    if (r.count == 0) return false;
+    const Eigen::Vector3d centroid = r.sum / r.count;
+    if (facing(centroid, r.s.centre) <= 0) {  // the visible cap faces away from every camera
+      if (count_rejections) ++out_.rejected_cap;
+      return false;
+    }
+    for (const auto& f : out_.spheres) {
+      if ((f.sphere.centre - r.s.centre).norm() < f.sphere.radius_m + r.s.radius_m - P_.max_overlap_m) {
+        if (count_rejections) ++out_.rejected_overlap;
+        return false;
+      }
+    }
+    return true;
+  }
+
+  // Drops dead points from the sampling list; false (with the reason) when
+  // no further round is due.
+  bool start_round() {
+    alive_list_.erase(std::remove_if(alive_list_.begin(), alive_list_.end(),
+                                     [&](int k) { return !alive_[static_cast<std::size_t>(k)]; }),
+                      alive_list_.end());
+    out_.remaining_points = static_cast<int>(alive_list_.size());
+    if (out_.remaining_points < P_.min_remaining) {
+      out_.stop_reason = std::to_string(out_.remaining_points) + " points remain (< " + std::to_string(P_.min_remaining) + ")";
+      return false;
+    }
+    if (static_cast<int>(out_.spheres.size()) >= P_.max_spheres) {
+      out_.stop_reason = "max_spheres (" + std::to_string(P_.max_spheres) + ") reached";
+      return false;
+    }
+    ++out_.rounds;
+    return true;
+  }
+
+  // The other points of a sample: near the first (rejection sampling, a few
+  // tries), or anywhere. False when none was found.
+  bool draw_sample(int (&sample)[4]) {
+    const std::size_t n_alive = alive_list_.size();
+    const Eigen::Vector3d p0 = pt(sample[0]);
+    for (int j = 1; j < k_points_; ++j) {
+      bool found = false;
+      for (int tries = 0; tries < 64 && !found; ++tries) {
+        const int cand = alive_list_[rng_.index(n_alive)];
+        if (cand == sample[0] || cand == sample[1] || cand == sample[2]) continue;
+        if (P_.local_sampling && (pt(cand) - p0).norm() > reach_) continue;
+        sample[j] = cand;
+        found = true;
+      }
+      if (!found) return false;
+    }
+    return true;
+  }
+
+  // The sphere of a sample (Eq. 4.12 with normals, or through four points).
+  [[nodiscard]] std::optional<Sphere> hypothesis(const int (&sample)[4]) const {
+    if (k_points_ == 4) return sphere_from_four_points(pt(sample[0]), pt(sample[1]), pt(sample[2]), pt(sample[3]));
+    const Eigen::Vector3d n0 = normals_[static_cast<std::size_t>(sample[0])].cast<double>();
+    const Eigen::Vector3d n1 = normals_[static_cast<std::size_t>(sample[1])].cast<double>();
+    std::optional<Sphere> s = sphere_from_two_points_with_normals(pt(sample[0]), n0, pt(sample[1]), n1);
+    // Normals face the camera, so the centre must lie behind both points.
+    if (s && ((pt(sample[0]) - s->centre).dot(n0) <= 0 || (pt(sample[1]) - s->centre).dot(n1) <= 0)) s.reset();
+    if (s && std::abs((pt(sample[0]) - s->centre).norm() - (pt(sample[1]) - s->centre).norm()) > 2 * thr_) s.reset();
+    return s;
+  }
+
+  // Eq. 4.13-4.15: samples needed for `confidence`, the first point drawn
+  // from all alive points, the others (locally) from the model's neighbourhood.
+  [[nodiscard]] long samples_needed(const Scored& best, long it, long needed) const {
+    const double n_alive = static_cast<double>(alive_list_.size());
+    double local_share = 0.5;
+    if (P_.local_sampling) {
+      int near = 0;
+      grid_.for_each_within(points_, best.s.centre.cast<float>(), static_cast<float>(best.s.radius_m + reach_),
+                            [&](int k) { near += alive_[static_cast<std::size_t>(k)]; });
+      local_share = std::min(1.0, best.count / std::max(1.0, double(near)));
+    } else {
+      local_share = best.count / n_alive;
+    }
+    const double w = (best.count / n_alive) * std::pow(local_share, k_points_ - 1);
+    if (w >= 1.0) return it + 1;
+    if (w > 0)
+      return std::min<long>(P_.max_iterations, static_cast<long>(std::ceil(std::log(1.0 - P_.confidence) / std::log(1.0 - w))));
+    return needed;
+  }
+
+  // The hypotheses of one round; the best plausible model.
+  Scored best_model_of_round() {
+    Scored best;
+    long needed = P_.max_iterations;
+    for (long it = 0; it < needed; ++it) {
+      ++out_.hypotheses;
+      int sample[4] = {alive_list_[rng_.index(alive_list_.size())], -1, -1, -1};
+      std::optional<Sphere> s;
+      if (draw_sample(sample)) s = hypothesis(sample);
+      // The radius in range, and the first point on a visible half.
+      if (!s || s->radius_m < r_lo_ || s->radius_m > r_hi_ || facing(pt(sample[0]), s->centre) <= 0) {
+        ++out_.degenerate;
+        continue;
+      }
+      const Scored r = score(*s, thr_, nullptr);
+      if (r.count <= best.count || !plausible(r, false)) continue;
+      best = r;
+      needed = samples_needed(best, it, needed);
+    }
+    return best;
+  }
+
+  // Refines the round's best model on its inliers and, when still plausible,
+  // accepts it and removes its fruit's points.
+  bool accept(const Scored& best) {
+    Indices inliers;
+    (void)score(best.s, thr_, &inliers);
+    Sphere model = best.s;
+    bool at_limit = false;
+    if (P_.refine) {
+      const SphereRefinement ref = refine_sphere(points_, inliers, best.s, P_.radius_min_m, P_.radius_max_m);
+      if (ref.sphere.centre.allFinite()) {
+        model = ref.sphere;
+        at_limit = ref.radius_at_limit;
+      }
+    }
+    Indices final_inliers;
+    const Scored fin = score(model, thr_, &final_inliers);
+    if (fin.count < P_.min_inliers || !plausible(fin, true)) return false;
+    double rms = 0;
+    for (int k : final_inliers) {
+      const double e = (pt(k) - model.centre).norm() - model.radius_m;
+      rms += e * e;
+    }
+    SphereFit fit;
+    fit.sphere = model;
+    fit.inliers = final_inliers;
+    fit.rms_m = std::sqrt(rms / std::max<std::size_t>(1, final_inliers.size()));
+    fit.radius_at_limit = at_limit;
+    fit.cap_facing = facing(fin.sum / fin.count, model.centre);
+    fit.round = out_.rounds;
+    remove_fruit(model);
+    out_.spheres.push_back(std::move(fit));
+    return true;
+  }
+
+  // Removes the fruit's points: its shell (a little wider than the inlier
+  // band, normals agreeing) and anything inside it.
+  void remove_fruit(const Sphere& model) {
+    Indices removed;
+    (void)score(model, P_.removal_factor * thr_, &removed);
+    for (int k : removed) alive_[static_cast<std::size_t>(k)] = 0;
+    const float rin = static_cast<float>(model.radius_m - thr_);
+    grid_.for_each_within(points_, model.centre.cast<float>(), std::max(0.0f, rin),
+                          [&](int k) { alive_[static_cast<std::size_t>(k)] = 0; });
+  }
+
+  const std::vector<Eigen::Vector3f>& points_;
+  const std::vector<Eigen::Vector3f>& normals_;
+  const SphereRansacParams& P_;
+  const bool use_normals_;
+  SphereSegmentation& out_;
+  Indices alive_list_;
+  std::vector<std::uint8_t> alive_;
+  std::vector<Eigen::Vector3d> eyes_;
+  const double thr_, cos_tol_, r_lo_, r_hi_, reach_;
+  const detail::VoxelGrid grid_;
+  common::SplitMixRandom rng_;
+  const int k_points_;
+};
+
+}  // namespace
+
 SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
                                    const SphereRansacParams& P, const std::vector<Eigen::Vector3f>& viewpoints) {
   SphereSegmentation out;
@@ -185,212 +459,7 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, c
                                                          std::to_string(P.min_remaining) + ")";
     return out;
   }
-  std::vector<std::uint8_t> alive(points.size(), 0);
-  for (int k : alive_list) alive[static_cast<std::size_t>(k)] = 1;
-
-  const double thr = P.inlier_distance_m;
-  const double cos_tol = P.normal_tolerance_deg > 0 ? std::cos(P.normal_tolerance_deg * M_PI / 180.0) : -2.0;
-  const double r_lo = P.radius_min_m - thr, r_hi = P.radius_max_m + thr;
-  const double reach = 2.0 * P.radius_max_m;  // a hypothesis's points lie within one diameter
-  std::vector<Eigen::Vector3d> eyes;
-  for (const auto& v : viewpoints) eyes.push_back(v.cast<double>());
-  // Largest cosine between (q - c) and (eye - c) over the viewpoints: > 0 when
-  // some camera sees the side of the sphere that q lies on.
-  auto facing = [&](const Eigen::Vector3d& q, const Eigen::Vector3d& c) {
-    double best = -2;
-    const Eigen::Vector3d a = (q - c).normalized();
-    for (const auto& e : eyes) best = std::max(best, a.dot((e - c).normalized()));
-    return best;
-  };
-  // Scoring looks only at cells that the sphere's shell can reach.
-  const double score_cell = std::max(0.01, P.radius_max_m / 2.0);
-  const detail::VoxelGrid grid(points, alive_list, score_cell);
-  common::SplitMixRandom rng(common::stream_seed(P.seed, 0x632be59bd9b4e019ULL));
-  const int k_points = P.hypothesis == SphereHypothesis::kFourPoints ? 4 : 2;
-
-  struct Scored {
-    Sphere s;
-    int count = 0;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  };
-  // Inliers of sphere s among the alive points (optionally listing them).
-  auto score = [&](const Sphere& s, double dist_thr, Indices* list) {
-    Scored r;
-    r.s = s;
-    const float lim = static_cast<float>(s.radius_m + dist_thr);
-    const Eigen::Vector3f c = s.centre.cast<float>();
-    const detail::CellKey lo = grid.key_of(c - Eigen::Vector3f::Constant(lim));
-    const detail::CellKey hi = grid.key_of(c + Eigen::Vector3f::Constant(lim));
-    for (int x = lo.x; x <= hi.x; ++x)
-      for (int y = lo.y; y <= hi.y; ++y)
-        for (int z = lo.z; z <= hi.z; ++z) {
-          const int cell = grid.find({x, y, z});
-          if (cell < 0) continue;
-          for (const int* m = grid.begin(std::size_t(cell)); m != grid.end(std::size_t(cell)); ++m) {
-            const std::size_t k = static_cast<std::size_t>(*m);
-            if (!alive[k]) continue;
-            const Eigen::Vector3d d = points[k].cast<double>() - s.centre;
-            const double dist = d.norm();
-            if (std::abs(dist - s.radius_m) > dist_thr || dist < 1e-9) continue;
-            if (use_normals && cos_tol > -1.5 && normals[k].cast<double>().dot(d) < cos_tol * dist) continue;
-            ++r.count;
-            r.sum += points[k].cast<double>();
-            if (list) list->push_back(*m);
-          }
-        }
-    return r;
-  };
-  // Would this sphere be acceptable as a tomato here?
-  auto plausible = [&](const Scored& r, bool count_rejections) {
-    if (r.count == 0) return false;
-    const Eigen::Vector3d centroid = r.sum / r.count;
-    if (facing(centroid, r.s.centre) <= 0) {  // the visible cap faces away from every camera
-      if (count_rejections) ++out.rejected_cap;
-      return false;
-    }
-    for (const auto& f : out.spheres) {
-      if ((f.sphere.centre - r.s.centre).norm() < f.sphere.radius_m + r.s.radius_m - P.max_overlap_m) {
-        if (count_rejections) ++out.rejected_overlap;
-        return false;
-      }
-    }
-    return true;
-  };
-
-  int failed = 0;
-  std::vector<int> pool;
-  while (true) {
-    alive_list.erase(std::remove_if(alive_list.begin(), alive_list.end(), [&](int k) { return !alive[static_cast<std::size_t>(k)]; }),
-                     alive_list.end());
-    out.remaining_points = static_cast<int>(alive_list.size());
-    if (out.remaining_points < P.min_remaining) {
-      out.stop_reason = std::to_string(out.remaining_points) + " points remain (< " + std::to_string(P.min_remaining) + ")";
-      break;
-    }
-    if (static_cast<int>(out.spheres.size()) >= P.max_spheres) {
-      out.stop_reason = "max_spheres (" + std::to_string(P.max_spheres) + ") reached";
-      break;
-    }
-    ++out.rounds;
-    Scored best;
-    double local_share = 0.5;  // inlier share near a model's first point, for Eq. 4.15
-    long needed = P.max_iterations;
-    const std::size_t n_alive = alive_list.size();
-    for (long it = 0; it < needed; ++it) {
-      ++out.hypotheses;
-      const int first = alive_list[rng.index(n_alive)];
-      const Eigen::Vector3d p0 = points[static_cast<std::size_t>(first)].cast<double>();
-      // The other points: near the first (rejection sampling, a few tries), or anywhere.
-      int sample[4] = {first, -1, -1, -1};
-      bool ok = true;
-      for (int j = 1; j < k_points && ok; ++j) {
-        ok = false;
-        for (int tries = 0; tries < 64; ++tries) {
-          const int cand = alive_list[rng.index(n_alive)];
-          if (cand == first || cand == sample[1] || cand == sample[2]) continue;
-          if (P.local_sampling && (points[static_cast<std::size_t>(cand)].cast<double>() - p0).norm() > reach) continue;
-          sample[j] = cand;
-          ok = true;
-          break;
-        }
-      }
-      std::optional<Sphere> s;
-      if (ok) {
-        auto pt = [&](int j) { return points[static_cast<std::size_t>(sample[j])].cast<double>(); };
-        if (k_points == 4) {
-          s = sphere_from_four_points(pt(0), pt(1), pt(2), pt(3));
-        } else {
-          const Eigen::Vector3d n0 = normals[static_cast<std::size_t>(sample[0])].cast<double>();
-          const Eigen::Vector3d n1 = normals[static_cast<std::size_t>(sample[1])].cast<double>();
-          s = sphere_from_two_points_with_normals(pt(0), n0, pt(1), n1);
-          // Normals face the camera, so the centre must lie behind both points.
-          if (s && ((pt(0) - s->centre).dot(n0) <= 0 || (pt(1) - s->centre).dot(n1) <= 0)) s.reset();
-          if (s && std::abs((pt(0) - s->centre).norm() - (pt(1) - s->centre).norm()) > 2 * thr) s.reset();
-        }
-      }
-      if (!s || s->radius_m < r_lo || s->radius_m > r_hi) {
-        ++out.degenerate;
-        continue;
-      }
-      // The first point must lie on a visible half.
-      if (facing(p0, s->centre) <= 0) {
-        ++out.degenerate;
-        continue;
-      }
-      const Scored r = score(*s, thr, nullptr);
-      if (r.count <= best.count || !plausible(r, false)) continue;
-      best = r;
-      // Eq. 4.13-4.15: samples needed for `confidence`, the first point drawn
-      // from all alive points, the others (locally) from the model's neighbourhood.
-      if (P.local_sampling) {
-        int near = 0;
-        grid.for_each_within(points, best.s.centre.cast<float>(), static_cast<float>(best.s.radius_m + reach),
-                             [&](int k) { near += alive[static_cast<std::size_t>(k)]; });
-        local_share = std::min(1.0, best.count / std::max(1.0, double(near)));
-      } else {
-        local_share = best.count / double(n_alive);
-      }
-      const double w = (best.count / double(n_alive)) * std::pow(local_share, k_points - 1);
-      if (w >= 1.0) {
-        needed = it + 1;
-      } else if (w > 0) {
-        needed = std::min<long>(P.max_iterations,
-                                static_cast<long>(std::ceil(std::log(1.0 - P.confidence) / std::log(1.0 - w))));
-      }
-    }
-    if (best.count < P.min_inliers) {
-      if (++failed >= P.max_failed_rounds) {
-        out.stop_reason = std::to_string(failed) + " round(s) without a model of >= " + std::to_string(P.min_inliers) +
-                          " inliers (" + std::to_string(out.remaining_points) + " points left)";
-        break;
-      }
-      continue;
-    }
-    // Refine on the inliers, then take the refined model's inliers.
-    Indices inliers;
-    (void)score(best.s, thr, &inliers);
-    Sphere model = best.s;
-    bool at_limit = false;
-    double rms = 0;
-    if (P.refine) {
-      const SphereRefinement ref = refine_sphere(points, inliers, best.s, P.radius_min_m, P.radius_max_m);
-      if (ref.sphere.centre.allFinite()) {
-        model = ref.sphere;
-        at_limit = ref.radius_at_limit;
-      }
-    }
-    Indices final_inliers;
-    const Scored fin = score(model, thr, &final_inliers);
-    if (fin.count < P.min_inliers || !plausible(fin, true)) {
-      // Refinement moved it somewhere unacceptable: drop its points from
-      // sampling this round's way (keep them for others) by failing the round.
-      if (++failed >= P.max_failed_rounds) {
-        out.stop_reason = "the best models were refused (cap facing away or overlap) " + std::to_string(failed) + " times";
-        break;
-      }
-      continue;
-    }
-    failed = 0;
-    for (int k : final_inliers) {
-      const double e = (points[static_cast<std::size_t>(k)].cast<double>() - model.centre).norm() - model.radius_m;
-      rms += e * e;
-    }
-    SphereFit fit;
-    fit.sphere = model;
-    fit.inliers = final_inliers;
-    fit.rms_m = std::sqrt(rms / std::max<std::size_t>(1, final_inliers.size()));
-    fit.radius_at_limit = at_limit;
-    fit.cap_facing = facing(fin.sum / fin.count, model.centre);
-    fit.round = out.rounds;
-    // Remove the fruit's points: its shell (a little wider than the inlier
-    // band, normals agreeing) and anything inside it.
-    Indices removed;
-    (void)score(model, P.removal_factor * thr, &removed);
-    for (int k : removed) alive[static_cast<std::size_t>(k)] = 0;
-    const float rin = static_cast<float>(model.radius_m - thr);
-    grid.for_each_within(points, model.centre.cast<float>(), std::max(0.0f, rin), [&](int k) { alive[static_cast<std::size_t>(k)] = 0; });
-    out.spheres.push_back(std::move(fit));
-  }
+  SphereSegmenter(points, normals, P, viewpoints, use_normals, std::move(alive_list), out).run();
   return out;
 }
 

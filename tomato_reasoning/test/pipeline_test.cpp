@@ -35,7 +35,7 @@ TEST(Pipeline, TwoViewsRecoverFruitOneViewCannotSee) {
     p.gravity = s.gravity_camera;
     const TomatoPipeline pipe(p);
     std::vector<View> views;
-    for (std::size_t v = 0; v < s.clouds.size(); ++v) views.push_back({&s.clouds[v], s.T_ref_camera[v]});
+    for (std::size_t v = 0; v < s.clouds.size(); ++v) views.push_back({s.clouds[v], s.T_ref_camera[v]});
     two_views += eval::score_truss(s, pipe.run(views)).detected;
     one_view += eval::score_truss(s, pipe.run(s.cloud())).detected;
     truth += static_cast<int>(s.truth.size());

@@ -15,7 +15,7 @@ class Ours : public Variant {
     PipelineParams p = p_;
     p.gravity = s.gravity_camera;
     std::vector<View> views;
-    for (std::size_t v = 0; v < s.clouds.size(); ++v) views.push_back(View{&s.clouds[v], s.T_ref_camera[v]});
+    for (std::size_t v = 0; v < s.clouds.size(); ++v) views.push_back(View{s.clouds[v], s.T_ref_camera[v]});
     return TomatoPipeline(p).run(views);
   }
 

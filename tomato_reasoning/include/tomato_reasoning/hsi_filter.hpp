@@ -59,6 +59,7 @@ struct HsiFilterResult {
   std::string reason;     ///< why `indices` is empty (empty cloud, no depth, no red points, bad parameters)
 };
 
-[[nodiscard]] HsiFilterResult filter_hsi(const ColorCloud& cloud, const HsiFilterParams& params = {});
+/// Over a ColorCloud or any CloudView (a PCL cloud: pcl_conversions.hpp).
+[[nodiscard]] HsiFilterResult filter_hsi(const CloudView& cloud, const HsiFilterParams& params = {});
 
 }  // namespace tinyline::tomato_reasoning

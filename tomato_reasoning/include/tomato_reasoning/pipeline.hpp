@@ -51,10 +51,11 @@ struct Tomato {
   int pick_rank = -1;  ///< 0 = pick first
 };
 
-/// One camera view for a multi-view run: its cloud (in the camera's frame)
-/// and the camera's pose in the reference frame the results are given in.
+/// One camera view for a multi-view run: its cloud (in the camera's frame;
+/// a ColorCloud or a view of a PCL cloud, borrowed) and the camera's pose in
+/// the reference frame the results are given in.
 struct View {
-  const ColorCloud* cloud = nullptr;
+  CloudView cloud;
   Eigen::Isometry3d T_ref_camera = Eigen::Isometry3d::Identity();
 };
 
@@ -85,8 +86,9 @@ class TomatoPipeline {
   [[nodiscard]] const PipelineParams& params() const { return params_; }
 
   /// One view; the camera is at the origin of the cloud's frame, which is
-  /// the reference frame.
-  [[nodiscard]] PipelineResult run(const ColorCloud& cloud) const;
+  /// the reference frame. Takes a ColorCloud, or a PCL cloud through
+  /// `view_of` (pcl_conversions.hpp) without copying it.
+  [[nodiscard]] PipelineResult run(const CloudView& cloud) const;
   /// Several views of one branch (thesis 4.5: two hand-camera views), merged
   /// in the reference frame (`gravity` is given in that frame). At most 255 views.
   [[nodiscard]] PipelineResult run(const std::vector<View>& views) const;

@@ -296,8 +296,8 @@ void TomatoDetectorNode::detect() {
       logger().warn("{}", out->reason);
     } else {
       View v0, v1;
-      v0.cloud = &cloud_;
-      v1.cloud = &cloud2_;
+      v0.cloud = cloud_;
+      v1.cloud = cloud2_;
       v1.T_ref_camera = T_ref_camera2_;
       const PipelineResult r = pipeline_->run(std::vector<View>{v0, v1});
       to_msg(r, pipeline_->params().gravity, *out);

@@ -1,5 +1,5 @@
 // Named pipeline variants for the scoring tool and the benchmarks (the
-// shipped defaults, the thesis's choices, ablations, the plain PCL chain),
+// shipped defaults, the thesis's choices, ablations),
 // and `section.field=value` overrides of PipelineParams.
 #pragma once
 
