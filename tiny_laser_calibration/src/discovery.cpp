@@ -267,16 +267,15 @@ std::vector<CovariateInfo> candidate_covariates(const CalibrationDataset& data, 
   return out;
 }
 
-// Builds every applicable form of one covariate on the CV rows.
-void build_forms(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov, const DiscoveryParams& p,
-                 std::vector<CvTerm>& out, std::vector<std::string>& notes) {
+// The covariate on every CV row; `fitted` gets its values on the rows fitted on.
+CvTerm covariate_on_rows(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov,
+                         std::vector<double>& fitted, std::size_t& finite) {
   CvTerm base;
   base.term.covariate = cov.name;
   base.term.kind = cov.kind;
   base.data_extra = cov.data_extra;
   base.z.resize(d.y.size());
-  std::vector<double> fitted;  // values on fitting rows
-  std::size_t finite = 0;
+  finite = 0;
   for (std::size_t i = 0; i < d.y.size(); ++i) {
     base.z[i] = detail::term_covariate(data, d.row[i], base.term, cov.data_extra, d.x[i], d.declared[i], *d.reference);
     if (std::isfinite(base.z[i])) {
@@ -284,35 +283,66 @@ void build_forms(const CalibrationDataset& data, const CvData& d, const Covariat
       if (d.fold[i] != -2) fitted.push_back(base.z[i]);
     }
   }
+  return base;
+}
+
+// Albedo and reflectance both divide the light by the declared distance
+// squared, so on one surface their only variation is the distance error
+// itself: a term on them would range by intensity and fail on the next
+// surface. Try them only when the data holds surfaces of clearly different
+// albedo (90th/10th percentile >= min_albedo_spread, beyond what a distance
+// error of several percent could fake).
+bool albedo_spread_enough(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov,
+                          const DiscoveryParams& p, std::vector<std::string>& notes) {
+  std::vector<double> albedo;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] == -2) continue;
+    const double a = d.reference->albedo(data.readouts[d.row[i]], d.declared[i]);
+    if (std::isfinite(a)) albedo.push_back(a);
+  }
+  if (albedo.size() < 10) return false;
+  std::sort(albedo.begin(), albedo.end());
+  const double p10 = albedo[albedo.size() / 10], p90 = albedo[albedo.size() * 9 / 10];
+  if (p10 > 0.0 && p90 / p10 >= p.min_albedo_spread) return true;
+  if (cov.kind == Covariate::kAlbedo) {
+    notes.push_back(fmt::format("albedo spans {:.2f}x (90th/10th percentile < {:.2f}): one kind of surface, so albedo "
+                                "and reflectance are not tried",
+                                p10 > 0.0 ? p90 / p10 : 0.0, p.min_albedo_spread));
+  }
+  return false;
+}
+
+// g(z) * (a + b - median) / IQR-scale, knots at quantiles of z.
+void add_interaction_form(const CvData& d, const CvTerm& base, const std::vector<double>& fitted,
+                          const std::vector<double>& distinct, const DiscoveryParams& p, std::vector<CvTerm>& out) {
+  std::vector<double> amp;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] != -2) amp.push_back(d.amplitude[i]);
+  }
+  const auto q = quantile_knots(amp, 5);  // quartiles
+  if (!(q.size() == 5 && q[3] > q[1])) return;
+  CvTerm t = base;
+  t.term.form = TermForm::kAmplitudeInteraction;
+  t.term.knots = distinct.size() <= static_cast<std::size_t>(p.interaction_knots) ? distinct
+                                                                                  : quantile_knots(fitted, p.interaction_knots);
+  t.term.amplitude_reference = q[2];
+  t.term.amplitude_scale = (q[3] - q[1]) / 1.349;  // IQR as an SD
+  if (t.term.knots.size() >= 2) out.push_back(std::move(t));
+}
+
+// Builds every applicable form of one covariate on the CV rows.
+void build_forms(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov, const DiscoveryParams& p,
+                 std::vector<CvTerm>& out, std::vector<std::string>& notes) {
+  std::vector<double> fitted;  // values on fitting rows
+  std::size_t finite = 0;
+  const CvTerm base = covariate_on_rows(data, d, cov, fitted, finite);
   if (finite < d.y.size() * 9 / 10 || fitted.size() < 10) {
     notes.push_back(fmt::format("covariate '{}' is missing on {} of {} read-outs: not tried", cov.name,
                                 d.y.size() - finite, d.y.size()));
     return;
   }
-  if (cov.kind == Covariate::kAlbedo || cov.kind == Covariate::kReflectance) {
-    // Both divide the light by the declared distance squared, so on one surface
-    // their only variation is the distance error itself: a term on them would
-    // range by intensity and fail on the next surface. Try them only when the
-    // data holds surfaces of clearly different albedo (90th/10th percentile >=
-    // min_albedo_spread, beyond what a distance error of several percent could fake).
-    std::vector<double> albedo;
-    for (std::size_t i = 0; i < d.y.size(); ++i) {
-      if (d.fold[i] == -2) continue;
-      const double a = d.reference->albedo(data.readouts[d.row[i]], d.declared[i]);
-      if (std::isfinite(a)) albedo.push_back(a);
-    }
-    if (albedo.size() < 10) return;
-    std::sort(albedo.begin(), albedo.end());
-    const double p10 = albedo[albedo.size() / 10], p90 = albedo[albedo.size() * 9 / 10];
-    if (!(p10 > 0.0 && p90 / p10 >= p.min_albedo_spread)) {
-      if (cov.kind == Covariate::kAlbedo) {
-        notes.push_back(fmt::format("albedo spans {:.2f}x (90th/10th percentile < {:.2f}): one kind of surface, so albedo "
-                                    "and reflectance are not tried",
-                                    p10 > 0.0 ? p90 / p10 : 0.0, p.min_albedo_spread));
-      }
-      return;
-    }
-  }
+  const bool albedo_like = cov.kind == Covariate::kAlbedo || cov.kind == Covariate::kReflectance;
+  if (albedo_like && !albedo_spread_enough(data, d, cov, p, notes)) return;
   std::vector<double> distinct = fitted;
   std::sort(distinct.begin(), distinct.end());
   distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
@@ -332,23 +362,7 @@ void build_forms(const CalibrationDataset& data, const CvData& d, const Covariat
     for (double v : distinct) t.term.keys.push_back(std::lround(v));
     out.push_back(std::move(t));
   }
-  if (cov.kind != Covariate::kAmplitude) {
-    std::vector<double> amp;
-    for (std::size_t i = 0; i < d.y.size(); ++i) {
-      if (d.fold[i] != -2) amp.push_back(d.amplitude[i]);
-    }
-    const auto q = quantile_knots(amp, 5);  // quartiles
-    if (q.size() == 5 && q[3] > q[1]) {
-      CvTerm t = base;
-      t.term.form = TermForm::kAmplitudeInteraction;
-      t.term.knots = distinct.size() <= static_cast<std::size_t>(p.interaction_knots)
-                         ? distinct
-                         : quantile_knots(fitted, p.interaction_knots);
-      t.term.amplitude_reference = q[2];
-      t.term.amplitude_scale = (q[3] - q[1]) / 1.349;  // IQR as an SD
-      if (t.term.knots.size() >= 2) out.push_back(std::move(t));
-    }
-  }
+  if (cov.kind != Covariate::kAmplitude) add_interaction_form(d, base, fitted, distinct, p, out);
 }
 
 struct Paired {
@@ -525,90 +539,64 @@ void dense_cv_groups(CvData& d, const Split& s) {
   d.groups = static_cast<std::size_t>(next);
 }
 
-}  // namespace
-
-// ------------------------------------------------------------------ discover_effects
-
-DiscoveryResult discover_effects(const CalibrationDataset& data, const DiscoveryParams& p) {
-  DiscoveryResult res;
-  if (data.empty()) {
-    res.reason = fmt::format("{}: no rows", data.source);
-    return res;
-  }
-  if (p.folds < 2) {
-    res.reason = fmt::format("{} folds: cross-validation needs at least 2", p.folds);
-    return res;
-  }
+// Valid read-outs under the declared validity rule; n_valid counts them.
+std::vector<bool> valid_rows(const CalibrationDataset& data, const ValidityRule& rule, std::size_t& n_valid) {
   std::vector<bool> valid(data.size());
-  std::size_t n_valid = 0;
+  n_valid = 0;
   for (std::size_t i = 0; i < data.size(); ++i) {
-    valid[i] = p.declared.validity.check(data.readouts[i]) == ValidityRule::Verdict::kValid;
+    valid[i] = rule.check(data.readouts[i]) == ValidityRule::Verdict::kValid;
     n_valid += valid[i] ? 1 : 0;
   }
-  if (n_valid == 0) {
-    // Let the declared fit word the reason (counts by verdict).
-    res.reason = fit_declared_model(data, p.declared).reason;
-    return res;
-  }
-  const Split split = make_split(data, p, valid);
+  return valid;
+}
+
+// The split into training and held-out groups, recorded in the result; false
+// (with the reason) when there are too few groups.
+bool split_into(DiscoveryResult& res, const CalibrationDataset& data, const DiscoveryParams& p,
+                const std::vector<bool>& valid, Split& split) {
+  split = make_split(data, p, valid);
   res.grouping = split.grouping;
   res.groups = split.groups;
   res.holdout_groups = split.holdout_groups;
   if (!split.problem.empty()) {
     res.reason = split.problem;
-    return res;
+    return false;
   }
   res.train_rows = rows_where(split, valid, false);
   res.holdout_rows = rows_where(split, valid, true);
+  return true;
+}
 
-  // Each round: the declared model plus the accepted terms fitted on the training
-  // groups fixes Rsen, leakage, X and the weights; the loop varies only linear terms.
-  std::unique_ptr<detail::FitEngine> engine;
-  std::string engine_problem;
-  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
-    engine = std::make_unique<detail::FitEngine>(data, res.train_rows, p.declared, accepted);
-    RoundInput in;
-    if (!engine->problem().empty()) {
-      engine_problem = engine->problem();
-      in.d.reference = &engine->amplitude_reference();
-      return in;
-    }
-    engine->fit();
-    if (accepted.empty()) res.train_before = engine->model();
-    CvData& d = in.d;
-    d.folds = p.folds;
-    d.base_cols = engine->declared_columns();
-    d.reference = &engine->amplitude_reference();
-    const auto& kept = engine->rows();
-    for (std::size_t i = 0; i < kept.size(); ++i) {
-      Entries base;
-      engine->declared_entries(i, base);
-      if (base.empty()) continue;
-      const Readout& r = data.readouts[kept[i]];
-      d.row.push_back(kept[i]);
-      d.base.push_back(std::move(base));
-      d.y.push_back(engine->y(i));
-      d.w.push_back(engine->weight(i));
-      d.x.push_back(engine->x(i));
-      d.declared.push_back(engine->declared_m(i));
-      d.amplitude.push_back(r.a + r.b);
-      d.fold.push_back(split.fold[static_cast<std::size_t>(split.group[kept[i]])]);
-    }
-    dense_cv_groups(d, split);
-    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
-    return in;
-  };
-  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
-  if (!engine_problem.empty()) {
-    res.reason = "fit on the training groups: " + engine_problem;
-    return res;
+// The CV rows of a fitted engine: its declared columns, truth, weights, X and folds.
+CvData cv_data_from_engine(const CalibrationDataset& data, const detail::FitEngine& engine, const Split& split, int folds) {
+  CvData d;
+  d.folds = folds;
+  d.base_cols = engine.declared_columns();
+  d.reference = &engine.amplitude_reference();
+  const auto& kept = engine.rows();
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    Entries base;
+    engine.declared_entries(i, base);
+    if (base.empty()) continue;
+    const Readout& r = data.readouts[kept[i]];
+    d.row.push_back(kept[i]);
+    d.base.push_back(std::move(base));
+    d.y.push_back(engine.y(i));
+    d.w.push_back(engine.weight(i));
+    d.x.push_back(engine.x(i));
+    d.declared.push_back(engine.declared_m(i));
+    d.amplitude.push_back(r.a + r.b);
+    d.fold.push_back(split.fold[static_cast<std::size_t>(split.group[kept[i]])]);
   }
-  res.rounds = std::move(loop.rounds);
-  res.candidates = loop.candidates;
-  res.z_threshold = loop.z_threshold;
+  dense_cv_groups(d, split);
+  return d;
+}
 
-  // Held-out errors, one accepted term at a time; a term that does not lower
-  // the held-out error is dropped.
+// Held-out errors, one accepted term at a time, each a refit of the whole
+// model on the training groups; a term that does not lower the held-out error
+// is dropped. Returns the terms kept.
+std::vector<CalibrationTerm> confirm_on_holdout(DiscoveryResult& res, const CalibrationDataset& data,
+                                                const DiscoveryParams& p, const LoopOutcome& loop) {
   const ErrorStats before = evaluate_model(res.train_before, data, res.holdout_rows, p.declared.selection);
   res.rmse_before_m = before.rmse_m;
   if (before.out_of_range > 0) {
@@ -641,6 +629,64 @@ DiscoveryResult discover_effects(const CalibrationDataset& data, const Discovery
     res.train_after = fit.model;
   }
   res.rmse_after_m = current;
+  return kept_terms;
+}
+
+void record_loop(DiscoveryResult& res, LoopOutcome& loop) {
+  res.rounds = std::move(loop.rounds);
+  res.candidates = loop.candidates;
+  res.z_threshold = loop.z_threshold;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------ discover_effects
+
+DiscoveryResult discover_effects(const CalibrationDataset& data, const DiscoveryParams& p) {
+  DiscoveryResult res;
+  if (data.empty()) {
+    res.reason = fmt::format("{}: no rows", data.source);
+    return res;
+  }
+  if (p.folds < 2) {
+    res.reason = fmt::format("{} folds: cross-validation needs at least 2", p.folds);
+    return res;
+  }
+  std::size_t n_valid = 0;
+  const std::vector<bool> valid = valid_rows(data, p.declared.validity, n_valid);
+  if (n_valid == 0) {
+    // Let the declared fit word the reason (counts by verdict).
+    res.reason = fit_declared_model(data, p.declared).reason;
+    return res;
+  }
+  Split split;
+  if (!split_into(res, data, p, valid, split)) return res;
+
+  // Each round: the declared model plus the accepted terms fitted on the training
+  // groups fixes Rsen, leakage, X and the weights; the loop varies only linear terms.
+  std::unique_ptr<detail::FitEngine> engine;
+  std::string engine_problem;
+  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
+    engine = std::make_unique<detail::FitEngine>(data, res.train_rows, p.declared, accepted);
+    RoundInput in;
+    if (!engine->problem().empty()) {
+      engine_problem = engine->problem();
+      in.d.reference = &engine->amplitude_reference();
+      return in;
+    }
+    engine->fit();
+    if (accepted.empty()) res.train_before = engine->model();
+    in.d = cv_data_from_engine(data, *engine, split, p.folds);
+    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, in.d, t));
+    return in;
+  };
+  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
+  if (!engine_problem.empty()) {
+    res.reason = "fit on the training groups: " + engine_problem;
+    return res;
+  }
+  record_loop(res, loop);
+  const std::vector<CalibrationTerm> kept_terms = confirm_on_holdout(res, data, p, loop);
   res.heldout_eval_rows = select_readouts(data, res.holdout_rows, p.declared.validity, p.declared.selection);
   res.heldout_residual_before_m = model_residuals(res.train_before, data, res.heldout_eval_rows);
   res.heldout_residual_after_m = model_residuals(res.train_after, data, res.heldout_eval_rows);
@@ -661,18 +707,17 @@ DiscoveryResult discover_effects(const CalibrationDataset& data, const Discovery
 
 // ------------------------------------------------------------------ diagnose_model
 
-DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p) {
-  DiscoveryResult res;
-  res.model = model;
-  if (data.empty()) {
-    res.reason = fmt::format("{}: no rows", data.source);
-    return res;
-  }
+namespace {
+
+// Read-outs the given model gives a distance for and the driver would pick;
+// `reason` says why there are none.
+std::vector<bool> diagnosable_rows(const CalibrationModel& model, const CalibrationDataset& data,
+                                   const DiscoveryParams& p, std::vector<CalibrationEvaluation>& ev, std::string& reason) {
   const auto readouts = readouts_for_model(data, model);
   std::vector<bool> selected(data.size(), false);
   for (std::size_t i : select_readouts(data, {}, model.validity(), p.declared.selection)) selected[i] = true;
   std::vector<bool> valid(data.size());
-  std::vector<CalibrationEvaluation> ev(data.size());
+  ev.assign(data.size(), {});
   std::size_t n_valid = 0, counts[5] = {0, 0, 0, 0, 0};
   for (std::size_t i = 0; i < data.size(); ++i) {
     ev[i] = model.evaluate(readouts[i]);
@@ -685,23 +730,16 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     n_valid += valid[i] ? 1 : 0;
   }
   if (n_valid == 0) {
-    res.reason = fmt::format("the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
-                             "{} outside its ratio range, {} missing a covariate",
-                             data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
-    return res;
+    reason = fmt::format("the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
+                         "{} outside its ratio range, {} missing a covariate",
+                         data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
   }
-  const Split split = make_split(data, p, valid);
-  res.grouping = split.grouping;
-  res.groups = split.groups;
-  res.holdout_groups = split.holdout_groups;
-  if (!split.problem.empty()) {
-    res.reason = split.problem;
-    return res;
-  }
-  res.train_rows = rows_where(split, valid, false);
-  res.holdout_rows = rows_where(split, valid, true);
+  return valid;
+}
 
-  // Residual mode: a constant plus the terms, fitted to truth - model.
+// Residual mode: a constant plus the terms, fitted to truth - model.
+CvData residual_cv_data(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p,
+                        const std::vector<bool>& valid, const std::vector<CalibrationEvaluation>& ev, const Split& split) {
   CvData d;
   d.folds = p.folds;
   d.base_cols = 1;
@@ -719,30 +757,25 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     d.fold.push_back(split.holdout[g] ? -2 : split.fold[g]);
   }
   dense_cv_groups(d, split);
+  return d;
+}
 
-  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
-    RoundInput in;
-    in.d = d;  // residual mode: the model stays as given
-    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
-    return in;
-  };
-  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
-  res.rounds = std::move(loop.rounds);
-  res.candidates = loop.candidates;
-  res.z_threshold = loop.z_threshold;
+double residual_heldout_rmse(const CvData& d, const std::vector<double>* pred) {
+  double sse = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] != -2) continue;
+    const double r = d.y[i] - (pred ? (*pred)[i] : 0.0);
+    sse += r * r;
+    ++n;
+  }
+  return n ? std::sqrt(sse / static_cast<double>(n)) : kNaN;
+}
 
-  auto heldout_rmse = [&](const std::vector<double>* pred) {
-    double sse = 0.0;
-    std::size_t n = 0;
-    for (std::size_t i = 0; i < d.y.size(); ++i) {
-      if (d.fold[i] != -2) continue;
-      const double r = d.y[i] - (pred ? (*pred)[i] : 0.0);
-      sse += r * r;
-      ++n;
-    }
-    return n ? std::sqrt(sse / static_cast<double>(n)) : kNaN;
-  };
-  res.rmse_before_m = heldout_rmse(nullptr);
+// The diagnosis's counterpart of confirm_on_holdout: terms fitted to the residuals.
+void confirm_residual_terms(DiscoveryResult& res, const CalibrationDataset& data, const DiscoveryParams& p,
+                            const CvData& d, const LoopOutcome& loop) {
+  res.rmse_before_m = residual_heldout_rmse(d, nullptr);
   double current = res.rmse_before_m;
   std::vector<CvTerm> evaluated;
   for (const auto& t : loop.accepted) evaluated.push_back(evaluate_term(data, d, t));
@@ -751,7 +784,7 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     auto trial = kept;
     trial.push_back(&evaluated[k]);
     const auto pred = fit_and_predict(d, trial, p.declared.term_ridge);
-    const double after = heldout_rmse(&pred);
+    const double after = residual_heldout_rmse(d, &pred);
     if (!confirmed(current, after, p)) {
       res.rejected_on_holdout.push_back(loop.accepted[k]);
       continue;
@@ -771,6 +804,32 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     res.heldout_residual_before_m.push_back(-d.y[i]);  // y = truth - model
     res.heldout_residual_after_m.push_back(kept.empty() ? -d.y[i] : pred[i] - d.y[i]);
   }
+}
+
+}  // namespace
+
+DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p) {
+  DiscoveryResult res;
+  res.model = model;
+  if (data.empty()) {
+    res.reason = fmt::format("{}: no rows", data.source);
+    return res;
+  }
+  std::vector<CalibrationEvaluation> ev;
+  const std::vector<bool> valid = diagnosable_rows(model, data, p, ev, res.reason);
+  if (!res.reason.empty()) return res;
+  Split split;
+  if (!split_into(res, data, p, valid, split)) return res;
+  const CvData d = residual_cv_data(model, data, p, valid, ev, split);
+  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
+    RoundInput in;
+    in.d = d;  // residual mode: the model stays as given
+    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
+    return in;
+  };
+  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
+  record_loop(res, loop);
+  confirm_residual_terms(res, data, p, d, loop);
   res.ok = true;
   return res;
 }

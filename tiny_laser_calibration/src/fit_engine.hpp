@@ -58,6 +58,18 @@ class FitEngine {
   std::vector<std::string> notes;
 
  private:
+  // Steps of the constructor (each false with problem_ set when the data cannot be fitted).
+  bool group_rows();
+  bool enough_data();
+  void decide_leakage_offset();
+  void decide_temperature();
+  bool resolve_terms();
+  bool scale_ratio();
+  // Steps of the per-pixel Rsen refinement.
+  std::vector<bool> rsen_eligible_pixels(std::size_t& n_eligible) const;
+  double rsen_jacobian(std::size_t i, double rsen) const;
+  void rsen_step(const std::vector<bool>& eligible);
+
   void compute_x();
   void compute_covariates();
   void entries(std::size_t i, Entries& out) const;
