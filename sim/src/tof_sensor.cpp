@@ -70,6 +70,7 @@ struct TofLineSensor::Impl {
   const TimeDriftEffect* time_drift = nullptr;
   const TemperatureLagEffect* temp_lag = nullptr;
   std::vector<const CovariateEffect*> covariates;
+  std::vector<const ChargeEffect*> charge;
   bool need_derivative = false;
 
   // Random walks of covariates, extended on demand (1 s steps).
@@ -257,7 +258,8 @@ TofLineSensor::TofLineSensor(SensorParams params) : params_(std::move(params)), 
                           },
                           [&](const TimeDriftEffect& e) { m.time_drift = &e; },
                           [&](const CovariateEffect& e) { m.covariates.push_back(&e); },
-                          [&](const TemperatureLagEffect& e) { m.temp_lag = &e; }},
+                          [&](const TemperatureLagEffect& e) { m.temp_lag = &e; },
+                          [&](const ChargeEffect& e) { m.charge.push_back(&e); }},
                fx);
   }
   m.walk_paths.resize(m.covariates.size());
@@ -663,8 +665,9 @@ SensorSet TofLineSensor::measure(const World& world, const Eigen::Isometry3d& T_
       const double p = pulses[k];
       const double t_ms = 1e3 * accumulation_time_s(pulses[k]);
       const double leak = m.leak[i] * t_ms;
-      const double mean_a = p * sa + xa[k * n + i] + leak;
-      const double mean_b = p * sb + xb[k * n + i] + leak;
+      double mean_a = p * sa + xa[k * n + i] + leak;
+      double mean_b = p * sb + xb[k * n + i] + leak;
+      apply_charge_effects(m.charge, static_cast<int>(i), pulses[k], set.covariates, mean_a, mean_b);
       double a = mean_a, b = mean_b;
       if (options.noise) {
         // Shot noise accumulates with the charge (read-outs are non-destructive);
