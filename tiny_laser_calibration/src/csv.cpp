@@ -283,15 +283,19 @@ void write_calibration_csv(const CalibrationDataset& data, const std::string& pa
 }
 
 std::vector<int> frame_ids(const CalibrationDataset& data) {
-  std::vector<double> times;
+  const int session = data.extra_index("session");
+  auto key = [&](const Readout& r) {
+    return std::pair<double, double>(session >= 0 ? r.extra[static_cast<std::size_t>(session)] : 0.0, r.t_s);
+  };
+  std::vector<std::pair<double, double>> times;
   times.reserve(data.size());
-  for (const auto& r : data.readouts) times.push_back(r.t_s);
+  for (const auto& r : data.readouts) times.push_back(key(r));
   std::sort(times.begin(), times.end());
   times.erase(std::unique(times.begin(), times.end()), times.end());
   std::vector<int> ids;
   ids.reserve(data.size());
   for (const auto& r : data.readouts) {
-    ids.push_back(static_cast<int>(std::lower_bound(times.begin(), times.end(), r.t_s) - times.begin()));
+    ids.push_back(static_cast<int>(std::lower_bound(times.begin(), times.end(), key(r)) - times.begin()));
   }
   return ids;
 }

@@ -12,7 +12,7 @@
 
 #include <tiny_laser_calibration/discovery.hpp>
 
-#include "fit_engine.hpp"
+#include "discovery_internal.hpp"
 
 namespace tinyline::tiny_laser_calibration {
 
@@ -41,8 +41,11 @@ double normal_upper_quantile(double p) {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using detail::CvData;
+using detail::CvTerm;
 using detail::Entries;
 using detail::NormalEquations;
+using detail::quantile_knots;
 
 // ------------------------------------------------------------------ split
 
@@ -122,24 +125,6 @@ Split make_split(const CalibrationDataset& data, const DiscoveryParams& p, const
 
 // ------------------------------------------------------------------ cross-validation
 
-struct CvData {
-  std::vector<std::size_t> row;  // dataset row
-  std::vector<Entries> base;     // fixed columns (declared model, or a constant)
-  std::size_t base_cols = 0;
-  std::vector<double> y, w, x, declared, amplitude;
-  std::vector<int> fold;         // -1: always training; -2: held out (never fitted on)
-  std::vector<int> group;        // dense among rows with fold >= 0
-  std::size_t groups = 0;
-  int folds = 0;
-  const AmplitudeReference* reference = nullptr;
-};
-
-struct CvTerm {
-  CalibrationTerm term;
-  int data_extra = -1;
-  std::vector<double> z;  // per CvData row
-};
-
 struct CvResult {
   double sse = 0.0;
   std::size_t n = 0;
@@ -152,18 +137,17 @@ std::size_t columns(const CvData& d, const std::vector<const CvTerm*>& terms, st
   offsets.clear();
   for (const auto* t : terms) {
     offsets.push_back(cols);
-    cols += t->term.basis_size();
+    cols += t->ncols;
   }
   return cols;
 }
 
 void row_entries(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets,
-                 std::size_t i, Entries& out, Entries& tmp) {
+                 std::size_t i, Entries& out) {
   out = d.base[i];
   for (std::size_t k = 0; k < terms.size(); ++k) {
-    tmp.clear();
-    terms[k]->term.basis(terms[k]->z[i], d.amplitude[i], tmp);
-    for (const auto& [c, v] : tmp) out.emplace_back(offsets[k] + c, v);
+    const auto* e = terms[k]->cols.row(i);
+    for (std::size_t j = 0; j < terms[k]->cols.size(i); ++j) out.emplace_back(offsets[k] + e[j].first, e[j].second);
   }
 }
 
@@ -176,9 +160,9 @@ Eigen::VectorXd ridge_vector(const CvData& d, std::size_t cols, double term_ridg
 detail::SparseRows design(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets) {
   detail::SparseRows rows;
   rows.entries.reserve(d.y.size() * (d.base.empty() ? 1 : d.base.front().size() + 2 * terms.size()));
-  Entries e, tmp;
+  Entries e;
   for (std::size_t i = 0; i < d.y.size(); ++i) {
-    row_entries(d, terms, offsets, i, e, tmp);
+    row_entries(d, terms, offsets, i, e);
     rows.push(e);
   }
   return rows;
@@ -232,7 +216,9 @@ std::vector<double> fit_and_predict(const CvData& d, const std::vector<const CvT
 
 // ------------------------------------------------------------------ candidates
 
-std::vector<double> quantile_knots(std::vector<double> v, int n) {
+}  // namespace
+
+std::vector<double> detail::quantile_knots(std::vector<double> v, int n) {
   std::sort(v.begin(), v.end());
   std::vector<double> k;
   for (int i = 0; i < n; ++i) {
@@ -245,6 +231,8 @@ std::vector<double> quantile_knots(std::vector<double> v, int n) {
   }
   return k;
 }
+
+namespace {
 
 struct CovariateInfo {
   std::string name;
@@ -261,7 +249,8 @@ std::vector<CovariateInfo> candidate_covariates(const CalibrationDataset& data, 
   }
   for (std::size_t k = 0; k < data.extra_names.size(); ++k) {
     const auto& n = data.extra_names[k];
-    if (excluded(n) || covariate_from_name(n) != Covariate::kExtra) continue;  // a column may not shadow a built-in name
+    // A column may not shadow a built-in name; `session` names a warm-up, not a covariate.
+    if (excluded(n) || covariate_from_name(n) != Covariate::kExtra || n == "session") continue;
     out.push_back({n, Covariate::kExtra, static_cast<int>(k)});
   }
   return out;
@@ -333,6 +322,7 @@ void add_interaction_form(const CvData& d, const CvTerm& base, const std::vector
 // Builds every applicable form of one covariate on the CV rows.
 void build_forms(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov, const DiscoveryParams& p,
                  std::vector<CvTerm>& out, std::vector<std::string>& notes) {
+  const std::size_t first_new = out.size();
   std::vector<double> fitted;  // values on fitting rows
   std::size_t finite = 0;
   const CvTerm base = covariate_on_rows(data, d, cov, fitted, finite);
@@ -363,6 +353,7 @@ void build_forms(const CalibrationDataset& data, const CvData& d, const Covariat
     out.push_back(std::move(t));
   }
   if (cov.kind != Covariate::kAmplitude) add_interaction_form(d, base, fitted, distinct, p, out);
+  for (std::size_t k = first_new; k < out.size(); ++k) detail::materialise(out[k], d, data);
 }
 
 struct Paired {
@@ -426,6 +417,7 @@ CvTerm evaluate_term(const CalibrationDataset& data, const CvData& d, const Cali
   for (std::size_t i = 0; i < d.y.size(); ++i) {
     t.z[i] = detail::term_covariate(data, d.row[i], t.term, t.data_extra, d.x[i], d.declared[i], *d.reference);
   }
+  detail::materialise(t, d, data);
   return t;
 }
 
@@ -437,11 +429,88 @@ struct LoopOutcome {
   double z_threshold = 0.0;
 };
 
+// Every candidate of a round: the distance forms of each covariate not used
+// yet, and the hypotheses that act on the charges.
+std::vector<CvTerm> round_candidates(const CalibrationDataset& data, const RoundInput& in,
+                                     const std::vector<CovariateInfo>& covariates, const std::vector<std::string>& used,
+                                     const std::vector<const CvTerm*>& current_terms, const DiscoveryParams& p,
+                                     bool first_round, LoopOutcome& o, std::vector<std::string>& notes) {
+  std::vector<CvTerm> forms;
+  for (const auto& cov : covariates) {
+    if (std::find(used.begin(), used.end(), cov.name) != used.end()) continue;  // one term per covariate
+    const std::size_t before = forms.size();
+    std::vector<std::string> form_notes;
+    build_forms(data, in.d, cov, p, forms, form_notes);
+    if (first_round) {
+      notes.insert(notes.end(), form_notes.begin(), form_notes.end());
+      if (forms.size() > before) o.candidates.push_back(cov.name);
+    }
+  }
+  const auto pred = fit_and_predict(in.d, current_terms, p.declared.term_ridge);
+  std::vector<double> residual(pred.size());
+  for (std::size_t i = 0; i < pred.size(); ++i) residual[i] = in.d.y[i] - pred[i];
+  std::vector<std::string> charge_notes;
+  const std::size_t before = forms.size();
+  detail::build_charge_forms(data, in.d, p, residual, used, forms, charge_notes);
+  if (first_round) {
+    notes.insert(notes.end(), charge_notes.begin(), charge_notes.end());
+    for (std::size_t k = before; k < forms.size(); ++k) {
+      const auto& n = forms[k].term.covariate;
+      if (std::find(o.candidates.begin(), o.candidates.end(), n) == o.candidates.end()) o.candidates.push_back(n);
+    }
+  }
+  return forms;
+}
+
+struct RoundScores {
+  std::vector<CandidateScore> scores;
+  int best = -1;
+  CvResult best_res;
+  Paired best_cmp;
+};
+
+RoundScores score_round(const RoundInput& in, const std::vector<CvTerm>& forms,
+                        const std::vector<const CvTerm*>& current_terms, const CvResult& current, double z_thr,
+                        const DiscoveryParams& p) {
+  RoundScores out;
+  for (std::size_t k = 0; k < forms.size(); ++k) {
+    auto terms = current_terms;
+    terms.push_back(&forms[k]);
+    const CvResult r = cross_validate(in.d, terms, p.declared.term_ridge);
+    const Paired cmp = compare(current, r);
+    CandidateScore sc;
+    sc.covariate = forms[k].term.covariate;
+    sc.form = forms[k].term.form;
+    sc.cv_rmse_m = r.rmse();
+    sc.gain = cmp.gain;
+    sc.z = cmp.z;
+    sc.passes = cmp.z > z_thr && cmp.gain > p.min_relative_gain;
+    out.scores.push_back(sc);
+    if (sc.passes && (out.best < 0 || cmp.gain > out.best_cmp.gain)) {
+      out.best = static_cast<int>(k);
+      out.best_res = r;
+      out.best_cmp = cmp;
+    }
+  }
+  std::sort(out.scores.begin(), out.scores.end(), [](const auto& a, const auto& b) { return a.gain > b.gain; });
+  return out;
+}
+
+// The z a candidate must beat: one-sided Bonferroni over every test the loop
+// can make (kStatistics per candidate, a candidate chosen from the data
+// counting as every one it was chosen from, max_terms rounds), so the chance
+// that the loop names anything on effect-free data stays under alpha.
+double family_threshold(const std::vector<CvTerm>& forms, const DiscoveryParams& p) {
+  double looks = 0.0;
+  for (const auto& f : forms) looks += f.looks;
+  return normal_upper_quantile(p.alpha / (kStatistics * looks * std::max(1, p.max_terms)));
+}
+
 LoopOutcome run_loop(const CalibrationDataset& data, const Prepare& prepare, const DiscoveryParams& p,
                      std::vector<std::string>& notes) {
   LoopOutcome o;
   const auto covariates = candidate_covariates(data, p);
-  std::vector<bool> used(covariates.size(), false);
+  std::vector<std::string> used;
   for (int round = 0; round <= p.max_terms; ++round) {
     // Each round starts from the current model refitted with every accepted term,
     // so a declared parameter that an effect had bent is straightened first.
@@ -450,59 +519,25 @@ LoopOutcome run_loop(const CalibrationDataset& data, const Prepare& prepare, con
     for (const auto& t : in.accepted) current_terms.push_back(&t);
     const CvResult current = cross_validate(in.d, current_terms, p.declared.term_ridge);
     if (round == p.max_terms) break;
-    std::vector<CvTerm> forms;
-    std::vector<std::size_t> form_covariate;
-    for (std::size_t c = 0; c < covariates.size(); ++c) {
-      if (used[c]) continue;
-      const std::size_t before = forms.size();
-      std::vector<std::string> form_notes;
-      build_forms(data, in.d, covariates[c], p, forms, form_notes);
-      if (round == 0) {
-        notes.insert(notes.end(), form_notes.begin(), form_notes.end());
-        if (forms.size() > before) o.candidates.push_back(covariates[c].name);
-      }
-      form_covariate.resize(forms.size(), c);
-    }
+    const std::vector<CvTerm> forms =
+        round_candidates(data, in, covariates, used, current_terms, p, round == 0, o, notes);
     if (forms.empty()) break;
-    const double z_thr = normal_upper_quantile(p.alpha / static_cast<double>(kStatistics * forms.size()));
+    const double z_thr = family_threshold(forms, p);
     if (round == 0) o.z_threshold = z_thr;
-    std::vector<CandidateScore> scores;
-    int best = -1;
-    CvResult best_res;
-    Paired best_cmp;
-    for (std::size_t k = 0; k < forms.size(); ++k) {
-      auto terms = current_terms;
-      terms.push_back(&forms[k]);
-      const CvResult r = cross_validate(in.d, terms, p.declared.term_ridge);
-      const Paired cmp = compare(current, r);
-      CandidateScore sc;
-      sc.covariate = forms[k].term.covariate;
-      sc.form = forms[k].term.form;
-      sc.cv_rmse_m = r.rmse();
-      sc.gain = cmp.gain;
-      sc.z = cmp.z;
-      sc.passes = cmp.z > z_thr && cmp.gain > p.min_relative_gain;
-      scores.push_back(sc);
-      if (sc.passes && (best < 0 || cmp.gain > best_cmp.gain)) {
-        best = static_cast<int>(k);
-        best_res = r;
-        best_cmp = cmp;
-      }
-    }
-    std::sort(scores.begin(), scores.end(), [](const auto& a, const auto& b) { return a.gain > b.gain; });
-    o.rounds.push_back(std::move(scores));
-    if (best < 0) break;
-    const auto& chosen = forms[static_cast<std::size_t>(best)];
+    RoundScores scored = score_round(in, forms, current_terms, current, z_thr, p);
+    o.rounds.push_back(std::move(scored.scores));
+    if (scored.best < 0) break;
+    const auto& chosen = forms[static_cast<std::size_t>(scored.best)];
     DiscoveredEffect e;
     e.covariate = chosen.term.covariate;
     e.form = chosen.term.form;
     e.cv_rmse_before_m = current.rmse();
-    e.cv_rmse_after_m = best_res.rmse();
-    e.gain = best_cmp.gain;
-    e.z = best_cmp.z;
+    e.cv_rmse_after_m = scored.best_res.rmse();
+    e.gain = scored.best_cmp.gain;
+    e.z = scored.best_cmp.z;
     o.effects.push_back(e);
     o.accepted.push_back(chosen.term);
-    used[form_covariate[static_cast<std::size_t>(best)]] = true;  // one term per covariate
+    used.push_back(chosen.term.covariate);
   }
   return o;
 }
@@ -586,6 +621,7 @@ CvData cv_data_from_engine(const CalibrationDataset& data, const detail::FitEngi
     d.x.push_back(engine.x(i));
     d.declared.push_back(engine.declared_m(i));
     d.amplitude.push_back(r.a + r.b);
+    d.sens.push_back(engine.charge_sensitivity(i));
     d.fold.push_back(split.fold[static_cast<std::size_t>(split.group[kept[i]])]);
   }
   dense_cv_groups(d, split);
@@ -632,6 +668,98 @@ std::vector<CalibrationTerm> confirm_on_holdout(DiscoveryResult& res, const Cali
   return kept_terms;
 }
 
+// The low-pass filtered temperatures, when the temperature moves and the
+// session lasts long enough to tell them from the reading itself.
+CalibrationDataset with_time_covariates(const CalibrationDataset& data, const DiscoveryParams& p,
+                                        std::vector<std::string>& notes) {
+  if (p.temperature_lags_s.empty() || data.empty()) return data;
+  double tmin = 1e300, tmax = -1e300, smin = 1e300, smax = -1e300;
+  for (const auto& r : data.readouts) {
+    tmin = std::min(tmin, r.temperature_c);
+    tmax = std::max(tmax, r.temperature_c);
+    smin = std::min(smin, r.t_s);
+    smax = std::max(smax, r.t_s);
+  }
+  std::vector<double> taus;
+  for (double tau : p.temperature_lags_s) {
+    if (tau > 0.0 && 2.0 * tau <= smax - smin) taus.push_back(tau);
+  }
+  if (tmax - tmin < p.declared.min_temperature_span_c || taus.empty()) return data;
+  notes.push_back(fmt::format("lagged temperatures tried: {} time constants from {:.0f} s", taus.size(), taus.front()));
+  return with_lagged_temperature(data, taus);
+}
+
+std::vector<double> session_values(const CalibrationDataset& data, const std::vector<std::size_t>& rows) {
+  const int col = data.extra_index("session");
+  std::vector<double> v;
+  if (col < 0) return v;
+  for (std::size_t i : rows) v.push_back(data.readouts[i].extra[static_cast<std::size_t>(col)]);
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+  return v;
+}
+
+// Whether term k of `terms` holds on another session: fitted on the first
+// session's rows with and without it, judged on the other sessions' rows.
+bool holds_on_other_session(const CalibrationDataset& data, const DiscoveryParams& p,
+                            const std::vector<CalibrationTerm>& terms, std::size_t k, const std::vector<std::size_t>& rows,
+                            std::string& why) {
+  const auto sessions = session_values(data, rows);
+  if (sessions.size() < 2) {
+    why = "one session only: record another warm-up (a `session` column) to confirm it";
+    return false;
+  }
+  const int col = data.extra_index("session");
+  std::vector<std::size_t> first, others;
+  for (std::size_t i : rows) (data.readouts[i].extra[static_cast<std::size_t>(col)] == sessions.front() ? first : others).push_back(i);
+  std::vector<CalibrationTerm> without = terms;
+  without.erase(without.begin() + static_cast<std::ptrdiff_t>(k));
+  const auto a = fit_calibration_model(data, first, p.declared, without);
+  const auto b = fit_calibration_model(data, first, p.declared, terms);
+  const double before = a.ok ? evaluate_model(a.model, data, others, p.declared.selection).rmse_m : kNaN;
+  const double after = b.ok ? evaluate_model(b.model, data, others, p.declared.selection).rmse_m : kNaN;
+  why = fmt::format("fitted on session {}, the other sessions read {:.3f} -> {:.3f} cm", sessions.front(), 100.0 * before,
+                    100.0 * after);
+  return std::isfinite(before) && confirmed(before, after, p);
+}
+
+// A term on time since power-on is written only when it holds on another session.
+void gate_on_sessions(DiscoveryResult& res, const CalibrationDataset& data, const DiscoveryParams& p,
+                      std::vector<CalibrationTerm>& kept) {
+  std::vector<std::size_t> rows = res.train_rows;
+  rows.insert(rows.end(), res.holdout_rows.begin(), res.holdout_rows.end());
+  for (std::size_t k = kept.size(); k-- > 0;) {
+    if (covariate_from_name(kept[k].covariate) != Covariate::kTime) continue;
+    std::string why;
+    if (holds_on_other_session(data, p, kept, k, rows, why)) {
+      res.notes.push_back(fmt::format("{} of t_s holds on another session ({})", to_string(kept[k].form), why));
+      continue;
+    }
+    res.notes.push_back(fmt::format("{} of t_s (time since power-on) is reported, not written: {}", to_string(kept[k].form), why));
+    res.unconfirmed_session.push_back(kept[k]);
+    for (auto& e : res.effects) {
+      if (e.covariate == kept[k].covariate && e.form == kept[k].form) e.written = false;
+    }
+    kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(k));
+  }
+}
+
+// Each effect's fitted term in physical units (from the model written, or for
+// one not written, the training fit that holds it).
+void read_effects(DiscoveryResult& res) {
+  for (auto& e : res.effects) {
+    for (const auto* m : {&res.model, &res.train_after}) {
+      const auto& terms = m->impl().terms;
+      const auto it = std::find_if(terms.begin(), terms.end(),
+                                   [&](const auto& t) { return t.covariate == e.covariate && t.form == e.form; });
+      if (it != terms.end()) {
+        e.reading = term_reading(*it);
+        break;
+      }
+    }
+  }
+}
+
 void record_loop(DiscoveryResult& res, LoopOutcome& loop) {
   res.rounds = std::move(loop.rounds);
   res.candidates = loop.candidates;
@@ -642,8 +770,9 @@ void record_loop(DiscoveryResult& res, LoopOutcome& loop) {
 
 // ------------------------------------------------------------------ discover_effects
 
-DiscoveryResult discover_effects(const CalibrationDataset& data, const DiscoveryParams& p) {
+DiscoveryResult discover_effects(const CalibrationDataset& input, const DiscoveryParams& p) {
   DiscoveryResult res;
+  const CalibrationDataset data = with_time_covariates(input, p, res.notes);
   if (data.empty()) {
     res.reason = fmt::format("{}: no rows", data.source);
     return res;
@@ -686,7 +815,8 @@ DiscoveryResult discover_effects(const CalibrationDataset& data, const Discovery
     return res;
   }
   record_loop(res, loop);
-  const std::vector<CalibrationTerm> kept_terms = confirm_on_holdout(res, data, p, loop);
+  std::vector<CalibrationTerm> kept_terms = confirm_on_holdout(res, data, p, loop);
+  gate_on_sessions(res, data, p, kept_terms);
   res.heldout_eval_rows = select_readouts(data, res.holdout_rows, p.declared.validity, p.declared.selection);
   res.heldout_residual_before_m = model_residuals(res.train_before, data, res.heldout_eval_rows);
   res.heldout_residual_after_m = model_residuals(res.train_after, data, res.heldout_eval_rows);
@@ -701,6 +831,7 @@ DiscoveryResult discover_effects(const CalibrationDataset& data, const Discovery
   info.heldout_rmse_before_m = res.rmse_before_m;
   info.heldout_rmse_after_m = res.rmse_after_m;
   for (const auto& n : final_fit.notes) res.notes.push_back(n);
+  read_effects(res);
   res.ok = true;
   return res;
 }

@@ -40,7 +40,8 @@ double term_covariate(const CalibrationDataset& data, std::size_t row, const Cal
   if (term.kind == Covariate::kExtra) {
     return dataset_extra >= 0 ? r.extra[static_cast<std::size_t>(dataset_extra)] : kNaN;
   }
-  return CalibrationModel::Impl::covariate_value(term.kind, -1, r, x, declared_m, reference);
+  return CalibrationModel::Impl::covariate_value(term.kind, covariate_parameter(term.covariate), r, x, declared_m,
+                                                 reference);
 }
 
 AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
@@ -100,9 +101,19 @@ AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const
   return ref;
 }
 
+bool first_value_fixed(const CalibrationTerm& t) {
+  const Covariate k = covariate_from_name(t.covariate);
+  return acts_on_charges(t.form) && (k == Covariate::kPixelParity || k == Covariate::kPixelBank || k == Covariate::kPixelIs);
+}
+
 FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
                      const DeclaredFitParams& params, const std::vector<CalibrationTerm>& terms)
-    : data_(data), p_(params), terms_(terms) {
+    : data_(data), p_(params) {
+  for (const auto& t : terms) {
+    auto& to = acts_on_charges(t.form) ? charge_ : terms_;
+    order_.emplace_back(acts_on_charges(t.form), to.size());
+    to.push_back(t);
+  }
   if (p_.degree < 1 || p_.degree > 12) {
     problem_ = fmt::format("polynomial degree {} is outside 1-12", p_.degree);
     return;
@@ -212,6 +223,17 @@ void FitEngine::decide_temperature() {
 }
 
 bool FitEngine::resolve_terms() {
+  for (auto& t : charge_) {
+    // Indices into the data set's rows (Readout::extra in column order), not the model's.
+    t.kind = covariate_from_name(t.covariate);
+    t.extra_index = t.kind == Covariate::kExtra ? data_.extra_index(t.covariate) : covariate_parameter(t.covariate);
+    if (t.kind == Covariate::kExtra && t.extra_index < 0) {
+      problem_ = fmt::format("term covariate '{}' is neither a built-in covariate nor a column of {}", t.covariate,
+                             data_.source);
+      return false;
+    }
+    if (t.values.size() != t.knots.size()) t.values.assign(t.knots.size(), 0.0);
+  }
   term_extra_.assign(terms_.size(), -1);
   for (std::size_t k = 0; k < terms_.size(); ++k) {
     auto& t = terms_[k];
@@ -260,16 +282,53 @@ void FitEngine::set_weights(const std::vector<double>& k_per_group) {
   for (double& w : w_) w *= norm;
 }
 
+void FitEngine::corrected(std::size_t i, double& a, double& b) const {
+  const Readout& r = data_.readouts[rows_[i]];
+  a = r.a;
+  b = r.b;
+  if (!charge_.empty()) (void)CalibrationModel::Impl::correct_charges(charge_, r, a, b);
+}
+
 void FitEngine::compute_x() {
   x_.resize(rows_.size());
   for (std::size_t i = 0; i < rows_.size(); ++i) {
     const Readout& r = data_.readouts[rows_[i]];
     const double rsen = rsen_pixel_.empty() ? rsen_ : rsen_pixel_[static_cast<std::size_t>(r.pixel)];
-    const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
-    const double num = r.b - vle;
-    const double den = (r.a * rsen - vle) + num;  // Eq. 3.16
-    x_[i] = den > 0.0 ? num / den : kNaN;
+    double a = 0.0, b = 0.0;
+    corrected(i, a, b);
+    x_[i] = CalibrationModel::Impl::charge_ratio(a, b, r.pulses, rsen, leak_offset_, leak_per_pulse_);  // Eq. 3.16
   }
+}
+
+double FitEngine::polynomial_slope(std::size_t i) const {
+  const double u = (x_[i] - center_) / scale_;
+  double dp = 0.0, pw = 1.0;
+  for (int k = 1; k <= p_.degree; ++k) {
+    dp += k * coef_[k] * pw;
+    pw *= u;
+  }
+  return dp / scale_;
+}
+
+ChargeSensitivity FitEngine::charge_sensitivity(std::size_t i) const {
+  const Readout& r = data_.readouts[rows_[i]];
+  ChargeSensitivity s;
+  s.a = r.a;
+  s.b = r.b;
+  s.pulses = r.pulses;
+  if (!std::isfinite(x_[i])) return s;
+  const double rsen = rsen_pixel_.empty() ? rsen_ : rsen_pixel_[static_cast<std::size_t>(r.pixel)];
+  double a = 0.0, b = 0.0;
+  corrected(i, a, b);
+  const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
+  const double ap = a * rsen - vle, bp = b - vle, sum = ap + bp;
+  // X = B' / (A' + B'), A' = a Rsen - Vle, B' = b - Vle (Eq. 3.16); pred = P(X).
+  const double k = polynomial_slope(i) / (sum * sum);
+  s.add_a = k * rsen * bp;  // a - delta
+  s.add_b = -k * ap;        // b - delta
+  s.gain_a = k * bp * a * rsen;  // a / (1 + gamma)
+  s.gain_b = -k * ap * b;
+  return s;
 }
 
 double FitEngine::declared_m(std::size_t i) const {
@@ -379,6 +438,16 @@ void FitEngine::optimise_global() {
   std::vector<Param> ps;
   if (fit_leak_offset_) ps.push_back({&leak_offset_, 1.0, -50.0, 50.0});
   if (p_.fit_leakage) ps.push_back({&leak_per_pulse_, 0.01, -1.0, 1.0});
+  for (auto& t : charge_) {
+    // Typical size and range of each form's values: charge_unit, charge_unit per pulse, relative gain.
+    const bool per_pulse = t.form == TermForm::kChargeAPerPulse || t.form == TermForm::kChargeBPerPulse ||
+                           t.form == TermForm::kChargeBothPerPulse;
+    const bool gain = t.form == TermForm::kGainA || t.form == TermForm::kGainB;
+    const double typical = per_pulse ? 0.01 : gain ? 0.01 : 1.0, bound = per_pulse ? 1.0 : gain ? 0.5 : 100.0;
+    for (std::size_t j = first_value_fixed(t) ? 1 : 0; j < t.values.size(); ++j) {
+      ps.push_back({&t.values[j], typical, -bound, bound});
+    }
+  }
   if (ps.empty()) {
     residual_cost(nullptr);
     return;
@@ -466,17 +535,13 @@ std::vector<bool> FitEngine::rsen_eligible_pixels(std::size_t& n_eligible) const
 // d pred / d Rsen of kept row i = P'(X) dX/dRsen, dX/dRsen = -(b - Vle) a / den^2 (terms' share ignored).
 double FitEngine::rsen_jacobian(std::size_t i, double rsen) const {
   const Readout& r = data_.readouts[rows_[i]];
+  double a = 0.0, b = 0.0;
+  corrected(i, a, b);
   const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
-  const double num = r.b - vle;
-  const double den = (r.a * rsen - vle) + num;
-  const double dx = -num * r.a / (den * den);
-  const double u = (x_[i] - center_) / scale_;
-  double dp = 0.0, pw = 1.0;
-  for (int k = 1; k <= p_.degree; ++k) {
-    dp += k * coef_[k] * pw;
-    pw *= u;
-  }
-  return dp / scale_ * dx;
+  const double num = b - vle;
+  const double den = (a * rsen - vle) + num;
+  const double dx = -num * a / (den * den);
+  return polynomial_slope(i) * dx;
 }
 
 // One Gauss-Newton step of every eligible pixel's Rsen (each pixel alone), then the linear solve.
@@ -555,7 +620,7 @@ void FitEngine::fit() {
       compute_covariates();
       optimise_global();
       if (per_pixel) refine_per_pixel();
-      if (!per_pixel && !p_.fit_leakage && terms_.empty() && pass > 0) break;  // nothing left to iterate
+      if (!per_pixel && !p_.fit_leakage && terms_.empty() && charge_.empty() && pass > 0) break;  // nothing left to iterate
     }
   };
   run_passes(std::max(p_.passes, 1));
@@ -593,9 +658,14 @@ CalibrationModel FitEngine::model() const {
   m.temperature_reference_c = p_.temperature_reference_c;
   m.temperature_coef_m_per_c = use_temp_ ? coef_[p_.degree + 1] : 0.0;
   m.amplitude_reference = reference_;
-  m.terms = terms_;
-  for (std::size_t k = 0; k < terms_.size(); ++k) {
-    m.terms[k].set_coefficients(coef_.data() + term_col_[k]);
+  m.terms.clear();
+  for (const auto& [charge, k] : order_) {
+    if (charge) {
+      m.terms.push_back(charge_[k]);
+    } else {
+      m.terms.push_back(terms_[k]);
+      m.terms.back().set_coefficients(coef_.data() + term_col_[k]);
+    }
   }
   m.info.data = data_.source;
   m.info.rows = rows_.size();
@@ -628,10 +698,14 @@ std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const s
   }
   if (selection == ReadoutSelection::kDriver) {
     // Per pixel and frame keep the valid read-out with the most pulses (the driver's choice).
+    const int session = data.extra_index("session");
+    auto frame = [&](const Readout& r) {
+      return std::pair<double, double>(session >= 0 ? r.extra[static_cast<std::size_t>(session)] : 0.0, r.t_s);
+    };
     std::sort(valid.begin(), valid.end(), [&](std::size_t i, std::size_t j) {
       const Readout& a = data.readouts[i];
       const Readout& b = data.readouts[j];
-      if (a.t_s != b.t_s) return a.t_s < b.t_s;
+      if (frame(a) != frame(b)) return frame(a) < frame(b);
       if (a.pixel != b.pixel) return a.pixel < b.pixel;
       return a.pulses > b.pulses;
     });
@@ -641,7 +715,7 @@ std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const s
       if (k > 0) {
         const Readout& prev = data.readouts[valid[k - 1]];
         const Readout& r = data.readouts[valid[k]];
-        if (prev.t_s == r.t_s && prev.pixel == r.pixel) {
+        if (frame(prev) == frame(r) && prev.pixel == r.pixel) {
           ++dropped;
           continue;
         }

@@ -254,6 +254,7 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
     out.reason = fmt::format("pairing gap {} s is not a non-negative number", params.max_pair_gap_s);
     return out;
   }
+  if (!params.positions_csv.empty()) return collect_rail_positions(bag_path, params);
   bag::Reader reader;
   if (!open_bag(reader, bag_path, out.reason)) return out;
   std::string why;
@@ -264,7 +265,8 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
   }
   out.truth_topic = pick_topic(reader, ScanTruth::kTypeName, params.truth_topic, bag_path, why);
   if (out.truth_topic.empty()) {
-    out.reason = why + " (record the simulator's scan_truth beside the raw scans)";
+    out.reason = why + " (record the simulator's scan_truth beside the raw scans, or give a real sensor's rail "
+                       "positions with --positions)";
     return out;
   }
   BagContent content;
