@@ -35,7 +35,7 @@ function(tinyline_core_library name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
   foreach(dep IN LISTS ARG_DEPS ARG_PRIVATE_DEPS)
     if(dep IN_LIST _TL_FORBIDDEN_IN_CORE)
-      message(FATAL_ERROR "core library '${name}' may not depend on '${dep}': cores never see the bus or messages (DESIGN.md)")
+      message(FATAL_ERROR "core library '${name}' may not depend on '${dep}': cores never see the bus or messages (docs/developing.md)")
     endif()
   endforeach()
   set(target tinyline_${name})
@@ -78,8 +78,13 @@ function(tinyline_test name)
   if(NOT TINYLINE_BUILD_TESTS)
     return()
   endif()
-  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(ARG "" "TIMEOUT;LAUNCHER" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
+  if(ARG_LAUNCHER)
+    # Runs the binary through a script (listing and every test), e.g. in a
+    # network namespace of its own.
+    set_target_properties(${name} PROPERTIES CROSSCOMPILING_EMULATOR ${ARG_LAUNCHER})
+  endif()
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE
     TINYLINE_SOURCE_DIR="${PROJECT_SOURCE_DIR}"

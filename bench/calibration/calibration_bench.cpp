@@ -50,7 +50,7 @@ struct Fixture {
     while (frame.size() < 256) frame.push_back(frame[frame.size() % 64]);
     for (std::size_t i = 0; i < frame.size(); ++i) frame[i].pixel = static_cast<int>(8 + i);
     public_poly = {2.147918234375362e+06,  -7.736068312640203e+06, 1.154494186428487e+07, -9.137795412258314e+06,
-                   4.045684724836031e+06,  -9.494901699902674e+05, 9.219599710241470e+04};  // measured.yaml sensor K
+                   4.045684724836031e+06,  -9.494901699902674e+05, 9.219599710241470e+04};  // the public driver's sensor K
   }
 };
 

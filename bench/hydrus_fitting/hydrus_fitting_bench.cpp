@@ -160,7 +160,7 @@ std::vector<hf::FusedCloud> clouds(const Scene& s) {
 
 }  // namespace
 
-// ---- the figure of the issue: fusion + fit per update, 4 sensors, one core.
+// ---- the headline figure: fusion + fit per update, 4 sensors, one core.
 static void BM_Update_Estimator_OpenChain(benchmark::State& s) { run_estimator(s, open_chain()); }
 BENCHMARK(BM_Update_Estimator_OpenChain)->Unit(benchmark::kMicrosecond);
 static void BM_Update_Estimator_OpenChain_BaseMotion(benchmark::State& s) { run_estimator_moving_base(s, true); }

@@ -1,6 +1,6 @@
 // The evaluation of docs/laser_clustering.md as a test: 200 seeded trials per
 // case on the simulated sensor (the same seeds and scanners as
-// laser_clustering_eval), failing when a goal of the issue is missed or a
+// laser_clustering_eval), failing when a goal of docs/laser_clustering.md is missed or a
 // documented figure regresses. Seconds, not minutes: the sensor model is fast.
 #include <vector>
 
@@ -42,16 +42,16 @@ ev::Scanner& tools() {
 
 TEST(EvalGoals, RecognitionErrorCaseAlignsAtLeast85Percent) {
   const auto r = ev::run_truss_case(ev::TrussCase::kRecognitionError, gripper(), kTrials, kSeed);
-  EXPECT_GE(r.aligned.p, 0.85) << "issue goal";
+  EXPECT_GE(r.aligned.p, 0.85) << "goal";
   EXPECT_GE(r.aligned.k, 195) << "documented: 200/200";
 }
 
 TEST(EvalGoals, RandomOffsetCaseAlignsAtLeast97PercentAndGoesWrongAtMostOnePercent) {
   // With the tomato look (register the vision's tomatoes on a scan through
-  // them, then decide): the issue's goal.
+  // them, then decide): the goal.
   const auto r = ev::run_truss_case(ev::TrussCase::kRandomOffset, gripper(), kTrials, kSeed);
-  EXPECT_GE(r.aligned.p, 0.97) << "issue goal; documented: 200/200";
-  EXPECT_LE(r.wrong.p, 0.01) << "issue goal; documented: 0/200";
+  EXPECT_GE(r.aligned.p, 0.97) << "goal; documented: 200/200";
+  EXPECT_LE(r.wrong.p, 0.01) << "goal; documented: 0/200";
 }
 
 TEST(EvalGoals, TheTomatoLookBeatsThePedicelPlaneAlone) {
@@ -120,13 +120,13 @@ TEST(EvalGoals, BrushedStickSeparatesByReflectanceNotByDistanceAlone) {
   o.scene.stick_material = "metal_pan";
   o.scene.front_gap_m = 0.004;
   const auto r = ev::run_stick_case(tools(), kTrials, kSeed, o);
-  EXPECT_GE(r.reflectance_correct.p, 0.95) << "issue goal";
+  EXPECT_GE(r.reflectance_correct.p, 0.95) << "goal";
   EXPECT_LE(r.distance_only_correct.p, 0.80) << "distance alone should fail often";
 }
 
 TEST(EvalGoals, WrenchMedianPitchErrorUnderOneDegree) {
   const auto r = ev::run_wrench_case(tools(), kTrials, kSeed);
-  EXPECT_LE(r.median_error_deg, 1.0) << "issue goal";
+  EXPECT_LE(r.median_error_deg, 1.0) << "goal";
   // The polished wrench's peak saturates at 20-30 cm even at 10 pulses;
   // counting saturated pixels as lower bounds keeps the median within the
   // goal (docs: 0.27 deg; 1.74 deg without the bounds).

@@ -9,11 +9,15 @@ and one `src/type_registry.cpp` listing every type by its full name.
 Standard library only: this runs at build time on a bare Debian python3.
 The schema text of a type is its .msg text followed by every dependency,
 each after a line of 80 '=' and 'MSG: pkg/Type', the way rosbag2 writes
-`ros2msg` schemas into MCAP.
+`ros2msg` schemas into MCAP. The type hash is REP 2011's RIHS01: SHA-256 of
+the type description (the type and every type it references, fields without
+default values) written as compact JSON, as rosidl writes it for Jazzy.
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import os
 import re
 import sys
@@ -208,6 +212,67 @@ def _strip_comment(raw: str) -> str:
         else:
             out.append(ch)
     return "".join(out).strip()
+
+
+# ----------------------------------------------------------------------------- type hash (REP 2011)
+
+# type_description_interfaces/msg/FieldType ids. A .msg `char` is an IDL
+# uint8 and `byte` an octet (rosidl_adapter), hence their ids.
+FIELD_TYPE_IDS = {
+    "int8": 2, "uint8": 3, "int16": 4, "uint16": 5, "int32": 6, "uint32": 7,
+    "int64": 8, "uint64": 9, "float32": 10, "float64": 11, "char": 3,
+    "bool": 15, "byte": 16, "string": 17,
+}
+NESTED_TYPE_ID = 1
+BOUNDED_STRING_ID = 21
+# Added to the element's id for T[N], T[<=N] and T[].
+ARRAY_OFFSET, BOUNDED_SEQUENCE_OFFSET, UNBOUNDED_SEQUENCE_OFFSET = 48, 96, 144
+
+
+def field_type_description(ft: FieldType) -> dict:
+    if ft.is_message:
+        type_id = NESTED_TYPE_ID
+    elif ft.is_string and ft.string_bound:
+        type_id = BOUNDED_STRING_ID
+    else:
+        type_id = FIELD_TYPE_IDS[ft.base]
+    if ft.is_fixed:
+        type_id += ARRAY_OFFSET
+    elif ft.is_sequence:
+        type_id += BOUNDED_SEQUENCE_OFFSET if ft.seq_bound else UNBOUNDED_SEQUENCE_OFFSET
+    return {
+        "type_id": type_id,
+        "capacity": ft.array_size or ft.seq_bound,
+        "string_capacity": ft.string_bound,
+        "nested_type_name": full_type_name(ft.base) if ft.is_message else "",
+    }
+
+
+def full_type_name(pkg_type: str) -> str:
+    pkg, name = pkg_type.split("/")
+    return f"{pkg}/msg/{name}"
+
+
+def individual_type_description(msg: Message) -> dict:
+    # rosidl gives a message without fields one uint8 member of this name.
+    fields = [{"name": f.name, "type": field_type_description(f.type)} for f in msg.fields] or [
+        {"name": "structure_needs_at_least_one_member", "type": field_type_description(FieldType("uint8"))}]
+    return {"type_name": msg.full_name, "fields": fields}
+
+
+def type_description(msg: Message, all_msgs: dict[str, Message]) -> dict:
+    """The TypeDescription REP 2011 hashes: the type and every type it
+    references (sorted by name), without default values."""
+    refs = sorted(deps_of(msg, all_msgs), key=full_type_name)
+    return {
+        "type_description": individual_type_description(msg),
+        "referenced_type_descriptions": [individual_type_description(all_msgs[r]) for r in refs],
+    }
+
+
+def type_hash(msg: Message, all_msgs: dict[str, Message]) -> str:
+    text = json.dumps(type_description(msg, all_msgs), ensure_ascii=True, separators=(", ", ": "))
+    return "RIHS01_" + hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 # ----------------------------------------------------------------------------- C++ emission
@@ -523,7 +588,8 @@ template <>
 const TypeSupport& type_support<{cpp_t}>() {{
   static const TypeSupport ts = make_type_support<{cpp_t}>(
       "{msg.full_name}",
-      {cpp_string_literal(schema_text(msg, all_msgs))});
+      {cpp_string_literal(schema_text(msg, all_msgs))},
+      "{type_hash(msg, all_msgs)}");
   return ts;
 }}
 

@@ -27,16 +27,7 @@
 
 #include <sim/rail.hpp>
 #include <sim/sensor_params.hpp>
-
-namespace {
-
-int usage() {
-  std::cerr << "usage: sim_rail_csv --sensor SENSOR.yaml -o OUT.csv [--from M] [--to M] [--step M] [--visits N]\n"
-               "                    [--sets N] [--pixel-step N] [--material NAME] [--seed N]\n";
-  return 2;
-}
-
-}  // namespace
+#include <tinyline/common/cli.hpp>
 
 int main(int argc, char** argv) {
   std::string sensor, out, material = "white_paper";
@@ -44,33 +35,28 @@ int main(int argc, char** argv) {
   int visits = 2, sets = 3, pixel_step = 1;
   unsigned seed = 7;
   bool constants = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-      return argv[++i];
-    };
-    try {
-      if (a == "--sensor") sensor = next();
-      else if (a == "-o") out = next();
-      else if (a == "--from") from = std::stod(next());
-      else if (a == "--to") to = std::stod(next());
-      else if (a == "--step") step = std::stod(next());
-      else if (a == "--visits") visits = std::stoi(next());
-      else if (a == "--sets") sets = std::stoi(next());
-      else if (a == "--pixel-step") pixel_step = std::stoi(next());
-      else if (a == "--material") material = next();
-      else if (a == "--seed") seed = static_cast<unsigned>(std::stoul(next()));
-      else if (a == "--constants") constants = true;
-      else return usage();
-    } catch (const std::exception& e) {
-      std::cerr << "sim_rail_csv: " << e.what() << "\n";
-      return usage();
-    }
+  CLI::App app{"Calibration data from the simulated sensor on the simulated calibration rail, as the CSV "
+               "`tinyline calib fit` reads; or (--constants) the leakage per pulse and Rsen measured as the thesis did.",
+               "sim_rail_csv"};
+  app.add_option("--sensor", sensor, "sensor YAML")->required();
+  app.add_option("-o", out, "CSV file to write (required unless --constants)");
+  app.add_option("--from", from, "nearest target distance [m]")->check(tinyline::common::kPositive)->capture_default_str();
+  app.add_option("--to", to, "farthest target distance [m]")->check(tinyline::common::kPositive)->capture_default_str();
+  app.add_option("--step", step, "distance step [m]")->check(tinyline::common::kPositive)->capture_default_str();
+  app.add_option("--visits", visits, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--sets", sets, "sets per visit")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")->check(CLI::Range(1, 256))->capture_default_str();
+  app.add_option("--material", material, "target material")->capture_default_str();
+  app.add_option("--seed", seed, "seed of the visiting order")->check(tinyline::common::kNonNegative)->capture_default_str();
+  app.add_flag("--constants", constants, "measure the leakage per pulse and Rsen instead (laser off)");
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  if (out.empty() && !constants) {
+    std::cerr << "sim_rail_csv: -o OUT.csv is required (or --constants)\nRun with --help for more information.\n";
+    return 2;
   }
-  if (sensor.empty() || (out.empty() && !constants) || !(step > 0) || !(from > 0) || !(to >= from) || visits < 1 || sets < 1 ||
-      pixel_step < 1) {
-    return usage();
+  if (!(to >= from)) {
+    std::cerr << "sim_rail_csv: --to (" << to << ") must not be below --from (" << from << ")\n";
+    return 2;
   }
   try {
     namespace sim = tinyline::sim;

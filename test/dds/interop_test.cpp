@@ -16,7 +16,7 @@
 #include <tinyline/dds/bridge.hpp>
 #include <tinyline/msg/sensor_msgs/laser_scan.hpp>
 
-#include "../../bus/dds/test/waiting.hpp"
+#include "bridged_graph.hpp"
 #include "child_process.hpp"
 
 using namespace tinyline;
@@ -57,39 +57,9 @@ LaserScan scan(int i) {
   return s;
 }
 
-struct Graph {
-  std::shared_ptr<tlt::Signal> signal = std::make_shared<tlt::Signal>();
-  std::shared_ptr<tlt::SignallingSink> sink = std::make_shared<tlt::SignallingSink>(signal);
-  std::shared_ptr<bus::Context> ctx;
-  std::shared_ptr<dds::Bridge> bridge;
-  std::shared_ptr<bus::Node> node;
-  std::unique_ptr<bus::MultiThreadedExecutor> ex;
-  std::thread spinner;
-
-  explicit Graph(const dds::Settings& s) {
-    bus::ContextOptions co;
-    co.log_sink = sink;
-    ctx = bus::Context::create(co);
-    dds::BridgeOptions bo;
-    bo.settings = s;
-    bo.selection.all = true;
-    bridge = dds::Bridge::create(ctx, bo);
-    bus::NodeOptions no;
-    no.name = "laser";
-    no.context = ctx;
-    node = std::make_shared<bus::Node>(no);
-  }
-  void run() {
-    bridge->start();
-    ex = std::make_unique<bus::MultiThreadedExecutor>(ctx->clock(), 2);
-    ex->add_node(bridge);
-    ex->add_node(node);
-    spinner = std::thread([this] { ex->spin(); });
-  }
-  ~Graph() {
-    if (ex) ex->stop();
-    if (spinner.joinable()) spinner.join();
-  }
+/// A graph in this process: its bridge, one node "laser".
+struct Graph : tlt::BridgedGraph {
+  explicit Graph(const dds::Settings& s) : BridgedGraph(s, "laser") {}
 };
 
 /// This test's own domain and tag, in this process and in the Python one.

@@ -210,12 +210,16 @@ TEST(TopicTools, ListEchoAndHzSeeARunningMultiProcessGraph) {
   interrupt_and_expect_clean_exit(graph);
 }
 
-TEST(MultiHost, TwoNetworkNamespacesJoinedByAVethPairRunOneGraph) {
-  const std::string work = fmt::format("{}/tl_two_hosts_{}", ::testing::TempDir(), getpid());
+namespace {
+
+/// Runs the two-hosts launch file in two network namespaces, each host's DDS
+/// set up as `mode` says (two_hosts.sh), and checks the graph spans them.
+void run_two_hosts(const std::string& mode) {
+  const std::string work = fmt::format("{}/tl_two_hosts_{}_{}", ::testing::TempDir(), mode, getpid());
   std::filesystem::remove_all(work);
   std::filesystem::create_directories(work);
   ChildProcess p({"/bin/bash", std::string(TINYLINE_SOURCE_DIR) + "/test/dds/two_hosts.sh", TINYLINE_EXE,
-                  kLaunchDir + "two_hosts.launch.yaml", work});
+                  kLaunchDir + "two_hosts.launch.yaml", work, mode});
   const auto first = p.wait_for_line(std::regex("^(SKIP: .*|veth up: .*)$"), 30s);
   if (first && first->rfind("SKIP: ", 0) == 0) GTEST_SKIP() << *first;
   ASSERT_TRUE(first) << p.output();
@@ -225,6 +229,16 @@ TEST(MultiHost, TwoNetworkNamespacesJoinedByAVethPairRunOneGraph) {
   EXPECT_EQ(echoed(p.lines(), R"(\[host_b\] )"), pulses(20)) << p.output();
   EXPECT_TRUE(p.find("[host_b] [INFO]") && p.find("remote publisher in process 'host_a'")) << p.output();
   std::filesystem::remove_all(work);
+}
+
+}  // namespace
+
+TEST(MultiHost, TwoNetworkNamespacesJoinedByAVethPairRunOneGraph) { run_two_hosts("uri"); }
+
+TEST(MultiHost, Ros2StaticPeersNamingTheOtherHostJoinTwoNamespaces) {
+  // ROS_STATIC_PEERS alone, as a ROS 2 user sets it: this machine plus the
+  // other one, by unicast.
+  run_two_hosts("static_peers");
 }
 
 TEST(TopicTools, ASingleNodeStartedWithRunDdsJoinsALaunchedGraph) {

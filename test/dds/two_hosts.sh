@@ -1,14 +1,17 @@
 #!/bin/bash
 # Two "hosts": network namespaces joined by a veth pair (10.77.0.1 <-> 10.77.0.2),
-# each running one process group of a launch file, configured the way
-# docs/dds.md says for a real network (named interface, unicast peers, no
-# multicast). Exits 77 (skip) where the machine refuses namespaces.
+# each running one process group of a launch file, configured one of the two
+# ways docs/dds.md gives for a real network: a Cyclone configuration (named
+# interface, unicast peers, no multicast; MODE uri, the default) or ROS 2's
+# ROS_STATIC_PEERS naming the other host (MODE static_peers). Exits 77 (skip)
+# where the machine refuses namespaces.
 #
-#   two_hosts.sh TINYLINE LAUNCH_FILE WORKDIR
+#   two_hosts.sh TINYLINE LAUNCH_FILE WORKDIR [MODE]
 set -u
 TL=$1
 LAUNCH=$2
 WORK=$3
+MODE=${4:-uri}
 
 if [ "${TWO_HOSTS_INNER:-}" != 1 ]; then
   if ! unshare --user --map-root-user --net true 2>/dev/null; then
@@ -24,8 +27,12 @@ if [ "${TWO_HOSTS_INNER:-}" != 1 ]; then
 fi
 
 set -e
-config() {  # interface, peer address
-  echo "<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface name=\"$1\"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><Peers><Peer address=\"$2\"/></Peers></Discovery></Domain></CycloneDDS>"
+dds_env() {  # interface, peer address: the one variable of one host's environment
+  if [ "$MODE" = static_peers ]; then
+    echo "ROS_STATIC_PEERS=$2"
+  else
+    echo "CYCLONEDDS_URI=<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface name=\"$1\"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex><Peers><Peer address=\"$2\"/></Peers></Discovery></Domain></CycloneDDS>"
+  fi
 }
 mkfifo "$WORK/pid" "$WORK/go"
 ip link set lo up
@@ -36,7 +43,7 @@ unshare --net bash -c "
   echo \$\$ > '$WORK/pid'
   read _ < '$WORK/go'
   ip link set lo up
-  exec env CYCLONEDDS_URI='$(config vb 10.77.0.1)' '$TL' launch '$LAUNCH' --process host_b --no-table 2>&1 | sed -u 's/^/[host_b] /'
+  exec env '$(dds_env vb 10.77.0.1)' '$TL' launch '$LAUNCH' --process host_b --no-table 2>&1 | sed -u 's/^/[host_b] /'
 " &
 read -r BPID < "$WORK/pid"
 
@@ -48,5 +55,5 @@ nsenter -t "$BPID" -n ip link set vb up
 echo "veth up: host_a 10.77.0.1 (va) <-> host_b 10.77.0.2 (vb)"
 echo go > "$WORK/go"
 
-CYCLONEDDS_URI="$(config va 10.77.0.2)" "$TL" launch "$LAUNCH" --process host_a --no-table 2>&1 | sed -u 's/^/[host_a] /' &
+env "$(dds_env va 10.77.0.2)" "$TL" launch "$LAUNCH" --process host_a --no-table 2>&1 | sed -u 's/^/[host_a] /' &
 wait

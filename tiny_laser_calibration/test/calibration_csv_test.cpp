@@ -1,4 +1,4 @@
-// The calibration CSV reader: the format and its bad-input errors.
+// The calibration CSV reader: the format of data.hpp and its bad-input errors.
 #include <filesystem>
 #include <fstream>
 #include <random>

@@ -1,6 +1,6 @@
 // `tinyline calib collect` end to end: a calibration session on the simulated
 // rail is recorded as a bag by the simulator's virtual sensor node and the bag
-// recorder (sim time, no sleeps), collected into the CSV, read back,
+// recorder (sim time, no sleeps), collected into the calibration CSV, read back,
 // fitted with `calib fit` and evaluated with `calib eval` on a second session.
 #include <cmath>
 #include <filesystem>

@@ -1,4 +1,4 @@
-// The residual loop (issue 6) on data from the simulator (sim/), with its
+// The residual loop on data from the simulator (sim/), with its
 // pluggable effects (sim/effects.hpp) configured per sensor instance: the
 // declared-physics sensor (sim/config/sensors/tiny_tof_declared.yaml) plus one
 // undeclared effect at a time, on the simulated calibration rail
@@ -44,7 +44,7 @@ cal::CalibrationDataset simulate(const sim::SensorParams& params, const RailPlan
   return tt::simulate_rail(params, plan);
 }
 
-// Table 3.2's matte surfaces and their mean reading at 30 cm [cm] (measured.yaml).
+// Table 3.2's matte surfaces and their mean reading at 30 cm [cm].
 const std::vector<std::pair<std::string, double>> kTable32MatteCm = {
     {"white_paper", 30.0705}, {"black_cushion", 30.7909}, {"cloth_bag", 30.9971}, {"styrofoam", 30.9759},
     {"white_towel", 30.3708}, {"cardboard", 31.0308},     {"ic_foam", 39.8339}};
@@ -122,7 +122,17 @@ void expect_case(const std::string& name) {
   std::printf("%s: held-out RMSE %.2f cm -> %.2f cm, noise floor %.2f cm, named %s (twin: %zu effects)\n", name.c_str(),
               100 * o.result.rmse_before_m, 100 * o.result.rmse_after_m, 100 * o.floor_m, o.names().c_str(),
               o.twin.effects.size());
+  for (const auto& e : o.twin.effects) std::printf("  twin: %s %s: %s\n", e.covariate.c_str(), tl::to_string(e.form).data(), e.reading.c_str());
   for (const auto& e : o.result.effects) std::printf("  %s %s: %s\n", e.covariate.c_str(), tl::to_string(e.form).data(), e.reading.c_str());
+  // The strongest candidates of each round and the bar they had to clear: why a case names what it names.
+  for (std::size_t k = 0; k < o.result.rounds.size(); ++k) {
+    std::printf("  round %zu (z > %.2f in round 0):", k, o.result.z_threshold);
+    for (std::size_t j = 0; j < std::min<std::size_t>(4, o.result.rounds[k].size()); ++j) {
+      const auto& sc = o.result.rounds[k][j];
+      std::printf(" %s/%s gain %.3f z %.1f;", sc.covariate.c_str(), tl::to_string(sc.form).data(), sc.gain, sc.z);
+    }
+    std::printf("\n");
+  }
   ASSERT_TRUE(o.result.ok) << o.result.reason;
   EXPECT_TRUE(o.named) << "named " << o.names();
   EXPECT_LT(o.result.rmse_after_m, 1.2 * o.floor_m);
@@ -158,7 +168,7 @@ TEST(CalibrationSimDiscovery, NullCaseNamesNothingAndKeepsTheError) {
 }
 
 TEST(CalibrationSimDiscovery, MaterialBiasOfTable32IsNamed) {
-  // Table 3.2 (measured.yaml materials_at_30cm): calibrated on white paper at 30.07 cm,
+  // Table 3.2: calibrated on white paper at 30.07 cm,
   // other surfaces read up to +9.8 cm long (IC foam). As subsurface path per material
   // (a range offset is half the extra optical path). The driver cannot know the
   // material, so the term must follow what it can measure: the surface's albedo.
@@ -249,16 +259,19 @@ TEST(CalibrationSimDiscovery, FixedPatternGateSkewIsAbsorbedByThePerPixelSensiti
 
 TEST(CalibrationSimDiscovery, AmbientLightOnBothCapacitorsIsNamedOnTheCharges) { expect_case("ambient_light"); }
 
+// Two warm-ups from different ambient temperatures: the only data that can tell a
+// lagged temperature from the time since power-on (sim_discovery_cases.cpp).
+TEST(CalibrationSimDiscovery, DelayFollowingALaggedTemperatureIsNamed) { expect_case("temperature_lag"); }
+
 // Not yet met (disabled so `make test` stays green; run with --gtest_also_run_disabled_tests).
 // At seed 7 the loop names today:
 //  - group_leakage: charge_b_per_pulse of temperature_c, then a smooth of amplitude_per_pulse (2.64 -> 1.81 cm,
-//    floor 2.68): the right capacitor and form, the wrong covariate; the pixel banks lose to it;
+//    floor 2.68): the right capacitor and form, the wrong covariate; the pixel banks lose to it; and the error
+//    before is below the floor, so at this size and pixel sampling the effect does not matter yet;
 //  - odd_pixel_gain: charge_a_per_pulse of temperature_c, and its effect-free twin names the same (one Rsen
 //    for all pixels leaves the sensor's own per-pixel structure);
 //  - readout_nonlinearity: the declared fit itself fails at 30 % compression (28 cm), nothing named;
 //  - channel_offset: nothing (3.42 cm against a 2.62 cm floor);
-//  - temperature_lag: a smooth of t_s (3.76 -> 2.48 cm, floor 2.61): in one warm-up, time since power-on and the
-//    lagged temperature are the same function of time.
 TEST(CalibrationSimDiscovery, DISABLED_ExtraLeakageOfOneCapacitorInABankOfPixelsIsNamed) { expect_case("group_leakage"); }
 
 TEST(CalibrationSimDiscovery, DISABLED_AGainOnOnePixelsCapacitorIsFoundFromTheData) { expect_case("odd_pixel_gain"); }
@@ -267,4 +280,3 @@ TEST(CalibrationSimDiscovery, DISABLED_ReadOutNonlinearityIsNamedOnTheCharges) {
 
 TEST(CalibrationSimDiscovery, DISABLED_ChannelOffsetIsNamedOnCapacitorB) { expect_case("channel_offset"); }
 
-TEST(CalibrationSimDiscovery, DISABLED_DelayFollowingALaggedTemperatureIsNamed) { expect_case("temperature_lag"); }

@@ -5,7 +5,7 @@
 // set, its pulse count chosen per distance) and multi-discharge (the five raw
 // read-outs 20-700 pulses, K_i = 1). Rsen and Vle measured apart first, as the
 // thesis did. The table printed is the one in docs/calibration.md beside the
-// thesis's figures (measured.yaml calibration_fits_cm).
+// thesis's figures (sim/config/fidelity/thesis_measured.yaml calibration_fits_cm).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

@@ -1,5 +1,5 @@
-// `tinyline calib fit|diagnose|eval` driven in-process: outputs as issue 6
-// specifies them, the model the tool writes is the model that is applied,
+// `tinyline calib fit|diagnose|eval` driven in-process: the outputs
+// docs/calibration.md describes, the model the tool writes is the model that is applied,
 // and bad input gets a clear error naming the file, line or column.
 #include <filesystem>
 #include <fstream>

@@ -58,7 +58,7 @@ inline Section35Figures section35_figures(const char* name, const CalibrationDat
   return f;
 }
 
-/// The five fits of section 3.5 beside the thesis's figures (measured.yaml
+/// The five fits of section 3.5 beside the thesis's figures (thesis_measured.yaml
 /// calibration_fits_cm; the thesis gives "sd over 5" for the linear fit), each
 /// fitted with `params(degree)`, and printed as the table in docs/calibration.md.
 struct Section35Table {

@@ -29,6 +29,9 @@ struct DiscoveryCase {
   bool rsen_fixed = false;                   ///< one Rsen for every pixel (the published firmware's model)
   bool twin_must_be_null = true;             ///< the effect-free twin names nothing
   double min_before_over_floor = 1.2;        ///< the effect matters: held-out error before / floor
+  /// Set: both twins also record a second warm-up (a `session` column; the first
+  /// session is 0), on the sensor changed by this (e.g. another day's ambient).
+  std::function<void(tinyline::sim::SensorParams&)> second_session{};
 };
 
 /// Every case (the first is the null case: nothing injected).

@@ -11,35 +11,31 @@
 
 #include "sim_rail_session.hpp"
 
+#include <tinyline/common/cli.hpp>
+
 int main(int argc, char** argv) {
   namespace tt = tinyline::tiny_laser_calibration::testing;
   tt::SimRailSession s;
   double from = 0.15, to = 2.0, step = 0.05;
   int visits = 2;
   unsigned seed = 7;
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto next = [&]() -> std::string {
-        if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-        return argv[++i];
-      };
-      if (a == "--scene") s.scene = next();
-      else if (a == "-o") s.bag_path = next();
-      else if (a == "--from") from = std::stod(next());
-      else if (a == "--to") to = std::stod(next());
-      else if (a == "--step") step = std::stod(next());
-      else if (a == "--visits") visits = std::stoi(next());
-      else if (a == "--sets") s.sets_per_distance = std::stoi(next());
-      else if (a == "--power-on-age") s.power_on_age_s = std::stod(next());
-      else if (a == "--seed") seed = static_cast<unsigned>(std::stoul(next()));
-      else throw std::invalid_argument("unknown option " + a);
-    }
-    if (s.scene.empty() || s.bag_path.empty() || !(step > 0) || !(from > 0) || !(to >= from) || visits < 1) {
-      throw std::invalid_argument("needs --scene SCENE.yaml -o OUT.mcap and a valid --from/--to/--step/--visits");
-    }
-  } catch (const std::exception& e) {
-    std::cerr << "calibration_sim_rail_bag: " << e.what() << "\n";
+  CLI::App app{"Records a calibration session on the simulated rail as a bag (virtual sensor + recorder on sim "
+               "time), the input of `tinyline calib collect` (docs/calibration.md).",
+               "calibration_sim_rail_bag"};
+  app.add_option("--scene", s.scene, "rail scene YAML")->required();
+  app.add_option("-o", s.bag_path, "bag to write (MCAP)")->required();
+  app.add_option("--from", from, "nearest target distance [m]")->check(tinyline::common::kPositive)->capture_default_str();
+  app.add_option("--to", to, "farthest target distance [m]")->check(tinyline::common::kPositive)->capture_default_str();
+  app.add_option("--step", step, "distance step [m]")->check(tinyline::common::kPositive)->capture_default_str();
+  app.add_option("--visits", visits, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--sets", s.sets_per_distance, "sets per visit")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--power-on-age", s.power_on_age_s, "sensor time at the start [s] (0: the warm-up is in the data)")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  app.add_option("--seed", seed, "seed of the visiting order")->check(tinyline::common::kNonNegative)->capture_default_str();
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  if (!(to >= from)) {
+    std::cerr << "calibration_sim_rail_bag: --to (" << to << ") must not be below --from (" << from << ")\n";
     return 2;
   }
   for (int v = 0; v < visits; ++v) {

@@ -1,13 +1,15 @@
 // calibration_synthetic_rail: writes a calibration CSV from the documented
 // two-capacitor model of the calibration tests (synthetic_sensor.hpp), with
-// chosen undeclared effects. For docs/calibration.md until the simulator's
-// rail feeds `tinyline calib collect`; not installed.
+// chosen undeclared effects, for docs/calibration.md. Not installed.
 //
 //   calibration_synthetic_rail -o rail.csv [--effect material|supply|time|nonlin|pixel]...
-//                              [--materials white|table32] [--passes N] [--pixel-step N] [--seed N]
+//                              [--supply-column] [--materials white|table32] [--passes N] [--pixel-step N]
+//                              [--seed N]
 #include <cstdio>
-#include <cstdlib>
 #include <string>
+#include <vector>
+
+#include <tinyline/common/cli.hpp>
 
 #include "synthetic_sensor.hpp"
 
@@ -18,62 +20,43 @@ namespace tt = tinyline::tiny_laser_calibration::testing;
 int main(int argc, char** argv) {
   tt::SyntheticSensor s;
   auto plan = tt::default_rail();
-  std::string out;
+  std::string out, materials = "white";
   int pixel_step = 4;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "-o") {
-      out = next();
-    } else if (a == "--effect") {
-      const std::string e = next();
-      if (e == "material") {
-        s.effects.material_bias = true;
-      } else if (e == "supply") {
-        s.effects.supply_voltage = true;
-      } else if (e == "time") {
-        s.effects.time_drift = true;
-        s.effects.time_drift_m_per_ks = 0.02;
-      } else if (e == "nonlin") {
-        s.effects.capacitor_nonlinearity = true;
-        s.effects.nonlinearity_eta = 0.15;
-      } else if (e == "pixel") {
-        s.effects.pixel_pattern = true;
-      } else {
-        std::fprintf(stderr, "unknown effect '%s'\n", e.c_str());
-        return 2;
-      }
-    } else if (a == "--supply-column") {
-      s.effects.supply_column = true;
-    } else if (a == "--materials") {
-      const std::string m = next();
-      if (m == "table32") {
-        plan.materials = tt::table_3_2_materials();
-        plan.frames_per_visit = 1;
-      } else if (m != "white") {
-        std::fprintf(stderr, "--materials: white or table32\n");
-        return 2;
-      }
-    } else if (a == "--passes") {
-      plan.passes = std::atoi(next().c_str());
-    } else if (a == "--pixel-step") {
-      pixel_step = std::atoi(next().c_str());
-    } else if (a == "--seed") {
-      plan.seed = static_cast<std::uint64_t>(std::atoll(next().c_str()));
+  std::vector<std::string> effects;
+  CLI::App app{"Writes a calibration CSV from the two-capacitor model of the calibration tests, with chosen "
+               "undeclared effects (docs/calibration.md).",
+               "calibration_synthetic_rail"};
+  app.add_option("-o", out, "CSV file to write")->required();
+  app.add_option("--effect", effects, "an undeclared effect (repeatable)")
+      ->check(CLI::IsMember({"material", "supply", "time", "nonlin", "pixel"}));
+  app.add_flag("--supply-column", s.effects.supply_column, "also write the supply voltage as a column");
+  app.add_option("--materials", materials, "target materials")
+      ->check(CLI::IsMember({"white", "table32"}))
+      ->capture_default_str();
+  app.add_option("--passes", plan.passes, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")->check(CLI::Range(1, 256))->capture_default_str();
+  app.add_option("--seed", plan.seed, "seed of the visiting order and the noise")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  for (const std::string& e : effects) {
+    if (e == "material") {
+      s.effects.material_bias = true;
+    } else if (e == "supply") {
+      s.effects.supply_voltage = true;
+    } else if (e == "time") {
+      s.effects.time_drift = true;
+      s.effects.time_drift_m_per_ks = 0.02;
+    } else if (e == "nonlin") {
+      s.effects.capacitor_nonlinearity = true;
+      s.effects.nonlinearity_eta = 0.15;
     } else {
-      std::fprintf(stderr, "unknown argument '%s'\n", a.c_str());
-      return 2;
+      s.effects.pixel_pattern = true;
     }
   }
-  if (out.empty() || pixel_step < 1) {
-    std::fprintf(stderr, "usage: calibration_synthetic_rail -o rail.csv [--effect E]... [--materials white|table32]\n");
-    return 2;
+  if (materials == "table32") {
+    plan.materials = tt::table_3_2_materials();
+    plan.frames_per_visit = 1;
   }
   plan.pixels.clear();
   for (int px = 8; px < 264; px += pixel_step) plan.pixels.push_back(px);

@@ -19,7 +19,7 @@ constexpr int kShapeSteps = 4000;
 // Emitted power over the pulse: a slow sin^2 rise, skewed late, on a small
 // pedestal (thesis 3.3.2: the power is "more like a quadratic function" than
 // constant). Far targets sample its rising edge, which bends L(X) the way the
-// real sensors' polynomials bend (steep near X = 0.8, measured.yaml).
+// real sensors' polynomials bend (steep near X = 0.8, the public driver's sensors).
 double pulse_power(double s01) {
   const double s = std::sin(M_PI * s01);
   return 0.04 + s * s * (0.4 + s01);

@@ -73,7 +73,7 @@ struct SyntheticMaterial {
   std::string name;
   double albedo = 1.0;  ///< relative to white paper (Table 3.2 reflectance / 6.92)
 };
-/// The nine materials of Table 3.2 (measured.yaml materials_at_30cm).
+/// The nine materials of Table 3.2.
 const std::vector<SyntheticMaterial>& table_3_2_materials();
 /// Bias of Table 3.2 as a function of albedo [m] (interpolated in log albedo).
 double material_bias_m(double albedo);
@@ -83,7 +83,7 @@ double material_bias_m(double albedo);
 struct RailPlan {
   std::vector<double> distances_m;     ///< default: 0.05 to 2.0 m every 5 cm
   std::vector<SyntheticMaterial> materials{{"white_paper", 1.0}};
-  std::vector<int> pulses{20, 100, 200, 400, 700};  ///< read-outs per frame (measured.yaml)
+  std::vector<int> pulses{20, 100, 200, 400, 700};  ///< read-outs per frame (the firmware's buffer)
   std::vector<int> pixels;             ///< default: every 4th ranging pixel
   /// When > 0: one read-out per pixel and frame, its pulse count (a multiple of 10 in
   /// [10, 990]) chosen per pixel and distance so the fuller capacitor reaches this share

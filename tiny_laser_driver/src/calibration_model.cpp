@@ -455,7 +455,7 @@ CalibrationModel CalibrationModel::from_public_driver(const std::vector<double>&
   m.temperature_reference_c = stable_temperature_decic / 10.0;
   m.temperature_coef_m_per_c = temperature_sensi_cm_per_decic * 10.0 / 100.0;  // cm per 0.1 degC -> m per degC
   // Such a polynomial is usable only where it is monotone and reads inside the
-  // sensor's range (0-3 m, measured.yaml): take that stretch of k around 1 m.
+  // sensor's range (0-3 m): take that stretch of k around 1 m.
   constexpr int kSteps = 2000;
   constexpr double kMaxRangeM = 3.0;
   auto p = [&](int i) { return m.polynomial_m(static_cast<double>(i) / kSteps); };

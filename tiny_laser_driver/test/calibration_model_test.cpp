@@ -228,7 +228,7 @@ TEST(CalibrationYaml, MissingFileIsAClearError) {
 }
 
 TEST(CalibrationModel, PublicDriverPolynomialOfSensorK) {
-  // measured.yaml real_sensor_polynomials.K: usable on about k in [0.35, 0.8].
+  // The public driver's sensor K: usable on about k in [0.35, 0.8].
   const std::vector<double> poly = {2.147918234375362e+06,  -7.736068312640203e+06, 1.154494186428487e+07,
                                     -9.137795412258314e+06, 4.045684724836031e+06,  -9.494901699902674e+05,
                                     9.219599710241470e+04};

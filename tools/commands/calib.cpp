@@ -8,10 +8,12 @@
 #include <tiny_laser_calibration/tool.hpp>
 #include <tinyline/tools/command.hpp>
 
+#include "../src/cli.hpp"
+
 namespace tinyline::tools {
 namespace {
 
-int cmd_calib(const std::vector<std::string>& args) {
+int calib(const std::vector<std::string>& args) {
   namespace fs = std::filesystem;
   tiny_laser_calibration::CalibToolEnv env;
   const fs::path share = share_dir();
@@ -28,7 +30,16 @@ int cmd_calib(const std::vector<std::string>& args) {
   return tiny_laser_calibration::run_calib_command(args, std::cout, std::cerr, env);
 }
 
-const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &cmd_calib};
+// The calibration tool parses its own arguments (tiny_laser_calibration's
+// tool library): everything after `calib`, --help included, goes to it.
+CommandRun setup_calib(CLI::App& cmd) {
+  cmd.set_help_flag();
+  cmd.prefix_command();
+  cmd.allow_extras();
+  return [&cmd] { return calib(cmd.remaining()); };
+}
+
+const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &setup_calib};
 
 }  // namespace
 }  // namespace tinyline::tools

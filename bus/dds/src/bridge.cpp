@@ -124,7 +124,7 @@ void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_cou
     return;
   }
   hs.resize(std::min(hs.size(), static_cast<std::size_t>(n)));
-  std::vector<std::string> joined, left;
+  std::vector<std::string> joined, left, mismatched;
   std::size_t now_count = 0;
   {
     std::lock_guard lk(l.peers_mu);
@@ -139,6 +139,10 @@ void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_cou
         dds_builtintopic_free_endpoint(e);
       }
       joined.push_back(who.describe());
+      if (!who.type_hash.empty() && l.type != nullptr && who.type_hash != l.type->type_hash) {
+        mismatched.push_back(fmt::format("{} carries {} as {}, ours is {}", who.describe(), l.type->name, who.type_hash,
+                                         l.type->type_hash));
+      }
       seen.emplace(h, who);
     }
     for (auto it = seen.begin(); it != seen.end();) {
@@ -154,6 +158,11 @@ void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_cou
   (kWriter ? l.remote_readers : l.remote_writers).store(now_count);
   const char* what = kWriter ? "subscriber" : "publisher";
   for (const auto& j : joined) log.info("{}: remote {} in {} connected", l.name, what, j);
+  for (const auto& m : mismatched) {
+    log.warn("{}: the remote {} in {}: the two definitions differ (REP 2011 type hashes), so its messages may not "
+             "decode",
+             l.name, what, m);
+  }
   for (const auto& g : left) {
     if (departures_expected) {
       log.info("{}: the remote {} in {} left; {} remote {}(s) left", l.name, what, g, now_count, what);
@@ -225,6 +234,7 @@ std::shared_ptr<Bridge> Bridge::create(const std::shared_ptr<bus::Context>& cont
 
 Bridge::Bridge(bus::NodeOptions node_options, BridgeOptions options)
     : Node(std::move(node_options)), options_(std::move(options)) {
+  for (const auto& note : options_.settings.notes) logger().warn("{}", note);
   participant_ = std::make_unique<Participant>(options_.settings);
   origin_ = g_next_origin.fetch_add(1);
   waitset_ = dds_create_waitset(participant_->handle());
@@ -341,7 +351,7 @@ void Bridge::sync_topic(const std::string& name) {
   if (!pubs.empty() && L.writer.load() == 0) {
     L.wq = wq;
     detail::Qos q;
-    detail::fill_qos(q, wq, false, participant_->identity());
+    detail::fill_qos(q, wq, false, participant_->identity(), l->type);
     dds_listener_t* ls = dds_create_listener(&L);
     dds_lset_publication_matched(ls, &BridgeAccess::publication_matched);
     dds_lset_offered_incompatible_qos(ls, &BridgeAccess::offered_incompatible);
@@ -383,7 +393,7 @@ void Bridge::sync_topic(const std::string& name) {
       L.in = std::move(in);
     }
     detail::Qos q;
-    detail::fill_qos(q, rq, true, participant_->identity());
+    detail::fill_qos(q, rq, true, participant_->identity(), l->type);
     dds_listener_t* ls = dds_create_listener(&L);
     dds_lset_subscription_matched(ls, &BridgeAccess::subscription_matched);
     dds_lset_requested_incompatible_qos(ls, &BridgeAccess::requested_incompatible);

@@ -26,8 +26,9 @@ struct Qos {
 };
 
 /// The DDS QoS of an endpoint: reliability, durability, history, XCDR1 only,
-/// our identity as user data; readers ignore writers of their own participant.
-void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who);
+/// the type's hash (as ROS 2 puts it, "typehash=RIHS01_...;") and our
+/// identity as user data; readers ignore writers of their own participant.
+void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who, const msg::TypeSupport* type);
 EndpointQos read_qos(const dds_qos_t* q);
 Identity read_identity(const dds_qos_t* q);
 

@@ -24,7 +24,7 @@ void fail(const std::string& what, dds_return_t rc) {
   throw DdsError(fmt::format("{}: {}", what, dds_strretcode(rc)));
 }
 
-void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who) {
+void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who, const msg::TypeSupport* type) {
   dds_qset_reliability(out.q, q.reliable ? DDS_RELIABILITY_RELIABLE : DDS_RELIABILITY_BEST_EFFORT,
                        q.max_blocking.count());
   dds_qset_durability(out.q, q.transient_local ? DDS_DURABILITY_TRANSIENT_LOCAL : DDS_DURABILITY_VOLATILE);
@@ -36,7 +36,8 @@ void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who) 
   const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
   dds_qset_data_representation(out.q, 1, &xcdr1);
   if (reader) dds_qset_ignorelocal(out.q, DDS_IGNORELOCAL_PARTICIPANT);
-  const std::string ud = who.to_user_data();
+  std::string ud = type != nullptr && !type->type_hash.empty() ? fmt::format("typehash={};", type->type_hash) : "";
+  ud += who.to_user_data();
   dds_qset_userdata(out.q, ud.data(), ud.size());
 }
 
@@ -136,6 +137,8 @@ Identity Identity::parse(std::string_view ud) {
       id.pid = std::strtol(std::string(val).c_str(), nullptr, 10);
     } else if (key == "host") {
       id.host = std::string(val);
+    } else if (key == "typehash") {
+      id.type_hash = std::string(val);
     }
   }
   return id;
@@ -232,7 +235,7 @@ RawReader::RawReader(Participant& p, const std::string& dds_topic, const std::st
                                 p.settings().max_sample_bytes)
                .topic;
   detail::Qos q;
-  detail::fill_qos(q, qos, true, p.identity());
+  detail::fill_qos(q, qos, true, p.identity(), find_type_by_dds_name(dds_type));
   reader_ = dds_create_reader(p.handle(), topic_, q.q, nullptr);
   if (reader_ < 0) {
     const auto rc = reader_;
@@ -307,7 +310,7 @@ RawWriter::RawWriter(Participant& p, const std::string& dds_topic, const std::st
   sertype_ = th.sertype;
   participant_ = p.handle();
   detail::Qos q;
-  detail::fill_qos(q, qos, false, p.identity());
+  detail::fill_qos(q, qos, false, p.identity(), find_type_by_dds_name(dds_type));
   writer_ = dds_create_writer(p.handle(), topic_, q.q, nullptr);
   if (writer_ < 0) {
     const auto rc = writer_;

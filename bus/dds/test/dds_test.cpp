@@ -112,28 +112,153 @@ TEST(DdsNaming, TopicsAndTypesAreNamedTheWayRos2NamesThem) {
   EXPECT_EQ(dds::find_type_by_dds_name("other_msgs::msg::dds_::Unknown_"), nullptr);
 }
 
-TEST(DdsSettings, DefaultStaysOnLoopbackWithoutMulticastAndEnvironmentIsReadLikeRos2) {
-  const std::string c = dds::loopback_config();
-  EXPECT_NE(c.find("127.0.0.1"), std::string::npos);
-  EXPECT_NE(c.find("<AllowMulticast>false</AllowMulticast>"), std::string::npos);
-  EXPECT_EQ(dds::Settings{}.effective_config(), c);
-
-  ::setenv("ROS_DOMAIN_ID", "42", 1);
-  ::setenv("CYCLONEDDS_URI", "file:///etc/robot.xml", 1);
-  auto s = dds::Settings::from_environment();
-  EXPECT_EQ(s.domain_id, 42);
-  EXPECT_EQ(s.config, "file:///etc/robot.xml");
-  ::setenv("ROS_DOMAIN_ID", "4x", 1);
-  EXPECT_THROW(dds::Settings::from_environment(), dds::DdsError);
-  ::setenv("ROS_DOMAIN_ID", "300", 1);
-  try {
-    dds::Settings::from_environment();
-    ADD_FAILURE() << "domain 300 accepted";
-  } catch (const dds::DdsError& e) {
-    EXPECT_NE(std::string(e.what()).find("outside 0..232"), std::string::npos) << e.what();
+/// Sets the discovery environment for one scope and clears it afterwards.
+struct Env {
+  static constexpr const char* kNames[] = {"ROS_DOMAIN_ID", "CYCLONEDDS_URI", "ROS_AUTOMATIC_DISCOVERY_RANGE",
+                                           "ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY"};
+  Env(std::initializer_list<std::pair<const char*, const char*>> vars) {
+    clear();
+    for (const auto& [k, v] : vars) ::setenv(k, v, 1);
   }
-  ::unsetenv("ROS_DOMAIN_ID");
-  ::unsetenv("CYCLONEDDS_URI");
+  Env(const Env&) = delete;
+  Env& operator=(const Env&) = delete;
+  ~Env() { clear(); }
+  static void clear() {
+    for (const char* n : kNames) ::unsetenv(n);
+  }
+};
+
+bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+TEST(DdsSettings, ByDefaultThisMachineOnlyKnowingItsInterfacesButSendingOnlyToLoopback) {
+  Env env{};
+  const dds::Settings s = dds::Settings::from_environment();
+  EXPECT_EQ(s.domain_id, 0);
+  EXPECT_FALSE(s.range.has_value());
+  EXPECT_TRUE(s.notes.empty());
+  EXPECT_EQ(s.effective_config(), dds::this_machine_config(dds::machine_interfaces()));
+
+  const std::string c = dds::this_machine_config({"eth0", "wlan0"});
+  // Loopback and the cards are interfaces (so a ROS 2 node announcing only
+  // its card's address is accepted), multicast is off, the only peer is
+  // loopback: nothing is sent to the network unless a participant answers.
+  EXPECT_TRUE(has(c, "<Interfaces><NetworkInterface name=\"eth0\"/><NetworkInterface name=\"wlan0\"/>"
+                     "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"))
+      << c;
+  EXPECT_TRUE(has(c, "<AllowMulticast>false</AllowMulticast>")) << c;
+  EXPECT_TRUE(has(c, "<Peers><Peer address=\"127.0.0.1\"/></Peers>")) << c;
+  EXPECT_TRUE(has(c, "<FragmentSize>60000B</FragmentSize>")) << c;
+  // Cyclone takes four interfaces: loopback and three cards.
+  const std::string many = dds::this_machine_config({"a", "b", "c", "d"});
+  EXPECT_TRUE(has(many, "name=\"c\"") && !has(many, "name=\"d\"")) << many;
+  EXPECT_LE(dds::machine_interfaces().size(), 3u);
+  // loopback_config is the same without the cards.
+  EXPECT_TRUE(has(dds::loopback_config(), "<Interfaces><NetworkInterface address=\"127.0.0.1\"/></Interfaces>"));
+}
+
+TEST(DdsSettings, DomainAndCycloneUriAreReadAsRos2ReadsThem) {
+  {
+    Env env{{"ROS_DOMAIN_ID", "42"}, {"CYCLONEDDS_URI", "file:///etc/robot.xml"}};
+    const auto s = dds::Settings::from_environment();
+    EXPECT_EQ(s.domain_id, 42);
+    // CYCLONEDDS_URI alone replaces the default, as rmw_cyclonedds uses it
+    // alone with ROS 2's default range.
+    EXPECT_EQ(s.effective_config(), "file:///etc/robot.xml");
+  }
+  {
+    Env env{{"ROS_DOMAIN_ID", "4x"}};
+    EXPECT_THROW(dds::Settings::from_environment(), dds::DdsError);
+  }
+  {
+    Env env{{"ROS_DOMAIN_ID", "300"}};
+    try {
+      dds::Settings::from_environment();
+      ADD_FAILURE() << "domain 300 accepted";
+    } catch (const dds::DdsError& e) {
+      EXPECT_TRUE(has(e.what(), "outside 0..232")) << e.what();
+    }
+  }
+}
+
+TEST(DdsSettings, DiscoveryRangeAndStaticPeersAreHonouredAsRmwCycloneddsHonoursThem) {
+  {
+    Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF"}, {"ROS_STATIC_PEERS", "10.0.0.2"}};
+    const auto s = dds::Settings::from_environment();
+    EXPECT_EQ(s.range, dds::DiscoveryRange::Off);
+    EXPECT_TRUE(s.static_peers.empty());
+    ASSERT_EQ(s.notes.size(), 1u);
+    EXPECT_TRUE(has(s.notes[0], "ROS_STATIC_PEERS will be ignored")) << s.notes[0];
+    const std::string c = s.effective_config();
+    EXPECT_TRUE(has(c, "<AllowMulticast>false</AllowMulticast>")) << c;
+    EXPECT_TRUE(has(c, fmt::format("<Tag>ros_discovery_off_{}</Tag>", getpid()))) << c;
+    EXPECT_FALSE(has(c, "<Peer ")) << c;
+  }
+  {
+    Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST"}, {"ROS_STATIC_PEERS", "robot.local;;10.0.0.2"}};
+    const auto s = dds::Settings::from_environment();
+    EXPECT_EQ(s.static_peers, (std::vector<std::string>{"robot.local", "10.0.0.2"}));
+    const std::string c = s.effective_config();
+    EXPECT_TRUE(has(c, "<Peers><Peer address=\"127.0.0.1\"/><Peer address=\"robot.local\"/>"
+                       "<Peer address=\"10.0.0.2\"/></Peers>"))
+        << c;
+    EXPECT_TRUE(has(c, "<AllowMulticast>false</AllowMulticast>")) << c;
+    EXPECT_FALSE(has(c, "FragmentSize")) << "loopback-sized fragments on the way to another machine: " << c;
+    // Cyclone sends to a peer through its highest-priority interface.
+    EXPECT_TRUE(has(c, "<NetworkInterface address=\"127.0.0.1\" priority=\"0\"/>")) << c;
+  }
+  {
+    Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"}, {"ROS_STATIC_PEERS", "10.0.0.2"},
+             {"CYCLONEDDS_URI", "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"wlan0\"/>"
+                                "</Interfaces></General></Domain></CycloneDDS>"}};
+    const std::string c = dds::Settings::from_environment().effective_config();
+    EXPECT_FALSE(has(c, "AllowMulticast")) << "the subnet range multicasts: " << c;
+    EXPECT_TRUE(has(c, "<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex><Peers><Peer address=\"10.0.0.2\"/>"))
+        << c;
+    // CYCLONEDDS_URI comes last, so each of its settings wins.
+    EXPECT_TRUE(has(c, "</CycloneDDS>,<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"wlan0\"/>"))
+        << c;
+  }
+  {
+    Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "SYSTEM_DEFAULT"}, {"ROS_STATIC_PEERS", "10.0.0.2"}};
+    const auto s = dds::Settings::from_environment();
+    EXPECT_EQ(s.effective_config(), "") << "Cyclone's own defaults";
+    ASSERT_EQ(s.notes.size(), 1u);
+    EXPECT_TRUE(has(s.notes[0], "static peers will be ignored")) << s.notes[0];
+  }
+  {
+    Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "everywhere"}};
+    const auto s = dds::Settings::from_environment();
+    EXPECT_EQ(s.range, dds::DiscoveryRange::Localhost);
+    ASSERT_EQ(s.notes.size(), 1u);
+    EXPECT_TRUE(has(s.notes[0], "Invalid value 'everywhere'")) << s.notes[0];
+  }
+}
+
+TEST(DdsSettings, DeprecatedLocalhostOnlyWinsOverTheNewerVariablesAsInRcl) {
+  {
+    Env env{{"ROS_LOCALHOST_ONLY", "1"}, {"ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"}, {"ROS_STATIC_PEERS", "10.0.0.2"}};
+    const auto s = dds::Settings::from_environment();
+    EXPECT_EQ(s.range, dds::DiscoveryRange::Localhost);
+    EXPECT_TRUE(s.static_peers.empty());
+    ASSERT_EQ(s.notes.size(), 2u);
+    EXPECT_TRUE(has(s.notes[0], "ROS_LOCALHOST_ONLY is deprecated")) << s.notes[0];
+    EXPECT_TRUE(has(s.notes[1], "will be ignored")) << s.notes[1];
+    EXPECT_EQ(s.effective_config(), dds::this_machine_config(dds::machine_interfaces()));
+  }
+  {
+    Env env{{"ROS_LOCALHOST_ONLY", "0"}, {"ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"}};
+    const auto s = dds::Settings::from_environment();
+    EXPECT_EQ(s.range, dds::DiscoveryRange::Subnet);
+    ASSERT_EQ(s.notes.size(), 2u);
+    EXPECT_TRUE(has(s.notes[1], "will be used")) << s.notes[1];
+  }
+}
+
+TEST(DdsSettings, APeerAddressCannotInjectXml) {
+  Env env{{"ROS_STATIC_PEERS", "a\"/><Evil/><x y=\""}};
+  const std::string c = dds::Settings::from_environment().effective_config();
+  EXPECT_FALSE(has(c, "<Evil/>")) << c;
+  EXPECT_TRUE(has(c, "&quot;")) << c;
 }
 
 TEST(DdsParticipant, ABrokenConfigurationIsRefusedWithTheReason) {
@@ -384,6 +509,9 @@ TEST(DdsBridge, ASensorDataPublisherReachesDefaultAndBestEffortSubscribersAsInOn
   pub->publish(text("scan 21"));
   ASSERT_TRUE(b.signal->wait_for([&] { return loose.size() >= 1; }, 10s)) << c.sink->dump();
   EXPECT_EQ(loose.items().back(), "scan 21");
+  // The inboxes go before the graphs: no callback may still be filling them.
+  c.stop();
+  b.stop();
 }
 
 TEST(DdsBridge, IncompatibleQosIsReportedWithThePolicyNotSilentlyDropped) {
@@ -480,4 +608,56 @@ TEST(DdsBridge, EndpointsCreatedAfterStartAreBridgedToo) {
   pub->publish(text("later"));
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 1; }, 10s)) << b.sink->dump();
   EXPECT_EQ(got.items(), std::vector<std::string>{"later"});
+}
+
+TEST(DdsBridge, EndpointsCarryTheirTypeHashInUserDataAsRos2Does) {
+  const auto s = test_settings("x");
+  Side a("a", s);
+  auto pub = a.node("scanner")->create_publisher<sensor_msgs::msg::LaserScan>("/hashed");
+  a.run();
+  dds::Participant p(s);
+  dds::Discovery d(p);
+  const auto seen = d.wait_for(
+      [](const std::vector<dds::DiscoveredEndpoint>& eps) {
+        return std::any_of(eps.begin(), eps.end(), [](const auto& e) { return e.dds_topic == "rt/hashed"; });
+      },
+      10s);
+  const auto it = std::find_if(seen.begin(), seen.end(), [](const auto& e) { return e.dds_topic == "rt/hashed"; });
+  ASSERT_NE(it, seen.end());
+  const std::string_view hash = msg::type_support<sensor_msgs::msg::LaserScan>().type_hash;
+  EXPECT_EQ(hash, "RIHS01_64c191398013af96509d518dac71d5164f9382553fce5c1f8cca5be7924bd828");  // Jazzy's
+  EXPECT_EQ(it->owner.type_hash, hash);
+  EXPECT_EQ(it->owner.process, "a");
+  for (const auto* ts : msg::all_type_supports()) {
+    EXPECT_EQ(ts->type_hash.size(), 7u + 64u) << ts->name;
+    EXPECT_EQ(ts->type_hash.substr(0, 7), "RIHS01_") << ts->name;
+  }
+}
+
+TEST(DdsBridge, ARemoteEndpointWithAnotherDefinitionOfTheTypeIsReported) {
+  const auto s = test_settings("x");
+  Side b("b", s);
+  auto sub = b.node("listener")->create_subscription<StringMsg>("/other_def", bus::QoS::keep_last(10),
+                                                                [](const StringMsg&) {});
+  b.run();
+  // A writer of the same type name whose user data names another hash, as a
+  // program built from a changed .msg file would announce it.
+  dds::Participant p(s);
+  dds_qos_t* q = dds_create_qos();
+  const std::string ud = "typehash=RIHS01_" + std::string(64, '0') + ";";
+  dds_qset_userdata(q, ud.data(), ud.size());
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  const auto& ts = msg::type_support<StringMsg>();
+  ddsi_sertype* st = dds::detail::make_sertype(ts.dds_type_name(), &ts, 1 << 20);
+  const dds_entity_t t = dds_create_topic_sertype(p.handle(), "rt/other_def", &st, nullptr, nullptr, nullptr);
+  ASSERT_GT(t, 0);
+  const dds_entity_t w = dds_create_writer(p.handle(), t, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(w, 0);
+  ASSERT_TRUE(b.signal->wait_for(
+      [&] { return b.sink->contains(bus::LogLevel::Warn, "the two definitions differ (REP 2011 type hashes)"); }, 10s))
+      << b.sink->dump();
+  EXPECT_TRUE(b.sink->contains(bus::LogLevel::Warn, std::string(ts.type_hash))) << b.sink->dump();
+  dds_delete(w);
+  dds_delete(t);
 }

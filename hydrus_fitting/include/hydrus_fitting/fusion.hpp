@@ -23,7 +23,7 @@
 namespace tinyline::hydrus_fitting {
 
 /// Range noise SD of the sensor against distance, linearly interpolated and
-/// held beyond the ends. Default: Table 3.1 (measured.yaml noise_vs_distance_cm,
+/// held beyond the ends. Default: Table 3.1 (sim/config/fidelity/thesis_measured.yaml noise_vs_distance_cm,
 /// 300 measurements of white paper per distance, after calibration).
 struct RangeNoiseModel {
   std::vector<std::pair<double, double>> range_sd_m{

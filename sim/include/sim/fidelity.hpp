@@ -36,7 +36,7 @@ struct MeasuredConstants {
   double vle_per_pulse = 0.0;      ///< leakage per accumulated pulse [charge_unit]
 };
 
-/// The driver's validity rule (wire_protocol.md) and selection: the read-out
+/// The driver's validity rule (tiny_laser_driver/protocol.hpp) and selection: the read-out
 /// with the most pulses whose charges are in (10, 230) and a + b > 10 + 0.4 p/10.
 /// Returns the read-out index or -1.
 [[nodiscard]] int select_readout(const SensorSet& set, int pixel);
@@ -98,7 +98,7 @@ struct ThesisFigures {
 };
 [[nodiscard]] ThesisFigures load_thesis_figures(const std::string& path);
 
-/// Goals of issue 4, checked against the measured figures.
+/// The fidelity goals (docs/simulator_fidelity.md), checked against the measured figures.
 struct FidelityVerdict {
   bool ok = true;
   std::vector<std::string> failures;  ///< one line per missed goal

@@ -1,7 +1,5 @@
 #include <sim/nodes/port.hpp>
 
-#include "parts.hpp"
-
 #include <mutex>
 
 #include <fmt/format.h>
@@ -9,12 +7,13 @@
 #include <sim/virtual_device.hpp>
 #include <tiny_laser_driver/io/port.hpp>
 
+#include "parts.hpp"
+
 namespace tinyline::sim {
 
 namespace {
 
 namespace io = tiny_laser_driver::io;
-using tiny_laser_driver::StreamMode;
 
 class SimOpener : public io::PortOpener {
  public:
@@ -28,7 +27,6 @@ class SimOpener : public io::PortOpener {
       // Started on the first open (on_start), never in a constructor: no I/O before then.
       VirtualDeviceOptions o;
       o.baud = options_.serial.baud;
-      o.mode = options_.mode == StreamMode::Raw ? FirmwareMode::kRaw : FirmwareMode::kDistance;
       o.laser_on = options_.laser_on_at_start;
       try {
         auto dev = VirtualDevice::from_port("sim:" + arg_, o);
@@ -61,6 +59,7 @@ void register_port_scheme() {
     });
   });
 }
+
 void nodes::register_port(bus::NodeRegistry&) { register_port_scheme(); }
 
 }  // namespace tinyline::sim

@@ -1,4 +1,4 @@
-// The residual loop of issue 6: after the declared model, look for structure
+// The residual loop: after the declared model, look for structure
 // left in the residuals against every covariate, name the strongest, add a
 // term for it, repeat; report the error before and after on held-out data.
 //

@@ -54,7 +54,7 @@ struct DeclaredFitParams {
   double leakage_offset = 0.0;       ///< [charge_unit] start / fixed value
   double leakage_per_pulse = 0.0;    ///< [charge_unit per pulse] start / fixed value
   bool fit_temperature = true;
-  double temperature_reference_c = 48.0;  ///< T_ref: the warm temperature (measured.yaml warm_temperature_c)
+  double temperature_reference_c = 48.0;  ///< T_ref: the warm temperature (the thesis's warm-sensor temperature)
   double min_temperature_span_c = 1.0;    ///< less spread than this: no temperature term (not identifiable)
   bool equalize_distances = true;         ///< the 1 / N_i of Eq. 3.20: every target distance weighs the same
   DistanceWeighting weighting = DistanceWeighting::kOnes;

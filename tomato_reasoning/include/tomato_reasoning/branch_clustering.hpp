@@ -22,8 +22,7 @@
 namespace tinyline::tomato_reasoning {
 
 struct BranchClusteringParams {
-  /// Eq. 4.9 d_threshold [m]. The thesis used 6 cm (measured.yaml
-  /// tomato.euclidean_cluster_m); 8 cm keeps a truss whole when a hidden
+  /// Eq. 4.9 d_threshold [m]. The thesis used 6 cm; 8 cm keeps a truss whole when a hidden
   /// fruit leaves a gap between the red surfaces of its neighbours
   /// (docs/tomato_reasoning.md, held-out trusses).
   double tolerance_m = 0.08;

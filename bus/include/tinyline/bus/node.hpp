@@ -139,6 +139,12 @@ class Node {
   Node(const Node&) = delete;
   Node& operator=(const Node&) = delete;
 
+  /// Called once for every node of an executor before any node's on_start():
+  /// read and check what the node needs from files here (calibrations,
+  /// scenes) and throw if it is unusable, so a bad input starts nothing
+  /// (`tinyline launch --check` calls it too). No side effects others see:
+  /// open no device, create no file, start no thread.
+  virtual void on_configure() {}
   /// Called once, on the thread that starts the executor, before callbacks run.
   virtual void on_start() {}
   /// Called once when the graph stops, before the node is destroyed.
@@ -236,6 +242,8 @@ class Node {
   ParamValue declare_parameter_value(const std::string& name, ParamType type, ParamValue default_value,
                                      std::string description, ParamConstraints constraints);
   void attach_subscription(const std::shared_ptr<Topic>& t, const std::shared_ptr<SubscriptionBase>& s);
+  /// Throws ParamError if `d` names an input file that cannot be read (ParamConstraints::File::Input).
+  void check_input_file(const ParamDescriptor& d, const std::string& who) const;
   void record_endpoint(bool publisher, const std::string& topic, std::string_view type, const QoS& qos);
 
   std::shared_ptr<Context> context_;

@@ -1,6 +1,7 @@
 // Type support: what the bus, the bag recorder and the DDS transport need to
 // know about a message type without knowing the type: its full name, its
-// ros2msg schema text, and type-erased serialize / deserialize / YAML.
+// ros2msg schema text, its ROS 2 type hash, and type-erased serialize /
+// deserialize / YAML.
 #pragma once
 
 #include <cstdint>
@@ -18,6 +19,9 @@ namespace tinyline::msg {
 struct TypeSupport {
   std::string_view name;        ///< full type name, e.g. "sensor_msgs/msg/LaserScan"
   std::string_view definition;  ///< ros2msg schema text, dependencies appended
+  /// REP 2011 type hash, "RIHS01_" + 64 hex digits: what ROS 2 (Iron and
+  /// later) computes from the type description and puts in DDS user data.
+  std::string_view type_hash;
   /// Appends the encapsulated CDR of *msg to out.
   void (*serialize)(const void* msg, std::vector<std::uint8_t>& out);
   /// Decodes an encapsulated CDR buffer into a new message; throws cdr::Error.
@@ -83,10 +87,11 @@ std::string to_yaml(const T& m) {
 }
 
 template <class T>
-TypeSupport make_type_support(std::string_view name, std::string_view definition) {
+TypeSupport make_type_support(std::string_view name, std::string_view definition, std::string_view type_hash) {
   TypeSupport ts;
   ts.name = name;
   ts.definition = definition;
+  ts.type_hash = type_hash;
   ts.serialize = [](const void* p, std::vector<std::uint8_t>& out) { serialize(*static_cast<const T*>(p), out); };
   ts.deserialize = [](std::span<const std::uint8_t> bytes) -> std::shared_ptr<void> {
     auto m = std::make_shared<T>();

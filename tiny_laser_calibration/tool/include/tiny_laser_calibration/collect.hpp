@@ -1,5 +1,5 @@
 // `tinyline calib collect`: a recorded bag (raw scans + the simulator's
-// ground-truth topic) -> the calibration data set of issue 6, one row per
+// ground-truth topic) -> the calibration data set (data.hpp), one row per
 // pixel read-out. Part of the calibration tool library (it reads bags), not
 // of the driver's core.
 //

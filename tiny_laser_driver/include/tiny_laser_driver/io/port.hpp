@@ -24,9 +24,8 @@ namespace tinyline::tiny_laser_driver::io {
 struct PortOptions {
   SerialOptions serial;
   DiscoveryOptions discovery;
-  /// For schemes that start a device (sim:): the mode it should stream in,
-  /// and whether its laser starts on (off in sequence mode).
-  StreamMode mode = StreamMode::Raw;
+  /// For schemes that start a device (sim:): whether its laser starts on
+  /// (off in sequence mode). What it streams is the device's business.
   bool laser_on_at_start = true;
 };
 

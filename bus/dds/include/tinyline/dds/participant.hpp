@@ -18,11 +18,14 @@
 namespace tinyline::dds {
 
 /// Who owns an endpoint, from the user data every tinyline endpoint carries
-/// ("process=NAME;pid=N;host=H;"). Empty for endpoints of other programs.
+/// ("typehash=RIHS01_...;process=NAME;pid=N;host=H;"). The process is empty
+/// for endpoints of other programs; ROS 2 (Iron and later) endpoints carry
+/// the type hash too.
 struct Identity {
   std::string process;
   long pid = 0;
   std::string host;
+  std::string type_hash;  ///< the endpoint's REP 2011 type hash, if it says
 
   bool known() const { return !process.empty(); }
   /// "process 'driver' (pid 4242 on robot)" or "a participant that is not tinyline".
