@@ -10,6 +10,12 @@ DIR/curve.csv (data points and the fitted polynomial), and writes into DIR:
   residual_<name>.png     held-out residual against each covariate, before and after
   residual_material.png   per material (when the data names materials)
 
+A `tinyline calib measured --report DIR` report instead holds
+DIR/measured_materials.csv and DIR/measured_curves.csv; then it writes
+
+  measured_materials.png  Table 3.2: bias against reflectance, and what the best effect leaves
+  measured_curves.png     the real sensors' curves: residual of the declared model and of the best
+
 Run with the test virtual env: .venv/bin/python scripts/plots/calib_report.py DIR
 """
 import csv
@@ -36,7 +42,7 @@ def column(rows, name):
     out = np.empty(len(rows))
     for i, r in enumerate(rows):
         v = r.get(name, "")
-        out[i] = float(v) if v not in ("", None) else math.nan
+        out[i] = float(v) if v not in ("", None, "null") else math.nan
     return out
 
 
@@ -182,11 +188,56 @@ def material_plot(rows, out_path):
     return True
 
 
+def measured_plots(d):
+    mats = read_rows(os.path.join(d, "measured_materials.csv"))
+    q = column(mats, "reflectance")
+    bias = column(mats, "bias_cm")
+    sd = column(mats, "sd_cm")
+    left = column(mats, "loo_residual_cm")
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    ax[0].errorbar(q, bias, yerr=sd, fmt="o", color="C0", label="measured bias (SD)")
+    for r, x, y in zip(mats, q, bias):
+        ax[0].annotate(r["material"], (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax[0].set_xscale("log")
+    ax[0].set_xlabel("reflectance the sensor reports [mV/pulse]")
+    ax[0].set_ylabel("bias at 30 cm [cm]")
+    ax[0].set_title("Table 3.2, calibrated on white paper")
+    ax[0].axhline(0.0, color="0.6", lw=0.8)
+    ax[1].bar([r["material"] for r in mats], np.nan_to_num(left), color="C1")
+    ax[1].set_ylabel("left over, leave-one-material-out [cm]")
+    ax[1].set_title("what the best effect leaves")
+    ax[1].tick_params(axis="x", rotation=60, labelsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(d, "measured_materials.png"), dpi=110)
+    plt.close(fig)
+    curves = read_rows(os.path.join(d, "measured_curves.csv"))
+    sensors = sorted({r["sensor"] for r in curves})
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    for i, s in enumerate(sensors):
+        rows = [r for r in curves if r["sensor"] == s]
+        l = column(rows, "l_cm")
+        ax[0].plot(l, column(rows, "residual_declared_cm"), color=f"C{i}", label=s)
+        ax[1].plot(l, column(rows, "residual_best_cm"), color=f"C{i}", label=s)
+    ax[0].set_title("declared (Eq. 3.16, Rsen = 1) against each factory curve")
+    ax[1].set_title("with a gain on A and the pulse shape")
+    for a in ax:
+        a.set_xlabel("distance the factory curve reads [cm]")
+        a.set_ylabel("curve - model [cm]")
+        a.axhline(0.0, color="0.6", lw=0.8)
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(d, "measured_curves.png"), dpi=110)
+    plt.close(fig)
+
+
 def main(argv):
     if len(argv) != 2:
         print(__doc__, file=sys.stderr)
         return 2
     d = argv[1]
+    if os.path.exists(os.path.join(d, "measured_materials.csv")):
+        measured_plots(d)
+        return 0
     with open(os.path.join(d, "summary.json")) as f:
         summary = json.load(f)
     rows = read_rows(os.path.join(d, "residuals.csv"))

@@ -9,6 +9,11 @@
 
 namespace tinyline::sim {
 
+namespace detail {
+ChargeEffect read_charge_effect(const YamlNode& n);  // charge_effects.cpp
+void write_charge_effect(std::ostream& s, const ChargeEffect& e);
+}  // namespace detail
+
 namespace {
 
 template <class... Ts>
@@ -91,6 +96,7 @@ EffectSpec read_effect(const YamlNode& n) {
     e.ns_per_unit = n.in_range("ns_per_unit", e.ns_per_unit, -100.0, 100.0);
     return e;
   }
+  if (type == "charge") return detail::read_charge_effect(n);
   if (type == "temperature_lag") {
     n.check_keys({"type", "time_constant_s"});
     TemperatureLagEffect e;
@@ -187,12 +193,13 @@ const char* effect_type(const EffectSpec& e) {
                                [](const RangeWalkEffect&) { return "range_walk"; },
                                [](const TimeDriftEffect&) { return "time_drift"; },
                                [](const CovariateEffect&) { return "covariate"; },
-                               [](const TemperatureLagEffect&) { return "temperature_lag"; }},
+                               [](const TemperatureLagEffect&) { return "temperature_lag"; },
+                               [](const ChargeEffect&) { return "charge"; }},
                     e);
 }
 
 std::vector<std::string> effect_types() {
-  return {"trap_delay", "material_bias", "fixed_pattern", "range_walk", "time_drift", "covariate", "temperature_lag"};
+  return {"trap_delay", "material_bias", "fixed_pattern", "range_walk", "time_drift", "covariate", "temperature_lag", "charge"};
 }
 
 void apply_sensor_params(const YamlNode& n, SensorParams& p) {
@@ -338,7 +345,8 @@ std::string to_yaml(const SensorParams& p) {
                        << "\n    period_s: " << x.period_s << "\n    random_walk_per_sqrt_s: " << x.random_walk_per_sqrt_s
                        << "\n    ns_per_unit: " << x.ns_per_unit << "\n";
                    },
-                   [&](const TemperatureLagEffect& x) { s << "    time_constant_s: " << x.time_constant_s << "\n"; }},
+                   [&](const TemperatureLagEffect& x) { s << "    time_constant_s: " << x.time_constant_s << "\n"; },
+                   [&](const ChargeEffect& x) { detail::write_charge_effect(s, x); }},
                fx);
   }
   return s.str();

@@ -70,6 +70,7 @@ struct TofLineSensor::Impl {
   const TimeDriftEffect* time_drift = nullptr;
   const TemperatureLagEffect* temp_lag = nullptr;
   std::vector<const CovariateEffect*> covariates;
+  std::vector<const ChargeEffect*> charge;
   bool need_derivative = false;
 
   // Random walks of covariates, extended on demand (1 s steps).
@@ -270,7 +271,8 @@ void resolve_effects(TofLineSensor::Impl& m, const std::vector<EffectSpec>& effe
                           },
                           [&](const TimeDriftEffect& e) { m.time_drift = &e; },
                           [&](const CovariateEffect& e) { m.covariates.push_back(&e); },
-                          [&](const TemperatureLagEffect& e) { m.temp_lag = &e; }},
+                          [&](const TemperatureLagEffect& e) { m.temp_lag = &e; },
+                          [&](const ChargeEffect& e) { m.charge.push_back(&e); }},
                fx);
   }
   m.walk_paths.resize(m.covariates.size());
@@ -757,8 +759,9 @@ void read_out_pixel(const TofLineSensor::Impl& m, const TofLineSensor& sensor, c
     const double p = pulses[k];
     const double t_ms = 1e3 * sensor.accumulation_time_s(pulses[k]);
     const double leak = m.leak[i] * t_ms;
-    const double mean_a = p * sa + xa[k * n + i] + leak;
-    const double mean_b = p * sb + xb[k * n + i] + leak;
+    double mean_a = p * sa + xa[k * n + i] + leak;
+    double mean_b = p * sb + xb[k * n + i] + leak;
+    apply_charge_effects(m.charge, static_cast<int>(i), pulses[k], set.covariates, mean_a, mean_b);
     double a = mean_a, b = mean_b;
     if (noise) {
       const double cycles = pulses[k] - prev_p;

@@ -2,7 +2,9 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -102,6 +104,104 @@ bool parse_double(std::string_view s, double& v) {
   return ec == std::errc() && p == s.data() + s.size();
 }
 
+// Where the columns are: the header line's answer.
+struct CsvLayout {
+  enum Col { kT, kPixel, kPulses, kA, kB, kTemp, kDist, kCount };
+  std::vector<std::string> header;
+  int col[kCount] = {};
+  int material_col = -1;
+  std::vector<int> extra_cols;
+};
+
+// Numbers of one data line, each failure naming the file, line and column.
+class CellReader {
+ public:
+  CellReader(const CsvLayout& layout, const std::vector<std::string>& cells, const std::string& source, std::size_t line)
+      : layout_(layout), cells_(cells), source_(source), line_(line) {}
+  [[nodiscard]] CalibrationDataError fail(const std::string& what) const {
+    return CalibrationDataError(fmt::format("{}:{}: {}", source_, line_, what));
+  }
+  double number(int c) const {
+    double v = 0.0;
+    const auto& cell = cells_[static_cast<std::size_t>(c)];
+    const auto& name = layout_.header[static_cast<std::size_t>(c)];
+    if (!parse_double(cell, v)) throw fail(fmt::format("column '{}': '{}' is not a number", name, cell));
+    if (!std::isfinite(v)) throw fail(fmt::format("column '{}': '{}' is not finite", name, cell));
+    return v;
+  }
+  int integer(int c, double lo, double hi) const {
+    const double v = number(c);
+    if (v != std::floor(v) || v < lo || v > hi) {
+      throw fail(fmt::format("column '{}': '{}' is not an integer in [{}, {}]", layout_.header[static_cast<std::size_t>(c)],
+                             cells_[static_cast<std::size_t>(c)], lo, hi));
+    }
+    return static_cast<int>(v);
+  }
+
+ private:
+  const CsvLayout& layout_;
+  const std::vector<std::string>& cells_;
+  const std::string& source_;
+  std::size_t line_;
+};
+
+// The header: every column named once, the required ones present; the rest is
+// the material (text) or further numeric covariates.
+CsvLayout read_header(const std::vector<std::string>& cells, const std::string& source, std::size_t line_no,
+                      CalibrationDataset& data) {
+  auto fail = [&](const std::string& what) { return CalibrationDataError(fmt::format("{}:{}: {}", source, line_no, what)); };
+  CsvLayout l;
+  l.header = cells;
+  const auto& header = l.header;
+  for (std::size_t i = 0; i < header.size(); ++i) {
+    if (header[i].empty()) throw fail(fmt::format("header: column {} has no name", i + 1));
+    for (std::size_t j = 0; j < i; ++j) {
+      if (header[j] == header[i]) throw fail(fmt::format("header: column '{}' appears twice", header[i]));
+    }
+  }
+  for (int c = 0; c < CsvLayout::kCount; ++c) {
+    const auto it = std::find(header.begin(), header.end(), kRequiredCalibrationColumns[c]);
+    if (it == header.end()) {
+      throw fail(fmt::format("missing required column '{}' (header has: {}; required: "
+                             "t_s,pixel,pulses,a,b,temperature_c,distance_m)",
+                             kRequiredCalibrationColumns[c], fmt::join(header, ",")));
+    }
+    l.col[c] = static_cast<int>(it - header.begin());
+  }
+  for (std::size_t i = 0; i < header.size(); ++i) {
+    const bool required = std::any_of(std::begin(l.col), std::end(l.col), [&](int c) { return c == static_cast<int>(i); });
+    if (required) continue;
+    if (header[i] == "material") {
+      l.material_col = static_cast<int>(i);
+    } else {
+      l.extra_cols.push_back(static_cast<int>(i));
+      data.extra_names.push_back(header[i]);
+    }
+  }
+  data.has_material = l.material_col >= 0;
+  return l;
+}
+
+void add_row(const CsvLayout& l, const std::vector<std::string>& cells, const std::string& source, std::size_t line_no,
+             CalibrationDataset& data) {
+  const CellReader cell(l, cells, source, line_no);
+  if (cells.size() != l.header.size()) {
+    throw cell.fail(fmt::format("expected {} cells (one per header column), found {}", l.header.size(), cells.size()));
+  }
+  Readout r;
+  r.t_s = cell.number(l.col[CsvLayout::kT]);
+  r.pixel = cell.integer(l.col[CsvLayout::kPixel], 0, static_cast<double>(kPixels - 1));
+  r.pulses = cell.integer(l.col[CsvLayout::kPulses], 1, 1e9);
+  r.a = cell.number(l.col[CsvLayout::kA]);
+  r.b = cell.number(l.col[CsvLayout::kB]);
+  r.temperature_c = cell.number(l.col[CsvLayout::kTemp]);
+  const double d = cell.number(l.col[CsvLayout::kDist]);
+  if (!(d > 0.0)) throw cell.fail(fmt::format("column 'distance_m': {} is not a positive distance", d));
+  r.extra.reserve(l.extra_cols.size());
+  for (int c : l.extra_cols) r.extra.push_back(cell.number(c));
+  data.add(std::move(r), d, l.material_col >= 0 ? cells[static_cast<std::size_t>(l.material_col)] : std::string(), line_no);
+}
+
 }  // namespace
 
 CalibrationDataset parse_calibration_csv(std::string_view text, const std::string& source) {
@@ -110,95 +210,26 @@ CalibrationDataset parse_calibration_csv(std::string_view text, const std::strin
   auto fail = [&](std::size_t line, const std::string& what) -> CalibrationDataError {
     return CalibrationDataError(line ? fmt::format("{}:{}: {}", source, line, what) : fmt::format("{}: {}", source, what));
   };
-
-  std::vector<std::string> header;
+  std::optional<CsvLayout> layout;
   std::vector<std::string> cells;
-  enum Col { kT, kPixel, kPulses, kA, kB, kTemp, kDist, kCount };
-  int col[kCount];
-  int material_col = -1;
-  std::vector<int> extra_cols;
   std::size_t line_no = 0;
   std::size_t pos = 0;
-  bool have_header = false;
   while (pos < text.size()) {
     std::size_t end = text.find('\n', pos);
     if (end == std::string_view::npos) end = text.size();
-    const std::string_view raw = text.substr(pos, end - pos);
+    const std::string_view line = trim(text.substr(pos, end - pos));
     pos = end + 1;
     ++line_no;
-    const std::string_view line = trim(raw);
     if (line.empty() || line.front() == '#') continue;
     if (line.find('\0') != std::string_view::npos) throw fail(line_no, "binary data (NUL byte): not a CSV file");
     if (!split(line, cells)) throw fail(line_no, "unterminated quoted cell");
-
-    if (!have_header) {
-      have_header = true;
-      header = cells;
-      for (std::size_t i = 0; i < header.size(); ++i) {
-        if (header[i].empty()) throw fail(line_no, fmt::format("header: column {} has no name", i + 1));
-        for (std::size_t j = 0; j < i; ++j) {
-          if (header[j] == header[i]) throw fail(line_no, fmt::format("header: column '{}' appears twice", header[i]));
-        }
-      }
-      for (int c = 0; c < kCount; ++c) {
-        const auto it = std::find(header.begin(), header.end(), kRequiredCalibrationColumns[c]);
-        if (it == header.end()) {
-          throw fail(line_no, fmt::format("missing required column '{}' (header has: {}; required: "
-                                          "t_s,pixel,pulses,a,b,temperature_c,distance_m)",
-                                          kRequiredCalibrationColumns[c], fmt::join(header, ",")));
-        }
-        col[c] = static_cast<int>(it - header.begin());
-      }
-      for (std::size_t i = 0; i < header.size(); ++i) {
-        const bool required = std::any_of(std::begin(col), std::end(col), [&](int c) { return c == static_cast<int>(i); });
-        if (required) continue;
-        if (header[i] == "material") {
-          material_col = static_cast<int>(i);
-        } else {
-          extra_cols.push_back(static_cast<int>(i));
-          data.extra_names.push_back(header[i]);
-        }
-      }
-      data.has_material = material_col >= 0;
-      continue;
+    if (!layout) {
+      layout = read_header(cells, source, line_no, data);
+    } else {
+      add_row(*layout, cells, source, line_no, data);
     }
-
-    if (cells.size() != header.size()) {
-      throw fail(line_no, fmt::format("expected {} cells (one per header column), found {}", header.size(), cells.size()));
-    }
-    auto number = [&](int c) {
-      double v = 0.0;
-      const auto& cell = cells[static_cast<std::size_t>(c)];
-      if (!parse_double(cell, v)) {
-        throw fail(line_no, fmt::format("column '{}': '{}' is not a number", header[static_cast<std::size_t>(c)], cell));
-      }
-      if (!std::isfinite(v)) {
-        throw fail(line_no, fmt::format("column '{}': '{}' is not finite", header[static_cast<std::size_t>(c)], cell));
-      }
-      return v;
-    };
-    auto integer = [&](int c, double lo, double hi) {
-      const double v = number(c);
-      if (v != std::floor(v) || v < lo || v > hi) {
-        throw fail(line_no, fmt::format("column '{}': '{}' is not an integer in [{}, {}]",
-                                        header[static_cast<std::size_t>(c)], cells[static_cast<std::size_t>(c)], lo, hi));
-      }
-      return static_cast<int>(v);
-    };
-    Readout r;
-    r.t_s = number(col[kT]);
-    r.pixel = integer(col[kPixel], 0, static_cast<double>(kPixels - 1));
-    r.pulses = integer(col[kPulses], 1, 1e9);
-    r.a = number(col[kA]);
-    r.b = number(col[kB]);
-    r.temperature_c = number(col[kTemp]);
-    const double d = number(col[kDist]);
-    if (!(d > 0.0)) throw fail(line_no, fmt::format("column 'distance_m': {} is not a positive distance", d));
-    r.extra.reserve(extra_cols.size());
-    for (int c : extra_cols) r.extra.push_back(number(c));
-    data.add(std::move(r), d, material_col >= 0 ? cells[static_cast<std::size_t>(material_col)] : std::string(), line_no);
   }
-  if (!have_header) throw fail(0, "empty file: no header line (expected t_s,pixel,pulses,a,b,temperature_c,distance_m)");
+  if (!layout) throw fail(0, "empty file: no header line (expected t_s,pixel,pulses,a,b,temperature_c,distance_m)");
   if (data.empty()) throw fail(0, "no data rows after the header");
   return data;
 }
@@ -233,23 +264,38 @@ void write_calibration_csv(const CalibrationDataset& data, std::ostream& out) {
 }
 
 void write_calibration_csv(const CalibrationDataset& data, const std::string& path) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw CalibrationDataError(fmt::format("{}: cannot write data file", path));
-  write_calibration_csv(data, out);
-  out.flush();
-  if (!out) throw CalibrationDataError(fmt::format("{}: write failed", path));
+  // A temporary name renamed at the end: a full disk or a crash never leaves half a file under `path`.
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw CalibrationDataError(fmt::format("{}: cannot write data file", path));
+    write_calibration_csv(data, out);
+    out.flush();
+    if (!out) {
+      std::remove(tmp.c_str());
+      throw CalibrationDataError(fmt::format("{}: write failed", path));
+    }
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw CalibrationDataError(fmt::format("{}: cannot rename the written file into place", path));
+  }
 }
 
 std::vector<int> frame_ids(const CalibrationDataset& data) {
-  std::vector<double> times;
+  const int session = data.extra_index("session");
+  auto key = [&](const Readout& r) {
+    return std::pair<double, double>(session >= 0 ? r.extra[static_cast<std::size_t>(session)] : 0.0, r.t_s);
+  };
+  std::vector<std::pair<double, double>> times;
   times.reserve(data.size());
-  for (const auto& r : data.readouts) times.push_back(r.t_s);
+  for (const auto& r : data.readouts) times.push_back(key(r));
   std::sort(times.begin(), times.end());
   times.erase(std::unique(times.begin(), times.end()), times.end());
   std::vector<int> ids;
   ids.reserve(data.size());
   for (const auto& r : data.readouts) {
-    ids.push_back(static_cast<int>(std::lower_bound(times.begin(), times.end(), r.t_s) - times.begin()));
+    ids.push_back(static_cast<int>(std::lower_bound(times.begin(), times.end(), key(r)) - times.begin()));
   }
   return ids;
 }

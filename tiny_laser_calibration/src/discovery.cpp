@@ -12,7 +12,7 @@
 
 #include <tiny_laser_calibration/discovery.hpp>
 
-#include "fit_engine.hpp"
+#include "discovery_internal.hpp"
 
 namespace tinyline::tiny_laser_calibration {
 
@@ -41,8 +41,11 @@ double normal_upper_quantile(double p) {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using detail::CvData;
+using detail::CvTerm;
 using detail::Entries;
 using detail::NormalEquations;
+using detail::quantile_knots;
 
 // ------------------------------------------------------------------ split
 
@@ -122,24 +125,6 @@ Split make_split(const CalibrationDataset& data, const DiscoveryParams& p, const
 
 // ------------------------------------------------------------------ cross-validation
 
-struct CvData {
-  std::vector<std::size_t> row;  // dataset row
-  std::vector<Entries> base;     // fixed columns (declared model, or a constant)
-  std::size_t base_cols = 0;
-  std::vector<double> y, w, x, declared, amplitude;
-  std::vector<int> fold;         // -1: always training; -2: held out (never fitted on)
-  std::vector<int> group;        // dense among rows with fold >= 0
-  std::size_t groups = 0;
-  int folds = 0;
-  const AmplitudeReference* reference = nullptr;
-};
-
-struct CvTerm {
-  CalibrationTerm term;
-  int data_extra = -1;
-  std::vector<double> z;  // per CvData row
-};
-
 struct CvResult {
   double sse = 0.0;
   std::size_t n = 0;
@@ -152,18 +137,17 @@ std::size_t columns(const CvData& d, const std::vector<const CvTerm*>& terms, st
   offsets.clear();
   for (const auto* t : terms) {
     offsets.push_back(cols);
-    cols += t->term.basis_size();
+    cols += t->ncols;
   }
   return cols;
 }
 
 void row_entries(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets,
-                 std::size_t i, Entries& out, Entries& tmp) {
+                 std::size_t i, Entries& out) {
   out = d.base[i];
   for (std::size_t k = 0; k < terms.size(); ++k) {
-    tmp.clear();
-    terms[k]->term.basis(terms[k]->z[i], d.amplitude[i], tmp);
-    for (const auto& [c, v] : tmp) out.emplace_back(offsets[k] + c, v);
+    const auto* e = terms[k]->cols.row(i);
+    for (std::size_t j = 0; j < terms[k]->cols.size(i); ++j) out.emplace_back(offsets[k] + e[j].first, e[j].second);
   }
 }
 
@@ -176,9 +160,9 @@ Eigen::VectorXd ridge_vector(const CvData& d, std::size_t cols, double term_ridg
 detail::SparseRows design(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets) {
   detail::SparseRows rows;
   rows.entries.reserve(d.y.size() * (d.base.empty() ? 1 : d.base.front().size() + 2 * terms.size()));
-  Entries e, tmp;
+  Entries e;
   for (std::size_t i = 0; i < d.y.size(); ++i) {
-    row_entries(d, terms, offsets, i, e, tmp);
+    row_entries(d, terms, offsets, i, e);
     rows.push(e);
   }
   return rows;
@@ -232,7 +216,9 @@ std::vector<double> fit_and_predict(const CvData& d, const std::vector<const CvT
 
 // ------------------------------------------------------------------ candidates
 
-std::vector<double> quantile_knots(std::vector<double> v, int n) {
+}  // namespace
+
+std::vector<double> detail::quantile_knots(std::vector<double> v, int n) {
   std::sort(v.begin(), v.end());
   std::vector<double> k;
   for (int i = 0; i < n; ++i) {
@@ -245,6 +231,8 @@ std::vector<double> quantile_knots(std::vector<double> v, int n) {
   }
   return k;
 }
+
+namespace {
 
 struct CovariateInfo {
   std::string name;
@@ -261,22 +249,22 @@ std::vector<CovariateInfo> candidate_covariates(const CalibrationDataset& data, 
   }
   for (std::size_t k = 0; k < data.extra_names.size(); ++k) {
     const auto& n = data.extra_names[k];
-    if (excluded(n) || covariate_from_name(n) != Covariate::kExtra) continue;  // a column may not shadow a built-in name
+    // A column may not shadow a built-in name; `session` names a warm-up, not a covariate.
+    if (excluded(n) || covariate_from_name(n) != Covariate::kExtra || n == "session") continue;
     out.push_back({n, Covariate::kExtra, static_cast<int>(k)});
   }
   return out;
 }
 
-// Builds every applicable form of one covariate on the CV rows.
-void build_forms(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov, const DiscoveryParams& p,
-                 std::vector<CvTerm>& out, std::vector<std::string>& notes) {
+// The covariate on every CV row; `fitted` gets its values on the rows fitted on.
+CvTerm covariate_on_rows(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov,
+                         std::vector<double>& fitted, std::size_t& finite) {
   CvTerm base;
   base.term.covariate = cov.name;
   base.term.kind = cov.kind;
   base.data_extra = cov.data_extra;
   base.z.resize(d.y.size());
-  std::vector<double> fitted;  // values on fitting rows
-  std::size_t finite = 0;
+  finite = 0;
   for (std::size_t i = 0; i < d.y.size(); ++i) {
     base.z[i] = detail::term_covariate(data, d.row[i], base.term, cov.data_extra, d.x[i], d.declared[i], *d.reference);
     if (std::isfinite(base.z[i])) {
@@ -284,35 +272,67 @@ void build_forms(const CalibrationDataset& data, const CvData& d, const Covariat
       if (d.fold[i] != -2) fitted.push_back(base.z[i]);
     }
   }
+  return base;
+}
+
+// Albedo and reflectance both divide the light by the declared distance
+// squared, so on one surface their only variation is the distance error
+// itself: a term on them would range by intensity and fail on the next
+// surface. Try them only when the data holds surfaces of clearly different
+// albedo (90th/10th percentile >= min_albedo_spread, beyond what a distance
+// error of several percent could fake).
+bool albedo_spread_enough(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov,
+                          const DiscoveryParams& p, std::vector<std::string>& notes) {
+  std::vector<double> albedo;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] == -2) continue;
+    const double a = d.reference->albedo(data.readouts[d.row[i]], d.declared[i]);
+    if (std::isfinite(a)) albedo.push_back(a);
+  }
+  if (albedo.size() < 10) return false;
+  std::sort(albedo.begin(), albedo.end());
+  const double p10 = albedo[albedo.size() / 10], p90 = albedo[albedo.size() * 9 / 10];
+  if (p10 > 0.0 && p90 / p10 >= p.min_albedo_spread) return true;
+  if (cov.kind == Covariate::kAlbedo) {
+    notes.push_back(fmt::format("albedo spans {:.2f}x (90th/10th percentile < {:.2f}): one kind of surface, so albedo "
+                                "and reflectance are not tried",
+                                p10 > 0.0 ? p90 / p10 : 0.0, p.min_albedo_spread));
+  }
+  return false;
+}
+
+// g(z) * (a + b - median) / IQR-scale, knots at quantiles of z.
+void add_interaction_form(const CvData& d, const CvTerm& base, const std::vector<double>& fitted,
+                          const std::vector<double>& distinct, const DiscoveryParams& p, std::vector<CvTerm>& out) {
+  std::vector<double> amp;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] != -2) amp.push_back(d.amplitude[i]);
+  }
+  const auto q = quantile_knots(amp, 5);  // quartiles
+  if (!(q.size() == 5 && q[3] > q[1])) return;
+  CvTerm t = base;
+  t.term.form = TermForm::kAmplitudeInteraction;
+  t.term.knots = distinct.size() <= static_cast<std::size_t>(p.interaction_knots) ? distinct
+                                                                                  : quantile_knots(fitted, p.interaction_knots);
+  t.term.amplitude_reference = q[2];
+  t.term.amplitude_scale = (q[3] - q[1]) / 1.349;  // IQR as an SD
+  if (t.term.knots.size() >= 2) out.push_back(std::move(t));
+}
+
+// Builds every applicable form of one covariate on the CV rows.
+void build_forms(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov, const DiscoveryParams& p,
+                 std::vector<CvTerm>& out, std::vector<std::string>& notes) {
+  const std::size_t first_new = out.size();
+  std::vector<double> fitted;  // values on fitting rows
+  std::size_t finite = 0;
+  const CvTerm base = covariate_on_rows(data, d, cov, fitted, finite);
   if (finite < d.y.size() * 9 / 10 || fitted.size() < 10) {
     notes.push_back(fmt::format("covariate '{}' is missing on {} of {} read-outs: not tried", cov.name,
                                 d.y.size() - finite, d.y.size()));
     return;
   }
-  if (cov.kind == Covariate::kAlbedo || cov.kind == Covariate::kReflectance) {
-    // Both divide the light by the declared distance squared, so on one surface
-    // their only variation is the distance error itself: a term on them would
-    // range by intensity and fail on the next surface. Try them only when the
-    // data holds surfaces of clearly different albedo (90th/10th percentile >=
-    // min_albedo_spread, beyond what a distance error of several percent could fake).
-    std::vector<double> albedo;
-    for (std::size_t i = 0; i < d.y.size(); ++i) {
-      if (d.fold[i] == -2) continue;
-      const double a = d.reference->albedo(data.readouts[d.row[i]], d.declared[i]);
-      if (std::isfinite(a)) albedo.push_back(a);
-    }
-    if (albedo.size() < 10) return;
-    std::sort(albedo.begin(), albedo.end());
-    const double p10 = albedo[albedo.size() / 10], p90 = albedo[albedo.size() * 9 / 10];
-    if (!(p10 > 0.0 && p90 / p10 >= p.min_albedo_spread)) {
-      if (cov.kind == Covariate::kAlbedo) {
-        notes.push_back(fmt::format("albedo spans {:.2f}x (90th/10th percentile < {:.2f}): one kind of surface, so albedo "
-                                    "and reflectance are not tried",
-                                    p10 > 0.0 ? p90 / p10 : 0.0, p.min_albedo_spread));
-      }
-      return;
-    }
-  }
+  const bool albedo_like = cov.kind == Covariate::kAlbedo || cov.kind == Covariate::kReflectance;
+  if (albedo_like && !albedo_spread_enough(data, d, cov, p, notes)) return;
   std::vector<double> distinct = fitted;
   std::sort(distinct.begin(), distinct.end());
   distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
@@ -332,23 +352,8 @@ void build_forms(const CalibrationDataset& data, const CvData& d, const Covariat
     for (double v : distinct) t.term.keys.push_back(std::lround(v));
     out.push_back(std::move(t));
   }
-  if (cov.kind != Covariate::kAmplitude) {
-    std::vector<double> amp;
-    for (std::size_t i = 0; i < d.y.size(); ++i) {
-      if (d.fold[i] != -2) amp.push_back(d.amplitude[i]);
-    }
-    const auto q = quantile_knots(amp, 5);  // quartiles
-    if (q.size() == 5 && q[3] > q[1]) {
-      CvTerm t = base;
-      t.term.form = TermForm::kAmplitudeInteraction;
-      t.term.knots = distinct.size() <= static_cast<std::size_t>(p.interaction_knots)
-                         ? distinct
-                         : quantile_knots(fitted, p.interaction_knots);
-      t.term.amplitude_reference = q[2];
-      t.term.amplitude_scale = (q[3] - q[1]) / 1.349;  // IQR as an SD
-      if (t.term.knots.size() >= 2) out.push_back(std::move(t));
-    }
-  }
+  if (cov.kind != Covariate::kAmplitude) add_interaction_form(d, base, fitted, distinct, p, out);
+  for (std::size_t k = first_new; k < out.size(); ++k) detail::materialise(out[k], d, data);
 }
 
 struct Paired {
@@ -412,6 +417,7 @@ CvTerm evaluate_term(const CalibrationDataset& data, const CvData& d, const Cali
   for (std::size_t i = 0; i < d.y.size(); ++i) {
     t.z[i] = detail::term_covariate(data, d.row[i], t.term, t.data_extra, d.x[i], d.declared[i], *d.reference);
   }
+  detail::materialise(t, d, data);
   return t;
 }
 
@@ -423,11 +429,88 @@ struct LoopOutcome {
   double z_threshold = 0.0;
 };
 
+// Every candidate of a round: the distance forms of each covariate not used
+// yet, and the hypotheses that act on the charges.
+std::vector<CvTerm> round_candidates(const CalibrationDataset& data, const RoundInput& in,
+                                     const std::vector<CovariateInfo>& covariates, const std::vector<std::string>& used,
+                                     const std::vector<const CvTerm*>& current_terms, const DiscoveryParams& p,
+                                     bool first_round, LoopOutcome& o, std::vector<std::string>& notes) {
+  std::vector<CvTerm> forms;
+  for (const auto& cov : covariates) {
+    if (std::find(used.begin(), used.end(), cov.name) != used.end()) continue;  // one term per covariate
+    const std::size_t before = forms.size();
+    std::vector<std::string> form_notes;
+    build_forms(data, in.d, cov, p, forms, form_notes);
+    if (first_round) {
+      notes.insert(notes.end(), form_notes.begin(), form_notes.end());
+      if (forms.size() > before) o.candidates.push_back(cov.name);
+    }
+  }
+  const auto pred = fit_and_predict(in.d, current_terms, p.declared.term_ridge);
+  std::vector<double> residual(pred.size());
+  for (std::size_t i = 0; i < pred.size(); ++i) residual[i] = in.d.y[i] - pred[i];
+  std::vector<std::string> charge_notes;
+  const std::size_t before = forms.size();
+  detail::build_charge_forms(data, in.d, p, residual, used, forms, charge_notes);
+  if (first_round) {
+    notes.insert(notes.end(), charge_notes.begin(), charge_notes.end());
+    for (std::size_t k = before; k < forms.size(); ++k) {
+      const auto& n = forms[k].term.covariate;
+      if (std::find(o.candidates.begin(), o.candidates.end(), n) == o.candidates.end()) o.candidates.push_back(n);
+    }
+  }
+  return forms;
+}
+
+struct RoundScores {
+  std::vector<CandidateScore> scores;
+  int best = -1;
+  CvResult best_res;
+  Paired best_cmp;
+};
+
+RoundScores score_round(const RoundInput& in, const std::vector<CvTerm>& forms,
+                        const std::vector<const CvTerm*>& current_terms, const CvResult& current, double z_thr,
+                        const DiscoveryParams& p) {
+  RoundScores out;
+  for (std::size_t k = 0; k < forms.size(); ++k) {
+    auto terms = current_terms;
+    terms.push_back(&forms[k]);
+    const CvResult r = cross_validate(in.d, terms, p.declared.term_ridge);
+    const Paired cmp = compare(current, r);
+    CandidateScore sc;
+    sc.covariate = forms[k].term.covariate;
+    sc.form = forms[k].term.form;
+    sc.cv_rmse_m = r.rmse();
+    sc.gain = cmp.gain;
+    sc.z = cmp.z;
+    sc.passes = cmp.z > z_thr && cmp.gain > p.min_relative_gain;
+    out.scores.push_back(sc);
+    if (sc.passes && (out.best < 0 || cmp.gain > out.best_cmp.gain)) {
+      out.best = static_cast<int>(k);
+      out.best_res = r;
+      out.best_cmp = cmp;
+    }
+  }
+  std::sort(out.scores.begin(), out.scores.end(), [](const auto& a, const auto& b) { return a.gain > b.gain; });
+  return out;
+}
+
+// The z a candidate must beat: one-sided Bonferroni over every test the loop
+// can make (kStatistics per candidate, a candidate chosen from the data
+// counting as every one it was chosen from, max_terms rounds), so the chance
+// that the loop names anything on effect-free data stays under alpha.
+double family_threshold(const std::vector<CvTerm>& forms, const DiscoveryParams& p) {
+  double looks = 0.0;
+  for (const auto& f : forms) looks += f.looks;
+  return normal_upper_quantile(p.alpha / (kStatistics * looks * std::max(1, p.max_terms)));
+}
+
 LoopOutcome run_loop(const CalibrationDataset& data, const Prepare& prepare, const DiscoveryParams& p,
                      std::vector<std::string>& notes) {
   LoopOutcome o;
   const auto covariates = candidate_covariates(data, p);
-  std::vector<bool> used(covariates.size(), false);
+  std::vector<std::string> used;
   for (int round = 0; round <= p.max_terms; ++round) {
     // Each round starts from the current model refitted with every accepted term,
     // so a declared parameter that an effect had bent is straightened first.
@@ -436,59 +519,25 @@ LoopOutcome run_loop(const CalibrationDataset& data, const Prepare& prepare, con
     for (const auto& t : in.accepted) current_terms.push_back(&t);
     const CvResult current = cross_validate(in.d, current_terms, p.declared.term_ridge);
     if (round == p.max_terms) break;
-    std::vector<CvTerm> forms;
-    std::vector<std::size_t> form_covariate;
-    for (std::size_t c = 0; c < covariates.size(); ++c) {
-      if (used[c]) continue;
-      const std::size_t before = forms.size();
-      std::vector<std::string> form_notes;
-      build_forms(data, in.d, covariates[c], p, forms, form_notes);
-      if (round == 0) {
-        notes.insert(notes.end(), form_notes.begin(), form_notes.end());
-        if (forms.size() > before) o.candidates.push_back(covariates[c].name);
-      }
-      form_covariate.resize(forms.size(), c);
-    }
+    const std::vector<CvTerm> forms =
+        round_candidates(data, in, covariates, used, current_terms, p, round == 0, o, notes);
     if (forms.empty()) break;
-    const double z_thr = normal_upper_quantile(p.alpha / static_cast<double>(kStatistics * forms.size()));
+    const double z_thr = family_threshold(forms, p);
     if (round == 0) o.z_threshold = z_thr;
-    std::vector<CandidateScore> scores;
-    int best = -1;
-    CvResult best_res;
-    Paired best_cmp;
-    for (std::size_t k = 0; k < forms.size(); ++k) {
-      auto terms = current_terms;
-      terms.push_back(&forms[k]);
-      const CvResult r = cross_validate(in.d, terms, p.declared.term_ridge);
-      const Paired cmp = compare(current, r);
-      CandidateScore sc;
-      sc.covariate = forms[k].term.covariate;
-      sc.form = forms[k].term.form;
-      sc.cv_rmse_m = r.rmse();
-      sc.gain = cmp.gain;
-      sc.z = cmp.z;
-      sc.passes = cmp.z > z_thr && cmp.gain > p.min_relative_gain;
-      scores.push_back(sc);
-      if (sc.passes && (best < 0 || cmp.gain > best_cmp.gain)) {
-        best = static_cast<int>(k);
-        best_res = r;
-        best_cmp = cmp;
-      }
-    }
-    std::sort(scores.begin(), scores.end(), [](const auto& a, const auto& b) { return a.gain > b.gain; });
-    o.rounds.push_back(std::move(scores));
-    if (best < 0) break;
-    const auto& chosen = forms[static_cast<std::size_t>(best)];
+    RoundScores scored = score_round(in, forms, current_terms, current, z_thr, p);
+    o.rounds.push_back(std::move(scored.scores));
+    if (scored.best < 0) break;
+    const auto& chosen = forms[static_cast<std::size_t>(scored.best)];
     DiscoveredEffect e;
     e.covariate = chosen.term.covariate;
     e.form = chosen.term.form;
     e.cv_rmse_before_m = current.rmse();
-    e.cv_rmse_after_m = best_res.rmse();
-    e.gain = best_cmp.gain;
-    e.z = best_cmp.z;
+    e.cv_rmse_after_m = scored.best_res.rmse();
+    e.gain = scored.best_cmp.gain;
+    e.z = scored.best_cmp.z;
     o.effects.push_back(e);
     o.accepted.push_back(chosen.term);
-    used[form_covariate[static_cast<std::size_t>(best)]] = true;  // one term per covariate
+    used.push_back(chosen.term.covariate);
   }
   return o;
 }
@@ -525,90 +574,65 @@ void dense_cv_groups(CvData& d, const Split& s) {
   d.groups = static_cast<std::size_t>(next);
 }
 
-}  // namespace
-
-// ------------------------------------------------------------------ discover_effects
-
-DiscoveryResult discover_effects(const CalibrationDataset& data, const DiscoveryParams& p) {
-  DiscoveryResult res;
-  if (data.empty()) {
-    res.reason = fmt::format("{}: no rows", data.source);
-    return res;
-  }
-  if (p.folds < 2) {
-    res.reason = fmt::format("{} folds: cross-validation needs at least 2", p.folds);
-    return res;
-  }
+// Valid read-outs under the declared validity rule; n_valid counts them.
+std::vector<bool> valid_rows(const CalibrationDataset& data, const ValidityRule& rule, std::size_t& n_valid) {
   std::vector<bool> valid(data.size());
-  std::size_t n_valid = 0;
+  n_valid = 0;
   for (std::size_t i = 0; i < data.size(); ++i) {
-    valid[i] = p.declared.validity.check(data.readouts[i]) == ValidityRule::Verdict::kValid;
+    valid[i] = rule.check(data.readouts[i]) == ValidityRule::Verdict::kValid;
     n_valid += valid[i] ? 1 : 0;
   }
-  if (n_valid == 0) {
-    // Let the declared fit word the reason (counts by verdict).
-    res.reason = fit_declared_model(data, p.declared).reason;
-    return res;
-  }
-  const Split split = make_split(data, p, valid);
+  return valid;
+}
+
+// The split into training and held-out groups, recorded in the result; false
+// (with the reason) when there are too few groups.
+bool split_into(DiscoveryResult& res, const CalibrationDataset& data, const DiscoveryParams& p,
+                const std::vector<bool>& valid, Split& split) {
+  split = make_split(data, p, valid);
   res.grouping = split.grouping;
   res.groups = split.groups;
   res.holdout_groups = split.holdout_groups;
   if (!split.problem.empty()) {
     res.reason = split.problem;
-    return res;
+    return false;
   }
   res.train_rows = rows_where(split, valid, false);
   res.holdout_rows = rows_where(split, valid, true);
+  return true;
+}
 
-  // Each round: the declared model plus the accepted terms fitted on the training
-  // groups fixes Rsen, leakage, X and the weights; the loop varies only linear terms.
-  std::unique_ptr<detail::FitEngine> engine;
-  std::string engine_problem;
-  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
-    engine = std::make_unique<detail::FitEngine>(data, res.train_rows, p.declared, accepted);
-    RoundInput in;
-    if (!engine->problem().empty()) {
-      engine_problem = engine->problem();
-      in.d.reference = &engine->amplitude_reference();
-      return in;
-    }
-    engine->fit();
-    if (accepted.empty()) res.train_before = engine->model();
-    CvData& d = in.d;
-    d.folds = p.folds;
-    d.base_cols = engine->declared_columns();
-    d.reference = &engine->amplitude_reference();
-    const auto& kept = engine->rows();
-    for (std::size_t i = 0; i < kept.size(); ++i) {
-      Entries base;
-      engine->declared_entries(i, base);
-      if (base.empty()) continue;
-      const Readout& r = data.readouts[kept[i]];
-      d.row.push_back(kept[i]);
-      d.base.push_back(std::move(base));
-      d.y.push_back(engine->y(i));
-      d.w.push_back(engine->weight(i));
-      d.x.push_back(engine->x(i));
-      d.declared.push_back(engine->declared_m(i));
-      d.amplitude.push_back(r.a + r.b);
-      d.fold.push_back(split.fold[static_cast<std::size_t>(split.group[kept[i]])]);
-    }
-    dense_cv_groups(d, split);
-    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
-    return in;
-  };
-  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
-  if (!engine_problem.empty()) {
-    res.reason = "fit on the training groups: " + engine_problem;
-    return res;
+// The CV rows of a fitted engine: its declared columns, truth, weights, X and folds.
+CvData cv_data_from_engine(const CalibrationDataset& data, const detail::FitEngine& engine, const Split& split, int folds) {
+  CvData d;
+  d.folds = folds;
+  d.base_cols = engine.declared_columns();
+  d.reference = &engine.amplitude_reference();
+  const auto& kept = engine.rows();
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    Entries base;
+    engine.declared_entries(i, base);
+    if (base.empty()) continue;
+    const Readout& r = data.readouts[kept[i]];
+    d.row.push_back(kept[i]);
+    d.base.push_back(std::move(base));
+    d.y.push_back(engine.y(i));
+    d.w.push_back(engine.weight(i));
+    d.x.push_back(engine.x(i));
+    d.declared.push_back(engine.declared_m(i));
+    d.amplitude.push_back(r.a + r.b);
+    d.sens.push_back(engine.charge_sensitivity(i));
+    d.fold.push_back(split.fold[static_cast<std::size_t>(split.group[kept[i]])]);
   }
-  res.rounds = std::move(loop.rounds);
-  res.candidates = loop.candidates;
-  res.z_threshold = loop.z_threshold;
+  dense_cv_groups(d, split);
+  return d;
+}
 
-  // Held-out errors, one accepted term at a time; a term that does not lower
-  // the held-out error is dropped.
+// Held-out errors, one accepted term at a time, each a refit of the whole
+// model on the training groups; a term that does not lower the held-out error
+// is dropped. Returns the terms kept.
+std::vector<CalibrationTerm> confirm_on_holdout(DiscoveryResult& res, const CalibrationDataset& data,
+                                                const DiscoveryParams& p, const LoopOutcome& loop) {
   const ErrorStats before = evaluate_model(res.train_before, data, res.holdout_rows, p.declared.selection);
   res.rmse_before_m = before.rmse_m;
   if (before.out_of_range > 0) {
@@ -641,6 +665,158 @@ DiscoveryResult discover_effects(const CalibrationDataset& data, const Discovery
     res.train_after = fit.model;
   }
   res.rmse_after_m = current;
+  return kept_terms;
+}
+
+// The low-pass filtered temperatures, when the temperature moves and the
+// session lasts long enough to tell them from the reading itself.
+CalibrationDataset with_time_covariates(const CalibrationDataset& data, const DiscoveryParams& p,
+                                        std::vector<std::string>& notes) {
+  if (p.temperature_lags_s.empty() || data.empty()) return data;
+  double tmin = 1e300, tmax = -1e300, smin = 1e300, smax = -1e300;
+  for (const auto& r : data.readouts) {
+    tmin = std::min(tmin, r.temperature_c);
+    tmax = std::max(tmax, r.temperature_c);
+    smin = std::min(smin, r.t_s);
+    smax = std::max(smax, r.t_s);
+  }
+  std::vector<double> taus;
+  for (double tau : p.temperature_lags_s) {
+    if (tau > 0.0 && 2.0 * tau <= smax - smin) taus.push_back(tau);
+  }
+  if (tmax - tmin < p.declared.min_temperature_span_c || taus.empty()) return data;
+  notes.push_back(fmt::format("lagged temperatures tried: {} time constants from {:.0f} s", taus.size(), taus.front()));
+  return with_lagged_temperature(data, taus);
+}
+
+std::vector<double> session_values(const CalibrationDataset& data, const std::vector<std::size_t>& rows) {
+  const int col = data.extra_index("session");
+  std::vector<double> v;
+  if (col < 0) return v;
+  for (std::size_t i : rows) v.push_back(data.readouts[i].extra[static_cast<std::size_t>(col)]);
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+  return v;
+}
+
+// Whether term k of `terms` holds on another session: fitted on the first
+// session's rows with and without it, judged on the other sessions' rows.
+bool holds_on_other_session(const CalibrationDataset& data, const DiscoveryParams& p,
+                            const std::vector<CalibrationTerm>& terms, std::size_t k, const std::vector<std::size_t>& rows,
+                            std::string& why) {
+  const auto sessions = session_values(data, rows);
+  if (sessions.size() < 2) {
+    why = "one session only: record another warm-up (a `session` column) to confirm it";
+    return false;
+  }
+  const int col = data.extra_index("session");
+  std::vector<std::size_t> first, others;
+  for (std::size_t i : rows) (data.readouts[i].extra[static_cast<std::size_t>(col)] == sessions.front() ? first : others).push_back(i);
+  std::vector<CalibrationTerm> without = terms;
+  without.erase(without.begin() + static_cast<std::ptrdiff_t>(k));
+  const auto a = fit_calibration_model(data, first, p.declared, without);
+  const auto b = fit_calibration_model(data, first, p.declared, terms);
+  const double before = a.ok ? evaluate_model(a.model, data, others, p.declared.selection).rmse_m : kNaN;
+  const double after = b.ok ? evaluate_model(b.model, data, others, p.declared.selection).rmse_m : kNaN;
+  why = fmt::format("fitted on session {}, the other sessions read {:.3f} -> {:.3f} cm", sessions.front(), 100.0 * before,
+                    100.0 * after);
+  return std::isfinite(before) && confirmed(before, after, p);
+}
+
+// A term on time since power-on is written only when it holds on another session.
+void gate_on_sessions(DiscoveryResult& res, const CalibrationDataset& data, const DiscoveryParams& p,
+                      std::vector<CalibrationTerm>& kept) {
+  std::vector<std::size_t> rows = res.train_rows;
+  rows.insert(rows.end(), res.holdout_rows.begin(), res.holdout_rows.end());
+  for (std::size_t k = kept.size(); k-- > 0;) {
+    if (covariate_from_name(kept[k].covariate) != Covariate::kTime) continue;
+    std::string why;
+    if (holds_on_other_session(data, p, kept, k, rows, why)) {
+      res.notes.push_back(fmt::format("{} of t_s holds on another session ({})", to_string(kept[k].form), why));
+      continue;
+    }
+    res.notes.push_back(fmt::format("{} of t_s (time since power-on) is reported, not written: {}", to_string(kept[k].form), why));
+    res.unconfirmed_session.push_back(kept[k]);
+    for (auto& e : res.effects) {
+      if (e.covariate == kept[k].covariate && e.form == kept[k].form) e.written = false;
+    }
+    kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(k));
+  }
+}
+
+// Each effect's fitted term in physical units (from the model written, or for
+// one not written, the training fit that holds it).
+void read_effects(DiscoveryResult& res) {
+  for (auto& e : res.effects) {
+    for (const auto* m : {&res.model, &res.train_after}) {
+      const auto& terms = m->impl().terms;
+      const auto it = std::find_if(terms.begin(), terms.end(),
+                                   [&](const auto& t) { return t.covariate == e.covariate && t.form == e.form; });
+      if (it != terms.end()) {
+        e.reading = term_reading(*it);
+        break;
+      }
+    }
+  }
+}
+
+void record_loop(DiscoveryResult& res, LoopOutcome& loop) {
+  res.rounds = std::move(loop.rounds);
+  res.candidates = loop.candidates;
+  res.z_threshold = loop.z_threshold;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------ discover_effects
+
+DiscoveryResult discover_effects(const CalibrationDataset& input, const DiscoveryParams& p) {
+  DiscoveryResult res;
+  const CalibrationDataset data = with_time_covariates(input, p, res.notes);
+  if (data.empty()) {
+    res.reason = fmt::format("{}: no rows", data.source);
+    return res;
+  }
+  if (p.folds < 2) {
+    res.reason = fmt::format("{} folds: cross-validation needs at least 2", p.folds);
+    return res;
+  }
+  std::size_t n_valid = 0;
+  const std::vector<bool> valid = valid_rows(data, p.declared.validity, n_valid);
+  if (n_valid == 0) {
+    // Let the declared fit word the reason (counts by verdict).
+    res.reason = fit_declared_model(data, p.declared).reason;
+    return res;
+  }
+  Split split;
+  if (!split_into(res, data, p, valid, split)) return res;
+
+  // Each round: the declared model plus the accepted terms fitted on the training
+  // groups fixes Rsen, leakage, X and the weights; the loop varies only linear terms.
+  std::unique_ptr<detail::FitEngine> engine;
+  std::string engine_problem;
+  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
+    engine = std::make_unique<detail::FitEngine>(data, res.train_rows, p.declared, accepted);
+    RoundInput in;
+    if (!engine->problem().empty()) {
+      engine_problem = engine->problem();
+      in.d.reference = &engine->amplitude_reference();
+      return in;
+    }
+    engine->fit();
+    if (accepted.empty()) res.train_before = engine->model();
+    in.d = cv_data_from_engine(data, *engine, split, p.folds);
+    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, in.d, t));
+    return in;
+  };
+  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
+  if (!engine_problem.empty()) {
+    res.reason = "fit on the training groups: " + engine_problem;
+    return res;
+  }
+  record_loop(res, loop);
+  std::vector<CalibrationTerm> kept_terms = confirm_on_holdout(res, data, p, loop);
+  gate_on_sessions(res, data, p, kept_terms);
   res.heldout_eval_rows = select_readouts(data, res.holdout_rows, p.declared.validity, p.declared.selection);
   res.heldout_residual_before_m = model_residuals(res.train_before, data, res.heldout_eval_rows);
   res.heldout_residual_after_m = model_residuals(res.train_after, data, res.heldout_eval_rows);
@@ -655,24 +831,24 @@ DiscoveryResult discover_effects(const CalibrationDataset& data, const Discovery
   info.heldout_rmse_before_m = res.rmse_before_m;
   info.heldout_rmse_after_m = res.rmse_after_m;
   for (const auto& n : final_fit.notes) res.notes.push_back(n);
+  read_effects(res);
   res.ok = true;
   return res;
 }
 
 // ------------------------------------------------------------------ diagnose_model
 
-DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p) {
-  DiscoveryResult res;
-  res.model = model;
-  if (data.empty()) {
-    res.reason = fmt::format("{}: no rows", data.source);
-    return res;
-  }
+namespace {
+
+// Read-outs the given model gives a distance for and the driver would pick;
+// `reason` says why there are none.
+std::vector<bool> diagnosable_rows(const CalibrationModel& model, const CalibrationDataset& data,
+                                   const DiscoveryParams& p, std::vector<CalibrationEvaluation>& ev, std::string& reason) {
   const auto readouts = readouts_for_model(data, model);
   std::vector<bool> selected(data.size(), false);
   for (std::size_t i : select_readouts(data, {}, model.validity(), p.declared.selection)) selected[i] = true;
   std::vector<bool> valid(data.size());
-  std::vector<CalibrationEvaluation> ev(data.size());
+  ev.assign(data.size(), {});
   std::size_t n_valid = 0, counts[5] = {0, 0, 0, 0, 0};
   for (std::size_t i = 0; i < data.size(); ++i) {
     ev[i] = model.evaluate(readouts[i]);
@@ -685,23 +861,16 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     n_valid += valid[i] ? 1 : 0;
   }
   if (n_valid == 0) {
-    res.reason = fmt::format("the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
-                             "{} outside its ratio range, {} missing a covariate",
-                             data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
-    return res;
+    reason = fmt::format("the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
+                         "{} outside its ratio range, {} missing a covariate",
+                         data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
   }
-  const Split split = make_split(data, p, valid);
-  res.grouping = split.grouping;
-  res.groups = split.groups;
-  res.holdout_groups = split.holdout_groups;
-  if (!split.problem.empty()) {
-    res.reason = split.problem;
-    return res;
-  }
-  res.train_rows = rows_where(split, valid, false);
-  res.holdout_rows = rows_where(split, valid, true);
+  return valid;
+}
 
-  // Residual mode: a constant plus the terms, fitted to truth - model.
+// Residual mode: a constant plus the terms, fitted to truth - model.
+CvData residual_cv_data(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p,
+                        const std::vector<bool>& valid, const std::vector<CalibrationEvaluation>& ev, const Split& split) {
   CvData d;
   d.folds = p.folds;
   d.base_cols = 1;
@@ -719,30 +888,25 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     d.fold.push_back(split.holdout[g] ? -2 : split.fold[g]);
   }
   dense_cv_groups(d, split);
+  return d;
+}
 
-  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
-    RoundInput in;
-    in.d = d;  // residual mode: the model stays as given
-    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
-    return in;
-  };
-  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
-  res.rounds = std::move(loop.rounds);
-  res.candidates = loop.candidates;
-  res.z_threshold = loop.z_threshold;
+double residual_heldout_rmse(const CvData& d, const std::vector<double>* pred) {
+  double sse = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] != -2) continue;
+    const double r = d.y[i] - (pred ? (*pred)[i] : 0.0);
+    sse += r * r;
+    ++n;
+  }
+  return n ? std::sqrt(sse / static_cast<double>(n)) : kNaN;
+}
 
-  auto heldout_rmse = [&](const std::vector<double>* pred) {
-    double sse = 0.0;
-    std::size_t n = 0;
-    for (std::size_t i = 0; i < d.y.size(); ++i) {
-      if (d.fold[i] != -2) continue;
-      const double r = d.y[i] - (pred ? (*pred)[i] : 0.0);
-      sse += r * r;
-      ++n;
-    }
-    return n ? std::sqrt(sse / static_cast<double>(n)) : kNaN;
-  };
-  res.rmse_before_m = heldout_rmse(nullptr);
+// The diagnosis's counterpart of confirm_on_holdout: terms fitted to the residuals.
+void confirm_residual_terms(DiscoveryResult& res, const CalibrationDataset& data, const DiscoveryParams& p,
+                            const CvData& d, const LoopOutcome& loop) {
+  res.rmse_before_m = residual_heldout_rmse(d, nullptr);
   double current = res.rmse_before_m;
   std::vector<CvTerm> evaluated;
   for (const auto& t : loop.accepted) evaluated.push_back(evaluate_term(data, d, t));
@@ -751,7 +915,7 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     auto trial = kept;
     trial.push_back(&evaluated[k]);
     const auto pred = fit_and_predict(d, trial, p.declared.term_ridge);
-    const double after = heldout_rmse(&pred);
+    const double after = residual_heldout_rmse(d, &pred);
     if (!confirmed(current, after, p)) {
       res.rejected_on_holdout.push_back(loop.accepted[k]);
       continue;
@@ -771,6 +935,32 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
     res.heldout_residual_before_m.push_back(-d.y[i]);  // y = truth - model
     res.heldout_residual_after_m.push_back(kept.empty() ? -d.y[i] : pred[i] - d.y[i]);
   }
+}
+
+}  // namespace
+
+DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p) {
+  DiscoveryResult res;
+  res.model = model;
+  if (data.empty()) {
+    res.reason = fmt::format("{}: no rows", data.source);
+    return res;
+  }
+  std::vector<CalibrationEvaluation> ev;
+  const std::vector<bool> valid = diagnosable_rows(model, data, p, ev, res.reason);
+  if (!res.reason.empty()) return res;
+  Split split;
+  if (!split_into(res, data, p, valid, split)) return res;
+  const CvData d = residual_cv_data(model, data, p, valid, ev, split);
+  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
+    RoundInput in;
+    in.d = d;  // residual mode: the model stays as given
+    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
+    return in;
+  };
+  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
+  record_loop(res, loop);
+  confirm_residual_terms(res, data, p, d, loop);
   res.ok = true;
   return res;
 }

@@ -40,7 +40,8 @@ double term_covariate(const CalibrationDataset& data, std::size_t row, const Cal
   if (term.kind == Covariate::kExtra) {
     return dataset_extra >= 0 ? r.extra[static_cast<std::size_t>(dataset_extra)] : kNaN;
   }
-  return CalibrationModel::Impl::covariate_value(term.kind, -1, r, x, declared_m, reference);
+  return CalibrationModel::Impl::covariate_value(term.kind, covariate_parameter(term.covariate), r, x, declared_m,
+                                                 reference);
 }
 
 AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
@@ -100,9 +101,19 @@ AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const
   return ref;
 }
 
+bool first_value_fixed(const CalibrationTerm& t) {
+  const Covariate k = covariate_from_name(t.covariate);
+  return acts_on_charges(t.form) && (k == Covariate::kPixelParity || k == Covariate::kPixelBank || k == Covariate::kPixelIs);
+}
+
 FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
                      const DeclaredFitParams& params, const std::vector<CalibrationTerm>& terms)
-    : data_(data), p_(params), terms_(terms) {
+    : data_(data), p_(params) {
+  for (const auto& t : terms) {
+    auto& to = acts_on_charges(t.form) ? charge_ : terms_;
+    order_.emplace_back(acts_on_charges(t.form), to.size());
+    to.push_back(t);
+  }
   if (p_.degree < 1 || p_.degree > 12) {
     problem_ = fmt::format("polynomial degree {} is outside 1-12", p_.degree);
     return;
@@ -117,86 +128,10 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
         p_.validity.per_pulse);
     return;
   }
-
-  const auto target_group = target_distance_groups(data);
-  std::vector<long long> mm;
-  std::vector<int> group_ids;
-  group_.reserve(rows_.size());
-  y_.reserve(rows_.size());
-  double tmin = 1e300, tmax = -1e300;
-  for (std::size_t i : rows_) {
-    const double d = data.distance_m[i];
-    y_.push_back(d);
-    mm.push_back(std::llround(d * 1000.0));
-    group_.push_back(target_group[i]);
-    tmin = std::min(tmin, data.readouts[i].temperature_c);
-    tmax = std::max(tmax, data.readouts[i].temperature_c);
-  }
-  // Dense group ids over the kept rows (weights of Eq. 3.20 are per target distance).
-  group_ids = group_;
-  std::sort(group_ids.begin(), group_ids.end());
-  group_ids.erase(std::unique(group_ids.begin(), group_ids.end()), group_ids.end());
-  for (int& g : group_) g = static_cast<int>(std::lower_bound(group_ids.begin(), group_ids.end(), g) - group_ids.begin());
-  groups_ = group_ids.size();
-  std::sort(mm.begin(), mm.end());
-  mm.erase(std::unique(mm.begin(), mm.end()), mm.end());
-  distances = mm.size();
-  const std::size_t min_rows = 2 * static_cast<std::size_t>(p_.degree + 2);
-  if (rows_.size() < min_rows) {
-    problem_ = fmt::format("only {} valid read-outs: a degree-{} fit needs at least {}", rows_.size(), p_.degree, min_rows);
-    return;
-  }
-  if (distances < static_cast<std::size_t>(p_.degree + 1)) {
-    problem_ = fmt::format("only {} distinct true distances (mm): a degree-{} polynomial needs at least {}", distances,
-                           p_.degree, p_.degree + 1);
-    return;
-  }
-
-  // The leakage offset shows only as X changing with the pulse count at one
-  // target: it needs frames with several valid pulse levels per pixel.
-  fit_leak_offset_ = p_.fit_leakage;
-  if (fit_leak_offset_) {
-    std::vector<std::tuple<double, int, int>> keys;
-    keys.reserve(rows_.size());
-    for (std::size_t i : rows_) keys.emplace_back(data.readouts[i].t_s, data.readouts[i].pixel, data.readouts[i].pulses);
-    std::sort(keys.begin(), keys.end());
-    std::size_t multi = 0;
-    for (std::size_t k = 1; k < keys.size(); ++k) {
-      const auto& [t0, px0, p0] = keys[k - 1];
-      const auto& [t1, px1, p1] = keys[k];
-      multi += (t0 == t1 && px0 == px1 && p0 != p1) ? 1 : 0;
-    }
-    if (multi < rows_.size() / 10) {
-      fit_leak_offset_ = false;
-      notes.push_back(p_.selection == ReadoutSelection::kDriver
-                          ? fmt::format("one read-out per pixel and frame (the driver's choice) cannot tell a leakage "
-                                        "offset from a per-pulse leakage: offset kept at {} charge_unit",
-                                        p_.leakage_offset)
-                          : fmt::format("few frames hold several valid pulse levels of a pixel: leakage offset kept "
-                                        "at {} charge_unit",
-                                        p_.leakage_offset));
-    }
-  }
-
-  use_temp_ = p_.fit_temperature && (tmax - tmin) >= p_.min_temperature_span_c;
-  if (p_.fit_temperature && !use_temp_) {
-    notes.push_back(fmt::format("temperature spans {:.2f} degC (< {:.2f}): no temperature term fitted", tmax - tmin,
-                                p_.min_temperature_span_c));
-  }
-
-  term_extra_.assign(terms_.size(), -1);
-  for (std::size_t k = 0; k < terms_.size(); ++k) {
-    auto& t = terms_[k];
-    t.kind = covariate_from_name(t.covariate);
-    if (t.kind == Covariate::kExtra) {
-      term_extra_[k] = data.extra_index(t.covariate);
-      if (term_extra_[k] < 0) {
-        problem_ = fmt::format("term covariate '{}' is neither a built-in covariate nor a column of {}", t.covariate,
-                               data.source);
-        return;
-      }
-    }
-  }
+  if (!group_rows() || !enough_data()) return;
+  decide_leakage_offset();
+  decide_temperature();
+  if (!resolve_terms()) return;
   declared_cols_ = static_cast<std::size_t>(p_.degree + 1) + (use_temp_ ? 1 : 0);
   cols_ = declared_cols_;
   for (const auto& t : terms_) {
@@ -204,10 +139,117 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
     cols_ += t.basis_size();
   }
   coef_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(cols_));
-
   rsen_ = p_.sensitivity_ratio;
   leak_offset_ = p_.leakage_offset;
   leak_per_pulse_ = p_.leakage_per_pulse;
+  if (!scale_ratio()) return;
+  set_weights(std::vector<double>(groups_, 1.0));
+}
+
+bool FitEngine::group_rows() {
+  const auto target_group = target_distance_groups(data_);
+  std::vector<long long> mm;
+  group_.reserve(rows_.size());
+  y_.reserve(rows_.size());
+  for (std::size_t i : rows_) {
+    const double d = data_.distance_m[i];
+    y_.push_back(d);
+    mm.push_back(std::llround(d * 1000.0));
+    group_.push_back(target_group[i]);
+  }
+  // Dense group ids over the kept rows (weights of Eq. 3.20 are per target distance).
+  std::vector<int> group_ids = group_;
+  std::sort(group_ids.begin(), group_ids.end());
+  group_ids.erase(std::unique(group_ids.begin(), group_ids.end()), group_ids.end());
+  for (int& g : group_) g = static_cast<int>(std::lower_bound(group_ids.begin(), group_ids.end(), g) - group_ids.begin());
+  groups_ = group_ids.size();
+  std::sort(mm.begin(), mm.end());
+  mm.erase(std::unique(mm.begin(), mm.end()), mm.end());
+  distances = mm.size();
+  return true;
+}
+
+bool FitEngine::enough_data() {
+  const std::size_t min_rows = 2 * static_cast<std::size_t>(p_.degree + 2);
+  if (rows_.size() < min_rows) {
+    problem_ = fmt::format("only {} valid read-outs: a degree-{} fit needs at least {}", rows_.size(), p_.degree, min_rows);
+    return false;
+  }
+  if (distances < static_cast<std::size_t>(p_.degree + 1)) {
+    problem_ = fmt::format("only {} distinct true distances (mm): a degree-{} polynomial needs at least {}", distances,
+                           p_.degree, p_.degree + 1);
+    return false;
+  }
+  return true;
+}
+
+void FitEngine::decide_leakage_offset() {
+  // The leakage offset shows only as X changing with the pulse count at one
+  // target: it needs frames with several valid pulse levels per pixel.
+  fit_leak_offset_ = p_.fit_leakage;
+  if (!fit_leak_offset_) return;
+  std::vector<std::tuple<double, int, int>> keys;
+  keys.reserve(rows_.size());
+  for (std::size_t i : rows_) keys.emplace_back(data_.readouts[i].t_s, data_.readouts[i].pixel, data_.readouts[i].pulses);
+  std::sort(keys.begin(), keys.end());
+  std::size_t multi = 0;
+  for (std::size_t k = 1; k < keys.size(); ++k) {
+    const auto& [t0, px0, p0] = keys[k - 1];
+    const auto& [t1, px1, p1] = keys[k];
+    multi += (t0 == t1 && px0 == px1 && p0 != p1) ? 1 : 0;
+  }
+  if (multi >= rows_.size() / 10) return;
+  fit_leak_offset_ = false;
+  notes.push_back(p_.selection == ReadoutSelection::kDriver
+                      ? fmt::format("one read-out per pixel and frame (the driver's choice) cannot tell a leakage "
+                                    "offset from a per-pulse leakage: offset kept at {} charge_unit",
+                                    p_.leakage_offset)
+                      : fmt::format("few frames hold several valid pulse levels of a pixel: leakage offset kept "
+                                    "at {} charge_unit",
+                                    p_.leakage_offset));
+}
+
+void FitEngine::decide_temperature() {
+  double tmin = 1e300, tmax = -1e300;
+  for (std::size_t i : rows_) {
+    tmin = std::min(tmin, data_.readouts[i].temperature_c);
+    tmax = std::max(tmax, data_.readouts[i].temperature_c);
+  }
+  use_temp_ = p_.fit_temperature && (tmax - tmin) >= p_.min_temperature_span_c;
+  if (p_.fit_temperature && !use_temp_) {
+    notes.push_back(fmt::format("temperature spans {:.2f} degC (< {:.2f}): no temperature term fitted", tmax - tmin,
+                                p_.min_temperature_span_c));
+  }
+}
+
+bool FitEngine::resolve_terms() {
+  for (auto& t : charge_) {
+    // Indices into the data set's rows (Readout::extra in column order), not the model's.
+    t.kind = covariate_from_name(t.covariate);
+    t.extra_index = t.kind == Covariate::kExtra ? data_.extra_index(t.covariate) : covariate_parameter(t.covariate);
+    if (t.kind == Covariate::kExtra && t.extra_index < 0) {
+      problem_ = fmt::format("term covariate '{}' is neither a built-in covariate nor a column of {}", t.covariate,
+                             data_.source);
+      return false;
+    }
+    if (t.values.size() != t.knots.size()) t.values.assign(t.knots.size(), 0.0);
+  }
+  term_extra_.assign(terms_.size(), -1);
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    auto& t = terms_[k];
+    t.kind = covariate_from_name(t.covariate);
+    if (t.kind != Covariate::kExtra) continue;
+    term_extra_[k] = data_.extra_index(t.covariate);
+    if (term_extra_[k] < 0) {
+      problem_ = fmt::format("term covariate '{}' is neither a built-in covariate nor a column of {}", t.covariate,
+                             data_.source);
+      return false;
+    }
+  }
+  return true;
+}
+
+bool FitEngine::scale_ratio() {
   compute_x();
   double lo = 1e300, hi = -1e300;
   for (double x : x_) {
@@ -219,11 +261,11 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
   if (!(hi - lo > 1e-6)) {
     problem_ = fmt::format("the charge ratio X does not vary over the valid read-outs (span {:.3g}): nothing to fit",
                            hi > lo ? hi - lo : 0.0);
-    return;
+    return false;
   }
   center_ = 0.5 * (lo + hi);
   scale_ = 0.5 * (hi - lo);
-  set_weights(std::vector<double>(groups_, 1.0));
+  return true;
 }
 
 void FitEngine::set_weights(const std::vector<double>& k_per_group) {
@@ -240,16 +282,53 @@ void FitEngine::set_weights(const std::vector<double>& k_per_group) {
   for (double& w : w_) w *= norm;
 }
 
+void FitEngine::corrected(std::size_t i, double& a, double& b) const {
+  const Readout& r = data_.readouts[rows_[i]];
+  a = r.a;
+  b = r.b;
+  if (!charge_.empty()) (void)CalibrationModel::Impl::correct_charges(charge_, r, a, b);
+}
+
 void FitEngine::compute_x() {
   x_.resize(rows_.size());
   for (std::size_t i = 0; i < rows_.size(); ++i) {
     const Readout& r = data_.readouts[rows_[i]];
     const double rsen = rsen_pixel_.empty() ? rsen_ : rsen_pixel_[static_cast<std::size_t>(r.pixel)];
-    const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
-    const double num = r.b - vle;
-    const double den = (r.a * rsen - vle) + num;  // Eq. 3.16
-    x_[i] = den > 0.0 ? num / den : kNaN;
+    double a = 0.0, b = 0.0;
+    corrected(i, a, b);
+    x_[i] = CalibrationModel::Impl::charge_ratio(a, b, r.pulses, rsen, leak_offset_, leak_per_pulse_);  // Eq. 3.16
   }
+}
+
+double FitEngine::polynomial_slope(std::size_t i) const {
+  const double u = (x_[i] - center_) / scale_;
+  double dp = 0.0, pw = 1.0;
+  for (int k = 1; k <= p_.degree; ++k) {
+    dp += k * coef_[k] * pw;
+    pw *= u;
+  }
+  return dp / scale_;
+}
+
+ChargeSensitivity FitEngine::charge_sensitivity(std::size_t i) const {
+  const Readout& r = data_.readouts[rows_[i]];
+  ChargeSensitivity s;
+  s.a = r.a;
+  s.b = r.b;
+  s.pulses = r.pulses;
+  if (!std::isfinite(x_[i])) return s;
+  const double rsen = rsen_pixel_.empty() ? rsen_ : rsen_pixel_[static_cast<std::size_t>(r.pixel)];
+  double a = 0.0, b = 0.0;
+  corrected(i, a, b);
+  const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
+  const double ap = a * rsen - vle, bp = b - vle, sum = ap + bp;
+  // X = B' / (A' + B'), A' = a Rsen - Vle, B' = b - Vle (Eq. 3.16); pred = P(X).
+  const double k = polynomial_slope(i) / (sum * sum);
+  s.add_a = k * rsen * bp;  // a - delta
+  s.add_b = -k * ap;        // b - delta
+  s.gain_a = k * bp * a * rsen;  // a / (1 + gamma)
+  s.gain_b = -k * ap * b;
+  return s;
 }
 
 double FitEngine::declared_m(std::size_t i) const {
@@ -359,6 +438,16 @@ void FitEngine::optimise_global() {
   std::vector<Param> ps;
   if (fit_leak_offset_) ps.push_back({&leak_offset_, 1.0, -50.0, 50.0});
   if (p_.fit_leakage) ps.push_back({&leak_per_pulse_, 0.01, -1.0, 1.0});
+  for (auto& t : charge_) {
+    // Typical size and range of each form's values: charge_unit, charge_unit per pulse, relative gain.
+    const bool per_pulse = t.form == TermForm::kChargeAPerPulse || t.form == TermForm::kChargeBPerPulse ||
+                           t.form == TermForm::kChargeBothPerPulse;
+    const bool gain = t.form == TermForm::kGainA || t.form == TermForm::kGainB;
+    const double typical = per_pulse ? 0.01 : gain ? 0.01 : 1.0, bound = per_pulse ? 1.0 : gain ? 0.5 : 100.0;
+    for (std::size_t j = first_value_fixed(t) ? 1 : 0; j < t.values.size(); ++j) {
+      ps.push_back({&t.values[j], typical, -bound, bound});
+    }
+  }
   if (ps.empty()) {
     residual_cost(nullptr);
     return;
@@ -425,7 +514,7 @@ void FitEngine::optimise_global() {
   residual_cost(nullptr);
 }
 
-void FitEngine::refine_per_pixel() {
+std::vector<bool> FitEngine::rsen_eligible_pixels(std::size_t& n_eligible) const {
   std::vector<int> count(kPixels, 0);
   std::vector<std::vector<int>> seen(kPixels);
   for (std::size_t i = 0; i < rows_.size(); ++i) {
@@ -435,11 +524,48 @@ void FitEngine::refine_per_pixel() {
     if (std::find(s.begin(), s.end(), group_[i]) == s.end() && s.size() < 64) s.push_back(group_[i]);
   }
   std::vector<bool> eligible(kPixels, false);
-  std::size_t n_eligible = 0;
+  n_eligible = 0;
   for (std::size_t px = 0; px < kPixels; ++px) {
     eligible[px] = count[px] >= p_.min_rows_per_pixel && static_cast<int>(seen[px].size()) >= p_.min_distances_per_pixel;
     n_eligible += eligible[px] ? 1 : 0;
   }
+  return eligible;
+}
+
+// d pred / d Rsen of kept row i = P'(X) dX/dRsen, dX/dRsen = -(b - Vle) a / den^2 (terms' share ignored).
+double FitEngine::rsen_jacobian(std::size_t i, double rsen) const {
+  const Readout& r = data_.readouts[rows_[i]];
+  double a = 0.0, b = 0.0;
+  corrected(i, a, b);
+  const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
+  const double num = b - vle;
+  const double den = (a * rsen - vle) + num;
+  const double dx = -num * a / (den * den);
+  return polynomial_slope(i) * dx;
+}
+
+// One Gauss-Newton step of every eligible pixel's Rsen (each pixel alone), then the linear solve.
+void FitEngine::rsen_step(const std::vector<bool>& eligible) {
+  std::vector<double> jr(kPixels, 0.0), jj(kPixels, 0.0);
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    const auto px = static_cast<std::size_t>(data_.readouts[rows_[i]].pixel);
+    if (!eligible[px] || !std::isfinite(x_[i])) continue;
+    const double jac = rsen_jacobian(i, rsen_pixel_[px]);
+    jr[px] += w_[i] * jac * residual_[i];
+    jj[px] += w_[i] * jac * jac;
+  }
+  for (std::size_t px = 0; px < kPixels; ++px) {
+    if (!eligible[px] || !(jj[px] > 0.0)) continue;
+    const double step = std::clamp(jr[px] / jj[px], -0.05 * rsen_pixel_[px], 0.05 * rsen_pixel_[px]);
+    rsen_pixel_[px] = std::clamp(rsen_pixel_[px] + step, 0.3, 3.0);
+  }
+  compute_x();
+  solve_linear();
+}
+
+void FitEngine::refine_per_pixel() {
+  std::size_t n_eligible = 0;
+  const std::vector<bool> eligible = rsen_eligible_pixels(n_eligible);
   if (n_eligible == 0) {
     rsen_pixel_.clear();
     if (notes_rsen_once_) notes.push_back(fmt::format("no pixel has {} valid read-outs over {} distances: one global Rsen",
@@ -448,36 +574,7 @@ void FitEngine::refine_per_pixel() {
     return;
   }
   if (rsen_pixel_.empty()) rsen_pixel_.assign(kPixels, rsen_);
-  for (int iter = 0; iter < 4; ++iter) {
-    std::vector<double> jr(kPixels, 0.0), jj(kPixels, 0.0);
-    for (std::size_t i = 0; i < rows_.size(); ++i) {
-      const Readout& r = data_.readouts[rows_[i]];
-      const auto px = static_cast<std::size_t>(r.pixel);
-      if (!eligible[px] || !std::isfinite(x_[i])) continue;
-      const double res = residual_[i];
-      // d pred / d Rsen = P'(X) dX/dRsen, dX/dRsen = -(b - Vle) a / den^2 (terms' share ignored).
-      const double vle = leak_offset_ + leak_per_pulse_ * r.pulses;
-      const double num = r.b - vle;
-      const double den = (r.a * rsen_pixel_[px] - vle) + num;
-      const double dx = -num * r.a / (den * den);
-      const double u = (x_[i] - center_) / scale_;
-      double dp = 0.0, pw = 1.0;
-      for (int k = 1; k <= p_.degree; ++k) {
-        dp += k * coef_[k] * pw;
-        pw *= u;
-      }
-      const double jac = dp / scale_ * dx;
-      jr[px] += w_[i] * jac * res;
-      jj[px] += w_[i] * jac * jac;
-    }
-    for (std::size_t px = 0; px < kPixels; ++px) {
-      if (!eligible[px] || !(jj[px] > 0.0)) continue;
-      const double step = std::clamp(jr[px] / jj[px], -0.05 * rsen_pixel_[px], 0.05 * rsen_pixel_[px]);
-      rsen_pixel_[px] = std::clamp(rsen_pixel_[px] + step, 0.3, 3.0);
-    }
-    compute_x();
-    solve_linear();
-  }
+  for (int iter = 0; iter < 4; ++iter) rsen_step(eligible);
   std::vector<double> fitted;
   for (std::size_t px = 0; px < kPixels; ++px) {
     if (eligible[px]) fitted.push_back(rsen_pixel_[px]);
@@ -523,7 +620,7 @@ void FitEngine::fit() {
       compute_covariates();
       optimise_global();
       if (per_pixel) refine_per_pixel();
-      if (!per_pixel && !p_.fit_leakage && terms_.empty() && pass > 0) break;  // nothing left to iterate
+      if (!per_pixel && !p_.fit_leakage && terms_.empty() && charge_.empty() && pass > 0) break;  // nothing left to iterate
     }
   };
   run_passes(std::max(p_.passes, 1));
@@ -561,9 +658,14 @@ CalibrationModel FitEngine::model() const {
   m.temperature_reference_c = p_.temperature_reference_c;
   m.temperature_coef_m_per_c = use_temp_ ? coef_[p_.degree + 1] : 0.0;
   m.amplitude_reference = reference_;
-  m.terms = terms_;
-  for (std::size_t k = 0; k < terms_.size(); ++k) {
-    m.terms[k].set_coefficients(coef_.data() + term_col_[k]);
+  m.terms.clear();
+  for (const auto& [charge, k] : order_) {
+    if (charge) {
+      m.terms.push_back(charge_[k]);
+    } else {
+      m.terms.push_back(terms_[k]);
+      m.terms.back().set_coefficients(coef_.data() + term_col_[k]);
+    }
   }
   m.info.data = data_.source;
   m.info.rows = rows_.size();
@@ -596,10 +698,14 @@ std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const s
   }
   if (selection == ReadoutSelection::kDriver) {
     // Per pixel and frame keep the valid read-out with the most pulses (the driver's choice).
+    const int session = data.extra_index("session");
+    auto frame = [&](const Readout& r) {
+      return std::pair<double, double>(session >= 0 ? r.extra[static_cast<std::size_t>(session)] : 0.0, r.t_s);
+    };
     std::sort(valid.begin(), valid.end(), [&](std::size_t i, std::size_t j) {
       const Readout& a = data.readouts[i];
       const Readout& b = data.readouts[j];
-      if (a.t_s != b.t_s) return a.t_s < b.t_s;
+      if (frame(a) != frame(b)) return frame(a) < frame(b);
       if (a.pixel != b.pixel) return a.pixel < b.pixel;
       return a.pulses > b.pulses;
     });
@@ -609,7 +715,7 @@ std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const s
       if (k > 0) {
         const Readout& prev = data.readouts[valid[k - 1]];
         const Readout& r = data.readouts[valid[k]];
-        if (prev.t_s == r.t_s && prev.pixel == r.pixel) {
+        if (frame(prev) == frame(r) && prev.pixel == r.pixel) {
           ++dropped;
           continue;
         }

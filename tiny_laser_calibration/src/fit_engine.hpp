@@ -23,6 +23,20 @@ double term_covariate(const CalibrationDataset& data, std::size_t row, const Cal
 AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
                                            const std::vector<double>& declared_m);
 
+/// How the declared prediction of one read-out moves with its charges (at the
+/// current fit): the columns of a linearised charge term in the residual loop.
+struct ChargeSensitivity {
+  double add_a = 0.0, add_b = 0.0;    ///< d distance / d (charge added to A, to B) [m per charge_unit]
+  double gain_a = 0.0, gain_b = 0.0;  ///< d distance / d (relative gain of A, of B) [m]
+  double a = 0.0, b = 0.0;            ///< the raw read-out (the readout form's covariate)
+  int pulses = 0;
+};
+
+/// The pixel-group covariates' first group is the reference (its value held
+/// at 0): the others are told apart from it, the level itself is the declared
+/// leakage's or Rsen's.
+bool first_value_fixed(const CalibrationTerm& t);
+
 class FitEngine {
  public:
   /// Keeps the valid rows of `rows` (all of data when empty), selected per params.selection.
@@ -51,6 +65,7 @@ class FitEngine {
   [[nodiscard]] double ratio_min() const { return ratio_min_; }
   [[nodiscard]] double ratio_max() const { return ratio_max_; }
   [[nodiscard]] const AmplitudeReference& amplitude_reference() const { return reference_; }
+  [[nodiscard]] ChargeSensitivity charge_sensitivity(std::size_t i) const;
   /// Ridge per column (tiny on the declared columns, term_ridge on the term columns).
   [[nodiscard]] Eigen::VectorXd ridge(std::size_t total_columns) const;
 
@@ -58,6 +73,20 @@ class FitEngine {
   std::vector<std::string> notes;
 
  private:
+  // Steps of the constructor (each false with problem_ set when the data cannot be fitted).
+  bool group_rows();
+  bool enough_data();
+  void decide_leakage_offset();
+  void decide_temperature();
+  bool resolve_terms();
+  bool scale_ratio();
+  // Steps of the per-pixel Rsen refinement.
+  std::vector<bool> rsen_eligible_pixels(std::size_t& n_eligible) const;
+  double rsen_jacobian(std::size_t i, double rsen) const;
+  void corrected(std::size_t i, double& a, double& b) const;  // kept row i's charges after the charge terms
+  double polynomial_slope(std::size_t i) const;                // dP/dX at kept row i [m]
+  void rsen_step(const std::vector<bool>& eligible);
+
   void compute_x();
   void compute_covariates();
   void entries(std::size_t i, Entries& out) const;
@@ -88,7 +117,9 @@ class FitEngine {
 
   AmplitudeReference reference_;
   void update_reference();
-  std::vector<CalibrationTerm> terms_;
+  std::vector<CalibrationTerm> terms_;          // the distance terms (linear columns)
+  std::vector<CalibrationTerm> charge_;        // the terms on the charges (nonlinear, fitted around the solve)
+  std::vector<std::pair<bool, std::size_t>> order_;  // given order: (charge?, index)
   std::vector<int> term_extra_;                // dataset extra column per term
   std::vector<std::vector<double>> z_;         // per term, per kept row
   std::vector<std::size_t> term_col_;          // first column per term

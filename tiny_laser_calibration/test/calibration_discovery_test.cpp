@@ -77,10 +77,17 @@ void expect_named_and_at_floor(const Outcome& o, const std::string& covariate) {
   EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m) << "held-out error after " << r.rmse_after_m << " m, noise floor "
                                              << o.floor_m << " m";
   EXPECT_LT(r.rmse_after_m, r.rmse_before_m);
-  // The model written carries the term and the held-out figures.
+  EXPECT_DOUBLE_EQ(r.model.impl().info.heldout_rmse_after_m, r.rmse_after_m);
+  // The model written carries the term, except one on time since power-on that a
+  // single session cannot confirm (reported, not written).
+  if (!r.effects.front().written) {
+    EXPECT_TRUE(r.model.impl().terms.empty());
+    ASSERT_EQ(r.unconfirmed_session.size(), 1u);
+    EXPECT_EQ(r.unconfirmed_session.front().covariate, "t_s");
+    return;
+  }
   ASSERT_EQ(r.model.impl().terms.size(), r.effects.size());
   EXPECT_EQ(r.model.impl().terms.front().covariate, covariate);
-  EXPECT_DOUBLE_EQ(r.model.impl().info.heldout_rmse_after_m, r.rmse_after_m);
 }
 
 }  // namespace
@@ -142,7 +149,11 @@ TEST(CalibrationDiscovery, SlowTimeDriftIsNamed) {
   c.sensor.effects.time_drift_m_per_ks = 0.02;
   c.plan.passes = 3;
   const auto o = run(c);
-  expect_named_and_at_floor(o, "t_s");
+  // Named by time since power-on, or by a low-pass filtered temperature: in one warm-up both are monotone
+  // functions of time, which only a second session tells apart (and a t_s term is written only then).
+  ASSERT_FALSE(o.result.effects.empty());
+  const std::string first = o.result.effects.front().covariate;
+  expect_named_and_at_floor(o, first == "t_s" ? "t_s" : cal::lagged_temperature_tau(first) > 0 ? first : "t_s");
 }
 
 TEST(CalibrationDiscovery, CapacitorNonlinearityIsNamedAsAnAmplitudeInteraction) {

@@ -1,5 +1,8 @@
 #include "sim_rail_session.hpp"
 
+#include <algorithm>
+#include <random>
+
 #include <exception>
 
 #include <tinyline/bag/reader.hpp>
@@ -124,6 +127,72 @@ RailConstants measure_rail_constants(const tinyline::sim::SensorParams& params) 
     }
   }
   return {spp > 0.0 ? spb / spp : 0.0, sa > 0.0 ? sb / sa : 1.0};
+}
+
+namespace {
+
+std::vector<std::pair<double, std::string>> shuffled_visits(const RailPlan& plan) {
+  std::vector<std::pair<double, std::string>> visits;
+  for (int v = 0; v < plan.visits; ++v) {
+    for (double d = plan.from_m; d <= plan.to_m + 1e-9; d += plan.step_m) {
+      visits.emplace_back(d, plan.materials[static_cast<std::size_t>(v) % plan.materials.size()]);
+    }
+  }
+  std::mt19937 rng(static_cast<unsigned>(plan.seed));
+  std::shuffle(visits.begin(), visits.end(), rng);
+  return visits;
+}
+
+std::vector<int> plan_pixels(const tinyline::sim::SensorParams& params, const RailPlan& plan) {
+  std::vector<int> pixels;
+  const int dark = params.lens.dark_pixels;
+  const int first = plan.pixel_from >= 0 ? plan.pixel_from : dark;
+  const int last = plan.pixel_to >= 0 ? plan.pixel_to : params.lens.pixels - dark - 1;
+  for (int p = first; p <= last; p += plan.pixel_step) pixels.push_back(p);
+  return pixels;
+}
+
+}  // namespace
+
+tinyline::tiny_laser_calibration::CalibrationDataset simulate_rail(const tinyline::sim::SensorParams& params,
+                                                                   const RailPlan& plan) {
+  namespace sim = tinyline::sim;
+  namespace cal = tinyline::tiny_laser_calibration;
+  sim::RailParams rp;
+  rp.material = plan.materials.front();
+  rp.target_width_m = 4.0;  // wider than the field of view at 2 m: every pixel sees the target
+  sim::CalibrationRail rail(params, rp);
+  const auto pixels = plan_pixels(params, plan);
+  cal::CalibrationDataset data;
+  data.source = "simulated rail";
+  data.has_material = true;
+  data.extra_names = plan.extra_columns;
+  if (plan.session >= 0) data.extra_names.push_back("session");
+  double t = plan.power_on_s;
+  std::uint64_t index = plan.seed * 100000;
+  for (const auto& [distance, material] : shuffled_visits(plan)) {
+    rail.set_target_distance(distance);
+    rail.set_target_material(material);
+    for (int k = 0; k < plan.sets_per_visit; ++k) {
+      const sim::SensorSet set = rail.measure(t, params.acquisition.raw_pulses, index++);
+      for (const auto& row : sim::calibration_rows(set, rail.world(), pixels, plan.extra_columns)) {
+        const auto& truth = set.truth[static_cast<std::size_t>(row.pixel)];
+        if (!truth.lit || truth.mixed) continue;
+        tinyline::tiny_laser_driver::Readout r;
+        r.a = row.a;
+        r.b = row.b;
+        r.pulses = row.pulses;
+        r.temperature_c = row.temperature_c;
+        r.pixel = row.pixel;
+        r.t_s = set.t_start_s;  // one t_s per set: the tool's frame
+        r.extra = row.extra;
+        if (plan.session >= 0) r.extra.push_back(plan.session);
+        data.add(std::move(r), row.distance_m, row.material);
+      }
+      t += plan.set_period_s;
+    }
+  }
+  return data;
 }
 
 }  // namespace tinyline::tiny_laser_calibration::testing

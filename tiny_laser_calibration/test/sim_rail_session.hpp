@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <sim/sensor_params.hpp>
+#include <tiny_laser_calibration/data.hpp>
 
 namespace tinyline::tiny_laser_calibration::testing {
 
@@ -44,5 +45,25 @@ struct RailConstants {
   double sensitivity_ratio = 1.0;
 };
 [[nodiscard]] RailConstants measure_rail_constants(const tinyline::sim::SensorParams& params);
+
+/// A rail session on the simulator straight into the calibration data set
+/// (no bus, no bag: the residual loop's tests and sweeps): the target visits
+/// every position `visits` times in shuffled order, one raw set per
+/// `sets_per_visit`, every `pixel_step`-th effective pixel.
+struct RailPlan {
+  double from_m = 0.15, to_m = 2.0, step_m = 0.05;
+  int visits = 2;
+  int sets_per_visit = 1;
+  int pixel_step = 8;
+  int pixel_from = -1, pixel_to = -1;  ///< pixels used (default: every effective one)
+  double set_period_s = 2.0;   ///< sensor time between sets (the rail moves meanwhile)
+  double power_on_s = 0.0;     ///< sensor time of the first set: 0 = the warm-up is in the data
+  std::vector<std::string> materials{"white_paper"};  ///< pass v visits every position with material v
+  std::vector<std::string> extra_columns;  ///< covariate effects recorded as columns
+  std::uint64_t seed = 7;      ///< visit order and noise
+  int session = -1;            ///< >= 0: a `session` column with this value (another warm-up)
+};
+[[nodiscard]] tinyline::tiny_laser_calibration::CalibrationDataset simulate_rail(const tinyline::sim::SensorParams& params,
+                                                                                const RailPlan& plan);
 
 }  // namespace tinyline::tiny_laser_calibration::testing

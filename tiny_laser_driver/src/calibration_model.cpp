@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include <tiny_laser_driver/calibration_impl.hpp>
+#include <tiny_laser_driver/protocol.hpp>
 
 namespace tinyline::tiny_laser_driver {
 
@@ -28,6 +29,24 @@ constexpr CovariateEntry kCovariates[] = {
     {Covariate::kReflectance, "reflectance"},
     {Covariate::kAlbedo, "albedo"},
 };
+constexpr std::size_t kReportedCovariates = 9;  // the ones above; the rest are for charge terms
+constexpr CovariateEntry kChargeCovariates[] = {
+    {Covariate::kOne, "one"}, {Covariate::kPixelParity, "pixel_parity"}, {Covariate::kCharge, "charge"}};
+
+// "pixel_bankN" / "pixel_isN": the kind and N (0 when the name is not one of them).
+std::pair<Covariate, int> pixel_group(std::string_view name) {
+  for (const auto& [prefix, kind] : {std::pair{std::string_view("pixel_bank"), Covariate::kPixelBank},
+                                     std::pair{std::string_view("pixel_is"), Covariate::kPixelIs}}) {
+    if (name.size() <= prefix.size() || name.substr(0, prefix.size()) != prefix) continue;
+    int n = 0;
+    for (char c : name.substr(prefix.size())) {
+      if (c < '0' || c > '9' || n > 100000) return {Covariate::kExtra, 0};
+      n = 10 * n + (c - '0');
+    }
+    return {kind, n};
+  }
+  return {Covariate::kExtra, 0};
+}
 
 // Index i of the knot interval holding z (z clamped) and the weight of knot i+1.
 std::pair<std::size_t, double> locate(const std::vector<double>& knots, double z) {
@@ -44,6 +63,9 @@ std::string_view covariate_name(Covariate c) {
   for (const auto& e : kCovariates) {
     if (e.kind == c) return e.name;
   }
+  for (const auto& e : kChargeCovariates) {
+    if (e.kind == c) return e.name;
+  }
   return "";
 }
 
@@ -51,32 +73,56 @@ Covariate covariate_from_name(std::string_view name) {
   for (const auto& e : kCovariates) {
     if (e.name == name) return e.kind;
   }
-  return Covariate::kExtra;
+  for (const auto& e : kChargeCovariates) {
+    if (e.name == name) return e.kind;
+  }
+  return pixel_group(name).first;
 }
+
+int covariate_parameter(std::string_view name) { return pixel_group(name).second; }
 
 const std::vector<Covariate>& builtin_covariates() {
   static const std::vector<Covariate> all = [] {
     std::vector<Covariate> v;
-    for (const auto& e : kCovariates) v.push_back(e.kind);
+    for (std::size_t i = 0; i < kReportedCovariates; ++i) v.push_back(kCovariates[i].kind);
     return v;
   }();
   return all;
 }
 
+namespace {
+constexpr std::pair<TermForm, std::string_view> kForms[] = {
+    {TermForm::kSmooth, "smooth"},
+    {TermForm::kTable, "table"},
+    {TermForm::kAmplitudeInteraction, "amplitude_interaction"},
+    {TermForm::kChargeA, "charge_a"},
+    {TermForm::kChargeB, "charge_b"},
+    {TermForm::kChargeBoth, "charge_both"},
+    {TermForm::kChargeAPerPulse, "charge_a_per_pulse"},
+    {TermForm::kChargeBPerPulse, "charge_b_per_pulse"},
+    {TermForm::kChargeBothPerPulse, "charge_both_per_pulse"},
+    {TermForm::kGainA, "gain_a"},
+    {TermForm::kGainB, "gain_b"},
+    {TermForm::kReadout, "readout"},
+};
+}  // namespace
+
 std::string_view to_string(TermForm f) {
-  switch (f) {
-    case TermForm::kSmooth: return "smooth";
-    case TermForm::kTable: return "table";
-    case TermForm::kAmplitudeInteraction: return "amplitude_interaction";
+  for (const auto& [form, name] : kForms) {
+    if (form == f) return name;
   }
   return "?";
 }
 
 std::optional<TermForm> term_form_from_string(std::string_view s) {
-  for (TermForm f : {TermForm::kSmooth, TermForm::kTable, TermForm::kAmplitudeInteraction}) {
-    if (to_string(f) == s) return f;
+  for (const auto& [form, name] : kForms) {
+    if (name == s) return form;
   }
   return std::nullopt;
+}
+
+bool acts_on_charges(TermForm f) {
+  return f != TermForm::kSmooth && f != TermForm::kTable && f != TermForm::kAmplitudeInteraction;
 }
 
 std::string_view to_string(ValidityRule::Verdict v) {
@@ -172,12 +218,52 @@ double CalibrationModel::Impl::sensitivity_ratio_of(int pixel) const {
   return sensitivity_ratio;
 }
 
-double CalibrationModel::Impl::ratio(const Readout& r) const {
-  const double vle = leakage_offset + leakage_per_pulse * r.pulses;  // Eq. 3.16: Vle grows with the pulses
-  const double num = r.b - vle;
-  const double den = (r.a * sensitivity_ratio_of(r.pixel) - vle) + num;
+double CalibrationModel::Impl::charge_ratio(double a, double b, int pulses, double rsen, double leakage_offset,
+                                           double leakage_per_pulse) {
+  const double vle = leakage_offset + leakage_per_pulse * pulses;  // Eq. 3.16: Vle grows with the pulses
+  const double num = b - vle;
+  const double den = (a * rsen - vle) + num;
   if (!(den > 0.0)) return kNaN;
   return num / den;
+}
+
+bool CalibrationModel::Impl::correct_charges(const std::vector<CalibrationTerm>& terms, const Readout& r, double& a,
+                                             double& b) {
+  bool complete = true;
+  for (int stage = 0; stage < 3; ++stage) {  // read-out, gain, added charge
+    for (const auto& t : terms) {
+      const TermForm f = t.form;
+      if (!acts_on_charges(f)) continue;
+      const bool readout = f == TermForm::kReadout, gain = f == TermForm::kGainA || f == TermForm::kGainB;
+      if ((stage == 0) != readout || (stage == 1) != gain) continue;
+      if (readout) {
+        a += t.value(a, 0.0);
+        b += t.value(b, 0.0);
+        continue;
+      }
+      const double z = covariate_value(t.kind, t.extra_index, r, kNaN, kNaN, AmplitudeReference{});
+      if (!std::isfinite(z)) {
+        complete = false;
+        continue;
+      }
+      const double g = t.value(z, 0.0);
+      if (f == TermForm::kGainA) a /= 1.0 + g;
+      if (f == TermForm::kGainB) b /= 1.0 + g;
+      if (gain) continue;
+      const bool per_pulse = f == TermForm::kChargeAPerPulse || f == TermForm::kChargeBPerPulse ||
+                             f == TermForm::kChargeBothPerPulse;
+      const double q = per_pulse ? g * r.pulses : g;
+      if (f != TermForm::kChargeB && f != TermForm::kChargeBPerPulse) a -= q;
+      if (f != TermForm::kChargeA && f != TermForm::kChargeAPerPulse) b -= q;
+    }
+  }
+  return complete;
+}
+
+double CalibrationModel::Impl::ratio(const Readout& r) const {
+  double a = r.a, b = r.b;
+  (void)correct_charges(terms, r, a, b);
+  return charge_ratio(a, b, r.pulses, sensitivity_ratio_of(r.pixel), leakage_offset, leakage_per_pulse);
 }
 
 double CalibrationModel::Impl::polynomial_m(double x) const {
@@ -219,6 +305,11 @@ double CalibrationModel::Impl::covariate_value(Covariate kind, int extra_index, 
     case Covariate::kReflectance:
       return r.pulses > 0 ? declared * declared * (r.a + r.b) / r.pulses : kNaN;
     case Covariate::kAlbedo: return reference.albedo(r, declared);
+    case Covariate::kOne: return 1.0;
+    case Covariate::kPixelParity: return r.pixel % 2;
+    case Covariate::kPixelBank: return extra_index > 0 ? std::max(0, r.pixel - static_cast<int>(kDarkPixels)) / extra_index : kNaN;
+    case Covariate::kPixelIs: return r.pixel == extra_index ? 1.0 : 0.0;
+    case Covariate::kCharge: return kNaN;  // the readout form takes each capacitor's own value
     case Covariate::kExtra:
       if (extra_index >= 0 && static_cast<std::size_t>(extra_index) < r.extra.size()) {
         return r.extra[static_cast<std::size_t>(extra_index)];
@@ -230,12 +321,14 @@ double CalibrationModel::Impl::covariate_value(Covariate kind, int extra_index, 
 
 void CalibrationModel::Impl::resolve() {
   extra_covariates.clear();
+  has_charge_terms = std::any_of(terms.begin(), terms.end(), [](const auto& t) { return acts_on_charges(t.form); });
   for (auto& t : terms) {
     t.kind = covariate_from_name(t.covariate);
     t.dense_keys = t.form == TermForm::kTable && !t.keys.empty() && t.offsets_m.size() == t.keys.size() &&
                    t.keys.back() - t.keys.front() + 1 == static_cast<long>(t.keys.size());
     t.first_key = t.keys.empty() ? 0 : t.keys.front();
     t.extra_index = -1;
+    if (t.kind == Covariate::kPixelBank || t.kind == Covariate::kPixelIs) t.extra_index = covariate_parameter(t.covariate);
     if (t.kind != Covariate::kExtra) continue;
     const auto it = std::find(extra_covariates.begin(), extra_covariates.end(), t.covariate);
     t.extra_index = static_cast<int>(it - extra_covariates.begin());
@@ -295,8 +388,13 @@ CalibrationEvaluation compute(const CalibrationModel::Impl& m, const Readout& r)
   }
   double d = ev.declared_distance_m;
   bool missing = !has_temperature && m.temperature_coef_m_per_c != 0.0;
+  if (m.has_charge_terms) {
+    double a = r.a, b = r.b;
+    missing = !CalibrationModel::Impl::correct_charges(m.terms, r, a, b) || missing;
+  }
   const double amplitude = r.a + r.b;
   for (const auto& t : m.terms) {
+    if (acts_on_charges(t.form)) continue;
     const double z = CalibrationModel::Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio,
                                                              ev.declared_distance_m, m.amplitude_reference);
     if (!std::isfinite(z)) {

@@ -338,7 +338,9 @@ std::string CalibrationModel::to_yaml() const {
   if (m.terms.empty()) {
     y += "terms: []                # effects found by the residual analysis (none)\n";
   } else {
-    y += "terms:                   # effects found by the residual analysis, added to the distance\n";
+    y += "terms:                   # effects found by the residual analysis: smooth/table/amplitude_interaction add\n"
+         "                         # to the distance [m]; charge_*, gain_*, readout act on the charges before Eq. 3.16\n"
+         "                         # (values_m then in charge_unit, charge_unit per pulse or a relative gain)\n";
     for (const auto& t : m.terms) {
       y += fmt::format("  - covariate: {}\n    form: {}\n", quoted(t.covariate), to_string(t.form));
       if (t.form == TermForm::kTable) {

@@ -18,6 +18,7 @@ int calib(const std::vector<std::string>& args) {
   tiny_laser_calibration::CalibToolEnv env;
   const fs::path share = share_dir();
   env.plot_script = (share / "scripts" / "plots" / "calib_report.py").string();
+  env.measured_data = (share / "tiny_laser_calibration" / "data" / "measured.yaml").string();
   // The test virtual env has matplotlib; TINYLINE_PYTHON overrides, python3 is the last resort.
   if (const char* py = std::getenv("TINYLINE_PYTHON"); py && *py) {
     env.python = py;

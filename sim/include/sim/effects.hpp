@@ -13,6 +13,10 @@
 //  covariate        an extra measured column         delay = k * (value - mean); value reported
 //  temperature_lag  temperature and its rate         driver temperature lags the MCU reading
 //
+// and one type that acts on the capacitors' charges instead of the timing
+// (`charge`, ChargeEffect): ambient light that follows a measured covariate,
+// extra leakage or a gain on one capacitor of a group of pixels.
+//
 // trap_delay is what the fidelity loop found behind Table 3.2 (see
 // docs/simulator_fidelity.md); the thesis-fidelity sensor lists it.
 #pragma once
@@ -81,8 +85,42 @@ struct TemperatureLagEffect {
   double time_constant_s = 60.0;
 };
 
+/// Pixels an effect applies to: the listed ones, a range, a parity, or (all
+/// empty) every pixel.
+struct PixelGroup {
+  std::vector<int> pixels;   ///< these pixels (e.g. {176})
+  int first = -1, last = -1; ///< a bank [first, last] (both >= 0 to use)
+  int parity = -1;           ///< 0 even, 1 odd, -1 any
+  [[nodiscard]] bool contains(int pixel) const;
+};
+
+/// An effect on the two capacitors' charges (Eq. 3.16's inputs), not on the
+/// timing. Kinds:
+///  ambient    both capacitors collect per_pulse * value extra charge per pulse,
+///             value the current value of the `covariate` effect named `covariate`
+///             (e.g. an ambient-light level in klux; its column may or may not be
+///             recorded): the firmware's ambient subtraction, undone
+///  leakage    capacitor `capacitor` of `pixels` collects per_pulse extra per pulse
+///  gain       capacitor `capacitor` of `pixels` reads `gain` times its charge
+///             (the published firmware's hand-made factor on pixel 176)
+struct ChargeEffect {
+  enum class Kind { kAmbient, kLeakage, kGain };
+  enum class Capacitor { kA, kB, kBoth };
+  Kind kind = Kind::kLeakage;
+  Capacitor capacitor = Capacitor::kB;
+  double per_pulse = 0.0;     ///< [charge_unit per pulse] (ambient: per unit of the covariate)
+  double gain = 1.0;
+  std::string covariate;      ///< ambient: the `covariate` effect whose value drives it
+  PixelGroup pixels;
+};
+
 using EffectSpec = std::variant<TrapDelayEffect, MaterialBiasEffect, FixedPatternEffect, RangeWalkEffect,
-                                TimeDriftEffect, CovariateEffect, TemperatureLagEffect>;
+                                TimeDriftEffect, CovariateEffect, TemperatureLagEffect, ChargeEffect>;
+
+/// Adds the charge effects to the mean charges of one read-out of `pixel` at
+/// `pulses` (before noise); `covariates` are the set's covariate values.
+void apply_charge_effects(const std::vector<const ChargeEffect*>& effects, int pixel, int pulses,
+                          const std::map<std::string, double>& covariates, double& a, double& b);
 
 /// "trap_delay", "material_bias", ...
 [[nodiscard]] const char* effect_type(const EffectSpec& e);

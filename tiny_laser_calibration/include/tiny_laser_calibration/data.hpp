@@ -29,7 +29,9 @@ using tiny_laser_driver::CalibrationModel;
 using tiny_laser_driver::CalibrationTerm;
 using tiny_laser_driver::Covariate;
 using tiny_laser_driver::covariate_from_name;
+using tiny_laser_driver::acts_on_charges;
 using tiny_laser_driver::covariate_name;
+using tiny_laser_driver::covariate_parameter;
 using tiny_laser_driver::Readout;
 using tiny_laser_driver::term_form_from_string;
 using tiny_laser_driver::TermForm;
@@ -75,8 +77,24 @@ CalibrationDataset parse_calibration_csv(std::string_view text, const std::strin
 void write_calibration_csv(const CalibrationDataset& data, std::ostream& out);
 void write_calibration_csv(const CalibrationDataset& data, const std::string& path);
 
-/// Per row, the id (0..n-1, in time order) of its frame: rows with the same t_s.
+/// Per row, the id (0..n-1, in time order) of its frame: rows with the same t_s
+/// (and the same `session`, when the set has that column: each session's t_s
+/// starts at its own power-on).
 std::vector<int> frame_ids(const CalibrationDataset& data);
+
+/// Name of the MCU temperature low-pass filtered with time constant tau
+/// ("temperature_c_lp120s"): what a part that warms more slowly than the MCU
+/// (the MOSFET driver, 3.3.4) follows. Rounded to whole seconds.
+std::string lagged_temperature_name(double tau_s);
+/// tau of such a name; 0 when `name` is not one.
+double lagged_temperature_tau(std::string_view name);
+/// The set with a column per time constant: the temperature low-pass filtered
+/// over each session's frames in time order (started at its first reading).
+/// Existing columns of that name are kept as they are.
+CalibrationDataset with_lagged_temperature(const CalibrationDataset& data, const std::vector<double>& taus_s);
+/// with_lagged_temperature() for the lagged-temperature names among `names` (a
+/// model's extra covariates) that the set lacks.
+CalibrationDataset with_derived_covariates(const CalibrationDataset& data, const std::vector<std::string>& names);
 /// Per row, the id of its target-distance group: the median true distance of
 /// the row's frame, in bins of `bin_m`. On a calibration rail every frame at one
 /// rail position lands in one group, whatever the pixel (rays off the axis are

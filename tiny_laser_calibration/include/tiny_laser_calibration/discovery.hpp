@@ -54,15 +54,22 @@ struct DiscoveryParams {
   double holdout_fraction = 0.25;   ///< share of groups held out of fitting and selection
   std::uint64_t seed = 1;           ///< shuffles groups into hold-out and folds
   int max_terms = 4;
-  double alpha = 0.01;              ///< false-acceptance rate per round (Bonferroni over its candidates)
+  /// Chance of naming anything on effect-free data: Bonferroni over every candidate
+  /// of every round (max_terms rounds).
+  double alpha = 0.01;
   double min_relative_gain = 0.05;  ///< share of the cross-validated squared error a term must remove
   int smooth_knots = 8;             ///< knots of a smooth term (at quantiles of the covariate)
   int interaction_knots = 4;        ///< knots of g(z) in an amplitude interaction
+  int charge_knots = 4;             ///< knots of g(z) of a term on the charges over a continuous covariate
   int table_max_values = 300;       ///< integer covariates with at most this many values get a table form
   /// albedo and reflectance are tried only when the albedo's 90th/10th percentile
   /// ratio reaches this: on one surface they only echo the distance error.
   double min_albedo_spread = 1.5;
-  std::vector<std::string> exclude; ///< covariates never tried
+  std::vector<std::string> exclude; ///< covariates never tried ("charge": no hypothesis on the charges)
+  /// Time constants of the low-pass filtered temperatures tried as covariates
+  /// (lagged_temperature_name()): a delay that follows a part warming more slowly
+  /// than the MCU. Only when the temperature moves and the session lasts.
+  std::vector<double> temperature_lags_s{30.0, 60.0, 120.0, 240.0, 480.0};
 };
 
 /// One (covariate, form) tried in one round.
@@ -84,6 +91,8 @@ struct DiscoveredEffect {
   double cv_rmse_after_m = std::numeric_limits<double>::quiet_NaN();
   double gain = 0.0;
   double z = 0.0;
+  std::string reading;   ///< the fitted term in physical units (term_reading())
+  bool written = true;   ///< false: reported only (a time-since-power-on term one session cannot confirm)
 };
 
 struct DiscoveryResult {
@@ -98,6 +107,9 @@ struct DiscoveryResult {
   std::vector<DiscoveredEffect> effects;
   std::vector<std::vector<CandidateScore>> rounds;
   std::vector<CalibrationTerm> rejected_on_holdout;  ///< accepted by CV, dropped on held-out data
+  /// Terms on time since power-on (t_s) that held on the held-out groups but not on
+  /// a second session (or there was none): reported, not written to `model`.
+  std::vector<CalibrationTerm> unconfirmed_session;
   GroupBy grouping = GroupBy::kAuto;
   std::size_t groups = 0, holdout_groups = 0;
   double z_threshold = 0.0;  ///< of the first round
@@ -123,5 +135,9 @@ struct DiscoveryResult {
 
 /// One-sided normal quantile: z with P(Z > z) = p.
 double normal_upper_quantile(double p);
+
+/// A term in physical units: what it adds to which capacitor, or the delay it
+/// stands for (a distance offset d is a delay of 2 d / c).
+std::string term_reading(const CalibrationTerm& t);
 
 }  // namespace tinyline::tiny_laser_calibration

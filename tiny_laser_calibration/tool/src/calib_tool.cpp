@@ -153,6 +153,9 @@ constexpr const char* kUsage =
     "      the residual analysis of a calibration on data, alone\n"
     "  eval DATA.csv --calib CALIB.yaml [--select driver|all]\n"
     "      prints {\"n\", \"rmse_m\", \"bias_m\", \"p95_abs_m\"} over the valid read-outs\n"
+    "  measured [--data MEASURED.yaml] [--report DIR] [--json]\n"
+    "      the loop on the real sensor's measured figures (Tables 3.1, 3.2, section 3.5, the\n"
+    "      five real sensors' factory curves); default data: the package's measured.yaml\n"
     "  collect BAG -o DATA.csv [options]\n"
     "      a recorded bag (raw scans + the simulator's scan_truth) -> the calibration CSV\n"
     "\n"
@@ -176,7 +179,11 @@ constexpr const char* kUsage =
     "  --max-gap S                largest stamp gap of a scan and its truth (default 0.01 s)\n"
     "  --pixel-step N             every N-th effective pixel (default 1)\n"
     "  --keep-mixed               keep pixels whose footprint spans several surfaces\n"
-    "  --incidence                add an incidence_deg column (angle of the ray to the surface normal)\n";
+    "  --incidence                add an incidence_deg column (angle of the ray to the surface normal)\n"
+    "  --positions LOG.csv        a real sensor on a rail: no truth topic; the tape-measure log\n"
+    "                             t_from_s,t_to_s,distance_m[,material] (s since the first raw scan)\n"
+    "  --focal-mm F               its lens (default 3.6): each pixel's range is distance / cos(ray angle)\n"
+    "  --pixels FROM-TO           keep these pixels only (e.g. the central ones)\n";
 
 std::vector<std::string> split_list(const std::string& s) {
   std::vector<std::string> out;
@@ -304,10 +311,10 @@ std::string summary_json(const ReportContext& c) {
     const auto& e = r.effects[k];
     j += fmt::format(
         "{}\n    {{\"covariate\": {}, \"form\": {}, \"rmse_before_m\": {}, \"rmse_after_m\": {}, "
-        "\"cv_rmse_before_m\": {}, \"cv_rmse_after_m\": {}, \"gain\": {}, \"z\": {}}}",
+        "\"cv_rmse_before_m\": {}, \"cv_rmse_after_m\": {}, \"gain\": {}, \"z\": {}, \"written\": {}, \"reading\": {}}}",
         k ? "," : "", json_string(e.covariate), json_string(std::string(to_string(e.form))), json_number(e.rmse_before_m),
         json_number(e.rmse_after_m), json_number(e.cv_rmse_before_m), json_number(e.cv_rmse_after_m),
-        json_number(e.gain), json_number(e.z));
+        json_number(e.gain), json_number(e.z), e.written ? "true" : "false", json_string(e.reading));
   }
   j += r.effects.empty() ? "],\n" : "\n  ],\n";
   j += fmt::format("  \"acceptance\": {{\"folds\": {}, \"alpha\": {}, \"z_threshold\": {}, \"min_relative_gain\": {}, "
@@ -420,16 +427,19 @@ std::string report_markdown(const ReportContext& c, const std::string& dir, cons
                       "round's Bonferroni threshold ({:.2f}).\n\n",
                       100.0 * p.min_relative_gain, r.z_threshold);
   } else {
-    md += "| covariate | form | held-out RMSE before | after | CV gain | z |\n|---|---|---|---|---|---|\n";
+    md += "| covariate | form | held-out RMSE before | after | CV gain | z | in physical units |\n"
+          "|---|---|---|---|---|---|---|\n";
     for (const auto& e : r.effects) {
-      md += fmt::format("| {} | {} | {} | {} | {:.1f}% | {:.1f} |\n", e.covariate, to_string(e.form),
-                        cm(e.rmse_before_m), cm(e.rmse_after_m), 100.0 * e.gain, e.z);
+      md += fmt::format("| {} | {} | {} | {} | {:.1f}% | {:.1f} | {}{} |\n", e.covariate, to_string(e.form),
+                        cm(e.rmse_before_m), cm(e.rmse_after_m), 100.0 * e.gain, e.z, e.reading,
+                        e.written ? "" : " (reported, not written)");
     }
     md += "\n";
   }
   if (!r.rounds.empty()) {
     md += fmt::format("## Candidates of the first round\n\nAccepted when the gain exceeds {:.0f}% and z exceeds {:.2f} "
-                      "(one-sided, alpha {} shared over the round's tests: two paired statistics per candidate).\n\n",
+                      "(one-sided, alpha {} shared over every test of every round: two paired statistics per "
+                      "candidate).\n\n",
                       100.0 * p.min_relative_gain, r.z_threshold, p.alpha);
     md += "| covariate | form | CV RMSE | gain | z | passes |\n|---|---|---|---|---|---|\n";
     for (const auto& s : r.rounds.front()) {
@@ -486,8 +496,10 @@ void print_summary(std::ostream& out, const DiscoveryResult& r) {
     out << "effects: none\n";
   } else {
     for (const auto& e : r.effects) {
-      out << fmt::format("effect: {} ({}): {} -> {} held out, CV gain {:.1f}%, z {:.1f}\n", e.covariate,
-                         to_string(e.form), cm(e.rmse_before_m), cm(e.rmse_after_m), 100.0 * e.gain, e.z);
+      out << fmt::format("effect: {} ({}): {} -> {} held out, CV gain {:.1f}%, z {:.1f}{}\n", e.covariate,
+                         to_string(e.form), cm(e.rmse_before_m), cm(e.rmse_after_m), 100.0 * e.gain, e.z,
+                         e.written ? "" : " (reported, not written: see the notes)");
+      if (!e.reading.empty()) out << fmt::format("  {}\n", e.reading);
     }
   }
 }
@@ -617,7 +629,8 @@ int cmd_eval(const std::vector<std::string>& argv, std::ostream& out, std::ostre
     }
   }
   const auto model = CalibrationModel::load(*calib);
-  const auto data = read_calibration_csv(o.positional()[0]);
+  // A term on a lagged temperature needs that column: derived from the data's own temperatures.
+  const auto data = with_derived_covariates(read_calibration_csv(o.positional()[0]), model.extra_covariates());
   const auto s = evaluate_model(model, data, {}, sel);
   if (s.n == 0) {
     err << fmt::format("tinyline calib eval: error: {}: the calibration gives no distance for any read-out ({} "
@@ -635,7 +648,8 @@ int cmd_eval(const std::vector<std::string>& argv, std::ostream& out, std::ostre
 }
 
 int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {
-  const Options o(argv, {"-o", "--output", "--raw-topic", "--truth-topic", "--sensor", "--max-gap", "--pixel-step"},
+  const Options o(argv, {"-o", "--output", "--raw-topic", "--truth-topic", "--sensor", "--max-gap", "--pixel-step",
+                         "--positions", "--focal-mm", "--pixels"},
                   {"--keep-mixed", "--incidence"});
   if (o.positional().size() != 1) throw UsageError("collect needs exactly one BAG");
   const auto output = o.value("-o") ? o.value("-o") : o.value("--output");
@@ -649,6 +663,21 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
   p.pixel_step = o.integer("--pixel-step", p.pixel_step, 1, 256);
   p.keep_mixed = o.flag("--keep-mixed");
   p.incidence_column = o.flag("--incidence");
+  p.positions_csv = o.value("--positions").value_or("");
+  p.focal_mm = o.number("--focal-mm", p.focal_mm);
+  if (const auto px = o.value("--pixels")) {
+    const auto dash = px->find('-');
+    try {
+      if (dash == std::string::npos) throw std::invalid_argument("");
+      std::size_t used_from = 0, used_to = 0;
+      p.pixel_from = std::stoi(px->substr(0, dash), &used_from);
+      p.pixel_to = std::stoi(px->substr(dash + 1), &used_to);
+      if (used_from != dash || used_to != px->size() - dash - 1) throw std::invalid_argument("");
+    } catch (const std::exception&) {
+      throw UsageError(fmt::format("--pixels: '{}' is not FROM-TO", *px));
+    }
+    if (p.pixel_from < 0 || p.pixel_to < p.pixel_from || p.pixel_to > 271) throw UsageError("--pixels: expected 0 <= FROM <= TO <= 271");
+  }
   const auto r = collect_calibration_data(o.positional()[0], p);
   for (const auto& n : r.notes) err << "note: " << n << "\n";
   if (!r.ok) {
@@ -657,8 +686,13 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
   }
   write_calibration_csv(r.data, *output);
   std::size_t materials = r.data.materials.size();
-  out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.positional()[0], r.raw_scans,
-                     r.raw_topic, r.truths, r.truth_topic, r.paired);
+  if (p.positions_csv.empty()) {
+    out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.positional()[0], r.raw_scans,
+                       r.raw_topic, r.truths, r.truth_topic, r.paired);
+  } else {
+    out << fmt::format("{}: {} raw scans on {}, {} at a logged rail position, {} between positions\n", o.positional()[0],
+                       r.raw_scans, r.raw_topic, r.paired, r.between_positions);
+  }
   out << fmt::format("pixels left out per set: {} dark, {} without a range, {} unlit, {} mixed (totals over sets)\n",
                      r.dark_pixels, r.no_range, r.unlit, r.mixed);
   out << fmt::format("wrote {} rows ({} material{}) to {}\n", r.data.size(), materials, materials == 1 ? "" : "s",
@@ -685,6 +719,7 @@ int run_calib_command(const std::vector<std::string>& args, std::ostream& out, s
     if (sub == "diagnose") return cmd_diagnose(rest, out, err, env);
     if (sub == "eval") return cmd_eval(rest, out, err);
     if (sub == "collect") return cmd_collect(rest, out, err);
+    if (sub == "measured") return tool::cmd_measured(rest, out, err, env);
     err << fmt::format("tinyline calib: unknown command '{}'\n\n{}", sub, kUsage);
     return 2;
   } catch (const UsageError& e) {

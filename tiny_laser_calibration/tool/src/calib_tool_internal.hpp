@@ -38,6 +38,9 @@ class Options {
 std::string json_string(const std::string& s);
 std::string json_number(double v);  ///< null for NaN/inf
 
+/// `tinyline calib measured` (measured_report.cpp).
+int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env);
+
 /// Runs env.python env.plot_script DIR; 0 on success, else -1 with `message`.
 int run_plot_script(const CalibToolEnv& env, const std::string& dir, std::string& message);
 

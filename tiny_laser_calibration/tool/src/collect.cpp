@@ -55,6 +55,193 @@ struct TruthEntry {
   bool used = false;
 };
 
+using StampedScan = std::pair<double, std::shared_ptr<const RawScan>>;
+
+// The bag's messages of both topics, decoded, in log-time order.
+struct BagContent {
+  std::vector<StampedScan> scans;
+  std::vector<TruthEntry> truths;
+  std::set<std::string> frames;  ///< frame ids of the raw scans
+};
+
+bool open_bag(bag::Reader& reader, const std::string& bag_path, std::string& why) {
+  if (auto s = reader.open(bag_path); !s.ok()) {
+    why = s.str();
+    return false;
+  }
+  if (!reader.has_summary()) {
+    if (auto s = reader.scan(); !s.ok()) {
+      why = s.str();
+      return false;
+    }
+  }
+  return true;
+}
+
+bool read_topics(bag::Reader& reader, CollectResult& out, BagContent& content) {
+  bag::ReadOptions ro;
+  ro.topics = {out.raw_topic, out.truth_topic};
+  std::string decode_error;
+  const auto status = reader.for_each(ro, [&](const bag::MessageView& v) {
+    if (v.channel->topic == out.raw_topic) {
+      auto m = std::make_shared<RawScan>();
+      if (const auto d = msg::deserialize(v.message.data, *m); !d) {
+        ++out.bad_scans;
+        if (decode_error.empty()) decode_error = d.error;
+        return true;
+      }
+      content.frames.insert(m->header.frame_id);
+      content.scans.emplace_back(seconds(m->header.stamp), std::move(m));
+    } else {
+      auto m = std::make_shared<ScanTruth>();
+      if (const auto d = msg::deserialize(v.message.data, *m); !d) {
+        if (decode_error.empty()) decode_error = d.error;
+        return true;
+      }
+      content.truths.push_back({seconds(m->header.stamp), std::move(m), false});
+    }
+    return true;
+  });
+  if (!status.ok()) {
+    out.reason = status.str();
+    return false;
+  }
+  if (!decode_error.empty()) out.notes.push_back(fmt::format("messages that do not decode were skipped: {}", decode_error));
+  return true;
+}
+
+// Keeps one sensor's sets: the one asked for, else the one frame of the raw scans.
+bool keep_one_sensor(const std::string& bag_path, const CollectParams& params, CollectResult& out, BagContent& c) {
+  std::string sensor = params.sensor;
+  if (sensor.empty()) {
+    if (c.frames.size() > 1) {
+      out.reason = fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor",
+                               bag_path, out.raw_topic, fmt::join(c.frames, ", "));
+      return false;
+    }
+    sensor = *c.frames.begin();
+  }
+  std::erase_if(c.scans, [&](const auto& s) { return s.second->header.frame_id != sensor; });
+  std::erase_if(c.truths, [&](const TruthEntry& t) {
+    const bool other = t.msg->sensor != sensor && t.msg->header.frame_id != sensor;
+    out.other_sensor += other ? 1 : 0;
+    return other;
+  });
+  out.truths = c.truths.size();
+  if (c.scans.empty()) {
+    out.reason = fmt::format("{}: no raw scan of sensor '{}' on {} (frames: {})", bag_path, sensor, out.raw_topic,
+                             fmt::join(c.frames, ", "));
+    return false;
+  }
+  if (c.truths.empty()) {
+    out.reason = fmt::format("{}: no ground truth of sensor '{}' on {}", bag_path, sensor, out.truth_topic);
+    return false;
+  }
+  std::sort(c.truths.begin(), c.truths.end(), [](const TruthEntry& a, const TruthEntry& b) { return a.stamp < b.stamp; });
+  std::stable_sort(c.scans.begin(), c.scans.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return true;
+}
+
+// Nearest unused truth within the gap (nullptr when none).
+TruthEntry* nearest_truth(std::vector<TruthEntry>& truths, double stamp, double max_gap) {
+  const auto it = std::lower_bound(truths.begin(), truths.end(), stamp,
+                                   [](const TruthEntry& t, double s) { return t.stamp < s; });
+  TruthEntry* best = nullptr;
+  auto consider = [&](TruthEntry& t) {
+    if (!t.used && (!best || std::abs(t.stamp - stamp) < std::abs(best->stamp - stamp))) best = &t;
+  };
+  for (auto j = it; j != truths.end() && j->stamp - stamp <= max_gap; ++j) consider(*j);
+  for (auto j = it; j != truths.begin();) {
+    --j;
+    if (stamp - j->stamp > max_gap) break;
+    consider(*j);
+  }
+  return best;
+}
+
+bool sizes_agree(const RawScan& r, const ScanTruth& t) {
+  const std::size_t n = r.pixels, k = r.pulses.size();
+  return !(n == 0 || n > kPixels || k == 0 || r.a.size() != n * k || r.b.size() != n * k || t.range_m.size() != n ||
+           t.flags.size() != n || t.material.size() != n || t.incidence_rad.size() != n);
+}
+
+// Whether pixel i of a paired set gives rows; counts the ones left out.
+bool pixel_usable(const ScanTruth& t, std::size_t i, const CollectParams& params, int& effective, CollectResult& out) {
+  const std::uint8_t f = t.flags[i];
+  if (f & ScanTruth::FLAG_DARK) {
+    ++out.dark_pixels;
+    return false;
+  }
+  if (effective++ % params.pixel_step != 0) return false;
+  const double range = t.range_m[i];
+  if (!(std::isfinite(range) && range > 0.0)) {
+    ++out.no_range;
+    return false;
+  }
+  if (!(f & ScanTruth::FLAG_LIT)) {
+    ++out.unlit;
+    return false;
+  }
+  if ((f & ScanTruth::FLAG_MIXED) && !params.keep_mixed) {
+    ++out.mixed;
+    return false;
+  }
+  return true;
+}
+
+// One row per read-out of every usable pixel of a paired set.
+void add_set_rows(const RawScan& r, const ScanTruth& t, double t_s, const CollectParams& params, CollectResult& out) {
+  const std::size_t n = r.pixels, k = r.pulses.size();
+  int effective = 0;  // index among the non-dark pixels, for pixel_step
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!pixel_usable(t, i, params, effective, out)) continue;
+    const int mi = t.material[i];
+    const std::string material =
+        mi >= 0 && static_cast<std::size_t>(mi) < t.materials.size() ? t.materials[static_cast<std::size_t>(mi)] : "";
+    for (std::size_t j = 0; j < k; ++j) {
+      Readout ro;
+      ro.a = r.a[j * n + i] / 10.0;  // the wire carries ten times the charge unit
+      ro.b = r.b[j * n + i] / 10.0;
+      ro.pulses = r.pulses[j];
+      ro.temperature_c = r.temperature_c;
+      ro.pixel = static_cast<int>(i);
+      ro.t_s = t_s;
+      if (params.incidence_column) ro.extra.push_back(t.incidence_rad[i] * 180.0 / std::numbers::pi);
+      out.data.add(std::move(ro), t.range_m[i], material);
+    }
+  }
+}
+
+void pair_and_add(const std::string& bag_path, const CollectParams& params, CollectResult& out, BagContent& c) {
+  CalibrationDataset& data = out.data;
+  data.source = bag_path;
+  data.has_material = true;
+  if (params.incidence_column) data.extra_names.push_back("incidence_deg");
+  const double t0 = c.scans.front().first;
+  std::size_t sizes_note = 0;
+  for (const auto& [stamp, scan] : c.scans) {
+    TruthEntry* best = nearest_truth(c.truths, stamp, params.max_pair_gap_s);
+    if (!best) {
+      ++out.unpaired_scans;
+      continue;
+    }
+    const RawScan& r = *scan;
+    const ScanTruth& t = *best->msg;
+    if (!sizes_agree(r, t)) {
+      ++out.bad_scans;
+      if (sizes_note++ == 0) {
+        out.notes.push_back(fmt::format("raw scan at {:.6f} s left out: {} pixels x {} read-outs, a {} and b {} values, "
+                                        "truth of {} pixels",
+                                        stamp, r.pixels, r.pulses.size(), r.a.size(), r.b.size(), t.range_m.size()));
+      }
+      continue;
+    }
+    best->used = true;
+    ++out.paired;
+    add_set_rows(r, t, stamp - t0, params, out);
+  }
+}
+
 }  // namespace
 
 CollectResult collect_calibration_data(const std::string& bag_path, const CollectParams& params) {
@@ -67,17 +254,9 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
     out.reason = fmt::format("pairing gap {} s is not a non-negative number", params.max_pair_gap_s);
     return out;
   }
+  if (!params.positions_csv.empty()) return collect_rail_positions(bag_path, params);
   bag::Reader reader;
-  if (auto s = reader.open(bag_path); !s.ok()) {
-    out.reason = s.str();
-    return out;
-  }
-  if (!reader.has_summary()) {
-    if (auto s = reader.scan(); !s.ok()) {
-      out.reason = s.str();
-      return out;
-    }
-  }
+  if (!open_bag(reader, bag_path, out.reason)) return out;
   std::string why;
   out.raw_topic = pick_topic(reader, RawScan::kTypeName, params.raw_topic, bag_path, why);
   if (out.raw_topic.empty()) {
@@ -86,159 +265,25 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
   }
   out.truth_topic = pick_topic(reader, ScanTruth::kTypeName, params.truth_topic, bag_path, why);
   if (out.truth_topic.empty()) {
-    out.reason = why + " (record the simulator's scan_truth beside the raw scans)";
+    out.reason = why + " (record the simulator's scan_truth beside the raw scans, or give a real sensor's rail "
+                       "positions with --positions)";
     return out;
   }
-
-  // Read both topics in log-time order.
-  std::vector<std::pair<double, std::shared_ptr<const RawScan>>> scans;
-  std::vector<TruthEntry> truths;
-  std::set<std::string> frames;
-  bag::ReadOptions ro;
-  ro.topics = {out.raw_topic, out.truth_topic};
-  std::string decode_error;
-  const auto status = reader.for_each(ro, [&](const bag::MessageView& v) {
-    if (v.channel->topic == out.raw_topic) {
-      auto m = std::make_shared<RawScan>();
-      if (const auto d = msg::deserialize(v.message.data, *m); !d) {
-        ++out.bad_scans;
-        if (decode_error.empty()) decode_error = d.error;
-        return true;
-      }
-      frames.insert(m->header.frame_id);
-      scans.emplace_back(seconds(m->header.stamp), std::move(m));
-    } else {
-      auto m = std::make_shared<ScanTruth>();
-      if (const auto d = msg::deserialize(v.message.data, *m); !d) {
-        if (decode_error.empty()) decode_error = d.error;
-        return true;
-      }
-      truths.push_back({seconds(m->header.stamp), std::move(m), false});
-    }
-    return true;
-  });
-  if (!status.ok()) {
-    out.reason = status.str();
-    return out;
-  }
-  if (!decode_error.empty()) out.notes.push_back(fmt::format("messages that do not decode were skipped: {}", decode_error));
-  out.raw_scans = scans.size() + out.bad_scans;
-  if (scans.empty()) {
+  BagContent content;
+  if (!read_topics(reader, out, content)) return out;
+  out.raw_scans = content.scans.size() + out.bad_scans;
+  if (content.scans.empty()) {
     out.reason = fmt::format("{}: topic {} holds no raw scan", bag_path, out.raw_topic);
     return out;
   }
-
-  // Whose sets: the sensor asked for, else the one frame of the raw scans.
-  std::string sensor = params.sensor;
-  if (sensor.empty()) {
-    if (frames.size() > 1) {
-      out.reason = fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor",
-                               bag_path, out.raw_topic, fmt::join(frames, ", "));
-      return out;
-    }
-    sensor = *frames.begin();
-  }
-  std::erase_if(scans, [&](const auto& s) { return s.second->header.frame_id != sensor; });
-  std::erase_if(truths, [&](const TruthEntry& t) {
-    const bool other = t.msg->sensor != sensor && t.msg->header.frame_id != sensor;
-    out.other_sensor += other ? 1 : 0;
-    return other;
-  });
-  out.truths = truths.size();
-  if (scans.empty()) {
-    out.reason = fmt::format("{}: no raw scan of sensor '{}' on {} (frames: {})", bag_path, sensor, out.raw_topic,
-                             fmt::join(frames, ", "));
-    return out;
-  }
-  if (truths.empty()) {
-    out.reason = fmt::format("{}: no ground truth of sensor '{}' on {}", bag_path, sensor, out.truth_topic);
-    return out;
-  }
-  std::sort(truths.begin(), truths.end(), [](const TruthEntry& a, const TruthEntry& b) { return a.stamp < b.stamp; });
-  std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-
-  CalibrationDataset& data = out.data;
-  data.source = bag_path;
-  data.has_material = true;
-  if (params.incidence_column) data.extra_names.push_back("incidence_deg");
-  const double t0 = scans.front().first;
-  std::size_t sizes_note = 0;
-  for (const auto& [stamp, scan] : scans) {
-    // Nearest unused truth within the gap.
-    const auto it = std::lower_bound(truths.begin(), truths.end(), stamp,
-                                     [](const TruthEntry& t, double s) { return t.stamp < s; });
-    TruthEntry* best = nullptr;
-    for (auto j = it; j != truths.end() && j->stamp - stamp <= params.max_pair_gap_s; ++j) {
-      if (!j->used && (!best || std::abs(j->stamp - stamp) < std::abs(best->stamp - stamp))) best = &*j;
-    }
-    for (auto j = it; j != truths.begin();) {
-      --j;
-      if (stamp - j->stamp > params.max_pair_gap_s) break;
-      if (!j->used && (!best || std::abs(j->stamp - stamp) < std::abs(best->stamp - stamp))) best = &*j;
-    }
-    if (!best) {
-      ++out.unpaired_scans;
-      continue;
-    }
-    const RawScan& r = *scan;
-    const ScanTruth& t = *best->msg;
-    const std::size_t n = r.pixels, k = r.pulses.size();
-    if (n == 0 || n > kPixels || k == 0 || r.a.size() != n * k || r.b.size() != n * k || t.range_m.size() != n ||
-        t.flags.size() != n || t.material.size() != n || t.incidence_rad.size() != n) {
-      ++out.bad_scans;
-      if (sizes_note++ == 0) {
-        out.notes.push_back(fmt::format("raw scan at {:.6f} s left out: {} pixels x {} read-outs, a {} and b {} values, "
-                                        "truth of {} pixels",
-                                        stamp, n, k, r.a.size(), r.b.size(), t.range_m.size()));
-      }
-      continue;
-    }
-    best->used = true;
-    ++out.paired;
-    const double t_s = stamp - t0;
-    int effective = 0;  // index among the non-dark pixels, for pixel_step
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint8_t f = t.flags[i];
-      if (f & ScanTruth::FLAG_DARK) {
-        ++out.dark_pixels;
-        continue;
-      }
-      if (effective++ % params.pixel_step != 0) continue;
-      const double range = t.range_m[i];
-      if (!(std::isfinite(range) && range > 0.0)) {
-        ++out.no_range;
-        continue;
-      }
-      if (!(f & ScanTruth::FLAG_LIT)) {
-        ++out.unlit;
-        continue;
-      }
-      if ((f & ScanTruth::FLAG_MIXED) && !params.keep_mixed) {
-        ++out.mixed;
-        continue;
-      }
-      const int mi = t.material[i];
-      const std::string material =
-          mi >= 0 && static_cast<std::size_t>(mi) < t.materials.size() ? t.materials[static_cast<std::size_t>(mi)] : "";
-      for (std::size_t j = 0; j < k; ++j) {
-        Readout ro;
-        ro.a = r.a[j * n + i] / 10.0;  // the wire carries ten times the charge unit
-        ro.b = r.b[j * n + i] / 10.0;
-        ro.pulses = r.pulses[j];
-        ro.temperature_c = r.temperature_c;
-        ro.pixel = static_cast<int>(i);
-        ro.t_s = t_s;
-        if (params.incidence_column) ro.extra.push_back(t.incidence_rad[i] * 180.0 / std::numbers::pi);
-        data.add(std::move(ro), range, material);
-      }
-    }
-  }
+  if (!keep_one_sensor(bag_path, params, out, content)) return out;
+  pair_and_add(bag_path, params, out, content);
   if (out.unpaired_scans > 0) {
     out.notes.push_back(fmt::format("{} of {} raw scans had no ground truth within {} s and were left out",
-                                    out.unpaired_scans, scans.size(), params.max_pair_gap_s));
+                                    out.unpaired_scans, content.scans.size(), params.max_pair_gap_s));
   }
   if (out.other_sensor > 0) out.notes.push_back(fmt::format("{} truths of other sensors ignored", out.other_sensor));
-  if (data.empty()) {
+  if (out.data.empty()) {
     out.reason = fmt::format("{}: no rows: {} raw scans paired with their truth; pixels left out: {} without a range, "
                              "{} unlit, {} mixed",
                              bag_path, out.paired, out.no_range, out.unlit, out.mixed);

@@ -26,6 +26,12 @@ enum class Covariate {
   kReflectance,        ///< "reflectance": declared distance^2 * (a + b) / pulses [charge_unit m^2]
   kAlbedo,             ///< "albedo": (a + b) / pulses relative to the calibration target's at that distance and pixel
   kExtra,              ///< a further numeric column, by name (Readout::extra)
+  // Covariates of the terms that act on the charges (not in builtin_covariates()):
+  kOne,                ///< "one": 1 (a constant charge, or one per pulse)
+  kPixelParity,        ///< "pixel_parity": pixel % 2
+  kPixelBank,          ///< "pixel_bankN": (pixel - 8) / N, the bank of N effective pixels it is in
+  kPixelIs,            ///< "pixel_isN": 1 for pixel N, else 0 (a single odd pixel)
+  kCharge,             ///< "charge": the capacitor's own read-out (the readout form only)
 };
 
 /// Name used in CSV headers, YAML and reports ("pixel", "t_s", ...); "" for kExtra.
@@ -34,15 +40,31 @@ std::string_view covariate_name(Covariate c);
 Covariate covariate_from_name(std::string_view name);
 /// Built-in covariates in report order.
 const std::vector<Covariate>& builtin_covariates();
+/// N of "pixel_bankN" / "pixel_isN" (0 for any other name).
+int covariate_parameter(std::string_view name);
 
-/// Shapes a discovered term may take.
+/// Shapes a discovered term may take. The first three add to the distance;
+/// the others act on the two charges before Eq. 3.16, where the physics puts
+/// them, with g(z) piecewise linear on knots as for kSmooth (values in
+/// charge_unit, charge_unit per pulse, or a relative gain):
 enum class TermForm {
   kSmooth,                ///< g(z): piecewise linear on knots, constant beyond the end knots
   kTable,                 ///< offset per integer value of z (0 for values not in the table)
   kAmplitudeInteraction,  ///< g(z) * u, u = (a + b - amplitude_reference) / amplitude_scale
+  kChargeA,               ///< capacitor A holds g(z) extra charge: a - g(z)
+  kChargeB,               ///< b - g(z)
+  kChargeBoth,            ///< both: a - g(z), b - g(z)
+  kChargeAPerPulse,       ///< g(z) extra charge per pulse: a - g(z) pulses
+  kChargeBPerPulse,       ///< b - g(z) pulses
+  kChargeBothPerPulse,    ///< a - g(z) pulses, b - g(z) pulses (ambient light, leakage)
+  kGainA,                 ///< capacitor A reads 1 + g(z) times its charge: a / (1 + g(z))
+  kGainB,                 ///< b / (1 + g(z))
+  kReadout,               ///< read-out nonlinearity of both: v + g(v), z = the read-out v itself ("charge")
 };
 std::string_view to_string(TermForm f);
 std::optional<TermForm> term_form_from_string(std::string_view s);
+/// The form acts on the charges (before Eq. 3.16) rather than on the distance.
+bool acts_on_charges(TermForm f);
 
 /// One term added on top of the declared model: distance += term(z).
 struct CalibrationTerm {
@@ -63,7 +85,7 @@ struct CalibrationTerm {
 
   // Resolved on load / when added to a model.
   Covariate kind = Covariate::kExtra;
-  int extra_index = -1;  ///< index into Readout::extra for kExtra
+  int extra_index = -1;  ///< index into Readout::extra for kExtra; N of kPixelBank / kPixelIs
   bool dense_keys = false;  ///< keys are first_key, first_key + 1, ...: a table lookup is an index
   long first_key = 0;
 
@@ -128,10 +150,19 @@ struct CalibrationModel::Impl {
 
   std::vector<CalibrationTerm> terms;
   std::vector<std::string> extra_covariates;  ///< derived from terms (resolve())
+  bool has_charge_terms = false;              ///< derived from terms (resolve())
   CalibrationFitInfo info;
 
-  /// Charge ratio X (NaN when the corrected sum is not positive).
+  /// Charge ratio X (NaN when the corrected sum is not positive), after the
+  /// terms that act on the charges.
   [[nodiscard]] double ratio(const Readout& r) const;
+  /// Eq. 3.16 on given charges.
+  [[nodiscard]] static double charge_ratio(double a, double b, int pulses, double rsen, double leakage_offset,
+                                           double leakage_per_pulse);
+  /// The read-out's charges as the declared model expects them: the charge
+  /// terms undone in the reverse order of the physics (read-out, then gain,
+  /// then added charge). False when a term's covariate is missing (that term skipped).
+  static bool correct_charges(const std::vector<CalibrationTerm>& terms, const Readout& r, double& a, double& b);
   [[nodiscard]] double sensitivity_ratio_of(int pixel) const;
   /// Eq. 3.18 in X.
   [[nodiscard]] double polynomial_m(double x) const;

@@ -36,7 +36,26 @@ struct CollectParams {
   int pixel_step = 1;           ///< every n-th effective pixel (smaller files)
   bool keep_mixed = false;      ///< also rows of mixed pixels (their truth is the central ray's)
   bool incidence_column = false;///< add `incidence_deg` (the ray's angle to the surface normal) as a column
+  /// A real sensor on a rail (no truth topic): the tape-measure log of the
+  /// target's positions, a CSV `t_from_s,t_to_s,distance_m[,material]` (times in
+  /// seconds since the bag's first raw scan, distance from the receiver's lens to
+  /// a flat target square to the optical axis). Each pixel's true range is that
+  /// distance over the cosine of its ray's angle; scans outside every interval
+  /// (the target moving) are left out.
+  std::string positions_csv;
+  double focal_mm = 3.6;            ///< receiver focal length (the pixels' ray angles)
+  double sensor_length_mm = 5.12;   ///< length of the 256 effective pixels
+  int pixel_from = -1, pixel_to = -1;  ///< keep only these pixels (-1: every effective one)
 };
+
+/// One logged rail position (CollectParams::positions_csv).
+struct RailPosition {
+  double t_from_s = 0.0, t_to_s = 0.0, distance_m = 0.0;
+  std::string material;
+  std::size_t line = 0;
+};
+/// Reads a tape-measure log; throws CalibrationDataError naming the file, line and column.
+std::vector<RailPosition> read_rail_positions(const std::string& path);
 
 struct CollectResult {
   bool ok = false;
@@ -48,11 +67,15 @@ struct CollectResult {
   std::size_t bad_scans = 0;         ///< raw scans that cannot be a set (sizes disagree) or do not decode
   std::size_t other_sensor = 0;      ///< truths of other sensors
   std::size_t dark_pixels = 0, no_range = 0, unlit = 0, mixed = 0;  ///< pixel-sets left out, by reason
+  std::size_t between_positions = 0; ///< raw scans outside every logged rail position (positions_csv)
   std::vector<std::string> notes;
 };
 
 /// Reads the bag and builds the data set. Never throws for a bad bag: ok=false
 /// with a reason naming the file (and the record's byte offset for a corrupt one).
+/// With params.positions_csv: collect_rail_positions().
 [[nodiscard]] CollectResult collect_calibration_data(const std::string& bag_path, const CollectParams& params = {});
+/// A real sensor's bag (raw scans only) with its tape-measure log (positions_csv).
+[[nodiscard]] CollectResult collect_rail_positions(const std::string& bag_path, const CollectParams& params);
 
 }  // namespace tinyline::tiny_laser_calibration

@@ -13,6 +13,7 @@ namespace tinyline::tiny_laser_calibration {
 struct CalibToolEnv {
   std::string python;       ///< interpreter that runs the plot script ("" = no plots)
   std::string plot_script;  ///< scripts/plots/calib_report.py
+  std::string measured_data;  ///< the real sensor's measured figures (`calib measured`'s default --data)
 };
 
 /// Runs `tinyline calib ARGS...` (ARGS after "calib"). Returns the exit code:

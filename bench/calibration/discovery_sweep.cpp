@@ -1,0 +1,125 @@
+// calibration_discovery_sweep: how often the residual loop names an effect on
+// the simulator, over many seeds: the share of effect-free runs that name
+// anything (the null rate; goal <= 5 %) and, per injected effect, the share
+// that name it and how close the held-out error gets to the noise floor.
+// The cases are those of the tests (tiny_laser_calibration/test/
+// sim_discovery_cases.cpp); the seeds must lie in one range of the registry
+// (tiny_laser_calibration/seeds.hpp): tuning seeds while choosing settings,
+// held-out seeds for the figures in docs/calibration.md.
+//
+//   calibration_discovery_sweep --seeds 1000-1019 --case none
+//   calibration_discovery_sweep --seeds 1000-1004 --case ambient_light --case group_leakage
+//   calibration_discovery_sweep --seeds 1000-1004 --all --out sweep.csv
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <tiny_laser_calibration/seeds.hpp>
+
+#include "sim_discovery_cases.hpp"
+
+namespace cal = tinyline::tiny_laser_calibration;
+namespace tt = tinyline::tiny_laser_calibration::testing;
+
+namespace {
+
+struct Args {
+  cal::SeedRange seeds{1, 5};
+  std::vector<std::string> cases;
+  std::string out;
+};
+
+int usage(const std::string& why) {
+  std::cerr << "calibration_discovery_sweep: " << why
+            << "\nusage: calibration_discovery_sweep --seeds FIRST-LAST (--case NAME ... | --all) [--out FILE.csv]\n"
+            << "cases:";
+  for (const auto& c : tt::discovery_cases()) std::cerr << " " << c.name;
+  std::cerr << "\nseed ranges: tuning " << cal::kTuningSeeds.first << "-" << cal::kTuningSeeds.last << ", held-out "
+            << cal::kHeldOutSeeds.first << "-" << cal::kHeldOutSeeds.last << "\n";
+  return 2;
+}
+
+bool parse_range(const std::string& s, cal::SeedRange& r) {
+  const auto dash = s.find('-');
+  try {
+    std::size_t used = 0;
+    r.first = std::stoull(s.substr(0, dash), &used);
+    r.last = dash == std::string::npos ? r.first : std::stoull(s.substr(dash + 1));
+  } catch (const std::exception&) {
+    return false;
+  }
+  return r.first <= r.last;
+}
+
+int parse(int argc, char** argv, Args& a) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    const bool has_value = i + 1 < argc;
+    if (k == "--seeds" && has_value) {
+      if (!parse_range(argv[++i], a.seeds)) return usage(std::string("--seeds: '") + argv[i] + "' is not FIRST-LAST");
+    } else if (k == "--case" && has_value) {
+      a.cases.push_back(argv[++i]);
+    } else if (k == "--all") {
+      for (const auto& c : tt::discovery_cases()) a.cases.push_back(c.name);
+    } else if (k == "--out" && has_value) {
+      a.out = argv[++i];
+    } else {
+      return usage("unknown or incomplete option '" + k + "'");
+    }
+  }
+  if (a.cases.empty()) return usage("no case chosen");
+  for (const auto& n : a.cases) {
+    bool known = false;
+    for (const auto& c : tt::discovery_cases()) known = known || c.name == n;
+    if (!known) return usage("unknown case '" + n + "'");
+  }
+  if (!cal::seed_use(a.seeds)) return usage("seeds mix the tuning and the held-out range (or leave both)");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;
+  if (const int rc = parse(argc, argv, a); rc != 0) return rc;
+  const auto use = *cal::seed_use(a.seeds);
+  std::ofstream csv;
+  if (!a.out.empty()) {
+    csv.open(a.out);
+    if (!csv) return usage("cannot write " + a.out);
+    csv << "case,seed,named,first_effect,before_m,after_m,floor_m,twin_effects\n";
+  }
+  std::printf("seeds %llu-%llu (%s)\n", static_cast<unsigned long long>(a.seeds.first),
+              static_cast<unsigned long long>(a.seeds.last), std::string(cal::to_string(use)).c_str());
+  std::printf("| case | runs | named as expected | named anything | after / floor (median, max) | twin named anything |\n");
+  std::printf("|---|---|---|---|---|---|\n");
+  for (const auto& name : a.cases) {
+    const auto& c = tt::discovery_case(name);
+    int runs = 0, hits = 0, any = 0, twin_any = 0;
+    std::vector<double> ratio;
+    for (std::uint64_t seed = a.seeds.first; seed <= a.seeds.last; ++seed) {
+      const auto o = tt::run_case(c, seed);
+      ++runs;
+      hits += o.named ? 1 : 0;
+      any += o.result.effects.empty() ? 0 : 1;
+      twin_any += o.twin.effects.empty() ? 0 : 1;
+      ratio.push_back(o.result.rmse_after_m / o.floor_m);
+      if (csv) {
+        csv << c.name << ',' << seed << ',' << (o.named ? 1 : 0) << ',' << o.names() << ',' << o.result.rmse_before_m << ','
+            << o.result.rmse_after_m << ',' << o.floor_m << ',' << o.twin.effects.size() << '\n';
+      }
+      std::fprintf(stderr, "%s seed %llu: %s, %.2f -> %.2f cm (floor %.2f cm)\n", c.name.c_str(),
+                   static_cast<unsigned long long>(seed), o.names().c_str(), 100 * o.result.rmse_before_m,
+                   100 * o.result.rmse_after_m, 100 * o.floor_m);
+    }
+    std::sort(ratio.begin(), ratio.end());
+    std::printf("| %s | %d | %d (%.0f %%) | %d | %.2f, %.2f | %d |\n", c.name.c_str(), runs, hits, 100.0 * hits / runs, any,
+                ratio[ratio.size() / 2], ratio.back(), twin_any);
+    std::fflush(stdout);
+  }
+  return 0;
+}

@@ -1,0 +1,197 @@
+// `tinyline calib measured`: the calibration loop on every real measurement
+// the project holds (measured.hpp), as a report.
+#include <filesystem>
+#include <fstream>
+#include <ostream>
+
+#include <fmt/format.h>
+
+#include <tiny_laser_calibration/data.hpp>
+#include <tiny_laser_calibration/measured.hpp>
+
+#include "calib_tool_internal.hpp"
+
+namespace tinyline::tiny_laser_calibration::tool {
+
+namespace {
+
+std::string hypothesis_table(const std::vector<EffectHypothesis>& hs, int best, const char* error_name) {
+  std::string md = fmt::format("| effect | form | {} | in-sample RMSE | fitted, in physical units |\n|---|---|---|---|---|\n",
+                               error_name);
+  for (std::size_t i = 0; i < hs.size(); ++i) {
+    const auto& h = hs[i];
+    md += fmt::format("| {}{} | `{}` | {:.2f} cm | {:.2f} cm | {} |\n", static_cast<int>(i) == best ? "**best:** " : "",
+                      h.effect, h.form, h.loo_rmse_cm, h.in_sample_rmse_cm, h.reading);
+  }
+  return md + "\n";
+}
+
+std::string materials_section(const MeasuredData& d, const MaterialAnalysis& a) {
+  std::string md = "## Table 3.2: bias per material against the reflectance the sensor reports\n\n";
+  md += fmt::format(
+      "Calibrated on white paper (its own bias {:+.2f} cm is the anchor every hypothesis passes through); "
+      "q = reflectance / white paper's. Leave-one-material-out over the {} other surfaces.\n\n",
+      a.white_bias_cm, d.table32.size() - 1);
+  md += fmt::format("Before (the declared model: every surface reads like white paper): **{:.2f} cm** RMS.\n\n",
+                    a.before_rmse_cm);
+  md += hypothesis_table(a.hypotheses, a.best, "leave-one-out RMSE");
+  if (a.best >= 0) {
+    const auto& h = a.hypotheses[static_cast<std::size_t>(a.best)];
+    md += fmt::format("After (best, leave-one-material-out): **{:.2f} cm** RMS, from {:.2f} cm.\n\n", h.loo_rmse_cm,
+                      a.before_rmse_cm);
+    md += "| material | reflectance | bias [cm] | left over, leave-one-out [cm] |\n|---|---|---|---|\n";
+    for (std::size_t i = 0; i < d.table32.size(); ++i) {
+      const auto& m = d.table32[i];
+      const double r = h.loo_residual_cm[i];
+      md += fmt::format("| {} | {} | {:+.2f} | {} |\n", m.name, m.reflectance, m.mean_cm - 30.0,
+                        std::isfinite(r) ? fmt::format("{:+.2f}", r) : "(anchor)");
+    }
+    md += "\n";
+    if (a.unexplained.empty()) {
+      md += "Nothing is left beyond three standard errors of a material's mean.\n\n";
+    } else {
+      md += "Left unexplained (beyond three standard errors of the mean, or 0.3 cm):\n\n";
+      for (const auto& u : a.unexplained) md += "- " + u + "\n";
+      md += "\n";
+    }
+  }
+  return md;
+}
+
+std::string distances_section(const MeasuredData& d, const DistanceAnalysis& a) {
+  std::string md = "## Table 3.1: bias and spread against distance (white paper)\n\n";
+  md += fmt::format("Before (the published calibration): **{:.2f} cm** RMS bias over the {} distances. "
+                    "Leave-one-distance-out:\n\n",
+                    a.before_rmse_cm, d.table31.size());
+  md += hypothesis_table(a.hypotheses, a.best, "leave-one-out RMSE");
+  md += fmt::format("Spread: {}.\n\n", a.sd_reading);
+  return md;
+}
+
+std::string fits_section(const FitsAnalysis& a) {
+  std::string md = "## Section 3.5: what the published fits say\n\n";
+  for (const auto& r : a.readings) md += "- " + r + "\n";
+  return md + "\n";
+}
+
+std::string curves_section(const std::vector<CurveAnalysis>& cs) {
+  std::string md = "## The five real sensors' factory curves\n\n";
+  md += "Each curve held against the declared physical model where it reads the thesis's calibration range "
+        "(5-200 cm), 401 points evenly in k = b / (a + b); Rsen kept within a factor 2 of 1 and the pulse power "
+        "positive; RMS residual of each model:\n\n";
+  md += "| sensor | k | distance [cm] | Eq. 3.16 (before) | + gain on A | + pulse shape (after) | fitted | delay drift |\n"
+        "|---|---|---|---|---|---|---|---|\n";
+  for (const auto& c : cs) {
+    md += fmt::format("| {} | {:.3f}-{:.3f} | {:.0f}-{:.0f} | {:.2f} cm | {:.2f} cm | {:.2f} cm | {} | {:.1f} ps/degC |\n",
+                      c.sensor, c.k_min, c.k_max, c.l_min_cm, c.l_max_cm, c.models[0].in_sample_rmse_cm,
+                      c.models[1].in_sample_rmse_cm, c.models[2].in_sample_rmse_cm, c.models[2].reading,
+                      c.delay_drift_ps_per_c);
+  }
+  return md + "\n";
+}
+
+std::string report_json(const MaterialAnalysis& m, const DistanceAnalysis& dist, const FitsAnalysis& f,
+                        const std::vector<CurveAnalysis>& cs) {
+  auto hyps = [](const std::vector<EffectHypothesis>& hs) {
+    std::string j = "[";
+    for (std::size_t i = 0; i < hs.size(); ++i) {
+      j += fmt::format("{}{{\"effect\": {}, \"form\": {}, \"loo_rmse_cm\": {}, \"in_sample_rmse_cm\": {}}}", i ? ", " : "",
+                       json_string(hs[i].effect), json_string(hs[i].form), json_number(hs[i].loo_rmse_cm),
+                       json_number(hs[i].in_sample_rmse_cm));
+    }
+    return j + "]";
+  };
+  std::string j = "{\n";
+  j += fmt::format("  \"table32\": {{\"before_rmse_cm\": {}, \"best\": {}, \"hypotheses\": {}}},\n",
+                   json_number(m.before_rmse_cm), m.best, hyps(m.hypotheses));
+  j += fmt::format("  \"table31\": {{\"before_rmse_cm\": {}, \"best\": {}, \"sd_log_slope\": {}, \"hypotheses\": {}}},\n",
+                   json_number(dist.before_rmse_cm), dist.best, json_number(dist.sd_log_slope), hyps(dist.hypotheses));
+  j += fmt::format("  \"section35\": {{\"noise_exponent\": {}, \"multi_shot_prediction_cm2\": {}}},\n",
+                   json_number(f.noise_exponent), json_number(f.multi_shot_prediction_cm2));
+  j += "  \"curves\": [";
+  for (std::size_t i = 0; i < cs.size(); ++i) {
+    j += fmt::format("{}\n    {{\"sensor\": {}, \"k_min\": {}, \"k_max\": {}, \"rmse_cm\": [{}, {}, {}]}}", i ? "," : "",
+                     json_string(cs[i].sensor), json_number(cs[i].k_min), json_number(cs[i].k_max),
+                     json_number(cs[i].models[0].in_sample_rmse_cm), json_number(cs[i].models[1].in_sample_rmse_cm),
+                     json_number(cs[i].models[2].in_sample_rmse_cm));
+  }
+  return j + "\n  ]\n}\n";
+}
+
+// The data the plot script draws (measured_*.csv).
+void write_plot_data(const std::string& dir, const MeasuredData& d, const MaterialAnalysis& m,
+                     const std::vector<CurveAnalysis>& cs) {
+  namespace fs = std::filesystem;
+  {
+    std::ofstream out(fs::path(dir) / "measured_materials.csv");
+    out << "material,reflectance,bias_cm,sd_cm,loo_residual_cm\n";
+    const auto* h = m.best >= 0 ? &m.hypotheses[static_cast<std::size_t>(m.best)] : nullptr;
+    for (std::size_t i = 0; i < d.table32.size(); ++i) {
+      const auto& t = d.table32[i];
+      out << fmt::format("{},{},{},{},{}\n", t.name, t.reflectance, t.mean_cm - 30.0, t.sd_cm,
+                         h ? json_number(h->loo_residual_cm[i]) : "null");
+    }
+  }
+  std::ofstream out(fs::path(dir) / "measured_curves.csv");
+  out << "sensor,k,l_cm,residual_declared_cm,residual_best_cm\n";
+  for (const auto& c : cs) {
+    for (std::size_t i = 0; i < c.k.size(); ++i) {
+      out << fmt::format("{},{},{},{},{}\n", c.sensor, c.k[i], c.l_cm[i], c.models[0].loo_residual_cm[i],
+                         c.best_residual_cm[i]);
+    }
+  }
+  if (!out) throw std::runtime_error(fmt::format("{}: cannot write the plot data", dir));
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << text;
+    out.flush();
+    if (!out) throw std::runtime_error(fmt::format("{}: write failed", path));
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(fmt::format("{}: cannot rename into place", path));
+}
+
+}  // namespace
+
+int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
+  const Options o(argv, {"--data", "--report"}, {"--json"});
+  if (!o.positional().empty()) throw UsageError("measured takes no positional argument");
+  const std::string path = o.value("--data").value_or(env.measured_data);
+  if (path.empty()) throw UsageError("measured needs --data MEASURED.yaml (no default known)");
+  const MeasuredData d = load_measured_data(path);
+  const MaterialAnalysis mat = analyse_materials(d);
+  const DistanceAnalysis dist = analyse_distances(d);
+  const FitsAnalysis fits = analyse_fits(d);
+  const std::vector<CurveAnalysis> curves = analyse_curves(d);
+  std::string md = fmt::format("# The calibration loop on the real sensor's measurements\n\nData: `{}` ({} materials, "
+                               "{} distances, {} published fits, {} factory curves).\n\n",
+                               std::filesystem::path(path).filename().string(), d.table32.size(), d.table31.size(),
+                               d.fits.size(), d.sensors.size());
+  md += materials_section(d, mat) + distances_section(d, dist) + fits_section(fits) + curves_section(curves);
+  if (const auto report = o.value("--report")) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    fs::create_directories(*report, ec);
+    if (ec || !fs::is_directory(*report)) throw std::runtime_error(fmt::format("{}: cannot create the report directory", *report));
+    write_plot_data(*report, d, mat, curves);
+    write_text((fs::path(*report) / "measured.json").string(), report_json(mat, dist, fits, curves));
+    std::string note;
+    if (run_plot_script(env, *report, note) != 0) err << "tinyline calib: warning: " << note << "; report without plots\n";
+    for (const char* png : {"measured_materials.png", "measured_curves.png"}) {
+      if (fs::exists(fs::path(*report) / png)) md += fmt::format("![{}]({})\n\n", png, png);
+    }
+    write_text((fs::path(*report) / "measured.md").string(), md);
+    out << fmt::format("wrote {}/measured.md\n", *report);
+  }
+  if (o.flag("--json")) {
+    out << report_json(mat, dist, fits, curves);
+  } else if (!o.value("--report")) {
+    out << md;
+  }
+  return 0;
+}
+
+}  // namespace tinyline::tiny_laser_calibration::tool
