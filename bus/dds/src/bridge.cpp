@@ -8,6 +8,7 @@
 #include <tinyline/dds/naming.hpp>
 
 #include "entities.hpp"
+#include "probe.hpp"
 #include "serdata.hpp"
 
 namespace tinyline::dds {
@@ -416,6 +417,7 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     l.unmatched.fetch_add(1, std::memory_order_relaxed);
     return;
   }
+  TL_DDS_PROBE(SendEnter);
   std::vector<std::uint8_t> buf;
   buf.reserve(l.last_size.load(std::memory_order_relaxed));
   try {
@@ -427,8 +429,10 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     return;
   }
   l.last_size.store(buf.size(), std::memory_order_relaxed);
+  TL_DDS_PROBE(Serialized);
   ddsi_serdata* sd = detail::make_serdata(l.topic.sertype, std::move(buf));
   const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
+  TL_DDS_PROBE(Written);
   if (rc < 0) {
     if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
       logger().error("{}: DDS write failed: {} ({} remote reader(s))", l.name, dds_strretcode(rc),
@@ -463,11 +467,13 @@ void Bridge::receive_loop() {
         ddsi_serdata* sd = nullptr;
         dds_sample_info_t info;
         if (dds_takecdr(reader, &sd, 1, &info, DDS_ANY_STATE) <= 0) break;
+        TL_DDS_PROBE(Taken);
         detail::taking_over(sd);
         if (info.valid_data) {
           std::shared_ptr<void> msg;
           try {
             msg = l->type->deserialize(detail::serdata_bytes(sd));
+            TL_DDS_PROBE(Deserialized);
           } catch (const std::exception& e) {
             const auto errors = l->decode_errors.fetch_add(1) + 1;
             if (worth_logging(errors)) {
@@ -482,6 +488,7 @@ void Bridge::receive_loop() {
           }
           if (msg) {
             in->publish(std::move(msg), origin_);
+            TL_DDS_PROBE(Delivered);
             l->received.fetch_add(1, std::memory_order_relaxed);
           }
         }
