@@ -20,6 +20,7 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <cstdio>
 
 #include "pingpong.hpp"
 
@@ -122,6 +123,10 @@ BENCHMARK(BM_Dds_Stream)->Apply(sizes);
 
 int main(int argc, char** argv) {
   if (const int rc = maybe_pong_main(argc, argv); rc >= 0) return rc;
+  if (argc > 1 && std::string(argv[1]) == "--print-config") {  // for ddsperf beside it (side_by_side.py)
+    std::puts(settings("ping").effective_config().c_str());
+    return 0;
+  }
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -83,6 +83,13 @@ inline dds::Settings settings(const std::string& process, bool alone = false) {
   return s;
 }
 
+/// The executors' polling time (ExecutorOptions::spin); DDS_BENCH_SPIN_US
+/// measures another.
+inline bus::Duration executor_spin() {
+  const char* us = std::getenv("DDS_BENCH_SPIN_US");
+  return us ? std::chrono::microseconds(std::atoi(us)) : bus::ExecutorOptions{}.spin;
+}
+
 inline std::shared_ptr<bus::Context> quiet_context() {
   bus::ContextOptions o;
   o.log_sink = std::make_shared<bus::CaptureSink>();
@@ -283,7 +290,7 @@ inline int pong_main(PongKind kind) {
     bo.selection.all = true;
     bridge = dds::Bridge::create(ctx, bo);
     relay = std::make_unique<Relay>(ctx, "relay");
-    ex = std::make_unique<bus::MultiThreadedExecutor>(ctx->clock(), 2);
+    ex = std::make_unique<bus::MultiThreadedExecutor>(ctx->clock(), 2, executor_spin());
     ex->add_node(bridge);
     ex->add_node(relay->node);
     bridge->start();
@@ -382,7 +389,7 @@ struct Pinger {
       bo.selection.all = true;
       bridge = dds::Bridge::create(ctx, bo);
     }
-    ex = std::make_unique<bus::MultiThreadedExecutor>(ctx->clock(), 2);
+    ex = std::make_unique<bus::MultiThreadedExecutor>(ctx->clock(), 2, executor_spin());
     ex->add_node(node);
     if (relay) ex->add_node(relay->node);
     if (bridge) {
