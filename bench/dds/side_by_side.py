@@ -8,7 +8,11 @@ configuration, and prints one table per measure with the ratios. The load
 average before and after goes with the figures.
 
     bench/dds/side_by_side.py [--bench build/bench/dds/dds_bench] [--repetitions 3]
-                              [--ddsperf-seconds 6] [--no-ddsperf]
+                              [--ddsperf-seconds 6] [--no-ddsperf] [--shm]
+
+--shm adds ddsperf over Cyclone's shared memory (iceoryx; Debian's build has
+it): it starts an `iox-roudi` (Debian package iceoryx) for the run and enables
+SharedMemory in the same configuration.
 
 Round trips: p50 / p99 in microseconds (the median of the repetitions' own
 p50 and p99). ddsperf prints half the round trip; the table doubles it.
@@ -50,6 +54,11 @@ def run_bench(bench, repetitions, env):
     return cmd, rows
 
 
+def with_shared_memory(config):
+    return config.replace("</Domain>", "<SharedMemory><Enable>true</Enable><LogLevel>warn</LogLevel>"
+                                       "</SharedMemory></Domain>", 1)
+
+
 def run_ddsperf(config, domain, size, seconds):
     """Median over the per-second lines (the first one dropped) of ddsperf's p50/p99, doubled."""
     env = dict(os.environ, CYCLONEDDS_URI=config)
@@ -82,7 +91,11 @@ def main():
     ap.add_argument("--repetitions", type=int, default=3)
     ap.add_argument("--ddsperf-seconds", type=int, default=6)
     ap.add_argument("--no-ddsperf", action="store_true")
+    ap.add_argument("--shm", action="store_true")
     a = ap.parse_args()
+    use_ddsperf = not a.no_ddsperf and shutil.which("ddsperf")
+    if a.shm and not (use_ddsperf and shutil.which("iox-roudi")):
+        ap.error("--shm needs ddsperf and iox-roudi (apt-get install cyclonedds-tools iceoryx)")
 
     tag = f"side_by_side_{os.getpid()}"
     domain = 1 + os.getpid() % 200
@@ -92,23 +105,34 @@ def main():
     before = load()
     started = time.strftime("%Y-%m-%d %H:%M")
     cmd, rows = run_bench(a.bench, a.repetitions, env)
-    ddsperf = {}
-    if not a.no_ddsperf and shutil.which("ddsperf"):
+    ddsperf, shm = {}, {}
+    if use_ddsperf:
         for size in SIZES:
             ddsperf[size] = run_ddsperf(config, domain, size, a.ddsperf_seconds)
+    if a.shm:
+        roudi = subprocess.Popen(["iox-roudi"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            time.sleep(1)  # RouDi maps its shared memory before clients may register
+            for size in SIZES[2:]:
+                shm[size] = run_ddsperf(with_shared_memory(config), domain, size, a.ddsperf_seconds)
+        finally:
+            roudi.terminate()
+            roudi.wait()
     after = load()
 
     print(f"{started}; load average (1, 5, 15 min) before {before[0]:.2f} {before[1]:.2f} {before[2]:.2f}, "
           f"after {after[0]:.2f} {after[1]:.2f} {after[2]:.2f}")
     print(f"command: {' '.join(cmd)}; ddsperf ping/pong {a.ddsperf_seconds} s per size on the same configuration\n")
     print("Round trip (one message in flight), p50 / p99 us:\n")
-    print("| payload | Cyclone alone | tinyline | ratio p50 / p99 | ddsperf |")
-    print("|---|---|---|---|---|")
+    def pair(v):
+        return f"{v[0]:.1f} / {v[1]:.1f}" if v else "-"
+
+    print("| payload | Cyclone alone | tinyline | ratio p50 / p99 | ddsperf |" + (" ddsperf, shared memory |" if shm else ""))
+    print("|---|---|---|---|---|" + ("---|" if shm else ""))
     for size in SIZES:
         e, t = rows[("Engine", "RoundTrip", size)], rows[("Dds", "RoundTrip", size)]
-        d = ddsperf.get(size)
-        print(f"| {size_name(size)} | {e[0]:.1f} / {e[1]:.1f} | {t[0]:.1f} / {t[1]:.1f} | "
-              f"{t[0] / e[0]:.2f} / {t[1] / e[1]:.2f} | " + (f"{d[0]:.1f} / {d[1]:.1f} |" if d else "- |"))
+        print(f"| {size_name(size)} | {pair(e)} | {pair(t)} | {t[0] / e[0]:.2f} / {t[1] / e[1]:.2f} | "
+              f"{pair(ddsperf.get(size))} |" + (f" {pair(shm.get(size))} |" if shm else ""))
     print("\nStream (64 in flight), round trips per second:\n")
     print("| payload | Cyclone alone | tinyline | ratio (alone / tinyline) |")
     print("|---|---|---|---|")

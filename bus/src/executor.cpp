@@ -407,22 +407,42 @@ bool Executor::run_some_group(View& v) {
 }
 
 bool Executor::poll_for_work(View& view, Duration how_long) {
-  // After the first polls each one yields the core: with more busy threads
-  // than cores, a pure spin keeps off the processor the very thread bringing
-  // the next message (a DDS receive thread, a publisher). The clock is read
-  // once per 8 polls: a vDSO call costs more than a poll.
+  // One poller at a time. After its first polls it yields the core between
+  // polls: with more busy threads than cores, a pure spin keeps off the
+  // processor the very thread bringing the next message (a DDS receive
+  // thread, a publisher). While yielded it is no poller (publishers then wake
+  // a sleeping worker), and a yield that took long means the core is busy
+  // with other work: it stops polling and sleeps rather than wait for the
+  // scheduler's next turn. The clock is read once per 8 pauses.
   constexpr unsigned kPausePolls = 64;
+  constexpr auto kBusyCore = std::chrono::microseconds(50);
+  int none = 0;
+  if (!core_->spinning.compare_exchange_strong(none, 1, std::memory_order_seq_cst)) return false;
+  bool polling = true;
+  bool found = false;
   const auto end = std::chrono::steady_clock::now() + how_long;
   for (unsigned polls = 0; !stop_.load(std::memory_order_relaxed); ++polls) {
-    if (any_pending(view)) return true;
+    if (any_pending(view)) {
+      found = true;
+      break;
+    }
     if (polls < kPausePolls) {
       TL_CPU_RELAX();
-    } else {
-      std::this_thread::yield();
+      if ((polls & 7u) == 7u && std::chrono::steady_clock::now() >= end) break;
+      continue;
     }
-    if ((polls & 7u) == 7u && std::chrono::steady_clock::now() >= end) return false;
+    core_->spinning.store(0, std::memory_order_seq_cst);
+    polling = false;
+    const auto before = std::chrono::steady_clock::now();
+    std::this_thread::yield();
+    const auto after = std::chrono::steady_clock::now();
+    if (after - before > kBusyCore || after >= end) break;
+    none = 0;
+    if (!core_->spinning.compare_exchange_strong(none, 1, std::memory_order_seq_cst)) break;  // another one polls
+    polling = true;
   }
-  return false;
+  if (polling) core_->spinning.store(0, std::memory_order_seq_cst);
+  return found;
 }
 
 void Executor::worker_loop() {
@@ -438,12 +458,7 @@ void Executor::worker_loop() {
     if (wait.count() == 0) continue;
     // Poll briefly before sleeping: a message from another thread then costs a
     // few cache-line transfers instead of a futex wake-up.
-    bool found = false;
-    int no_spinner = 0;
-    if (core_->spinning.compare_exchange_strong(no_spinner, 1)) {
-      found = poll_for_work(view, std::min(options_.spin, wait));
-      core_->spinning.store(0);
-    }
+    const bool found = poll_for_work(view, std::min(options_.spin, wait));
     // A message found while polling runs at once; timers are looked at on
     // the next turn (one message's callback later at most).
     if (found) {
