@@ -1,4 +1,4 @@
-# One place for compiler flags (STYLE.md habit 11): every project target calls
+# One place for compiler flags: every project target calls
 # tinyline_apply_flags(), which adds the warning set, warnings-as-errors and
 # the sanitizer chosen with -DTINYLINE_SANITIZE=...
 

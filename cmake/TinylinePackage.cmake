@@ -2,10 +2,12 @@
 #
 #   tinyline_core_library(<name> SOURCES ... [DEPS ...])
 #       The algorithm core. Include dir <pkg>/include. It may depend on Eigen,
-#       PCL, FLANN, OpenCV, yaml-cpp, fmt and other cores, never on the bus or
-#       the messages: configure fails if it tries (the layering rule).
-#   tinyline_node_library(<name> SOURCES ... [DEPS ...])
+#       PCL, FLANN, OpenCV, yaml-cpp, fmt, other cores and tinyline::common
+#       (linked to every core and node library), never on the bus or the
+#       messages: configure fails if it tries (the layering rule).
+#   tinyline_node_library(<name> SOURCES ... [DEPS ...] [NOT_INSTALLED])
 #       Thin nodes. Adds tinyline::bus and tinyline::msgs. Include dir <pkg>/nodes/include.
+#       NOT_INSTALLED: for the build tree only (nodes on evaluation libraries).
 #   tinyline_test(<name> SOURCES ... [LIBS ...] [LABELS ...])
 #       A GoogleTest executable; each TEST() becomes a ctest entry.
 #
@@ -13,6 +15,11 @@
 # exported so a downstream project can find_package(tinyline).
 
 set(_TL_FORBIDDEN_IN_CORE tinyline::bus tinyline::msgs tinyline_bus tinyline_msgs)
+
+# Every core and node library, for the layering tests (test/layering).
+function(tinyline_layered_library target)
+  set_property(GLOBAL APPEND PROPERTY TINYLINE_LAYERED_LIBRARIES ${target})
+endfunction()
 
 function(_tinyline_export target name)
   add_library(tinyline::${name} ALIAS ${target})
@@ -28,7 +35,7 @@ function(tinyline_core_library name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
   foreach(dep IN LISTS ARG_DEPS ARG_PRIVATE_DEPS)
     if(dep IN_LIST _TL_FORBIDDEN_IN_CORE)
-      message(FATAL_ERROR "core library '${name}' may not depend on '${dep}': cores never see the bus or messages (DESIGN.md)")
+      message(FATAL_ERROR "core library '${name}' may not depend on '${dep}': cores never see the bus or messages (docs/developing.md)")
     endif()
   endforeach()
   set(target tinyline_${name})
@@ -36,23 +43,31 @@ function(tinyline_core_library name)
   target_include_directories(${target} PUBLIC
     $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
-  target_link_libraries(${target} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::common PRIVATE ${ARG_PRIVATE_DEPS})
   tinyline_apply_flags(${target})
   _tinyline_export(${target} ${name})
+  tinyline_layered_library(${target})
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/include)
     install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   endif()
 endfunction()
 
 function(tinyline_node_library name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "NOT_INSTALLED" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
   set(target tinyline_${name})
   add_library(${target} STATIC ${ARG_SOURCES})
   target_include_directories(${target} PUBLIC
     $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/nodes/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
-  target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::bus tinyline::msgs PRIVATE ${ARG_PRIVATE_DEPS})
+  target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::bus tinyline::msgs tinyline::common PRIVATE ${ARG_PRIVATE_DEPS})
   tinyline_apply_flags(${target})
+  tinyline_layered_library(${target})
+  if(ARG_NOT_INSTALLED)
+    # For nodes built on libraries that are not installed (evaluation code):
+    # the build tree's tools and tests use them, a downstream project cannot.
+    add_library(tinyline::${name} ALIAS ${target})
+    return()
+  endif()
   _tinyline_export(${target} ${name})
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include)
     install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

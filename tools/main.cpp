@@ -1,6 +1,5 @@
 // tinyline: the command line of the tinyline node suite.
 #include <algorithm>
-#include <cstdio>
 #include <exception>
 #include <string>
 #include <vector>
@@ -9,40 +8,53 @@
 
 #include <tinyline/tools/command.hpp>
 
-#include "src/args.hpp"
-
-namespace {
-
-void usage() {
-  auto table = tinyline::tools::command_table();
-  std::sort(table.begin(), table.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
-  std::string s = "usage: tinyline <command> [args...]   (tinyline <command> --help for details)\n\ncommands:\n";
-  for (const auto& c : table) s += fmt::format("  {:<10} {}\n", c.name, c.summary);
-  std::fputs(s.c_str(), stdout);
-}
-
-}  // namespace
+#include "src/cli.hpp"
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
-    usage();
-    return args.empty() ? 2 : 0;
+  using namespace tinyline::tools;
+  CLI::App app("The command line of the tinyline node suite (tinyline COMMAND --help for details).", "tinyline");
+  app.require_subcommand(1);
+  app.get_formatter()->column_width(24);
+  auto table = command_table();
+  std::sort(table.begin(), table.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
+  std::vector<std::pair<CLI::App*, CommandRun>> runs;
+  for (const auto& c : table) {
+    CLI::App* sub = app.add_subcommand(c.name, c.summary);
+    runs.emplace_back(sub, c.setup(*sub));
   }
-  for (const auto& c : tinyline::tools::command_table()) {
-    if (c.name == args[0]) {
-      try {
-        return c.fn(std::vector<std::string>(args.begin() + 1, args.end()));
-      } catch (const tinyline::tools::UsageError& e) {
-        fmt::print(stderr, "tinyline {}: {}\n", c.name, e.what());
-        return 2;
-      } catch (const std::exception& e) {
-        fmt::print(stderr, "tinyline {}: error: {}\n", c.name, e.what());
-        return 1;
-      }
+  const bool known = argc < 2 || argv[1][0] == '-' ||
+                     std::any_of(table.begin(), table.end(), [&](const auto& c) { return c.name == argv[1]; });
+  if (!known) {
+    fmt::print(stderr, "tinyline: unknown command '{}'\n\n{}", argv[1], app.help());
+    return 2;
+  }
+  std::string where = "tinyline";
+  try {
+    app.parse(argc, argv);
+    const std::string path = cli::command_path(app);
+    where = "tinyline " + path;
+    for (const auto& [sub, run] : runs) {
+      if (sub->parsed()) return run();
     }
+    return 2;
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);  // the help of the command named (0)
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    const std::string path = cli::command_path(app);
+    const std::string cmd = path.empty() ? "tinyline" : "tinyline " + path;
+    if (argc == 1) {
+      fmt::print(stderr, "{}", app.help());
+    } else {
+      fmt::print(stderr, "{}: {} (see {} --help)\n", cmd, e.what(), cmd);
+    }
+    return 2;
+  } catch (const UsageError& e) {
+    fmt::print(stderr, "{}: {}\n", where, e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "{}: error: {}\n", where, e.what());
+    return 1;
   }
-  fmt::print(stderr, "tinyline: unknown command '{}'\n\n", args[0]);
-  usage();
-  return 2;
 }

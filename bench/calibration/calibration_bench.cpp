@@ -7,17 +7,18 @@
 
 #include <Eigen/Dense>
 
-#include <tiny_laser_driver/calibration_discovery.hpp>
+#include <tiny_laser_calibration/discovery.hpp>
 
 #include "synthetic_sensor.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
-namespace tt = tinyline::tiny_laser_driver::testing;
+namespace cal = tinyline::tiny_laser_calibration;
+namespace tt = tinyline::tiny_laser_calibration::testing;
 
 namespace {
 
 struct Fixture {
-  tl::CalibrationDataset data;
+  cal::CalibrationDataset data;
   tl::CalibrationModel declared;
   tl::CalibrationModel with_terms;
   std::vector<tl::Readout> frame;  // one read-out per pixel, 256 pixels
@@ -26,7 +27,7 @@ struct Fixture {
   Fixture() {
     auto plan = tt::default_rail();
     data = tt::simulate_rail({}, plan);
-    declared = tl::fit_declared_model(data).model;
+    declared = cal::fit_declared_model(data).model;
     with_terms = declared;
     // Two typical discovered terms: a smooth in albedo and a per-pixel table.
     tl::CalibrationTerm albedo;
@@ -49,7 +50,7 @@ struct Fixture {
     while (frame.size() < 256) frame.push_back(frame[frame.size() % 64]);
     for (std::size_t i = 0; i < frame.size(); ++i) frame[i].pixel = static_cast<int>(8 + i);
     public_poly = {2.147918234375362e+06,  -7.736068312640203e+06, 1.154494186428487e+07, -9.137795412258314e+06,
-                   4.045684724836031e+06,  -9.494901699902674e+05, 9.219599710241470e+04};  // measured.yaml sensor K
+                   4.045684724836031e+06,  -9.494901699902674e+05, 9.219599710241470e+04};  // the public driver's sensor K
   }
 };
 
@@ -105,7 +106,7 @@ BENCHMARK(BM_RawSet_ModelWithAlbedoAndPixelTerms);
 // Fitting: one QR of a degree-6 polynomial in b / (a + b) over the valid rows.
 void BM_Fit_Reference_QrPolynomial(benchmark::State& state) {
   const auto& f = fixture();
-  const auto rows = tl::select_readouts(f.data, {}, tl::ValidityRule{}, tl::ReadoutSelection::kDriver);
+  const auto rows = cal::select_readouts(f.data, {}, tl::ValidityRule{}, cal::ReadoutSelection::kDriver);
   for (auto _ : state) {
     Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), 7);
     Eigen::VectorXd y(static_cast<Eigen::Index>(rows.size()));
@@ -127,7 +128,7 @@ void BM_Fit_DeclaredModel(benchmark::State& state) {
   const auto& f = fixture();
   std::size_t used = 0;
   for (auto _ : state) {
-    const auto r = tl::fit_declared_model(f.data);
+    const auto r = cal::fit_declared_model(f.data);
     used = r.used;
     benchmark::DoNotOptimize(r.rmse_m);
   }
@@ -138,7 +139,7 @@ BENCHMARK(BM_Fit_DeclaredModel)->Unit(benchmark::kMillisecond);
 void BM_Fit_DiscoverEffects(benchmark::State& state) {
   const auto& f = fixture();
   for (auto _ : state) {
-    const auto r = tl::discover_effects(f.data);
+    const auto r = cal::discover_effects(f.data);
     benchmark::DoNotOptimize(r.rmse_after_m);
   }
   state.counters["rows"] = static_cast<double>(f.data.size());

@@ -17,7 +17,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include "hydrus_fitting/detail/random.hpp"
+#include <tinyline/common/random.hpp>
 #include "hydrus_fitting/estimator.hpp"
 #include "hydrus_fitting/sequencer.hpp"
 #include "planar_scene.hpp"
@@ -41,7 +41,7 @@ struct Scene {
     const double a = joint_deg * kPi / 180.0;
     q.assign(model.joint_names().size(), a);
     (void)joints.add(0, model.joint_names(), q);
-    hf::detail::SplitMix64 rng(1);
+    tinyline::common::SplitMixRandom rng(1);
     for (int u = 0; u < kUpdates; ++u) updates.push_back(ev::scan_all(model, q, world, {}, rng));
     for (const auto& u : updates) {
       std::vector<hf::ScanView> v;
@@ -101,7 +101,7 @@ void run_estimator_moving_base(benchmark::State& state, bool use_poses, double s
   }
   const int n = static_cast<int>(s.model.sensors().size());
   const Eigen::Vector2d fixed(0.25, 0.433 + speed_m_s * 0.03 * (n - 1));  // at (0.25, 0.433) for the newest scan
-  hf::detail::SplitMix64 rng(1);
+  tinyline::common::SplitMixRandom rng(1);
   std::vector<std::vector<ev::SyntheticScan>> scans(kUpdates);
   std::vector<std::vector<hf::ScanView>> views(kUpdates);
   for (int u = 0; u < kUpdates; ++u) {
@@ -160,7 +160,7 @@ std::vector<hf::FusedCloud> clouds(const Scene& s) {
 
 }  // namespace
 
-// ---- the figure of the issue: fusion + fit per update, 4 sensors, one core.
+// ---- the headline figure: fusion + fit per update, 4 sensors, one core.
 static void BM_Update_Estimator_OpenChain(benchmark::State& s) { run_estimator(s, open_chain()); }
 BENCHMARK(BM_Update_Estimator_OpenChain)->Unit(benchmark::kMicrosecond);
 static void BM_Update_Estimator_OpenChain_BaseMotion(benchmark::State& s) { run_estimator_moving_base(s, true); }
@@ -192,13 +192,13 @@ BENCHMARK(BM_Update_FusionKasa_ClosedRingWithOutliers)->Unit(benchmark::kMicrose
 static void run_arc_fit(benchmark::State& state, hf::ArcCorrection correction) {
   static const std::vector<Eigen::Matrix2Xd> draws = [] {
     std::vector<Eigen::Matrix2Xd> d;
-    hf::detail::SplitMix64 rng(9);
+    tinyline::common::SplitMixRandom rng(9);
     for (int t = 0; t < 64; ++t) {
       Eigen::Matrix2Xd p(2, 100);
       for (int i = 0; i < 100; ++i) {
         const double a = std::numbers::pi / 2 + (i / 99.0 - 0.5) * 2.0 * std::numbers::pi / 3.0;
-        p.col(i) = Eigen::Vector2d(0.15 * std::cos(a) + 0.019593 * rng.gaussian(),
-                                   0.15 * std::sin(a) + 0.019593 * rng.gaussian());
+        p.col(i) = Eigen::Vector2d(0.15 * std::cos(a) + 0.019593 * rng.normal(),
+                                   0.15 * std::sin(a) + 0.019593 * rng.normal());
       }
       d.push_back(p);
     }

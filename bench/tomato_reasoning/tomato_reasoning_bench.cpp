@@ -1,6 +1,5 @@
 // The tomato pipeline per VGA frame, stage by stage, beside a plain PCL chain
-// with default settings on the same simulated clouds (issue 8, section
-// "Benchmarks"):
+// with default settings on the same simulated clouds (docs/benchmarks.md):
 //
 //   plain PCL: ConditionalRemoval with PackedHSIComparison (the thesis's HSI
 //   ranges) -> EuclideanClusterExtraction (6 cm, the closest cluster) ->

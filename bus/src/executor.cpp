@@ -127,9 +127,15 @@ void CallbackGroup::guarded(F&& f) {
   }
 }
 
+void CallbackGroup::wake_publishers() const {
+  for (const auto& s : *subscriptions()) s->wake_publishers();
+}
+
 std::size_t CallbackGroup::run_claimed(std::size_t max, const SubList& subs) {
   std::size_t ran = 0;
-  while (ran < max && !dead()) {
+  // A stopping executor ends the batch: its callbacks may wait on queues that
+  // the workers already gone will never drain.
+  while (ran < max && !dead() && !executor_stopping()) {
     // The oldest stamp goes first: arrival order across the group's queues.
     SubscriptionBase* best = nullptr;
     std::uint64_t best_stamp = 0;
@@ -316,6 +322,15 @@ void Executor::start_pending_nodes() {
     std::lock_guard lk(nodes_mu_);
     todo.swap(unstarted_);
   }
+  // Every node checks its inputs before any starts: a bad calibration must
+  // not leave a recorder that already began.
+  for (auto& n : todo) {
+    try {
+      n->on_configure();
+    } catch (const std::exception& e) {
+      throw std::runtime_error("node '" + n->full_name() + "' failed to configure: " + e.what());
+    }
+  }
   for (auto& n : todo) {
     try {
       n->on_start();
@@ -329,7 +344,18 @@ void Executor::start_pending_nodes() {
 
 void Executor::stop() {
   stop_.store(true);
+  if (core_->fifo) {
+    core_->wake_all();
+    return;
+  }
+  core_->stopping.store(true, std::memory_order_seq_cst);
   core_->wake_all();
+  std::vector<std::shared_ptr<CallbackGroup>> groups;
+  {
+    std::lock_guard lk(core_->mu);
+    groups = core_->groups;
+  }
+  for (const auto& g : groups) g->wake_publishers();
 }
 
 std::optional<Time> Executor::fire_due_timers(Time now, bool catch_up) {
@@ -478,12 +504,14 @@ void Executor::spin() {
   // A stop() that comes before spin() gets going ends this spin at once (a
   // thread started to spin may begin after its owner already asked it to
   // stop); the request is consumed on the way out, so a later spin() runs.
+  core_->stopping.store(false, std::memory_order_seq_cst);
   start_pending_nodes();
   worker_loop();
   stop_.store(false);
 }
 
 std::size_t Executor::spin_some() {
+  core_->stopping.store(false, std::memory_order_seq_cst);
   start_pending_nodes();
   fire_due_timers(clock_.now(), clock_.is_sim());
   CoreScope scope(core_.get());
@@ -494,6 +522,7 @@ std::size_t Executor::spin_some() {
 }
 
 void MultiThreadedExecutor::spin() {
+  core_->stopping.store(false, std::memory_order_seq_cst);  // see Executor::spin()
   start_pending_nodes();
   std::vector<std::thread> workers;
   for (int i = 1; i < options_.threads; ++i) workers.emplace_back([this] { worker_loop(); });

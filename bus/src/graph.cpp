@@ -40,7 +40,13 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
         old.msg.reset();
       }
     } else if (!g.unbounded_reliable()) {
-      // Reliable: wait for room, unless this thread is the one that must make it.
+      // Reliable: wait for room, unless this thread is the one that must make
+      // it, or the executor that drains the queue is stopping.
+      if (g.executor_stopping()) {
+        timeouts_.fetch_add(1, std::memory_order_relaxed);
+        if (why) *why = stopping_reason(g);
+        return false;
+      }
       if (g.running_here() || g.drained_by_this_thread_only()) {
         timeouts_.fetch_add(1, std::memory_order_relaxed);
         if (why) {
@@ -58,19 +64,22 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
       {
         std::unique_lock lk(slow_mu_);
         room = room_.wait_for(lk, qos_.max_block, [&] {
-          return size() < qos_.depth || cancelled_.load(std::memory_order_acquire) || g.dead();
+          return size() < qos_.depth || cancelled_.load(std::memory_order_acquire) || g.dead() ||
+                 g.executor_stopping();
         });
       }
       waiting_.fetch_sub(1, std::memory_order_relaxed);
-      if (!room) {
+      if (room && (cancelled_.load(std::memory_order_acquire) || g.dead())) return true;
+      if (!room || (g.executor_stopping() && size() >= qos_.depth)) {
         timeouts_.fetch_add(1, std::memory_order_relaxed);
         if (why) {
-          *why = fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, g.owner(),
-                             qos_.depth, to_seconds(qos_.max_block));
+          *why = g.executor_stopping()
+                     ? stopping_reason(g)
+                     : fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, g.owner(),
+                                   qos_.depth, to_seconds(qos_.max_block));
         }
         return false;
       }
-      if (cancelled_.load(std::memory_order_acquire) || g.dead()) return true;
     }
   }
   QueuedMessage m{std::move(msg), info};
@@ -115,24 +124,41 @@ void SubscriptionBase::made_room() {
   room_.notify_one();
 }
 
-void SubscriptionBase::clear() {
+std::size_t SubscriptionBase::clear() {
+  std::size_t n = 0;
   QueuedMessage m;
-  while (ring_.try_pop(&m)) m.msg.reset();
+  while (ring_.try_pop(&m)) {
+    m.msg.reset();
+    ++n;
+  }
   std::lock_guard lk(slow_mu_);
+  n += overflow_.size();
   overflow_.clear();
   overflow_size_.store(0, std::memory_order_seq_cst);
+  return n;
 }
 
 std::size_t SubscriptionBase::queued() const { return size(); }
 
-void SubscriptionBase::cancel() {
+std::string SubscriptionBase::stopping_reason(const CallbackGroup& g) const {
+  return fmt::format("reliable queue of {} for '{}' is full ({}) and the executor that drains it is stopping", topic_,
+                     g.owner(), qos_.depth);
+}
+
+void SubscriptionBase::wake_publishers() {
+  std::lock_guard lk(slow_mu_);
+  room_.notify_all();
+}
+
+std::size_t SubscriptionBase::cancel() {
   cancelled_.store(true, std::memory_order_seq_cst);
-  clear();
+  const std::size_t discarded = clear();
   {
     std::lock_guard lk(slow_mu_);
     room_.notify_all();
   }
   group_->remove_subscription(this);
+  return discarded;
 }
 
 // ---------------------------------------------------------------------------- Topic

@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bus/files.hpp>
+
 namespace tinyline::bus {
 
 Node::Node(NodeOptions options)
@@ -47,6 +49,10 @@ Node::~Node() {
 }
 
 std::string Node::full_name() const { return (ns_ == "/" ? "" : ns_) + "/" + name_; }
+
+void Node::require_valid(const common::Validation& v) const {
+  if (!v.valid) throw ParamError({}, "node '" + full_name() + "': " + v.reason);
+}
 
 std::string Node::resolve_topic(const std::string& name) const {
   return apply_remaps(resolve_name(name, ns_, name_), remaps_, ns_, name_);
@@ -149,8 +155,22 @@ ParamValue Node::declare_parameter_value(const std::string& name, ParamType type
     throw ParamError(chosen ? chosen->where : where_,
                      fmt::format("{}: parameter '{}' out of range: {}", who, name, *why));
   }
+  check_input_file(d, who);
   params_.push_back(d);
   return d.value;
+}
+
+void Node::check_input_file(const ParamDescriptor& d, const std::string& who) const {
+  const auto* path = std::get_if<std::string>(&d.value);
+  if (d.constraints.file != ParamConstraints::File::Input || path == nullptr || !d.constraints.names_file(*path)) {
+    return;
+  }
+  try {
+    files::check_input(*path, "file", d.constraints.file_max_bytes);
+  } catch (const files::FileError& e) {
+    throw ParamError(d.set_from.known() ? d.set_from : where_,
+                     fmt::format("{}: parameter '{}': {}", who, d.name, e.what()));
+  }
 }
 
 void Node::check_unused_overrides() const {

@@ -11,13 +11,12 @@
 //
 // scripts/plots/hydrus_kcr.py (figure and table) and hydrus_tables.py read the CSVs and
 // write the tables and figures of the document.
-#include <algorithm>
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
-#include <iostream>
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include <tinyline/common/cli.hpp>
 
 #include "montecarlo.hpp"
 #include "write_output.hpp"
@@ -26,96 +25,77 @@ namespace ev = tinyline::hydrus_fitting::eval;
 
 namespace {
 
-int usage() {
-  std::cerr << "usage: hydrus_eval kcr|robustness|ray_noise|second_order [--trials N] [--out FILE]\n"
-               "         kcr, second_order: [--seed N] [--arcs DEG,...] [--sigmas M,...] [--points N]\n";
-  return 2;
-}
-
 bool write(const std::string& path, const std::string& text) { return ev::write_output("hydrus_eval", path, text); }
 
-/// "a,b,c" as numbers > 0; empty on a malformed list.
-std::vector<double> parse_list(const std::string& s) {
-  std::vector<double> v;
-  std::size_t pos = 0;
-  while (pos <= s.size()) {
-    const std::size_t end = std::min(s.find(',', pos), s.size());
-    const std::string item = s.substr(pos, end - pos);
-    char* stop = nullptr;
-    const double x = std::strtod(item.c_str(), &stop);
-    if (item.empty() || *stop != '\0' || !(x > 0.0)) return {};
-    v.push_back(x);
-    pos = end + 1;
-  }
-  return v;
+/// What the command line asks for (unset fields keep the study's defaults).
+struct Request {
+  int trials = 0;
+  std::optional<std::uint64_t> seed;
+  int points = 0;
+  std::vector<double> arcs_deg, sigmas_m;
+  std::string out;
+};
+
+/// --trials and --out for every study; the grid options for kcr and second_order.
+void add_options(CLI::App& study, Request& r, bool grid) {
+  study.add_option("--trials", r.trials, "trials (second_order: noise draws)")->check(CLI::Range(1, 1 << 30));
+  study.add_option("--out", r.out, "CSV file to write (default: stdout)");
+  if (!grid) return;
+  study.add_option("--seed", r.seed, "seed of the noise draws")->check(tinyline::common::kNonNegative);
+  study.add_option("--points", r.points, "points per arc")->check(CLI::Range(3, 1 << 20));
+  study.add_option("--arcs", r.arcs_deg, "arcs [deg], comma-separated")
+      ->delimiter(',')
+      ->check(tinyline::common::kPositive);
+  study.add_option("--sigmas", r.sigmas_m, "noise SDs [m], comma-separated")
+      ->delimiter(',')
+      ->check(tinyline::common::kPositive);
+}
+
+template <class Params>
+void apply_grid(const Request& r, Params& p) {
+  if (r.seed) p.seed = *r.seed;
+  if (!r.arcs_deg.empty()) p.arcs_deg = r.arcs_deg;
+  if (!r.sigmas_m.empty()) p.sigmas_m = r.sigmas_m;
+  if (r.points > 0) p.points = r.points;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) return usage();
-  const std::string cmd = argv[1];
-  int trials = -1;
-  long long seed = -1;
-  int points = -1;
-  std::vector<double> arcs, sigmas;
-  std::string out;
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--trials" && i + 1 < argc) {
-      trials = std::atoi(argv[++i]);
-      if (trials <= 0) return usage();
-    } else if (a == "--seed" && i + 1 < argc) {
-      seed = std::atoll(argv[++i]);
-      if (seed < 0) return usage();
-    } else if (a == "--points" && i + 1 < argc) {
-      points = std::atoi(argv[++i]);
-      if (points < 3) return usage();
-    } else if (a == "--arcs" && i + 1 < argc) {
-      arcs = parse_list(argv[++i]);
-      if (arcs.empty()) return usage();
-    } else if (a == "--sigmas" && i + 1 < argc) {
-      sigmas = parse_list(argv[++i]);
-      if (sigmas.empty()) return usage();
-    } else if (a == "--out" && i + 1 < argc) {
-      out = argv[++i];
-    } else {
-      return usage();
-    }
-  }
-  if ((seed >= 0 || points > 0 || !arcs.empty() || !sigmas.empty()) && cmd != "kcr" && cmd != "second_order") {
-    std::cerr << "hydrus_eval " << cmd << ": --seed, --points, --arcs and --sigmas are for kcr and second_order only\n";
-    return 2;
-  }
-  if (cmd == "kcr") {
+  CLI::App app{"The Monte-Carlo studies of docs/hydrus_fitting.md, written as CSV.", "hydrus_eval"};
+  app.require_subcommand(1);
+  Request r;
+  CLI::App* kcr = app.add_subcommand("kcr", "circle fits against the KCR bound over arcs and noise");
+  CLI::App* robustness = app.add_subcommand("robustness", "robust fitting on the robot's fused scans with clutter");
+  CLI::App* ray_noise = app.add_subcommand("ray_noise", "noise along the rays versus isotropic noise");
+  CLI::App* second_order = app.add_subcommand("second_order", "the second-order correction over arcs and noise");
+  add_options(*kcr, r, true);
+  add_options(*robustness, r, false);
+  add_options(*ray_noise, r, false);
+  add_options(*second_order, r, true);
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+
+  const std::string description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
+  if (kcr->parsed()) {
     ev::KcrStudyParams p;
-    if (trials > 0) p.trials = trials;
-    if (seed >= 0) p.seed = static_cast<std::uint64_t>(seed);
-    if (!arcs.empty()) p.arcs_deg = arcs;
-    if (!sigmas.empty()) p.sigmas_m = sigmas;
-    if (points > 0) p.points = points;
-    return write(out, ev::kcr_csv(ev::kcr_study(p))) ? 0 : 1;
+    if (r.trials > 0) p.trials = r.trials;
+    apply_grid(r, p);
+    return write(r.out, ev::kcr_csv(ev::kcr_study(p))) ? 0 : 1;
   }
-  if (cmd == "robustness") {
+  if (robustness->parsed()) {
     ev::RobustnessParams p;
-    p.robot_description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
-    if (trials > 0) p.trials = trials;
-    return write(out, ev::robustness_csv(ev::robustness_study(p))) ? 0 : 1;
+    p.robot_description = description;
+    if (r.trials > 0) p.trials = r.trials;
+    return write(r.out, ev::robustness_csv(ev::robustness_study(p))) ? 0 : 1;
   }
-  if (cmd == "ray_noise") {
+  if (ray_noise->parsed()) {
     ev::RayNoiseParams p;
-    p.robot_description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
-    if (trials > 0) p.trials = trials;
-    return write(out, ev::ray_noise_csv(ev::ray_noise_study(p))) ? 0 : 1;
+    p.robot_description = description;
+    if (r.trials > 0) p.trials = r.trials;
+    return write(r.out, ev::ray_noise_csv(ev::ray_noise_study(p))) ? 0 : 1;
   }
-  if (cmd == "second_order") {
-    ev::SecondOrderParams p;
-    if (trials > 0) p.draws = trials;
-    if (seed >= 0) p.seed = static_cast<std::uint64_t>(seed);
-    if (!arcs.empty()) p.arcs_deg = arcs;
-    if (!sigmas.empty()) p.sigmas_m = sigmas;
-    if (points > 0) p.points = points;
-    return write(out, ev::second_order_csv(ev::second_order_study(p))) ? 0 : 1;
-  }
-  return usage();
+  ev::SecondOrderParams p;
+  if (r.trials > 0) p.draws = r.trials;
+  apply_grid(r, p);
+  return write(r.out, ev::second_order_csv(ev::second_order_study(p))) ? 0 : 1;
 }

@@ -14,11 +14,11 @@
 //
 // scripts/plots/hydrus_grasp.py plots the centre error over time.
 #include <chrono>
-#include <fstream>
 #include <iostream>
-#include <sstream>
 #include <string>
 #include <vector>
+
+#include <tinyline/common/cli.hpp>
 
 #include "sim_study.hpp"
 #include "write_output.hpp"
@@ -27,64 +27,44 @@ namespace ev = tinyline::hydrus_fitting::eval;
 
 namespace {
 
-int usage() {
-  std::cerr << "usage: hydrus_sim_eval [--schedules all_on,time_slicing,colouring] [--start S] [--end S] [--scene YAML] "
-               "[--robot YAML] [--calibration YAML] [--updates FILE] [--rates FILE] [--no-base-motion]\n";
-  return 2;
-}
-
 bool write(const std::string& path, const std::string& text) { return ev::write_output("hydrus_sim_eval", path, text); }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   const std::string src = TINYLINE_SOURCE_DIR;
-  std::string schedules = "all_on,time_slicing,colouring", updates_path, rates_path;
+  std::vector<std::string> schedules{"all_on", "time_slicing", "colouring"};
+  std::string updates_path, rates_path;
   std::string scene = src + "/sim/config/scenes/hydrus4_grasp.yaml";
   std::string robot = src + "/hydrus_fitting/config/hydrus4.yaml";
   std::string calibration = src + "/tiny_laser_driver/config/calibration/sim_tiny_tof_3p6mm.yaml";
   double start_s = 0.0, end_s = -1.0;
-  bool base_motion = true;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--no-base-motion") {
-      base_motion = false;
-      continue;
-    }
-    if (i + 1 >= argc) return usage();
-    if (a == "--schedules") {
-      schedules = argv[++i];
-    } else if (a == "--end") {
-      try {
-        end_s = std::stod(argv[++i]);
-      } catch (const std::exception&) {
-        return usage();
-      }
-    } else if (a == "--start") {
-      try {
-        start_s = std::stod(argv[++i]);
-      } catch (const std::exception&) {
-        return usage();
-      }
-    } else if (a == "--scene") {
-      scene = argv[++i];
-    } else if (a == "--robot") {
-      robot = argv[++i];
-    } else if (a == "--calibration") {
-      calibration = argv[++i];
-    } else if (a == "--updates") {
-      updates_path = argv[++i];
-    } else if (a == "--rates") {
-      rates_path = argv[++i];
-    } else {
-      return usage();
-    }
-  }
+  bool no_base_motion = false;
+  CLI::App app{"The Hydrus grasp in the physics simulator under the emission schedules, written as CSV for "
+               "docs/hydrus_fitting.md.",
+               "hydrus_sim_eval"};
+  app.add_option("--schedules", schedules, "emission schedules, comma-separated")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"all_on", "time_slicing", "colouring"}))
+      ->capture_default_str();
+  app.add_option("--start", start_s, "simulate the manoeuvre from this time [s]")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  app.add_option("--end", end_s, "... to this time [s]; < 0: its whole duration")
+      ->check(tinyline::common::kFinite)
+      ->capture_default_str();
+  app.add_option("--scene", scene, "scene YAML")->capture_default_str();
+  app.add_option("--robot", robot, "robot description YAML")->capture_default_str();
+  app.add_option("--calibration", calibration, "the drivers' calibration YAML")->capture_default_str();
+  app.add_option("--updates", updates_path, "CSV of every circle update (default: stdout)");
+  app.add_option("--rates", rates_path, "CSV of the update rates (default: stdout)");
+  app.add_flag("--no-base-motion", no_base_motion, "leave the scans where the joints put them");
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  const bool base_motion = !no_base_motion;
+
   std::vector<ev::SimStudyResult> runs;
-  std::stringstream list(schedules);
-  std::string name;
   try {
-    while (std::getline(list, name, ',')) {
+    for (const std::string& name : schedules) {
       ev::SimStudyParams p;
       p.scene_path = scene;
       p.robot_description = robot;

@@ -7,7 +7,7 @@
 
 #include <fmt/format.h>
 
-#include "hydrus_fitting/detail/random.hpp"
+#include <tinyline/common/random.hpp>
 #include "hydrus_fitting/estimator.hpp"
 #include "planar_scene.hpp"
 
@@ -72,7 +72,7 @@ std::vector<KcrRow> kcr_study(const KcrStudyParams& p) {
       const KcrBound known_bound = kcr_bound(exact, truth, sig, true);
       for (const Method m : p.methods) {
         // The same noise draws for every method (paired comparison).
-        detail::SplitMix64 rng(p.seed + static_cast<std::uint64_t>(arc * 1000) + static_cast<std::uint64_t>(sigma * 1e7));
+        common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000) + static_cast<std::uint64_t>(sigma * 1e7));
         std::vector<double> err[3], rep[3];
         KcrRow row;
         row.arc_deg = arc;
@@ -82,8 +82,8 @@ std::vector<KcrRow> kcr_study(const KcrStudyParams& p) {
         Eigen::Matrix2Xd noisy(2, p.points);
         for (int t = 0; t < p.trials; ++t) {
           for (int i = 0; i < p.points; ++i) {
-            noisy(0, i) = exact(0, i) + sigma * rng.gaussian();
-            noisy(1, i) = exact(1, i) + sigma * rng.gaussian();
+            noisy(0, i) = exact(0, i) + sigma * rng.normal();
+            noisy(1, i) = exact(1, i) + sigma * rng.normal();
           }
           CircleFit f;
           switch (m) {
@@ -273,10 +273,10 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
       std::vector<Eigen::Vector3d> cross_of_draw;  // the normal x tangential part of a2
       std::vector<std::vector<Eigen::Vector3d>> err(p.sigmas_m.size());
       Eigen::Vector3d En2 = Eigen::Vector3d::Zero(), Et2 = En2, Ex2 = En2;  // E[a2^2] of the normal, tangential, cross parts
-      detail::SplitMix64 rng(p.seed + static_cast<std::uint64_t>(arc * 1000));
+      common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000));
       Eigen::Matrix2Xd e(2, p.points), q(2, p.points);
       for (int t = 0; t < p.draws; ++t) {
-        for (int i = 0; i < p.points; ++i) e.col(i) = Eigen::Vector2d(rng.gaussian(), rng.gaussian());
+        for (int i = 0; i < p.points; ++i) e.col(i) = Eigen::Vector2d(rng.normal(), rng.normal());
         if (expand) {
           const Eigen::Matrix3d a = taylor(exact, e, geo);
           // The second-order term split by the noise's normal and tangential
@@ -442,7 +442,7 @@ std::vector<RobustnessRow> robustness_study(const RobustnessParams& p) {
     row.method = m.name;
     row.clutter_objects = clutter;
     std::vector<double> centre_err, outlier_frac;
-    detail::SplitMix64 rng(p.seed);
+    common::SplitMixRandom rng(p.seed);
     for (int t = 0; t < p.trials; ++t) {
       PlanarWorld world;
       const Circle truth{ring + Eigen::Vector2d(0.04 * (rng.uniform() - 0.5), 0.04 * (rng.uniform() - 0.5)), p.radius_m};
@@ -540,7 +540,7 @@ std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
     world.robot_links_visible = false;
     SyntheticScanParams exact;
     exact.noise_scale = 0.0;
-    detail::SplitMix64 rng0(1);
+    common::SplitMixRandom rng0(1);
     const auto clean = scan_all(model, joints, world, exact, rng0);
     // True points, their normal noise and the arc they cover.
     std::vector<Eigen::Vector2d> tp;
@@ -587,7 +587,7 @@ std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
         row.points = static_cast<int>(tp.size());
         row.arc_deg = arc;
         row.trials = p.trials;
-        detail::SplitMix64 rng(p.seed + static_cast<std::uint64_t>(jd * 100 + scale * 10));
+        common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(jd * 100 + scale * 10));
         SyntheticScanParams noisy;
         noisy.noise_scale = scale;
         CircleEstimatorParams ep;

@@ -57,7 +57,7 @@ std::vector<double> pixel_angles(const SensorSpec& s, int pixels) {
 }
 
 std::vector<SyntheticScan> scan_all(const RobotModel& model, const std::vector<double>& q, const PlanarWorld& world,
-                                    const SyntheticScanParams& params, detail::SplitMix64& rng) {
+                                    const SyntheticScanParams& params, common::SplitMixRandom& rng) {
   const Kinematics k = model.forward(q);
   const auto links = link_capsules(model, k);
   std::vector<SyntheticScan> out;
@@ -106,7 +106,7 @@ std::vector<SyntheticScan> scan_all(const RobotModel& model, const std::vector<d
         continue;
       }
       s.true_range_m.push_back(best);
-      s.range_m.push_back(best + params.noise_scale * params.noise.sd_at(best) * rng.gaussian());
+      s.range_m.push_back(best + params.noise_scale * params.noise.sd_at(best) * rng.normal());
       s.hit_kind.push_back(kind);
       s.hit_index.push_back(index);
     }

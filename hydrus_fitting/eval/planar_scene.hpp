@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "hydrus_fitting/circle_fit.hpp"
-#include "hydrus_fitting/detail/random.hpp"
+#include <tinyline/common/random.hpp>
 #include "hydrus_fitting/fusion.hpp"
 #include "hydrus_fitting/robot_model.hpp"
 #include "hydrus_fitting/sequencer.hpp"
@@ -43,6 +43,6 @@ std::vector<double> pixel_angles(const SensorSpec& s, int pixels);
 
 /// The scans of every sensor of `model` at joint angles `q`.
 std::vector<SyntheticScan> scan_all(const RobotModel& model, const std::vector<double>& q, const PlanarWorld& world,
-                                    const SyntheticScanParams& params, detail::SplitMix64& rng);
+                                    const SyntheticScanParams& params, common::SplitMixRandom& rng);
 
 }  // namespace tinyline::hydrus_fitting::eval

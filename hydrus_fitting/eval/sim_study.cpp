@@ -17,7 +17,7 @@
 #include "hydrus_fitting/estimator.hpp"
 #include "hydrus_fitting/robot_model.hpp"
 #include "hydrus_fitting/sequencer.hpp"
-#include "hydrus_fitting/simulated_hydrus.hpp"
+#include <sim/eval/simulated_hydrus.hpp>
 
 namespace tinyline::hydrus_fitting::eval {
 
@@ -43,11 +43,11 @@ std::int64_t to_ns(double s) { return static_cast<std::int64_t>(std::llround(s *
 SimStudyResult sim_study(const SimStudyParams& p) {
   if (p.schedule != "all_on" && p.schedule != "time_slicing" && p.schedule != "colouring")
     throw std::invalid_argument("sim_study: schedule must be all_on, time_slicing or colouring, got '" + p.schedule + "'");
-  if (const std::string why = p.approach.validate(); !why.empty()) throw std::invalid_argument("sim_study: " + why);
+  if (const common::Validation why = p.approach.validate(); !why.valid) throw std::invalid_argument("sim_study: " + why.reason);
 
   const RobotModel model = RobotModel::load(p.robot_description);
   sim::SimulatedSystem sys(sim::load_scene(p.scene_path));
-  SimulatedHydrus robot(sys, model);  // throws naming what the scene lacks
+  sim::eval::SimulatedHydrus robot(sys, model);  // throws naming what the scene lacks
   const double truth_radius = robot.cylinder_radius_m();
   const auto cylinder_id = sys.with_scene([](const sim::Scene& s) { return s.world.find("cylinder"); });
   if (!cylinder_id) throw std::runtime_error("sim_study: scene " + p.scene_path + " has no object 'cylinder'");

@@ -9,10 +9,15 @@
 
 namespace tinyline::hydrus_fitting {
 
+common::Validation validate(const BasePoseBufferParams& params) {
+  if (!(params.tolerance_s >= 0.0) || !(params.history_s > 0.0))
+    return common::Validation::invalid(fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}",
+                                                   params.tolerance_s, params.history_s));
+  return common::Validation::ok();
+}
+
 BasePoseBuffer::BasePoseBuffer(BasePoseBufferParams params) : params_(params) {
-  if (!(params_.tolerance_s >= 0.0) || !(params_.history_s > 0.0))
-    throw std::invalid_argument(fmt::format("BasePoseBuffer: need tolerance_s >= 0 and history_s > 0, got {} and {}",
-                                            params_.tolerance_s, params_.history_s));
+  if (const common::Validation v = validate(params_); !v.valid) throw std::invalid_argument("BasePoseBuffer: " + v.reason);
 }
 
 bool BasePoseBuffer::add(std::int64_t stamp_ns, const Eigen::Vector2d& xy_m, double yaw_rad) {

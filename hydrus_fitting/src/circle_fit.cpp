@@ -5,13 +5,15 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <fmt/format.h>
 
-#include "hydrus_fitting/detail/random.hpp"
+#include <tinyline/common/least_squares.hpp>
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::hydrus_fitting {
 
@@ -170,27 +172,27 @@ double fade(double x, double full, double none) {
   return x < full ? 1.0 : 0.0;
 }
 
-std::optional<std::string> check(const SecondOrderCorrection& so) {
+common::Validation validate_second_order(const SecondOrderCorrection& so) {
   const auto bad = [](double v) { return !std::isfinite(v); };
   if (bad(so.end_weight) || so.end_weight < 0.0)
-    return fmt::format("second_order.end_weight must be >= 0, got {}", so.end_weight);
+    return common::Validation::invalid(fmt::format("second_order.end_weight must be >= 0, got {}", so.end_weight));
   if (bad(so.max_end_weight) || so.max_end_weight < 0.0 || so.max_end_weight > 1.0)
-    return fmt::format("second_order.max_end_weight must be in [0, 1], got {}", so.max_end_weight);
+    return common::Validation::invalid(fmt::format("second_order.max_end_weight must be in [0, 1], got {}", so.max_end_weight));
   if (bad(so.reference_sigma_over_r) || !(so.reference_sigma_over_r > 0.0))
-    return fmt::format("second_order.reference_sigma_over_r must be > 0, got {}", so.reference_sigma_over_r);
+    return common::Validation::invalid(fmt::format("second_order.reference_sigma_over_r must be > 0, got {}", so.reference_sigma_over_r));
   if (bad(so.full_weighting_arc_deg) || bad(so.no_weighting_arc_deg) || so.full_weighting_arc_deg < 0.0 ||
       so.no_weighting_arc_deg < so.full_weighting_arc_deg)
-    return fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
-                       so.full_weighting_arc_deg, so.no_weighting_arc_deg);
+    return common::Validation::invalid(fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
+                       so.full_weighting_arc_deg, so.no_weighting_arc_deg));
   if (bad(so.full_weighting_rel_sd_r) || bad(so.no_weighting_rel_sd_r) || so.full_weighting_rel_sd_r < 0.0 ||
       so.no_weighting_rel_sd_r < so.full_weighting_rel_sd_r)
-    return fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
-                       so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r);
+    return common::Validation::invalid(fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
+                       so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r));
   if (bad(so.mode_shift) || so.mode_shift < 0.0)
-    return fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift);
+    return common::Validation::invalid(fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift));
   if (bad(so.max_shift_sds) || so.max_shift_sds < 0.0)
-    return fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds);
-  return std::nullopt;
+    return common::Validation::invalid(fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds));
+  return common::Validation::ok();
 }
 
 /// The arc n points cover about `centre`: 2 pi minus the largest angular gap
@@ -340,22 +342,103 @@ CircleFit fit_circle_taubin(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
   return from_algebraic(Eigen::Vector4d(a0, a(1), a(2), -zmean * a0), n, points, "Taubin");
 }
 
+common::Validation validate(const RefineParams& params) {
+  if (params.known_radius_m && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
+    return common::Validation::invalid(fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
+  if (params.max_iterations < 1)
+    return common::Validation::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
+  if (params.correction == ArcCorrection::kSecondOrder) return validate_second_order(params.second_order);
+  return common::Validation::ok();
+}
+
+common::Validation validate(const RobustCircleParams& params) {
+  const bool known = params.known_radius_m.has_value();
+  if (!(params.inlier_threshold_m > 0.0) || !std::isfinite(params.inlier_threshold_m))
+    return common::Validation::invalid(fmt::format("inlier_threshold_m must be > 0, got {}", params.inlier_threshold_m));
+  if (!(params.min_radius_m >= 0.0) || !(params.max_radius_m > params.min_radius_m))
+    return common::Validation::invalid(fmt::format("need 0 <= min_radius_m < max_radius_m, got [{}, {}]",
+                                                   params.min_radius_m, params.max_radius_m));
+  if (known && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
+    return common::Validation::invalid(fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
+  if (params.max_iterations < 1)
+    return common::Validation::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
+  if (!(params.confidence > 0.0 && params.confidence < 1.0))
+    return common::Validation::invalid(fmt::format("confidence must be in (0, 1), got {}", params.confidence));
+  if (params.min_inliers < (known ? 2 : 3))
+    return common::Validation::invalid(fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
+  if (!(params.inlier_threshold_sigmas >= 0.0))
+    return common::Validation::invalid(
+        fmt::format("inlier_threshold_sigmas must be >= 0, got {}", params.inlier_threshold_sigmas));
+  return common::Validation::ok();
+}
+
+namespace {
+
+// The geometric fit as a least-squares problem over (centre, radius), or
+// over the centre alone when the radius is known (D = 2). `evaluate` gives,
+// in one pass over the points, the cost and the normal equations at a full
+// (cx, cy, r); `at` is the pass at the current circle.
+template <int D, class Evaluate, class Pass>
+struct GeometricCircleProblem {
+  using Vector = Eigen::Matrix<double, D, 1>;
+  Evaluate& evaluate;
+  Pass& at;
+  double known_radius_m;
+  Pass pending;
+
+  Eigen::Vector3d circle(const Vector& x) const {
+    if constexpr (D == 3) {
+      return x;
+    } else {
+      return {x(0), x(1), known_radius_m};
+    }
+  }
+  std::pair<Eigen::Matrix<double, D, D>, Vector> linearise(const Vector&) const {
+    return {at.H.template topLeftCorner<D, D>(), at.g.template head<D>()};
+  }
+  // The candidate's gradient system comes in the same pass as its cost: near
+  // the minimum almost every step is accepted.
+  double cost(Vector& candidate) {
+    const Eigen::Vector3d t = circle(candidate);
+    if (!(t(2) > 0.0)) return std::numeric_limits<double>::infinity();
+    pending = evaluate(t);
+    return pending.cost;
+  }
+  void accept() { at = pending; }
+  bool converged(double old_cost, double new_cost, const Vector&) const { return old_cost - new_cost <= 1e-15 * old_cost; }
+};
+
+template <int D, class Evaluate, class Pass>
+common::LevenbergMarquardtResult minimise_geometric(Evaluate& evaluate, Pass& at, Eigen::Vector3d& t,
+                                                    const RefineParams& params) {
+  common::LevenbergMarquardtSettings s;
+  s.max_iterations = params.max_iterations;
+  s.max_tries = 20;
+  s.initial_lambda = params.initial_lambda;
+  s.increase = 10.0;
+  s.decrease = 0.1;
+  s.min_lambda = 1e-12;
+  // A step under the tolerance is not worth a pass over the points: its
+  // cost differs from the current one at rounding level, so the test would
+  // reject it about half the time and grow the damping for nothing.
+  s.min_step = params.step_tolerance_m;
+  s.accept_equal_cost = true;
+  GeometricCircleProblem<D, Evaluate, Pass> problem{evaluate, at, t(2), {}};
+  Eigen::Matrix<double, D, 1> x = t.template head<D>();
+  const common::LevenbergMarquardtResult r = common::levenberg_marquardt(problem, x, at.cost, s);
+  t.template head<D>() = x;
+  return r;
+}
+
+}  // namespace
+
 CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
                         const RefineParams& params, std::span<const double> sigma_m) {
   const bool known = params.known_radius_m.has_value();
-  if (known && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m))) {
-    return failed(FitStatus::kInvalidParams,
-                  fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
-  }
+  if (const common::Validation v = validate(params); !v.valid) return failed(FitStatus::kInvalidParams, v.reason);
   if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols())) {
     return failed(FitStatus::kInvalidParams, fmt::format("sigma_m has {} entries for {} points", sigma_m.size(),
                                                          points.cols()));
-  }
-  if (params.max_iterations < 1) {
-    return failed(FitStatus::kInvalidParams, fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
-  }
-  if (params.correction == ArcCorrection::kSecondOrder) {
-    if (auto bad = check(params.second_order)) return failed(FitStatus::kInvalidParams, *bad);
   }
   const int p = known ? 2 : 3;
   // Finite points with a finite, positive sigma.
@@ -455,52 +538,10 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   int it = 0;
   auto run_lm = [&](Eigen::Vector3d& t) {
     at = evaluate(t);  // always the pass at t
-    double lambda = params.initial_lambda;
-    converged = false;
-    it = 0;
-    for (; it < params.max_iterations && !converged; ++it) {
-      // Try steps with growing damping until one lowers the cost.
-      bool accepted = false;
-      for (int tries = 0; tries < 20 && !accepted && !converged; ++tries) {
-        Eigen::Matrix3d A = at.H;
-        for (int k = 0; k < 3; ++k) A(k, k) += lambda * std::max(at.H(k, k), 1e-12);
-        Eigen::Vector3d delta = Eigen::Vector3d::Zero();
-        if (known) {
-          delta.head<2>() = A.topLeftCorner<2, 2>().ldlt().solve(-at.g.head<2>());
-        } else {
-          delta = A.ldlt().solve(-at.g);
-        }
-        if (!delta.allFinite()) {
-          lambda *= 10.0;
-          continue;
-        }
-        // A step under the tolerance is not worth a pass over the points: its
-        // cost differs from the current one at rounding level, so the test
-        // would reject it about half the time and grow the damping for nothing.
-        if (delta.norm() < params.step_tolerance_m) {
-          converged = true;
-          break;
-        }
-        const Eigen::Vector3d cand = t + delta;
-        // The candidate's gradient system comes in the same pass as its cost:
-        // near the minimum almost every step is accepted.
-        Pass next;
-        if (cand(2) > 0.0) next = evaluate(cand);
-        if (cand(2) > 0.0 && next.cost <= at.cost) {
-          t = cand;
-          const double old = at.cost;
-          at = next;
-          lambda = std::max(lambda * 0.1, 1e-12);
-          accepted = true;
-          if (old - at.cost <= 1e-15 * old) converged = true;
-        } else {
-          lambda *= 10.0;
-        }
-      }
-      if (!accepted) {
-        converged = true;  // no descent direction left: at a minimum to rounding
-      }
-    }
+    const common::LevenbergMarquardtResult r =
+        known ? minimise_geometric<2>(evaluate, at, t, params) : minimise_geometric<3>(evaluate, at, t, params);
+    converged = r.converged;
+    it = r.iterations;
   };
   run_lm(theta);
   // The ML fit's first-order quantities, before any second-order refit:
@@ -668,25 +709,12 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
   // ---- parameters and input
   const bool known = params.known_radius_m.has_value();
   auto invalid = [](std::string r) { return failed(FitStatus::kInvalidParams, std::move(r)); };
-  if (!(params.inlier_threshold_m > 0.0) || !std::isfinite(params.inlier_threshold_m))
-    return invalid(fmt::format("inlier_threshold_m must be > 0, got {}", params.inlier_threshold_m));
-  if (!(params.min_radius_m >= 0.0) || !(params.max_radius_m > params.min_radius_m))
-    return invalid(fmt::format("need 0 <= min_radius_m < max_radius_m, got [{}, {}]", params.min_radius_m,
-                               params.max_radius_m));
-  if (known && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
-    return invalid(fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
-  if (params.max_iterations < 1) return invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
-  if (!(params.confidence > 0.0 && params.confidence < 1.0))
-    return invalid(fmt::format("confidence must be in (0, 1), got {}", params.confidence));
-  if (params.min_inliers < (known ? 2 : 3))
-    return invalid(fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
+  if (const common::Validation v = validate(params); !v.valid) return invalid(v.reason);
   if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols()))
     return invalid(fmt::format("sigma_m has {} entries for {} points", sigma_m.size(), points.cols()));
   for (std::size_t i = 0; i < sigma_m.size(); ++i)
     if (!(sigma_m[i] > 0.0) || !std::isfinite(sigma_m[i]))
       return invalid(fmt::format("sigma_m[{}] = {} is not a finite positive SD", i, sigma_m[i]));
-  if (!(params.inlier_threshold_sigmas >= 0.0))
-    return invalid(fmt::format("inlier_threshold_sigmas must be >= 0, got {}", params.inlier_threshold_sigmas));
   const bool use_views = !viewpoints.origins_m.empty();
   if (use_views) {
     if (viewpoints.sensor_of_point.size() != static_cast<std::size_t>(points.cols()))
@@ -795,7 +823,7 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
     return r;
   };
 
-  detail::SplitMix64 rng(params.seed);
+  common::SplitMixRandom rng(params.seed);
   Circle best{};
   Consensus best_c;
   int drawn = 0, valid = 0, out_of_range = 0;

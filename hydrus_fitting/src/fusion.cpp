@@ -75,11 +75,15 @@ bool on_robot(const RobotModel& model, const Kinematics& k, const Eigen::Vector2
   return inside(footprints(model, k, margin_m), p, margin_m);
 }
 
+common::Validation validate(const FusionParams& params) {
+  if (!(params.self_filter_margin_m >= 0.0))
+    return common::Validation::invalid(fmt::format("self_filter_margin_m must be >= 0, got {}", params.self_filter_margin_m));
+  return common::Validation::ok();
+}
+
 ScanFuser::ScanFuser(const RobotModel& model, FusionParams params)
     : model_(&model), params_(std::move(params)), trig_(model.sensors().size()) {
-  if (!(params_.self_filter_margin_m >= 0.0))
-    throw std::invalid_argument(fmt::format("fusion: self_filter_margin_m must be >= 0, got {}",
-                                            params_.self_filter_margin_m));
+  if (const common::Validation v = validate(params_); !v.valid) throw std::invalid_argument("fusion: " + v.reason);
 }
 
 void ScanFuser::clear() {

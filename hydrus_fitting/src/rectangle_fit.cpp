@@ -8,7 +8,7 @@
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 
-#include "hydrus_fitting/detail/random.hpp"
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::hydrus_fitting {
 
@@ -31,6 +31,16 @@ bool fit_line(const std::vector<Eigen::Vector2d>& p, Eigen::Vector2d& dir, Eigen
 
 }  // namespace
 
+common::Validation validate(const RectangleFitParams& params) {
+  if (!(params.inlier_threshold_m > 0.0)) return common::Validation::invalid("inlier_threshold_m must be > 0");
+  if (params.min_points_per_side < 2) return common::Validation::invalid("min_points_per_side must be >= 2");
+  if (!(params.confidence > 0.0 && params.confidence < 1.0))
+    return common::Validation::invalid("confidence must be in (0, 1)");
+  if (params.known_size_m && !(params.known_size_m->array() > 0.0).all())
+    return common::Validation::invalid("known_size_m must be > 0");
+  return common::Validation::ok();
+}
+
 RectangleFit fit_rectangle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RectangleFitParams& params,
                            const Viewpoints& viewpoints) {
   RectangleFit out;
@@ -39,12 +49,7 @@ RectangleFit fit_rectangle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, con
     out.reason = std::move(r);
     return out;
   };
-  if (!(params.inlier_threshold_m > 0.0)) return fail(FitStatus::kInvalidParams, "inlier_threshold_m must be > 0");
-  if (params.min_points_per_side < 2) return fail(FitStatus::kInvalidParams, "min_points_per_side must be >= 2");
-  if (!(params.confidence > 0.0 && params.confidence < 1.0))
-    return fail(FitStatus::kInvalidParams, "confidence must be in (0, 1)");
-  if (params.known_size_m && !(params.known_size_m->array() > 0.0).all())
-    return fail(FitStatus::kInvalidParams, "known_size_m must be > 0");
+  if (const common::Validation v = validate(params); !v.valid) return fail(FitStatus::kInvalidParams, v.reason);
   const bool use_views = !viewpoints.origins_m.empty();
   if (use_views && viewpoints.sensor_of_point.size() != static_cast<std::size_t>(points.cols()))
     return fail(FitStatus::kInvalidParams, "viewpoints.sensor_of_point must have one entry per point");
@@ -67,7 +72,7 @@ RectangleFit fit_rectangle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, con
   const double T2 = T * T;
 
   // ---- side 1: MSAC over 2-point lines.
-  detail::SplitMix64 rng(params.seed);
+  common::SplitMixRandom rng(params.seed);
   Eigen::Vector2d best_u = Eigen::Vector2d::UnitX(), best_c = Eigen::Vector2d::Zero();
   double best_score = std::numeric_limits<double>::infinity();
   int best_in = 0;

@@ -278,11 +278,16 @@ const char* to_string(JointLookupStatus s) {
   return "unknown";
 }
 
+common::Validation validate(const JointBufferParams& params) {
+  if (!(params.tolerance_s >= 0.0) || !(params.history_s > 0.0))
+    return common::Validation::invalid(fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}",
+                                                   params.tolerance_s, params.history_s));
+  return common::Validation::ok();
+}
+
 JointStateBuffer::JointStateBuffer(std::vector<std::string> joint_names, JointBufferParams params)
     : names_(std::move(joint_names)), params_(params), series_(names_.size()) {
-  if (!(params_.tolerance_s >= 0.0) || !(params_.history_s > 0.0))
-    throw std::invalid_argument(fmt::format("joint buffer: need tolerance_s >= 0 and history_s > 0, got {} and {}",
-                                            params_.tolerance_s, params_.history_s));
+  if (const common::Validation v = validate(params_); !v.valid) throw std::invalid_argument("joint buffer: " + v.reason);
 }
 
 void JointStateBuffer::clear() {

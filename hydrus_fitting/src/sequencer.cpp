@@ -360,6 +360,26 @@ Schedule colouring_schedule(const InterferenceGraph& g, const Colouring& c, cons
   return s;
 }
 
+Schedule with_always_emitting(Schedule s, std::span<const int> always) {
+  if (always.empty() || s.slots.empty()) return s;
+  const int n = static_cast<int>(s.rate_hz.size());
+  auto is_always = [&](int v) { return std::find(always.begin(), always.end(), v) != always.end(); };
+  // A slot that only held sensors which emit anyway gives nobody else time: drop it.
+  std::vector<std::vector<int>> kept;
+  for (auto& slot : s.slots) {
+    if (!std::all_of(slot.begin(), slot.end(), is_always)) kept.push_back(std::move(slot));
+  }
+  if (kept.empty()) kept.emplace_back();
+  for (auto& slot : kept) {
+    for (const int v : always) {
+      if (v >= 0 && v < n && !std::binary_search(slot.begin(), slot.end(), v)) slot.insert(std::upper_bound(slot.begin(), slot.end(), v), v);
+    }
+  }
+  s.slots = std::move(kept);
+  fill_rates(s, n);
+  return s;
+}
+
 std::string check_schedule(const InterferenceGraph& g, const Schedule& s) {
   std::vector<int> seen(static_cast<std::size_t>(g.n), 0);
   for (std::size_t k = 0; k < s.slots.size(); ++k) {

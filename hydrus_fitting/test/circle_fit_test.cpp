@@ -13,7 +13,7 @@
 #include <Eigen/LU>
 
 #include "hydrus_fitting/circle_fit.hpp"
-#include "hydrus_fitting/detail/random.hpp"
+#include <tinyline/common/random.hpp>
 #include "montecarlo.hpp"
 
 namespace hf = tinyline::hydrus_fitting;
@@ -36,11 +36,11 @@ Eigen::Matrix2Xd arc(const hf::Circle& c, double arc_deg, int n, double mid_deg 
 }
 
 /// Adds isotropic Gaussian noise of SD sigma to every coordinate.
-Eigen::Matrix2Xd noisy(const Eigen::Matrix2Xd& p, double sigma, hf::detail::SplitMix64& rng) {
+Eigen::Matrix2Xd noisy(const Eigen::Matrix2Xd& p, double sigma, tinyline::common::SplitMixRandom& rng) {
   Eigen::Matrix2Xd q = p;
   for (Eigen::Index i = 0; i < q.cols(); ++i) {
-    q(0, i) += sigma * rng.gaussian();
-    q(1, i) += sigma * rng.gaussian();
+    q(0, i) += sigma * rng.normal();
+    q(1, i) += sigma * rng.normal();
   }
   return q;
 }
@@ -126,7 +126,7 @@ TEST(CircleFit, CollinearPointsAreAnOutcome) {
     EXPECT_THAT(f.reason, HasSubstr("collinear"));
   }
   // Nearly collinear (a noisy wall): the robust fit refuses radii beyond its range.
-  hf::detail::SplitMix64 rng(3);
+  tinyline::common::SplitMixRandom rng(3);
   const auto wall = noisy(p, 0.002, rng);
   hf::RobustCircleParams rp;
   rp.max_radius_m = 1.0;
@@ -171,7 +171,7 @@ TEST(CircleFit, KcrBoundOfAFullCircleIsTheTextbookValue) {
 TEST(CircleFit, KasaIsBiasedOnAShortArcAndHyperIsNot) {
   // 60 degree arc, 1 cm noise on a 30 cm radius: Kasa's radius is well known
   // to shrink (it prefers smaller circles); Hyper has no essential bias.
-  hf::detail::SplitMix64 rng(11);
+  tinyline::common::SplitMixRandom rng(11);
   const auto truth = arc(kTruth, 60, 40);
   std::vector<double> kasa, hyper, geo;
   for (int t = 0; t < 400; ++t) {
@@ -188,7 +188,7 @@ TEST(CircleFit, KasaIsBiasedOnAShortArcAndHyperIsNot) {
 
 TEST(CircleFit, GeometricFitReachesTheKcrBoundAndReportsItsCovariance) {
   // 180 degrees, 60 points, 5 mm noise: the ML fit's spread matches the bound.
-  hf::detail::SplitMix64 rng(5);
+  tinyline::common::SplitMixRandom rng(5);
   const auto truth = arc(kTruth, 180, 60);
   const double s = 0.005;
   const std::vector<double> sig{s};
@@ -240,7 +240,7 @@ TEST(CircleFit, RefineStopsAtAStepUnderTheTolerance) {
 }
 
 TEST(CircleFit, KnownRadiusFitsOnlyTheCentre) {
-  hf::detail::SplitMix64 rng(8);
+  tinyline::common::SplitMixRandom rng(8);
   const auto truth = arc(kTruth, 45, 30);
   const auto p = noisy(truth, 0.003, rng);
   hf::RefineParams rp;
@@ -269,7 +269,7 @@ namespace {
 
 /// 60% points on a 150 degree arc and 40% outliers: a wall behind, a clump
 /// (another object) and uniform clutter.
-Eigen::Matrix2Xd with_outliers(int n, hf::detail::SplitMix64& rng, std::vector<int>* is_outlier) {
+Eigen::Matrix2Xd with_outliers(int n, tinyline::common::SplitMixRandom& rng, std::vector<int>* is_outlier) {
   const int n_in = n * 6 / 10;
   Eigen::Matrix2Xd p(2, n);
   p.leftCols(n_in) = noisy(arc(kTruth, 150, n_in, -90), 0.004, rng);
@@ -278,9 +278,9 @@ Eigen::Matrix2Xd with_outliers(int n, hf::detail::SplitMix64& rng, std::vector<i
     (*is_outlier)[static_cast<std::size_t>(i)] = 1;
     const int kind = i % 3;
     if (kind == 0) {
-      p.col(i) = Eigen::Vector2d(-0.5 + 1.8 * rng.uniform(), -0.9 + 0.004 * rng.gaussian());  // wall
+      p.col(i) = Eigen::Vector2d(-0.5 + 1.8 * rng.uniform(), -0.9 + 0.004 * rng.normal());  // wall
     } else if (kind == 1) {
-      p.col(i) = Eigen::Vector2d(0.9, -0.4) + 0.03 * Eigen::Vector2d(rng.gaussian(), rng.gaussian());  // clump
+      p.col(i) = Eigen::Vector2d(0.9, -0.4) + 0.03 * Eigen::Vector2d(rng.normal(), rng.normal());  // clump
     } else {
       p.col(i) = Eigen::Vector2d(-0.5 + 1.8 * rng.uniform(), -0.9 + 1.2 * rng.uniform());  // clutter
     }
@@ -297,7 +297,7 @@ TEST(CircleFit, RobustFitIgnoresFortyPercentOutliers) {
   const auto bound = hf::kcr_bound(arc(kTruth, 150, 120, -90), kTruth, std::vector<double>{0.004});
   ASSERT_TRUE(bound.ok);
   const Eigen::Matrix3d info = bound.covariance.inverse();
-  hf::detail::SplitMix64 rng(21);
+  tinyline::common::SplitMixRandom rng(21);
   std::vector<double> m2;
   for (int t = 0; t < 50; ++t) {
     std::vector<int> is_out;
@@ -325,7 +325,7 @@ TEST(CircleFit, RobustFitIgnoresFortyPercentOutliers) {
 }
 
 TEST(CircleFit, RobustFitIsDeterministicForASeed) {
-  hf::detail::SplitMix64 rng(4);
+  tinyline::common::SplitMixRandom rng(4);
   std::vector<int> is_out;
   const auto p = with_outliers(150, rng, &is_out);
   hf::RobustCircleParams rp;
@@ -361,7 +361,7 @@ TEST(CircleFit, ViewpointsRejectCirclesThroughPointsFacingAway) {
 }
 
 TEST(CircleFit, TaubinAndHyperAgreeToFirstOrder) {
-  hf::detail::SplitMix64 rng(2);
+  tinyline::common::SplitMixRandom rng(2);
   const auto p = noisy(arc(kTruth, 120, 80), 0.002, rng);
   const auto h = hf::fit_circle_hyper(p);
   const auto t = hf::fit_circle_taubin(p);
@@ -445,7 +445,7 @@ TEST(CircleFitSecondOrder, LeavesThePlainFitAloneAtLowNoiseAndOnAClosedCircle) {
     const std::vector<double> sig{c.sigma_m};
     const hf::KcrBound b = hf::kcr_bound(exact, truth, sig);
     ASSERT_TRUE(b.ok);
-    hf::detail::SplitMix64 rng(11);
+    tinyline::common::SplitMixRandom rng(11);
     for (int t = 0; t < 200; ++t) {
       const Eigen::Matrix2Xd q = noisy(exact, c.sigma_m, rng);
       const hf::CircleFit a = hf::fit_circle(q, plain);
@@ -488,7 +488,7 @@ TEST(CircleFitSecondOrder, BadParametersAreNamedAndAKnownRadiusIsLeftAlone) {
   rp.second_order.mode_shift = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(hf::refine_circle(p, kTruth, rp).status, hf::FitStatus::kInvalidParams);
   // A known radius: the correction does not apply (centre-only fit).
-  hf::detail::SplitMix64 rng(4);
+  tinyline::common::SplitMixRandom rng(4);
   const Eigen::Matrix2Xd q = noisy(p, 0.02, rng);
   rp.second_order = {};
   rp.known_radius_m = kTruth.radius_m;

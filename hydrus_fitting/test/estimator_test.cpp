@@ -29,7 +29,7 @@ struct Rig {
 
   Rig(const std::vector<double>& q, const ev::PlanarWorld& world, std::uint64_t seed = 1) {
     (void)joints.add(ns(1.0), model.joint_names(), q);
-    hf::detail::SplitMix64 rng(seed);
+    tinyline::common::SplitMixRandom rng(seed);
     scans = ev::scan_all(model, q, world, {}, rng);
     for (const auto& s : scans) views.push_back({s.sensor, ns(1.0), s.angle_rad, s.range_m});
   }
@@ -125,7 +125,7 @@ struct MovingBase {
       const Eigen::Isometry2d b = base(t);
       (void)poses.add(ns(t), b.translation(), std::atan2(b.linear()(1, 0), b.linear()(0, 0)));
     }
-    hf::detail::SplitMix64 rng(1);
+    tinyline::common::SplitMixRandom rng(1);
     ev::SyntheticScanParams exact;
     exact.noise_scale = 0.0;
     for (std::size_t s = 0; s < model.sensors().size(); ++s) {

@@ -80,7 +80,7 @@ TEST(HydrusFittingNodes, CircleFitterFusesFourSensorsAndPublishesTheCircle) {
   const auto model = hf::RobotModel::load(kConfig);
   const double q = 60.0 * kPi / 180.0;
   const hf::Circle truth{{0.25, 0.433}, 0.15};
-  hf::detail::SplitMix64 rng(7);
+  tinyline::common::SplitMixRandom rng(7);
   const auto s = ev::scan_all(model, {q, q, q}, {{truth}, {}, true}, {}, rng);
   joints->publish(joints_msg(model, 1.0, q));
   for (std::size_t k = 0; k < s.size(); ++k) scans->publish(scan_msg(s[k], 1.0 + 0.004 * static_cast<double>(k)));
@@ -112,7 +112,7 @@ TEST(HydrusFittingNodes, CircleFitterReportsUnknownSensorsAndStaleJoints) {
   auto scans = h.io->create_publisher<LineScan>("scans");
   auto joints = h.io->create_publisher<JointState>("joint_states");
   const auto model = hf::RobotModel::load(kConfig);
-  hf::detail::SplitMix64 rng(1);
+  tinyline::common::SplitMixRandom rng(1);
   auto s = ev::scan_all(model, {1.0, 1.0, 1.0}, {{{{0.25, 0.43}, 0.15}}, {}, true}, {}, rng);
   // A sensor the description does not know: ignored, said once, never a crash.
   s[0].sensor = "laser_on_the_tail";
@@ -144,7 +144,7 @@ TEST(HydrusFittingNodes, CircleFitterMovesScansByTheBasePose) {
   const Eigen::Vector2d fixed = base(1.09) * Eigen::Vector2d(0.25, 0.433);
   const Eigen::Vector2d truth_now = base(1.09).inverse() * fixed;
   std::vector<ev::SyntheticScan> s;
-  hf::detail::SplitMix64 rng(1);
+  tinyline::common::SplitMixRandom rng(1);
   ev::SyntheticScanParams exact;
   exact.noise_scale = 0.0;
   for (std::size_t k = 0; k < 4; ++k) {
@@ -319,4 +319,36 @@ TEST(HydrusFittingNodes, SequencerModesTimeSlicingAndAllOn) {
   ASSERT_FALSE(r.cmds.empty());
   for (const auto& m : r.cmds)
     for (const bool b : m->laser_on) EXPECT_TRUE(b);
+}
+
+TEST(HydrusFittingNodes, SequencerTakesASensorThatIgnoresLaserOffAsAlwaysEmitting) {
+  // laser2 runs a firmware that ignores the laser command: its scans keep
+  // coming, read out long after it was told off. The sequencer stops giving
+  // it a slot of its own and keeps it on everywhere.
+  SequencerRig r("time_slicing");
+  r.joints->publish(joints_msg(r.model, 0.0, kPi / 2));
+  auto scans = r.h.io->create_publisher<tinyline::tinyline_msgs::msg::LineScan>("scans");
+  for (int k = 1; k <= 60; ++k) {
+    const double t = 0.02 * k;
+    r.advance(t);
+    auto m = std::make_unique<tinyline::tinyline_msgs::msg::LineScan>();
+    m->header.stamp = bus::Time::from_seconds(t).to_msg();
+    m->header.frame_id = "laser2";
+    scans->publish(std::move(m));
+    r.h.ex.spin_until_idle();
+  }
+  const std::size_t before = r.cmds.size();
+  r.advance(1.6);
+  ASSERT_GT(r.cmds.size(), before + 6);
+  for (std::size_t k = before; k < r.cmds.size(); ++k) {
+    const auto& m = *r.cmds[k];
+    EXPECT_TRUE(m.laser_on[1]) << k;  // always on
+    int others = 0;
+    for (std::size_t i : {0u, 2u, 3u}) others += m.laser_on[i];
+    EXPECT_EQ(others, 1) << k;  // the others still one per slot; no slot for laser2 alone
+  }
+  r.advance(2.01);
+  ASSERT_FALSE(r.diags.empty());
+  EXPECT_EQ(value_of(*r.diags.back(), "laser2.obeys_laser_off").rfind("no (", 0), 0u);
+  EXPECT_EQ(value_of(*r.diags.back(), "laser1.obeys_laser_off"), "yes or untested");
 }

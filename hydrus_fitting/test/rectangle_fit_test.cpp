@@ -7,7 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "hydrus_fitting/detail/random.hpp"
+#include <tinyline/common/random.hpp>
 #include "hydrus_fitting/rectangle_fit.hpp"
 
 namespace hf = tinyline::hydrus_fitting;
@@ -19,7 +19,7 @@ constexpr double kPi = std::numbers::pi;
 /// Points on the two sides of a box (centre c, yaw, size a x b) that face a
 /// viewer at the origin, with Gaussian noise along the view ray.
 Eigen::Matrix2Xd box_l_shape(const Eigen::Vector2d& c, double yaw, double a, double b, int per_side, double sigma,
-                             hf::detail::SplitMix64& rng) {
+                             tinyline::common::SplitMixRandom& rng) {
   const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-std::sin(yaw), std::cos(yaw));
   // The corner nearest the viewer and the two sides from it.
   Eigen::Vector2d best = Eigen::Vector2d::Zero(), su = Eigen::Vector2d::Zero(), sv = Eigen::Vector2d::Zero();
@@ -42,7 +42,7 @@ Eigen::Matrix2Xd box_l_shape(const Eigen::Vector2d& c, double yaw, double a, dou
   }
   for (Eigen::Index k = 0; k < p.cols(); ++k) {
     const Eigen::Vector2d ray = p.col(k).normalized();
-    p.col(k) += sigma * rng.gaussian() * ray;
+    p.col(k) += sigma * rng.normal() * ray;
   }
   return p;
 }
@@ -55,7 +55,7 @@ double angle_diff_mod_half_pi(double a, double b) {
 }  // namespace
 
 TEST(RectangleFit, TwoSidesOfABox) {
-  hf::detail::SplitMix64 rng(3);
+  tinyline::common::SplitMixRandom rng(3);
   const Eigen::Vector2d c(0.1, 0.8);
   const double yaw = 20.0 * kPi / 180.0;
   const auto p = box_l_shape(c, yaw, 0.4, 0.3, 60, 0.003, rng);
@@ -80,10 +80,10 @@ TEST(RectangleFit, TwoSidesOfABox) {
 }
 
 TEST(RectangleFit, OneSideWithKnownSizeAndViewpoints) {
-  hf::detail::SplitMix64 rng(4);
+  tinyline::common::SplitMixRandom rng(4);
   // The viewer at the origin looks straight at a box's 0.4 m face 0.6 m away.
   Eigen::Matrix2Xd p(2, 80);
-  for (int k = 0; k < 80; ++k) p.col(k) = Eigen::Vector2d(-0.2 + 0.4 * (k + 0.5) / 80, 0.6 + 0.003 * rng.gaussian());
+  for (int k = 0; k < 80; ++k) p.col(k) = Eigen::Vector2d(-0.2 + 0.4 * (k + 0.5) / 80, 0.6 + 0.003 * rng.normal());
   std::vector<Eigen::Vector2d> origins{{0.0, 0.0}};
   std::vector<int> sensor(80, 0);
   hf::RectangleFitParams params;
@@ -98,7 +98,7 @@ TEST(RectangleFit, OneSideWithKnownSizeAndViewpoints) {
 }
 
 TEST(RectangleFit, IgnoresThirtyPercentOutliers) {
-  hf::detail::SplitMix64 rng(5);
+  tinyline::common::SplitMixRandom rng(5);
   const Eigen::Vector2d c(-0.2, 0.9);
   const double yaw = -35.0 * kPi / 180.0;
   const auto box = box_l_shape(c, yaw, 0.5, 0.25, 70, 0.003, rng);
@@ -119,7 +119,7 @@ TEST(RectangleFit, DegenerateInputIsAnOutcome) {
   Eigen::Matrix2Xd few(2, 3);
   few << 0, 1, 2, 0, 0, 0;
   EXPECT_EQ(hf::fit_rectangle(few).status, hf::FitStatus::kTooFewPoints);
-  hf::detail::SplitMix64 rng(6);
+  tinyline::common::SplitMixRandom rng(6);
   Eigen::Matrix2Xd scatter(2, 30);  // no 8 of them within 1.5 cm of a line
   for (int k = 0; k < 30; ++k) scatter.col(k) = Eigen::Vector2d(rng.uniform(), rng.uniform());
   const auto f = hf::fit_rectangle(scatter);

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <iostream>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -25,11 +26,13 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <tinyline/common/cli.hpp>
 
 #include "harness.hpp"
-#include "sim_scanner.hpp"
+#include <sim/eval/scanner.hpp>
 
 namespace ev = tinyline::laser_clustering::eval;
+namespace sim = tinyline::sim;
 namespace lc = tinyline::laser_clustering;
 namespace fs = std::filesystem;
 
@@ -45,7 +48,7 @@ struct Args {
   int pictures = 4;        ///< scans of the first K trials of each case
   int failure_pictures = 4;  ///< and of the first K truss trials that did not align
   /// Raw-mode schedule of both sensors [pulses]: the nearest to close work a
-  /// real sensor can run (the wire sets pulses in tens, wire_protocol.md).
+  /// real sensor can run (the wire sets pulses in tens, tiny_laser_driver/protocol.hpp).
   std::vector<int> raw_pulses = {10, 20, 50, 120, 300};
   int rescans = 2;  ///< truss cases: scans after the first move (TrussEvalOptions::rescans)
   bool tomato_look = true;  ///< TrussEvalOptions::tomato_look
@@ -53,63 +56,41 @@ struct Args {
   bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
 };
 
-[[noreturn]] void usage(const std::string& why) {
-  std::cerr << "laser_clustering_eval: " << why
-            << "\nusage: laser_clustering_eval [--trials N] [--seed S] [--out DIR] [--cases a,b,...] [--pictures K]\n"
-               "                             [--failure-pictures K] [--ablation] [--raw-pulses P1,P2,...] [--rescans N]\n"
-               "                             [--no-tomato-look] [--write-calibration FILE]\n"
-               "cases: random_offset, recognition_error, stick, wrench\n";
-  std::exit(2);
-}
-
-Args parse(int argc, char** argv) {
-  Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage("missing value after " + k);
-      return argv[++i];
-    };
-    auto integer = [&](const std::string& v, long lo) {
-      char* end = nullptr;
-      const long x = std::strtol(v.c_str(), &end, 10);
-      if (end == v.c_str() || *end != '\0' || x < lo) usage(fmt::format("{} needs an integer >= {}, got '{}'", k, lo, v));
-      return x;
-    };
-    if (k == "--trials") {
-      a.trials = static_cast<int>(integer(value(), 1));
-    } else if (k == "--seed") {
-      a.seed = static_cast<std::uint64_t>(integer(value(), 0));
-    } else if (k == "--out") {
-      a.out = value();
-    } else if (k == "--pictures") {
-      a.pictures = static_cast<int>(integer(value(), 0));
-    } else if (k == "--failure-pictures") {
-      a.failure_pictures = static_cast<int>(integer(value(), 0));
-    } else if (k == "--raw-pulses") {
-      a.raw_pulses.clear();
-      std::stringstream ss(value());
-      for (std::string c; std::getline(ss, c, ',');) a.raw_pulses.push_back(static_cast<int>(integer(c, 1)));
-    } else if (k == "--no-tomato-look") {
-      a.tomato_look = false;
-    } else if (k == "--rescans") {
-      a.rescans = static_cast<int>(integer(value(), 0));
-    } else if (k == "--write-calibration") {
-      a.write_calibration = value();
-    } else if (k == "--ablation") {
-      a.ablation = true;
-    } else if (k == "--cases") {
-      a.cases.clear();
-      std::stringstream ss(value());
-      for (std::string c; std::getline(ss, c, ',');) {
-        if (c != "random_offset" && c != "recognition_error" && c != "stick" && c != "wrench") usage("unknown case '" + c + "'");
-        a.cases.insert(c);
-      }
-    } else {
-      usage("unknown argument '" + k + "'");
-    }
-  }
-  return a;
+// Fills `a` from the command line; the exit code when the program stops there.
+std::optional<int> parse(int argc, char** argv, Args& a) {
+  CLI::App app{"The evaluation of docs/laser_clustering.md on the simulated sensor: prints the Markdown tables, "
+               "writes summary.json, one CSV per case and the scans of the first trials.",
+               "laser_clustering_eval"};
+  app.add_option("--trials", a.trials, "trials per case")->check(CLI::Range(1, 1 << 30))->capture_default_str();
+  app.add_option("--seed", a.seed, "seed of the first trial")->check(tinyline::common::kNonNegative)->capture_default_str();
+  app.add_option("--out", a.out, "output directory")->capture_default_str();
+  std::vector<std::string> cases(a.cases.begin(), a.cases.end());
+  app.add_option("--cases", cases, "comma-separated cases")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"random_offset", "recognition_error", "stick", "wrench"}))
+      ->capture_default_str();
+  app.add_option("--pictures", a.pictures, "scans of the first K trials of each case")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  app.add_option("--failure-pictures", a.failure_pictures, "and of the first K truss trials that did not align")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  app.add_flag("--ablation", a.ablation, "also the truss cases under earlier parameter sets and a one-stage baseline");
+  app.add_option("--raw-pulses", a.raw_pulses, "raw-mode read-out schedule of both sensors [pulses], comma-separated")
+      ->delimiter(',')
+      ->check(tinyline::common::kPositive)
+      ->capture_default_str();
+  app.add_option("--rescans", a.rescans, "truss cases: scans after the first move")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  bool no_tomato_look = false;
+  app.add_flag("--no-tomato-look", no_tomato_look, "no look through the tomatoes before a blind move");
+  app.add_option("--write-calibration", a.write_calibration,
+                 "write the gripper sensor's calibration to FILE and stop (with --raw-pulses)");
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
+  a.cases = std::set<std::string>(cases.begin(), cases.end());
+  a.tomato_look = !no_tomato_look;
+  return std::nullopt;
 }
 
 std::string rate(const ev::Rate& r) {
@@ -142,7 +123,9 @@ std::vector<std::string> truth_kinds(const ev::TrussScene& scene, const ev::Simu
 }  // namespace
 
 int main(int argc, char** argv) {
-  const Args args = parse(argc, argv);
+  Args parsed;
+  if (const auto rc = parse(argc, argv, parsed)) return *rc;
+  const Args& args = parsed;
   if (std::error_code ec; !fs::create_directories(args.out / "scans", ec) && ec) {
     std::cerr << "laser_clustering_eval: cannot create the output directory " << (args.out / "scans") << ": "
               << ec.message() << "\n";
@@ -152,7 +135,7 @@ int main(int argc, char** argv) {
   // the tool-grasping tasks at 20-35 cm: the 8 mm lens. Both with a raw-mode
   // schedule short enough for close range (the default 20..700 pulses
   // saturates every pixel nearer than about 20 cm).
-  ev::SimScannerOptions gripper, tools;
+  sim::eval::SimScannerOptions gripper, tools;
   gripper.sensor_config = "tiny_tof_3p6mm.yaml";
   tools.sensor_config = "tiny_tof_8mm.yaml";
   for (auto* o : {&gripper, &tools}) {
@@ -162,7 +145,7 @@ int main(int argc, char** argv) {
     o->calibration_sets = 3;
   }
   if (!args.write_calibration.empty()) {
-    const auto c = ev::write_sim_calibration(gripper, args.write_calibration);
+    const auto c = sim::eval::write_sim_calibration(gripper, args.write_calibration);
     std::cout << fmt::format("wrote {}: {} sensor, raw pulses {}, rail 5-{:.0f} cm every {:.0f} mm, in-sample RMSE {:.1f} mm; "
                              "white paper's reflectance figure {:.1f} (2 %: {:.1f})\n",
                              args.write_calibration, gripper.sensor_config, fmt::join(gripper.raw_pulses, "/"),
@@ -172,8 +155,8 @@ int main(int argc, char** argv) {
   }
   const bool trusses = args.cases.count("random_offset") || args.cases.count("recognition_error");
   const bool metal = args.cases.count("stick") || args.cases.count("wrench");
-  std::unique_ptr<ev::Scanner> truss_scanner = trusses ? ev::make_sim_scanner(gripper) : nullptr;
-  std::unique_ptr<ev::Scanner> tool_scanner = metal ? ev::make_sim_scanner(tools) : nullptr;
+  std::unique_ptr<ev::Scanner> truss_scanner = trusses ? sim::eval::make_sim_scanner(gripper) : nullptr;
+  std::unique_ptr<ev::Scanner> tool_scanner = metal ? sim::eval::make_sim_scanner(tools) : nullptr;
   std::cout << "# laser_clustering evaluation\n\n";
   if (truss_scanner) std::cout << "trusses: " << truss_scanner->describe() << "\n\n";
   if (tool_scanner) std::cout << "stick and wrench: " << tool_scanner->describe() << "\n\n";

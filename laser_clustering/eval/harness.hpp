@@ -1,6 +1,6 @@
 // The evaluation harness of docs/laser_clustering.md: seeded trials of the
 // scenes in scenes.hpp, scanned by a Scanner (the simulated sensor and the
-// driver's processing, see sim_scanner.hpp), scored against ground truth,
+// driver's processing, see sim/eval/scanner.hpp), scored against ground truth,
 // with Wilson 95 % confidence intervals.
 #pragma once
 
@@ -11,6 +11,7 @@
 
 #include <Eigen/Geometry>
 
+#include <sim/eval/scanner.hpp>
 #include <sim/world.hpp>
 
 #include "laser_clustering/alignment_search.hpp"
@@ -23,21 +24,9 @@
 
 namespace tinyline::laser_clustering::eval {
 
-/// One calibrated scan with the ground truth of every pixel.
-struct SimulatedScan {
-  LineScan scan;
-  std::vector<sim::ObjectId> truth_object;  ///< per pixel: what its central ray hits (kNoObject: nothing)
-  std::vector<std::uint8_t> truth_mixed;    ///< per pixel: its footprint spans several surfaces
-};
-
-/// Produces scans of a world from a sensor pose. `index` seeds the scan's noise.
-class Scanner {
- public:
-  virtual ~Scanner() = default;
-  virtual SimulatedScan scan(const sim::World& world, const Eigen::Isometry3d& T_world_sensor, std::uint64_t index) = 0;
-  /// One line for reports (sensor model, lens, calibration).
-  [[nodiscard]] virtual std::string describe() const = 0;
-};
+// The scanner: the simulated sensor and the driver's processing (sim/eval).
+using sim::eval::Scanner;
+using sim::eval::SimulatedScan;
 
 /// A proportion with its Wilson score 95 % interval.
 struct Rate {

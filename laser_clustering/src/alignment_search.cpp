@@ -19,7 +19,7 @@ const char* to_string(AlignmentOutcome o) {
   return "unknown";
 }
 
-Validation validate(const AlignmentParams& p) {
+common::Validation validate(const AlignmentParams& p) {
   if (p.fit_half_width < 1) return {false, fmt::format("fit_half_width must be >= 1 (got {})", p.fit_half_width)};
   if (!std::isfinite(p.min_peak_ratio) || p.min_peak_ratio < 1.0) {
     return {false, fmt::format("min_peak_ratio must be finite and >= 1 (got {})", p.min_peak_ratio)};
@@ -103,7 +103,7 @@ AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const A
   return out;
 }
 
-Validation validate(const SurfaceReflectanceParams& p) {
+common::Validation validate(const SurfaceReflectanceParams& p) {
   if (!(p.quantile > 0.0 && p.quantile <= 1.0)) return {false, fmt::format("quantile must be in (0, 1] (got {})", p.quantile)};
   if (p.first_pixel < 0) return {false, fmt::format("first_pixel must be >= 0 (got {})", p.first_pixel)};
   if (p.last_pixel >= 0 && p.last_pixel < p.first_pixel) {

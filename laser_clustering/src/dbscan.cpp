@@ -13,7 +13,7 @@
 
 namespace tinyline::laser_clustering {
 
-Validation validate(const DbscanParams& p) {
+common::Validation validate(const DbscanParams& p) {
   if (!std::isfinite(p.eps) || p.eps <= 0.0) {
     return {false, fmt::format("DbscanParams.eps must be finite and > 0 (got {})", p.eps)};
   }

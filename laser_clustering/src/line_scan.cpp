@@ -30,7 +30,7 @@ std::size_t saturated_reflectance_bound(LineScan& scan, const std::vector<std::u
     }
     if (!std::isfinite(range)) continue;
     const double d_cm = 100.0 * range;
-    scan.reflectance[i] = d_cm * d_cm * intensity[i] * 10.0;  // measured.yaml's figure with pulses/10 folded in
+    scan.reflectance[i] = d_cm * d_cm * intensity[i] * 10.0;  // the sensor's reflectance figure with pulses/10 folded in
     ++bounded;
   }
   return bounded;

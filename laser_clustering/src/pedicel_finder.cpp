@@ -20,7 +20,7 @@ const char* to_string(PedicelOutcome o) {
   return "unknown";
 }
 
-Validation validate(const PedicelFinderParams& p) {
+common::Validation validate(const PedicelFinderParams& p) {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!positive(p.diameter_m)) return {false, fmt::format("diameter_m must be > 0 (got {})", p.diameter_m)};
   if (!positive(p.diameter_sd_m)) return {false, fmt::format("diameter_sd_m must be > 0 (got {})", p.diameter_sd_m)};

@@ -8,7 +8,7 @@
 
 namespace tinyline::laser_clustering {
 
-Validation validate(const ReflectanceClusteringParams& p) {
+common::Validation validate(const ReflectanceClusteringParams& p) {
   if (auto v = validate(p.dbscan); !v.valid) return {false, "dbscan: " + v.reason};
   if (!std::isfinite(p.reflectance_ratio_at_eps) || p.reflectance_ratio_at_eps <= 1.0) {
     return {false, fmt::format("reflectance_ratio_at_eps must be finite and > 1 (got {})", p.reflectance_ratio_at_eps)};

@@ -12,7 +12,7 @@
 
 namespace tinyline::laser_clustering {
 
-Validation validate(const TomatoRegistrationParams& p) {
+common::Validation validate(const TomatoRegistrationParams& p) {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!positive(p.max_shift_m)) return {false, fmt::format("max_shift_m must be > 0 (got {})", p.max_shift_m)};
   if (!positive(p.grid_step_m) || p.grid_step_m > p.max_shift_m) {

@@ -19,7 +19,7 @@ constexpr int kFovEdgePx = 1;
 constexpr int kMaxReferencePx = 16;
 }
 
-Validation validate(const TwoStageParams& p) {
+common::Validation validate(const TwoStageParams& p) {
   if (auto v = validate(p.groups); !v.valid) return {false, "groups: " + v.reason};
   if (auto v = validate(p.objects); !v.valid) return {false, "objects: " + v.reason};
   const auto& e = p.edge;

@@ -96,7 +96,7 @@ TEST(LaserClusteringLaunch, WrenchAlignFindsTheSquarePitchAndTurnsTheGripperToIt
     EXPECT_TRUE(a.refined);
     EXPECT_GE(a.num_samples, 17u) << "usable pitches";
     EXPECT_GE(results, 17 * 10) << "every pitch seen by several scans";
-    EXPECT_NEAR(a.best_pitch_rad / kDeg, -mount_deg, 1.0) << "the issue's goal: within 1 degree";
+    EXPECT_NEAR(a.best_pitch_rad / kDeg, -mount_deg, 1.0) << "the goal: within 1 degree";
     ASSERT_EQ(commands.size(), 18u) << "17 sweep steps and the aligned pitch";
     EXPECT_NEAR(commands.front() / kDeg, -16.0, 1e-9);
     EXPECT_NEAR(commands[16] / kDeg, 16.0, 1e-9);
@@ -278,7 +278,7 @@ TEST(LaserClusteringLaunch, SimGripperPitchNeedsItsSceneAndNamesWhatIsWrong) {
   auto ctx = Launched::make_ctx();
   bus::DeterministicExecutor ex(ctx->clock());
   bus::NodeRegistry registry;
-  tinyline::laser_clustering::register_nodes(registry);
+  tinyline::sim::register_nodes(registry);
   bus::NodeOptions o;
   o.name = "arm";
   o.context = ctx;

@@ -31,7 +31,7 @@ LABELS = {
     "step3_noise": "3 + transfer noise",
     "step4_channel_offset": "4 + channel offset (shipped)",
 }
-# The five real sensors' polynomials (measured.yaml real_sensor_polynomials),
+# The five real sensors' polynomials (the public driver's, tiny_laser_driver/src/public_driver_sensors.cpp),
 # distance_cm = sum poly[i] k^(6-i) + offsets, usable only on part of k.
 REAL = {
     "K": ([2.147918234375362e06, -7.736068312640203e06, 1.154494186428487e07, -9.137795412258314e06,

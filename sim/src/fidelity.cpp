@@ -6,8 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <tiny_laser_driver/calibration_data.hpp>
-#include <tiny_laser_driver/calibration_fit.hpp>
+#include <tiny_laser_calibration/data.hpp>
+#include <tiny_laser_calibration/fit.hpp>
 
 #include <sim/yaml_node.hpp>
 
@@ -26,6 +26,7 @@ int select_readout(const SensorSet& set, int pixel) {
 namespace {
 
 namespace tld = tiny_laser_driver;
+namespace cal = tiny_laser_calibration;
 
 double mean(const std::vector<double>& v) {
   return v.empty() ? kNaN : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
@@ -74,10 +75,10 @@ void measure_constants(const SensorParams& params, int pixel, double t_s, std::u
 // Fixed-discharge calibration data at the given fractions: one row per
 // distance and discharge, the mean read-out of the sets (the thesis's "one
 // data point for each certain distance").
-tld::CalibrationDataset collect(const CalibrationRail& tmpl, const std::vector<double>& fractions,
+cal::CalibrationDataset collect(const CalibrationRail& tmpl, const std::vector<double>& fractions,
                                 const FidelityOptions& o, std::uint64_t seed) {
   CalibrationRail rail = tmpl;
-  tld::CalibrationDataset out;
+  cal::CalibrationDataset out;
   out.source = "simulated rail";
   std::uint64_t index = seed;
   const auto i = static_cast<std::size_t>(o.pixel);
@@ -111,22 +112,22 @@ tld::CalibrationDataset collect(const CalibrationRail& tmpl, const std::vector<d
   return out;
 }
 
-FitScore score(const std::string& name, const tld::CalibrationDataset& train, const tld::CalibrationDataset& test,
+FitScore score(const std::string& name, const cal::CalibrationDataset& train, const cal::CalibrationDataset& test,
                int degree, const MeasuredConstants& c, tld::CalibrationModel* fitted = nullptr) {
-  tld::DeclaredFitParams fp;
+  cal::DeclaredFitParams fp;
   fp.degree = degree;
-  fp.sensitivity_ratio_mode = tld::SensitivityRatioMode::kFixed;
+  fp.sensitivity_ratio_mode = cal::SensitivityRatioMode::kFixed;
   fp.sensitivity_ratio = c.rsen;
   fp.fit_leakage = false;
   fp.leakage_offset = 0.0;
   fp.leakage_per_pulse = c.vle_per_pulse;
   fp.fit_temperature = false;  // every set is warm
-  fp.selection = tld::ReadoutSelection::kAll;
-  const tld::DeclaredFitResult fit = tld::fit_declared_model(train, fp);
+  fp.selection = cal::ReadoutSelection::kAll;
+  const cal::DeclaredFitResult fit = cal::fit_declared_model(train, fp);
   if (!fit.ok) throw std::runtime_error("fidelity: calibration fit '" + name + "' failed: " + fit.reason);
   std::vector<std::size_t> all(train.size());
   for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
-  const std::vector<double> res = tld::model_residuals(fit.model, train, all);
+  const std::vector<double> res = cal::model_residuals(fit.model, train, all);
   std::vector<double> cm;
   for (double r : res)
     if (std::isfinite(r)) cm.push_back(100.0 * r);
@@ -137,7 +138,7 @@ FitScore score(const std::string& name, const tld::CalibrationDataset& train, co
   for (double r : cm) v += (r - mu) * (r - mu);
   sc.var_cm2 = v / static_cast<double>(std::max<std::size_t>(2, cm.size()) - 1);
   sc.sd_cm = std::sqrt(sc.var_cm2);
-  sc.heldout_sd_cm = 100.0 * tld::evaluate_model(fit.model, test, {}, tld::ReadoutSelection::kAll).rmse_m;
+  sc.heldout_sd_cm = 100.0 * cal::evaluate_model(fit.model, test, {}, cal::ReadoutSelection::kAll).rmse_m;
   if (fitted) *fitted = fit.model;
   return sc;
 }

@@ -74,7 +74,7 @@ Material matte(std::string name, double albedo, Eigen::Vector3d rgb) {
 
 MaterialLibrary MaterialLibrary::builtin() {
   MaterialLibrary lib;
-  // Table 3.2 (figures from measured.yaml materials_at_30cm).
+  // Table 3.2 (sim/config/fidelity/thesis_measured.yaml materials_at_30cm).
   lib.add(from_figure("white_paper", 6.92, {0.90, 0.90, 0.88}));
   lib.add(from_figure("black_cushion", 4.6955, {0.04, 0.04, 0.05}));
   lib.add(metal("metal_pan", 25.0071, 0.30, 30.0, {0.55, 0.55, 0.56}));   // "without gloss": broad lobe

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include <tinyline/common/random.hpp>
+
 namespace tinyline::sim {
 
 namespace {
@@ -12,23 +14,18 @@ constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 
 // Counter-based randomness: every (seed, frame, stream, index) gives the same
 // number on every platform (std::normal_distribution does not promise that).
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-double uniform01(std::uint64_t key) { return (static_cast<double>(mix(key) >> 11) + 0.5) * 0x1.0p-53; }
+using common::splitmix64;
+double uniform01(std::uint64_t key) { return common::unit_open(splitmix64(key)); }
 // Unit-variance noise from one hash: the sum of four 16-bit uniforms
 // (Irwin-Hall), close enough to a Gaussian for sensor noise and several
 // times cheaper than Box-Muller at a million draws per frame.
 double gaussian(std::uint64_t key) {
-  const std::uint64_t h = mix(key);
+  const std::uint64_t h = splitmix64(key);
   const double s = static_cast<double>((h & 0xffff) + ((h >> 16) & 0xffff) + ((h >> 32) & 0xffff) + (h >> 48));
   return (s / 65536.0 - 2.0) * 1.7320508075688772;  // sqrt(12 / 4)
 }
 std::uint64_t stream_key(std::uint64_t seed, std::uint64_t frame, std::uint64_t stream) {
-  return mix(mix(seed * 0x632be59bd9b4e019ULL + frame) + stream * 0x85ebca6b);
+  return splitmix64(splitmix64(seed * 0x632be59bd9b4e019ULL + frame) + stream * 0x85ebca6b);
 }
 
 // Smooth noise field of unit variance with a correlation length of about
@@ -133,31 +130,31 @@ double DepthDistortion::offset_m(double xn, double yn, double z_m) const {
   return c[0] + c[1] * xn + c[2] * yn + c[3] * xn * xn + c[4] * xn * yn + c[5] * yn * yn + z_slope * z_m;  // Eq. 4.4
 }
 
-std::string RgbdCameraParams::validate() const {
+common::Validation RgbdCameraParams::validate() const {
   const auto& k = intrinsics;
   auto finite_pos = [](double x) { return std::isfinite(x) && x > 0.0; };
-  if (k.width < 2 || k.height < 2) return "intrinsics: width and height must be >= 2 px";
-  if (!finite_pos(k.fx) || !finite_pos(k.fy)) return "intrinsics: fx and fy must be finite and > 0";
-  if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) return "intrinsics: cx and cy must be finite";
+  if (k.width < 2 || k.height < 2) return common::Validation::invalid("intrinsics: width and height must be >= 2 px");
+  if (!finite_pos(k.fx) || !finite_pos(k.fy)) return common::Validation::invalid("intrinsics: fx and fy must be finite and > 0");
+  if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) return common::Validation::invalid("intrinsics: cx and cy must be finite");
   if (!finite_pos(min_depth_m) || !(max_depth_m > min_depth_m) || !std::isfinite(max_depth_m))
-    return "min_depth_m must be > 0 and below max_depth_m (finite)";
-  if (!finite_pos(projector_baseline_m)) return "projector_baseline_m must be > 0";
+    return common::Validation::invalid("min_depth_m must be > 0 and below max_depth_m (finite)");
+  if (!finite_pos(projector_baseline_m)) return common::Validation::invalid("projector_baseline_m must be > 0");
   if (!(disparity_noise_px >= 0) || !(disparity_noise_correlated_px >= 0) || !(disparity_step_px >= 0))
-    return "disparity noise and step must be >= 0";
-  if (correlation_window_px < 1) return "correlation_window_px must be >= 1";
-  if (!(edge_jump_m > 0) || !(edge_jump_per_m >= 0)) return "edge_jump_m must be > 0 and edge_jump_per_m >= 0";
-  if (!(edge_dropout >= 0 && edge_dropout <= 1)) return "edge_dropout must be in [0, 1]";
+    return common::Validation::invalid("disparity noise and step must be >= 0");
+  if (correlation_window_px < 1) return common::Validation::invalid("correlation_window_px must be >= 1");
+  if (!(edge_jump_m > 0) || !(edge_jump_per_m >= 0)) return common::Validation::invalid("edge_jump_m must be > 0 and edge_jump_per_m >= 0");
+  if (!(edge_dropout >= 0 && edge_dropout <= 1)) return common::Validation::invalid("edge_dropout must be in [0, 1]");
   if (!(grazing_start_deg >= 0 && grazing_start_deg < grazing_end_deg && grazing_end_deg <= 90))
-    return "grazing angles must satisfy 0 <= start < end <= 90 deg";
-  if (!light_position_m.allFinite()) return "light_position_m must be finite";
+    return common::Validation::invalid("grazing angles must satisfy 0 <= start < end <= 90 deg");
+  if (!light_position_m.allFinite()) return common::Validation::invalid("light_position_m must be finite");
   if (!(light_intensity >= 0) || !(ambient >= 0) || !(exposure > 0) || !(colour_noise_dn >= 0))
-    return "light_intensity, ambient, colour_noise_dn must be >= 0 and exposure > 0";
+    return common::Validation::invalid("light_intensity, ambient, colour_noise_dn must be >= 0 and exposure > 0");
   for (const auto& g : gloss)
-    if (!(g.strength >= 0 && g.strength <= 1) || !(g.exponent >= 1)) return "gloss: strength in [0, 1], exponent >= 1";
+    if (!(g.strength >= 0 && g.strength <= 1) || !(g.exponent >= 1)) return common::Validation::invalid("gloss: strength in [0, 1], exponent >= 1");
   for (double c : distortion.spatial_m)
-    if (!std::isfinite(c)) return "distortion coefficients must be finite";
-  if (!std::isfinite(distortion.z_slope)) return "distortion z_slope must be finite";
-  return {};
+    if (!std::isfinite(c)) return common::Validation::invalid("distortion coefficients must be finite");
+  if (!std::isfinite(distortion.z_slope)) return common::Validation::invalid("distortion z_slope must be finite");
+  return common::Validation::ok();
 }
 
 Eigen::Vector3f RgbdFrame::point(std::size_t i) const {
@@ -171,7 +168,7 @@ std::size_t RgbdFrame::num_valid() const {
 }
 
 RgbdCamera::RgbdCamera(RgbdCameraParams params) : params_(std::move(params)) {
-  if (const std::string why = params_.validate(); !why.empty()) throw std::invalid_argument("RgbdCamera: " + why);
+  if (const common::Validation why = params_.validate(); !why.valid) throw std::invalid_argument("RgbdCamera: " + why.reason);
 }
 
 bool RgbdCamera::project(const Eigen::Vector3d& p, Eigen::Vector2d& uv) const {

@@ -102,7 +102,83 @@ EffectSpec read_effect(const YamlNode& n) {
   n.at("type").fail("unknown effect type '" + type + "' (known: " + known + ")");
 }
 
+void read_lens(const YamlNode* l, LensParams& x) {
+  l->check_keys({"focal_mm", "sensor_length_mm", "pixels", "dark_pixels", "subrays_per_pixel", "psf_sigma_px",
+                 "halo_fraction", "halo_length_px", "vignetting_cos_power", "pixel_height_mm"});
+  x.focal_mm = l->in_range("focal_mm", x.focal_mm, 0.5, 100.0);
+  x.sensor_length_mm = l->in_range("sensor_length_mm", x.sensor_length_mm, 0.1, 100.0);
+  x.pixels = static_cast<int>(l->in_range("pixels", x.pixels, 3, 4096));
+  x.dark_pixels = static_cast<int>(l->in_range("dark_pixels", x.dark_pixels, 0, 64));
+  x.subrays_per_pixel = static_cast<int>(l->in_range("subrays_per_pixel", x.subrays_per_pixel, 1, 16));
+  x.psf_sigma_px = l->in_range("psf_sigma_px", x.psf_sigma_px, 0.0, 20.0);
+  x.halo_fraction = l->in_range("halo_fraction", x.halo_fraction, 0.0, 0.5);
+  x.halo_length_px = l->in_range("halo_length_px", x.halo_length_px, 0.1, 200.0);
+  x.vignetting_cos_power = l->in_range("vignetting_cos_power", x.vignetting_cos_power, 0.0, 8.0);
+  x.pixel_height_mm = l->in_range("pixel_height_mm", x.pixel_height_mm, 0.001, 20.0);
+}
+
+void read_emitter(const YamlNode* e, EmitterParams& x) {
+  e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "sheet_thickness_mm", "sheet_divergence_deg", "pulse_width_ns", "pulse_rise_exponent",
+                 "pulse_fall_exponent", "diffusion_tail_ns", "pulse_rate_hz", "charge_per_pulse_1m"});
+  x.baseline_m = e->in_range("baseline_m", x.baseline_m, -0.2, 0.2);
+  x.fan_half_angle_deg = e->in_range("fan_half_angle_deg", x.fan_half_angle_deg, 0.5, 89.0);
+  x.fan_edge_deg = e->in_range("fan_edge_deg", x.fan_edge_deg, 0.0, 30.0);
+  x.sheet_thickness_mm = e->in_range("sheet_thickness_mm", x.sheet_thickness_mm, 0.0, 100.0);
+  x.sheet_divergence_deg = e->in_range("sheet_divergence_deg", x.sheet_divergence_deg, 0.0, 45.0);
+  x.pulse_width_ns = e->in_range("pulse_width_ns", x.pulse_width_ns, 1.0, 1000.0);
+  x.pulse_rise_exponent = e->in_range("pulse_rise_exponent", x.pulse_rise_exponent, 0.0, 10.0);
+  x.pulse_fall_exponent = e->in_range("pulse_fall_exponent", x.pulse_fall_exponent, 0.0, 10.0);
+  x.diffusion_tail_ns = e->in_range("diffusion_tail_ns", x.diffusion_tail_ns, 0.0, 100.0);
+  x.pulse_rate_hz = e->in_range("pulse_rate_hz", x.pulse_rate_hz, 1.0, 1.0e7);
+  x.charge_per_pulse_1m = e->non_negative("charge_per_pulse_1m", x.charge_per_pulse_1m);
+}
+
+void read_pixel(const YamlNode* q, PixelParams& x) {
+  q->check_keys({"gate_split_ns", "sensitivity_ratio", "sensitivity_ratio_sd", "leakage_per_ms", "leakage_sd",
+                 "prnu_sd", "full_scale", "knee", "nonlinearity", "read_noise", "shot_noise_gain", "transfer_noise_per_pulse", "adc_offset_a", "adc_offset_b", "adc_lsb", "adc_max"});
+  x.gate_split_ns = q->in_range("gate_split_ns", x.gate_split_ns, -1000.0, 1000.0);
+  x.sensitivity_ratio = q->in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
+  x.sensitivity_ratio_sd = q->in_range("sensitivity_ratio_sd", x.sensitivity_ratio_sd, 0.0, 0.5);
+  x.leakage_per_ms = q->non_negative("leakage_per_ms", x.leakage_per_ms);
+  x.leakage_sd = q->in_range("leakage_sd", x.leakage_sd, 0.0, 1.0);
+  x.prnu_sd = q->in_range("prnu_sd", x.prnu_sd, 0.0, 0.5);
+  x.full_scale = q->positive("full_scale", x.full_scale);
+  x.knee = q->positive("knee", x.knee);
+  x.nonlinearity = q->in_range("nonlinearity", x.nonlinearity, 0.0, 0.5);
+  x.read_noise = q->non_negative("read_noise", x.read_noise);
+  x.shot_noise_gain = q->non_negative("shot_noise_gain", x.shot_noise_gain);
+  x.transfer_noise_per_pulse = q->non_negative("transfer_noise_per_pulse", x.transfer_noise_per_pulse);
+  x.adc_offset_a = q->in_range("adc_offset_a", x.adc_offset_a, -50.0, 50.0);
+  x.adc_offset_b = q->in_range("adc_offset_b", x.adc_offset_b, -50.0, 50.0);
+  x.adc_lsb = q->positive("adc_lsb", x.adc_lsb);
+  x.adc_max = q->positive("adc_max", x.adc_max);
+}
+
+void read_firmware(const YamlNode& f, FirmwareParams& x) {
+  f.check_keys({"profile", "tick_s", "cycle_ticks", "sensitivity_ratio", "compensated_pixel", "compensated_pixel_factor",
+                "saturation_charge"});
+  if (auto pr = f.find("profile")) {
+    const auto profile = firmware_profile_from_string(pr->as_string());
+    if (!profile) pr->fail("unknown firmware profile '" + pr->as_string() + "' (known: thesis_raw, published)");
+    x.profile = *profile;
+  }
+  x.tick_s = f.in_range("tick_s", x.tick_s, 1e-6, 1.0);
+  x.cycle_ticks = static_cast<int>(f.in_range("cycle_ticks", x.cycle_ticks, 10, 1000000));
+  x.sensitivity_ratio = f.in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
+  x.compensated_pixel = static_cast<int>(f.in_range("compensated_pixel", x.compensated_pixel, -1, 4095));
+  x.compensated_pixel_factor = f.in_range("compensated_pixel_factor", x.compensated_pixel_factor, 0.1, 10.0);
+  x.saturation_charge = f.positive("saturation_charge", x.saturation_charge);
+}
+
 }  // namespace
+
+const char* to_string(FirmwareProfile p) { return p == FirmwareProfile::kPublished ? "published" : "thesis_raw"; }
+
+std::optional<FirmwareProfile> firmware_profile_from_string(std::string_view s) {
+  if (s == "thesis_raw") return FirmwareProfile::kThesisRaw;
+  if (s == "published") return FirmwareProfile::kPublished;
+  return std::nullopt;
+}
 
 const char* effect_type(const EffectSpec& e) {
   return std::visit(Overloaded{[](const TrapDelayEffect&) { return "trap_delay"; },
@@ -120,65 +196,17 @@ std::vector<std::string> effect_types() {
 }
 
 void apply_sensor_params(const YamlNode& n, SensorParams& p) {
-  n.check_keys({"base", "name", "seed", "lens", "emitter", "pixel", "thermal", "acquisition", "environment", "effects"});
+  n.check_keys({"base", "name", "seed", "lens", "emitter", "pixel", "thermal", "acquisition", "environment", "firmware",
+                "effects"});
   p.name = n.get_string("name", p.name);
   if (auto s = n.find("seed")) {
     const double v = s->as_double();
     if (v < 0 || v > 1.8e19 || v != std::floor(v)) s->fail("seed must be a non-negative integer");
     p.seed = static_cast<std::uint64_t>(v);
   }
-  if (auto l = n.find("lens")) {
-    l->check_keys({"focal_mm", "sensor_length_mm", "pixels", "dark_pixels", "subrays_per_pixel", "psf_sigma_px",
-                   "halo_fraction", "halo_length_px", "vignetting_cos_power", "pixel_height_mm"});
-    auto& x = p.lens;
-    x.focal_mm = l->in_range("focal_mm", x.focal_mm, 0.5, 100.0);
-    x.sensor_length_mm = l->in_range("sensor_length_mm", x.sensor_length_mm, 0.1, 100.0);
-    x.pixels = static_cast<int>(l->in_range("pixels", x.pixels, 3, 4096));
-    x.dark_pixels = static_cast<int>(l->in_range("dark_pixels", x.dark_pixels, 0, 64));
-    x.subrays_per_pixel = static_cast<int>(l->in_range("subrays_per_pixel", x.subrays_per_pixel, 1, 16));
-    x.psf_sigma_px = l->in_range("psf_sigma_px", x.psf_sigma_px, 0.0, 20.0);
-    x.halo_fraction = l->in_range("halo_fraction", x.halo_fraction, 0.0, 0.5);
-    x.halo_length_px = l->in_range("halo_length_px", x.halo_length_px, 0.1, 200.0);
-    x.vignetting_cos_power = l->in_range("vignetting_cos_power", x.vignetting_cos_power, 0.0, 8.0);
-    x.pixel_height_mm = l->in_range("pixel_height_mm", x.pixel_height_mm, 0.001, 20.0);
-  }
-  if (auto e = n.find("emitter")) {
-    e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "sheet_thickness_mm", "sheet_divergence_deg", "pulse_width_ns", "pulse_rise_exponent",
-                   "pulse_fall_exponent", "diffusion_tail_ns", "pulse_rate_hz", "charge_per_pulse_1m"});
-    auto& x = p.emitter;
-    x.baseline_m = e->in_range("baseline_m", x.baseline_m, -0.2, 0.2);
-    x.fan_half_angle_deg = e->in_range("fan_half_angle_deg", x.fan_half_angle_deg, 0.5, 89.0);
-    x.fan_edge_deg = e->in_range("fan_edge_deg", x.fan_edge_deg, 0.0, 30.0);
-    x.sheet_thickness_mm = e->in_range("sheet_thickness_mm", x.sheet_thickness_mm, 0.0, 100.0);
-    x.sheet_divergence_deg = e->in_range("sheet_divergence_deg", x.sheet_divergence_deg, 0.0, 45.0);
-    x.pulse_width_ns = e->in_range("pulse_width_ns", x.pulse_width_ns, 1.0, 1000.0);
-    x.pulse_rise_exponent = e->in_range("pulse_rise_exponent", x.pulse_rise_exponent, 0.0, 10.0);
-    x.pulse_fall_exponent = e->in_range("pulse_fall_exponent", x.pulse_fall_exponent, 0.0, 10.0);
-    x.diffusion_tail_ns = e->in_range("diffusion_tail_ns", x.diffusion_tail_ns, 0.0, 100.0);
-    x.pulse_rate_hz = e->in_range("pulse_rate_hz", x.pulse_rate_hz, 1.0, 1.0e7);
-    x.charge_per_pulse_1m = e->non_negative("charge_per_pulse_1m", x.charge_per_pulse_1m);
-  }
-  if (auto q = n.find("pixel")) {
-    q->check_keys({"gate_split_ns", "sensitivity_ratio", "sensitivity_ratio_sd", "leakage_per_ms", "leakage_sd",
-                   "prnu_sd", "full_scale", "knee", "nonlinearity", "read_noise", "shot_noise_gain", "transfer_noise_per_pulse", "adc_offset_a", "adc_offset_b", "adc_lsb", "adc_max"});
-    auto& x = p.pixel;
-    x.gate_split_ns = q->in_range("gate_split_ns", x.gate_split_ns, -1000.0, 1000.0);
-    x.sensitivity_ratio = q->in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
-    x.sensitivity_ratio_sd = q->in_range("sensitivity_ratio_sd", x.sensitivity_ratio_sd, 0.0, 0.5);
-    x.leakage_per_ms = q->non_negative("leakage_per_ms", x.leakage_per_ms);
-    x.leakage_sd = q->in_range("leakage_sd", x.leakage_sd, 0.0, 1.0);
-    x.prnu_sd = q->in_range("prnu_sd", x.prnu_sd, 0.0, 0.5);
-    x.full_scale = q->positive("full_scale", x.full_scale);
-    x.knee = q->positive("knee", x.knee);
-    x.nonlinearity = q->in_range("nonlinearity", x.nonlinearity, 0.0, 0.5);
-    x.read_noise = q->non_negative("read_noise", x.read_noise);
-    x.shot_noise_gain = q->non_negative("shot_noise_gain", x.shot_noise_gain);
-    x.transfer_noise_per_pulse = q->non_negative("transfer_noise_per_pulse", x.transfer_noise_per_pulse);
-    x.adc_offset_a = q->in_range("adc_offset_a", x.adc_offset_a, -50.0, 50.0);
-    x.adc_offset_b = q->in_range("adc_offset_b", x.adc_offset_b, -50.0, 50.0);
-    x.adc_lsb = q->positive("adc_lsb", x.adc_lsb);
-    x.adc_max = q->positive("adc_max", x.adc_max);
-  }
+  if (auto l = n.find("lens")) read_lens(&*l, p.lens);
+  if (auto e = n.find("emitter")) read_emitter(&*e, p.emitter);
+  if (auto q = n.find("pixel")) read_pixel(&*q, p.pixel);
   if (auto t = n.find("thermal")) {
     t->check_keys({"ambient_c", "warm_c", "time_constant_s", "reference_c", "delay_drift_ns_per_c", "reading_noise_c"});
     auto& x = p.thermal;
@@ -198,11 +226,12 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
     e->check_keys({"ambient_charge_per_pulse"});
     p.environment.ambient_charge_per_pulse = e->non_negative("ambient_charge_per_pulse", p.environment.ambient_charge_per_pulse);
   }
+  if (auto f = n.find("firmware")) read_firmware(*f, p.firmware);
   if (auto e = n.find("effects")) {
     p.effects.clear();  // a file's list replaces its base's list
     for (const auto& item : e->items()) p.effects.push_back(read_effect(item));
   }
-  if (const std::string why = p.validate(); !why.empty()) n.fail(why);
+  if (const common::Validation why = p.validate(); !why.valid) n.fail(why.reason);
 }
 
 SensorParams load_sensor_params(const std::string& path) {
@@ -224,14 +253,15 @@ SensorParams load_sensor_params(const std::string& path) {
   return p;
 }
 
-std::string SensorParams::validate() const {
-  if (lens.pixels <= 2 * lens.dark_pixels) return "lens.pixels must exceed twice lens.dark_pixels";
-  if (pixel.knee > pixel.full_scale) return "pixel.knee must not exceed pixel.full_scale";
-  if (pixel.adc_max < pixel.full_scale) return "pixel.adc_max must be at least pixel.full_scale";
-  if (pixel.adc_max * 10.0 > 32767.0) return "pixel.adc_max * 10 must fit the wire's int16";
-  if (thermal.warm_c < thermal.ambient_c - 50.0) return "thermal.warm_c is implausibly below thermal.ambient_c";
-  if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5) return "temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)";
-  return {};
+common::Validation SensorParams::validate() const {
+  if (lens.pixels <= 2 * lens.dark_pixels) return common::Validation::invalid("lens.pixels must exceed twice lens.dark_pixels");
+  if (pixel.knee > pixel.full_scale) return common::Validation::invalid("pixel.knee must not exceed pixel.full_scale");
+  if (pixel.adc_max < pixel.full_scale) return common::Validation::invalid("pixel.adc_max must be at least pixel.full_scale");
+  if (pixel.adc_max * 10.0 > 32767.0) return common::Validation::invalid("pixel.adc_max * 10 must fit the wire's int16");
+  if (thermal.warm_c < thermal.ambient_c - 50.0) return common::Validation::invalid("thermal.warm_c is implausibly below thermal.ambient_c");
+  if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5) return common::Validation::invalid("temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)");
+  if (firmware.compensated_pixel >= lens.pixels) return common::Validation::invalid("firmware.compensated_pixel must be a pixel (or -1: none)");
+  return common::Validation::ok();
 }
 
 std::string to_yaml(const SensorParams& p) {
@@ -269,6 +299,11 @@ std::string to_yaml(const SensorParams& p) {
   s << "acquisition:\n  raw_pulses: " << list(p.acquisition.raw_pulses)
     << "\n  distance_pulses: " << list(p.acquisition.distance_pulses) << "\n";
   s << "environment:\n  ambient_charge_per_pulse: " << p.environment.ambient_charge_per_pulse << "\n";
+  const auto& f = p.firmware;
+  s << "firmware:\n  profile: " << to_string(f.profile) << "\n  tick_s: " << f.tick_s << "\n  cycle_ticks: " << f.cycle_ticks
+    << "\n  sensitivity_ratio: " << f.sensitivity_ratio << "\n  compensated_pixel: " << f.compensated_pixel
+    << "\n  compensated_pixel_factor: " << f.compensated_pixel_factor << "\n  saturation_charge: " << f.saturation_charge
+    << "\n";
   s << "effects:";
   if (p.effects.empty()) s << " []";
   s << "\n";

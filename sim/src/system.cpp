@@ -5,7 +5,7 @@
 #include <map>
 #include <stdexcept>
 
-#include "random.hpp"
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::sim {
 
@@ -16,7 +16,7 @@ SimulatedSystem::SimulatedSystem(Scene scene, SystemOptions options)
       wall0_(std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count()) {
   for (std::size_t i = 0; i < scene_.sensors.size(); ++i) {
     const SensorMount& m = scene_.sensors[i];
-    Rng rng(mix_seed(m.params.seed, 0xC10Cull, i));
+    common::XoshiroRandom rng(common::mix_seed(m.params.seed, 0xC10Cull, i));
     const double ppm = options_.clock_ppm_sd * rng.normal();
     sensors_.push_back(SensorState{m, TofLineSensor(m.params), m.params.emitter.pulse_rate_hz * (1.0 + 1e-6 * ppm), {}, 0.0});
   }

@@ -64,51 +64,51 @@ const char* shape_name(const Shape& s) {
                     s);
 }
 
-std::string validate_shape(const Shape& s) {
+common::Validation validate_shape(const Shape& s) {
   return std::visit(
       Overloaded{
-          [](const PlaneShape& p) -> std::string {
+          [](const PlaneShape& p) -> common::Validation {
             if (std::isnan(p.size_m.x()) || std::isnan(p.size_m.y()) || !(p.size_m.x() > 0) || !(p.size_m.y() > 0))
-              return "plane size_m must be > 0";
-            return {};
+              return common::Validation::invalid("plane size_m must be > 0");
+            return common::Validation::ok();
           },
-          [](const BoxShape& b) -> std::string {
-            if (!finite(b.size_m) || (b.size_m.array() <= 0.0).any()) return "box size_m must be finite and > 0";
-            return {};
+          [](const BoxShape& b) -> common::Validation {
+            if (!finite(b.size_m) || (b.size_m.array() <= 0.0).any()) return common::Validation::invalid("box size_m must be finite and > 0");
+            return common::Validation::ok();
           },
-          [](const SphereShape& s) -> std::string {
-            if (!std::isfinite(s.radius_m) || s.radius_m <= 0) return "sphere radius_m must be finite and > 0";
-            return {};
+          [](const SphereShape& s) -> common::Validation {
+            if (!std::isfinite(s.radius_m) || s.radius_m <= 0) return common::Validation::invalid("sphere radius_m must be finite and > 0");
+            return common::Validation::ok();
           },
-          [](const CylinderShape& c) -> std::string {
-            if (!std::isfinite(c.radius_m) || c.radius_m <= 0) return "cylinder radius_m must be finite and > 0";
-            if (!std::isfinite(c.length_m) || c.length_m <= 0) return "cylinder length_m must be finite and > 0";
-            return {};
+          [](const CylinderShape& c) -> common::Validation {
+            if (!std::isfinite(c.radius_m) || c.radius_m <= 0) return common::Validation::invalid("cylinder radius_m must be finite and > 0");
+            if (!std::isfinite(c.length_m) || c.length_m <= 0) return common::Validation::invalid("cylinder length_m must be finite and > 0");
+            return common::Validation::ok();
           },
-          [](const RodShape& r) -> std::string {
-            if (!std::isfinite(r.radius_m) || r.radius_m <= 0) return "rod radius_m must be finite and > 0";
-            if (!finite(r.p0) || !finite(r.p1)) return "rod end points must be finite";
-            if ((r.p1 - r.p0).norm() < 1e-9) return "rod end points p0 and p1 coincide";
-            return {};
+          [](const RodShape& r) -> common::Validation {
+            if (!std::isfinite(r.radius_m) || r.radius_m <= 0) return common::Validation::invalid("rod radius_m must be finite and > 0");
+            if (!finite(r.p0) || !finite(r.p1)) return common::Validation::invalid("rod end points must be finite");
+            if ((r.p1 - r.p0).norm() < 1e-9) return common::Validation::invalid("rod end points p0 and p1 coincide");
+            return common::Validation::ok();
           },
-          [](const MeshShape& m) -> std::string {
-            if (m.triangles.empty()) return "mesh has no triangles";
+          [](const MeshShape& m) -> common::Validation {
+            if (m.triangles.empty()) return common::Validation::invalid("mesh has no triangles");
             for (const auto& v : m.vertices)
-              if (!finite(v)) return "mesh vertex is not finite";
+              if (!finite(v)) return common::Validation::invalid("mesh vertex is not finite");
             const int n = static_cast<int>(m.vertices.size());
             for (std::size_t i = 0; i < m.triangles.size(); ++i) {
               const auto& t = m.triangles[i];
               if ((t.array() < 0).any() || (t.array() >= n).any())
-                return "mesh triangle " + std::to_string(i) + " indexes a vertex that does not exist";
+                return common::Validation::invalid("mesh triangle " + std::to_string(i) + " indexes a vertex that does not exist");
             }
-            return {};
+            return common::Validation::ok();
           }},
       s);
 }
 
 ObjectId World::add(Object o) {
-  if (const std::string why = validate_shape(o.shape); !why.empty()) {
-    throw std::invalid_argument("object '" + o.name + "': " + why);
+  if (const common::Validation why = validate_shape(o.shape); !why.valid) {
+    throw std::invalid_argument("object '" + o.name + "': " + why.reason);
   }
   if (o.material < 0 || static_cast<std::size_t>(o.material) >= materials_.size()) {
     throw std::invalid_argument("object '" + o.name + "': unknown material id " + std::to_string(o.material));

@@ -1,6 +1,6 @@
 // The simulator against the thesis's measurements: regenerates Table 3.1,
 // Table 3.2 and the section 3.5 fits (seeded) and fails if they drift past
-// the goals of issue 4. docs/simulator_fidelity.md shows the same numbers.
+// the fidelity goals. docs/simulator_fidelity.md shows the same numbers.
 #include <gtest/gtest.h>
 
 #include <sim/fidelity.hpp>

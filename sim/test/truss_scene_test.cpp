@@ -141,7 +141,7 @@ TEST(Truss, CameraLooksAtTheFruitFromTheHandCameraRange) {
     const Eigen::Isometry3d T_cam_world = t.T_world_camera.inverse();
     for (const auto& a : t.tomatoes) {
       const Eigen::Vector3d p = T_cam_world * a.centre_m;
-      EXPECT_GT(p.z(), 0.30);  // measured.yaml tomato.hand_camera_range_m [0.35, 0.6], minus the fruit's depth
+      EXPECT_GT(p.z(), 0.30);  // the thesis's hand-camera range [0.35, 0.6] m, minus the fruit's depth
       EXPECT_LT(p.z(), 0.65);
       EXPECT_LT(std::abs(p.x() / p.z()), std::tan(29.0 * M_PI / 180.0));  // inside the 58 deg field of view
     }

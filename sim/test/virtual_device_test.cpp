@@ -11,6 +11,7 @@
 #include <chrono>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 
 #include <tiny_laser_driver/protocol.hpp>
 
@@ -225,7 +226,7 @@ TEST(VirtualDevice, SingleShotCommandsOfTheCalibrationFirmware) {
   tld::Parser drain;
   host.read_until(drain, 0.2, [] { return false; });  // frames in flight before the command
   ASSERT_EQ(dev.mode(), FirmwareMode::kSingleShot);
-  tld::Parser parser({tld::StreamMode::Raw, 1});
+  tld::Parser parser({1});
   host.send(tld::cmd_sample());
   std::vector<tld::RawSet> sets;
   host.read_until(parser, 1.0, [&] {
@@ -244,20 +245,20 @@ TEST(VirtualDevice, SingleShotCommandsOfTheCalibrationFirmware) {
   EXPECT_EQ(parser.stats().sets, 2u);
 }
 
-TEST(VirtualDevice, DistanceModeReportsMillimetres) {
+TEST(VirtualDevice, DistanceModeReportsTenthsOfAMillimetre) {
   VirtualDeviceOptions o;
   o.mode = FirmwareMode::kDistance;
   VirtualDevice dev(SimulatedSystem::from_file(scene_path()), o);
   dev.start();
   Host host(dev.path());
-  tld::Parser parser({tld::StreamMode::Distance, 5});
+  tld::Parser parser;
   std::optional<tld::DistanceFrame> f;
   host.read_until(parser, 2.0, [&] { return (f = parser.next_distance()).has_value(); });
   ASSERT_TRUE(f);
   EXPECT_EQ(f->distance[0], 0);    // dark pixels carry no range
   EXPECT_EQ(f->distance[271], 0);
   // The target is 0.5 m away; pixel 136 looks along the axis.
-  EXPECT_NEAR(f->distance[136], 500, 50);  // one polynomial for all pixels: a few cm per pixel
+  EXPECT_NEAR(f->distance[136], 5000, 500);  // one polynomial for all pixels: a few cm per pixel
   int valid = 0;
   for (int i = 8; i < 264; ++i) valid += f->distance[static_cast<std::size_t>(i)] > 0 ? 1 : 0;
   EXPECT_GT(valid, 200);
@@ -268,6 +269,69 @@ TEST(VirtualDevice, DistanceModeReportsMillimetres) {
   host.read_until(raw, 2.0, [&] { return (n += take_sets(raw).size()) >= 1; });
   EXPECT_GE(n, 1u);
   EXPECT_EQ(dev.mode(), FirmwareMode::kRaw);
+}
+
+TEST(VirtualDevice, CountsTheHostsGarbage) {
+  // Bytes that start no command are counted as they arrive (they once were
+  // read before the parser had seen them, and never counted).
+  VirtualDevice dev(SimulatedSystem::from_file(scene_path()));
+  dev.start();
+  Host host(dev.path());
+  ASSERT_TRUE(host.ok());
+  host.send({'x', 'y', 'z', 0x00});
+  host.send(tld::cmd_laser(true));  // and a command after them, understood
+  const auto end = Clock::now() + std::chrono::seconds(3);
+  while (Clock::now() < end && (dev.stats().command_garbage < 4 || dev.stats().commands < 1)) {
+    tld::Parser drain;
+    host.read_until(drain, 0.05, [] { return false; });
+  }
+  EXPECT_EQ(dev.stats().command_garbage, 4u);
+  EXPECT_EQ(dev.stats().commands, 1u);
+  EXPECT_EQ(dev.stats().bytes_received, 9u);
+}
+
+TEST(VirtualDevice, ThePublishedFirmwareRepeatsItsFrameAndIgnoresCommands) {
+  VirtualDeviceOptions o;
+  o.firmware = FirmwareProfile::kPublished;
+  VirtualDevice dev(SimulatedSystem::from_file(scene_path()), o);
+  std::mutex mu;
+  std::vector<std::array<std::uint16_t, tld::kPixels>> cycles;
+  dev.on_wire([&](const WireTruth& w) {
+    std::lock_guard lock(mu);
+    if (w.kind == WireTruth::Kind::kPublishedCycle) cycles.push_back(w.cycle->distance);
+  });
+  dev.start();
+  EXPECT_EQ(dev.firmware(), FirmwareProfile::kPublished);
+  Host host(dev.path());
+  ASSERT_TRUE(host.ok());
+  host.send(tld::cmd_laser(false));  // ignored: it keeps sending
+  host.send(tld::cmd_stream_mode(tld::StreamMode::Raw));
+  tld::Parser parser;
+  std::vector<tld::DistanceFrame> frames;
+  host.read_until(parser, 5.0, [&] {
+    while (auto f = parser.next_distance()) frames.push_back(*f);
+    std::lock_guard lock(mu);
+    return cycles.size() >= 4 && frames.size() >= 60;
+  });
+  ASSERT_GE(frames.size(), 60u);  // about 365 frames a second against about 10 updates
+  EXPECT_FALSE(parser.next_set());  // never a raw frame
+  EXPECT_EQ(parser.stats().raw_frames, 0u);
+  std::size_t repeats = 0;
+  for (std::size_t i = 1; i < frames.size(); ++i) repeats += frames[i].distance == frames[i - 1].distance ? 1 : 0;
+  EXPECT_GT(repeats, frames.size() * 8 / 10);
+  // Every frame is a cycle's words or a tear between two.
+  std::lock_guard lock(mu);
+  std::size_t known = 0;
+  for (const auto& f : frames) {
+    for (const auto& c : cycles) known += f.distance == c ? 1 : 0;
+  }
+  EXPECT_GE(known + 2 * cycles.size(), frames.size());
+  // The target is 0.5 m away: 5000 units of 0.1 mm on the axis.
+  EXPECT_NEAR(cycles.back()[136], 5000, 300);
+  const auto st = dev.stats();
+  EXPECT_EQ(st.commands, 2u);
+  EXPECT_EQ(st.commands_ignored, 2u);
+  EXPECT_TRUE(dev.laser_on());
 }
 
 TEST(VirtualDevice, SequenceModeLaserOffIsSilent) {

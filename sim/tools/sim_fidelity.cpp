@@ -4,7 +4,7 @@
 //   sim_fidelity --sensor sim/config/sensors/tiny_tof_8mm.yaml
 //                [--measured sim/config/fidelity/thesis_measured.yaml]
 //                [--json out.json] [--seed N] [--tune trap|noise|offset]
-// Exit code 0 when every goal of issue 4 is met, 1 when one is missed, 2 on bad usage.
+// Exit code 0 when every goal is met, 1 when one is missed, 2 on bad usage.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +13,7 @@
 #include <string>
 
 #include <sim/fidelity.hpp>
+#include <tinyline/common/cli.hpp>
 
 using namespace tinyline::sim;
 
@@ -65,45 +66,22 @@ int main(int argc, char** argv) {
   std::string sensor_path, measured_path = std::string(TINYLINE_SIM_SOURCE_DIR) + "/config/fidelity/thesis_measured.yaml";
   std::string json_path, tune;
   FidelityOptions opt;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::cerr << "sim_fidelity: " << a << " needs a value\n";
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--sensor") sensor_path = next();
-    else if (a == "--measured") measured_path = next();
-    else if (a == "--json") json_path = next();
-    else if (a == "--seed") {
-      const std::string v = next();
-      char* end = nullptr;
-      opt.seed_offset = std::strtoull(v.c_str(), &end, 10);
-      if (v.empty() || *end != '\0' || v[0] == '-') {
-        std::cerr << "sim_fidelity: --seed takes a non-negative integer, not '" << v << "'\n";
-        return 2;
-      }
-    }
-    else if (a == "--tune") tune = next();
-    else {
-      std::cerr << "usage: sim_fidelity --sensor FILE [--measured FILE] [--json OUT] [--seed N]\n";
-      return 2;
-    }
-  }
-  if (sensor_path.empty()) {
-    std::cerr << "sim_fidelity: --sensor FILE is required\n";
-    return 2;
-  }
+  CLI::App app{"Runs the thesis's experiments on a simulated sensor and prints them beside the measured figures "
+               "(docs/simulator_fidelity.md). Exit code 0 when every goal is met, 1 when one is missed, 2 on bad usage.",
+               "sim_fidelity"};
+  app.add_option("--sensor", sensor_path, "sensor YAML (sim/config/sensors/...)")->required();
+  app.add_option("--measured", measured_path, "the thesis's measured figures (YAML)")->capture_default_str();
+  app.add_option("--json", json_path, "also write the report as JSON here");
+  app.add_option("--seed", opt.seed_offset, "offset of every experiment's seed")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  app.add_option("--tune", tune, "tune one group of the sensor's constants instead")
+      ->check(CLI::IsMember({"trap", "noise", "offset"}));
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   try {
     const SensorParams p = load_sensor_params(sensor_path);
     const ThesisFigures m = load_thesis_figures(measured_path);
     if (!tune.empty()) {
-      if (tune != "trap" && tune != "noise" && tune != "offset") {
-        std::cerr << "sim_fidelity: --tune takes trap, noise or offset\n";
-        return 2;
-      }
       const TuneResult t = tune == "trap" ? tune_trap(p, m, opt) : tune == "noise" ? tune_noise(p, m, opt) : tune_offset(p, m, opt);
       std::printf("%s\n%s\nfit set:", t.what.c_str(), t.table.c_str());
       for (const auto& f : t.fit_set) std::printf(" %s;", f.c_str());

@@ -6,7 +6,6 @@
 //
 //   sim_scan SCENE.yaml [--sensor NAME] [--time S] [--index N] [--out FILE]
 #include <cmath>
-#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -14,6 +13,7 @@
 #include <sim/fidelity.hpp>
 #include <sim/firmware.hpp>
 #include <sim/scene.hpp>
+#include <tinyline/common/cli.hpp>
 
 using namespace tinyline::sim;
 
@@ -21,38 +21,18 @@ int main(int argc, char** argv) {
   std::string scene_path, sensor_name, out_path;
   double t = 3600.0;
   std::uint64_t index = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::cerr << "sim_scan: " << a << " needs a value\n";
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    auto number = [&](const std::string& v) -> double {
-      char* end = nullptr;
-      const double x = std::strtod(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !std::isfinite(x) || x < 0) {
-        std::cerr << "sim_scan: " << a << " takes a non-negative number, not '" << v << "'\n";
-        std::exit(2);
-      }
-      return x;
-    };
-    if (a == "--sensor") sensor_name = next();
-    else if (a == "--time") t = number(next());
-    else if (a == "--index") index = static_cast<std::uint64_t>(number(next()));
-    else if (a == "--out") out_path = next();
-    else if (!a.empty() && a[0] != '-' && scene_path.empty()) scene_path = a;
-    else {
-      std::cerr << "usage: sim_scan SCENE.yaml [--sensor NAME] [--time S] [--index N] [--out FILE]\n";
-      return 2;
-    }
-  }
-  if (scene_path.empty()) {
-    std::cerr << "usage: sim_scan SCENE.yaml [--sensor NAME] [--time S] [--index N] [--out FILE]\n";
-    return 2;
-  }
+  CLI::App app{"One simulated measurement set of a scene's sensor, as JSON: per pixel the ray, the true range and "
+               "what it hits, the raw read-outs, the read-out the driver would choose and the on-board calibration's "
+               "distance (docs/simulator.md).",
+               "sim_scan"};
+  app.add_option("SCENE", scene_path, "scene YAML")->required();
+  app.add_option("--sensor", sensor_name, "sensor name in the scene (default: the first)");
+  app.add_option("--time", t, "sensor time of the set [s]")
+      ->check(tinyline::common::kNonNegative)
+      ->capture_default_str();
+  app.add_option("--index", index, "set index (seeds its noise)")->check(tinyline::common::kNonNegative)->capture_default_str();
+  app.add_option("--out", out_path, "JSON file to write (default: stdout)");
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   try {
     const Scene s = load_scene(scene_path);
     const SensorMount* m = sensor_name.empty() ? (s.sensors.empty() ? nullptr : &s.sensors[0]) : s.sensor(sensor_name);
@@ -63,7 +43,7 @@ int main(int argc, char** argv) {
     const TofLineSensor sensor(m->params);
     const SensorSet set = sensor.measure(s.world, m->T_world_sensor, t, m->params.acquisition.raw_pulses, index);
     const auto model = factory_calibration(m->params);
-    const auto mm = firmware_distances_mm(set, model);
+    const auto units = firmware_distances(set, model);  // 0.1 mm
     std::ofstream file;
     if (!out_path.empty()) file.open(out_path);
     std::ostream& o = out_path.empty() ? std::cout : file;
@@ -83,7 +63,7 @@ int main(int argc, char** argv) {
       for (std::size_t k = 0; k < set.readouts.size(); ++k) o << (k ? "," : "") << set.readouts[k].a[u];
       o << "], \"b\": [";
       for (std::size_t k = 0; k < set.readouts.size(); ++k) o << (k ? "," : "") << set.readouts[k].b[u];
-      o << "], \"selected\": " << sel << ", \"distance\": " << (mm[u] > 0 ? num(mm[u] / 1000.0) : "null") << "}"
+      o << "], \"selected\": " << sel << ", \"distance\": " << (units[u] > 0 ? num(units[u] / 1e4) : "null") << "}"
         << (i + 1 < sensor.pixels() ? ",\n" : "\n");
     }
     o << " ]}\n";

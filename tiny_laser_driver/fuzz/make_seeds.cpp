@@ -1,12 +1,14 @@
 // Writes seed inputs for driver_parser_fuzz into the directory given: raw
 // sets and distance frames, clean and with the damage a serial link does.
-// Input layout: byte 0 = (readouts - 1) << 1 | distance_mode, byte 1 = chunking seed.
+// Input layout: byte 0 = (readouts - 1) << 1 (bit 0 unused), byte 1 = chunking seed.
 #include <cstdio>
 #include <fstream>
 #include <string>
 #include <vector>
 
 #include <tiny_laser_driver/protocol.hpp>
+
+#include <tinyline/common/cli.hpp>
 
 namespace tl = tinyline::tiny_laser_driver;
 
@@ -32,7 +34,7 @@ std::vector<std::uint8_t> raw_set(int seed) {
 
 std::vector<std::uint8_t> distance_frame(int seed) {
   tl::DistanceFrame d;
-  for (std::size_t p = 0; p < tl::kPixels; ++p) d.distance[p] = static_cast<std::int16_t>((seed + p) % 2000);
+  for (std::size_t p = 0; p < tl::kPixels; ++p) d.distance[p] = static_cast<std::uint16_t>((seed + p) % 2000);
   std::vector<std::uint8_t> out;
   tl::encode_distance_frame(d, out);
   return out;
@@ -48,11 +50,10 @@ void write(const std::string& dir, const std::string& name, std::uint8_t mode, c
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s SEED_DIR\n", argv[0]);
-    return 2;
-  }
-  const std::string dir = argv[1];
+  std::string dir;
+  CLI::App app{"Writes the seed corpus of the driver's parser fuzzer.", "driver_parser_fuzz_seeds"};
+  app.add_option("SEED_DIR", dir, "directory to write into")->required();
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   const std::uint8_t raw5 = 4 << 1;  // readouts 5, raw mode
   auto two = raw_set(1);
   const auto second = raw_set(2);

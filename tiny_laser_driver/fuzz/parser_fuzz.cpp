@@ -1,4 +1,4 @@
-// libFuzzer target: arbitrary bytes through the streaming parser (both modes)
+// libFuzzer target: arbitrary bytes through the streaming parser (both kinds of frame)
 // and the host-command parser. Properties beyond "no crash, no sanitizer
 // report":
 //  - the output and every counter are the same whatever the chunking;
@@ -66,18 +66,14 @@ bool same_stats(const tl::ParserStats& a, const tl::ParserStats& b) {
 
 void check_accounting(const tl::Parser& p) {
   const auto& s = p.stats();
-  const bool raw = p.options().mode == tl::StreamMode::Raw;
-  const std::size_t own = tl::frame_bytes(p.options().mode);
-  const std::size_t other = raw ? tl::kDistanceFrameBytes : tl::kRawFrameBytes;
-  const std::uint64_t accounted = (s.frames + s.dropped(tl::DropReason::kBadField)) * own +
-                                  s.dropped(tl::DropReason::kWrongMode) * other +
+  const std::uint64_t accounted = (s.raw_frames + s.dropped(tl::DropReason::kBadField)) * tl::kRawFrameBytes +
+                                  s.distance_frames * tl::kDistanceFrameBytes +
                                   s.dropped(tl::DropReason::kBadEnder) * 2 + s.dropped(tl::DropReason::kGarbage) +
                                   p.buffered();
   check(accounted == s.bytes, "every byte is accounted for");
-  if (raw) {
-    check(s.frames == s.sets * p.options().readouts_per_set + s.frames_discarded + p.pending_frames(),
-          "every frame is in a set, discarded, or pending");
-  }
+  check(s.raw_frames == s.sets * p.options().readouts_per_set + s.frames_discarded + p.pending_frames(),
+        "every raw frame is in a set, discarded, or pending");
+  check(s.frames == s.raw_frames + s.distance_frames, "every frame is of one kind");
 }
 
 void check_sets(const Out& o, std::size_t n) {
@@ -98,12 +94,11 @@ void check_sets(const Out& o, std::size_t n) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 2) return 0;
-  // Byte 0: mode and set size; byte 1: chunking seed; the rest is the stream.
-  const tl::StreamMode mode = (data[0] & 1) ? tl::StreamMode::Distance : tl::StreamMode::Raw;
+  // Byte 0: set size; byte 1: chunking seed; the rest is the stream (both kinds of frame).
   const std::size_t n = 1 + (data[0] >> 1) % 6;
   std::uint32_t rng = data[1] * 2654435761u + 1;
   const std::span<const std::uint8_t> stream(data + 2, size - 2);
-  const tl::Parser::Options opt{mode, n};
+  const tl::Parser::Options opt{n};
 
   tl::Parser whole(opt);
   whole.feed(stream);

@@ -22,8 +22,16 @@ void put_i16_array(std::vector<std::uint8_t>& out, const std::array<std::int16_t
   for (std::int16_t x : v) put_u16(out, static_cast<std::uint16_t>(x));
 }
 
+void put_u16_array(std::vector<std::uint8_t>& out, const std::array<std::uint16_t, kPixels>& v) {
+  for (std::uint16_t x : v) put_u16(out, x);
+}
+
 void get_i16_array(const std::uint8_t* p, std::array<std::int16_t, kPixels>& v) {
   for (std::size_t i = 0; i < kPixels; ++i) v[i] = static_cast<std::int16_t>(get_u16(p + 2 * i));
+}
+
+void get_u16_array(const std::uint8_t* p, std::array<std::uint16_t, kPixels>& v) {
+  for (std::size_t i = 0; i < kPixels; ++i) v[i] = get_u16(p + 2 * i);
 }
 
 }  // namespace
@@ -32,7 +40,6 @@ std::string_view to_string(DropReason r) {
   switch (r) {
     case DropReason::kGarbage: return "garbage_bytes";
     case DropReason::kBadEnder: return "bad_ender";
-    case DropReason::kWrongMode: return "wrong_mode";
     case DropReason::kBadField: return "bad_field";
     case DropReason::kIncompleteSet: return "incomplete_set";
     case DropReason::kTruncated: return "truncated";
@@ -58,10 +65,10 @@ void encode_raw_frame(const RawFrame& f, std::vector<std::uint8_t>& out) {
   }
   const std::uint32_t packed = static_cast<std::uint32_t>(f.temperature_decic) * 100 + f.pulses / 10;
   if (packed > 0xFFFF) throw std::invalid_argument("raw frame temperature too high for the packed word (about 65.5 degC)");
-  if (f.index + (f.last ? kLastFrameFlag : 0) > 0xFFFF) throw std::invalid_argument("raw frame index too large");
+  if (f.index >= kLastFrameFlag) throw std::invalid_argument("raw frame index must be below 100");
   out.reserve(out.size() + kRawFrameBytes);
   out.insert(out.end(), std::begin(kHeader), std::end(kHeader));
-  put_u16(out, static_cast<std::uint16_t>(f.index + (f.last ? kLastFrameFlag : 0)));
+  put_u16(out, last_frame_word(f.index, f.last));
   put_u16(out, static_cast<std::uint16_t>(packed));
   put_i16_array(out, f.a);
   put_i16_array(out, f.b);
@@ -71,7 +78,7 @@ void encode_raw_frame(const RawFrame& f, std::vector<std::uint8_t>& out) {
 void encode_distance_frame(const DistanceFrame& f, std::vector<std::uint8_t>& out) {
   out.reserve(out.size() + kDistanceFrameBytes);
   out.insert(out.end(), std::begin(kHeader), std::end(kHeader));
-  put_i16_array(out, f.distance);
+  put_u16_array(out, f.distance);
   out.insert(out.end(), std::begin(kEnder), std::end(kEnder));
 }
 
@@ -114,6 +121,15 @@ bool ender_at(const std::uint8_t* f, std::size_t len) { return f[len - 2] == kEn
 void Parser::feed(std::span<const std::uint8_t> bytes) {
   stats_.bytes += bytes.size();
   if (bytes.empty()) return;
+  append(bytes);
+  while (true) {
+    skip_to_header();
+    if (buffered() < 2) break;  // nothing, or a lone first header byte
+    if (!take_frame()) break;   // the frame at start_ is not complete yet
+  }
+}
+
+void Parser::append(std::span<const std::uint8_t> bytes) {
   // Drop what is parsed before appending; what is left is at most one partial
   // frame, so this costs O(frame) per consumed frame, linear overall.
   if (start_ > 0) {
@@ -122,82 +138,74 @@ void Parser::feed(std::span<const std::uint8_t> bytes) {
     start_ = 0;
   }
   buf_.insert(buf_.end(), bytes.begin(), bytes.end());
+}
 
-  const bool raw = options_.mode == StreamMode::Raw;
-  const std::size_t own = raw ? kRawFrameBytes : kDistanceFrameBytes;
-  const std::size_t other = raw ? kDistanceFrameBytes : kRawFrameBytes;
+void Parser::skip_to_header() {
   const std::uint8_t* base = buf_.data();
   const std::size_t end = buf_.size();
-  while (true) {
-    // Hunt for the two-byte header.
-    std::size_t p = start_;
-    while (p < end) {
-      const void* hit = std::memchr(base + p, kHeader[0], end - p);
-      if (hit == nullptr) {
-        p = end;
-        break;
-      }
-      p = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - base);
-      if (p + 1 >= end || base[p + 1] == kHeader[1]) break;  // a header, or a first byte to keep
-      ++p;
+  std::size_t p = start_;
+  while (p < end) {
+    const void* hit = std::memchr(base + p, kHeader[0], end - p);
+    if (hit == nullptr) {
+      p = end;
+      break;
     }
-    if (p > start_) {
-      drop(DropReason::kGarbage, p - start_);
-      start_ = p;
-    }
-    const std::size_t avail = end - start_;
-    if (avail < 2) break;  // nothing, or a lone first header byte
-    const std::uint8_t* f = base + start_;
-    // The decisions below depend only on the frame's bytes, never on how
-    // many have arrived beyond what each needs: output is chunking-independent.
-    if (raw) {
-      // A distance frame's ender sits where a raw frame carries A[270], which
-      // no ADC value can make 0x2B2A: an unambiguous sign of the other mode.
-      if (avail < kDistanceFrameBytes) break;
-      if (ender_at(f, kDistanceFrameBytes)) {
-        drop(DropReason::kWrongMode);
-        start_ += kDistanceFrameBytes;
-        continue;
-      }
-      if (avail < own) break;
-      if (ender_at(f, own)) {
-        consume_frame(f, buf_origin_ + start_ + own);
-        start_ += own;
-        continue;
-      }
-    } else {
-      if (avail < own) break;
-      if (ender_at(f, own)) {
-        consume_frame(f, buf_origin_ + start_ + own);
-        start_ += own;
-        continue;
-      }
-      if (avail < other) break;  // may be a raw frame: wait for its ender position
-      if (ender_at(f, other)) {
-        drop(DropReason::kWrongMode);
-        start_ += other;
-        continue;
-      }
-    }
-    drop(DropReason::kBadEnder);
-    start_ += 2;  // resume the hunt inside the bad frame: a real header may be there
+    p = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - base);
+    if (p + 1 >= end || base[p + 1] == kHeader[1]) break;  // a header, or a first byte to keep
+    ++p;
   }
+  if (p > start_) {
+    drop(DropReason::kGarbage, p - start_);
+    start_ = p;
+  }
+}
+
+bool Parser::take_frame() {
+  // The decisions below depend only on the frame's bytes, never on how
+  // many have arrived beyond what each needs: output is chunking-independent.
+  const std::size_t avail = buffered();
+  const std::uint8_t* f = buf_.data() + start_;
+  if (avail < kDistanceFrameBytes) return false;
+  if (ender_at(f, kDistanceFrameBytes)) return accept_frame(kDistanceFrameBytes);
+  if (avail < kRawFrameBytes) return false;  // may be a raw frame: wait for its ender position
+  if (ender_at(f, kRawFrameBytes)) return accept_frame(kRawFrameBytes);
+  // Resume the hunt inside the bad frame: a real header may be there.
+  return skip_frame(DropReason::kBadEnder, 2);
+}
+
+bool Parser::accept_frame(std::size_t len) {
+  if (len == kDistanceFrameBytes) {
+    consume_distance(buf_.data() + start_, buf_origin_ + start_ + len);
+  } else {
+    consume_frame(buf_.data() + start_, buf_origin_ + start_ + len);
+  }
+  start_ += len;
+  return true;
+}
+
+bool Parser::skip_frame(DropReason why, std::size_t len) {
+  drop(why);
+  start_ += len;
+  return true;
+}
+
+void Parser::consume_distance(const std::uint8_t* frame, std::uint64_t end_byte) {
+  DistanceFrame& d = distances_.emplace_back();
+  get_u16_array(frame + 2, d.distance);
+  d.end_byte = end_byte;
+  d.sequence = stats_.frames + stats_.frames_dropped();
+  ++stats_.frames;
+  ++stats_.distance_frames;
 }
 
 void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
   const std::uint8_t* p = frame + 2;
-  if (options_.mode == StreamMode::Distance) {
-    DistanceFrame& d = distances_.emplace_back();
-    get_i16_array(p, d.distance);
-    d.end_byte = end_byte;
-    d.sequence = stats_.frames + stats_.frames_dropped();
-    ++stats_.frames;
-    return;
-  }
   const std::uint16_t index_word = get_u16(p);
   const std::uint16_t packed = get_u16(p + 2);
-  const bool last = index_word >= kLastFrameFlag;
-  const std::uint16_t index = static_cast<std::uint16_t>(last ? index_word - kLastFrameFlag : index_word);
+  // Last when above 100, as the public driver reads it; a set of one sends 101.
+  const bool last = index_word > kLastFrameFlag;
+  std::uint16_t index = static_cast<std::uint16_t>(last ? index_word - kLastFrameFlag : index_word);
+  if (last && options_.readouts_per_set == 1 && index == 1) index = 0;
   const std::uint16_t pulses = static_cast<std::uint16_t>((packed % 100) * 10);
   if (index >= options_.readouts_per_set || pulses == 0) {
     // Its set is unknown; the set being assembled cannot complete without it.
@@ -210,6 +218,17 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
     return;
   }
   ++stats_.frames;
+  ++stats_.raw_frames;
+  place_in_set(index, pulses);
+  if (broken_) {
+    ++stats_.frames_discarded;
+  } else {
+    keep_raw_frame(p, index, last, packed, end_byte);
+  }
+  if (last) close_set();
+}
+
+void Parser::place_in_set(std::uint16_t index, std::uint16_t pulses) {
   // Set membership: a set starts after a flagged last frame, or where neither
   // the index nor the pulses rise (every set accumulates the same pulse
   // schedule). A corrupted index alone (pulses still rising) is damage inside
@@ -232,42 +251,43 @@ void Parser::consume_frame(const std::uint8_t* frame, std::uint64_t end_byte) {
   }
   prev_index_ = index;
   prev_pulses_ = pulses;
-  if (broken_) {
-    ++stats_.frames_discarded;
-  } else {
-    RawFrame& r = pending_.emplace_back();
-    r.index = index;
-    r.last = last;
-    r.temperature_decic = packed / 100;
-    r.pulses = pulses;
-    r.end_byte = end_byte;
-    get_i16_array(p + 4, r.a);
-    get_i16_array(p + 4 + 2 * kPixels, r.b);
-    std::uint64_t impossible = 0;
-    for (std::size_t i = 0; i < kPixels; ++i) {
-      impossible += static_cast<std::uint64_t>(std::abs(r.a[i]) > kMaxRawMagnitude) +
-                    static_cast<std::uint64_t>(std::abs(r.b[i]) > kMaxRawMagnitude);
-    }
-    stats_.impossible_values += impossible;
-    if (pending_.size() == options_.readouts_per_set && !last) {
-      abandon_pending();  // full but not flagged: the flag is part of the framing
-      broken_ = true;
+}
+
+void Parser::keep_raw_frame(const std::uint8_t* p, std::uint16_t index, bool last, std::uint16_t packed,
+                            std::uint64_t end_byte) {
+  RawFrame& r = pending_.emplace_back();
+  r.index = index;
+  r.last = last;
+  r.temperature_decic = packed / 100;
+  r.pulses = static_cast<std::uint16_t>((packed % 100) * 10);
+  r.end_byte = end_byte;
+  get_i16_array(p + 4, r.a);
+  get_i16_array(p + 4 + 2 * kPixels, r.b);
+  std::uint64_t impossible = 0;
+  for (std::size_t i = 0; i < kPixels; ++i) {
+    impossible += static_cast<std::uint64_t>(std::abs(r.a[i]) > kMaxRawMagnitude) +
+                  static_cast<std::uint64_t>(std::abs(r.b[i]) > kMaxRawMagnitude);
+  }
+  stats_.impossible_values += impossible;
+  if (pending_.size() == options_.readouts_per_set && !last) {
+    abandon_pending();  // full but not flagged: the flag is part of the framing
+    broken_ = true;
+  }
+}
+
+void Parser::close_set() {
+  if (!broken_) {
+    if (pending_.size() == options_.readouts_per_set) {
+      sets_.push_back(RawSet{std::move(pending_), stats_.sets + stats_.dropped(DropReason::kIncompleteSet)});
+      pending_ = {};
+      pending_.reserve(options_.readouts_per_set);
+      ++stats_.sets;
+    } else {
+      abandon_pending();  // flagged before all members came
     }
   }
-  if (last) {
-    if (!broken_) {
-      if (pending_.size() == options_.readouts_per_set) {
-        sets_.push_back(RawSet{std::move(pending_), stats_.sets + stats_.dropped(DropReason::kIncompleteSet)});
-        pending_ = {};
-        pending_.reserve(options_.readouts_per_set);
-        ++stats_.sets;
-      } else {
-        abandon_pending();  // flagged before all members came
-      }
-    }
-    broken_ = false;
-    prev_index_ = -1;
-  }
+  broken_ = false;
+  prev_index_ = -1;
 }
 
 std::optional<RawSet> Parser::next_set() {

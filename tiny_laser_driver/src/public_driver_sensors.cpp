@@ -14,7 +14,7 @@ struct PublicSensor {
   double temperature_sensi_cm_per_decic;
 };
 
-// measured.yaml real_sensor_polynomials (transcribed from the public driver).
+// Transcribed from the public driver.
 constexpr PublicSensor kSensors[] = {
     {"R",
      {1.648001258107309e+06, -5.305835891559632e+06, 7.127857366587162e+06, -5.110547144753641e+06,

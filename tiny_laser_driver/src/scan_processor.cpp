@@ -25,12 +25,12 @@ void clear_pixel(ProcessedScan& out, std::size_t p, PixelStatus s) {
 }
 }  // namespace
 
-std::string OpticsParams::validate() const {
-  if (!(focal_mm > 0.0) || !std::isfinite(focal_mm)) return fmt::format("focal_mm must be positive, got {}", focal_mm);
+common::Validation OpticsParams::validate() const {
+  if (!(focal_mm > 0.0) || !std::isfinite(focal_mm)) return common::Validation::invalid(fmt::format("focal_mm must be positive, got {}", focal_mm));
   if (!(sensor_length_mm > 0.0) || !std::isfinite(sensor_length_mm)) {
-    return fmt::format("sensor_length_mm must be positive, got {}", sensor_length_mm);
+    return common::Validation::invalid(fmt::format("sensor_length_mm must be positive, got {}", sensor_length_mm));
   }
-  return "";
+  return common::Validation::ok();
 }
 
 double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
@@ -41,7 +41,7 @@ double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
 
 ScanProcessor::ScanProcessor(CalibrationModel model, OpticsParams optics)
     : model_(std::move(model)), optics_(optics) {
-  if (const std::string why = optics_.validate(); !why.empty()) throw std::invalid_argument("optics: " + why);
+  if (const common::Validation why = optics_.validate(); !why.valid) throw std::invalid_argument("optics: " + why.reason);
   for (std::size_t p = 0; p < kPixels; ++p) angles_[p] = static_cast<float>(pixel_angle_rad(optics_, p));
 }
 
@@ -56,7 +56,7 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
   const ValidityRule& rule = model_.validity();
   const double temperature_c = set.temperature_decic() / 10.0;
   out.temperature_c = temperature_c;
-  out.valid = out.saturated = out.too_dark = out.out_of_range = 0;
+  out.valid = out.saturated = out.too_dark = out.out_of_range = out.stale = 0;
   const int n = static_cast<int>(set.frames.size());
   Readout r;
   r.temperature_c = temperature_c;
@@ -97,7 +97,7 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
       const double d_m = ev.distance_m;
       const double d_cm = 100.0 * d_m;
       out.distance_m[p] = static_cast<float>(d_m);
-      out.reflectance[p] = static_cast<float>(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));  // measured.yaml
+      out.reflectance[p] = static_cast<float>(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));  // the sensor's reflectance figure
       out.status[p] = PixelStatus::kValid;
       ++out.valid;
       continue;
@@ -116,14 +116,14 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
 
 void ScanProcessor::process_distance(const DistanceFrame& frame, double unit_m, ProcessedScan& out) const {
   out.temperature_c = std::numeric_limits<double>::quiet_NaN();
-  out.valid = out.saturated = out.too_dark = out.out_of_range = 0;
+  out.valid = out.saturated = out.too_dark = out.out_of_range = out.stale = 0;
   for (std::size_t p = 0; p < kPixels; ++p) {
     if (is_dark(p)) {
       clear_pixel(out, p, PixelStatus::kDarkPixel);
       continue;
     }
-    const std::int16_t v = frame.distance[p];
-    if (v <= 0) {  // the firmware sends 0 for no range
+    const std::uint16_t v = frame.distance[p];
+    if (v == 0) {  // the firmware sends 0 for no range
       clear_pixel(out, p, PixelStatus::kTooDark);
       ++out.too_dark;
       continue;

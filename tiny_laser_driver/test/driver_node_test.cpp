@@ -20,7 +20,6 @@
 #include <tiny_laser_driver/nodes/register.hpp>
 
 #include "synthetic_raw_set.hpp"
-#include "temp_dir.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
 namespace tt = tinyline::tiny_laser_driver::testing;
@@ -43,12 +42,12 @@ constexpr double kByteS = 10.0 / 2'000'000;
 Bytes make_set(int seed = 0) {
   return tt::encode_synthetic_set(450, [seed](std::uint16_t pulses, std::size_t p) {
     const double k = 0.1 + 0.001 * static_cast<double>(p);
-    const double sum = 0.3 * pulses + 0.001 * seed;  // 210 charge units at 700 pulses
+    const double sum = 0.3 * pulses + 0.2 * seed;  // 210 charge units at 700 pulses; seeds differ on the wire
     return std::pair{sum, k};
   });
 }
 
-using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
+using TempDir = tinyline::bus::testing::TempDir;
 
 // A small fixture: the stepped sim-time graph of bus/testing.hpp from
 // t = 100 s, an in-memory device reachable as mem:NAME, the driver, and
@@ -191,20 +190,134 @@ TEST(LaserDriverNode, StampsAreTheLastByteTimeMinusTheTransmissionTime) {
   EXPECT_NEAR(rig.laser_scans[2]->scan_time, expect3 - expect2, 1e-6);
 }
 
-TEST(LaserDriverNode, DistanceModePublishesTheFirmwareDistances) {
-  Rig rig({{"mode", std::string("distance")}, {"distance_unit_m", 0.001}});
-  rig.step();
+namespace {
+
+Bytes distance_frame(std::uint16_t base, std::size_t stuck_pixel = 0, std::uint16_t stuck_value = 0) {
   tl::DistanceFrame f;
-  for (std::size_t p = 0; p < tl::kPixels; ++p) f.distance[p] = static_cast<std::int16_t>(500 + p);
+  for (std::size_t p = 8; p < 264; ++p) f.distance[p] = static_cast<std::uint16_t>(base + p);
+  if (stuck_pixel) f.distance[stuck_pixel] = stuck_value;
   Bytes b;
   tl::encode_distance_frame(f, b);
-  tl::encode_distance_frame(f, b);
-  rig.link->push(b);
+  return b;
+}
+
+constexpr double kDistanceFrameS = 548 * kByteS;
+
+}  // namespace
+
+TEST(LaserDriverNode, DefaultsReadThePublishedFirmwaresDistanceFrames) {
+  // Default parameters: distances in 0.1 mm, values above 32767 are ranges.
+  Rig rig;
   rig.step();
-  ASSERT_EQ(rig.scans.size(), 2u);
+  rig.link->push(distance_frame(35000));  // 3.5 m and beyond
+  rig.step();
+  rig.advance(0.05);  // nothing follows: the new content is published once its hold runs out
+  ASSERT_EQ(rig.scans.size(), 1u);
   EXPECT_TRUE(rig.raws.empty());
-  EXPECT_NEAR(rig.scans[0]->distance_m[100], 0.6, 1e-6);
+  EXPECT_NEAR(rig.scans[0]->distance_m[100], 3.51, 1e-6);
   EXPECT_EQ(rig.scans[0]->status[100], LineScan::STATUS_VALID);
+}
+
+TEST(LaserDriverNode, RepeatedFramesAreOneMeasurementStampedAtTheirFirstArrival) {
+  Rig rig;
+  rig.step();
+  const bus::Time t0 = rig.now();
+  // The published firmware's DMA: each content many times back to back, a
+  // new content every 100 ms, one frame torn at each change.
+  std::vector<bus::Time> first_arrival;
+  for (int cycle = 0; cycle < 3; ++cycle) {
+    const Bytes content = distance_frame(static_cast<std::uint16_t>(5000 + 100 * cycle));
+    if (cycle > 0) {
+      Bytes torn = distance_frame(static_cast<std::uint16_t>(5000 + 100 * (cycle - 1)));
+      std::copy(content.begin() + 301, content.end(), torn.begin() + 301);  // the buffer rewritten mid-frame
+      rig.link->push(torn);
+      rig.advance(kDistanceFrameS);
+    }
+    for (int r = 0; r < 30; ++r) {
+      rig.link->push(content);
+      rig.advance(kDistanceFrameS);
+      if (r == 0) first_arrival.push_back(rig.now() - bus::from_seconds(kDistanceFrameS));
+    }
+  }
+  rig.advance(0.05);
+  ASSERT_EQ(rig.scans.size(), 3u);
+  for (int cycle = 0; cycle < 3; ++cycle) {
+    EXPECT_NEAR(rig.scans[static_cast<std::size_t>(cycle)]->distance_m[100], 0.01 * (50 + cycle) + 0.01, 1e-6);
+    EXPECT_NEAR(bus::Time::from_msg(rig.scans[static_cast<std::size_t>(cycle)]->header.stamp).seconds(),
+                first_arrival[static_cast<std::size_t>(cycle)].seconds(), 1e-6);
+  }
+  const auto st = rig.driver->status();
+  EXPECT_EQ(st.distance_repeats.torn, 2u);
+  EXPECT_EQ(st.distance_repeats.repeats, 3u * 29u);
+  EXPECT_EQ(st.distance_repeats.fresh, 3u);
+  (void)t0;
+  rig.advance(1.0);  // diagnostics
+  EXPECT_EQ(rig.diag_value("frame_kinds"), "distance");
+  EXPECT_EQ(rig.diag_value("torn_frames"), "2");
+}
+
+TEST(LaserDriverNode, APixelThatNeverChangesWhileItsNeighboursDoIsFlaggedStale) {
+  Rig rig({{"stale_after", std::int64_t{5}}});
+  rig.step();
+  for (int k = 0; k < 12; ++k) {
+    rig.link->push(distance_frame(static_cast<std::uint16_t>(4000 + 7 * k), 120, 4321));
+    rig.advance(0.05);
+  }
+  ASSERT_EQ(rig.scans.size(), 12u);
+  EXPECT_EQ(rig.scans[3]->status[120], LineScan::STATUS_VALID);  // not yet: 4 unchanged measurements
+  EXPECT_EQ(rig.scans.back()->status[120], LineScan::STATUS_STALE);
+  EXPECT_TRUE(std::isnan(rig.scans.back()->distance_m[120]));
+  EXPECT_EQ(rig.scans.back()->status[119], LineScan::STATUS_VALID);
+  EXPECT_EQ(rig.scans.back()->status[121], LineScan::STATUS_VALID);
+  rig.advance(1.0);
+  EXPECT_EQ(rig.diag_value("stale_pixels"), "1");
+}
+
+TEST(LaserDriverNode, AnImplausibleUnitAndAnUnexpectedKindAreReportedNotDropped) {
+  // The old simulator's millimetres read with the default 0.1 mm: everything
+  // under 5 cm. And `mode: raw` expected while distances come.
+  Rig rig({{"mode", std::string("raw")}});
+  rig.step();
+  for (int k = 0; k < 5; ++k) {
+    rig.link->push(distance_frame(static_cast<std::uint16_t>(300 + k)));  // 300-563 units: 3-6 cm... as mm, 0.3-0.56 m
+    rig.advance(0.05);
+  }
+  ASSERT_EQ(rig.scans.size(), 5u);  // published all the same
+  rig.advance(1.0);
+  ASSERT_FALSE(rig.diags.empty());
+  const auto& st = rig.diags.back()->status[0];
+  EXPECT_EQ(st.level, tinyline::diagnostic_msgs::msg::DiagnosticStatus::WARN);
+  EXPECT_NE(st.message.find("expected raw frames, the sensor sends distance frames"), std::string::npos) << st.message;
+  EXPECT_NE(rig.diag_value("distance_unit_check").find("under 0.05 m"), std::string::npos) << rig.diag_value("distance_unit_check");
+}
+
+TEST(LaserDriverNode, ASensorThatIgnoresLaserOffIsReported) {
+  // Sequence mode: the driver tells the laser off at connect; a sensor with
+  // the published firmware goes on measuring.
+  Rig rig({{"sequence_slot", std::int64_t{0}}});
+  rig.step();
+  ASSERT_EQ(rig.link->take_written(), tl::cmd_laser(false));
+  for (int k = 0; k < 5; ++k) {
+    rig.advance(0.1);
+    rig.link->push(distance_frame(static_cast<std::uint16_t>(5000 + k)));
+    rig.step();
+  }
+  rig.advance(1.0);
+  EXPECT_EQ(rig.diag_value("laser_off_obeyed"), "no");
+  EXPECT_NE(rig.diag_value("commands").find("laser off: sent 1, obeyed 0, ignored 1"), std::string::npos)
+      << rig.diag_value("commands");
+  EXPECT_NE(rig.diags.back()->status[0].message.find("ignores laser off"), std::string::npos);
+}
+
+TEST(LaserDriverNode, DistanceUnitStaysAParameter) {
+  Rig rig({{"mode", std::string("distance")}, {"distance_unit_m", 0.001}});
+  rig.step();
+  rig.link->push(distance_frame(500));
+  rig.link->push(distance_frame(600));
+  rig.step();
+  rig.advance(0.05);
+  ASSERT_EQ(rig.scans.size(), 2u);
+  EXPECT_NEAR(rig.scans[0]->distance_m[100], 0.6, 1e-6);
   EXPECT_EQ(rig.scans[1]->set_index, 1u);
 }
 
@@ -304,11 +417,10 @@ TEST(LaserDriverNode, DiagnosticsReportRateDropsAndTheLinkState) {
   Rig rig;
   rig.step();
   rig.ex.advance_to(rig.now() + 1s);  // a first report to count from
-  Bytes good = make_set(0);
   Bytes bad = make_set(1);
   bad[1094] = 0;  // a wrong ender: its set is lost
   for (int i = 0; i < 10; ++i) {
-    rig.link->push(i == 4 ? bad : good);
+    rig.link->push(i == 4 ? bad : make_set(i));  // each set its own content: an equal one is a repeat
     rig.step();
     rig.ex.advance_to(rig.now() + 100ms);  // the last one reaches the next report
   }

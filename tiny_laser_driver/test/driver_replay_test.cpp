@@ -20,7 +20,7 @@
 #include <tiny_laser_driver/nodes/raw_processor.hpp>
 
 #include "synthetic_raw_set.hpp"
-#include "temp_dir.hpp"
+#include <tinyline/bus/testing.hpp>
 
 namespace tl = tinyline::tiny_laser_driver;
 namespace tt = tinyline::tiny_laser_driver::testing;
@@ -47,7 +47,7 @@ Bytes cdr(const T& m) {
   return out;
 }
 
-using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
+using TempDir = tinyline::bus::testing::TempDir;
 
 }  // namespace
 

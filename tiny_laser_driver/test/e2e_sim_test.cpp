@@ -12,7 +12,9 @@
 
 #include <stdlib.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <condition_variable>
 #include <filesystem>
 #include <mutex>
@@ -30,7 +32,6 @@
 #include <tiny_laser_driver/io/port.hpp>
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 
-#include "temp_dir.hpp"
 
 namespace tl = tinyline::tiny_laser_driver;
 namespace sim = tinyline::sim;
@@ -44,7 +45,7 @@ namespace {
 
 constexpr auto kPatience = 60s;  // generous: the machine may be shared; a pass is usually a few seconds
 
-using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
+using TempDir = tinyline::bus::testing::TempDir;
 
 // The calibration rail scene (white paper at 0.5 m, 8 mm sensor) on a virtual
 // device, and the driver reading it.
@@ -66,8 +67,8 @@ struct Bench {
   std::shared_ptr<bus::Subscription<LineScan>> s1;
   std::shared_ptr<bus::Subscription<RawScan>> s2;
 
-  Bench() {
-    system = sim::SimulatedSystem::from_file(TINYLINE_SOURCE_DIR "/sim/config/scenes/calibration_rail.yaml");
+  explicit Bench(const std::string& scene = TINYLINE_SOURCE_DIR "/sim/config/scenes/calibration_rail.yaml") {
+    system = sim::SimulatedSystem::from_file(scene);
     sim::VirtualDeviceOptions o;
     o.link_path = (tmp.path / "ttyTINY0").string();
     device = std::make_unique<sim::VirtualDevice>(system, o);
@@ -175,11 +176,56 @@ TEST(EndToEnd, RailScansMatchGroundTruthWithinTheCalibrationError) {
       ++n;
     }
   }
+  int by_status[6] = {0, 0, 0, 0, 0, 0};
+  for (const auto& s : scans) {
+    for (std::size_t p = tl::kDarkPixels; p < tl::kPixels - tl::kDarkPixels; ++p) {
+      if (std::isfinite(truth[p]) && s->status[p] < 6) ++by_status[s->status[p]];
+    }
+  }
   const double rmse = std::sqrt(se / n), bias = sum / n;
+  std::printf("rail, thesis firmware: %zu scans, statuses valid %d saturated %d too dark %d out of range %d stale %d\n",
+              scans.size(), by_status[0], by_status[1], by_status[2], by_status[4], by_status[5]);
   // The shipped calibration's held-out RMSE (config/calibration/README.md), with room for sampling.
   EXPECT_LT(rmse, 3.28 * 1.25) << "rmse " << rmse << " cm over " << n << " pixels";
   EXPECT_LT(std::abs(bias), 1.0) << "bias " << bias << " cm";
   EXPECT_GT(static_cast<double>(n) / seen, 0.9);
+}
+
+TEST(EndToEnd, ThePublishedFirmwaresScansMatchGroundTruthWithDefaultParameters) {
+  // The scene picks the published firmware: distance frames in 0.1 mm, each
+  // repeated about 36 times. The driver is not told: one scan per buffer update.
+  Bench b(TINYLINE_SOURCE_DIR "/sim/config/scenes/calibration_rail_published.yaml");
+  ASSERT_TRUE(b.wait([&] { return b.scans.size() >= 12; })) << "no scans from the virtual device";
+  std::vector<std::shared_ptr<const LineScan>> scans;
+  std::vector<double> truth;
+  {
+    std::lock_guard lk(b.mu);
+    scans = b.scans;
+    truth = b.truth;
+  }
+  const auto cycles = b.device->stats().cycles;
+  EXPECT_LE(scans.size(), cycles) << "a repeated frame was published as a new measurement";
+  EXPECT_TRUE(b.raws.empty());
+  std::vector<double> errors;
+  int seen = 0;
+  for (const auto& s : scans) {
+    for (std::size_t p = tl::kDarkPixels; p < tl::kPixels - tl::kDarkPixels; ++p) {
+      if (!std::isfinite(truth[p])) continue;
+      ++seen;
+      if (s->status[p] == LineScan::STATUS_VALID) errors.push_back(100.0 * (s->distance_m[p] - truth[p]));
+    }
+  }
+  ASSERT_FALSE(errors.empty());
+  std::sort(errors.begin(), errors.end());
+  const double median = errors[errors.size() / 2];
+  const double p90 = std::max(std::abs(errors[errors.size() / 20]), std::abs(errors[errors.size() * 19 / 20]));
+  std::printf("published firmware, %zu scans of %llu cycles: median error %.2f cm, 90%% within %.2f cm, valid %.3f\n",
+              scans.size(), static_cast<unsigned long long>(cycles), median, p90,
+              static_cast<double>(errors.size()) / seen);
+  // One polynomial for all pixels (the firmware's): each pixel's own sensitivity ratio is a fixed offset.
+  EXPECT_LT(std::abs(median), 1.5) << "median error " << median << " cm";
+  EXPECT_LT(p90, 8.0) << "90% of the errors within " << p90 << " cm";
+  EXPECT_GT(static_cast<double>(errors.size()) / seen, 0.9);
 }
 
 TEST(EndToEnd, OnePercentByteCorruptionCostsOnlyWholeSetsAndEveryOneIsCounted) {

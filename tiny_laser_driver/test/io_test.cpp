@@ -14,7 +14,7 @@
 
 #include <tiny_laser_driver/io/port.hpp>
 
-#include "temp_dir.hpp"
+#include <tinyline/bus/testing.hpp>
 
 namespace io = tinyline::tiny_laser_driver::io;
 namespace fs = std::filesystem;
@@ -59,7 +59,7 @@ Bytes read_n(io::ByteStream& s, std::size_t n) {
   return out;
 }
 
-using TempDir = tinyline::tiny_laser_driver::testing::TempDir;
+using TempDir = tinyline::bus::testing::TempDir;
 
 void write_file(const fs::path& p, const std::string& text) {
   fs::create_directories(p.parent_path());

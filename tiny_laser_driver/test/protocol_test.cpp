@@ -37,7 +37,7 @@ Bytes make_set(std::uint16_t temp_decic, int seed) {
 
 Bytes make_distance(int seed) {
   tl::DistanceFrame d;
-  for (std::size_t p = 0; p < tl::kPixels; ++p) d.distance[p] = static_cast<std::int16_t>((seed * 13 + p * 5) % 2000);
+  for (std::size_t p = 0; p < tl::kPixels; ++p) d.distance[p] = static_cast<std::uint16_t>((seed * 13 + p * 5) % 2000);
   Bytes out;
   tl::encode_distance_frame(d, out);
   return out;
@@ -172,7 +172,7 @@ TEST(Protocol, EveryTwoWaySplitOfAFrameGivesTheSameFrame) {
   // A one-frame set, so every (i, j) pair of cut points of one raw frame is covered.
   Bytes bytes;
   tl::encode_raw_frame(make_frame(0, 400, 5, 1), bytes);
-  const tl::Parser::Options one{tl::StreamMode::Raw, 1};
+  const tl::Parser::Options one{1};
   tl::Parser whole(one);
   whole.feed(bytes);
   const auto expected = drain(whole);
@@ -195,7 +195,7 @@ TEST(Protocol, EveryTwoWaySplitOfAFrameGivesTheSameFrame) {
 
 TEST(Protocol, EveryTwoWaySplitOfADistanceFrameGivesTheSameFrame) {
   const auto bytes = make_distance(7);
-  const tl::Parser::Options opt{tl::StreamMode::Distance, 5};
+  const tl::Parser::Options opt{5};
   tl::Parser whole(opt);
   whole.feed(bytes);
   const auto expected = whole.next_distance();
@@ -404,24 +404,65 @@ TEST(Protocol, ASetFlaggedTooEarlyOrNotAtAllIsIncomplete) {
   EXPECT_EQ(d(p, tl::DropReason::kIncompleteSet), 2u);
 }
 
-TEST(Protocol, FramesOfTheOtherModeAreNamedAsSuch) {
+TEST(Protocol, ReadsBothKindsOfFrameWithoutBeingTold) {
+  // Distance frames (the published firmware) and raw sets (the thesis's) in
+  // one stream, told apart by where their ender is.
   Bytes stream = make_distance(1);
   append(stream, make_distance(2));
   append(stream, make_set(450, 1));
-  tl::Parser raw;
-  raw.feed(stream);
-  EXPECT_EQ(drain(raw).size(), 1u);
-  EXPECT_EQ(d(raw, tl::DropReason::kWrongMode), 2u);
-  EXPECT_EQ(d(raw, tl::DropReason::kBadEnder), 0u);
-  EXPECT_EQ(d(raw, tl::DropReason::kGarbage), 0u);
-
-  tl::Parser dist({tl::StreamMode::Distance, 5});
-  dist.feed(stream);
+  append(stream, make_distance(3));
+  tl::Parser p;
+  p.feed(stream);
+  EXPECT_EQ(drain(p).size(), 1u);
   int frames = 0;
-  while (dist.next_distance()) ++frames;
-  EXPECT_EQ(frames, 2);
-  EXPECT_EQ(d(dist, tl::DropReason::kWrongMode), 5u);
-  EXPECT_EQ(d(dist, tl::DropReason::kBadEnder), 0u);
+  while (p.next_distance()) ++frames;
+  EXPECT_EQ(frames, 3);
+  EXPECT_EQ(p.stats().distance_frames, 3u);
+  EXPECT_EQ(p.stats().raw_frames, 5u);
+  EXPECT_EQ(p.stats().frames_dropped(), 0u);
+  EXPECT_EQ(d(p, tl::DropReason::kGarbage), 0u);
+}
+
+TEST(Protocol, DistancesAreUnsignedUpTo65535) {
+  // The published firmware stores (uint16)(cm * 100): 3.28-6.55 m are
+  // values above 32767, ranges, not negative numbers.
+  tl::DistanceFrame f;
+  f.distance[8] = 32768;
+  f.distance[9] = 60000;
+  f.distance[10] = 65535;
+  Bytes bytes;
+  tl::encode_distance_frame(f, bytes);
+  EXPECT_EQ(bytes[2 + 2 * 9], 0x60);  // 60000 = 0xEA60, little-endian
+  EXPECT_EQ(bytes[2 + 2 * 9 + 1], 0xEA);
+  tl::Parser p;
+  p.feed(bytes);
+  const auto got = p.next_distance();
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->distance[8], 32768);
+  EXPECT_EQ(got->distance[9], 60000);
+  EXPECT_EQ(got->distance[10], 65535);
+}
+
+TEST(Protocol, TheLastFrameIsAboveOneHundredAsThePublicDriverReadsIt) {
+  EXPECT_EQ(tl::last_frame_word(4, true), 104);
+  EXPECT_EQ(tl::last_frame_word(3, false), 3);
+  EXPECT_EQ(tl::last_frame_word(0, true), 101);  // a set of one: 100 would not be "last" (num > 100)
+  Bytes one;
+  tl::encode_raw_frame(make_frame(0, 250, 1, 1), one);
+  EXPECT_EQ(one[2] | (one[3] << 8), 101);
+  tl::Parser single({1});
+  single.feed(one);
+  const auto set = single.next_set();
+  ASSERT_TRUE(set);
+  EXPECT_EQ(set->frames[0].index, 0);
+  EXPECT_TRUE(set->frames[0].last);
+  // Index word 100 is no frame of any set.
+  one[2] = 100;
+  one[3] = 0;
+  tl::Parser p({1});
+  p.feed(one);
+  EXPECT_FALSE(p.next_set());
+  EXPECT_EQ(d(p, tl::DropReason::kBadField), 1u);
 }
 
 TEST(Protocol, ResetCountsTheFrameAndSetItCuts) {
@@ -469,8 +510,8 @@ TEST(Protocol, SetTemperatureIsTheMedianOfItsFrames) {
 }
 
 TEST(Protocol, RejectsImpossibleOptions) {
-  EXPECT_THROW(tl::Parser({tl::StreamMode::Raw, 0}), std::invalid_argument);
-  EXPECT_THROW(tl::Parser({tl::StreamMode::Raw, 100}), std::invalid_argument);
+  EXPECT_THROW(tl::Parser({0}), std::invalid_argument);
+  EXPECT_THROW(tl::Parser({100}), std::invalid_argument);
 }
 
 // ------------------------------------------------------------------ properties over damaged streams
@@ -531,13 +572,13 @@ TEST(Protocol, EveryByteIsAccountedFor) {
     p.feed(stream.bytes);
     drain(p);
     const auto& s = p.stats();
-    const std::uint64_t accounted = (s.frames + s.dropped(tl::DropReason::kBadField)) * tl::kRawFrameBytes +
-                                    s.dropped(tl::DropReason::kWrongMode) * tl::kDistanceFrameBytes +
+    const std::uint64_t accounted = (s.raw_frames + s.dropped(tl::DropReason::kBadField)) * tl::kRawFrameBytes +
+                                    s.distance_frames * tl::kDistanceFrameBytes +
                                     s.dropped(tl::DropReason::kBadEnder) * 2 + s.dropped(tl::DropReason::kGarbage) +
                                     p.buffered();
     EXPECT_EQ(accounted, s.bytes) << "seed " << seed;
     // Every well-formed frame ends up in a set or is counted as discarded.
-    EXPECT_EQ(s.frames, s.sets * 5 + s.frames_discarded + p.pending_frames()) << "seed " << seed;
+    EXPECT_EQ(s.raw_frames, s.sets * 5 + s.frames_discarded + p.pending_frames()) << "seed " << seed;
   }
 }
 

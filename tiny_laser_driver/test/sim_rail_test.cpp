@@ -36,7 +36,7 @@ tl::RawSet to_wire_and_back(const sim::SensorSet& s) {
     }
     tl::encode_raw_frame(f, bytes);
   }
-  tl::Parser parser({tl::StreamMode::Raw, s.readouts.size()});
+  tl::Parser parser({s.readouts.size()});
   parser.feed(bytes);
   auto set = parser.next_set();
   if (!set) throw std::runtime_error("the parser did not give the set back");

@@ -1,7 +1,7 @@
 // tomato_dump: one simulated truss through the pipeline, written as CSV for
 // the pictures of docs/tomato_reasoning.md (scripts/plots/tomato_figures.py):
 //
-//   tomato_dump CLASS SEED OUT_DIR
+//   tomato_dump CLASS SEED OUT_DIR [KERNEL_KAPPA]
 //
 // OUT_DIR/points.csv   x,y,z,r,g,b,red   every finite point (every 3rd
 //                      pixel), red = passed the HSI filter (camera frame)
@@ -16,39 +16,38 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/hsi_filter.hpp"
 #include "tomato_reasoning/pipeline.hpp"
 
+#include <tinyline/common/cli.hpp>
+
 using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
 
 int main(int argc, char** argv) {
-  if (argc != 4 && argc != 5) {
-    std::fprintf(stderr, "usage: tomato_dump CLASS SEED OUT_DIR [KERNEL_KAPPA]   (default: the fitted force.kernel_kappa)\n");
-    return 2;
-  }
-  const auto cls = sim::parse_truss_class(argv[1]);
-  if (!cls) {
-    std::fprintf(stderr, "tomato_dump: class '%s' is not A, B or C\n", argv[1]);
-    return 2;
-  }
-  const std::uint64_t seed = std::stoull(argv[2]);
-  const std::filesystem::path out = argv[3];
+  CLI::App app{"One simulated truss through the tomato pipeline, written as CSV for the pictures of "
+               "docs/tomato_reasoning.md.",
+               "tomato_dump"};
+  std::string class_name, out_dir;
+  std::uint64_t seed = 0;
+  std::optional<double> kernel_kappa;
+  app.add_option("CLASS", class_name, "truss complexity class")->required()->check(CLI::IsMember({"A", "B", "C"}));
+  app.add_option("SEED", seed, "truss seed")->required()->check(tinyline::common::kNonNegative);
+  app.add_option("OUT_DIR", out_dir, "output directory")->required();
+  app.add_option("KERNEL_KAPPA", kernel_kappa, "force.kernel_kappa (default: the fitted one)")
+      ->check(tinyline::common::kNonNegative);
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  const auto cls = sim::parse_truss_class(class_name);
+  const std::filesystem::path out = out_dir;
   std::filesystem::create_directories(out);
   const eval::Scenario s = eval::make_scenario(*cls, seed);
   PipelineParams p;
   p.gravity = s.gravity_camera;
-  if (argc == 5) {
-    char* end = nullptr;
-    p.force.kernel_kappa = std::strtod(argv[4], &end);
-    if (end == argv[4] || *end != '\0' || !(p.force.kernel_kappa >= 0)) {
-      std::fprintf(stderr, "tomato_dump: KERNEL_KAPPA '%s' is not a number >= 0\n", argv[4]);
-      return 2;
-    }
-  }
+  if (kernel_kappa) p.force.kernel_kappa = *kernel_kappa;
   const PipelineResult r = TomatoPipeline(p).run(s.cloud());
   std::printf("class %c seed %llu: %zu true tomatoes, %zu spheres (%s%s%s)\n", char(*cls), static_cast<unsigned long long>(seed),
               s.truth.size(), r.tomatoes.size(), r.ok ? "ok" : r.stage.c_str(), r.ok ? "" : ": ", r.reason.c_str());

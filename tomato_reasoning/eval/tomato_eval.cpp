@@ -21,6 +21,7 @@
 #include <functional>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -30,9 +31,9 @@
 #include "tomato_reasoning/eval/scoring.hpp"
 #include "tomato_reasoning/eval/variants.hpp"
 #include "tomato_reasoning/pipeline.hpp"
-#ifdef TINYLINE_TOMATO_HAVE_LASER
 #include "tomato_reasoning/eval/verification.hpp"
-#endif
+
+#include <tinyline/common/cli.hpp>
 
 using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
@@ -48,101 +49,125 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
+/// A non-negative integer; throws naming the text otherwise.
+std::uint64_t seed_number(const std::string& s) {
+  if (s.empty() || s.find_first_not_of("0123456789") != std::string::npos)
+    throw std::invalid_argument("'" + s + "' is not a non-negative integer");
+  return std::stoull(s);
+}
+
+/// "1-100", "1,5,7-9": the seeds, in order.
 std::vector<std::uint64_t> parse_seeds(const std::string& s) {
   std::vector<std::uint64_t> out;
   for (const auto& part : split(s, ',')) {
     const auto dash = part.find('-');
     if (dash == std::string::npos) {
-      out.push_back(std::stoull(part));
+      out.push_back(seed_number(part));
     } else {
-      const std::uint64_t a = std::stoull(part.substr(0, dash)), b = std::stoull(part.substr(dash + 1));
+      const std::uint64_t a = seed_number(part.substr(0, dash)), b = seed_number(part.substr(dash + 1));
       if (b < a) throw std::invalid_argument("seed range '" + part + "' runs backwards");
       for (std::uint64_t k = a; k <= b; ++k) out.push_back(k);
     }
   }
+  if (out.empty()) throw std::invalid_argument("no seeds");
   return out;
 }
 
-void usage() {
-  std::puts(
-      "usage: tomato_eval --classes A,B,C --seeds 1-100 --out DIR [--variant NAME]... [--set key=value]...\n"
-      "                   [--kappa-sweep k1,k2,...] [--fit-kappa] [--views 1|2] [--pose-noise M,DEG] [--verify]\n"
-      "                   [--verify-set key=value]... [--quiet]\n"
-      "--fit-kappa: fit force.kernel_kappa on these seeds (HPD50 coverage closest to 50 %, log grid 2..1000),\n"
-      "          written to DIR/kappa_fit.csv\n"
-      "--verify: laser verification of every detected tomato's pick (first variant), as recognised and with a\n"
-      "          random offset < 5 cm (Table 4.3), written to DIR/verification.csv\n"
-      "--verify-set key=value: the verification's options (pulses=10,20,50,120,300 expectation_sd_m=0.015\n"
-      "          max_move_m=0.05 max_turn_deg=60), e.g. to rerun a before/after row\n"
-      "variants: ");
-  for (const auto& v : eval::variant_names()) std::printf("  %s\n", v.c_str());
-  std::puts("keys for --set:");
-  for (const auto& k : eval::param_keys()) std::printf("  %s\n", k.c_str());
+/// "key=value" as a pair; throws naming the option when there is no '='.
+std::pair<std::string, std::string> key_value(const std::string& option, const std::string& kv) {
+  const auto eq = kv.find('=');
+  if (eq == std::string::npos) throw CLI::ValidationError(option, "wants key=value, got '" + kv + "'");
+  return {kv.substr(0, eq), kv.substr(eq + 1)};
+}
+
+std::string lists_for_help() {
+  std::string s = "variants:\n";
+  for (const auto& v : eval::variant_names()) s += "  " + v + "\n";
+  s += "keys for --set:\n";
+  for (const auto& k : eval::param_keys()) s += "  " + k + "\n";
+  return s;
+}
+
+struct Request {
+  std::vector<std::string> classes{"A", "B", "C"};
+  std::vector<std::uint64_t> seeds;
+  std::string out_dir;
+  std::vector<std::string> variants;
+  std::vector<std::pair<std::string, std::string>> sets, verify_sets;
+  std::vector<double> kappas;
+  bool quiet = false, verify = false, fit_kappa = false;
+  eval::ScenarioOptions scenario;
+};
+
+/// Fills `r` from the command line; the exit code when the program stops there.
+std::optional<int> parse(int argc, char** argv, Request& r) {
+  CLI::App app{"Scores the tomato pipeline on seeded simulated trusses (docs/tomato_reasoning.md); every variant "
+               "runs on the same clouds. Writes DIR/<variant>_tomatoes.csv and DIR/<variant>_summary.json.",
+               "tomato_eval"};
+  app.footer(lists_for_help());
+  std::string seeds_text;
+  std::vector<std::string> sets, verify_sets;
+  std::vector<double> pose_noise;
+  app.add_option("--classes", r.classes, "truss complexity classes, comma-separated")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"A", "B", "C"}))
+      ->capture_default_str();
+  app.add_option("--seeds", seeds_text, "seeds: a list of numbers and ranges, e.g. 1-100 or 1,5,7-9")
+      ->required()
+      ->check(CLI::Validator(
+          [](std::string& s) -> std::string {
+            try {
+              (void)parse_seeds(s);
+            } catch (const std::exception& e) {
+              return "bad seed list '" + s + "': " + e.what();
+            }
+            return {};
+          },
+          "SEEDS"));
+  app.add_option("--out", r.out_dir, "output directory")->required();
+  app.add_option("--variant", r.variants, "pipeline variant (repeatable; default: default)");
+  app.add_option("--set", sets, "pipeline parameter key=value (repeatable)");
+  app.add_option("--kappa-sweep", r.kappas, "force.kernel_kappa values to score, comma-separated")
+      ->delimiter(',')
+      ->check(tinyline::common::kNonNegative);
+  app.add_flag("--fit-kappa", r.fit_kappa,
+               "fit force.kernel_kappa on these seeds (HPD50 coverage closest to 50 %, log grid 2..1000), written to "
+               "DIR/kappa_fit.csv");
+  app.add_option("--views", r.scenario.views, "camera views per truss")->check(CLI::Range(1, 2))->capture_default_str();
+  app.add_option("--pose-noise", pose_noise, "the second view's pose error: METRES,DEGREES")
+      ->delimiter(',')
+      ->expected(2)
+      ->check(tinyline::common::kNonNegative);
+  app.add_flag("--verify", r.verify,
+               "laser verification of every detected tomato's pick (first variant), as recognised and with a random "
+               "offset < 5 cm (Table 4.3), written to DIR/verification.csv");
+  app.add_option("--verify-set", verify_sets,
+                 "the verification's options key=value (pulses=10,20,50,120,300 expectation_sd_m=0.015 "
+                 "max_move_m=0.05 max_turn_deg=60), repeatable");
+  app.add_flag("--quiet", r.quiet, "no per-truss lines");
+  try {
+    if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
+    r.seeds = parse_seeds(seeds_text);
+    for (const auto& kv : sets) r.sets.push_back(key_value("--set", kv));
+    for (const auto& kv : verify_sets) r.verify_sets.push_back(key_value("--verify-set", kv));
+  } catch (const CLI::ParseError& e) {
+    (void)app.exit(e);
+    return 2;
+  }
+  if (pose_noise.size() == 2) {
+    r.scenario.pose_noise_m = pose_noise[0];
+    r.scenario.pose_noise_deg = pose_noise[1];
+  }
+  if (r.variants.empty()) r.variants.push_back("default");
+  return std::nullopt;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<std::string> classes{"A", "B", "C"};
-  std::vector<std::uint64_t> seeds;
-  std::string out_dir;
-  std::vector<std::string> variants;
-  std::vector<std::pair<std::string, std::string>> sets;
-  std::vector<double> kappas;
-  bool quiet = false;
-  bool verify = false;
-  bool fit_kappa = false;
-  std::vector<std::pair<std::string, std::string>> verify_sets;
-  eval::ScenarioOptions scenario;
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto next = [&]() -> std::string {
-        if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-        return argv[++i];
-      };
-      if (a == "--classes") classes = split(next(), ',');
-      else if (a == "--seeds") seeds = parse_seeds(next());
-      else if (a == "--out") out_dir = next();
-      else if (a == "--variant") variants.push_back(next());
-      else if (a == "--set") {
-        const std::string kv = next();
-        const auto eq = kv.find('=');
-        if (eq == std::string::npos) throw std::invalid_argument("--set wants key=value, got '" + kv + "'");
-        sets.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-      } else if (a == "--kappa-sweep") {
-        for (const auto& k : split(next(), ',')) kappas.push_back(std::stod(k));
-      } else if (a == "--fit-kappa") {
-        fit_kappa = true;
-      } else if (a == "--views") {
-        scenario.views = std::stoi(next());
-        if (scenario.views < 1 || scenario.views > 2) throw std::invalid_argument("--views must be 1 or 2");
-      } else if (a == "--pose-noise") {
-        const auto v = split(next(), ',');
-        if (v.size() != 2) throw std::invalid_argument("--pose-noise wants METRES,DEGREES");
-        scenario.pose_noise_m = std::stod(v[0]);
-        scenario.pose_noise_deg = std::stod(v[1]);
-      } else if (a == "--verify") {
-        verify = true;
-      } else if (a == "--verify-set") {
-        const std::string kv = next();
-        const auto eq = kv.find('=');
-        if (eq == std::string::npos) throw std::invalid_argument("--verify-set wants key=value, got '" + kv + "'");
-        verify_sets.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-      } else if (a == "--quiet") quiet = true;
-      else if (a == "--help" || a == "-h") {
-        usage();
-        return 0;
-      } else throw std::invalid_argument("unknown argument '" + a + "'");
-    }
-    if (seeds.empty()) throw std::invalid_argument("--seeds is required (e.g. 1-100)");
-    if (out_dir.empty()) throw std::invalid_argument("--out is required");
-    if (variants.empty()) variants.push_back("default");
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "tomato_eval: %s\n", e.what());
-    usage();
-    return 2;
-  }
+  Request request;
+  if (const auto rc = parse(argc, argv, request)) return *rc;
+  auto& [classes, seeds, out_dir, variants, sets, verify_sets, kappas, quiet, verify, fit_kappa, scenario] = request;
   std::filesystem::create_directories(out_dir);
   // The fit's grid: 2 .. 1000 in steps of 2^(1/4) (about 19 %), appended to
   // any --kappa-sweep values.
@@ -173,7 +198,6 @@ int main(int argc, char** argv) {
     r.csv << eval::csv_header();
     runs.push_back(std::move(r));
   }
-#ifdef TINYLINE_TOMATO_HAVE_LASER
   std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
   std::ofstream vcsv;
   std::map<std::string, std::map<std::string, int>> vcount;  // case -> verdict -> n
@@ -193,12 +217,6 @@ int main(int argc, char** argv) {
     vcsv.open(out_dir + "/verification.csv");
     vcsv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,depth_error_mm,move_mm,confidence,reason\n";
   }
-#else
-  if (verify) {
-    std::fprintf(stderr, "tomato_eval: built without laser_clustering's evaluation scanner: --verify unavailable\n");
-    return 2;
-  }
-#endif
   // kappa sweep: hits of the truth in the HPD50 region per kappa, from the
   // first variant's draws (the draws do not depend on kappa).
   std::vector<int> kappa_hits(kappas.size(), 0);
@@ -230,7 +248,6 @@ int main(int argc, char** argv) {
                       static_cast<unsigned long long>(seed), ts.truth, ts.detected, ts.unmatched, ts.times.total_ms(),
                       ts.ok ? "" : (ts.stage + ": " + ts.reason).c_str());
         }
-#ifdef TINYLINE_TOMATO_HAVE_LASER
         if (verify && &run == &runs.front()) {
           for (auto* h : {as_recognised.get(), with_offset.get()}) {
             const std::string name = h == as_recognised.get() ? "as_recognised" : "random_offset";
@@ -245,7 +262,6 @@ int main(int argc, char** argv) {
             }
           }
         }
-#endif
         run.by_class[*cls.c_str()].push_back(ts);
         run.scores.push_back(ts);
       }
@@ -275,7 +291,6 @@ int main(int argc, char** argv) {
     row("all", all);
     js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
   }
-#ifdef TINYLINE_TOMATO_HAVE_LASER
   if (verify) {
     std::printf("\nlaser verification (%s): picks of detected tomatoes\n%-15s %7s %9s %9s %9s %9s %12s\n", runs.front().name.c_str(),
                 "case", "trials", "aligned", "wrong", "out_view", "nothing", "vision_only");
@@ -285,7 +300,6 @@ int main(int argc, char** argv) {
                   100 * c["wrong"] / n, 100 * c["out_of_view"] / n, 100 * c["nothing_found"] / n, 100 * vision_ok[name] / n);
     }
   }
-#endif
   if (fit_kappa) {
     // Coverage falls with kappa (a narrower kernel, a smaller region), so the
     // grid point closest to 50 % is the fit; ties go to the smaller kappa.

@@ -29,12 +29,12 @@ struct UnionFind {
 
 }  // namespace
 
-std::string validate(const BranchClusteringParams& p) {
-  if (!(p.tolerance_m > 0) || !std::isfinite(p.tolerance_m)) return "tolerance_m must be finite and > 0";
-  if (p.min_points < 1) return "min_points must be >= 1";
-  if (!(p.min_range_m >= 0) || !(p.max_range_m > p.min_range_m)) return "ranges must satisfy 0 <= min_range_m < max_range_m";
-  if (!(p.max_extent_m > 0)) return "max_extent_m must be > 0";
-  return {};
+common::Validation validate(const BranchClusteringParams& p) {
+  if (!(p.tolerance_m > 0) || !std::isfinite(p.tolerance_m)) return common::Validation::invalid("tolerance_m must be finite and > 0");
+  if (p.min_points < 1) return common::Validation::invalid("min_points must be >= 1");
+  if (!(p.min_range_m >= 0) || !(p.max_range_m > p.min_range_m)) return common::Validation::invalid("ranges must satisfy 0 <= min_range_m < max_range_m");
+  if (!(p.max_extent_m > 0)) return common::Validation::invalid("max_extent_m must be > 0");
+  return common::Validation::ok();
 }
 
 std::vector<Indices> euclidean_clusters(const std::vector<Eigen::Vector3f>& points, const Indices& indices_in,
@@ -106,8 +106,8 @@ BranchResult cluster_branches(const ColorCloud& cloud, const Indices& candidates
                               const std::vector<Eigen::Vector3f>& viewpoints_in) {
   const std::vector<Eigen::Vector3f> viewpoints = viewpoints_in.empty() ? std::vector<Eigen::Vector3f>{Eigen::Vector3f::Zero()} : viewpoints_in;
   BranchResult r;
-  if (const std::string why = validate(p); !why.empty()) {
-    r.reason = "bad branch clustering parameters: " + why;
+  if (const common::Validation why = validate(p); !why.valid) {
+    r.reason = "bad branch clustering parameters: " + why.reason;
     return r;
   }
   if (const std::string why = check_cloud(cloud); !why.empty()) {

@@ -16,10 +16,10 @@
 
 namespace tinyline::tomato_reasoning {
 
-std::string validate(const DepthCorrectionParams& p) {
-  if (p.cells_u < 1 || p.cells_v < 1 || p.cells_u * p.cells_v > 10000) return "cells_u x cells_v must be 1..10000 cells";
-  if (p.degree < 0 || p.degree > 6) return "degree must be 0..6";
-  return {};
+common::Validation validate(const DepthCorrectionParams& p) {
+  if (p.cells_u < 1 || p.cells_v < 1 || p.cells_u * p.cells_v > 10000) return common::Validation::invalid("cells_u x cells_v must be 1..10000 cells");
+  if (p.degree < 0 || p.degree > 6) return common::Validation::invalid("degree must be 0..6");
+  return common::Validation::ok();
 }
 
 namespace {
@@ -42,7 +42,7 @@ DepthCorrection fit_depth_correction(const std::vector<DepthSample>& samples, in
   d.params = p;
   d.width = width;
   d.height = height;
-  if (const auto bad = validate(p); !bad.empty()) return d.reason = bad, d;
+  if (const common::Validation bad = validate(p); !bad.valid) return d.reason = bad.reason, d;
   if (width <= 0 || height <= 0) return d.reason = "image size must be positive", d;
   const int cells = p.cells_u * p.cells_v, n = cells + p.degree;
   // z_true - z = Z(cell) + sum_k c_k z^k: linear in the unknowns; normal equations.

@@ -10,20 +10,21 @@ using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 }  // namespace
 
-std::string validate(const PipelineParams& p) {
-  for (const auto& [what, why] : {std::pair{"hsi", validate(p.hsi)}, {"branch", validate(p.branch)},
-                                  {"smoothing", validate(p.smoothing)}, {"spheres", validate(p.spheres)},
-                                  {"force", validate(p.force)}}) {
-    if (!why.empty()) return std::string(what) + ": " + why;
+common::Validation validate(const PipelineParams& p) {
+  for (const common::Validation& v : {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"),
+                                      validate(p.smoothing).within("smoothing"), validate(p.spheres).within("spheres"),
+                                      validate(p.force).within("force")}) {
+    if (!v.valid) return v;
   }
-  if (!p.gravity.allFinite() || !(p.gravity.norm() > 1e-9)) return "gravity must be a finite, non-zero vector";
+  if (!p.gravity.allFinite() || !(p.gravity.norm() > 1e-9))
+    return common::Validation::invalid("gravity must be a finite, non-zero vector");
   if (!(p.cut.scissor_opening_m > 0) || !(p.cut.cut_offset_m >= 0) || p.cut.candidates < 1)
-    return "cut: scissor_opening_m > 0, cut_offset_m >= 0 and candidates >= 1";
-  return {};
+    return common::Validation::invalid("cut: scissor_opening_m > 0, cut_offset_m >= 0 and candidates >= 1");
+  return common::Validation::ok();
 }
 
 TomatoPipeline::TomatoPipeline(PipelineParams params) : params_(std::move(params)) {
-  if (const std::string why = validate(params_); !why.empty()) throw std::invalid_argument("tomato pipeline: " + why);
+  if (const common::Validation why = validate(params_); !why.valid) throw std::invalid_argument("tomato pipeline: " + why.reason);
 }
 
 PipelineResult TomatoPipeline::run(const ColorCloud& cloud) const {

@@ -6,7 +6,8 @@
 
 #include <Eigen/Geometry>
 
-#include "rng.hpp"
+
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -26,17 +27,17 @@ void frame_of(const Eigen::Vector3d& n, Eigen::Vector3d& e1, Eigen::Vector3d& e2
 // A direction around unit mu: von Mises-Fisher with concentration kappa
 // (Wood 1994, exact on S^2), or uniform in the cap of half angle `cap_rad`
 // when kappa = 0 (the top-hat kernel of a binned density).
-Eigen::Vector3d draw_around(const Eigen::Vector3d& mu, double kappa, double cap_rad, detail::Rng& rng) {
+Eigen::Vector3d draw_around(const Eigen::Vector3d& mu, double kappa, double cap_rad, common::SplitMixRandom& rng) {
   double w;
   if (kappa > 0) {
-    const double xi = rng.uniform();
+    const double xi = rng.uniform_open();
     w = 1.0 + std::log(xi + (1.0 - xi) * std::exp(-2.0 * kappa)) / kappa;
   } else {
     const double c = std::cos(cap_rad);
-    w = c + (1.0 - c) * rng.uniform();
+    w = c + (1.0 - c) * rng.uniform_open();
   }
   w = std::clamp(w, -1.0, 1.0);
-  const double phi = 2.0 * M_PI * rng.uniform();
+  const double phi = 2.0 * M_PI * rng.uniform_open();
   Eigen::Vector3d e1, e2;
   frame_of(mu, e1, e2);
   return (w * mu + std::sqrt(1.0 - w * w) * (std::cos(phi) * e1 + std::sin(phi) * e2)).normalized();
@@ -59,17 +60,17 @@ std::vector<ContactEdge> contact_graph(const std::vector<Sphere>& s, double d_e_
   return out;
 }
 
-std::string validate(const ForceModelParams& p) {
-  if (!(p.contact_tolerance_m >= 0) || !std::isfinite(p.contact_tolerance_m)) return "contact_tolerance_m must be finite and >= 0";
+common::Validation validate(const ForceModelParams& p) {
+  if (!(p.contact_tolerance_m >= 0) || !std::isfinite(p.contact_tolerance_m)) return common::Validation::invalid("contact_tolerance_m must be finite and >= 0");
   if (!std::isfinite(p.eps_mean) || !(p.eps_variance > 0) || !std::isfinite(p.eps_variance))
-    return "eps_mean must be finite and eps_variance finite and > 0";
-  if (!(p.eps_max > 0) || !std::isfinite(p.eps_max)) return "eps_max must be finite and > 0";
+    return common::Validation::invalid("eps_mean must be finite and eps_variance finite and > 0");
+  if (!(p.eps_max > 0) || !std::isfinite(p.eps_max)) return common::Validation::invalid("eps_max must be finite and > 0");
   if (normal_cdf((p.eps_max - p.eps_mean) / std::sqrt(p.eps_variance)) - normal_cdf(-p.eps_mean / std::sqrt(p.eps_variance)) < 1e-6)
-    return "eps ~ N(eps_mean, eps_variance) has (almost) no mass in [0, eps_max)";
-  if (!(p.weight_exponent >= 0) || !std::isfinite(p.weight_exponent)) return "weight_exponent must be finite and >= 0";
-  if (!(p.kernel_kappa >= 0) || !std::isfinite(p.kernel_kappa)) return "kernel_kappa must be finite and >= 0";
-  if (p.samples < 10) return "samples must be >= 10";
-  return {};
+    return common::Validation::invalid("eps ~ N(eps_mean, eps_variance) has (almost) no mass in [0, eps_max)");
+  if (!(p.weight_exponent >= 0) || !std::isfinite(p.weight_exponent)) return common::Validation::invalid("weight_exponent must be finite and >= 0");
+  if (!(p.kernel_kappa >= 0) || !std::isfinite(p.kernel_kappa)) return common::Validation::invalid("kernel_kappa must be finite and >= 0");
+  if (p.samples < 10) return common::Validation::invalid("samples must be >= 10");
+  return common::Validation::ok();
 }
 
 double truncated_normal_mean(double mu, double var, double max) {
@@ -104,7 +105,7 @@ double PedicelDistribution::density(const Eigen::Vector3d& d, double cell_deg) c
 std::vector<Eigen::Vector3d> PedicelDistribution::sample(int n, std::uint64_t seed) const {
   std::vector<Eigen::Vector3d> out;
   if (draws_.empty() || n <= 0) return out;
-  detail::Rng rng(seed);
+  common::SplitMixRandom rng(common::stream_seed(seed, 0x632be59bd9b4e019ULL));
   const double cap = 2.5 * M_PI / 180.0;  // half of the default 5 deg cell
   out.reserve(static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) out.push_back(draw_around(draws_[rng.index(draws_.size())], kappa_, cap, rng));
@@ -151,12 +152,12 @@ PedicelDistribution PedicelDistribution::rotated(const Eigen::Matrix3d& R) const
 std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& spheres, const std::vector<ContactEdge>& edges,
                                                const Eigen::Vector3d& gravity, const ForceModelParams& P) {
   std::vector<PedicelEstimate> out;
-  if (!validate(P).empty() || spheres.empty() || !(gravity.norm() > 0) || !gravity.allFinite()) return out;
+  if (!validate(P).valid || spheres.empty() || !(gravity.norm() > 0) || !gravity.allFinite()) return out;
   const Eigen::Vector3d g = gravity.normalized();
   const double sd = std::sqrt(P.eps_variance);
   const double eps_mean = truncated_normal_mean(P.eps_mean, P.eps_variance, P.eps_max);
   auto weight = [&](double r) { return kRefRadius * std::pow(r / kRefRadius, P.weight_exponent); };  // theta r for exponent 1
-  detail::Rng rng(P.seed);
+  common::SplitMixRandom rng(common::stream_seed(P.seed, 0x632be59bd9b4e019ULL));
   for (std::size_t i = 0; i < spheres.size(); ++i) {
     PedicelEstimate e;
     e.sphere = static_cast<int>(i);
@@ -186,7 +187,7 @@ std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& sphere
       for (std::size_t k = 0; k < push.size(); ++k) {
         double eps;
         do {
-          eps = P.eps_mean + sd * rng.normal();
+          eps = P.eps_mean + sd * rng.normal_unpaired();
         } while (!(eps >= 0.0 && eps < P.eps_max));
         F += eps * w_edge[k] * push[k];  // Eq. 4.20, 4.21
       }

@@ -8,12 +8,12 @@
 
 namespace tinyline::tomato_reasoning {
 
-std::string validate(const SmoothingParams& p) {
-  if (!(p.voxel_m >= 0) || !std::isfinite(p.voxel_m)) return "voxel_m must be finite and >= 0";
-  if (!(p.search_radius_m > 0) || !std::isfinite(p.search_radius_m)) return "search_radius_m must be finite and > 0";
-  if (p.polynomial_order < 1 || p.polynomial_order > 2) return "polynomial_order must be 1 or 2";
-  if (p.min_neighbours < 3) return "min_neighbours must be >= 3 (a plane needs three points)";
-  return {};
+common::Validation validate(const SmoothingParams& p) {
+  if (!(p.voxel_m >= 0) || !std::isfinite(p.voxel_m)) return common::Validation::invalid("voxel_m must be finite and >= 0");
+  if (!(p.search_radius_m > 0) || !std::isfinite(p.search_radius_m)) return common::Validation::invalid("search_radius_m must be finite and > 0");
+  if (p.polynomial_order < 1 || p.polynomial_order > 2) return common::Validation::invalid("polynomial_order must be 1 or 2");
+  if (p.min_neighbours < 3) return common::Validation::invalid("min_neighbours must be >= 3 (a plane needs three points)");
+  return common::Validation::ok();
 }
 
 namespace {
@@ -92,8 +92,8 @@ SmoothedCloud smooth(const std::vector<Eigen::Vector3f>& points, const Indices& 
     out.reason = "no viewpoint";
     return out;
   }
-  if (const std::string why = validate(p); !why.empty()) {
-    out.reason = "bad smoothing parameters: " + why;
+  if (const common::Validation why = validate(p); !why.valid) {
+    out.reason = "bad smoothing parameters: " + why.reason;
     return out;
   }
   for (int k : indices) {

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include <Eigen/Dense>
 
-#include "rng.hpp"
 #include "voxel_hash.hpp"
+
+#include <tinyline/common/least_squares.hpp>
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -49,22 +52,26 @@ const char* to_string(SphereHypothesis h) {
 
 namespace {
 
-// Levenberg-Marquardt on sum (|p - c| - r)^2 over c (and r unless fixed).
-SphereRefinement lm(const std::vector<Eigen::Vector3f>& pts, const Indices& idx, Sphere s, bool fix_radius) {
-  SphereRefinement out;
-  auto cost = [&](const Sphere& q) {
+// sum (|p - c| - r)^2 over the centre c (x = c), or over c and r (x = (c, r)).
+struct SphereProblem {
+  const std::vector<Eigen::Vector3f>& pts;
+  const Indices& idx;
+  bool fix_radius;
+  double radius_m;  // the held radius when fix_radius
+
+  Sphere sphere(const Eigen::VectorXd& x) const {
+    return {x.head<3>(), fix_radius ? radius_m : x[3]};
+  }
+  double cost_of(const Sphere& q) const {
     double e = 0;
     for (int k : idx) {
       const double r = (pts[static_cast<std::size_t>(k)].cast<double>() - q.centre).norm() - q.radius_m;
       e += r * r;
     }
     return e;
-  };
-  double lambda = 1e-3;
-  double e = cost(s);
-  const int np = fix_radius ? 3 : 4;
-  for (int it = 0; it < 50; ++it) {
-    out.iterations = it + 1;
+  }
+  std::pair<Eigen::MatrixXd, Eigen::VectorXd> linearise(const Eigen::VectorXd& x) const {
+    const Sphere s = sphere(x);
     Eigen::Matrix4d JtJ = Eigen::Matrix4d::Zero();
     Eigen::Vector4d Jte = Eigen::Vector4d::Zero();
     for (int k : idx) {
@@ -77,36 +84,38 @@ SphereRefinement lm(const std::vector<Eigen::Vector3f>& pts, const Indices& idx,
       JtJ += J * J.transpose();
       Jte += J * res;
     }
-    bool improved = false;
-    for (int tries = 0; tries < 10 && !improved; ++tries) {
-      Eigen::MatrixXd H = JtJ.topLeftCorner(np, np);
-      H.diagonal() += lambda * H.diagonal().cwiseMax(1e-12);
-      const Eigen::VectorXd step = -H.ldlt().solve(Jte.head(np));
-      Sphere t = s;
-      t.centre += step.head<3>();
-      if (!fix_radius) t.radius_m += step[3];
-      const double et = t.centre.allFinite() && std::isfinite(t.radius_m) ? cost(t) : std::numeric_limits<double>::infinity();
-      if (et < e) {
-        const double rel = (e - et) / std::max(e, 1e-30);
-        s = t;
-        e = et;
-        lambda = std::max(1e-9, lambda * 0.3);
-        improved = true;
-        if (rel < 1e-10 || step.norm() < 1e-9) {
-          out.converged = true;
-          it = 1000;  // done
-        }
-      } else {
-        lambda *= 10;
-      }
-    }
-    if (!improved) {
-      out.converged = true;  // no step lowers the cost: at the minimum
-      break;
-    }
+    const Eigen::Index np = x.size();
+    return {JtJ.topLeftCorner(np, np), Jte.head(np)};
   }
-  out.sphere = s;
-  out.rms_m = idx.empty() ? 0.0 : std::sqrt(e / static_cast<double>(idx.size()));
+  double cost(Eigen::VectorXd& candidate) const {
+    const Sphere t = sphere(candidate);
+    return t.centre.allFinite() && std::isfinite(t.radius_m) ? cost_of(t) : std::numeric_limits<double>::infinity();
+  }
+  void accept() const {}
+  bool converged(double old_cost, double new_cost, const Eigen::VectorXd& step) const {
+    return (old_cost - new_cost) / std::max(old_cost, 1e-30) < 1e-10 || step.norm() < 1e-9;
+  }
+};
+
+// Levenberg-Marquardt from s on the sphere's squared distances.
+SphereRefinement lm(const std::vector<Eigen::Vector3f>& pts, const Indices& idx, const Sphere& s, bool fix_radius) {
+  SphereProblem problem{pts, idx, fix_radius, s.radius_m};
+  Eigen::VectorXd x(fix_radius ? 3 : 4);
+  x.head<3>() = s.centre;
+  if (!fix_radius) x[3] = s.radius_m;
+  common::LevenbergMarquardtSettings settings;
+  settings.max_iterations = 50;
+  settings.max_tries = 10;
+  settings.initial_lambda = 1e-3;
+  settings.increase = 10.0;
+  settings.decrease = 0.3;
+  settings.min_lambda = 1e-9;
+  const common::LevenbergMarquardtResult r = common::levenberg_marquardt(problem, x, problem.cost_of(s), settings);
+  SphereRefinement out;
+  out.sphere = problem.sphere(x);
+  out.iterations = r.iterations;
+  out.converged = r.converged;
+  out.rms_m = idx.empty() ? 0.0 : std::sqrt(r.cost / static_cast<double>(idx.size()));
   return out;
 }
 
@@ -128,20 +137,20 @@ SphereRefinement refine_sphere(const std::vector<Eigen::Vector3f>& points, const
   return fixed;
 }
 
-std::string validate(const SphereRansacParams& p) {
+common::Validation validate(const SphereRansacParams& p) {
   if (!(p.radius_min_m > 0) || !(p.radius_max_m >= p.radius_min_m) || !std::isfinite(p.radius_max_m))
-    return "radius range must satisfy 0 < radius_min_m <= radius_max_m (finite)";
-  if (!(p.inlier_distance_m > 0) || !std::isfinite(p.inlier_distance_m)) return "inlier_distance_m must be finite and > 0";
-  if (!(p.normal_tolerance_deg < 90) || std::isnan(p.normal_tolerance_deg)) return "normal_tolerance_deg must be < 90 (<= 0: off)";
-  if (p.max_iterations < 1) return "max_iterations must be >= 1";
-  if (!(p.confidence > 0 && p.confidence < 1)) return "confidence must be in (0, 1)";
-  if (p.min_inliers < 4) return "min_inliers must be >= 4 (a sphere has four parameters)";
-  if (p.min_remaining < 4) return "min_remaining must be >= 4";
-  if (p.max_spheres < 1) return "max_spheres must be >= 1";
-  if (p.max_failed_rounds < 1) return "max_failed_rounds must be >= 1";
-  if (!(p.max_overlap_m >= 0)) return "max_overlap_m must be >= 0";
-  if (!(p.removal_factor >= 1)) return "removal_factor must be >= 1";
-  return {};
+    return common::Validation::invalid("radius range must satisfy 0 < radius_min_m <= radius_max_m (finite)");
+  if (!(p.inlier_distance_m > 0) || !std::isfinite(p.inlier_distance_m)) return common::Validation::invalid("inlier_distance_m must be finite and > 0");
+  if (!(p.normal_tolerance_deg < 90) || std::isnan(p.normal_tolerance_deg)) return common::Validation::invalid("normal_tolerance_deg must be < 90 (<= 0: off)");
+  if (p.max_iterations < 1) return common::Validation::invalid("max_iterations must be >= 1");
+  if (!(p.confidence > 0 && p.confidence < 1)) return common::Validation::invalid("confidence must be in (0, 1)");
+  if (p.min_inliers < 4) return common::Validation::invalid("min_inliers must be >= 4 (a sphere has four parameters)");
+  if (p.min_remaining < 4) return common::Validation::invalid("min_remaining must be >= 4");
+  if (p.max_spheres < 1) return common::Validation::invalid("max_spheres must be >= 1");
+  if (p.max_failed_rounds < 1) return common::Validation::invalid("max_failed_rounds must be >= 1");
+  if (!(p.max_overlap_m >= 0)) return common::Validation::invalid("max_overlap_m must be >= 0");
+  if (!(p.removal_factor >= 1)) return common::Validation::invalid("removal_factor must be >= 1");
+  return common::Validation::ok();
 }
 
 SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
@@ -156,8 +165,8 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, c
     out.stop_reason = "no viewpoint";
     return out;
   }
-  if (const std::string why = validate(P); !why.empty()) {
-    out.stop_reason = "bad sphere parameters: " + why;
+  if (const common::Validation why = validate(P); !why.valid) {
+    out.stop_reason = "bad sphere parameters: " + why.reason;
     return out;
   }
   const bool use_normals = P.normal_tolerance_deg > 0 || P.hypothesis == SphereHypothesis::kTwoPointsWithNormals;
@@ -196,7 +205,7 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, c
   // Scoring looks only at cells that the sphere's shell can reach.
   const double score_cell = std::max(0.01, P.radius_max_m / 2.0);
   const detail::VoxelGrid grid(points, alive_list, score_cell);
-  detail::Rng rng(P.seed);
+  common::SplitMixRandom rng(common::stream_seed(P.seed, 0x632be59bd9b4e019ULL));
   const int k_points = P.hypothesis == SphereHypothesis::kFourPoints ? 4 : 2;
 
   struct Scored {

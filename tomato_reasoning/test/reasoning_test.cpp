@@ -139,13 +139,13 @@ TEST(CutPlan, CoversAtLeastAsMuchAsTheExpectationAndStaysOutsideOtherFruit) {
 TEST(ForceModel, BadInputGivesNoEstimates) {
   ForceModelParams bad;
   bad.eps_variance = -1;
-  EXPECT_FALSE(validate(bad).empty());
+  EXPECT_FALSE(validate(bad).valid);
   EXPECT_TRUE(estimate_pedicels({{{0, 0, 1}, 0.03}}, {}, kDown, bad).empty());
   EXPECT_TRUE(estimate_pedicels({}, {}, kDown).empty());
   EXPECT_TRUE(estimate_pedicels({{{0, 0, 1}, 0.03}}, {}, Eigen::Vector3d::Zero()).empty());
   ForceModelParams nomass;
   nomass.eps_mean = 50;  // N(50, 0.25) has no mass in [0, 1)
-  EXPECT_FALSE(validate(nomass).empty());
+  EXPECT_FALSE(validate(nomass).valid);
   EXPECT_TRUE(pick_order({}, {}, kDown).empty());
   EXPECT_EQ(plan_cut({}, 0, {}).coverage, 0.0);
 }

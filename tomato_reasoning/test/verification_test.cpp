@@ -4,14 +4,11 @@
 
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/pipeline.hpp"
-#ifdef TINYLINE_TOMATO_HAVE_LASER
 #include "tomato_reasoning/eval/verification.hpp"
-#endif
 
 using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
 
-#ifdef TINYLINE_TOMATO_HAVE_LASER
 TEST(LaserVerification, ConfirmsOrRelocatesThePedicelOfSimpleTrusses) {
   eval::VerificationOptions o;
   eval::VerificationHarness as_recognised(o);
@@ -71,4 +68,3 @@ TEST(LaserVerification, OptionsBySettingParseOrSayWhatIsWrong) {
   EXPECT_NE(why("max_turn_deg", "nan").find("not a number"), std::string::npos);
   EXPECT_NE(why("kappa", "1").find("unknown option"), std::string::npos);
 }
-#endif

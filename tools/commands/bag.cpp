@@ -2,13 +2,10 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
-#include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <thread>
+#include <memory>
 
 #include <fmt/format.h>
 
@@ -17,60 +14,15 @@
 #include <tinyline/bag/recorder.hpp>
 #include <tinyline/bag/recover.hpp>
 #include <tinyline/bag/ros2.hpp>
-#include <tinyline/bus/executor.hpp>
 #include <tinyline/launch/launch.hpp>
 #include <tinyline/msg/yaml_writer.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/args.hpp"
+#include "../src/cli.hpp"
+#include "../src/graph_runner.hpp"
 
 namespace tinyline::tools {
 namespace {
-
-constexpr const char* kHelp = R"(usage: tinyline bag <command> ...
-
-  record [-o FILE] [TOPIC ...] [options]   record topics (all by default) to an MCAP bag
-  play FILE [options]                      publish a bag's messages on their topics
-  info FILE [--verify]                     topics, types, counts, duration, compression
-  echo FILE TOPIC [--limit N] [--full]     print a topic's messages as YAML
-  recover IN OUT [--compression C]         rewrite a damaged or unfinished bag as a complete one
-
-record options:
-  -o FILE            output file (default tinyline_<date>_<time>.mcap)
-  --launch FILE      run this launch file in the same process and record its topics
-                     (further name:=value arguments go to the launch file)
-  --exclude TOPIC    do not record TOPIC (repeatable)
-  --compression C    none, lz4 (default) or zstd
-  --chunk-size KB    uncompressed chunk size [KiB] (default 1024)
-  --duration S       stop after S seconds (default: Ctrl-C)
-play options:
-  --rate R           playback speed, x real time (default 1; 0 = as fast as possible)
-  --loop             start over at the end
-  --topics T [T...]  play only these topics
-  --start S          skip the first S seconds of the bag
-  --clock            publish /clock (rosgraph_msgs/Clock) and drive sim time
-  --clock-hz H       /clock rate between messages (default 100)
-  --duration S       stop after S seconds of playing (default: the bag's end, or Ctrl-C with --loop)
-
-`bag record` records the topics of its own process: those of --launch, and
-those a transport bridges in. To record inside a running launch file, add a
-node {pkg: bag, exec: recorder} to it (parameters: tinyline describe bag/recorder).
-)";
-
-std::atomic<int> g_signal{0};
-extern "C" void tinyline_bag_cli_on_signal(int sig) { g_signal.store(sig); }
-
-struct SignalScope {
-  SignalScope() {
-    g_signal.store(0);
-    std::signal(SIGINT, tinyline_bag_cli_on_signal);
-    std::signal(SIGTERM, tinyline_bag_cli_on_signal);
-  }
-  ~SignalScope() {
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
-  }
-};
 
 // Progress on a terminal: one line, redrawn in place on stderr.
 void progress(const std::string& line) {
@@ -101,46 +53,25 @@ std::string human_time(bag::Timestamp t) {
   return fmt::format("{}.{:03d} UTC ({:.3f})", buf, static_cast<int>((t / 1'000'000ULL) % 1000), s);
 }
 
-// Options that take several values (`--topics a b c`) are cut out before Args sees the rest.
-std::vector<std::string> take_list(std::vector<std::string>& argv, const std::string& opt) {
-  std::vector<std::string> out;
-  for (std::size_t i = 0; i < argv.size();) {
-    if (argv[i] != opt) {
-      ++i;
-      continue;
-    }
-    std::size_t j = i + 1;
-    while (j < argv.size() && argv[j].rfind("--", 0) != 0) {
-      std::string v = argv[j];
-      std::size_t start = 0;
-      while (start <= v.size()) {  // also "a,b"
-        const std::size_t comma = v.find(',', start);
-        const std::string part = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-        if (!part.empty()) out.push_back(part);
-        if (comma == std::string::npos) break;
-        start = comma + 1;
-      }
-      ++j;
-    }
-    if (j == i + 1) throw UsageError(opt + " needs at least one value");
-    argv.erase(argv.begin() + static_cast<std::ptrdiff_t>(i), argv.begin() + static_cast<std::ptrdiff_t>(j));
+CLI::Option* add_compression(CLI::App& cmd, std::string& value) {
+  return cmd.add_option("--compression", value, "chunk compression")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"none", "lz4", "zstd"}));
+}
+
+// Opens a bag, printing why not on stderr.
+bool open_bag(bag::Reader& r, const std::string& path) {
+  if (bag::Status s = r.open(path); !s.ok()) {
+    fmt::print(stderr, "{}\n", s.str());
+    return false;
   }
-  return out;
+  return true;
 }
 
 // ---------------------------------------------------------------------------- info
 
-int cmd_info(const std::vector<std::string>& argv) {
-  Args a(argv, {}, {"--verify", "--help", "-h"});
-  if (a.positional().size() != 1) throw UsageError("expected FILE (tinyline bag --help)");
-  const std::string path = a.positional()[0];
-  bag::Reader r;
-  if (bag::Status s = r.open(path); !s.ok()) {
-    fmt::print(stderr, "{}\n", s.str());
-    return 1;
-  }
-  bag::Status problem;
-  if (!r.has_summary()) problem = r.scan();
+// File, profile, times, counts, chunks and their compression.
+void print_overview(const bag::Reader& r, const std::string& path) {
   const auto& sum = r.summary();
   const auto& st = sum.statistics;
   std::error_code ec;
@@ -169,37 +100,57 @@ int cmd_info(const std::vector<std::string>& argv) {
                                       static_cast<double>(raw) / static_cast<double>(packed))
                         : std::string());
   fmt::print("attachments:  {}\nmetadata:     {}\n", st.attachment_count, st.metadata_count);
+}
+
+// One line per topic: type, count, rate, and whether tinyline knows the type.
+void print_topics(const bag::Reader& r) {
+  const auto& st = r.summary().statistics;
   const double dur = static_cast<double>(st.message_end_time - st.message_start_time) * 1e-9;
+  auto schema_of = [&](const bag::Channel& ch) {
+    auto sc = r.schemas().find(ch.schema_id);
+    return sc == r.schemas().end() ? nullptr : &sc->second;
+  };
   std::size_t w_topic = 5, w_type = 4;
   for (const auto& [id, ch] : r.channels()) {
     w_topic = std::max(w_topic, ch.topic.size());
-    auto sc = r.schemas().find(ch.schema_id);
-    if (sc != r.schemas().end()) w_type = std::max(w_type, sc->second.name.size());
+    if (const auto* sc = schema_of(ch)) w_type = std::max(w_type, sc->name.size());
   }
   fmt::print("topics:\n");
   for (const auto& [id, ch] : r.channels()) {
-    auto sc = r.schemas().find(ch.schema_id);
-    const std::string type = sc == r.schemas().end() ? "(no schema)" : sc->second.name;
+    const bag::Schema* sc = schema_of(ch);
     auto cnt = st.channel_message_counts.find(id);
     const std::uint64_t n = cnt == st.channel_message_counts.end() ? 0 : cnt->second;
-    const bool known = bag::ros2::type_support_for(sc == r.schemas().end() ? nullptr : &sc->second, ch) != nullptr;
-    fmt::print("  {:<{}}  {:<{}}  {:>8} msgs  {:>8.1f} Hz{}\n", ch.topic, w_topic, type, w_type, n,
-               dur > 0 && n > 1 ? static_cast<double>(n - 1) / dur : 0.0, known ? "" : "  (type unknown to tinyline)");
+    const bool known = bag::ros2::type_support_for(sc, ch) != nullptr;
+    fmt::print("  {:<{}}  {:<{}}  {:>8} msgs  {:>8.1f} Hz{}\n", ch.topic, w_topic, sc ? sc->name : "(no schema)",
+               w_type, n, dur > 0 && n > 1 ? static_cast<double>(n - 1) / dur : 0.0,
+               known ? "" : "  (type unknown to tinyline)");
   }
-  for (const auto& mi : sum.metadata_indexes) {
+}
+
+void print_metadata(bag::Reader& r) {
+  for (const auto& mi : r.summary().metadata_indexes) {
     bag::Metadata md;
-    if (r.read_metadata(mi, md).ok()) {
-      std::string kv;
-      for (const auto& [k, v] : md.metadata) kv += fmt::format("{}{}={}", kv.empty() ? "" : ", ", k, v.empty() ? "\"\"" : v);
-      fmt::print("metadata '{}': {}\n", md.name, kv);
-    }
+    if (!r.read_metadata(mi, md).ok()) continue;
+    std::string kv;
+    for (const auto& [k, v] : md.metadata) kv += fmt::format("{}{}={}", kv.empty() ? "" : ", ", k, v.empty() ? "\"\"" : v);
+    fmt::print("metadata '{}': {}\n", md.name, kv);
   }
+}
+
+int info(const std::string& path, bool verify) {
+  bag::Reader r;
+  if (!open_bag(r, path)) return 1;
+  bag::Status problem;
+  if (!r.has_summary()) problem = r.scan();
+  print_overview(r, path);
+  print_topics(r);
+  print_metadata(r);
   if (!problem.ok()) {
     fmt::print(stderr, "warning: the file is damaged or unfinished: {}\n(run `tinyline bag recover {} FIXED.mcap`)\n",
                problem.str(), path);
     return 1;
   }
-  if (a.flag("--verify")) {
+  if (verify) {
     if (bag::Status v = r.verify(); !v.ok()) {
       fmt::print(stderr, "verify: {}\n", v.str());
       return 1;
@@ -209,51 +160,66 @@ int cmd_info(const std::vector<std::string>& argv) {
   return 0;
 }
 
+CommandRun setup_info(CLI::App& cmd) {
+  auto path = std::make_shared<std::string>();
+  auto verify = std::make_shared<bool>(false);
+  cmd.add_option("file", *path, "the bag")->required();
+  cmd.add_flag("--verify", *verify, "also read every record and check every CRC and count");
+  cmd.footer("Topics, types, counts, duration and compression of a bag.");
+  return [path, verify] { return info(*path, *verify); };
+}
+
 // ---------------------------------------------------------------------------- echo
 
-int cmd_echo(const std::vector<std::string>& argv) {
-  Args a(argv, {"--limit"}, {"--full", "--help", "-h"});
-  if (a.positional().size() != 2) throw UsageError("expected FILE TOPIC (tinyline bag --help)");
-  const std::string path = a.positional()[0];
-  const std::string topic = a.positional()[1];
-  const auto limit = static_cast<std::uint64_t>(a.number("--limit", 0));
-  bag::Reader r;
-  if (bag::Status s = r.open(path); !s.ok()) {
-    fmt::print(stderr, "{}\n", s.str());
-    return 1;
+struct EchoArgs {
+  std::string path;
+  std::string topic;
+  std::int64_t limit = 0;
+  bool full = false;
+};
+
+// Prints one message as YAML; false when its type is unknown (stop).
+bool echo_one(const bag::MessageView& v, const EchoArgs& a, int& rc) {
+  std::string why;
+  const msg::TypeSupport* ts = bag::ros2::type_support_for(v.schema, *v.channel, &why);
+  if (ts == nullptr) {
+    fmt::print(stderr, "{}\n", why);
+    rc = 1;
+    return false;
   }
+  fmt::print("--- # {} at {} (seq {})\n", a.topic, human_time(v.message.log_time), v.message.sequence);
+  try {
+    auto m = ts->deserialize(v.message.data);
+    msg::YamlWriter y(a.full ? 0 : 32);
+    ts->to_yaml(m.get(), y);
+    fmt::print("{}", y.str());
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "message at {} does not decode: {}\n", v.message.log_time, e.what());
+    rc = 1;
+  }
+  return true;
+}
+
+int echo(const EchoArgs& a) {
+  bag::Reader r;
+  if (!open_bag(r, a.path)) return 1;
   if (!r.has_summary()) (void)r.scan();
+  std::string topics;
   bool found = false;
-  for (const auto& [id, ch] : r.channels()) found = found || ch.topic == topic;
+  for (const auto& [id, ch] : r.channels()) {
+    found = found || ch.topic == a.topic;
+    topics += (topics.empty() ? "" : ", ") + ch.topic;
+  }
   if (!found) {
-    std::string topics;
-    for (const auto& [id, ch] : r.channels()) topics += (topics.empty() ? "" : ", ") + ch.topic;
-    fmt::print(stderr, "{}: no topic {} (topics: {})\n", path, topic, topics.empty() ? "none" : topics);
+    fmt::print(stderr, "{}: no topic {} (topics: {})\n", a.path, a.topic, topics.empty() ? "none" : topics);
     return 1;
   }
   bag::ReadOptions ro;
-  ro.topics = {topic};
-  std::uint64_t n = 0;
+  ro.topics = {a.topic};
+  std::int64_t n = 0;
   int rc = 0;
   const bag::Status s = r.for_each(ro, [&](const bag::MessageView& v) {
-    std::string why;
-    const msg::TypeSupport* ts = bag::ros2::type_support_for(v.schema, *v.channel, &why);
-    if (ts == nullptr) {
-      fmt::print(stderr, "{}\n", why);
-      rc = 1;
-      return false;
-    }
-    fmt::print("--- # {} at {} (seq {})\n", topic, human_time(v.message.log_time), v.message.sequence);
-    try {
-      auto m = ts->deserialize(v.message.data);
-      msg::YamlWriter y(a.flag("--full") ? 0 : 32);
-      ts->to_yaml(m.get(), y);
-      fmt::print("{}", y.str());
-    } catch (const std::exception& e) {
-      fmt::print(stderr, "message at {} does not decode: {}\n", v.message.log_time, e.what());
-      rc = 1;
-    }
-    return limit == 0 || ++n < limit;
+    return echo_one(v, a, rc) && (a.limit == 0 || ++n < a.limit);
   });
   if (!s.ok()) {
     fmt::print(stderr, "{}\n", s.str());
@@ -262,47 +228,69 @@ int cmd_echo(const std::vector<std::string>& argv) {
   return rc;
 }
 
+CommandRun setup_echo(CLI::App& cmd) {
+  auto a = std::make_shared<EchoArgs>();
+  cmd.add_option("file", a->path, "the bag")->required();
+  cmd.add_option("topic", a->topic, "the topic to print")->required();
+  cmd.add_option("--limit", a->limit, "print at most N messages (0: all)")->check(cli::count());
+  cmd.add_flag("--full", a->full, "print long arrays whole (default: the first 32 elements)");
+  cmd.footer("Prints a topic's messages as YAML.");
+  return [a] { return echo(*a); };
+}
+
 // ---------------------------------------------------------------------------- recover
 
-int cmd_recover(const std::vector<std::string>& argv) {
-  Args a(argv, {"--compression"}, {"--help", "-h"});
-  if (a.positional().size() != 2) throw UsageError("expected IN OUT (tinyline bag --help)");
+struct RecoverArgs {
+  std::string in;
+  std::string out;
+  std::string compression = "lz4";
+};
+
+int recover(const RecoverArgs& a) {
   bag::RecoverOptions ro;
-  const auto comp = bag::parse_compression(a.value("--compression").value_or("lz4"));
-  if (!comp) throw UsageError("--compression takes none, lz4 or zstd");
-  ro.writer.compression = *comp;
+  ro.writer.compression = *bag::parse_compression(a.compression);
   bag::RecoverReport rep;
-  const bag::Status s = bag::recover(a.positional()[0], a.positional()[1], ro, rep);
+  const bag::Status s = bag::recover(a.in, a.out, ro, rep);
   for (const auto& p : rep.problems) fmt::print("skipped at byte {}: {}\n", p.offset, p.status.str());
   if (!s.ok()) {
     fmt::print(stderr, "{}\n", s.str());
     return 1;
   }
   fmt::print("recovered {} messages on {} channels ({} schemas, {} attachments, {} metadata) from {} chunks of {}",
-             rep.messages, rep.channels, rep.schemas, rep.attachments, rep.metadata, rep.chunks, a.positional()[0]);
+             rep.messages, rep.channels, rep.schemas, rep.attachments, rep.metadata, rep.chunks, a.in);
   fmt::print("; {} chunk(s) skipped; used {} of {} bytes{}\nwrote {}\n", rep.chunks_skipped, rep.bytes_used,
-             rep.input_bytes, rep.input_complete ? " (the input was already complete)" : "", a.positional()[1]);
+             rep.input_bytes, rep.input_complete ? " (the input was already complete)" : "", a.out);
   return 0;
+}
+
+CommandRun setup_recover(CLI::App& cmd) {
+  auto a = std::make_shared<RecoverArgs>();
+  cmd.add_option("in", a->in, "the damaged or unfinished bag")->required();
+  cmd.add_option("out", a->out, "the complete bag to write (an existing file is replaced only on success)")
+      ->required();
+  add_compression(cmd, a->compression);
+  cmd.footer("Rewrites what is readable in a damaged or unfinished bag as a complete one.");
+  return [a] { return recover(*a); };
 }
 
 // ---------------------------------------------------------------------------- play
 
-int cmd_play(const std::vector<std::string>& argv_in) {
-  std::vector<std::string> argv = argv_in;
-  const std::vector<std::string> topics = take_list(argv, "--topics");
-  Args a(argv, {"--rate", "--start", "--clock-hz", "--duration"}, {"--loop", "--clock", "--help", "-h"});
-  if (a.positional().size() != 1) throw UsageError("expected FILE (tinyline bag --help)");
-  bag::PlayerOptions po;
-  po.path = a.positional()[0];
-  po.rate = a.number("--rate", 1.0);
-  po.loop = a.flag("--loop");
-  po.topics = topics;
-  po.start_offset_s = a.number("--start", 0.0);
-  po.clock = a.flag("--clock");
-  po.clock_hz = a.number("--clock-hz", 100.0);
-  if (po.rate < 0) throw UsageError("--rate must be >= 0");
-  const double duration = a.number("--duration", 0);
-  if (duration < 0) throw UsageError("--duration must be >= 0");
+struct PlayArgs {
+  bag::PlayerOptions player;
+  std::optional<double> duration_s;
+};
+
+std::string play_progress(const bag::PlayerStats& st) {
+  const double total = static_cast<double>(st.bag_end - st.bag_start) * 1e-9;
+  const double at = st.position >= st.bag_start ? static_cast<double>(st.position - st.bag_start) * 1e-9 : 0.0;
+  return fmt::format("playing {:.1f} / {:.1f} s ({:.0f}%), {} messages{}{}", at, total,
+                     total > 0 ? 100.0 * at / total : 100.0, st.published,
+                     st.loops > 0 ? fmt::format(", loop {}", st.loops + 1) : std::string(),
+                     st.failed > 0 ? fmt::format(", {} failed", st.failed) : std::string());
+}
+
+int play(const PlayArgs& a) {
+  const bag::PlayerOptions& po = a.player;
   auto ctx = bus::Context::create(bus::ContextOptions{po.clock ? bus::ClockType::Sim : bus::ClockType::Wall, nullptr});
   bus::NodeOptions no;
   no.name = "player";
@@ -315,26 +303,15 @@ int cmd_play(const std::vector<std::string>& argv_in) {
     fmt::print(stderr, "{}\n", e.what());
     return 1;
   }
-  bus::MultiThreadedExecutor ex(ctx->clock(), 2);
-  ex.add_node(player);
-  std::thread spinner([&] { ex.spin(); });
-  SignalScope sig;
-  const auto started = std::chrono::steady_clock::now();
-  while (g_signal.load() == 0 && !player->wait_finished(std::chrono::milliseconds(200))) {
-    if (duration > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count() >= duration) {
-      break;
-    }
-    const auto st = player->stats();
-    const double total = static_cast<double>(st.bag_end - st.bag_start) * 1e-9;
-    const double at = st.position >= st.bag_start ? static_cast<double>(st.position - st.bag_start) * 1e-9 : 0.0;
-    progress(fmt::format("playing {:.1f} / {:.1f} s ({:.0f}%), {} messages{}{}", at, total,
-                         total > 0 ? 100.0 * at / total : 100.0, st.published,
-                         st.loops > 0 ? fmt::format(", loop {}", st.loops + 1) : std::string(),
-                         st.failed > 0 ? fmt::format(", {} failed", st.failed) : std::string()));
-  }
-  player->stop();
-  ex.stop();
-  spinner.join();
+  RunOptions ro;
+  ro.duration_s = a.duration_s;
+  ro.table = false;
+  ro.summary = false;
+  ro.tick = [&](std::chrono::milliseconds budget) {
+    progress(play_progress(player->stats()));
+    return !player->wait_finished(budget);
+  };
+  int rc = run_nodes(ctx, {player}, ro);
   progress_done();
   const auto st = player->stats();
   fmt::print("published {} messages from {}{}{}\n", st.published, po.path,
@@ -342,46 +319,86 @@ int cmd_play(const std::vector<std::string>& argv_in) {
              st.failed > 0 ? fmt::format("; {} failed", st.failed) : std::string());
   if (!st.status.ok()) {
     fmt::print(stderr, "{}\n", st.status.str());
-    return 1;
+    rc = 1;
   }
-  return st.failed > 0 ? 1 : 0;
+  return st.failed > 0 ? 1 : rc;
+}
+
+CommandRun setup_play(CLI::App& cmd) {
+  auto a = std::make_shared<PlayArgs>();
+  bag::PlayerOptions& p = a->player;
+  cmd.add_option("file", p.path, "the bag")->required();
+  cmd.add_option("--rate", p.rate, "playback speed, x real time (0: as fast as possible)")
+      ->capture_default_str()
+      ->check(cli::non_negative());
+  cmd.add_flag("--loop", p.loop, "start over at the end");
+  cmd.add_option("--topics", p.topics, "play only these topics (T T ... or T,T)")->delimiter(',')->expected(1, 10000);
+  cmd.add_option("--start", p.start_offset_s, "skip the first S seconds of the bag")
+      ->type_name("S")
+      ->check(cli::non_negative());
+  cmd.add_flag("--clock", p.clock, "publish /clock (rosgraph_msgs/Clock) and drive sim time");
+  cmd.add_option("--clock-hz", p.clock_hz, "/clock rate between messages")
+      ->capture_default_str()
+      ->check(cli::finite_above(0.1, true, 10000.0));
+  cmd.add_option("--duration", a->duration_s,
+                 "stop after S seconds of playing (default: the bag's end, or Ctrl-C with --loop)")
+      ->type_name("S")
+      ->check(cli::seconds());
+  cmd.footer("Publishes a bag's messages on their topics.");
+  return [a] { return play(*a); };
 }
 
 // ---------------------------------------------------------------------------- record
 
-int cmd_record(const std::vector<std::string>& argv) {
-  Args a(argv, {"-o", "--launch", "--exclude", "--compression", "--chunk-size", "--duration"}, {"--help", "-h"});
+struct RecordArgs {
+  std::string path;
+  std::vector<std::string> positionals;  // topics and name:=value for --launch
+  std::string launch_file;
+  std::vector<std::string> exclude;
+  std::string compression = "lz4";
+  std::uint64_t chunk_kib = 1024;
+  std::optional<double> duration_s;
+};
+
+// The recorder and, with --launch, the nodes of the launch file; nothing runs yet.
+std::vector<std::shared_ptr<bus::Node>> record_nodes(const RecordArgs& a, const std::shared_ptr<bus::Context>& ctx,
+                                                     std::shared_ptr<bag::Recorder>& recorder) {
   bag::RecorderOptions ro;
-  ro.path = a.value("-o").value_or("");
-  ro.exclude = a.values("--exclude");
-  const auto comp = bag::parse_compression(a.value("--compression").value_or("lz4"));
-  if (!comp) throw UsageError("--compression takes none, lz4 or zstd");
-  ro.writer.writer.compression = *comp;
-  ro.writer.writer.chunk_size_bytes = static_cast<std::uint64_t>(a.number("--chunk-size", 1024)) * 1024;
+  ro.path = a.path;
+  ro.exclude = a.exclude;
+  ro.writer.writer.compression = *bag::parse_compression(a.compression);
+  ro.writer.writer.chunk_size_bytes = a.chunk_kib * 1024;
   launch::LoadOptions lo;
   lo.share_dir = share_dir();
-  for (const auto& p : a.positional()) {
+  for (const auto& p : a.positionals) {
     if (p.find(":=") != std::string::npos) {
-      lo.args.insert(split_assignment(p));
+      lo.args.insert(cli::split_assignment(p));
     } else {
       ro.topics.push_back(p);
     }
   }
-  auto ctx = bus::Context::create();
+  if (a.launch_file.empty() && !lo.args.empty()) throw UsageError("name:=value arguments need --launch FILE");
   bus::NodeOptions no;
   no.name = "recorder";
   no.context = ctx;
-  std::vector<std::shared_ptr<bus::Node>> nodes;
+  recorder = std::make_shared<bag::Recorder>(no, ro);
+  std::vector<std::shared_ptr<bus::Node>> nodes{recorder};
+  if (!a.launch_file.empty()) {
+    const auto plan = launch::load_launch_file(a.launch_file, lo);
+    auto launched = launch::instantiate(plan, node_registry(), ctx);
+    launch::configure(plan, launched);
+    nodes.insert(nodes.end(), launched.begin(), launched.end());
+    launch::check_files(nodes);  // the recorder's file against the launch file's nodes too
+  }
+  return nodes;
+}
+
+int record(const RecordArgs& a) {
+  auto ctx = bus::Context::create();
   std::shared_ptr<bag::Recorder> recorder;
+  std::vector<std::shared_ptr<bus::Node>> nodes;
   try {
-    recorder = std::make_shared<bag::Recorder>(no, ro);
-    nodes.push_back(recorder);
-    if (auto file = a.value("--launch")) {
-      const auto plan = launch::load_launch_file(*file, lo);
-      for (auto& n : launch::instantiate(plan, node_registry(), ctx)) nodes.push_back(std::move(n));
-    } else if (!lo.args.empty()) {
-      throw UsageError("name:=value arguments need --launch FILE");
-    }
+    nodes = record_nodes(a, ctx, recorder);
     recorder->start();  // creates the file: errors before anything runs
   } catch (const UsageError&) {
     throw;
@@ -394,61 +411,61 @@ int cmd_record(const std::vector<std::string>& argv) {
                "note: no nodes run in this process, so only topics a transport brings in are recorded; use --launch "
                "FILE, or add a bag/recorder node to your launch file\n");
   }
-  bus::MultiThreadedExecutor ex(ctx->clock(), 2);
-  for (const auto& n : nodes) ex.add_node(n);
-  std::thread spinner([&] { ex.spin(); });
-  SignalScope sig;
-  const auto start = std::chrono::steady_clock::now();
-  const double duration = a.number("--duration", 0);
-  while (g_signal.load() == 0) {
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (duration > 0 && elapsed >= duration) break;
+  RunOptions ro;
+  ro.duration_s = a.duration_s;
+  ro.table = false;
+  ro.summary = false;
+  ro.progress = [&](double elapsed) {
     const auto st = recorder->stats();
     progress(fmt::format("recording {:.1f} s: {} topics, {} messages, {}{}", elapsed, st.topics, st.written,
                          human_bytes(st.file_bytes),
                          st.dropped > 0 ? fmt::format(", {} DROPPED", st.dropped) : std::string()));
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // a CLI waiting for Ctrl-C, not a test
-  }
-  ex.stop();
-  spinner.join();
+  };
+  const int rc = run_nodes(ctx, nodes, ro);  // stops the recorder last: it drains and finishes the file
   progress_done();
-  for (auto it = nodes.rbegin(); it != nodes.rend(); ++it) (*it)->on_stop();  // the recorder last: it drains
-  const bag::Status s = recorder->stop();
   const auto st = recorder->stats();
   fmt::print("recorded {} messages on {} topics to {} ({}){}\n", st.written, st.topics, recorder->path(),
              human_bytes(st.file_bytes),
              st.dropped > 0 ? fmt::format("; {} messages DROPPED (see the bag's tinyline_recorder metadata)", st.dropped)
                             : std::string());
-  if (!s.ok()) {
-    fmt::print(stderr, "{}\n", s.str());
-    return 1;
-  }
-  return st.dropped > 0 ? 1 : 0;
+  return rc != 0 || st.dropped > 0 ? 1 : 0;
 }
 
-// ---------------------------------------------------------------------------- dispatch
-
-int cmd_bag(const std::vector<std::string>& argv) {
-  if (argv.empty() || argv[0] == "--help" || argv[0] == "-h" || argv[0] == "help") {
-    fmt::print("{}", kHelp);
-    return argv.empty() ? 2 : 0;
-  }
-  const std::vector<std::string> rest(argv.begin() + 1, argv.end());
-  for (const auto& r : rest) {
-    if (r == "--help" || r == "-h") {
-      fmt::print("{}", kHelp);
-      return 0;
-    }
-  }
-  if (argv[0] == "info") return cmd_info(rest);
-  if (argv[0] == "echo") return cmd_echo(rest);
-  if (argv[0] == "recover") return cmd_recover(rest);
-  if (argv[0] == "play") return cmd_play(rest);
-  if (argv[0] == "record") return cmd_record(rest);
-  throw UsageError("unknown bag command '" + argv[0] + "' (record, play, info, echo, recover)");
+CommandRun setup_record(CLI::App& cmd) {
+  auto a = std::make_shared<RecordArgs>();
+  cmd.add_option("topics", a->positionals,
+                 "topics to record (all by default; relative names resolve against /); with --launch, name:=value "
+                 "arguments of the launch file");
+  cmd.add_option("-o", a->path, "output file (default tinyline_<date>_<time>.mcap)")->type_name("FILE");
+  cmd.add_option("--launch", a->launch_file, "run this launch file in the same process and record its topics")
+      ->type_name("FILE");
+  cmd.add_option("--exclude", a->exclude, "do not record TOPIC (repeatable)")->type_name("TOPIC")->allow_extra_args(false);
+  add_compression(cmd, a->compression);
+  cmd.add_option("--chunk-size", a->chunk_kib, "uncompressed chunk size [KiB]")
+      ->capture_default_str()
+      ->check(cli::whole(1, 1 << 20));
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")
+      ->type_name("S")
+      ->check(cli::seconds());
+  cmd.footer(
+      "`bag record` records the topics of its own process: those of --launch, and those a transport bridges in.\n"
+      "To record inside a running launch file, add a node {pkg: bag, exec: recorder} to it (parameters:\n"
+      "tinyline describe bag/recorder). The file is written as FILE.part and renamed to FILE when it is finished.");
+  return [a] { return record(*a); };
 }
 
-const CommandRegistration kBag{"bag", "record, play, inspect and recover MCAP bags", &cmd_bag};
+// ---------------------------------------------------------------------------- the group
+
+CommandRun setup_bag(CLI::App& cmd) {
+  return cli::nested(
+      cmd, {{"record", "record topics (all by default) to an MCAP bag", &setup_record},
+            {"play", "publish a bag's messages on their topics", &setup_play},
+            {"info", "topics, types, counts, duration, compression", &setup_info},
+            {"echo", "print a topic's messages as YAML", &setup_echo},
+            {"recover", "rewrite a damaged or unfinished bag as a complete one", &setup_recover}});
+}
+
+const CommandRegistration kBag{"bag", "record, play, inspect and recover MCAP bags", &setup_bag};
 
 }  // namespace
 }  // namespace tinyline::tools

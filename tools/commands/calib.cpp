@@ -1,19 +1,21 @@
-// tinyline calib fit|diagnose|eval|collect: the calibration tool (issue 6). The logic
-// lives in tiny_laser_driver's calibration_tool library; this file finds the
-// plot script and its Python and hands over.
+// tinyline calib fit|diagnose|eval|collect: the calibration tool. The logic
+// lives in tiny_laser_calibration's tool library; this file finds the plot
+// script and its Python and hands over.
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
 
-#include <tiny_laser_driver/calibration_tool.hpp>
+#include <tiny_laser_calibration/tool.hpp>
 #include <tinyline/tools/command.hpp>
+
+#include "../src/cli.hpp"
 
 namespace tinyline::tools {
 namespace {
 
-int cmd_calib(const std::vector<std::string>& args) {
+int calib(const std::vector<std::string>& args) {
   namespace fs = std::filesystem;
-  tiny_laser_driver::CalibToolEnv env;
+  tiny_laser_calibration::CalibToolEnv env;
   const fs::path share = share_dir();
   env.plot_script = (share / "scripts" / "plots" / "calib_report.py").string();
   // The test virtual env has matplotlib; TINYLINE_PYTHON overrides, python3 is the last resort.
@@ -24,10 +26,19 @@ int cmd_calib(const std::vector<std::string>& args) {
   } else {
     env.python = "python3";
   }
-  return tiny_laser_driver::run_calib_command(args, std::cout, std::cerr, env);
+  return tiny_laser_calibration::run_calib_command(args, std::cout, std::cerr, env);
 }
 
-const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &cmd_calib};
+// The calibration tool parses its own arguments (tiny_laser_calibration's
+// tool library): everything after `calib`, --help included, goes to it.
+CommandRun setup_calib(CLI::App& cmd) {
+  cmd.set_help_flag();
+  cmd.prefix_command();
+  cmd.allow_extras();
+  return [&cmd] { return calib(cmd.remaining()); };
+}
+
+const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &setup_calib};
 
 }  // namespace
 }  // namespace tinyline::tools

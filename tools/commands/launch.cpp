@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <memory>
 
 #include <fmt/format.h>
 
@@ -15,7 +16,7 @@
 #include <tinyline/launch/launch.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/args.hpp"
+#include "../src/cli.hpp"
 #include "../src/graph_runner.hpp"
 #include "../src/process_plan.hpp"
 #include "../src/supervisor.hpp"
@@ -23,36 +24,20 @@
 namespace tinyline::tools {
 namespace {
 
-constexpr const char* kHelp = R"(usage: tinyline launch FILE [name:=value ...] [options]
-
-Runs the nodes of a launch file (ROS 2 YAML launch shape) and shows a live
-table of topics with rates and drops. Stops on Ctrl-C or after --duration.
-Nothing starts unless the whole file is valid: errors name the file, line and
-reason.
-
-Nodes in a process group (group: {process: NAME, ...} or node: {process: NAME})
-run in their own process, started and supervised here: their output comes
-back prefixed with [NAME], a crashed one is restarted if a node in it says
-respawn: true, Ctrl-C stops them all. Topics used by several processes, and
-those the file marks with dds, travel over DDS (Cyclone DDS, ROS 2 naming;
-loopback only unless CYCLONEDDS_URI says otherwise, see docs/dds.md).
-
-options:
-  --duration S        stop after S seconds
-  --threads N         executor threads per process (default 2)
-  --no-table          no live table
-  --check             validate the file and build its nodes, then exit
-  --process NAME      run only this process group (what the supervisor starts;
-                      also how to start one group on another machine)
-  --dds-wait S        longest wait for DDS peers before nodes start (default 10)
-  --rejoin            with --process: a restart into a running graph; wait only
-                      for the peers still alive (discovery settles), not for all
-  --start-gate        with --process: once the peers are matched, print a ready
-                      line and start the nodes when stdin gets a line (the
-                      supervisor does this so all processes start together)
-  --respawn-delay S   wait before restarting a crashed process (default 1)
-  --grace S           after Ctrl-C, wait this long before killing (default 5)
-)";
+struct LaunchArgs {
+  std::string file;
+  std::vector<std::string> assignments;  // name:=value
+  std::optional<double> duration_s;
+  int threads = 2;
+  bool no_table = false;
+  bool check = false;
+  std::optional<std::string> process;
+  double dds_wait_s = 10.0;
+  bool rejoin = false;
+  bool start_gate = false;
+  double respawn_delay_s = 1.0;
+  double grace_s = 5.0;
+};
 
 std::string self_exe() {
   std::error_code ec;
@@ -84,6 +69,32 @@ void wait_at_start_gate(std::chrono::milliseconds limit, const bus::Logger& log)
   }
 }
 
+/// How many of the planned remote peers the bridge sees now.
+struct PeerCount {
+  bool all = true;        ///< every planned peer is matched
+  bool some = true;       ///< each expected kind of peer is matched at least once
+  std::string counts;     ///< a fingerprint, to see when it stops changing
+  std::string short_of;   ///< what is missing, for the log
+};
+
+PeerCount count_peers(const dds::Bridge& bridge, const std::vector<dds::PeerExpectation>& expect) {
+  const auto stats = bridge.stats();
+  PeerCount c;
+  for (const auto& e : expect) {
+    std::size_t r = 0, w = 0;
+    for (const auto& s : stats)
+      if (s.topic == e.topic) r = s.remote_readers, w = s.remote_writers;
+    c.all = c.all && r >= e.readers && w >= e.writers;
+    c.some = c.some && (e.readers == 0 || r > 0) && (e.writers == 0 || w > 0);
+    c.counts += fmt::format("{}:{}/{};", e.topic, r, w);
+    if (r < e.readers || w < e.writers) {
+      c.short_of += fmt::format("{}{}: {} of {} remote subscriber(s), {} of {} remote publisher(s)",
+                                c.short_of.empty() ? "" : "; ", e.topic, r, e.readers, w, e.writers);
+    }
+  }
+  return c;
+}
+
 /// A restart into a running graph: peers that died stay gone, so waiting
 /// for every planned one would stall until `limit`. Waits until everything
 /// planned is matched, or the counts stayed the same for half a second with
@@ -97,30 +108,16 @@ void wait_for_live_peers(const dds::Bridge& bridge, const std::vector<dds::PeerE
   std::string last;
   auto last_change = SC::now();
   for (;;) {
-    const auto stats = bridge.stats();
-    bool all = true, some = true;
-    std::string counts, short_of;
-    for (const auto& e : expect) {
-      std::size_t r = 0, w = 0;
-      for (const auto& s : stats)
-        if (s.topic == e.topic) r = s.remote_readers, w = s.remote_writers;
-      all = all && r >= e.readers && w >= e.writers;
-      some = some && (e.readers == 0 || r > 0) && (e.writers == 0 || w > 0);
-      counts += fmt::format("{}:{}/{};", e.topic, r, w);
-      if (r < e.readers || w < e.writers) {
-        short_of += fmt::format("{}{}: {} of {} remote subscriber(s), {} of {} remote publisher(s)",
-                                short_of.empty() ? "" : "; ", e.topic, r, e.readers, w, e.writers);
-      }
-    }
-    if (all) return;
-    if (counts != last) {
-      last = counts;
+    const PeerCount c = count_peers(bridge, expect);
+    if (c.all) return;
+    if (c.counts != last) {
+      last = c.counts;
       last_change = SC::now();
     }
     const auto stable = SC::now() - last_change;
-    if ((some && stable >= std::chrono::milliseconds(500)) || stable >= std::chrono::seconds(2) ||
+    if ((c.some && stable >= std::chrono::milliseconds(500)) || stable >= std::chrono::seconds(2) ||
         SC::now() >= deadline || interrupted()) {
-      log.info("rejoined the running graph with the peers still there ({})", short_of);
+      log.info("rejoined the running graph with the peers still there ({})", c.short_of);
       return;
     }
     ::poll(nullptr, 0, 20);  // discovery has no event to wait on here: a bounded poll of the counts
@@ -138,150 +135,195 @@ std::string dds_table(const std::vector<dds::LinkStats>& links) {
   return s;
 }
 
-int cmd_launch(const std::vector<std::string>& argv) {
-  Args a(argv, {"--duration", "--threads", "--process", "--dds-wait", "--respawn-delay", "--grace"},
-         {"--no-table", "--check", "--help", "-h", "--start-gate", "--rejoin"});
-  if (a.flag("--help") || a.flag("-h")) {
-    fmt::print("{}", kHelp);
-    return 0;
-  }
-  if (a.positional().empty()) throw UsageError("which launch file? (tinyline launch --help)");
-  const std::string file = a.positional()[0];
-  launch::LoadOptions lo;
-  lo.share_dir = share_dir();
-  for (std::size_t i = 1; i < a.positional().size(); ++i) lo.args.insert(split_assignment(a.positional()[i]));
-  const std::optional<std::string> only = a.value("--process");
-
-  auto ctx = bus::Context::create();
-  std::vector<std::shared_ptr<bus::Node>> nodes;
+/// The file read, checked and split into processes; the nodes of this one built.
+struct Loaded {
   launch::LaunchPlan plan;
   GraphPlan graph;
-  try {
-    plan = launch::load_launch_file(file, lo);
-    graph = plan_processes(plan, node_registry());  // builds every node once: the whole file is valid
-    if (only && graph.find(*only) == nullptr) {
-      std::string known;
-      for (const auto& p : graph.processes)
-        if (!p.name.empty()) known += (known.empty() ? "" : ", ") + p.name;
-      throw UsageError(fmt::format("{} has no process group '{}' (groups: {})", file, *only,
-                                   known.empty() ? "none" : known));
+  std::vector<std::shared_ptr<bus::Node>> nodes;
+};
+
+Loaded load(const LaunchArgs& a, const std::shared_ptr<bus::Context>& ctx) {
+  launch::LoadOptions lo;
+  lo.share_dir = share_dir();
+  lo.args = cli::assignments(a.assignments);
+  Loaded l;
+  l.plan = launch::load_launch_file(a.file, lo);
+  l.graph = plan_processes(l.plan, node_registry());  // builds and configures every node once: the whole file is valid
+  if (a.process && l.graph.find(*a.process) == nullptr) {
+    std::string known;
+    for (const auto& p : l.graph.processes)
+      if (!p.name.empty()) known += (known.empty() ? "" : ", ") + p.name;
+    throw UsageError(
+        fmt::format("{} has no process group '{}' (groups: {})", a.file, *a.process, known.empty() ? "none" : known));
+  }
+  l.nodes = launch::instantiate(l.plan, node_registry(), ctx, a.process.value_or(""));
+  return l;
+}
+
+int print_check(const LaunchArgs& a, const Loaded& l) {
+  fmt::print("{}: {} node(s), valid\n", a.file, l.plan.nodes.size());
+  for (const auto& p : l.graph.processes) {
+    if (p.name.empty() && p.nodes.empty()) continue;
+    fmt::print("  process {}: {} node(s){}\n", p.name.empty() ? "(launching)" : "'" + p.name + "'", p.nodes.size(),
+               p.uses_dds() ? fmt::format(", on DDS: {}", p.dds.all ? std::string("all topics")
+                                                                    : fmt::format("{}", fmt::join(p.dds.topics, " ")))
+                            : "");
+  }
+  for (const auto& w : l.graph.warnings) fmt::print("  warning: {}\n", w);
+  return 0;
+}
+
+/// The DDS bridge of this process, if it has anything to share (nullptr otherwise).
+std::shared_ptr<dds::Bridge> make_bridge(const LaunchArgs& a, const Loaded& l, const ProcessPlan& mine,
+                                         const std::shared_ptr<bus::Context>& ctx) {
+  if (!mine.uses_dds()) return nullptr;
+  dds::BridgeOptions bo;
+  const std::string stem = std::filesystem::path(a.file).stem().stem().string();
+  bo.settings = dds_settings(l.plan, a.process ? *a.process : stem);
+  bo.selection = mine.dds;
+  return dds::Bridge::create(ctx, bo);
+}
+
+/// One child per process group, unless this is one of them.
+std::unique_ptr<Supervisor> start_children(const LaunchArgs& a, const GraphPlan& graph) {
+  SupervisorOptions so;
+  so.respawn_delay_s = a.respawn_delay_s;
+  so.grace_s = a.grace_s;
+  auto supervisor = std::make_unique<Supervisor>(so);
+  if (a.process) return supervisor;
+  for (const auto& p : graph.processes) {
+    if (p.name.empty()) continue;
+    ChildSpec c;
+    c.name = p.name;
+    c.nodes = p.nodes;
+    c.respawn = p.respawn;
+    c.gated = true;
+    c.restart_args = {"--rejoin"};
+    c.argv = {self_exe(), "launch", a.file};
+    c.argv.insert(c.argv.end(), a.assignments.begin(), a.assignments.end());
+    c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--start-gate", "--threads",
+                                 std::to_string(a.threads), "--dds-wait", fmt::format("{}", a.dds_wait_s)});
+    supervisor->start(std::move(c));
+  }
+  return supervisor;
+}
+
+/// Before the nodes start: the bridge meets its peers, and every process
+/// waits at a gate the supervisor opens once all of them are ready.
+void wait_before_start(const LaunchArgs& a, const Loaded& l, const ProcessPlan& mine, dds::Bridge* bridge,
+                       Supervisor& supervisor, const bus::Context& ctx) {
+  const auto wait = std::chrono::milliseconds(static_cast<long>(a.dds_wait_s * 1000));
+  if (bridge) {
+    bridge->start();
+    if (!mine.expect.empty() && a.rejoin) {
+      wait_for_live_peers(*bridge, mine.expect, wait, bridge->logger());
+    } else if (!mine.expect.empty()) {
+      const auto r = bridge->wait_for_peers(mine.expect, wait);
+      if (!r.ok) {
+        bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait.count() / 1000.0, r.missing);
+      }
     }
-    nodes = launch::instantiate(plan, node_registry(), ctx, only.value_or(""));
+  }
+  // Matched peers are not running peers: a process that matched early
+  // would start its sources while another still waits for its own peers,
+  // with nothing yet taking its messages off the queues.
+  const auto gate_limit = 2 * wait + std::chrono::seconds(20);  // a child's start-up and its own wait
+  if (a.process && a.start_gate) wait_at_start_gate(gate_limit + std::chrono::seconds(10), ctx.logger("/launch"));
+  if (a.process || !l.graph.has_groups()) return;
+  const auto deadline = std::chrono::steady_clock::now() + gate_limit;
+  while (!supervisor.all_ready() && !interrupted() && std::chrono::steady_clock::now() < deadline) {
+    supervisor.poll(std::chrono::milliseconds(20));
+  }
+  if (const auto late = supervisor.not_ready(); !late.empty() && !interrupted()) {
+    fmt::print(stderr, "[launch] starting although process(es) {} did not get ready within {:.1f} s\n",
+               fmt::join(late, ", "), gate_limit.count() / 1000.0);
+  }
+  supervisor.open_gates();
+}
+
+int run_launch(const LaunchArgs& a) {
+  auto ctx = bus::Context::create();
+  Loaded l;
+  try {
+    l = load(a, ctx);
   } catch (const launch::LaunchError& e) {
     fmt::print(stderr, "{}\n", e.what());
     return 1;
   }
-  const std::string me = only.value_or("");
-  const ProcessPlan& mine = *graph.find(me);
-  if (a.flag("--check")) {
-    fmt::print("{}: {} node(s), valid\n", file, plan.nodes.size());
-    for (const auto& p : graph.processes) {
-      if (p.name.empty() && p.nodes.empty()) continue;
-      fmt::print("  process {}: {} node(s){}\n", p.name.empty() ? "(launching)" : "'" + p.name + "'", p.nodes.size(),
-                 p.uses_dds() ? fmt::format(", on DDS: {}", p.dds.all ? std::string("all topics")
-                                                                      : fmt::format("{}", fmt::join(p.dds.topics, " ")))
-                              : "");
-    }
-    for (const auto& w : graph.warnings) fmt::print("  warning: {}\n", w);
-    return 0;
+  if (a.check) return print_check(a, l);
+  if (!a.process) {
+    for (const auto& w : l.graph.warnings) fmt::print(stderr, "[launch] warning: {}\n", w);
   }
-  if (!only) {
-    for (const auto& w : graph.warnings) fmt::print(stderr, "[launch] warning: {}\n", w);
-  }
-
-  // The DDS bridge of this process, if it has anything to share.
+  const ProcessPlan& mine = *l.graph.find(a.process.value_or(""));
   std::shared_ptr<dds::Bridge> bridge;
-  if (mine.uses_dds()) {
-    dds::BridgeOptions bo;
-    const std::string stem = std::filesystem::path(file).stem().stem().string();
-    bo.settings = dds_settings(plan, me.empty() ? stem : me);
-    bo.selection = mine.dds;
-    try {
-      bridge = dds::Bridge::create(ctx, bo);
-    } catch (const dds::DdsError& e) {
-      fmt::print(stderr, "{}: DDS: {}\n", file, e.what());
-      return 1;
-    }
-    nodes.push_back(bridge);
+  try {
+    bridge = make_bridge(a, l, mine, ctx);
+  } catch (const dds::DdsError& e) {
+    fmt::print(stderr, "{}: DDS: {}\n", a.file, e.what());
+    return 1;
   }
-
-  // The children: one per process group, unless this is one of them.
-  SupervisorOptions so;
-  so.respawn_delay_s = a.number("--respawn-delay", 1.0);
-  so.grace_s = a.number("--grace", 5.0);
-  auto supervisor = std::make_unique<Supervisor>(so);
-  if (!only) {
-    for (const auto& p : graph.processes) {
-      if (p.name.empty()) continue;
-      ChildSpec c;
-      c.name = p.name;
-      c.nodes = p.nodes;
-      c.respawn = p.respawn;
-      c.gated = true;
-      c.restart_args = {"--rejoin"};
-      c.argv = {self_exe(), "launch", file};
-      for (std::size_t i = 1; i < a.positional().size(); ++i) c.argv.push_back(a.positional()[i]);
-      c.argv.insert(c.argv.end(), {"--process", p.name, "--no-table", "--start-gate", "--threads",
-                                   std::to_string(static_cast<int>(a.number("--threads", 2))), "--dds-wait",
-                                   fmt::format("{}", a.number("--dds-wait", 10.0))});
-      supervisor->start(std::move(c));
-    }
-  }
+  if (bridge) l.nodes.push_back(bridge);
+  auto supervisor = start_children(a, l.graph);
 
   RunOptions ro;
-  if (a.value("--duration")) ro.duration_s = a.number("--duration", 0);
-  ro.threads = static_cast<int>(a.number("--threads", 2));
-  ro.table = !a.flag("--no-table");
-  const auto wait_ms = std::chrono::milliseconds(static_cast<long>(a.number("--dds-wait", 10.0) * 1000));
-  const bool gated = only && a.flag("--start-gate");
-  ro.before_spin = [&] {
-    if (bridge) {
-      bridge->start();
-      if (!mine.expect.empty() && a.flag("--rejoin")) {
-        wait_for_live_peers(*bridge, mine.expect, wait_ms, bridge->logger());
-      } else if (!mine.expect.empty()) {
-        const auto r = bridge->wait_for_peers(mine.expect, wait_ms);
-        if (!r.ok) {
-          bridge->logger().warn("starting without every DDS peer after {:.1f} s: {}", wait_ms.count() / 1000.0,
-                                r.missing);
-        }
-      }
-    }
-    // Matched peers are not running peers: a process that matched early
-    // would start its sources while another still waits for its own peers,
-    // with nothing yet taking its messages off the queues. So every process
-    // waits at a gate the supervisor opens once all of them are ready.
-    const auto gate_limit = 2 * wait_ms + std::chrono::seconds(20);  // a child's start-up and its own wait
-    if (gated) wait_at_start_gate(gate_limit + std::chrono::seconds(10), ctx->logger("/launch"));
-    if (!only && graph.has_groups()) {
-      const auto deadline = std::chrono::steady_clock::now() + gate_limit;
-      while (!supervisor->all_ready() && !interrupted() && std::chrono::steady_clock::now() < deadline) {
-        supervisor->poll(std::chrono::milliseconds(20));
-      }
-      if (const auto late = supervisor->not_ready(); !late.empty() && !interrupted()) {
-        fmt::print(stderr, "[launch] starting although process(es) {} did not get ready within {:.1f} s\n",
-                   fmt::join(late, ", "), gate_limit.count() / 1000.0);
-      }
-      supervisor->open_gates();
-    }
-  };
+  ro.duration_s = a.duration_s;
+  ro.threads = a.threads;
+  ro.table = !a.no_table;
+  ro.before_spin = [&] { wait_before_start(a, l, mine, bridge.get(), *supervisor, *ctx); };
   ro.before_stop = [&] {
     if (bridge) bridge->expect_departures();  // the other processes are stopping too
     supervisor->stop_all();
   };
-  if (!only && graph.has_groups()) {
+  if (!a.process && l.graph.has_groups()) {
     ro.tick = [&](std::chrono::milliseconds budget) {
       supervisor->poll(budget);
       return true;
     };
   }
-  const int rc = run_nodes(ctx, nodes, ro);
+  const int rc = run_nodes(ctx, l.nodes, ro);
   if (bridge) fmt::print("{}", dds_table(bridge->stats()));
   supervisor.reset();
   return rc;
 }
 
-const CommandRegistration kLaunch{"launch", "run the nodes of a launch file", &cmd_launch};
+CommandRun setup_launch(CLI::App& cmd) {
+  auto a = std::make_shared<LaunchArgs>();
+  cmd.add_option("file", a->file, "the launch file")->required();
+  cmd.add_option("args", a->assignments, "launch arguments, name:=value")->type_name("NAME:=VALUE");
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(cli::seconds());
+  cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(cli::threads());
+  cmd.add_flag("--no-table", a->no_table, "no live table");
+  cmd.add_flag("--check", a->check, "validate the file, build its nodes and load their inputs, then exit");
+  cmd.add_option("--process", a->process,
+                 "run only this process group (what the supervisor starts; also how to start one group on another "
+                 "machine)");
+  cmd.add_option("--dds-wait", a->dds_wait_s, "longest wait for DDS peers before nodes start [s]")
+      ->capture_default_str()
+      ->check(cli::non_negative());
+  cmd.add_flag("--rejoin", a->rejoin,
+               "with --process: a restart into a running graph; wait only for the peers still alive");
+  cmd.add_flag("--start-gate", a->start_gate,
+               "with --process: once the peers are matched, print a ready line and start the nodes when stdin gets "
+               "a line (the supervisor does this so all processes start together)");
+  cmd.add_option("--respawn-delay", a->respawn_delay_s, "wait before restarting a crashed process [s]")
+      ->capture_default_str()
+      ->check(cli::non_negative());
+  cmd.add_option("--grace", a->grace_s, "after Ctrl-C, wait this long before killing [s]")
+      ->capture_default_str()
+      ->check(cli::non_negative());
+  cmd.footer(
+      "Runs the nodes of a launch file (ROS 2 YAML launch shape) and shows a live table of topics with rates and\n"
+      "drops. Stops on Ctrl-C or after --duration. Nothing starts unless the whole file is valid and every node's\n"
+      "input files load: errors name the file, line and reason.\n\n"
+      "Nodes in a process group (group: {process: NAME, ...} or node: {process: NAME}) run in their own process,\n"
+      "started and supervised here: their output comes back prefixed with [NAME], a crashed one is restarted if a\n"
+      "node in it says respawn: true, Ctrl-C stops them all. Topics used by several processes, and those the file\n"
+      "marks with dds, travel over DDS (Cyclone DDS, ROS 2 naming; loopback only unless CYCLONEDDS_URI says\n"
+      "otherwise, see docs/dds.md).");
+  return [a] { return run_launch(*a); };
+}
+
+const CommandRegistration kLaunch{"launch", "run the nodes of a launch file", &setup_launch};
 
 }  // namespace
 }  // namespace tinyline::tools

@@ -3,29 +3,20 @@
 
 #include <tinyline/tools/command.hpp>
 
-#include "../src/args.hpp"
+#include "../src/cli.hpp"
 
 namespace tinyline::tools {
 namespace {
 
-int cmd_nodes(const std::vector<std::string>& argv) {
-  Args a(argv, {}, {"--help", "-h"});
-  if (a.flag("--help") || a.flag("-h")) {
-    fmt::print("usage: tinyline nodes\n\nLists every registered node type (what a launch file's pkg/exec can name).\n");
+CommandRun setup_nodes(CLI::App& cmd) {
+  cmd.footer("Lists every registered node type (what a launch file's pkg/exec can name).");
+  return [] {
+    for (const auto* t : node_registry().all()) fmt::print("{:<40} {}\n", t->full_name(), t->description);
     return 0;
-  }
-  for (const auto* t : node_registry().all()) fmt::print("{:<40} {}\n", t->full_name(), t->description);
-  return 0;
+  };
 }
 
-int cmd_describe(const std::vector<std::string>& argv) {
-  Args a(argv, {}, {"--help", "-h"});
-  if (a.flag("--help") || a.flag("-h") || a.positional().size() != 1) {
-    fmt::print("usage: tinyline describe PKG/TYPE\n\nShows a node type's parameters (type, default, range, "
-               "description) and its topics with types and QoS.\n");
-    return a.positional().size() == 1 ? 0 : 2;
-  }
-  const std::string& full = a.positional()[0];
+int describe(const std::string& full) {
   const auto slash = full.find('/');
   if (slash == std::string::npos) throw UsageError("expected PKG/TYPE, got '" + full + "'");
   bus::ContextOptions co;
@@ -64,8 +55,15 @@ int cmd_describe(const std::vector<std::string>& argv) {
   return 0;
 }
 
-const CommandRegistration kNodes{"nodes", "list registered node types", &cmd_nodes};
-const CommandRegistration kDescribe{"describe", "show a node type's parameters and topics", &cmd_describe};
+CommandRun setup_describe(CLI::App& cmd) {
+  auto type = std::make_shared<std::string>();
+  cmd.add_option("type", *type, "the node type, PKG/TYPE (tinyline nodes lists them)")->required();
+  cmd.footer("Shows a node type's parameters (type, default, range, description) and its topics with types and QoS.");
+  return [type] { return describe(*type); };
+}
+
+const CommandRegistration kNodes{"nodes", "list registered node types", &setup_nodes};
+const CommandRegistration kDescribe{"describe", "show a node type's parameters and topics", &setup_describe};
 
 }  // namespace
 }  // namespace tinyline::tools

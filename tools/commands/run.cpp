@@ -1,61 +1,59 @@
 // tinyline run PKG TYPE [-p name:=value] [-r from:=to] [--name N] [--ns NS] [--duration S]
+#include <memory>
+
 #include <fmt/format.h>
 
 #include <tinyline/dds/bridge.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/args.hpp"
+#include "../src/cli.hpp"
 #include "../src/graph_runner.hpp"
 
 namespace tinyline::tools {
 namespace {
 
-constexpr const char* kHelp = R"(usage: tinyline run PKG TYPE [options]
+struct RunArgs {
+  std::string pkg;
+  std::string type;
+  std::vector<std::string> params;  // name:=value
+  std::vector<std::string> remaps;  // from:=to
+  std::string name;
+  std::string ns = "/";
+  std::optional<double> duration_s;
+  int threads = 1;
+  bool no_table = false;
+  bool dds = false;
+};
 
-Runs one node of a registered type (see `tinyline nodes`).
-
-options:
-  -p name:=value   set a parameter (YAML typing: 3, 0.5, true, [1, 2], text)
-  -r from:=to      remap a topic
-  --name N         node name (default: TYPE)
-  --ns NS          namespace (default: /)
-  --duration S     stop after S seconds
-  --no-table       no live topic table
-  --dds            put the node's topics on DDS (ROS_DOMAIN_ID, CYCLONEDDS_URI;
-                   loopback by default), to join a graph started elsewhere
-)";
-
-int cmd_run(const std::vector<std::string>& argv) {
-  Args a(argv, {"-p", "-r", "--name", "--ns", "--duration", "--threads"}, {"--no-table", "--dds", "--help", "-h"});
-  if (a.flag("--help") || a.flag("-h")) {
-    fmt::print("{}", kHelp);
-    return 0;
-  }
-  if (a.positional().size() != 2) throw UsageError("expected PKG TYPE (tinyline run --help)");
-  auto ctx = bus::Context::create();
+bus::NodeOptions node_options(const RunArgs& a, const std::shared_ptr<bus::Context>& ctx) {
   bus::NodeOptions o;
   o.context = ctx;
-  o.name = a.value("--name").value_or(a.positional()[1]);
-  o.ns = a.value("--ns").value_or("/");
+  o.name = a.name.empty() ? a.type : a.name;
+  o.ns = a.ns;
   o.where = bus::SourceLocation{"command line", 0, 0};
-  for (const auto& p : a.values("-p")) {
-    auto [k, v] = split_assignment(p);
+  for (const auto& p : a.params) {
+    auto [k, v] = cli::split_assignment(p);
     o.params.push_back({k, bus::parse_param_text(v), bus::SourceLocation{"command line (-p " + p + ")", 0, 0}});
   }
-  for (const auto& r : a.values("-r")) {
-    auto [from, to] = split_assignment(r);
+  for (const auto& r : a.remaps) {
+    auto [from, to] = cli::split_assignment(r);
     o.remaps.push_back({from, to});
   }
+  return o;
+}
+
+int run(const RunArgs& a) {
+  auto ctx = bus::Context::create();
   std::shared_ptr<bus::Node> node;
   try {
-    node = node_registry().create(a.positional()[0], a.positional()[1], o);
+    node = node_registry().create(a.pkg, a.type, node_options(a, ctx));
   } catch (const bus::ParamError& e) {
     fmt::print(stderr, "{}\n", e.what());
     return 1;
   }
   std::vector<std::shared_ptr<bus::Node>> nodes{node};
   RunOptions ro;
-  if (a.flag("--dds")) {
+  if (a.dds) {
     dds::BridgeOptions bo;
     bo.settings = dds::Settings::from_environment();
     bo.settings.process_name = node->full_name();
@@ -64,13 +62,33 @@ int cmd_run(const std::vector<std::string>& argv) {
     nodes.push_back(bridge);
     ro.before_spin = [bridge] { bridge->start(); };
   }
-  if (a.value("--duration")) ro.duration_s = a.number("--duration", 0);
-  ro.threads = static_cast<int>(a.number("--threads", 1));
-  ro.table = !a.flag("--no-table");
+  ro.duration_s = a.duration_s;
+  ro.threads = a.threads;
+  ro.table = !a.no_table;
   return run_nodes(ctx, nodes, ro);
 }
 
-const CommandRegistration kRun{"run", "run one node of a registered type", &cmd_run};
+CommandRun setup_run(CLI::App& cmd) {
+  auto a = std::make_shared<RunArgs>();
+  cmd.add_option("pkg", a->pkg, "package of the node type (tinyline nodes lists them)")->required();
+  cmd.add_option("type", a->type, "the node type")->required();
+  cmd.add_option("-p", a->params, "set a parameter, name:=value (YAML typing: 3, 0.5, true, [1, 2], text)")
+      ->type_name("NAME:=VALUE")
+      ->allow_extra_args(false);
+  cmd.add_option("-r", a->remaps, "remap a topic, from:=to")->type_name("FROM:=TO")->allow_extra_args(false);
+  cmd.add_option("--name", a->name, "node name (default: TYPE)");
+  cmd.add_option("--ns", a->ns, "namespace")->capture_default_str();
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")->type_name("S")->check(cli::seconds());
+  cmd.add_option("--threads", a->threads, "executor threads")->capture_default_str()->check(cli::threads());
+  cmd.add_flag("--no-table", a->no_table, "no live topic table");
+  cmd.add_flag("--dds", a->dds,
+               "put the node's topics on DDS (ROS_DOMAIN_ID, CYCLONEDDS_URI; loopback by default), to join a graph "
+               "started elsewhere");
+  cmd.footer("Runs one node of a registered type (see `tinyline nodes`).");
+  return [a] { return run(*a); };
+}
+
+const CommandRegistration kRun{"run", "run one node of a registered type", &setup_run};
 
 }  // namespace
 }  // namespace tinyline::tools

@@ -16,36 +16,11 @@
 #include <tinyline/msg/yaml_writer.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/args.hpp"
+#include "../src/cli.hpp"
 
 namespace tinyline::tools {
 namespace {
 
-constexpr const char* kHelp = R"(usage: tinyline topic list [--wait S] [--all] [-v]
-       tinyline topic echo TOPIC [--count N] [--wait S] [--type PKG/msg/TYPE] [--max-array N]
-       tinyline topic hz TOPIC [--duration S] [--messages N] [--window N] [--wait S]
-
-Looks at the topics of running graphs over DDS: every topic that travels
-between processes, or that a launch file marks with dds. Uses the DDS domain
-and configuration of the environment (ROS_DOMAIN_ID, CYCLONEDDS_URI; the
-loopback default otherwise), like every tinyline process and ROS 2 node.
-
-  list   topics with their type, publishers, subscribers and processes
-         (--all: DDS topics that are not ROS topics too; -v: every endpoint)
-  echo   prints each message as YAML, '---' between messages
-  hz     prints the publishing rate once a second
-
-options:
-  --wait S       how long to wait for discovery / a publisher (default 2 for
-                 list, 10 for echo and hz)
-  --count N      echo: stop after N messages
-  --type T       echo: decode as this type (default: the publisher's)
-  --max-array N  echo: elements of long arrays to show (default 16, 0: all)
-  --duration S   hz: stop after S seconds
-  --messages N   hz: stop after N messages
-  --window N     hz: rate over the last N messages (default 10000)
-  --domain N     DDS domain (default ROS_DOMAIN_ID or 0)
-)";
 
 std::atomic<int> g_stop{0};
 extern "C" void on_topic_signal(int sig) { g_stop.store(sig); }
@@ -62,31 +37,35 @@ struct SignalGuard {
   }
 };
 
-dds::Settings settings_from(const Args& a) {
+// The options of the three commands (each uses its part).
+struct TopicArgs {
+  std::string topic;
+  std::optional<int> domain;
+  double wait_s = 10.0;
+  bool all = false;
+  bool verbose = false;
+  long count = 0;
+  std::string type;
+  std::size_t max_array = 16;
+  std::optional<double> duration_s;
+  long messages = 0;
+  std::size_t window = 10000;
+};
+
+dds::Settings settings_from(const TopicArgs& a) {
   dds::Settings s = dds::Settings::from_environment();
-  if (a.value("--domain")) s.domain_id = dds::check_domain_id(static_cast<long long>(a.number("--domain", 0)), "--domain");
+  if (a.domain) s.domain_id = dds::check_domain_id(*a.domain, "--domain");
   s.process_name = "tinyline topic";
   for (const auto& note : s.notes) fmt::print(stderr, "tinyline topic: {}\n", note);
   return s;
 }
 
-std::chrono::milliseconds seconds_option(const Args& a, const std::string& name, double fallback) {
-  const double s = a.number(name, fallback);
-  if (s < 0) throw UsageError(name + " must not be negative");
-  return std::chrono::milliseconds(static_cast<long>(s * 1000));
-}
+std::chrono::milliseconds millis(double s) { return std::chrono::milliseconds(static_cast<long>(s * 1000)); }
 
-std::string topic_arg(const Args& a, std::size_t i) {
-  if (a.positional().size() <= i) throw UsageError("which topic? (tinyline topic --help)");
-  const std::string t = a.positional()[i];
-  if (t.empty() || t[0] != '/') throw UsageError("topic '" + t + "' must be absolute (start with '/')");
-  return t;
-}
-
-int cmd_list(const Args& a) {
+int cmd_list(const TopicArgs& a) {
   dds::Participant p(settings_from(a));
   dds::Discovery d(p);
-  const auto eps = d.settle(std::chrono::milliseconds(300), seconds_option(a, "--wait", 2.0));
+  const auto eps = d.settle(std::chrono::milliseconds(300), millis(a.wait_s));
   struct Row {
     std::string type;
     std::size_t pubs = 0, subs = 0;
@@ -94,7 +73,7 @@ int cmd_list(const Args& a) {
   };
   std::map<std::string, Row> rows;
   for (const auto& e : eps) {
-    if (!e.topic && !a.flag("--all")) continue;
+    if (!e.topic && !a.all) continue;
     Row& r = rows[e.topic.value_or(e.dds_topic)];
     r.type = e.type.value_or(e.dds_type);
     (e.writer ? r.pubs : r.subs)++;
@@ -108,7 +87,7 @@ int cmd_list(const Args& a) {
   fmt::print("{:<34} {:<34} {:>4} {:>4}  {}\n", "topic", "type", "pubs", "subs", "processes");
   for (const auto& [name, r] : rows) {
     fmt::print("{:<34} {:<34} {:>4} {:>4}  {}\n", name, r.type, r.pubs, r.subs, fmt::join(r.processes, ", "));
-    if (a.flag("-v")) {
+    if (a.verbose) {
       for (const auto& e : eps) {
         if (e.topic.value_or(e.dds_topic) != name) continue;
         fmt::print("    {} {} [{}]\n", e.writer ? "publisher " : "subscriber", e.owner.describe(), e.qos.describe());
@@ -147,17 +126,17 @@ dds::EndpointQos qos_for(const dds::Discovery& d, const std::string& topic) {
   return q;
 }
 
-int cmd_echo(const Args& a) {
-  const std::string topic = topic_arg(a, 1);
+int cmd_echo(const TopicArgs& a) {
+  const std::string& topic = a.topic;
   SignalGuard sig;
   dds::Participant p(settings_from(a));
   dds::Discovery d(p);
-  const auto wait = seconds_option(a, "--wait", 10.0);
+  const auto wait = millis(a.wait_s);
   std::string dds_type;
   const msg::TypeSupport* ts = nullptr;
-  if (auto t = a.value("--type")) {
-    ts = msg::find_type_support(*t);
-    if (ts == nullptr) throw UsageError("unknown message type '" + *t + "' (tinyline nodes lists node types; "
+  if (!a.type.empty()) {
+    ts = msg::find_type_support(a.type);
+    if (ts == nullptr) throw UsageError("unknown message type '" + a.type + "' (tinyline nodes lists node types; "
                                         "message types are pkg/msg/Type)");
     dds_type = ts->dds_type_name();
   }
@@ -178,8 +157,8 @@ int cmd_echo(const Args& a) {
     dds_type = pub->dds_type;
   }
   dds::RawReader reader(p, dds::dds_topic_name(topic), dds_type, qos_for(d, topic));
-  const long count = static_cast<long>(a.number("--count", 0));
-  const auto max_array = static_cast<std::size_t>(a.number("--max-array", 16));
+  const long count = a.count;
+  const std::size_t max_array = a.max_array;
   long shown = 0;
   while (g_stop.load() == 0 && (count <= 0 || shown < count)) {
     reader.take(std::chrono::milliseconds(100), [&](const dds::RawSample& s) {
@@ -199,12 +178,12 @@ int cmd_echo(const Args& a) {
   return 0;
 }
 
-int cmd_hz(const Args& a) {
-  const std::string topic = topic_arg(a, 1);
+int cmd_hz(const TopicArgs& a) {
+  const std::string& topic = a.topic;
   SignalGuard sig;
   dds::Participant p(settings_from(a));
   dds::Discovery d(p);
-  const auto wait = seconds_option(a, "--wait", 10.0);
+  const auto wait = millis(a.wait_s);
   const auto pub = find_publisher(d, topic, wait);
   if (!pub) {
     if (g_stop.load() != 0) return 0;
@@ -214,11 +193,11 @@ int cmd_hz(const Args& a) {
   }
   dds::RawReader reader(p, pub->dds_topic, pub->dds_type, qos_for(d, topic));
   using SC = std::chrono::steady_clock;
-  const std::size_t window = static_cast<std::size_t>(std::max(2.0, a.number("--window", 10000)));
-  const long limit = static_cast<long>(a.number("--messages", 0));
+  const std::size_t window = a.window;
+  const long limit = a.messages;
   const auto start = SC::now();
   // A negative duration means none (GCC's maybe-uninitialized trips on an optional here).
-  const auto duration = a.value("--duration") ? seconds_option(a, "--duration", 0) : std::chrono::milliseconds(-1);
+  const auto duration = a.duration_s ? millis(*a.duration_s) : std::chrono::milliseconds(-1);
   std::deque<SC::time_point> arrivals;
   long total = 0;
   auto next_report = start + std::chrono::seconds(1);
@@ -260,26 +239,76 @@ int cmd_hz(const Args& a) {
   return 0;
 }
 
-int cmd_topic(const std::vector<std::string>& argv) {
-  Args a(argv, {"--wait", "--count", "--type", "--max-array", "--duration", "--messages", "--window", "--domain"},
-         {"--all", "-v", "--help", "-h"});
-  if (a.flag("--help") || a.flag("-h") || a.positional().empty()) {
-    fmt::print("{}", kHelp);
-    return a.positional().empty() && !a.flag("--help") && !a.flag("-h") ? 2 : 0;
-  }
-  const std::string& sub = a.positional()[0];
-  try {
-    if (sub == "list") return cmd_list(a);
-    if (sub == "echo") return cmd_echo(a);
-    if (sub == "hz") return cmd_hz(a);
-  } catch (const dds::DdsError& e) {
-    fmt::print(stderr, "tinyline topic {}: DDS: {}\n", sub, e.what());
-    return 1;
-  }
-  throw UsageError("unknown topic command '" + sub + "' (list, echo, hz)");
+// Runs `fn` and turns a DDS failure into a message naming the command.
+CommandRun guarded(const char* name, int (*fn)(const TopicArgs&), std::shared_ptr<TopicArgs> a) {
+  return [name, fn, a] {
+    try {
+      return fn(*a);
+    } catch (const dds::DdsError& e) {
+      fmt::print(stderr, "tinyline topic {}: DDS: {}\n", name, e.what());
+      return 1;
+    }
+  };
 }
 
-const CommandRegistration kTopic{"topic", "list, echo and measure topics of running graphs over DDS", &cmd_topic};
+void add_common(CLI::App& cmd, TopicArgs& a, double wait_default) {
+  a.wait_s = wait_default;
+  cmd.add_option("--wait", a.wait_s, "how long to wait for discovery / a publisher [s]")
+      ->type_name("S")
+      ->capture_default_str()
+      ->check(cli::non_negative());
+  cmd.add_option("--domain", a.domain, "DDS domain (default ROS_DOMAIN_ID or 0)")->check(cli::whole(0, 232));
+}
+
+void add_topic(CLI::App& cmd, TopicArgs& a) {
+  cmd.add_option("topic", a.topic, "an absolute topic name")->required()->check(CLI::Validator(
+      [](std::string& t) -> std::string {
+        return t.empty() || t[0] != '/' ? "topic '" + t + "' must be absolute (start with '/')" : std::string();
+      },
+      "/TOPIC"));
+}
+
+CommandRun setup_list(CLI::App& cmd) {
+  auto a = std::make_shared<TopicArgs>();
+  add_common(cmd, *a, 2.0);
+  cmd.add_flag("--all", a->all, "DDS topics that are not ROS topics too");
+  cmd.add_flag("-v", a->verbose, "every endpoint with its QoS");
+  return guarded("list", &cmd_list, a);
+}
+
+CommandRun setup_echo(CLI::App& cmd) {
+  auto a = std::make_shared<TopicArgs>();
+  add_topic(cmd, *a);
+  add_common(cmd, *a, 10.0);
+  cmd.add_option("--count", a->count, "stop after N messages (0: Ctrl-C)")->check(cli::count());
+  cmd.add_option("--type", a->type, "decode as this type, pkg/msg/Type (default: the publisher's)");
+  cmd.add_option("--max-array", a->max_array, "elements of long arrays to show (0: all)")
+      ->capture_default_str()
+      ->check(cli::count());
+  return guarded("echo", &cmd_echo, a);
+}
+
+CommandRun setup_hz(CLI::App& cmd) {
+  auto a = std::make_shared<TopicArgs>();
+  add_topic(cmd, *a);
+  add_common(cmd, *a, 10.0);
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(cli::seconds());
+  cmd.add_option("--messages", a->messages, "stop after N messages (0: Ctrl-C)")->check(cli::count());
+  cmd.add_option("--window", a->window, "rate over the last N messages")->capture_default_str()->check(cli::whole(2, 100000000));
+  return guarded("hz", &cmd_hz, a);
+}
+
+CommandRun setup_topic(CLI::App& cmd) {
+  cmd.footer(
+      "Looks at the topics of running graphs over DDS: every topic that travels between processes, or that a\n"
+      "launch file marks with dds. Uses the DDS domain and configuration of the environment (ROS_DOMAIN_ID,\n"
+      "CYCLONEDDS_URI; the loopback default otherwise), like every tinyline process and ROS 2 node.");
+  return cli::nested(cmd, {{"list", "topics with their type, publishers, subscribers and processes", &setup_list},
+                           {"echo", "print each message as YAML, '---' between messages", &setup_echo},
+                           {"hz", "print the publishing rate once a second", &setup_hz}});
+}
+
+const CommandRegistration kTopic{"topic", "list, echo and measure topics of running graphs over DDS", &setup_topic};
 
 }  // namespace
 }  // namespace tinyline::tools

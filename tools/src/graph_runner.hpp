@@ -17,6 +17,9 @@ struct RunOptions {
   int threads = 2;                   ///< executor threads
   bool table = true;                 ///< live topic table (only on a terminal)
   double table_period_s = 1.0;
+  bool summary = true;               ///< the topic table with average rates at the end
+  /// Called about every 200 ms with the seconds run so far (a progress line).
+  std::function<void(double elapsed_s)> progress;
   /// Runs after the nodes are on the executor and before it starts (the DDS
   /// bridge waits for its peers here).
   std::function<void()> before_spin;
@@ -31,7 +34,7 @@ struct RunOptions {
   std::function<void()> on_stopping;
 };
 
-/// Runs the nodes; returns the exit code (0, or 1 if a node failed to start).
+/// Runs the nodes; returns the exit code (0, or 1 if a node failed to start or to stop cleanly).
 int run_nodes(const std::shared_ptr<bus::Context>& ctx, const std::vector<std::shared_ptr<bus::Node>>& nodes,
               const RunOptions& options);
 

@@ -20,43 +20,44 @@ struct Use {
   std::vector<bus::QoS> pubs;
   std::vector<bus::QoS> subs;
 };
+using TopicUses = std::map<std::string, Use>;  // topic -> endpoints in one process
 
-}  // namespace
+std::string describe_process(const ProcessPlan& p) {
+  return p.name.empty() ? "the launching process" : "process '" + p.name + "'";
+}
 
-GraphPlan plan_processes(const launch::LaunchPlan& plan, const bus::NodeRegistry& registry) {
-  GraphPlan g;
-  g.processes.push_back(ProcessPlan{});
-  for (const auto& n : plan.nodes) {
-    if (g.find(n.process) == nullptr) g.processes.push_back(ProcessPlan{n.process, {}, false, {}, {}});
+// Builds the process's nodes in a scratch context and configures them (their
+// input files load), noting their endpoints and the topics marked for DDS.
+std::vector<std::shared_ptr<bus::Node>> build_process(ProcessPlan& pp, const launch::LaunchPlan& plan,
+                                                      const bus::NodeRegistry& registry, TopicUses& uses) {
+  bus::ContextOptions co;
+  co.clock = bus::ClockType::Sim;
+  co.log_sink = std::make_shared<bus::CaptureSink>();
+  auto nodes = launch::instantiate(plan, registry, bus::Context::create(co), pp.name);
+  launch::configure(plan, nodes, pp.name);
+  std::set<std::string> marked;
+  for (const auto& spec : plan.nodes) {
+    if (spec.process != pp.name) continue;
+    pp.respawn |= spec.respawn;
+    if (spec.dds) marked.insert((spec.ns == "/" ? "" : spec.ns) + "/" + spec.name);
   }
-  // process -> topic -> endpoints, from the nodes themselves.
-  std::vector<std::map<std::string, Use>> uses(g.processes.size());
-  for (std::size_t p = 0; p < g.processes.size(); ++p) {
-    ProcessPlan& pp = g.processes[p];
-    bus::ContextOptions co;
-    co.clock = bus::ClockType::Sim;
-    co.log_sink = std::make_shared<bus::CaptureSink>();
-    auto nodes = launch::instantiate(plan, registry, bus::Context::create(co), pp.name);
-    std::set<std::string> marked;
-    for (const auto& spec : plan.nodes) {
-      if (spec.process != pp.name) continue;
-      pp.respawn |= spec.respawn;
-      if (spec.dds) marked.insert((spec.ns == "/" ? "" : spec.ns) + "/" + spec.name);
+  for (const auto& n : nodes) {
+    pp.nodes.push_back(n->full_name());
+    const auto info = n->describe();
+    for (const auto& e : info.publishers) uses[e.topic].pubs.push_back(e.qos);
+    for (const auto& e : info.subscriptions) uses[e.topic].subs.push_back(e.qos);
+    if (marked.count(n->full_name()) != 0) {
+      for (const auto* list : {&info.publishers, &info.subscriptions})
+        for (const auto& e : *list) pp.dds.topics.push_back(e.topic);
     }
-    for (const auto& n : nodes) {
-      pp.nodes.push_back(n->full_name());
-      const auto info = n->describe();
-      for (const auto& e : info.publishers) uses[p][e.topic].pubs.push_back(e.qos);
-      for (const auto& e : info.subscriptions) uses[p][e.topic].subs.push_back(e.qos);
-      if (marked.count(n->full_name()) != 0) {
-        for (const auto* list : {&info.publishers, &info.subscriptions})
-          for (const auto& e : *list) pp.dds.topics.push_back(e.topic);
-      }
-    }
-    pp.dds.all = plan.dds.all;
-    pp.dds.topics.insert(pp.dds.topics.end(), plan.dds.topics.begin(), plan.dds.topics.end());
   }
-  // Topics that cross processes travel over DDS wherever they are used.
+  pp.dds.all = plan.dds.all;
+  pp.dds.topics.insert(pp.dds.topics.end(), plan.dds.topics.begin(), plan.dds.topics.end());
+  return nodes;
+}
+
+// Topics that cross processes travel over DDS wherever they are used.
+void share_crossing_topics(GraphPlan& g, const std::vector<TopicUses>& uses) {
   for (std::size_t p = 0; p < g.processes.size(); ++p) {
     for (const auto& [topic, use] : uses[p]) {
       for (std::size_t q = 0; q < g.processes.size(); ++q) {
@@ -68,33 +69,55 @@ GraphPlan plan_processes(const launch::LaunchPlan& plan, const bus::NodeRegistry
     std::sort(pp.dds.topics.begin(), pp.dds.topics.end());
     pp.dds.topics.erase(std::unique(pp.dds.topics.begin(), pp.dds.topics.end()), pp.dds.topics.end());
   }
-  // Who waits for whom, and which pairs DDS will refuse to connect.
+}
+
+// The remote endpoints process `p` waits for on `topic`, and the pairs DDS
+// will refuse to connect (warnings).
+dds::PeerExpectation expect_on(GraphPlan& g, const std::vector<TopicUses>& uses, std::size_t p,
+                               const std::string& topic, const Use& mine) {
+  dds::PeerExpectation e{topic, 0, 0};
+  for (std::size_t q = 0; q < g.processes.size(); ++q) {
+    if (q == p || !g.processes[q].dds.selects(topic)) continue;
+    const auto it = uses[q].find(topic);
+    if (it == uses[q].end()) continue;
+    const Use& theirs = it->second;
+    if (!mine.pubs.empty() && !theirs.subs.empty()) {
+      const auto why = dds::incompatibility(dds::offered_qos(mine.pubs), dds::requested_qos(theirs.subs));
+      if (why.empty()) {
+        ++e.readers;
+      } else {
+        g.warnings.push_back(fmt::format("{}: DDS will not connect the publishers in {} to the subscribers in {}: {}",
+                                         topic, describe_process(g.processes[p]), describe_process(g.processes[q]),
+                                         why));
+      }
+    }
+    if (!mine.subs.empty() && !theirs.pubs.empty() &&
+        dds::incompatibility(dds::offered_qos(theirs.pubs), dds::requested_qos(mine.subs)).empty()) {
+      ++e.writers;
+    }
+  }
+  return e;
+}
+
+}  // namespace
+
+GraphPlan plan_processes(const launch::LaunchPlan& plan, const bus::NodeRegistry& registry) {
+  GraphPlan g;
+  g.processes.push_back(ProcessPlan{});
+  for (const auto& n : plan.nodes) {
+    if (g.find(n.process) == nullptr) g.processes.push_back(ProcessPlan{n.process, {}, false, {}, {}});
+  }
+  std::vector<TopicUses> uses(g.processes.size());
+  std::vector<std::shared_ptr<bus::Node>> all;  // every node once: files are checked across processes
+  for (std::size_t p = 0; p < g.processes.size(); ++p) {
+    for (auto& n : build_process(g.processes[p], plan, registry, uses[p])) all.push_back(std::move(n));
+  }
+  launch::check_files(all);
+  share_crossing_topics(g, uses);
   for (std::size_t p = 0; p < g.processes.size(); ++p) {
     for (const auto& [topic, mine] : uses[p]) {
       if (!g.processes[p].dds.selects(topic)) continue;
-      dds::PeerExpectation e{topic, 0, 0};
-      for (std::size_t q = 0; q < g.processes.size(); ++q) {
-        if (q == p || !g.processes[q].dds.selects(topic)) continue;
-        const auto it = uses[q].find(topic);
-        if (it == uses[q].end()) continue;
-        const Use& theirs = it->second;
-        if (!mine.pubs.empty() && !theirs.subs.empty()) {
-          const auto why = dds::incompatibility(dds::offered_qos(mine.pubs), dds::requested_qos(theirs.subs));
-          if (why.empty()) {
-            ++e.readers;
-          } else {
-            g.warnings.push_back(fmt::format(
-                "{}: DDS will not connect the publishers in {} to the subscribers in {}: {}", topic,
-                g.processes[p].name.empty() ? "the launching process" : "process '" + g.processes[p].name + "'",
-                g.processes[q].name.empty() ? "the launching process" : "process '" + g.processes[q].name + "'",
-                why));
-          }
-        }
-        if (!mine.subs.empty() && !theirs.pubs.empty() &&
-            dds::incompatibility(dds::offered_qos(theirs.pubs), dds::requested_qos(mine.subs)).empty()) {
-          ++e.writers;
-        }
-      }
+      const dds::PeerExpectation e = expect_on(g, uses, p, topic, mine);
       if (e.readers + e.writers > 0) g.processes[p].expect.push_back(e);
     }
   }

@@ -37,7 +37,9 @@ struct GraphPlan {
   bool has_groups() const { return processes.size() > 1; }
 };
 
-/// Throws launch::LaunchError (the first node that cannot be built).
+/// Builds and configures every node once (launch::configure) and checks the
+/// files they name (launch::check_files). Throws launch::LaunchError (the
+/// first node that cannot be built, or an input that is unusable).
 GraphPlan plan_processes(const launch::LaunchPlan& plan, const bus::NodeRegistry& registry);
 
 /// ROS_DOMAIN_ID / CYCLONEDDS_URI, overridden by the file's dds action.

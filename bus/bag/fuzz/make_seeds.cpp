@@ -7,15 +7,16 @@
 #include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
 #include <tinyline/msg/std_msgs/string.hpp>
 
+#include <tinyline/common/cli.hpp>
+
 using namespace tinyline;
 using namespace tinyline::bag;
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s DIR\n", argv[0]);
-    return 2;
-  }
-  const std::string dir = argv[1];
+  std::string dir;
+  CLI::App app{"Writes small valid bags of every writer variant: the seed corpus of bag_reader_fuzz.", "bag_fuzz_seeds"};
+  app.add_option("DIR", dir, "directory to write into")->required();
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   struct V {
     const char* name;
     WriterOptions opt;

@@ -12,7 +12,9 @@ AsyncWriter::~AsyncWriter() {
 
 Status AsyncWriter::open(const std::string& path, AsyncWriterOptions options) {
   auto f = std::make_unique<FileWritable>();
-  if (Status s = f->open(path); !s.ok()) return s;
+  FileWritableOptions fo;
+  fo.keep_partial = true;  // a recording that fails half-way is still worth recovering
+  if (Status s = f->open(path, fo); !s.ok()) return s;
   return start(std::move(f), std::move(options));
 }
 
@@ -83,6 +85,52 @@ bool AsyncWriter::push(TopicId topic, std::vector<std::uint8_t> cdr, Timestamp l
   return true;
 }
 
+bool AsyncWriter::take_batch(std::deque<Item>& batch, std::chrono::steady_clock::time_point wake_at) {
+  std::unique_lock lk(mu_);
+  cv_.wait_until(lk, wake_at, [&] { return !queue_.empty() || stopping_; });
+  batch.swap(queue_);
+  return stopping_ && batch.empty();
+}
+
+Status AsyncWriter::write_batch(std::deque<Item>& batch, std::uint64_t& written) {
+  Status failed = error();
+  for (auto& item : batch) {
+    if (!failed.ok()) break;
+    TopicEntry* t = nullptr;
+    {
+      std::lock_guard lk(mu_);
+      t = topics_[item.topic].get();  // entries are never removed
+    }
+    if (t->channel == 0) failed = writer_.add_topic(t->name, *t->type, t->channel, t->offered);
+    if (failed.ok()) {
+      failed = writer_.write_serialized(t->channel, item.cdr, item.log_time, item.publish_time, item.sequence);
+    }
+    if (failed.ok()) ++written;
+  }
+  return failed;
+}
+
+void AsyncWriter::settle_batch(std::deque<Item>& batch, std::uint64_t written, const Status& failed) {
+  std::uint64_t bytes = 0;
+  for (const auto& item : batch) bytes += item.cdr.size();
+  std::lock_guard lk(mu_);
+  stats_.queued_bytes -= bytes;
+  stats_.written += written;
+  stats_.dropped += batch.size() - written;
+  stats_.file = writer_.writer().stats();
+  if (!failed.ok() && error_.ok()) error_ = failed;
+  for (auto& item : batch) {  // keep some buffers for the callers' next copies
+    auto& spare = topics_[item.topic]->spare;
+    const std::uint64_t cap = item.cdr.capacity();
+    if (cap == 0 || spare.size() >= options_.recycle_per_topic || recycled_bytes_ + cap > options_.max_recycled_bytes) {
+      continue;
+    }
+    item.cdr.clear();
+    spare.push_back(std::move(item.cdr));
+    recycled_bytes_ += cap;
+  }
+}
+
 void AsyncWriter::run() {
   using Clock = std::chrono::steady_clock;
   const auto interval = std::chrono::duration_cast<Clock::duration>(
@@ -91,31 +139,9 @@ void AsyncWriter::run() {
   auto last_chunk = Clock::now();
   std::uint64_t chunks = 0;
   while (true) {
-    bool stop = false;
-    {
-      std::unique_lock lk(mu_);
-      cv_.wait_until(lk, last_chunk + interval, [&] { return !queue_.empty() || stopping_; });
-      batch.swap(queue_);
-      stop = stopping_ && batch.empty();
-    }
-    Status failed = error();
+    const bool stop = take_batch(batch, last_chunk + interval);
     std::uint64_t written = 0;
-    std::uint64_t bytes = 0;
-    for (auto& item : batch) {
-      bytes += item.cdr.size();
-      if (!failed.ok()) continue;
-      TopicEntry* t = nullptr;
-      {
-        std::lock_guard lk(mu_);
-        t = topics_[item.topic].get();  // entries are never removed
-      }
-      if (t->channel == 0) failed = writer_.add_topic(t->name, *t->type, t->channel, t->offered);
-      if (failed.ok()) {
-        failed = writer_.write_serialized(t->channel, item.cdr, item.log_time, item.publish_time, item.sequence);
-      }
-      if (failed.ok()) ++written;
-    }
-    const std::uint64_t lost = batch.size() - written;
+    Status failed = write_batch(batch, written);
     Writer& w = writer_.writer();
     if (failed.ok() && w.stats().chunks == chunks && options_.flush_interval_s > 0 && w.open_chunk_bytes() > 0 &&
         Clock::now() - last_chunk >= interval) {
@@ -128,25 +154,7 @@ void AsyncWriter::run() {
     } else if (w.open_chunk_bytes() == 0) {
       last_chunk = Clock::now();  // nothing waiting: restart the quiet-period clock
     }
-    {
-      std::lock_guard lk(mu_);
-      stats_.queued_bytes -= bytes;
-      stats_.written += written;
-      stats_.dropped += lost;
-      stats_.file = w.stats();
-      if (!failed.ok() && error_.ok()) error_ = failed;
-      for (auto& item : batch) {  // keep some buffers for the callers' next copies
-        auto& spare = topics_[item.topic]->spare;
-        const std::uint64_t cap = item.cdr.capacity();
-        if (cap == 0 || spare.size() >= options_.recycle_per_topic ||
-            recycled_bytes_ + cap > options_.max_recycled_bytes) {
-          continue;
-        }
-        item.cdr.clear();
-        spare.push_back(std::move(item.cdr));
-        recycled_bytes_ += cap;
-      }
-    }
+    settle_batch(batch, written, failed);
     batch.clear();  // frees the rest outside the lock
     if (stop) return;
   }

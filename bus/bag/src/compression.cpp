@@ -137,6 +137,83 @@ bool grow(std::vector<std::uint8_t>& out, std::uint64_t limit) {
   return true;
 }
 
+// Where a streaming decompression stands.
+struct Progress {
+  std::size_t produced = 0;
+  std::size_t consumed = 0;
+  bool frame_done = false;
+};
+
+// lz4 frame into `out`, growing it up to `limit`; an error names the byte.
+Status lz4_stream(std::span<const std::uint8_t> in, std::uint64_t limit, std::vector<std::uint8_t>& out,
+                  std::string_view where, Progress& p) {
+  thread_local Lz4D d;
+  if (d.ctx == nullptr) return {StatusCode::DecompressFailed, fmt::format("{}: no lz4 context", where)};
+  LZ4F_resetDecompressionContext(d.ctx);
+  while (true) {
+    if (p.produced == out.size() && !grow(out, limit)) break;
+    std::size_t dst = out.size() - p.produced;
+    std::size_t src = in.size() - p.consumed;
+    const std::size_t r = LZ4F_decompress(d.ctx, out.data() + p.produced, &dst, in.data() + p.consumed, &src, nullptr);
+    if (LZ4F_isError(r)) {
+      LZ4F_resetDecompressionContext(d.ctx);
+      return {StatusCode::DecompressFailed, fmt::format("{}: lz4 data corrupt at compressed byte {}: {}", where,
+                                                        p.consumed, LZ4F_getErrorName(r))};
+    }
+    p.produced += dst;
+    p.consumed += src;
+    p.frame_done = r == 0;
+    if (p.consumed == in.size() && (p.frame_done || (dst == 0 && src == 0))) break;
+    if (dst == 0 && src == 0 && p.produced < out.size()) break;  // no progress possible
+  }
+  return {};
+}
+
+// zstd frame into `out`, growing it up to `limit`; an error names the byte.
+Status zstd_stream(std::span<const std::uint8_t> in, std::uint64_t limit, std::vector<std::uint8_t>& out,
+                   std::string_view where, Progress& p) {
+  thread_local ZstdD d;
+  if (d.ctx == nullptr) return {StatusCode::DecompressFailed, fmt::format("{}: no zstd context", where)};
+  ZSTD_DCtx_reset(d.ctx, ZSTD_reset_session_only);
+  while (true) {
+    if (p.produced == out.size() && !grow(out, limit)) break;
+    ZSTD_outBuffer ob{out.data(), out.size(), p.produced};
+    ZSTD_inBuffer ib{in.data(), in.size(), p.consumed};
+    const std::size_t r = ZSTD_decompressStream(d.ctx, &ob, &ib);
+    if (ZSTD_isError(r)) {
+      ZSTD_DCtx_reset(d.ctx, ZSTD_reset_session_only);
+      return {StatusCode::DecompressFailed, fmt::format("{}: zstd data corrupt at compressed byte {}: {}", where,
+                                                        p.consumed, ZSTD_getErrorName(r))};
+    }
+    const bool progress = ob.pos != p.produced || ib.pos != p.consumed;
+    p.produced = ob.pos;
+    p.consumed = ib.pos;
+    p.frame_done = r == 0;
+    if (p.consumed == in.size() && p.frame_done) break;
+    if (!progress && p.produced < out.size()) break;
+  }
+  return {};
+}
+
+// The stream must end with its frame, use every input byte and give exactly the declared size.
+Status check_end(const Progress& p, std::string_view compression, std::size_t in_size, std::uint64_t uncompressed_size,
+                 std::string_view where) {
+  if (p.produced > uncompressed_size) {
+    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to more than the declared {} bytes",
+                                                   where, compression, uncompressed_size)};
+  }
+  if (!p.frame_done || p.consumed != in_size) {
+    return {StatusCode::DecompressFailed,
+            fmt::format("{}: {} stream ends early: {} of {} compressed bytes used, {} bytes out", where, compression,
+                        p.consumed, in_size, p.produced)};
+  }
+  if (p.produced != uncompressed_size) {
+    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to {} bytes, the chunk declares {}",
+                                                   where, compression, p.produced, uncompressed_size)};
+  }
+  return {};
+}
+
 }  // namespace
 
 Status decompress(std::string_view compression, std::span<const std::uint8_t> in, std::uint64_t uncompressed_size,
@@ -154,74 +231,17 @@ Status decompress(std::string_view compression, std::span<const std::uint8_t> in
     return {};
   }
   const bool lz4 = compression == "lz4";
-  const bool zstd = compression == "zstd";
-  if (!lz4 && !zstd) {
+  if (!lz4 && compression != "zstd") {
     return {StatusCode::Unsupported,
             fmt::format("{}: unsupported chunk compression '{}' (this reader knows lz4 and zstd)", where, compression)};
   }
   const std::uint64_t limit = uncompressed_size + 1;
   out.resize(static_cast<std::size_t>(
       std::min(limit, std::max<std::uint64_t>(kUpfrontMin, kUpfrontRatio * static_cast<std::uint64_t>(in.size())))));
-  std::size_t produced = 0;
-  std::size_t consumed = 0;
-  bool frame_done = false;
-
-  if (lz4) {
-    thread_local Lz4D d;
-    if (d.ctx == nullptr) return {StatusCode::DecompressFailed, fmt::format("{}: no lz4 context", where)};
-    LZ4F_resetDecompressionContext(d.ctx);
-    while (true) {
-      if (produced == out.size() && !grow(out, limit)) break;
-      std::size_t dst = out.size() - produced;
-      std::size_t src = in.size() - consumed;
-      const std::size_t r = LZ4F_decompress(d.ctx, out.data() + produced, &dst, in.data() + consumed, &src, nullptr);
-      if (LZ4F_isError(r)) {
-        LZ4F_resetDecompressionContext(d.ctx);
-        return {StatusCode::DecompressFailed, fmt::format("{}: lz4 data corrupt at compressed byte {}: {}", where,
-                                                          consumed, LZ4F_getErrorName(r))};
-      }
-      produced += dst;
-      consumed += src;
-      frame_done = r == 0;
-      if (consumed == in.size() && (frame_done || (dst == 0 && src == 0))) break;
-      if (dst == 0 && src == 0 && produced < out.size()) break;  // no progress possible
-    }
-  } else {
-    thread_local ZstdD d;
-    if (d.ctx == nullptr) return {StatusCode::DecompressFailed, fmt::format("{}: no zstd context", where)};
-    ZSTD_DCtx_reset(d.ctx, ZSTD_reset_session_only);
-    while (true) {
-      if (produced == out.size() && !grow(out, limit)) break;
-      ZSTD_outBuffer ob{out.data(), out.size(), produced};
-      ZSTD_inBuffer ib{in.data(), in.size(), consumed};
-      const std::size_t r = ZSTD_decompressStream(d.ctx, &ob, &ib);
-      if (ZSTD_isError(r)) {
-        ZSTD_DCtx_reset(d.ctx, ZSTD_reset_session_only);
-        return {StatusCode::DecompressFailed, fmt::format("{}: zstd data corrupt at compressed byte {}: {}", where,
-                                                          consumed, ZSTD_getErrorName(r))};
-      }
-      const bool progress = ob.pos != produced || ib.pos != consumed;
-      produced = ob.pos;
-      consumed = ib.pos;
-      frame_done = r == 0;
-      if (consumed == in.size() && frame_done) break;
-      if (!progress && produced < out.size()) break;
-    }
-  }
-  if (produced > uncompressed_size) {
-    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to more than the declared {} bytes",
-                                                   where, compression, uncompressed_size)};
-  }
-  if (!frame_done || consumed != in.size()) {
-    return {StatusCode::DecompressFailed,
-            fmt::format("{}: {} stream ends early: {} of {} compressed bytes used, {} bytes out", where, compression,
-                        consumed, in.size(), produced)};
-  }
-  if (produced != uncompressed_size) {
-    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to {} bytes, the chunk declares {}",
-                                                   where, compression, produced, uncompressed_size)};
-  }
-  out.resize(produced);
+  Progress p;
+  if (Status s = lz4 ? lz4_stream(in, limit, out, where, p) : zstd_stream(in, limit, out, where, p); !s.ok()) return s;
+  if (Status s = check_end(p, compression, in.size(), uncompressed_size, where); !s.ok()) return s;
+  out.resize(p.produced);
   return {};
 }
 

@@ -9,6 +9,8 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bus/files.hpp>
+
 namespace tinyline::bag {
 
 namespace {
@@ -23,17 +25,13 @@ FileReadable::~FileReadable() {
 
 Status FileReadable::open(const std::string& path) {
   if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
   path_ = path;
-  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd_ < 0) return {StatusCode::OpenFailed, fmt::format("{}: cannot open for reading: {}", path, errno_text())};
-  struct stat st {};
-  if (::fstat(fd_, &st) != 0) return {StatusCode::OpenFailed, fmt::format("{}: cannot stat: {}", path, errno_text())};
-  if (S_ISDIR(st.st_mode)) {
-    ::close(fd_);
-    fd_ = -1;
-    return {StatusCode::OpenFailed, fmt::format("{}: is a directory, not an MCAP file", path)};
+  try {
+    fd_ = files::detail::open_regular(path, "bag", 0, &size_);  // a FIFO or device is refused, not waited on
+  } catch (const files::FileError& e) {
+    return {StatusCode::OpenFailed, e.what()};
   }
-  size_ = static_cast<std::uint64_t>(st.st_size);
   return {};
 }
 
@@ -72,37 +70,41 @@ Status MemoryReadable::read(std::uint64_t offset, std::span<std::uint8_t> out) {
 
 // ---------------------------------------------------------------------------- FileWritable
 
-FileWritable::~FileWritable() {
-  if (fd_ >= 0) (void)close();
-}
+FileWritable::~FileWritable() { file_.abandon(); }
 
 Status FileWritable::open(const std::string& path, FileWritableOptions options) {
-  if (fd_ >= 0) (void)close();
+  file_.abandon();
   path_ = path;
   options_ = options;
   size_ = 0;
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd_ < 0) return {StatusCode::OpenFailed, fmt::format("{}: cannot create: {}", path, errno_text())};
+  error_ = {};
+  try {
+    files::OutputOptions o;
+    o.inputs = options_.inputs;
+    o.keep_partial = options_.keep_partial;
+    o.sync = options_.fsync_on_close;
+    o.what = "bag";
+    file_ = files::AtomicFile(path, std::move(o));
+  } catch (const files::FileError& e) {
+    return {StatusCode::OpenFailed, e.what()};
+  }
   buffer_.clear();
   buffer_.reserve(options_.buffer_bytes);
   return {};
 }
 
 Status FileWritable::write_all(const std::uint8_t* p, std::size_t n) {
-  while (n > 0) {
-    const ssize_t w = ::write(fd_, p, n);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      return {StatusCode::WriteFailed, fmt::format("{}: write failed: {}", path_, errno_text())};
-    }
-    p += w;
-    n -= static_cast<std::size_t>(w);
+  if (!error_.ok()) return error_;
+  try {
+    file_.write(std::string_view(reinterpret_cast<const char*>(p), n));
+  } catch (const files::FileError& e) {
+    error_ = Status(StatusCode::WriteFailed, e.what());  // sticky: the file lacks bytes from here on
   }
-  return {};
+  return error_;
 }
 
 Status FileWritable::write(std::span<const std::uint8_t> bytes) {
-  if (fd_ < 0) return {StatusCode::NotOpen, fmt::format("{}: file is not open for writing", path_)};
+  if (!file_.is_open()) return {StatusCode::NotOpen, fmt::format("{}: file is not open for writing", path_)};
   size_ += bytes.size();
   if (buffer_.size() + bytes.size() <= options_.buffer_bytes) {
     buffer_.insert(buffer_.end(), bytes.begin(), bytes.end());
@@ -115,23 +117,30 @@ Status FileWritable::write(std::span<const std::uint8_t> bytes) {
 }
 
 Status FileWritable::flush() {
-  if (fd_ < 0) return {StatusCode::NotOpen, fmt::format("{}: file is not open for writing", path_)};
+  if (!file_.is_open()) return {StatusCode::NotOpen, fmt::format("{}: file is not open for writing", path_)};
   Status s = write_all(buffer_.data(), buffer_.size());
   buffer_.clear();
   return s;
 }
 
 Status FileWritable::close() {
-  if (fd_ < 0) return {};
+  if (!file_.is_open()) return error_;
   Status s = flush();
-  if (s.ok() && options_.fsync_on_close && ::fsync(fd_) != 0) {
-    s = Status(StatusCode::WriteFailed, fmt::format("{}: fsync failed: {}", path_, errno_text()));
+  if (!s.ok()) {
+    abandon();
+    return s;
   }
-  if (::close(fd_) != 0 && s.ok()) {
-    s = Status(StatusCode::WriteFailed, fmt::format("{}: close failed: {}", path_, errno_text()));
+  try {
+    file_.commit();
+  } catch (const files::FileError& e) {
+    error_ = Status(StatusCode::WriteFailed, e.what());
   }
-  fd_ = -1;
-  return s;
+  return error_;
+}
+
+void FileWritable::abandon() {
+  buffer_.clear();
+  file_.abandon();
 }
 
 // ---------------------------------------------------------------------------- MemoryWritable

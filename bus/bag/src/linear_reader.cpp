@@ -32,6 +32,10 @@ struct LinearReader::Impl {
   std::uint64_t chunk_offset = 0;
   std::vector<std::uint8_t> chunk_buf;  // decompressed records
   std::size_t chunk_pos = 0;
+  std::map<SchemaId, Schema> known_schemas;    // know(): trusted over the file's copies
+  std::map<ChannelId, Channel> known_channels;
+  bool single_record = false;  // read_chunk_at(): stop after that record
+  bool crc_gap = false;        // bytes were skipped: no data section CRC
 
   Impl(Readable& s, LinearReaderOptions o) : src(s), opt(o) {}
 
@@ -129,6 +133,8 @@ struct LinearReader::Impl {
     return true;
   }
 
+  enum class Step { Emit, Skip, Stop };
+
   bool next(LinearRecord& out) {
     while (state != State::Done) {
       if (state == State::Start) {
@@ -137,131 +143,180 @@ struct LinearReader::Impl {
       }
       if (state == State::InChunk) {
         if (next_in_chunk(out)) return true;
+        if (single_record && state == State::Records) state = State::Done;  // the one chunk asked for is done
         continue;
       }
-      std::uint8_t op = 0;
-      std::uint64_t len = 0;
-      if (!read_prefix(op, len)) return false;
-      const std::uint64_t at = pos;
-      const auto o = static_cast<Opcode>(op);
-      const bool wanted = o == Opcode::Header || o == Opcode::Schema || o == Opcode::Channel ||
-                          o == Opcode::Message || o == Opcode::Chunk || o == Opcode::Attachment ||
-                          o == Opcode::Metadata || o == Opcode::DataEnd || o == Opcode::Footer;
-      if (!wanted && !(opt.validate_crcs && !data_end)) {  // skip without reading
-        pos += kRecordPrefix + len;
-        continue;
-      }
-      const std::uint32_t crc_before = data_crc;
-      if (!read_content(op, len)) return false;
-      pos += kRecordPrefix + len;
-      out = LinearRecord{};
-      out.opcode = op;
-      out.offset = at;
-      const auto w = [this, at, op] { return where(at, op); };
-      switch (o) {
-        case Opcode::Header: {
-          if (Status s = wire::parse_lazy(rec, header, w); !s.ok()) return fatal(std::move(s));
-          out.kind = LinearRecord::Kind::Header;
-          out.header = &header;
-          return true;
-        }
-        case Opcode::Schema: {
-          Schema sc;
-          if (Status s = wire::parse_lazy(rec, sc, w); !s.ok()) {
-            if (!problem(at, std::move(s))) return false;
-            continue;
-          }
-          if (sc.id == 0) continue;  // invalid by the spec: ignored
-          auto& slot = schemas[sc.id];
-          slot = std::move(sc);
-          out.kind = LinearRecord::Kind::Schema;
-          out.schema = &slot;
-          return true;
-        }
-        case Opcode::Channel: {
-          Channel ch;
-          if (Status s = wire::parse_lazy(rec, ch, w); !s.ok()) {
-            if (!problem(at, std::move(s))) return false;
-            continue;
-          }
-          auto& slot = channels[ch.id];
-          slot = std::move(ch);
-          out.kind = LinearRecord::Kind::Channel;
-          out.channel = &slot;
-          return true;
-        }
-        case Opcode::Message: {
-          if (!message(rec, w, at, out)) {
-            if (state == State::Done) return false;
-            continue;
-          }
-          return true;
-        }
-        case Opcode::Chunk: {
-          if (!open_chunk(at, w())) {
-            if (state == State::Done) return false;
-            continue;
-          }
-          out.kind = LinearRecord::Kind::ChunkBegin;
-          out.chunk = &chunk;
-          return true;
-        }
-        case Opcode::Attachment: {
-          Attachment a;
-          if (Status s = wire::parse_lazy(rec, a, w); !s.ok()) {
-            if (!problem(at, std::move(s))) return false;
-            continue;
-          }
-          if (opt.validate_crcs && a.crc != 0) {
-            const std::uint32_t got = crc32(std::span(rec).first(rec.size() - 4));
-            if (got != a.crc) {
-              if (!problem(at, {StatusCode::CrcMismatch, fmt::format("{}: CRC 0x{:08x} != stored 0x{:08x}", w(), got,
-                                                                     a.crc)}))
-                return false;
-              continue;
-            }
-          }
-          out.kind = LinearRecord::Kind::Attachment;
-          out.attachment = a;
-          return true;
-        }
-        case Opcode::Metadata: {
-          if (Status s = wire::parse_lazy(rec, metadata, w); !s.ok()) {
-            if (!problem(at, std::move(s))) return false;
-            continue;
-          }
-          out.kind = LinearRecord::Kind::Metadata;
-          out.metadata = &metadata;
-          return true;
-        }
-        case Opcode::DataEnd: {
-          DataEnd de;
-          data_end = true;
-          state = State::Done;
-          if (Status s = wire::parse_lazy(rec, de, w); !s.ok()) {
-            problem(at, std::move(s));
-            return false;
-          }
-          if (opt.validate_crcs && de.data_section_crc != 0 && de.data_section_crc != crc_before) {
-            problem(at, {StatusCode::CrcMismatch,
-                         fmt::format("{}: data section CRC 0x{:08x} != stored 0x{:08x}", w(), crc_before,
-                                     de.data_section_crc)});
-            if (!opt.recover) return false;
-          }
-          out.kind = LinearRecord::Kind::DataEnd;
-          return true;
-        }
-        case Opcode::Footer: {
-          footer = true;
-          state = State::Done;
-          out.kind = LinearRecord::Kind::Footer;
-          return true;
-        }
-        default:
-          continue;  // index and summary records, unknown opcodes: skipped (read only for the CRC)
-      }
+      const Step step = next_top_level(out);
+      if (step == Step::Emit) return true;
+      if (step == Step::Stop) return false;
+      if (single_record && state == State::Records) state = State::Done;  // the chunk asked for was refused
     }
     return false;
+  }
+
+  // One top-level record: read, checked, and handed on (or skipped).
+  Step next_top_level(LinearRecord& out) {
+    std::uint8_t op = 0;
+    std::uint64_t len = 0;
+    if (!read_prefix(op, len)) return Step::Stop;
+    const std::uint64_t at = pos;
+    const auto o = static_cast<Opcode>(op);
+    const bool wanted = o == Opcode::Header || o == Opcode::Schema || o == Opcode::Channel || o == Opcode::Message ||
+                        o == Opcode::Chunk || o == Opcode::Attachment || o == Opcode::Metadata ||
+                        o == Opcode::DataEnd || o == Opcode::Footer;
+    if (single_record && o != Opcode::Chunk) {
+      state = State::Done;
+      problem(at, {StatusCode::InvalidRecord, fmt::format("{}: a chunk index points here, at no chunk", where(at, op))});
+      return Step::Stop;
+    }
+    if (!wanted && !(opt.validate_crcs && !data_end)) {  // skip without reading
+      pos += kRecordPrefix + len;
+      return Step::Skip;
+    }
+    const std::uint32_t crc_before = data_crc;
+    if (!read_content(op, len)) return Step::Stop;
+    pos += kRecordPrefix + len;
+    out = LinearRecord{};
+    out.opcode = op;
+    out.offset = at;
+    return dispatch(o, at, crc_before, out);
+  }
+
+  Step dispatch(Opcode o, std::uint64_t at, std::uint32_t crc_before, LinearRecord& out) {
+    const auto w = [this, at, op = static_cast<std::uint8_t>(o)] { return where(at, op); };
+    switch (o) {
+      case Opcode::Header:
+        if (Status s = wire::parse_lazy(rec, header, w); !s.ok()) return fatal(std::move(s)) ? Step::Skip : Step::Stop;
+        out.kind = LinearRecord::Kind::Header;
+        out.header = &header;
+        return Step::Emit;
+      case Opcode::Schema:
+        return on_schema(rec, w, at, false, out);
+      case Opcode::Channel:
+        return on_channel(rec, w, at, false, out);
+      case Opcode::Message:
+        if (message(rec, w, at, out)) return Step::Emit;
+        return state == State::Done ? Step::Stop : Step::Skip;
+      case Opcode::Chunk:
+        if (!open_chunk(at, w())) return state == State::Done ? Step::Stop : Step::Skip;
+        out.kind = LinearRecord::Kind::ChunkBegin;
+        out.chunk = &chunk;
+        return Step::Emit;
+      case Opcode::Attachment:
+        return on_attachment(w, at, out);
+      case Opcode::Metadata:
+        if (Status s = wire::parse_lazy(rec, metadata, w); !s.ok()) return problem(at, std::move(s)) ? Step::Skip : Step::Stop;
+        out.kind = LinearRecord::Kind::Metadata;
+        out.metadata = &metadata;
+        return Step::Emit;
+      case Opcode::DataEnd:
+        return on_data_end(w, at, crc_before, out);
+      case Opcode::Footer:
+        footer = true;
+        state = State::Done;
+        out.kind = LinearRecord::Kind::Footer;
+        return Step::Emit;
+      default:
+        return Step::Skip;  // index and summary records, unknown opcodes: skipped (read only for the CRC)
+    }
+  }
+
+  // Where a definition from the file disagrees with one given by know() (the
+  // summary's, under its own CRC), the known one is used and the difference noted.
+  template <class R, class W>
+  Step on_definition(std::map<std::uint16_t, R>& slots, const std::map<std::uint16_t, R>& known, R&& parsed,
+                     const W& w, std::uint64_t at, const char* what, LinearRecord& out, const R*& field,
+                     LinearRecord::Kind kind) {
+    auto k = known.find(parsed.id);
+    if (k != known.end() && !(k->second == parsed)) {
+      problem(at, {StatusCode::InvalidRecord, fmt::format("{}: {} {} differs from the summary's copy ('{}' here, '{}' "
+                                                          "there): the summary's is used",
+                                                          w(), what, parsed.id, label(parsed), label(k->second))});
+      parsed = k->second;
+    }
+    auto& slot = slots[parsed.id];
+    slot = std::move(parsed);
+    out.kind = kind;
+    out.in_chunk = state == State::InChunk;
+    field = &slot;
+    return Step::Emit;
+  }
+  static const std::string& label(const Schema& s) { return s.name; }
+  static const std::string& label(const Channel& c) { return c.topic; }
+
+  template <class W>
+  Step on_schema(std::span<const std::uint8_t> content, const W& w, std::uint64_t at, bool in_chunk, LinearRecord& out) {
+    Schema sc;
+    if (Status s = wire::parse_lazy(content, sc, w); !s.ok()) {
+      if (in_chunk) {
+        end_chunk_with(std::move(s));
+        return Step::Skip;
+      }
+      return problem(at, std::move(s)) ? Step::Skip : Step::Stop;
+    }
+    if (sc.id == 0) return Step::Skip;  // invalid by the spec: ignored
+    return on_definition(schemas, known_schemas, std::move(sc), w, at, "schema", out, out.schema,
+                         LinearRecord::Kind::Schema);
+  }
+
+  template <class W>
+  Step on_channel(std::span<const std::uint8_t> content, const W& w, std::uint64_t at, bool in_chunk,
+                  LinearRecord& out) {
+    Channel ch;
+    if (Status s = wire::parse_lazy(content, ch, w); !s.ok()) {
+      if (in_chunk) {
+        end_chunk_with(std::move(s));
+        return Step::Skip;
+      }
+      return problem(at, std::move(s)) ? Step::Skip : Step::Stop;
+    }
+    return on_definition(channels, known_channels, std::move(ch), w, at, "channel", out, out.channel,
+                         LinearRecord::Kind::Channel);
+  }
+
+  template <class W>
+  Step on_attachment(const W& w, std::uint64_t at, LinearRecord& out) {
+    Attachment a;
+    if (Status s = wire::parse_lazy(rec, a, w); !s.ok()) return problem(at, std::move(s)) ? Step::Skip : Step::Stop;
+    if (opt.validate_crcs && a.crc != 0) {
+      const std::uint32_t got = crc32(std::span(rec).first(rec.size() - 4));
+      if (got != a.crc) {
+        Status bad{StatusCode::CrcMismatch, fmt::format("{}: CRC 0x{:08x} != stored 0x{:08x}", w(), got, a.crc)};
+        return problem(at, std::move(bad)) ? Step::Skip : Step::Stop;
+      }
+    }
+    out.kind = LinearRecord::Kind::Attachment;
+    out.attachment = a;
+    return Step::Emit;
+  }
+
+  template <class W>
+  Step on_data_end(const W& w, std::uint64_t at, std::uint32_t crc_before, LinearRecord& out) {
+    DataEnd de;
+    data_end = true;
+    state = State::Done;
+    if (Status s = wire::parse_lazy(rec, de, w); !s.ok()) {
+      problem(at, std::move(s));
+      return Step::Stop;
+    }
+    if (opt.validate_crcs && !crc_gap && de.data_section_crc != 0 && de.data_section_crc != crc_before) {
+      problem(at, {StatusCode::CrcMismatch,
+                   fmt::format("{}: data section CRC 0x{:08x} != stored 0x{:08x}", w(), crc_before, de.data_section_crc)});
+      if (!opt.recover) return Step::Stop;
+    }
+    out.kind = LinearRecord::Kind::DataEnd;
+    return Step::Emit;
+  }
+
+  // Reading starts over at `offset` for the one chunk there (recovery through the summary).
+  bool read_chunk_at(std::uint64_t offset) {
+    if (state == State::Start && !read_start()) return false;
+    pos = offset;
+    state = State::Records;
+    status = {};
+    single_record = true;
+    crc_gap = true;  // bytes were skipped: the data section CRC cannot be checked
+    return true;
   }
 
   // A Message record's content (top level or inside a chunk). False when it is
@@ -335,32 +390,16 @@ struct LinearReader::Impl {
       const auto content = std::span<const std::uint8_t>(chunk_buf).subspan(inner + kRecordPrefix, len);
       const auto w = [this, inner, op] { return where_in_chunk(inner, op); };
       switch (static_cast<Opcode>(op)) {
-        case Opcode::Schema: {
-          Schema sc;
-          if (Status s = wire::parse_lazy(content, sc, w); !s.ok()) return end_chunk_with(std::move(s));
-          if (sc.id == 0) continue;
-          auto& slot = schemas[sc.id];
-          slot = std::move(sc);
-          out = LinearRecord{};
-          out.kind = LinearRecord::Kind::Schema;
-          out.opcode = op;
-          out.offset = chunk_offset;
-          out.in_chunk = true;
-          out.schema = &slot;
-          return true;
-        }
+        case Opcode::Schema:
         case Opcode::Channel: {
-          Channel ch;
-          if (Status s = wire::parse_lazy(content, ch, w); !s.ok()) return end_chunk_with(std::move(s));
-          auto& slot = channels[ch.id];
-          slot = std::move(ch);
           out = LinearRecord{};
-          out.kind = LinearRecord::Kind::Channel;
           out.opcode = op;
           out.offset = chunk_offset;
-          out.in_chunk = true;
-          out.channel = &slot;
-          return true;
+          const Step step = static_cast<Opcode>(op) == Opcode::Schema ? on_schema(content, w, chunk_offset, true, out)
+                                                                      : on_channel(content, w, chunk_offset, true, out);
+          if (step == Step::Emit) return true;
+          if (state != State::InChunk) return false;  // the chunk was given up
+          continue;
         }
         case Opcode::Message:
           if (message(content, w, chunk_offset, out)) return true;
@@ -395,6 +434,13 @@ std::uint64_t LinearReader::position() const { return impl_->pos; }
 const std::map<SchemaId, Schema>& LinearReader::schemas() const { return impl_->schemas; }
 const std::map<ChannelId, Channel>& LinearReader::channels() const { return impl_->channels; }
 bool LinearReader::data_end_seen() const { return impl_->data_end; }
+void LinearReader::know(const std::map<SchemaId, Schema>& schemas, const std::map<ChannelId, Channel>& channels) {
+  impl_->known_schemas = schemas;
+  impl_->known_channels = channels;
+  for (const auto& [id, s] : schemas) impl_->schemas.emplace(id, s);
+  for (const auto& [id, c] : channels) impl_->channels.emplace(id, c);
+}
+bool LinearReader::read_chunk_at(std::uint64_t offset) { return impl_->read_chunk_at(offset); }
 bool LinearReader::footer_seen() const { return impl_->footer; }
 
 }  // namespace tinyline::bag

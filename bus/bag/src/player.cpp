@@ -12,7 +12,7 @@ namespace tinyline::bag {
 namespace {
 
 PlayerOptions declare(bus::Node& n, PlayerOptions d) {
-  d.path = n.declare_parameter<std::string>("path", d.path, "the bag to play");
+  d.path = n.declare_parameter<std::string>("path", d.path, "the bag to play", bus::ParamConstraints::input_file());
   d.rate = n.declare_parameter<double>("rate", d.rate, "playback speed, x real time (0: as fast as possible)",
                                        bus::ParamConstraints::range(0.0, 1e6));
   d.loop = n.declare_parameter<bool>("loop", d.loop, "start over at the end of the bag");

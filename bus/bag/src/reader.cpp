@@ -398,7 +398,7 @@ Status Reader::open(std::unique_ptr<Readable> source, ReaderOptions options) {
   return {};
 }
 
-Status Reader::open_summary(std::uint64_t footer_offset, const Footer& footer) {
+Status Reader::check_summary_place(std::uint64_t footer_offset, const Footer& footer) const {
   const std::string& name = source_->name();
   if (footer.summary_start < data_start_ || footer.summary_start > footer_offset) {
     return {StatusCode::InvalidFooter,
@@ -416,6 +416,74 @@ Status Reader::open_summary(std::uint64_t footer_offset, const Footer& footer) {
     return {StatusCode::LimitExceeded, fmt::format("{}: summary section of {} bytes is over the limit of {}", name,
                                                    summary_len, options_.max_record_bytes)};
   }
+  return {};
+}
+
+Status Reader::summary_record(std::uint8_t op, std::span<const std::uint8_t> content, const std::string& w,
+                              const Footer& footer, bool& have_stats) {
+  switch (static_cast<Opcode>(op)) {
+    case Opcode::Schema: {
+      Schema s;
+      if (Status st = parse(content, s, w); !st.ok()) return st;
+      if (s.id != 0) summary_.schemas[s.id] = std::move(s);
+      return {};
+    }
+    case Opcode::Channel: {
+      Channel c;
+      if (Status st = parse(content, c, w); !st.ok()) return st;
+      summary_.channels[c.id] = std::move(c);
+      return {};
+    }
+    case Opcode::Statistics:
+      have_stats = true;
+      return parse(content, summary_.statistics, w);
+    case Opcode::ChunkIndex: {
+      ChunkIndex ci;
+      if (Status st = parse(content, ci, w); !st.ok()) return st;
+      if (ci.chunk_start_offset < data_start_ || ci.chunk_start_offset > footer.summary_start ||
+          ci.chunk_length > footer.summary_start - ci.chunk_start_offset) {
+        return {StatusCode::InvalidRecord,
+                fmt::format("{}: places its chunk at [{}, +{}), outside the data section [{}, {})", w,
+                            ci.chunk_start_offset, ci.chunk_length, data_start_, footer.summary_start)};
+      }
+      ++summary_.chunks_by_compression[ci.compression];
+      summary_.chunk_indexes.push_back(std::move(ci));
+      return {};
+    }
+    case Opcode::AttachmentIndex: {
+      AttachmentIndex ai;
+      if (Status st = parse(content, ai, w); !st.ok()) return st;
+      summary_.attachment_indexes.push_back(std::move(ai));
+      return {};
+    }
+    case Opcode::MetadataIndex: {
+      MetadataIndex mi;
+      if (Status st = parse(content, mi, w); !st.ok()) return st;
+      summary_.metadata_indexes.push_back(std::move(mi));
+      return {};
+    }
+    default:
+      return {};  // unknown or unexpected records in the summary are skipped
+  }
+}
+
+void Reader::statistics_from_chunk_indexes() {
+  Statistics& st = summary_.statistics;
+  st.schema_count = static_cast<std::uint16_t>(summary_.schemas.size());
+  st.channel_count = static_cast<std::uint32_t>(summary_.channels.size());
+  st.chunk_count = static_cast<std::uint32_t>(summary_.chunk_indexes.size());
+  bool first = true;
+  for (const auto& ci : summary_.chunk_indexes) {
+    st.message_start_time = first ? ci.message_start_time : std::min(st.message_start_time, ci.message_start_time);
+    st.message_end_time = first ? ci.message_end_time : std::max(st.message_end_time, ci.message_end_time);
+    first = false;
+  }
+}
+
+Status Reader::open_summary(std::uint64_t footer_offset, const Footer& footer) {
+  const std::string& name = source_->name();
+  if (Status s = check_summary_place(footer_offset, footer); !s.ok()) return s;
+  const std::uint64_t summary_len = footer_offset - footer.summary_start;
   // The summary and the footer fields the CRC covers.
   std::vector<std::uint8_t> buf(static_cast<std::size_t>(summary_len + kRecordPrefix + 16 + 4));
   if (Status s = source_->read(footer.summary_start, buf); !s.ok()) return s;
@@ -445,67 +513,12 @@ Status Reader::open_summary(std::uint64_t footer_offset, const Footer& footer) {
                           opcode_name(op), at, len)};
     }
     const auto content = std::span<const std::uint8_t>(buf).subspan(pos + kRecordPrefix, len);
-    const std::string w = where(at, opcode_name(op) + " record");
-    switch (static_cast<Opcode>(op)) {
-      case Opcode::Schema: {
-        Schema s;
-        if (Status st = parse(content, s, w); !st.ok()) return st;
-        if (s.id != 0) summary_.schemas[s.id] = std::move(s);
-        break;
-      }
-      case Opcode::Channel: {
-        Channel c;
-        if (Status st = parse(content, c, w); !st.ok()) return st;
-        summary_.channels[c.id] = std::move(c);
-        break;
-      }
-      case Opcode::Statistics:
-        if (Status st = parse(content, summary_.statistics, w); !st.ok()) return st;
-        have_stats = true;
-        break;
-      case Opcode::ChunkIndex: {
-        ChunkIndex ci;
-        if (Status st = parse(content, ci, w); !st.ok()) return st;
-        if (ci.chunk_start_offset < data_start_ || ci.chunk_start_offset > footer.summary_start ||
-            ci.chunk_length > footer.summary_start - ci.chunk_start_offset) {
-          return {StatusCode::InvalidRecord,
-                  fmt::format("{}: places its chunk at [{}, +{}), outside the data section [{}, {})", w,
-                              ci.chunk_start_offset, ci.chunk_length, data_start_, footer.summary_start)};
-        }
-        ++summary_.chunks_by_compression[ci.compression];
-        summary_.chunk_indexes.push_back(std::move(ci));
-        break;
-      }
-      case Opcode::AttachmentIndex: {
-        AttachmentIndex ai;
-        if (Status st = parse(content, ai, w); !st.ok()) return st;
-        summary_.attachment_indexes.push_back(std::move(ai));
-        break;
-      }
-      case Opcode::MetadataIndex: {
-        MetadataIndex mi;
-        if (Status st = parse(content, mi, w); !st.ok()) return st;
-        summary_.metadata_indexes.push_back(std::move(mi));
-        break;
-      }
-      default:
-        break;  // unknown or unexpected records in the summary are skipped
+    if (Status s = summary_record(op, content, where(at, opcode_name(op) + " record"), footer, have_stats); !s.ok()) {
+      return s;
     }
     pos += kRecordPrefix + len;
   }
-  if (!have_stats) {
-    // No statistics record: what the chunk indexes tell.
-    Statistics& st = summary_.statistics;
-    st.schema_count = static_cast<std::uint16_t>(summary_.schemas.size());
-    st.channel_count = static_cast<std::uint32_t>(summary_.channels.size());
-    st.chunk_count = static_cast<std::uint32_t>(summary_.chunk_indexes.size());
-    bool first = true;
-    for (const auto& ci : summary_.chunk_indexes) {
-      st.message_start_time = first ? ci.message_start_time : std::min(st.message_start_time, ci.message_start_time);
-      st.message_end_time = first ? ci.message_end_time : std::max(st.message_end_time, ci.message_end_time);
-      first = false;
-    }
-  }
+  if (!have_stats) statistics_from_chunk_indexes();  // no statistics record: what the chunk indexes tell
   has_summary_ = true;
   summary_.from_summary_section = true;
   return {};

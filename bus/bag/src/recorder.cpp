@@ -27,9 +27,28 @@ ros2::QosProfile to_profile(const bus::QoS& q) {
   return p;
 }
 
+// Topic names resolved against the node's namespace (ROS 2 rules): "demo/raw"
+// in the root namespace is "/demo/raw". A bad name stops the node's build at
+// the line that set the parameter.
+std::vector<std::string> resolved(const bus::Node& n, const std::vector<std::string>& names, const std::string& param) {
+  std::vector<std::string> out;
+  for (const auto& t : names) {
+    try {
+      out.push_back(n.resolve_topic(t));
+    } catch (const std::invalid_argument& e) {
+      bus::SourceLocation where;
+      for (const auto& p : n.parameters())
+        if (p.name == param) where = p.set_from;
+      throw bus::ParamError(where, fmt::format("node '{}': parameter '{}': {}", n.full_name(), param, e.what()));
+    }
+  }
+  return out;
+}
+
 // Declares the recorder's parameters with `d` as defaults and returns the result.
 RecorderOptions declare(bus::Node& n, RecorderOptions d) {
-  d.path = n.declare_parameter<std::string>("path", d.path, "output MCAP file (empty: tinyline_<date>_<time>.mcap)");
+  d.path = n.declare_parameter<std::string>("path", d.path, "output MCAP file (empty: tinyline_<date>_<time>.mcap)",
+                                            bus::ParamConstraints::output_file());
   d.topics = n.declare_parameter<std::vector<std::string>>("topics", d.topics, "topics to record (empty: all)");
   d.exclude = n.declare_parameter<std::vector<std::string>>("exclude", d.exclude, "topics never recorded");
   d.queue_depth = static_cast<std::size_t>(n.declare_parameter<int>(
@@ -55,7 +74,16 @@ RecorderOptions declare(bus::Node& n, RecorderOptions d) {
       "flush_interval_s", d.writer.flush_interval_s,
       "close a chunk after this long without one, so a crash loses little [s] (0: only full chunks)",
       bus::ParamConstraints::range(0.0, 3600.0));
+  d.topics = resolved(n, d.topics, "topics");
+  d.exclude = resolved(n, d.exclude, "exclude");
   return d;
+}
+
+std::string join_counts(const std::map<std::string, std::uint64_t>& counts) {
+  std::string s;
+  for (const auto& [t, n] : counts)
+    if (n != 0) s += fmt::format("{}{}: {}", s.empty() ? "" : ", ", t, n);
+  return s;
 }
 
 }  // namespace
@@ -73,7 +101,10 @@ Recorder::Recorder(bus::NodeOptions options, RecorderOptions defaults, std::uniq
 Recorder::~Recorder() { (void)stop(); }
 
 void Recorder::on_start() { start(); }
-void Recorder::on_stop() { (void)stop(); }
+
+void Recorder::on_stop() {
+  if (Status s = stop(); !s.ok()) throw BagError(std::move(s));
+}
 
 void Recorder::start() {
   if (recording_.load() || stopped_) return;
@@ -94,43 +125,49 @@ void Recorder::subscribe(const std::shared_ptr<bus::Topic>& topic) {
   const std::string& name = topic->name();
   if (!opts_.topics.empty() && std::find(opts_.topics.begin(), opts_.topics.end(), name) == opts_.topics.end()) return;
   if (std::find(opts_.exclude.begin(), opts_.exclude.end(), name) != opts_.exclude.end()) return;
+  TopicState* t = nullptr;
   {
     std::lock_guard lk(mu_);
     if (!recording_.load() || !subscribed_.insert(name).second) return;
+    topics_.push_back(std::make_unique<TopicState>());
+    t = topics_.back().get();
+    t->name = name;
   }
-  // The channel is declared with the first message, when the publishers' QoS is known.
-  auto id = std::make_shared<std::optional<AsyncWriter::TopicId>>();
   auto sub = create_generic_subscription(
       name, topic->type(), bus::QoS::reliable(opts_.queue_depth),
-      [this, id, name](const std::shared_ptr<const void>& m, const msg::TypeSupport& type, const bus::MessageInfo& info) {
-        if (!recording_.load(std::memory_order_relaxed)) return;
-        if (!*id) {
-          std::vector<ros2::QosProfile> offered;
-          for (const auto& node : context().graph().nodes()) {
-            for (const auto& p : node.publishers) {
-              if (p.topic == name) offered.push_back(to_profile(p.qos));
-            }
-          }
-          if (offered.empty()) offered.push_back(ros2::QosProfile{});
-          *id = writer_.add_topic(name, type, std::move(offered));
-        }
-        on_message(**id, name, m, type, info);
+      [this, t](const std::shared_ptr<const void>& m, const msg::TypeSupport& type, const bus::MessageInfo& info) {
+        on_message(*t, m, type, info);
       });
   std::lock_guard lk(mu_);
-  subs_.push_back(std::move(sub));
+  t->sub = std::move(sub);
 }
 
-void Recorder::on_message(AsyncWriter::TopicId id, const std::string& topic, const std::shared_ptr<const void>& m,
-                          const msg::TypeSupport& type, const bus::MessageInfo& info) {
-  std::vector<std::uint8_t> cdr = writer_.take_buffer(id);  // a recycled one: no fresh pages to map
+void Recorder::on_message(TopicState& t, const std::shared_ptr<const void>& m, const msg::TypeSupport& type,
+                          const bus::MessageInfo& info) {
+  if (!recording_.load(std::memory_order_acquire)) {
+    t.after_stop.fetch_add(1, std::memory_order_relaxed);  // counted, not lost silently
+    return;
+  }
+  if (!t.id) {
+    // The channel is declared with the first message, when the publishers' QoS is known.
+    std::vector<ros2::QosProfile> offered;
+    for (const auto& node : context().graph().nodes()) {
+      for (const auto& p : node.publishers) {
+        if (p.topic == t.name) offered.push_back(to_profile(p.qos));
+      }
+    }
+    if (offered.empty()) offered.push_back(ros2::QosProfile{});
+    t.id = writer_.add_topic(t.name, type, std::move(offered));
+  }
+  std::vector<std::uint8_t> cdr = writer_.take_buffer(*t.id);  // a recycled one: no fresh pages to map
   type.serialize(m.get(), cdr);
   const auto log_time = static_cast<Timestamp>(std::max<std::int64_t>(0, now().ns));
   const auto pub_time = static_cast<Timestamp>(std::max<std::int64_t>(0, info.publish_time.ns));
-  if (!writer_.push(id, std::move(cdr), log_time, pub_time, static_cast<std::uint32_t>(info.sequence))) {
+  if (!writer_.push(*t.id, std::move(cdr), log_time, pub_time, static_cast<std::uint32_t>(info.sequence))) {
     const auto n = drops_logged_.fetch_add(1) + 1;
     if (n == 1 || n % 1000 == 0) {
       const Status e = writer_.error();
-      logger().error("dropped a message on {} ({} dropped so far): {}", topic, n,
+      logger().error("dropped a message on {} ({} dropped so far): {}", t.name, n,
                      e.ok() ? fmt::format("the write queue is full ({} MiB): the disk or compression cannot keep up",
                                           opts_.writer.max_queue_bytes >> 20)
                             : e.str());
@@ -138,35 +175,68 @@ void Recorder::on_message(AsyncWriter::TopicId id, const std::string& topic, con
   }
 }
 
+void Recorder::drain() {
+  std::size_t left = 0;
+  {
+    std::lock_guard lk(mu_);
+    for (const auto& t : topics_)
+      if (t->sub) left += t->sub->queued();
+  }
+  // Bounded by what is queued now: publishers may go on meanwhile. A group
+  // an executor thread still runs is left to it (try_run refuses).
+  while (left > 0) {
+    std::size_t ran = 0;
+    if (!callback_group()->try_run(std::min<std::size_t>(left, 64), &ran) || ran == 0) break;
+    left -= std::min(left, ran);
+  }
+}
+
+void Recorder::cancel_subscriptions() {
+  std::lock_guard lk(mu_);
+  for (const auto& t : topics_) {
+    if (!t->sub) continue;
+    t->discarded.fetch_add(t->sub->cancel(), std::memory_order_relaxed);
+  }
+}
+
 Status Recorder::stop() {
   if (stopped_) return final_;
   stopped_ = true;
-  if (!recording_.exchange(false)) return final_;
+  if (!recording_.load()) return final_;
   context().graph().remove_on_topic(listener_);
-  const RecorderStats st = stats();
-  auto dropped_by_topic = [](const AsyncWriterStats& ws) {
-    std::string s;
-    for (const auto& [t, n] : ws.dropped_by_topic) s += fmt::format("{}{}: {}", s.empty() ? "" : ", ", t, n);
-    return s;
-  };
-  final_ = writer_.close("tinyline_recorder", [&](const AsyncWriterStats& ws) {
-    return KeyValueMap{{"recorder", full_name()},
-                       {"received", std::to_string(ws.received)},
-                       {"written", std::to_string(ws.written)},
-                       {"dropped", std::to_string(ws.dropped)},
-                       {"dropped_by_topic", dropped_by_topic(ws)},
-                       {"subscription_timeouts", std::to_string(st.subscription_timeouts)}};
-  });
-  const AsyncWriterStats after = writer_.stats();
-  if (!final_.ok()) {
-    logger().error("recording to {} failed: {}", writer_.name(), final_.str());
-  } else if (after.dropped != 0 || st.subscription_timeouts != 0) {
-    logger().error("recorded {} messages to {}; {} dropped ({}), {} publisher timeouts", after.written, writer_.name(),
-                   after.dropped, dropped_by_topic(after), st.subscription_timeouts);
-  } else {
-    logger().info("recorded {} messages to {} ({} bytes)", after.written, writer_.name(), after.file.file_bytes);
-  }
+  drain();                    // what the queues hold was accepted: record it
+  recording_.store(false);    // callbacks from here on are counted as dropped
+  cancel_subscriptions();     // and so is what is still queued
+  final_ = writer_.close("tinyline_recorder", [this](const AsyncWriterStats& ws) { return metadata(ws); });
+  report(final_);
   return final_;
+}
+
+KeyValueMap Recorder::metadata(const AsyncWriterStats& ws) const {
+  RecorderStats st = stats();
+  return KeyValueMap{{"recorder", full_name()},
+                     {"received", std::to_string(ws.received)},
+                     {"written", std::to_string(ws.written)},
+                     {"dropped", std::to_string(st.dropped)},
+                     {"dropped_by_topic", join_counts(st.dropped_by_topic)},
+                     {"subscription_timeouts", std::to_string(st.subscription_timeouts)}};
+}
+
+void Recorder::report(const Status& final_status) const {
+  const RecorderStats st = stats();
+  if (!final_status.ok()) {
+    logger().error("recording to {} failed: {}; what was recorded is in {}.part (tinyline bag recover)",
+                   writer_.name(), final_status.str(), writer_.name());
+  } else if (st.dropped != 0) {
+    logger().error("recorded {} messages to {}; {} dropped ({}), {} of them when a publisher found the queue full",
+                   st.written, writer_.name(), st.dropped, join_counts(st.dropped_by_topic), st.subscription_timeouts);
+  } else {
+    logger().info("recorded {} messages to {} ({} bytes)", st.written, writer_.name(), st.file_bytes);
+  }
+  std::lock_guard lk(mu_);
+  for (const auto& name : opts_.topics) {
+    if (subscribed_.count(name) == 0) logger().warn("topic {} never appeared: nothing recorded on it", name);
+  }
 }
 
 RecorderStats Recorder::stats() const {
@@ -174,11 +244,16 @@ RecorderStats Recorder::stats() const {
   RecorderStats s;
   s.received = ws.received;
   s.written = ws.written;
-  s.dropped = ws.dropped;
   s.file_bytes = ws.file.file_bytes;
+  s.dropped_by_topic = ws.dropped_by_topic;
   std::lock_guard lk(mu_);
-  s.topics = subs_.size();
-  for (const auto& sub : subs_) s.subscription_timeouts += sub->timeouts();
+  s.topics = topics_.size();
+  for (const auto& t : topics_) {
+    const std::uint64_t timeouts = t->sub ? t->sub->timeouts() : 0;
+    s.subscription_timeouts += timeouts;
+    s.dropped_by_topic[t->name] += timeouts + t->after_stop.load() + t->discarded.load();
+  }
+  for (const auto& [topic, n] : s.dropped_by_topic) s.dropped += n;
   return s;
 }
 

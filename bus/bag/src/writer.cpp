@@ -311,6 +311,64 @@ Status Writer::flush() {
   return {};
 }
 
+std::vector<std::uint8_t> Writer::summary_section(std::uint64_t summary_start, std::vector<SummaryOffset>& offsets) {
+  std::vector<std::uint8_t> summary;
+  if (!options_.summary) return summary;
+  auto group = [&](Opcode op, auto&& write_records) {
+    const std::size_t before = summary.size();
+    write_records();
+    if (summary.size() > before) {
+      offsets.push_back(SummaryOffset{static_cast<std::uint8_t>(op), summary_start + before, summary.size() - before});
+    }
+  };
+  statistics_.schema_count = static_cast<std::uint16_t>(schemas_.size());
+  statistics_.channel_count = static_cast<std::uint32_t>(channels_.empty() ? 0 : channels_.size() - 1);
+  group(Opcode::Schema, [&] {
+    for (const auto& s : schemas_) serialize(s, summary);
+  });
+  group(Opcode::Channel, [&] {
+    for (std::size_t i = 1; i < channels_.size(); ++i) serialize(channels_[i], summary);
+  });
+  group(Opcode::Statistics, [&] { serialize(statistics_, summary); });
+  group(Opcode::ChunkIndex, [&] {
+    for (const auto& c : chunk_indexes_) serialize(c, summary);
+  });
+  group(Opcode::AttachmentIndex, [&] {
+    for (const auto& a : attachment_indexes_) serialize(a, summary);
+  });
+  group(Opcode::MetadataIndex, [&] {
+    for (const auto& m : metadata_indexes_) serialize(m, summary);
+  });
+  return summary;
+}
+
+Status Writer::write_summary_and_footer() {
+  std::vector<SummaryOffset> offsets;
+  const std::uint64_t summary_start = out_->size();
+  std::vector<std::uint8_t> summary = summary_section(summary_start, offsets);
+  Footer footer;
+  footer.summary_start = summary.empty() ? 0 : summary_start;
+  if (!summary.empty() && options_.summary_offsets) {
+    footer.summary_offset_start = summary_start + summary.size();
+    for (const auto& o : offsets) serialize(o, summary);
+  }
+  std::vector<std::uint8_t> tail;
+  serialize(footer, tail);  // summary_crc patched below
+  if (options_.crcs && !summary.empty()) {
+    // The summary CRC runs from the summary start through the footer's summary_offset_start.
+    std::uint32_t crc = crc32(summary);
+    crc = crc32(std::span(tail).first(tail.size() - 4), crc);
+    footer.summary_crc = crc;
+    tail.clear();
+    serialize(footer, tail);
+  }
+  tail.insert(tail.end(), kMagic.begin(), kMagic.end());
+  Status result = out_->write(summary);
+  if (result.ok()) result = out_->write(tail);
+  stats_.file_bytes = out_->size();
+  return result;
+}
+
 Status Writer::close() {
   if (!out_) return error_;
   Status result = error_;
@@ -320,60 +378,12 @@ Status Writer::close() {
     serialize(DataEnd{options_.crcs ? data_crc_ : 0}, scratch_);
     result = emit(scratch_);
   }
+  if (result.ok()) result = write_summary_and_footer();
   if (result.ok()) {
-    std::vector<std::uint8_t> summary;
-    std::vector<SummaryOffset> offsets;
-    const std::uint64_t summary_start = out_->size();
-    auto group = [&](Opcode op, auto&& write_records) {
-      const std::size_t before = summary.size();
-      write_records();
-      if (summary.size() > before) {
-        offsets.push_back(SummaryOffset{static_cast<std::uint8_t>(op), summary_start + before, summary.size() - before});
-      }
-    };
-    if (options_.summary) {
-      statistics_.schema_count = static_cast<std::uint16_t>(schemas_.size());
-      statistics_.channel_count = static_cast<std::uint32_t>(channels_.empty() ? 0 : channels_.size() - 1);
-      group(Opcode::Schema, [&] {
-        for (const auto& s : schemas_) serialize(s, summary);
-      });
-      group(Opcode::Channel, [&] {
-        for (std::size_t i = 1; i < channels_.size(); ++i) serialize(channels_[i], summary);
-      });
-      group(Opcode::Statistics, [&] { serialize(statistics_, summary); });
-      group(Opcode::ChunkIndex, [&] {
-        for (const auto& c : chunk_indexes_) serialize(c, summary);
-      });
-      group(Opcode::AttachmentIndex, [&] {
-        for (const auto& a : attachment_indexes_) serialize(a, summary);
-      });
-      group(Opcode::MetadataIndex, [&] {
-        for (const auto& m : metadata_indexes_) serialize(m, summary);
-      });
-    }
-    Footer footer;
-    footer.summary_start = summary.empty() ? 0 : summary_start;
-    if (!summary.empty() && options_.summary_offsets) {
-      footer.summary_offset_start = summary_start + summary.size();
-      for (const auto& o : offsets) serialize(o, summary);
-    }
-    std::vector<std::uint8_t> tail;
-    serialize(footer, tail);  // summary_crc patched below
-    if (options_.crcs && !summary.empty()) {
-      // The summary CRC runs from the summary start through the footer's summary_offset_start.
-      std::uint32_t crc = crc32(summary);
-      crc = crc32(std::span(tail).first(tail.size() - 4), crc);
-      footer.summary_crc = crc;
-      tail.clear();
-      serialize(footer, tail);
-    }
-    tail.insert(tail.end(), kMagic.begin(), kMagic.end());
-    result = out_->write(summary);
-    if (result.ok()) result = out_->write(tail);
-    stats_.file_bytes = out_->size();
+    result = out_->close();
+  } else {
+    out_->abandon();  // an unfinished file never replaces what the path held
   }
-  Status closed = out_->close();
-  if (result.ok()) result = closed;
   closed_out_ = std::move(out_);
   if (!result.ok()) error_ = result;
   return result;

@@ -409,8 +409,11 @@ TEST(Corruption, AWriterKilledWithSigkillLeavesEveryCompletedChunkReadable) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::path(TINYLINE_BINARY_DIR) / "bag_kill";
   fs::create_directories(dir);
-  const fs::path path = dir / "killed.mcap";
+  const fs::path final_path = dir / "killed.mcap";
+  const fs::path path = dir / "killed.mcap.part";  // a file being written lives here until it is finished
   const fs::path fixed = dir / "recovered.mcap";
+  fs::remove(final_path);
+  fs::remove(path);
   int pipefd[2];
   ASSERT_EQ(::pipe(pipefd), 0);
   const pid_t child = ::fork();
@@ -420,7 +423,7 @@ TEST(Corruption, AWriterKilledWithSigkillLeavesEveryCompletedChunkReadable) {
     ros2::Ros2Writer w;
     WriterOptions opt;
     opt.chunk_size_bytes = 4096;
-    if (!w.open(path.string(), opt).ok()) ::_exit(2);
+    if (!w.open(final_path.string(), opt).ok()) ::_exit(2);
     ChannelId id;
     if (!w.add_topic("/chatter", msg::type_support<std_msgs::msg::String>(), id).ok()) ::_exit(2);
     std::uint64_t chunks = 0;
@@ -443,8 +446,9 @@ TEST(Corruption, AWriterKilledWithSigkillLeavesEveryCompletedChunkReadable) {
   ::waitpid(child, &status, 0);
   ::close(pipefd[0]);
   ASSERT_TRUE(WIFSIGNALED(status));
+  EXPECT_FALSE(fs::exists(final_path));
 
-  // The file has no footer; the linear reader delivers a gap-free prefix
+  // The path itself was never touched. The .part file has no footer; the linear reader delivers a gap-free prefix
   // covering at least the 20 chunks the child reported, then a clear error.
   Reader r;
   ASSERT_TRUE(r.open(path.string()).ok());

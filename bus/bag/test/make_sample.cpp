@@ -1,19 +1,21 @@
 // Writes the sample bag the command-line tests use (DIR/sample.mcap) and a
 // copy cut mid-chunk, as a killed recorder leaves it (DIR/cut.mcap).
 #include <cstdio>
+#include <string>
 #include <fstream>
 #include <iterator>
 #include <vector>
 
 #include "sample_traffic.hpp"
 
+#include <tinyline/common/cli.hpp>
+
 int main(int argc, char** argv) {
   using namespace tinyline::bag;
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s DIR\n", argv[0]);
-    return 2;
-  }
-  const std::string dir = argv[1];
+  std::string dir;
+  CLI::App app{"Writes the sample bag of the command-line tests (DIR/sample.mcap) and a copy cut mid-chunk (DIR/cut.mcap).", "bag_make_sample"};
+  app.add_option("DIR", dir, "directory to write into")->required();
+  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
   ros2::Ros2Writer w;
   WriterOptions o;
   o.chunk_size_bytes = 32 * 1024;

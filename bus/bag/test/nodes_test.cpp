@@ -285,7 +285,10 @@ TEST(Recorder, IsRegisteredForLaunchFilesAndChecksItsParameters) {
 
 TEST(Recorder, KilledWithSigkillMidFileThenRecovered) {
   const fs::path path = out_dir() / "killed_recorder.mcap";
+  const fs::path part = out_dir() / "killed_recorder.mcap.part";  // where a recording is until it finishes
   const fs::path fixed = out_dir() / "killed_recorder_recovered.mcap";
+  fs::remove(path);
+  fs::remove(part);
   int pipefd[2];
   ASSERT_EQ(::pipe(pipefd), 0);
   const pid_t child = ::fork();
@@ -321,16 +324,18 @@ TEST(Recorder, KilledWithSigkillMidFileThenRecovered) {
   ::close(pipefd[0]);
   ASSERT_TRUE(WIFSIGNALED(status));
 
-  // Every completed chunk reads back; each topic is a gap-free run from 1.
+  // The path was never written; every completed chunk of the .part file
+  // reads back; each topic is a gap-free run from 1.
+  EXPECT_FALSE(fs::exists(path));
   Status s;
-  const TopicCounts c = read_counts(path.string(), &s);
+  const TopicCounts c = read_counts(part.string(), &s);
   EXPECT_EQ(s.code, StatusCode::Truncated) << s.str();
   EXPECT_GE(c.total, 10U * (64 * 1024) / 7000);  // 10 chunks of 64 KiB, messages under 7 KB
   for (const auto& [topic, seqs] : c.sequences) {
     for (std::size_t i = 0; i < seqs.size(); ++i) ASSERT_EQ(seqs[i], i + 1) << topic;
   }
   RecoverReport rep;
-  ASSERT_TRUE(recover(path.string(), fixed.string(), {}, rep).ok());
+  ASSERT_TRUE(recover(part.string(), fixed.string(), {}, rep).ok());
   EXPECT_EQ(rep.messages, c.total);
   Reader r;
   ASSERT_TRUE(r.open(fixed.string()).ok());

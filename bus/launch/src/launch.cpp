@@ -1,17 +1,18 @@
 #include <tinyline/launch/launch.hpp>
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <set>
 #include <sstream>
 
 #include <fmt/format.h>
 
 #include <tinyline/bus/detail/yaml_params.hpp>
+#include <tinyline/bus/files.hpp>
 
 namespace tinyline::launch {
 
@@ -20,9 +21,76 @@ using bus::SourceLocation;
 
 namespace {
 
-// The YAML typing rules of parameters live in the bus (shared with -p name:=value).
-std::optional<bus::ParamValue> scalar_or_list(const YAML::Node& n, std::string* why) {
-  return bus::param_from_yaml(n, why);
+SourceLocation mark_of(const std::string& file, const YAML::Mark& m) {
+  return SourceLocation{file, m.line >= 0 ? m.line + 1 : 0, m.column >= 0 ? m.column + 1 : 0};
+}
+
+// A file's text through options.read_file, or the bounded default reader.
+std::string read_input(const LoadOptions& o, const std::string& path, std::string_view what,
+                       const SourceLocation& from) {
+  try {
+    if (o.read_file) return o.read_file(path, what);
+    return files::read_text(path, what, o.max_file_bytes);
+  } catch (const LaunchError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw LaunchError(from, e.what());
+  }
+}
+
+// Notes where each document starts; builds nothing.
+class DocumentMarks : public YAML::EventHandler {
+ public:
+  std::vector<YAML::Mark> starts;
+  void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
+// One YAML document: a second one would be ignored silently, so it is an
+// error. (Not YAML::LoadAll: yaml-cpp 0.7 loops forever on a stray ',', so
+// the parser is asked for the second document only.)
+YAML::Node parse_one_document(const std::string& text, const std::string& file, std::string_view what) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    DocumentMarks marks;
+    for (int i = 0; i < 3 && parser.HandleNextDocument(marks); ++i) {
+      const auto n = marks.starts.size();
+      if (n > 1 && marks.starts[n - 1].pos <= marks.starts[n - 2].pos) {
+        // yaml-cpp hands out empty documents for ever after a stray ','.
+        throw LaunchError(mark_of(file, marks.starts.back()), "YAML syntax error: a ',' outside any [ ] or { }");
+      }
+    }
+    if (marks.starts.size() > 1) {
+      throw LaunchError(mark_of(file, marks.starts[1]),
+                        fmt::format("a second YAML document ('---'): a {} holds one", what));
+    }
+  } catch (const YAML::Exception& e) {
+    throw LaunchError(mark_of(file, e.mark), "YAML syntax error: " + e.msg);
+  }
+  return root;
+}
+
+// A key given twice in one mapping: yaml-cpp keeps both, lookups see the first.
+void check_unique_keys(const YAML::Node& map, const std::string& file, const std::string& what) {
+  std::map<std::string, YAML::Mark> seen;
+  for (const auto& kv : map) {
+    const std::string key = kv.first.Scalar();
+    auto [it, fresh] = seen.emplace(key, kv.first.Mark());
+    if (!fresh) {
+      throw LaunchError(mark_of(file, kv.first.Mark()),
+                        fmt::format("key '{}' given twice in {} (first at line {})", key, what, it->second.line + 1));
+    }
+  }
 }
 
 struct Scope {
@@ -38,11 +106,9 @@ struct Loader {
   const LoadOptions& options;
   LaunchPlan plan;
   std::vector<std::string> stack;  // absolute paths of files being read (include cycles)
+  std::uint64_t expanded = 0;      // bytes produced by substitutions so far
 
-  SourceLocation loc(const Scope& s, const YAML::Node& n) const {
-    const YAML::Mark m = n.Mark();
-    return SourceLocation{s.file, m.line >= 0 ? m.line + 1 : 0, m.column >= 0 ? m.column + 1 : 0};
-  }
+  SourceLocation loc(const Scope& s, const YAML::Node& n) const { return mark_of(s.file, n.Mark()); }
 
   [[noreturn]] void fail(const Scope& s, const YAML::Node& n, const std::string& what) const {
     throw LaunchError(loc(s, n), what);
@@ -51,6 +117,7 @@ struct Loader {
   void check_keys(const Scope& s, const YAML::Node& map, const std::vector<std::string>& allowed,
                   const std::string& what) const {
     if (!map.IsMap()) fail(s, map, what + " must be a mapping");
+    check_unique_keys(map, s.file, what);
     for (const auto& kv : map) {
       const std::string key = kv.first.Scalar();
       if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
@@ -61,7 +128,74 @@ struct Loader {
     }
   }
 
-  std::string substitute(const Scope& s, const YAML::Node& n, const std::string& text) const {
+  // ---------------------------------------------------------------- substitutions
+
+  // The ')' that closes the "$(" at `i`, allowing nested substitutions.
+  std::size_t closing(const Scope& s, const YAML::Node& n, const std::string& text, std::size_t i) const {
+    int depth = 0;
+    for (std::size_t j = i; j < text.size(); ++j) {
+      if (text.compare(j, 2, "$(") == 0) {
+        ++depth;
+        ++j;
+      } else if (text[j] == ')' && --depth == 0) {
+        return j;
+      }
+    }
+    fail(s, n, "unterminated substitution in '" + text + "'");
+  }
+
+  // Keeps every value and the whole load within the expansion limits.
+  void account(const Scope& s, const YAML::Node& n, const std::string& out) {
+    if (out.size() > options.max_value_bytes) {
+      fail(s, n, fmt::format("a value grows past {} bytes through substitutions (the expansion limit)",
+                             options.max_value_bytes));
+    }
+    if (expanded > options.max_expanded_bytes) {
+      fail(s, n, fmt::format("substitutions produced more than {} bytes in this launch (the expansion limit: "
+                             "values that nest $(var ...) of each other grow exponentially)",
+                             options.max_expanded_bytes));
+    }
+  }
+
+  std::string var(const Scope& s, const YAML::Node& n, const std::vector<std::string>& argv) const {
+    if (argv.size() != 1) fail(s, n, "$(var) takes one name");
+    auto it = s.vars.find(argv[0]);
+    if (it != s.vars.end()) return it->second;
+    std::string known;
+    for (const auto& [k, v] : s.vars) known += (known.empty() ? "" : ", ") + k;
+    fail(s, n, fmt::format("unknown launch argument '{}' in $(var {}) (known: {})", argv[0], argv[0],
+                           known.empty() ? "none" : known));
+  }
+
+  std::string env(const Scope& s, const YAML::Node& n, const std::vector<std::string>& argv) const {
+    if (argv.empty() || argv.size() > 2) fail(s, n, "$(env NAME [default]) takes one or two words");
+    if (const char* v = std::getenv(argv[0].c_str())) return v;
+    if (argv.size() == 2) return argv[1];
+    fail(s, n, fmt::format("environment variable '{}' is not set (give a default: $(env {} value))", argv[0], argv[0]));
+  }
+
+  // The text one substitution stands for: `inner` is what is between $( and ).
+  std::string evaluate(const Scope& s, const YAML::Node& n, const std::string& inner) const {
+    std::istringstream words(inner);
+    std::string cmd;
+    words >> cmd;
+    std::vector<std::string> argv;
+    for (std::string w; words >> w;) argv.push_back(w);
+    if (cmd == "var") return var(s, n, argv);
+    if (cmd == "env") return env(s, n, argv);
+    if (cmd == "dirname") return s.dir;
+    if (cmd == "find-pkg-share") {
+      if (argv.size() != 1) fail(s, n, "$(find-pkg-share) takes one package name");
+      if (options.share_dir.empty()) fail(s, n, "$(find-pkg-share) is not available: no share directory configured");
+      return options.share_dir;
+    }
+    fail(s, n, fmt::format("unknown substitution '$({})' (known: var, env, dirname, find-pkg-share)", cmd));
+  }
+
+  std::string substitute(const Scope& s, const YAML::Node& n, const std::string& text, int depth = 0) {
+    if (depth > options.max_substitution_depth) {
+      fail(s, n, fmt::format("substitutions nest deeper than {} levels", options.max_substitution_depth));
+    }
     std::string out;
     std::size_t i = 0;
     while (i < text.size()) {
@@ -69,63 +203,28 @@ struct Loader {
         out += text[i++];
         continue;
       }
-      // Find the matching ')', allowing nested substitutions.
-      int depth = 0;
-      std::size_t j = i;
-      for (; j < text.size(); ++j) {
-        if (text.compare(j, 2, "$(") == 0) {
-          ++depth;
-          ++j;
-        } else if (text[j] == ')') {
-          if (--depth == 0) break;
-        }
-      }
-      if (j >= text.size()) fail(s, n, "unterminated substitution in '" + text + "'");
-      const std::string inner = substitute(s, n, text.substr(i + 2, j - i - 2));
-      std::istringstream words(inner);
-      std::string cmd;
-      words >> cmd;
-      std::vector<std::string> argv;
-      for (std::string w; words >> w;) argv.push_back(w);
-      if (cmd == "var") {
-        if (argv.size() != 1) fail(s, n, "$(var) takes one name");
-        auto it = s.vars.find(argv[0]);
-        if (it == s.vars.end()) {
-          std::string known;
-          for (const auto& [k, v] : s.vars) known += (known.empty() ? "" : ", ") + k;
-          fail(s, n, fmt::format("unknown launch argument '{}' in $(var {}) (known: {})", argv[0], argv[0],
-                                 known.empty() ? "none" : known));
-        }
-        out += it->second;
-      } else if (cmd == "env") {
-        if (argv.empty() || argv.size() > 2) fail(s, n, "$(env NAME [default]) takes one or two words");
-        const char* v = std::getenv(argv[0].c_str());
-        if (v != nullptr) {
-          out += v;
-        } else if (argv.size() == 2) {
-          out += argv[1];
-        } else {
-          fail(s, n, fmt::format("environment variable '{}' is not set (give a default: $(env {} value))", argv[0],
-                                 argv[0]));
-        }
-      } else if (cmd == "dirname") {
-        out += s.dir;
-      } else if (cmd == "find-pkg-share") {
-        if (argv.size() != 1) fail(s, n, "$(find-pkg-share) takes one package name");
-        if (options.share_dir.empty()) fail(s, n, "$(find-pkg-share) is not available: no share directory configured");
-        out += options.share_dir;
-      } else {
-        fail(s, n, fmt::format("unknown substitution '$({})' (known: var, env, dirname, find-pkg-share)", cmd));
-      }
+      const std::size_t j = closing(s, n, text, i);
+      const std::string value = evaluate(s, n, substitute(s, n, text.substr(i + 2, j - i - 2), depth + 1));
+      expanded += value.size();
+      out += value;
+      account(s, n, out);
       i = j + 1;
     }
     return out;
   }
 
-  std::string str(const Scope& s, const YAML::Node& n, const std::string& what) const {
+  std::string str(const Scope& s, const YAML::Node& n, const std::string& what) {
     if (!n.IsScalar()) fail(s, n, what + " must be a scalar");
     return substitute(s, n, n.Scalar());
   }
+
+  bool boolean(const Scope& s, const YAML::Node& n, const std::string& what) {
+    const std::string b = str(s, n, what);
+    if (b != "true" && b != "false") fail(s, n, what + " must be true or false");
+    return b == "true";
+  }
+
+  // ---------------------------------------------------------------- files
 
   /// An included file's path: relative to the including file, shown relative
   /// to the working directory when it lies below it (as compilers do).
@@ -142,19 +241,24 @@ struct Loader {
     return rel.string();
   }
 
-  void load_file(const std::string& path, std::map<std::string, std::string> given, const Scope& outer,
-                 const SourceLocation& from) {
-    std::error_code ec;
-    const std::string abs = fs::weakly_canonical(fs::path(path), ec).string();
+  void enter(const std::string& abs, const SourceLocation& from) const {
     if (std::find(stack.begin(), stack.end(), abs) != stack.end()) {
       std::string chain;
       for (const auto& f : stack) chain += display(f) + " -> ";
       throw LaunchError(from, "include cycle: " + chain + display(abs));
     }
-    std::ifstream in(path);
-    if (!in) throw LaunchError(from, "cannot open launch file '" + path + "'");
-    std::stringstream text;
-    text << in.rdbuf();
+    if (static_cast<int>(stack.size()) >= options.max_include_depth) {
+      throw LaunchError(from, fmt::format("includes nest deeper than {} files (from {}): the include depth limit",
+                                          options.max_include_depth, display(stack.front())));
+    }
+  }
+
+  void load_file(const std::string& path, std::map<std::string, std::string> given, const Scope& outer,
+                 const SourceLocation& from) {
+    std::error_code ec;
+    const std::string abs = fs::weakly_canonical(fs::path(path), ec).string();
+    enter(abs, from);
+    const std::string text = read_input(options, path, "launch file", from);
     stack.push_back(abs);
     Scope s;
     s.file = path;
@@ -162,19 +266,13 @@ struct Loader {
     s.ns = outer.ns;
     s.process = outer.process;
     s.dds = outer.dds;
-    load_text(text.str(), s, std::move(given), stack.size() == 1);
+    load_text(text, s, std::move(given), stack.size() == 1);
     stack.pop_back();
   }
 
   void load_text(const std::string& text, Scope& s, std::map<std::string, std::string> given, bool top) {
     plan.files.push_back(s.file);
-    YAML::Node root;
-    try {
-      root = YAML::Load(text);
-    } catch (const YAML::Exception& e) {
-      throw LaunchError(SourceLocation{s.file, e.mark.line + 1, e.mark.column + 1},
-                        "YAML syntax error: " + e.msg);
-    }
+    const YAML::Node root = parse_one_document(text, s.file, "launch file");
     if (!root.IsMap() || !root["launch"]) {
       throw LaunchError(SourceLocation{s.file, 1, 1}, "a launch file is a mapping with one key, 'launch'");
     }
@@ -194,6 +292,8 @@ struct Loader {
     }
   }
 
+  // ---------------------------------------------------------------- actions
+
   void run_actions(Scope& s, const YAML::Node& list, std::map<std::string, std::string>& given,
                    std::set<std::string>& declared, bool top) {
     for (const auto& entry : list) {
@@ -206,23 +306,13 @@ struct Loader {
       if (kind == "arg") {
         action_arg(s, v, given, declared, top);
       } else if (kind == "let") {
-        check_keys(s, v, {"name", "value"}, "let");
-        if (!v["name"] || !v["value"]) fail(s, v, "let needs name and value");
-        s.vars[str(s, v["name"], "let name")] = str(s, v["value"], "let value");
+        action_let(s, v);
       } else if (kind == "include") {
         action_include(s, v);
       } else if (kind == "group") {
         action_group(s, v, given, declared);
       } else if (kind == "push-ros-namespace" || kind == "push_ros_namespace") {
-        check_keys(s, v, {"namespace"}, kind);
-        if (!v["namespace"]) fail(s, v, kind + " needs a namespace");
-        const std::string ns = str(s, v["namespace"], "namespace");
-        try {
-          s.ns = bus::join_namespace(s.ns, ns);
-          if (s.ns != "/") bus::validate_name(s.ns, "namespace");
-        } catch (const std::invalid_argument& e) {
-          fail(s, v["namespace"], e.what());
-        }
+        action_push_namespace(s, v, kind);
       } else if (kind == "node") {
         action_node(s, v);
       } else if (kind == "dds") {
@@ -259,6 +349,24 @@ struct Loader {
     if (top) plan.args.push_back(a);
   }
 
+  void action_let(Scope& s, const YAML::Node& v) {
+    check_keys(s, v, {"name", "value"}, "let");
+    if (!v["name"] || !v["value"]) fail(s, v, "let needs name and value");
+    s.vars[str(s, v["name"], "let name")] = str(s, v["value"], "let value");
+  }
+
+  void action_push_namespace(Scope& s, const YAML::Node& v, const std::string& kind) {
+    check_keys(s, v, {"namespace"}, kind);
+    if (!v["namespace"]) fail(s, v, kind + " needs a namespace");
+    const std::string ns = str(s, v["namespace"], "namespace");
+    try {
+      s.ns = bus::join_namespace(s.ns, ns);
+      if (s.ns != "/") bus::validate_name(s.ns, "namespace");
+    } catch (const std::invalid_argument& e) {
+      fail(s, v["namespace"], e.what());
+    }
+  }
+
   void action_include(Scope& s, const YAML::Node& v) {
     check_keys(s, v, {"file", "arg"}, "include");
     if (!v["file"]) fail(s, v, "include needs a file");
@@ -288,6 +396,7 @@ struct Loader {
       if (v["namespace"]) {
         try {
           inner.ns = bus::join_namespace(s.ns, str(s, v["namespace"], "namespace"));
+          if (inner.ns != "/") bus::validate_name(inner.ns, "namespace");
         } catch (const std::invalid_argument& e) {
           fail(s, v["namespace"], e.what());
         }
@@ -303,6 +412,8 @@ struct Loader {
     run_actions(inner, children, given, declared, false);
   }
 
+  // ---------------------------------------------------------------- node
+
   void action_node(const Scope& s, const YAML::Node& v) {
     check_keys(s, v, {"pkg", "exec", "name", "namespace", "param", "remap", "respawn", "output", "process", "dds"},
                "node");
@@ -315,117 +426,70 @@ struct Loader {
     n.exec_where = loc(s, v["exec"]);
     n.name = v["name"] ? str(s, v["name"], "name") : n.exec;
     n.process = v["process"] ? str(s, v["process"], "process") : s.process;
-    try {
-      n.ns = v["namespace"] ? bus::join_namespace(s.ns, str(s, v["namespace"], "namespace")) : s.ns;
-      if (n.ns != "/") bus::validate_name(n.ns, "namespace");
-    } catch (const std::invalid_argument& e) {
-      fail(s, v["namespace"], e.what());
-    }
+    n.ns = node_namespace(s, v);
     if (v["respawn"]) n.respawn = boolean(s, v["respawn"], "respawn");
     n.dds = v["dds"] ? boolean(s, v["dds"], "dds") : s.dds;
     if (v["output"]) {
       const std::string o = str(s, v["output"], "output");
       if (o != "screen" && o != "log") fail(s, v["output"], "output must be screen or log");
     }
-    const std::string full = (n.ns == "/" ? "" : n.ns) + "/" + n.name;
-    if (v["param"]) {
-      if (!v["param"].IsSequence()) fail(s, v["param"], "param must be a list of {name, value} or {from: file}");
-      for (const auto& p : v["param"]) {
-        if (p.IsMap() && p["from"]) {
-          check_keys(s, p, {"from"}, "param");
-          const std::string path = resolve_path(s, str(s, p["from"], "from"));
-          try {
-            auto from_file = load_param_file(path, full);
-            n.params.insert(n.params.end(), from_file.begin(), from_file.end());
-          } catch (const LaunchError& e) {
-            throw;
-          } catch (const std::exception& e) {
-            fail(s, p["from"], e.what());
-          }
-          continue;
-        }
-        check_keys(s, p, {"name", "value"}, "param");
-        if (!p["name"] || !p["value"]) fail(s, p, "param needs name and value");
-        n.params.push_back(bus::ParamOverride{str(s, p["name"], "param name"), param_value(s, p["value"]),
-                                              loc(s, p["value"])});
-      }
-    }
-    if (v["remap"]) {
-      if (!v["remap"].IsSequence()) fail(s, v["remap"], "remap must be a list of {from, to}");
-      for (const auto& r : v["remap"]) {
-        check_keys(s, r, {"from", "to"}, "remap");
-        if (!r["from"] || !r["to"]) fail(s, r, "remap needs from and to");
-        bus::Remap rm{str(s, r["from"], "from"), str(s, r["to"], "to")};
-        try {
-          bus::validate_name(rm.from, "remap source");
-          bus::validate_name(rm.to, "remap target");
-        } catch (const std::invalid_argument& e) {
-          fail(s, r, e.what());
-        }
-        n.remaps.push_back(rm);
-      }
-    }
+    if (v["param"]) n.params = node_params(s, v["param"], (n.ns == "/" ? "" : n.ns) + "/" + n.name);
+    if (v["remap"]) n.remaps = node_remaps(s, v["remap"]);
     plan.nodes.push_back(std::move(n));
   }
 
-  bool boolean(const Scope& s, const YAML::Node& n, const std::string& what) const {
-    const std::string b = str(s, n, what);
-    if (b != "true" && b != "false") fail(s, n, what + " must be true or false");
-    return b == "true";
+  std::string node_namespace(const Scope& s, const YAML::Node& v) {
+    try {
+      const std::string ns = v["namespace"] ? bus::join_namespace(s.ns, str(s, v["namespace"], "namespace")) : s.ns;
+      if (ns != "/") bus::validate_name(ns, "namespace");
+      return ns;
+    } catch (const std::invalid_argument& e) {
+      fail(s, v["namespace"] ? v["namespace"] : v, e.what());
+    }
   }
 
-  void action_dds(const Scope& s, const YAML::Node& v) {
-    check_keys(s, v, {"topics", "domain_id", "config"}, "dds");
-    DdsPlan& d = plan.dds;
-    if (!d.where.known()) d.where = loc(s, v);
-    if (const YAML::Node t = v["topics"]) {
-      if (t.IsScalar()) {
-        if (str(s, t, "topics") != "all") fail(s, t, "dds topics must be 'all' or a list of absolute topic names");
-        d.all = true;
-      } else if (t.IsSequence()) {
-        for (const auto& e : t) {
-          const std::string name = str(s, e, "topic");
-          try {
-            bus::validate_name(name, "dds topic");
-          } catch (const std::invalid_argument& ex) {
-            fail(s, e, ex.what());
-          }
-          if (name[0] != '/') fail(s, e, "dds topic '" + name + "' must be absolute (start with '/')");
-          if (std::find(d.topics.begin(), d.topics.end(), name) == d.topics.end()) d.topics.push_back(name);
+  std::vector<bus::ParamOverride> node_params(const Scope& s, const YAML::Node& list, const std::string& full) {
+    if (!list.IsSequence()) fail(s, list, "param must be a list of {name, value} or {from: file}");
+    std::vector<bus::ParamOverride> out;
+    for (const auto& p : list) {
+      if (p.IsMap() && p["from"]) {
+        check_keys(s, p, {"from"}, "param");
+        const std::string path = resolve_path(s, str(s, p["from"], "from"));
+        try {
+          auto from_file = load_param_file(path, full, options);
+          out.insert(out.end(), from_file.begin(), from_file.end());
+        } catch (const LaunchError& e) {
+          if (e.where().known()) throw;
+          fail(s, p["from"], e.what());  // the file could not be read: at the line that names it
         }
-      } else {
-        fail(s, t, "dds topics must be 'all' or a list of absolute topic names");
+        continue;
       }
+      check_keys(s, p, {"name", "value"}, "param");
+      if (!p["name"] || !p["value"]) fail(s, p, "param needs name and value");
+      out.push_back(bus::ParamOverride{str(s, p["name"], "param name"), param_value(s, p["value"]), loc(s, p["value"])});
     }
-    if (const YAML::Node id = v["domain_id"]) {
-      const std::string text = str(s, id, "domain_id");
-      char* end = nullptr;
-      const long n = std::strtol(text.c_str(), &end, 10);
-      if (text.empty() || *end != '\0' || n < 0 || n > 232) {
-        fail(s, id, "dds domain_id must be an integer in 0..232, got '" + text + "'");
-      }
-      if (d.domain_id && *d.domain_id != n) {
-        fail(s, id, fmt::format("dds domain_id {} contradicts domain_id {} given at {}", n, *d.domain_id,
-                                d.where.str()));
-      }
-      d.domain_id = static_cast<int>(n);
-    }
-    if (const YAML::Node c = v["config"]) {
-      std::string cfg = str(s, c, "config");
-      // XML text and file:// URIs pass as they are (CYCLONEDDS_URI syntax);
-      // a plain path is relative to this launch file and must exist.
-      if (!cfg.empty() && cfg[0] != '<' && cfg.rfind("file://", 0) != 0) {
-        fs::path p(cfg);
-        if (p.is_relative()) p = fs::path(s.dir) / p;
-        std::error_code ec;
-        if (!fs::exists(p, ec)) fail(s, c, "dds config file '" + p.lexically_normal().string() + "' does not exist");
-        cfg = "file://" + fs::absolute(p, ec).lexically_normal().string();
-      }
-      d.config = cfg;
-    }
+    return out;
   }
 
-  bus::ParamValue param_value(const Scope& s, const YAML::Node& n) const {
+  std::vector<bus::Remap> node_remaps(const Scope& s, const YAML::Node& list) {
+    if (!list.IsSequence()) fail(s, list, "remap must be a list of {from, to}");
+    std::vector<bus::Remap> out;
+    for (const auto& r : list) {
+      check_keys(s, r, {"from", "to"}, "remap");
+      if (!r["from"] || !r["to"]) fail(s, r, "remap needs from and to");
+      bus::Remap rm{str(s, r["from"], "from"), str(s, r["to"], "to")};
+      try {
+        bus::validate_name(rm.from, "remap source");
+        bus::validate_name(rm.to, "remap target");
+      } catch (const std::invalid_argument& e) {
+        fail(s, r, e.what());
+      }
+      out.push_back(rm);
+    }
+    return out;
+  }
+
+  bus::ParamValue param_value(const Scope& s, const YAML::Node& n) {
     std::string why;
     if (n.IsScalar() && n.Scalar().find("$(") != std::string::npos) {
       // A substituted value is typed like a command-line value.
@@ -439,19 +503,80 @@ struct Loader {
           copy[i] = substitute(s, n, copy[i].Scalar());
         }
       }
-      if (auto v = scalar_or_list(copy, &why)) return *v;
+      if (auto v = bus::param_from_yaml(copy, &why)) return *v;
       fail(s, n, "bad parameter value: " + why);
     }
-    if (auto v = scalar_or_list(n, &why)) return *v;
+    if (auto v = bus::param_from_yaml(n, &why)) return *v;
     fail(s, n, "bad parameter value: " + why);
+  }
+
+  // ---------------------------------------------------------------- dds
+
+  void action_dds(const Scope& s, const YAML::Node& v) {
+    check_keys(s, v, {"topics", "domain_id", "config"}, "dds");
+    DdsPlan& d = plan.dds;
+    if (!d.where.known()) d.where = loc(s, v);
+    if (const YAML::Node t = v["topics"]) dds_topics(s, t);
+    if (const YAML::Node id = v["domain_id"]) dds_domain(s, id);
+    if (const YAML::Node c = v["config"]) d.config = dds_config(s, c);
+  }
+
+  void dds_topics(const Scope& s, const YAML::Node& t) {
+    DdsPlan& d = plan.dds;
+    if (t.IsScalar()) {
+      if (str(s, t, "topics") != "all") fail(s, t, "dds topics must be 'all' or a list of absolute topic names");
+      d.all = true;
+      return;
+    }
+    if (!t.IsSequence()) fail(s, t, "dds topics must be 'all' or a list of absolute topic names");
+    for (const auto& e : t) {
+      const std::string name = str(s, e, "topic");
+      try {
+        bus::validate_name(name, "dds topic");
+      } catch (const std::invalid_argument& ex) {
+        fail(s, e, ex.what());
+      }
+      if (name[0] != '/') fail(s, e, "dds topic '" + name + "' must be absolute (start with '/')");
+      if (std::find(d.topics.begin(), d.topics.end(), name) == d.topics.end()) d.topics.push_back(name);
+    }
+  }
+
+  void dds_domain(const Scope& s, const YAML::Node& id) {
+    DdsPlan& d = plan.dds;
+    const std::string text = str(s, id, "domain_id");
+    char* end = nullptr;
+    const long n = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || n < 0 || n > 232) {
+      fail(s, id, "dds domain_id must be an integer in 0..232, got '" + text + "'");
+    }
+    if (d.domain_id && *d.domain_id != n) {
+      fail(s, id, fmt::format("dds domain_id {} contradicts domain_id {} given at {}", n, *d.domain_id, d.where.str()));
+    }
+    d.domain_id = static_cast<int>(n);
+  }
+
+  // XML text and file:// URIs pass as they are (CYCLONEDDS_URI syntax); a
+  // plain path is relative to this launch file and must be a readable file.
+  std::string dds_config(const Scope& s, const YAML::Node& c) {
+    std::string cfg = str(s, c, "config");
+    if (cfg.empty() || cfg[0] == '<' || cfg.rfind("file://", 0) == 0) return cfg;
+    fs::path p(cfg);
+    if (p.is_relative()) p = fs::path(s.dir) / p;
+    try {
+      files::check_input(p.lexically_normal().string(), "dds config file", options.max_file_bytes);
+    } catch (const files::FileError& e) {
+      fail(s, c, e.what());
+    }
+    std::error_code ec;
+    return "file://" + fs::absolute(p, ec).lexically_normal().string();
   }
 };
 
-}  // namespace
+// ---------------------------------------------------------------- parameter files
 
-namespace {
 void flatten(const YAML::Node& n, const std::string& prefix, const std::string& file,
              std::vector<bus::ParamOverride>& out) {
+  check_unique_keys(n, file, prefix.empty() ? "ros__parameters" : "'" + prefix + "'");
   for (const auto& kv : n) {
     const std::string key = prefix.empty() ? kv.first.Scalar() : prefix + "." + kv.first.Scalar();
     if (kv.second.IsMap()) {
@@ -459,39 +584,48 @@ void flatten(const YAML::Node& n, const std::string& prefix, const std::string& 
       continue;
     }
     std::string why;
-    const YAML::Mark m = kv.second.Mark();
-    const SourceLocation where{file, m.line + 1, m.column + 1};
+    const SourceLocation where = mark_of(file, kv.second.Mark());
     auto v = bus::param_from_yaml(kv.second, &why);
     if (!v) throw LaunchError(where, "bad parameter value for '" + key + "': " + why);
     out.push_back(bus::ParamOverride{key, *v, where});
   }
 }
+
+// ---------------------------------------------------------------- node files
+
+struct FileUse {
+  std::string node;
+  std::string param;
+  SourceLocation where;
+};
+
+std::string file_key(const std::string& path) {
+  std::error_code ec;
+  const fs::path abs = fs::absolute(fs::path(path), ec);
+  const fs::path canon = fs::weakly_canonical(abs, ec);
+  return (ec ? abs : canon).lexically_normal().string();
+}
+
 }  // namespace
 
-std::vector<bus::ParamOverride> load_param_file(const std::string& path, const std::string& node_full_name) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw LaunchError(SourceLocation{path, 0, 0}, "cannot open parameter file");
-  } catch (const YAML::Exception& e) {
-    throw LaunchError(SourceLocation{path, e.mark.line + 1, e.mark.column + 1}, "YAML syntax error: " + e.msg);
-  }
+std::vector<bus::ParamOverride> load_param_file(const std::string& path, const std::string& node_full_name,
+                                                const LoadOptions& options) {
+  // A file that cannot be read: the message names it; the caller knows the line.
+  const YAML::Node root = parse_one_document(read_input(options, path, "parameter file", {}), path, "parameter file");
   if (!root.IsMap()) throw LaunchError(SourceLocation{path, 1, 1}, "a parameter file maps node names to ros__parameters");
+  check_unique_keys(root, path, "the parameter file");
   const std::string short_name = node_full_name.substr(node_full_name.rfind('/') + 1);
   std::vector<bus::ParamOverride> out;
   // Wildcard first so a node-specific entry wins (the last override wins).
-  for (const char* pass : {"wild", "exact"}) {
+  for (const bool wild_pass : {true, false}) {
     for (const auto& kv : root) {
       const std::string key = kv.first.Scalar();
       const bool wild = key == "/**";
       const bool exact = key == node_full_name || key == short_name || key == node_full_name.substr(1);
-      if ((std::string(pass) == "wild" && !wild) || (std::string(pass) == "exact" && !exact)) continue;
-      const YAML::Node params = kv.second["ros__parameters"];
+      if (wild_pass ? !wild : !exact) continue;
+      const YAML::Node params = kv.second.IsMap() ? kv.second["ros__parameters"] : YAML::Node();
       if (!params || !params.IsMap()) {
-        const YAML::Mark m = kv.second.Mark();
-        throw LaunchError(SourceLocation{path, m.line + 1, m.column + 1},
-                          "entry '" + key + "' needs a 'ros__parameters' mapping");
+        throw LaunchError(mark_of(path, kv.second.Mark()), "entry '" + key + "' needs a 'ros__parameters' mapping");
       }
       flatten(params, "", path, out);
     }
@@ -500,14 +634,14 @@ std::vector<bus::ParamOverride> load_param_file(const std::string& path, const s
 }
 
 LaunchPlan load_launch_file(const std::string& path, const LoadOptions& options) {
-  Loader l{options, {}, {}};
+  Loader l{options, {}, {}, 0};
   Scope outer;
-  l.load_file(path, options.args, outer, SourceLocation{path, 0, 0});
+  l.load_file(path, options.args, outer, SourceLocation{});  // errors reading it name the file
   return std::move(l.plan);
 }
 
 LaunchPlan load_launch_string(const std::string& yaml, const std::string& source_name, const LoadOptions& options) {
-  Loader l{options, {}, {}};
+  Loader l{options, {}, {}, 0};
   Scope s;
   s.file = source_name;
   s.dir = fs::current_path().string();
@@ -553,6 +687,56 @@ std::vector<std::shared_ptr<bus::Node>> instantiate(const LaunchPlan& plan, cons
     }
   }
   return nodes;
+}
+
+void configure(const LaunchPlan& plan, const std::vector<std::shared_ptr<bus::Node>>& nodes,
+               const std::string& process) {
+  std::size_t i = 0;
+  for (const auto& spec : plan.nodes) {
+    if (spec.process != process || i >= nodes.size()) continue;
+    const auto& n = nodes[i++];
+    try {
+      n->on_configure();
+    } catch (const bus::ParamError& e) {
+      throw LaunchError(e.where().known() ? e.where() : spec.where,
+                        e.where().known() ? std::string(e.what()).substr(e.where().str().size() + 2) : e.what());
+    } catch (const std::exception& e) {
+      throw LaunchError(spec.where, fmt::format("node '{}' ({}/{}) cannot start: {}", n->full_name(), spec.pkg,
+                                                spec.exec, e.what()));
+    }
+  }
+}
+
+void check_files(const std::vector<std::shared_ptr<bus::Node>>& nodes) {
+  std::map<std::string, FileUse> inputs, outputs;
+  auto where = [](const FileUse& u) {
+    return u.where.known() ? u.where.str() : "its default";
+  };
+  for (const auto& n : nodes) {
+    for (const auto& p : n->parameters()) {
+      const auto* value = std::get_if<std::string>(&p.value);
+      if (value == nullptr || !p.constraints.names_file(*value)) continue;
+      const FileUse use{n->full_name(), p.name, p.set_from};
+      const std::string key = file_key(*value);
+      if (p.constraints.file == bus::ParamConstraints::File::Input) {
+        inputs.emplace(key, use);
+        continue;
+      }
+      auto [it, fresh] = outputs.emplace(key, use);
+      if (!fresh) {
+        throw LaunchError(use.where, fmt::format("node '{}' writes '{}' ({}), which node '{}' writes too (its {} at {})",
+                                                 use.node, *value, use.param, it->second.node, it->second.param,
+                                                 where(it->second)));
+      }
+    }
+  }
+  for (const auto& [key, out] : outputs) {
+    auto in = inputs.find(key);
+    if (in == inputs.end()) continue;
+    throw LaunchError(out.where, fmt::format("node '{}' would write '{}' ({}), which node '{}' reads (its {} at {})",
+                                             out.node, key, out.param, in->second.node, in->second.param,
+                                             where(in->second)));
+  }
 }
 
 }  // namespace tinyline::launch

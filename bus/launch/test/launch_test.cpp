@@ -4,10 +4,17 @@
 
 #include <unistd.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
+#include <future>
 #include <fstream>
 #include <sstream>
+
+#include <fmt/format.h>
 
 #include <tinyline/launch/launch.hpp>
 #include <tinyline/msg/std_msgs/string.hpp>
@@ -39,11 +46,62 @@ class Listener : public bus::Node {
   std::shared_ptr<bus::Subscription<std_msgs::msg::String>> sub;
 };
 
+// Reads a file when it starts (like a driver's calibration or a simulator's
+// scene) and writes one (like a recorder); its configure step fails on a
+// file that says "broken".
+class FileUser : public bus::Node {
+ public:
+  explicit FileUser(bus::NodeOptions o) : Node(std::move(o)) {
+    in = declare_parameter<std::string>("input", "default", "a file it reads (or 'default')",
+                                        bus::ParamConstraints::input_file(1024, {"default", "builtin:"}));
+    out = declare_parameter<std::string>("output", "", "a file it writes", bus::ParamConstraints::output_file());
+  }
+  void on_configure() override {
+    if (in != "default" && in.rfind("builtin:", 0) != 0) {
+      std::ifstream f(in);
+      std::string word;
+      f >> word;
+      if (word == "broken") throw std::runtime_error("'" + in + "' is broken");
+    }
+  }
+  std::string in, out;
+};
+
 bus::NodeRegistry registry() {
   bus::NodeRegistry r;
   r.add<Talker>("demo", "talker", "says things");
   r.add<Listener>("demo", "listener", "hears things");
+  r.add<FileUser>("demo", "file_user", "reads and writes files");
   return r;
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const launch::LaunchError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+fs::path scratch(const std::string& name) {
+  const fs::path d = fs::path(TINYLINE_BINARY_DIR) / "launch_test" / name;
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// Loads `path` on another thread: a FIFO must be refused, not waited on. A
+// reader that does block is let go (a writer opens the FIFO) so the test fails
+// instead of hanging.
+std::string load_with_deadline(const std::string& path, const std::string& fifo) {
+  auto f = std::async(std::launch::async, [&] { return error_of([&] { (void)launch::load_launch_file(path); }); });
+  if (f.wait_for(std::chrono::seconds(30)) != std::future_status::ready) {
+    const int w = ::open(fifo.c_str(), O_WRONLY);
+    if (w >= 0) ::close(w);
+    return "blocked on the FIFO: " + f.get();
+  }
+  return f.get();
 }
 
 std::shared_ptr<bus::Context> context() {
@@ -94,7 +152,7 @@ TEST_F(LaunchTest, GoldenErrorMessages) {
     EXPECT_EQ(got, expected) << "for " << file;
     ++checked;
   }
-  EXPECT_EQ(checked, 12);
+  EXPECT_EQ(checked, 18);
 }
 
 TEST_F(LaunchTest, ArgsSubstitutionsGroupsAndRemaps) {
@@ -248,4 +306,145 @@ TEST_F(LaunchTest, DdsMarksNodesGroupsAndTopicsAndIsInheritedIntoIncludes) {
   EXPECT_THROW(launch::load_launch_string("launch:\n- node: {pkg: demo, exec: talker, dds: maybe}\n", "b.yaml"),
                launch::LaunchError);
   fs::remove_all(dir);
+}
+
+TEST_F(LaunchTest, AFifoOrADeviceAsLaunchFileIncludeOrParamFileIsRefusedNamingIt) {
+  const fs::path d = scratch("fifo");
+  const std::string fifo = (d / "pipe.yaml").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_EQ(load_with_deadline(fifo, fifo), "launch file '" + fifo + "' is a FIFO, not a regular file");
+  std::ofstream(d / "top.launch.yaml") << "launch:\n- include: {file: pipe.yaml}\n";
+  const std::string top = (d / "top.launch.yaml").string();
+  EXPECT_EQ(load_with_deadline(top, fifo), top + ":2:12: launch file '" + fifo + "' is a FIFO, not a regular file");
+  std::ofstream(d / "params.launch.yaml") << "launch:\n- node: {pkg: demo, exec: talker, param: [{from: pipe.yaml}]}\n";
+  const std::string params = (d / "params.launch.yaml").string();
+  EXPECT_EQ(load_with_deadline(params, fifo),
+            params + ":2:50: parameter file '" + fifo + "' is a FIFO, not a regular file");
+  // /dev/zero has no end: it used to be read until memory ran out.
+  EXPECT_EQ(error_of([] { (void)launch::load_launch_file("/dev/zero"); }),
+            "launch file '/dev/zero' is a character device, not a regular file");
+  std::ofstream(d / "zero.launch.yaml") << "launch:\n- include: {file: /dev/zero}\n";
+  EXPECT_NE(error_of([&] { (void)launch::load_launch_file((d / "zero.launch.yaml").string()); })
+                .find(":2:12: launch file '/dev/zero' is a character device"),
+            std::string::npos);
+  std::ofstream(d / "big.launch.yaml") << "launch: []\n# " << std::string(2 << 20, 'x') << "\n";
+  EXPECT_NE(error_of([&] { (void)launch::load_launch_file((d / "big.launch.yaml").string()); })
+                .find("more than the limit of 1048576"),
+            std::string::npos);
+}
+
+TEST_F(LaunchTest, ThousandsOfChainedIncludesStopAtTheDepthLimitWithAClearMessage) {
+  // 2,500 files, each including the next: the loader recursed until the stack overflowed.
+  const fs::path d = scratch("chain");
+  constexpr int kFiles = 2500;
+  for (int i = 0; i < kFiles; ++i) {
+    std::ofstream(d / fmt::format("f{}.launch.yaml", i))
+        << (i + 1 < kFiles ? fmt::format("launch:\n- include: {{file: f{}.launch.yaml}}\n", i + 1) : "launch: []\n");
+  }
+  const std::string e = error_of([&] { (void)launch::load_launch_file((d / "f0.launch.yaml").string()); });
+  EXPECT_NE(e.find("f31.launch.yaml:2:12: includes nest deeper than 32 files"), std::string::npos) << e;
+  EXPECT_NE(e.find("the include depth limit"), std::string::npos) << e;
+  launch::LoadOptions deeper;
+  deeper.max_include_depth = 100;  // the limit is an option: the first 99 load, the 100th is refused
+  const std::string e2 = error_of([&] { (void)launch::load_launch_file((d / "f0.launch.yaml").string(), deeper); });
+  EXPECT_NE(e2.find("f99.launch.yaml:2:12: includes nest deeper than 100 files"), std::string::npos) << e2;
+}
+
+TEST_F(LaunchTest, ManyLargeSubstitutionsStopAtTheTotalExpansionLimit) {
+  // Each value stays under the per-value limit; together they would not.
+  std::string yaml = "launch:\n- let: {name: a, value: \"" + std::string(60000, 'x') + "\"}\n";
+  for (int i = 0; i < 400; ++i) yaml += fmt::format("- let: {{name: v{}, value: \"$(var a)\"}}\n", i);
+  const std::string e = error_of([&] { (void)launch::load_launch_string(yaml, "wide.yaml"); });
+  EXPECT_NE(e.find("substitutions produced more than 16777216 bytes in this launch"), std::string::npos) << e;
+  std::string deep = "x";
+  for (int i = 0; i < 40; ++i) deep = "$(var " + deep + ")";
+  EXPECT_NE(error_of([&] { (void)launch::load_launch_string("launch:\n- let: {name: a, value: \"" + deep + "\"}\n", "deep.yaml"); })
+                .find("substitutions nest deeper than 16 levels"),
+            std::string::npos);
+}
+
+TEST_F(LaunchTest, AParameterFileWithARepeatedKeyOrASecondDocumentIsAnError) {
+  const fs::path d = scratch("params");
+  std::ofstream(d / "dup.yaml") << "/**:\n  ros__parameters:\n    count: 1\n    count: 2\n";
+  std::ofstream(d / "docs.yaml") << "/**:\n  ros__parameters:\n    count: 1\n---\n/**:\n  ros__parameters:\n    count: 2\n";
+  EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "dup.yaml").string(), "/t"); }),
+            (d / "dup.yaml").string() + ":4:5: key 'count' given twice in ros__parameters (first at line 3)");
+  EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "docs.yaml").string(), "/t"); }),
+            (d / "docs.yaml").string() + ":4:1: a second YAML document ('---'): a parameter file holds one");
+}
+
+TEST_F(LaunchTest, AMissingInputFileStopsTheLaunchAtTheLineThatNamesIt) {
+  // A node's input (a calibration, a scene) that is not there used to pass
+  // --check and fail only when the node started, after others had begun.
+  const fs::path d = scratch("inputs");
+  std::ofstream(d / "ok.txt") << "fine\n";
+  std::ofstream(d / "broken.txt") << "broken\n";
+  const std::string yaml = "launch:\n- arg: {name: in}\n- node:\n    pkg: demo\n    exec: file_user\n"
+                           "    param: [{name: input, value: \"$(var in)\"}]\n";
+  auto build = [&](const std::string& in) {
+    launch::LoadOptions o;
+    o.args = {{"in", in}};
+    const auto plan = launch::load_launch_string(yaml, "in.yaml", o);
+    const auto nodes = launch::instantiate(plan, registry(), context());
+    launch::configure(plan, nodes);
+  };
+  EXPECT_EQ(error_of([&] { build((d / "missing.txt").string()); }),
+            "in.yaml:6:34: node '/file_user' (demo/file_user): parameter 'input': file '" +
+                (d / "missing.txt").string() + "': cannot open: No such file or directory");
+  EXPECT_NE(error_of([&] { build("/dev/zero"); }).find("in.yaml:6:34: node '/file_user' (demo/file_user): parameter "
+                                                       "'input': file '/dev/zero' is a character device"),
+            std::string::npos);
+  EXPECT_EQ(error_of([&] { build((d / "ok.txt").string()); }), "no error");
+  EXPECT_EQ(error_of([&] { build("default"); }), "no error");
+  EXPECT_EQ(error_of([&] { build("builtin:x"); }), "no error");
+  EXPECT_EQ(error_of([&] { build((d / "broken.txt").string()); }),
+            "in.yaml:4:5: node '/file_user' (demo/file_user) cannot start: '" + (d / "broken.txt").string() +
+                "' is broken");
+}
+
+TEST_F(LaunchTest, TwoNodesWritingOneFileOrOneWritingAnothersInputAreRefused) {
+  const fs::path d = scratch("outputs");
+  std::ofstream(d / "in.txt") << "fine\n";
+  auto check = [&](const std::string& yaml) {
+    const auto plan = launch::load_launch_string(yaml, "out.yaml");
+    launch::check_files(launch::instantiate(plan, registry(), context()));
+  };
+  const std::string out = (d / "out.mcap").string();
+  const std::string same = (d / "." / "out.mcap").string();
+  EXPECT_EQ(error_of([&] {
+              check("launch:\n- node: {pkg: demo, exec: file_user, name: a, param: [{name: output, value: " + out +
+                    "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + same + "}]}\n");
+            }),
+            "out.yaml:3:77: node '/b' writes '" + same + "' (output), which node '/a' writes too (its output at "
+            "out.yaml:2:77)");
+  const std::string in = (d / "in.txt").string();
+  EXPECT_NE(error_of([&] {
+              check("launch:\n- node: {pkg: demo, exec: file_user, name: a, param: [{name: input, value: " + in +
+                    "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + in + "}]}\n");
+            }).find("node '/b' would write"),
+            std::string::npos);
+  EXPECT_EQ(error_of([&] {
+              check("launch:\n- node: {pkg: demo, exec: file_user, name: a, param: [{name: output, value: " + out +
+                    "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + out + "2}]}\n");
+            }),
+            "no error");
+}
+
+TEST_F(LaunchTest, AParameterFileEntryThatIsNoMappingIsAnErrorWithItsLine) {
+  // Found by the fuzzer: indexing the scalar threw yaml-cpp's BadSubscript,
+  // which reached the user as "error: yaml-cpp: ..." without the file.
+  const fs::path d = scratch("scalar_entry");
+  std::ofstream(d / "p.yaml") << "/t:\n  just text\n";
+  EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "p.yaml").string(), "/t"); }),
+            (d / "p.yaml").string() + ":2:3: entry '/t' needs a 'ros__parameters' mapping");
+}
+
+TEST_F(LaunchTest, AnInvalidGroupNamespaceIsAnErrorAtItsLine) {
+  // Found by the fuzzer: the group's namespace was checked only at a node
+  // without one of its own, whose missing 'namespace' key then threw
+  // yaml-cpp's InvalidNode ("error: invalid node") instead of a located error.
+  const std::string yaml = "launch:\n- group:\n    namespace: \"bad-ns\"\n    children:\n"
+                           "    - node: {pkg: demo, exec: talker}\n";
+  EXPECT_EQ(error_of([&] { (void)launch::load_launch_string(yaml, "g.yaml"); }),
+            "g.yaml:3:16: namespace '/bad-ns' is invalid: character '-' is not allowed (letters, digits, '_' and '/')");
 }

@@ -13,6 +13,8 @@
 
 #include <Eigen/Geometry>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::hydrus_fitting {
 
 struct BasePoseBufferParams {
@@ -21,6 +23,7 @@ struct BasePoseBufferParams {
   double tolerance_s = 0.02;
   double history_s = 2.0;  ///< poses older than this behind the newest are forgotten [s]
 };
+common::Validation validate(const BasePoseBufferParams& params);
 
 struct BasePoseLookup {
   bool ok = false;

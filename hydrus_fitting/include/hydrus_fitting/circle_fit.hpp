@@ -31,6 +31,8 @@
 
 #include <Eigen/Core>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::hydrus_fitting {
 
 struct Circle {
@@ -147,6 +149,9 @@ struct RefineParams {
 /// noise SD of each point along the circle's normal [m] (weights 1/sigma^2);
 /// otherwise every point has weight 1. Needs >= 3 points (>= 2 with a known
 /// radius).
+/// The parameter check refine_circle makes first (second_order only when it applies).
+common::Validation validate(const RefineParams& params);
+
 [[nodiscard]] CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
                                       const RefineParams& params = {}, std::span<const double> sigma_m = {});
 
@@ -208,6 +213,9 @@ struct Viewpoints {
 };
 
 /// MSAC + local optimisation. `sigma_m` as in refine_circle (per point).
+/// The parameter check fit_circle_robust makes first.
+common::Validation validate(const RobustCircleParams& params);
+
 [[nodiscard]] CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points,
                                           const RobustCircleParams& params = {}, std::span<const double> sigma_m = {},
                                           const Viewpoints& viewpoints = {});

@@ -16,12 +16,14 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <tinyline/common/validation.hpp>
+
 #include "hydrus_fitting/robot_model.hpp"
 
 namespace tinyline::hydrus_fitting {
 
 /// Range noise SD of the sensor against distance, linearly interpolated and
-/// held beyond the ends. Default: Table 3.1 (measured.yaml noise_vs_distance_cm,
+/// held beyond the ends. Default: Table 3.1 (sim/config/fidelity/thesis_measured.yaml noise_vs_distance_cm,
 /// 300 measurements of white paper per distance, after calibration).
 struct RangeNoiseModel {
   std::vector<std::pair<double, double>> range_sd_m{
@@ -36,6 +38,7 @@ struct FusionParams {
   double self_filter_margin_m = 0.03;
   RangeNoiseModel noise;
 };
+common::Validation validate(const FusionParams& params);
 
 /// One line scan in the robot description's terms (LineScan, converted).
 struct ScanView {

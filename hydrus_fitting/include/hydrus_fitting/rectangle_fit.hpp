@@ -52,6 +52,9 @@ struct RectangleFit {
   [[nodiscard]] bool ok() const { return status == FitStatus::kOk; }
 };
 
+/// The parameter check fit_rectangle makes first.
+common::Validation validate(const RectangleFitParams& params);
+
 [[nodiscard]] RectangleFit fit_rectangle(const Eigen::Ref<const Eigen::Matrix2Xd>& points,
                                          const RectangleFitParams& params = {}, const Viewpoints& viewpoints = {});
 

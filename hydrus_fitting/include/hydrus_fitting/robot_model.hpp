@@ -34,6 +34,8 @@
 
 #include <Eigen/Geometry>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::hydrus_fitting {
 
 /// A bad robot description: "file:line: field: reason".
@@ -128,6 +130,7 @@ struct JointBufferParams {
   /// Samples older than this behind the newest are forgotten.
   double history_s = 2.0;
 };
+common::Validation validate(const JointBufferParams& params);
 
 enum class JointLookupStatus : std::uint8_t {
   kOk = 0,

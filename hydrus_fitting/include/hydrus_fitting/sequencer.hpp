@@ -123,6 +123,10 @@ struct Schedule {
 /// conflicts with nobody in.
 [[nodiscard]] Schedule colouring_schedule(const InterferenceGraph& g, const Colouring& c, const SlotTiming& timing = {},
                                           bool fill = true);
+/// The schedule for sensors some of which emit whatever they are told (a
+/// firmware that ignores the laser command): those emit in every slot, and a
+/// slot that only held such sensors is dropped (it gave nobody else time).
+[[nodiscard]] Schedule with_always_emitting(Schedule s, std::span<const int> always);
 /// Why a schedule is unsafe for a graph (two conflicting sensors share a
 /// slot, a sensor never emits); empty when it is safe.
 [[nodiscard]] std::string check_schedule(const InterferenceGraph& g, const Schedule& s);

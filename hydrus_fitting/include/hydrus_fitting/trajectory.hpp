@@ -9,6 +9,8 @@
 
 #include <Eigen/Geometry>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::hydrus_fitting {
 
 struct RobotPose2D {
@@ -36,7 +38,7 @@ struct ApproachParams {
   double close_s = 4.0;
   double hold_s = 2.0;
   /// Why the parameters are impossible; empty when fine.
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
   [[nodiscard]] double duration_s() const { return approach_s + close_s + hold_s; }
 };
 

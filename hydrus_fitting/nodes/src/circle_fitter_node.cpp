@@ -110,6 +110,10 @@ CircleFitterNode::CircleFitterNode(bus::NodeOptions o) : Node(std::move(o)) {
   marker_height_m_ = declare_parameter("marker_height_m", 0.3, "height of the cylinder marker [m]",
                                        ParamConstraints::range(0.0, 10.0));
   publish_points_ = declare_parameter("publish_points", true, "add the fused points and the links to the markers");
+  require_valid(validate(params_.robust));
+  require_valid(validate(params_.fusion));
+  require_valid(validate(JointBufferParams{joint_tolerance_s_, joint_history_s_}));
+  require_valid(validate(BasePoseBufferParams{base_pose_tolerance_s_, joint_history_s_}));
 
   circle_pub_ = create_publisher<msgs::CircleFit>("circle");
   marker_pub_ = create_publisher<vis::MarkerArray>("markers");

@@ -57,6 +57,10 @@ SequencerNode::SequencerNode(bus::NodeOptions o) : Node(std::move(o)) {
                                                 "the schedule may use joint states this old [s]",
                                                 ParamConstraints::range(0.0, 60.0));
   const double diag_period = declare_parameter("diagnostics_period_s", 1.0, "[s]", ParamConstraints::range(0.01, 3600.0));
+  ignore_after_ = declare_parameter("ignore_after", 3,
+                                    "scans read out well after a sensor was told off before it is taken as always "
+                                    "emitting (its firmware ignores the command)",
+                                    ParamConstraints::range(1, 1000));
 
   cmd_pub_ = create_publisher<msgs::LaserCommand>("laser_command", bus::QoS::keep_last(10));
   diag_pub_ = create_publisher<diag::DiagnosticArray>("diagnostics");
@@ -79,6 +83,7 @@ SequencerNode::SequencerNode(bus::NodeOptions o) : Node(std::move(o)) {
     if (!s) return;
     auto& q = arrivals_[static_cast<std::size_t>(*s)];
     q.push_back(bus::Time::from_msg(m.header.stamp));
+    watch_scan(static_cast<std::size_t>(*s), bus::Time::from_msg(m.header.stamp));
   });
   slot_timer_ = create_timer(bus::from_seconds(params_.timing.slot_s()), [this] { on_slot(); });
   diag_timer_ = create_timer(bus::from_seconds(diag_period), [this] { publish_diagnostics(); });
@@ -89,6 +94,8 @@ void SequencerNode::on_start() {
   joints_ = std::make_unique<JointStateBuffer>(model_->joint_names(), joint_params_);
   sequencer_ = std::make_unique<Sequencer>(*model_, params_);
   arrivals_.assign(model_->sensors().size(), {});
+  off_since_.assign(model_->sensors().size(), std::nullopt);
+  scans_while_off_.assign(model_->sensors().size(), 0);
   const int n = static_cast<int>(model_->sensors().size());
   // Until joint states arrive the safe schedule is the thesis's.
   schedule_ = mode_ == "all_on" ? Schedule{"all_on", {{}}, std::vector<double>(static_cast<std::size_t>(n), 0.0),
@@ -128,16 +135,32 @@ void SequencerNode::on_slot() {
       slot_ = -1;
     }
   }
-  slot_ = (slot_ + 1) % std::max(1, schedule_.slot_count());
+  const Schedule used = with_always_emitting(schedule_, always_on_);
+  slot_ = (slot_ + 1) % std::max(1, used.slot_count());
   auto cmd = std::make_unique<msgs::LaserCommand>();
   cmd->header.stamp = now().to_msg();
   for (int i = 0; i < n; ++i) {
-    const bool on = schedule_.emits(slot_, i);
+    const bool on = used.emits(slot_, i);
+    auto& off = off_since_[static_cast<std::size_t>(i)];
+    if (!on && !off) off = now();
+    if (on) off.reset();
     cmd->sensors.push_back(model_->sensors()[static_cast<std::size_t>(i)].name);
     cmd->laser_on.push_back(on);
     if (on) cmd->active_slots.push_back(static_cast<std::uint16_t>(i));
   }
   cmd_pub_->publish(std::move(cmd));
+}
+
+void SequencerNode::watch_scan(std::size_t sensor, bus::Time stamp) {
+  const auto& off = off_since_[sensor];
+  if (!off || std::find(always_on_.begin(), always_on_.end(), static_cast<int>(sensor)) != always_on_.end()) return;
+  // A set already under way when the order went out may still arrive; one
+  // read out a whole set period after it was not asked for.
+  if (bus::to_seconds(stamp - *off) <= params_.timing.set_period_s + params_.timing.guard_s) return;
+  if (++scans_while_off_[sensor] < ignore_after_) return;
+  always_on_.push_back(static_cast<int>(sensor));
+  logger().warn("sensor '{}' keeps measuring while told to stop emitting ({} scans): taken as always emitting",
+                model_->sensors()[sensor].name, scans_while_off_[sensor]);
 }
 
 void SequencerNode::publish_diagnostics() {
@@ -175,6 +198,10 @@ void SequencerNode::publish_diagnostics() {
     kv(name + ".rate_hz", fmt::format("{:.2f}", schedule_.rate_hz[static_cast<std::size_t>(i)]));
     kv(name + ".thesis_rate_hz", fmt::format("{:.2f}", thesis.rate_hz[static_cast<std::size_t>(i)]));
     kv(name + ".achieved_hz", fmt::format("{:.2f}", static_cast<double>(q.size()) / rate_window_s_));
+    const bool always = std::find(always_on_.begin(), always_on_.end(), i) != always_on_.end();
+    kv(name + ".obeys_laser_off", always ? fmt::format("no ({} scans while off): always emitting",
+                                                      scans_while_off_[static_cast<std::size_t>(i)])
+                                         : "yes or untested");
   }
   arr->status.push_back(std::move(st));
   diag_pub_->publish(std::move(arr));

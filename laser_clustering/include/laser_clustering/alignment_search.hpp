@@ -28,7 +28,7 @@ struct AlignmentParams {
   double min_peak_ratio = 1.3;
 };
 
-[[nodiscard]] Validation validate(const AlignmentParams& params);
+common::Validation validate(const AlignmentParams& params);
 
 enum class AlignmentOutcome {
   kFound,         ///< an interior peak; best_pitch_rad is refined between the steps
@@ -77,7 +77,7 @@ struct SurfaceReflectanceParams {
   ReflectanceClusteringParams clustering;  ///< kBrightestCluster
 };
 
-[[nodiscard]] Validation validate(const SurfaceReflectanceParams& params);
+common::Validation validate(const SurfaceReflectanceParams& params);
 
 struct SurfaceReflectance {
   bool found = false;

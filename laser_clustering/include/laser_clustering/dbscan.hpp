@@ -28,6 +28,8 @@
 
 #include <Eigen/Core>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::laser_clustering {
 
 inline constexpr int kNoise = -1;    ///< label of a noise point
@@ -40,12 +42,8 @@ struct DbscanParams {
   int min_points = 3;
 };
 
-/// Parameter check shared by every entry point: {valid, reason}.
-struct Validation {
-  bool valid = true;
-  std::string reason;
-};
-[[nodiscard]] Validation validate(const DbscanParams& params);
+/// Parameter check shared by every entry point.
+common::Validation validate(const DbscanParams& params);
 
 struct DbscanResult {
   /// False when the parameters or the input were rejected; `reason` says why

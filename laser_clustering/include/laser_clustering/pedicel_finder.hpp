@@ -1,6 +1,6 @@
 // Pedicel finder (thesis 4.4.2, 4.5): from the objects of a two-stage
 // clustering, the one whose width and range fit the pedicel prior (about
-// 6 mm wide, measured.yaml tomato.pedicel_diameter_m), and the move that
+// 6 mm wide, as the thesis measured), and the move that
 // centres it between the scissor blades (opening 2 cm, tomato.scissor_opening_m).
 //
 // Frames: everything is in the laser frame (z forward along the optical axis,
@@ -26,11 +26,11 @@ namespace tinyline::laser_clustering {
 struct ScissorGeometry {
   double centre_x_m = 0.0;   ///< blade throat along the line [m]
   double centre_z_m = 0.12;  ///< blade throat along the optical axis [m]
-  double opening_m = 0.02;   ///< gap between the open blades [m] (measured.yaml)
+  double opening_m = 0.02;   ///< gap between the open blades [m] (the thesis's scissors)
 };
 
 struct PedicelFinderParams {
-  double diameter_m = 0.006;     ///< pedicel prior [m] (measured.yaml tomato.pedicel_diameter_m)
+  double diameter_m = 0.006;     ///< pedicel prior [m] (the thesis's pedicel diameter)
   /// Spread of a measured width around the prior [m]: pixel footprint,
   /// mixed edge pixels and real pedicels together.
   double diameter_sd_m = 0.0025;
@@ -63,7 +63,7 @@ struct PedicelFinderParams {
   ScissorGeometry scissors;
 };
 
-[[nodiscard]] Validation validate(const PedicelFinderParams& params);
+common::Validation validate(const PedicelFinderParams& params);
 
 /// Where the caller expects the pedicel (e.g. projected from the vision
 /// system's tomato and pedicel estimate), overriding the blade throat.

@@ -37,7 +37,7 @@ struct ReflectanceClusteringParams {
   double smooth_step_m = 0.01;
 };
 
-[[nodiscard]] Validation validate(const ReflectanceClusteringParams& params);
+common::Validation validate(const ReflectanceClusteringParams& params);
 
 struct ReflectanceCluster {
   int id = -1;

@@ -69,7 +69,7 @@ struct TomatoRegistrationParams {
   double ambiguity_ratio = 0.8;
 };
 
-[[nodiscard]] Validation validate(const TomatoRegistrationParams& params);
+common::Validation validate(const TomatoRegistrationParams& params);
 
 struct TomatoRegistration {
   bool ok = false;        ///< a clear shift was found (else see reason)

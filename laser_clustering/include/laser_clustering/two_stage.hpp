@@ -59,7 +59,7 @@ struct TwoStageParams {
   DbscanParams objects{0.008, 2};
 };
 
-[[nodiscard]] Validation validate(const TwoStageParams& params);
+common::Validation validate(const TwoStageParams& params);
 
 /// What happened to a pixel.
 enum class PixelFate : std::uint8_t {
@@ -117,7 +117,7 @@ class LineScanClusterer {
 
  private:
   TwoStageParams params_;
-  Validation valid_;
+  common::Validation valid_;
   OrderedScanDbscan dbscan_;
   DbscanResult groups_, objects_;  // the two DBSCAN passes' results, reused
   std::vector<double> range_, checked_angle_, sum_r2_, sum_refl_;

@@ -14,10 +14,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 thread_local std::vector<std::uint8_t> saturated_;
 thread_local std::vector<double> intensity_;
 
-void check(const bus::Node& node, const Validation& v) {
-  if (!v.valid) throw bus::ParamError({}, fmt::format("node '{}': {}", node.full_name(), v.reason));
-}
-
 }  // namespace
 
 std::string to_core(const tinyline_msgs::msg::LineScan& m, LineScan& out, double min_reflectance) {
@@ -151,7 +147,7 @@ TwoStageParams declare_two_stage(bus::Node& n) {
   p.objects.min_points = n.declare_parameter("objects_min_points", d.objects.min_points,
                                              "stage-3 neighbours (self included) of a core pixel",
                                              ParamConstraints::range(1, 256));
-  check(n, validate(p));
+  n.require_valid(validate(p));
   return p;
 }
 
@@ -189,7 +185,7 @@ PedicelFinderParams declare_pedicel_finder(bus::Node& n) {
                                               ParamConstraints::range(0.0, 2.0));
   p.scissors.opening_m = n.declare_parameter("scissor_opening_m", d.scissors.opening_m,
                                              "gap between the open blades [m]", ParamConstraints::range(1e-3, 0.2));
-  check(n, validate(p));
+  n.require_valid(validate(p));
   return p;
 }
 
@@ -211,7 +207,7 @@ ReflectanceClusteringParams declare_reflectance(bus::Node& n) {
                                                ParamConstraints::range(0, 32));
   p.smooth_step_m = n.declare_parameter("smooth_step_m", d.smooth_step_m, "smoothing never crosses this step [m]",
                                         ParamConstraints::range(0.0, 1.0));
-  check(n, validate(p));
+  n.require_valid(validate(p));
   return p;
 }
 
@@ -226,7 +222,7 @@ AlignmentParams declare_alignment(bus::Node& n) {
   p.min_peak_ratio = n.declare_parameter("min_peak_ratio", d.min_peak_ratio,
                                          "peak over the sweep's median needed to count as a peak",
                                          ParamConstraints::range(1.0, 1000.0));
-  check(n, validate(p));
+  n.require_valid(validate(p));
   return p;
 }
 
@@ -249,7 +245,7 @@ SurfaceReflectanceParams declare_surface_reflectance(bus::Node& n) {
   p.last_pixel = n.declare_parameter("roi_last_pixel", d.last_pixel, "region of interest, last pixel (-1: to the end)",
                                      ParamConstraints::range(-1, 4096));
   p.clustering = declare_reflectance(n);
-  check(n, validate(p));
+  n.require_valid(validate(p));
   return p;
 }
 
@@ -296,7 +292,7 @@ TomatoRegistrationParams declare_tomato_registration(bus::Node& n) {
   p.ambiguity_ratio = n.declare_parameter("ambiguity_ratio", d.ambiguity_ratio,
                                           "a rival with this share of the best's support makes it ambiguous",
                                           ParamConstraints::range(1e-3, 1.0));
-  check(n, validate(p));
+  n.require_valid(validate(p));
   return p;
 }
 

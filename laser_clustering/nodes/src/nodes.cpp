@@ -11,9 +11,6 @@
 #include "common.hpp"
 #include "laser_clustering/nodes/conversions.hpp"
 #include "laser_clustering/nodes/register.hpp"
-#ifdef TINYLINE_LASER_CLUSTERING_HAVE_SIM
-#include "sim_gripper.hpp"
-#endif
 
 namespace tinyline::laser_clustering {
 
@@ -386,9 +383,6 @@ void register_nodes(bus::NodeRegistry& r) {
                              "pitch of maximum surface reflectance (scan + joint_states -> alignment), 5.3.2");
   r.add<PitchSweepNode>("laser_clustering", "pitch_sweep",
                         "sweeps the gripper pitch (joint_command), then commands the pitch alignment found, 5.3.2");
-#ifdef TINYLINE_LASER_CLUSTERING_HAVE_SIM
-  nodes::register_sim_nodes(r);
-#endif
 }
 
 }  // namespace tinyline::laser_clustering

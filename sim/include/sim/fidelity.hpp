@@ -10,7 +10,7 @@
 //    to 40 % or 20 %); one data point per distance = the mean read-out of 10
 //    sets; "multi-discharge" pools 10-80 %. Fits: linear (Eq. 3.16), 3rd and
 //    6th degree polynomial in X (Eq. 3.18), made by the project's calibration
-//    fitter (tiny_laser_driver/calibration_fit.hpp) with R_sen and V_le fixed
+//    fitter (tiny_laser_calibration/fit.hpp) with R_sen and V_le fixed
 //    to the measured constants.
 //  * Table 3.1: white paper at 20.5-125 cm, continuous raw mode (the default
 //    read-out schedule), per pixel the read-out with the most pulses that is
@@ -36,7 +36,7 @@ struct MeasuredConstants {
   double vle_per_pulse = 0.0;      ///< leakage per accumulated pulse [charge_unit]
 };
 
-/// The driver's validity rule (wire_protocol.md) and selection: the read-out
+/// The driver's validity rule (tiny_laser_driver/protocol.hpp) and selection: the read-out
 /// with the most pulses whose charges are in (10, 230) and a + b > 10 + 0.4 p/10.
 /// Returns the read-out index or -1.
 [[nodiscard]] int select_readout(const SensorSet& set, int pixel);
@@ -98,7 +98,7 @@ struct ThesisFigures {
 };
 [[nodiscard]] ThesisFigures load_thesis_figures(const std::string& path);
 
-/// Goals of issue 4, checked against the measured figures.
+/// The fidelity goals (docs/simulator_fidelity.md), checked against the measured figures.
 struct FidelityVerdict {
   bool ok = true;
   std::vector<std::string> failures;  ///< one line per missed goal

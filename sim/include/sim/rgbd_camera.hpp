@@ -32,6 +32,8 @@
 
 #include <sim/world.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::sim {
 
 struct PinholeIntrinsics {
@@ -107,7 +109,7 @@ struct RgbdCameraParams {
   bool tile_culling = true;
 
   /// Why the parameters cannot work (empty when they can).
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 /// One registered RGB-D frame. Pixel (u, v) is index v * width + u.

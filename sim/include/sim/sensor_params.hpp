@@ -13,10 +13,14 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <sim/effects.hpp>
+
+#include <tinyline/common/validation.hpp>
 
 namespace tinyline::sim {
 
@@ -102,6 +106,32 @@ struct EnvironmentParams {
   double ambient_charge_per_pulse = 0.0;
 };
 
+/// Which firmware the sensor's MCU runs (docs/simulator.md, "Firmware profiles").
+enum class FirmwareProfile {
+  kThesisRaw,  ///< raw sets of read-outs and the host commands of Algorithms 1 and 4 (the thesis's firmware)
+  kPublished,  ///< the published STM32 firmware: distance frames only, repeated by circular DMA, commands ignored
+};
+[[nodiscard]] const char* to_string(FirmwareProfile p);
+/// "thesis_raw" or "published"; nullopt for anything else.
+[[nodiscard]] std::optional<FirmwareProfile> firmware_profile_from_string(std::string_view s);
+
+/// The firmware and the constants of the published one (its Src/main.c and
+/// Src/itcallback.cpp); the thesis profile uses `acquisition` only.
+struct FirmwareParams {
+  FirmwareProfile profile = FirmwareProfile::kThesisRaw;
+  double tick_s = 100e-6;                  ///< published: timer interrupt period (one count of the pulse counter)
+  int cycle_ticks = 1001;                  ///< published: ticks per accumulation cycle (it sends when the counter passes 1000)
+  double sensitivity_ratio = 1.04;         ///< published: SR, the factor on capacitor A's discharge
+  int compensated_pixel = 176;             ///< published: the pixel whose A discharge is scaled once more ...
+  double compensated_pixel_factor = 1.04;  ///< ... by this (a defect of the authors' unit, compensated by hand)
+  /// published: discharge [charge_unit] from which a capacitor counts as
+  /// saturated (the firmware's ADC output below 2200 counts, from a reset
+  /// level near 4000); a saturated read-out leaves the pixel's earlier value.
+  double saturation_charge = 180.0;
+
+  [[nodiscard]] double cycle_s() const { return tick_s * cycle_ticks; }
+};
+
 struct SensorParams {
   std::string name = "tiny_tof";
   LensParams lens;
@@ -110,11 +140,12 @@ struct SensorParams {
   ThermalParams thermal;
   AcquisitionParams acquisition;
   EnvironmentParams environment;
+  FirmwareParams firmware;
   std::vector<EffectSpec> effects;    ///< undeclared extras, off unless listed
   std::uint64_t seed = 1;             ///< per-pixel constants and noise
 
   /// Why the parameters cannot work (empty when they can).
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 /// Reads a sensor YAML (see config/sensors/). Unknown keys, wrong types and

@@ -22,6 +22,8 @@
 
 #include <sim/material.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::sim {
 
 using ObjectId = std::int32_t;
@@ -76,7 +78,7 @@ struct Hit {
 };
 
 /// Why a shape is not valid (empty when it is).
-[[nodiscard]] std::string validate_shape(const Shape& s);
+common::Validation validate_shape(const Shape& s);
 
 class World {
  public:

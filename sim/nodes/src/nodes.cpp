@@ -6,7 +6,7 @@
 
 #include <tinyline/msg/eigen.hpp>
 
-#include "sim/nodes/register.hpp"
+#include "parts.hpp"
 
 namespace tinyline::sim::nodes {
 
@@ -209,7 +209,7 @@ void SceneTruthNode::drain() {
 
 namespace tinyline::sim {
 
-void register_nodes(bus::NodeRegistry& r) {
+void nodes::register_scene_nodes(bus::NodeRegistry& r) {
   r.add<nodes::VirtualSensorNode>("sim", "virtual_sensor",
                                   "one simulated tiny TOF sensor of a scene on the bus clock: raw_scan + scan_truth");
   r.add<nodes::SceneTruthNode>("sim", "scene_truth",

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include <sim/rgbd_camera.hpp>
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::sim {
 
@@ -14,24 +15,19 @@ namespace {
 
 constexpr double kG = 9.81;  // [m/s^2]
 
-// splitmix64: a fixed sequence per seed on every platform.
+// The truss's draws: uniforms in (0, 1] on the common splitmix64 stream
+// (a fixed sequence per seed on every platform).
 class Rng {
  public:
-  explicit Rng(std::uint64_t seed) : s_(seed * 0x9e3779b97f4a7c15ULL + 0x7f4a7c159e3779b9ULL) {}
-  std::uint64_t next() {
-    std::uint64_t z = (s_ += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-  }
-  double uniform() { return (static_cast<double>(next() >> 11) + 0.5) * 0x1.0p-53; }
+  explicit Rng(std::uint64_t seed) : r_(common::stream_seed(seed, 0x7f4a7c159e3779b9ULL)) {}
+  double uniform() { return r_.uniform_open(); }
   double uniform(double a, double b) { return a + (b - a) * uniform(); }
   int integer(int lo, int hi) { return lo + static_cast<int>(uniform() * (hi - lo + 1)); }  // [lo, hi]
-  double normal() { return std::sqrt(-2.0 * std::log(uniform())) * std::cos(2.0 * M_PI * uniform()); }
+  double normal() { return r_.normal_unpaired(); }
   bool chance(double p) { return uniform() < p; }
 
  private:
-  std::uint64_t s_;
+  common::SplitMixRandom r_;
 };
 
 // Closest point parameter of p on segment a-b, in [0, 1].
@@ -456,28 +452,28 @@ std::optional<TrussClass> parse_truss_class(std::string_view s) {
   return std::nullopt;
 }
 
-std::string TrussParams::validate() const {
-  if (num_tomatoes < 0 || num_tomatoes > 8) return "num_tomatoes must be 0 (by class) or 1..8";
+common::Validation TrussParams::validate() const {
+  if (num_tomatoes < 0 || num_tomatoes > 8) return common::Validation::invalid("num_tomatoes must be 0 (by class) or 1..8");
   if (!(radius_min_m > 0.005) || !(radius_max_m >= radius_min_m) || radius_max_m > 0.08)
-    return "tomato radii must satisfy 0.005 < radius_min_m <= radius_max_m <= 0.08 m";
+    return common::Validation::invalid("tomato radii must satisfy 0.005 < radius_min_m <= radius_max_m <= 0.08 m");
   if (!(pedicel_length_min_m > 0.005) || !(pedicel_length_max_m >= pedicel_length_min_m) || pedicel_length_max_m > 0.15)
-    return "pedicel lengths must satisfy 0.005 < min <= max <= 0.15 m";
-  if (!(pedicel_radius_m > 0) || !(peduncle_radius_m > 0)) return "pedicel and peduncle radii must be > 0";
+    return common::Validation::invalid("pedicel lengths must satisfy 0.005 < min <= max <= 0.15 m");
+  if (!(pedicel_radius_m > 0) || !(peduncle_radius_m > 0)) return common::Validation::invalid("pedicel and peduncle radii must be > 0");
   if (!(flatness_min >= 0.5) || !(flatness_max >= flatness_min) || !(flatness_max <= 1.2))
-    return "flatness must satisfy 0.5 <= flatness_min <= flatness_max <= 1.2";
-  if (!(rib_max >= 0 && rib_max <= 0.1)) return "rib_max must be in [0, 0.1]";
-  if (!(density_kg_m3 > 0)) return "density_kg_m3 must be > 0";
-  if (!(stiffness_ratio_min >= 0) || !(stiffness_ratio_max >= stiffness_ratio_min)) return "stiffness ratios must be 0 <= min <= max";
-  if (!(rest_tilt_max_deg >= 0 && rest_tilt_max_deg <= 80)) return "rest_tilt_max_deg must be in [0, 80]";
-  if (front_leaves < -1 || front_leaves > 8) return "front_leaves must be -1 (by class) or 0..8";
-  if (!(camera_distance_m >= 0.2 && camera_distance_m <= 2.0)) return "camera_distance_m must be in [0.2, 2] m";
-  if (!(camera_jitter_m >= 0) || !(camera_yaw_jitter_deg >= 0)) return "camera jitters must be >= 0";
-  if (!origin_m.allFinite()) return "origin_m must be finite";
-  return {};
+    return common::Validation::invalid("flatness must satisfy 0.5 <= flatness_min <= flatness_max <= 1.2");
+  if (!(rib_max >= 0 && rib_max <= 0.1)) return common::Validation::invalid("rib_max must be in [0, 0.1]");
+  if (!(density_kg_m3 > 0)) return common::Validation::invalid("density_kg_m3 must be > 0");
+  if (!(stiffness_ratio_min >= 0) || !(stiffness_ratio_max >= stiffness_ratio_min)) return common::Validation::invalid("stiffness ratios must be 0 <= min <= max");
+  if (!(rest_tilt_max_deg >= 0 && rest_tilt_max_deg <= 80)) return common::Validation::invalid("rest_tilt_max_deg must be in [0, 80]");
+  if (front_leaves < -1 || front_leaves > 8) return common::Validation::invalid("front_leaves must be -1 (by class) or 0..8");
+  if (!(camera_distance_m >= 0.2 && camera_distance_m <= 2.0)) return common::Validation::invalid("camera_distance_m must be in [0.2, 2] m");
+  if (!(camera_jitter_m >= 0) || !(camera_yaw_jitter_deg >= 0)) return common::Validation::invalid("camera jitters must be >= 0");
+  if (!origin_m.allFinite()) return common::Validation::invalid("origin_m must be finite");
+  return common::Validation::ok();
 }
 
 Truss make_truss(const TrussParams& params) {
-  if (const std::string why = params.validate(); !why.empty()) throw std::invalid_argument("truss: " + why);
+  if (const common::Validation why = params.validate(); !why.valid) throw std::invalid_argument("truss: " + why.reason);
   Truss T;
   T.params = params;
   Rng rng(params.seed);

@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   f.distance[10] = 1234;
   std::vector<std::uint8_t> bytes;
   tiny_laser_driver::encode_distance_frame(f, bytes);
-  tiny_laser_driver::Parser p({tiny_laser_driver::StreamMode::Distance});
+  tiny_laser_driver::Parser p;
   p.feed(bytes);
   auto got = p.next_distance();
   if (!got || got->distance[10] != 1234) return std::puts("downstream: protocol failed"), 1;

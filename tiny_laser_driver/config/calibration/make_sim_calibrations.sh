@@ -15,11 +15,11 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 for sensor in tiny_tof_8mm tiny_tof_3p6mm; do
   cfg="$root/sim/config/sensors/$sensor.yaml"
-  constants=$("$build/tiny_laser_driver/sim_rail_csv" --sensor "$cfg" --constants)
+  constants=$("$build/sim/sim_rail_csv" --sensor "$cfg" --constants)
   echo "== $sensor: measured constants $constants"
-  "$build/tiny_laser_driver/sim_rail_csv" --sensor "$cfg" -o "$tmp/rail.csv" --from 0.15
+  "$build/sim/sim_rail_csv" --sensor "$cfg" -o "$tmp/rail.csv" --from 0.15
   # shellcheck disable=SC2086
   "$build/tools/tinyline" calib fit "$tmp/rail.csv" -o "$here/sim_$sensor.yaml" $constants
-  "$build/tiny_laser_driver/sim_rail_csv" --sensor "$cfg" -o "$tmp/heldout.csv" --from 0.175 --visits 1 --seed 99
+  "$build/sim/sim_rail_csv" --sensor "$cfg" -o "$tmp/heldout.csv" --from 0.175 --visits 1 --seed 99
   echo "held-out: $("$build/tools/tinyline" calib eval "$tmp/heldout.csv" --calib "$here/sim_$sensor.yaml")"
 done

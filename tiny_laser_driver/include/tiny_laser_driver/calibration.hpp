@@ -1,8 +1,8 @@
 // The calibration model of the tiny TOF line sensor: what maps one pixel's
 // read-out (two capacitor discharges at a pulse count, the MCU temperature)
-// to a distance. One implementation, used by the calibration tool to fit and
-// by the driver at run time (issue: "the model the tool writes is the model
-// the driver applies").
+// to a distance. One implementation, used by the calibration package to fit
+// and by the driver at run time: the model the tool writes is the model the
+// driver applies.
 //
 // Declared model (thesis 3.2.4-3.3.4):
 //   X = (b - Vle(p)) / ((a*Rsen - Vle(p)) + (b - Vle(p)))      charge ratio, Eq. 3.16 / 3.18
@@ -98,7 +98,7 @@ class CalibrationModel {
   [[nodiscard]] std::string describe() const;
 
   /// The calibration of a real sensor as the public driver ships it
-  /// (measured.yaml real_sensor_polynomials): distance_cm = sum_i poly[i] k^(6-i)
+  /// (public_driver_sensors.hpp): distance_cm = sum_i poly[i] k^(6-i)
   /// + offsets, k = b / (a + b), plus (stable - t) * sensi with t in 0.1 degC.
   /// `poly` and `offsets_added` are highest power first.
   static CalibrationModel from_public_driver(const std::vector<double>& poly,

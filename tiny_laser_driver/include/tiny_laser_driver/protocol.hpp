@@ -1,15 +1,21 @@
-// The tiny TOF line sensor's serial framing (reference/wire_protocol.md):
+// The tiny TOF line sensor's serial framing (the firmware of the real sensor):
 // frame layouts, an encoder (used by the simulator's virtual device and by
 // tests), a streaming parser (used by the driver) and the host commands.
 //
 // Core code: no I/O, no bus. Bytes in any chunking go in; complete frames
 // and raw sets come out; every byte or frame dropped is counted by reason.
 //
+// Both kinds of frame share the header and the ender and differ in length
+// (548 bytes for distances, 1,096 for raw read-outs); the parser tells them
+// apart by where the ender is, so it reads either firmware without being
+// told which (a distance frame's ender sits where a raw frame carries A[270],
+// which no ADC value can make 0x2B2A).
+//
 // The framing has no checksum: only the two-byte header and ender guard a
 // frame. The parser adds the checks the layout allows without changing it
-// (index and pulse fields, set order, the other mode's frame length) and
-// counts pixel values no 12-bit ADC can produce, so corruption that slips
-// through the framing is at least visible in the diagnostics.
+// (index and pulse fields, set order) and counts pixel values no 12-bit ADC
+// can produce, so corruption that slips through the framing is at least
+// visible in the diagnostics.
 #pragma once
 
 #include <array>
@@ -27,7 +33,10 @@ inline constexpr std::size_t kDarkPixels = 8;    ///< dark pixels at each end (n
 inline constexpr std::size_t kReadoutsPerSet = 5;
 inline constexpr std::uint8_t kHeader[2] = {0xA2, 0xA1};
 inline constexpr std::uint8_t kEnder[2] = {0x2A, 0x2B};
-inline constexpr std::uint16_t kLastFrameFlag = 100;  ///< added to the index of a set's last frame
+/// Added to the index of a set's last frame. The public driver reads a frame
+/// as its set's last when the index word is above 100 (`num > 100`), so a
+/// set of one frame (single shot) sends 101, never 100 (last_frame_word()).
+inline constexpr std::uint16_t kLastFrameFlag = 100;
 inline constexpr std::size_t kDistanceFrameBytes = 2 + kPixels * 2 + 2;   // 548
 inline constexpr std::size_t kRawFrameBytes = 2 + 4 + 2 * kPixels * 2 + 2;  // 1096
 /// Largest magnitude a raw pixel value can have on the wire: the 12-bit ADC
@@ -65,13 +74,23 @@ struct RawSet {
 
 /// A distance-only frame (distance computed by the firmware).
 struct DistanceFrame {
-  std::array<std::int16_t, kPixels> distance{};  ///< per pixel, sensor units; 0 = invalid
+  /// Per pixel, unsigned, in the firmware's unit (the published firmware:
+  /// 0.1 mm, so 0-6.5535 m); 0 = invalid.
+  std::array<std::uint16_t, kPixels> distance{};
   std::uint64_t end_byte = 0;  ///< parser only: stream offset just past the frame's last byte
   std::uint64_t sequence = 0;  ///< parser only: frames seen before this one, accepted or dropped
 };
 
+/// The two kinds of frame: raw read-outs, or distances the firmware computed.
 enum class StreamMode { Raw, Distance };
 std::string_view to_string(StreamMode m);
+
+/// The index word a frame carries: its index, plus kLastFrameFlag on the
+/// set's last frame; a set of one sends 101 (the public driver needs > 100).
+[[nodiscard]] constexpr std::uint16_t last_frame_word(std::uint16_t index, bool last) {
+  if (!last) return index;
+  return static_cast<std::uint16_t>(index == 0 ? kLastFrameFlag + 1 : index + kLastFrameFlag);
+}
 
 /// Bytes on the wire of one frame of the mode.
 [[nodiscard]] constexpr std::size_t frame_bytes(StreamMode m) {
@@ -82,10 +101,10 @@ std::string_view to_string(StreamMode m);
 
 // ---------------------------------------------------------------------------- encoder
 
-/// Appends one raw frame (1,096 bytes). The packed word is
-/// temperature_decic * 100 + pulses / 10, so pulses must be a multiple of 10
-/// below 1,000 and the word must fit 16 bits (about 65.5 degC at most).
-/// Throws std::invalid_argument otherwise.
+/// Appends one raw frame (1,096 bytes). The index word is last_frame_word();
+/// the packed word is temperature_decic * 100 + pulses / 10, so pulses must
+/// be a multiple of 10 below 1,000 and the word must fit 16 bits (about
+/// 65.5 degC at most). Throws std::invalid_argument otherwise.
 void encode_raw_frame(const RawFrame& f, std::vector<std::uint8_t>& out);
 /// Appends one distance frame (548 bytes).
 void encode_distance_frame(const DistanceFrame& f, std::vector<std::uint8_t>& out);
@@ -95,7 +114,6 @@ void encode_distance_frame(const DistanceFrame& f, std::vector<std::uint8_t>& ou
 enum class DropReason : std::uint8_t {
   kGarbage = 0,    ///< bytes skipped while hunting for a header (counted in bytes)
   kBadEnder,       ///< a frame whose ender was wrong; the hunt resumes after its header
-  kWrongMode,      ///< a well-formed frame of the other mode (raw vs distance): check the `mode` setting
   kBadField,       ///< a frame with an impossible index or pulse field
   kIncompleteSet,  ///< a raw set missing a member, out of order, or with pulses not rising (counted per set)
   kTruncated,      ///< a frame cut short by reset() (e.g. the device went away mid-frame)
@@ -107,6 +125,8 @@ struct ParserStats {
   /// Per reason: bytes for kGarbage, sets for kIncompleteSet, frames otherwise.
   std::array<std::uint64_t, static_cast<std::size_t>(DropReason::kCount)> drops{};
   std::uint64_t frames = 0;            ///< well-formed frames accepted (some may later fall in an incomplete set)
+  std::uint64_t raw_frames = 0;        ///< of those, raw frames
+  std::uint64_t distance_frames = 0;   ///< of those, distance frames
   std::uint64_t frames_discarded = 0;  ///< accepted frames thrown away with their incomplete set
   std::uint64_t sets = 0;              ///< raw sets completed
   std::uint64_t bytes = 0;             ///< bytes fed
@@ -117,14 +137,13 @@ struct ParserStats {
   [[nodiscard]] std::uint64_t dropped(DropReason r) const { return drops[static_cast<std::size_t>(r)]; }
   /// Frames lost, whatever the reason (garbage bytes and incomplete sets excluded).
   [[nodiscard]] std::uint64_t frames_dropped() const {
-    return dropped(DropReason::kBadEnder) + dropped(DropReason::kWrongMode) + dropped(DropReason::kBadField) +
-           dropped(DropReason::kTruncated);
+    return dropped(DropReason::kBadEnder) + dropped(DropReason::kBadField) + dropped(DropReason::kTruncated);
   }
 };
 
-/// Streaming parser for one mode. Feed bytes in any chunking; complete items
-/// are queued and taken with next_set() / next_distance(). The output does
-/// not depend on how the bytes were split.
+/// Streaming parser of both kinds of frame. Feed bytes in any chunking;
+/// complete items are queued and taken with next_set() / next_distance().
+/// The output does not depend on how the bytes were split.
 ///
 /// A frame whose ender is wrong is dropped and the hunt resumes one byte
 /// after its header, so a header inside the corrupt frame is not missed; the
@@ -136,7 +155,6 @@ struct ParserStats {
 class Parser {
  public:
   struct Options {
-    StreamMode mode = StreamMode::Raw;
     std::size_t readouts_per_set = kReadoutsPerSet;  ///< frames per raw set, 1-99
   };
   Parser() : Parser(Options{}) {}
@@ -163,7 +181,19 @@ class Parser {
   void reset();
 
  private:
+  // Steps of feed().
+  void append(std::span<const std::uint8_t> bytes);
+  void skip_to_header();                                  // counts what it skips as garbage
+  bool take_frame();                                      // false: the frame at start_ is not complete yet
+  bool accept_frame(std::size_t len);
+  bool skip_frame(DropReason why, std::size_t len);
+  void consume_distance(const std::uint8_t* frame, std::uint64_t end_byte);
+  // Steps of a raw frame's way into a set.
   void consume_frame(const std::uint8_t* frame, std::uint64_t end_byte);
+  void place_in_set(std::uint16_t index, std::uint16_t pulses);
+  void keep_raw_frame(const std::uint8_t* p, std::uint16_t index, bool last, std::uint16_t packed,
+                      std::uint64_t end_byte);
+  void close_set();                                       // after a frame flagged last
   void abandon_pending();
   void drop(DropReason r, std::uint64_t n = 1) { stats_.drops[static_cast<std::size_t>(r)] += n; }
 

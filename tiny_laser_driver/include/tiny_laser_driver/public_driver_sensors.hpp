@@ -1,5 +1,5 @@
 // The five real sensors whose calibrations the public driver ships
-// (measured.yaml real_sensor_polynomials: R, J, S, K, T), as calibration
+// (R, J, S, K, T), as calibration
 // models, so a driver can run a real sensor with `calibration: public:K`.
 #pragma once
 

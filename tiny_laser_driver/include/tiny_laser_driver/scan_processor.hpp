@@ -16,15 +16,17 @@
 #include <tiny_laser_driver/calibration.hpp>
 #include <tiny_laser_driver/protocol.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tiny_laser_driver {
 
 /// The receiver's optics: what maps a pixel to its ray.
 struct OpticsParams {
   double focal_mm = 3.6;           ///< receiver lens focal length [mm] (3.6 or 8 mm shipped)
-  double sensor_length_mm = 5.12;  ///< length of the 256 effective pixels [mm] (measured.yaml)
+  double sensor_length_mm = 5.12;  ///< length of the 256 effective pixels [mm] (the sensor's data)
 
   /// Why these cannot work (empty when they can).
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 /// Ray angle of pixel `pixel` (0-271, dark ones included) in the sensor's x-z
@@ -39,6 +41,7 @@ enum class PixelStatus : std::uint8_t {
   kTooDark = 2,     ///< the highest non-saturated read-out has too little light
   kDarkPixel = 3,   ///< one of the 8 masked pixels at each end
   kOutOfRange = 4,  ///< the charge ratio lies outside the calibrated range
+  kStale = 5,       ///< the value has not changed for many fresh measurements while its neighbours' have
 };
 
 /// One processed scan. Arrays are indexed by transmitted pixel (0-271).
@@ -46,12 +49,12 @@ struct ProcessedScan {
   static constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
   std::array<float, kPixels> distance_m{};    ///< along the pixel's ray; NaN unless kValid
   std::array<float, kPixels> intensity{};     ///< (a + b) / pulses of the chosen read-out [charge_unit per pulse]
-  std::array<float, kPixels> reflectance{};   ///< distance_cm^2 (a + b) / (pulses / 10) (measured.yaml); NaN unless kValid
+  std::array<float, kPixels> reflectance{};   ///< distance_cm^2 (a + b) / (pulses / 10) (the sensor's reflectance figure); NaN unless kValid
   std::array<std::uint16_t, kPixels> pulses{};  ///< pulses of the chosen read-out (0: none)
   std::array<std::int8_t, kPixels> readout{};   ///< index of the chosen read-out in the set (-1: none)
   std::array<PixelStatus, kPixels> status{};
   double temperature_c = std::numeric_limits<double>::quiet_NaN();  ///< MCU temperature of the set
-  int valid = 0, saturated = 0, too_dark = 0, out_of_range = 0;     ///< counts over the 256 effective pixels
+  int valid = 0, saturated = 0, too_dark = 0, out_of_range = 0, stale = 0;  ///< counts over the 256 effective pixels
 
   /// Share of the effective pixels saturated at every read-out.
   [[nodiscard]] double saturated_share() const { return saturated / static_cast<double>(kPixels - 2 * kDarkPixels); }
@@ -67,8 +70,8 @@ class ScanProcessor {
   void process(const RawSet& set, double t_s, ProcessedScan& out) const;
   [[nodiscard]] ProcessedScan process(const RawSet& set, double t_s = 0.0) const;
 
-  /// A distance-only frame (firmware distances in units of `unit_m`, 0 = invalid):
-  /// distance and status only (no intensity in that mode).
+  /// A distance-only frame (unsigned firmware distances in units of
+  /// `unit_m`, 0 = invalid): distance and status only (no intensity in that mode).
   void process_distance(const DistanceFrame& frame, double unit_m, ProcessedScan& out) const;
 
   [[nodiscard]] const std::array<float, kPixels>& angles_rad() const { return angles_; }

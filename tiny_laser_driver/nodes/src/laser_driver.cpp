@@ -1,6 +1,7 @@
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -9,8 +10,6 @@
 #include <fmt/format.h>
 
 #include <tiny_laser_driver/public_driver_sensors.hpp>
-
-#include "sim_port.hpp"
 
 namespace tinyline::tiny_laser_driver {
 
@@ -58,14 +57,17 @@ CalibrationModel load_calibration(const std::string& spec) {
 
 // ---------------------------------------------------------------------------- node
 
-LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
+void LaserDriver::declare_params() {
   using bus::ParamConstraints;
   const DriverParams d;  // defaults live in the struct
   DriverParams& p = params_;
   p.port = declare_parameter("port", d.port, "/dev/ttyUSB0 (a path), usb:SERIAL (found by USB serial number), "
                                              "sim:SCENE.yaml (simulated sensor in-process), mem:NAME (tests)");
-  p.mode = declare_parameter("mode", d.mode, "raw: the host computes distance from all read-outs; distance: "
-                                             "the firmware sends distances", ParamConstraints::one_of({"raw", "distance"}));
+  p.mode = declare_parameter("mode", d.mode,
+                             "the frames expected, only checked and reported (both kinds are always read): auto "
+                             "(either), raw (the host computes distance from all read-outs) or distance (the firmware "
+                             "sends distances)",
+                             ParamConstraints::one_of({"auto", "raw", "distance"}));
   p.baud = declare_parameter("baud", d.baud, "link rate [bit/s] (the sensor's FT232R: 2000000)",
                              ParamConstraints::range(1200, 12'000'000));
   p.readouts_per_set = declare_parameter("readouts_per_set", d.readouts_per_set,
@@ -75,6 +77,7 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
   p.optics.sensor_length_mm = declare_parameter("sensor_length_mm", d.optics.sensor_length_mm,
                                                 "length of the 256 effective pixels [mm]",
                                                 ParamConstraints::range(0.1, 100.0));
+  require_valid(p.optics.validate().within("optics"));
   p.frame_id = declare_parameter("frame_id", d.frame_id, "frame of RawScan/LineScan: z forward, x along the line");
   p.scan_frame_id = declare_parameter("scan_frame_id", d.scan_frame_id,
                                       "frame of the LaserScan (x = sensor z, y = sensor x); empty: frame_id + '_scan'");
@@ -82,8 +85,13 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
                                     "calibration YAML (tinyline calib fit), public:NAME (R J S K T of the public "
                                     "driver), or default (the simulated sensor's)");
   p.distance_unit_m = declare_parameter("distance_unit_m", d.distance_unit_m,
-                                        "distance mode: unit of the firmware's distances [m]",
+                                        "distance frames: unit of the firmware's distances [m] (the published "
+                                        "firmware: 0.1 mm)",
                                         ParamConstraints::range(1e-6, 1.0));
+  p.stale_after = declare_parameter("stale_after", d.stale_after,
+                                    "fresh measurements a pixel's value may stay unchanged while its neighbours' "
+                                    "change before it is flagged stale",
+                                    ParamConstraints::range(2, 100000));
   p.sensor_name = declare_parameter("sensor_name", d.sensor_name,
                                     "name in LaserCommand.sensors; empty: the node's name");
   p.sequence_slot = declare_parameter("sequence_slot", d.sequence_slot,
@@ -104,31 +112,40 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
                                         ParamConstraints::range(0.01, 3600.0));
   p.threaded = declare_parameter("threaded", d.threaded,
                                  "run the I/O thread; false: the embedding code calls pump()");
-  p.publish_raw = declare_parameter("publish_raw", d.publish_raw, "publish tinyline_msgs/RawScan (raw mode)");
+  p.publish_raw = declare_parameter("publish_raw", d.publish_raw, "publish tinyline_msgs/RawScan (raw sets)");
+}
+
+LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
+  declare_params();
+  DriverParams& p = params_;
   if (p.reconnect_max_s < p.reconnect_min_s) {
     throw bus::ParamError({}, fmt::format("node '{}': reconnect_max_s ({}) is below reconnect_min_s ({})", full_name(),
                                           p.reconnect_max_s, p.reconnect_min_s));
   }
   if (p.sensor_name.empty()) p.sensor_name = name();
   if (p.scan_frame_id.empty()) p.scan_frame_id = p.frame_id + "_scan";
-  mode_ = p.mode == "raw" ? StreamMode::Raw : StreamMode::Distance;
+  if (p.mode != "auto") expected_ = p.mode == "raw" ? StreamMode::Raw : StreamMode::Distance;
+  // A new content waits for the next frame at most two frame times and the
+  // adapter's latency; commands may see a set or two already under way.
+  const double byte_s = byte_time_s(p.baud);
+  repeats_ = DistanceRepeats(bus::from_seconds(2 * kDistanceFrameBytes * byte_s + 0.02).count());
+  watch_ = CommandWatch(bus::from_seconds(2 * kReadoutsPerSet * kRawFrameBytes * byte_s + 0.02).count());
+  stale_ = StalePixels(p.stale_after);
 
   io::PortOptions po;
   po.serial.baud = p.baud;
-  po.mode = mode_;
   po.laser_on_at_start = p.sequence_slot < 0;
-  detail::register_sim_port_scheme();
   try {
     opener_ = io::make_port_opener(p.port, po);  // parses the spec; opens nothing
   } catch (const std::invalid_argument& e) {
     throw bus::ParamError({}, fmt::format("node '{}': parameter 'port': {}", full_name(), e.what()));
   }
-  parser_ = Parser(Parser::Options{mode_, static_cast<std::size_t>(p.readouts_per_set)});
+  parser_ = Parser(Parser::Options{static_cast<std::size_t>(p.readouts_per_set)});
   buf_.resize(kReadChunk);
   if (p.sequence_slot >= 0) laser_wanted_ = false;  // sequence mode: off until the sequencer says otherwise
   backoff_s_ = p.reconnect_min_s;
 
-  if (mode_ == StreamMode::Raw && p.publish_raw) raw_pub_ = create_publisher<tinyline_msgs::msg::RawScan>("raw", bus::QoS::sensor_data());
+  if (p.publish_raw) raw_pub_ = create_publisher<tinyline_msgs::msg::RawScan>("raw", bus::QoS::sensor_data());
   scan_pub_ = create_publisher<tinyline_msgs::msg::LineScan>("scan", bus::QoS::sensor_data());
   laser_scan_pub_ = create_publisher<sensor_msgs::msg::LaserScan>("laser_scan", bus::QoS::sensor_data());
   diag_pub_ = create_publisher<diagnostic_msgs::msg::DiagnosticArray>("/diagnostics", bus::QoS::keep_last(10));
@@ -142,19 +159,17 @@ LaserDriver::~LaserDriver() { on_stop(); }
 
 void LaserDriver::on_start() {
   if (processor_) return;
-  CalibrationModel model;
-  if (mode_ == StreamMode::Raw) {
-    model = load_calibration(params_.calibration);
-    if (!model.extra_covariates().empty()) {
-      logger().warn("the calibration's terms in {} use covariates the driver does not measure; they are skipped",
-                    fmt::join(model.extra_covariates(), ", "));
-    }
+  // Raw sets need the calibration; a sensor that sends distances never uses it.
+  CalibrationModel model = load_calibration(params_.calibration);
+  if (!model.extra_covariates().empty()) {
+    logger().warn("the calibration's terms in {} use covariates the driver does not measure; they are skipped",
+                  fmt::join(model.extra_covariates(), ", "));
   }
   processor_ = std::make_unique<ScanProcessor>(std::move(model), params_.optics);
   messages_ = std::make_unique<ScanMessages>(*processor_, params_.frame_id, params_.scan_frame_id);
-  logger().info("port {} ({} mode, calibration {}), publishing {} scans in frame {}", opener_->describe(),
-                to_string(mode_), mode_ == StreamMode::Raw ? params_.calibration : "firmware",
-                mode_ == StreamMode::Raw ? "raw and line" : "line", params_.frame_id);
+  logger().info("port {} (expecting {} frames; raw sets with calibration {}, distances in units of {} m), frame {}",
+                opener_->describe(), params_.mode == "auto" ? "raw or distance" : params_.mode, params_.calibration,
+                params_.distance_unit_m, params_.frame_id);
   if (params_.threaded) {
     stop_.store(false);
     io_thread_ = std::thread([this] { run(); });
@@ -203,23 +218,29 @@ void LaserDriver::pump(std::chrono::milliseconds timeout) {
   }
   send_pending();
   if (!stream_) return;
-  const io::ReadResult r = stream_->read(buf_, timeout);
+  // While a new content waits for its confirmation, look again soon.
+  const io::ReadResult r = stream_->read(buf_, std::min(timeout, std::chrono::milliseconds(10)));
   const bus::Time t_recv = this->now();
   if (!r.status.ok()) {
     lost(r.status);
     return;
   }
-  if (r.bytes == 0) return;
-  parser_.feed({buf_.data(), r.bytes});
-  const std::uint64_t chunk_end = parser_.stats().bytes;
-  {
-    std::lock_guard lk(mu_);
-    status_.bytes += r.bytes;
-    status_.last_receive = t_recv;
-    status_.parser = parser_.stats();
+  if (r.bytes > 0) {
+    parser_.feed({buf_.data(), r.bytes});
+    const std::uint64_t chunk_end = parser_.stats().bytes;
+    {
+      std::lock_guard lk(mu_);
+      status_.bytes += r.bytes;
+      status_.last_receive = t_recv;
+      status_.parser = parser_.stats();
+    }
+    while (auto s = parser_.next_set()) take_set(*s, chunk_end, t_recv);
+    while (auto d = parser_.next_distance()) take_distance(*d, chunk_end, t_recv);
   }
-  while (auto s = parser_.next_set()) publish_set(*s, chunk_end, t_recv);
-  while (auto d = parser_.next_distance()) publish_distance(*d, chunk_end, t_recv);
+  // A new content with no next frame to confirm it: the stream stopped or does not repeat.
+  if (auto f = repeats_.flush(t_recv.ns)) publish_distance(*f);
+  std::lock_guard lk(mu_);
+  status_.distance_repeats = repeats_.stats();
 }
 
 void LaserDriver::try_open(bus::Time now) {
@@ -254,11 +275,12 @@ void LaserDriver::try_open(bus::Time now) {
     if (laser_wanted_) laser_dirty_ = true;  // a replugged sensor forgot what it was told
   }
   logger().info("connected: {}", stream_->describe());
-  if (params_.send_stream_mode) {
-    if (const auto st = stream_->write(cmd_stream_mode(mode_)); !st.ok()) {
+  if (params_.send_stream_mode && expected_) {
+    if (const auto st = stream_->write(cmd_stream_mode(*expected_)); !st.ok()) {
       lost(st);
       return;
     }
+    watch_.stream_mode_sent(*expected_, this->now().ns);
     std::lock_guard lk(mu_);
     ++status_.commands_sent;
   }
@@ -266,6 +288,8 @@ void LaserDriver::try_open(bus::Time now) {
 
 void LaserDriver::lost(const io::IoStatus& why) {
   parser_.reset();  // a frame or set cut here is counted, never published
+  repeats_.reset();
+  last_set_.reset();
   {
     std::lock_guard lk(stream_mu_);
     stream_.reset();
@@ -294,6 +318,7 @@ void LaserDriver::send_pending() {
     lost(st);
     return;
   }
+  watch_.laser_sent(want, now().ns);
   std::lock_guard lk(mu_);
   if (laser_wanted_ == want) laser_dirty_ = false;
   status_.laser_on = want;
@@ -327,28 +352,59 @@ void LaserDriver::on_command(const tinyline_msgs::msg::LaserCommand& cmd) {
   wake_.notify_all();
 }
 
-bus::Time LaserDriver::stamp_of(std::uint64_t end_byte, std::uint64_t chunk_end, bus::Time t_recv) const {
+bus::Time LaserDriver::stamp_of(std::uint64_t end_byte, std::uint64_t chunk_end, bus::Time t_recv,
+                                StreamMode kind) const {
   // The chunk's last byte arrived at t_recv; earlier ones one byte time apart.
   const double baud = stream_ && stream_->baud() > 0 ? stream_->baud() : params_.baud;
   const double byte_s = byte_time_s(baud);
   const double behind = static_cast<double>(chunk_end - end_byte) * byte_s;
-  const double transmission = static_cast<double>(frame_bytes(mode_)) * byte_s;
+  const double transmission = static_cast<double>(frame_bytes(kind)) * byte_s;
   return t_recv - bus::from_seconds(behind + transmission);
 }
 
-void LaserDriver::publish_set(const RawSet& set, std::uint64_t chunk_end, bus::Time t_recv) {
-  const bus::Time stamp = stamp_of(set.end_byte(), chunk_end, t_recv);
+void LaserDriver::take_set(const RawSet& set, std::uint64_t chunk_end, bus::Time t_recv) {
+  if (last_set_ && same_readouts(*last_set_, set)) {  // sent again: not a new measurement
+    std::lock_guard lk(mu_);
+    ++status_.raw_repeats;
+    return;
+  }
+  last_set_ = set;
+  const bus::Time stamp = stamp_of(set.end_byte(), chunk_end, t_recv, StreamMode::Raw);
   if (!first_stamp_) first_stamp_ = stamp;
   processor_->process(set, (stamp - *first_stamp_).count() * 1e-9, scan_);
+  // A valid pixel's distance, to the bit: a stuck read-out repeats it exactly,
+  // noise never does (a saturated read-out's constant value is not a distance).
+  std::array<std::uint32_t, kPixels> values{};
+  for (std::size_t p = 0; p < kPixels; ++p) {
+    if (scan_.status[p] == PixelStatus::kValid) values[p] = std::bit_cast<std::uint32_t>(scan_.distance_m[p]);
+  }
+  apply_stale(stale_.update(values), scan_);
+  std::array<std::uint16_t, 128> pulses{};
+  const std::size_t n = std::min(set.frames.size(), pulses.size());
+  for (std::size_t k = 0; k < n; ++k) pulses[k] = set.frames[k].pulses;
+  watch_.measured(StreamMode::Raw, {pulses.data(), n}, stamp.ns);
   if (raw_pub_) raw_pub_->publish(to_raw_scan(set, stamp, params_.frame_id));
   publish_scan(scan_, static_cast<std::uint32_t>(set.sequence), stamp,
                static_cast<float>(set.temperature_decic() / 10.0));
 }
 
-void LaserDriver::publish_distance(const DistanceFrame& f, std::uint64_t chunk_end, bus::Time t_recv) {
-  const bus::Time stamp = stamp_of(f.end_byte, chunk_end, t_recv);
-  processor_->process_distance(f, params_.distance_unit_m, scan_);
-  publish_scan(scan_, static_cast<std::uint32_t>(f.sequence), stamp, std::numeric_limits<float>::quiet_NaN());
+void LaserDriver::take_distance(const DistanceFrame& f, std::uint64_t chunk_end, bus::Time t_recv) {
+  const bus::Time stamp = stamp_of(f.end_byte, chunk_end, t_recv, StreamMode::Distance);
+  if (auto fresh = repeats_.push(f, stamp.ns)) publish_distance(*fresh);
+}
+
+void LaserDriver::publish_distance(const DistanceRepeats::Fresh& fresh) {
+  processor_->process_distance(fresh.frame, params_.distance_unit_m, scan_);
+  std::array<std::uint32_t, kPixels> values{};
+  for (std::size_t p = 0; p < kPixels; ++p) values[p] = fresh.frame.distance[p];
+  apply_stale(stale_.update(values), scan_);
+  watch_.measured(StreamMode::Distance, {}, fresh.stamp_ns);
+  {
+    std::lock_guard lk(mu_);
+    status_.ranges.add(scan_);
+  }
+  publish_scan(scan_, static_cast<std::uint32_t>(fresh.frame.sequence), bus::Time::from_ns(fresh.stamp_ns),
+               std::numeric_limits<float>::quiet_NaN());
 }
 
 void LaserDriver::publish_scan(const ProcessedScan& scan, std::uint32_t index, bus::Time stamp, float temperature_c) {
@@ -362,6 +418,9 @@ void LaserDriver::publish_scan(const ProcessedScan& scan, std::uint32_t index, b
   status_.last_scan_stamp = stamp;
   status_.last_saturated_share = scan.saturated_share();
   status_.last_valid_share = scan.valid / kEffective;
+  status_.last_stale_pixels = scan.stale;
+  status_.commands = watch_.summary();
+  status_.ignores_laser_off = watch_.ignores_laser_off();
   if (std::isfinite(temperature_c)) status_.last_temperature_c = temperature_c;
 }
 
@@ -370,48 +429,102 @@ DriverStatus LaserDriver::status() const {
   return status_;
 }
 
+namespace {
+
+std::string kinds_seen(const ParserStats& p) {
+  if (p.raw_frames > 0 && p.distance_frames > 0) return "raw and distance";
+  if (p.raw_frames > 0) return "raw";
+  if (p.distance_frames > 0) return "distance";
+  return "none yet";
+}
+
+// Frames of a kind other than the one expected, as a sentence; empty when none came.
+std::string unexpected_kind(const std::optional<StreamMode>& expected, const ParserStats& p) {
+  if (!expected) return {};
+  const std::uint64_t other = *expected == StreamMode::Raw ? p.distance_frames : p.raw_frames;
+  if (other == 0) return {};
+  return fmt::format("expected {} frames, the sensor sends {} frames ({}): reading them anyway", to_string(*expected),
+                     to_string(*expected == StreamMode::Raw ? StreamMode::Distance : StreamMode::Raw), other);
+}
+
+}  // namespace
+
 void LaserDriver::publish_diagnostics() {
-  using diagnostic_msgs::msg::DiagnosticStatus;
-  using diagnostic_msgs::msg::KeyValue;
-  const DriverStatus s = status();
+  DriverStatus s = status();
+  {
+    std::lock_guard lk(mu_);
+    status_.ranges = RangeShares{};  // the unit check looks at one period at a time
+  }
   const bus::Time now = this->now();
   const double dt = diag_have_prev_ ? (now - diag_prev_time_).count() * 1e-9 : 0.0;
-  const DriverStatus& prev = diag_have_prev_ ? diag_prev_ : DriverStatus{};
-  auto per_s = [&](std::uint64_t a, std::uint64_t b) { return dt > 0 ? static_cast<double>(a - b) / dt : 0.0; };
-  const double rate = per_s(s.scans_published, prev.scans_published);
-  const double bytes_per_s = per_s(s.bytes, prev.bytes);
-  const double baud = params_.baud;
+  const DriverStatus prev = diag_have_prev_ ? diag_prev_ : DriverStatus{};
+  diagnostic_msgs::msg::DiagnosticStatus st;
+  st.name = full_name() + ": tiny laser link";
+  st.hardware_id = opener_->hardware_id();
+  diagnose_level(s, prev, dt, st);
+  diagnose_values(s, prev, dt, st);
+  auto arr = std::make_unique<diagnostic_msgs::msg::DiagnosticArray>();
+  arr->header.stamp = now.to_msg();
+  arr->status.push_back(std::move(st));
+  diag_pub_->publish(std::move(arr));
+  diag_prev_ = s;
+  diag_prev_time_ = now;
+  diag_have_prev_ = true;
+}
+
+void LaserDriver::diagnose_level(const DriverStatus& s, const DriverStatus& prev, double dt,
+                                 diagnostic_msgs::msg::DiagnosticStatus& st) const {
+  using diagnostic_msgs::msg::DiagnosticStatus;
   std::uint64_t period_drops = 0;
   for (std::size_t r = 0; r < static_cast<std::size_t>(DropReason::kCount); ++r) {
     if (static_cast<DropReason>(r) == DropReason::kGarbage) continue;
     period_drops += s.parser.drops[r] - prev.parser.drops[r];
   }
-  const double since_data_s = (now - s.last_receive).count() * 1e-9;
-
-  DiagnosticStatus st;
-  st.name = full_name() + ": tiny laser link";
-  st.hardware_id = opener_->hardware_id();
+  const double since_data_s = (now() - s.last_receive).count() * 1e-9;
+  const bool frames_but_nothing_new = dt > 0 && s.parser.frames > prev.parser.frames && s.scans_published == prev.scans_published;
+  std::vector<std::string> warnings;
+  if (const auto m = unexpected_kind(expected_, s.parser); !m.empty()) warnings.push_back(m);
+  if (const auto m = s.ranges.verdict(); !m.empty()) warnings.push_back(m);
+  if (s.ignores_laser_off) warnings.push_back("the sensor ignores laser off: treat it as always emitting");
+  if (frames_but_nothing_new) warnings.push_back(fmt::format("frames keep coming but none was new for {:.1f} s", dt));
+  if (period_drops > 0) warnings.push_back(fmt::format("{} frames or sets dropped in the last {:.1f} s", period_drops, dt));
   if (!s.connected) {
     st.level = DiagnosticStatus::ERROR;
     st.message = s.last_error_message.empty() ? "connecting" : "no device: " + s.last_error_message;
   } else if (s.connects > 0 && (s.bytes == prev.bytes && dt > 0) && since_data_s > params_.stall_timeout_s) {
     st.level = DiagnosticStatus::WARN;
     st.message = fmt::format("connected, but no data for {:.1f} s", since_data_s);
-  } else if (period_drops > 0) {
+  } else if (!warnings.empty()) {
     st.level = DiagnosticStatus::WARN;
-    st.message = fmt::format("streaming, {} frames or sets dropped in the last {:.1f} s", period_drops, dt);
+    st.message = fmt::format("streaming; {}", fmt::join(warnings, "; "));
   } else {
     st.level = DiagnosticStatus::OK;
     st.message = "streaming";
   }
-  auto kv = [&](std::string k, std::string v) { st.values.push_back(KeyValue{std::move(k), std::move(v)}); };
+}
+
+void LaserDriver::diagnose_values(const DriverStatus& s, const DriverStatus& prev, double dt,
+                                  diagnostic_msgs::msg::DiagnosticStatus& st) const {
+  auto per_s = [&](std::uint64_t a, std::uint64_t b) { return dt > 0 ? static_cast<double>(a - b) / dt : 0.0; };
+  const double bytes_per_s = per_s(s.bytes, prev.bytes);
+  const std::uint64_t frames = s.parser.frames - prev.parser.frames;
+  const std::uint64_t repeats = (s.distance_repeats.repeats - prev.distance_repeats.repeats) + (s.raw_repeats - prev.raw_repeats);
+  auto kv = [&](std::string k, std::string v) {
+    st.values.push_back(diagnostic_msgs::msg::KeyValue{std::move(k), std::move(v)});
+  };
   kv("state", s.connected ? "connected" : "disconnected");
   kv("port", opener_->describe());
   kv("link", s.link);
-  kv("mode", std::string(to_string(mode_)));
-  kv("frame_rate_hz", fmt::format("{:.2f}", rate));
+  kv("mode", params_.mode);
+  kv("frame_kinds", kinds_seen(s.parser));
+  kv("frames_per_s", fmt::format("{:.2f}", per_s(s.parser.frames, prev.parser.frames)));
+  kv("fresh_per_s", fmt::format("{:.2f}", per_s(s.scans_published, prev.scans_published)));
+  kv("frame_rate_hz", fmt::format("{:.2f}", per_s(s.scans_published, prev.scans_published)));
+  kv("repeat_share", fmt::format("{:.3f}", frames > 0 ? static_cast<double>(repeats) / static_cast<double>(frames) : 0.0));
+  kv("repeats", std::to_string(s.distance_repeats.repeats + s.raw_repeats));
+  kv("torn_frames", std::to_string(s.distance_repeats.torn));
   kv("bytes_per_s", fmt::format("{:.0f}", bytes_per_s));
-  kv("link_utilisation", fmt::format("{:.3f}", bytes_per_s * kBitsPerByte8N1 / baud));
+  kv("link_utilisation", fmt::format("{:.3f}", bytes_per_s * kBitsPerByte8N1 / params_.baud));
   kv("scans_published", std::to_string(s.scans_published));
   kv("sets_complete", std::to_string(s.parser.sets));
   for (std::size_t r = 0; r < static_cast<std::size_t>(DropReason::kCount); ++r) {
@@ -421,21 +534,19 @@ void LaserDriver::publish_diagnostics() {
   kv("impossible_values", std::to_string(s.parser.impossible_values));
   kv("saturated_share", fmt::format("{:.4f}", s.last_saturated_share));
   kv("valid_share", fmt::format("{:.4f}", s.last_valid_share));
+  kv("stale_pixels", std::to_string(s.last_stale_pixels));
+  kv("distance_unit_m", fmt::format("{}", params_.distance_unit_m));
+  const std::string unit = s.ranges.verdict();
+  kv("distance_unit_check", s.ranges.valid < 100 ? "too few distance pixels to tell" : unit.empty() ? "plausible" : unit);
   kv("temperature_c", fmt::format("{:.1f}", s.last_temperature_c));
   kv("connects", std::to_string(s.connects));
   kv("disconnects", std::to_string(s.disconnects));
   kv("open_failures", std::to_string(s.open_failures));
   kv("laser", s.laser_on ? (*s.laser_on ? "on" : "off") : "not commanded");
   kv("commands_sent", std::to_string(s.commands_sent));
+  kv("commands", s.commands.empty() ? "none sent" : s.commands);
+  kv("laser_off_obeyed", s.ignores_laser_off ? "no" : "yes or untested");
   kv("last_error", s.last_error_message);
-
-  auto arr = std::make_unique<diagnostic_msgs::msg::DiagnosticArray>();
-  arr->header.stamp = now.to_msg();
-  arr->status.push_back(std::move(st));
-  diag_pub_->publish(std::move(arr));
-  diag_prev_ = s;
-  diag_prev_time_ = now;
-  diag_have_prev_ = true;
 }
 
 }  // namespace tinyline::tiny_laser_driver

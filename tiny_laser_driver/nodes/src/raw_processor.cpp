@@ -14,6 +14,7 @@ RawProcessor::RawProcessor(bus::NodeOptions options) : Node(std::move(options)) 
   optics_.sensor_length_mm = declare_parameter("sensor_length_mm", d.optics.sensor_length_mm,
                                                "length of the 256 effective pixels [mm]",
                                                ParamConstraints::range(0.1, 100.0));
+  require_valid(optics_.validate().within("optics"));
   scan_frame_id_ = declare_parameter("scan_frame_id", d.scan_frame_id,
                                      "frame of the LaserScan; empty: the raw scan's frame_id + '_scan'");
   scan_pub_ = create_publisher<tinyline_msgs::msg::LineScan>("scan", bus::QoS::sensor_data());

@@ -9,7 +9,7 @@
 namespace tinyline::tiny_laser_driver {
 
 namespace {
-constexpr double kRangeMinM = 0.05;  // measured.yaml sensor.range_m
+constexpr double kRangeMinM = 0.05;  // the sensor's range
 constexpr double kRangeMaxM = 3.0;   // the outer limit quoted beside it
 }  // namespace
 

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-#include "../../src/rng.hpp"  // the core's splitmix64 hash
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning::eval {
 
@@ -18,10 +18,10 @@ ColorCloud to_cloud(const sim::RgbdFrame& f) {
 }
 
 namespace {
-using detail::mix;
+using common::splitmix64;
 double unit_normal(std::uint64_t key) {
-  const double u1 = detail::unit_uniform(mix(key));
-  const double u2 = detail::unit_uniform(mix(key + 1));
+  const double u1 = common::unit_open(splitmix64(key));
+  const double u2 = common::unit_open(splitmix64(key + 1));
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
 }
 }  // namespace
@@ -55,7 +55,7 @@ Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed, const Sce
     Eigen::Isometry3d T = T_ref_world * T_world_camera[v];
     if (v > 0) {
       // The pose the pipeline believes: off by the calibration residual.
-      const std::uint64_t key = mix(seed * 977 + v);
+      const std::uint64_t key = splitmix64(seed * 977 + v);
       const Eigen::Vector3d dt(unit_normal(key), unit_normal(key + 10), unit_normal(key + 20));
       const Eigen::Vector3d dr(unit_normal(key + 30), unit_normal(key + 40), unit_normal(key + 50));
       Eigen::Isometry3d E = Eigen::Isometry3d::Identity();

@@ -8,8 +8,8 @@
 #include <laser_clustering/two_stage.hpp>
 
 #include "harness.hpp"
-#include "sim_scanner.hpp"
-#include "../../src/rng.hpp"  // the core's splitmix64 hash
+#include <sim/eval/scanner.hpp>
+#include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning::eval {
 
@@ -17,8 +17,8 @@ namespace lc = tinyline::laser_clustering;
 
 namespace {
 
-using detail::mix;
-double uniform(std::uint64_t key) { return detail::unit_uniform(mix(key)); }
+using common::splitmix64;
+double uniform(std::uint64_t key) { return common::unit_open(splitmix64(key)); }
 
 FinderAnswer::Outcome convert(lc::PedicelOutcome o) {
   switch (o) {
@@ -96,14 +96,14 @@ const char* to_string(PickVerdict v) {
   return "?";
 }
 
-std::unique_ptr<lc::eval::Scanner> make_hand_laser(const VerificationOptions& o) {
-  lc::eval::SimScannerOptions so;
+std::unique_ptr<sim::eval::Scanner> make_hand_laser(const VerificationOptions& o) {
+  sim::eval::SimScannerOptions so;
   so.sensor_config = o.sensor_config;
   so.raw_pulses = o.raw_pulses;
   so.calibration_max_m = o.calibration_max_m;
   so.calibration_step_m = o.calibration_step_m;
   so.calibration_sets = o.calibration_sets;
-  return lc::eval::make_sim_scanner(so);
+  return sim::eval::make_sim_scanner(so);
 }
 
 VerificationHarness::VerificationHarness(VerificationOptions o) : o_(std::move(o)), scanner_(make_hand_laser(o_)) {}
@@ -158,7 +158,7 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
     if (!pose.ok()) continue;
     if (o_.random_offset_m > 0) {
       // Uniform in the disc square to the pedicel (the laser's x-z plane).
-      const std::uint64_t key = mix(s.seed * 7919 + static_cast<std::uint64_t>(k) * 31 + 5);
+      const std::uint64_t key = splitmix64(s.seed * 7919 + static_cast<std::uint64_t>(k) * 31 + 5);
       const double rad = o_.random_offset_m * std::sqrt(uniform(key)), ang = 2 * M_PI * uniform(key + 1);
       const Eigen::Vector3d off = pose.T_ref_laser.linear() * Eigen::Vector3d(rad * std::cos(ang), 0, rad * std::sin(ang));
       pose.T_ref_laser.translation() += off;
@@ -174,7 +174,7 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
     };
     trial.vision_on_pedicel = throat_on(pose.T_ref_laser, truth, nullptr);
 
-    const lc::eval::SimulatedScan scan =
+    const sim::eval::SimulatedScan scan =
         scanner_->scan(world, T_world_ref * pose.T_ref_laser, s.seed * 1000 + static_cast<std::uint64_t>(k));
     const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
     lc::PedicelExpectation expect;

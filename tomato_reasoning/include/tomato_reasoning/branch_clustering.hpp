@@ -17,11 +17,12 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct BranchClusteringParams {
-  /// Eq. 4.9 d_threshold [m]. The thesis used 6 cm (measured.yaml
-  /// tomato.euclidean_cluster_m); 8 cm keeps a truss whole when a hidden
+  /// Eq. 4.9 d_threshold [m]. The thesis used 6 cm; 8 cm keeps a truss whole when a hidden
   /// fruit leaves a gap between the red surfaces of its neighbours
   /// (docs/tomato_reasoning.md, held-out trusses).
   double tolerance_m = 0.08;
@@ -33,7 +34,7 @@ struct BranchClusteringParams {
   double max_extent_m = 0.6; ///< a cluster wider than this (bounding-box diagonal) is not one branch [m]
 };
 
-[[nodiscard]] std::string validate(const BranchClusteringParams& p);
+common::Validation validate(const BranchClusteringParams& p);
 
 struct Cluster {
   Indices indices;  ///< into the cloud

@@ -16,6 +16,8 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct DepthSample {
@@ -30,7 +32,7 @@ struct DepthCorrectionParams {
   int degree = 2;     ///< theta(z) = sum_{k=1..degree} c_k z^k (its constant is Z's)
 };
 
-[[nodiscard]] std::string validate(const DepthCorrectionParams& p);
+common::Validation validate(const DepthCorrectionParams& p);
 
 struct DepthCorrection {
   bool ok = false;

@@ -1,8 +1,7 @@
 // The coloured point cloud the tomato cores work on: an RGB-D camera's
 // organised XYZRGB frame (or any unorganised set of coloured points) as
 // plain vectors, so that a core signature needs neither PCL nor a message.
-// pcl_conversions.hpp converts to and from pcl::PointCloud<pcl::PointXYZRGB>
-// for code that has PCL anyway.
+// Code that holds PCL clouds converts to it at its own boundary.
 #pragma once
 
 #include <array>

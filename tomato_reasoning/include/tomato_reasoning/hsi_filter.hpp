@@ -6,7 +6,7 @@
 //   intensity  I = floor((r + g + b) / 3)                        [0, 255]
 //   saturation S = 255 - floor(min(r, g, b) * 255 / I)           [0, 255]
 // and the thesis's ranges -15 <= H <= 15 deg, 100 <= S <= 250,
-// 25 <= I <= 180 (measured.yaml tomato.hsi_filter) are the defaults. The
+// 25 <= I <= 180 (the thesis's HSI filter) are the defaults. The
 // hue test is done without atan2 (a point's hue lies within the range
 // exactly when its (hx, hy) vector lies inside the range's wedge).
 #pragma once
@@ -14,6 +14,8 @@
 #include <string>
 
 #include "tomato_reasoning/cloud.hpp"
+
+#include <tinyline/common/validation.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -27,7 +29,7 @@ struct HsiFilterParams {
 };
 
 /// Empty when usable, else why not.
-[[nodiscard]] std::string validate(const HsiFilterParams& p);
+common::Validation validate(const HsiFilterParams& p);
 
 struct Hsi {
   double h_deg = 0.0;

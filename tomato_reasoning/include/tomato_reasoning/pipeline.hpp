@@ -19,6 +19,8 @@
 #include "tomato_reasoning/smoothing.hpp"
 #include "tomato_reasoning/sphere_ransac.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct PipelineParams {
@@ -34,7 +36,7 @@ struct PipelineParams {
   Eigen::Vector3d gravity{0, 1, 0};
 };
 
-[[nodiscard]] std::string validate(const PipelineParams& p);
+common::Validation validate(const PipelineParams& p);
 
 struct StageTimes {
   double hsi_ms = 0, branch_ms = 0, smoothing_ms = 0, spheres_ms = 0, reasoning_ms = 0;

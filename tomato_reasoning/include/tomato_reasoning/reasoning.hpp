@@ -36,6 +36,8 @@
 
 #include "tomato_reasoning/sphere_ransac.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct ContactEdge {
@@ -48,7 +50,7 @@ struct ContactEdge {
 
 struct ForceModelParams {
   double contact_tolerance_m = 0.012;  ///< Eq. 4.17 d_e [m]
-  double eps_mean = 0.3;                ///< Eq. 4.19 mu (measured.yaml tomato.force_weight_epsilon)
+  double eps_mean = 0.3;                ///< Eq. 4.19 mu
   double eps_variance = 0.25;           ///< Eq. 4.19 sigma^2
   double eps_max = 1.0;                 ///< truncation [0, eps_max)
   double weight_exponent = 1.0;         ///< gravity ~ r^exponent (thesis: theta * r)
@@ -61,7 +63,7 @@ struct ForceModelParams {
   std::uint64_t seed = 1;
 };
 
-[[nodiscard]] std::string validate(const ForceModelParams& p);
+common::Validation validate(const ForceModelParams& p);
 
 /// The distribution of one tomato's pedicel direction.
 class PedicelDistribution {
@@ -130,7 +132,7 @@ struct PickCost {
                                                const Eigen::Vector3d& gravity, const PickOrderParams& params = {});
 
 struct CutParams {
-  double scissor_opening_m = 0.02;  ///< measured.yaml tomato.scissor_opening_m
+  double scissor_opening_m = 0.02;  ///< the thesis's scissors
   /// Cut this far beyond the fruit's surface along the pedicel [m]: close
   /// to the calyx, where the pedicel surely is (pedicels are 1-4 cm long).
   double cut_offset_m = 0.008;

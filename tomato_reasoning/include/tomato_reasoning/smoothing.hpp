@@ -15,6 +15,8 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct SmoothingParams {
@@ -27,7 +29,7 @@ struct SmoothingParams {
   bool project_points = true;      ///< false: keep positions, only estimate normals
 };
 
-[[nodiscard]] std::string validate(const SmoothingParams& p);
+common::Validation validate(const SmoothingParams& p);
 
 struct SmoothedCloud {
   std::vector<Eigen::Vector3f> points;

@@ -33,6 +33,8 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 struct Sphere {
@@ -91,7 +93,7 @@ struct SphereRansacParams {
   std::uint64_t seed = 1;         ///< sampling is reproducible
 };
 
-[[nodiscard]] std::string validate(const SphereRansacParams& p);
+common::Validation validate(const SphereRansacParams& p);
 
 struct SphereFit {
   Sphere sphere;

@@ -58,11 +58,6 @@ Marker arrow(const std_msgs::msg::Header& h, const std::string& ns, int id, cons
   return m;
 }
 
-std::vector<std::function<void(bus::NodeRegistry&)>>& extras() {
-  static std::vector<std::function<void(bus::NodeRegistry&)>> list;
-  return list;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------- conversions
@@ -251,11 +246,8 @@ TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) 
   if (g.size() != 3 || !(Eigen::Vector3d(g[0], g[1], g[2]).norm() > 0))
     throw bus::ParamError({}, "node '" + full_name() + "': gravity needs 3 numbers, not all zero");
   p.gravity = Eigen::Vector3d(g[0], g[1], g[2]).normalized();
-  try {
-    pipeline_ = std::make_unique<TomatoPipeline>(p);
-  } catch (const std::invalid_argument& e) {
-    throw bus::ParamError({}, "node '" + full_name() + "': " + e.what());
-  }
+  require_valid(validate(p).within("tomato pipeline"));
+  pipeline_ = std::make_unique<TomatoPipeline>(p);
   views_ = declare_parameter("views", 1,
                               "camera views fused per detection: 1 (cloud), or 2 (cloud + cloud2 at cloud2_pose), as the "
                               "thesis's robot (4.5)",
@@ -522,17 +514,11 @@ void PickVerifierNode::summary() {
 
 namespace tinyline::tomato_reasoning {
 
-bool add_extra_nodes(std::function<void(bus::NodeRegistry&)> registrar) {
-  nodes::extras().push_back(std::move(registrar));
-  return true;
-}
-
 void register_nodes(bus::NodeRegistry& r) {
   r.add<nodes::TomatoDetectorNode>("tomato_reasoning", "tomato_detector",
                                    "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
   r.add<nodes::PickVerifierNode>("tomato_reasoning", "pick_verifier",
                                  "picking poses in order, the hand laser's pedicel finding -> cut here / move / nothing (4.4)");
-  for (const auto& f : nodes::extras()) f(r);
 }
 
 }  // namespace tinyline::tomato_reasoning

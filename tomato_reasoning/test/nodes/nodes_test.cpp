@@ -11,6 +11,7 @@
 #include <tinyline/bus/testing.hpp>
 
 #include <laser_clustering/nodes/register.hpp>
+#include <sim/nodes/register.hpp>
 
 #include "tomato_reasoning/nodes/nodes.hpp"
 #include "tomato_reasoning/eval/scenario.hpp"
@@ -26,10 +27,12 @@ using tinyline::visualization_msgs::msg::MarkerArray;
 
 namespace {
 
-// The tomato_reasoning and laser_clustering nodes on stepped sim time
+// The tomato_reasoning and laser_clustering nodes, and the simulated camera
+// and hand laser, on stepped sim time
 // (bus/testing.hpp).
 struct Harness : bus::testing::NodeRig {
-  Harness() : NodeRig({&tr::register_nodes, &tinyline::laser_clustering::register_nodes}) {}
+  Harness()
+      : NodeRig({&tr::register_nodes, &tinyline::laser_clustering::register_nodes, &tinyline::sim::register_nodes}) {}
 };
 
 }  // namespace
@@ -37,6 +40,7 @@ struct Harness : bus::testing::NodeRig {
 TEST(TomatoNodes, AllAreRegistered) {
   bus::NodeRegistry r;
   tr::register_nodes(r);
+  tinyline::sim::register_nodes(r);  // the demo's simulated camera and hand laser
   for (const char* t : {"tomato_detector", "pick_verifier", "truss_camera", "hand_laser"})
     EXPECT_NE(r.find("tomato_reasoning", t), nullptr) << t;
 }

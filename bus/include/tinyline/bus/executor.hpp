@@ -58,6 +58,10 @@ struct ExecutorCore {
   /// 1 while a worker polls for work before sleeping: one poller is enough to
   /// spare publishers the wake-up, and more would take cores from them.
   std::atomic<int> spinning{0};
+  /// Set by stop() (threaded executors) until the next spin: no worker will
+  /// take more messages, so groups end their batch and reliable publishers
+  /// stop waiting for room in these queues.
+  std::atomic<bool> stopping{false};
 
   /// Publisher side, after queueing work: wake one sleeping worker if any,
   /// unless one is polling (it stops polling, then looks once more before
@@ -144,6 +148,14 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   /// and that executor has a single thread (so waiting on it would deadlock).
   bool drained_by_this_thread_only() const;
   bool unbounded_reliable() const { return unbounded_reliable_.load(); }
+  /// True when the executor this group is attached to was asked to stop.
+  bool executor_stopping() const {
+    const detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
+    return core != nullptr && core->stopping.load(std::memory_order_seq_cst);
+  }
+  /// Wakes publishers waiting for room in this group's reliable queues (they
+  /// look again at why they wait: the executor may have stopped).
+  void wake_publishers() const;
   /// True when the calling thread is inside one of this group's callbacks.
   bool running_here() const {
     return running_.load(std::memory_order_acquire) && running_thread_.load() == std::this_thread::get_id();
@@ -229,7 +241,7 @@ class Executor {
   void add_timer(const std::shared_ptr<Timer>& t, const std::shared_ptr<CallbackGroup>& g);
 
  protected:
-  /// Calls on_start() of every node added since the last call.
+  /// Calls on_configure() of every node added since the last call, then their on_start().
   void start_pending_nodes();
   /// A worker's copies of the attached groups and their subscription lists
   /// (refreshed when a version changes), so polling takes no lock.

@@ -68,7 +68,11 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
   std::uint32_t ignore_origin = 0;
 
   /// Detaches from the executor so no more callbacks run (node destruction).
-  void cancel();
+  /// Returns how many queued messages it discarded.
+  std::size_t cancel();
+  /// Wakes reliable publishers waiting for room, so they look again whether
+  /// to go on waiting (the executor that drains the queue may have stopped).
+  void wake_publishers();
 
  protected:
   friend class CallbackGroup;
@@ -92,9 +96,12 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
     const std::size_t o = overflow_size_.load(std::memory_order_seq_cst);
     return o >= qos_.depth || ring_.size_reaches(qos_.depth - o);
   }
-  void clear();
+  /// Empties the queue; returns how many messages it held.
+  std::size_t clear();
   /// Consumer side, after taking a message: wakes a reliable publisher waiting for room.
   void made_room();
+  /// Why a reliable publish failed: the executor draining the queue stops.
+  std::string stopping_reason(const CallbackGroup& g) const;
 
   struct Stamped {
     QueuedMessage m;

@@ -19,6 +19,7 @@
 #include <tinyline/bus/names.hpp>
 #include <tinyline/bus/params.hpp>
 #include <tinyline/bus/qos.hpp>
+#include <tinyline/common/validation.hpp>
 #include <tinyline/msg/type_support.hpp>
 
 namespace tinyline::bus {
@@ -140,6 +141,12 @@ class Node {
   Node(const Node&) = delete;
   Node& operator=(const Node&) = delete;
 
+  /// Called once for every node of an executor before any node's on_start():
+  /// read and check what the node needs from files here (calibrations,
+  /// scenes) and throw if it is unusable, so a bad input starts nothing
+  /// (`tinyline launch --check` calls it too). No side effects others see:
+  /// open no device, create no file, start no thread.
+  virtual void on_configure() {}
   /// Called once, on the thread that starts the executor, before callbacks run.
   virtual void on_start() {}
   /// Called once when the graph stops, before the node is destroyed.
@@ -155,6 +162,10 @@ class Node {
   Clock& clock() { return context_->clock(); }
   Time now() const { return context_->clock().now(); }
   const Logger& logger() const { return logger_; }
+
+  /// A core's verdict on the parameters this node read: throws ParamError
+  /// "node '/ns/name': <reason>" when it is invalid.
+  void require_valid(const common::Validation& v) const;
 
   /// The topic a name given in code resolves to (namespace, ~, remaps).
   std::string resolve_topic(const std::string& name) const;
@@ -233,6 +244,8 @@ class Node {
   ParamValue declare_parameter_value(const std::string& name, ParamType type, ParamValue default_value,
                                      std::string description, ParamConstraints constraints);
   void attach_subscription(const std::shared_ptr<Topic>& t, const std::shared_ptr<SubscriptionBase>& s);
+  /// Throws ParamError if `d` names an input file that cannot be read (ParamConstraints::File::Input).
+  void check_input_file(const ParamDescriptor& d, const std::string& who) const;
   void record_endpoint(bool publisher, const std::string& topic, std::string_view type, const QoS& qos);
 
   std::shared_ptr<Context> context_;

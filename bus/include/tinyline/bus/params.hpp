@@ -41,10 +41,22 @@ struct ParamOverride {
 };
 
 struct ParamConstraints {
+  /// A string parameter that names a file. An input must be a regular file
+  /// this process can open (within `file_max_bytes`) when the node is built,
+  /// so a launch stops at the line that set it before anything starts;
+  /// launch checks that no two nodes write one output, and that no node
+  /// writes another's input.
+  enum class File { None, Input, Output };
+
   std::optional<double> min;          ///< numbers (and each element of numeric arrays)
   std::optional<double> max;
   std::vector<std::string> choices;   ///< strings: the allowed values (empty = any)
   bool required = false;              ///< must be set from outside (no usable default)
+  File file = File::None;
+  std::uint64_t file_max_bytes = 0;   ///< Input: the largest file accepted [bytes] (0: any size)
+  /// Values that name no file: exact words ("default"), or prefixes ending
+  /// in ':' ("public:"). The empty string never names a file.
+  std::vector<std::string> not_a_file;
 
   static ParamConstraints range(double lo, double hi) {
     ParamConstraints c;
@@ -61,6 +73,26 @@ struct ParamConstraints {
     ParamConstraints c;
     c.choices = std::move(values);
     return c;
+  }
+  static ParamConstraints input_file(std::uint64_t max_bytes = 0, std::vector<std::string> not_a_file = {}) {
+    ParamConstraints c;
+    c.file = File::Input;
+    c.file_max_bytes = max_bytes;
+    c.not_a_file = std::move(not_a_file);
+    return c;
+  }
+  static ParamConstraints output_file() {
+    ParamConstraints c;
+    c.file = File::Output;
+    return c;
+  }
+  /// True when `value` is a path under these constraints (see not_a_file).
+  bool names_file(const std::string& value) const {
+    if (file == File::None || value.empty()) return false;
+    for (const auto& w : not_a_file) {
+      if (!w.empty() && w.back() == ':' ? value.rfind(w, 0) == 0 : value == w) return false;
+    }
+    return true;
   }
 };
 

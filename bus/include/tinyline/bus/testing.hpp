@@ -11,13 +11,19 @@
 //   EXPECT_EQ(fits.size(), 1u);
 //   EXPECT_TRUE(rig.log->contains(bus::LogLevel::Warn, "..."));
 //
+// Also TempDir, a directory a test writes into and that is gone after it.
 // Header-only and free of gtest so a user's own test framework can use it.
 #pragma once
 
+#include <stdlib.h>
+
+#include <filesystem>
 #include <initializer_list>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <system_error>
 #include <utility>
 #include <vector>
 
@@ -28,6 +34,26 @@
 #include "tinyline/bus/registry.hpp"
 
 namespace tinyline::bus::testing {
+
+/// A fresh directory under /tmp for one test, removed with everything in it
+/// when the test ends.
+struct TempDir {
+  std::filesystem::path path;
+  TempDir() {
+    char tmpl[] = "/tmp/tinyline_test_XXXXXX";
+    const char* made = ::mkdtemp(tmpl);
+    if (made == nullptr) throw std::runtime_error("cannot make a temporary directory under /tmp");
+    path = made;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+  /// The path of a file in the directory, as a string (for argv-style lists).
+  std::string operator/(const std::string& file) const { return (path / file).string(); }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+};
 
 /// A sim-clock context whose log goes to a CaptureSink, a DeterministicExecutor
 /// on its clock, a NodeRegistry, and an "io" node the test publishes from and

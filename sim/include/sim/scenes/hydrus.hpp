@@ -41,6 +41,8 @@
 #include <sim/scene.hpp>
 #include <sim/sensor_params.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::sim {
 
 struct HydrusChainParams {
@@ -58,7 +60,7 @@ struct HydrusChainParams {
   [[nodiscard]] std::string link_name(int i) const { return name + "link" + std::to_string(i + 1); }
   [[nodiscard]] std::string sensor_name(int i) const { return name + "laser" + std::to_string(i + 1); }
   /// Why the parameters are impossible; empty when fine.
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 /// Where the robot is: base pose in the plane and the links-1 joint angles.

@@ -34,6 +34,8 @@
 #include <sim/scene.hpp>
 #include <sim/world.hpp>
 
+#include <tinyline/common/validation.hpp>
+
 namespace tinyline::sim {
 
 enum class TrussClass : char { kA = 'A', kB = 'B', kC = 'C' };
@@ -57,7 +59,7 @@ struct TrussParams {
   bool mesh_fruit = true;               ///< false: perfect spheres (flatness and ribs ignored)
   double pedicel_length_min_m = 0.012;  ///< anchor to calyx [m]
   double pedicel_length_max_m = 0.035;
-  double pedicel_radius_m = 0.003;      ///< 6 mm pedicels (measured.yaml tomato.pedicel_diameter_m)
+  double pedicel_radius_m = 0.003;      ///< 6 mm pedicels (the thesis's pedicel diameter)
   double peduncle_radius_m = 0.0045;
   double density_kg_m3 = 1000.0;        ///< tomato flesh
   /// Pedicel bending stiffness as a share of the tomato's gravity torque
@@ -75,7 +77,7 @@ struct TrussParams {
   double camera_jitter_m = 0.03;        ///< random lateral / vertical offset of the camera [m]
   double camera_yaw_jitter_deg = 10.0;
 
-  [[nodiscard]] std::string validate() const;
+  common::Validation validate() const;
 };
 
 struct TrussTomato {

@@ -1,6 +1,6 @@
 // The driver reads a byte stream: the serial port, the simulator's pty and an
 // in-memory link all implement this small interface, so most driver logic is
-// tested without a device (STYLE.md habit 6).
+// tested without a device.
 //
 // Not a core header: this is I/O (target tinyline::tiny_laser_driver_io).
 #pragma once

@@ -4,9 +4,9 @@
 //   usb:A50285BI      the sensor whose USB serial number is A50285BI, found
 //                     again (and its tty looked up again) at every reconnect
 //   SCHEME:ARG        a scheme registered at run time: "sim:SCENE.yaml" (the
-//                     simulator's virtual device, registered by the driver's
-//                     node library when built with the simulator), "mem:NAME"
-//                     (an in-memory link, for tests and embedding)
+//                     simulator's virtual device, registered by the simulator's
+//                     register_nodes(), which the `tinyline` tool calls),
+//                     "mem:NAME" (an in-memory link, for tests and embedding)
 #pragma once
 
 #include <functional>
@@ -24,9 +24,8 @@ namespace tinyline::tiny_laser_driver::io {
 struct PortOptions {
   SerialOptions serial;
   DiscoveryOptions discovery;
-  /// For schemes that start a device (sim:): the mode it should stream in,
-  /// and whether its laser starts on (off in sequence mode).
-  StreamMode mode = StreamMode::Raw;
+  /// For schemes that start a device (sim:): whether its laser starts on
+  /// (off in sequence mode). What it streams is the device's business.
   bool laser_on_at_start = true;
 };
 

@@ -1,35 +1,53 @@
-// The `tinyline` command line is one executable with sub-commands. Each
-// command group lives in its own file under tools/commands/ and registers
-// itself with a static CommandRegistration, so adding one edits no shared file:
+// The `tinyline` command line is one executable with sub-commands, parsed
+// with CLI11. Each command group lives in its own file under tools/commands/
+// and registers itself with a static CommandRegistration, so adding one edits
+// no shared file:
 //
-//   static int cmd_bag(const std::vector<std::string>& args);   // args after "bag"
+//   CommandRun setup_bag(CLI::App& cmd);   // declares options, returns what to run
 //   static const tinyline::tools::CommandRegistration kBag{
-//       "bag", "record, play, inspect and recover MCAP bags", &cmd_bag};
+//       "bag", "record, play, inspect and recover MCAP bags", &setup_bag};
 //
 // A command returns the process exit code: 0 success, 1 failure (with a
-// message on stderr naming what and where), 2 bad usage.
+// message on stderr naming what and where), 2 bad usage (a CLI11 parse error
+// or a UsageError).
 #pragma once
 
+#include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <tinyline/bus/registry.hpp>
 
+namespace CLI {
+class App;
+}
+
 namespace tinyline::tools {
 
-using CommandFn = int (*)(const std::vector<std::string>& args);
+/// Bad usage found after parsing (e.g. a process group the file lacks): exit code 2.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// What a sub-command runs once its command line parsed; returns the exit code.
+using CommandRun = std::function<int()>;
+/// Declares a sub-command's options and positionals on `cmd`; their values
+/// land in state the returned CommandRun holds.
+using CommandSetup = CommandRun (*)(CLI::App& cmd);
 
 struct CommandInfo {
   std::string name;
   std::string summary;
-  CommandFn fn;
+  CommandSetup setup;
 };
 
 std::vector<CommandInfo>& command_table();
 
 struct CommandRegistration {
-  CommandRegistration(std::string name, std::string summary, CommandFn fn) {
-    command_table().push_back(CommandInfo{std::move(name), std::move(summary), fn});
+  CommandRegistration(std::string name, std::string summary, CommandSetup setup) {
+    command_table().push_back(CommandInfo{std::move(name), std::move(summary), setup});
   }
 };
 

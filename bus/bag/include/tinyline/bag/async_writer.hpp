@@ -5,6 +5,7 @@
 // silently. The recorder node and `tinyline bag record` are built on it.
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -107,6 +108,12 @@ class AsyncWriter {
 
   Status start(std::unique_ptr<Writable> out, AsyncWriterOptions options);
   void run();
+  /// Waits for messages (or `wake_at`) and takes all queued; true when stopping and nothing is left.
+  bool take_batch(std::deque<Item>& batch, std::chrono::steady_clock::time_point wake_at);
+  /// Writes the batch until an error (the file's first error stays); counts what reached the writer.
+  Status write_batch(std::deque<Item>& batch, std::uint64_t& written);
+  /// Books the batch (written, dropped, queue bytes) and keeps some buffers for reuse.
+  void settle_batch(std::deque<Item>& batch, std::uint64_t written, const Status& failed);
 
   AsyncWriterOptions options_;
   std::string name_;

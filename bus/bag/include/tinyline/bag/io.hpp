@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <tinyline/bag/status.hpp>
+#include <tinyline/bus/files.hpp>
 
 namespace tinyline::bag {
 
@@ -31,8 +32,11 @@ class Writable {
   virtual Status write(std::span<const std::uint8_t> bytes) = 0;
   /// Hands buffered bytes to the OS (a file) so a killed process loses nothing written so far.
   virtual Status flush() = 0;
-  /// Flushes and releases the sink; further writes fail.
+  /// Finishes the content (a file: puts it in place) and releases the sink; further writes fail.
   virtual Status close() = 0;
+  /// Releases the sink without finishing: the content is incomplete (a file
+  /// leaves its destination as it was).
+  virtual void abandon() { (void)close(); }
   /// Bytes appended so far (buffered ones included).
   virtual std::uint64_t size() const = 0;
   virtual const std::string& name() const = 0;
@@ -80,10 +84,18 @@ class MemoryReadable final : public Readable {
 struct FileWritableOptions {
   std::size_t buffer_bytes = 1 << 20;  ///< user-space buffer before write(2)
   bool fsync_on_close = false;         ///< also survive a power cut, not just a killed process
+  /// The writing command's inputs: the output never replaces one of them.
+  std::vector<std::string> inputs;
+  /// Keep "<path>.part" when the file does not finish (a partial recording
+  /// is worth recovering) instead of removing it.
+  bool keep_partial = false;
 };
 
-/// A file written with write(2) through a user-space buffer. flush() empties
-/// the buffer into the kernel, which keeps the bytes if the process dies.
+/// A file written to "<path>.part" with write(2) through a user-space buffer
+/// and renamed onto the path by close() (files::AtomicFile): the path holds
+/// either its old content or a finished file, and the .part file is locked
+/// so a second writer of the same path fails. flush() empties the buffer
+/// into the kernel, which keeps the bytes if the process dies.
 class FileWritable final : public Writable {
  public:
   FileWritable() = default;
@@ -91,22 +103,28 @@ class FileWritable final : public Writable {
   FileWritable(const FileWritable&) = delete;
   FileWritable& operator=(const FileWritable&) = delete;
 
-  /// Creates or truncates `path`.
+  /// Creates "<path>.part"; refuses a path that is a link, a device, or one
+  /// of options.inputs, and one that another writer holds.
   Status open(const std::string& path, FileWritableOptions options = {});
   Status write(std::span<const std::uint8_t> bytes) override;
   Status flush() override;
+  /// Flushes and renames the file into place (after a write error: abandons it).
   Status close() override;
+  void abandon() override;
   std::uint64_t size() const override { return size_; }
   const std::string& name() const override { return path_; }
+  /// Where the bytes are until close(): "<path>.part".
+  const std::string& temp_name() const { return file_.temp_path(); }
 
  private:
   Status write_all(const std::uint8_t* p, std::size_t n);
 
-  int fd_ = -1;
+  files::AtomicFile file_;
   FileWritableOptions options_;
   std::vector<std::uint8_t> buffer_;
   std::uint64_t size_ = 0;
   std::string path_;
+  Status error_;
 };
 
 /// Appends to a byte vector.
@@ -139,6 +157,7 @@ class WritableRef final : public Writable {
   Status write(std::span<const std::uint8_t> bytes) override { return target_.write(bytes); }
   Status flush() override { return target_.flush(); }
   Status close() override { return target_.flush(); }  // the owner closes the target
+  void abandon() override {}                           // the owner decides
   std::uint64_t size() const override { return target_.size(); }
   const std::string& name() const override { return target_.name(); }
 

@@ -23,6 +23,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -126,6 +127,15 @@ class LinearReader {
   bool data_end_seen() const;
   bool footer_seen() const;
 
+  /// Recovery: definitions known from elsewhere (the summary, under its own
+  /// CRC). Messages on these channels resolve even when the file's own
+  /// records are lost; a record of the file that disagrees is replaced by the
+  /// known one (and noted in problems()).
+  void know(const std::map<SchemaId, Schema>& schemas, const std::map<ChannelId, Channel>& channels);
+  /// Recovery: reads the one chunk at `offset` next (a chunk index points
+  /// there), then ends. For chunks a damaged record made the linear pass miss.
+  bool read_chunk_at(std::uint64_t offset);
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
@@ -190,6 +200,13 @@ class Reader {
 
  private:
   Status open_summary(std::uint64_t footer_offset, const Footer& footer);
+  /// The footer's summary and offsets lie inside the file, within the size limit.
+  Status check_summary_place(std::uint64_t footer_offset, const Footer& footer) const;
+  /// One summary record into summary_ (`w` names it for errors).
+  Status summary_record(std::uint8_t op, std::span<const std::uint8_t> content, const std::string& w,
+                        const Footer& footer, bool& have_stats);
+  /// Statistics for a summary without a Statistics record.
+  void statistics_from_chunk_indexes();
   std::string where(std::uint64_t offset, std::string_view what) const;
 
   std::unique_ptr<Readable> source_;

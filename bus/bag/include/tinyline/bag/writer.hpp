@@ -69,7 +69,8 @@ class Writer {
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
 
-  /// Creates (or truncates) `path` and writes the magic and header.
+  /// Writes to `path` through a FileWritable: to "<path>.part" until close()
+  /// renames it into place (a failed close() leaves the path as it was).
   Status open(const std::string& path, WriterOptions options = {});
   /// Writes to any sink (memory in tests).
   Status open(std::unique_ptr<Writable> out, WriterOptions options = {});
@@ -94,6 +95,7 @@ class Writer {
   Status flush();
 
   /// Finishes the file: last chunk, data end, summary, footer. Idempotent.
+  /// After an error the sink is abandoned instead (a file keeps its old content).
   Status close();
 
   const WriterStats& stats() const { return stats_; }
@@ -113,6 +115,9 @@ class Writer {
                     std::uint64_t uncompressed_size, std::string_view comp);
   static constexpr std::uint8_t kSkipAfterIncompressible = 15;
   Status fail(Status s);
+  /// The summary records (schemas, channels, statistics, indexes), noting each group in `offsets`.
+  std::vector<std::uint8_t> summary_section(std::uint64_t summary_start, std::vector<SummaryOffset>& offsets);
+  Status write_summary_and_footer();
 
   WriterOptions options_;
   std::unique_ptr<Writable> out_;

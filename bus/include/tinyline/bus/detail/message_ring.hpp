@@ -7,6 +7,7 @@
 // consumer), which is why the ring is MPMC and not SPSC.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cstddef>
@@ -20,9 +21,12 @@ namespace tinyline::bus::detail {
 
 class MessageRing {
  public:
-  /// `capacity` is rounded up to a power of two (at least 1).
+  /// `capacity` is rounded up to a power of two, at least 2: with a single
+  /// slot, "taken by a consumer that is still reading it" and "free for the
+  /// next producer" carry the same sequence number, so a producer could
+  /// overwrite a message while it is being taken.
   explicit MessageRing(std::size_t capacity)
-      : mask_(std::bit_ceil(capacity == 0 ? std::size_t{1} : capacity) - 1),
+      : mask_(std::bit_ceil(std::max<std::size_t>(capacity, 2)) - 1),
         slots_(std::make_unique<Slot[]>(mask_ + 1)) {
     for (std::size_t i = 0; i <= mask_; ++i) slots_[i].seq.store(i, std::memory_order_relaxed);
   }

@@ -24,17 +24,26 @@
 // (tinyline topic, ROS 2 nodes) see them.
 //
 // Substitutions: $(var name), $(env NAME), $(env NAME default), $(dirname),
-// $(find-pkg-share pkg). Every key is checked: an unknown key, a missing
-// required arg, an include cycle, an unknown node type or parameter, a wrong
-// type or a value out of range stops the launch with the file, line and
-// reason. Nothing starts until the whole file is valid.
+// $(find-pkg-share pkg). Every key is checked: an unknown or repeated key, a
+// second YAML document, a missing required arg, an include cycle, an unknown
+// node type or parameter, a wrong type or a value out of range stops the
+// launch with the file, line and reason. Nothing starts until the whole file
+// is valid.
+//
+// What a file can make us do is bounded (LoadOptions): every file read must
+// be a regular file within a size limit (a FIFO or /dev/zero is refused),
+// includes nest only so deep, and substitutions produce only so many bytes
+// (nested `let` values cannot expand a small file to gigabytes).
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <tinyline/bus/names.hpp>
@@ -97,6 +106,15 @@ struct LoadOptions {
   std::map<std::string, std::string> args;  ///< name:=value from the command line
   /// Where $(find-pkg-share pkg) points (tinyline's share dir for every package).
   std::string share_dir;
+  /// Reads a launch, include or parameter file; `what` names its role for
+  /// messages. Empty: a regular file of at most max_file_bytes
+  /// (files::read_text). Tests and the fuzzer serve files from memory.
+  std::function<std::string(const std::string& path, std::string_view what)> read_file;
+  std::uint64_t max_file_bytes = 1 << 20;     ///< a launch, include or parameter file [bytes]
+  int max_include_depth = 32;                 ///< files open at once (the top file counts)
+  std::size_t max_value_bytes = 64 << 10;     ///< one value after substitution [bytes]
+  std::uint64_t max_expanded_bytes = 16 << 20;  ///< all substitution output of one load [bytes]
+  int max_substitution_depth = 16;            ///< $( inside $( inside ...
 };
 
 /// Reads a launch file and everything it includes. Throws LaunchError.
@@ -112,8 +130,22 @@ std::vector<std::shared_ptr<bus::Node>> instantiate(const LaunchPlan& plan, cons
                                                     const std::shared_ptr<bus::Context>& context,
                                                     const std::string& process = "");
 
+/// Calls on_configure() of each node (those of `process`, as instantiate()
+/// returned them), so unusable inputs (a calibration that does not load)
+/// stop the launch before anything starts. Throws LaunchError at the node's entry.
+void configure(const LaunchPlan& plan, const std::vector<std::shared_ptr<bus::Node>>& nodes,
+               const std::string& process = "");
+
+/// Checks the files the nodes name in their parameters
+/// (bus::ParamConstraints::File): no two nodes write one file, and no node
+/// writes a file another node reads. Throws LaunchError at the line that set
+/// the parameter.
+void check_files(const std::vector<std::shared_ptr<bus::Node>>& nodes);
+
 /// Reads a ROS 2 parameter file (`node: {ros__parameters: {...}}`, `/**` for
 /// all nodes) and returns the overrides for the node with this full name.
-std::vector<bus::ParamOverride> load_param_file(const std::string& path, const std::string& node_full_name);
+/// The file is read as options.read_file says; a repeated key is an error.
+std::vector<bus::ParamOverride> load_param_file(const std::string& path, const std::string& node_full_name,
+                                                const LoadOptions& options = {});
 
 }  // namespace tinyline::launch

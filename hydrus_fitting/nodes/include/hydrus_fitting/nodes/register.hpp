@@ -5,7 +5,8 @@
 
 namespace tinyline::hydrus_fitting {
 
-/// circle_fitter, sequencer, and hydrus_sim when built with the simulator.
+/// circle_fitter, sequencer. (The simulated Hydrus, hydrus_sim, comes with
+/// the simulator's register_nodes().)
 void register_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::hydrus_fitting

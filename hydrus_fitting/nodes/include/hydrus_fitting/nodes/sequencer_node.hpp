@@ -13,6 +13,11 @@
 //
 // mode: "colouring" (default), "time_slicing" (the thesis: one sensor per
 // slot), or "all_on" (no sequencing: every laser always on; crosstalk).
+//
+// No sensor is trusted to obey: a sensor whose scans keep coming, read out
+// well after it was told to stop emitting (`ignore_after` times), is taken
+// as always emitting (firmware that ignores the command, as the published
+// one does): it is put in every slot and reported in the diagnostics.
 // The schedule is recomputed at each slot start from the joint angles at
 // that time and the newest object estimate; when it changes, the cycle
 // restarts at its first slot.
@@ -47,6 +52,7 @@ class SequencerNode : public bus::Node {
 
  private:
   void on_slot();
+  void watch_scan(std::size_t sensor, bus::Time stamp);
   void publish_diagnostics();
 
   std::string description_path_;
@@ -64,6 +70,10 @@ class SequencerNode : public bus::Node {
   std::uint64_t changes_ = 0;
   std::optional<std::pair<bus::Time, Circle>> object_;
   std::vector<std::deque<bus::Time>> arrivals_;  // per sensor, within the rate window
+  int ignore_after_ = 3;
+  std::vector<std::optional<bus::Time>> off_since_;  // per sensor: ordered off at (none: on)
+  std::vector<int> scans_while_off_;                 // per sensor
+  std::vector<int> always_on_;                       // sensors taken as always emitting
   std::string last_problem_;
 
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LaserCommand>> cmd_pub_;

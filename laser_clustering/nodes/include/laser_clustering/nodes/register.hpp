@@ -5,8 +5,9 @@
 
 namespace tinyline::laser_clustering {
 
-/// line_clusterer, pedicel_finder, reflectance_clusterer, alignment_search,
-/// pitch_sweep; sim_gripper_pitch when built with the simulator.
+/// line_clusterer, pedicel_finder, tomato_registration, reflectance_clusterer,
+/// alignment_search, pitch_sweep. (The simulated gripper, sim_gripper_pitch,
+/// comes with the simulator's register_nodes().)
 void register_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::laser_clustering

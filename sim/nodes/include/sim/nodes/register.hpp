@@ -1,11 +1,17 @@
-// The simulator's nodes, by name, for launch files and `tinyline run`.
+// Every simulator-backed node type by name, for launch files and `tinyline
+// run`, and the driver's `sim:SCENE.yaml` port scheme.
 #pragma once
 
 #include <tinyline/bus/registry.hpp>
 
 namespace tinyline::sim {
 
-/// Registers sim/virtual_sensor and sim/scene_truth.
+/// Registers sim/virtual_sensor and sim/scene_truth; laser_clustering/
+/// sim_gripper_pitch; with the packages in the build, hydrus_fitting/
+/// hydrus_sim and tomato_reasoning/truss_camera and hand_laser (under the
+/// names of the packages they simulate for); and the driver's `sim:` port
+/// scheme (sim/nodes/port.hpp). The `tinyline` tool calls it with every
+/// package's register_nodes().
 void register_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::sim

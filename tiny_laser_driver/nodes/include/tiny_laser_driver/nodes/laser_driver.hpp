@@ -1,6 +1,8 @@
 // The tiny laser driver node: reads the sensor's byte stream (serial port,
-// usb:SERIAL, sim:SCENE.yaml, mem:NAME), parses it, processes each raw set
-// with the calibration model, and publishes
+// usb:SERIAL, sim:SCENE.yaml, mem:NAME), parses raw and distance frames
+// alike (either firmware, without being told), turns repeated frames into one
+// fresh measurement each, processes raw sets with the calibration model, and
+// publishes
 //
 //   raw          tinyline_msgs/RawScan           every read-out, as sent (raw mode)
 //   scan         tinyline_msgs/LineScan          calibrated distance, intensity, reflectance, status per pixel
@@ -18,7 +20,8 @@
 //
 // Timestamps: host receive time of a frame's last byte minus the frame's
 // transmission time at the link rate (a set: its last frame, the read-out with
-// the most pulses).
+// the most pulses); a measurement repeated on the wire keeps the stamp of its
+// first arrival.
 #pragma once
 
 #include <atomic>
@@ -43,20 +46,25 @@
 #include <tiny_laser_driver/nodes/scan_messages.hpp>
 #include <tiny_laser_driver/protocol.hpp>
 #include <tiny_laser_driver/scan_processor.hpp>
+#include <tiny_laser_driver/stream_health.hpp>
 
 namespace tinyline::tiny_laser_driver {
 
 /// The driver's settings; node parameters take their defaults from here.
 struct DriverParams {
   std::string port = "/dev/ttyUSB0";  ///< /dev/..., usb:SERIAL, sim:SCENE.yaml, mem:NAME
-  std::string mode = "raw";           ///< "raw" (host computes distance) or "distance" (firmware does)
+  /// The frames expected: "auto" (either), "raw" (the host computes distance)
+  /// or "distance" (the firmware does). Only checked and reported: frames of
+  /// either kind are always read.
+  std::string mode = "auto";
   double baud = 2'000'000;            ///< link rate [bit/s]
   int readouts_per_set = 5;           ///< raw mode: frames per set
   OpticsParams optics;                ///< focal_mm, sensor_length_mm
   std::string frame_id = "laser";     ///< sensor frame: z forward, x along the line
   std::string scan_frame_id;          ///< LaserScan frame (x = sensor z, y = sensor x); "" = frame_id + "_scan"
   std::string calibration = "default";  ///< calibration YAML, "public:K" (R J S K T), or "default" (the simulated sensor's)
-  double distance_unit_m = 0.001;     ///< distance mode: the firmware's distance unit [m]
+  double distance_unit_m = 1e-4;      ///< distance frames: the firmware's unit [m] (the published firmware: 0.1 mm)
+  int stale_after = 20;               ///< fresh measurements a pixel may stay unchanged while its neighbours change
   std::string sensor_name;            ///< name in LaserCommand.sensors; "" = the node's name
   int sequence_slot = -1;             ///< sequence mode slot (>= 0: laser off until a LaserCommand enables the slot)
   bool send_stream_mode = false;      ///< send the 0x11 stream-mode command on connect (tinyline extension)
@@ -82,6 +90,12 @@ struct DriverStatus {
   std::uint64_t commands_sent = 0;
   std::optional<bool> laser_on;      ///< last laser state sent (sequence mode)
   ParserStats parser;
+  RepeatStats distance_repeats;      ///< distance frames: repeats, torn frames, fresh measurements
+  std::uint64_t raw_repeats = 0;     ///< raw sets equal to the one before (not published)
+  int last_stale_pixels = 0;
+  RangeShares ranges;                ///< valid distance-frame pixels against the sensor's range (this period)
+  std::string commands;              ///< CommandWatch::summary()
+  bool ignores_laser_off = false;
   bus::Time last_scan_stamp;
   bus::Time last_receive;            ///< clock time of the last byte received
   double last_saturated_share = 0.0;
@@ -107,19 +121,25 @@ class LaserDriver : public bus::Node {
   [[nodiscard]] const DriverParams& params() const { return params_; }
 
  private:
+  void declare_params();  // fills params_ from the node's parameters
   void run();
   void try_open(bus::Time now);
   void lost(const io::IoStatus& why);
   void send_pending();
-  void publish_set(const RawSet& set, std::uint64_t chunk_end, bus::Time t_recv);
-  void publish_distance(const DistanceFrame& f, std::uint64_t chunk_end, bus::Time t_recv);
+  void take_set(const RawSet& set, std::uint64_t chunk_end, bus::Time t_recv);
+  void take_distance(const DistanceFrame& f, std::uint64_t chunk_end, bus::Time t_recv);
+  void publish_distance(const DistanceRepeats::Fresh& fresh);
   void publish_scan(const ProcessedScan& scan, std::uint32_t index, bus::Time stamp, float temperature_c);
-  bus::Time stamp_of(std::uint64_t end_byte, std::uint64_t chunk_end, bus::Time t_recv) const;
+  bus::Time stamp_of(std::uint64_t end_byte, std::uint64_t chunk_end, bus::Time t_recv, StreamMode kind) const;
   void on_command(const tinyline_msgs::msg::LaserCommand& cmd);
   void publish_diagnostics();
+  void diagnose_level(const DriverStatus& s, const DriverStatus& prev, double dt,
+                      diagnostic_msgs::msg::DiagnosticStatus& st) const;
+  void diagnose_values(const DriverStatus& s, const DriverStatus& prev, double dt,
+                       diagnostic_msgs::msg::DiagnosticStatus& st) const;
 
   DriverParams params_;
-  StreamMode mode_ = StreamMode::Raw;
+  std::optional<StreamMode> expected_;  // from `mode`; empty: either
   std::unique_ptr<io::PortOpener> opener_;
   std::unique_ptr<ScanProcessor> processor_;  // built in on_start (loads the calibration)
   std::unique_ptr<ScanMessages> messages_;
@@ -129,6 +149,10 @@ class LaserDriver : public bus::Node {
   std::unique_ptr<io::ByteStream> stream_;
   std::vector<std::uint8_t> buf_;
   ProcessedScan scan_;
+  DistanceRepeats repeats_;
+  std::optional<RawSet> last_set_;  // the last raw set published (repeat check)
+  StalePixels stale_;
+  CommandWatch watch_;
   bus::Time next_attempt_;
   double backoff_s_ = 0.0;
   std::optional<bus::Time> first_stamp_;

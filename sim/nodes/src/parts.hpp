@@ -1,0 +1,23 @@
+// The parts of the simulator's node library, each registering its node types
+// (and the port scheme) by name. Which parts a build has depends on the
+// packages in it; sim/CMakeLists.txt generates register_nodes() from the
+// parts it compiles.
+#pragma once
+
+#include <tinyline/bus/registry.hpp>
+
+namespace tinyline::sim::nodes {
+
+/// sim/virtual_sensor, sim/scene_truth (always).
+void register_scene_nodes(bus::NodeRegistry& registry);
+/// laser_clustering/sim_gripper_pitch (always).
+void register_gripper_nodes(bus::NodeRegistry& registry);
+/// The driver's `sim:` port scheme (with tiny_laser_driver).
+void register_port(bus::NodeRegistry& registry);
+/// hydrus_fitting/hydrus_sim (with hydrus_fitting).
+void register_hydrus_nodes(bus::NodeRegistry& registry);
+/// tomato_reasoning/truss_camera, tomato_reasoning/hand_laser (with
+/// tomato_reasoning's evaluation, which needs laser_clustering and the driver).
+void register_truss_nodes(bus::NodeRegistry& registry);
+
+}  // namespace tinyline::sim::nodes

@@ -1,0 +1,778 @@
+// The residual loop: grouped cross-validation of candidate terms on top of the
+// declared model (or of a given model's residuals), a justified acceptance
+// margin, and before/after errors on held-out groups.
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <numeric>
+#include <random>
+
+#include <fmt/format.h>
+
+#include <tiny_laser_calibration/discovery.hpp>
+
+#include "fit_engine.hpp"
+
+namespace tinyline::tiny_laser_calibration {
+
+std::string_view to_string(GroupBy g) {
+  switch (g) {
+    case GroupBy::kAuto: return "auto";
+    case GroupBy::kTargetDistance: return "target_distance";
+    case GroupBy::kFrame: return "frame";
+  }
+  return "?";
+}
+
+double normal_upper_quantile(double p) {
+  // Bisection on the survival function: plenty fast for a few calls per round.
+  if (!(p > 0.0)) return std::numeric_limits<double>::infinity();
+  if (p >= 1.0) return -std::numeric_limits<double>::infinity();
+  double lo = -40.0, hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const double sf = 0.5 * std::erfc(mid / std::sqrt(2.0));
+    (sf > p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using detail::Entries;
+using detail::NormalEquations;
+
+// ------------------------------------------------------------------ split
+
+struct Split {
+  GroupBy grouping = GroupBy::kAuto;
+  std::vector<int> group;             // per dataset row
+  std::size_t groups = 0;
+  std::vector<bool> holdout;          // per group
+  std::vector<int> fold;              // per group: -1 always in training
+  std::size_t holdout_groups = 0;
+  std::string problem;
+};
+
+std::size_t count_groups(const std::vector<int>& g, const std::vector<bool>& valid) {
+  std::vector<int> seen;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    if (valid[i]) seen.push_back(g[i]);
+  }
+  std::sort(seen.begin(), seen.end());
+  return static_cast<std::size_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
+}
+
+Split make_split(const CalibrationDataset& data, const DiscoveryParams& p, const std::vector<bool>& valid) {
+  Split s;
+  const std::size_t need = static_cast<std::size_t>(3 * std::max(p.folds, 2));
+  GroupBy g = p.group_by;
+  std::vector<int> target, frames;
+  if (g != GroupBy::kFrame) target = target_distance_groups(data);
+  if (g == GroupBy::kAuto) {
+    g = count_groups(target, valid) >= need ? GroupBy::kTargetDistance : GroupBy::kFrame;
+  }
+  s.grouping = g;
+  s.group = g == GroupBy::kTargetDistance ? target : frame_ids(data);
+  // Dense ids over valid rows, in the original order (target groups: increasing distance).
+  std::vector<int> ids;
+  for (std::size_t i = 0; i < s.group.size(); ++i) {
+    if (valid[i]) ids.push_back(s.group[i]);
+  }
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  for (std::size_t i = 0; i < s.group.size(); ++i) {
+    const auto it = std::lower_bound(ids.begin(), ids.end(), s.group[i]);
+    s.group[i] = (it != ids.end() && *it == s.group[i]) ? static_cast<int>(it - ids.begin()) : -1;
+  }
+  s.groups = ids.size();
+  if (s.groups < need) {
+    s.problem = fmt::format("only {} {} groups among the valid read-outs: {}-fold cross-validation with a held-out "
+                            "share needs at least {}",
+                            s.groups, to_string(g), p.folds, need);
+    return s;
+  }
+  std::mt19937_64 rng(p.seed);
+  std::vector<int> order(s.groups);
+  std::iota(order.begin(), order.end(), 0);
+  s.holdout.assign(s.groups, false);
+  s.fold.assign(s.groups, -1);
+  // The nearest and farthest targets always train, so nothing asks the polynomial to extrapolate.
+  std::vector<int> movable;
+  for (int id : order) {
+    const bool extreme = g == GroupBy::kTargetDistance && (id == 0 || id == static_cast<int>(s.groups) - 1);
+    if (!extreme) movable.push_back(id);
+  }
+  std::shuffle(movable.begin(), movable.end(), rng);
+  s.holdout_groups = std::max<std::size_t>(
+      1, static_cast<std::size_t>(std::lround(p.holdout_fraction * static_cast<double>(s.groups))));
+  s.holdout_groups = std::min(s.holdout_groups, movable.size() / 2);
+  for (std::size_t k = 0; k < movable.size(); ++k) {
+    const auto id = static_cast<std::size_t>(movable[k]);
+    if (k < s.holdout_groups) {
+      s.holdout[id] = true;
+    } else {
+      s.fold[id] = static_cast<int>((k - s.holdout_groups) % static_cast<std::size_t>(p.folds));
+    }
+  }
+  return s;
+}
+
+// ------------------------------------------------------------------ cross-validation
+
+struct CvData {
+  std::vector<std::size_t> row;  // dataset row
+  std::vector<Entries> base;     // fixed columns (declared model, or a constant)
+  std::size_t base_cols = 0;
+  std::vector<double> y, w, x, declared, amplitude;
+  std::vector<int> fold;         // -1: always training; -2: held out (never fitted on)
+  std::vector<int> group;        // dense among rows with fold >= 0
+  std::size_t groups = 0;
+  int folds = 0;
+  const AmplitudeReference* reference = nullptr;
+};
+
+struct CvTerm {
+  CalibrationTerm term;
+  int data_extra = -1;
+  std::vector<double> z;  // per CvData row
+};
+
+struct CvResult {
+  double sse = 0.0;
+  std::size_t n = 0;
+  std::vector<double> group_sse;
+  [[nodiscard]] double rmse() const { return n ? std::sqrt(sse / static_cast<double>(n)) : kNaN; }
+};
+
+std::size_t columns(const CvData& d, const std::vector<const CvTerm*>& terms, std::vector<std::size_t>& offsets) {
+  std::size_t cols = d.base_cols;
+  offsets.clear();
+  for (const auto* t : terms) {
+    offsets.push_back(cols);
+    cols += t->term.basis_size();
+  }
+  return cols;
+}
+
+void row_entries(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets,
+                 std::size_t i, Entries& out, Entries& tmp) {
+  out = d.base[i];
+  for (std::size_t k = 0; k < terms.size(); ++k) {
+    tmp.clear();
+    terms[k]->term.basis(terms[k]->z[i], d.amplitude[i], tmp);
+    for (const auto& [c, v] : tmp) out.emplace_back(offsets[k] + c, v);
+  }
+}
+
+Eigen::VectorXd ridge_vector(const CvData& d, std::size_t cols, double term_ridge) {
+  Eigen::VectorXd r = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(cols), term_ridge);
+  for (std::size_t c = 0; c < d.base_cols; ++c) r[static_cast<Eigen::Index>(c)] = 1e-9;
+  return r;
+}
+
+detail::SparseRows design(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets) {
+  detail::SparseRows rows;
+  rows.entries.reserve(d.y.size() * (d.base.empty() ? 1 : d.base.front().size() + 2 * terms.size()));
+  Entries e, tmp;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    row_entries(d, terms, offsets, i, e, tmp);
+    rows.push(e);
+  }
+  return rows;
+}
+
+CvResult cross_validate(const CvData& d, const std::vector<const CvTerm*>& terms, double term_ridge) {
+  std::vector<std::size_t> offsets;
+  const std::size_t cols = columns(d, terms, offsets);
+  const detail::SparseRows x = design(d, terms, offsets);
+  std::vector<NormalEquations> per_fold(static_cast<std::size_t>(d.folds), NormalEquations(cols));
+  NormalEquations total(cols);
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] == -2) continue;
+    auto& ne = d.fold[i] >= 0 ? per_fold[static_cast<std::size_t>(d.fold[i])] : total;
+    ne.add(x.row(i), x.size(i), d.y[i], d.w[i]);
+  }
+  for (const auto& f : per_fold) total += f;
+  const Eigen::VectorXd ridge = ridge_vector(d, cols, term_ridge);
+  std::vector<Eigen::VectorXd> coef;
+  for (const auto& f : per_fold) {
+    NormalEquations train = total;
+    train -= f;
+    coef.push_back(train.solve(ridge));
+  }
+  CvResult res;
+  res.group_sse.assign(d.groups, 0.0);
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] < 0) continue;
+    const double r = d.y[i] - detail::dot(x.row(i), x.size(i), coef[static_cast<std::size_t>(d.fold[i])].data());
+    res.sse += r * r;
+    res.group_sse[static_cast<std::size_t>(d.group[i])] += r * r;
+    ++res.n;
+  }
+  return res;
+}
+
+// Fit on every non-held-out row; predictions for all rows.
+std::vector<double> fit_and_predict(const CvData& d, const std::vector<const CvTerm*>& terms, double term_ridge) {
+  std::vector<std::size_t> offsets;
+  const std::size_t cols = columns(d, terms, offsets);
+  const detail::SparseRows x = design(d, terms, offsets);
+  NormalEquations ne(cols);
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] != -2) ne.add(x.row(i), x.size(i), d.y[i], d.w[i]);
+  }
+  const Eigen::VectorXd c = ne.solve(ridge_vector(d, cols, term_ridge));
+  std::vector<double> pred(d.y.size());
+  for (std::size_t i = 0; i < d.y.size(); ++i) pred[i] = detail::dot(x.row(i), x.size(i), c.data());
+  return pred;
+}
+
+// ------------------------------------------------------------------ candidates
+
+std::vector<double> quantile_knots(std::vector<double> v, int n) {
+  std::sort(v.begin(), v.end());
+  std::vector<double> k;
+  for (int i = 0; i < n; ++i) {
+    const double q = static_cast<double>(i) / (n - 1);
+    const double pos = q * static_cast<double>(v.size() - 1);
+    const auto lo = static_cast<std::size_t>(std::floor(pos));
+    const auto hi = std::min(lo + 1, v.size() - 1);
+    const double val = v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+    if (k.empty() || val > k.back() + 1e-12 * std::max(1.0, std::abs(val))) k.push_back(val);
+  }
+  return k;
+}
+
+struct CovariateInfo {
+  std::string name;
+  Covariate kind = Covariate::kExtra;
+  int data_extra = -1;
+};
+
+std::vector<CovariateInfo> candidate_covariates(const CalibrationDataset& data, const DiscoveryParams& p) {
+  std::vector<CovariateInfo> out;
+  auto excluded = [&](const std::string& n) { return std::find(p.exclude.begin(), p.exclude.end(), n) != p.exclude.end(); };
+  for (Covariate c : builtin_covariates()) {
+    const std::string n(covariate_name(c));
+    if (!excluded(n)) out.push_back({n, c, -1});
+  }
+  for (std::size_t k = 0; k < data.extra_names.size(); ++k) {
+    const auto& n = data.extra_names[k];
+    if (excluded(n) || covariate_from_name(n) != Covariate::kExtra) continue;  // a column may not shadow a built-in name
+    out.push_back({n, Covariate::kExtra, static_cast<int>(k)});
+  }
+  return out;
+}
+
+// Builds every applicable form of one covariate on the CV rows.
+void build_forms(const CalibrationDataset& data, const CvData& d, const CovariateInfo& cov, const DiscoveryParams& p,
+                 std::vector<CvTerm>& out, std::vector<std::string>& notes) {
+  CvTerm base;
+  base.term.covariate = cov.name;
+  base.term.kind = cov.kind;
+  base.data_extra = cov.data_extra;
+  base.z.resize(d.y.size());
+  std::vector<double> fitted;  // values on fitting rows
+  std::size_t finite = 0;
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    base.z[i] = detail::term_covariate(data, d.row[i], base.term, cov.data_extra, d.x[i], d.declared[i], *d.reference);
+    if (std::isfinite(base.z[i])) {
+      ++finite;
+      if (d.fold[i] != -2) fitted.push_back(base.z[i]);
+    }
+  }
+  if (finite < d.y.size() * 9 / 10 || fitted.size() < 10) {
+    notes.push_back(fmt::format("covariate '{}' is missing on {} of {} read-outs: not tried", cov.name,
+                                d.y.size() - finite, d.y.size()));
+    return;
+  }
+  if (cov.kind == Covariate::kAlbedo || cov.kind == Covariate::kReflectance) {
+    // Both divide the light by the declared distance squared, so on one surface
+    // their only variation is the distance error itself: a term on them would
+    // range by intensity and fail on the next surface. Try them only when the
+    // data holds surfaces of clearly different albedo (90th/10th percentile >=
+    // min_albedo_spread, beyond what a distance error of several percent could fake).
+    std::vector<double> albedo;
+    for (std::size_t i = 0; i < d.y.size(); ++i) {
+      if (d.fold[i] == -2) continue;
+      const double a = d.reference->albedo(data.readouts[d.row[i]], d.declared[i]);
+      if (std::isfinite(a)) albedo.push_back(a);
+    }
+    if (albedo.size() < 10) return;
+    std::sort(albedo.begin(), albedo.end());
+    const double p10 = albedo[albedo.size() / 10], p90 = albedo[albedo.size() * 9 / 10];
+    if (!(p10 > 0.0 && p90 / p10 >= p.min_albedo_spread)) {
+      if (cov.kind == Covariate::kAlbedo) {
+        notes.push_back(fmt::format("albedo spans {:.2f}x (90th/10th percentile < {:.2f}): one kind of surface, so albedo "
+                                    "and reflectance are not tried",
+                                    p10 > 0.0 ? p90 / p10 : 0.0, p.min_albedo_spread));
+      }
+      return;
+    }
+  }
+  std::vector<double> distinct = fitted;
+  std::sort(distinct.begin(), distinct.end());
+  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+  if (distinct.size() < 2) return;  // constant: nothing to explain with it
+  const bool integer = std::all_of(distinct.begin(), distinct.end(), [](double v) { return v == std::round(v); });
+
+  if (distinct.size() >= 3) {
+    CvTerm t = base;
+    t.term.form = TermForm::kSmooth;
+    t.term.knots = distinct.size() <= static_cast<std::size_t>(p.smooth_knots) ? distinct
+                                                                               : quantile_knots(fitted, p.smooth_knots);
+    if (t.term.knots.size() >= 3) out.push_back(std::move(t));
+  }
+  if (integer && distinct.size() <= static_cast<std::size_t>(p.table_max_values)) {
+    CvTerm t = base;
+    t.term.form = TermForm::kTable;
+    for (double v : distinct) t.term.keys.push_back(std::lround(v));
+    out.push_back(std::move(t));
+  }
+  if (cov.kind != Covariate::kAmplitude) {
+    std::vector<double> amp;
+    for (std::size_t i = 0; i < d.y.size(); ++i) {
+      if (d.fold[i] != -2) amp.push_back(d.amplitude[i]);
+    }
+    const auto q = quantile_knots(amp, 5);  // quartiles
+    if (q.size() == 5 && q[3] > q[1]) {
+      CvTerm t = base;
+      t.term.form = TermForm::kAmplitudeInteraction;
+      t.term.knots = distinct.size() <= static_cast<std::size_t>(p.interaction_knots)
+                         ? distinct
+                         : quantile_knots(fitted, p.interaction_knots);
+      t.term.amplitude_reference = q[2];
+      t.term.amplitude_scale = (q[3] - q[1]) / 1.349;  // IQR as an SD
+      if (t.term.knots.size() >= 2) out.push_back(std::move(t));
+    }
+  }
+}
+
+struct Paired {
+  double z = 0.0;
+  double gain = 0.0;
+};
+
+// z of a paired comparison: mean over groups / its standard error.
+double paired_z(const std::vector<double>& diff) {
+  const double n = static_cast<double>(diff.size());
+  if (n < 2) return 0.0;
+  const double mean = std::accumulate(diff.begin(), diff.end(), 0.0) / n;
+  double var = 0.0;
+  for (double v : diff) var += (v - mean) * (v - mean);
+  var /= (n - 1.0);
+  const double se = std::sqrt(var / n);
+  return se > 0.0 ? mean / se : (mean > 0.0 ? std::numeric_limits<double>::infinity() : 0.0);
+}
+
+// Two paired statistics over the cross-validation groups, the larger counts
+// (the round's Bonferroni threshold covers both: kStatistics per candidate):
+//  - per group the log ratio of its squared error without and with the term:
+//    every group weighs the same whatever its size or noise (far targets are
+//    noisier), and a group made k times worse weighs as much as one made k
+//    times better;
+//  - per group the squared error the term removes: sensitive to an effect that
+//    lives in some groups only (a dark material seen at a few rail positions),
+//    which the equal-weight statistic dilutes.
+constexpr int kStatistics = 2;
+
+Paired compare(const CvResult& current, const CvResult& candidate) {
+  Paired out;
+  std::vector<double> log_ratio, removed;
+  for (std::size_t g = 0; g < current.group_sse.size(); ++g) {
+    if (current.group_sse[g] > 0.0 && candidate.group_sse[g] > 0.0) {
+      log_ratio.push_back(std::log(current.group_sse[g] / candidate.group_sse[g]));
+    }
+    removed.push_back(current.group_sse[g] - candidate.group_sse[g]);
+  }
+  out.z = std::max(paired_z(log_ratio), paired_z(removed));
+  out.gain = current.sse > 0.0 ? (current.sse - candidate.sse) / current.sse : 0.0;
+  return out;
+}
+
+// ------------------------------------------------------------------ the loop
+
+// What one round works on: the rows with their fixed columns, and the terms
+// accepted so far evaluated on those rows.
+struct RoundInput {
+  CvData d;
+  std::vector<CvTerm> accepted;
+};
+using Prepare = std::function<RoundInput(const std::vector<CalibrationTerm>& accepted)>;
+
+CvTerm evaluate_term(const CalibrationDataset& data, const CvData& d, const CalibrationTerm& structure) {
+  CvTerm t;
+  t.term = structure;
+  t.term.kind = covariate_from_name(structure.covariate);
+  t.data_extra = t.term.kind == Covariate::kExtra ? data.extra_index(structure.covariate) : -1;
+  t.z.resize(d.y.size());
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    t.z[i] = detail::term_covariate(data, d.row[i], t.term, t.data_extra, d.x[i], d.declared[i], *d.reference);
+  }
+  return t;
+}
+
+struct LoopOutcome {
+  std::vector<CalibrationTerm> accepted;
+  std::vector<DiscoveredEffect> effects;
+  std::vector<std::vector<CandidateScore>> rounds;
+  std::vector<std::string> candidates;
+  double z_threshold = 0.0;
+};
+
+LoopOutcome run_loop(const CalibrationDataset& data, const Prepare& prepare, const DiscoveryParams& p,
+                     std::vector<std::string>& notes) {
+  LoopOutcome o;
+  const auto covariates = candidate_covariates(data, p);
+  std::vector<bool> used(covariates.size(), false);
+  for (int round = 0; round <= p.max_terms; ++round) {
+    // Each round starts from the current model refitted with every accepted term,
+    // so a declared parameter that an effect had bent is straightened first.
+    RoundInput in = prepare(o.accepted);
+    std::vector<const CvTerm*> current_terms;
+    for (const auto& t : in.accepted) current_terms.push_back(&t);
+    const CvResult current = cross_validate(in.d, current_terms, p.declared.term_ridge);
+    if (round == p.max_terms) break;
+    std::vector<CvTerm> forms;
+    std::vector<std::size_t> form_covariate;
+    for (std::size_t c = 0; c < covariates.size(); ++c) {
+      if (used[c]) continue;
+      const std::size_t before = forms.size();
+      std::vector<std::string> form_notes;
+      build_forms(data, in.d, covariates[c], p, forms, form_notes);
+      if (round == 0) {
+        notes.insert(notes.end(), form_notes.begin(), form_notes.end());
+        if (forms.size() > before) o.candidates.push_back(covariates[c].name);
+      }
+      form_covariate.resize(forms.size(), c);
+    }
+    if (forms.empty()) break;
+    const double z_thr = normal_upper_quantile(p.alpha / static_cast<double>(kStatistics * forms.size()));
+    if (round == 0) o.z_threshold = z_thr;
+    std::vector<CandidateScore> scores;
+    int best = -1;
+    CvResult best_res;
+    Paired best_cmp;
+    for (std::size_t k = 0; k < forms.size(); ++k) {
+      auto terms = current_terms;
+      terms.push_back(&forms[k]);
+      const CvResult r = cross_validate(in.d, terms, p.declared.term_ridge);
+      const Paired cmp = compare(current, r);
+      CandidateScore sc;
+      sc.covariate = forms[k].term.covariate;
+      sc.form = forms[k].term.form;
+      sc.cv_rmse_m = r.rmse();
+      sc.gain = cmp.gain;
+      sc.z = cmp.z;
+      sc.passes = cmp.z > z_thr && cmp.gain > p.min_relative_gain;
+      scores.push_back(sc);
+      if (sc.passes && (best < 0 || cmp.gain > best_cmp.gain)) {
+        best = static_cast<int>(k);
+        best_res = r;
+        best_cmp = cmp;
+      }
+    }
+    std::sort(scores.begin(), scores.end(), [](const auto& a, const auto& b) { return a.gain > b.gain; });
+    o.rounds.push_back(std::move(scores));
+    if (best < 0) break;
+    const auto& chosen = forms[static_cast<std::size_t>(best)];
+    DiscoveredEffect e;
+    e.covariate = chosen.term.covariate;
+    e.form = chosen.term.form;
+    e.cv_rmse_before_m = current.rmse();
+    e.cv_rmse_after_m = best_res.rmse();
+    e.gain = best_cmp.gain;
+    e.z = best_cmp.z;
+    o.effects.push_back(e);
+    o.accepted.push_back(chosen.term);
+    used[form_covariate[static_cast<std::size_t>(best)]] = true;  // one term per covariate
+  }
+  return o;
+}
+
+// A term stays only if the held-out squared error drops by at least half the
+// cross-validation margin: the held-out groups confirm the gain at its scale.
+bool confirmed(double before_rmse, double after_rmse, const DiscoveryParams& p) {
+  if (!std::isfinite(after_rmse)) return false;
+  return after_rmse * after_rmse < (1.0 - 0.5 * p.min_relative_gain) * before_rmse * before_rmse;
+}
+
+std::vector<std::size_t> rows_where(const Split& s, const std::vector<bool>& valid, bool holdout) {
+  std::vector<std::size_t> rows;
+  for (std::size_t i = 0; i < s.group.size(); ++i) {
+    if (!valid[i] || s.group[i] < 0) continue;
+    if (s.holdout[static_cast<std::size_t>(s.group[i])] == holdout) rows.push_back(i);
+  }
+  return rows;
+}
+
+void dense_cv_groups(CvData& d, const Split& s) {
+  std::vector<int> map(s.groups, -1);
+  int next = 0;
+  d.group.resize(d.row.size());
+  for (std::size_t i = 0; i < d.row.size(); ++i) {
+    const int g = s.group[d.row[i]];
+    if (d.fold[i] < 0) {
+      d.group[i] = -1;
+      continue;
+    }
+    if (map[static_cast<std::size_t>(g)] < 0) map[static_cast<std::size_t>(g)] = next++;
+    d.group[i] = map[static_cast<std::size_t>(g)];
+  }
+  d.groups = static_cast<std::size_t>(next);
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------ discover_effects
+
+DiscoveryResult discover_effects(const CalibrationDataset& data, const DiscoveryParams& p) {
+  DiscoveryResult res;
+  if (data.empty()) {
+    res.reason = fmt::format("{}: no rows", data.source);
+    return res;
+  }
+  if (p.folds < 2) {
+    res.reason = fmt::format("{} folds: cross-validation needs at least 2", p.folds);
+    return res;
+  }
+  std::vector<bool> valid(data.size());
+  std::size_t n_valid = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    valid[i] = p.declared.validity.check(data.readouts[i]) == ValidityRule::Verdict::kValid;
+    n_valid += valid[i] ? 1 : 0;
+  }
+  if (n_valid == 0) {
+    // Let the declared fit word the reason (counts by verdict).
+    res.reason = fit_declared_model(data, p.declared).reason;
+    return res;
+  }
+  const Split split = make_split(data, p, valid);
+  res.grouping = split.grouping;
+  res.groups = split.groups;
+  res.holdout_groups = split.holdout_groups;
+  if (!split.problem.empty()) {
+    res.reason = split.problem;
+    return res;
+  }
+  res.train_rows = rows_where(split, valid, false);
+  res.holdout_rows = rows_where(split, valid, true);
+
+  // Each round: the declared model plus the accepted terms fitted on the training
+  // groups fixes Rsen, leakage, X and the weights; the loop varies only linear terms.
+  std::unique_ptr<detail::FitEngine> engine;
+  std::string engine_problem;
+  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
+    engine = std::make_unique<detail::FitEngine>(data, res.train_rows, p.declared, accepted);
+    RoundInput in;
+    if (!engine->problem().empty()) {
+      engine_problem = engine->problem();
+      in.d.reference = &engine->amplitude_reference();
+      return in;
+    }
+    engine->fit();
+    if (accepted.empty()) res.train_before = engine->model();
+    CvData& d = in.d;
+    d.folds = p.folds;
+    d.base_cols = engine->declared_columns();
+    d.reference = &engine->amplitude_reference();
+    const auto& kept = engine->rows();
+    for (std::size_t i = 0; i < kept.size(); ++i) {
+      Entries base;
+      engine->declared_entries(i, base);
+      if (base.empty()) continue;
+      const Readout& r = data.readouts[kept[i]];
+      d.row.push_back(kept[i]);
+      d.base.push_back(std::move(base));
+      d.y.push_back(engine->y(i));
+      d.w.push_back(engine->weight(i));
+      d.x.push_back(engine->x(i));
+      d.declared.push_back(engine->declared_m(i));
+      d.amplitude.push_back(r.a + r.b);
+      d.fold.push_back(split.fold[static_cast<std::size_t>(split.group[kept[i]])]);
+    }
+    dense_cv_groups(d, split);
+    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
+    return in;
+  };
+  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
+  if (!engine_problem.empty()) {
+    res.reason = "fit on the training groups: " + engine_problem;
+    return res;
+  }
+  res.rounds = std::move(loop.rounds);
+  res.candidates = loop.candidates;
+  res.z_threshold = loop.z_threshold;
+
+  // Held-out errors, one accepted term at a time; a term that does not lower
+  // the held-out error is dropped.
+  const ErrorStats before = evaluate_model(res.train_before, data, res.holdout_rows, p.declared.selection);
+  res.rmse_before_m = before.rmse_m;
+  if (before.out_of_range > 0) {
+    res.notes.push_back(fmt::format("{} held-out read-outs fall outside the ratio range of the training fit", before.out_of_range));
+  }
+  std::vector<CalibrationTerm> kept_terms;
+  double current = before.rmse_m;
+  res.train_after = res.train_before;
+  for (std::size_t k = 0; k < loop.accepted.size(); ++k) {
+    auto trial = kept_terms;
+    trial.push_back(loop.accepted[k]);
+    const auto fit = fit_calibration_model(data, res.train_rows, p.declared, trial);
+    const double after =
+        fit.ok ? evaluate_model(fit.model, data, res.holdout_rows, p.declared.selection).rmse_m : kNaN;
+    if (!confirmed(current, after, p)) {
+      res.rejected_on_holdout.push_back(loop.accepted[k]);
+      res.notes.push_back(fmt::format("{} of {} passed cross-validation but did not lower the held-out error "
+                                      "enough ({:.5f} -> {:.5f} m): dropped",
+                                      to_string(loop.accepted[k].form), loop.accepted[k].covariate, current, after));
+      continue;
+    }
+    DiscoveredEffect e = loop.effects[k];
+    e.rmse_before_m = current;
+    e.rmse_after_m = after;
+    res.effects.push_back(e);
+    kept_terms = trial;
+    kept_terms.back().rmse_before_m = current;
+    kept_terms.back().rmse_after_m = after;
+    current = after;
+    res.train_after = fit.model;
+  }
+  res.rmse_after_m = current;
+  res.heldout_eval_rows = select_readouts(data, res.holdout_rows, p.declared.validity, p.declared.selection);
+  res.heldout_residual_before_m = model_residuals(res.train_before, data, res.heldout_eval_rows);
+  res.heldout_residual_after_m = model_residuals(res.train_after, data, res.heldout_eval_rows);
+
+  const auto final_fit = fit_calibration_model(data, {}, p.declared, kept_terms);
+  if (!final_fit.ok) {
+    res.reason = "final fit on all rows: " + final_fit.reason;
+    return res;
+  }
+  res.model = final_fit.model;
+  auto& info = res.model.impl().info;
+  info.heldout_rmse_before_m = res.rmse_before_m;
+  info.heldout_rmse_after_m = res.rmse_after_m;
+  for (const auto& n : final_fit.notes) res.notes.push_back(n);
+  res.ok = true;
+  return res;
+}
+
+// ------------------------------------------------------------------ diagnose_model
+
+DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p) {
+  DiscoveryResult res;
+  res.model = model;
+  if (data.empty()) {
+    res.reason = fmt::format("{}: no rows", data.source);
+    return res;
+  }
+  const auto readouts = readouts_for_model(data, model);
+  std::vector<bool> selected(data.size(), false);
+  for (std::size_t i : select_readouts(data, {}, model.validity(), p.declared.selection)) selected[i] = true;
+  std::vector<bool> valid(data.size());
+  std::vector<CalibrationEvaluation> ev(data.size());
+  std::size_t n_valid = 0, counts[5] = {0, 0, 0, 0, 0};
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    ev[i] = model.evaluate(readouts[i]);
+    if (!selected[i] && ev[i].status == CalibrationEvaluation::Status::kValid) {
+      valid[i] = false;  // a valid read-out the driver would not pick
+      continue;
+    }
+    ++counts[static_cast<int>(ev[i].status)];
+    valid[i] = ev[i].status == CalibrationEvaluation::Status::kValid;
+    n_valid += valid[i] ? 1 : 0;
+  }
+  if (n_valid == 0) {
+    res.reason = fmt::format("the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
+                             "{} outside its ratio range, {} missing a covariate",
+                             data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
+    return res;
+  }
+  const Split split = make_split(data, p, valid);
+  res.grouping = split.grouping;
+  res.groups = split.groups;
+  res.holdout_groups = split.holdout_groups;
+  if (!split.problem.empty()) {
+    res.reason = split.problem;
+    return res;
+  }
+  res.train_rows = rows_where(split, valid, false);
+  res.holdout_rows = rows_where(split, valid, true);
+
+  // Residual mode: a constant plus the terms, fitted to truth - model.
+  CvData d;
+  d.folds = p.folds;
+  d.base_cols = 1;
+  d.reference = &model.impl().amplitude_reference;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (!valid[i] || split.group[i] < 0) continue;
+    const auto g = static_cast<std::size_t>(split.group[i]);
+    d.row.push_back(i);
+    d.base.push_back(Entries{{0, 1.0}});
+    d.y.push_back(data.distance_m[i] - ev[i].distance_m);
+    d.w.push_back(1.0);
+    d.x.push_back(ev[i].ratio);
+    d.declared.push_back(ev[i].declared_distance_m);
+    d.amplitude.push_back(data.readouts[i].a + data.readouts[i].b);
+    d.fold.push_back(split.holdout[g] ? -2 : split.fold[g]);
+  }
+  dense_cv_groups(d, split);
+
+  const Prepare prepare = [&](const std::vector<CalibrationTerm>& accepted) {
+    RoundInput in;
+    in.d = d;  // residual mode: the model stays as given
+    for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, d, t));
+    return in;
+  };
+  LoopOutcome loop = run_loop(data, prepare, p, res.notes);
+  res.rounds = std::move(loop.rounds);
+  res.candidates = loop.candidates;
+  res.z_threshold = loop.z_threshold;
+
+  auto heldout_rmse = [&](const std::vector<double>* pred) {
+    double sse = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < d.y.size(); ++i) {
+      if (d.fold[i] != -2) continue;
+      const double r = d.y[i] - (pred ? (*pred)[i] : 0.0);
+      sse += r * r;
+      ++n;
+    }
+    return n ? std::sqrt(sse / static_cast<double>(n)) : kNaN;
+  };
+  res.rmse_before_m = heldout_rmse(nullptr);
+  double current = res.rmse_before_m;
+  std::vector<CvTerm> evaluated;
+  for (const auto& t : loop.accepted) evaluated.push_back(evaluate_term(data, d, t));
+  std::vector<const CvTerm*> kept;
+  for (std::size_t k = 0; k < evaluated.size(); ++k) {
+    auto trial = kept;
+    trial.push_back(&evaluated[k]);
+    const auto pred = fit_and_predict(d, trial, p.declared.term_ridge);
+    const double after = heldout_rmse(&pred);
+    if (!confirmed(current, after, p)) {
+      res.rejected_on_holdout.push_back(loop.accepted[k]);
+      continue;
+    }
+    DiscoveredEffect e = loop.effects[k];
+    e.rmse_before_m = current;
+    e.rmse_after_m = after;
+    res.effects.push_back(e);
+    kept = trial;
+    current = after;
+  }
+  res.rmse_after_m = current;
+  const auto pred = fit_and_predict(d, kept, p.declared.term_ridge);
+  for (std::size_t i = 0; i < d.y.size(); ++i) {
+    if (d.fold[i] != -2) continue;
+    res.heldout_eval_rows.push_back(d.row[i]);
+    res.heldout_residual_before_m.push_back(-d.y[i]);  // y = truth - model
+    res.heldout_residual_after_m.push_back(kept.empty() ? -d.y[i] : pred[i] - d.y[i]);
+  }
+  res.ok = true;
+  return res;
+}
+
+}  // namespace tinyline::tiny_laser_calibration

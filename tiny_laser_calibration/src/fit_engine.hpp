@@ -1,0 +1,103 @@
+// The fitter's working state, shared by the declared fit and the residual loop.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include <tiny_laser_calibration/fit.hpp>
+
+#include "normal_equations.hpp"
+
+namespace tinyline::tiny_laser_calibration::detail {
+
+/// Covariate value of a term for dataset row `row` (dataset_extra: the term's
+/// column in the data set for kExtra), given the row's X and declared distance.
+double term_covariate(const CalibrationDataset& data, std::size_t row, const CalibrationTerm& term, int dataset_extra,
+                      double x, double declared_m, const AmplitudeReference& reference);
+
+/// Fits the amplitude reference (ln amplitude per pulse by declared distance, plus a
+/// per-pixel offset) to rows with their declared distances.
+AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+                                           const std::vector<double>& declared_m);
+
+class FitEngine {
+ public:
+  /// Keeps the valid rows of `rows` (all of data when empty), selected per params.selection.
+  FitEngine(const CalibrationDataset& data, const std::vector<std::size_t>& rows, const DeclaredFitParams& params,
+            const std::vector<CalibrationTerm>& terms);
+
+  /// Empty when the data can be fitted; else why not.
+  [[nodiscard]] const std::string& problem() const { return problem_; }
+
+  /// Runs the whole declared fit (nonlinear parameters, linear solve, weighting).
+  void fit();
+  /// Fills a model from the current state.
+  [[nodiscard]] CalibrationModel model() const;
+
+  // --- pieces for the residual loop (nonlinear parameters held fixed) ---
+  [[nodiscard]] std::size_t size() const { return rows_.size(); }
+  [[nodiscard]] const std::vector<std::size_t>& rows() const { return rows_; }
+  [[nodiscard]] std::size_t declared_columns() const { return declared_cols_; }
+  /// Entries of the declared columns (polynomial, temperature) for kept row i.
+  void declared_entries(std::size_t i, Entries& out) const;
+  [[nodiscard]] double x(std::size_t i) const { return x_[i]; }
+  [[nodiscard]] double y(std::size_t i) const { return y_[i]; }
+  [[nodiscard]] double weight(std::size_t i) const { return w_[i]; }
+  /// Declared distance of kept row i under the current coefficients.
+  [[nodiscard]] double declared_m(std::size_t i) const;
+  [[nodiscard]] double ratio_min() const { return ratio_min_; }
+  [[nodiscard]] double ratio_max() const { return ratio_max_; }
+  [[nodiscard]] const AmplitudeReference& amplitude_reference() const { return reference_; }
+  /// Ridge per column (tiny on the declared columns, term_ridge on the term columns).
+  [[nodiscard]] Eigen::VectorXd ridge(std::size_t total_columns) const;
+
+  std::size_t saturated = 0, too_dark = 0, not_selected = 0, offered = 0, distances = 0;
+  std::vector<std::string> notes;
+
+ private:
+  void compute_x();
+  void compute_covariates();
+  void entries(std::size_t i, Entries& out) const;
+  double solve_linear();
+  double residual_cost(std::vector<double>* residuals);
+  void optimise_global();
+  void refine_per_pixel();
+  void reweight_inverse_variance();
+  void set_weights(const std::vector<double>& k_per_group);
+
+  const CalibrationDataset& data_;
+  DeclaredFitParams p_;
+  std::string problem_;
+
+  std::vector<std::size_t> rows_;  // dataset rows kept
+  std::vector<double> y_, w_, x_;
+  std::vector<int> group_;         // target-distance group of each kept row
+  std::size_t groups_ = 0;
+
+  double rsen_ = 1.0;
+  std::vector<double> rsen_pixel_;  // empty or kPixels
+  double leak_offset_ = 0.0, leak_per_pulse_ = 0.0;
+  double center_ = 0.5, scale_ = 0.5;
+  double ratio_min_ = 0.0, ratio_max_ = 1.0;
+  bool use_temp_ = false;
+  bool fit_leak_offset_ = false;
+  bool notes_rsen_once_ = true;
+
+  AmplitudeReference reference_;
+  void update_reference();
+  std::vector<CalibrationTerm> terms_;
+  std::vector<int> term_extra_;                // dataset extra column per term
+  std::vector<std::vector<double>> z_;         // per term, per kept row
+  std::vector<std::size_t> term_col_;          // first column per term
+  std::size_t declared_cols_ = 0, cols_ = 0;
+  Eigen::VectorXd coef_;
+  SparseRows design_;              // of the last solve
+  std::vector<double> residual_;   // y - prediction of the last solve (unweighted)
+  mutable Entries tmp_;
+  std::string weighting_note_ = "K_i = 1";
+};
+
+}  // namespace tinyline::tiny_laser_calibration::detail

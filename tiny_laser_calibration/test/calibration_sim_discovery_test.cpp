@@ -1,0 +1,294 @@
+// The residual loop on data from the simulator (sim/), with its
+// pluggable effects (sim/effects.hpp) configured per sensor instance: the
+// declared-physics sensor (sim/config/sensors/tiny_tof_declared.yaml) plus one
+// undeclared effect at a time, on the simulated calibration rail
+// (sim::CalibrationRail), fitted as the thesis did: leakage and Rsen measured
+// apart first (3.3.3). Each test asserts that the effect is named and that the
+// held-out error after its term is within 20% of the simulator's noise floor:
+// the held-out error of the declared model on the same rail, same seeds, with
+// the effect switched off (on white paper that twin must name nothing: the
+// null case).
+//
+// Every 8th effective pixel, one set per rail visit, 38 positions visited
+// twice (the material cases: 27 positions x 7 surfaces): about a second per
+// test. The loop's power comes from the target distances and the sets, not
+// from the pixel count. Every test passes for rail seeds 1-8 (checked when the
+// tests were written; 7 is the one kept).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <sim/rail.hpp>
+#include <sim/sensor_params.hpp>
+#include <tiny_laser_calibration/discovery.hpp>
+
+#include "sim_rail_session.hpp"
+
+namespace tl = tinyline::tiny_laser_driver;
+namespace cal = tinyline::tiny_laser_calibration;
+namespace sim = tinyline::sim;
+namespace tt = tinyline::tiny_laser_calibration::testing;
+using ::testing::HasSubstr;
+
+namespace {
+
+// The declared-physics sensor, with this instance's read-out channels offset-free:
+// the file keeps the 8 mm sensor's -1.75 charge_unit offset of channel B, which
+// the declared model (one leakage Vle for both capacitors, Eq. 3.16) cannot
+// represent, so on the file as it is the loop rightly names it (an amplitude
+// effect; see ChannelOffsetOfTheSimulatedSensorIsNamed).
+sim::SensorParams declared_sensor() {
+  auto p = sim::load_sensor_params(std::string(TINYLINE_SOURCE_DIR) + "/sim/config/sensors/tiny_tof_declared.yaml");
+  p.pixel.adc_offset_a = 0.0;
+  p.pixel.adc_offset_b = 0.0;
+  p.pixel.leakage_sd = 0.0;
+  return p;
+}
+
+struct RailPlan {
+  double from_m = 0.15, to_m = 2.0, step_m = 0.05;
+  int visits = 2;
+  int sets_per_visit = 1;
+  int pixel_step = 8;
+  int pixel_from = -1, pixel_to = -1;  ///< pixels used (default: every effective one)
+  double set_period_s = 2.0;   ///< sensor time between sets (the rail moves meanwhile)
+  double power_on_s = 0.0;     ///< sensor time of the first set: 0 = the warm-up is in the data
+  std::vector<std::string> materials{"white_paper"};  ///< pass v visits every position with material v
+  std::vector<std::string> extra_columns;
+  std::uint64_t seed = 7;
+};
+
+// One rail session of `params`, as the calibration data set (the driver's CSV).
+cal::CalibrationDataset simulate(const sim::SensorParams& params, const RailPlan& plan) {
+  sim::RailParams rp;
+  rp.material = plan.materials.front();
+  rp.target_width_m = 4.0;  // wider than the field of view at 2 m: every pixel sees the target
+  sim::CalibrationRail rail(params, rp);
+  // Pass v visits every position with material v (in rotation); the visits are then shuffled in time.
+  std::vector<std::pair<double, std::string>> visits;
+  for (int v = 0; v < plan.visits; ++v) {
+    for (double d = plan.from_m; d <= plan.to_m + 1e-9; d += plan.step_m) {
+      visits.emplace_back(d, plan.materials[static_cast<std::size_t>(v) % plan.materials.size()]);
+    }
+  }
+  std::mt19937 rng(static_cast<unsigned>(plan.seed));
+  std::shuffle(visits.begin(), visits.end(), rng);
+  std::vector<int> pixels;
+  const int dark = params.lens.dark_pixels;
+  const int first = plan.pixel_from >= 0 ? plan.pixel_from : dark;
+  const int last = plan.pixel_to >= 0 ? plan.pixel_to : params.lens.pixels - dark - 1;
+  for (int p = first; p <= last; p += plan.pixel_step) pixels.push_back(p);
+
+  cal::CalibrationDataset data;
+  data.source = "simulated rail";
+  data.has_material = true;
+  data.extra_names = plan.extra_columns;
+  double t = plan.power_on_s;
+  std::uint64_t index = plan.seed * 100000;
+  for (const auto& [distance, material] : visits) {
+    rail.set_target_distance(distance);
+    rail.set_target_material(material);
+    for (int k = 0; k < plan.sets_per_visit; ++k) {
+      const sim::SensorSet set = rail.measure(t, params.acquisition.raw_pulses, index++);
+      for (const auto& row : sim::calibration_rows(set, rail.world(), pixels, plan.extra_columns)) {
+        const auto& truth = set.truth[static_cast<std::size_t>(row.pixel)];
+        if (!truth.lit || truth.mixed) continue;
+        tl::Readout r;
+        r.a = row.a;
+        r.b = row.b;
+        r.pulses = row.pulses;
+        r.temperature_c = row.temperature_c;
+        r.pixel = row.pixel;
+        r.t_s = set.t_start_s;  // one t_s per set: the tool's frame
+        r.extra = row.extra;
+        data.add(std::move(r), row.distance_m, row.material);
+      }
+      t += plan.set_period_s;
+    }
+  }
+  return data;
+}
+
+// Table 3.2's matte surfaces and their mean reading at 30 cm [cm].
+const std::vector<std::pair<std::string, double>> kTable32MatteCm = {
+    {"white_paper", 30.0705}, {"black_cushion", 30.7909}, {"cloth_bag", 30.9971}, {"styrofoam", 30.9759},
+    {"white_towel", 30.3708}, {"cardboard", 31.0308},     {"ic_foam", 39.8339}};
+
+// Every rail position visited once per matte surface, 0.15-0.8 m (Table 3.2 is at
+// 0.3 m; IC foam is too dark to range much further).
+RailPlan matte_surfaces_plan() {
+  RailPlan plan;
+  plan.materials.clear();
+  for (const auto& [m, cm] : kTable32MatteCm) plan.materials.push_back(m);
+  plan.visits = static_cast<int>(plan.materials.size());
+  plan.to_m = 0.8;
+  plan.step_m = 0.025;
+  return plan;
+}
+
+// Leakage and Rsen measured apart, as the thesis did (sim_rail_session.hpp).
+cal::DiscoveryParams measured_constants(const sim::SensorParams& params) {
+  const auto c = tt::measure_rail_constants(params);
+  cal::DiscoveryParams p;
+  p.declared.fit_leakage = false;
+  p.declared.leakage_offset = 0.0;
+  p.declared.leakage_per_pulse = c.leakage_per_pulse;
+  p.declared.sensitivity_ratio = c.sensitivity_ratio;
+  return p;
+}
+
+std::string named(const cal::DiscoveryResult& r) {
+  std::string s;
+  for (const auto& e : r.effects) s += e.covariate + "/" + std::string(tl::to_string(e.form)) + " ";
+  return s.empty() ? "(none)" : s;
+}
+
+struct Outcome {
+  cal::DiscoveryResult result;
+  double floor_m = 0.0;  ///< held-out RMSE of the declared model on the effect-free twin
+};
+
+// The sensor with `effect`, and its twin without it (the noise floor; names nothing).
+Outcome run(const sim::EffectSpec& effect, const RailPlan& plan, bool twin_must_be_null = true) {
+  Outcome o;
+  sim::SensorParams with = declared_sensor();
+  with.effects.push_back(effect);
+  o.result = cal::discover_effects(simulate(with, plan), measured_constants(with));
+  const auto null = cal::discover_effects(simulate(declared_sensor(), plan), measured_constants(declared_sensor()));
+  EXPECT_TRUE(null.ok) << null.reason;
+  if (twin_must_be_null) {
+    EXPECT_TRUE(null.effects.empty()) << "the effect-free twin names " << named(null);
+  }
+  o.floor_m = null.rmse_before_m;
+  std::printf("%s: held-out RMSE %.2f cm -> %.2f cm, noise floor %.2f cm, named %s (twin: %s)\n",
+              sim::effect_type(effect), 100 * o.result.rmse_before_m, 100 * o.result.rmse_after_m, 100 * o.floor_m,
+              named(o.result).c_str(), named(null).c_str());
+  return o;
+}
+
+void expect_named_and_at_floor(const Outcome& o, const std::string& covariate) {
+  const auto& r = o.result;
+  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_FALSE(r.effects.empty()) << "nothing named";
+  EXPECT_EQ(r.effects.front().covariate, covariate) << named(r);
+  EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m) << "held-out error after " << r.rmse_after_m << " m, noise floor "
+                                             << o.floor_m << " m";
+  EXPECT_GT(r.rmse_before_m, 1.2 * o.floor_m) << "the injected effect is too small to matter";
+  ASSERT_EQ(r.model.impl().terms.size(), r.effects.size());
+  EXPECT_EQ(r.model.impl().terms.front().covariate, covariate);
+}
+
+}  // namespace
+
+TEST(CalibrationSimDiscovery, NullCaseNamesNothingAndKeepsTheError) {
+  RailPlan plan;
+  // A measured column with no effect (a covariate effect of zero strength): a distractor.
+  sim::CovariateEffect humidity;
+  humidity.ns_per_unit = 0.0;
+  plan.extra_columns = {humidity.name};
+  sim::SensorParams s = declared_sensor();
+  s.effects.push_back(humidity);
+  const auto r = cal::discover_effects(simulate(s, plan), measured_constants(s));
+  ASSERT_TRUE(r.ok) << r.reason;
+  EXPECT_TRUE(r.effects.empty()) << named(r);
+  EXPECT_EQ(r.rmse_after_m, r.rmse_before_m);
+  EXPECT_TRUE(r.model.impl().terms.empty());
+  EXPECT_THAT(r.candidates, ::testing::Contains("humidity_pct"));
+  EXPECT_THAT(r.candidates, ::testing::Contains("pixel"));
+  ASSERT_FALSE(r.rounds.empty());
+  for (const auto& c : r.rounds[0]) EXPECT_FALSE(c.passes) << c.covariate << " " << tl::to_string(c.form);
+  std::printf("null: held-out RMSE %.2f cm, %zu candidates scored\n", 100 * r.rmse_before_m, r.rounds[0].size());
+}
+
+TEST(CalibrationSimDiscovery, MaterialBiasOfTable32IsNamed) {
+  // Table 3.2: calibrated on white paper at 30.07 cm,
+  // other surfaces read up to +9.8 cm long (IC foam). As subsurface path per material
+  // (a range offset is half the extra optical path). The driver cannot know the
+  // material, so the term must follow what it can measure: the surface's albedo.
+  // The matte surfaces only: the simulated metals return a specular lobe, so their
+  // albedo changes across the line by a factor of ten while their offset does not,
+  // and no function of albedo can be both (a per-material term needs the material).
+  sim::MaterialBiasEffect bias;
+  const RailPlan plan = matte_surfaces_plan();
+  for (const auto& [m, cm] : kTable32MatteCm) bias.path_mm[m] = 2.0 * 10.0 * (cm - 30.0705);
+  // The effect-free twin may name an amplitude term of its own: the charge ratio of a
+  // dim read-out is a biased estimate (a ratio of noisy charges), which the declared
+  // model does not represent and dark surfaces expose.
+  const auto o = run(bias, plan, /*twin_must_be_null=*/false);
+  expect_named_and_at_floor(o, "albedo");
+  EXPECT_GT(o.result.rmse_before_m, 1.8 * o.floor_m);
+}
+
+TEST(CalibrationSimDiscovery, TimeDriftIsNamed) {
+  // A delay drift with time since power-on that the MCU temperature does not see: a
+  // slow oscillation (a linear drift during the warm-up is mostly absorbed by the
+  // declared temperature offset, which rises with time too).
+  sim::TimeDriftEffect drift;
+  drift.ns_per_hour = 1.0;
+  drift.sine_amplitude_ns = 0.3;  // +-4.5 cm
+  drift.sine_period_s = 600.0;
+  RailPlan plan;
+  // From power-on, a 912 s session. During the warm-up (time constant 120 s) the
+  // temperature is a monotonic function of time, so a drift then is also a function of
+  // temperature; the warm two thirds of the session tell the two apart.
+  plan.set_period_s = 12.0;
+  const auto o = run(drift, plan);
+  expect_named_and_at_floor(o, "t_s");
+}
+
+TEST(CalibrationSimDiscovery, MeasuredCovariateColumnIsNamed) {
+  // A covariate measured alongside (its own CSV column) that shifts the timing.
+  sim::CovariateEffect humidity;
+  humidity.ns_per_unit = 0.02;  // +-0.3 ns over the +-15 % swing: +-4.5 cm
+  humidity.period_s = 30.0;     // faster than a smooth function of time over the session can follow
+  humidity.random_walk_per_sqrt_s = 0.5;
+  RailPlan plan;
+  plan.extra_columns = {humidity.name};
+  const auto o = run(humidity, plan);
+  expect_named_and_at_floor(o, "humidity_pct");
+  ASSERT_FALSE(o.result.effects.empty());
+  EXPECT_EQ(o.result.effects.front().form, tl::TermForm::kSmooth);
+}
+
+TEST(CalibrationSimDiscovery, RangeWalkIsNamedAsAnAmplitudeEffect) {
+  // Amplitude-dependent timing (range walk). On one surface the amplitude follows the
+  // distance and the polynomial absorbs the walk; surfaces of different albedo expose it.
+  sim::RangeWalkEffect walk;
+  walk.ns_per_decade = 0.4;
+  const auto o = run(walk, matte_surfaces_plan(), /*twin_must_be_null=*/false);
+  const auto& r = o.result;
+  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_FALSE(r.effects.empty()) << "nothing named";
+  EXPECT_THAT(r.effects.front().covariate, ::testing::AnyOf("amplitude_per_pulse", "amplitude", "reflectance",
+                                                             "albedo", "pulses"))
+      << named(r);
+  EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m);
+  EXPECT_GT(r.rmse_before_m, 1.2 * o.floor_m);
+}
+
+TEST(CalibrationSimDiscovery, FixedPatternGateSkewIsAbsorbedByThePerPixelSensitivityRatio) {
+  // A per-pixel gate skew moves charge between the gates of that pixel: to first
+  // order a per-pixel change of the charge ratio, which the declared model's per-pixel
+  // Rsen (Eq. 3.16) already absorbs. Nothing is left to name; the error stays at the floor.
+  sim::FixedPatternEffect skew;
+  skew.sigma_ps = 200.0;  // 3 cm per pixel
+  const auto o = run(skew, RailPlan{});
+  ASSERT_TRUE(o.result.ok) << o.result.reason;
+  EXPECT_TRUE(o.result.effects.empty()) << named(o.result);
+  EXPECT_LT(o.result.rmse_before_m, 1.2 * o.floor_m);
+  // With one Rsen for every pixel the skew is left over, and the loop names the pixel.
+  sim::SensorParams with = declared_sensor();
+  with.effects.push_back(skew);
+  cal::DiscoveryParams p = measured_constants(with);
+  p.declared.sensitivity_ratio_mode = cal::SensitivityRatioMode::kFixed;
+  const auto fixed = cal::discover_effects(simulate(with, RailPlan{}), p);
+  ASSERT_TRUE(fixed.ok) << fixed.reason;
+  ASSERT_FALSE(fixed.effects.empty());
+  EXPECT_EQ(fixed.effects.front().covariate, "pixel") << named(fixed);
+  EXPECT_EQ(fixed.effects.front().form, tl::TermForm::kTable);
+}

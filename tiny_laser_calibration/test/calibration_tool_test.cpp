@@ -1,0 +1,218 @@
+// `tinyline calib fit|diagnose|eval` driven in-process: the outputs
+// docs/calibration.md describes, the model the tool writes is the model that is applied,
+// and bad input gets a clear error naming the file, line or column.
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <tiny_laser_calibration/fit.hpp>
+#include <tiny_laser_calibration/tool.hpp>
+
+#include "synthetic_sensor.hpp"
+
+namespace fs = std::filesystem;
+namespace tl = tinyline::tiny_laser_driver;
+namespace cal = tinyline::tiny_laser_calibration;
+namespace tt = tinyline::tiny_laser_calibration::testing;
+using ::testing::HasSubstr;
+
+namespace {
+
+class CalibTool : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("tinyline_calib_tool_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    env_.python = TINYLINE_VENV_PYTHON;
+    env_.plot_script = std::string(TINYLINE_SOURCE_DIR) + "/scripts/plots/calib_report.py";
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  std::string write_file(const std::string& name, const std::string& text) const {
+    std::ofstream(path(name)) << text;
+    return path(name);
+  }
+
+  // A rail with the supply-voltage effect, so --discover has something to find.
+  std::string rail_csv(bool with_effect = true) const {
+    tt::SyntheticSensor s;
+    s.effects.supply_voltage = with_effect;
+    s.effects.supply_column = true;
+    auto plan = tt::default_rail();
+    plan.pixels.clear();
+    for (int px = 8; px < 264; px += 16) plan.pixels.push_back(px);
+    const auto data = tt::simulate_rail(s, plan);
+    const std::string p = path(with_effect ? "rail.csv" : "rail_null.csv");
+    cal::write_calibration_csv(data, p);
+    return p;
+  }
+
+  int run(const std::vector<std::string>& args) {
+    out_.str("");
+    err_.str("");
+    return cal::run_calib_command(args, out_, err_, env_);
+  }
+
+  fs::path dir_;
+  cal::CalibToolEnv env_;
+  std::ostringstream out_, err_;
+};
+
+std::string slurp(const std::string& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST_F(CalibTool, FitDiscoverWritesModelSummaryAndReportWithPlots) {
+  const auto csv = rail_csv();
+  const auto yaml = path("calib.yaml");
+  const auto report = path("report");
+  ASSERT_EQ(run({"fit", csv, "-o", yaml, "--discover", "--report", report}), 0) << err_.str();
+  EXPECT_THAT(out_.str(), HasSubstr("effect: supply_v (smooth)"));
+  EXPECT_THAT(out_.str(), HasSubstr("wrote " + yaml));
+  const std::string summary = slurp(report + "/summary.json");
+  for (const char* key : {"\"rmse_before_m\"", "\"rmse_after_m\"", "\"effects\"", "\"covariate\": \"supply_v\"",
+                          "\"form\": \"smooth\"", "\"z_threshold\"", "\"rounds\""}) {
+    EXPECT_THAT(summary, HasSubstr(key));
+  }
+  // The held-out figures in summary.json are valid JSON numbers, the effect's after below its before.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(summary, m, std::regex(R"("rmse_before_m": ([0-9.e-]+),\s*"rmse_after_m": ([0-9.e-]+))")));
+  EXPECT_LT(std::stod(m[2]), 0.8 * std::stod(m[1]));
+  const std::string md = slurp(report + "/report.md");
+  EXPECT_THAT(md, HasSubstr("| supply_v | smooth |"));
+  EXPECT_THAT(md, HasSubstr("![Fitted curve"));
+  for (const char* png : {"curve.png", "error_by_distance.png", "residual_supply_v.png", "residual_pixel.png",
+                          "residual_t_s.png", "residual_pulses.png", "residual_amplitude.png",
+                          "residual_amplitude_per_pulse.png", "residual_ratio.png", "residual_temperature_c.png"}) {
+    EXPECT_TRUE(fs::exists(report + "/" + png)) << png;
+    EXPECT_THAT(md, HasSubstr(std::string("(") + png + ")")) << png;
+  }
+  const auto model = tl::CalibrationModel::load(yaml);
+  ASSERT_EQ(model.impl().terms.size(), 1u);
+  EXPECT_EQ(model.extra_covariates(), std::vector<std::string>{"supply_v"});
+}
+
+TEST_F(CalibTool, EvalPrintsTheIssuesJsonOfTheModelTheToolWrote) {
+  const auto csv = rail_csv();
+  const auto yaml = path("calib.yaml");
+  ASSERT_EQ(run({"fit", csv, "-o", yaml, "--discover"}), 0) << err_.str();
+  ASSERT_EQ(run({"eval", csv, "--calib", yaml}), 0) << err_.str();
+  const std::string json = out_.str();
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(
+      json, m, std::regex(R"(\{"n": ([0-9]+), "rmse_m": ([0-9.e-]+), "bias_m": ([0-9.e-]+), "p95_abs_m": ([0-9.e-]+)\}\n)")))
+      << json;
+  // The same figures as the loaded model applied read-out by read-out (what the driver does).
+  const auto model = tl::CalibrationModel::load(yaml);
+  const auto data = cal::read_calibration_csv(csv);
+  const auto rows = cal::select_readouts(data, {}, model.validity(), cal::ReadoutSelection::kDriver);
+  const auto readouts = cal::readouts_for_model(data, model);
+  double sum2 = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i : rows) {
+    const double d = model.distance_m(readouts[i]);
+    if (std::isnan(d)) continue;
+    sum2 += (d - data.distance_m[i]) * (d - data.distance_m[i]);
+    ++n;
+  }
+  EXPECT_EQ(std::stoul(m[1]), n);
+  EXPECT_NEAR(std::stod(m[2]), std::sqrt(sum2 / static_cast<double>(n)), 1e-12);
+  EXPECT_LT(std::stod(m[2]), 0.01);
+  EXPECT_LT(std::abs(std::stod(m[3])), 0.002);
+  // Every valid read-out instead of the driver's choice: more of them.
+  ASSERT_EQ(run({"eval", csv, "--calib", yaml, "--select", "all"}), 0) << err_.str();
+  const std::string all = out_.str();
+  ASSERT_TRUE(std::regex_search(all, m, std::regex(R"("n": ([0-9]+))")));
+  EXPECT_GT(std::stoul(m[1]), n);
+}
+
+TEST_F(CalibTool, FitWithoutDiscoverWritesTheDeclaredModel) {
+  const auto csv = rail_csv();
+  const auto yaml = path("declared.yaml");
+  ASSERT_EQ(run({"fit", csv, "-o", yaml, "--degree", "3", "--leakage", "0,0.005", "--rsen", "fixed"}), 0) << err_.str();
+  const auto model = tl::CalibrationModel::load(yaml);
+  EXPECT_EQ(model.impl().poly_m.size(), 4u);
+  EXPECT_TRUE(model.impl().terms.empty());
+  EXPECT_TRUE(model.impl().sensitivity_ratio_per_pixel.empty());
+  EXPECT_EQ(model.impl().leakage_per_pulse, 0.005);
+  EXPECT_THAT(out_.str(), ::testing::Not(HasSubstr("held-out")));
+}
+
+TEST_F(CalibTool, DiagnoseNamesTheColumnTheCalibrationMisses) {
+  const auto null_csv = rail_csv(false);
+  const auto csv = rail_csv(true);
+  const auto yaml = path("calib.yaml");
+  ASSERT_EQ(run({"fit", null_csv, "-o", yaml}), 0) << err_.str();
+  const auto report = path("diag");
+  ASSERT_EQ(run({"diagnose", csv, "--calib", yaml, "--report", report}), 0) << err_.str();
+  EXPECT_THAT(out_.str(), HasSubstr("effect: supply_v"));
+  EXPECT_THAT(slurp(report + "/summary.json"), HasSubstr("\"command\": \"diagnose\""));
+  EXPECT_TRUE(fs::exists(report + "/report.md"));
+  EXPECT_TRUE(fs::exists(report + "/residual_supply_v.png"));
+}
+
+TEST_F(CalibTool, ReportWithoutPythonStillWritesSummaryAndSaysWhy) {
+  env_.python = "/nonexistent/python";
+  const auto csv = rail_csv();
+  ASSERT_EQ(run({"fit", csv, "-o", path("c.yaml"), "--report", path("r")}), 0) << err_.str();
+  EXPECT_THAT(err_.str(), HasSubstr("warning: cannot run /nonexistent/python"));
+  EXPECT_TRUE(fs::exists(path("r/summary.json")));
+  EXPECT_THAT(slurp(path("r/report.md")), HasSubstr("Plots were not drawn: cannot run /nonexistent/python"));
+}
+
+TEST_F(CalibTool, BadInputGetsAClearErrorAndExitCode) {
+  const std::string header = "t_s,pixel,pulses,a,b,temperature_c,distance_m\n";
+  // Missing file.
+  EXPECT_EQ(run({"eval", path("none.csv"), "--calib", path("none.yaml")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("none.yaml: cannot open calibration file"));
+  EXPECT_EQ(run({"fit", path("none.csv"), "-o", path("x.yaml")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("none.csv: cannot open data file"));
+  // Missing column.
+  const auto no_col = write_file("nocol.csv", "t_s,pixel,a,b,temperature_c,distance_m\n0,10,50,50,40,0.5\n");
+  EXPECT_EQ(run({"fit", no_col, "-o", path("x.yaml")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("nocol.csv:1: missing required column 'pulses'"));
+  // Non-numeric cell.
+  const auto bad_cell = write_file("cell.csv", header + "0,10,100,50,50,40,0.5\n0,10,100,5O,50,40,0.5\n");
+  EXPECT_EQ(run({"fit", bad_cell, "-o", path("x.yaml")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("cell.csv:3: column 'a': '5O' is not a number"));
+  // Empty file.
+  const auto empty = write_file("empty.csv", "");
+  EXPECT_EQ(run({"fit", empty, "-o", path("x.yaml")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("empty.csv: empty file"));
+  // Every row invalid.
+  const auto invalid = write_file("invalid.csv", header + "0,10,100,240,50,40,0.5\n0,11,100,2,3,40,0.5\n");
+  EXPECT_EQ(run({"fit", invalid, "-o", path("x.yaml")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("no valid read-outs among 2 rows"));
+  EXPECT_THAT(err_.str(), HasSubstr("1 saturated"));
+  EXPECT_FALSE(fs::exists(path("x.yaml")));  // nothing half-written
+  // Usage errors: exit 2 with the reason.
+  EXPECT_EQ(run({"fit", invalid}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("fit needs -o CALIB.yaml"));
+  EXPECT_EQ(run({"fit", invalid, "-o", path("x.yaml"), "--degre", "3"}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("unknown option '--degre'"));
+  EXPECT_EQ(run({"fit", invalid, "-o", path("x.yaml"), "--degree", "13"}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("--degree: '13' is not an integer in [1, 12]"));
+  EXPECT_EQ(run({"frobnicate"}), 2);
+  EXPECT_EQ(run({}), 2);
+  EXPECT_EQ(run({"--help"}), 0);
+  EXPECT_THAT(out_.str(), HasSubstr("tinyline calib <command>"));
+  // A calibration file that is not one.
+  const auto bad_yaml = write_file("bad.yaml", "format: tinyline_calibration/1\npolynomial: {coefficients_m: [1, x]}\n");
+  EXPECT_EQ(run({"eval", invalid, "--calib", bad_yaml}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("bad.yaml:2: field 'polynomial.coefficients_m[1]'"));
+}

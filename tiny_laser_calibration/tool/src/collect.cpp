@@ -1,0 +1,251 @@
+// `tinyline calib collect`: bag -> calibration data set (collect.hpp).
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <set>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <tinyline/bag/reader.hpp>
+#include <tinyline/msg/tinyline_msgs/raw_scan.hpp>
+#include <tinyline/msg/tinyline_msgs/scan_truth.hpp>
+#include <tinyline/msg/type_support.hpp>
+
+#include <tiny_laser_calibration/collect.hpp>
+#include <tiny_laser_driver/protocol.hpp>
+
+namespace tinyline::tiny_laser_calibration {
+
+using tiny_laser_driver::kPixels;
+
+namespace {
+
+using tinyline_msgs::msg::RawScan;
+using tinyline_msgs::msg::ScanTruth;
+
+double seconds(const builtin_interfaces::msg::Time& t) { return t.sec + 1e-9 * t.nanosec; }
+
+// The topic of a type: the one asked for (checked), else the bag's only one.
+std::string pick_topic(const bag::Reader& reader, std::string_view type, const std::string& wanted,
+                       const std::string& bag_path, std::string& why) {
+  std::vector<std::string> found;
+  for (const auto& [id, ch] : reader.channels()) {
+    const auto s = reader.schemas().find(ch.schema_id);
+    if (s == reader.schemas().end() || s->second.name != type) continue;
+    if (std::find(found.begin(), found.end(), ch.topic) == found.end()) found.push_back(ch.topic);
+  }
+  const std::string list = found.empty() ? "none" : fmt::format("{}", fmt::join(found, ", "));
+  if (!wanted.empty()) {
+    if (std::find(found.begin(), found.end(), wanted) != found.end()) return wanted;
+    why = fmt::format("{}: no {} topic '{}' (its {} topics: {})", bag_path, type, wanted, type, list);
+    return {};
+  }
+  if (found.size() == 1) return found.front();
+  why = found.empty() ? fmt::format("{}: no {} topic in the bag", bag_path, type)
+                      : fmt::format("{}: several {} topics ({}); choose one", bag_path, type, list);
+  return {};
+}
+
+struct TruthEntry {
+  double stamp = 0.0;
+  std::shared_ptr<const ScanTruth> msg;
+  bool used = false;
+};
+
+}  // namespace
+
+CollectResult collect_calibration_data(const std::string& bag_path, const CollectParams& params) {
+  CollectResult out;
+  if (params.pixel_step < 1) {
+    out.reason = fmt::format("pixel step {} is not a positive integer", params.pixel_step);
+    return out;
+  }
+  if (!(params.max_pair_gap_s >= 0.0)) {
+    out.reason = fmt::format("pairing gap {} s is not a non-negative number", params.max_pair_gap_s);
+    return out;
+  }
+  bag::Reader reader;
+  if (auto s = reader.open(bag_path); !s.ok()) {
+    out.reason = s.str();
+    return out;
+  }
+  if (!reader.has_summary()) {
+    if (auto s = reader.scan(); !s.ok()) {
+      out.reason = s.str();
+      return out;
+    }
+  }
+  std::string why;
+  out.raw_topic = pick_topic(reader, RawScan::kTypeName, params.raw_topic, bag_path, why);
+  if (out.raw_topic.empty()) {
+    out.reason = why;
+    return out;
+  }
+  out.truth_topic = pick_topic(reader, ScanTruth::kTypeName, params.truth_topic, bag_path, why);
+  if (out.truth_topic.empty()) {
+    out.reason = why + " (record the simulator's scan_truth beside the raw scans)";
+    return out;
+  }
+
+  // Read both topics in log-time order.
+  std::vector<std::pair<double, std::shared_ptr<const RawScan>>> scans;
+  std::vector<TruthEntry> truths;
+  std::set<std::string> frames;
+  bag::ReadOptions ro;
+  ro.topics = {out.raw_topic, out.truth_topic};
+  std::string decode_error;
+  const auto status = reader.for_each(ro, [&](const bag::MessageView& v) {
+    if (v.channel->topic == out.raw_topic) {
+      auto m = std::make_shared<RawScan>();
+      if (const auto d = msg::deserialize(v.message.data, *m); !d) {
+        ++out.bad_scans;
+        if (decode_error.empty()) decode_error = d.error;
+        return true;
+      }
+      frames.insert(m->header.frame_id);
+      scans.emplace_back(seconds(m->header.stamp), std::move(m));
+    } else {
+      auto m = std::make_shared<ScanTruth>();
+      if (const auto d = msg::deserialize(v.message.data, *m); !d) {
+        if (decode_error.empty()) decode_error = d.error;
+        return true;
+      }
+      truths.push_back({seconds(m->header.stamp), std::move(m), false});
+    }
+    return true;
+  });
+  if (!status.ok()) {
+    out.reason = status.str();
+    return out;
+  }
+  if (!decode_error.empty()) out.notes.push_back(fmt::format("messages that do not decode were skipped: {}", decode_error));
+  out.raw_scans = scans.size() + out.bad_scans;
+  if (scans.empty()) {
+    out.reason = fmt::format("{}: topic {} holds no raw scan", bag_path, out.raw_topic);
+    return out;
+  }
+
+  // Whose sets: the sensor asked for, else the one frame of the raw scans.
+  std::string sensor = params.sensor;
+  if (sensor.empty()) {
+    if (frames.size() > 1) {
+      out.reason = fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor",
+                               bag_path, out.raw_topic, fmt::join(frames, ", "));
+      return out;
+    }
+    sensor = *frames.begin();
+  }
+  std::erase_if(scans, [&](const auto& s) { return s.second->header.frame_id != sensor; });
+  std::erase_if(truths, [&](const TruthEntry& t) {
+    const bool other = t.msg->sensor != sensor && t.msg->header.frame_id != sensor;
+    out.other_sensor += other ? 1 : 0;
+    return other;
+  });
+  out.truths = truths.size();
+  if (scans.empty()) {
+    out.reason = fmt::format("{}: no raw scan of sensor '{}' on {} (frames: {})", bag_path, sensor, out.raw_topic,
+                             fmt::join(frames, ", "));
+    return out;
+  }
+  if (truths.empty()) {
+    out.reason = fmt::format("{}: no ground truth of sensor '{}' on {}", bag_path, sensor, out.truth_topic);
+    return out;
+  }
+  std::sort(truths.begin(), truths.end(), [](const TruthEntry& a, const TruthEntry& b) { return a.stamp < b.stamp; });
+  std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+
+  CalibrationDataset& data = out.data;
+  data.source = bag_path;
+  data.has_material = true;
+  if (params.incidence_column) data.extra_names.push_back("incidence_deg");
+  const double t0 = scans.front().first;
+  std::size_t sizes_note = 0;
+  for (const auto& [stamp, scan] : scans) {
+    // Nearest unused truth within the gap.
+    const auto it = std::lower_bound(truths.begin(), truths.end(), stamp,
+                                     [](const TruthEntry& t, double s) { return t.stamp < s; });
+    TruthEntry* best = nullptr;
+    for (auto j = it; j != truths.end() && j->stamp - stamp <= params.max_pair_gap_s; ++j) {
+      if (!j->used && (!best || std::abs(j->stamp - stamp) < std::abs(best->stamp - stamp))) best = &*j;
+    }
+    for (auto j = it; j != truths.begin();) {
+      --j;
+      if (stamp - j->stamp > params.max_pair_gap_s) break;
+      if (!j->used && (!best || std::abs(j->stamp - stamp) < std::abs(best->stamp - stamp))) best = &*j;
+    }
+    if (!best) {
+      ++out.unpaired_scans;
+      continue;
+    }
+    const RawScan& r = *scan;
+    const ScanTruth& t = *best->msg;
+    const std::size_t n = r.pixels, k = r.pulses.size();
+    if (n == 0 || n > kPixels || k == 0 || r.a.size() != n * k || r.b.size() != n * k || t.range_m.size() != n ||
+        t.flags.size() != n || t.material.size() != n || t.incidence_rad.size() != n) {
+      ++out.bad_scans;
+      if (sizes_note++ == 0) {
+        out.notes.push_back(fmt::format("raw scan at {:.6f} s left out: {} pixels x {} read-outs, a {} and b {} values, "
+                                        "truth of {} pixels",
+                                        stamp, n, k, r.a.size(), r.b.size(), t.range_m.size()));
+      }
+      continue;
+    }
+    best->used = true;
+    ++out.paired;
+    const double t_s = stamp - t0;
+    int effective = 0;  // index among the non-dark pixels, for pixel_step
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint8_t f = t.flags[i];
+      if (f & ScanTruth::FLAG_DARK) {
+        ++out.dark_pixels;
+        continue;
+      }
+      if (effective++ % params.pixel_step != 0) continue;
+      const double range = t.range_m[i];
+      if (!(std::isfinite(range) && range > 0.0)) {
+        ++out.no_range;
+        continue;
+      }
+      if (!(f & ScanTruth::FLAG_LIT)) {
+        ++out.unlit;
+        continue;
+      }
+      if ((f & ScanTruth::FLAG_MIXED) && !params.keep_mixed) {
+        ++out.mixed;
+        continue;
+      }
+      const int mi = t.material[i];
+      const std::string material =
+          mi >= 0 && static_cast<std::size_t>(mi) < t.materials.size() ? t.materials[static_cast<std::size_t>(mi)] : "";
+      for (std::size_t j = 0; j < k; ++j) {
+        Readout ro;
+        ro.a = r.a[j * n + i] / 10.0;  // the wire carries ten times the charge unit
+        ro.b = r.b[j * n + i] / 10.0;
+        ro.pulses = r.pulses[j];
+        ro.temperature_c = r.temperature_c;
+        ro.pixel = static_cast<int>(i);
+        ro.t_s = t_s;
+        if (params.incidence_column) ro.extra.push_back(t.incidence_rad[i] * 180.0 / std::numbers::pi);
+        data.add(std::move(ro), range, material);
+      }
+    }
+  }
+  if (out.unpaired_scans > 0) {
+    out.notes.push_back(fmt::format("{} of {} raw scans had no ground truth within {} s and were left out",
+                                    out.unpaired_scans, scans.size(), params.max_pair_gap_s));
+  }
+  if (out.other_sensor > 0) out.notes.push_back(fmt::format("{} truths of other sensors ignored", out.other_sensor));
+  if (data.empty()) {
+    out.reason = fmt::format("{}: no rows: {} raw scans paired with their truth; pixels left out: {} without a range, "
+                             "{} unlit, {} mixed",
+                             bag_path, out.paired, out.no_range, out.unlit, out.mixed);
+    return out;
+  }
+  out.ok = true;
+  return out;
+}
+
+}  // namespace tinyline::tiny_laser_calibration
