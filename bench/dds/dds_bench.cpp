@@ -17,10 +17,15 @@
 //
 // bench/dds/side_by_side.py runs Engine and Dds (and Cyclone's ddsperf) and
 // prints the table of docs/benchmarks.md.
+//
+//   dds_bench --idle-cpu SECONDS   instead: the CPU both processes of each
+//                                  cross-process case use while nothing is
+//                                  sent for SECONDS (after 1000 round trips).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
 
 #include "pingpong.hpp"
 
@@ -119,6 +124,48 @@ BENCHMARK(BM_InProcess_Stream)->Apply(sizes);
 BENCHMARK(BM_Engine_Stream)->Apply(sizes);
 BENCHMARK(BM_Dds_Stream)->Apply(sizes);
 
+/// CPU seconds process `pid`'s threads have run so far: the sum of
+/// /proc/<pid>/task/*/schedstat's first field (ns on a core; finer than the
+/// 10 ms ticks of /proc/<pid>/stat).
+double cpu_seconds(pid_t pid) {
+  double ns = 0;
+  const std::filesystem::path tasks = fmt::format("/proc/{}/task", pid);
+  for (const auto& t : std::filesystem::directory_iterator(tasks)) {
+    std::ifstream in(t.path() / "schedstat");
+    double on_cpu = 0;
+    if (in >> on_cpu) ns += on_cpu;
+  }
+  return ns * 1e-9;
+}
+
+/// Warms one cross-process case up, then prints the CPU share of both of its
+/// processes while nothing is sent for `seconds`.
+template <class P, class Ping>
+void idle_cpu(const char* what, P& p, Ping&& ping, int seconds) {
+  for (std::uint64_t k = 0; k < 1000; ++k) {
+    const std::uint64_t n = p.arrivals.count.load() + 1;
+    ping();
+    p.arrivals.wait_for(n);
+  }
+  const pid_t pong = Sessions::get().pong_pid();
+  const double self0 = cpu_seconds(getpid()), pong0 = cpu_seconds(pong);
+  std::this_thread::sleep_for(std::chrono::seconds(seconds));
+  const double self1 = cpu_seconds(getpid()), pong1 = cpu_seconds(pong);
+  std::printf("%s, idle %d s: ping process %.2f%% of a core (%.1f ms), pong process %.2f%% (%.1f ms)\n", what,
+              seconds, 100 * (self1 - self0) / seconds, 1e3 * (self1 - self0), 100 * (pong1 - pong0) / seconds,
+              1e3 * (pong1 - pong0));
+}
+
+int idle_cpu_main(int seconds) {
+  EnginePinger& e = Sessions::get().engine();
+  e.set_payload(64);
+  idle_cpu("Cyclone alone", e, [&] { e.ping(); }, seconds);
+  Pinger& t = Sessions::get().tinyline();
+  idle_cpu("tinyline", t, [&] { t.pub->publish(cloud(64)); }, seconds);
+  Sessions::get().close();
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -127,6 +174,7 @@ int main(int argc, char** argv) {
     std::puts(settings("ping").effective_config().c_str());
     return 0;
   }
+  if (argc > 2 && std::string(argv[1]) == "--idle-cpu") return idle_cpu_main(std::stoi(argv[2]));
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -318,6 +318,7 @@ class PongProcess {
  public:
   explicit PongProcess(PongKind kind) : kind_(kind) { start(); }
   PongKind kind() const { return kind_; }
+  pid_t pid() const { return pid_; }
   ~PongProcess() {
     close(stdin_);
     int st = 0;
@@ -445,6 +446,8 @@ class Sessions {
     }
     return *tinyline_;
   }
+  /// The pong process running now, or -1.
+  pid_t pong_pid() const { return pong_ ? pong_->pid() : -1; }
   /// Ends the ping sides, then the pong process.
   void close() {
     engine_.reset();

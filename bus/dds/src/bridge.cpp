@@ -316,39 +316,53 @@ void Bridge::sync_topic(const std::string& name) {
   }
   auto topic = context().graph().find(name);
   if (!topic) return;
-  std::vector<bus::QoS> pubs, subs;
-  const std::string self = full_name();
-  for (const auto& n : context().graph().nodes()) {
-    if (n.full_name == self) continue;
-    for (const auto& e : n.publishers)
-      if (e.topic == name) pubs.push_back(e.qos);
-    for (const auto& e : n.subscriptions)
-      if (e.topic == name) subs.push_back(e.qos);
-  }
-  std::shared_ptr<Link> l;
-  {
-    std::lock_guard lk(mu_);
-    for (const auto& x : links_)
-      if (x->name == name) l = x;
-  }
-  if (!l && pubs.empty() && subs.empty()) return;
+  const LocalEndpoints local = local_endpoints(name);
+  std::shared_ptr<Link> l = find_link(name);
+  if (!l && local.publishers.empty() && local.subscribers.empty()) return;
   t_in_sync = true;
   struct Reset {
     ~Reset() { t_in_sync = false; }
   } reset;
-  if (!l) {
-    l = std::make_shared<Link>();
-    l->bridge = this;
-    l->name = name;
-    l->type = &topic->type();
-    l->topic = detail::create_topic(participant_->handle(), dds_topic_name(name), std::string(l->type->dds_type_name()),
-                                    l->type, options_.settings.max_sample_bytes);
-    std::lock_guard lk(mu_);
-    links_.push_back(l);
-  }
-  Link& L = *l;
+  if (!l) l = add_link(name, *topic);
+  sync_writer(*l, topic, local.publishers);
+  sync_reader(*l, local.subscribers);
+}
 
-  // Writer: exists while the process publishes the topic.
+Bridge::LocalEndpoints Bridge::local_endpoints(const std::string& name) {
+  LocalEndpoints local;
+  const std::string self = full_name();
+  for (const auto& n : context().graph().nodes()) {
+    if (n.full_name == self) continue;
+    for (const auto& e : n.publishers)
+      if (e.topic == name) local.publishers.push_back(e.qos);
+    for (const auto& e : n.subscriptions)
+      if (e.topic == name) local.subscribers.push_back(e.qos);
+  }
+  return local;
+}
+
+std::shared_ptr<Bridge::Link> Bridge::find_link(const std::string& name) const {
+  std::lock_guard lk(mu_);
+  for (const auto& x : links_)
+    if (x->name == name) return x;
+  return nullptr;
+}
+
+std::shared_ptr<Bridge::Link> Bridge::add_link(const std::string& name, const bus::Topic& topic) {
+  auto l = std::make_shared<Link>();
+  l->bridge = this;
+  l->name = name;
+  l->type = &topic.type();
+  l->topic = detail::create_topic(participant_->handle(), dds_topic_name(name), std::string(l->type->dds_type_name()),
+                                  l->type, options_.settings.max_sample_bytes);
+  std::lock_guard lk(mu_);
+  links_.push_back(l);
+  return l;
+}
+
+void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, const std::vector<bus::QoS>& pubs) {
+  // A writer exists while the process publishes the topic, with the QoS its
+  // publishers need now.
   const EndpointQos wq = offered_qos(pubs);
   if (L.writer.load() != 0 && (pubs.empty() || !same(wq, L.wq))) {
     dds_delete(L.writer.exchange(0));
@@ -356,33 +370,34 @@ void Bridge::sync_topic(const std::string& name) {
     std::lock_guard lk(L.peers_mu);
     L.readers_seen.clear();
   }
-  if (!pubs.empty() && L.writer.load() == 0) {
-    L.wq = wq;
-    detail::Qos q;
-    detail::fill_qos(q, wq, false, participant_->identity(), l->type);
-    dds_listener_t* ls = dds_create_listener(&L);
-    dds_lset_publication_matched(ls, &BridgeAccess::publication_matched);
-    dds_lset_offered_incompatible_qos(ls, &BridgeAccess::offered_incompatible);
-    const dds_entity_t w = dds_create_writer(participant_->handle(), L.topic.topic, q.q, ls);
-    dds_delete_listener(ls);
-    if (w < 0) fail("cannot create a DDS writer for " + name, w);
-    L.writer_latched.store(wq.transient_local);
-    L.writer.store(w);
-    BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
-    if (L.tap == 0) {
-      // Publishers of the topic send on their own thread, once local
-      // subscribers have the message; a latched topic replays its history
-      // into the (transient-local) writer here.
-      Link* raw = l.get();
-      const std::uint32_t own = origin_;
-      L.local = topic;
-      L.tap = topic->add_tap([raw, own](const std::shared_ptr<const void>& m, const bus::MessageInfo& info) {
-        if (info.origin != own) raw->bridge->send(*raw, m);
-      });
-    }
-  }
+  if (pubs.empty() || L.writer.load() != 0) return;
+  L.wq = wq;
+  detail::Qos q;
+  detail::fill_qos(q, wq, false, participant_->identity(), L.type);
+  dds_listener_t* ls = dds_create_listener(&L);
+  dds_lset_publication_matched(ls, &BridgeAccess::publication_matched);
+  dds_lset_offered_incompatible_qos(ls, &BridgeAccess::offered_incompatible);
+  const dds_entity_t w = dds_create_writer(participant_->handle(), L.topic.topic, q.q, ls);
+  dds_delete_listener(ls);
+  if (w < 0) fail("cannot create a DDS writer for " + L.name, w);
+  L.writer_latched.store(wq.transient_local);
+  L.writer.store(w);
+  BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
+  if (L.tap != 0) return;
+  // Publishers of the topic send on their own thread, once local subscribers
+  // have the message; a latched topic replays its history into the
+  // (transient-local) writer here.
+  Link* raw = &L;
+  const std::uint32_t own = origin_;
+  L.local = topic;
+  L.tap = topic->add_tap([raw, own](const std::shared_ptr<const void>& m, const bus::MessageInfo& info) {
+    if (info.origin != own) raw->bridge->send(*raw, m);
+  });
+}
 
-  // Reader: exists while the process subscribes to the topic.
+void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
+  // A reader exists while the process subscribes to the topic, with the QoS
+  // its subscribers need now.
   const EndpointQos rq = requested_qos(subs);
   if (L.reader.load() != 0 && (subs.empty() || !same(rq, L.rq))) {
     dds_delete(L.reader.exchange(0));  // waits for a listener call in progress
@@ -390,28 +405,27 @@ void Bridge::sync_topic(const std::string& name) {
     std::lock_guard lk(L.peers_mu);
     L.writers_seen.clear();
   }
-  if (!subs.empty() && L.reader.load() == 0) {
-    L.rq = rq;
-    if (!L.in) {
-      bus::QoS pq = bus::QoS::keep_last(static_cast<std::size_t>(rq.depth));
-      pq.transient_local = rq.transient_local;  // late local subscribers get what came in
-      auto in = create_generic_publisher(name, *L.type, pq);
-      std::lock_guard lk(mu_);
-      L.in = std::move(in);
-    }
-    detail::Qos q;
-    detail::fill_qos(q, rq, true, participant_->identity(), l->type);
-    dds_listener_t* ls = dds_create_listener(&L);
-    dds_lset_subscription_matched(ls, &BridgeAccess::subscription_matched);
-    dds_lset_requested_incompatible_qos(ls, &BridgeAccess::requested_incompatible);
-    dds_lset_data_available(ls, &BridgeAccess::data_available);
-    const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
-    dds_delete_listener(ls);
-    if (r < 0) fail("cannot create a DDS reader for " + name, r);
-    L.reader.store(r);
-    BridgeAccess::refresh_reader(L, r);
-    drain(L, r, false);  // what arrived before the reader was stored
+  if (subs.empty() || L.reader.load() != 0) return;
+  L.rq = rq;
+  if (!L.in) {
+    bus::QoS pq = bus::QoS::keep_last(static_cast<std::size_t>(rq.depth));
+    pq.transient_local = rq.transient_local;  // late local subscribers get what came in
+    auto in = create_generic_publisher(L.name, *L.type, pq);
+    std::lock_guard lk(mu_);
+    L.in = std::move(in);
   }
+  detail::Qos q;
+  detail::fill_qos(q, rq, true, participant_->identity(), L.type);
+  dds_listener_t* ls = dds_create_listener(&L);
+  dds_lset_subscription_matched(ls, &BridgeAccess::subscription_matched);
+  dds_lset_requested_incompatible_qos(ls, &BridgeAccess::requested_incompatible);
+  dds_lset_data_available(ls, &BridgeAccess::data_available);
+  const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
+  dds_delete_listener(ls);
+  if (r < 0) fail("cannot create a DDS reader for " + L.name, r);
+  L.reader.store(r);
+  BridgeAccess::refresh_reader(L, r);
+  drain(L, r, false);  // what arrived before the reader was stored
 }
 
 void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {

@@ -145,7 +145,17 @@ class Bridge : public bus::Node {
  private:
   friend struct BridgeAccess;
   void on_graph_change(const std::string& topic);
+  /// Creates, replaces or deletes the topic's DDS endpoints to match its
+  /// local publishers and subscribers now.
   void sync_topic(const std::string& topic);
+  struct LocalEndpoints {
+    std::vector<bus::QoS> publishers, subscribers;  ///< of nodes other than the bridge
+  };
+  LocalEndpoints local_endpoints(const std::string& topic);
+  std::shared_ptr<Link> find_link(const std::string& topic) const;
+  std::shared_ptr<Link> add_link(const std::string& topic, const bus::Topic& local);
+  void sync_writer(Link& link, const std::shared_ptr<bus::Topic>& local, const std::vector<bus::QoS>& publishers);
+  void sync_reader(Link& link, const std::vector<bus::QoS>& subscribers);
   void send(Link& link, const std::shared_ptr<const void>& msg);
   /// Delivers the samples `reader` holds. From the listener (`may_block`
   /// false) it never waits: a full reliable subscriber hands the topic to
