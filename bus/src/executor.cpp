@@ -432,6 +432,45 @@ bool Executor::run_some_group(View& v) {
   return false;
 }
 
+bool Executor::poll_for_work(View& view, Duration how_long) {
+  // One poller at a time. After its first polls it yields the core between
+  // polls: with more busy threads than cores, a pure spin keeps off the
+  // processor the very thread bringing the next message (a DDS receive
+  // thread, a publisher). While yielded it is no poller (publishers then wake
+  // a sleeping worker), and a yield that took long means the core is busy
+  // with other work: it stops polling and sleeps rather than wait for the
+  // scheduler's next turn. The clock is read once per 8 pauses.
+  constexpr unsigned kPausePolls = 64;
+  constexpr auto kBusyCore = std::chrono::microseconds(50);
+  int none = 0;
+  if (!core_->spinning.compare_exchange_strong(none, 1, std::memory_order_seq_cst)) return false;
+  bool polling = true;
+  bool found = false;
+  const auto end = std::chrono::steady_clock::now() + how_long;
+  for (unsigned polls = 0; !stop_.load(std::memory_order_relaxed); ++polls) {
+    if (any_pending(view)) {
+      found = true;
+      break;
+    }
+    if (polls < kPausePolls) {
+      TL_CPU_RELAX();
+      if ((polls & 7u) == 7u && std::chrono::steady_clock::now() >= end) break;
+      continue;
+    }
+    core_->spinning.store(0, std::memory_order_seq_cst);
+    polling = false;
+    const auto before = std::chrono::steady_clock::now();
+    std::this_thread::yield();
+    const auto after = std::chrono::steady_clock::now();
+    if (after - before > kBusyCore || after >= end) break;
+    none = 0;
+    if (!core_->spinning.compare_exchange_strong(none, 1, std::memory_order_seq_cst)) break;  // another one polls
+    polling = true;
+  }
+  if (polling) core_->spinning.store(0, std::memory_order_seq_cst);
+  return found;
+}
+
 void Executor::worker_loop() {
   constexpr Duration kIdleWait = std::chrono::milliseconds(100);
   CoreScope scope(core_.get());
@@ -445,17 +484,7 @@ void Executor::worker_loop() {
     if (wait.count() == 0) continue;
     // Poll briefly before sleeping: a message from another thread then costs a
     // few cache-line transfers instead of a futex wake-up.
-    // The clock is read once per 64 polls: a vDSO call costs more than a poll.
-    const auto spin_end = std::chrono::steady_clock::now() + std::min(options_.spin, wait);
-    bool found = false;
-    for (unsigned polls = 0; !stop_.load(std::memory_order_relaxed); ++polls) {
-      if (any_pending(view)) {
-        found = true;
-        break;
-      }
-      TL_CPU_RELAX();
-      if ((polls & 63u) == 63u && std::chrono::steady_clock::now() >= spin_end) break;
-    }
+    const bool found = poll_for_work(view, std::min(options_.spin, wait));
     // A message found while polling runs at once; timers are looked at on
     // the next turn (one message's callback later at most).
     if (found) {

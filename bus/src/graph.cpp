@@ -21,11 +21,16 @@ SubscriptionBase::SubscriptionBase(std::string topic, const msg::TypeSupport* ty
   if (qos_.depth == 0) throw std::invalid_argument("subscription to '" + topic_ + "': QoS depth must be at least 1");
 }
 
-bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why) {
+bool SubscriptionBase::would_wait() {
+  return qos_.history == QoS::History::Reliable && !group_->unbounded_reliable() && full();
+}
+
+bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why,
+                               Wait wait) {
   if (ignore_origin != 0 && info.origin == ignore_origin) return true;
   CallbackGroup& g = *group_;
   if (cancelled_.load(std::memory_order_acquire) || g.dead()) return true;
-  if (full()) {
+  if (full() && !(wait == Wait::Never && qos_.history == QoS::History::Reliable)) {
     if (qos_.history == QoS::History::KeepLast) {
       // Drop the oldest. The worker may take one meanwhile; either way the
       // queue ends at most `depth` long, and only what we pop counts as dropped.
@@ -163,7 +168,14 @@ std::shared_ptr<const Topic::SubList> Topic::snapshot() const {
   return subs_;
 }
 
-PublishStatus Topic::publish(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why) {
+bool Topic::would_wait() const {
+  const auto subs = snapshot();
+  for (const auto& s : *subs)
+    if (s->would_wait()) return true;
+  return false;
+}
+
+PublishStatus Topic::publish(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why, Wait wait) {
   published_.fetch_add(1, std::memory_order_relaxed);
   if (latched_depth_.load(std::memory_order_relaxed) != 0) {
     std::lock_guard lk(mu_);
@@ -177,7 +189,7 @@ PublishStatus Topic::publish(std::shared_ptr<const void> msg, const MessageInfo&
     // The last one without taps takes the publisher's reference: one
     // reference-count round trip less, and the worker alone touches the count.
     const bool last = i + 1 == subs->size() && !taps;
-    if ((*subs)[i]->enqueue(last ? std::move(msg) : msg, info, why)) {
+    if ((*subs)[i]->enqueue(last ? std::move(msg) : msg, info, why, wait)) {
       ++st.delivered;
     } else {
       ++st.failed;

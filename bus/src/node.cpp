@@ -110,14 +110,14 @@ std::vector<std::shared_ptr<Timer>> Node::timers() const {
 }
 
 PublishStatus detail::publish(Topic& topic, Clock& clock, const Logger& logger, std::shared_ptr<const void> msg,
-                              std::uint32_t origin) {
+                              std::uint32_t origin, Wait wait) {
   if (!msg) throw std::invalid_argument("publish on " + topic.name() + ": null message");
   MessageInfo info;
   info.publish_time = clock.now();
   info.sequence = topic.next_sequence();
   info.origin = origin;
   std::string why;
-  const PublishStatus st = topic.publish(std::move(msg), info, &why);
+  const PublishStatus st = topic.publish(std::move(msg), info, &why, wait);
   if (!st.ok()) logger.error("publish on {} failed for {} subscriber(s): {}", topic.name(), st.failed, why);
   return st;
 }
@@ -201,8 +201,8 @@ GenericPublisher::GenericPublisher(Node& node, std::shared_ptr<Topic> topic, QoS
 
 GenericPublisher::~GenericPublisher() { topic_->remove_publisher(); }
 
-PublishStatus GenericPublisher::publish(std::shared_ptr<const void> msg, std::uint32_t origin) {
-  return detail::publish(*topic_, context_->clock(), logger_, std::move(msg), origin);
+PublishStatus GenericPublisher::publish(std::shared_ptr<const void> msg, std::uint32_t origin, Wait wait) {
+  return detail::publish(*topic_, context_->clock(), logger_, std::move(msg), origin, wait);
 }
 
 PublishStatus GenericPublisher::publish_serialized(std::span<const std::uint8_t> cdr, std::uint32_t origin) {

@@ -132,6 +132,29 @@ TEST(Bus, ReliableQueueUnblocksWhenTheSubscriberDrains) {
   EXPECT_EQ(received.load(), 2000);  // nothing lost although the queue holds 4
 }
 
+TEST(Bus, APublishThatMustNotWaitGoesPastAFullReliableQueueInOrderAndWouldWaitSaysSoFirst) {
+  bus::ContextOptions o;
+  o.log_sink = std::make_shared<bus::CaptureSink>();
+  auto ctx = bus::Context::create(o);  // wall clock, no executor yet: nobody drains
+  auto n = make_node(ctx, "n");
+  std::vector<std::string> got;
+  auto sub = n->create_subscription<StringMsg>("t", QoS::reliable(2, 10s), [&](const StringMsg& m) { got.push_back(m.data); });
+  auto pub = n->create_generic_publisher("t", msg::type_support<StringMsg>(), QoS::reliable(2));
+  EXPECT_FALSE(pub->would_wait());
+  EXPECT_TRUE(pub->publish(text("a")).ok());
+  EXPECT_TRUE(pub->publish(text("b")).ok());
+  EXPECT_TRUE(pub->would_wait());
+  // A waiting publish would time out after 10 s and fail; this one returns at once.
+  EXPECT_TRUE(pub->publish(text("c"), 0, bus::Wait::Never).ok());
+  EXPECT_EQ(sub->queued(), 3u);
+  EXPECT_EQ(sub->timeouts(), 0u);
+  bus::SingleThreadedExecutor ex(ctx->clock());
+  ex.add_node(n);
+  ex.spin_some();
+  EXPECT_EQ(got, (std::vector<std::string>{"a", "b", "c"}));
+  EXPECT_FALSE(pub->would_wait());
+}
+
 TEST(Bus, ReliablePublishFromTheDrainingThreadFailsInsteadOfDeadlocking) {
   bus::ContextOptions o;
   auto sink = std::make_shared<bus::CaptureSink>();
@@ -572,6 +595,50 @@ TEST(Bus, ManyPublishersManyNodesManyThreadsLoseNothingReliable) {
   spinner.join();
   EXPECT_EQ(failures.load(), 0);
   for (auto& c : counts) EXPECT_EQ(c.load(), kPublishers * kEach);
+}
+
+TEST(Executor, WorkersThatPollOneAtATimeAndSleepOtherwiseLoseNothing) {
+  // The default executor: one idle worker polls (publishers then skip the
+  // wake-up), the others sleep; a message queued while the poller gives up
+  // must still be seen by it before it sleeps.
+  bus::ContextOptions o;
+  o.log_sink = std::make_shared<bus::CaptureSink>();
+  auto ctx = bus::Context::create(o);
+  constexpr int kNodes = 4;
+  constexpr int kEach = 3000;
+  bus::MultiThreadedExecutor ex(ctx->clock(), 3, std::chrono::microseconds(2));  // short polls: many give-ups
+  std::vector<std::shared_ptr<Node>> nodes;
+  std::vector<std::shared_ptr<bus::Subscription<StringMsg>>> subs;
+  std::vector<std::atomic<int>> counts(kNodes);
+  for (int i = 0; i < kNodes; ++i) {
+    nodes.push_back(make_node(ctx, "sink" + std::to_string(i)));
+    subs.push_back(nodes.back()->create_subscription<StringMsg>(
+        "t" + std::to_string(i), QoS::reliable(4, 10s), [&counts, i](const StringMsg&) { counts[i].fetch_add(1); }));
+    ex.add_node(nodes.back());
+  }
+  std::thread spinner([&] { ex.spin(); });
+  std::atomic<int> failures{0};
+  std::vector<std::thread> pubs;
+  for (int i = 0; i < kNodes; ++i) {
+    pubs.emplace_back([&, i] {
+      auto pub = make_node(ctx, "pub" + std::to_string(i))->create_publisher<StringMsg>("t" + std::to_string(i));
+      for (int k = 0; k < kEach; ++k) {
+        failures.fetch_add(static_cast<int>(pub->publish(text("m")).failed));
+        if (k % 7 == 0) std::this_thread::yield();  // let the poller run dry now and then
+      }
+    });
+  }
+  for (auto& t : pubs) t.join();
+  auto all_done = [&] {
+    for (auto& c : counts)
+      if (c.load() < kEach) return false;
+    return true;
+  };
+  while (!all_done() && failures.load() == 0) std::this_thread::yield();
+  ex.stop();
+  spinner.join();
+  EXPECT_EQ(failures.load(), 0);
+  for (auto& c : counts) EXPECT_EQ(c.load(), kEach);
 }
 
 TEST(Graph, ReportsEndpointChangesAfterTheEndpointExistsAndWhenItsNodeGoesAway) {

@@ -8,6 +8,7 @@
 #include <tinyline/dds/naming.hpp>
 
 #include "entities.hpp"
+#include "probe.hpp"
 #include "serdata.hpp"
 
 namespace tinyline::dds {
@@ -88,7 +89,11 @@ struct Bridge::Link {
   std::atomic<dds_entity_t> writer{0};
   std::atomic<dds_entity_t> reader{0};
   std::atomic<bool> writer_latched{false};
-  dds_entity_t read_cond = 0;
+  // Delivery: one thread at a time takes and publishes (order); a listener
+  // that finds it busy leaves `pending` for the holder to look again.
+  std::mutex deliver_mu;
+  std::atomic<bool> pending{false};
+  std::atomic<bool> handed_over{false};  // the back-pressure thread delivers until the reader is empty
   EndpointQos wq, rq;
   std::shared_ptr<bus::Topic> local;            // the local topic
   int tap = 0;                                  // local -> DDS, on the publishers' threads
@@ -202,6 +207,10 @@ struct BridgeAccess {
     dds_get_subscription_matched_status(r, &st);
     subscription_matched(r, st, &l);
   }
+  static void data_available(dds_entity_t r, void* arg) {
+    auto* l = static_cast<Bridge::Link*>(arg);
+    l->bridge->drain(*l, r, false);
+  }
   static void offered_incompatible(dds_entity_t, const dds_offered_incompatible_qos_status_t st, void* arg) {
     auto* l = static_cast<Bridge::Link*>(arg);
     l->incompatible.fetch_add(1);
@@ -237,11 +246,7 @@ Bridge::Bridge(bus::NodeOptions node_options, BridgeOptions options)
   for (const auto& note : options_.settings.notes) logger().warn("{}", note);
   participant_ = std::make_unique<Participant>(options_.settings);
   origin_ = g_next_origin.fetch_add(1);
-  waitset_ = dds_create_waitset(participant_->handle());
-  wake_ = dds_create_guardcondition(participant_->handle());
-  if (waitset_ < 0 || wake_ < 0) fail("cannot create the DDS bridge's waitset", waitset_ < 0 ? waitset_ : wake_);
-  dds_waitset_attach(waitset_, wake_, 0);
-  receiver_ = std::thread([this] { receive_loop(); });
+  backpressure_ = std::thread([this] { backpressure_loop(); });
 }
 
 void Bridge::attach_graph(const std::weak_ptr<Bridge>& self) {
@@ -273,9 +278,12 @@ void Bridge::on_stop() {
     if (stopped_) return;
     stopped_ = true;
   }
-  quit_.store(true);
-  dds_set_guardcondition(wake_, true);
-  if (receiver_.joinable()) receiver_.join();
+  {
+    std::lock_guard lk(slow_mu_);
+    quit_.store(true);
+  }
+  slow_cv_.notify_all();
+  if (backpressure_.joinable()) backpressure_.join();
 }
 
 void Bridge::start() {
@@ -308,39 +316,53 @@ void Bridge::sync_topic(const std::string& name) {
   }
   auto topic = context().graph().find(name);
   if (!topic) return;
-  std::vector<bus::QoS> pubs, subs;
-  const std::string self = full_name();
-  for (const auto& n : context().graph().nodes()) {
-    if (n.full_name == self) continue;
-    for (const auto& e : n.publishers)
-      if (e.topic == name) pubs.push_back(e.qos);
-    for (const auto& e : n.subscriptions)
-      if (e.topic == name) subs.push_back(e.qos);
-  }
-  std::shared_ptr<Link> l;
-  {
-    std::lock_guard lk(mu_);
-    for (const auto& x : links_)
-      if (x->name == name) l = x;
-  }
-  if (!l && pubs.empty() && subs.empty()) return;
+  const LocalEndpoints local = local_endpoints(name);
+  std::shared_ptr<Link> l = find_link(name);
+  if (!l && local.publishers.empty() && local.subscribers.empty()) return;
   t_in_sync = true;
   struct Reset {
     ~Reset() { t_in_sync = false; }
   } reset;
-  if (!l) {
-    l = std::make_shared<Link>();
-    l->bridge = this;
-    l->name = name;
-    l->type = &topic->type();
-    l->topic = detail::create_topic(participant_->handle(), dds_topic_name(name), std::string(l->type->dds_type_name()),
-                                    l->type, options_.settings.max_sample_bytes);
-    std::lock_guard lk(mu_);
-    links_.push_back(l);
-  }
-  Link& L = *l;
+  if (!l) l = add_link(name, *topic);
+  sync_writer(*l, topic, local.publishers);
+  sync_reader(*l, local.subscribers);
+}
 
-  // Writer: exists while the process publishes the topic.
+Bridge::LocalEndpoints Bridge::local_endpoints(const std::string& name) {
+  LocalEndpoints local;
+  const std::string self = full_name();
+  for (const auto& n : context().graph().nodes()) {
+    if (n.full_name == self) continue;
+    for (const auto& e : n.publishers)
+      if (e.topic == name) local.publishers.push_back(e.qos);
+    for (const auto& e : n.subscriptions)
+      if (e.topic == name) local.subscribers.push_back(e.qos);
+  }
+  return local;
+}
+
+std::shared_ptr<Bridge::Link> Bridge::find_link(const std::string& name) const {
+  std::lock_guard lk(mu_);
+  for (const auto& x : links_)
+    if (x->name == name) return x;
+  return nullptr;
+}
+
+std::shared_ptr<Bridge::Link> Bridge::add_link(const std::string& name, const bus::Topic& topic) {
+  auto l = std::make_shared<Link>();
+  l->bridge = this;
+  l->name = name;
+  l->type = &topic.type();
+  l->topic = detail::create_topic(participant_->handle(), dds_topic_name(name), std::string(l->type->dds_type_name()),
+                                  l->type, options_.settings.max_sample_bytes);
+  std::lock_guard lk(mu_);
+  links_.push_back(l);
+  return l;
+}
+
+void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, const std::vector<bus::QoS>& pubs) {
+  // A writer exists while the process publishes the topic, with the QoS its
+  // publishers need now.
   const EndpointQos wq = offered_qos(pubs);
   if (L.writer.load() != 0 && (pubs.empty() || !same(wq, L.wq))) {
     dds_delete(L.writer.exchange(0));
@@ -348,63 +370,62 @@ void Bridge::sync_topic(const std::string& name) {
     std::lock_guard lk(L.peers_mu);
     L.readers_seen.clear();
   }
-  if (!pubs.empty() && L.writer.load() == 0) {
-    L.wq = wq;
-    detail::Qos q;
-    detail::fill_qos(q, wq, false, participant_->identity(), l->type);
-    dds_listener_t* ls = dds_create_listener(&L);
-    dds_lset_publication_matched(ls, &BridgeAccess::publication_matched);
-    dds_lset_offered_incompatible_qos(ls, &BridgeAccess::offered_incompatible);
-    const dds_entity_t w = dds_create_writer(participant_->handle(), L.topic.topic, q.q, ls);
-    dds_delete_listener(ls);
-    if (w < 0) fail("cannot create a DDS writer for " + name, w);
-    L.writer_latched.store(wq.transient_local);
-    L.writer.store(w);
-    BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
-    if (L.tap == 0) {
-      // Publishers of the topic send on their own thread, once local
-      // subscribers have the message; a latched topic replays its history
-      // into the (transient-local) writer here.
-      Link* raw = l.get();
-      const std::uint32_t own = origin_;
-      L.local = topic;
-      L.tap = topic->add_tap([raw, own](const std::shared_ptr<const void>& m, const bus::MessageInfo& info) {
-        if (info.origin != own) raw->bridge->send(*raw, m);
-      });
-    }
-  }
+  if (pubs.empty() || L.writer.load() != 0) return;
+  L.wq = wq;
+  detail::Qos q;
+  detail::fill_qos(q, wq, false, participant_->identity(), L.type);
+  dds_listener_t* ls = dds_create_listener(&L);
+  dds_lset_publication_matched(ls, &BridgeAccess::publication_matched);
+  dds_lset_offered_incompatible_qos(ls, &BridgeAccess::offered_incompatible);
+  const dds_entity_t w = dds_create_writer(participant_->handle(), L.topic.topic, q.q, ls);
+  dds_delete_listener(ls);
+  if (w < 0) fail("cannot create a DDS writer for " + L.name, w);
+  L.writer_latched.store(wq.transient_local);
+  L.writer.store(w);
+  BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
+  if (L.tap != 0) return;
+  // Publishers of the topic send on their own thread, once local subscribers
+  // have the message; a latched topic replays its history into the
+  // (transient-local) writer here.
+  Link* raw = &L;
+  const std::uint32_t own = origin_;
+  L.local = topic;
+  L.tap = topic->add_tap([raw, own](const std::shared_ptr<const void>& m, const bus::MessageInfo& info) {
+    if (info.origin != own) raw->bridge->send(*raw, m);
+  });
+}
 
-  // Reader: exists while the process subscribes to the topic.
+void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
+  // A reader exists while the process subscribes to the topic, with the QoS
+  // its subscribers need now.
   const EndpointQos rq = requested_qos(subs);
   if (L.reader.load() != 0 && (subs.empty() || !same(rq, L.rq))) {
-    dds_waitset_detach(waitset_, L.read_cond);
-    dds_delete(L.reader.exchange(0));  // deletes its read condition too
+    dds_delete(L.reader.exchange(0));  // waits for a listener call in progress
     L.remote_writers.store(0);
     std::lock_guard lk(L.peers_mu);
     L.writers_seen.clear();
   }
-  if (!subs.empty() && L.reader.load() == 0) {
-    L.rq = rq;
-    if (!L.in) {
-      bus::QoS pq = bus::QoS::keep_last(static_cast<std::size_t>(rq.depth));
-      pq.transient_local = rq.transient_local;  // late local subscribers get what came in
-      auto in = create_generic_publisher(name, *L.type, pq);
-      std::lock_guard lk(mu_);
-      L.in = std::move(in);
-    }
-    detail::Qos q;
-    detail::fill_qos(q, rq, true, participant_->identity(), l->type);
-    dds_listener_t* ls = dds_create_listener(&L);
-    dds_lset_subscription_matched(ls, &BridgeAccess::subscription_matched);
-    dds_lset_requested_incompatible_qos(ls, &BridgeAccess::requested_incompatible);
-    const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
-    dds_delete_listener(ls);
-    if (r < 0) fail("cannot create a DDS reader for " + name, r);
-    L.read_cond = dds_create_readcondition(r, DDS_ANY_STATE);
-    L.reader.store(r);
-    BridgeAccess::refresh_reader(L, r);
-    dds_waitset_attach(waitset_, L.read_cond, static_cast<dds_attach_t>(r));
+  if (subs.empty() || L.reader.load() != 0) return;
+  L.rq = rq;
+  if (!L.in) {
+    bus::QoS pq = bus::QoS::keep_last(static_cast<std::size_t>(rq.depth));
+    pq.transient_local = rq.transient_local;  // late local subscribers get what came in
+    auto in = create_generic_publisher(L.name, *L.type, pq);
+    std::lock_guard lk(mu_);
+    L.in = std::move(in);
   }
+  detail::Qos q;
+  detail::fill_qos(q, rq, true, participant_->identity(), L.type);
+  dds_listener_t* ls = dds_create_listener(&L);
+  dds_lset_subscription_matched(ls, &BridgeAccess::subscription_matched);
+  dds_lset_requested_incompatible_qos(ls, &BridgeAccess::requested_incompatible);
+  dds_lset_data_available(ls, &BridgeAccess::data_available);
+  const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
+  dds_delete_listener(ls);
+  if (r < 0) fail("cannot create a DDS reader for " + L.name, r);
+  L.reader.store(r);
+  BridgeAccess::refresh_reader(L, r);
+  drain(L, r, false);  // what arrived before the reader was stored
 }
 
 void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
@@ -416,6 +437,7 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     l.unmatched.fetch_add(1, std::memory_order_relaxed);
     return;
   }
+  TL_DDS_PROBE(SendEnter);
   std::vector<std::uint8_t> buf;
   buf.reserve(l.last_size.load(std::memory_order_relaxed));
   try {
@@ -427,8 +449,10 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     return;
   }
   l.last_size.store(buf.size(), std::memory_order_relaxed);
+  TL_DDS_PROBE(Serialized);
   ddsi_serdata* sd = detail::make_serdata(l.topic.sertype, std::move(buf));
   const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
+  TL_DDS_PROBE(Written);
   if (rc < 0) {
     if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
       logger().error("{}: DDS write failed: {} ({} remote reader(s))", l.name, dds_strretcode(rc),
@@ -439,55 +463,85 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
   l.sent.fetch_add(1, std::memory_order_relaxed);
 }
 
-void Bridge::receive_loop() {
-  std::vector<dds_attach_t> xs(64);
-  while (!quit_.load()) {
-    const dds_return_t n = dds_waitset_wait(waitset_, xs.data(), xs.size(), DDS_INFINITY);
-    if (quit_.load()) break;
-    for (dds_return_t i = 0; i < n && i < static_cast<dds_return_t>(xs.size()); ++i) {
-      const auto reader = static_cast<dds_entity_t>(xs[static_cast<std::size_t>(i)]);
-      if (reader == 0) continue;
-      std::shared_ptr<Link> l;
-      std::shared_ptr<bus::GenericPublisher> in;
-      {
-        std::lock_guard lk(mu_);
-        for (const auto& x : links_) {
-          if (x->reader.load() == reader) {
-            l = x;
-            in = x->in;
+void Bridge::drain(Link& l, dds_entity_t reader, bool may_block) {
+  l.pending.store(true, std::memory_order_seq_cst);
+  while (l.pending.load(std::memory_order_seq_cst) && !quit_.load()) {
+    std::unique_lock lk(l.deliver_mu, std::defer_lock);
+    if (may_block) {
+      lk.lock();
+    } else if (!lk.try_lock()) {
+      return;  // the holder looks again: it sees `pending`
+    }
+    l.pending.store(false, std::memory_order_seq_cst);
+    if (!may_block && l.handed_over.load()) return;  // the back-pressure thread takes everything
+    take_available(l, reader, may_block);
+    if (may_block) l.handed_over.store(false);
+  }
+}
+
+void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
+  for (;;) {
+    if (!may_block && l.in->would_wait()) {
+      hand_over(l);
+      return;
+    }
+    ddsi_serdata* sd = nullptr;
+    dds_sample_info_t info;
+    if (quit_.load() || dds_takecdr(reader, &sd, 1, &info, DDS_ANY_STATE) <= 0) return;
+    TL_DDS_PROBE(Taken);
+    detail::taking_over(sd);
+    if (info.valid_data) {
+      std::shared_ptr<void> msg;
+      try {
+        msg = l.type->deserialize(detail::serdata_bytes(sd));
+        TL_DDS_PROBE(Deserialized);
+      } catch (const std::exception& e) {
+        const auto errors = l.decode_errors.fetch_add(1) + 1;
+        if (worth_logging(errors)) {
+          Identity who;
+          if (auto* ep = dds_get_matched_publication_data(reader, info.publication_handle)) {
+            who = detail::read_identity(ep->qos);
+            dds_builtintopic_free_endpoint(ep);
           }
+          logger().error("{}: dropped a sample from {} that does not decode as {} ({} so far): {}", l.name,
+                         who.describe(), l.type->name, errors, e.what());
         }
       }
-      if (!l || !in) continue;
-      for (;;) {
-        ddsi_serdata* sd = nullptr;
-        dds_sample_info_t info;
-        if (dds_takecdr(reader, &sd, 1, &info, DDS_ANY_STATE) <= 0) break;
-        detail::taking_over(sd);
-        if (info.valid_data) {
-          std::shared_ptr<void> msg;
-          try {
-            msg = l->type->deserialize(detail::serdata_bytes(sd));
-          } catch (const std::exception& e) {
-            const auto errors = l->decode_errors.fetch_add(1) + 1;
-            if (worth_logging(errors)) {
-              Identity who;
-              if (auto* ep = dds_get_matched_publication_data(reader, info.publication_handle)) {
-                who = detail::read_identity(ep->qos);
-                dds_builtintopic_free_endpoint(ep);
-              }
-              logger().error("{}: dropped a sample from {} that does not decode as {} ({} so far): {}", l->name,
-                             who.describe(), l->type->name, errors, e.what());
-            }
-          }
-          if (msg) {
-            in->publish(std::move(msg), origin_);
-            l->received.fetch_add(1, std::memory_order_relaxed);
-          }
-        }
-        detail::handing_over(sd);
-        ddsi_serdata_unref(sd);
+      if (msg) {
+        l.in->publish(std::move(msg), origin_, may_block ? bus::Wait::ForRoom : bus::Wait::Never);
+        TL_DDS_PROBE(Delivered);
+        l.received.fetch_add(1, std::memory_order_relaxed);
       }
+    }
+    detail::handing_over(sd);
+    ddsi_serdata_unref(sd);
+  }
+}
+
+void Bridge::hand_over(Link& l) {
+  if (l.handed_over.exchange(true)) return;
+  {
+    std::lock_guard lk(slow_mu_);
+    slow_links_.push_back(&l);
+  }
+  slow_cv_.notify_one();
+}
+
+void Bridge::backpressure_loop() {
+  for (;;) {
+    Link* l = nullptr;
+    {
+      std::unique_lock lk(slow_mu_);
+      slow_cv_.wait(lk, [&] { return quit_.load() || !slow_links_.empty(); });
+      if (quit_.load()) return;
+      l = slow_links_.front();
+      slow_links_.erase(slow_links_.begin());
+    }
+    const dds_entity_t r = l->reader.load();
+    if (r != 0) {
+      drain(*l, r, true);
+    } else {
+      l->handed_over.store(false);
     }
   }
 }

@@ -2,6 +2,8 @@
 
 #include <dds/ddsi/q_radmin.h>
 
+#include "probe.hpp"
+
 #include <cstdio>
 #include <cstring>
 #include <new>
@@ -72,6 +74,7 @@ std::uint32_t sd_get_size(const ddsi_serdata* d) {
 }
 
 ddsi_serdata* sd_from_ser(const ddsi_sertype* type, ddsi_serdata_kind kind, const nn_rdata* frag, std::size_t size) {
+  TL_DDS_PROBE(FromSer);
   if (size > sertype_of(type)->max_sample_bytes) return nullptr;  // dropped by Cyclone
   auto* d = new_serdata(type, kind);
   try {

@@ -8,6 +8,7 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <future>
 #include <thread>
 
 #include <tinyline/bus/executor.hpp>
@@ -591,6 +592,49 @@ TEST(DdsBridge, TheLossOfAPeerIsReportedAndANewOneIsDiscovered) {
   }
   EXPECT_EQ(got.items(), (std::vector<std::string>{"beat 1", "beat 2"}));
   EXPECT_EQ(b.stats("/beat").remote_writers, 0u);
+}
+
+TEST(DdsBridge, AFullReliableSubscriberHoldsBackItsTopicInOrderWhileOtherTopicsKeepFlowing) {
+  // Samples are delivered on Cyclone's receive thread, which must never wait:
+  // when /bulk's reliable subscriber is full, the bridge's own thread waits
+  // for room and the rest stays in the DDS reader (back-pressure to the
+  // writer), while /other still arrives. Then every /bulk message arrives,
+  // once, in publish order.
+  const auto s = test_settings("x");
+  Side a("a", s), b("b", s);
+  auto talker = a.node("talker");
+  auto bulk_pub = talker->create_publisher<StringMsg>("/bulk", bus::QoS::reliable(1000));
+  auto other_pub = talker->create_publisher<StringMsg>("/other");
+  std::promise<void> open;
+  std::shared_future<void> gate = open.get_future().share();
+  tinyline::testing::Inbox<std::string> bulk(b.signal), other(b.signal);
+  auto bulk_sub = b.node("slow")->create_subscription<StringMsg>("/bulk", bus::QoS::reliable(2, 60s),
+                                                                 [&](const StringMsg& m) {
+                                                                   gate.wait();
+                                                                   bulk.push(m.data);
+                                                                 });
+  auto other_sub = b.node("quick")->create_subscription<StringMsg>("/other", bus::QoS::keep_last(100),
+                                                                   [&](const StringMsg& m) { other.push(m.data); });
+  a.run();
+  b.run();
+  ASSERT_TRUE(a.bridge->wait_for_peers({{"/bulk", 1, 0}, {"/other", 1, 0}}, 10s).ok);
+  ASSERT_TRUE(b.bridge->wait_for_peers({{"/bulk", 0, 1}, {"/other", 0, 1}}, 10s).ok);
+  constexpr int kBulk = 200;
+  for (int i = 1; i <= kBulk; ++i) ASSERT_TRUE(bulk_pub->publish(text(std::to_string(i))).ok());
+  // The subscriber holds one message in its callback and two in its queue.
+  ASSERT_TRUE(b.signal->wait_for([&] { return b.stats("/bulk").received >= 3; }, 10s)) << b.sink->dump();
+  for (int i = 1; i <= 20; ++i) other_pub->publish(text("o" + std::to_string(i)));
+  ASSERT_TRUE(b.signal->wait_for([&] { return other.size() >= 20; }, 10s)) << "the full /bulk subscriber held up /other";
+  EXPECT_EQ(bulk.size(), 0u);
+  EXPECT_LT(b.stats("/bulk").received, static_cast<std::uint64_t>(kBulk));  // the rest waits in DDS
+  open.set_value();
+  ASSERT_TRUE(b.signal->wait_for([&] { return bulk.size() >= kBulk; }, 30s)) << b.sink->dump();
+  std::vector<std::string> want;
+  for (int i = 1; i <= kBulk; ++i) want.push_back(std::to_string(i));
+  EXPECT_EQ(bulk.items(), want);
+  EXPECT_EQ(b.stats("/bulk").received, static_cast<std::uint64_t>(kBulk));
+  EXPECT_EQ(bulk_sub->timeouts(), 0u);
+  EXPECT_EQ(bulk_sub->dropped(), 0u);
 }
 
 TEST(DdsBridge, EndpointsCreatedAfterStartAreBridgedToo) {

@@ -55,14 +55,19 @@ struct ExecutorCore {
   std::atomic<std::uint64_t> groups_version{0};
   // Read by every publish, written only when a worker sleeps: its own line.
   alignas(64) std::atomic<int> sleepers{0};  ///< workers asleep on cv
+  /// 1 while a worker polls for work before sleeping: one poller is enough to
+  /// spare publishers the wake-up, and more would take cores from them.
+  std::atomic<int> spinning{0};
   /// Set by stop() (threaded executors) until the next spin: no worker will
   /// take more messages, so groups end their batch and reliable publishers
   /// stop waiting for room in these queues.
   std::atomic<bool> stopping{false};
 
-  /// Publisher side, after queueing work: wake one sleeping worker if any.
+  /// Publisher side, after queueing work: wake one sleeping worker if any,
+  /// unless one is polling (it stops polling, then looks once more before
+  /// it sleeps: with seq_cst on both sides one of the two sees the other).
   void wake() {
-    if (sleepers.load(std::memory_order_seq_cst) > 0) {
+    if (spinning.load(std::memory_order_seq_cst) == 0 && sleepers.load(std::memory_order_seq_cst) > 0) {
       // Taking the lock orders us after a worker between its last look and
       // its wait; notifying after releasing it spares the woken worker from
       // blocking on the lock we still hold (a second futex round trip).
@@ -203,8 +208,9 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
 
 struct ExecutorOptions {
   int threads = 1;
-  /// Before sleeping, an idle worker polls this long for new work: cross-thread
-  /// delivery then costs a cache miss instead of a futex wake-up.
+  /// Before sleeping, an idle worker polls this long for new work (one worker
+  /// at a time, yielding the core between polls): cross-thread delivery then
+  /// costs a cache miss instead of a futex wake-up.
   Duration spin = std::chrono::microseconds(50);
   /// Callbacks a worker runs from one group before moving on (fairness).
   std::size_t batch = 64;
@@ -257,6 +263,8 @@ class Executor {
   bool run_some_group(View& v);
   /// Hands due timers to their groups; returns the next due time if any.
   std::optional<Time> fire_due_timers(Time now, bool catch_up);
+  /// Polls up to `how_long` for work (ExecutorOptions::spin); true if some came.
+  bool poll_for_work(View& view, Duration how_long);
   /// The worker loop of spin().
   void worker_loop();
 

@@ -27,6 +27,11 @@ namespace tinyline::bus {
 class CallbackGroup;
 class Executor;
 
+/// Whether a publish may wait for room in a full reliable queue. Transports
+/// that deliver on a thread which must never block (DDS's receive thread)
+/// publish with Never and stop taking messages while would_wait() holds.
+enum class Wait { ForRoom, Never };
+
 struct PublishStatus {
   std::size_t delivered = 0;  ///< subscriptions that took the message
   std::size_t failed = 0;     ///< reliable subscriptions that timed out (each reported)
@@ -46,8 +51,12 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
 
   /// Publisher side. Returns false only for a reliable queue that stayed full
   /// for max_block (or could never drain because the publisher is the thread
-  /// that drains it); `why` then says which.
-  bool enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why);
+  /// that drains it); `why` then says which. With Wait::Never a full reliable
+  /// queue takes the message beyond its depth instead.
+  bool enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why,
+               Wait wait = Wait::ForRoom);
+  /// True when a publisher would wait here now (a full reliable queue).
+  bool would_wait();
 
   std::uint64_t received() const { return received_.load(std::memory_order_relaxed); }
   std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
@@ -126,7 +135,10 @@ class Topic {
   const std::string& name() const { return name_; }
   const msg::TypeSupport& type() const { return *type_; }
 
-  PublishStatus publish(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why);
+  PublishStatus publish(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why,
+                        Wait wait = Wait::ForRoom);
+  /// True when a publish would wait now: some reliable subscription is full.
+  bool would_wait() const;
 
   void add_subscription(const std::shared_ptr<SubscriptionBase>& s);
   void remove_subscription(const SubscriptionBase* s);

@@ -49,7 +49,7 @@ namespace detail {
 /// Stamps a message with the clock and a sequence number, hands it to every
 /// subscription of the topic, and logs a failure with the publisher's logger.
 PublishStatus publish(Topic& topic, Clock& clock, const Logger& logger, std::shared_ptr<const void> msg,
-                      std::uint32_t origin);
+                      std::uint32_t origin, Wait wait = Wait::ForRoom);
 }  // namespace detail
 
 /// Typed publisher. publish() hands the same object to every subscriber. It
@@ -86,7 +86,9 @@ class GenericPublisher {
   GenericPublisher(const GenericPublisher&) = delete;
   GenericPublisher& operator=(const GenericPublisher&) = delete;
 
-  PublishStatus publish(std::shared_ptr<const void> msg, std::uint32_t origin = 0);
+  PublishStatus publish(std::shared_ptr<const void> msg, std::uint32_t origin = 0, Wait wait = Wait::ForRoom);
+  /// True when publish() would wait now (a reliable subscriber's queue is full).
+  bool would_wait() const { return topic_->would_wait(); }
   /// Decodes encapsulated CDR with the topic's type support, then publishes.
   /// Throws cdr::Error on bytes that do not decode.
   PublishStatus publish_serialized(std::span<const std::uint8_t> cdr, std::uint32_t origin = 0);

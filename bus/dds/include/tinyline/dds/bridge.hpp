@@ -3,15 +3,23 @@
 //
 //   local publisher --shared_ptr--> local subscribers          (zero copy, as before)
 //                   \--> topic tap: serialize once --> DDS writer "rt/<topic>"
-//   DDS reader "rt/<topic>" --> receive thread: deserialize once --> local subscribers
+//   DDS reader "rt/<topic>" --> Cyclone's receive thread: deserialize once --> local subscribers
 //
 // Only topics with a local endpoint get DDS endpoints: a DDS writer when the
 // process publishes the topic, a reader when it subscribes to it. Sending
 // happens inside publish(), on the publisher's thread, after the local
 // subscribers have the message (as in ROS 2); a writer with no matched reader
-// skips serialization entirely. Messages the bridge injects carry its origin
-// and its tap ignores that origin, so nothing is echoed back; DDS readers
-// ignore writers of their own participant.
+// skips serialization entirely. Receiving happens on Cyclone's receive thread
+// itself (a data-available listener): it takes each sample, deserializes it
+// and queues it for the subscribers' executor, with no thread in between.
+// That thread must never block (it also handles acknowledgements), so while
+// a reliable local subscriber's queue is full the bridge's own thread takes
+// over the topic and waits for room, leaving the rest in the DDS reader's
+// history: back-pressure reaches the remote writer as before. One topic's
+// samples are delivered by one thread at a time, in the order the reader
+// holds them (per remote writer, its publish order). Messages the bridge
+// injects carry its origin and its tap ignores that origin, so nothing is
+// echoed back; DDS readers ignore writers of their own participant.
 //
 // QoS maps one to one (keep-last depth or keep-all, reliable or best effort,
 // volatile or transient local), so DDS matching rules apply across processes
@@ -97,7 +105,8 @@ EndpointQos requested_qos(const std::vector<bus::QoS>& subscribers);
 std::string incompatibility(const EndpointQos& offered, const EndpointQos& requested);
 
 /// It needs no executor: sending runs on the publishers' threads, receiving on
-/// its own thread (adding it to one is harmless; on_start() calls start()).
+/// Cyclone's (and its own while a subscriber queue is full); adding it to an
+/// executor is harmless (on_start() calls start()).
 class Bridge : public bus::Node {
  public:
   /// Creates the participant and starts the receive thread; DDS endpoints are
@@ -136,9 +145,25 @@ class Bridge : public bus::Node {
  private:
   friend struct BridgeAccess;
   void on_graph_change(const std::string& topic);
+  /// Creates, replaces or deletes the topic's DDS endpoints to match its
+  /// local publishers and subscribers now.
   void sync_topic(const std::string& topic);
+  struct LocalEndpoints {
+    std::vector<bus::QoS> publishers, subscribers;  ///< of nodes other than the bridge
+  };
+  LocalEndpoints local_endpoints(const std::string& topic);
+  std::shared_ptr<Link> find_link(const std::string& topic) const;
+  std::shared_ptr<Link> add_link(const std::string& topic, const bus::Topic& local);
+  void sync_writer(Link& link, const std::shared_ptr<bus::Topic>& local, const std::vector<bus::QoS>& publishers);
+  void sync_reader(Link& link, const std::vector<bus::QoS>& subscribers);
   void send(Link& link, const std::shared_ptr<const void>& msg);
-  void receive_loop();
+  /// Delivers the samples `reader` holds. From the listener (`may_block`
+  /// false) it never waits: a full reliable subscriber hands the topic to
+  /// the back-pressure thread, which waits for room (`may_block` true).
+  void drain(Link& link, std::int32_t reader, bool may_block);
+  void take_available(Link& link, std::int32_t reader, bool may_block);
+  void hand_over(Link& link);
+  void backpressure_loop();
   void attach_graph(const std::weak_ptr<Bridge>& self);
 
   BridgeOptions options_;
@@ -153,11 +178,13 @@ class Bridge : public bus::Node {
   bool started_ = false;
   bool stopped_ = false;
   int graph_listener_ = 0;
-  std::int32_t waitset_ = 0;
-  std::int32_t wake_ = 0;
   std::atomic<bool> quit_{false};
   std::atomic<bool> departures_expected_{false};
-  std::thread receiver_;
+  // Topics whose subscribers are full, for the back-pressure thread.
+  std::mutex slow_mu_;
+  std::condition_variable slow_cv_;
+  std::vector<Link*> slow_links_;
+  std::thread backpressure_;
   std::mutex match_mu_;  // guards match_events_ (bumped by DDS listeners)
   std::condition_variable matched_cv_;
   std::uint64_t match_events_ = 0;
