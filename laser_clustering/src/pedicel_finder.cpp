@@ -192,130 +192,146 @@ PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, cons
   return expectation_after_move(p, before, moved, moved.candidates.front().position_xz_m - throat);
 }
 
-PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
-                              const std::optional<PedicelExpectation>& expectation) {
-  PedicelDetection d;
-  if (auto v = validate(p); !v.valid) {
-    d.reason = v.reason;
-    return d;
+namespace {
+
+// Why an expectation cannot be used, or empty.
+std::string check_expectation(const PedicelExpectation& e) {
+  if (!e.position_xz_m.allFinite() || !std::isfinite(e.sd_m) || e.sd_m <= 0.0) {
+    return "expectation must have a finite position and sd_m > 0";
   }
-  if (expectation && (!expectation->position_xz_m.allFinite() || !std::isfinite(expectation->sd_m) ||
-                      expectation->sd_m <= 0.0)) {
-    d.reason = "expectation must have a finite position and sd_m > 0";
-    return d;
-  }
-  if (expectation && !expectation->neighbours.empty()) {
-    if (!std::isfinite(expectation->neighbour_sd_m) || expectation->neighbour_sd_m <= 0.0) {
-      d.reason = fmt::format("expectation neighbour_sd_m must be > 0 (got {})", expectation->neighbour_sd_m);
-      return d;
+  if (!e.neighbours.empty()) {
+    if (!std::isfinite(e.neighbour_sd_m) || e.neighbour_sd_m <= 0.0) {
+      return fmt::format("expectation neighbour_sd_m must be > 0 (got {})", e.neighbour_sd_m);
     }
-    for (std::size_t i = 0; i < expectation->neighbours.size(); ++i) {
-      if (!expectation->neighbours[i].position_xz_m.allFinite()) {
-        d.reason = fmt::format("expectation neighbour {} has a non-finite position", i);
-        return d;
-      }
+    for (std::size_t i = 0; i < e.neighbours.size(); ++i) {
+      if (!e.neighbours[i].position_xz_m.allFinite()) return fmt::format("expectation neighbour {} has a non-finite position", i);
     }
   }
-  if (expectation && !(expectation->gate_sd > 0.0)) {
-    d.reason = fmt::format("expectation gate_sd must be > 0 (got {})", expectation->gate_sd);
-    return d;
+  if (!(e.gate_sd > 0.0)) return fmt::format("expectation gate_sd must be > 0 (got {})", e.gate_sd);
+  for (std::size_t i = 0; i < e.alternatives.size(); ++i) {
+    const auto& alt = e.alternatives[i];
+    if (!alt.position_xz_m.allFinite() || !(alt.weight > 0.0 && alt.weight <= 1.0)) {
+      return fmt::format("expectation alternative {} needs a finite position and a weight in (0, 1] (got {})", i,
+                         alt.weight);
+    }
   }
+  return {};
+}
+
+// Why the inputs cannot be used, or empty.
+std::string check_inputs(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
+                         const std::optional<PedicelExpectation>& expectation) {
+  if (auto v = validate(p); !v.valid) return v.reason;
   if (expectation) {
-    for (std::size_t i = 0; i < expectation->alternatives.size(); ++i) {
-      const auto& alt = expectation->alternatives[i];
-      if (!alt.position_xz_m.allFinite() || !(alt.weight > 0.0 && alt.weight <= 1.0)) {
-        d.reason = fmt::format("expectation alternative {} needs a finite position and a weight in (0, 1] (got {})", i,
-                               alt.weight);
-        return d;
-      }
-    }
+    if (std::string why = check_expectation(*expectation); !why.empty()) return why;
   }
-  if (!objects.ok) {
-    d.reason = "clustering failed: " + objects.reason;
-    return d;
-  }
+  if (!objects.ok) return "clustering failed: " + objects.reason;
   if (objects.labels.size() != scan.size()) {
-    d.reason = fmt::format("clustering has {} labels for a scan of {} pixels", objects.labels.size(), scan.size());
-    return d;
+    return fmt::format("clustering has {} labels for a scan of {} pixels", objects.labels.size(), scan.size());
   }
+  return {};
+}
 
-  std::size_t in_range = 0;
-  for (std::size_t i = 0; i < scan.size(); ++i) {
-    in_range += scan.valid(i) && scan.range_m[i] >= p.min_range_m && scan.range_m[i] <= p.max_range_m;
-  }
-  if (in_range == 0) {
-    d.outcome = PedicelOutcome::kOutOfView;
-    d.reason = scan.size() == 0 ? "empty scan"
-                                : fmt::format("no return between {:.3f} and {:.3f} m ({} valid pixels of {})",
-                                              p.min_range_m, p.max_range_m, scan.num_valid(), scan.size());
-    return d;
-  }
+// Where the pedicel is expected, how sure, and how far a candidate may lie.
+struct Prior {
+  Eigen::Vector2d expected;
+  double sd;
+  double gate_sd;  // in sd; infinite without an expectation
+};
 
-  const Eigen::Vector2d expected =
-      expectation ? expectation->position_xz_m : Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m);
-  const double sd = expectation ? expectation->sd_m : p.search_sd_m;
-  const double gate_sd = expectation ? expectation->gate_sd : std::numeric_limits<double>::infinity();
+Prior prior_of(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& expectation) {
+  if (!expectation) {
+    return {Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m), p.search_sd_m,
+            std::numeric_limits<double>::infinity()};
+  }
+  return {expectation->position_xz_m, expectation->sd_m, expectation->gate_sd};
+}
+
+// The objects considered, counted by why they are no candidate.
+struct Census {
   int in_range_objects = 0, cut_by_edge = 0, beyond_gate = 0;
   double nearest_beyond_m = std::numeric_limits<double>::infinity();
+};
+
+// Object k as a candidate: its shape, isolation and position scores. Sets
+// z_min to its distance to the nearest expected point (or alternative) in sd.
+PedicelCandidate candidate_of(const ScanCluster& c, int k, const PedicelFinderParams& p, const Prior& prior,
+                              const std::optional<PedicelExpectation>& expectation, double& z_min) {
+  PedicelCandidate cand;
+  cand.cluster = k;
+  cand.width_m = c.width_m;
+  cand.position_xz_m = c.centroid_xz_m;
+  const double zw = (c.width_m - p.diameter_m) / p.diameter_sd_m;
+  cand.shape_score = std::exp(-0.5 * zw * zw);
+  cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
+  const double zp = (c.centroid_xz_m - prior.expected).norm() / prior.sd;
+  z_min = zp;
+  cand.position_score = std::exp(-0.5 * zp * zp);
+  if (expectation) {
+    for (const auto& alt : expectation->alternatives) {
+      const double za = (c.centroid_xz_m - alt.position_xz_m).norm() / prior.sd;
+      z_min = std::min(z_min, za);
+      cand.position_score = std::max(cand.position_score, alt.weight * std::exp(-0.5 * za * za));
+    }
+  }
+  return cand;
+}
+
+// The pedicel-like objects in range, not cut by the view, within the gate.
+Census gather_candidates(const TwoStageResult& objects, const PedicelFinderParams& p, const Prior& prior,
+                         const std::optional<PedicelExpectation>& expectation, std::vector<PedicelCandidate>& out) {
+  Census n;
   for (std::size_t k = 0; k < objects.clusters.size(); ++k) {
     const ScanCluster& c = objects.clusters[k];
     if (c.mean_range_m < p.min_range_m || c.mean_range_m > p.max_range_m) continue;
-    ++in_range_objects;
+    ++n.in_range_objects;
     if (c.num_points < p.min_points || c.width_m < p.min_width_m || c.width_m > p.max_width_m) continue;
     if (c.touches_fov_edge) {  // width unknown: it may be a tomato or a stem cut by the view
-      ++cut_by_edge;
+      ++n.cut_by_edge;
       continue;
     }
-    PedicelCandidate cand;
-    cand.cluster = static_cast<int>(k);
-    cand.width_m = c.width_m;
-    cand.position_xz_m = c.centroid_xz_m;
-    const double zw = (c.width_m - p.diameter_m) / p.diameter_sd_m;
-    cand.shape_score = std::exp(-0.5 * zw * zw);
-    cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
-    const double zp = (c.centroid_xz_m - expected).norm() / sd;
-    double z_min = zp;
-    cand.position_score = std::exp(-0.5 * zp * zp);
-    if (expectation) {
-      for (const auto& alt : expectation->alternatives) {
-        const double za = (c.centroid_xz_m - alt.position_xz_m).norm() / sd;
-        z_min = std::min(z_min, za);
-        cand.position_score = std::max(cand.position_score, alt.weight * std::exp(-0.5 * za * za));
-      }
-    }
-    if (z_min > gate_sd) {
-      ++beyond_gate;
-      nearest_beyond_m = std::min(nearest_beyond_m, z_min * sd);
+    double z_min = 0.0;
+    const PedicelCandidate cand = candidate_of(c, static_cast<int>(k), p, prior, expectation, z_min);
+    if (z_min > prior.gate_sd) {
+      ++n.beyond_gate;
+      n.nearest_beyond_m = std::min(n.nearest_beyond_m, z_min * prior.sd);
       continue;
     }
-    d.candidates.push_back(cand);
+    out.push_back(cand);
   }
-  if (expectation && !expectation->neighbours.empty()) score_layout(scan, *expectation, p, d.candidates);
-  for (auto& cand : d.candidates) cand.weight = cand.shape_score * cand.isolation * cand.position_score * cand.layout_score;
-  // Best first, ties in scan order: an insertion sort (a scan holds a few
-  // candidates; std::stable_sort would allocate its buffer every scan).
-  for (std::size_t i = 1; i < d.candidates.size(); ++i) {
-    for (std::size_t j = i; j > 0 && d.candidates[j].weight > d.candidates[j - 1].weight; --j) {
-      std::swap(d.candidates[j], d.candidates[j - 1]);
-    }
-  }
-  if (d.candidates.empty()) {
-    if (beyond_gate > 0) {
-      d.outcome = PedicelOutcome::kNothingToCut;
-      d.reason = fmt::format("{} pedicel-like object{} in view, none within {:.3f} m ({} sd) of where the pedicel is expected "
-                             "(nearest {:.3f} m)",
-                             beyond_gate, beyond_gate == 1 ? "" : "s", gate_sd * sd, gate_sd, nearest_beyond_m);
-    } else if (cut_by_edge > 0) {
-      d.outcome = PedicelOutcome::kOutOfView;
-      d.reason = fmt::format("the only pedicel-sized object{} cut by the edge of the field of view",
-                             cut_by_edge > 1 ? "s are" : " is");
-    } else {
-      d.outcome = PedicelOutcome::kNothingToCut;
-      d.reason = fmt::format("{} object{} in range, none pedicel-like", in_range_objects, in_range_objects == 1 ? "" : "s");
-    }
-    return d;
-  }
+  return n;
+}
 
+// Best first, ties in scan order: an insertion sort (a scan holds a few
+// candidates; std::stable_sort would allocate its buffer every scan).
+void rank(std::vector<PedicelCandidate>& cands) {
+  for (auto& cand : cands) cand.weight = cand.shape_score * cand.isolation * cand.position_score * cand.layout_score;
+  for (std::size_t i = 1; i < cands.size(); ++i) {
+    for (std::size_t j = i; j > 0 && cands[j].weight > cands[j - 1].weight; --j) std::swap(cands[j], cands[j - 1]);
+  }
+}
+
+// The outcome and reason when no candidate is left.
+void explain_no_candidate(const Census& n, const Prior& prior, PedicelDetection& d) {
+  if (n.beyond_gate > 0) {
+    d.outcome = PedicelOutcome::kNothingToCut;
+    d.reason = fmt::format("{} pedicel-like object{} in view, none within {:.3f} m ({} sd) of where the pedicel is expected "
+                           "(nearest {:.3f} m)",
+                           n.beyond_gate, n.beyond_gate == 1 ? "" : "s", prior.gate_sd * prior.sd, prior.gate_sd,
+                           n.nearest_beyond_m);
+  } else if (n.cut_by_edge > 0) {
+    d.outcome = PedicelOutcome::kOutOfView;
+    d.reason = fmt::format("the only pedicel-sized object{} cut by the edge of the field of view",
+                           n.cut_by_edge > 1 ? "s are" : " is");
+  } else {
+    d.outcome = PedicelOutcome::kNothingToCut;
+    d.reason = fmt::format("{} object{} in range, none pedicel-like", n.in_range_objects,
+                           n.in_range_objects == 1 ? "" : "s");
+  }
+}
+
+// The best candidate as the detection: where to move or cut, how sure.
+void choose_best(const PedicelFinderParams& p, PedicelDetection& d) {
   const PedicelCandidate& best = d.candidates.front();
   double total = 0.0;
   for (const auto& c : d.candidates) total += c.weight;
@@ -336,6 +352,34 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
   // A fixed note: the numbers are in the fields, and formatting them would
   // cost more than finding the pedicel.
   d.reason = between_blades ? "pedicel between the blades" : "pedicel in view: move to it";
+}
+
+}  // namespace
+
+PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
+                              const std::optional<PedicelExpectation>& expectation) {
+  PedicelDetection d;
+  if (d.reason = check_inputs(scan, objects, p, expectation); !d.reason.empty()) return d;
+  std::size_t in_range = 0;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    in_range += scan.valid(i) && scan.range_m[i] >= p.min_range_m && scan.range_m[i] <= p.max_range_m;
+  }
+  if (in_range == 0) {
+    d.outcome = PedicelOutcome::kOutOfView;
+    d.reason = scan.size() == 0 ? "empty scan"
+                                : fmt::format("no return between {:.3f} and {:.3f} m ({} valid pixels of {})",
+                                              p.min_range_m, p.max_range_m, scan.num_valid(), scan.size());
+    return d;
+  }
+  const Prior prior = prior_of(p, expectation);
+  const Census census = gather_candidates(objects, p, prior, expectation, d.candidates);
+  if (expectation && !expectation->neighbours.empty()) score_layout(scan, *expectation, p, d.candidates);
+  rank(d.candidates);
+  if (d.candidates.empty()) {
+    explain_no_candidate(census, prior, d);
+  } else {
+    choose_best(p, d);
+  }
   return d;
 }
 
