@@ -225,7 +225,7 @@ void OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanParams& p
 // compact the valid pixels, mark core pixels, build runs of linked core
 // pixels, link the runs, number the clusters, label the borders.
 
-void OrderedScanDbscan::cache_trig(std::span<const double> angle_rad) {
+[[gnu::always_inline]] inline void OrderedScanDbscan::cache_trig(std::span<const double> angle_rad) {
   // A sensor's pixel angles are the same scan after scan: keep their sines
   // and cosines (they would cost more than the clustering itself).
   const std::size_t n = angle_rad.size();
@@ -245,7 +245,7 @@ namespace {
 
 // As pixel_valid(), without the branches an instantiation does not need.
 template <bool with_f, bool with_g>
-inline bool pixel_valid_as(const OrderedScanPoints& scan, std::size_t i) {
+[[gnu::always_inline]] inline bool pixel_valid_as(const OrderedScanPoints& scan, std::size_t i) {
   constexpr double kMax = std::numeric_limits<double>::max();
   const double rr = scan.range_m[i], aa = scan.angle_rad[i];
   bool ok = rr > 0.0 && rr <= kMax && aa >= -kMax && aa <= kMax;
@@ -262,7 +262,7 @@ inline bool pixel_valid_as(const OrderedScanPoints& scan, std::size_t i) {
 // satisfies |r_i - r_j| <= eps) and each pixel's squared distance to the
 // previous valid one. Returns the number of valid pixels.
 template <bool with_f, bool with_g>
-std::size_t OrderedScanDbscan::compact(const OrderedScanPoints& scan, double eps, DbscanResult& r) {
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::compact(const OrderedScanPoints& scan, double eps, DbscanResult& r) {
   constexpr int kBlock = detail::CompactScan<with_f, with_g>::kBlock;
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const std::size_t n_all = scan.range_m.size();
@@ -325,7 +325,7 @@ std::size_t OrderedScanDbscan::compact(const OrderedScanPoints& scan, double eps
 }
 
 template <bool with_f, bool with_g>
-detail::CompactScan<with_f, with_g> OrderedScanDbscan::view(int n, double eps) const {
+[[gnu::always_inline]] inline detail::CompactScan<with_f, with_g> OrderedScanDbscan::view(int n, double eps) const {
   return {x_.data(),     z_.data(),        f_.data(),        g_.data(),         theta_.data(), range_.data(),
           block_lo_.data(), block_hi_.data(), adjacent_.data(), n, eps, eps * eps};
 }
@@ -336,7 +336,7 @@ namespace {
 // pixels first, then walks outwards from there (right, then left), stopping
 // as soon as min_points is reached.
 template <bool with_f, bool with_g>
-bool reaches_min_points(const detail::CompactScan<with_f, with_g>& s, int i, int min_points) {
+[[gnu::always_inline]] inline bool reaches_min_points(const detail::CompactScan<with_f, with_g>& s, int i, int min_points) {
   const int n = s.n;
   int count = 1 + (i > 0 && s.adjacent_within(i - 1)) + (i + 1 < n && s.adjacent_within(i));
   if (count >= min_points) return true;
@@ -359,7 +359,7 @@ bool reaches_min_points(const detail::CompactScan<with_f, with_g>& s, int i, int
 }  // namespace
 
 template <bool with_f, bool with_g>
-std::size_t OrderedScanDbscan::mark_core(const detail::CompactScan<with_f, with_g>& s, int min_points, DbscanResult& r) {
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::mark_core(const detail::CompactScan<with_f, with_g>& s, int min_points, DbscanResult& r) {
   std::size_t num_core = 0;
   for (int i = 0; i < s.n; ++i) {
     const std::uint8_t c = reaches_min_points(s, i, min_points) ? 1 : 0;
@@ -377,7 +377,7 @@ std::size_t OrderedScanDbscan::mark_core(const detail::CompactScan<with_f, with_
 // the disjoint sets of the runs. The run's end, length and depth interval
 // stay in registers (not a load-store chain through run_end_ and size_ per
 // pixel).
-void OrderedScanDbscan::build_runs(int n, double eps2) {
+[[gnu::always_inline]] inline void OrderedScanDbscan::build_runs(int n, double eps2) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   for (auto* v : {&run_end_, &parent_, &size_}) v->resize(static_cast<std::size_t>(n));
   run_lo_.resize(static_cast<std::size_t>(n));
@@ -414,7 +414,7 @@ void OrderedScanDbscan::build_runs(int n, double eps2) {
 // that could change the sets; after a union the rest of that run is jumped
 // over too.
 template <bool with_f, bool with_g>
-void OrderedScanDbscan::link_runs(const detail::CompactScan<with_f, with_g>& s) {
+[[gnu::always_inline]] inline void OrderedScanDbscan::link_runs(const detail::CompactScan<with_f, with_g>& s) {
   const int n = s.n;
   const double eps_wide = s.eps * (1.0 + 1e-9);
   detail::DisjointSets sets(parent_, size_);
@@ -470,7 +470,7 @@ void OrderedScanDbscan::link_runs(const detail::CompactScan<with_f, with_g>& s) 
 
 // Clusters in the order of their lowest-indexed core point; a run's pixels
 // share a root: one find per run. Returns the number of clusters.
-int OrderedScanDbscan::number_clusters(int n, DbscanResult& r) {
+[[gnu::always_inline]] inline int OrderedScanDbscan::number_clusters(int n, DbscanResult& r) {
   detail::DisjointSets sets(parent_, size_);
   cluster_of_root_.assign(static_cast<std::size_t>(n), -1);
   int clusters = 0;
@@ -493,7 +493,7 @@ int OrderedScanDbscan::number_clusters(int n, DbscanResult& r) {
 // non-core point is noise without a search (stage 3 of the two-stage
 // clustering runs with 2). Returns the number of noise points.
 template <bool with_f, bool with_g>
-std::size_t OrderedScanDbscan::label_borders(const detail::CompactScan<with_f, with_g>& s, int min_points,
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::label_borders(const detail::CompactScan<with_f, with_g>& s, int min_points,
                                              DbscanResult& r) {
   auto core = [&](int i) { return core_[static_cast<std::size_t>(i)] != 0; };
   auto label = [&](int i) -> int& { return r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])]; };

@@ -88,7 +88,7 @@ void finish(DbscanResult& r, std::size_t num_core, std::size_t num_noise, std::s
 /// between; it spares an asin per pixel), widened by a hair so rounding never
 /// hides a pair at exactly eps. It grows with eps / r, in floating point too
 /// (every step rounds monotonically).
-inline double bearing_half_window(double eps, double range_m) {
+[[gnu::always_inline]] inline double bearing_half_window(double eps, double range_m) {
   constexpr double kCubic = std::numbers::pi / 2.0 - 1.0;
   const double x = eps / range_m;
   return x >= 1.0 ? std::numbers::pi * 2.0 : (x + kCubic * x * x * x) * (1.0 + 1e-9) + 1e-12;
@@ -118,10 +118,10 @@ class CompactScan {
   int n;                   ///< valid pixels
   double eps, eps2;
 
-  [[nodiscard]] double half_window(int i) const { return bearing_half_window(eps, range[i]); }
+  [[gnu::always_inline]] [[nodiscard]] double half_window(int i) const { return bearing_half_window(eps, range[i]); }
 
   /// Squared distance; pixels of different groups are infinitely far apart.
-  [[nodiscard]] double d2(int i, int j) const {
+  [[gnu::always_inline]] [[nodiscard]] double d2(int i, int j) const {
     if constexpr (with_group) {
       if (g[i] != g[j]) return kInf;
     }
@@ -138,18 +138,18 @@ class CompactScan {
 
   /// k and k+1 within eps (adjacent pixels are the likeliest neighbours:
   /// their distances, computed once, serve the core test and the runs).
-  [[nodiscard]] bool adjacent_within(int k) const { return adjacent[k] <= eps2; }
+  [[gnu::always_inline]] [[nodiscard]] bool adjacent_within(int k) const { return adjacent[k] <= eps2; }
 
   /// Calls visit(j) for j = from, from+1, ... within i's bearing window,
   /// skipping blocks at other depths, until visit returns false. Returns
   /// false if visit stopped it.
   template <class Visit>
-  bool walk_right(int i, int from, Visit&& visit) const {
+  [[gnu::always_inline]] bool walk_right(int i, int from, Visit&& visit) const {
     const double limit = theta[i] + half_window(i), ri = range[i];
     for (int j = from; j < n;) {
       if (theta[j] > limit) return true;
-      const int b = j / kBlock;
-      const int end = std::min(n, (b + 1) * kBlock);
+      const auto b = static_cast<std::size_t>(j) / kBlock;  // j >= 0: an unsigned shift
+      const int end = std::min(n, static_cast<int>(b + 1) * kBlock);
       if (ri < block_lo[b] || ri > block_hi[b]) {
         j = end;
         continue;
@@ -164,12 +164,12 @@ class CompactScan {
 
   /// The same for j = from, from-1, ...
   template <class Visit>
-  bool walk_left(int i, int from, Visit&& visit) const {
+  [[gnu::always_inline]] bool walk_left(int i, int from, Visit&& visit) const {
     const double limit = theta[i] - half_window(i), ri = range[i];
     for (int j = from; j >= 0;) {
       if (theta[j] < limit) return true;
-      const int b = j / kBlock;
-      const int end = b * kBlock - 1;
+      const auto b = static_cast<std::size_t>(j) / kBlock;
+      const int end = static_cast<int>(b * kBlock) - 1;
       if (ri < block_lo[b] || ri > block_hi[b]) {
         j = end;
         continue;

@@ -53,6 +53,67 @@ common::Validation validate(const PedicelFinderParams& p) {
 
 namespace {
 
+// Whether an expected pedicel at q could be seen: inside the field of view
+// and the range limits, not within a few pixels of the view's edge (a cut
+// object is no candidate), and not behind something nearer on its bearing
+// (a tomato in front). An expected pedicel that could not be seen may be
+// missing without blame.
+class Visibility {
+ public:
+  Visibility(const LineScan& scan, const PedicelFinderParams& p)
+      : scan_(scan), p_(p), lo_(scan.angle_rad.front()), hi_(scan.angle_rad.back()),
+        rising_(scan.angle_rad.back() > scan.angle_rad.front()), npx_(static_cast<std::ptrdiff_t>(scan.size())) {
+    if (lo_ > hi_) std::swap(lo_, hi_);
+  }
+
+  bool operator()(const Eigen::Vector2d& q) const {
+    constexpr std::ptrdiff_t kEdgePx = 3, kNearPx = 2;
+    const double angle = std::atan2(q.x(), q.y()), range = q.norm();
+    if (!(angle > lo_ && angle < hi_) || range < p_.min_range_m || range > p_.max_range_m) return false;
+    const auto& a = scan_.angle_rad;
+    const auto it = rising_ ? std::lower_bound(a.begin(), a.end(), angle) : std::lower_bound(a.begin(), a.end(), angle, std::greater<>());
+    const std::ptrdiff_t i = it - a.begin();
+    if (i < kEdgePx || i >= npx_ - kEdgePx) return false;
+    for (std::ptrdiff_t k = std::max<std::ptrdiff_t>(0, i - kNearPx); k <= std::min(npx_ - 1, i + kNearPx); ++k) {
+      const auto u = static_cast<std::size_t>(k);
+      if (scan_.valid(u) && scan_.range_m[u] < range - p_.occlusion_margin_m) return false;
+    }
+    return true;
+  }
+
+ private:
+  const LineScan& scan_;
+  const PedicelFinderParams& p_;
+  double lo_, hi_;
+  bool rising_;
+  std::ptrdiff_t npx_;
+};
+
+// The shift that moves the vision's layout onto candidate j: matched to
+// the other candidates (nearest within 3 sd), refitted on the matches,
+// matched again. `nearest` is scratch (one per neighbour).
+Eigen::Vector2d layout_shift(const std::vector<PedicelCandidate>& cands, std::size_t j, const PedicelExpectation& e,
+                             std::vector<int>& nearest) {
+  const double gate2 = 9.0 * e.neighbour_sd_m * e.neighbour_sd_m;  // 3 sd: farther is no match
+  Eigen::Vector2d shift = cands[j].position_xz_m - e.position_xz_m;
+  for (int pass = 0; pass < 2; ++pass) {  // match, refit the shift on the matches, match again
+    Eigen::Vector2d sum = cands[j].position_xz_m - e.position_xz_m;
+    int pairs = 1;
+    for (std::size_t i = 0; i < e.neighbours.size(); ++i) {
+      const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
+      nearest[i] = -1;
+      double best = gate2;
+      for (std::size_t k = 0; k < cands.size(); ++k) {
+        const double d2 = (cands[k].position_xz_m - q).squaredNorm();
+        if (k != j && d2 < best) best = d2, nearest[i] = static_cast<int>(k);
+      }
+      if (nearest[i] >= 0) sum += cands[static_cast<std::size_t>(nearest[i])].position_xz_m - e.neighbours[i].position_xz_m, ++pairs;
+    }
+    shift = sum / pairs;
+  }
+  return shift;
+}
+
 // The truss layout test: candidate j taken for the target moves the vision's
 // layout onto it; the move is then refined on every expected neighbour that
 // met a candidate (the target's own expectation is as uncertain as theirs, so
@@ -62,54 +123,17 @@ namespace {
 // vision's common offset cancels; what is left is its relative error.
 void score_layout(const LineScan& scan, const PedicelExpectation& e, const PedicelFinderParams& p,
                   std::vector<PedicelCandidate>& cands) {
-  double lo = scan.angle_rad.front(), hi = scan.angle_rad.back();
-  if (lo > hi) std::swap(lo, hi);
   const double inv_var = 1.0 / (e.neighbour_sd_m * e.neighbour_sd_m);
-  const double gate2 = 9.0 * e.neighbour_sd_m * e.neighbour_sd_m;  // 3 sd: farther is no match
   auto match = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return std::exp(-0.5 * (a - b).squaredNorm() * inv_var); };
-  // An expected pedicel can be missing without blame when it would lie
-  // within a few pixels of the view's edge (a cut object is no candidate) or
-  // behind something nearer on its bearing (a tomato in front).
-  const bool rising = scan.angle_rad.back() > scan.angle_rad.front();
-  const auto npx = static_cast<std::ptrdiff_t>(scan.size());
-  constexpr std::ptrdiff_t kEdgePx = 3, kNearPx = 2;
-  auto in_view = [&](const Eigen::Vector2d& q) {
-    const double angle = std::atan2(q.x(), q.y()), range = q.norm();
-    if (!(angle > lo && angle < hi) || range < p.min_range_m || range > p.max_range_m) return false;
-    const auto it = rising ? std::lower_bound(scan.angle_rad.begin(), scan.angle_rad.end(), angle)
-                           : std::lower_bound(scan.angle_rad.begin(), scan.angle_rad.end(), angle, std::greater<>());
-    const std::ptrdiff_t i = it - scan.angle_rad.begin();
-    if (i < kEdgePx || i >= npx - kEdgePx) return false;
-    for (std::ptrdiff_t k = std::max<std::ptrdiff_t>(0, i - kNearPx); k <= std::min(npx - 1, i + kNearPx); ++k) {
-      const auto u = static_cast<std::size_t>(k);
-      if (scan.valid(u) && scan.range_m[u] < range - p.occlusion_margin_m) return false;
-    }
-    return true;
-  };
-  const std::size_t n = e.neighbours.size();
-  std::vector<int> nearest(n);
+  const Visibility in_view(scan, p);
+  std::vector<int> nearest(e.neighbours.size());
   std::vector<double> explained(cands.size());
   for (std::size_t j = 0; j < cands.size(); ++j) {
-    Eigen::Vector2d shift = cands[j].position_xz_m - e.position_xz_m;
-    for (int pass = 0; pass < 2; ++pass) {  // match, refit the shift on the matches, match again
-      Eigen::Vector2d sum = cands[j].position_xz_m - e.position_xz_m;
-      int pairs = 1;
-      for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
-        nearest[i] = -1;
-        double best = gate2;
-        for (std::size_t k = 0; k < cands.size(); ++k) {
-          const double d2 = (cands[k].position_xz_m - q).squaredNorm();
-          if (k != j && d2 < best) best = d2, nearest[i] = static_cast<int>(k);
-        }
-        if (nearest[i] >= 0) sum += cands[static_cast<std::size_t>(nearest[i])].position_xz_m - e.neighbours[i].position_xz_m, ++pairs;
-      }
-      shift = sum / pairs;
-    }
+    const Eigen::Vector2d shift = layout_shift(cands, j, e, nearest);
     double score = match(cands[j].position_xz_m, e.position_xz_m + shift);
     std::fill(explained.begin(), explained.end(), 0.0);
-    for (std::size_t i = 0; i < n; ++i) {
-      const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
+    for (const auto& nb : e.neighbours) {
+      const Eigen::Vector2d q = nb.position_xz_m + shift;
       double best = 0.0;
       for (std::size_t k = 0; k < cands.size(); ++k) {
         if (k == j) continue;
@@ -117,7 +141,7 @@ void score_layout(const LineScan& scan, const PedicelExpectation& e, const Pedic
         best = std::max(best, m);
         explained[k] = std::max(explained[k], m);
       }
-      if (!e.neighbours[i].may_be_absent && in_view(q)) score *= p.layout_miss_factor + (1.0 - p.layout_miss_factor) * best;
+      if (!nb.may_be_absent && in_view(q)) score *= p.layout_miss_factor + (1.0 - p.layout_miss_factor) * best;
     }
     for (std::size_t k = 0; k < cands.size(); ++k) {
       if (k != j) score *= p.layout_extra_factor + (1.0 - p.layout_extra_factor) * explained[k];
