@@ -221,78 +221,72 @@ void OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanParams& p
   }
 }
 
-template <bool with_f, bool with_g>
-void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r) {
-  const std::size_t n_all = scan.range_m.size();
-  const double eps = params.eps;
-  const double eps2 = eps * eps;
-  r.labels.assign(n_all, kInvalid);
-  r.is_core.assign(n_all, 0);
+// The stages of OrderedScanDbscan::run_impl: cache the trigonometry,
+// compact the valid pixels, mark core pixels, build runs of linked core
+// pixels, link the runs, number the clusters, label the borders.
 
+[[gnu::always_inline]] inline void OrderedScanDbscan::cache_trig(std::span<const double> angle_rad) {
   // A sensor's pixel angles are the same scan after scan: keep their sines
   // and cosines (they would cost more than the clustering itself).
-  if (trig_angle_.size() != n_all ||
-      (n_all > 0 && std::memcmp(trig_angle_.data(), scan.angle_rad.data(), n_all * sizeof(double)) != 0)) {
-    trig_angle_.assign(scan.angle_rad.begin(), scan.angle_rad.end());
-    sin_.resize(n_all);
-    cos_.resize(n_all);
-    for (std::size_t i = 0; i < n_all; ++i) {
-      sin_[i] = std::sin(trig_angle_[i]);
-      cos_[i] = std::cos(trig_angle_[i]);
-    }
+  const std::size_t n = angle_rad.size();
+  if (trig_angle_.size() == n && (n == 0 || std::memcmp(trig_angle_.data(), angle_rad.data(), n * sizeof(double)) == 0)) {
+    return;
   }
+  trig_angle_.assign(angle_rad.begin(), angle_rad.end());
+  sin_.resize(n);
+  cos_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    sin_[i] = std::sin(trig_angle_[i]);
+    cos_[i] = std::cos(trig_angle_[i]);
+  }
+}
 
-  // One pass over the pixels: compact the valid ones (same coordinates as
-  // to_points()), check that their bearings are strictly monotone, and
-  // compute each block's depth interval (each pixel's bearing window only
-  // where a walk needs it, half_window() below: a division per pixel was a
-  // tenth of a pass).
-  //
-  // Window: a neighbour j of i satisfies |dtheta| <= asin(eps / r_i) <=
-  // x + (pi/2 - 1) x^3 with x = eps / r_i (the cubic meets asin at 0 and 1
-  // and stays above it between; it spares an asin per pixel), widened by a
-  // hair so rounding never hides a pair at exactly eps.
-  // Blocks: a neighbour also satisfies |r_i - r_j| <= eps, so blocks of
-  // kBlock pixels keep their depth interval and a walk skips a whole block
-  // at another depth (a pedicel's window over the wall behind it) at once.
-  constexpr int kBlock = 8;
-  constexpr double kCubic = std::numbers::pi / 2.0 - 1.0;
+namespace {
+
+// As pixel_valid(), without the branches an instantiation does not need.
+template <bool with_f, bool with_g>
+[[gnu::always_inline]] inline bool pixel_valid_as(const OrderedScanPoints& scan, std::size_t i) {
+  constexpr double kMax = std::numeric_limits<double>::max();
+  const double rr = scan.range_m[i], aa = scan.angle_rad[i];
+  bool ok = rr > 0.0 && rr <= kMax && aa >= -kMax && aa <= kMax;
+  if constexpr (with_g) ok = ok && scan.group[i] >= 0;
+  if constexpr (with_f) ok = ok && std::isfinite(scan.feature[i]);
+  return ok;
+}
+
+}  // namespace
+
+// One pass over the pixels: compact the valid ones (same coordinates as
+// to_points()), check that their bearings are strictly monotone (else a
+// reason in r, and 0), compute each block's depth interval (a neighbour also
+// satisfies |r_i - r_j| <= eps) and each pixel's squared distance to the
+// previous valid one. Returns the number of valid pixels.
+template <bool with_f, bool with_g>
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::compact(const OrderedScanPoints& scan, double eps, DbscanResult& r) {
+  constexpr int kBlock = detail::CompactScan<with_f, with_g>::kBlock;
   constexpr double kInf = std::numeric_limits<double>::infinity();
+  const std::size_t n_all = scan.range_m.size();
   const double eps_wide = eps * (1.0 + 1e-9);
-  x_.resize(n_all);
-  z_.resize(n_all);
+  for (auto* v : {&x_, &z_, &theta_, &range_, &adjacent_}) v->resize(n_all);
   f_.resize(with_f ? n_all : 0);
   g_.resize(with_g ? n_all : 0);
-  theta_.resize(n_all);
-  range_.resize(n_all);
   index_.resize(n_all);
   core_.resize(n_all);
-  adjacent_.resize(n_all);
   block_lo_.assign(n_all / kBlock + 1, kInf);
   block_hi_.assign(n_all / kBlock + 1, -kInf);
   std::size_t m = 0;
   double blo = kInf, bhi = -kInf;  // the current block's depth interval (kept in registers)
   double direction = 0.0;  // +1 ascending, -1 descending, 0 unknown yet
   for (std::size_t i = 0; i < n_all; ++i) {
-    {
-      constexpr double kMax = std::numeric_limits<double>::max();
-      const double rr = scan.range_m[i], aa = scan.angle_rad[i];
-      // As pixel_valid(), without the branches this instantiation does not need.
-      bool ok = rr > 0.0 && rr <= kMax && aa >= -kMax && aa <= kMax;
-      if constexpr (with_g) ok = ok && scan.group[i] >= 0;
-      if constexpr (with_f) ok = ok && std::isfinite(scan.feature[i]);
-      if (!ok) continue;
-    }
+    if (!pixel_valid_as<with_f, with_g>(scan, i)) continue;
     const double ri = scan.range_m[i], ti = scan.angle_rad[i];
     if (m > 0) {
       if (direction == 0.0) direction = ti > theta_[m - 1] ? 1.0 : -1.0;
       if (!(direction * (ti - theta_[m - 1]) > 0.0)) {
-        r.labels.clear();
-        r.is_core.clear();
         r.reason = fmt::format(
             "pixel angles must be strictly monotone over valid pixels: pixel {} at {} rad after pixel {} at {} rad", i,
             ti, index_[m - 1], theta_[m - 1]);
-        return;
+        return 0;
       }
     }
     x_[m] = ri * sin_[i];
@@ -308,7 +302,7 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     block_lo_[b] = blo;
     block_hi_[b] = bhi;
     index_[m] = static_cast<int>(i);
-    if (m > 0) {  // the squared distance to the previous valid pixel (see adjacent_ below)
+    if (m > 0) {  // the squared distance to the previous valid pixel (CompactScan::adjacent)
       double t = x_[m] - x_[m - 1];
       double s2 = t * t;
       t = z_[m] - z_[m - 1];
@@ -324,129 +318,75 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     }
     ++m;
   }
-  const int n = static_cast<int>(m);
   if (direction < 0.0) {  // walk a descending scan mirrored
-    for (int k = 0; k < n; ++k) theta_[static_cast<std::size_t>(k)] = -theta_[static_cast<std::size_t>(k)];
+    for (std::size_t k = 0; k < m; ++k) theta_[k] = -theta_[k];
   }
+  return m;
+}
 
-  // The bearing half-window of a pixel at range r (see above); it grows
-  // with eps / r, in floating point too (every step rounds monotonically).
-  auto half_window_at = [&](double r) {
-    const double x = eps / r;
-    return x >= 1.0 ? std::numbers::pi * 2.0 : (x + kCubic * x * x * x) * (1.0 + 1e-9) + 1e-12;
-  };
-  auto half_window = [&](int i) { return half_window_at(range_[static_cast<std::size_t>(i)]); };
+template <bool with_f, bool with_g>
+[[gnu::always_inline]] inline detail::CompactScan<with_f, with_g> OrderedScanDbscan::view(int n, double eps) const {
+  return {x_.data(),     z_.data(),        f_.data(),        g_.data(),         theta_.data(), range_.data(),
+          block_lo_.data(), block_hi_.data(), adjacent_.data(), n, eps, eps * eps};
+}
 
-  // Squared distance; pixels of different groups are infinitely far apart.
-  auto d2 = [&](int i, int j) {
-    const auto u = static_cast<std::size_t>(i), v = static_cast<std::size_t>(j);
-    if constexpr (with_g) {
-      if (g_[u] != g_[v]) return kInf;
-    }
-    double t = x_[u] - x_[v];
-    double s = t * t;
-    t = z_[u] - z_[v];
-    s += t * t;
-    if constexpr (with_f) {
-      t = f_[u] - f_[v];
-      s += t * t;
-    }
-    return s;
-  };
-  // Calls visit(j) for j = from, from+1, ... within i's bearing window,
-  // skipping blocks at other depths, until visit returns false. Returns
-  // false if visit stopped it.
-  auto walk_right = [&](int i, int from, auto&& visit) {
-    const auto u = static_cast<std::size_t>(i);
-    const double limit = theta_[u] + half_window(i), ri = range_[u];
-    for (int j = from; j < n;) {
-      if (theta_[static_cast<std::size_t>(j)] > limit) return true;
-      const auto b = static_cast<std::size_t>(j) / kBlock;
-      const int end = std::min(n, static_cast<int>(b + 1) * kBlock);
-      if (ri < block_lo_[b] || ri > block_hi_[b]) {
-        j = end;
-        continue;
-      }
-      for (; j < end; ++j) {
-        if (theta_[static_cast<std::size_t>(j)] > limit) return true;
-        if (!visit(j)) return false;
-      }
-    }
-    return true;
-  };
-  auto walk_left = [&](int i, int from, auto&& visit) {
-    const auto u = static_cast<std::size_t>(i);
-    const double limit = theta_[u] - half_window(i), ri = range_[u];
-    for (int j = from; j >= 0;) {
-      if (theta_[static_cast<std::size_t>(j)] < limit) return true;
-      const auto b = static_cast<std::size_t>(j) / kBlock;
-      const int end = static_cast<int>(b * kBlock) - 1;
-      if (ri < block_lo_[b] || ri > block_hi_[b]) {
-        j = end;
-        continue;
-      }
-      for (; j > end; --j) {
-        if (theta_[static_cast<std::size_t>(j)] < limit) return true;
-        if (!visit(j)) return false;
-      }
-    }
-    return true;
-  };
+namespace {
 
-  // Adjacent pixels are the likeliest neighbours: their squared distances
-  // (adjacent_[k] for k, k+1, computed in the pass above, the same sum as
-  // d2), once, serve the core test and the run links below.
-  auto adjacent_within = [&](int k) { return adjacent_[static_cast<std::size_t>(k)] <= eps2; };  // k, k+1
+// Whether pixel i has min_points neighbours (itself included): the adjacent
+// pixels first, then walks outwards from there (right, then left), stopping
+// as soon as min_points is reached.
+template <bool with_f, bool with_g>
+[[gnu::always_inline]] inline bool reaches_min_points(const detail::CompactScan<with_f, with_g>& s, int i, int min_points) {
+  const int n = s.n;
+  int count = 1 + (i > 0 && s.adjacent_within(i - 1)) + (i + 1 < n && s.adjacent_within(i));
+  if (count >= min_points) return true;
+  // The next pixel but one, directly: on a surface it settles the core test
+  // (stage 1: 3 + 1). Exact: a pixel outside the bearing window or in a
+  // block at another depth is farther than eps anyway. Then the previous
+  // pixel but one (the last pixel of a surface).
+  count += i + 2 < n && s.d2(i, i + 2) <= s.eps2;
+  if (count < min_points) count += i >= 2 && s.d2(i, i - 2) <= s.eps2;
+  if (count < min_points) {
+    auto counter = [&](int j) {
+      count += s.d2(i, j) <= s.eps2;
+      return count < min_points;
+    };
+    if (s.walk_right(i, i + 3, counter)) s.walk_left(i, i - 3, counter);
+  }
+  return count >= min_points;
+}
 
-  // Core flags: the adjacent pixels first, then walks outwards from there
-  // (right, then left), stopping as soon as min_points is reached.
+}  // namespace
+
+template <bool with_f, bool with_g>
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::mark_core(const detail::CompactScan<with_f, with_g>& s, int min_points, DbscanResult& r) {
   std::size_t num_core = 0;
-  for (int i = 0; i < n; ++i) {
-    int count = 1 + (i > 0 && adjacent_within(i - 1)) + (i + 1 < n && adjacent_within(i));
-    if (count < params.min_points) {
-      // The next pixel but one, directly: on a surface it settles the core
-      // test (stage 1: 3 + 1). Exact: a pixel outside the bearing window or
-      // in a block at another depth is farther than eps anyway.
-      // Then the previous pixel but one (the last pixel of a surface).
-      count += i + 2 < n && d2(i, i + 2) <= eps2;
-      if (count < params.min_points) count += i >= 2 && d2(i, i - 2) <= eps2;
-      if (count < params.min_points) {
-        auto counter = [&](int j) {
-          count += d2(i, j) <= eps2;
-          return count < params.min_points;
-        };
-        if (walk_right(i, i + 3, counter)) walk_left(i, i - 3, counter);
-      }
-    }
-    const std::uint8_t c = count >= params.min_points ? 1 : 0;
+  for (int i = 0; i < s.n; ++i) {
+    const std::uint8_t c = reaches_min_points(s, i, min_points) ? 1 : 0;
     core_[static_cast<std::size_t>(i)] = c;
     r.is_core[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
     num_core += c;
   }
-  auto core = [&](int i) { return core_[static_cast<std::size_t>(i)] != 0; };
+  return num_core;
+}
 
-  // Core-core edges. Consecutive core pixels within eps form runs (a surface
-  // is one run), joined up front under their last pixel. Then each core
-  // pixel whose bearing window reaches past its run looks there for core
-  // pixels within eps. Exact shortcuts, per run met rather than per pixel:
-  // a run already in this run's set, or whose depth interval (widened by
-  // eps) misses this pixel's range, holds no pair that could change the
-  // sets; after a union the rest of that run is jumped over too. Both this
-  // pass and the labelling go run by run (one find per run).
-  run_end_.resize(static_cast<std::size_t>(n));
+// Consecutive core pixels within eps form runs (a surface is one run),
+// joined up front under their last pixel: run_end_[k] is k's run's last
+// pixel, run_lo_[k], run_hi_[k] the least and greatest range from k to its
+// run's end (at a run's first pixel: the whole run's), parent_ and size_
+// the disjoint sets of the runs. The run's end, length and depth interval
+// stay in registers (not a load-store chain through run_end_ and size_ per
+// pixel).
+[[gnu::always_inline]] inline void OrderedScanDbscan::build_runs(int n, double eps2) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (auto* v : {&run_end_, &parent_, &size_}) v->resize(static_cast<std::size_t>(n));
   run_lo_.resize(static_cast<std::size_t>(n));
   run_hi_.resize(static_cast<std::size_t>(n));
-  parent_.resize(static_cast<std::size_t>(n));
-  size_.resize(static_cast<std::size_t>(n));
-  // run_lo_[k], run_hi_[k]: the least and greatest range from k to its run's
-  // end (at a run's first pixel: the whole run's).
-  // The run's end, length and depth interval stay in registers (not a
-  // load-store chain through run_end_ and size_ per pixel).
   double lo = kInf, hi = -kInf;
   int end = n - 1, length = 0;
   for (int k = n - 1; k >= 0; --k) {
     const auto u = static_cast<std::size_t>(k);
-    const bool linked = core(k) && k + 1 < n && core(k + 1) && adjacent_within(k);
+    const bool linked = core_[u] && k + 1 < n && core_[u + 1] && adjacent_[u] <= eps2;
     const double rk = range_[u];
     if (linked) {
       lo = std::min(lo, rk);
@@ -465,7 +405,20 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     size_[u] = 1;
   }
   if (length > 0) size_[static_cast<std::size_t>(end)] = length;
+}
+
+// Core-core edges between runs: each core pixel whose bearing window reaches
+// past its run looks there for core pixels within eps. Exact shortcuts, per
+// run met rather than per pixel: a run already in this run's set, or whose
+// depth interval (widened by eps) misses this pixel's range, holds no pair
+// that could change the sets; after a union the rest of that run is jumped
+// over too.
+template <bool with_f, bool with_g>
+[[gnu::always_inline]] inline void OrderedScanDbscan::link_runs(const detail::CompactScan<with_f, with_g>& s) {
+  const int n = s.n;
+  const double eps_wide = s.eps * (1.0 + 1e-9);
   detail::DisjointSets sets(parent_, size_);
+  auto core = [&](int i) { return core_[static_cast<std::size_t>(i)] != 0; };
   for (int first = 0; first < n;) {  // run by run
     if (!core(first)) {
       ++first;
@@ -474,21 +427,20 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     const int last = run_end_[static_cast<std::size_t>(first)];
     const int next = last + 1;
     if (next >= n) break;  // the last run: nothing beyond it
-    const double next_theta = theta_[static_cast<std::size_t>(next)];
+    const double next_theta = s.theta[next];
     // Most pixels of a run end their window before the run does. The widest
     // window in the run is its nearest pixel's: pixels before the last one
     // it cannot carry past the run are skipped without a look.
-    const double widest = half_window_at(run_lo_[static_cast<std::size_t>(first)]);
+    const double widest = detail::bearing_half_window(s.eps, run_lo_[static_cast<std::size_t>(first)]);
     int start = last;
-    while (start > first && theta_[static_cast<std::size_t>(start - 1)] + widest >= next_theta) --start;
+    while (start > first && s.theta[start - 1] + widest >= next_theta) --start;
     int root = -1;  // this run's set, looked up when first needed
     for (int i = start; i <= last; ++i) {
-      const auto u = static_cast<std::size_t>(i);
-      const double limit = theta_[u] + half_window(i);
+      const double limit = s.theta[i] + s.half_window(i);
       if (next_theta > limit) continue;
       if (root < 0) root = sets.find(last);
-      const double ri = range_[u];
-      for (int j = next; j < n && theta_[static_cast<std::size_t>(j)] <= limit;) {
+      const double ri = s.range[i];
+      for (int j = next; j < n && s.theta[j] <= limit;) {
         if (!core(j)) {
           ++j;
           continue;
@@ -502,8 +454,8 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
           continue;
         }
         for (; j <= e; ++j) {
-          if (theta_[static_cast<std::size_t>(j)] > limit) break;
-          if (d2(i, j) <= eps2) {
+          if (s.theta[j] > limit) break;
+          if (s.d2(i, j) <= s.eps2) {
             sets.unite(i, j);
             root = sets.find(last);
             j = e + 1;
@@ -514,12 +466,16 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     }
     first = next;
   }
-  // Clusters in the order of their lowest-indexed core point.
+}
+
+// Clusters in the order of their lowest-indexed core point; a run's pixels
+// share a root: one find per run. Returns the number of clusters.
+[[gnu::always_inline]] inline int OrderedScanDbscan::number_clusters(int n, DbscanResult& r) {
+  detail::DisjointSets sets(parent_, size_);
   cluster_of_root_.assign(static_cast<std::size_t>(n), -1);
   int clusters = 0;
-  // A run's pixels share a root: one find per run.
   for (int i = 0; i < n;) {
-    if (!core(i)) {
+    if (!core_[static_cast<std::size_t>(i)]) {
       ++i;
       continue;
     }
@@ -528,34 +484,63 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
     if (c < 0) c = clusters++;
     for (; i <= last; ++i) r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = c;
   }
-  // Border points: the lowest-numbered cluster among core points within eps.
-  // With min_points <= 2 there are none: a point within eps of a core point
-  // has two neighbours (itself and that one), so it is core itself, and every
-  // non-core point is noise without a search (stage 3 of the two-stage
-  // clustering runs with 2).
+  return clusters;
+}
+
+// Border points: the lowest-numbered cluster among core points within eps.
+// With min_points <= 2 there are none: a point within eps of a core point
+// has two neighbours (itself and that one), so it is core itself, and every
+// non-core point is noise without a search (stage 3 of the two-stage
+// clustering runs with 2). Returns the number of noise points.
+template <bool with_f, bool with_g>
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::label_borders(const detail::CompactScan<with_f, with_g>& s, int min_points,
+                                             DbscanResult& r) {
+  auto core = [&](int i) { return core_[static_cast<std::size_t>(i)] != 0; };
+  auto label = [&](int i) -> int& { return r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])]; };
   std::size_t num_noise = 0;
-  const bool borders_possible = params.min_points > 2;
-  for (int i = 0; i < n; ++i) {
+  const bool borders_possible = min_points > 2;
+  for (int i = 0; i < s.n; ++i) {
     if (core(i)) continue;
     if (!borders_possible) {
-      r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = kNoise;
+      label(i) = kNoise;
       ++num_noise;
       continue;
     }
     int best = kNoise;
     auto consider = [&](int j) {
       if (core(j)) {
-        const int lj = r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(j)])];
-        if ((best == kNoise || lj < best) && d2(i, j) <= eps2) best = lj;
+        const int lj = label(j);
+        if ((best == kNoise || lj < best) && s.d2(i, j) <= s.eps2) best = lj;
       }
       return true;
     };
-    walk_left(i, i - 1, consider);
-    walk_right(i, i + 1, consider);
-    r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])] = best;
+    s.walk_left(i, i - 1, consider);
+    s.walk_right(i, i + 1, consider);
+    label(i) = best;
     num_noise += best == kNoise;
   }
-  r.num_clusters = clusters;
+  return num_noise;
+}
+
+template <bool with_f, bool with_g>
+void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r) {
+  const std::size_t n_all = scan.range_m.size();
+  r.labels.assign(n_all, kInvalid);
+  r.is_core.assign(n_all, 0);
+  cache_trig(scan.angle_rad);
+  const std::size_t m = compact<with_f, with_g>(scan, params.eps, r);
+  if (!r.reason.empty()) {
+    r.labels.clear();
+    r.is_core.clear();
+    return;
+  }
+  const int n = static_cast<int>(m);
+  const auto s = view<with_f, with_g>(n, params.eps);
+  const std::size_t num_core = mark_core(s, params.min_points, r);
+  build_runs(n, s.eps2);
+  link_runs(s);
+  r.num_clusters = number_clusters(n, r);
+  const std::size_t num_noise = label_borders(s, params.min_points, r);
   detail::finish(r, num_core, num_noise, n_all - m);
 }
 

@@ -53,6 +53,67 @@ common::Validation validate(const PedicelFinderParams& p) {
 
 namespace {
 
+// Whether an expected pedicel at q could be seen: inside the field of view
+// and the range limits, not within a few pixels of the view's edge (a cut
+// object is no candidate), and not behind something nearer on its bearing
+// (a tomato in front). An expected pedicel that could not be seen may be
+// missing without blame.
+class Visibility {
+ public:
+  Visibility(const LineScan& scan, const PedicelFinderParams& p)
+      : scan_(scan), p_(p), lo_(scan.angle_rad.front()), hi_(scan.angle_rad.back()),
+        rising_(scan.angle_rad.back() > scan.angle_rad.front()), npx_(static_cast<std::ptrdiff_t>(scan.size())) {
+    if (lo_ > hi_) std::swap(lo_, hi_);
+  }
+
+  bool operator()(const Eigen::Vector2d& q) const {
+    constexpr std::ptrdiff_t kEdgePx = 3, kNearPx = 2;
+    const double angle = std::atan2(q.x(), q.y()), range = q.norm();
+    if (!(angle > lo_ && angle < hi_) || range < p_.min_range_m || range > p_.max_range_m) return false;
+    const auto& a = scan_.angle_rad;
+    const auto it = rising_ ? std::lower_bound(a.begin(), a.end(), angle) : std::lower_bound(a.begin(), a.end(), angle, std::greater<>());
+    const std::ptrdiff_t i = it - a.begin();
+    if (i < kEdgePx || i >= npx_ - kEdgePx) return false;
+    for (std::ptrdiff_t k = std::max<std::ptrdiff_t>(0, i - kNearPx); k <= std::min(npx_ - 1, i + kNearPx); ++k) {
+      const auto u = static_cast<std::size_t>(k);
+      if (scan_.valid(u) && scan_.range_m[u] < range - p_.occlusion_margin_m) return false;
+    }
+    return true;
+  }
+
+ private:
+  const LineScan& scan_;
+  const PedicelFinderParams& p_;
+  double lo_, hi_;
+  bool rising_;
+  std::ptrdiff_t npx_;
+};
+
+// The shift that moves the vision's layout onto candidate j: matched to
+// the other candidates (nearest within 3 sd), refitted on the matches,
+// matched again. `nearest` is scratch (one per neighbour).
+Eigen::Vector2d layout_shift(const std::vector<PedicelCandidate>& cands, std::size_t j, const PedicelExpectation& e,
+                             std::vector<int>& nearest) {
+  const double gate2 = 9.0 * e.neighbour_sd_m * e.neighbour_sd_m;  // 3 sd: farther is no match
+  Eigen::Vector2d shift = cands[j].position_xz_m - e.position_xz_m;
+  for (int pass = 0; pass < 2; ++pass) {  // match, refit the shift on the matches, match again
+    Eigen::Vector2d sum = cands[j].position_xz_m - e.position_xz_m;
+    int pairs = 1;
+    for (std::size_t i = 0; i < e.neighbours.size(); ++i) {
+      const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
+      nearest[i] = -1;
+      double best = gate2;
+      for (std::size_t k = 0; k < cands.size(); ++k) {
+        const double d2 = (cands[k].position_xz_m - q).squaredNorm();
+        if (k != j && d2 < best) best = d2, nearest[i] = static_cast<int>(k);
+      }
+      if (nearest[i] >= 0) sum += cands[static_cast<std::size_t>(nearest[i])].position_xz_m - e.neighbours[i].position_xz_m, ++pairs;
+    }
+    shift = sum / pairs;
+  }
+  return shift;
+}
+
 // The truss layout test: candidate j taken for the target moves the vision's
 // layout onto it; the move is then refined on every expected neighbour that
 // met a candidate (the target's own expectation is as uncertain as theirs, so
@@ -62,54 +123,17 @@ namespace {
 // vision's common offset cancels; what is left is its relative error.
 void score_layout(const LineScan& scan, const PedicelExpectation& e, const PedicelFinderParams& p,
                   std::vector<PedicelCandidate>& cands) {
-  double lo = scan.angle_rad.front(), hi = scan.angle_rad.back();
-  if (lo > hi) std::swap(lo, hi);
   const double inv_var = 1.0 / (e.neighbour_sd_m * e.neighbour_sd_m);
-  const double gate2 = 9.0 * e.neighbour_sd_m * e.neighbour_sd_m;  // 3 sd: farther is no match
   auto match = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return std::exp(-0.5 * (a - b).squaredNorm() * inv_var); };
-  // An expected pedicel can be missing without blame when it would lie
-  // within a few pixels of the view's edge (a cut object is no candidate) or
-  // behind something nearer on its bearing (a tomato in front).
-  const bool rising = scan.angle_rad.back() > scan.angle_rad.front();
-  const auto npx = static_cast<std::ptrdiff_t>(scan.size());
-  constexpr std::ptrdiff_t kEdgePx = 3, kNearPx = 2;
-  auto in_view = [&](const Eigen::Vector2d& q) {
-    const double angle = std::atan2(q.x(), q.y()), range = q.norm();
-    if (!(angle > lo && angle < hi) || range < p.min_range_m || range > p.max_range_m) return false;
-    const auto it = rising ? std::lower_bound(scan.angle_rad.begin(), scan.angle_rad.end(), angle)
-                           : std::lower_bound(scan.angle_rad.begin(), scan.angle_rad.end(), angle, std::greater<>());
-    const std::ptrdiff_t i = it - scan.angle_rad.begin();
-    if (i < kEdgePx || i >= npx - kEdgePx) return false;
-    for (std::ptrdiff_t k = std::max<std::ptrdiff_t>(0, i - kNearPx); k <= std::min(npx - 1, i + kNearPx); ++k) {
-      const auto u = static_cast<std::size_t>(k);
-      if (scan.valid(u) && scan.range_m[u] < range - p.occlusion_margin_m) return false;
-    }
-    return true;
-  };
-  const std::size_t n = e.neighbours.size();
-  std::vector<int> nearest(n);
+  const Visibility in_view(scan, p);
+  std::vector<int> nearest(e.neighbours.size());
   std::vector<double> explained(cands.size());
   for (std::size_t j = 0; j < cands.size(); ++j) {
-    Eigen::Vector2d shift = cands[j].position_xz_m - e.position_xz_m;
-    for (int pass = 0; pass < 2; ++pass) {  // match, refit the shift on the matches, match again
-      Eigen::Vector2d sum = cands[j].position_xz_m - e.position_xz_m;
-      int pairs = 1;
-      for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
-        nearest[i] = -1;
-        double best = gate2;
-        for (std::size_t k = 0; k < cands.size(); ++k) {
-          const double d2 = (cands[k].position_xz_m - q).squaredNorm();
-          if (k != j && d2 < best) best = d2, nearest[i] = static_cast<int>(k);
-        }
-        if (nearest[i] >= 0) sum += cands[static_cast<std::size_t>(nearest[i])].position_xz_m - e.neighbours[i].position_xz_m, ++pairs;
-      }
-      shift = sum / pairs;
-    }
+    const Eigen::Vector2d shift = layout_shift(cands, j, e, nearest);
     double score = match(cands[j].position_xz_m, e.position_xz_m + shift);
     std::fill(explained.begin(), explained.end(), 0.0);
-    for (std::size_t i = 0; i < n; ++i) {
-      const Eigen::Vector2d q = e.neighbours[i].position_xz_m + shift;
+    for (const auto& nb : e.neighbours) {
+      const Eigen::Vector2d q = nb.position_xz_m + shift;
       double best = 0.0;
       for (std::size_t k = 0; k < cands.size(); ++k) {
         if (k == j) continue;
@@ -117,7 +141,7 @@ void score_layout(const LineScan& scan, const PedicelExpectation& e, const Pedic
         best = std::max(best, m);
         explained[k] = std::max(explained[k], m);
       }
-      if (!e.neighbours[i].may_be_absent && in_view(q)) score *= p.layout_miss_factor + (1.0 - p.layout_miss_factor) * best;
+      if (!nb.may_be_absent && in_view(q)) score *= p.layout_miss_factor + (1.0 - p.layout_miss_factor) * best;
     }
     for (std::size_t k = 0; k < cands.size(); ++k) {
       if (k != j) score *= p.layout_extra_factor + (1.0 - p.layout_extra_factor) * explained[k];
@@ -192,130 +216,146 @@ PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, cons
   return expectation_after_move(p, before, moved, moved.candidates.front().position_xz_m - throat);
 }
 
-PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
-                              const std::optional<PedicelExpectation>& expectation) {
-  PedicelDetection d;
-  if (auto v = validate(p); !v.valid) {
-    d.reason = v.reason;
-    return d;
+namespace {
+
+// Why an expectation cannot be used, or empty.
+std::string check_expectation(const PedicelExpectation& e) {
+  if (!e.position_xz_m.allFinite() || !std::isfinite(e.sd_m) || e.sd_m <= 0.0) {
+    return "expectation must have a finite position and sd_m > 0";
   }
-  if (expectation && (!expectation->position_xz_m.allFinite() || !std::isfinite(expectation->sd_m) ||
-                      expectation->sd_m <= 0.0)) {
-    d.reason = "expectation must have a finite position and sd_m > 0";
-    return d;
-  }
-  if (expectation && !expectation->neighbours.empty()) {
-    if (!std::isfinite(expectation->neighbour_sd_m) || expectation->neighbour_sd_m <= 0.0) {
-      d.reason = fmt::format("expectation neighbour_sd_m must be > 0 (got {})", expectation->neighbour_sd_m);
-      return d;
+  if (!e.neighbours.empty()) {
+    if (!std::isfinite(e.neighbour_sd_m) || e.neighbour_sd_m <= 0.0) {
+      return fmt::format("expectation neighbour_sd_m must be > 0 (got {})", e.neighbour_sd_m);
     }
-    for (std::size_t i = 0; i < expectation->neighbours.size(); ++i) {
-      if (!expectation->neighbours[i].position_xz_m.allFinite()) {
-        d.reason = fmt::format("expectation neighbour {} has a non-finite position", i);
-        return d;
-      }
+    for (std::size_t i = 0; i < e.neighbours.size(); ++i) {
+      if (!e.neighbours[i].position_xz_m.allFinite()) return fmt::format("expectation neighbour {} has a non-finite position", i);
     }
   }
-  if (expectation && !(expectation->gate_sd > 0.0)) {
-    d.reason = fmt::format("expectation gate_sd must be > 0 (got {})", expectation->gate_sd);
-    return d;
+  if (!(e.gate_sd > 0.0)) return fmt::format("expectation gate_sd must be > 0 (got {})", e.gate_sd);
+  for (std::size_t i = 0; i < e.alternatives.size(); ++i) {
+    const auto& alt = e.alternatives[i];
+    if (!alt.position_xz_m.allFinite() || !(alt.weight > 0.0 && alt.weight <= 1.0)) {
+      return fmt::format("expectation alternative {} needs a finite position and a weight in (0, 1] (got {})", i,
+                         alt.weight);
+    }
   }
+  return {};
+}
+
+// Why the inputs cannot be used, or empty.
+std::string check_inputs(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
+                         const std::optional<PedicelExpectation>& expectation) {
+  if (auto v = validate(p); !v.valid) return v.reason;
   if (expectation) {
-    for (std::size_t i = 0; i < expectation->alternatives.size(); ++i) {
-      const auto& alt = expectation->alternatives[i];
-      if (!alt.position_xz_m.allFinite() || !(alt.weight > 0.0 && alt.weight <= 1.0)) {
-        d.reason = fmt::format("expectation alternative {} needs a finite position and a weight in (0, 1] (got {})", i,
-                               alt.weight);
-        return d;
-      }
-    }
+    if (std::string why = check_expectation(*expectation); !why.empty()) return why;
   }
-  if (!objects.ok) {
-    d.reason = "clustering failed: " + objects.reason;
-    return d;
-  }
+  if (!objects.ok) return "clustering failed: " + objects.reason;
   if (objects.labels.size() != scan.size()) {
-    d.reason = fmt::format("clustering has {} labels for a scan of {} pixels", objects.labels.size(), scan.size());
-    return d;
+    return fmt::format("clustering has {} labels for a scan of {} pixels", objects.labels.size(), scan.size());
   }
+  return {};
+}
 
-  std::size_t in_range = 0;
-  for (std::size_t i = 0; i < scan.size(); ++i) {
-    in_range += scan.valid(i) && scan.range_m[i] >= p.min_range_m && scan.range_m[i] <= p.max_range_m;
-  }
-  if (in_range == 0) {
-    d.outcome = PedicelOutcome::kOutOfView;
-    d.reason = scan.size() == 0 ? "empty scan"
-                                : fmt::format("no return between {:.3f} and {:.3f} m ({} valid pixels of {})",
-                                              p.min_range_m, p.max_range_m, scan.num_valid(), scan.size());
-    return d;
-  }
+// Where the pedicel is expected, how sure, and how far a candidate may lie.
+struct Prior {
+  Eigen::Vector2d expected;
+  double sd;
+  double gate_sd;  // in sd; infinite without an expectation
+};
 
-  const Eigen::Vector2d expected =
-      expectation ? expectation->position_xz_m : Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m);
-  const double sd = expectation ? expectation->sd_m : p.search_sd_m;
-  const double gate_sd = expectation ? expectation->gate_sd : std::numeric_limits<double>::infinity();
+Prior prior_of(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& expectation) {
+  if (!expectation) {
+    return {Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m), p.search_sd_m,
+            std::numeric_limits<double>::infinity()};
+  }
+  return {expectation->position_xz_m, expectation->sd_m, expectation->gate_sd};
+}
+
+// The objects considered, counted by why they are no candidate.
+struct Census {
   int in_range_objects = 0, cut_by_edge = 0, beyond_gate = 0;
   double nearest_beyond_m = std::numeric_limits<double>::infinity();
+};
+
+// Object k as a candidate: its shape, isolation and position scores. Sets
+// z_min to its distance to the nearest expected point (or alternative) in sd.
+PedicelCandidate candidate_of(const ScanCluster& c, int k, const PedicelFinderParams& p, const Prior& prior,
+                              const std::optional<PedicelExpectation>& expectation, double& z_min) {
+  PedicelCandidate cand;
+  cand.cluster = k;
+  cand.width_m = c.width_m;
+  cand.position_xz_m = c.centroid_xz_m;
+  const double zw = (c.width_m - p.diameter_m) / p.diameter_sd_m;
+  cand.shape_score = std::exp(-0.5 * zw * zw);
+  cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
+  const double zp = (c.centroid_xz_m - prior.expected).norm() / prior.sd;
+  z_min = zp;
+  cand.position_score = std::exp(-0.5 * zp * zp);
+  if (expectation) {
+    for (const auto& alt : expectation->alternatives) {
+      const double za = (c.centroid_xz_m - alt.position_xz_m).norm() / prior.sd;
+      z_min = std::min(z_min, za);
+      cand.position_score = std::max(cand.position_score, alt.weight * std::exp(-0.5 * za * za));
+    }
+  }
+  return cand;
+}
+
+// The pedicel-like objects in range, not cut by the view, within the gate.
+Census gather_candidates(const TwoStageResult& objects, const PedicelFinderParams& p, const Prior& prior,
+                         const std::optional<PedicelExpectation>& expectation, std::vector<PedicelCandidate>& out) {
+  Census n;
   for (std::size_t k = 0; k < objects.clusters.size(); ++k) {
     const ScanCluster& c = objects.clusters[k];
     if (c.mean_range_m < p.min_range_m || c.mean_range_m > p.max_range_m) continue;
-    ++in_range_objects;
+    ++n.in_range_objects;
     if (c.num_points < p.min_points || c.width_m < p.min_width_m || c.width_m > p.max_width_m) continue;
     if (c.touches_fov_edge) {  // width unknown: it may be a tomato or a stem cut by the view
-      ++cut_by_edge;
+      ++n.cut_by_edge;
       continue;
     }
-    PedicelCandidate cand;
-    cand.cluster = static_cast<int>(k);
-    cand.width_m = c.width_m;
-    cand.position_xz_m = c.centroid_xz_m;
-    const double zw = (c.width_m - p.diameter_m) / p.diameter_sd_m;
-    cand.shape_score = std::exp(-0.5 * zw * zw);
-    cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
-    const double zp = (c.centroid_xz_m - expected).norm() / sd;
-    double z_min = zp;
-    cand.position_score = std::exp(-0.5 * zp * zp);
-    if (expectation) {
-      for (const auto& alt : expectation->alternatives) {
-        const double za = (c.centroid_xz_m - alt.position_xz_m).norm() / sd;
-        z_min = std::min(z_min, za);
-        cand.position_score = std::max(cand.position_score, alt.weight * std::exp(-0.5 * za * za));
-      }
-    }
-    if (z_min > gate_sd) {
-      ++beyond_gate;
-      nearest_beyond_m = std::min(nearest_beyond_m, z_min * sd);
+    double z_min = 0.0;
+    const PedicelCandidate cand = candidate_of(c, static_cast<int>(k), p, prior, expectation, z_min);
+    if (z_min > prior.gate_sd) {
+      ++n.beyond_gate;
+      n.nearest_beyond_m = std::min(n.nearest_beyond_m, z_min * prior.sd);
       continue;
     }
-    d.candidates.push_back(cand);
+    out.push_back(cand);
   }
-  if (expectation && !expectation->neighbours.empty()) score_layout(scan, *expectation, p, d.candidates);
-  for (auto& cand : d.candidates) cand.weight = cand.shape_score * cand.isolation * cand.position_score * cand.layout_score;
-  // Best first, ties in scan order: an insertion sort (a scan holds a few
-  // candidates; std::stable_sort would allocate its buffer every scan).
-  for (std::size_t i = 1; i < d.candidates.size(); ++i) {
-    for (std::size_t j = i; j > 0 && d.candidates[j].weight > d.candidates[j - 1].weight; --j) {
-      std::swap(d.candidates[j], d.candidates[j - 1]);
-    }
-  }
-  if (d.candidates.empty()) {
-    if (beyond_gate > 0) {
-      d.outcome = PedicelOutcome::kNothingToCut;
-      d.reason = fmt::format("{} pedicel-like object{} in view, none within {:.3f} m ({} sd) of where the pedicel is expected "
-                             "(nearest {:.3f} m)",
-                             beyond_gate, beyond_gate == 1 ? "" : "s", gate_sd * sd, gate_sd, nearest_beyond_m);
-    } else if (cut_by_edge > 0) {
-      d.outcome = PedicelOutcome::kOutOfView;
-      d.reason = fmt::format("the only pedicel-sized object{} cut by the edge of the field of view",
-                             cut_by_edge > 1 ? "s are" : " is");
-    } else {
-      d.outcome = PedicelOutcome::kNothingToCut;
-      d.reason = fmt::format("{} object{} in range, none pedicel-like", in_range_objects, in_range_objects == 1 ? "" : "s");
-    }
-    return d;
-  }
+  return n;
+}
 
+// Best first, ties in scan order: an insertion sort (a scan holds a few
+// candidates; std::stable_sort would allocate its buffer every scan).
+void rank(std::vector<PedicelCandidate>& cands) {
+  for (auto& cand : cands) cand.weight = cand.shape_score * cand.isolation * cand.position_score * cand.layout_score;
+  for (std::size_t i = 1; i < cands.size(); ++i) {
+    for (std::size_t j = i; j > 0 && cands[j].weight > cands[j - 1].weight; --j) std::swap(cands[j], cands[j - 1]);
+  }
+}
+
+// The outcome and reason when no candidate is left.
+void explain_no_candidate(const Census& n, const Prior& prior, PedicelDetection& d) {
+  if (n.beyond_gate > 0) {
+    d.outcome = PedicelOutcome::kNothingToCut;
+    d.reason = fmt::format("{} pedicel-like object{} in view, none within {:.3f} m ({} sd) of where the pedicel is expected "
+                           "(nearest {:.3f} m)",
+                           n.beyond_gate, n.beyond_gate == 1 ? "" : "s", prior.gate_sd * prior.sd, prior.gate_sd,
+                           n.nearest_beyond_m);
+  } else if (n.cut_by_edge > 0) {
+    d.outcome = PedicelOutcome::kOutOfView;
+    d.reason = fmt::format("the only pedicel-sized object{} cut by the edge of the field of view",
+                           n.cut_by_edge > 1 ? "s are" : " is");
+  } else {
+    d.outcome = PedicelOutcome::kNothingToCut;
+    d.reason = fmt::format("{} object{} in range, none pedicel-like", n.in_range_objects,
+                           n.in_range_objects == 1 ? "" : "s");
+  }
+}
+
+// The best candidate as the detection: where to move or cut, how sure.
+void choose_best(const PedicelFinderParams& p, PedicelDetection& d) {
   const PedicelCandidate& best = d.candidates.front();
   double total = 0.0;
   for (const auto& c : d.candidates) total += c.weight;
@@ -336,6 +376,34 @@ PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& object
   // A fixed note: the numbers are in the fields, and formatting them would
   // cost more than finding the pedicel.
   d.reason = between_blades ? "pedicel between the blades" : "pedicel in view: move to it";
+}
+
+}  // namespace
+
+PedicelDetection find_pedicel(const LineScan& scan, const TwoStageResult& objects, const PedicelFinderParams& p,
+                              const std::optional<PedicelExpectation>& expectation) {
+  PedicelDetection d;
+  if (d.reason = check_inputs(scan, objects, p, expectation); !d.reason.empty()) return d;
+  std::size_t in_range = 0;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    in_range += scan.valid(i) && scan.range_m[i] >= p.min_range_m && scan.range_m[i] <= p.max_range_m;
+  }
+  if (in_range == 0) {
+    d.outcome = PedicelOutcome::kOutOfView;
+    d.reason = scan.size() == 0 ? "empty scan"
+                                : fmt::format("no return between {:.3f} and {:.3f} m ({} valid pixels of {})",
+                                              p.min_range_m, p.max_range_m, scan.num_valid(), scan.size());
+    return d;
+  }
+  const Prior prior = prior_of(p, expectation);
+  const Census census = gather_candidates(objects, p, prior, expectation, d.candidates);
+  if (expectation && !expectation->neighbours.empty()) score_layout(scan, *expectation, p, d.candidates);
+  rank(d.candidates);
+  if (d.candidates.empty()) {
+    explain_no_candidate(census, prior, d);
+  } else {
+    choose_best(p, d);
+  }
   return d;
 }
 

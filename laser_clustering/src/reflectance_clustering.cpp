@@ -22,23 +22,16 @@ common::Validation validate(const ReflectanceClusteringParams& p) {
   return {};
 }
 
-ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const ReflectanceClusteringParams& p) {
-  ReflectanceClusteringResult out;
-  if (auto v = validate(p); !v.valid) {
-    out.reason = v.reason;
-    return out;
-  }
-  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
-  if (p.use_reflectance && scan.reflectance.size() != scan.size()) {
-    out.reason = fmt::format("reflectance clustering needs a reflectance per pixel; the scan has {} for {} pixels",
-                             scan.reflectance.size(), scan.size());
-    return out;
-  }
-  const std::size_t n = scan.size();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
+namespace {
 
-  // Range smoothing that never averages across a depth step.
-  std::vector<double> range(n, nan), feature;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Range smoothing that never averages across a depth step: each valid
+// range becomes the mean of the valid ranges within smooth_half_width_px
+// pixels that lie within smooth_step_m of it; NaN elsewhere.
+std::vector<double> smooth_ranges(const LineScan& scan, const ReflectanceClusteringParams& p) {
+  const std::size_t n = scan.size();
+  std::vector<double> range(n, kNaN);
   const int h = p.smooth_half_width_px;
   for (std::size_t i = 0; i < n; ++i) {
     if (!scan.valid(i)) continue;
@@ -54,41 +47,35 @@ ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const R
     }
     range[i] = sum / cnt;
   }
+  return range;
+}
+
+// The DBSCAN feature: log reflectance scaled so that a ratio of
+// reflectance_ratio_at_eps is eps apart (NaN without a positive
+// reflectance). Returns the valid pixels left out for want of one.
+std::size_t reflectance_feature(const LineScan& scan, const ReflectanceClusteringParams& p, std::vector<double>& feature) {
   std::size_t no_reflectance = 0;
-  if (p.use_reflectance) {
-    const double scale = p.dbscan.eps / std::log(p.reflectance_ratio_at_eps);
-    feature.assign(n, nan);
-    for (std::size_t i = 0; i < n; ++i) {
-      const double r = scan.reflectance[i];
-      if (std::isfinite(r) && r > 0.0) {
-        feature[i] = scale * std::log(r);
-      } else if (scan.valid(i)) {
-        ++no_reflectance;  // a range without a usable reflectance: left out
-      }
+  const double scale = p.dbscan.eps / std::log(p.reflectance_ratio_at_eps);
+  feature.assign(scan.size(), kNaN);
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    const double r = scan.reflectance[i];
+    if (std::isfinite(r) && r > 0.0) {
+      feature[i] = scale * std::log(r);
+    } else if (scan.valid(i)) {
+      ++no_reflectance;  // a range without a usable reflectance: left out
     }
   }
-  OrderedScanDbscan dbscan;
-  const DbscanResult r = dbscan.run({scan.angle_rad, range, feature, {}}, p.dbscan);
-  if (!r.ok) {
-    out.reason = r.reason;
-    return out;
-  }
-  out.ok = true;
-  out.labels = r.labels;
-  if (n == 0) {
-    out.reason = "empty scan";
-  } else if (scan.num_valid() == 0) {
-    out.reason = "no valid pixels";
-  } else if (no_reflectance > 0) {
-    out.reason = fmt::format("{} pixels without a positive reflectance left out", no_reflectance);
-  }
+  return no_reflectance;
+}
 
-  out.clusters.resize(static_cast<std::size_t>(r.num_clusters));
-  std::vector<std::vector<double>> refl(out.clusters.size());
-  for (std::size_t i = 0; i < n; ++i) {
+// Per cluster: pixel span, point count, mean range and centroid (sums
+// here), and its pixels' finite reflectances into refl.
+void sum_clusters(const LineScan& scan, const std::vector<double>& range, const DbscanResult& r,
+                  std::vector<ReflectanceCluster>& clusters, std::vector<std::vector<double>>& refl) {
+  for (std::size_t i = 0; i < scan.size(); ++i) {
     const int l = r.labels[i];
     if (l < 0) continue;
-    auto& c = out.clusters[static_cast<std::size_t>(l)];
+    auto& c = clusters[static_cast<std::size_t>(l)];
     if (c.num_points == 0) {
       c.id = l;
       c.first_pixel = static_cast<int>(i);
@@ -99,27 +86,68 @@ ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const R
     c.centroid_xz_m += Eigen::Vector2d(range[i] * std::sin(scan.angle_rad[i]), range[i] * std::cos(scan.angle_rad[i]));
     if (!scan.reflectance.empty() && std::isfinite(scan.reflectance[i])) refl[static_cast<std::size_t>(l)].push_back(scan.reflectance[i]);
   }
+}
+
+// From sums to means, the median reflectance (v is reordered) and the width.
+void finish_cluster(const LineScan& scan, std::vector<double>& v, ReflectanceCluster& c) {
+  const std::size_t n = scan.size();
+  c.mean_range_m /= c.num_points;
+  c.centroid_xz_m /= c.num_points;
+  if (v.empty()) {
+    c.median_reflectance = kNaN;
+  } else {
+    auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    c.median_reflectance = *mid;
+  }
+  const auto f = static_cast<std::size_t>(c.first_pixel), b = static_cast<std::size_t>(c.last_pixel);
+  const std::size_t lo = f > 0 ? f - 1 : f, hi = b + 1 < n ? b + 1 : b;
+  const double pitch = hi > lo ? std::abs(scan.angle_rad[hi] - scan.angle_rad[lo]) / static_cast<double>(hi - lo) : 0.0;
+  c.width_m = c.mean_range_m * (std::abs(scan.angle_rad[b] - scan.angle_rad[f]) + pitch);
+}
+
+}  // namespace
+
+ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const ReflectanceClusteringParams& p) {
+  ReflectanceClusteringResult out;
+  if (auto v = validate(p); !v.valid) {
+    out.reason = v.reason;
+    return out;
+  }
+  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
+  if (p.use_reflectance && scan.reflectance.size() != scan.size()) {
+    out.reason = fmt::format("reflectance clustering needs a reflectance per pixel; the scan has {} for {} pixels",
+                             scan.reflectance.size(), scan.size());
+    return out;
+  }
+  const std::vector<double> range = smooth_ranges(scan, p);
+  std::vector<double> feature;
+  const std::size_t no_reflectance = p.use_reflectance ? reflectance_feature(scan, p, feature) : 0;
+  OrderedScanDbscan dbscan;
+  const DbscanResult r = dbscan.run({scan.angle_rad, range, feature, {}}, p.dbscan);
+  if (!r.ok) {
+    out.reason = r.reason;
+    return out;
+  }
+  out.ok = true;
+  out.labels = r.labels;
+  if (scan.size() == 0) {
+    out.reason = "empty scan";
+  } else if (scan.num_valid() == 0) {
+    out.reason = "no valid pixels";
+  } else if (no_reflectance > 0) {
+    out.reason = fmt::format("{} pixels without a positive reflectance left out", no_reflectance);
+  }
+  out.clusters.resize(static_cast<std::size_t>(r.num_clusters));
+  std::vector<std::vector<double>> refl(out.clusters.size());
+  sum_clusters(scan, range, r, out.clusters, refl);
   double brightest = -std::numeric_limits<double>::infinity();
   for (std::size_t l = 0; l < out.clusters.size(); ++l) {
-    auto& c = out.clusters[l];
-    c.mean_range_m /= c.num_points;
-    c.centroid_xz_m /= c.num_points;
-    auto& v = refl[l];
-    if (v.empty()) {
-      c.median_reflectance = nan;
-    } else {
-      auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-      std::nth_element(v.begin(), mid, v.end());
-      c.median_reflectance = *mid;
-      if (c.median_reflectance > brightest) {
-        brightest = c.median_reflectance;
-        out.brightest = static_cast<int>(l);
-      }
+    finish_cluster(scan, refl[l], out.clusters[l]);
+    if (!refl[l].empty() && out.clusters[l].median_reflectance > brightest) {
+      brightest = out.clusters[l].median_reflectance;
+      out.brightest = static_cast<int>(l);
     }
-    const auto f = static_cast<std::size_t>(c.first_pixel), b = static_cast<std::size_t>(c.last_pixel);
-    const std::size_t lo = f > 0 ? f - 1 : f, hi = b + 1 < n ? b + 1 : b;
-    const double pitch = hi > lo ? std::abs(scan.angle_rad[hi] - scan.angle_rad[lo]) / static_cast<double>(hi - lo) : 0.0;
-    c.width_m = c.mean_range_m * (std::abs(scan.angle_rad[b] - scan.angle_rad[f]) + pitch);
   }
   return out;
 }

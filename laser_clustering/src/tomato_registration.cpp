@@ -158,59 +158,48 @@ double support(const std::vector<Point>& points, const std::vector<Ray>& rays, c
   return s - violations(rays, sections, shift, p, violation_count);
 }
 
-}  // namespace
-
-TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const ExpectedTomato> tomatoes,
-                                     const TomatoRegistrationParams& p) {
-  TomatoRegistration out;
-  if (auto v = validate(p); !v.valid) {
-    out.reason = v.reason;
-    return out;
-  }
-  if (scan.angle_rad.size() != scan.range_m.size()) {
-    out.reason = fmt::format("scan has {} angles for {} ranges", scan.angle_rad.size(), scan.range_m.size());
-    return out;
-  }
-  std::vector<Section> sections;
+// The tomatoes' cross-sections with the laser plane wider than
+// min_section_radius_m, into `sections`; a reason for a bad tomato, or empty.
+std::string plane_sections(std::span<const ExpectedTomato> tomatoes, const TomatoRegistrationParams& p,
+                           std::vector<Section>& sections) {
   for (std::size_t i = 0; i < tomatoes.size(); ++i) {
     const ExpectedTomato& t = tomatoes[i];
     if (!t.centre_m.allFinite() || !(std::isfinite(t.radius_m) && t.radius_m > 0.0)) {
-      out.reason = fmt::format("tomato {} needs a finite centre and a radius > 0 (got {})", i, t.radius_m);
-      return out;
+      return fmt::format("tomato {} needs a finite centre and a radius > 0 (got {})", i, t.radius_m);
     }
     const double h = t.centre_m.y();
     if (std::abs(h) >= t.radius_m) continue;
     const double r = std::sqrt(t.radius_m * t.radius_m - h * h);
     if (r >= p.min_section_radius_m) sections.push_back({Eigen::Vector2d(t.centre_m.x(), t.centre_m.z()), r});
   }
-  out.tomatoes_in_plane = static_cast<int>(sections.size());
-  if (sections.empty()) {
-    out.reason = fmt::format("none of the {} tomatoes is cut by the laser plane wider than {:.3f} m", tomatoes.size(),
-                             p.min_section_radius_m);
-    return out;
-  }
-  std::vector<Point> points;
-  std::vector<Ray> rays;
+  return {};
+}
+
+// Every pixel as a ray, ascending by bearing, and the returns within the
+// range limits as points; a reason for a non-finite or non-monotone angle, or empty.
+std::string rays_and_points(const LineScan& scan, const TomatoRegistrationParams& p, std::vector<Ray>& rays,
+                            std::vector<Point>& points) {
   const bool descending = scan.size() > 1 && scan.angle_rad.front() > scan.angle_rad.back();
   for (std::size_t k = 0; k < scan.size(); ++k) {
     const std::size_t i = descending ? scan.size() - 1 - k : k;
     const double a = scan.angle_rad[i];
     if (!std::isfinite(a) || (!rays.empty() && !(a > rays.back().angle))) {
-      out.reason = fmt::format("pixel {} has a non-finite or non-monotone angle ({})", i, a);
-      return out;
+      return fmt::format("pixel {} has a non-finite or non-monotone angle ({})", i, a);
     }
     const Eigen::Vector2d u(std::sin(a), std::cos(a));
     rays.push_back({u, a, scan.valid(i) ? scan.range_m[i] : std::numeric_limits<double>::quiet_NaN()});
     if (!scan.valid(i) || scan.range_m[i] < p.min_range_m || scan.range_m[i] > p.max_range_m) continue;
     points.push_back({scan.range_m[i] * u, a});
   }
-  if (points.empty()) {
-    out.reason = fmt::format("no return between {:.3f} and {:.3f} m", p.min_range_m, p.max_range_m);
-    return out;
-  }
+  return {};
+}
 
-  // Coarse: every shift on the grid within the disc; then a grid four
-  // times finer around the best coarse cell.
+// Coarse: every shift on the grid within the disc (the best distinct one
+// into out's runner-up); then a grid four times finer around the best
+// coarse cell. Returns the best shift.
+Eigen::Vector2d grid_search(const std::vector<Point>& points, const std::vector<Ray>& rays,
+                            const std::vector<Section>& sections, const TomatoRegistrationParams& p,
+                            TomatoRegistration& out) {
   struct Cell {
     Eigen::Vector2d shift;
     double support;
@@ -241,9 +230,12 @@ TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const Expec
       if (v > fine.support) fine = {s, v};
     }
   }
-  Eigen::Vector2d shift = fine.shift;
+  return fine.shift;
+}
 
-  // Fine: Gauss-Newton on the shift, each inlier weighted by Tukey's biweight.
+// Gauss-Newton on the shift, each inlier weighted by Tukey's biweight.
+Eigen::Vector2d refine_shift(const std::vector<Point>& points, const std::vector<Section>& sections,
+                             Eigen::Vector2d shift, const TomatoRegistrationParams& p) {
   for (int iter = 0; iter < 8; ++iter) {
     Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
     Eigen::Vector2d b = Eigen::Vector2d::Zero();
@@ -260,7 +252,13 @@ TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const Expec
     shift += step;
     if (step.norm() < 1e-6) break;
   }
+  return shift;
+}
 
+// The fit at `shift`: inliers, their RMS, the support and violations, the
+// tomatoes met by at least min_points_per_tomato returns.
+void score_shift(const std::vector<Point>& points, const std::vector<Ray>& rays, const std::vector<Section>& sections,
+                 const Eigen::Vector2d& shift, const TomatoRegistrationParams& p, TomatoRegistration& out) {
   std::vector<int> per_section(sections.size(), 0);
   double sum2 = 0.0;
   for (const auto& q : points) {
@@ -270,23 +268,61 @@ TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const Expec
     ++out.inliers;
     sum2 += nn.residual * nn.residual;
   }
+  std::vector<double> scratch;
   out.shift_xz_m = shift;
   out.support = support(points, rays, sections, shift, p, scratch, &out.violations);
   out.rms_m = out.inliers ? std::sqrt(sum2 / out.inliers) : 0.0;
   for (const int k : per_section) out.tomatoes_matched += k >= p.min_points_per_tomato;
+}
+
+// ok when enough tomatoes are met and no distinct shift comes close; the reason either way.
+void judge(const TomatoRegistrationParams& p, TomatoRegistration& out) {
   if (out.tomatoes_matched < p.min_tomatoes) {
     out.reason = fmt::format("{} of {} tomatoes in the plane met by the scan, need {}", out.tomatoes_matched,
                              out.tomatoes_in_plane, p.min_tomatoes);
-    return out;
+    return;
   }
   if (out.runner_up_support >= p.ambiguity_ratio * out.support) {
     out.reason = fmt::format("ambiguous: a shift {:.3f} m away has {:.0f} % of the best's support",
-                             (out.runner_up_shift_xz_m - shift).norm(), 100.0 * out.runner_up_support / out.support);
-    return out;
+                             (out.runner_up_shift_xz_m - out.shift_xz_m).norm(), 100.0 * out.runner_up_support / out.support);
+    return;
   }
   out.ok = true;
   out.reason = fmt::format("{} of {} tomatoes matched, {} returns, RMS {:.4f} m, {} pixels see through", out.tomatoes_matched,
                            out.tomatoes_in_plane, out.inliers, out.rms_m, out.violations);
+}
+
+}  // namespace
+
+TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const ExpectedTomato> tomatoes,
+                                     const TomatoRegistrationParams& p) {
+  TomatoRegistration out;
+  if (auto v = validate(p); !v.valid) {
+    out.reason = v.reason;
+    return out;
+  }
+  if (scan.angle_rad.size() != scan.range_m.size()) {
+    out.reason = fmt::format("scan has {} angles for {} ranges", scan.angle_rad.size(), scan.range_m.size());
+    return out;
+  }
+  std::vector<Section> sections;
+  if (out.reason = plane_sections(tomatoes, p, sections); !out.reason.empty()) return out;
+  out.tomatoes_in_plane = static_cast<int>(sections.size());
+  if (sections.empty()) {
+    out.reason = fmt::format("none of the {} tomatoes is cut by the laser plane wider than {:.3f} m", tomatoes.size(),
+                             p.min_section_radius_m);
+    return out;
+  }
+  std::vector<Point> points;
+  std::vector<Ray> rays;
+  if (out.reason = rays_and_points(scan, p, rays, points); !out.reason.empty()) return out;
+  if (points.empty()) {
+    out.reason = fmt::format("no return between {:.3f} and {:.3f} m", p.min_range_m, p.max_range_m);
+    return out;
+  }
+  const Eigen::Vector2d coarse = grid_search(points, rays, sections, p, out);
+  score_shift(points, rays, sections, refine_shift(points, sections, coarse, p), p, out);
+  judge(p, out);
   return out;
 }
 

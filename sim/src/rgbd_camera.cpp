@@ -178,63 +178,171 @@ bool RgbdCamera::project(const Eigen::Vector3d& p, Eigen::Vector2d& uv) const {
   return true;
 }
 
-RgbdFrame RgbdCamera::render(const World& world, const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index) const {
-  const auto& P = params_;
-  const auto& K = P.intrinsics;
-  const int W = K.width, H = K.height;
-  const std::size_t N = static_cast<std::size_t>(W) * static_cast<std::size_t>(H);
-  RgbdFrame f;
-  f.width = W;
-  f.height = H;
-  f.intrinsics = K;
-  f.T_world_camera = T_world_camera;
-  f.depth_m.assign(N, kNaNf);
-  f.true_depth_m.assign(N, kNaNf);
-  f.rgb.assign(N, {0, 0, 0});
-  f.object.assign(N, kNoObject);
+namespace {
 
-  const Eigen::Matrix3d R = T_world_camera.linear();
-  const Eigen::Vector3d eye = T_world_camera.translation();
-  const Eigen::Vector3d projector = T_world_camera * Eigen::Vector3d(P.projector_baseline_m, 0, 0);
-  const double fb = K.fx * P.projector_baseline_m;  // disparity = fb / z [px]
-  const double cos_graze_start = std::cos(P.grazing_start_deg * M_PI / 180.0);
-  const double cos_graze_end = std::cos(P.grazing_end_deg * M_PI / 180.0);
+// One frame in the making: the steps of RgbdCamera::render share the
+// camera's pose, the per-pixel buffers and the frame's noise streams.
+class FrameRenderer {
+ public:
+  FrameRenderer(const RgbdCameraParams& params, const World& world, const Eigen::Isometry3d& T_world_camera,
+                std::uint64_t frame_index, RgbdFrame& frame)
+      : P(params),
+        K(params.intrinsics),
+        world_(world),
+        f(frame),
+        W(K.width),
+        H(K.height),
+        N(static_cast<std::size_t>(W) * static_cast<std::size_t>(H)),
+        R(T_world_camera.linear()),
+        eye(T_world_camera.translation()),
+        projector(T_world_camera * Eigen::Vector3d(P.projector_baseline_m, 0, 0)),
+        cos_graze_start(std::cos(P.grazing_start_deg * M_PI / 180.0)),
+        cos_graze_end(std::cos(P.grazing_end_deg * M_PI / 180.0)),
+        frame_index_(frame_index),
+        key_dropout(stream_key(P.seed, frame_index, 1)),
+        key_white(stream_key(P.seed, frame_index, 2)),
+        key_colour(stream_key(P.seed, frame_index, 3)),
+        key_graze(stream_key(P.seed, frame_index, 4)),
+        z_true(N, kNaNf),
+        has_depth(N, 0),
+        linear_rgb(N),
+        gloss_by_material(world.materials().size(), nullptr) {
+    f.width = W;
+    f.height = H;
+    f.intrinsics = K;
+    f.T_world_camera = T_world_camera;
+    f.depth_m.assign(N, kNaNf);
+    f.true_depth_m.assign(N, kNaNf);
+    f.rgb.assign(N, {0, 0, 0});
+    f.object.assign(N, kNoObject);
+    for (std::size_t m = 0; m < world.materials().size(); ++m)
+      gloss_by_material[m] = gloss_of(P.gloss, world.materials().get(static_cast<MaterialId>(m)).name);
+  }
 
-  // Which surfaces the pattern can return depth from, before noise.
-  std::vector<float> z_true(N, kNaNf);
-  std::vector<std::uint8_t> has_depth(N, 0);
-  std::vector<Eigen::Vector3f> linear_rgb(N);
-  std::vector<const Gloss*> gloss_by_material(world.materials().size(), nullptr);
-  for (std::size_t m = 0; m < world.materials().size(); ++m)
-    gloss_by_material[m] = gloss_of(P.gloss, world.materials().get(static_cast<MaterialId>(m)).name);
+  // Every pixel's ray against the whole world.
+  void cast_all() {
+    for (int v = 0; v < H; ++v) {
+      for (int u = 0; u < W; ++u) {
+        const std::size_t i = pixel(u, v);
+        const Eigen::Vector3d dir_c = K.ray(u, v);
+        const Ray ray{eye, R * dir_c};
+        const auto hit = world_.raycast(ray);
+        if (!hit) {
+          linear_rgb[i] = P.background_rgb.cast<float>();
+          continue;
+        }
+        shade(i, ray, dir_c.z(), *hit, hit->object, world_);
+      }
+    }
+  }
 
-  const std::uint64_t key_dropout = stream_key(P.seed, frame_index, 1);
-  const std::uint64_t key_white = stream_key(P.seed, frame_index, 2);
-  const std::uint64_t key_colour = stream_key(P.seed, frame_index, 3);
-  const std::uint64_t key_graze = stream_key(P.seed, frame_index, 4);
+  // Tiles: each casts its rays against the objects whose bounding spheres
+  // meet the tile's cone of rays, and its shadow rays against the objects
+  // near the segments from its hits to the lamp and to the projector.
+  void cast_tiled() {
+    bounds_.resize(world_.size());
+    for (std::size_t k = 0; k < world_.size(); ++k) bounds_[k] = bound_of(world_.object(static_cast<ObjectId>(k)));
+    hits_.resize(kTile * kTile);
+    hit_ok_.resize(kTile * kTile);
+    for (int v0 = 0; v0 < H; v0 += kTile) {
+      for (int u0 = 0; u0 < W; u0 += kTile) render_tile(u0, v0);
+    }
+  }
+
+  // Silhouette edges: the matching window straddles a depth jump (a pixel
+  // with no surface behind it counts as an infinite jump).
+  [[nodiscard]] std::vector<std::uint8_t> silhouette_edges() const {
+    std::vector<std::uint8_t> edge(N, 0);
+    for (int v = 0; v < H; ++v) {
+      for (int u = 0; u < W; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v * W + u);
+        if (has_depth[i]) edge[i] = depth_jumps_around(u, v);
+      }
+    }
+    return edge;
+  }
+
+  // The stereo depth: disparity with white and correlated noise, quantised,
+  // back to depth, distorted; dropped on edges at random and out of range.
+  void measure_depth(const std::vector<std::uint8_t>& edge) {
+    const double fb = K.fx * P.projector_baseline_m;  // disparity = fb / z [px]
+    const CorrelatedField field(W, H, P.correlation_window_px, stream_key(P.seed, frame_index_, 5));
+    const bool distort = P.distortion.enabled();
+    for (int v = 0; v < H; ++v) {
+      for (int u = 0; u < W; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v * W + u);
+        f.true_depth_m[i] = z_true[i];
+        if (!has_depth[i]) continue;
+        if (edge[i] && uniform01(key_dropout + i) < P.edge_dropout) continue;
+        const double z = z_true[i];
+        double d = fb / z + P.disparity_noise_px * gaussian(key_white + i) + P.disparity_noise_correlated_px * field.at(u, v);
+        if (P.disparity_step_px > 0) d = std::round(d / P.disparity_step_px) * P.disparity_step_px;
+        if (!(d > 0)) continue;
+        double zm = fb / d;
+        if (distort) zm += P.distortion.offset_m((u - K.cx) / W, (v - K.cy) / H, zm);
+        if (zm < P.min_depth_m || zm > P.max_depth_m) continue;
+        f.depth_m[i] = static_cast<float>(zm);
+      }
+    }
+  }
+
+  // Exposure, sRGB (through a table: a pow per channel per pixel is a fifth
+  // of the frame) and colour noise.
+  void encode_colour() {
+    for (std::size_t i = 0; i < N; ++i) {
+      for (int ch = 0; ch < 3; ++ch) {
+        const double dn = srgb_lut(P.exposure * static_cast<double>(linear_rgb[i][ch])) +
+                          P.colour_noise_dn * gaussian(key_colour + 3 * i + static_cast<std::uint64_t>(ch));
+        f.rgb[i][static_cast<std::size_t>(ch)] = static_cast<std::uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
+      }
+    }
+  }
+
+ private:
+  static constexpr int kTile = 8;
+
+  [[nodiscard]] std::size_t pixel(int u, int v) const {
+    return static_cast<std::size_t>(v) * static_cast<std::size_t>(W) + static_cast<std::size_t>(u);
+  }
+  [[nodiscard]] std::size_t tile_slot(int u, int v, int u0, int v0) const {
+    return static_cast<std::size_t>((v - v0) * kTile + (u - u0));
+  }
+
+  static double srgb_lut(double lin) {
+    constexpr int kLut = 4096;
+    static const std::vector<float> lut = [] {
+      std::vector<float> t(kLut + 1);
+      for (int k = 0; k <= kLut; ++k) t[static_cast<std::size_t>(k)] = static_cast<float>(srgb_encode(static_cast<double>(k) / kLut));
+      return t;
+    }();
+    const double x = std::clamp(lin, 0.0, 1.0) * kLut;
+    const int k = std::min(kLut - 1, static_cast<int>(x));
+    const double a = x - k;
+    return (1 - a) * lut[static_cast<std::size_t>(k)] + a * lut[static_cast<std::size_t>(k + 1)];
+  }
+
+  [[nodiscard]] bool depth_jumps_around(int u, int v) const {
+    const double z = z_true[static_cast<std::size_t>(v * W + u)];
+    const double thr = P.edge_jump_m + P.edge_jump_per_m * z;
+    for (int dv = -1; dv <= 1; ++dv) {
+      for (int du = -1; du <= 1; ++du) {
+        const int uu = u + du, vv = v + dv;
+        if (uu < 0 || vv < 0 || uu >= W || vv >= H) continue;
+        const float zn = z_true[static_cast<std::size_t>(vv * W + uu)];
+        if (!(std::abs(zn - z) <= thr)) return true;  // NaN (nothing there) is a jump too
+      }
+    }
+    return false;
+  }
 
   // Shades pixel i from its hit; decides whether the pattern returns depth.
   // `occluders` answers shadow rays (the full world or a tile's share of it).
-  auto shade = [&](std::size_t i, int u, const Ray& ray, double dir_z, const Hit& hit, ObjectId original,
-                   const World& occluders) {
-    (void)u;
+  void shade(std::size_t i, const Ray& ray, double dir_z, const Hit& hit, ObjectId original, const World& occluders) {
     f.object[i] = original;
     const double z = hit.t_m * dir_z;
     z_true[i] = static_cast<float>(z);
-    // Colour: ambient + lamp (Lambert, shadowed) + highlight on glossy skins.
-    const Material& mat = world.materials().get(hit.material);
-    const Eigen::Vector3d to_light = (P.light_position_m - hit.point).normalized();
     const Eigen::Vector3d to_eye = -ray.dir;
-    double diffuse = std::max(0.0, hit.normal.dot(to_light));
-    if (diffuse > 0 && P.shadows && occluders.occluded(hit.point + 1e-5 * hit.normal, P.light_position_m)) diffuse = 0;
-    Eigen::Vector3d c = mat.rgb * (P.ambient + P.light_intensity * diffuse);
-    if (diffuse > 0) {
-      if (const Gloss* g = gloss_by_material[static_cast<std::size_t>(hit.material)]) {
-        const double nh = std::max(0.0, hit.normal.dot((to_light + to_eye).normalized()));
-        c += Eigen::Vector3d::Constant(g->strength * std::pow(nh, g->exponent));
-      }
-    }
-    linear_rgb[i] = c.cast<float>();
+    shade_colour(i, to_eye, hit, occluders);
     // Depth: in range, not grazing, and lit by the projector.
     if (z < P.min_depth_m || z > P.max_depth_m) return;
     const double cos_inc = std::abs(hit.normal.dot(to_eye));
@@ -245,163 +353,131 @@ RgbdFrame RgbdCamera::render(const World& world, const Eigen::Isometry3d& T_worl
     }
     if (P.projector_shadow && occluders.occluded(hit.point + 1e-5 * hit.normal, projector)) return;
     has_depth[i] = 1;
-  };
+  }
 
-  if (!P.tile_culling) {
-    for (int v = 0; v < H; ++v) {
-      for (int u = 0; u < W; ++u) {
-        const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(W) + static_cast<std::size_t>(u);
-        const Eigen::Vector3d dir_c = K.ray(u, v);
-        const Ray ray{eye, R * dir_c};
-        const auto hit = world.raycast(ray);
-        if (!hit) {
-          linear_rgb[i] = P.background_rgb.cast<float>();
-          continue;
-        }
-        shade(i, u, ray, dir_c.z(), *hit, hit->object, world);
+  // Colour: ambient + lamp (Lambert, shadowed) + highlight on glossy skins.
+  void shade_colour(std::size_t i, const Eigen::Vector3d& to_eye, const Hit& hit, const World& occluders) {
+    const Material& mat = world_.materials().get(hit.material);
+    const Eigen::Vector3d to_light = (P.light_position_m - hit.point).normalized();
+    double diffuse = std::max(0.0, hit.normal.dot(to_light));
+    if (diffuse > 0 && P.shadows && occluders.occluded(hit.point + 1e-5 * hit.normal, P.light_position_m)) diffuse = 0;
+    Eigen::Vector3d c = mat.rgb * (P.ambient + P.light_intensity * diffuse);
+    if (diffuse > 0) {
+      if (const Gloss* g = gloss_by_material[static_cast<std::size_t>(hit.material)]) {
+        const double nh = std::max(0.0, hit.normal.dot((to_light + to_eye).normalized()));
+        c += Eigen::Vector3d::Constant(g->strength * std::pow(nh, g->exponent));
       }
     }
-  } else {
-    // Tiles: each casts its rays against the objects whose bounding spheres
-    // meet the tile's cone of rays, and its shadow rays against the objects
-    // near the segments from its hits to the lamp and to the projector.
-    std::vector<Bound> bounds(world.size());
-    for (std::size_t k = 0; k < world.size(); ++k) bounds[k] = bound_of(world.object(static_cast<ObjectId>(k)));
-    constexpr int kTile = 8;
+    linear_rgb[i] = c.cast<float>();
+  }
+
+  void render_tile(int u0, int v0) {
+    const int u1 = std::min(W, u0 + kTile), v1 = std::min(H, v0 + kTile);
+    const SubWorld primary(world_, objects_in_cone(u0, v0, u1, v1));
+    for (int v = v0; v < v1; ++v) {
+      for (int u = u0; u < u1; ++u) {
+        const std::size_t t = tile_slot(u, v, u0, v0);
+        const auto hit = primary.world.raycast({eye, R * K.ray(u, v)});
+        hit_ok_[t] = hit.has_value();
+        if (hit) hits_[t] = *hit;
+      }
+    }
+    group_hits_by_object(u1 - u0, v1 - v0);
+    for (const auto& [object, obox] : seen_) {
+      const SubWorld shadow(world_, objects_near_shadow_rays(obox));
+      for (int v = v0; v < v1; ++v) {
+        for (int u = u0; u < u1; ++u) {
+          const std::size_t t = tile_slot(u, v, u0, v0);
+          if (!hit_ok_[t] || hits_[t].object != object) continue;
+          const Eigen::Vector3d dir_c = K.ray(u, v);
+          const Ray ray{eye, R * dir_c};
+          shade(pixel(u, v), ray, dir_c.z(), hits_[t], primary.original[static_cast<std::size_t>(object)], shadow.world);
+        }
+      }
+    }
+    for (int v = v0; v < v1; ++v)
+      for (int u = u0; u < u1; ++u)
+        if (!hit_ok_[tile_slot(u, v, u0, v0)]) linear_rgb[pixel(u, v)] = P.background_rgb.cast<float>();
+  }
+
+  // The objects whose bounding spheres meet the cone of the tile's rays.
+  std::vector<ObjectId> objects_in_cone(int u0, int v0, int u1, int v1) const {
+    const Eigen::Vector3d axis = R * K.ray(0.5 * (u0 + u1 - 1), 0.5 * (v0 + v1 - 1));
+    double half = 0.0;
+    for (const auto& [cu, cv] : {std::pair{u0, v0}, {u1 - 1, v0}, {u0, v1 - 1}, {u1 - 1, v1 - 1}})
+      half = std::max(half, std::acos(std::clamp(axis.dot(R * K.ray(cu, cv)), -1.0, 1.0)));
+    half += 1e-6;
     std::vector<ObjectId> ids;
-    std::vector<Hit> hits(kTile * kTile);
-    std::vector<std::uint8_t> hit_ok(kTile * kTile);
-    std::vector<std::pair<ObjectId, Eigen::AlignedBox3d>> seen;
-    for (int v0 = 0; v0 < H; v0 += kTile) {
-      for (int u0 = 0; u0 < W; u0 += kTile) {
-        const int u1 = std::min(W, u0 + kTile), v1 = std::min(H, v0 + kTile);
-        const Eigen::Vector3d axis = R * K.ray(0.5 * (u0 + u1 - 1), 0.5 * (v0 + v1 - 1));
-        double half = 0.0;
-        for (const auto& [cu, cv] : {std::pair{u0, v0}, {u1 - 1, v0}, {u0, v1 - 1}, {u1 - 1, v1 - 1}})
-          half = std::max(half, std::acos(std::clamp(axis.dot(R * K.ray(cu, cv)), -1.0, 1.0)));
-        half += 1e-6;
-        ids.clear();
-        for (std::size_t k = 0; k < bounds.size(); ++k)
-          if (sphere_meets_cone(bounds[k], eye, axis, half)) ids.push_back(static_cast<ObjectId>(k));
-        const SubWorld primary(world, ids);
-        for (int v = v0; v < v1; ++v) {
-          for (int u = u0; u < u1; ++u) {
-            const std::size_t t = static_cast<std::size_t>((v - v0) * kTile + (u - u0));
-            const Ray ray{eye, R * K.ray(u, v)};
-            const auto hit = primary.world.raycast(ray);
-            hit_ok[t] = hit.has_value();
-            if (hit) hits[t] = *hit;
-          }
-        }
-        // Shadow rays, per object seen in the tile: the hits on one surface
-        // are close together, so the segments to the lamp and projector stay
-        // in a thin capsule.
-        seen.clear();
-        for (int t = 0; t < (u1 - u0) * (v1 - v0); ++t) {
-          const int tu = t % (u1 - u0), tv = t / (u1 - u0);
-          const std::size_t k = static_cast<std::size_t>(tv * kTile + tu);
-          if (!hit_ok[k]) continue;
-          const ObjectId o = hits[k].object;
-          auto it = std::find_if(seen.begin(), seen.end(), [&](const auto& e) { return e.first == o; });
-          if (it == seen.end()) {
-            seen.emplace_back(o, Eigen::AlignedBox3d());
-            it = seen.end() - 1;
-          }
-          it->second.extend(hits[k].point);
-        }
-        for (const auto& [object, obox] : seen) {
-          ids.clear();
-          const Eigen::Vector3d c = obox.center();
-          const double r = 0.5 * obox.diagonal().norm() + 1e-6;
-          for (std::size_t k = 0; k < bounds.size(); ++k)
-            if ((P.shadows && sphere_meets_capsule(bounds[k], c, P.light_position_m, r)) ||
-                (P.projector_shadow && sphere_meets_capsule(bounds[k], c, projector, r)))
-              ids.push_back(static_cast<ObjectId>(k));
-          const SubWorld shadow(world, ids);
-          for (int v = v0; v < v1; ++v) {
-            for (int u = u0; u < u1; ++u) {
-              const std::size_t t = static_cast<std::size_t>((v - v0) * kTile + (u - u0));
-              if (!hit_ok[t] || hits[t].object != object) continue;
-              const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(W) + static_cast<std::size_t>(u);
-              const Eigen::Vector3d dir_c = K.ray(u, v);
-              const Ray ray{eye, R * dir_c};
-              shade(i, u, ray, dir_c.z(), hits[t], primary.original[static_cast<std::size_t>(object)], shadow.world);
-            }
-          }
-        }
-        for (int v = v0; v < v1; ++v)
-          for (int u = u0; u < u1; ++u)
-            if (!hit_ok[static_cast<std::size_t>((v - v0) * kTile + (u - u0))])
-              linear_rgb[static_cast<std::size_t>(v) * static_cast<std::size_t>(W) + static_cast<std::size_t>(u)] =
-                  P.background_rgb.cast<float>();
+    for (std::size_t k = 0; k < bounds_.size(); ++k)
+      if (sphere_meets_cone(bounds_[k], eye, axis, half)) ids.push_back(static_cast<ObjectId>(k));
+    return ids;
+  }
+
+  // Shadow rays go per object seen in the tile: the hits on one surface are
+  // close together, so the segments to the lamp and projector stay in a
+  // thin capsule. The objects seen, in order of first hit, with their hits' box.
+  void group_hits_by_object(int tile_w, int tile_h) {
+    seen_.clear();
+    for (int t = 0; t < tile_w * tile_h; ++t) {
+      const int tu = t % tile_w, tv = t / tile_w;
+      const std::size_t k = static_cast<std::size_t>(tv * kTile + tu);
+      if (!hit_ok_[k]) continue;
+      const ObjectId o = hits_[k].object;
+      auto it = std::find_if(seen_.begin(), seen_.end(), [&](const auto& e) { return e.first == o; });
+      if (it == seen_.end()) {
+        seen_.emplace_back(o, Eigen::AlignedBox3d());
+        it = seen_.end() - 1;
       }
+      it->second.extend(hits_[k].point);
     }
   }
 
-  // Silhouette edges: the matching window straddles a depth jump (a pixel
-  // with no surface behind it counts as an infinite jump).
-  std::vector<std::uint8_t> edge(N, 0);
-  for (int v = 0; v < H; ++v) {
-    for (int u = 0; u < W; ++u) {
-      const std::size_t i = static_cast<std::size_t>(v * W + u);
-      if (!has_depth[i]) continue;
-      const double z = z_true[i];
-      const double thr = P.edge_jump_m + P.edge_jump_per_m * z;
-      bool jump = false;
-      for (int dv = -1; dv <= 1 && !jump; ++dv) {
-        for (int du = -1; du <= 1; ++du) {
-          const int uu = u + du, vv = v + dv;
-          if (uu < 0 || vv < 0 || uu >= W || vv >= H) continue;
-          const float zn = z_true[static_cast<std::size_t>(vv * W + uu)];
-          if (!(std::abs(zn - z) <= thr)) {  // NaN (nothing there) is a jump too
-            jump = true;
-            break;
-          }
-        }
-      }
-      edge[i] = jump;
-    }
+  // The objects near the segments from a box of hits to the lamp and the projector.
+  std::vector<ObjectId> objects_near_shadow_rays(const Eigen::AlignedBox3d& obox) const {
+    std::vector<ObjectId> ids;
+    const Eigen::Vector3d c = obox.center();
+    const double r = 0.5 * obox.diagonal().norm() + 1e-6;
+    for (std::size_t k = 0; k < bounds_.size(); ++k)
+      if ((P.shadows && sphere_meets_capsule(bounds_[k], c, P.light_position_m, r)) ||
+          (P.projector_shadow && sphere_meets_capsule(bounds_[k], c, projector, r)))
+        ids.push_back(static_cast<ObjectId>(k));
+    return ids;
   }
 
-  const CorrelatedField field(W, H, P.correlation_window_px, stream_key(P.seed, frame_index, 5));
-  const bool distort = P.distortion.enabled();
-  for (int v = 0; v < H; ++v) {
-    for (int u = 0; u < W; ++u) {
-      const std::size_t i = static_cast<std::size_t>(v * W + u);
-      f.true_depth_m[i] = z_true[i];
-      if (!has_depth[i]) continue;
-      if (edge[i] && uniform01(key_dropout + i) < P.edge_dropout) continue;
-      const double z = z_true[i];
-      double d = fb / z + P.disparity_noise_px * gaussian(key_white + i) +
-                 P.disparity_noise_correlated_px * field.at(u, v);
-      if (P.disparity_step_px > 0) d = std::round(d / P.disparity_step_px) * P.disparity_step_px;
-      if (!(d > 0)) continue;
-      double zm = fb / d;
-      if (distort) zm += P.distortion.offset_m((u - K.cx) / W, (v - K.cy) / H, zm);
-      if (zm < P.min_depth_m || zm > P.max_depth_m) continue;
-      f.depth_m[i] = static_cast<float>(zm);
-    }
-  }
+  const RgbdCameraParams& P;
+  const PinholeIntrinsics& K;
+  const World& world_;
+  RgbdFrame& f;
+  const int W, H;
+  const std::size_t N;
+  const Eigen::Matrix3d R;
+  const Eigen::Vector3d eye, projector;
+  const double cos_graze_start, cos_graze_end;
+  const std::uint64_t frame_index_, key_dropout, key_white, key_colour, key_graze;
+  // Which surfaces the pattern can return depth from, before noise.
+  std::vector<float> z_true;
+  std::vector<std::uint8_t> has_depth;
+  std::vector<Eigen::Vector3f> linear_rgb;
+  std::vector<const Gloss*> gloss_by_material;
+  // Tiled casting's scratch.
+  std::vector<Bound> bounds_;
+  std::vector<Hit> hits_;
+  std::vector<std::uint8_t> hit_ok_;
+  std::vector<std::pair<ObjectId, Eigen::AlignedBox3d>> seen_;
+};
 
-  // sRGB through a table (a pow per channel per pixel is a fifth of the frame).
-  constexpr int kLut = 4096;
-  static const std::vector<float> lut = [] {
-    std::vector<float> t(kLut + 1);
-    for (int k = 0; k <= kLut; ++k) t[static_cast<std::size_t>(k)] = static_cast<float>(srgb_encode(static_cast<double>(k) / kLut));
-    return t;
-  }();
-  auto encode = [&](double lin) {
-    const double x = std::clamp(lin, 0.0, 1.0) * kLut;
-    const int k = std::min(kLut - 1, static_cast<int>(x));
-    const double a = x - k;
-    return (1 - a) * lut[static_cast<std::size_t>(k)] + a * lut[static_cast<std::size_t>(k + 1)];
-  };
-  for (std::size_t i = 0; i < N; ++i) {
-    for (int ch = 0; ch < 3; ++ch) {
-      const double dn = encode(P.exposure * static_cast<double>(linear_rgb[i][ch])) + P.colour_noise_dn * gaussian(key_colour + 3 * i + static_cast<std::uint64_t>(ch));
-      f.rgb[i][static_cast<std::size_t>(ch)] = static_cast<std::uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
-    }
+}  // namespace
+
+RgbdFrame RgbdCamera::render(const World& world, const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index) const {
+  RgbdFrame f;
+  FrameRenderer r(params_, world, T_world_camera, frame_index, f);
+  if (params_.tile_culling) {
+    r.cast_tiled();
+  } else {
+    r.cast_all();
   }
+  r.measure_depth(r.silhouette_edges());
+  r.encode_colour();
   return f;
 }
 

@@ -54,6 +54,99 @@ void cylinder_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double r,
   }
 }
 
+// Ray o + t d against each shape in its own frame: the nearer hit in
+// (t_min, t_best) updates t_best and the local normal n_best.
+
+// Plane z = 0, size_m wide along x and y (infinite when not finite).
+void plane_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const PlaneShape& p, double t_min, double& t_best,
+                Eigen::Vector3d& n_best) {
+  if (std::abs(d.z()) < kEps) return;
+  const double t = -o.z() / d.z();
+  const Eigen::Vector3d q = o + t * d;
+  if (std::abs(q.x()) <= 0.5 * p.size_m.x() && std::abs(q.y()) <= 0.5 * p.size_m.y())
+    consider(t, Eigen::Vector3d::UnitZ(), t_min, t_best, n_best);
+}
+
+// Centred box (slab test); from inside, the exit face.
+void box_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const BoxShape& b, double t_min, double t_max,
+              double& t_best, Eigen::Vector3d& n_best) {
+  const Eigen::Vector3d h = 0.5 * b.size_m;
+  double t0 = -kInf, t1 = kInf;
+  int a0 = -1, a1 = -1;
+  double s0 = 0, s1 = 0;
+  for (int i = 0; i < 3; ++i) {
+    if (std::abs(d[i]) < kEps) {
+      if (o[i] < -h[i] || o[i] > h[i]) return;
+      continue;
+    }
+    double ta = (-h[i] - o[i]) / d[i], tb = (h[i] - o[i]) / d[i];
+    double sa = -1, sb = 1;
+    if (ta > tb) {
+      std::swap(ta, tb);
+      std::swap(sa, sb);
+    }
+    if (ta > t0) { t0 = ta; a0 = i; s0 = sa; }
+    if (tb < t1) { t1 = tb; a1 = i; s1 = sb; }
+  }
+  if (t0 > t1) return;
+  if (a0 >= 0) {
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    n[a0] = s0;
+    consider(t0, n, t_min, t_best, n_best);
+  }
+  if (a1 >= 0 && t_best == t_max) {  // origin inside: the exit face
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    n[a1] = s1;
+    consider(t1, n, t_min, t_best, n_best);
+  }
+}
+
+// Centred sphere: the first root in range.
+void sphere_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const SphereShape& s, double t_min, double& t_best,
+                 Eigen::Vector3d& n_best) {
+  const double b = o.dot(d);
+  const double c = o.squaredNorm() - s.radius_m * s.radius_m;
+  const double disc = b * b - c;
+  if (disc < 0) return;
+  const double q = std::sqrt(disc);
+  for (double t : {-b - q, -b + q}) {
+    if (t > t_min && t < t_best) {
+      consider(t, (o + t * d) / s.radius_m, t_min, t_best, n_best);
+      break;
+    }
+  }
+}
+
+// Slab test on the mesh's box, then Moller-Trumbore per triangle.
+void mesh_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const MeshShape& m, const Eigen::AlignedBox3d& box,
+               double t_min, double& t_best, Eigen::Vector3d& n_best) {
+  const Eigen::Vector3d inv = d.cwiseInverse();
+  const Eigen::Vector3d ta = (box.min() - o).cwiseProduct(inv);
+  const Eigen::Vector3d tb = (box.max() - o).cwiseProduct(inv);
+  const double tn = ta.cwiseMin(tb).maxCoeff(), tf = ta.cwiseMax(tb).minCoeff();
+  if (!(tn <= tf) || tf < t_min || tn > t_best) {
+    // NaN from 0*inf (ray in a face plane) falls through to the exact test.
+    if (!(std::isnan(tn) || std::isnan(tf))) return;
+  }
+  for (const auto& tri : m.triangles) {
+    const Eigen::Vector3d& v0 = m.vertices[static_cast<std::size_t>(tri[0])];
+    const Eigen::Vector3d e1 = m.vertices[static_cast<std::size_t>(tri[1])] - v0;
+    const Eigen::Vector3d e2 = m.vertices[static_cast<std::size_t>(tri[2])] - v0;
+    const Eigen::Vector3d p = d.cross(e2);
+    const double det = e1.dot(p);
+    if (std::abs(det) < 1e-15) continue;
+    const double id = 1.0 / det;
+    const Eigen::Vector3d s = o - v0;
+    const double u = s.dot(p) * id;
+    if (u < 0 || u > 1) continue;
+    const Eigen::Vector3d q = s.cross(e1);
+    const double v = d.dot(q) * id;
+    if (v < 0 || u + v > 1) continue;
+    const double t = e2.dot(q) * id;
+    if (t > t_min && t < t_best) consider(t, e1.cross(e2).normalized(), t_min, t_best, n_best);
+  }
+}
+
 }  // namespace
 
 const char* shape_name(const Shape& s) {
@@ -183,87 +276,12 @@ bool World::intersect(const Entry& e, const Ray& ray, double t_min, double t_max
   Eigen::Vector3d n_best = Eigen::Vector3d::Zero();
 
   std::visit(Overloaded{
-                 [&](const PlaneShape& p) {
-                   if (std::abs(d.z()) < kEps) return;
-                   const double t = -o.z() / d.z();
-                   const Eigen::Vector3d q = o + t * d;
-                   if (std::abs(q.x()) <= 0.5 * p.size_m.x() && std::abs(q.y()) <= 0.5 * p.size_m.y())
-                     consider(t, Eigen::Vector3d::UnitZ(), t_min, t_best, n_best);
-                 },
-                 [&](const BoxShape& b) {
-                   const Eigen::Vector3d h = 0.5 * b.size_m;
-                   double t0 = -kInf, t1 = kInf;
-                   int a0 = -1, a1 = -1;
-                   double s0 = 0, s1 = 0;
-                   for (int i = 0; i < 3; ++i) {
-                     if (std::abs(d[i]) < kEps) {
-                       if (o[i] < -h[i] || o[i] > h[i]) return;
-                       continue;
-                     }
-                     double ta = (-h[i] - o[i]) / d[i], tb = (h[i] - o[i]) / d[i];
-                     double sa = -1, sb = 1;
-                     if (ta > tb) {
-                       std::swap(ta, tb);
-                       std::swap(sa, sb);
-                     }
-                     if (ta > t0) { t0 = ta; a0 = i; s0 = sa; }
-                     if (tb < t1) { t1 = tb; a1 = i; s1 = sb; }
-                   }
-                   if (t0 > t1) return;
-                   if (a0 >= 0) {
-                     Eigen::Vector3d n = Eigen::Vector3d::Zero();
-                     n[a0] = s0;
-                     consider(t0, n, t_min, t_best, n_best);
-                   }
-                   if (a1 >= 0 && t_best == t_max) {  // origin inside: the exit face
-                     Eigen::Vector3d n = Eigen::Vector3d::Zero();
-                     n[a1] = s1;
-                     consider(t1, n, t_min, t_best, n_best);
-                   }
-                 },
-                 [&](const SphereShape& s) {
-                   const double b = o.dot(d);
-                   const double c = o.squaredNorm() - s.radius_m * s.radius_m;
-                   const double disc = b * b - c;
-                   if (disc < 0) return;
-                   const double q = std::sqrt(disc);
-                   for (double t : {-b - q, -b + q}) {
-                     if (t > t_min && t < t_best) {
-                       consider(t, (o + t * d) / s.radius_m, t_min, t_best, n_best);
-                       break;
-                     }
-                   }
-                 },
+                 [&](const PlaneShape& p) { plane_hits(o, d, p, t_min, t_best, n_best); },
+                 [&](const BoxShape& b) { box_hits(o, d, b, t_min, t_max, t_best, n_best); },
+                 [&](const SphereShape& s) { sphere_hits(o, d, s, t_min, t_best, n_best); },
                  [&](const CylinderShape& c) { cylinder_hits(o, d, c.radius_m, 0.5 * c.length_m, t_min, t_best, n_best); },
                  [&](const RodShape& r) { cylinder_hits(o, d, r.radius_m, e.half_len, t_min, t_best, n_best); },
-                 [&](const MeshShape& m) {
-                   // Slab test on the mesh's box, then Moller-Trumbore per triangle.
-                   const Eigen::Vector3d inv = d.cwiseInverse();
-                   const Eigen::Vector3d ta = (e.mesh_box.min() - o).cwiseProduct(inv);
-                   const Eigen::Vector3d tb = (e.mesh_box.max() - o).cwiseProduct(inv);
-                   const double tn = ta.cwiseMin(tb).maxCoeff(), tf = ta.cwiseMax(tb).minCoeff();
-                   if (!(tn <= tf) || tf < t_min || tn > t_best) {
-                     // NaN from 0*inf (ray in a face plane) falls through to the exact test.
-                     if (!(std::isnan(tn) || std::isnan(tf))) return;
-                   }
-                   for (const auto& tri : m.triangles) {
-                     const Eigen::Vector3d& v0 = m.vertices[static_cast<std::size_t>(tri[0])];
-                     const Eigen::Vector3d e1 = m.vertices[static_cast<std::size_t>(tri[1])] - v0;
-                     const Eigen::Vector3d e2 = m.vertices[static_cast<std::size_t>(tri[2])] - v0;
-                     const Eigen::Vector3d p = d.cross(e2);
-                     const double det = e1.dot(p);
-                     if (std::abs(det) < 1e-15) continue;
-                     const double id = 1.0 / det;
-                     const Eigen::Vector3d s = o - v0;
-                     const double u = s.dot(p) * id;
-                     if (u < 0 || u > 1) continue;
-                     const Eigen::Vector3d q = s.cross(e1);
-                     const double v = d.dot(q) * id;
-                     if (v < 0 || u + v > 1) continue;
-                     const double t = e2.dot(q) * id;
-                     if (t > t_min && t < t_best) consider(t, e1.cross(e2).normalized(), t_min, t_best, n_best);
-                   }
-                 }},
+                 [&](const MeshShape& m) { mesh_hits(o, d, m, e.mesh_box, t_min, t_best, n_best); }},
              e.obj.shape);
 
   if (!(t_best < t_max)) return false;

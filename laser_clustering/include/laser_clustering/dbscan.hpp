@@ -101,6 +101,11 @@ struct OrderedScanPoints {
 /// point is known to be core, and union-find that skips pairs already joined.
 /// Same semantics and labels as dbscan() on to_points(scan). Reuses its
 /// buffers between calls; not thread-safe (one per thread).
+namespace detail {
+template <bool with_feature, bool with_group>
+class CompactScan;
+}
+
 class OrderedScanDbscan {
  public:
   [[nodiscard]] DbscanResult run(const OrderedScanPoints& scan, const DbscanParams& params);
@@ -114,8 +119,22 @@ class OrderedScanDbscan {
   [[nodiscard]] const std::vector<double>& cos_angle() const { return cos_; }
 
  private:
+  // The stages of one run, in order (dbscan.cpp).
   template <bool with_feature, bool with_group>
   void run_impl(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r);
+  void cache_trig(std::span<const double> angle_rad);
+  template <bool with_feature, bool with_group>
+  std::size_t compact(const OrderedScanPoints& scan, double eps, DbscanResult& r);
+  template <bool with_feature, bool with_group>
+  [[nodiscard]] detail::CompactScan<with_feature, with_group> view(int n, double eps) const;
+  template <bool with_feature, bool with_group>
+  std::size_t mark_core(const detail::CompactScan<with_feature, with_group>& s, int min_points, DbscanResult& r);
+  void build_runs(int n, double eps2);
+  template <bool with_feature, bool with_group>
+  void link_runs(const detail::CompactScan<with_feature, with_group>& s);
+  int number_clusters(int n, DbscanResult& r);
+  template <bool with_feature, bool with_group>
+  std::size_t label_borders(const detail::CompactScan<with_feature, with_group>& s, int min_points, DbscanResult& r);
   std::vector<double> trig_angle_, sin_, cos_;  // cached per sensor geometry
   std::vector<double> x_, z_, f_, theta_, range_, block_lo_, block_hi_, adjacent_, run_lo_, run_hi_;
   std::vector<int> g_, index_, run_end_, parent_, size_, cluster_of_root_;

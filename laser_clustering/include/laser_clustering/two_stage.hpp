@@ -13,6 +13,7 @@
 // Metres everywhere; pixels only where a count of pixels is meant.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -116,6 +117,15 @@ class LineScanClusterer {
   void run(const LineScan& scan, TwoStageResult& out);
 
  private:
+  // The steps of a run, in order (two_stage.cpp).
+  static void reset(TwoStageResult& out);
+  std::string check_once(const LineScan& scan);
+  void edge_filter(const LineScan& scan, TwoStageResult& out);
+  void filter_run(const LineScan& scan, int group, TwoStageResult& out);
+  void filter_piece(int first, int last, int group, TwoStageResult& out);
+  bool sum_clusters(const LineScan& scan, TwoStageResult& out);
+  void finish_cluster(const LineScan& scan, std::size_t l, TwoStageResult& out) const;
+
   TwoStageParams params_;
   common::Validation valid_;
   OrderedScanDbscan dbscan_;

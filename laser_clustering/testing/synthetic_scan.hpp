@@ -1,4 +1,4 @@
-// Hand-made line scans for the unit tests: a 2-D cut through the laser plane
+// Hand-made line scans for the unit tests and the benchmarks: a 2-D cut through the laser plane
 // with discs (rods and spheres cut by the plane) and an optional wall, each
 // pixel averaging several sub-rays weighted by received energy (mixed
 // pixels), Gaussian range noise, and the emitter-side "distance drag" of
