@@ -8,7 +8,8 @@ RawProcessor::RawProcessor(bus::NodeOptions options) : Node(std::move(options)) 
   using bus::ParamConstraints;
   const DriverParams d;  // the same defaults as the driver
   calibration_ = declare_parameter("calibration", d.calibration,
-                                   "calibration YAML, public:NAME, or default (the simulated sensor's)");
+                                   "calibration YAML, public:NAME, or default (the simulated sensor's)",
+                                   calibration_file_constraints());
   optics_.focal_mm = declare_parameter("focal_mm", d.optics.focal_mm, "receiver lens focal length [mm]",
                                        ParamConstraints::range(0.5, 100.0));
   optics_.sensor_length_mm = declare_parameter("sensor_length_mm", d.optics.sensor_length_mm,
