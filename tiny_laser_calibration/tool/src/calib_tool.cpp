@@ -13,6 +13,7 @@
 #include <cstring>
 
 #include <fmt/format.h>
+#include <tinyline/bus/files.hpp>
 
 #include <tiny_laser_calibration/collect.hpp>
 #include <tiny_laser_calibration/discovery.hpp>
@@ -507,6 +508,8 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
   const bool discover = o.flag("--discover");
   const auto report = o.value("--report");
   const std::string data_path = o.positional()[0];
+  // Checked before the work: never the input, a link or a device; replaced only on success.
+  files::AtomicFile output_file(*output, {.inputs = {data_path}, .what = "calibration"});
   const auto data = read_calibration_csv(data_path);
 
   // The declared fit on every row: what is written without --discover, and the in-sample figures.
@@ -535,7 +538,8 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
     print_summary(out, *loop);
     model = loop->model;
   }
-  model.save(*output);
+  output_file.write(model.to_yaml());
+  output_file.commit();
   out << fmt::format("wrote {}\n", *output);
   if (report) {
     ReportContext c;
@@ -649,13 +653,17 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
   p.pixel_step = o.integer("--pixel-step", p.pixel_step, 1, 256);
   p.keep_mixed = o.flag("--keep-mixed");
   p.incidence_column = o.flag("--incidence");
+  files::AtomicFile output_file(*output, {.inputs = {o.positional()[0]}, .what = "data file"});
   const auto r = collect_calibration_data(o.positional()[0], p);
   for (const auto& n : r.notes) err << "note: " << n << "\n";
   if (!r.ok) {
     err << fmt::format("tinyline calib collect: error: {}\n", r.reason);
     return 1;
   }
-  write_calibration_csv(r.data, *output);
+  std::ostringstream csv;
+  write_calibration_csv(r.data, csv);
+  output_file.write(csv.str());
+  output_file.commit();
   std::size_t materials = r.data.materials.size();
   out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.positional()[0], r.raw_scans,
                      r.raw_topic, r.truths, r.truth_topic, r.paired);
