@@ -3,10 +3,12 @@
 // the file, line and field, because a silently ignored typo in a calibration
 // shows up much later as a wrong distance.
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
-#include <sstream>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
@@ -20,6 +22,29 @@ namespace {
 
 constexpr std::string_view kFormat = "tinyline_calibration/1";
 
+// Bounds on what a file may ask the loader to hold: a fitted model has a few
+// terms of at most one entry per pixel; more is a broken or hostile file.
+constexpr std::size_t kMaxListLength = 4096;
+constexpr std::size_t kMaxTerms = 64;
+
+// A fitted polynomial follows noisy data near the ends of its range; reading
+// more than this beyond the physical range there is a broken file.
+constexpr double kLoadToleranceM = 0.5;
+constexpr int kRangeSamples = 1000;
+
+// What `tinyline calib fit` always writes: a file without one of these is
+// not one it wrote (the loader's defaults would then apply silently).
+struct RequiredSection {
+  const char* name;
+  std::vector<const char*> keys;
+};
+const RequiredSection kRequired[] = {
+    {"polynomial", {"center", "scale", "coefficients_m"}},
+    {"validity", {"low", "high", "min_sum", "per_pulse"}},
+    {"ratio", {"sensitivity_ratio", "leakage_offset", "leakage_per_pulse", "range", "range_margin"}},
+    {"temperature", {"reference_c", "coefficient_m_per_c"}},
+};
+
 class Reader {
  public:
   explicit Reader(std::string source) : source_(std::move(source)) {}
@@ -30,17 +55,23 @@ class Reader {
     throw std::runtime_error(fmt::format("{}: field '{}': {}", where, field, what));
   }
 
+  // A mapping of known keys, each at most once (yaml-cpp keeps a repeated
+  // key and lookups see the first: the second would be ignored silently).
   void only_keys(const YAML::Node& map, const std::string& field, std::initializer_list<std::string_view> known) const {
     if (!map.IsMap()) fail(map, field, "expected a mapping");
+    std::set<std::string> seen;
     for (const auto& kv : map) {
-      const auto key = kv.first.as<std::string>();
+      if (!kv.first.IsScalar()) fail(kv.first, field, "expected a key, not a list or mapping");
+      const auto key = kv.first.Scalar();
+      const std::string where = field.empty() ? key : field + "." + key;
       bool ok = false;
       for (auto k : known) ok = ok || k == key;
       if (!ok) {
         std::string list;
         for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
-        fail(kv.first, field.empty() ? key : field + "." + key, fmt::format("unknown key (known here: {})", list));
+        fail(kv.first, where, fmt::format("unknown key (known here: {})", list));
       }
+      if (!seen.insert(key).second) fail(kv.first, where, "given twice");
     }
   }
 
@@ -67,8 +98,13 @@ class Reader {
     return n ? number(n, join(parent, key)) : fallback;
   }
 
+  void bounded_list(const YAML::Node& n, const std::string& field, const char* of) const {
+    if (!n.IsSequence()) fail(n, field, fmt::format("expected a list of {}", of));
+    if (n.size() > kMaxListLength) fail(n, field, fmt::format("has {} values, more than {}", n.size(), kMaxListLength));
+  }
+
   std::vector<double> numbers(const YAML::Node& n, const std::string& field) const {
-    if (!n.IsSequence()) fail(n, field, "expected a list of numbers");
+    bounded_list(n, field, "numbers");
     std::vector<double> v;
     v.reserve(n.size());
     for (std::size_t i = 0; i < n.size(); ++i) v.push_back(number(n[i], fmt::format("{}[{}]", field, i)));
@@ -76,7 +112,7 @@ class Reader {
   }
 
   std::vector<long> integers(const YAML::Node& n, const std::string& field) const {
-    if (!n.IsSequence()) fail(n, field, "expected a list of integers");
+    bounded_list(n, field, "integers");
     std::vector<long> v;
     for (std::size_t i = 0; i < n.size(); ++i) {
       long x = 0;
@@ -111,52 +147,55 @@ bool strictly_increasing(const std::vector<T>& v) {
   return true;
 }
 
-void parse(const YAML::Node& root, const Reader& rd, CalibrationModel::Impl& m) {
-  rd.only_keys(root, "", {"format", "validity", "ratio", "polynomial", "temperature", "amplitude_reference", "terms", "fit"});
+using Impl = CalibrationModel::Impl;
+
+void parse_format(const YAML::Node& root, const Reader& rd) {
   const auto fmt_node = rd.required(root, "", "format");
   if (rd.text(fmt_node, "format") != kFormat) {
     rd.fail(fmt_node, "format", fmt::format("'{}' is not '{}'", fmt_node.Scalar(), kFormat));
   }
+}
 
-  if (const auto v = root["validity"]) {
-    rd.only_keys(v, "validity", {"low", "high", "min_sum", "per_pulse"});
-    m.validity.low = rd.number_or(v, "validity", "low", m.validity.low);
-    m.validity.high = rd.number_or(v, "validity", "high", m.validity.high);
-    m.validity.min_sum = rd.number_or(v, "validity", "min_sum", m.validity.min_sum);
-    m.validity.per_pulse = rd.number_or(v, "validity", "per_pulse", m.validity.per_pulse);
-    if (!(m.validity.low < m.validity.high)) rd.fail(v, "validity", "low must be below high");
+void parse_validity(const YAML::Node& v, const Reader& rd, ValidityRule& rule) {
+  rd.only_keys(v, "validity", {"low", "high", "min_sum", "per_pulse"});
+  rule.low = rd.number_or(v, "validity", "low", rule.low);
+  rule.high = rd.number_or(v, "validity", "high", rule.high);
+  rule.min_sum = rd.number_or(v, "validity", "min_sum", rule.min_sum);
+  rule.per_pulse = rd.number_or(v, "validity", "per_pulse", rule.per_pulse);
+  if (!(rule.low < rule.high)) rd.fail(v, "validity", "low must be below high");
+}
+
+// One positive value per pixel (sensitivity ratio), or one value per pixel (offsets).
+std::vector<double> per_pixel(const YAML::Node& n, const Reader& rd, const std::string& field, bool positive) {
+  auto v = rd.numbers(n, field);
+  if (v.size() != kPixels) rd.fail(n, field, fmt::format("has {} values, expected one per pixel ({})", v.size(), kPixels));
+  for (std::size_t i = 0; positive && i < kPixels; ++i) {
+    if (!(v[i] > 0.0)) rd.fail(n, fmt::format("{}[{}]", field, i), "must be positive");
   }
+  return v;
+}
 
-  if (const auto r = root["ratio"]) {
-    rd.only_keys(r, "ratio", {"sensitivity_ratio", "sensitivity_ratio_per_pixel", "leakage_offset",
-                              "leakage_per_pulse", "range", "range_margin"});
-    m.sensitivity_ratio = rd.number_or(r, "ratio", "sensitivity_ratio", 1.0);
-    if (!(m.sensitivity_ratio > 0.0)) rd.fail(r["sensitivity_ratio"], "ratio.sensitivity_ratio", "must be positive");
-    if (const auto pp = r["sensitivity_ratio_per_pixel"]) {
-      m.sensitivity_ratio_per_pixel = rd.numbers(pp, "ratio.sensitivity_ratio_per_pixel");
-      if (m.sensitivity_ratio_per_pixel.size() != kPixels) {
-        rd.fail(pp, "ratio.sensitivity_ratio_per_pixel",
-                fmt::format("has {} values, expected one per pixel ({})", m.sensitivity_ratio_per_pixel.size(), kPixels));
-      }
-      for (std::size_t i = 0; i < kPixels; ++i) {
-        if (!(m.sensitivity_ratio_per_pixel[i] > 0.0)) {
-          rd.fail(pp, fmt::format("ratio.sensitivity_ratio_per_pixel[{}]", i), "must be positive");
-        }
-      }
-    }
-    m.leakage_offset = rd.number_or(r, "ratio", "leakage_offset", 0.0);
-    m.leakage_per_pulse = rd.number_or(r, "ratio", "leakage_per_pulse", 0.0);
-    if (const auto range = r["range"]) {
-      const auto v = rd.numbers(range, "ratio.range");
-      if (v.size() != 2 || !(v[0] < v[1])) rd.fail(range, "ratio.range", "expected [low, high] with low < high");
-      m.ratio_min = v[0];
-      m.ratio_max = v[1];
-    }
-    m.ratio_margin = rd.number_or(r, "ratio", "range_margin", m.ratio_margin);
-    if (m.ratio_margin < 0.0) rd.fail(r["range_margin"], "ratio.range_margin", "must not be negative");
+void parse_ratio(const YAML::Node& r, const Reader& rd, Impl& m) {
+  rd.only_keys(r, "ratio", {"sensitivity_ratio", "sensitivity_ratio_per_pixel", "leakage_offset",
+                            "leakage_per_pulse", "range", "range_margin"});
+  m.sensitivity_ratio = rd.number_or(r, "ratio", "sensitivity_ratio", 1.0);
+  if (!(m.sensitivity_ratio > 0.0)) rd.fail(r["sensitivity_ratio"], "ratio.sensitivity_ratio", "must be positive");
+  if (const auto pp = r["sensitivity_ratio_per_pixel"]) {
+    m.sensitivity_ratio_per_pixel = per_pixel(pp, rd, "ratio.sensitivity_ratio_per_pixel", true);
   }
+  m.leakage_offset = rd.number_or(r, "ratio", "leakage_offset", 0.0);
+  m.leakage_per_pulse = rd.number_or(r, "ratio", "leakage_per_pulse", 0.0);
+  if (const auto range = r["range"]) {
+    const auto v = rd.numbers(range, "ratio.range");
+    if (v.size() != 2 || !(v[0] < v[1])) rd.fail(range, "ratio.range", "expected [low, high] with low < high");
+    m.ratio_min = v[0];
+    m.ratio_max = v[1];
+  }
+  m.ratio_margin = rd.number_or(r, "ratio", "range_margin", m.ratio_margin);
+  if (m.ratio_margin < 0.0) rd.fail(r["range_margin"], "ratio.range_margin", "must not be negative");
+}
 
-  const auto p = rd.required(root, "", "polynomial");
+void parse_polynomial(const YAML::Node& p, const Reader& rd, Impl& m) {
   rd.only_keys(p, "polynomial", {"center", "scale", "coefficients_m"});
   m.poly_center = rd.number_or(p, "polynomial", "center", 0.0);
   m.poly_scale = rd.number_or(p, "polynomial", "scale", 1.0);
@@ -164,90 +203,141 @@ void parse(const YAML::Node& root, const Reader& rd, CalibrationModel::Impl& m) 
   const auto coef = rd.required(p, "polynomial", "coefficients_m");
   m.poly_m = rd.numbers(coef, "polynomial.coefficients_m");
   if (m.poly_m.empty()) rd.fail(coef, "polynomial.coefficients_m", "must hold at least one coefficient");
-
-  if (const auto t = root["temperature"]) {
-    rd.only_keys(t, "temperature", {"reference_c", "coefficient_m_per_c"});
-    m.temperature_reference_c = rd.number_or(t, "temperature", "reference_c", m.temperature_reference_c);
-    m.temperature_coef_m_per_c = rd.number_or(t, "temperature", "coefficient_m_per_c", 0.0);
+  if (m.poly_m.size() > kMaxPolynomialCoefficients) {
+    rd.fail(coef, "polynomial.coefficients_m",
+            fmt::format("has {} coefficients, at most {} (degree {})", m.poly_m.size(), kMaxPolynomialCoefficients,
+                        kMaxPolynomialCoefficients - 1));
   }
+}
 
-  if (const auto a = root["amplitude_reference"]) {
-    rd.only_keys(a, "amplitude_reference", {"knots_m", "log_amplitude", "pixel_log_offset"});
-    auto& ref = m.amplitude_reference;
-    const auto kn = rd.required(a, "amplitude_reference", "knots_m");
-    ref.knots_m = rd.numbers(kn, "amplitude_reference.knots_m");
-    if (ref.knots_m.empty() || !strictly_increasing(ref.knots_m)) {
-      rd.fail(kn, "amplitude_reference.knots_m", "must be a non-empty, strictly increasing list");
-    }
-    const auto ln = rd.required(a, "amplitude_reference", "log_amplitude");
-    ref.log_amplitude = rd.numbers(ln, "amplitude_reference.log_amplitude");
-    if (ref.log_amplitude.size() != ref.knots_m.size()) {
-      rd.fail(ln, "amplitude_reference.log_amplitude",
-              fmt::format("has {} values for {} knots", ref.log_amplitude.size(), ref.knots_m.size()));
-    }
-    if (const auto pp = a["pixel_log_offset"]) {
-      ref.pixel_log_offset = rd.numbers(pp, "amplitude_reference.pixel_log_offset");
-      if (ref.pixel_log_offset.size() != kPixels) {
-        rd.fail(pp, "amplitude_reference.pixel_log_offset",
-                fmt::format("has {} values, expected one per pixel ({})", ref.pixel_log_offset.size(), kPixels));
-      }
-    }
-  }
+void parse_temperature(const YAML::Node& t, const Reader& rd, Impl& m) {
+  rd.only_keys(t, "temperature", {"reference_c", "coefficient_m_per_c"});
+  m.temperature_reference_c = rd.number_or(t, "temperature", "reference_c", m.temperature_reference_c);
+  m.temperature_coef_m_per_c = rd.number_or(t, "temperature", "coefficient_m_per_c", 0.0);
+}
 
-  if (const auto terms = root["terms"]) {
-    if (!terms.IsSequence()) rd.fail(terms, "terms", "expected a list");
-    for (std::size_t i = 0; i < terms.size(); ++i) {
-      const auto n = terms[i];
-      const std::string f = fmt::format("terms[{}]", i);
-      rd.only_keys(n, f, {"covariate", "form", "knots", "values_m", "keys", "offsets_m", "amplitude_reference",
-                          "amplitude_scale", "heldout_rmse_before_m", "heldout_rmse_after_m"});
-      CalibrationTerm t;
-      t.covariate = rd.text(rd.required(n, f, "covariate"), f + ".covariate");
-      if (t.covariate.empty()) rd.fail(n, f + ".covariate", "must not be empty");
-      const auto form_node = rd.required(n, f, "form");
-      const auto form = term_form_from_string(rd.text(form_node, f + ".form"));
-      if (!form) rd.fail(form_node, f + ".form", fmt::format("'{}' is not smooth, table or amplitude_interaction", form_node.Scalar()));
-      t.form = *form;
-      if (t.form == TermForm::kTable) {
-        const auto kn = rd.required(n, f, "keys");
-        t.keys = rd.integers(kn, f + ".keys");
-        if (!strictly_increasing(t.keys)) rd.fail(kn, f + ".keys", "must be strictly increasing");
-        const auto on = rd.required(n, f, "offsets_m");
-        t.offsets_m = rd.numbers(on, f + ".offsets_m");
-        if (t.offsets_m.size() != t.keys.size()) {
-          rd.fail(on, f + ".offsets_m", fmt::format("has {} values for {} keys", t.offsets_m.size(), t.keys.size()));
-        }
-      } else {
-        const auto kn = rd.required(n, f, "knots");
-        t.knots = rd.numbers(kn, f + ".knots");
-        if (t.knots.empty() || !strictly_increasing(t.knots)) rd.fail(kn, f + ".knots", "must be a non-empty, strictly increasing list");
-        const auto vn = rd.required(n, f, "values_m");
-        t.values = rd.numbers(vn, f + ".values_m");
-        if (t.values.size() != t.knots.size()) {
-          rd.fail(vn, f + ".values_m", fmt::format("has {} values for {} knots", t.values.size(), t.knots.size()));
-        }
-        if (t.form == TermForm::kAmplitudeInteraction) {
-          t.amplitude_reference = rd.number(rd.required(n, f, "amplitude_reference"), f + ".amplitude_reference");
-          const auto sn = rd.required(n, f, "amplitude_scale");
-          t.amplitude_scale = rd.number(sn, f + ".amplitude_scale");
-          if (!(t.amplitude_scale > 0.0)) rd.fail(sn, f + ".amplitude_scale", "must be positive");
-        }
-      }
-      t.rmse_before_m = rd.number_or(n, f, "heldout_rmse_before_m", t.rmse_before_m);
-      t.rmse_after_m = rd.number_or(n, f, "heldout_rmse_after_m", t.rmse_after_m);
-      m.terms.push_back(std::move(t));
-    }
+void parse_amplitude_reference(const YAML::Node& a, const Reader& rd, AmplitudeReference& ref) {
+  rd.only_keys(a, "amplitude_reference", {"knots_m", "log_amplitude", "pixel_log_offset"});
+  const auto kn = rd.required(a, "amplitude_reference", "knots_m");
+  ref.knots_m = rd.numbers(kn, "amplitude_reference.knots_m");
+  if (ref.knots_m.empty() || !strictly_increasing(ref.knots_m)) {
+    rd.fail(kn, "amplitude_reference.knots_m", "must be a non-empty, strictly increasing list");
   }
+  const auto ln = rd.required(a, "amplitude_reference", "log_amplitude");
+  ref.log_amplitude = rd.numbers(ln, "amplitude_reference.log_amplitude");
+  if (ref.log_amplitude.size() != ref.knots_m.size()) {
+    rd.fail(ln, "amplitude_reference.log_amplitude",
+            fmt::format("has {} values for {} knots", ref.log_amplitude.size(), ref.knots_m.size()));
+  }
+  if (const auto pp = a["pixel_log_offset"]) {
+    ref.pixel_log_offset = per_pixel(pp, rd, "amplitude_reference.pixel_log_offset", false);
+  }
+}
 
-  if (const auto fit = root["fit"]) {
-    rd.only_keys(fit, "fit", {"data", "rows", "rmse_m", "heldout_rmse_before_m", "heldout_rmse_after_m", "weighting"});
-    if (fit["data"]) m.info.data = rd.text(fit["data"], "fit.data");
-    if (fit["weighting"]) m.info.weighting = rd.text(fit["weighting"], "fit.weighting");
-    m.info.rows = static_cast<std::size_t>(rd.number_or(fit, "fit", "rows", 0.0));
-    m.info.rmse_m = rd.number_or(fit, "fit", "rmse_m", m.info.rmse_m);
-    m.info.heldout_rmse_before_m = rd.number_or(fit, "fit", "heldout_rmse_before_m", m.info.heldout_rmse_before_m);
-    m.info.heldout_rmse_after_m = rd.number_or(fit, "fit", "heldout_rmse_after_m", m.info.heldout_rmse_after_m);
+void parse_table_term(const YAML::Node& n, const Reader& rd, const std::string& f, CalibrationTerm& t) {
+  const auto kn = rd.required(n, f, "keys");
+  t.keys = rd.integers(kn, f + ".keys");
+  if (!strictly_increasing(t.keys)) rd.fail(kn, f + ".keys", "must be strictly increasing");
+  const auto on = rd.required(n, f, "offsets_m");
+  t.offsets_m = rd.numbers(on, f + ".offsets_m");
+  if (t.offsets_m.size() != t.keys.size()) {
+    rd.fail(on, f + ".offsets_m", fmt::format("has {} values for {} keys", t.offsets_m.size(), t.keys.size()));
   }
+}
+
+void parse_knot_term(const YAML::Node& n, const Reader& rd, const std::string& f, CalibrationTerm& t) {
+  const auto kn = rd.required(n, f, "knots");
+  t.knots = rd.numbers(kn, f + ".knots");
+  if (t.knots.empty() || !strictly_increasing(t.knots)) rd.fail(kn, f + ".knots", "must be a non-empty, strictly increasing list");
+  const auto vn = rd.required(n, f, "values_m");
+  t.values = rd.numbers(vn, f + ".values_m");
+  if (t.values.size() != t.knots.size()) {
+    rd.fail(vn, f + ".values_m", fmt::format("has {} values for {} knots", t.values.size(), t.knots.size()));
+  }
+  if (t.form == TermForm::kAmplitudeInteraction) {
+    t.amplitude_reference = rd.number(rd.required(n, f, "amplitude_reference"), f + ".amplitude_reference");
+    const auto sn = rd.required(n, f, "amplitude_scale");
+    t.amplitude_scale = rd.number(sn, f + ".amplitude_scale");
+    if (!(t.amplitude_scale > 0.0)) rd.fail(sn, f + ".amplitude_scale", "must be positive");
+  }
+}
+
+CalibrationTerm parse_term(const YAML::Node& n, const Reader& rd, const std::string& f) {
+  rd.only_keys(n, f, {"covariate", "form", "knots", "values_m", "keys", "offsets_m", "amplitude_reference",
+                      "amplitude_scale", "heldout_rmse_before_m", "heldout_rmse_after_m"});
+  CalibrationTerm t;
+  t.covariate = rd.text(rd.required(n, f, "covariate"), f + ".covariate");
+  if (t.covariate.empty()) rd.fail(n, f + ".covariate", "must not be empty");
+  const auto form_node = rd.required(n, f, "form");
+  const auto form = term_form_from_string(rd.text(form_node, f + ".form"));
+  if (!form) rd.fail(form_node, f + ".form", fmt::format("'{}' is not smooth, table or amplitude_interaction", form_node.Scalar()));
+  t.form = *form;
+  if (t.form == TermForm::kTable) {
+    parse_table_term(n, rd, f, t);
+  } else {
+    parse_knot_term(n, rd, f, t);
+  }
+  t.rmse_before_m = rd.number_or(n, f, "heldout_rmse_before_m", t.rmse_before_m);
+  t.rmse_after_m = rd.number_or(n, f, "heldout_rmse_after_m", t.rmse_after_m);
+  return t;
+}
+
+void parse_terms(const YAML::Node& terms, const Reader& rd, Impl& m) {
+  if (!terms.IsSequence()) rd.fail(terms, "terms", "expected a list");
+  if (terms.size() > kMaxTerms) rd.fail(terms, "terms", fmt::format("has {} terms, more than {}", terms.size(), kMaxTerms));
+  for (std::size_t i = 0; i < terms.size(); ++i) m.terms.push_back(parse_term(terms[i], rd, fmt::format("terms[{}]", i)));
+}
+
+void parse_fit(const YAML::Node& fit, const Reader& rd, CalibrationFitInfo& info) {
+  rd.only_keys(fit, "fit", {"data", "rows", "rmse_m", "heldout_rmse_before_m", "heldout_rmse_after_m", "weighting"});
+  if (fit["data"]) info.data = rd.text(fit["data"], "fit.data");
+  if (fit["weighting"]) info.weighting = rd.text(fit["weighting"], "fit.weighting");
+  const double rows = rd.number_or(fit, "fit", "rows", 0.0);
+  if (!(rows >= 0.0 && rows <= 1e15)) rd.fail(fit["rows"], "fit.rows", "must be a count");
+  info.rows = static_cast<std::size_t>(rows);
+  info.rmse_m = rd.number_or(fit, "fit", "rmse_m", info.rmse_m);
+  info.heldout_rmse_before_m = rd.number_or(fit, "fit", "heldout_rmse_before_m", info.heldout_rmse_before_m);
+  info.heldout_rmse_after_m = rd.number_or(fit, "fit", "heldout_rmse_after_m", info.heldout_rmse_after_m);
+}
+
+// Checked after the values, so a bad value is named before a missing neighbour.
+void require_complete(const YAML::Node& root, const Reader& rd) {
+  for (const auto& section : kRequired) {
+    const YAML::Node s = rd.required(root, "", section.name);
+    for (const char* key : section.keys) (void)rd.required(s, section.name, key);
+  }
+}
+
+// The declared part (Eq. 3.18 at the reference temperature) over the ratio
+// range it was fitted on must read near the physical range: -1e19 m or -5 m
+// there is a broken file, not a calibration. (Beyond the fitted range, in its
+// margin, a polynomial may wander: the driver flags such pixels one by one.)
+void require_plausible(const YAML::Node& root, const Reader& rd, const Impl& m) {
+  for (int i = 0; i <= kRangeSamples; ++i) {
+    const double x = m.ratio_min + (m.ratio_max - m.ratio_min) * i / kRangeSamples;
+    const double d = m.polynomial_m(x);
+    if (std::isfinite(d) && d >= kPhysicalMinDistanceM - kLoadToleranceM && d <= kPhysicalMaxDistanceM + kLoadToleranceM) {
+      continue;
+    }
+    rd.fail(root["polynomial"]["coefficients_m"], "polynomial.coefficients_m",
+            fmt::format("reads {:.4g} m at ratio X = {:.4g}, inside the fitted ratio range [{:.4g}, {:.4g}]: the "
+                        "sensor measures {} to {} m (Eq. 3.4)",
+                        d, x, m.ratio_min, m.ratio_max, kPhysicalMinDistanceM, kPhysicalMaxDistanceM));
+  }
+}
+
+void parse(const YAML::Node& root, const Reader& rd, Impl& m) {
+  rd.only_keys(root, "", {"format", "validity", "ratio", "polynomial", "temperature", "amplitude_reference", "terms", "fit"});
+  parse_format(root, rd);
+  if (const auto v = root["validity"]) parse_validity(v, rd, m.validity);
+  if (const auto r = root["ratio"]) parse_ratio(r, rd, m);
+  if (const auto p = root["polynomial"]) parse_polynomial(p, rd, m);
+  if (const auto t = root["temperature"]) parse_temperature(t, rd, m);
+  if (const auto a = root["amplitude_reference"]) parse_amplitude_reference(a, rd, m.amplitude_reference);
+  if (const auto terms = root["terms"]) parse_terms(terms, rd, m);
+  if (const auto fit = root["fit"]) parse_fit(fit, rd, m.info);
+  require_complete(root, rd);
+  require_plausible(root, rd, m);
   m.resolve();
 }
 
@@ -268,9 +358,16 @@ std::string list(const std::vector<T>& v, const std::string& indent) {
   return s + "]";
 }
 
+// A YAML double-quoted string that reads back as `s` (control characters escaped:
+// a raw line break inside quotes would read back as a space).
 std::string quoted(const std::string& s) {
   std::string out = "\"";
   for (char c : s) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7f) {
+      out += fmt::format("\\x{:02x}", u);
+      continue;
+    }
     if (c == '"' || c == '\\') out += '\\';
     out += c;
   }
@@ -298,11 +395,24 @@ CalibrationModel CalibrationModel::from_yaml(const std::string& text, const std:
 }
 
 CalibrationModel CalibrationModel::load(const std::string& path) {
+  // A FIFO would block the open, a device would never end: only a regular
+  // file, and no more of it than a calibration can be.
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) throw std::runtime_error(fmt::format("{}: cannot open calibration file", path));
+  if (!std::filesystem::is_regular_file(status)) {
+    throw std::runtime_error(fmt::format("{}: calibration file is not a regular file", path));
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(fmt::format("{}: cannot open calibration file", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return from_yaml(ss.str(), path);
+  std::string text(kMaxCalibrationFileBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  if (text.size() > kMaxCalibrationFileBytes) {
+    throw std::runtime_error(
+        fmt::format("{}: calibration file is larger than the limit of {} bytes", path, kMaxCalibrationFileBytes));
+  }
+  return from_yaml(text, path);
 }
 
 std::string CalibrationModel::to_yaml() const {

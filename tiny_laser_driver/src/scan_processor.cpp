@@ -15,6 +15,18 @@ constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 
 bool is_dark(std::size_t p) { return p < kFirst || p > kLast; }
 
+bool has_distance(const CalibrationEvaluation& ev) {
+  using S = CalibrationEvaluation::Status;
+  return ev.status == S::kValid || ev.status == S::kMissingCovariate;
+}
+
+// A distance the sensor cannot measure (Eq. 3.4) is no measurement, whatever
+// the calibration says: published as out of range, never as a valid range
+// (+inf would read "no return" in a LaserScan).
+bool is_measurement(const CalibrationEvaluation& ev) {
+  return has_distance(ev) && ev.distance_m >= kPhysicalMinDistanceM && ev.distance_m <= kPhysicalMaxDistanceM;
+}
+
 void clear_pixel(ProcessedScan& out, std::size_t p, PixelStatus s) {
   out.distance_m[p] = kNaNf;
   out.intensity[p] = kNaNf;
@@ -93,7 +105,7 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
     out.pulses[p] = static_cast<std::uint16_t>(r.pulses);
     out.intensity[p] = static_cast<float>((r.a + r.b) / r.pulses);
     const CalibrationEvaluation ev = model_.evaluate(r);
-    if (ev.status == S::kValid || ev.status == S::kMissingCovariate) {
+    if (is_measurement(ev)) {
       const double d_m = ev.distance_m;
       const double d_cm = 100.0 * d_m;
       out.distance_m[p] = static_cast<float>(d_m);
@@ -104,7 +116,7 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
     }
     out.distance_m[p] = kNaNf;
     out.reflectance[p] = kNaNf;
-    if (ev.status == S::kOutOfRange) {
+    if (ev.status == S::kOutOfRange || has_distance(ev)) {
       out.status[p] = PixelStatus::kOutOfRange;
       ++out.out_of_range;
     } else {

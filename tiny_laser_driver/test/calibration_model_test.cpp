@@ -5,6 +5,11 @@
 #include <filesystem>
 #include <fstream>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -53,7 +58,22 @@ std::string expect_load_error(const std::string& yaml) {
   return {};
 }
 
-const char* kMinimal = "format: tinyline_calibration/1\npolynomial:\n  coefficients_m: [0.1, 2.0]\n";
+// The smallest complete file: every section `calib fit` writes, each but the
+// polynomial on one line (8 lines). minimal(name, text) leaves section `name`
+// out and appends `text`.
+std::string minimal(const std::string& section = "", const std::string& replacement = "") {
+  const std::vector<std::pair<std::string, std::string>> parts = {
+      {"format", "format: tinyline_calibration/1\n"},
+      {"polynomial", "polynomial:\n  center: 0\n  scale: 1\n  coefficients_m: [0.1, 2.0]\n"},
+      {"validity", "validity: {low: 10, high: 230, min_sum: 10, per_pulse: 0.4}\n"},
+      {"ratio", "ratio: {sensitivity_ratio: 1, leakage_offset: 0, leakage_per_pulse: 0, range: [0, 1], range_margin: 0.05}\n"},
+      {"temperature", "temperature: {reference_c: 48, coefficient_m_per_c: 0}\n"},
+  };
+  std::string y;
+  for (const auto& [name, text] : parts) y += name == section ? "" : text;
+  return y + replacement;
+}
+const std::string kMinimal = minimal();
 
 }  // namespace
 
@@ -192,30 +212,107 @@ TEST(CalibrationYaml, ErrorsNameFileLineAndField) {
               HasSubstr("calib.yaml:1: field 'format'"));
   EXPECT_THAT(expect_load_error("format: tinyline_calibration/1\n"),
               HasSubstr("field 'polynomial': missing"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) + "temperature:\n  refrence_c: 40\n"),
-              HasSubstr("calib.yaml:5: field 'temperature.refrence_c': unknown key"));
+  EXPECT_THAT(expect_load_error(minimal("temperature", "temperature:\n  refrence_c: 40\n")),
+              HasSubstr("calib.yaml:9: field 'temperature.refrence_c': unknown key"));
   EXPECT_THAT(expect_load_error("format: tinyline_calibration/1\npolynomial:\n  coefficients_m: [0.1, abc]\n"),
               HasSubstr("calib.yaml:3: field 'polynomial.coefficients_m[1]': 'abc' is not a number"));
   EXPECT_THAT(expect_load_error("format: tinyline_calibration/1\npolynomial:\n  coefficients_m: []\n"),
               HasSubstr("at least one coefficient"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) + "ratio:\n  sensitivity_ratio_per_pixel: [1, 1]\n"),
+  EXPECT_THAT(expect_load_error(minimal("ratio", "ratio:\n  sensitivity_ratio_per_pixel: [1, 1]\n")),
               HasSubstr("has 2 values, expected one per pixel (272)"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) + "ratio:\n  sensitivity_ratio: -1\n"),
+  EXPECT_THAT(expect_load_error(minimal("ratio", "ratio:\n  sensitivity_ratio: -1\n")),
               HasSubstr("ratio.sensitivity_ratio': must be positive"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) +
+  EXPECT_THAT(expect_load_error(kMinimal +
                                 "terms:\n  - covariate: pixel\n    form: table\n    keys: [3, 2]\n    offsets_m: [0, 0]\n"),
-              HasSubstr("calib.yaml:7: field 'terms[0].keys': must be strictly increasing"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) +
+              HasSubstr("calib.yaml:12: field 'terms[0].keys': must be strictly increasing"));
+  EXPECT_THAT(expect_load_error(kMinimal +
                                 "terms:\n  - covariate: pixel\n    form: wiggly\n"),
               HasSubstr("terms[0].form': 'wiggly' is not smooth, table or amplitude_interaction"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) +
+  EXPECT_THAT(expect_load_error(kMinimal +
                                 "terms:\n  - covariate: t_s\n    form: smooth\n    knots: [0, 1]\n    values_m: [0]\n"),
               HasSubstr("has 1 values for 2 knots"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) + "validity: {low: 300, high: 230}\n"),
+  EXPECT_THAT(expect_load_error(minimal("validity", "validity: {low: 300, high: 230}\n")),
               HasSubstr("low must be below high"));
-  EXPECT_THAT(expect_load_error(std::string(kMinimal) +
+  EXPECT_THAT(expect_load_error(kMinimal +
                                 "amplitude_reference:\n  knots_m: [0.1, 1]\n  log_amplitude: [1]\n"),
-              HasSubstr("calib.yaml:6: field 'amplitude_reference.log_amplitude': has 1 values for 2 knots"));
+              HasSubstr("calib.yaml:11: field 'amplitude_reference.log_amplitude': has 1 values for 2 knots"));
+}
+
+TEST(CalibrationYaml, ARepeatedKeyIsRefusedNamingFileLineAndField) {
+  // yaml-cpp keeps both; a lookup sees the first, so the second was ignored.
+  EXPECT_THAT(expect_load_error(kMinimal + "polynomial:\n  center: 0\n  scale: 1\n  coefficients_m: [9]\n"),
+              HasSubstr("calib.yaml:9: field 'polynomial': given twice"));
+  EXPECT_THAT(expect_load_error(minimal("temperature",
+                                        "temperature:\n  reference_c: 48\n  coefficient_m_per_c: 0\n  reference_c: 20\n")),
+              HasSubstr("calib.yaml:11: field 'temperature.reference_c': given twice"));
+  EXPECT_THAT(expect_load_error(kMinimal + "terms:\n  - covariate: pixel\n    form: table\n    keys: [1]\n"
+                                           "    offsets_m: [0]\n    keys: [2]\n"),
+              HasSubstr("calib.yaml:14: field 'terms[0].keys': given twice"));
+}
+
+TEST(CalibrationYaml, AFileWithoutASectionOrFieldThatCalibFitWritesIsRefused) {
+  for (const char* section : {"polynomial", "validity", "ratio", "temperature"}) {
+    EXPECT_THAT(expect_load_error(minimal(section)), HasSubstr(fmt::format("field '{}': missing", section)));
+  }
+  EXPECT_THAT(expect_load_error(minimal("ratio", "ratio: {sensitivity_ratio: 1, leakage_offset: 0, "
+                                                 "leakage_per_pulse: 0, range_margin: 0.05}\n")),
+              HasSubstr("calib.yaml:8: field 'ratio.range': missing"));
+  EXPECT_THAT(expect_load_error(minimal("polynomial", "polynomial: {center: 0, coefficients_m: [0.1, 2]}\n")),
+              HasSubstr("field 'polynomial.scale': missing"));
+}
+
+TEST(CalibrationYaml, APolynomialWithAnAbsurdNumberOfCoefficientsIsRefused) {
+  std::string coefficients = "[0.1, 2";
+  for (int i = 2; i < 500; ++i) coefficients += ", 0";
+  EXPECT_THAT(expect_load_error(minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: " +
+                                                          coefficients + "]}\n")),
+              HasSubstr("calib.yaml:5: field 'polynomial.coefficients_m': has 500 coefficients, at most 13"));
+  // Degree 12, the fitter's largest, loads.
+  std::string twelve = "[0.1, 2";
+  for (int i = 2; i <= 12; ++i) twelve += ", 0";
+  EXPECT_NO_THROW((void)tl::CalibrationModel::from_yaml(
+      minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: " + twelve + "]}\n"), "calib.yaml"));
+}
+
+TEST(CalibrationYaml, APolynomialThatReadsOutsideThePhysicalRangeIsRefused) {
+  // Each reads absurdly somewhere on the fitted ratio range [0, 1].
+  for (const std::string coefficients : {"[-1e19]", "[-5, 0.1]", "[0.1, 1e308, 1e308]", "[0.1, 20]"}) {
+    EXPECT_THAT(expect_load_error(minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: " +
+                                                            coefficients + "}\n")),
+                HasSubstr("calib.yaml:5: field 'polynomial.coefficients_m': reads"))
+        << coefficients;
+  }
+  // Within half a metre of 0-6 m on the fitted range: a fit's noisy ends, accepted.
+  EXPECT_NO_THROW((void)tl::CalibrationModel::from_yaml(
+      minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: [-0.3, 6.6]}\n"), "calib.yaml"));
+}
+
+TEST(CalibrationYaml, AFifoOrADeviceIsRefusedInsteadOfReadForEver) {
+  EXPECT_THROW((void)tl::CalibrationModel::load("/dev/zero"), std::runtime_error);
+  const auto dir = std::filesystem::temp_directory_path() / fmt::format("calib_fifo_{}", ::getpid());
+  std::filesystem::create_directories(dir);
+  const auto fifo = (dir / "calib.yaml").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  try {
+    (void)tl::CalibrationModel::load(fifo);
+    ADD_FAILURE() << "loaded a FIFO";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("not a regular file"));
+  }
+  std::filesystem::remove_all(dir);
+  // A file past the size limit.
+  const auto big = std::filesystem::temp_directory_path() / fmt::format("calib_big_{}.yaml", ::getpid());
+  {
+    std::ofstream out(big);
+    out << kMinimal << "# " << std::string(tl::kMaxCalibrationFileBytes, 'x') << "\n";
+  }
+  try {
+    (void)tl::CalibrationModel::load(big.string());
+    ADD_FAILURE() << "loaded a file past the limit";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("larger than the limit"));
+  }
+  std::filesystem::remove(big);
 }
 
 TEST(CalibrationYaml, MissingFileIsAClearError) {

@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <stdlib.h>
+#include <sys/stat.h>
 
 #include <cmath>
 #include <condition_variable>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <thread>
 
@@ -447,6 +449,86 @@ TEST(LaserDriverNode, DiagnosticsReportRateDropsAndTheLinkState) {
   EXPECT_EQ(rig.diag_value("state"), "disconnected");
 }
 
+TEST(LaserDriverNode, ASilentPortIsNeverStreamingAndItsSilenceCountsFromTheConnect) {
+  using tinyline::diagnostic_msgs::msg::DiagnosticStatus;
+  Rig rig;  // the sim clock starts at 100 s: an unset time would read as 100 s of silence
+  rig.step();
+  ASSERT_TRUE(rig.driver->status().connected);
+  const bus::Time connected = rig.now();
+  rig.advance(0.5);
+  rig.ex.advance_to(connected + 1s);  // the first report, no byte yet
+  ASSERT_FALSE(rig.diags.empty());
+  const auto first = rig.diags.back()->status.at(0);
+  EXPECT_EQ(first.message.find("streaming"), std::string::npos) << first.message;
+  EXPECT_EQ(rig.diag_value("bytes_per_s"), "0");
+  rig.ex.advance_to(connected + 5s);
+  const auto later = rig.diags.back()->status.at(0);
+  EXPECT_EQ(later.level, DiagnosticStatus::WARN);
+  EXPECT_EQ(later.message, "connected, but no data for 5.0 s");
+
+  // Data, then silence: counted from the last byte.
+  rig.link->push(make_set(1));
+  rig.step();
+  rig.ex.advance_to(connected + 6s);
+  EXPECT_EQ(rig.diags.back()->status.at(0).message, "streaming");
+  rig.ex.advance_to(connected + 8s);
+  EXPECT_EQ(rig.diags.back()->status.at(0).message, "connected, but no data for 3.0 s");
+
+  // Unplugged and back: the old connection's last byte does not count.
+  rig.link->unplug();
+  rig.step();
+  rig.link->replug();
+  rig.advance(0.3);
+  ASSERT_TRUE(rig.driver->status().connected);
+  const bus::Time again = rig.driver->status().connected_at;
+  rig.ex.advance_to(again + 4s);
+  const auto back = rig.diags.back()->status.at(0);
+  EXPECT_EQ(back.level, DiagnosticStatus::WARN);
+  EXPECT_NE(back.message.find("connected, but no data for 3."), std::string::npos) << back.message;
+}
+
+TEST(LaserDriverNode, ABadCalibrationFileStopsTheNodeBeforeItStartsNamingFileLineAndField) {
+  bus::ContextOptions co;
+  co.clock = bus::ClockType::Sim;
+  co.log_sink = std::make_shared<bus::CaptureSink>();
+  auto ctx = bus::Context::create(co);
+  auto make = [&](const std::string& calibration) {
+    bus::NodeOptions o;
+    o.context = ctx;
+    o.name = "laser";
+    o.param("port", std::string("/dev/ttyUSB9")).param("calibration", calibration).param("threaded", false);
+    return std::make_shared<tl::LaserDriver>(o);
+  };
+  TempDir tmp;
+  // A FIFO would block the read for ever, a device would never end: refused when the node is built.
+  const std::string fifo = (tmp.path / "fifo.yaml").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& path : {fifo, std::string("/dev/zero")}) {
+    try {
+      make(path);
+      ADD_FAILURE() << "built with " << path;
+    } catch (const bus::ParamError& e) {
+      EXPECT_NE(std::string(e.what()).find("parameter 'calibration'"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+    }
+  }
+  // Bad content: on_configure (before any node starts, and in launch --check) names file, line and field.
+  const std::string bad = (tmp.path / "bad.yaml").string();
+  {
+    std::ofstream out(bad);
+    out << tl::CalibrationModel::from_public_driver({0, 0, 0, 0, 0, 300, 0}, {}, 450, 0).to_yaml()
+        << "temperature: {reference_c: 20, coefficient_m_per_c: 0}\n";
+  }
+  auto node = make(bad);
+  try {
+    node->on_configure();
+    ADD_FAILURE() << "configured with a repeated section";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(bad + ":"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("field 'temperature': given twice"), std::string::npos) << e.what();
+  }
+}
+
 TEST(LaserDriverNode, BadSettingsSayWhatIsWrong) {
   bus::ContextOptions co;
   co.clock = bus::ClockType::Sim;
@@ -469,11 +551,10 @@ TEST(LaserDriverNode, BadSettingsSayWhatIsWrong) {
   EXPECT_THROW(make({{"focal_mm", 0.0}}), bus::ParamError);
   EXPECT_THROW(make({{"reconnect_min_s", 2.0}, {"reconnect_max_s", 1.0}}), bus::ParamError);
 
-  auto missing = make({{"calibration", std::string("/no/such/calibration.yaml")}, {"threaded", false}});
   try {
-    missing->on_start();
-    FAIL() << "started without its calibration";
-  } catch (const std::runtime_error& e) {
+    make({{"calibration", std::string("/no/such/calibration.yaml")}, {"threaded", false}});
+    FAIL() << "built without its calibration";
+  } catch (const bus::ParamError& e) {
     EXPECT_NE(std::string(e.what()).find("/no/such/calibration.yaml"), std::string::npos) << e.what();
   }
   auto unknown = make({{"calibration", std::string("public:Q")}, {"threaded", false}});

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include <tiny_laser_driver/calibration_impl.hpp>
 #include <tiny_laser_driver/scan_processor.hpp>
 
 namespace tl = tinyline::tiny_laser_driver;
@@ -112,6 +113,31 @@ TEST(ScanProcessor, ARatioOutsideTheCalibratedRangeIsOutOfRange) {
   EXPECT_EQ(out.status[100], tl::PixelStatus::kOutOfRange);
   EXPECT_TRUE(std::isnan(out.distance_m[100]));
   EXPECT_EQ(out.out_of_range, 256);
+}
+
+TEST(ScanProcessor, ADistanceTheSensorCannotMeasureIsNeverPublishedAsValid) {
+  // Pixel terms pushing 1.5 m to 11.5 m, -3.5 m, about 1e308 m and +inf.
+  auto model = linear_model();
+  auto& m = model.impl();
+  for (int copy = 0; copy < 2; ++copy) {
+    tl::CalibrationTerm t;
+    t.covariate = "pixel";
+    t.form = tl::TermForm::kTable;
+    t.keys = {100, 101, 102, 103};
+    t.offsets_m = {copy == 0 ? 10.0 : 0.0, copy == 0 ? -5.0 : 0.0, copy == 0 ? 1e308 : 0.0, 1e308};
+    m.terms.push_back(t);
+  }
+  m.resolve();
+  tl::ScanProcessor proc(model, {});
+  const auto out = proc.process(make_set(0.15, 0.15));  // k = 0.5: 1.5 m before the terms
+  for (std::size_t p : {100, 101, 102, 103}) {
+    EXPECT_EQ(out.status[p], tl::PixelStatus::kOutOfRange) << p;
+    EXPECT_TRUE(std::isnan(out.distance_m[p])) << p;
+  }
+  EXPECT_EQ(out.status[99], tl::PixelStatus::kValid);
+  EXPECT_NEAR(out.distance_m[99], 1.5, 1e-5);
+  EXPECT_EQ(out.out_of_range, 4);
+  EXPECT_EQ(out.valid, 252);
 }
 
 TEST(ScanProcessor, AgreesWithThePublicDriverOnARealSensorsCalibration) {

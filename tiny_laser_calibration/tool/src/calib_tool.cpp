@@ -13,6 +13,7 @@
 #include <cstring>
 
 #include <fmt/format.h>
+#include <tinyline/bus/files.hpp>
 
 #include <tiny_laser_calibration/collect.hpp>
 #include <tiny_laser_calibration/discovery.hpp>
@@ -519,6 +520,8 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
   const bool discover = o.flag("--discover");
   const auto report = o.value("--report");
   const std::string data_path = o.positional()[0];
+  // Checked before the work: never the input, a link or a device; replaced only on success.
+  files::AtomicFile output_file(*output, {.inputs = {data_path}, .what = "calibration"});
   const auto data = read_calibration_csv(data_path);
 
   // The declared fit on every row: what is written without --discover, and the in-sample figures.
@@ -547,7 +550,8 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
     print_summary(out, *loop);
     model = loop->model;
   }
-  model.save(*output);
+  output_file.write(model.to_yaml());
+  output_file.commit();
   out << fmt::format("wrote {}\n", *output);
   if (report) {
     ReportContext c;
@@ -663,6 +667,7 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
   p.pixel_step = o.integer("--pixel-step", p.pixel_step, 1, 256);
   p.keep_mixed = o.flag("--keep-mixed");
   p.incidence_column = o.flag("--incidence");
+<<<<<<< HEAD
   p.positions_csv = o.value("--positions").value_or("");
   p.focal_mm = o.number("--focal-mm", p.focal_mm);
   if (const auto px = o.value("--pixels")) {
@@ -678,13 +683,19 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
     }
     if (p.pixel_from < 0 || p.pixel_to < p.pixel_from || p.pixel_to > 271) throw UsageError("--pixels: expected 0 <= FROM <= TO <= 271");
   }
+=======
+  files::AtomicFile output_file(*output, {.inputs = {o.positional()[0]}, .what = "data file"});
+>>>>>>> hostile2
   const auto r = collect_calibration_data(o.positional()[0], p);
   for (const auto& n : r.notes) err << "note: " << n << "\n";
   if (!r.ok) {
     err << fmt::format("tinyline calib collect: error: {}\n", r.reason);
     return 1;
   }
-  write_calibration_csv(r.data, *output);
+  std::ostringstream csv;
+  write_calibration_csv(r.data, csv);
+  output_file.write(csv.str());
+  output_file.commit();
   std::size_t materials = r.data.materials.size();
   if (p.positions_csv.empty()) {
     out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.positional()[0], r.raw_scans,

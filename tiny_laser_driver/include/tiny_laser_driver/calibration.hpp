@@ -14,6 +14,7 @@
 // Extend it; do not break it.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -21,6 +22,18 @@
 #include <vector>
 
 namespace tinyline::tiny_laser_driver {
+
+/// What the sensor can measure at all: L in [0, c T0 / 2] with T0 = 40 ns (Eq. 3.4).
+/// A calibrated distance outside it is no measurement: the driver flags such a
+/// pixel out of range, and a calibration that maps its usable ratio range far
+/// outside it is refused at load.
+inline constexpr double kPhysicalMinDistanceM = 0.0;
+inline constexpr double kPhysicalMaxDistanceM = 6.0;
+/// The largest polynomial a calibration file may hold (`tinyline calib fit
+/// --degree` goes to 12).
+inline constexpr std::size_t kMaxPolynomialCoefficients = 13;
+/// The largest calibration file the loader reads [bytes] (a fitted one is ~30 KB).
+inline constexpr std::uint64_t kMaxCalibrationFileBytes = 1u << 20;
 
 /// One read-out of one pixel. Charges in the sensor's charge unit (the wire
 /// carries ten times this unit as int16).
@@ -77,7 +90,11 @@ std::string_view to_string(CalibrationEvaluation::Status s);
 class CalibrationModel {
  public:
   /// Loads a calibration YAML (as written by `tinyline calib fit`). Throws
-  /// std::runtime_error naming the file, line and field on bad content.
+  /// std::runtime_error naming the file, line and field on bad content: an
+  /// unknown or repeated key, a missing section or field, a bad value, more
+  /// than kMaxPolynomialCoefficients coefficients, or a polynomial that reads
+  /// far outside the physical range over its usable ratio range. `load` reads
+  /// only a regular file of at most kMaxCalibrationFileBytes.
   static CalibrationModel load(const std::string& path);
   static CalibrationModel from_yaml(const std::string& text, const std::string& source_name);
   /// Writes the model; throws std::runtime_error on I/O failure.

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include <fmt/format.h>
+#include <tinyline/bus/files.hpp>
 
 #include <tinyline/bus/param_table.hpp>
 
@@ -55,7 +56,9 @@ CalibrationModel load_calibration(const std::string& spec) {
         "for a sensor of the public driver ({})",
         spec, path, fmt::join(public_driver_sensor_names(), ", ")));
   }
-  return CalibrationModel::load(path);  // throws naming the file, line and field
+  // A regular file of bounded size (a FIFO would block, a device never end);
+  // from_yaml throws naming the file, line and field.
+  return CalibrationModel::from_yaml(files::read_text(path, "calibration file", kMaxCalibrationFileBytes), path);
 }
 
 // ---------------------------------------------------------------------------- node
@@ -107,7 +110,14 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
 
 LaserDriver::~LaserDriver() { on_stop(); }
 
-void LaserDriver::on_start() {
+bus::ParamConstraints calibration_file_constraints() {
+  return bus::ParamConstraints::input_file(
+      kMaxCalibrationFileBytes, std::vector<std::string>(std::begin(kCalibrationNotAFile), std::end(kCalibrationNotAFile)));
+}
+
+// Before any node starts (and in `launch --check`): a bad calibration stops
+// the launch at its file, line and field before anything else has run.
+void LaserDriver::on_configure() {
   if (processor_) return;
   // Raw sets need the calibration; a sensor that sends distances never uses it.
   CalibrationModel model = load_calibration(params_.calibration);
@@ -117,6 +127,11 @@ void LaserDriver::on_start() {
   }
   processor_ = std::make_unique<ScanProcessor>(std::move(model), params_.optics);
   messages_ = std::make_unique<ScanMessages>(*processor_, params_.frame_id, params_.scan_frame_id);
+}
+
+void LaserDriver::on_start() {
+  if (io_thread_.joinable()) return;
+  on_configure();  // when used without an executor
   logger().info("port {} (expecting {} frames; raw sets with calibration {}, distances in units of {} m), frame {}",
                 opener_->describe(), params_.mode == "auto" ? "raw or distance" : params_.mode, params_.calibration,
                 params_.distance_unit_m, params_.frame_id);
@@ -218,6 +233,7 @@ void LaserDriver::try_open(bus::Time now) {
   {
     std::lock_guard lk(mu_);
     status_.connected = true;
+    status_.connected_at = now;
     ++status_.connects;
     status_.link = stream_->describe();
     status_.last_error = io::IoError::kNone;
@@ -430,7 +446,11 @@ void LaserDriver::diagnose_level(const DriverStatus& s, const DriverStatus& prev
     if (static_cast<DropReason>(r) == DropReason::kGarbage) continue;
     period_drops += s.parser.drops[r] - prev.parser.drops[r];
   }
-  const double since_data_s = (now() - s.last_receive).count() * 1e-9;
+  // Silence counts from the last byte of this connection, or from the connect
+  // when none came yet (last_receive is then unset or of an earlier one).
+  const bool heard = s.bytes > 0 && s.last_receive >= s.connected_at;
+  const double since_data_s = (now() - (heard ? s.last_receive : s.connected_at)).count() * 1e-9;
+  const bool silent = since_data_s > params_.stall_timeout_s;
   const bool frames_but_nothing_new = dt > 0 && s.parser.frames > prev.parser.frames && s.scans_published == prev.scans_published;
   std::vector<std::string> warnings;
   if (const auto m = unexpected_kind(expected_, s.parser); !m.empty()) warnings.push_back(m);
@@ -441,9 +461,12 @@ void LaserDriver::diagnose_level(const DriverStatus& s, const DriverStatus& prev
   if (!s.connected) {
     st.level = DiagnosticStatus::ERROR;
     st.message = s.last_error_message.empty() ? "connecting" : "no device: " + s.last_error_message;
-  } else if (s.connects > 0 && (s.bytes == prev.bytes && dt > 0) && since_data_s > params_.stall_timeout_s) {
+  } else if (silent) {
     st.level = DiagnosticStatus::WARN;
     st.message = fmt::format("connected, but no data for {:.1f} s", since_data_s);
+  } else if (!heard) {
+    st.level = DiagnosticStatus::OK;
+    st.message = "connected, waiting for data";
   } else if (!warnings.empty()) {
     st.level = DiagnosticStatus::WARN;
     st.message = fmt::format("streaming; {}", fmt::join(warnings, "; "));

@@ -10,7 +10,8 @@ namespace tinyline::tiny_laser_driver {
 RawProcessor::RawProcessor(bus::NodeOptions options) : Node(std::move(options)) {
   const DriverParams d;  // the same defaults as the driver
   calibration_ = declare_parameter("calibration", d.calibration,
-                                   "calibration YAML, public:NAME, or default (the simulated sensor's)");
+                                   "calibration YAML, public:NAME, or default (the simulated sensor's)",
+                                   calibration_file_constraints());
   bus::declare_params(*this, optics_);  // the table: tiny_laser_driver/param_tables.hpp
   require_valid(optics_.validate().within("optics"));
   scan_frame_id_ = declare_parameter("scan_frame_id", d.scan_frame_id,

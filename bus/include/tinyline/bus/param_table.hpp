@@ -111,6 +111,14 @@ void declare_field(Node& node, std::string& field, const common::Param& p, const
   field = node.declare_parameter(std::string(p.name), field, std::string(p.description), std::move(c));
 }
 
+/// Declares a text field that names an input file (checked when declared).
+inline void declare_field(Node& node, std::string& field, const common::Param& p, const common::InputFile& file) {
+  ParamConstraints c = ParamConstraints::input_file(
+      file.max_bytes, std::vector<std::string>(file.not_a_file.begin(), file.not_a_file.end()));
+  c.unit = std::string(p.unit);
+  field = node.declare_parameter(std::string(p.name), field, std::string(p.description), std::move(c));
+}
+
 /// Declares every field of `settings`' table on `node` (see above), the
 /// names prefixed with `prefix` when one node holds two of a kind.
 template <class S>

@@ -26,6 +26,8 @@
 #include <charconv>
 #include <cstddef>
 #include <string>
+#include <cstdint>
+#include <span>
 #include <string_view>
 #include <type_traits>
 #include <utility>
@@ -62,6 +64,16 @@ template <class E>
 struct Flag {
   E off;
   E on;
+};
+
+/// A text field that names a file the node reads: `v(p.scene, {...},
+/// InputFile{kMaxSceneBytes})`. The node checks it when it is built (a
+/// regular file of at most `max_bytes`), so a launch stops at the line that
+/// set it; values starting with one of `not_a_file` ("default", "public:")
+/// are no file and are left to the node.
+struct InputFile {
+  std::uint64_t max_bytes = 0;
+  std::span<const std::string_view> not_a_file{};
 };
 
 /// A field the table leaves out on purpose: its value comes from another

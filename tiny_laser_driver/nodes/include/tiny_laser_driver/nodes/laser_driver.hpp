@@ -98,6 +98,7 @@ struct DriverStatus {
   bool ignores_laser_off = false;
   bus::Time last_scan_stamp;
   bus::Time last_receive;            ///< clock time of the last byte received
+  bus::Time connected_at;            ///< clock time of the last successful open
   double last_saturated_share = 0.0;
   double last_valid_share = 0.0;
   double last_temperature_c = 0.0;
@@ -108,6 +109,7 @@ class LaserDriver : public bus::Node {
   explicit LaserDriver(bus::NodeOptions options);
   ~LaserDriver() override;
 
+  void on_configure() override;
   void on_start() override;
   void on_stop() override;
 
@@ -141,7 +143,7 @@ class LaserDriver : public bus::Node {
   DriverParams params_;
   std::optional<StreamMode> expected_;  // from `mode`; empty: either
   std::unique_ptr<io::PortOpener> opener_;
-  std::unique_ptr<ScanProcessor> processor_;  // built in on_start (loads the calibration)
+  std::unique_ptr<ScanProcessor> processor_;  // built in on_configure (loads the calibration)
   std::unique_ptr<ScanMessages> messages_;
 
   // I/O thread state (only the I/O thread touches these, or pump()'s caller).
@@ -187,6 +189,8 @@ class LaserDriver : public bus::Node {
 /// (the shipped calibration of the simulated sensor). Throws
 /// std::runtime_error saying what was wrong.
 [[nodiscard]] CalibrationModel load_calibration(const std::string& spec);
+/// The `calibration` parameter's file checks (a path unless default or public:NAME).
+[[nodiscard]] bus::ParamConstraints calibration_file_constraints();
 /// Where "default" points.
 [[nodiscard]] std::string default_calibration_path();
 

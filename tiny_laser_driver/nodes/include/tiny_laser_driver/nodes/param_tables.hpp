@@ -12,6 +12,9 @@
 
 namespace tinyline::tiny_laser_driver {
 
+/// Values of `calibration` that name no file.
+inline constexpr std::string_view kCalibrationNotAFile[] = {"default", "public:"};
+
 /// The words DriverParams::mode takes.
 inline constexpr std::string_view kDriverModes[] = {"auto", "raw", "distance"};
 
@@ -34,7 +37,8 @@ void for_each_param(S& p, V&& v) {
                       "frame of the LaserScan (x = sensor z, y = sensor x); empty: frame_id + '_scan'"});
   v(p.calibration, {"calibration", "", {}, {},
                     "calibration YAML (tinyline calib fit), public:NAME (R J S K T of the public driver), or default "
-                    "(the simulated 8 mm sensor's)"});
+                    "(the simulated 8 mm sensor's)"},
+    common::InputFile{kMaxCalibrationFileBytes, kCalibrationNotAFile});
   v(p.distance_unit_m, {"distance_unit_m", "m", 1e-6, 1.0,
                         "distance frames: unit of the firmware's distances (the published firmware: 0.1 mm)"});
   v(p.stale_after, {"stale_after", "", 2, 100000,
