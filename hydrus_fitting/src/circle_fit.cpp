@@ -188,6 +188,10 @@ common::Validation validate_second_order(const SecondOrderCorrection& so) {
       so.no_weighting_rel_sd_r < so.full_weighting_rel_sd_r)
     return common::Validation::invalid(fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
                        so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r));
+  if (std::isnan(so.max_sigma_over_r) || !(so.max_sigma_over_r > 0.0))
+    return common::Validation::invalid(fmt::format("second_order.max_sigma_over_r must be > 0, got {}", so.max_sigma_over_r));
+  if (so.max_points < 3)
+    return common::Validation::invalid(fmt::format("second_order.max_points must be >= 3, got {}", so.max_points));
   if (bad(so.mode_shift) || so.mode_shift < 0.0)
     return common::Validation::invalid(fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift));
   if (bad(so.max_shift_sds) || so.max_shift_sds < 0.0)
@@ -432,68 +436,73 @@ common::LevenbergMarquardtResult minimise_geometric(Evaluate& evaluate, Pass& at
 
 }  // namespace
 
-CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
-                        const RefineParams& params, std::span<const double> sigma_m) {
-  const bool known = params.known_radius_m.has_value();
-  if (const common::Validation v = validate(params); !v.valid) return failed(FitStatus::kInvalidParams, v.reason);
-  if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols())) {
-    return failed(FitStatus::kInvalidParams, fmt::format("sigma_m has {} entries for {} points", sigma_m.size(),
-                                                         points.cols()));
-  }
-  const int p = known ? 2 : 3;
-  // Finite points with a finite, positive sigma.
+bool second_order_applies(const SecondOrderCorrection& so, int n, double q) {
+  return n <= so.max_points && q <= so.max_sigma_over_r;
+}
+
+namespace {
+
+/// The points refine_circle uses (finite, with a finite positive sigma) and
+/// their weights, contiguous: every LM pass reads them.
+struct UsedPoints {
+  std::vector<double> buf;
+  double* px = nullptr;
+  double* py = nullptr;
+  double* pw = nullptr;
+  int n = 0;
+  int non_finite = 0;
+};
+
+UsedPoints used_points(const Eigen::Ref<const Eigen::Matrix2Xd>& points, std::span<const double> sigma_m) {
   std::vector<Eigen::Index> idx;
   idx.reserve(static_cast<std::size_t>(points.cols()));
-  int non_finite = 0;
+  UsedPoints u;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     const bool ok_sigma = sigma_m.empty() || (std::isfinite(sigma_m[static_cast<std::size_t>(i)]) &&
                                               sigma_m[static_cast<std::size_t>(i)] > 0.0);
     if (finite(points.col(i)) && ok_sigma) {
       idx.push_back(i);
     } else {
-      ++non_finite;
+      ++u.non_finite;
     }
   }
-  const int n = static_cast<int>(idx.size());
-  if (n < p) {
-    return failed(FitStatus::kTooFewPoints,
-                  fmt::format("geometric fit needs at least {} finite points, got {}", p, n), non_finite);
-  }
-  if (!finite(initial.centre_m) || !std::isfinite(initial.radius_m)) {
-    return failed(FitStatus::kInvalidParams, "initial circle is not finite", non_finite);
-  }
-  auto weight = [&](Eigen::Index i) {
-    if (sigma_m.empty()) return 1.0;
-    const double s = sigma_m[static_cast<std::size_t>(i)];
-    return 1.0 / (s * s);
-  };
-
-  Eigen::Vector3d theta(initial.centre_m.x(), initial.centre_m.y(), known ? *params.known_radius_m : initial.radius_m);
-  // The used points and their weights, contiguous: every LM pass reads them.
-  std::vector<double> buf(3 * static_cast<std::size_t>(n));
-  double* const px = buf.data();
-  double* const py = px + n;
-  double* const pw = py + n;
-  std::vector<double> ang;  // second-order correction: each point's angle about the centre [rad]
-  for (int k = 0; k < n; ++k) {
+  u.n = static_cast<int>(idx.size());
+  u.buf.resize(3 * static_cast<std::size_t>(u.n));
+  u.px = u.buf.data();
+  u.py = u.px + u.n;
+  u.pw = u.py + u.n;
+  for (int k = 0; k < u.n; ++k) {
     const Eigen::Index i = idx[static_cast<std::size_t>(k)];
-    px[k] = points(0, i);
-    py[k] = points(1, i);
-    pw[k] = weight(i);
+    u.px[k] = points(0, i);
+    u.py[k] = points(1, i);
+    const double s = sigma_m.empty() ? 0.0 : sigma_m[static_cast<std::size_t>(i)];
+    u.pw[k] = sigma_m.empty() ? 1.0 : 1.0 / (s * s);
   }
-  // Cost, gradient system (J^T W J, J^T W d) and the unweighted residual sum
-  // of squares at t, in one pass; J_i = -(u_x, u_y, 1), u the unit vector
-  // from the centre to the point. Two points per step in SIMD lanes (each
-  // lane sums its own points; the lanes are added at the end). A point at
-  // the centre has u = 0: dx = dy = 0 times a finite inverse.
-  struct Pass {
-    double cost = 0.0, rss = 0.0;
-    Eigen::Matrix3d H;
-    Eigen::Vector3d g;
-  };
-  auto evaluate = [&](const Eigen::Vector3d& t) {
+  return u;
+}
+
+/// Cost, gradient system (J^T W J, J^T W d) and the unweighted residual sum
+/// of squares at a circle t, in one pass; J_i = -(u_x, u_y, 1), u the unit
+/// vector from the centre to the point.
+struct Pass {
+  double cost = 0.0, rss = 0.0;
+  Eigen::Matrix3d H;
+  Eigen::Vector3d g;
+};
+
+/// The pass over the used points (their current weights). Two points per
+/// step in SIMD lanes (each lane sums its own points; the lanes are added at
+/// the end). A point at the centre has u = 0: dx = dy = 0 times a finite inverse.
+struct EvaluatePass {
+  const UsedPoints& pts;
+
+  Pass operator()(const Eigen::Vector3d& t) const {
     using A2 = Eigen::Array2d;
     const double cx = t(0), cy = t(1), r = t(2);
+    const int n = pts.n;
+    const double* px = pts.px;
+    const double* py = pts.py;
+    const double* pw = pts.pw;
     A2 cost = A2::Zero(), rss = A2::Zero(), hxx = A2::Zero(), hxy = A2::Zero(), hyy = A2::Zero(),
        hxr = A2::Zero(), hyr = A2::Zero(), hrr = A2::Zero(), gx = A2::Zero(), gy = A2::Zero(), gr = A2::Zero();
     const auto point = [&](const auto& dx, const auto& dy, const auto& w, const auto& rho) {
@@ -529,93 +538,140 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
     out.H << hxx.sum(), hxy.sum(), hxr.sum(), hxy.sum(), hyy.sum(), hyr.sum(), hxr.sum(), hyr.sum(), hrr.sum();
     out.g << gx.sum(), gy.sum(), gr.sum();
     return out;
-  };
+  }
+};
 
-  // Levenberg-Marquardt from t with the current weights pw; `at` ends as
-  // the pass at the final t.
+/// Levenberg-Marquardt from t with the points' current weights; `at` ends
+/// as the pass at the final t.
+struct GeometricRun {
+  EvaluatePass evaluate;
+  const RefineParams& params;
+  bool known = false;
   Pass at;
   bool converged = false;
-  int it = 0;
-  auto run_lm = [&](Eigen::Vector3d& t) {
-    at = evaluate(t);  // always the pass at t
+  int iterations = 0;
+
+  void operator()(Eigen::Vector3d& t) {
+    at = evaluate(t);
     const common::LevenbergMarquardtResult r =
         known ? minimise_geometric<2>(evaluate, at, t, params) : minimise_geometric<3>(evaluate, at, t, params);
     converged = r.converged;
-    it = r.iterations;
-  };
-  run_lm(theta);
-  // The ML fit's first-order quantities, before any second-order refit:
-  // the covariance and, for the essential bias, the weighted cost and sum.
-  const double cost = at.cost;
-  const Eigen::Matrix3d H = at.H;
-  double wsum = 0.0;
-  for (int k = 0; k < n; ++k) wsum += pw[k];
+    iterations = r.iterations;
+  }
+};
 
+/// The ML fit and its first-order covariance: (J^T W J)^-1, scaled by the
+/// weighted residual variance when asked (or without sigmas).
+CircleFit first_order_fit(const GeometricRun& run, const Eigen::Vector3d& theta, const UsedPoints& pts,
+                          const RefineParams& params, bool sigmas_given) {
+  const bool known = run.known;
+  const int n = pts.n, p = known ? 2 : 3;
   CircleFit f;
   f.status = FitStatus::kOk;
   f.circle.centre_m = theta.head<2>();
   f.circle.radius_m = theta(2);
   f.points_used = n;
-  f.non_finite = non_finite;
-  f.iterations = it;
-  f.converged = converged;
-  f.rms_residual_m = std::sqrt(at.rss / n);
-  // Covariance: (J^T W J)^-1, scaled by the weighted residual variance when asked.
-  const bool use_residuals = params.covariance_from_residuals || sigma_m.empty();
+  f.non_finite = pts.non_finite;
+  f.iterations = run.iterations;
+  f.converged = run.converged;
+  f.rms_residual_m = std::sqrt(run.at.rss / n);
+  const bool use_residuals = params.covariance_from_residuals || !sigmas_given;
   const double dof = static_cast<double>(n - p);
-  const double s2 = use_residuals ? (dof > 0 ? cost / dof : 0.0) : 1.0;
+  const double s2 = use_residuals ? (dof > 0 ? run.at.cost / dof : 0.0) : 1.0;
   if (known) {
-    const Eigen::Matrix2d Hc = H.topLeftCorner<2, 2>();
+    const Eigen::Matrix2d Hc = run.at.H.topLeftCorner<2, 2>();
     Eigen::FullPivLU<Eigen::Matrix2d> lu(Hc);
     if (lu.isInvertible()) f.covariance.topLeftCorner<2, 2>() = s2 * lu.inverse();
   } else {
-    Eigen::FullPivLU<Eigen::Matrix3d> lu(H);
+    Eigen::FullPivLU<Eigen::Matrix3d> lu(run.at.H);
     if (lu.isInvertible()) f.covariance = s2 * lu.inverse();
   }
-  if (params.correction == ArcCorrection::kSecondOrder && !known && n > p) {
-    const SecondOrderCorrection& so = params.second_order;
-    // 1. End weighting, by the noise over the radius seen in the residuals.
-    const double q = std::sqrt(at.rss / dof) / f.circle.radius_m;
-    const double qr = q / so.reference_sigma_over_r;
-    const double var_r0 = f.covariance(2, 2);
-    const double rel_sd_r = var_r0 > 0.0 ? std::sqrt(var_r0) / f.circle.radius_m : 0.0;
-    const double k_noise = std::min(so.max_end_weight, so.end_weight * qr * qr) *
-                           fade(rel_sd_r, so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r);
-    if (k_noise > kMinEndWeight) {
-      const ArcSpan arc = arc_span(px, py, n, f.circle.centre_m, ang);
-      const double span_deg = arc.span_rad * 180.0 / std::numbers::pi;
-      const double k_end = k_noise * fade(span_deg, so.full_weighting_arc_deg, so.no_weighting_arc_deg);
-      if (k_end > kMinEndWeight && arc.span_rad > 0.0) {
-        for (int k = 0; k < n; ++k) {
-          const double u = std::remainder(ang[static_cast<std::size_t>(k)] - arc.mid_rad, 2.0 * std::numbers::pi) /
-                           (0.5 * arc.span_rad);
-          pw[k] *= std::max(kMinRelativeWeight, 1.0 - k_end * u * u);
-        }
-        Eigen::Vector3d t2 = theta;
-        run_lm(t2);
-        if (t2.allFinite() && t2(2) > 0.0) {
-          f.circle.centre_m = t2.head<2>();
-          f.circle.radius_m = t2(2);
-          f.iterations += it;
-          f.converged = f.converged && converged;
-          f.rms_residual_m = std::sqrt(at.rss / n);
-          f.end_weight_applied = k_end;
-        }
-      }
-    }
-    // 2. Mode shift: theta -= gamma Cov(theta, r) / r, |shift of r| capped.
-    const double var_r = f.covariance(2, 2);
-    if (so.mode_shift > 0.0 && var_r > 0.0 && std::isfinite(var_r)) {
-      const double r = f.circle.radius_m;
-      const double rel = std::sqrt(var_r) / r;
-      const double gamma = std::min(so.mode_shift, so.max_shift_sds / rel);
-      const Eigen::Vector3d shift = -gamma * f.covariance.col(2) / r;
-      if (shift.allFinite()) {
-        f.circle.centre_m += shift.head<2>();
-        f.circle.radius_m += shift(2);
-        f.mode_shift_m = shift;
-      }
-    }
+  return f;
+}
+
+/// Step 1 of the second-order correction: refit with the arc's ends weighted
+/// down by the noise over the radius q seen in the residuals
+/// (SecondOrderCorrection); changes the points' weights.
+void weight_the_ends(CircleFit& f, GeometricRun& run, UsedPoints& pts, const Eigen::Vector3d& theta, double q,
+                     const SecondOrderCorrection& so) {
+  const double qr = q / so.reference_sigma_over_r;
+  const double var_r0 = f.covariance(2, 2);
+  const double rel_sd_r = var_r0 > 0.0 ? std::sqrt(var_r0) / f.circle.radius_m : 0.0;
+  const double k_noise = std::min(so.max_end_weight, so.end_weight * qr * qr) *
+                         fade(rel_sd_r, so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r);
+  if (!(k_noise > kMinEndWeight)) return;
+  std::vector<double> ang;  // each point's angle about the centre [rad]
+  const ArcSpan arc = arc_span(pts.px, pts.py, pts.n, f.circle.centre_m, ang);
+  const double span_deg = arc.span_rad * 180.0 / std::numbers::pi;
+  const double k_end = k_noise * fade(span_deg, so.full_weighting_arc_deg, so.no_weighting_arc_deg);
+  if (!(k_end > kMinEndWeight && arc.span_rad > 0.0)) return;
+  for (int k = 0; k < pts.n; ++k) {
+    const double u =
+        std::remainder(ang[static_cast<std::size_t>(k)] - arc.mid_rad, 2.0 * std::numbers::pi) / (0.5 * arc.span_rad);
+    pts.pw[k] *= std::max(kMinRelativeWeight, 1.0 - k_end * u * u);
+  }
+  Eigen::Vector3d t2 = theta;
+  run(t2);
+  if (t2.allFinite() && t2(2) > 0.0) {
+    f.circle.centre_m = t2.head<2>();
+    f.circle.radius_m = t2(2);
+    f.iterations += run.iterations;
+    f.converged = f.converged && run.converged;
+    f.rms_residual_m = std::sqrt(run.at.rss / pts.n);
+    f.end_weight_applied = k_end;
+  }
+}
+
+/// Step 2: theta -= gamma Cov(theta, r) / r, the shift of r capped.
+void shift_to_the_mode(CircleFit& f, const SecondOrderCorrection& so) {
+  const double var_r = f.covariance(2, 2);
+  if (!(so.mode_shift > 0.0 && var_r > 0.0 && std::isfinite(var_r))) return;
+  const double r = f.circle.radius_m;
+  const double rel = std::sqrt(var_r) / r;
+  const double gamma = std::min(so.mode_shift, so.max_shift_sds / rel);
+  const Eigen::Vector3d shift = -gamma * f.covariance.col(2) / r;
+  if (shift.allFinite()) {
+    f.circle.centre_m += shift.head<2>();
+    f.circle.radius_m += shift(2);
+    f.mode_shift_m = shift;
+  }
+}
+
+}  // namespace
+
+CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
+                        const RefineParams& params, std::span<const double> sigma_m) {
+  const bool known = params.known_radius_m.has_value();
+  if (const common::Validation v = validate(params); !v.valid) return failed(FitStatus::kInvalidParams, v.reason);
+  if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols())) {
+    return failed(FitStatus::kInvalidParams, fmt::format("sigma_m has {} entries for {} points", sigma_m.size(),
+                                                         points.cols()));
+  }
+  const int p = known ? 2 : 3;
+  UsedPoints pts = used_points(points, sigma_m);
+  const int n = pts.n;
+  if (n < p) {
+    return failed(FitStatus::kTooFewPoints,
+                  fmt::format("geometric fit needs at least {} finite points, got {}", p, n), pts.non_finite);
+  }
+  if (!finite(initial.centre_m) || !std::isfinite(initial.radius_m)) {
+    return failed(FitStatus::kInvalidParams, "initial circle is not finite", pts.non_finite);
+  }
+  Eigen::Vector3d theta(initial.centre_m.x(), initial.centre_m.y(), known ? *params.known_radius_m : initial.radius_m);
+  GeometricRun run{EvaluatePass{pts}, params, known, {}, false, 0};
+  run(theta);
+  // The ML fit's first-order quantities, before any second-order refit:
+  // the covariance and, for the essential bias, the weighted cost and sum.
+  const double cost = run.at.cost;
+  double wsum = 0.0;
+  for (int k = 0; k < n; ++k) wsum += pts.pw[k];
+  CircleFit f = first_order_fit(run, theta, pts, params, !sigma_m.empty());
+  const double dof = static_cast<double>(n - p);
+  const double q = dof > 0 ? std::sqrt(run.at.rss / dof) / f.circle.radius_m : 0.0;  // noise over radius, as seen
+  if (params.correction == ArcCorrection::kSecondOrder && !known && n > p && second_order_applies(params.second_order, n, q)) {
+    f.second_order_applied = true;
+    weight_the_ends(f, run, pts, theta, q, params.second_order);
+    shift_to_the_mode(f, params.second_order);
   }
   if (params.remove_radius_bias && !known && n > p) {
     // Per point the tangential variance equals the normal one (isotropic):
@@ -702,12 +758,11 @@ struct Consensus {
   int inliers = 0;
 };
 
-}  // namespace
-
-CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RobustCircleParams& params,
-                            std::span<const double> sigma_m, const Viewpoints& viewpoints) {
-  // ---- parameters and input
-  const bool known = params.known_radius_m.has_value();
+/// The input check fit_circle_robust makes first: the parameters, the
+/// per-point sigmas and the viewpoints' indices.
+std::optional<CircleFit> check_robust_input(const Eigen::Ref<const Eigen::Matrix2Xd>& points,
+                                            const RobustCircleParams& params, std::span<const double> sigma_m,
+                                            const Viewpoints& viewpoints) {
   auto invalid = [](std::string r) { return failed(FitStatus::kInvalidParams, std::move(r)); };
   if (const common::Validation v = validate(params); !v.valid) return invalid(v.reason);
   if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols()))
@@ -715,152 +770,252 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
   for (std::size_t i = 0; i < sigma_m.size(); ++i)
     if (!(sigma_m[i] > 0.0) || !std::isfinite(sigma_m[i]))
       return invalid(fmt::format("sigma_m[{}] = {} is not a finite positive SD", i, sigma_m[i]));
-  const bool use_views = !viewpoints.origins_m.empty();
-  if (use_views) {
-    if (viewpoints.sensor_of_point.size() != static_cast<std::size_t>(points.cols()))
-      return invalid(fmt::format("viewpoints.sensor_of_point has {} entries for {} points",
-                                 viewpoints.sensor_of_point.size(), points.cols()));
-    for (const int s : viewpoints.sensor_of_point)
-      if (s < 0 || static_cast<std::size_t>(s) >= viewpoints.origins_m.size())
-        return invalid(fmt::format("viewpoints.sensor_of_point holds {} but there are {} origins", s,
-                                   viewpoints.origins_m.size()));
+  if (viewpoints.origins_m.empty()) return std::nullopt;
+  if (viewpoints.sensor_of_point.size() != static_cast<std::size_t>(points.cols()))
+    return invalid(fmt::format("viewpoints.sensor_of_point has {} entries for {} points",
+                               viewpoints.sensor_of_point.size(), points.cols()));
+  for (const int s : viewpoints.sensor_of_point)
+    if (s < 0 || static_cast<std::size_t>(s) >= viewpoints.origins_m.size())
+      return invalid(fmt::format("viewpoints.sensor_of_point holds {} but there are {} origins", s,
+                                 viewpoints.origins_m.size()));
+  return std::nullopt;
+}
+
+/// fit_circle_robust's steps on one input: the finite points laid out,
+/// MSAC over minimal samples, local optimisation of the consensus set, the
+/// final fit.
+class RobustCircleFitter {
+ public:
+  RobustCircleFitter(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RobustCircleParams& params,
+                     std::span<const double> sigma_m, const Viewpoints& viewpoints)
+      : points_(points), params_(params), sigma_m_(sigma_m), viewpoints_(viewpoints),
+        known_(params.known_radius_m.has_value()), s_(known_ ? 2 : 3) {}
+
+  CircleFit run() {
+    if (auto f = lay_out()) return *f;
+    if (auto f = sample()) return *f;
+    local_optimisation();
+    return final_fit();
   }
 
-  std::vector<int> idx;  // finite points
-  idx.reserve(static_cast<std::size_t>(points.cols()));
-  int non_finite = 0;
-  for (Eigen::Index i = 0; i < points.cols(); ++i) {
-    if (finite(points.col(i))) {
-      idx.push_back(static_cast<int>(i));
-    } else {
-      ++non_finite;
-    }
-  }
-  const int n = static_cast<int>(idx.size());
-  const int s = known ? 2 : 3;  // minimal sample
-  if (n < std::max(s, params.min_inliers)) {
-    return failed(FitStatus::kTooFewPoints,
-                  fmt::format("robust circle fit needs at least {} finite points, got {}{}",
-                              std::max(s, params.min_inliers), n,
-                              non_finite ? fmt::format(" ({} non-finite skipped)", non_finite) : ""),
-                  non_finite);
-  }
-  const double T = params.inlier_threshold_m;
-  const double T2 = T * T;
-  const Eigen::Vector2d* vp = use_views ? viewpoints.origins_m.data() : nullptr;
-  // With per-point sigmas, support and score are in units of each point's
-  // sigma (a near point with 4 mm noise must not accept 2 cm residuals a far
-  // one would); the absolute threshold still caps.
-  const bool per_point = !sigma_m.empty() && params.inlier_threshold_sigmas > 0.0;
-  const double k2 = params.inlier_threshold_sigmas * params.inlier_threshold_sigmas;
-  const double trunc = per_point ? k2 : T2;  // MSAC truncation, in score units
+ private:
+  const Eigen::Ref<const Eigen::Matrix2Xd>& points_;
+  const RobustCircleParams& params_;
+  std::span<const double> sigma_m_;
+  const Viewpoints& viewpoints_;
+  const bool known_;
+  const int s_;  ///< minimal sample
+  std::vector<int> idx_;  ///< finite points
+  int n_ = 0, non_finite_ = 0;
+  double T2_ = 0.0, trunc_ = 0.0;
+  const Eigen::Vector2d* vp_ = nullptr;
+  // Every pass reads the finite points in order, so what it needs of each is
+  // laid out contiguously once: coordinates, the squared support limit
+  // min(T^2, k^2 sigma^2), the score unit (sigma^2, or 1), sigma (1 without
+  // sigmas), its sensor's origin, and the residual of the last pass.
+  std::vector<double> buf_;
+  double *x_ = nullptr, *y_ = nullptr, *lim2_ = nullptr, *unit2_ = nullptr, *sg_ = nullptr, *ox_ = nullptr,
+         *oy_ = nullptr, *res_ = nullptr;
+  // MSAC
+  Circle best_{};
+  Consensus best_c_;
+  int drawn_ = 0, valid_ = 0, out_of_range_ = 0;
+  long long needed_ = 0;
+  // Local optimisation: per finite point, the set, the set before a round,
+  // and the support of the last residual pass.
+  std::vector<std::uint8_t> mask_, before_, support_;
+  int count_ = 0;
+  Circle current_{};
+  RefineParams rp_;
+  Eigen::Matrix2Xd inl_;
+  std::vector<double> inl_sigma_, e_;
+  Normalised set_;
 
-  // Every pass below reads the finite points in order, so what it needs of
-  // each is laid out contiguously once: coordinates, the squared support
-  // limit min(T^2, k^2 sigma^2), the score unit (sigma^2, or 1), sigma (1
-  // without sigmas), its sensor's origin, and the residual of the last pass.
-  const auto un = static_cast<std::size_t>(n);
-  std::vector<double> buf(8 * un);
-  double* const x = buf.data();
-  double* const y = x + n;
-  double* const lim2 = y + n;
-  double* const unit2 = lim2 + n;
-  double* const sg = unit2 + n;
-  double* const ox = sg + n;
-  double* const oy = ox + n;
-  double* const res = oy + n;
-  for (int k = 0; k < n; ++k) {
-    const auto i = static_cast<std::size_t>(idx[static_cast<std::size_t>(k)]);
-    x[k] = points(0, idx[static_cast<std::size_t>(k)]);
-    y[k] = points(1, idx[static_cast<std::size_t>(k)]);
-    sg[k] = sigma_m.empty() ? 1.0 : sigma_m[i];
-    unit2[k] = per_point ? sg[k] * sg[k] : 1.0;
-    lim2[k] = per_point ? std::min(T2, k2 * unit2[k]) : T2;
-    ox[k] = vp ? vp[viewpoints.sensor_of_point[i]].x() : 0.0;
-    oy[k] = vp ? vp[viewpoints.sensor_of_point[i]].y() : 0.0;
-  }
-  if (!known) {
-    Eigen::Matrix2Xd q(2, n);
-    q.row(0) = Eigen::Map<const Eigen::RowVectorXd>(x, n);
-    q.row(1) = Eigen::Map<const Eigen::RowVectorXd>(y, n);
-    q.colwise() -= q.rowwise().mean();
-    if (planarity(q) < kCollinearPlanarity) {
-      return failed(FitStatus::kCollinear, fmt::format("the {} points are collinear", n), non_finite);
-    }
-  }
+  std::optional<CircleFit> lay_out();
+  std::optional<CircleFit> sample();
+  void consider(const Circle& c);
+  void local_optimisation();
+  CircleFit final_fit();
 
-  // Point k supports circle c when it is within its limit of it and, with
-  // viewpoints, faces its sensor (outward normal towards the viewpoint).
-  // *d is its signed distance to the circle.
-  auto supports = [&](int k, const Circle& c, double* d) {
-    const double dx = x[k] - c.centre_m.x(), dy = y[k] - c.centre_m.y();
+  /// Point k supports circle c when it is within its limit of it and, with
+  /// viewpoints, faces its sensor (outward normal towards the viewpoint).
+  /// *d is its signed distance to the circle.
+  bool supports(int k, const Circle& c, double* d) const {
+    const double dx = x_[k] - c.centre_m.x(), dy = y_[k] - c.centre_m.y();
     *d = std::sqrt(dx * dx + dy * dy) - c.radius_m;
-    if (*d * *d > lim2[k]) return false;
-    if (vp && dx * (ox[k] - x[k]) + dy * (oy[k] - y[k]) <= 0.0) return false;
+    if (*d * *d > lim2_[k]) return false;
+    if (vp_ && dx * (ox_[k] - x_[k]) + dy * (oy_[k] - y_[k]) <= 0.0) return false;
     return true;
-  };
-  auto viewpoints_outside = [&](const Circle& c) {
-    if (!vp) return true;
-    for (const auto& o : viewpoints.origins_m)
+  }
+  bool viewpoints_outside(const Circle& c) const {
+    if (!vp_) return true;
+    for (const auto& o : viewpoints_.origins_m)
       if ((o - c.centre_m).norm() < c.radius_m) return false;
     return true;
-  };
-  // MSAC cost with early exit once above `bound`.
-  auto score = [&](const Circle& c, double bound) {
+  }
+  /// MSAC cost with early exit once above `bound`.
+  Consensus score(const Circle& c, double bound) const {
     Consensus r;
     double sc = 0.0;
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; k < n_; ++k) {
       double d;
       if (supports(k, c, &d)) {
-        sc += d * d / unit2[k];
+        sc += d * d / unit2_[k];
         ++r.inliers;
       } else {
-        sc += trunc;
+        sc += trunc_;
       }
       if (sc > bound) return Consensus{};
     }
     r.score = sc;
     return r;
-  };
-
-  common::SplitMixRandom rng(params.seed);
-  Circle best{};
-  Consensus best_c;
-  int drawn = 0, valid = 0, out_of_range = 0;
-  long long needed = params.max_iterations;
-  const double log1mconf = std::log(1.0 - params.confidence);
-
-  auto consider = [&](const Circle& c) {
-    if (c.radius_m < params.min_radius_m || c.radius_m > params.max_radius_m) {
-      ++out_of_range;
-      return;
+  }
+  void residuals(const Circle& c) {
+    for (int k = 0; k < n_; ++k) support_[static_cast<std::size_t>(k)] = supports(k, c, &res_[k]) ? 1 : 0;
+  }
+  /// The set of the last residual pass's circle: its supporters, within
+  /// scaled_limit of their own sigma when > 0.
+  int select(double scaled_limit) {
+    int count = 0;
+    for (int k = 0; k < n_; ++k) {
+      const auto uk = static_cast<std::size_t>(k);
+      mask_[uk] = support_[uk] && !(scaled_limit > 0.0 && std::abs(res_[k]) > scaled_limit * sg_[k]) ? 1 : 0;
+      count += mask_[uk];
     }
-    if (!viewpoints_outside(c)) return;
-    ++valid;
-    const Consensus r = score(c, best_c.score);
-    if (r.score < best_c.score) {
-      best_c = r;
-      best = c;
-      const double eps = static_cast<double>(r.inliers) / n;
-      const double pin = std::pow(eps, s);
-      if (pin >= 1.0) {
-        needed = 0;
-      } else if (pin > 0.0) {
-        needed = std::min<long long>(params.max_iterations, static_cast<long long>(std::ceil(log1mconf / std::log1p(-pin))));
-      }
+    return count;
+  }
+  /// Robust scale of the current set's normalised residuals to the last
+  /// residual pass's circle, times the factor.
+  double adaptive_limit() {
+    if (!(params_.final_threshold_sigmas > 0.0)) return 0.0;
+    e_.clear();
+    for (int k = 0; k < n_; ++k)
+      if (mask_[static_cast<std::size_t>(k)]) e_.push_back(std::abs(res_[k]) / sg_[k]);
+    if (e_.size() < static_cast<std::size_t>(2 * s_)) return 0.0;
+    std::nth_element(e_.begin(), e_.begin() + static_cast<long>(e_.size() / 2), e_.end());
+    return params_.final_threshold_sigmas * 1.4826 * e_[e_.size() / 2];
+  }
+  /// The set's points (and sigmas) into inl_ for a geometric fit.
+  void gather(int count) {
+    inl_.resize(2, count);
+    inl_sigma_.clear();
+    Eigen::Index j = 0;
+    for (int k = 0; k < n_; ++k) {
+      if (!mask_[static_cast<std::size_t>(k)]) continue;
+      inl_(0, j) = x_[k];
+      inl_(1, j++) = y_[k];
+      if (!sigma_m_.empty()) inl_sigma_.push_back(sg_[k]);
     }
-  };
+  }
+  /// The Hyper fit of the set (what fit_circle_hyper gives for the gathered
+  /// set), normalised straight from the contiguous points.
+  std::optional<Circle> hyper_of_set(int count) {
+    set_.q.resize(2, count);
+    Eigen::Index j = 0;
+    for (int k = 0; k < n_; ++k) {
+      if (!mask_[static_cast<std::size_t>(k)]) continue;
+      set_.q(0, j) = x_[k];
+      set_.q(1, j++) = y_[k];
+    }
+    centre_and_scale(set_);
+    if (count < 3 || planarity(set_.q) < kCollinearPlanarity) return std::nullopt;
+    return circle_from_algebraic(hyper_parameters(set_), set_);
+  }
+};
 
-  const auto un64 = static_cast<std::uint64_t>(n);
-  while (drawn < needed && drawn < params.max_iterations) {
-    ++drawn;
+std::optional<CircleFit> RobustCircleFitter::lay_out() {
+  idx_.reserve(static_cast<std::size_t>(points_.cols()));
+  for (Eigen::Index i = 0; i < points_.cols(); ++i) {
+    if (finite(points_.col(i))) {
+      idx_.push_back(static_cast<int>(i));
+    } else {
+      ++non_finite_;
+    }
+  }
+  n_ = static_cast<int>(idx_.size());
+  if (n_ < std::max(s_, params_.min_inliers)) {
+    return failed(FitStatus::kTooFewPoints,
+                  fmt::format("robust circle fit needs at least {} finite points, got {}{}",
+                              std::max(s_, params_.min_inliers), n_,
+                              non_finite_ ? fmt::format(" ({} non-finite skipped)", non_finite_) : ""),
+                  non_finite_);
+  }
+  const double T = params_.inlier_threshold_m;
+  T2_ = T * T;
+  vp_ = viewpoints_.origins_m.empty() ? nullptr : viewpoints_.origins_m.data();
+  // With per-point sigmas, support and score are in units of each point's
+  // sigma (a near point with 4 mm noise must not accept 2 cm residuals a far
+  // one would); the absolute threshold still caps.
+  const bool per_point = !sigma_m_.empty() && params_.inlier_threshold_sigmas > 0.0;
+  const double k2 = params_.inlier_threshold_sigmas * params_.inlier_threshold_sigmas;
+  trunc_ = per_point ? k2 : T2_;  // MSAC truncation, in score units
+  const int n = n_;
+  buf_.resize(8 * static_cast<std::size_t>(n));
+  x_ = buf_.data();
+  y_ = x_ + n;
+  lim2_ = y_ + n;
+  unit2_ = lim2_ + n;
+  sg_ = unit2_ + n;
+  ox_ = sg_ + n;
+  oy_ = ox_ + n;
+  res_ = oy_ + n;
+  for (int k = 0; k < n; ++k) {
+    const auto i = static_cast<std::size_t>(idx_[static_cast<std::size_t>(k)]);
+    x_[k] = points_(0, idx_[static_cast<std::size_t>(k)]);
+    y_[k] = points_(1, idx_[static_cast<std::size_t>(k)]);
+    sg_[k] = sigma_m_.empty() ? 1.0 : sigma_m_[i];
+    unit2_[k] = per_point ? sg_[k] * sg_[k] : 1.0;
+    lim2_[k] = per_point ? std::min(T2_, k2 * unit2_[k]) : T2_;
+    ox_[k] = vp_ ? vp_[viewpoints_.sensor_of_point[i]].x() : 0.0;
+    oy_[k] = vp_ ? vp_[viewpoints_.sensor_of_point[i]].y() : 0.0;
+  }
+  if (!known_) {
+    Eigen::Matrix2Xd q(2, n);
+    q.row(0) = Eigen::Map<const Eigen::RowVectorXd>(x_, n);
+    q.row(1) = Eigen::Map<const Eigen::RowVectorXd>(y_, n);
+    q.colwise() -= q.rowwise().mean();
+    if (planarity(q) < kCollinearPlanarity) {
+      return failed(FitStatus::kCollinear, fmt::format("the {} points are collinear", n), non_finite_);
+    }
+  }
+  return std::nullopt;
+}
+
+void RobustCircleFitter::consider(const Circle& c) {
+  if (c.radius_m < params_.min_radius_m || c.radius_m > params_.max_radius_m) {
+    ++out_of_range_;
+    return;
+  }
+  if (!viewpoints_outside(c)) return;
+  ++valid_;
+  const Consensus r = score(c, best_c_.score);
+  if (r.score < best_c_.score) {
+    best_c_ = r;
+    best_ = c;
+    const double eps = static_cast<double>(r.inliers) / n_;
+    const double pin = std::pow(eps, s_);
+    if (pin >= 1.0) {
+      needed_ = 0;
+    } else if (pin > 0.0) {
+      needed_ = std::min<long long>(params_.max_iterations,
+                                    static_cast<long long>(std::ceil(std::log(1.0 - params_.confidence) / std::log1p(-pin))));
+    }
+  }
+}
+
+std::optional<CircleFit> RobustCircleFitter::sample() {
+  common::SplitMixRandom rng(params_.seed);
+  needed_ = params_.max_iterations;
+  const auto un64 = static_cast<std::uint64_t>(n_);
+  while (drawn_ < needed_ && drawn_ < params_.max_iterations) {
+    ++drawn_;
     const auto a = static_cast<int>(rng.below(un64));
     const auto b = static_cast<int>(rng.below(un64));
     if (b == a) continue;
-    const Eigen::Vector2d pa(x[a], y[a]), pb(x[b], y[b]);
-    if (known) {
+    const Eigen::Vector2d pa(x_[a], y_[a]), pb(x_[b], y_[b]);
+    if (known_) {
       // Two centres at distance R from both points (mirror images).
-      const double R = *params.known_radius_m;
+      const double R = *params_.known_radius_m;
       const double half = 0.5 * (pb - pa).norm();
       if (half > R || half == 0.0) continue;
       const Eigen::Vector2d mid = 0.5 * (pa + pb);
@@ -871,159 +1026,119 @@ CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, co
     } else {
       const auto c = static_cast<int>(rng.below(un64));
       if (c == a || c == b) continue;
-      const auto circ = circle_through(pa, pb, Eigen::Vector2d(x[c], y[c]));
+      const auto circ = circle_through(pa, pb, Eigen::Vector2d(x_[c], y_[c]));
       if (!circ) continue;
       consider(*circ);
     }
   }
-
-  if (best_c.inliers == 0) {
-    if (valid == 0 && out_of_range > 0) {
-      return failed(FitStatus::kRadiusOutOfRange,
-                    fmt::format("all {} circles through samples of the {} points had radii outside [{}, {}] m "
-                                "(a straight or too curved surface)",
-                                out_of_range, n, params.min_radius_m, params.max_radius_m),
-                    non_finite);
-    }
-    return failed(FitStatus::kNoConsensus,
-                  fmt::format("no circle hypothesis from {} samples of {} points was supported", drawn, n), non_finite);
+  if (best_c_.inliers > 0) return std::nullopt;
+  if (valid_ == 0 && out_of_range_ > 0) {
+    return failed(FitStatus::kRadiusOutOfRange,
+                  fmt::format("all {} circles through samples of the {} points had radii outside [{}, {}] m "
+                              "(a straight or too curved surface)",
+                              out_of_range_, n_, params_.min_radius_m, params_.max_radius_m),
+                  non_finite_);
   }
+  return failed(FitStatus::kNoConsensus,
+                fmt::format("no circle hypothesis from {} samples of {} points was supported", drawn_, n_), non_finite_);
+}
 
-  // ---- local optimisation: fit the consensus set, re-select, repeat. The
-  // first selection uses inlier_threshold_m; later ones also the set's own
-  // residual scale (final_threshold_sigmas), so clutter just inside a
-  // generous threshold (worst: a point on the unobserved side of a short arc,
-  // which has high leverage) cannot hold the fit. Each candidate circle
-  // costs one pass over the points (residuals and support), which both the
-  // scale and the selection read.
-  std::vector<std::uint8_t> mask(un, 0), before(un, 0), support(un, 0);  // per finite point
-  auto residuals = [&](const Circle& c) {
-    for (int k = 0; k < n; ++k) support[static_cast<std::size_t>(k)] = supports(k, c, &res[k]) ? 1 : 0;
-  };
-  // The set of the last residual pass's circle: its supporters, within
-  // scaled_limit of their own sigma when > 0.
-  auto select = [&](double scaled_limit) {
-    int count = 0;
-    for (int k = 0; k < n; ++k) {
-      const auto uk = static_cast<std::size_t>(k);
-      mask[uk] = support[uk] && !(scaled_limit > 0.0 && std::abs(res[k]) > scaled_limit * sg[k]) ? 1 : 0;
-      count += mask[uk];
-    }
-    return count;
-  };
-  // Robust scale of the current set's normalised residuals to the last
-  // residual pass's circle, times the factor.
-  std::vector<double> e;
-  e.reserve(un);
-  auto adaptive_limit = [&]() {
-    if (!(params.final_threshold_sigmas > 0.0)) return 0.0;
-    e.clear();
-    for (int k = 0; k < n; ++k)
-      if (mask[static_cast<std::size_t>(k)]) e.push_back(std::abs(res[k]) / sg[k]);
-    if (e.size() < static_cast<std::size_t>(2 * s)) return 0.0;
-    std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
-    return params.final_threshold_sigmas * 1.4826 * e[e.size() / 2];
-  };
-  RefineParams rp = params.refine;
-  rp.known_radius_m = params.known_radius_m;
-  Eigen::Matrix2Xd inl;
-  std::vector<double> inl_sigma;
-  auto gather = [&](int count) {
-    inl.resize(2, count);
-    inl_sigma.clear();
-    Eigen::Index j = 0;
-    for (int k = 0; k < n; ++k) {
-      if (!mask[static_cast<std::size_t>(k)]) continue;
-      inl(0, j) = x[k];
-      inl(1, j++) = y[k];
-      if (!sigma_m.empty()) inl_sigma.push_back(sg[k]);
-    }
-  };
-  // The Hyper fit of the set (what fit_circle_hyper gives for the gathered
-  // set), normalised straight from the contiguous points.
-  Normalised set;
-  auto hyper_of_set = [&](int count) -> std::optional<Circle> {
-    set.q.resize(2, count);
-    Eigen::Index j = 0;
-    for (int k = 0; k < n; ++k) {
-      if (!mask[static_cast<std::size_t>(k)]) continue;
-      set.q(0, j) = x[k];
-      set.q(1, j++) = y[k];
-    }
-    centre_and_scale(set);
-    if (count < 3 || planarity(set.q) < kCollinearPlanarity) return std::nullopt;
-    return circle_from_algebraic(hyper_parameters(set), set);
-  };
-
-  Circle current = best;
-  residuals(current);
-  int count = select(0.0);
+// Fit the consensus set, re-select, repeat. The first selection uses
+// inlier_threshold_m; later ones also the set's own residual scale
+// (final_threshold_sigmas), so clutter just inside a generous threshold
+// (worst: a point on the unobserved side of a short arc, which has high
+// leverage) cannot hold the fit. Each candidate circle costs one pass over
+// the points (residuals and support), which both the scale and the
+// selection read.
+void RobustCircleFitter::local_optimisation() {
+  const auto un = static_cast<std::size_t>(n_);
+  mask_.assign(un, 0);
+  before_.assign(un, 0);
+  support_.assign(un, 0);
+  e_.reserve(un);
+  rp_ = params_.refine;
+  rp_.known_radius_m = params_.known_radius_m;
+  current_ = best_;
+  residuals(current_);
+  count_ = select(0.0);
   bool moved = false;
-  const int rounds = std::max(1, params.local_optimisation_rounds) + (params.final_threshold_sigmas > 0.0 ? 3 : 0);
+  const int rounds = std::max(1, params_.local_optimisation_rounds) + (params_.final_threshold_sigmas > 0.0 ? 3 : 0);
   for (int round = 0; round < rounds; ++round) {
     // Re-selection rounds use the algebraic fit: cheap, and within a small
     // fraction of the ML fit at these noise levels. A known radius needs LM.
     std::optional<Circle> next;
-    if (known) {
-      gather(count);
-      const CircleFit f = refine_circle(inl, current, rp, inl_sigma);
+    if (known_) {
+      gather(count_);
+      const CircleFit f = refine_circle(inl_, current_, rp_, inl_sigma_);
       if (f.ok()) next = f.circle;
     } else {
-      next = hyper_of_set(count);
+      next = hyper_of_set(count_);
     }
     if (!next) break;  // e.g. a collinear consensus set: keep the hypothesis
-    before = mask;
-    const int before_count = count;
+    before_ = mask_;
+    const int before_count = count_;
     residuals(*next);
     const double limit = adaptive_limit();
     const int k = select(limit);
     if (limit == 0.0 && k < before_count && moved) {
-      mask = before;  // the refit lost support: keep the previous set
-      count = before_count;
+      mask_ = before_;  // the refit lost support: keep the previous set
+      count_ = before_count;
       break;
     }
-    current = *next;
+    current_ = *next;
     moved = true;
-    count = k;
-    if (mask == before) break;
+    count_ = k;
+    if (mask_ == before_) break;
   }
-  // The final fit on the final set: geometric (ML) unless the caller refits.
+}
+
+// The final fit on the final set: geometric (ML) unless the caller refits.
+CircleFit RobustCircleFitter::final_fit() {
   CircleFit fit;
-  if (params.final_geometric_fit || known) {
-    gather(count);
-    fit = refine_circle(inl, current, rp, inl_sigma);
+  if (params_.final_geometric_fit || known_) {
+    gather(count_);
+    fit = refine_circle(inl_, current_, rp_, inl_sigma_);
   }
   if (!fit.ok()) {
     fit = CircleFit{};
     fit.status = FitStatus::kOk;
-    fit.circle = current;
+    fit.circle = current_;
     double ss = 0.0;
-    for (int k = 0; k < n; ++k) {
-      if (!mask[static_cast<std::size_t>(k)]) continue;
-      const double dx = x[k] - current.centre_m.x(), dy = y[k] - current.centre_m.y();
-      const double d = std::sqrt(dx * dx + dy * dy) - current.radius_m;
+    for (int k = 0; k < n_; ++k) {
+      if (!mask_[static_cast<std::size_t>(k)]) continue;
+      const double dx = x_[k] - current_.centre_m.x(), dy = y_[k] - current_.centre_m.y();
+      const double d = std::sqrt(dx * dx + dy * dy) - current_.radius_m;
       ss += d * d;
     }
-    fit.rms_residual_m = count ? std::sqrt(ss / count) : 0.0;
+    fit.rms_residual_m = count_ ? std::sqrt(ss / count_) : 0.0;
   }
-  fit.iterations = drawn;
-  fit.non_finite = non_finite;
-  fit.inlier_mask.assign(static_cast<std::size_t>(points.cols()), 0);
-  for (int k = 0; k < n; ++k) fit.inlier_mask[static_cast<std::size_t>(idx[static_cast<std::size_t>(k)])] = mask[static_cast<std::size_t>(k)];
-  fit.points_used = count;
-  if (count < params.min_inliers) {
+  fit.iterations = drawn_;
+  fit.non_finite = non_finite_;
+  fit.inlier_mask.assign(static_cast<std::size_t>(points_.cols()), 0);
+  for (int k = 0; k < n_; ++k)
+    fit.inlier_mask[static_cast<std::size_t>(idx_[static_cast<std::size_t>(k)])] = mask_[static_cast<std::size_t>(k)];
+  fit.points_used = count_;
+  if (count_ < params_.min_inliers) {
     fit.status = FitStatus::kNoConsensus;
-    fit.reason = fmt::format("best circle has {} inliers of {} points, fewer than min_inliers = {}", count, n,
-                             params.min_inliers);
+    fit.reason = fmt::format("best circle has {} inliers of {} points, fewer than min_inliers = {}", count_, n_,
+                             params_.min_inliers);
     return fit;
   }
-  if (fit.circle.radius_m < params.min_radius_m || fit.circle.radius_m > params.max_radius_m) {
+  if (fit.circle.radius_m < params_.min_radius_m || fit.circle.radius_m > params_.max_radius_m) {
     fit.status = FitStatus::kRadiusOutOfRange;
-    fit.reason = fmt::format("fitted radius {:.4f} m is outside [{}, {}] m", fit.circle.radius_m, params.min_radius_m,
-                             params.max_radius_m);
+    fit.reason = fmt::format("fitted radius {:.4f} m is outside [{}, {}] m", fit.circle.radius_m, params_.min_radius_m,
+                             params_.max_radius_m);
     return fit;
   }
   return fit;
+}
+
+}  // namespace
+
+CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RobustCircleParams& params,
+                            std::span<const double> sigma_m, const Viewpoints& viewpoints) {
+  if (auto f = check_robust_input(points, params, sigma_m, viewpoints)) return *f;
+  return RobustCircleFitter(points, params, sigma_m, viewpoints).run();
 }
 
 // ---------------------------------------------------------------------------- KCR

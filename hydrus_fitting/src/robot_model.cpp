@@ -95,6 +95,108 @@ RobotModel RobotModel::load(const std::string& path) {
   return parse(ss.str(), path);
 }
 
+namespace {
+
+/// links[i].joint: its name (unique among every name) and optional limits.
+void parse_joint(const Reader& r, const YAML::Node& j, const std::string& where, std::set<std::string>& names,
+                 LinkSpec& s) {
+  r.check_keys(j, where, {"name", "limits_deg"});
+  if (!j["name"]) r.fail(j, where + ".name", "missing");
+  s.joint = r.text(j["name"], where + ".name");
+  if (!names.insert(s.joint).second) r.fail(j["name"], where + ".name", "duplicate name '" + s.joint + "'");
+  if (j["limits_deg"]) {
+    const auto lim = r.numbers(j["limits_deg"], where + ".limits_deg", 2);
+    if (!(lim[0] < lim[1])) r.fail(j["limits_deg"], where + ".limits_deg", "need min < max");
+    s.joint_min_rad = lim[0] * kDeg;
+    s.joint_max_rad = lim[1] * kDeg;
+  }
+}
+
+/// links[i]: the first is the base (no joint), every later one hangs on a joint.
+LinkSpec parse_link(const Reader& r, const YAML::Node& l, std::size_t i, std::set<std::string>& names) {
+  const std::string where = fmt::format("links[{}]", i);
+  r.check_keys(l, where, {"name", "length_m", "width_m", "joint"});
+  LinkSpec s;
+  if (!l["name"]) r.fail(l, where + ".name", "missing");
+  s.name = r.text(l["name"], where + ".name");
+  if (!names.insert(s.name).second) r.fail(l["name"], where + ".name", "duplicate name '" + s.name + "'");
+  if (!l["length_m"]) r.fail(l, where + ".length_m", "missing");
+  s.length_m = r.number(l["length_m"], where + ".length_m");
+  if (!(s.length_m > 0.0)) r.fail(l["length_m"], where + ".length_m", "must be > 0");
+  if (l["width_m"]) {
+    s.width_m = r.number(l["width_m"], where + ".width_m");
+    if (!(s.width_m >= 0.0)) r.fail(l["width_m"], where + ".width_m", "must be >= 0");
+  }
+  const YAML::Node j = l["joint"];
+  if (i == 0 && j) r.fail(j, where + ".joint", "the first link is the base: it has no joint");
+  if (i > 0) {
+    if (!j) r.fail(l, where + ".joint", "missing (every link after the first hangs on a joint)");
+    parse_joint(r, j, where + ".joint", names, s);
+  }
+  return s;
+}
+
+/// A sensor's optional lens, fan, line axis and range fields.
+void parse_sensor_optics(const Reader& r, const YAML::Node& n, const std::string& where, SensorSpec& s) {
+  if (n["height_m"]) s.height_m = r.number(n["height_m"], where + ".height_m");
+  if (n["focal_mm"]) {
+    s.focal_mm = r.number(n["focal_mm"], where + ".focal_mm");
+    if (!(s.focal_mm > 0.0)) r.fail(n["focal_mm"], where + ".focal_mm", "must be > 0");
+  }
+  if (n["sensor_length_mm"]) {
+    s.sensor_length_mm = r.number(n["sensor_length_mm"], where + ".sensor_length_mm");
+    if (!(s.sensor_length_mm > 0.0)) r.fail(n["sensor_length_mm"], where + ".sensor_length_mm", "must be > 0");
+  }
+  if (n["fan_half_angle_deg"]) {
+    const double f = r.number(n["fan_half_angle_deg"], where + ".fan_half_angle_deg");
+    if (!(f > 0.0 && f < 90.0)) r.fail(n["fan_half_angle_deg"], where + ".fan_half_angle_deg", "must be in (0, 90)");
+    s.fan_half_angle_rad = f * kDeg;
+  }
+  if (n["line_axis"]) {
+    const std::string a = r.text(n["line_axis"], where + ".line_axis");
+    if (a != "left" && a != "right") r.fail(n["line_axis"], where + ".line_axis", "must be 'left' or 'right'");
+    s.line_axis_left = (a == "left");
+  }
+  if (n["range_m"]) {
+    const auto rr = r.numbers(n["range_m"], where + ".range_m", 2);
+    if (!(rr[0] >= 0.0 && rr[0] < rr[1])) r.fail(n["range_m"], where + ".range_m", "need 0 <= min < max");
+    s.min_range_m = rr[0];
+    s.max_range_m = rr[1];
+  }
+}
+
+/// sensors[i]: on a named link, at the first sensor's height (fusion works in one plane).
+SensorSpec parse_sensor(const Reader& r, const YAML::Node& n, std::size_t i, std::set<std::string>& names,
+                        const std::vector<LinkSpec>& links, const SensorSpec* first) {
+  const std::string where = fmt::format("sensors[{}]", i);
+  r.check_keys(n, where, {"name", "link", "position_m", "yaw_deg", "height_m", "focal_mm", "sensor_length_mm",
+                          "fan_half_angle_deg", "line_axis", "range_m"});
+  SensorSpec s;
+  if (!n["name"]) r.fail(n, where + ".name", "missing");
+  s.name = r.text(n["name"], where + ".name");
+  if (!names.insert(s.name).second) r.fail(n["name"], where + ".name", "duplicate name '" + s.name + "'");
+  if (!n["link"]) r.fail(n, where + ".link", "missing");
+  const std::string link = r.text(n["link"], where + ".link");
+  const auto it = std::find_if(links.begin(), links.end(), [&](const LinkSpec& l) { return l.name == link; });
+  if (it == links.end()) r.fail(n["link"], where + ".link", "no link named '" + link + "'");
+  s.link = static_cast<int>(it - links.begin());
+  if (!n["position_m"]) r.fail(n, where + ".position_m", "missing");
+  const auto pos = r.numbers(n["position_m"], where + ".position_m", 2);
+  s.position_m = {pos[0], pos[1]};
+  if (!n["yaw_deg"]) r.fail(n, where + ".yaw_deg", "missing");
+  s.yaw_rad = r.number(n["yaw_deg"], where + ".yaw_deg") * kDeg;
+  parse_sensor_optics(r, n, where, s);
+  if (first && std::abs(s.height_m - first->height_m) > 1e-3) {
+    r.fail(n["height_m"] ? n["height_m"] : n, where + ".height_m",
+           fmt::format("{} m differs from the first sensor's {} m: fusion works in one plane, every sensor "
+                       "must be at the same height",
+                       s.height_m, first->height_m));
+  }
+  return s;
+}
+
+}  // namespace
+
 RobotModel RobotModel::parse(const std::string& yaml_text, const std::string& source_name) {
   const Reader r{source_name};
   YAML::Node root;
@@ -108,98 +210,15 @@ RobotModel RobotModel::parse(const std::string& yaml_text, const std::string& so
 
   RobotModel m;
   m.name_ = root["name"] ? r.text(root["name"], "name") : "robot";
-
+  std::set<std::string> names;  // links, joints and sensors share one namespace
   const YAML::Node links = root["links"];
   if (!links || !links.IsSequence() || links.size() == 0) r.fail(links ? links : root, "links", "expected a non-empty list");
-  std::set<std::string> names;
-  for (std::size_t i = 0; i < links.size(); ++i) {
-    const YAML::Node l = links[i];
-    const std::string where = fmt::format("links[{}]", i);
-    r.check_keys(l, where, {"name", "length_m", "width_m", "joint"});
-    LinkSpec s;
-    if (!l["name"]) r.fail(l, where + ".name", "missing");
-    s.name = r.text(l["name"], where + ".name");
-    if (!names.insert(s.name).second) r.fail(l["name"], where + ".name", "duplicate name '" + s.name + "'");
-    if (!l["length_m"]) r.fail(l, where + ".length_m", "missing");
-    s.length_m = r.number(l["length_m"], where + ".length_m");
-    if (!(s.length_m > 0.0)) r.fail(l["length_m"], where + ".length_m", "must be > 0");
-    if (l["width_m"]) {
-      s.width_m = r.number(l["width_m"], where + ".width_m");
-      if (!(s.width_m >= 0.0)) r.fail(l["width_m"], where + ".width_m", "must be >= 0");
-    }
-    const YAML::Node j = l["joint"];
-    if (i == 0 && j) r.fail(j, where + ".joint", "the first link is the base: it has no joint");
-    if (i > 0) {
-      if (!j) r.fail(l, where + ".joint", "missing (every link after the first hangs on a joint)");
-      r.check_keys(j, where + ".joint", {"name", "limits_deg"});
-      if (!j["name"]) r.fail(j, where + ".joint.name", "missing");
-      s.joint = r.text(j["name"], where + ".joint.name");
-      if (!names.insert(s.joint).second) r.fail(j["name"], where + ".joint.name", "duplicate name '" + s.joint + "'");
-      if (j["limits_deg"]) {
-        const auto lim = r.numbers(j["limits_deg"], where + ".joint.limits_deg", 2);
-        if (!(lim[0] < lim[1])) r.fail(j["limits_deg"], where + ".joint.limits_deg", "need min < max");
-        s.joint_min_rad = lim[0] * kDeg;
-        s.joint_max_rad = lim[1] * kDeg;
-      }
-    }
-    m.links_.push_back(s);
-  }
-
+  for (std::size_t i = 0; i < links.size(); ++i) m.links_.push_back(parse_link(r, links[i], i, names));
   const YAML::Node sensors = root["sensors"];
   if (!sensors || !sensors.IsSequence() || sensors.size() == 0)
     r.fail(sensors ? sensors : root, "sensors", "expected a non-empty list");
-  for (std::size_t i = 0; i < sensors.size(); ++i) {
-    const YAML::Node n = sensors[i];
-    const std::string where = fmt::format("sensors[{}]", i);
-    r.check_keys(n, where, {"name", "link", "position_m", "yaw_deg", "height_m", "focal_mm", "sensor_length_mm",
-                            "fan_half_angle_deg", "line_axis", "range_m"});
-    SensorSpec s;
-    if (!n["name"]) r.fail(n, where + ".name", "missing");
-    s.name = r.text(n["name"], where + ".name");
-    if (!names.insert(s.name).second) r.fail(n["name"], where + ".name", "duplicate name '" + s.name + "'");
-    if (!n["link"]) r.fail(n, where + ".link", "missing");
-    const std::string link = r.text(n["link"], where + ".link");
-    const auto it = std::find_if(m.links_.begin(), m.links_.end(), [&](const LinkSpec& l) { return l.name == link; });
-    if (it == m.links_.end()) r.fail(n["link"], where + ".link", "no link named '" + link + "'");
-    s.link = static_cast<int>(it - m.links_.begin());
-    if (!n["position_m"]) r.fail(n, where + ".position_m", "missing");
-    const auto pos = r.numbers(n["position_m"], where + ".position_m", 2);
-    s.position_m = {pos[0], pos[1]};
-    if (!n["yaw_deg"]) r.fail(n, where + ".yaw_deg", "missing");
-    s.yaw_rad = r.number(n["yaw_deg"], where + ".yaw_deg") * kDeg;
-    if (n["height_m"]) s.height_m = r.number(n["height_m"], where + ".height_m");
-    if (n["focal_mm"]) {
-      s.focal_mm = r.number(n["focal_mm"], where + ".focal_mm");
-      if (!(s.focal_mm > 0.0)) r.fail(n["focal_mm"], where + ".focal_mm", "must be > 0");
-    }
-    if (n["sensor_length_mm"]) {
-      s.sensor_length_mm = r.number(n["sensor_length_mm"], where + ".sensor_length_mm");
-      if (!(s.sensor_length_mm > 0.0)) r.fail(n["sensor_length_mm"], where + ".sensor_length_mm", "must be > 0");
-    }
-    if (n["fan_half_angle_deg"]) {
-      const double f = r.number(n["fan_half_angle_deg"], where + ".fan_half_angle_deg");
-      if (!(f > 0.0 && f < 90.0)) r.fail(n["fan_half_angle_deg"], where + ".fan_half_angle_deg", "must be in (0, 90)");
-      s.fan_half_angle_rad = f * kDeg;
-    }
-    if (n["line_axis"]) {
-      const std::string a = r.text(n["line_axis"], where + ".line_axis");
-      if (a != "left" && a != "right") r.fail(n["line_axis"], where + ".line_axis", "must be 'left' or 'right'");
-      s.line_axis_left = (a == "left");
-    }
-    if (n["range_m"]) {
-      const auto rr = r.numbers(n["range_m"], where + ".range_m", 2);
-      if (!(rr[0] >= 0.0 && rr[0] < rr[1])) r.fail(n["range_m"], where + ".range_m", "need 0 <= min < max");
-      s.min_range_m = rr[0];
-      s.max_range_m = rr[1];
-    }
-    if (i > 0 && std::abs(s.height_m - m.sensors_.front().height_m) > 1e-3) {
-      r.fail(n["height_m"] ? n["height_m"] : n, where + ".height_m",
-             fmt::format("{} m differs from the first sensor's {} m: fusion works in one plane, every sensor "
-                         "must be at the same height",
-                         s.height_m, m.sensors_.front().height_m));
-    }
-    m.sensors_.push_back(s);
-  }
+  for (std::size_t i = 0; i < sensors.size(); ++i)
+    m.sensors_.push_back(parse_sensor(r, sensors[i], i, names, m.links_, m.sensors_.empty() ? nullptr : &m.sensors_.front()));
   for (std::size_t i = 1; i < m.links_.size(); ++i) m.joints_.push_back(m.links_[i].joint);
   return m;
 }

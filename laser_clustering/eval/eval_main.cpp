@@ -27,6 +27,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/seeds.hpp>
 
 #include "harness.hpp"
 #include <sim/eval/scanner.hpp>
@@ -54,6 +55,7 @@ struct Args {
   bool tomato_look = true;  ///< TrussEvalOptions::tomato_look
   std::string write_calibration;  ///< write the gripper sensor's calibration here and stop
   bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
+  bool tuning = false;       ///< the run chooses parameters: only tuning seeds (common/seeds.hpp)
 };
 
 // Fills `a` from the command line; the exit code when the program stops there.
@@ -75,6 +77,8 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
   app.add_option("--failure-pictures", a.failure_pictures, "and of the first K truss trials that did not align")
       ->check(tinyline::common::non_negative())
       ->capture_default_str();
+  app.add_flag("--tuning", a.tuning,
+               "this run is for choosing parameters: refuse any seed that is not a tuning seed (docs/evaluation.md)");
   app.add_flag("--ablation", a.ablation, "also the truss cases under earlier parameter sets and a one-stage baseline");
   app.add_option("--raw-pulses", a.raw_pulses, "raw-mode read-out schedule of both sensors [pulses], comma-separated")
       ->delimiter(',')
@@ -90,6 +94,15 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
   if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
   a.cases = std::set<std::string>(cases.begin(), cases.end());
   a.tomato_look = !no_tomato_look;
+  if (a.tuning) {
+    try {
+      tinyline::common::seeds::require_tuning(tinyline::common::seeds::kLaserClustering,
+                                              tinyline::common::seeds::seed_run(a.seed, static_cast<std::uint64_t>(a.trials)));
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "laser_clustering_eval: " << e.what() << "\n";
+      return 2;
+    }
+  }
   return std::nullopt;
 }
 
@@ -164,11 +177,14 @@ int main(int argc, char** argv) {
     std::cout << "truss cases: closed loop with up to " << args.rescans << " re-scan(s) after a move, "
               << (args.tomato_look ? "with" : "without") << " the tomato look\n\n";
   }
-  std::cout << "trials per case: " << args.trials << ", seeds " << args.seed << " .. "
-            << args.seed + static_cast<std::uint64_t>(args.trials) - 1 << "\n\n";
+  // Every figure below comes from these seeds: the label goes on the run and on each table.
+  const std::string seeds = tinyline::common::seeds::describe(
+      tinyline::common::seeds::kLaserClustering, tinyline::common::seeds::seed_run(args.seed, static_cast<std::uint64_t>(args.trials)));
+  std::cout << "trials per case: " << args.trials << ", " << seeds << "\n\n";
   std::ofstream json(args.out / "summary.json");
   json << "{\n  \"truss_scanner\": \"" << (truss_scanner ? truss_scanner->describe() : "") << "\",\n  \"tool_scanner\": \""
-       << (tool_scanner ? tool_scanner->describe() : "") << "\",\n  \"trials\": " << args.trials << ",\n  \"seed\": " << args.seed;
+       << (tool_scanner ? tool_scanner->describe() : "") << "\",\n  \"trials\": " << args.trials << ",\n  \"seed\": " << args.seed
+       << ",\n  \"seeds\": \"" << seeds << "\"";
 
   for (const auto& [name, c] : {std::pair{std::string("random_offset"), ev::TrussCase::kRandomOffset},
                                 std::pair{std::string("recognition_error"), ev::TrussCase::kRecognitionError}}) {
@@ -209,7 +225,7 @@ int main(int argc, char** argv) {
                              e.radius_m, reg.ok ? 1 : 0, reg.shift_xz_m.x(), reg.shift_xz_m.y());
           }
         });
-    std::cout << "## " << name << "\n\n| verdict | rate [95 % CI] |\n|---|---|\n"
+    std::cout << "## " << name << " (" << seeds << ")\n\n| verdict | rate [95 % CI] |\n|---|---|\n"
               << "| aligned | " << rate(r.aligned) << " |\n| wrong | " << rate(r.wrong) << " |\n| out of view | "
               << rate(r.out_of_view) << " |\n| missed (in view, no move) | " << rate(r.missed) << " |\n"
               << "| a neighbour pedicel nearer the expected point than the target (ambiguous) | " << rate(r.ambiguous)
@@ -262,7 +278,8 @@ int main(int argc, char** argv) {
                           "\"recognition_error_aligned\": {}}}",
                           rate_json(a.aligned), rate_json(a.wrong), rate_json(b.aligned));
     }
-    std::cout << "## ablation (truss cases, same seeds)\n\n| clustering | random offset: aligned | wrong | recognition error: "
+    std::cout << "## ablation (truss cases, " << seeds << ")\n\n"
+              << "| clustering | random offset: aligned | wrong | recognition error: "
                  "aligned | wrong |\n|---|---|---|---|---|\n";
     json << ",\n  \"ablation\": [";
     for (std::size_t i = 0; i < variants.size(); ++i) {
@@ -333,7 +350,8 @@ int main(int argc, char** argv) {
   if (args.cases.count("stick")) {
     std::ofstream csv(args.out / "trials_stick.csv");
     csv << "material,seed,iou_reflectance,iou_distance_only\n";
-    std::cout << "## stick (Figure 5.8 B)\n\n| stick | front before the panel | distance and reflectance | distance alone |\n"
+    std::cout << "## stick (Figure 5.8 B; " << seeds << ")\n\n"
+              << "| stick | front before the panel | distance and reflectance | distance alone |\n"
                  "|---|---:|---|---|\n";
     json << ",\n  \"stick\": [";
     bool first = true;
@@ -393,7 +411,8 @@ int main(int argc, char** argv) {
                                                                  t.best_pitch_rad / kDeg);
                                          }
                                        });
-    std::cout << "## wrench alignment (5.3.2)\n\n| figure | value |\n|---|---|\n"
+    std::cout << "## wrench alignment (5.3.2; " << seeds << ")\n\n"
+              << "| figure | value |\n|---|---|\n"
               << fmt::format("| median pitch error | {:.2f} deg |\n| 90th percentile | {:.2f} deg |\n", r.median_error_deg,
                              r.p90_error_deg)
               << fmt::format("| median error of the brightest step alone (2 deg steps) | {:.2f} deg |\n",

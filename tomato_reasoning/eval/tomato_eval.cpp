@@ -34,6 +34,7 @@
 #include "tomato_reasoning/eval/verification.hpp"
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/seeds.hpp>
 
 using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
@@ -97,6 +98,7 @@ struct Request {
   std::vector<double> kappas;
   bool quiet = false, verify = false, fit_kappa = false;
   eval::ScenarioOptions scenario;
+  std::string seeds_label;  ///< which seeds and what they are (common/seeds.hpp), on every printed figure
 };
 
 /// Fills `r` from the command line; the exit code when the program stops there.
@@ -145,6 +147,10 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
                  "the verification's options key=value (pulses=10,20,50,120,300 expectation_sd_m=0.015 "
                  "max_move_m=0.05 max_turn_deg=60), repeatable");
   app.add_flag("--quiet", r.quiet, "no per-truss lines");
+  bool tuning = false;
+  app.add_flag("--tuning", tuning,
+               "this run is for choosing parameters (as --fit-kappa is): refuse any seed that is not a tuning seed "
+               "(docs/evaluation.md)");
   try {
     if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
     r.seeds = parse_seeds(seeds_text);
@@ -154,6 +160,14 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     (void)app.exit(e);
     return 2;
   }
+  namespace seeds = tinyline::common::seeds;
+  try {
+    if (tuning || r.fit_kappa) seeds::require_tuning(seeds::kTomato, r.seeds);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "tomato_eval: %s\n", e.what());
+    return 2;
+  }
+  r.seeds_label = seeds::describe(seeds::kTomato, r.seeds);
   if (pose_noise.size() == 2) {
     r.scenario.pose_noise_m = pose_noise[0];
     r.scenario.pose_noise_deg = pose_noise[1];
@@ -167,8 +181,10 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
 int main(int argc, char** argv) {
   Request request;
   if (const auto rc = parse(argc, argv, request)) return *rc;
-  auto& [classes, seeds, out_dir, variants, sets, verify_sets, kappas, quiet, verify, fit_kappa, scenario] = request;
+  auto& [classes, seeds, out_dir, variants, sets, verify_sets, kappas, quiet, verify, fit_kappa, scenario, seeds_label] =
+      request;
   std::filesystem::create_directories(out_dir);
+  std::printf("%s\n", seeds_label.c_str());
   // The fit's grid: 2 .. 1000 in steps of 2^(1/4) (about 19 %), appended to
   // any --kappa-sweep values.
   const std::size_t fit_from = kappas.size();
@@ -270,9 +286,9 @@ int main(int argc, char** argv) {
 
   for (auto& run : runs) {
     std::ofstream js(out_dir + "/" + run.name + "_summary.json");
-    js << "{\n\"variant\": \"" << run.name << "\",\n\"classes\": {\n";
+    js << "{\n\"variant\": \"" << run.name << "\",\n\"seeds\": \"" << seeds_label << "\",\n\"classes\": {\n";
     bool first = true;
-    std::printf("\n%s\n%-6s %9s %9s %9s %8s %8s %8s %8s %9s %9s %7s %7s %8s\n", run.name.c_str(), "class", "detected", "rate",
+    std::printf("\n%s (%s)\n%-6s %9s %9s %9s %8s %8s %8s %8s %9s %9s %7s %7s %8s\n", run.name.c_str(), seeds_label.c_str(), "class", "detected", "rate",
                 "visible", "ctr_med", "ctr_p95", "rad_med", "rad_p95", "ped_med", "ped_p95", "hpd50", "cover", "ms_med");
     auto row = [&](const std::string& label, const eval::Summary& s) {
       std::printf("%-6s %4d/%-4d %8.1f%% %8.1f%% %6.2fmm %6.2fmm %6.2fmm %6.2fmm %7.1fdeg %7.1fdeg %6.1f%% %6.1f%% %7.1f\n",
@@ -292,7 +308,8 @@ int main(int argc, char** argv) {
     js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
   }
   if (verify) {
-    std::printf("\nlaser verification (%s): picks of detected tomatoes\n%-15s %7s %9s %9s %9s %9s %12s\n", runs.front().name.c_str(),
+    std::printf("\nlaser verification (%s; %s): picks of detected tomatoes\n%-15s %7s %9s %9s %9s %9s %12s\n",
+                runs.front().name.c_str(), seeds_label.c_str(),
                 "case", "trials", "aligned", "wrong", "out_view", "nothing", "vision_only");
     for (auto& [name, c] : vcount) {
       const double n = std::max(1, c["trials"]);
@@ -313,8 +330,8 @@ int main(int argc, char** argv) {
     if (kappa_n == 0) {
       std::printf("\nkappa fit: no detected tomato to fit on\n");
     } else {
-      std::printf("\nkappa fit (%s, %d detected tomatoes): force.kernel_kappa = %.1f puts the truth in the HPD50 region %.1f%% of the time\n",
-                  runs.front().name.c_str(), kappa_n, kappas[best], 100.0 * kappa_hits[best] / kappa_n);
+      std::printf("\nkappa fit (%s, %s, %d detected tomatoes): force.kernel_kappa = %.1f puts the truth in the HPD50 region %.1f%% of the time\n",
+                  runs.front().name.c_str(), seeds_label.c_str(), kappa_n, kappas[best], 100.0 * kappa_hits[best] / kappa_n);
     }
     kappas.resize(fit_from);
     kappa_hits.resize(fit_from);
@@ -322,8 +339,8 @@ int main(int argc, char** argv) {
   if (!kappas.empty()) {
     std::ofstream ks(out_dir + "/kappa_sweep.csv");
     ks << "kappa,hpd50_hit_rate,n\n";
-    std::printf("\nkappa sweep (%s, %d detected tomatoes): share of true pedicels inside the HPD50 region\n",
-                runs.front().name.c_str(), kappa_n);
+    std::printf("\nkappa sweep (%s, %s, %d detected tomatoes): share of true pedicels inside the HPD50 region\n",
+                runs.front().name.c_str(), seeds_label.c_str(), kappa_n);
     for (std::size_t k = 0; k < kappas.size(); ++k) {
       const double rate = kappa_n ? double(kappa_hits[k]) / kappa_n : NAN;
       std::printf("  kappa %7.2f  %5.1f%%\n", kappas[k], 100 * rate);

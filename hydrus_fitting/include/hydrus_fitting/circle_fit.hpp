@@ -24,6 +24,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -63,6 +64,7 @@ struct CircleFit {
   int iterations = 0;                 ///< LM iterations (refine) or hypotheses drawn (robust)
   bool converged = false;             ///< LM met its tolerance (refine, robust)
   double radius_bias_removed_m = 0.0; ///< subtracted from the radius (RefineParams::remove_radius_bias)
+  bool second_order_applied = false;  ///< the second-order correction was asked for and its rule let it act
   double end_weight_applied = 0.0;    ///< k of the second-order end weighting (0: none)
   Eigen::Vector3d mode_shift_m = Eigen::Vector3d::Zero();  ///< (cx, cy, r) added by the second-order mode shift
   std::vector<std::uint8_t> inlier_mask;  ///< robust fit: 1 per input point in the consensus set
@@ -121,7 +123,21 @@ struct SecondOrderCorrection {
   double no_weighting_rel_sd_r = 0.20;
   double mode_shift = 2.5;                ///< gamma (0: no shift)
   double max_shift_sds = 0.5;             ///< |radius shift| <= this many SDs of the fitted radius
+  /// Where the correction is applied at all (second_order_applies): only
+  /// while the noise over the radius seen in the residuals, q, is at most
+  /// max_sigma_over_r (and the fit has at most max_points points). From
+  /// sigma/r = 0.17 on arcs of 60-180 deg it made the fit worse than the
+  /// plain one at 100 and 400 points; up to 0.13 it helped or cost at most
+  /// 0.04 of the bound, at 30-400 points (tuning draws, hydrus seed 100;
+  /// docs/hydrus_fitting.md "Outside its design"). No point count needed a
+  /// limit.
+  double max_sigma_over_r = 0.15;
+  int max_points = std::numeric_limits<int>::max();
 };
+
+/// The correction's applicability rule: n points fitted, q = the residuals'
+/// RMS over the fitted radius.
+[[nodiscard]] bool second_order_applies(const SecondOrderCorrection& so, int n, double q);
 
 struct RefineParams {
   int max_iterations = 50;
