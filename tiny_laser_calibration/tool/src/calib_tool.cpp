@@ -667,7 +667,6 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
   p.pixel_step = o.integer("--pixel-step", p.pixel_step, 1, 256);
   p.keep_mixed = o.flag("--keep-mixed");
   p.incidence_column = o.flag("--incidence");
-<<<<<<< HEAD
   p.positions_csv = o.value("--positions").value_or("");
   p.focal_mm = o.number("--focal-mm", p.focal_mm);
   if (const auto px = o.value("--pixels")) {
@@ -683,9 +682,7 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
     }
     if (p.pixel_from < 0 || p.pixel_to < p.pixel_from || p.pixel_to > 271) throw UsageError("--pixels: expected 0 <= FROM <= TO <= 271");
   }
-=======
   files::AtomicFile output_file(*output, {.inputs = {o.positional()[0]}, .what = "data file"});
->>>>>>> hostile2
   const auto r = collect_calibration_data(o.positional()[0], p);
   for (const auto& n : r.notes) err << "note: " << n << "\n";
   if (!r.ok) {
