@@ -5,6 +5,9 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bag/param_tables.hpp>
+#include <tinyline/bus/param_table.hpp>
+
 namespace tinyline::bag {
 
 namespace {
@@ -45,35 +48,10 @@ std::vector<std::string> resolved(const bus::Node& n, const std::vector<std::str
   return out;
 }
 
-// Declares the recorder's parameters with `d` as defaults and returns the result.
+// Declares the recorder's parameters (its table, <tinyline/bag/param_tables.hpp>)
+// with `d` as defaults and returns the result, topic names resolved.
 RecorderOptions declare(bus::Node& n, RecorderOptions d) {
-  d.path = n.declare_parameter<std::string>("path", d.path, "output MCAP file (empty: tinyline_<date>_<time>.mcap)",
-                                            bus::ParamConstraints::output_file());
-  d.topics = n.declare_parameter<std::vector<std::string>>("topics", d.topics, "topics to record (empty: all)");
-  d.exclude = n.declare_parameter<std::vector<std::string>>("exclude", d.exclude, "topics never recorded");
-  d.queue_depth = static_cast<std::size_t>(n.declare_parameter<int>(
-      "queue_depth", static_cast<int>(d.queue_depth), "reliable subscription queue per topic [messages]",
-      bus::ParamConstraints::range(1, 1e7)));
-  const std::string comp = n.declare_parameter<std::string>(
-      "compression", std::string(to_string(d.writer.writer.compression)), "chunk compression",
-      bus::ParamConstraints::one_of({"none", "lz4", "zstd"}));
-  d.writer.writer.compression = *parse_compression(comp);
-  d.writer.writer.compression_level =
-      n.declare_parameter<int>("compression_level", d.writer.writer.compression_level,
-                               "lz4 0 (fast) or 1-12; zstd 1-19 (0: library default)", bus::ParamConstraints::range(0, 19));
-  d.writer.writer.chunk_size_bytes = static_cast<std::uint64_t>(n.declare_parameter<int>(
-                                         "chunk_size_kb", static_cast<int>(d.writer.writer.chunk_size_bytes / 1024),
-                                         "uncompressed chunk size [KiB]", bus::ParamConstraints::range(1, 1 << 20))) *
-                                     1024;
-  d.writer.max_queue_bytes = static_cast<std::uint64_t>(n.declare_parameter<int>(
-                                 "max_queue_mb", static_cast<int>(d.writer.max_queue_bytes >> 20),
-                                 "serialized bytes waiting for the disk before messages are refused [MiB]",
-                                 bus::ParamConstraints::range(1, 1 << 20)))
-                             << 20;
-  d.writer.flush_interval_s = n.declare_parameter<double>(
-      "flush_interval_s", d.writer.flush_interval_s,
-      "close a chunk after this long without one, so a crash loses little [s] (0: only full chunks)",
-      bus::ParamConstraints::range(0.0, 3600.0));
+  bus::declare_params(n, d);
   d.topics = resolved(n, d.topics, "topics");
   d.exclude = resolved(n, d.exclude, "exclude");
   return d;

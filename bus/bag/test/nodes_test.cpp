@@ -283,6 +283,30 @@ TEST(Recorder, IsRegisteredForLaunchFilesAndChecksItsParameters) {
   EXPECT_NE(rec, nullptr);
 }
 
+TEST(Recorder, TakesItsSettingsFromItsParameterTableInTheTablesUnits) {
+  auto ctx = sim_context();
+  Recorder rec(opts(ctx, "r")
+                   .param("chunk_size_kb", std::int64_t{2})
+                   .param("max_queue_mb", std::int64_t{3})
+                   .param("queue_depth", std::int64_t{7})
+                   .param("compression", std::string("none"))
+                   .param("flush_interval_s", 0.25)
+                   .param("topics", std::vector<std::string>{"demo/raw"}));
+  const RecorderOptions& o = rec.options();
+  EXPECT_EQ(o.writer.writer.chunk_size_bytes, 2u * 1024u);  // set in KiB, held in bytes
+  EXPECT_EQ(o.writer.max_queue_bytes, 3u << 20);             // set in MiB
+  EXPECT_EQ(o.queue_depth, 7u);
+  EXPECT_EQ(o.writer.writer.compression, Compression::None);
+  EXPECT_DOUBLE_EQ(o.writer.flush_interval_s, 0.25);
+  EXPECT_EQ(o.topics, std::vector<std::string>{"/demo/raw"});  // resolved after the table
+  std::map<std::string, std::string> units;
+  for (const auto& d : rec.parameters()) units[d.name] = d.constraints.unit;
+  EXPECT_EQ(units["chunk_size_kb"], "KiB");
+  EXPECT_EQ(units["max_queue_mb"], "MiB");
+  EXPECT_EQ(units["flush_interval_s"], "s");
+  EXPECT_THROW(Recorder(opts(ctx, "r2").param("chunk_size_kb", std::int64_t{0})), bus::ParamError);
+}
+
 TEST(Recorder, KilledWithSigkillMidFileThenRecovered) {
   const fs::path path = out_dir() / "killed_recorder.mcap";
   const fs::path part = out_dir() / "killed_recorder.mcap.part";  // where a recording is until it finishes

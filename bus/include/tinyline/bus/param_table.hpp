@@ -40,8 +40,8 @@ void declare_field(Node& node, T& field, const common::Param& p) {
   if constexpr (std::is_floating_point_v<T>) {
     // Declared in the parameter's unit: the field is the parameter times p.scale.
     field = static_cast<T>(p.scale * node.declare_parameter<double>(name, field / p.scale, what, constraints_of(p)));
-  } else if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, double> || std::is_same_v<T, int> ||
-                std::is_same_v<T, float> || std::is_same_v<T, std::string> || std::is_same_v<T, std::int64_t> ||
+  } else if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, double> ||
+                std::is_same_v<T, float> || std::is_same_v<T, std::string> ||
                 std::is_same_v<T, std::vector<double>> || std::is_same_v<T, std::vector<std::string>>) {
     field = node.declare_parameter(name, field, what, constraints_of(p));
   } else if constexpr (requires { T::RowsAtCompileTime; T::SizeAtCompileTime; }) {
@@ -55,8 +55,10 @@ void declare_field(Node& node, T& field, const common::Param& p) {
     }
     for (std::size_t i = 0; i < n; ++i) field[static_cast<Eigen::Index>(i)] = given[i];
   } else if constexpr (std::is_integral_v<T>) {
-    field = static_cast<T>(node.declare_parameter<std::int64_t>(name, static_cast<std::int64_t>(field), what,
-                                                                constraints_of(p)));
+    // Declared in the parameter's unit: the field is the parameter times p.scale (bytes set in KiB).
+    const auto scale = static_cast<std::int64_t>(p.scale);
+    field = static_cast<T>(scale * node.declare_parameter<std::int64_t>(name, static_cast<std::int64_t>(field) / scale,
+                                                                        what, constraints_of(p)));
   } else {
     static_assert(std::is_same_v<T, void>, "a parameter table field of a type the bus cannot declare");
   }
@@ -115,6 +117,13 @@ void declare_field(Node& node, std::string& field, const common::Param& p, const
 inline void declare_field(Node& node, std::string& field, const common::Param& p, const common::InputFile& file) {
   ParamConstraints c = ParamConstraints::input_file(
       file.max_bytes, std::vector<std::string>(file.not_a_file.begin(), file.not_a_file.end()));
+  c.unit = std::string(p.unit);
+  field = node.declare_parameter(std::string(p.name), field, std::string(p.description), std::move(c));
+}
+
+/// Declares a text field that names a file the node writes.
+inline void declare_field(Node& node, std::string& field, const common::Param& p, const common::OutputFile&) {
+  ParamConstraints c = ParamConstraints::output_file();
   c.unit = std::string(p.unit);
   field = node.declare_parameter(std::string(p.name), field, std::string(p.description), std::move(c));
 }

@@ -44,7 +44,8 @@ struct Param {
   std::optional<double> max{};   ///< numbers: the largest value accepted
   std::string_view description;  ///< one line, what it means
   /// The field holds the parameter times this: a field in radians set in
-  /// degrees has kRadPerDeg (unit, min and max are the parameter's).
+  /// degrees has kRadPerDeg, one in bytes set in KiB 1024 (unit, min and max
+  /// are the parameter's).
   double scale = 1.0;
 };
 
@@ -75,6 +76,11 @@ struct InputFile {
   std::uint64_t max_bytes = 0;
   std::span<const std::string_view> not_a_file{};
 };
+
+/// A text field that names a file the node writes: `v(p.path, {...},
+/// OutputFile{})`. A launch checks that no two nodes write one file and that
+/// no node writes another's input.
+struct OutputFile {};
 
 /// A field the table leaves out on purpose: its value comes from another
 /// field (named in `why`), so a parameter for it would be a second way to

@@ -50,8 +50,8 @@ struct RecorderStats {
 
 class Recorder : public bus::Node {
  public:
-  /// Built from parameters (path, topics, exclude, compression, compression_level,
-  /// chunk_size_kb, queue_depth, max_queue_mb, flush_interval_s), defaults from RecorderOptions.
+  /// Built from parameters (RecorderOptions' table, <tinyline/bag/param_tables.hpp>),
+  /// defaults from RecorderOptions.
   explicit Recorder(bus::NodeOptions options);
   /// Defaults from `defaults` (parameters still override them).
   Recorder(bus::NodeOptions options, RecorderOptions defaults);
@@ -72,6 +72,8 @@ class Recorder : public bus::Node {
 
   RecorderStats stats() const;
   const std::string& path() const { return opts_.path; }
+  /// The settings as the parameters gave them (topic names resolved).
+  const RecorderOptions& options() const { return opts_; }
   bool recording() const { return recording_.load(); }
 
  private:
