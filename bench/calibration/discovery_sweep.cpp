@@ -2,7 +2,7 @@
 // the simulator, over many seeds: the share of effect-free runs that name
 // anything (the null rate; goal <= 5 %) and, per injected effect, the share
 // that name it and how close the held-out error gets to the noise floor.
-// The cases are those of the tests (tiny_laser_calibration/test/
+// The cases are those of the tests (tiny_laser_calibration/testing/
 // sim_discovery_cases.cpp); the seeds must lie in one range of the registry
 // (tiny_laser_calibration/seeds.hpp): tuning seeds while choosing settings,
 // held-out seeds for the figures in docs/calibration.md.
