@@ -176,176 +176,236 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   return std::nullopt;
 }
 
-}  // namespace
+/// A bad option found while setting up (exit code 2); the text is printed after "tomato_eval: ".
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
-int main(int argc, char** argv) {
-  Request request;
-  if (const auto rc = parse(argc, argv, request)) return *rc;
-  auto& [classes, seeds, out_dir, variants, sets, verify_sets, kappas, quiet, verify, fit_kappa, scenario, seeds_label] =
-      request;
-  std::filesystem::create_directories(out_dir);
-  std::printf("%s\n", seeds_label.c_str());
-  // The fit's grid: 2 .. 1000 in steps of 2^(1/4) (about 19 %), appended to
-  // any --kappa-sweep values.
-  const std::size_t fit_from = kappas.size();
-  if (fit_kappa)
-    for (double k = 2.0; k <= 1000.0 * 1.0001; k *= std::pow(2.0, 0.25)) kappas.push_back(k);
+/// One variant's pipeline, its scores and its per-tomato CSV.
+struct Run {
+  std::string name;
+  std::unique_ptr<eval::Variant> variant;
+  std::vector<eval::TrussScore> scores;
+  std::map<char, std::vector<eval::TrussScore>> by_class;
+  std::ofstream csv;
+};
 
-  struct Run {
-    std::string name;
-    std::unique_ptr<eval::Variant> variant;
-    std::vector<eval::TrussScore> scores;
-    std::map<char, std::vector<eval::TrussScore>> by_class;
-    std::ofstream csv;
-  };
+/// The laser verification of the first variant's picks, as recognised and with a random offset.
+struct PickVerification {
+  std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
+  std::ofstream csv;
+  std::map<std::string, std::map<std::string, int>> count;  // case -> verdict -> n
+  std::map<std::string, int> vision_ok;
+};
+
+/// Hits of the truth in the HPD50 region per kappa, from the first variant's
+/// draws (the draws do not depend on kappa): the --kappa-sweep values, then
+/// (--fit-kappa) the fit's grid from `fit_from` on.
+struct KappaTally {
+  std::vector<double> kappas;
+  std::size_t fit_from = 0;
+  std::vector<int> hits;
+  int n = 0;
+};
+
+std::vector<Run> open_runs(const Request& r) {
   std::vector<Run> runs;
-  for (const auto& v : variants) {
-    Run r;
-    r.name = v;
+  for (const auto& v : r.variants) {
+    Run run;
+    run.name = v;
     try {
       PipelineParams p = eval::variant_params(v);
-      for (const auto& [k, val] : sets) eval::set_param(p, k, val);
-      r.variant = eval::make_variant(v, p);
+      for (const auto& [k, val] : r.sets) eval::set_param(p, k, val);
+      run.variant = eval::make_variant(v, p);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "tomato_eval: variant '%s': %s\n", v.c_str(), e.what());
-      return 2;
+      throw UsageError("variant '" + v + "': " + e.what());
     }
-    r.csv.open(out_dir + "/" + v + "_tomatoes.csv");
-    r.csv << eval::csv_header();
-    runs.push_back(std::move(r));
+    run.csv.open(r.out_dir + "/" + v + "_tomatoes.csv");
+    run.csv << eval::csv_header();
+    runs.push_back(std::move(run));
   }
-  std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
-  std::ofstream vcsv;
-  std::map<std::string, std::map<std::string, int>> vcount;  // case -> verdict -> n
-  std::map<std::string, int> vision_ok;
-  if (verify) {
-    eval::VerificationOptions vo;
-    try {
-      for (const auto& [k, v] : verify_sets) eval::set_verification_option(vo, k, v);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "tomato_eval: --verify-set: %s\n", e.what());
-      return 2;
-    }
-    as_recognised = std::make_unique<eval::VerificationHarness>(vo);
-    vo.random_offset_m = 0.05;
-    with_offset = std::make_unique<eval::VerificationHarness>(vo);
-    std::printf("hand laser: %s\n", as_recognised->describe().c_str());
-    vcsv.open(out_dir + "/verification.csv");
-    vcsv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,depth_error_mm,move_mm,confidence,reason\n";
-  }
-  // kappa sweep: hits of the truth in the HPD50 region per kappa, from the
-  // first variant's draws (the draws do not depend on kappa).
-  std::vector<int> kappa_hits(kappas.size(), 0);
-  int kappa_n = 0;
+  return runs;
+}
 
-  for (const auto& cls : classes) {
-    const auto c = sim::parse_truss_class(cls);
-    if (!c) {
-      std::fprintf(stderr, "tomato_eval: unknown class '%s'\n", cls.c_str());
-      return 2;
+std::unique_ptr<PickVerification> open_verification(const Request& r) {
+  if (!r.verify) return nullptr;
+  eval::VerificationOptions vo;
+  try {
+    for (const auto& [k, v] : r.verify_sets) eval::set_verification_option(vo, k, v);
+  } catch (const std::exception& e) {
+    throw UsageError(std::string("--verify-set: ") + e.what());
+  }
+  auto out = std::make_unique<PickVerification>();
+  out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
+  vo.random_offset_m = 0.05;
+  out->with_offset = std::make_unique<eval::VerificationHarness>(vo);
+  std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
+  out->csv.open(r.out_dir + "/verification.csv");
+  out->csv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,"
+              "depth_error_mm,move_mm,confidence,reason\n";
+  return out;
+}
+
+KappaTally kappa_tally(const Request& r) {
+  KappaTally t;
+  t.kappas = r.kappas;
+  t.fit_from = t.kappas.size();
+  // The fit's grid: 2 .. 1000 in steps of 2^(1/4) (about 19 %).
+  if (r.fit_kappa)
+    for (double k = 2.0; k <= 1000.0 * 1.0001; k *= std::pow(2.0, 0.25)) t.kappas.push_back(k);
+  t.hits.assign(t.kappas.size(), 0);
+  return t;
+}
+
+void count_kappa_hits(KappaTally& tally, const eval::Scenario& sc, const PipelineResult& res,
+                      const eval::TrussScore& ts) {
+  for (const auto& t : ts.tomatoes) {
+    if (t.detection < 0) continue;
+    const auto& d = res.tomatoes[std::size_t(t.detection)].pedicel.distribution;
+    ++tally.n;
+    for (std::size_t k = 0; k < tally.kappas.size(); ++k)
+      tally.hits[k] += PedicelDistribution(d.draws(), tally.kappas[k], 99).in_hpd(sc.truth[std::size_t(t.truth)].pedicel_dir, 0.5);
+  }
+}
+
+void verify_picks(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {
+  for (auto* h : {v.as_recognised.get(), v.with_offset.get()}) {
+    const std::string name = h == v.as_recognised.get() ? "as_recognised" : "random_offset";
+    for (const auto& t : h->run(sc, res)) {
+      v.count[name][eval::to_string(t.verdict)]++;
+      v.count[name]["trials"]++;
+      v.vision_ok[name] += t.vision_on_pedicel;
+      v.csv << name << ',' << t.complexity << ',' << t.seed << ',' << t.truth << ',' << t.pick_rank << ','
+            << t.offset_m << ',' << int(t.vision_on_pedicel) << ',' << to_string(t.outcome) << ','
+            << eval::to_string(t.verdict) << ',' << int(t.on_pedicel) << ',' << 1000 * t.lateral_error_m << ','
+            << 1000 * t.depth_error_m << ',' << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << "\"\n";
     }
-    for (std::uint64_t seed : seeds) {
-      const eval::Scenario sc = eval::make_scenario(*c, seed, scenario);
+  }
+}
+
+void print_truss_line(const Run& run, char cls, std::uint64_t seed, const eval::TrussScore& ts) {
+  std::printf("%-14s %c %4llu  truth %d detected %d unmatched %d  %6.1f ms  %s\n", run.name.c_str(), cls,
+              static_cast<unsigned long long>(seed), ts.truth, ts.detected, ts.unmatched, ts.times.total_ms(),
+              ts.ok ? "" : (ts.stage + ": " + ts.reason).c_str());
+}
+
+/// Every variant on every truss (each rendered once), scored; the first
+/// variant's results also feed the kappa tally and the verification.
+void evaluate(const Request& r, std::vector<Run>& runs, PickVerification* verification, KappaTally& tally) {
+  for (const auto& cls : r.classes) {
+    const auto c = sim::parse_truss_class(cls);
+    if (!c) throw UsageError("unknown class '" + cls + "'");
+    for (std::uint64_t seed : r.seeds) {
+      const eval::Scenario sc = eval::make_scenario(*c, seed, r.scenario);
       for (auto& run : runs) {
+        const bool first = &run == &runs.front();
         const PipelineResult res = run.variant->run(sc);
         const eval::TrussScore ts = eval::score_truss(sc, res);
         run.csv << eval::csv_rows(ts);
-        if (&run == &runs.front() && !kappas.empty()) {
-          for (const auto& t : ts.tomatoes) {
-            if (t.detection < 0) continue;
-            const auto& d = res.tomatoes[std::size_t(t.detection)].pedicel.distribution;
-            ++kappa_n;
-            for (std::size_t k = 0; k < kappas.size(); ++k)
-              kappa_hits[k] += PedicelDistribution(d.draws(), kappas[k], 99).in_hpd(sc.truth[std::size_t(t.truth)].pedicel_dir, 0.5);
-          }
-        }
-        if (!quiet) {
-          std::printf("%-14s %c %4llu  truth %d detected %d unmatched %d  %6.1f ms  %s\n", run.name.c_str(), *cls.c_str(),
-                      static_cast<unsigned long long>(seed), ts.truth, ts.detected, ts.unmatched, ts.times.total_ms(),
-                      ts.ok ? "" : (ts.stage + ": " + ts.reason).c_str());
-        }
-        if (verify && &run == &runs.front()) {
-          for (auto* h : {as_recognised.get(), with_offset.get()}) {
-            const std::string name = h == as_recognised.get() ? "as_recognised" : "random_offset";
-            for (const auto& t : h->run(sc, res)) {
-              vcount[name][eval::to_string(t.verdict)]++;
-              vcount[name]["trials"]++;
-              vision_ok[name] += t.vision_on_pedicel;
-              vcsv << name << ',' << t.complexity << ',' << t.seed << ',' << t.truth << ',' << t.pick_rank << ','
-                   << t.offset_m << ',' << int(t.vision_on_pedicel) << ',' << to_string(t.outcome) << ','
-                   << eval::to_string(t.verdict) << ',' << int(t.on_pedicel) << ',' << 1000 * t.lateral_error_m << ','
-                   << 1000 * t.depth_error_m << ',' << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << "\"\n";
-            }
-          }
-        }
+        if (first && !tally.kappas.empty()) count_kappa_hits(tally, sc, res, ts);
+        if (!r.quiet) print_truss_line(run, *cls.c_str(), seed, ts);
+        if (verification && first) verify_picks(*verification, sc, res);
         run.by_class[*cls.c_str()].push_back(ts);
         run.scores.push_back(ts);
       }
     }
   }
+}
 
-  for (auto& run : runs) {
-    std::ofstream js(out_dir + "/" + run.name + "_summary.json");
-    js << "{\n\"variant\": \"" << run.name << "\",\n\"seeds\": \"" << seeds_label << "\",\n\"classes\": {\n";
-    bool first = true;
-    std::printf("\n%s (%s)\n%-6s %9s %9s %9s %8s %8s %8s %8s %9s %9s %7s %7s %8s\n", run.name.c_str(), seeds_label.c_str(), "class", "detected", "rate",
-                "visible", "ctr_med", "ctr_p95", "rad_med", "rad_p95", "ped_med", "ped_p95", "hpd50", "cover", "ms_med");
-    auto row = [&](const std::string& label, const eval::Summary& s) {
-      std::printf("%-6s %4d/%-4d %8.1f%% %8.1f%% %6.2fmm %6.2fmm %6.2fmm %6.2fmm %7.1fdeg %7.1fdeg %6.1f%% %6.1f%% %7.1f\n",
-                  label.c_str(), s.detected, s.truth, 100.0 * s.detected / std::max(1, s.truth),
-                  100.0 * s.visible_detected / std::max(1, s.visible), s.centre_median_mm, s.centre_p95_mm,
-                  s.radius_median_mm, s.radius_p95_mm, s.pedicel_median_deg, s.pedicel_p95_deg, 100 * s.hpd_hit_rate,
-                  100 * s.cut_cover_rate, s.total_ms_median);
-    };
-    for (const auto& [cls, v] : run.by_class) {
-      const eval::Summary s = eval::summarize(v);
-      row(std::string(1, cls), s);
-      js << (first ? "" : ",\n") << "\"" << cls << "\": " << eval::to_json(s);
-      first = false;
-    }
-    const eval::Summary all = eval::summarize(run.scores);
-    row("all", all);
-    js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
+void print_summary_row(const std::string& label, const eval::Summary& s) {
+  std::printf("%-6s %4d/%-4d %8.1f%% %8.1f%% %6.2fmm %6.2fmm %6.2fmm %6.2fmm %7.1fdeg %7.1fdeg %6.1f%% %6.1f%% %7.1f\n",
+              label.c_str(), s.detected, s.truth, 100.0 * s.detected / std::max(1, s.truth),
+              100.0 * s.visible_detected / std::max(1, s.visible), s.centre_median_mm, s.centre_p95_mm,
+              s.radius_median_mm, s.radius_p95_mm, s.pedicel_median_deg, s.pedicel_p95_deg, 100 * s.hpd_hit_rate,
+              100 * s.cut_cover_rate, s.total_ms_median);
+}
+
+/// Per class and overall: printed, and DIR/<variant>_summary.json.
+void write_summary(const Run& run, const Request& r) {
+  std::ofstream js(r.out_dir + "/" + run.name + "_summary.json");
+  js << "{\n\"variant\": \"" << run.name << "\",\n\"seeds\": \"" << r.seeds_label << "\",\n\"classes\": {\n";
+  std::printf("\n%s (%s)\n%-6s %9s %9s %9s %8s %8s %8s %8s %9s %9s %7s %7s %8s\n", run.name.c_str(),
+              r.seeds_label.c_str(), "class", "detected", "rate", "visible", "ctr_med", "ctr_p95", "rad_med", "rad_p95",
+              "ped_med", "ped_p95", "hpd50", "cover", "ms_med");
+  bool first = true;
+  for (const auto& [cls, v] : run.by_class) {
+    const eval::Summary s = eval::summarize(v);
+    print_summary_row(std::string(1, cls), s);
+    js << (first ? "" : ",\n") << "\"" << cls << "\": " << eval::to_json(s);
+    first = false;
   }
-  if (verify) {
-    std::printf("\nlaser verification (%s; %s): picks of detected tomatoes\n%-15s %7s %9s %9s %9s %9s %12s\n",
-                runs.front().name.c_str(), seeds_label.c_str(),
-                "case", "trials", "aligned", "wrong", "out_view", "nothing", "vision_only");
-    for (auto& [name, c] : vcount) {
-      const double n = std::max(1, c["trials"]);
-      std::printf("%-15s %7d %8.1f%% %8.1f%% %8.1f%% %8.1f%% %11.1f%%\n", name.c_str(), c["trials"], 100 * c["aligned"] / n,
-                  100 * c["wrong"] / n, 100 * c["out_of_view"] / n, 100 * c["nothing_found"] / n, 100 * vision_ok[name] / n);
-    }
+  const eval::Summary all = eval::summarize(run.scores);
+  print_summary_row("all", all);
+  js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
+}
+
+void print_verification(PickVerification& v, const std::string& variant, const std::string& seeds_label) {
+  std::printf("\nlaser verification (%s; %s): picks of detected tomatoes\n%-15s %7s %9s %9s %9s %9s %12s\n",
+              variant.c_str(), seeds_label.c_str(), "case", "trials", "aligned", "wrong", "out_view", "nothing",
+              "vision_only");
+  for (auto& [name, c] : v.count) {
+    const double n = std::max(1, c["trials"]);
+    std::printf("%-15s %7d %8.1f%% %8.1f%% %8.1f%% %8.1f%% %11.1f%%\n", name.c_str(), c["trials"], 100 * c["aligned"] / n,
+                100 * c["wrong"] / n, 100 * c["out_of_view"] / n, 100 * c["nothing_found"] / n,
+                100 * v.vision_ok[name] / n);
   }
-  if (fit_kappa) {
-    // Coverage falls with kappa (a narrower kernel, a smaller region), so the
-    // grid point closest to 50 % is the fit; ties go to the smaller kappa.
-    std::size_t best = fit_from;
-    for (std::size_t k = fit_from; k < kappas.size(); ++k)
-      if (std::abs(kappa_hits[k] - 0.5 * kappa_n) < std::abs(kappa_hits[best] - 0.5 * kappa_n)) best = k;
-    std::ofstream kf(out_dir + "/kappa_fit.csv");
-    kf << "kappa,hpd50_hits,n,fitted\n";
-    for (std::size_t k = fit_from; k < kappas.size(); ++k)
-      kf << kappas[k] << ',' << kappa_hits[k] << ',' << kappa_n << ',' << int(k == best) << '\n';
-    if (kappa_n == 0) {
-      std::printf("\nkappa fit: no detected tomato to fit on\n");
-    } else {
-      std::printf("\nkappa fit (%s, %s, %d detected tomatoes): force.kernel_kappa = %.1f puts the truth in the HPD50 region %.1f%% of the time\n",
-                  runs.front().name.c_str(), seeds_label.c_str(), kappa_n, kappas[best], 100.0 * kappa_hits[best] / kappa_n);
-    }
-    kappas.resize(fit_from);
-    kappa_hits.resize(fit_from);
+}
+
+/// The fit's grid point whose HPD50 coverage is closest to 50 %, written to
+/// DIR/kappa_fit.csv and printed; the grid then leaves the tally.
+void report_kappa_fit(KappaTally& t, const std::string& variant, const Request& r) {
+  // Coverage falls with kappa (a narrower kernel, a smaller region), so the
+  // grid point closest to 50 % is the fit; ties go to the smaller kappa.
+  std::size_t best = t.fit_from;
+  for (std::size_t k = t.fit_from; k < t.kappas.size(); ++k)
+    if (std::abs(t.hits[k] - 0.5 * t.n) < std::abs(t.hits[best] - 0.5 * t.n)) best = k;
+  std::ofstream kf(r.out_dir + "/kappa_fit.csv");
+  kf << "kappa,hpd50_hits,n,fitted\n";
+  for (std::size_t k = t.fit_from; k < t.kappas.size(); ++k)
+    kf << t.kappas[k] << ',' << t.hits[k] << ',' << t.n << ',' << int(k == best) << '\n';
+  if (t.n == 0) {
+    std::printf("\nkappa fit: no detected tomato to fit on\n");
+  } else {
+    std::printf("\nkappa fit (%s, %s, %d detected tomatoes): force.kernel_kappa = %.1f puts the truth in the HPD50 region %.1f%% of the time\n",
+                variant.c_str(), r.seeds_label.c_str(), t.n, t.kappas[best], 100.0 * t.hits[best] / t.n);
   }
-  if (!kappas.empty()) {
-    std::ofstream ks(out_dir + "/kappa_sweep.csv");
-    ks << "kappa,hpd50_hit_rate,n\n";
-    std::printf("\nkappa sweep (%s, %s, %d detected tomatoes): share of true pedicels inside the HPD50 region\n",
-                runs.front().name.c_str(), seeds_label.c_str(), kappa_n);
-    for (std::size_t k = 0; k < kappas.size(); ++k) {
-      const double rate = kappa_n ? double(kappa_hits[k]) / kappa_n : NAN;
-      std::printf("  kappa %7.2f  %5.1f%%\n", kappas[k], 100 * rate);
-      ks << kappas[k] << ',' << rate << ',' << kappa_n << '\n';
-    }
+  t.kappas.resize(t.fit_from);
+  t.hits.resize(t.fit_from);
+}
+
+/// The --kappa-sweep values' HPD50 hit rates: printed and DIR/kappa_sweep.csv.
+void report_kappa_sweep(const KappaTally& t, const std::string& variant, const Request& r) {
+  std::ofstream ks(r.out_dir + "/kappa_sweep.csv");
+  ks << "kappa,hpd50_hit_rate,n\n";
+  std::printf("\nkappa sweep (%s, %s, %d detected tomatoes): share of true pedicels inside the HPD50 region\n",
+              variant.c_str(), r.seeds_label.c_str(), t.n);
+  for (std::size_t k = 0; k < t.kappas.size(); ++k) {
+    const double rate = t.n ? double(t.hits[k]) / t.n : NAN;
+    std::printf("  kappa %7.2f  %5.1f%%\n", t.kappas[k], 100 * rate);
+    ks << t.kappas[k] << ',' << rate << ',' << t.n << '\n';
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Request request;
+  if (const auto rc = parse(argc, argv, request)) return *rc;
+  std::filesystem::create_directories(request.out_dir);
+  std::printf("%s\n", request.seeds_label.c_str());
+  try {
+    KappaTally tally = kappa_tally(request);
+    std::vector<Run> runs = open_runs(request);
+    const std::unique_ptr<PickVerification> verification = open_verification(request);
+    evaluate(request, runs, verification.get(), tally);
+    for (const auto& run : runs) write_summary(run, request);
+    const std::string& first = runs.front().name;
+    if (verification) print_verification(*verification, first, request.seeds_label);
+    if (request.fit_kappa) report_kappa_fit(tally, first, request);
+    if (!tally.kappas.empty()) report_kappa_sweep(tally, first, request);
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "tomato_eval: %s\n", e.what());
+    return 2;
   }
   return 0;
 }
