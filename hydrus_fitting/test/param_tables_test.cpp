@@ -68,8 +68,8 @@ TEST(HydrusParamTables, TheCircleFitterDeclaresEveryEstimatorSettingWithItsDefau
   auto want = table_defaults<hf::CircleEstimatorParams>();
   want.merge(table_defaults<hf::JointBufferParams>("joint_"));
   want.merge(table_defaults<hf::BasePoseBufferParams>("base_pose_"));
-  // 11 of the robust fit, 5 + 9 of its refit, 2 of the fusion, 6 of the estimator, 2 + 2 of the buffers
-  EXPECT_EQ(want.size(), 37u);
+  // 11 of the robust fit, 5 + 11 of its refit, 2 of the fusion, 6 of the estimator, 2 + 2 of the buffers
+  EXPECT_EQ(want.size(), 39u);
   for (const auto& [name, value] : want) {
     ASSERT_TRUE(declared.count(name)) << name << " is not a parameter";
     EXPECT_EQ(number(declared[name]->default_value), value) << name;

@@ -632,14 +632,26 @@ void FitEngine::fit() {
   compute_covariates();
   solve_linear();
   update_reference();
-  ratio_min_ = 1e300;
-  ratio_max_ = -1e300;
-  for (double x : x_) {
-    if (std::isfinite(x)) {
-      ratio_min_ = std::min(ratio_min_, x);
-      ratio_max_ = std::max(ratio_max_, x);
-    }
-  }
+  set_ratio_range();
+}
+
+// The ratio range the polynomial is valid on is where its data is: the
+// 0.1 % and 99.9 % quantiles of X, so that a few dim read-outs far out (a
+// ratio of noisy charges) do not stretch it over a stretch the polynomial
+// only extrapolates into. The driver flags pixels beyond it (and its margin).
+void FitEngine::set_ratio_range() {
+  std::vector<double> xs;
+  xs.reserve(x_.size());
+  for (double x : x_)
+    if (std::isfinite(x)) xs.push_back(x);
+  if (xs.empty()) return;
+  const auto at = [&xs](double q) {
+    const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(xs.size() - 1) + 0.5);
+    std::nth_element(xs.begin(), xs.begin() + k, xs.end());
+    return xs[static_cast<std::size_t>(k)];
+  };
+  ratio_min_ = at(kRatioRangeTail);
+  ratio_max_ = at(1.0 - kRatioRangeTail);
 }
 
 CalibrationModel FitEngine::model() const {

@@ -117,6 +117,9 @@ class FitEngine {
 
   AmplitudeReference reference_;
   void update_reference();
+  void set_ratio_range();
+  /// Share of the data left out of the ratio range at each end (set_ratio_range).
+  static constexpr double kRatioRangeTail = 0.001;
   std::vector<CalibrationTerm> terms_;          // the distance terms (linear columns)
   std::vector<CalibrationTerm> charge_;        // the terms on the charges (nonlinear, fitted around the solve)
   std::vector<std::pair<bool, std::size_t>> order_;  // given order: (charge?, index)

@@ -29,6 +29,9 @@ void for_each_param(S& p, V&& v) {
   v(p.no_weighting_rel_sd_r, {"no_weighting_rel_sd_r", "", 0.0, 10.0, "... and none from this SD(r) / r on"});
   v(p.mode_shift, {"mode_shift", "", 0.0, 100.0, "gamma of the mode shift (0: no shift)"});
   v(p.max_shift_sds, {"max_shift_sds", "", 0.0, 100.0, "|radius shift| at most this many SDs of the fitted radius"});
+  v(p.max_sigma_over_r, {"max_sigma_over_r", "", 0.0, 10.0,
+                         "correct only while the noise over the radius seen in the residuals is at most this"});
+  v(p.max_points, {"max_points", "", 1, 2147483647, "correct only fits of at most this many points"});
 }
 
 template <class S, class V>
