@@ -75,15 +75,17 @@ EOF
 full_disk() {
   command -v unshare > /dev/null || skip "no unshare"
   mkdir -p "$work/mnt"
-  text=$(printf '%0200d' 0)
+  # 1000-byte messages into a 16 KiB disk: full after a few dozen messages,
+  # which even a loaded machine publishes well within the run.
+  text=$(printf '%01000d' 0)
   cat > "$work/full.launch.yaml" <<EOF
 launch:
 - node: {pkg: tinyline, exec: pulse, name: source, param: [{name: rate_hz, value: 2000.0}, {name: text, value: "$text"}], remap: [{from: output, to: /big}]}
 - node: {pkg: bag, exec: recorder, name: rec, param: [{name: path, value: "$work/mnt/rec.mcap"}, {name: compression, value: none}, {name: chunk_size_kb, value: 4}]}
 EOF
-  unshare -m sh -c "mount -t tmpfs -o size=64k tmpfs '$work/mnt' || exit 77
+  unshare -m sh -c "mount -t tmpfs -o size=16k tmpfs '$work/mnt' || exit 77
     echo previous > '$work/mnt/rec.mcap'
-    '$tl' launch '$work/full.launch.yaml' --duration 1 --no-table > '$work/out.txt' 2>&1
+    '$tl' launch '$work/full.launch.yaml' --duration 2 --no-table > '$work/out.txt' 2>&1
     rc=\$?
     cat '$work/mnt/rec.mcap' > '$work/after.txt'
     exit \$rc"
