@@ -3,9 +3,10 @@
 // anything (the null rate; goal <= 5 %) and, per injected effect, the share
 // that name it and how close the held-out error gets to the noise floor.
 // The cases are those of the tests (tiny_laser_calibration/testing/
-// sim_discovery_cases.cpp); the seeds must lie in one range of the registry
-// (tiny_laser_calibration/seeds.hpp): tuning seeds while choosing settings,
-// held-out seeds for the figures in docs/calibration.md.
+// sim_discovery_cases.cpp); the seeds must all be of one kind in the
+// calibration's entry of the seed registry (tinyline/common/seeds.hpp): tuning
+// seeds while choosing settings, held-out seeds for the figures in
+// docs/calibration.md.
 //
 //   calibration_discovery_sweep --seeds 1000-1019 --case none
 //   calibration_discovery_sweep --seeds 1000-1004 --case ambient_light --case group_leakage
@@ -15,35 +16,48 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include <tiny_laser_calibration/seeds.hpp>
+#include <tinyline/common/seeds.hpp>
 
 #include "sim_discovery_cases.hpp"
 
-namespace cal = tinyline::tiny_laser_calibration;
+namespace seeds = tinyline::common::seeds;
 namespace tt = tinyline::tiny_laser_calibration::testing;
 
 namespace {
 
 struct Args {
-  cal::SeedRange seeds{1, 5};
+  seeds::SeedRange seeds{1, 5};
   std::vector<std::string> cases;
   std::string out;
 };
+
+// The use every seed of the range shares; nullopt when they differ or one is unregistered.
+std::optional<seeds::SeedUse> range_use(const seeds::SeedRange& r) {
+  const auto first = seeds::use_of(seeds::kCalibration, r.first);
+  for (std::uint64_t s = r.first; s <= r.last; ++s) {
+    if (seeds::use_of(seeds::kCalibration, s) != first) return std::nullopt;
+  }
+  return first;
+}
 
 int usage(const std::string& why) {
   std::cerr << "calibration_discovery_sweep: " << why
             << "\nusage: calibration_discovery_sweep --seeds FIRST-LAST (--case NAME ... | --all) [--out FILE.csv]\n"
             << "cases:";
   for (const auto& c : tt::discovery_cases()) std::cerr << " " << c.name;
-  std::cerr << "\nseed ranges: tuning " << cal::kTuningSeeds.first << "-" << cal::kTuningSeeds.last << ", held-out "
-            << cal::kHeldOutSeeds.first << "-" << cal::kHeldOutSeeds.last << "\n";
+  const auto& e = seeds::kCalibration;
+  std::cerr << "\nseed ranges:";
+  for (const auto& r : e.tuning) std::cerr << " tuning " << r.str();
+  for (const auto& r : e.held_out) std::cerr << " held-out " << r.str();
+  std::cerr << "\n";
   return 2;
 }
 
-bool parse_range(const std::string& s, cal::SeedRange& r) {
+bool parse_range(const std::string& s, seeds::SeedRange& r) {
   const auto dash = s.find('-');
   try {
     std::size_t used = 0;
@@ -77,7 +91,7 @@ int parse(int argc, char** argv, Args& a) {
     for (const auto& c : tt::discovery_cases()) known = known || c.name == n;
     if (!known) return usage("unknown case '" + n + "'");
   }
-  if (!cal::seed_use(a.seeds)) return usage("seeds mix the tuning and the held-out range (or leave both)");
+  if (!range_use(a.seeds)) return usage("seeds mix tuning and held-out seeds (or are unregistered)");
   return 0;
 }
 
@@ -86,7 +100,7 @@ int parse(int argc, char** argv, Args& a) {
 int main(int argc, char** argv) {
   Args a;
   if (const int rc = parse(argc, argv, a); rc != 0) return rc;
-  const auto use = *cal::seed_use(a.seeds);
+  const auto use = *range_use(a.seeds);
   std::ofstream csv;
   if (!a.out.empty()) {
     csv.open(a.out);
@@ -94,7 +108,7 @@ int main(int argc, char** argv) {
     csv << "case,seed,named,first_effect,before_m,after_m,floor_m,twin_effects\n";
   }
   std::printf("seeds %llu-%llu (%s)\n", static_cast<unsigned long long>(a.seeds.first),
-              static_cast<unsigned long long>(a.seeds.last), std::string(cal::to_string(use)).c_str());
+              static_cast<unsigned long long>(a.seeds.last), std::string(seeds::to_string(use)).c_str());
   std::printf("| case | runs | named as expected | named anything | after / floor (median, max) | twin named anything |\n");
   std::printf("|---|---|---|---|---|---|\n");
   for (const auto& name : a.cases) {

@@ -428,14 +428,8 @@ double FitEngine::residual_cost(std::vector<double>* residuals) {
   return sse;
 }
 
-void FitEngine::optimise_global() {
-  // Parameters in scaled units so one finite-difference step fits all.
-  struct Param {
-    double* value;
-    double typical;
-    double lo, hi;
-  };
-  std::vector<Param> ps;
+std::vector<FitEngine::GlobalParam> FitEngine::global_parameters() {
+  std::vector<GlobalParam> ps;
   if (fit_leak_offset_) ps.push_back({&leak_offset_, 1.0, -50.0, 50.0});
   if (p_.fit_leakage) ps.push_back({&leak_per_pulse_, 0.01, -1.0, 1.0});
   for (auto& t : charge_) {
@@ -448,6 +442,28 @@ void FitEngine::optimise_global() {
       ps.push_back({&t.values[j], typical, -bound, bound});
     }
   }
+  return ps;
+}
+
+namespace {
+
+common::LevenbergMarquardtSettings global_lm_settings() {
+  common::LevenbergMarquardtSettings lm;
+  lm.max_iterations = 40;
+  lm.max_tries = std::numeric_limits<int>::max();
+  lm.max_lambda = 1e10;
+  lm.initial_lambda = 1e-3;
+  lm.increase = 4.0;
+  lm.decrease = 1.0;
+  lm.decrease_divisor = 3.0;
+  lm.min_lambda = 1e-9;
+  return lm;
+}
+
+}  // namespace
+
+void FitEngine::optimise_global() {
+  const std::vector<GlobalParam> ps = global_parameters();
   if (ps.empty()) {
     residual_cost(nullptr);
     return;
@@ -500,16 +516,7 @@ void FitEngine::optimise_global() {
   Problem problem{*this, get, set, {}, {}};
   Eigen::VectorXd theta = get();
   const double cost = residual_cost(&problem.r0);
-  common::LevenbergMarquardtSettings lm;
-  lm.max_iterations = 40;
-  lm.max_tries = std::numeric_limits<int>::max();
-  lm.max_lambda = 1e10;
-  lm.initial_lambda = 1e-3;
-  lm.increase = 4.0;
-  lm.decrease = 1.0;
-  lm.decrease_divisor = 3.0;
-  lm.min_lambda = 1e-9;
-  (void)common::levenberg_marquardt(problem, theta, cost, lm);
+  (void)common::levenberg_marquardt(problem, theta, cost, global_lm_settings());
   set(theta);
   residual_cost(nullptr);
 }

@@ -92,6 +92,14 @@ class FitEngine {
   void entries(std::size_t i, Entries& out) const;
   double solve_linear();
   double residual_cost(std::vector<double>* residuals);
+  // A parameter the Levenberg-Marquardt loop moves, in scaled units so one
+  // finite-difference step fits all.
+  struct GlobalParam {
+    double* value;
+    double typical;
+    double lo, hi;
+  };
+  std::vector<GlobalParam> global_parameters();  // leakage and the charge terms' values
   void optimise_global();
   void refine_per_pixel();
   void reweight_inverse_variance();

@@ -84,10 +84,16 @@ std::vector<DiscoveryCase> make_cases() {
                   e.pixels.pixels = {176};
                   s.effects.emplace_back(std::in_place_type<sim::ChargeEffect>, e);
                 },
+                // Two surfaces, each position once on each. On one surface the light falls
+                // with the distance as 1 / L^2 and, beyond 1.5 m, says more about the distance
+                // than the charge ratio does; a charge per pulse on A mixes that light into
+                // the ratio, so on one surface the twin itself gains half its error from
+                // one (a distance cue, not an effect of the sensor) and hides the pixel.
                 [](RailPlan& p) {
                   p.pixel_from = 160;
                   p.pixel_to = 192;
                   p.pixel_step = 2;
+                  p.materials = {"white_matte", "grey_matte"};
                 },
                 [](sim::SensorParams& s) { s.pixel.sensitivity_ratio_sd = 0.0; }, true, false, 1.0});
   cs.push_back({"readout_nonlinearity", "each capacitor's read-out 30 % low at full scale (v (1 - 0.3 v / 250)); no column",
