@@ -9,6 +9,7 @@
 #include <tinyline/msg/eigen.hpp>
 
 #include "tomato_reasoning/nodes/register.hpp"
+#include "tomato_reasoning/nodes/rgbd_folder_camera.hpp"
 #include "tomato_reasoning/param_tables.hpp"
 
 namespace tinyline::tomato_reasoning::nodes {
@@ -474,6 +475,8 @@ void register_nodes(bus::NodeRegistry& r) {
                                    "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
   r.add<nodes::PickVerifierNode>("tomato_reasoning", "pick_verifier",
                                  "picking poses in order, the hand laser's pedicel finding -> cut here / move / nothing (4.4)");
+  r.add<nodes::RgbdFolderCameraNode>("tomato_reasoning", "rgbd_folder_camera",
+                                     "a folder of RGB-D frames (colour + 16-bit depth PNG + intrinsics) played as a camera: cloud");
 }
 
 }  // namespace tinyline::tomato_reasoning
