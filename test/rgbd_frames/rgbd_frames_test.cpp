@@ -14,7 +14,11 @@
 #include <string>
 #include <vector>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <laser_clustering/nodes/register.hpp>
 #include <sim/nodes/register.hpp>
@@ -119,6 +123,19 @@ TEST(RgbdFrames, FramesWrittenFromTheSimulatedCameraGiveTheLiveCamerasTomatoes) 
                           std::to_string(k.cx) + " --cy " + std::to_string(k.cy);
   ASSERT_EQ(run(cmd, out), 0) << out;
   ASSERT_TRUE(fs::exists(dir / "frames/depth/000000.png")) << out;
+
+  // The same frames without the bus (tomato_frames): the same pick order, and
+  // an annotated copy of the colour image.
+  std::string printed;
+  ASSERT_EQ(run(std::string(TOMATO_FRAMES_PROGRAM) + " " + dir / "frames" + " --out " + dir / "annotated", printed), 0)
+      << printed;
+  std::string order;
+  for (int i : want.pick_order) order += (order.empty() ? "" : " ") + std::to_string(i);
+  EXPECT_THAT(printed, ::testing::HasSubstr("000000: " + std::to_string(want.tomatoes.size()) + " tomatoes, pick order [" +
+                                            order + "]"));
+  const cv::Mat colour = cv::imread(dir / "frames/rgb/000000.png"), annotated = cv::imread(dir / "annotated/000000.png");
+  ASSERT_EQ(annotated.size(), colour.size());
+  EXPECT_GT(cv::countNonZero(cv::Mat(colour != annotated).reshape(1)), 1000);  // drawn on, not a copy
 
   // The folder played to the same detector.
   Launched played("tomato_frames.launch.yaml", {{"folder", dir / "frames"}, {"bag", dir / "frames.mcap"}});
