@@ -40,13 +40,14 @@ namespace {
 
 /// A shipped launch file instantiated on sim time, stepped by the test.
 struct Launched {
+  std::shared_ptr<bus::CaptureSink> log = std::make_shared<bus::CaptureSink>();
   std::shared_ptr<bus::Context> ctx;
   bus::DeterministicExecutor ex;
   bus::NodeRegistry registry;
   std::vector<std::shared_ptr<bus::Node>> nodes;
   std::shared_ptr<bus::Node> io;
 
-  Launched(const std::string& file, std::map<std::string, std::string> args) : ctx(make_ctx()), ex(ctx->clock()) {
+  Launched(const std::string& file, std::map<std::string, std::string> args) : ctx(make_ctx(log)), ex(ctx->clock()) {
     tinyline::sim::register_nodes(registry);
     tinyline::tomato_reasoning::register_nodes(registry);
     tinyline::laser_clustering::register_nodes(registry);
@@ -64,10 +65,10 @@ struct Launched {
     ex.add_node(io);
     for (const auto& n : nodes) ex.add_node(n);
   }
-  static std::shared_ptr<bus::Context> make_ctx() {
+  static std::shared_ptr<bus::Context> make_ctx(std::shared_ptr<bus::CaptureSink> sink) {
     bus::ContextOptions o;
     o.clock = bus::ClockType::Sim;
-    o.log_sink = std::make_shared<bus::CaptureSink>();
+    o.log_sink = std::move(sink);
     return bus::Context::create(o);
   }
   std::vector<std::shared_ptr<const TomatoEstimates>>& collect_tomatoes() {
@@ -146,6 +147,7 @@ TEST(RgbdFrames, FramesWrittenFromTheSimulatedCameraGiveTheLiveCamerasTomatoes) 
   const TomatoEstimates& have = *got[0];
   ASSERT_EQ(have.tomatoes.size(), want.tomatoes.size()) << have.stage << ": " << have.reason;
   EXPECT_EQ(have.pick_order, want.pick_order);
+  EXPECT_TRUE(played.log->contains(bus::LogLevel::Info, "tomatoes, pick order ["));
   EXPECT_EQ(have.header.frame_id, want.header.frame_id);
   for (std::size_t i = 0; i < want.tomatoes.size(); ++i) {
     const auto &a = have.tomatoes[i], &b = want.tomatoes[i];

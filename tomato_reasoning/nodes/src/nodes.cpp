@@ -312,6 +312,12 @@ void TomatoDetectorNode::detect() {
 }
 
 void TomatoDetectorNode::publish(std::unique_ptr<msgs::TomatoEstimates> out) {
+  if (!out->tomatoes.empty()) {
+    std::string order;
+    for (int i : out->pick_order) order += (order.empty() ? "" : " ") + std::to_string(i);
+    logger().info("{} tomatoes, pick order [{}] ({:.1f} ms)", out->tomatoes.size(), order,
+                  out->hsi_ms + out->branch_ms + out->smoothing_ms + out->spheres_ms + out->reasoning_ms);
+  }
   if (markers_pub_->subscription_count() > 0) {
     auto mk = std::make_unique<visualization_msgs::msg::MarkerArray>();
     to_markers(*out, *mk);

@@ -37,13 +37,16 @@ RgbdFolderCameraNode::RgbdFolderCameraNode(bus::NodeOptions o) : Node(std::move(
   required.required = true;
   folder_ = declare_parameter<std::string>(
       "folder", "", "folder of RGB-D frames: intrinsics.yaml, rgb/NAME.png|jpg, depth/NAME.png (16-bit)", required);
-  rate_hz_ = declare_parameter("rate_hz", 1.0, "frames per second", ParamConstraints::range(0.01, 100.0));
+  ParamConstraints rate = ParamConstraints::range(0.01, 100.0), metres;
+  rate.unit = "Hz";
+  metres.unit = "m";
+  rate_hz_ = declare_parameter("rate_hz", 1.0, "frames per second", rate);
   loop_ = declare_parameter("loop", false, "start again at the first frame after the last");
   frame_id_ = declare_parameter<std::string>("frame_id", "camera", "the camera's optical frame (x right, y down, z forward)");
   pose_frame_id_ = declare_parameter<std::string>(
       "pose_frame_id", "", "frame the camera's pose is given in; set: publish `pose` with every frame (empty: no pose)");
   const auto p = declare_parameter<std::vector<double>>("position_m", {0.0, 0.0, 0.0},
-                                                        "camera origin in pose_frame_id [m]: x, y, z");
+                                                        "camera origin in pose_frame_id: x, y, z", metres);
   const auto q = declare_parameter<std::vector<double>>("orientation_xyzw", {0.0, 0.0, 0.0, 1.0},
                                                         "camera orientation in pose_frame_id: unit quaternion x, y, z, w");
   T_parent_camera_ = camera_pose(*this, p, q);
