@@ -1,10 +1,12 @@
 #include "tomato_reasoning/io/rgbd_files.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <limits>
 #include <sstream>
+#include <type_traits>
 
 #include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
@@ -145,6 +147,10 @@ RgbdImages read_images(const FrameFiles& f, const CameraIntrinsics& k) {
 }
 
 ColorCloud to_cloud(const RgbdImages& im, const CameraIntrinsics& k) {
+  // read_images checks files; this checks images a caller decoded itself.
+  if (im.bgr.type() != CV_8UC3 || im.depth.type() != CV_16UC1 || im.bgr.size() != im.depth.size())
+    throw RgbdFileError("RGB-D frame: colour must be 8-bit BGR and depth 16-bit single-channel, of one size (are " +
+                        size_text(im.bgr.cols, im.bgr.rows) + " and " + size_text(im.depth.cols, im.depth.rows) + ")");
   ColorCloud c;
   c.width = im.bgr.cols;
   c.height = im.bgr.rows;

@@ -151,6 +151,15 @@ TEST(RgbdFiles, BadImagesAreRefusedNamingTheFile) {
               AllOf(HasSubstr(f.depth("x.png")), HasSubstr("not an image OpenCV can decode")));
 }
 
+TEST(RgbdFiles, ImagesOfTwoSizesOrTheWrongTypesMakeNoCloud) {
+  io::CameraIntrinsics k;
+  k.width = 4, k.height = 3, k.fx = k.fy = 5, k.cx = 1.5, k.cy = 1;
+  io::RgbdImages im{cv::Mat(3, 4, CV_8UC3), cv::Mat(2, 4, CV_16UC1)};
+  EXPECT_THAT(error_of([&] { (void)io::to_cloud(im, k); }), HasSubstr("(are 4 x 3 and 4 x 2)"));
+  im.depth = cv::Mat(3, 4, CV_32FC1);
+  EXPECT_THAT(error_of([&] { (void)io::to_cloud(im, k); }), HasSubstr("depth 16-bit single-channel"));
+}
+
 TEST(RgbdFiles, AFifoIsRefusedNotWaitedOn) {
   Folder f;
   f.add_frame("x");
