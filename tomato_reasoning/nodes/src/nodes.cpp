@@ -9,6 +9,7 @@
 #include <tinyline/msg/eigen.hpp>
 
 #include "tomato_reasoning/nodes/register.hpp"
+#include "tomato_reasoning/nodes/rgbd_folder_camera.hpp"
 #include "tomato_reasoning/param_tables.hpp"
 
 namespace tinyline::tomato_reasoning::nodes {
@@ -311,6 +312,12 @@ void TomatoDetectorNode::detect() {
 }
 
 void TomatoDetectorNode::publish(std::unique_ptr<msgs::TomatoEstimates> out) {
+  if (!out->tomatoes.empty()) {
+    std::string order;
+    for (int i : out->pick_order) order += (order.empty() ? "" : " ") + std::to_string(i);
+    logger().info("{} tomatoes, pick order [{}] ({:.1f} ms)", out->tomatoes.size(), order,
+                  out->hsi_ms + out->branch_ms + out->smoothing_ms + out->spheres_ms + out->reasoning_ms);
+  }
   if (markers_pub_->subscription_count() > 0) {
     auto mk = std::make_unique<visualization_msgs::msg::MarkerArray>();
     to_markers(*out, *mk);
@@ -474,6 +481,8 @@ void register_nodes(bus::NodeRegistry& r) {
                                    "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
   r.add<nodes::PickVerifierNode>("tomato_reasoning", "pick_verifier",
                                  "picking poses in order, the hand laser's pedicel finding -> cut here / move / nothing (4.4)");
+  r.add<nodes::RgbdFolderCameraNode>("tomato_reasoning", "rgbd_folder_camera",
+                                     "a folder of RGB-D frames (colour + 16-bit depth PNG + intrinsics) played as a camera: cloud");
 }
 
 }  // namespace tinyline::tomato_reasoning

@@ -5,7 +5,7 @@
 
 namespace tinyline::tomato_reasoning {
 
-/// tomato_detector, pick_verifier. (The demo's simulated truss_camera and
+/// tomato_detector, pick_verifier, rgbd_folder_camera. (The demo's simulated truss_camera and
 /// hand_laser come with the simulator's register_nodes().)
 void register_nodes(bus::NodeRegistry& registry);
 
