@@ -2,13 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <numbers>
 #include <set>
-#include <sstream>
 
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
+
+#include <tinyline/common/files.hpp>
 
 namespace tinyline::hydrus_fitting {
 
@@ -88,11 +88,13 @@ struct Reader {
 }  // namespace
 
 RobotModel RobotModel::load(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw RobotModelError(path, 0, "file", "cannot open the robot description");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse(ss.str(), path);
+  std::string text;
+  try {
+    text = files::read_text(path, "robot description", kMaxRobotDescriptionBytes);
+  } catch (const files::FileError& e) {
+    throw RobotModelError(path, 0, "file", e.what());
+  }
+  return parse(text, path);
 }
 
 namespace {

@@ -202,7 +202,7 @@ TEST(HydrusFittingNodes, CircleFitterNeedsAValidRobotDescription) {
     h.ex.spin_until_idle();
     FAIL() << "started without a robot description";
   } catch (const std::exception& e) {
-    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/hydrus.yaml: file: cannot open"));
+    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/hydrus.yaml: file: robot description '/nonexistent/hydrus.yaml': cannot open"));
   }
 }
 

@@ -112,7 +112,7 @@ TEST(RobotModel, ErrorsNameFileLineAndField) {
     (void)hf::RobotModel::load("/nonexistent/robot.yaml");
     FAIL() << "no error";
   } catch (const hf::RobotModelError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/robot.yaml: file: cannot open"));
+    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/robot.yaml: file: robot description '/nonexistent/robot.yaml': cannot open"));
   }
 }
 

@@ -303,7 +303,7 @@ FidelityReport run_fidelity(const SensorParams& sensor, const FidelityOptions& o
 }
 
 ThesisFigures load_thesis_figures(const std::string& path) {
-  const YamlNode root = YamlNode::load_file(path);
+  const YamlNode root = YamlNode::load_file(path, "thesis figures");
   root.check_keys({"noise_vs_distance_cm", "materials_at_30cm", "calibration_fits_cm"});
   ThesisFigures f;
   for (const auto& e : root.at("noise_vs_distance_cm").items()) {

@@ -198,7 +198,7 @@ std::string Scene::check_sensor_placement(const SensorMount& m) const {
 }
 
 Scene load_scene(const std::string& path) {
-  const YamlNode root = YamlNode::load_file(path);
+  const YamlNode root = YamlNode::load_file(path, "scene");
   return parse(root, fs::path(path).parent_path().string());
 }
 

@@ -242,7 +242,7 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
 }
 
 SensorParams load_sensor_params(const std::string& path) {
-  const YamlNode root = YamlNode::load_file(path);
+  const YamlNode root = YamlNode::load_file(path, "sensor file");
   root.require_map();
   SensorParams p;
   if (auto b = root.find("base")) {

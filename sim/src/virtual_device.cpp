@@ -82,14 +82,21 @@ VirtualDevice::VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDev
   profile_ = options_.firmware.value_or(system_->sensor(sensor_).params().firmware.profile);
 }
 
-std::unique_ptr<VirtualDevice> VirtualDevice::from_port(const std::string& port, VirtualDeviceOptions options) {
+std::pair<std::string, std::string> VirtualDevice::parse_port(const std::string& port) {
   if (port.rfind("sim:", 0) != 0) throw std::invalid_argument("virtual device port must look like sim:SCENE.yaml[#sensor], got '" + port + "'");
   std::string scene = port.substr(4);
+  std::string sensor;
   if (const auto hash = scene.find('#'); hash != std::string::npos) {
-    options.sensor = scene.substr(hash + 1);
+    sensor = scene.substr(hash + 1);
     scene = scene.substr(0, hash);
   }
   if (scene.empty()) throw std::invalid_argument("virtual device port '" + port + "' names no scene file");
+  return {scene, sensor};
+}
+
+std::unique_ptr<VirtualDevice> VirtualDevice::from_port(const std::string& port, VirtualDeviceOptions options) {
+  auto [scene, sensor] = parse_port(port);
+  if (!sensor.empty()) options.sensor = std::move(sensor);
   return std::make_unique<VirtualDevice>(SimulatedSystem::shared(scene), std::move(options));
 }
 

@@ -1,8 +1,8 @@
 #include <sim/yaml_node.hpp>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
+
+#include <tinyline/common/files.hpp>
 
 namespace tinyline::sim {
 
@@ -29,12 +29,14 @@ std::size_t distance(std::string_view a, std::string_view b) {
 
 }  // namespace
 
-YamlNode YamlNode::load_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(path, 0, 0, "", "cannot open file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return load_string(ss.str(), path);
+YamlNode YamlNode::load_file(const std::string& path, std::string_view what) {
+  std::string text;
+  try {
+    text = files::read_text(path, what, kMaxConfigFileBytes);
+  } catch (const files::FileError& e) {
+    throw ConfigError(path, 0, 0, "", e.what());
+  }
+  return load_string(text, path);
 }
 
 YamlNode YamlNode::load_string(const std::string& text, const std::string& source_name) {

@@ -3,6 +3,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <sim/scene.hpp>
 
 using namespace tinyline::sim;
@@ -117,6 +120,31 @@ TEST(Scene, SyntaxErrorAndMissingFile) {
     EXPECT_NE(std::string(e.what()).find("syntax"), std::string::npos);
   }
   EXPECT_THROW((void)load_scene("/nonexistent/scene.yaml"), ConfigError);
+}
+
+// A FIFO as a scene (or as a sensor file a scene names) used to block the
+// load for ever, /dev/zero to be read until memory ran out.
+TEST(Scene, AFifoOrADeviceAsSceneOrSensorFileIsRefusedNamingIt) {
+  const auto dir = std::filesystem::temp_directory_path() / ("tinyline_sim_scene_fifo_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string fifo = (dir / "pipe.yaml").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  auto error_of = [](const std::string& path) -> std::string {
+    try {
+      (void)load_scene(path);
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_NE(error_of(fifo).find("scene '" + fifo + "' is a FIFO, not a regular file"), std::string::npos)
+      << error_of(fifo);
+  EXPECT_NE(error_of("/dev/zero").find("scene '/dev/zero' is a character device, not a regular file"),
+            std::string::npos);
+  const std::string scene = (dir / "scene.yaml").string();
+  std::ofstream(scene) << "sensors:\n  - name: laser\n    config: pipe.yaml\n";
+  EXPECT_NE(error_of(scene).find("sensor file '" + fifo + "' is a FIFO"), std::string::npos) << error_of(scene);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Scene, SensorFilesInheritAndShippedFilesLoad) {

@@ -60,3 +60,25 @@ TEST(SimNodes, MissingSceneIsAClearError) {
     EXPECT_NE(std::string(e.what()).find("'scene' is required"), std::string::npos) << e.what();
   }
 }
+
+// The scene is an input file, checked when the node is built: a missing one,
+// a FIFO or a device stops a launch (and `launch --check`) at the line that
+// set it, before any node starts.
+TEST(SimNodes, AMissingOrOddSceneStopsTheNodeWhenBuiltAtTheLineThatSetIt) {
+  for (const std::string type : {"virtual_sensor", "scene_truth"}) {
+    for (const std::string scene : {"/nonexistent/scene.yaml", "/dev/zero"}) {
+      Harness h;
+      bus::NodeOptions o;
+      o.name = "laser";
+      o.params.push_back({"scene", scene, bus::SourceLocation{"rig.launch.yaml", 7, 9}});
+      try {
+        h.add(type, o);
+        ADD_FAILURE() << type << " accepted scene " << scene;
+      } catch (const bus::ParamError& e) {
+        const std::string what = e.what();
+        EXPECT_EQ(what.rfind("rig.launch.yaml:7:9: ", 0), 0u) << what;
+        EXPECT_NE(what.find("parameter 'scene': file '" + scene + "'"), std::string::npos) << what;
+      }
+    }
+  }
+}

@@ -10,6 +10,8 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <tinyline/common/files.hpp>
+
 #include <tiny_laser_calibration/data.hpp>
 #include <tiny_laser_driver/protocol.hpp>
 
@@ -235,12 +237,13 @@ CalibrationDataset parse_calibration_csv(std::string_view text, const std::strin
 }
 
 CalibrationDataset read_calibration_csv(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw CalibrationDataError(fmt::format("{}: cannot open data file", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw CalibrationDataError(fmt::format("{}: read error", path));
-  return parse_calibration_csv(ss.str(), path);
+  std::string text;
+  try {
+    text = files::read_text(path, "data file", kMaxCalibrationCsvBytes);
+  } catch (const files::FileError& e) {
+    throw CalibrationDataError(e.what());
+  }
+  return parse_calibration_csv(text, path);
 }
 
 void write_calibration_csv(const CalibrationDataset& data, std::ostream& out) {

@@ -1,9 +1,8 @@
 // Reading the measured figures (measured.hpp): every field named on error.
-#include <fstream>
-#include <sstream>
-
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
+
+#include <tinyline/common/files.hpp>
 
 #include <tiny_laser_calibration/data.hpp>
 #include <tiny_laser_calibration/measured.hpp>
@@ -137,11 +136,13 @@ MeasuredData parse_measured_data(const std::string& text, const std::string& sou
 }
 
 MeasuredData load_measured_data(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw CalibrationDataError(fmt::format("{}: cannot open the measured figures", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_measured_data(ss.str(), path);
+  std::string text;
+  try {
+    text = files::read_text(path, "measured figures", kMaxMeasuredFileBytes);
+  } catch (const files::FileError& e) {
+    throw CalibrationDataError(e.what());
+  }
+  return parse_measured_data(text, path);
 }
 
 }  // namespace tinyline::tiny_laser_calibration

@@ -4,6 +4,9 @@
 #include <random>
 #include <sstream>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -120,8 +123,25 @@ TEST(CalibrationCsv, UnreadableFile) {
     (void)cal::read_calibration_csv("/nonexistent/data.csv");
     FAIL();
   } catch (const cal::CalibrationDataError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/data.csv: cannot open data file"));
+    EXPECT_THAT(e.what(), HasSubstr("data file '/nonexistent/data.csv': cannot open"));
   }
+}
+
+// A FIFO used to block the read for ever, /dev/zero to be read until memory ran out.
+TEST(CalibrationCsv, AFifoOrADeviceIsRefusedNamingItInsteadOfReadForEver) {
+  const auto dir = std::filesystem::temp_directory_path() / ("calib_csv_fifo_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string fifo = (dir / "data.csv").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const auto& [path, kind] : {std::pair{fifo, "is a FIFO"}, std::pair{std::string("/dev/zero"), "is a character device"}}) {
+    try {
+      (void)cal::read_calibration_csv(path);
+      ADD_FAILURE() << "read " << path;
+    } catch (const cal::CalibrationDataError& e) {
+      EXPECT_THAT(e.what(), HasSubstr("data file '" + path + "' " + kind + ", not a regular file"));
+    }
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CalibrationCsv, MangledBytesGiveEitherDataOrAClearError) {

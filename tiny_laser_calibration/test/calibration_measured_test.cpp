@@ -126,5 +126,5 @@ TEST(CalibrationMeasured, BadFilesNameTheFileLineAndField) {
   cal::CalibToolEnv env;
   std::ostringstream out, err;
   EXPECT_EQ(cal::run_calib_command({"measured", "--data", "/nonexistent/m.yaml"}, out, err, env), 1);
-  EXPECT_THAT(err.str(), HasSubstr("/nonexistent/m.yaml: cannot open"));
+  EXPECT_THAT(err.str(), HasSubstr("/nonexistent/m.yaml': cannot open"));
 }

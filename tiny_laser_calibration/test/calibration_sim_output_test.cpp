@@ -80,6 +80,12 @@ TEST(CalibOutput, CollectAndFitNeverReplaceTheirInputALinkOrAFifoAndAFailureKeep
   fs::create_hard_link(bag, tmp / "alias.csv");
   EXPECT_EQ(calib({"collect", bag, "-o", tmp / "alias.csv"}, err), 1);
   EXPECT_EQ(slurp(bag), bag_bytes);
+  // The tape-measure log is an input too.
+  const std::string log = tmp / "log.csv";
+  std::ofstream(log) << "t_from_s,t_to_s,distance_m\n0,100,0.5\n";
+  EXPECT_EQ(calib({"collect", bag, "--positions", log, "-o", log}, err), 1);
+  EXPECT_THAT(err, HasSubstr("is also an input of this command"));
+  EXPECT_EQ(slurp(log), "t_from_s,t_to_s,distance_m\n0,100,0.5\n");
 
   const std::string csv = tmp / "rail.csv";
   ASSERT_EQ(calib({"collect", bag, "-o", csv}, err), 0) << err;

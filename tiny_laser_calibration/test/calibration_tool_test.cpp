@@ -9,6 +9,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <tiny_laser_calibration/collect.hpp>
 #include <tiny_laser_calibration/fit.hpp>
 #include <tiny_laser_calibration/tool.hpp>
 
@@ -175,13 +178,39 @@ TEST_F(CalibTool, ReportWithoutPythonStillWritesSummaryAndSaysWhy) {
   EXPECT_THAT(slurp(path("r/report.md")), HasSubstr("Plots were not drawn: cannot run /nonexistent/python"));
 }
 
+// Every text input of the tool is read only if it is a regular file: a FIFO
+// used to block `fit`, `eval` and `collect --positions` for ever.
+TEST_F(CalibTool, AFifoOrADeviceAsAnInputIsRefusedNamingItWithExitCode1) {
+  const std::string fifo = path("pipe.csv");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto csv = rail_csv(false);
+  ASSERT_EQ(run({"fit", csv, "-o", path("c.yaml")}), 0) << err_.str();
+  for (const std::string& input : {fifo, std::string("/dev/zero")}) {
+    EXPECT_EQ(run({"fit", input, "-o", path("x.yaml")}), 1);
+    EXPECT_THAT(err_.str(), HasSubstr("data file '" + input + "' is a"));
+    EXPECT_EQ(run({"eval", input, "--calib", path("c.yaml")}), 1);
+    EXPECT_THAT(err_.str(), HasSubstr("data file '" + input + "' is a"));
+    EXPECT_EQ(run({"eval", csv, "--calib", input}), 1);
+    EXPECT_THAT(err_.str(), HasSubstr("calibration file '" + input + "' is a"));
+    EXPECT_EQ(run({"measured", "--data", input}), 1);
+    EXPECT_THAT(err_.str(), HasSubstr("measured figures '" + input + "' is a"));
+    try {
+      (void)cal::read_rail_positions(input);
+      ADD_FAILURE() << "read the positions from " << input;
+    } catch (const cal::CalibrationDataError& e) {
+      EXPECT_THAT(e.what(), HasSubstr("rail positions '" + input + "' is a"));
+    }
+  }
+  EXPECT_FALSE(fs::exists(path("x.yaml")));
+}
+
 TEST_F(CalibTool, BadInputGetsAClearErrorAndExitCode) {
   const std::string header = "t_s,pixel,pulses,a,b,temperature_c,distance_m\n";
   // Missing file.
   EXPECT_EQ(run({"eval", path("none.csv"), "--calib", path("none.yaml")}), 1);
-  EXPECT_THAT(err_.str(), HasSubstr("none.yaml: cannot open calibration file"));
+  EXPECT_THAT(err_.str(), HasSubstr("none.yaml': cannot open: No such file"));
   EXPECT_EQ(run({"fit", path("none.csv"), "-o", path("x.yaml")}), 1);
-  EXPECT_THAT(err_.str(), HasSubstr("none.csv: cannot open data file"));
+  EXPECT_THAT(err_.str(), HasSubstr("none.csv': cannot open: No such file"));
   // Missing column.
   const auto no_col = write_file("nocol.csv", "t_s,pixel,a,b,temperature_c,distance_m\n0,10,50,50,40,0.5\n");
   EXPECT_EQ(run({"fit", no_col, "-o", path("x.yaml")}), 1);

@@ -3,7 +3,6 @@
 // the file, line and field, because a silently ignored typo in a calibration
 // shows up much later as a wrong distance.
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <set>
 #include <stdexcept>
@@ -12,6 +11,9 @@
 
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
+
+#include <tinyline/common/files.hpp>
+#include <tinyline/common/yaml_documents.hpp>
 
 #include <tiny_laser_driver/calibration_impl.hpp>
 #include <tiny_laser_driver/protocol.hpp>
@@ -380,6 +382,10 @@ CalibrationModel CalibrationModel::from_yaml(const std::string& text, const std:
   YAML::Node root;
   try {
     root = YAML::Load(text);
+    if (const auto second = common::second_document(text)) {
+      throw std::runtime_error(fmt::format("{}:{}: a second YAML document ('---'): a calibration file holds one",
+                                           source_name, second->line + 1));
+    }
   } catch (const YAML::ParserException& e) {
     throw std::runtime_error(fmt::format("{}:{}: not valid YAML: {}", source_name, e.mark.line + 1, e.msg));
   }
@@ -396,23 +402,8 @@ CalibrationModel CalibrationModel::from_yaml(const std::string& text, const std:
 
 CalibrationModel CalibrationModel::load(const std::string& path) {
   // A FIFO would block the open, a device would never end: only a regular
-  // file, and no more of it than a calibration can be.
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) throw std::runtime_error(fmt::format("{}: cannot open calibration file", path));
-  if (!std::filesystem::is_regular_file(status)) {
-    throw std::runtime_error(fmt::format("{}: calibration file is not a regular file", path));
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(fmt::format("{}: cannot open calibration file", path));
-  std::string text(kMaxCalibrationFileBytes + 1, '\0');
-  in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  text.resize(static_cast<std::size_t>(in.gcount()));
-  if (text.size() > kMaxCalibrationFileBytes) {
-    throw std::runtime_error(
-        fmt::format("{}: calibration file is larger than the limit of {} bytes", path, kMaxCalibrationFileBytes));
-  }
-  return from_yaml(text, path);
+  // file, and no more of it than a calibration can be (FileError names it).
+  return from_yaml(files::read_text(path, "calibration file", kMaxCalibrationFileBytes), path);
 }
 
 std::string CalibrationModel::to_yaml() const {

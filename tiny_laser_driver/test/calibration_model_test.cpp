@@ -1,6 +1,7 @@
 // The calibration model the driver applies: validity rule, Eq. 3.16 ratio,
 // polynomial, temperature offset, discovered terms, and the YAML round trip
 // with its errors.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -250,6 +251,18 @@ TEST(CalibrationYaml, ARepeatedKeyIsRefusedNamingFileLineAndField) {
               HasSubstr("calib.yaml:14: field 'terms[0].keys': given twice"));
 }
 
+// yaml-cpp reads the first document and drops the rest: a file that goes on
+// after `---` (two calibrations pasted together) is refused, not half read.
+TEST(CalibrationYaml, ASecondYamlDocumentIsRefusedNamingFileAndLine) {
+  const auto lines = static_cast<int>(std::count(kMinimal.begin(), kMinimal.end(), '\n'));
+  EXPECT_THAT(expect_load_error(kMinimal + "---\n" + kMinimal),
+              HasSubstr(fmt::format("calib.yaml:{}: a second YAML document ('---')", lines + 1)));
+  EXPECT_THAT(expect_load_error(kMinimal + "---\nformat: other\n"), HasSubstr("a second YAML document"));
+  // An explicit start of the first and only document is fine; a stray ',' is an error, not a hang.
+  EXPECT_NO_THROW((void)tl::CalibrationModel::from_yaml("---\n" + kMinimal, "calib.yaml"));
+  EXPECT_THAT(expect_load_error(kMinimal + ",\n"), HasSubstr("calib.yaml:"));
+}
+
 TEST(CalibrationYaml, AFileWithoutASectionOrFieldThatCalibFitWritesIsRefused) {
   for (const char* section : {"polynomial", "validity", "ratio", "temperature"}) {
     EXPECT_THAT(expect_load_error(minimal(section)), HasSubstr(fmt::format("field '{}': missing", section)));
@@ -310,7 +323,7 @@ TEST(CalibrationYaml, AFifoOrADeviceIsRefusedInsteadOfReadForEver) {
     (void)tl::CalibrationModel::load(big.string());
     ADD_FAILURE() << "loaded a file past the limit";
   } catch (const std::runtime_error& e) {
-    EXPECT_THAT(e.what(), HasSubstr("larger than the limit"));
+    EXPECT_THAT(e.what(), HasSubstr("more than the limit"));
   }
   std::filesystem::remove(big);
 }
@@ -320,7 +333,7 @@ TEST(CalibrationYaml, MissingFileIsAClearError) {
     (void)tl::CalibrationModel::load("/nonexistent/calib.yaml");
     FAIL();
   } catch (const std::runtime_error& e) {
-    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/calib.yaml: cannot open calibration file"));
+    EXPECT_THAT(e.what(), HasSubstr("calibration file '/nonexistent/calib.yaml': cannot open"));
   }
 }
 

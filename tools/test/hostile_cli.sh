@@ -100,12 +100,14 @@ EOF
 # A FIFO or /dev/zero where a file is expected: refused at once, naming it
 # (a FIFO used to block forever, /dev/zero to be read until memory ran out).
 odd_inputs() {
-  mkfifo "$work/pipe.yaml" || skip "no mkfifo"
+  mkfifo "$work/pipe.yaml" "$work/pipe.csv" || skip "no mkfifo"
   printf 'launch:\n- include: {file: pipe.yaml}\n' > "$work/inc.launch.yaml"
   printf 'launch:\n- include: {file: /dev/zero}\n' > "$work/zero.launch.yaml"
   for args in "launch $work/pipe.yaml" "launch $work/inc.launch.yaml" "launch /dev/zero" \
               "launch $work/zero.launch.yaml" "bag info $work/pipe.yaml" "bag play $work/pipe.yaml" \
-              "bag recover $work/pipe.yaml $work/out.mcap"; do
+              "bag recover $work/pipe.yaml $work/out.mcap" "calib fit $work/pipe.csv -o $work/x.yaml" \
+              "calib fit /dev/zero -o $work/x.yaml" "calib eval $work/pipe.csv --calib /dev/zero" \
+              "calib measured --data $work/pipe.yaml" "sim serve $work/pipe.yaml" "sim serve /dev/zero"; do
     timeout 20 "$tl" $args > "$work/out.txt" 2>&1
     rc=$?
     [ $rc -eq 124 ] && fail "$args: still waiting after 20 s"

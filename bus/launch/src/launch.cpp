@@ -1,6 +1,5 @@
 #include <tinyline/launch/launch.hpp>
 
-#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -13,6 +12,7 @@
 
 #include <tinyline/bus/detail/yaml_params.hpp>
 #include <tinyline/bus/files.hpp>
+#include <tinyline/common/yaml_documents.hpp>
 
 namespace tinyline::launch {
 
@@ -38,41 +38,13 @@ std::string read_input(const LoadOptions& o, const std::string& path, std::strin
   }
 }
 
-// Notes where each document starts; builds nothing.
-class DocumentMarks : public YAML::EventHandler {
- public:
-  std::vector<YAML::Mark> starts;
-  void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
-  void OnDocumentEnd() override {}
-  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
-  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
-  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
-  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
-  void OnSequenceEnd() override {}
-  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
-  void OnMapEnd() override {}
-};
-
-// One YAML document: a second one would be ignored silently, so it is an
-// error. (Not YAML::LoadAll: yaml-cpp 0.7 loops forever on a stray ',', so
-// the parser is asked for the second document only.)
+// One YAML document: a second one would be ignored silently, so it is an error.
 YAML::Node parse_one_document(const std::string& text, const std::string& file, std::string_view what) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
-    std::istringstream in(text);
-    YAML::Parser parser(in);
-    DocumentMarks marks;
-    for (int i = 0; i < 3 && parser.HandleNextDocument(marks); ++i) {
-      const auto n = marks.starts.size();
-      if (n > 1 && marks.starts[n - 1].pos <= marks.starts[n - 2].pos) {
-        // yaml-cpp hands out empty documents for ever after a stray ','.
-        throw LaunchError(mark_of(file, marks.starts.back()), "YAML syntax error: a ',' outside any [ ] or { }");
-      }
-    }
-    if (marks.starts.size() > 1) {
-      throw LaunchError(mark_of(file, marks.starts[1]),
-                        fmt::format("a second YAML document ('---'): a {} holds one", what));
+    if (const auto second = common::second_document(text)) {
+      throw LaunchError(mark_of(file, *second), fmt::format("a second YAML document ('---'): a {} holds one", what));
     }
   } catch (const YAML::Exception& e) {
     throw LaunchError(mark_of(file, e.mark), "YAML syntax error: " + e.msg);

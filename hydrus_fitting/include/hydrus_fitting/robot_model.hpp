@@ -38,6 +38,9 @@
 
 namespace tinyline::hydrus_fitting {
 
+/// The largest robot description read [bytes] (the shipped one is under 2 KB).
+inline constexpr std::uint64_t kMaxRobotDescriptionBytes = 1u << 20;
+
 /// A bad robot description: "file:line: field: reason".
 class RobotModelError : public std::runtime_error {
  public:
@@ -91,7 +94,8 @@ struct Kinematics {
 
 class RobotModel {
  public:
-  /// Throws RobotModelError (file, line, field) on a bad description.
+  /// Reads a regular file of at most kMaxRobotDescriptionBytes (a FIFO or a
+  /// device is refused). Throws RobotModelError (file, line, field) on a bad description.
   [[nodiscard]] static RobotModel load(const std::string& path);
   [[nodiscard]] static RobotModel parse(const std::string& yaml_text, const std::string& source_name = "<string>");
   /// Builds a model in code; throws std::invalid_argument naming the bad entry.

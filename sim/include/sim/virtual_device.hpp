@@ -45,6 +45,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <sim/firmware.hpp>
@@ -118,6 +119,9 @@ class VirtualDevice {
   /// A device from a port string "sim:SCENE.yaml" or "sim:SCENE.yaml#sensor"
   /// (the driver's `port` parameter). Throws ConfigError / std::invalid_argument.
   static std::unique_ptr<VirtualDevice> from_port(const std::string& port, VirtualDeviceOptions options = {});
+  /// The scene file and sensor name ("" for the first) of such a port string;
+  /// throws std::invalid_argument when it is not one.
+  static std::pair<std::string, std::string> parse_port(const std::string& port);
   ~VirtualDevice();
   VirtualDevice(const VirtualDevice&) = delete;
   VirtualDevice& operator=(const VirtualDevice&) = delete;

@@ -3,6 +3,7 @@
 // the scene and sensor loaders, and by scene generators others add.
 #pragma once
 
+#include <cstdint>
 #include <initializer_list>
 #include <optional>
 #include <string>
@@ -16,13 +17,19 @@
 
 namespace tinyline::sim {
 
+/// The largest scene, sensor or fidelity YAML read [bytes] (the shipped ones are under 10 KB).
+inline constexpr std::uint64_t kMaxConfigFileBytes = 1u << 20;
+
 class YamlNode {
  public:
   YamlNode(YAML::Node node, std::string file, std::string path)
       : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
 
-  /// Parses a file; throws ConfigError (file unreadable, syntax error with line).
-  static YamlNode load_file(const std::string& path);
+  /// Parses a file: a regular one (a FIFO or a device is refused, not waited
+  /// on or read without end) of at most kMaxConfigFileBytes; `what` names its
+  /// role in errors ("scene"). Throws ConfigError (file unreadable, syntax
+  /// error with line).
+  static YamlNode load_file(const std::string& path, std::string_view what = "YAML file");
   /// Parses text; `source_name` stands in for the file name in errors.
   static YamlNode load_string(const std::string& text, const std::string& source_name);
 

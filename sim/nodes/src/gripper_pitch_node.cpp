@@ -18,7 +18,8 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 SimGripperPitchNode::SimGripperPitchNode(bus::NodeOptions o) : bus::Node(std::move(o)) {
   using bus::ParamConstraints;
   scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML whose sensor the gripper carries [required]; "
-                                                            "the same path as the virtual_sensor's");
+                                                            "the same path as the virtual_sensor's",
+                                               scene_file());
   sensor_name_ = declare_parameter<std::string>("sensor", "", "sensor name in the scene; empty: the first");
   joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch", "the joint's name in JointState");
   pivot_behind_m_ = declare_parameter("pivot_behind_m", 0.10, "the pitch axis lies this far behind the laser [m]",

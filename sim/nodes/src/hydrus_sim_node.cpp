@@ -12,6 +12,7 @@
 #include <tinyline/bus/registry.hpp>
 
 #include <hydrus_fitting/param_tables.hpp>
+#include <hydrus_fitting/robot_model.hpp>
 
 namespace tinyline::sim::nodes {
 
@@ -23,12 +24,14 @@ using bus::ParamConstraints;
 namespace msgs = tinyline_msgs::msg;
 
 HydrusSimNode::HydrusSimNode(bus::NodeOptions o) : Node(std::move(o)) {
-  ParamConstraints required;
-  required.required = true;
+  ParamConstraints scene = scene_file();
+  scene.required = true;
   scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML with the Hydrus (sim/config/scenes/hydrus4_grasp.yaml)",
-                                               required);
+                                               scene);
+  ParamConstraints description = ParamConstraints::input_file(hydrus_fitting::kMaxRobotDescriptionBytes);
+  description.required = true;
   description_path_ = declare_parameter<std::string>("robot_description", "",
-                                                     "robot description YAML (links, joints, sensor mounts)", required);
+                                                     "robot description YAML (links, joints, sensor mounts)", description);
   frame_id_ = declare_parameter<std::string>("frame_id", "base", "frame of `truth`: the robot description's base");
   rate_hz_ = declare_parameter("rate_hz", 100.0, "joint states (and pose updates) per second",
                                ParamConstraints::range(1.0, 1000.0));

@@ -102,7 +102,8 @@ void to_msg(const Scene& scene, msgs::SceneTruth& out) {
 // ---------------------------------------------------------------------------- virtual_sensor
 
 VirtualSensorNode::VirtualSensorNode(bus::NodeOptions o) : bus::Node(std::move(o)) {
-  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]");
+  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]",
+                                               scene_file());
   sensor_name_ = declare_parameter<std::string>("sensor", "", "sensor name in the scene; empty: the first");
   frame_id_ = declare_parameter<std::string>("frame_id", "", "frame of the published scans; empty: the sensor's name");
   publish_truth_ = declare_parameter("publish_truth", true, "also publish scan_truth for every set");
@@ -151,7 +152,8 @@ void VirtualSensorNode::tick() {
 // ---------------------------------------------------------------------------- scene_truth
 
 SceneTruthNode::SceneTruthNode(bus::NodeOptions o) : bus::Node(std::move(o)) {
-  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]");
+  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]",
+                                               scene_file());
   frame_id_ = declare_parameter<std::string>("frame_id", "world", "the scene's world frame");
   rate_hz_ = declare_parameter("rate_hz", 10.0, "object poses per second", bus::ParamConstraints::range(0.01, 1000.0));
   scan_truth_ = declare_parameter("scan_truth", true, "publish the ScanTruth of the sets this process's virtual devices measure");

@@ -4,9 +4,17 @@
 // parts it compiles.
 #pragma once
 
+#include <tinyline/bus/params.hpp>
 #include <tinyline/bus/registry.hpp>
 
+#include <sim/yaml_node.hpp>
+
 namespace tinyline::sim::nodes {
+
+/// The constraints of a node's `scene` parameter: an input file, checked when
+/// the node is built, so a launch (and `launch --check`) stops at the line
+/// that set it.
+inline bus::ParamConstraints scene_file() { return bus::ParamConstraints::input_file(kMaxConfigFileBytes); }
 
 /// sim/virtual_sensor, sim/scene_truth (always).
 void register_scene_nodes(bus::NodeRegistry& registry);

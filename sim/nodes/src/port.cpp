@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 
 #include <sim/virtual_device.hpp>
+#include <sim/yaml_node.hpp>
+#include <tinyline/common/files.hpp>
 #include <tiny_laser_driver/io/port.hpp>
 
 #include "parts.hpp"
@@ -17,7 +19,16 @@ namespace io = tiny_laser_driver::io;
 
 class SimOpener : public io::PortOpener {
  public:
-  SimOpener(std::string arg, io::PortOptions options) : arg_(std::move(arg)), options_(std::move(options)) {}
+  /// Checks the scene file now (the driver builds its opener when it is
+  /// built, so a launch stops at the `port` line); starts nothing.
+  SimOpener(std::string arg, io::PortOptions options) : arg_(std::move(arg)), options_(std::move(options)) {
+    const std::string scene = VirtualDevice::parse_port("sim:" + arg_).first;
+    try {
+      files::check_input(scene, "scene", kMaxConfigFileBytes);
+    } catch (const files::FileError& e) {
+      throw std::invalid_argument(e.what());
+    }
+  }
   ~SimOpener() override {
     if (device_) device_->stop();
   }

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <iosfwd>
 #include <stdexcept>
 #include <string>
@@ -67,9 +68,14 @@ struct CalibrationDataset {
 inline constexpr const char* kRequiredCalibrationColumns[] = {"t_s", "pixel", "pulses", "a",
                                                               "b", "temperature_c", "distance_m"};
 
-/// Reads a CSV file. Throws CalibrationDataError naming file, line and column
-/// (missing column, non-numeric or non-finite cell, wrong cell count, pixel
-/// outside 0-271, pulses below 1, distance not positive, empty file).
+/// The largest calibration CSV read [bytes]: about 15 million rows.
+inline constexpr std::uint64_t kMaxCalibrationCsvBytes = std::uint64_t{1} << 30;
+
+/// Reads a CSV file: only a regular file (a FIFO or a device is refused, not
+/// waited on or read without end) of at most kMaxCalibrationCsvBytes. Throws
+/// CalibrationDataError naming file, line and column (missing column,
+/// non-numeric or non-finite cell, wrong cell count, pixel outside 0-271,
+/// pulses below 1, distance not positive, empty file).
 CalibrationDataset read_calibration_csv(const std::string& path);
 CalibrationDataset parse_calibration_csv(std::string_view text, const std::string& source_name);
 

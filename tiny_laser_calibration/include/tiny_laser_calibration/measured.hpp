@@ -14,6 +14,7 @@
 //              held against each real curve on its usable range
 #pragma once
 
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
@@ -54,8 +55,12 @@ struct MeasuredData {
   std::vector<RealSensorCurve> sensors;
 };
 
-/// Reads the measured figures; throws CalibrationDataError naming the file,
-/// the line and the field on a missing section or a bad value.
+/// The largest measured-figures file read [bytes] (the shipped one is ~5 KB).
+inline constexpr std::uint64_t kMaxMeasuredFileBytes = 1u << 20;
+
+/// Reads the measured figures (a regular file of at most kMaxMeasuredFileBytes);
+/// throws CalibrationDataError naming the file, the line and the field on a
+/// missing section or a bad value.
 [[nodiscard]] MeasuredData load_measured_data(const std::string& path);
 [[nodiscard]] MeasuredData parse_measured_data(const std::string& text, const std::string& source);
 

@@ -682,7 +682,7 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
     }
     if (p.pixel_from < 0 || p.pixel_to < p.pixel_from || p.pixel_to > 271) throw UsageError("--pixels: expected 0 <= FROM <= TO <= 271");
   }
-  files::AtomicFile output_file(*output, {.inputs = {o.positional()[0]}, .what = "data file"});
+  files::AtomicFile output_file(*output, {.inputs = {o.positional()[0], p.positions_csv}, .what = "data file"});
   const auto r = collect_calibration_data(o.positional()[0], p);
   for (const auto& n : r.notes) err << "note: " << n << "\n";
   if (!r.ok) {

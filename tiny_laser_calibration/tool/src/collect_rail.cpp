@@ -3,7 +3,6 @@
 // ground-truth topic: the logged distance of the target, per pixel along its ray.
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <memory>
 #include <set>
 #include <sstream>
@@ -12,6 +11,7 @@
 #include <fmt/ranges.h>
 
 #include <tinyline/bag/reader.hpp>
+#include <tinyline/common/files.hpp>
 #include <tinyline/msg/tinyline_msgs/raw_scan.hpp>
 #include <tinyline/msg/type_support.hpp>
 
@@ -51,8 +51,12 @@ double number_cell(const std::string& cell, const std::string& where, const char
 }  // namespace
 
 std::vector<RailPosition> read_rail_positions(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw CalibrationDataError(fmt::format("{}: cannot open the rail positions", path));
+  std::istringstream in;
+  try {
+    in.str(files::read_text(path, "rail positions", kMaxRailPositionsBytes));
+  } catch (const files::FileError& e) {
+    throw CalibrationDataError(e.what());
+  }
   std::vector<RailPosition> out;
   std::string line;
   std::vector<std::string> header;

@@ -90,8 +90,11 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
   po.laser_on_at_start = p.sequence_slot < 0;
   try {
     opener_ = io::make_port_opener(p.port, po);  // parses the spec; opens nothing
-  } catch (const std::invalid_argument& e) {
-    throw bus::ParamError({}, fmt::format("node '{}': parameter 'port': {}", full_name(), e.what()));
+  } catch (const std::invalid_argument& e) {  // named at the line that set it (a sim: port's scene is checked here)
+    const auto& ps = parameters();
+    const auto port = std::find_if(ps.begin(), ps.end(), [](const auto& d) { return d.name == "port"; });
+    throw bus::ParamError(port != ps.end() ? port->set_from : bus::SourceLocation{},
+                          fmt::format("node '{}': parameter 'port': {}", full_name(), e.what()));
   }
   parser_ = Parser(Parser::Options{static_cast<std::size_t>(p.readouts_per_set)});
   buf_.resize(kReadChunk);

@@ -54,7 +54,11 @@ struct RailPosition {
   std::string material;
   std::size_t line = 0;
 };
-/// Reads a tape-measure log; throws CalibrationDataError naming the file, line and column.
+/// The largest tape-measure log read [bytes] (a line per rail position).
+inline constexpr std::uint64_t kMaxRailPositionsBytes = 16u << 20;
+
+/// Reads a tape-measure log (a regular file of at most kMaxRailPositionsBytes);
+/// throws CalibrationDataError naming the file, line and column.
 std::vector<RailPosition> read_rail_positions(const std::string& path);
 
 struct CollectResult {
