@@ -1,8 +1,7 @@
 // Whole files in and out, for the image and intrinsics files of an RGB-D
 // folder: only a regular file is read (opened non-blocking, so a FIFO is
 // refused instead of waited on), and a file is written to "<path>.part" and
-// renamed onto its path. The bus has the same checks in its files helper;
-// this library stays off the bus, so it keeps its own small copy.
+// renamed onto its path: common's files helper, its errors as RgbdFileError.
 #pragma once
 
 #include <cstdint>
