@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -22,6 +23,10 @@ bool TopicSelection::selects(const std::string& topic) const {
 namespace {
 
 thread_local bool t_in_sync = false;  // the bridge's own endpoints must not re-enter sync_topic
+// True on Cyclone's receive thread inside our listener: callbacks run inline
+// there, and one that adds or removes endpoints must not make us replace the
+// very reader whose listener it runs in (deleting it waits for that listener).
+thread_local bool t_in_listener = false;
 
 std::atomic<std::uint32_t> g_next_origin{0xdd500001u};
 
@@ -94,7 +99,7 @@ struct Bridge::Link {
   std::mutex deliver_mu;
   std::atomic<bool> pending{false};
   std::atomic<bool> handed_over{false};  // the back-pressure thread delivers until the reader is empty
-  EndpointQos wq, rq;
+  EndpointQos wq, rq;  // written under sync_mu_ and peers_mu; stats() reads them under peers_mu
   std::shared_ptr<bus::Topic> local;            // the local topic
   int tap = 0;                                  // local -> DDS, on the publishers' threads
   std::shared_ptr<bus::GenericPublisher> in;    // DDS -> local
@@ -305,6 +310,14 @@ void Bridge::bridge_topic(const std::string& topic) {
 
 void Bridge::on_graph_change(const std::string& topic) {
   if (t_in_sync) return;
+  if (t_in_listener) {  // the bridge's thread syncs it instead
+    {
+      std::lock_guard lk(slow_mu_);
+      resync_.push_back(topic);
+    }
+    slow_cv_.notify_one();
+    return;
+  }
   sync_topic(topic);
 }
 
@@ -371,7 +384,10 @@ void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, cons
     L.readers_seen.clear();
   }
   if (pubs.empty() || L.writer.load() != 0) return;
-  L.wq = wq;
+  {
+    std::lock_guard lk(L.peers_mu);
+    L.wq = wq;
+  }
   detail::Qos q;
   detail::fill_qos(q, wq, false, participant_->identity(), L.type);
   dds_listener_t* ls = dds_create_listener(&L);
@@ -406,7 +422,10 @@ void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
     L.writers_seen.clear();
   }
   if (subs.empty() || L.reader.load() != 0) return;
-  L.rq = rq;
+  {
+    std::lock_guard lk(L.peers_mu);
+    L.rq = rq;
+  }
   if (!L.in) {
     bus::QoS pq = bus::QoS::keep_last(static_cast<std::size_t>(rq.depth));
     pq.transient_local = rq.transient_local;  // late local subscribers get what came in
@@ -480,6 +499,18 @@ void Bridge::drain(Link& l, dds_entity_t reader, bool may_block) {
 }
 
 void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
+  // On Cyclone's receive thread, the subscribers' callbacks run right here
+  // when their executor lets them (bus::InlineDelivery), as a DDS listener
+  // would: no hand-off to a worker. The back-pressure thread leaves them to
+  // the workers.
+  std::optional<bus::InlineDelivery> inline_delivery;
+  if (!may_block) inline_delivery.emplace();
+  const bool was_in_listener = t_in_listener;
+  t_in_listener = !may_block;
+  struct Reset {
+    bool value;
+    ~Reset() { t_in_listener = value; }
+  } reset{was_in_listener};
   for (;;) {
     if (!may_block && l.in->would_wait()) {
       hand_over(l);
@@ -510,6 +541,7 @@ void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
       if (msg) {
         l.in->publish(std::move(msg), origin_, may_block ? bus::Wait::ForRoom : bus::Wait::Never);
         TL_DDS_PROBE(Delivered);
+        if (inline_delivery) inline_delivery->flush();
         l.received.fetch_add(1, std::memory_order_relaxed);
       }
     }
@@ -530,13 +562,19 @@ void Bridge::hand_over(Link& l) {
 void Bridge::backpressure_loop() {
   for (;;) {
     Link* l = nullptr;
+    std::vector<std::string> resync;
     {
       std::unique_lock lk(slow_mu_);
-      slow_cv_.wait(lk, [&] { return quit_.load() || !slow_links_.empty(); });
+      slow_cv_.wait(lk, [&] { return quit_.load() || !slow_links_.empty() || !resync_.empty(); });
       if (quit_.load()) return;
-      l = slow_links_.front();
-      slow_links_.erase(slow_links_.begin());
+      resync.swap(resync_);
+      if (!slow_links_.empty()) {
+        l = slow_links_.front();
+        slow_links_.erase(slow_links_.begin());
+      }
     }
+    for (const auto& topic : resync) sync_topic(topic);
+    if (l == nullptr) continue;
     const dds_entity_t r = l->reader.load();
     if (r != 0) {
       drain(*l, r, true);
@@ -602,7 +640,9 @@ std::vector<LinkStats> Bridge::stats() const {
     s.writer = l->writer.load() != 0;
     s.reader = l->reader.load() != 0;
     {
-      std::lock_guard lk(sync_mu_);
+      // Not sync_mu_: a callback running inline on the receive thread may ask
+      // for stats while sync_topic holds it and waits for that listener.
+      std::lock_guard lk(l->peers_mu);
       s.writer_qos = l->wq;
       s.reader_qos = l->rq;
     }

@@ -705,3 +705,89 @@ TEST(DdsBridge, ARemoteEndpointWithAnotherDefinitionOfTheTypeIsReported) {
   dds_delete(w);
   dds_delete(t);
 }
+
+
+TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMayWait) {
+  // What a split graph gains: no hand-off from the thread Cyclone delivers on
+  // to an executor worker for a callback that may run there. Between two
+  // participants of one process Cyclone delivers on the writer's thread (its
+  // receive thread between processes): here, the test's own thread.
+  const auto s = test_settings("x");
+  Side a("a", s), b("b", s);
+  auto talker = a.node("talker");
+  auto fast = talker->create_publisher<StringMsg>("/fast");
+  auto careful = talker->create_publisher<StringMsg>("/careful");
+  auto grow = talker->create_publisher<StringMsg>("/grow");
+  auto late = talker->create_publisher<StringMsg>("/late");
+  tinyline::testing::Inbox<std::pair<std::string, std::thread::id>> got(b.signal);  // (data, thread)
+  auto quick = b.node("quick")->create_subscription<StringMsg>(
+      "/fast", bus::QoS::keep_last(10), [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); });
+  auto waiter = b.node("waiter");
+  auto waiter_out = waiter->create_publisher<StringMsg>("/out", bus::QoS::reliable(4));  // may wait for room
+  auto waiter_in = waiter->create_subscription<StringMsg>(
+      "/careful", bus::QoS::keep_last(10), [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); });
+  // A callback that adds a subscription on the receive thread: the bridge must
+  // not replace a reader from inside that reader's own listener.
+  std::shared_ptr<bus::Subscription<StringMsg>> added;
+  auto grower = b.node("grower");
+  auto grower_in = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(10), [&](const StringMsg&) {
+    if (!added) {
+      added = grower->create_subscription<StringMsg>(
+          "/late", bus::QoS::keep_last(10), [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); });
+      // and a stronger request on the topic it runs in: its reader is replaced
+      grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(50), [](const StringMsg&) {});
+    }
+  });
+  a.run();
+  b.run();
+  auto ok = a.bridge->wait_for_peers({{"/fast", 1, 0}, {"/careful", 1, 0}, {"/grow", 1, 0}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing;
+
+  // The first callback to run proves b's executor runs: nothing runs inline
+  // before it does.
+  careful->publish(text("careful"));
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 1; }, 10s)) << b.sink->dump();
+  fast->publish(text("fast"));
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 2; }, 10s)) << b.sink->dump();
+  grow->publish(text("grow"));
+  ok = a.bridge->wait_for_peers({{"/late", 1, 0}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing << b.sink->dump();
+  late->publish(text("late"));
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 3; }, 10s)) << b.sink->dump();
+
+  const auto items = got.items();
+  const auto delivering = std::this_thread::get_id();
+  EXPECT_EQ(items[0].first, "careful");
+  EXPECT_NE(items[0].second, delivering) << "a node with a reliable publisher ran on the delivering thread";
+  EXPECT_EQ(items[1].first, "fast");
+  EXPECT_EQ(items[1].second, delivering) << "ran on an executor worker, not where DDS delivered it";
+  EXPECT_EQ(items[2].first, "late");
+}
+
+TEST(DdsBridge, TwoGraphsOfOneProcessAnsweringEachOtherDoNotRecurseOnOneThread) {
+  // Cyclone delivers to a reader of its own process on the writer's thread, so
+  // a reply made inline there comes back to that thread: without a limit a
+  // ping-pong would nest one call deeper per exchange.
+  const auto s = test_settings("x");
+  Side a("a", s), b("b", s);
+  constexpr int kExchanges = 20000;
+  std::atomic<int> pongs{0};
+  auto pinger = a.node("pinger");
+  auto ping = pinger->create_publisher<StringMsg>("/ping");
+  auto on_pong = pinger->create_subscription<StringMsg>("/pong", bus::QoS::keep_last(10), [&](const StringMsg&) {
+    if (pongs.fetch_add(1) + 1 < kExchanges) ping->publish(text("ping"));
+    a.signal->notify();
+  });
+  auto relay = b.node("relay");
+  auto pong = relay->create_publisher<StringMsg>("/pong");
+  auto on_ping = relay->create_subscription<StringMsg>("/ping", bus::QoS::keep_last(10),
+                                                       [&](const StringMsg&) { pong->publish(text("pong")); });
+  a.run();
+  b.run();
+  auto ok = a.bridge->wait_for_peers({{"/ping", 1, 0}, {"/pong", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing;
+  ok = b.bridge->wait_for_peers({{"/pong", 1, 0}, {"/ping", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing;
+  ping->publish(text("ping"));
+  EXPECT_TRUE(a.signal->wait_for([&] { return pongs.load() >= kExchanges; }, 60s)) << pongs.load();
+}
