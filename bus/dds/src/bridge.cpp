@@ -27,6 +27,11 @@ thread_local bool t_in_sync = false;  // the bridge's own endpoints must not re-
 // there, and one that adds or removes endpoints must not make us replace the
 // very reader whose listener it runs in (deleting it waits for that listener).
 thread_local bool t_in_listener = false;
+// True inside our own dds_writecdr: Cyclone delivers to readers of this
+// process on the writer's thread while it holds the writer's locks, so a
+// callback run inline there could write and take another writer's locks in
+// the opposite order of a thread doing the reverse (a deadlock).
+thread_local bool t_in_write = false;
 
 std::atomic<std::uint32_t> g_next_origin{0xdd500001u};
 
@@ -470,7 +475,9 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
   l.last_size.store(buf.size(), std::memory_order_relaxed);
   TL_DDS_PROBE(Serialized);
   ddsi_serdata* sd = detail::make_serdata(l.topic.sertype, std::move(buf));
+  t_in_write = true;
   const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
+  t_in_write = false;
   TL_DDS_PROBE(Written);
   if (rc < 0) {
     if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
@@ -499,18 +506,19 @@ void Bridge::drain(Link& l, dds_entity_t reader, bool may_block) {
 }
 
 void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
-  // On Cyclone's receive thread, the subscribers' callbacks run right here
-  // when their executor lets them (bus::InlineDelivery), as a DDS listener
-  // would: no hand-off to a worker. The back-pressure thread leaves them to
-  // the workers.
-  std::optional<bus::InlineDelivery> inline_delivery;
-  if (!may_block) inline_delivery.emplace();
   const bool was_in_listener = t_in_listener;
   t_in_listener = !may_block;
   struct Reset {
     bool value;
     ~Reset() { t_in_listener = value; }
   } reset{was_in_listener};
+  // On Cyclone's receive thread, the subscribers' callbacks run right here
+  // when their executor lets them (bus::InlineDelivery), as a DDS listener
+  // would: no hand-off to a worker. The back-pressure thread, sync_topic
+  // (which holds sync_mu_) draining a new reader, and our own write
+  // delivering to a reader of this process leave them to the workers.
+  std::optional<bus::InlineDelivery> inline_delivery;
+  if (!may_block && !t_in_sync && !t_in_write) inline_delivery.emplace();
   for (;;) {
     if (!may_block && l.in->would_wait()) {
       hand_over(l);

@@ -709,51 +709,72 @@ TEST(DdsBridge, ARemoteEndpointWithAnotherDefinitionOfTheTypeIsReported) {
 
 TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMayWait) {
   // What a split graph gains: no hand-off from the thread Cyclone delivers on
-  // to an executor worker for a callback that may run there. Between two
-  // participants of one process Cyclone delivers on the writer's thread (its
-  // receive thread between processes): here, the test's own thread.
+  // to an executor worker for a callback that may run there. Between
+  // processes that is Cyclone's receive thread; here the writer is plain
+  // Cyclone code in this process, and Cyclone delivers on the writer's
+  // thread: the test's own.
   const auto s = test_settings("x");
-  Side a("a", s), b("b", s);
-  auto talker = a.node("talker");
-  auto fast = talker->create_publisher<StringMsg>("/fast");
-  auto careful = talker->create_publisher<StringMsg>("/careful");
-  auto grow = talker->create_publisher<StringMsg>("/grow");
-  auto late = talker->create_publisher<StringMsg>("/late");
+  Side b("b", s);
+  dds::Participant raw(s);
+  const std::string type = "std_msgs::msg::dds_::String_";
+  std::vector<dds_entity_t> writers;
+  auto writer_for = [&](const std::string& topic) {
+    ddsi_sertype* st = dds::detail::make_sertype(type, dds::find_type_by_dds_name(type), 1 << 20);
+    const dds_entity_t t =
+        dds_create_topic_sertype(raw.handle(), dds::dds_topic_name(topic).c_str(), &st, nullptr, nullptr, nullptr);
+    dds_qos_t* q = dds_create_qos();
+    dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 10);
+    const dds_entity_t w = dds_create_writer(raw.handle(), t, q, nullptr);
+    dds_delete_qos(q);
+    EXPECT_GT(w, 0) << topic;
+    writers.push_back(w);
+    return w;
+  };
+  auto write = [](dds_entity_t w, const std::string& data) {
+    StringMsg m;
+    m.data = data;
+    const std::vector<std::uint8_t> bytes = msg::serialize(m);
+    EXPECT_EQ(dds_write(w, &bytes), DDS_RETCODE_OK);
+  };
   tinyline::testing::Inbox<std::pair<std::string, std::thread::id>> got(b.signal);  // (data, thread)
-  auto quick = b.node("quick")->create_subscription<StringMsg>(
-      "/fast", bus::QoS::keep_last(10), [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); });
+  auto record = [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); };
+  auto quick = b.node("quick")->create_subscription<StringMsg>("/fast", bus::QoS::keep_last(10), record);
   auto waiter = b.node("waiter");
   auto waiter_out = waiter->create_publisher<StringMsg>("/out", bus::QoS::reliable(4));  // may wait for room
-  auto waiter_in = waiter->create_subscription<StringMsg>(
-      "/careful", bus::QoS::keep_last(10), [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); });
-  // A callback that adds a subscription on the receive thread: the bridge must
-  // not replace a reader from inside that reader's own listener.
-  std::shared_ptr<bus::Subscription<StringMsg>> added;
+  auto waiter_in = waiter->create_subscription<StringMsg>("/careful", bus::QoS::keep_last(10), record);
+  // A callback that adds a subscription on the delivering thread: the bridge
+  // must not replace a reader from inside that reader's own listener.
+  std::shared_ptr<bus::Subscription<StringMsg>> stronger;
   auto grower = b.node("grower");
-  auto grower_in = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(10), [&](const StringMsg&) {
-    if (!added) {
-      added = grower->create_subscription<StringMsg>(
-          "/late", bus::QoS::keep_last(10), [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); });
-      // and a stronger request on the topic it runs in: its reader is replaced
-      grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(50), [](const StringMsg&) {});
-    }
+  auto grower_in = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+    record(m);
+    if (stronger) return;
+    // A deeper one on the topic it runs in: its reader is replaced.
+    stronger = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(50), [](const StringMsg&) {});
   });
-  a.run();
+  const dds_entity_t fast = writer_for("/fast"), careful = writer_for("/careful"), grow = writer_for("/grow");
   b.run();
-  auto ok = a.bridge->wait_for_peers({{"/fast", 1, 0}, {"/careful", 1, 0}, {"/grow", 1, 0}}, 10s);
+  auto ok = b.bridge->wait_for_peers({{"/fast", 0, 1}, {"/careful", 0, 1}, {"/grow", 0, 1}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing;
 
   // The first callback to run proves b's executor runs: nothing runs inline
   // before it does.
-  careful->publish(text("careful"));
+  write(careful, "careful");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 1; }, 10s)) << b.sink->dump();
-  fast->publish(text("fast"));
+  write(fast, "fast");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 2; }, 10s)) << b.sink->dump();
-  grow->publish(text("grow"));
-  ok = a.bridge->wait_for_peers({{"/late", 1, 0}}, 10s);
-  ASSERT_TRUE(ok.ok) << ok.missing << b.sink->dump();
-  late->publish(text("late"));
+  write(grow, "grow");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 3; }, 10s)) << b.sink->dump();
+  // The reader of /grow was replaced by the bridge's thread, which waited for
+  // the listener the callback ran in to return (no deadlock).
+  EXPECT_TRUE(b.signal->wait_for(
+      [&] {
+        const auto st = b.stats("/grow");
+        return st.reader && st.reader_qos.depth == 50;
+      },
+      10s))
+      << b.sink->dump();
 
   const auto items = got.items();
   const auto delivering = std::this_thread::get_id();
@@ -761,7 +782,10 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
   EXPECT_NE(items[0].second, delivering) << "a node with a reliable publisher ran on the delivering thread";
   EXPECT_EQ(items[1].first, "fast");
   EXPECT_EQ(items[1].second, delivering) << "ran on an executor worker, not where DDS delivered it";
-  EXPECT_EQ(items[2].first, "late");
+  EXPECT_EQ(items[2].first, "grow");
+  EXPECT_EQ(items[2].second, delivering);
+  b.stop();
+  for (const auto w : writers) dds_delete(w);
 }
 
 TEST(DdsBridge, TwoGraphsOfOneProcessAnsweringEachOtherDoNotRecurseOnOneThread) {
