@@ -24,6 +24,34 @@ struct CoreScope {
   ~CoreScope() { tl_core = prev; }
   const detail::ExecutorCore* prev;
 };
+
+thread_local InlineDelivery* tl_inline = nullptr;
+// Set while this thread runs callbacks inline. A callback's publish may come
+// back to this thread inline again (Cyclone delivers to readers of its own
+// process on the writer's thread): that one goes to the workers, so two
+// graphs replying to each other cannot recurse without end.
+thread_local bool tl_running_inline = false;
+
+// Inline runs hold up the transport thread that makes them (DDS's receive
+// thread also handles acknowledgements for every topic): callbacks that take
+// longer than this, several times in a row, go back to the workers for a
+// while. The runs of a message or two on the way through a graph take a few
+// microseconds; large messages take longer but are copy-bound anyway.
+constexpr auto kInlineBudget = std::chrono::microseconds(200);
+constexpr int kSlowInlineRuns = 3;
+constexpr auto kInlinePause = std::chrono::seconds(1);
+constexpr std::size_t kInlineBatch = 8;
+
+std::int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+struct WorkerCount {
+  explicit WorkerCount(detail::ExecutorCore& c) : core(c) { core.workers.fetch_add(1, std::memory_order_seq_cst); }
+  ~WorkerCount() { core.workers.fetch_sub(1, std::memory_order_seq_cst); }
+  detail::ExecutorCore& core;
+};
 }  // namespace
 
 Executor* current_executor() {
@@ -36,7 +64,7 @@ void CallbackGroup::announce() {
   detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
   if (core == nullptr) return;
   if (!core->fifo) {
-    core->wake();
+    if (!InlineDelivery::defer(*this)) core->wake();
     return;
   }
   // Deterministic: enter the FIFO unless already in it or running (the
@@ -112,6 +140,45 @@ bool CallbackGroup::try_run(std::size_t max, std::size_t* ran, const SubList* su
   }
   if (ran) *ran = n;
   return true;
+}
+
+bool CallbackGroup::accepts_inline() const {
+  if (inline_refused_.load(std::memory_order_relaxed)) return false;
+  const std::int64_t until = inline_paused_until_ns_.load(std::memory_order_relaxed);
+  return until == 0 || steady_ns() >= until;
+}
+
+bool CallbackGroup::try_run_inline() {
+  detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
+  if (core == nullptr || core->fifo || core->workers.load(std::memory_order_seq_cst) == 0 ||
+      core->stopping.load(std::memory_order_seq_cst) || dead() || !accepts_inline()) {
+    return false;
+  }
+  if (tl_running_inline) return false;
+  CoreScope scope(core);  // current_executor() inside the callbacks, as on a worker
+  const auto start = std::chrono::steady_clock::now();
+  tl_running_inline = true;
+  const bool ran = try_run(kInlineBatch);
+  tl_running_inline = false;
+  if (!ran) return false;
+  note_inline_run(std::chrono::steady_clock::now() - start);
+  // Work that came meanwhile (or beyond the batch) announced itself to a
+  // group that was running; make sure a worker looks.
+  if (has_work()) core->wake();
+  return true;
+}
+
+void CallbackGroup::note_inline_run(std::chrono::steady_clock::duration took) {
+  if (took <= kInlineBudget) {
+    slow_inline_runs_.store(0, std::memory_order_relaxed);
+    return;
+  }
+  // One slow run is often just the thread losing its core; several in a row
+  // are the callbacks themselves.
+  if (slow_inline_runs_.fetch_add(1, std::memory_order_relaxed) + 1 < kSlowInlineRuns) return;
+  slow_inline_runs_.store(0, std::memory_order_relaxed);
+  inline_paused_until_ns_.store(steady_ns() + std::chrono::nanoseconds(kInlinePause).count(),
+                                std::memory_order_relaxed);
 }
 
 template <class F>
@@ -474,6 +541,7 @@ bool Executor::poll_for_work(View& view, Duration how_long) {
 void Executor::worker_loop() {
   constexpr Duration kIdleWait = std::chrono::milliseconds(100);
   CoreScope scope(core_.get());
+  WorkerCount counted(*core_);
   View view;
   while (!stop_.load()) {
     const Time now = clock_.now();
@@ -529,6 +597,38 @@ void MultiThreadedExecutor::spin() {
   worker_loop();
   for (auto& w : workers) w.join();
   stop_.store(false);  // see Executor::spin()
+}
+
+// ---------------------------------------------------------------------------- InlineDelivery
+
+InlineDelivery::InlineDelivery() : previous_(tl_inline) { tl_inline = this; }
+
+InlineDelivery::~InlineDelivery() {
+  flush();
+  tl_inline = previous_;
+}
+
+bool InlineDelivery::defer(CallbackGroup& g) {
+  InlineDelivery* d = tl_inline;
+  if (d == nullptr) return false;
+  for (const auto& p : d->pending_)
+    if (p.get() == &g) return true;
+  d->pending_.push_back(g.shared_from_this());
+  return true;
+}
+
+void InlineDelivery::flush() {
+  if (pending_.empty()) return;
+  std::vector<std::shared_ptr<CallbackGroup>> todo;
+  todo.swap(pending_);
+  // The callbacks' own publishes wake workers: one level of inline runs.
+  tl_inline = previous_;
+  for (const auto& g : todo) {
+    if (!g->try_run_inline()) g->announce();
+  }
+  tl_inline = this;
+  todo.clear();
+  if (pending_.capacity() == 0) pending_.swap(todo);  // keep the allocation
 }
 
 // ---------------------------------------------------------------------------- DeterministicExecutor

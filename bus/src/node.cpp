@@ -70,6 +70,9 @@ void Node::attach_subscription(const std::shared_ptr<Topic>& t, const std::share
 }
 
 void Node::record_endpoint(bool publisher, const std::string& topic, std::string_view type, const QoS& qos) {
+  // A reliable publisher may wait for room: this node's callbacks must not
+  // run on a transport's delivery thread (InlineDelivery).
+  if (publisher && qos.history == QoS::History::Reliable) group_->refuse_inline();
   {
     std::lock_guard lk(mu_);
     (publisher ? pub_info_ : sub_info_).push_back(EndpointInfo{topic, std::string(type), qos});

@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <condition_variable>
+#include <functional>
 #include <future>
+#include <mutex>
 #include <thread>
 
 #include <tinyline/bus/executor.hpp>
@@ -937,4 +940,152 @@ TEST(Executor, StopEndsTheRunningBatchAndReleasesPublishersWaitingForItsQueues) 
   EXPECT_TRUE(failed.load());
   EXPECT_GE(sub->timeouts(), 1u);
   EXPECT_TRUE(sink->contains(bus::LogLevel::Error, "stopping"));
+}
+
+// ---------------------------------------------------------------------------- inline delivery
+
+namespace {
+
+/// A wall-clock graph on a 2-thread executor, and a node whose callbacks
+/// record the thread they ran on: what a transport's delivery thread sees.
+struct InlineGraph {
+  std::shared_ptr<bus::Context> ctx =
+      bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
+  bus::MultiThreadedExecutor ex{ctx->clock(), 2};
+  std::shared_ptr<Node> node = make_node(ctx, "listener");
+  std::shared_ptr<bus::Publisher<StringMsg>> pub = make_node(ctx, "talker")->create_publisher<StringMsg>("t");
+  std::shared_ptr<bus::Subscription<StringMsg>> sub;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::vector<std::pair<std::string, std::thread::id>> seen;  // under mu
+  std::function<void(const StringMsg&)> during;               // runs inside the callback
+  std::thread spinner;
+
+  InlineGraph() {
+    sub = node->create_subscription<StringMsg>("t", QoS::keep_last(16), [this](const StringMsg& m) {
+      if (during) during(m);
+      {
+        std::lock_guard lk(mu);
+        seen.emplace_back(m.data, std::this_thread::get_id());
+      }
+      cv.notify_all();
+    });
+    ex.add_node(node);
+  }
+  /// Starts the workers and returns once one of them ran a callback (of
+  /// another node, so `listener` stays idle).
+  void run() {
+    auto probe = make_node(ctx, "probe");
+    std::promise<void> ran;
+    auto s = probe->create_subscription<StringMsg>("probe", QoS::keep_last(1), [&](const StringMsg&) { ran.set_value(); });
+    ex.add_node(probe);
+    spinner = std::thread([this] { ex.spin(); });
+    make_node(ctx, "p")->create_publisher<StringMsg>("probe")->publish(text("x"));
+    ran.get_future().wait();
+  }
+  void publish_inline(const std::string& s) {
+    bus::InlineDelivery d;
+    pub->publish(text(s));
+    d.flush();
+  }
+  std::vector<std::pair<std::string, std::thread::id>> wait_for(std::size_t n) {
+    std::unique_lock lk(mu);
+    cv.wait(lk, [&] { return seen.size() >= n; });
+    return seen;
+  }
+  std::size_t count() {
+    std::lock_guard lk(mu);
+    return seen.size();
+  }
+  ~InlineGraph() {
+    ex.stop();
+    if (spinner.joinable()) spinner.join();
+  }
+};
+
+}  // namespace
+
+TEST(InlineDelivery, AnIdleGroupsCallbackRunsOnThePublishingThreadBeforeFlushReturns) {
+  InlineGraph g;
+  const auto me = std::this_thread::get_id();
+  g.during = [&](const StringMsg&) { EXPECT_EQ(bus::current_executor(), &g.ex); };
+  g.run();
+  g.publish_inline("a");
+  g.publish_inline("b");
+  ASSERT_EQ(g.count(), 2u);  // ran inside flush(): nothing to wait for
+  EXPECT_EQ(g.seen[0], std::make_pair(std::string("a"), me));
+  EXPECT_EQ(g.seen[1], std::make_pair(std::string("b"), me));
+  EXPECT_EQ(g.sub->dropped(), 0u);
+}
+
+TEST(InlineDelivery, NothingRunsInlineBeforeTheExecutorRunsNorOnADeterministicExecutor) {
+  {
+    InlineGraph g;  // nodes added, spin() not called yet: the start gate
+    g.publish_inline("early");
+    EXPECT_EQ(g.count(), 0u);
+    EXPECT_EQ(g.ex.spin_some(), 1u);  // the executor's own caller runs it
+    EXPECT_EQ(g.count(), 1u);
+  }
+  auto ctx = sim_context();
+  bus::DeterministicExecutor ex(ctx->clock());
+  auto n = make_node(ctx, "n");
+  int ran = 0;
+  auto s = n->create_subscription<StringMsg>("t", QoS::keep_last(4), [&](const StringMsg&) { ++ran; });
+  auto p = make_node(ctx, "p")->create_publisher<StringMsg>("t");
+  ex.add_node(n);
+  {
+    bus::InlineDelivery d;
+    p->publish(text("m"));
+    d.flush();
+  }
+  EXPECT_EQ(ran, 0);  // replay tests step it themselves
+  EXPECT_EQ(ex.spin_until_idle(), 1u);
+  EXPECT_EQ(ran, 1);
+}
+
+TEST(InlineDelivery, ANodeWithAReliablePublisherRunsOnlyOnTheWorkers) {
+  InlineGraph g;
+  auto out = g.node->create_publisher<StringMsg>("out", QoS::reliable(4));  // its callbacks may wait for room
+  g.run();
+  g.publish_inline("a");
+  const auto seen = g.wait_for(1);
+  EXPECT_NE(seen[0].second, std::this_thread::get_id());
+}
+
+TEST(InlineDelivery, ABusyGroupIsNotEnteredAndItsMessagesKeepTheirOrder) {
+  InlineGraph g;
+  std::promise<void> entered;
+  std::promise<void> release;
+  auto released = release.get_future().share();
+  g.during = [&](const StringMsg& m) {
+    if (m.data != "first") return;
+    entered.set_value();
+    released.wait();
+  };
+  g.run();
+  g.pub->publish(text("first"));  // a worker runs it and holds the group
+  entered.get_future().wait();
+  g.publish_inline("second");
+  EXPECT_EQ(g.count(), 0u);  // not run beside "first"
+  release.set_value();
+  const auto seen = g.wait_for(2);
+  EXPECT_EQ(seen[0].first, "first");
+  EXPECT_EQ(seen[1].first, "second");
+  EXPECT_NE(seen[1].second, std::this_thread::get_id());
+}
+
+TEST(InlineDelivery, CallbacksThatKeepTakingLongGoBackToTheWorkers) {
+  InlineGraph g;
+  g.during = [](const StringMsg&) {  // longer than an inline run may take
+    const auto until = std::chrono::steady_clock::now() + 2ms;
+    while (std::chrono::steady_clock::now() < until) {
+    }
+  };
+  g.run();
+  const auto me = std::this_thread::get_id();
+  for (int i = 0; i < 3; ++i) g.publish_inline(std::to_string(i));
+  g.publish_inline("3");
+  const auto seen = g.wait_for(4);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(seen[i].second, me) << i;  // a slow run may be a lost core: tried again
+  EXPECT_NE(seen[3].second, me);  // three in a row: the workers take it
 }

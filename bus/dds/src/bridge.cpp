@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -22,6 +23,15 @@ bool TopicSelection::selects(const std::string& topic) const {
 namespace {
 
 thread_local bool t_in_sync = false;  // the bridge's own endpoints must not re-enter sync_topic
+// True on Cyclone's receive thread inside our listener: callbacks run inline
+// there, and one that adds or removes endpoints must not make us replace the
+// very reader whose listener it runs in (deleting it waits for that listener).
+thread_local bool t_in_listener = false;
+// True inside our own dds_writecdr: Cyclone delivers to readers of this
+// process on the writer's thread while it holds the writer's locks, so a
+// callback run inline there could write and take another writer's locks in
+// the opposite order of a thread doing the reverse (a deadlock).
+thread_local bool t_in_write = false;
 
 std::atomic<std::uint32_t> g_next_origin{0xdd500001u};
 
@@ -94,7 +104,7 @@ struct Bridge::Link {
   std::mutex deliver_mu;
   std::atomic<bool> pending{false};
   std::atomic<bool> handed_over{false};  // the back-pressure thread delivers until the reader is empty
-  EndpointQos wq, rq;
+  EndpointQos wq, rq;  // written under sync_mu_ and peers_mu; stats() reads them under peers_mu
   std::shared_ptr<bus::Topic> local;            // the local topic
   int tap = 0;                                  // local -> DDS, on the publishers' threads
   std::shared_ptr<bus::GenericPublisher> in;    // DDS -> local
@@ -305,6 +315,14 @@ void Bridge::bridge_topic(const std::string& topic) {
 
 void Bridge::on_graph_change(const std::string& topic) {
   if (t_in_sync) return;
+  if (t_in_listener) {  // the bridge's thread syncs it instead
+    {
+      std::lock_guard lk(slow_mu_);
+      resync_.push_back(topic);
+    }
+    slow_cv_.notify_one();
+    return;
+  }
   sync_topic(topic);
 }
 
@@ -371,7 +389,10 @@ void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, cons
     L.readers_seen.clear();
   }
   if (pubs.empty() || L.writer.load() != 0) return;
-  L.wq = wq;
+  {
+    std::lock_guard lk(L.peers_mu);
+    L.wq = wq;
+  }
   detail::Qos q;
   detail::fill_qos(q, wq, false, participant_->identity(), L.type);
   dds_listener_t* ls = dds_create_listener(&L);
@@ -406,7 +427,10 @@ void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
     L.writers_seen.clear();
   }
   if (subs.empty() || L.reader.load() != 0) return;
-  L.rq = rq;
+  {
+    std::lock_guard lk(L.peers_mu);
+    L.rq = rq;
+  }
   if (!L.in) {
     bus::QoS pq = bus::QoS::keep_last(static_cast<std::size_t>(rq.depth));
     pq.transient_local = rq.transient_local;  // late local subscribers get what came in
@@ -451,7 +475,9 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
   l.last_size.store(buf.size(), std::memory_order_relaxed);
   TL_DDS_PROBE(Serialized);
   ddsi_serdata* sd = detail::make_serdata(l.topic.sertype, std::move(buf));
+  t_in_write = true;
   const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
+  t_in_write = false;
   TL_DDS_PROBE(Written);
   if (rc < 0) {
     if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
@@ -480,6 +506,19 @@ void Bridge::drain(Link& l, dds_entity_t reader, bool may_block) {
 }
 
 void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
+  const bool was_in_listener = t_in_listener;
+  t_in_listener = !may_block;
+  struct Reset {
+    bool value;
+    ~Reset() { t_in_listener = value; }
+  } reset{was_in_listener};
+  // On Cyclone's receive thread, the subscribers' callbacks run right here
+  // when their executor lets them (bus::InlineDelivery), as a DDS listener
+  // would: no hand-off to a worker. The back-pressure thread, sync_topic
+  // (which holds sync_mu_) draining a new reader, and our own write
+  // delivering to a reader of this process leave them to the workers.
+  std::optional<bus::InlineDelivery> inline_delivery;
+  if (!may_block && !t_in_sync && !t_in_write) inline_delivery.emplace();
   for (;;) {
     if (!may_block && l.in->would_wait()) {
       hand_over(l);
@@ -510,6 +549,7 @@ void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
       if (msg) {
         l.in->publish(std::move(msg), origin_, may_block ? bus::Wait::ForRoom : bus::Wait::Never);
         TL_DDS_PROBE(Delivered);
+        if (inline_delivery) inline_delivery->flush();
         l.received.fetch_add(1, std::memory_order_relaxed);
       }
     }
@@ -530,13 +570,19 @@ void Bridge::hand_over(Link& l) {
 void Bridge::backpressure_loop() {
   for (;;) {
     Link* l = nullptr;
+    std::vector<std::string> resync;
     {
       std::unique_lock lk(slow_mu_);
-      slow_cv_.wait(lk, [&] { return quit_.load() || !slow_links_.empty(); });
+      slow_cv_.wait(lk, [&] { return quit_.load() || !slow_links_.empty() || !resync_.empty(); });
       if (quit_.load()) return;
-      l = slow_links_.front();
-      slow_links_.erase(slow_links_.begin());
+      resync.swap(resync_);
+      if (!slow_links_.empty()) {
+        l = slow_links_.front();
+        slow_links_.erase(slow_links_.begin());
+      }
     }
+    for (const auto& topic : resync) sync_topic(topic);
+    if (l == nullptr) continue;
     const dds_entity_t r = l->reader.load();
     if (r != 0) {
       drain(*l, r, true);
@@ -602,7 +648,9 @@ std::vector<LinkStats> Bridge::stats() const {
     s.writer = l->writer.load() != 0;
     s.reader = l->reader.load() != 0;
     {
-      std::lock_guard lk(sync_mu_);
+      // Not sync_mu_: a callback running inline on the receive thread may ask
+      // for stats while sync_topic holds it and waits for that listener.
+      std::lock_guard lk(l->peers_mu);
       s.writer_qos = l->wq;
       s.reader_qos = l->rq;
     }

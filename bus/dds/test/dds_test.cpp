@@ -705,3 +705,113 @@ TEST(DdsBridge, ARemoteEndpointWithAnotherDefinitionOfTheTypeIsReported) {
   dds_delete(w);
   dds_delete(t);
 }
+
+
+TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMayWait) {
+  // What a split graph gains: no hand-off from the thread Cyclone delivers on
+  // to an executor worker for a callback that may run there. Between
+  // processes that is Cyclone's receive thread; here the writer is plain
+  // Cyclone code in this process, and Cyclone delivers on the writer's
+  // thread: the test's own.
+  const auto s = test_settings("x");
+  Side b("b", s);
+  dds::Participant raw(s);
+  const std::string type = "std_msgs::msg::dds_::String_";
+  std::vector<dds_entity_t> writers;
+  auto writer_for = [&](const std::string& topic) {
+    ddsi_sertype* st = dds::detail::make_sertype(type, dds::find_type_by_dds_name(type), 1 << 20);
+    const dds_entity_t t =
+        dds_create_topic_sertype(raw.handle(), dds::dds_topic_name(topic).c_str(), &st, nullptr, nullptr, nullptr);
+    dds_qos_t* q = dds_create_qos();
+    dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 10);
+    const dds_entity_t w = dds_create_writer(raw.handle(), t, q, nullptr);
+    dds_delete_qos(q);
+    EXPECT_GT(w, 0) << topic;
+    writers.push_back(w);
+    return w;
+  };
+  auto write = [](dds_entity_t w, const std::string& data) {
+    StringMsg m;
+    m.data = data;
+    const std::vector<std::uint8_t> bytes = msg::serialize(m);
+    EXPECT_EQ(dds_write(w, &bytes), DDS_RETCODE_OK);
+  };
+  tinyline::testing::Inbox<std::pair<std::string, std::thread::id>> got(b.signal);  // (data, thread)
+  auto record = [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); };
+  auto quick = b.node("quick")->create_subscription<StringMsg>("/fast", bus::QoS::keep_last(10), record);
+  auto waiter = b.node("waiter");
+  auto waiter_out = waiter->create_publisher<StringMsg>("/out", bus::QoS::reliable(4));  // may wait for room
+  auto waiter_in = waiter->create_subscription<StringMsg>("/careful", bus::QoS::keep_last(10), record);
+  // A callback that adds a subscription on the delivering thread: the bridge
+  // must not replace a reader from inside that reader's own listener.
+  std::shared_ptr<bus::Subscription<StringMsg>> stronger;
+  auto grower = b.node("grower");
+  auto grower_in = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+    record(m);
+    if (stronger) return;
+    // A deeper one on the topic it runs in: its reader is replaced.
+    stronger = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(50), [](const StringMsg&) {});
+  });
+  const dds_entity_t fast = writer_for("/fast"), careful = writer_for("/careful"), grow = writer_for("/grow");
+  b.run();
+  auto ok = b.bridge->wait_for_peers({{"/fast", 0, 1}, {"/careful", 0, 1}, {"/grow", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing;
+
+  // The first callback to run proves b's executor runs: nothing runs inline
+  // before it does.
+  write(careful, "careful");
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 1; }, 10s)) << b.sink->dump();
+  write(fast, "fast");
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 2; }, 10s)) << b.sink->dump();
+  write(grow, "grow");
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 3; }, 10s)) << b.sink->dump();
+  // The reader of /grow was replaced by the bridge's thread, which waited for
+  // the listener the callback ran in to return (no deadlock).
+  EXPECT_TRUE(b.signal->wait_for(
+      [&] {
+        const auto st = b.stats("/grow");
+        return st.reader && st.reader_qos.depth == 50;
+      },
+      10s))
+      << b.sink->dump();
+
+  const auto items = got.items();
+  const auto delivering = std::this_thread::get_id();
+  EXPECT_EQ(items[0].first, "careful");
+  EXPECT_NE(items[0].second, delivering) << "a node with a reliable publisher ran on the delivering thread";
+  EXPECT_EQ(items[1].first, "fast");
+  EXPECT_EQ(items[1].second, delivering) << "ran on an executor worker, not where DDS delivered it";
+  EXPECT_EQ(items[2].first, "grow");
+  EXPECT_EQ(items[2].second, delivering);
+  b.stop();
+  for (const auto w : writers) dds_delete(w);
+}
+
+TEST(DdsBridge, TwoGraphsOfOneProcessAnsweringEachOtherDoNotRecurseOnOneThread) {
+  // Cyclone delivers to a reader of its own process on the writer's thread, so
+  // a reply made inline there comes back to that thread: without a limit a
+  // ping-pong would nest one call deeper per exchange.
+  const auto s = test_settings("x");
+  Side a("a", s), b("b", s);
+  constexpr int kExchanges = 20000;
+  std::atomic<int> pongs{0};
+  auto pinger = a.node("pinger");
+  auto ping = pinger->create_publisher<StringMsg>("/ping");
+  auto on_pong = pinger->create_subscription<StringMsg>("/pong", bus::QoS::keep_last(10), [&](const StringMsg&) {
+    if (pongs.fetch_add(1) + 1 < kExchanges) ping->publish(text("ping"));
+    a.signal->notify();
+  });
+  auto relay = b.node("relay");
+  auto pong = relay->create_publisher<StringMsg>("/pong");
+  auto on_ping = relay->create_subscription<StringMsg>("/ping", bus::QoS::keep_last(10),
+                                                       [&](const StringMsg&) { pong->publish(text("pong")); });
+  a.run();
+  b.run();
+  auto ok = a.bridge->wait_for_peers({{"/ping", 1, 0}, {"/pong", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing;
+  ok = b.bridge->wait_for_peers({{"/pong", 1, 0}, {"/ping", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing;
+  ping->publish(text("ping"));
+  EXPECT_TRUE(a.signal->wait_for([&] { return pongs.load() >= kExchanges; }, 60s)) << pongs.load();
+}

@@ -34,6 +34,7 @@ class Executor;
 class Node;
 class SubscriptionBase;
 class CallbackGroup;
+class InlineDelivery;
 
 namespace detail {
 /// What an executor shares with the groups attached to it (a separate object,
@@ -62,6 +63,9 @@ struct ExecutorCore {
   /// take more messages, so groups end their batch and reliable publishers
   /// stop waiting for room in these queues.
   std::atomic<bool> stopping{false};
+  /// Worker threads inside spin() now: callbacks run inline (InlineDelivery)
+  /// only while the executor itself runs, never before it starts.
+  std::atomic<int> workers{0};
 
   /// Publisher side, after queueing work: wake one sleeping worker if any,
   /// unless one is polling (it stops polling, then looks once more before
@@ -161,6 +165,17 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
     return running_.load(std::memory_order_acquire) && running_thread_.load() == std::this_thread::get_id();
   }
 
+  /// Runs this group's queued callbacks on the calling thread (a transport's
+  /// delivery thread, see InlineDelivery) if its executor's workers are
+  /// running, the group is idle and it accepts inline runs; false otherwise
+  /// (the caller then announces the work to a worker).
+  bool try_run_inline();
+  /// From now on this group's callbacks run only on its executor's threads:
+  /// they may wait (a node with a reliable publisher waits for room), and a
+  /// transport's delivery thread must not.
+  void refuse_inline() { inline_refused_.store(true, std::memory_order_relaxed); }
+  bool accepts_inline() const;
+
   /// Callback exceptions caught (and logged) so far.
   std::uint64_t errors() const { return errors_.load(); }
   std::function<void(const std::string&)> on_error;  ///< set by the node: logs the failure
@@ -168,6 +183,7 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
  private:
   friend class SubscriptionBase;
   friend class DeterministicExecutor;
+  friend class InlineDelivery;
   struct Tick {
     std::uint64_t stamp = 0;
     std::shared_ptr<Timer> timer;
@@ -177,6 +193,9 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   /// Publisher side, after queueing: wakes a worker or enters the FIFO.
   void announce();
   std::size_t run_claimed(std::size_t max, const SubList& subs);
+  /// Books one inline run's wall time: a group whose inline runs keep taking
+  /// long goes back to the workers for a while (it would hold up the transport).
+  void note_inline_run(std::chrono::steady_clock::duration took);
   /// Runs a callback, catching and counting what it throws.
   template <class F>
   void guarded(F&& f);
@@ -202,6 +221,10 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   std::atomic<std::thread::id> running_thread_{};
   std::atomic<bool> shutdown_waiting_{false};
   std::atomic<std::uint64_t> errors_{0};
+  // Inline runs (InlineDelivery).
+  std::atomic<bool> inline_refused_{false};
+  std::atomic<int> slow_inline_runs_{0};                      ///< in a row over the budget
+  std::atomic<std::int64_t> inline_paused_until_ns_{0};        ///< steady clock; 0: not paused
   // Deterministic executors: in the FIFO already.
   alignas(64) std::atomic<bool> scheduled_{false};
 };
@@ -313,5 +336,34 @@ class DeterministicExecutor : public Executor {
 
 /// The executor currently running a callback on this thread, if any.
 Executor* current_executor();
+
+/// Lets a transport's delivery thread run the callbacks of what it publishes
+/// itself, as DDS's own listeners do, instead of waking an executor worker
+/// (a futex wake-up and a second thread per message). While one is alive on
+/// a thread, publishes made there queue as usual but leave the wake-up to
+/// flush(), which runs each receiving group's queued callbacks right there
+/// when the group may run inline (CallbackGroup::try_run_inline: executor
+/// running, group idle, no reliable publisher in the node, inline runs short)
+/// and wakes a worker otherwise. Queues, order, drops and the callback
+/// group's exclusion are the executor's own: the message goes through the
+/// subscription's queue either way. Publishes made by the callbacks it runs
+/// wake workers as usual (one level deep only).
+class InlineDelivery {
+ public:
+  InlineDelivery();
+  ~InlineDelivery();
+  InlineDelivery(const InlineDelivery&) = delete;
+  InlineDelivery& operator=(const InlineDelivery&) = delete;
+
+  /// Runs or announces the work published on this thread since the last flush.
+  void flush();
+  /// Publisher side (CallbackGroup::announce): true when the active scope
+  /// on this thread takes over announcing `g`.
+  static bool defer(CallbackGroup& g);
+
+ private:
+  InlineDelivery* previous_;
+  std::vector<std::shared_ptr<CallbackGroup>> pending_;
+};
 
 }  // namespace tinyline::bus

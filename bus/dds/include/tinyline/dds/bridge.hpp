@@ -11,7 +11,10 @@
 // subscribers have the message (as in ROS 2); a writer with no matched reader
 // skips serialization entirely. Receiving happens on Cyclone's receive thread
 // itself (a data-available listener): it takes each sample, deserializes it
-// and queues it for the subscribers' executor, with no thread in between.
+// and queues it for the subscribers' executor, with no thread in between;
+// then, when the executor is running and a subscriber's callback group is
+// idle and may run there (bus::InlineDelivery), it runs that callback at once
+// on the same thread, as a DDS listener does, instead of waking a worker.
 // That thread must never block (it also handles acknowledgements), so while
 // a reliable local subscriber's queue is full the bridge's own thread takes
 // over the topic and waits for room, leaving the rest in the DDS reader's
@@ -184,6 +187,7 @@ class Bridge : public bus::Node {
   std::mutex slow_mu_;
   std::condition_variable slow_cv_;
   std::vector<Link*> slow_links_;
+  std::vector<std::string> resync_;  // topics whose endpoints changed inside a listener
   std::thread backpressure_;
   std::mutex match_mu_;  // guards match_events_ (bumped by DDS listeners)
   std::condition_variable matched_cv_;
