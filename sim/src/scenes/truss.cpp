@@ -165,79 +165,88 @@ Eigen::VectorXd nnls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
   return x;
 }
 
-// The rest state by gradient projection: each iteration takes a step along
-// the free (gravity + spring) forces and projects it onto the set of moves
-// that keep every contact closed or opening (linearised, within 1 cm): the
-// nearest such move, from the small QP's dual solved by projected
-// Gauss-Seidel. At the fixed point the multipliers over the step are the
-// contact forces (KKT), checked independently below.
-RelaxationReport relax(std::vector<Pendulum>& p, const std::vector<Segment>& peduncle, double pedicel_radius,
-                       std::vector<TrussContact>& contacts, std::vector<Eigen::Vector3d>& contact_force) {
-  RelaxationReport rep;
-  const std::size_t n = p.size();
-  // Step [m/N] stable for the stiffest pendulum (gravity + spring restoring rate).
-  double k_max = 0.0;
-  for (const auto& q : p) k_max = std::max(k_max, (q.mass_kg * kG + q.stiffness / q.arm()) / q.arm());
-  const double step = 0.6 / k_max;
-  const int kMaxIter = 20000;
-  std::vector<double> mu;
-  for (int it = 0; it < kMaxIter; ++it) {
-    ++rep.iterations;
-    const auto cons = constraints(p, peduncle, pedicel_radius, 0.01);
-    const auto f = free_forces(p);
-    std::vector<Eigen::Vector3d> delta(n);
-    for (std::size_t i = 0; i < n; ++i) delta[i] = step * tangential(p[i], f[i]);
-    // Jacobian rows in tangent space: (tomato, coefficient vector) pairs.
-    const std::size_t nc = cons.size();
-    const Eigen::Index m = Eigen::Index(nc);
-    std::vector<std::array<std::pair<int, Eigen::Vector3d>, 2>> J(nc);
-    for (std::size_t k = 0; k < nc; ++k) {
-      const auto& c = cons[k];
-      J[k][0] = {c.i, tangential(p[std::size_t(c.i)], c.n)};
-      J[k][1] = {c.j, c.j >= 0 ? Eigen::Vector3d(-(c.pedicel ? c.lever : 1.0) * tangential(p[std::size_t(c.j)], c.n))
-                              : Eigen::Vector3d::Zero()};
-    }
-    auto dot_rows = [&](std::size_t a, std::size_t b) {
-      double s = 0;
-      for (const auto& [ia, va] : J[a])
-        for (const auto& [ib, vb] : J[b])
-          if (ia >= 0 && ia == ib) s += va.dot(vb);
-      return s;
-    };
-    Eigen::MatrixXd M(m, m);
-    for (std::size_t a = 0; a < nc; ++a)
-      for (std::size_t b = a; b < nc; ++b) M(Eigen::Index(a), Eigen::Index(b)) = M(Eigen::Index(b), Eigen::Index(a)) = dot_rows(a, b);
-    Eigen::VectorXd q(m);
-    for (std::size_t k = 0; k < nc; ++k) {
-      double jd = 0;
-      for (const auto& [i, v] : J[k]) if (i >= 0) jd += v.dot(delta[std::size_t(i)]);
-      q[Eigen::Index(k)] = cons[k].gap + jd;
-    }
-    mu.assign(nc, 0.0);
-    for (int sweep = 0; sweep < 200; ++sweep) {
-      double change = 0;
-      for (std::size_t k = 0; k < nc; ++k) {
-        const double Mkk = M(Eigen::Index(k), Eigen::Index(k));
-        if (Mkk < 1e-12) continue;
-        double r = q[Eigen::Index(k)];
-        for (std::size_t l = 0; l < nc; ++l) r += M(Eigen::Index(k), Eigen::Index(l)) * mu[l];
-        const double nv = std::max(0.0, mu[k] - r / Mkk);
-        change = std::max(change, std::abs(nv - mu[k]));
-        mu[k] = nv;
-      }
-      if (change < 1e-12) break;
-    }
-    for (std::size_t k = 0; k < nc; ++k)
-      for (const auto& [i, v] : J[k]) if (i >= 0) delta[std::size_t(i)] += mu[k] * v;
-    double moved = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      move_centre(p[i], delta[i]);
-      moved = std::max(moved, delta[i].norm());
-    }
-    if (moved < 1e-10) break;
-  }
+// The linearised contacts in tangent space: per contact, (tomato,
+// coefficient vector) pairs of its Jacobian row.
+using JacobianRow = std::array<std::pair<int, Eigen::Vector3d>, 2>;
 
-  // Contact forces from the balance of every pendulum (tangential parts).
+std::vector<JacobianRow> contact_jacobian(const std::vector<Pendulum>& p, const std::vector<Constraint>& cons) {
+  std::vector<JacobianRow> J(cons.size());
+  for (std::size_t k = 0; k < cons.size(); ++k) {
+    const auto& c = cons[k];
+    J[k][0] = {c.i, tangential(p[std::size_t(c.i)], c.n)};
+    J[k][1] = {c.j, c.j >= 0 ? Eigen::Vector3d(-(c.pedicel ? c.lever : 1.0) * tangential(p[std::size_t(c.j)], c.n))
+                            : Eigen::Vector3d::Zero()};
+  }
+  return J;
+}
+
+// The multipliers of the nearest move to `delta` that keeps every contact
+// closed or opening: the small QP's dual (M = J J^T, q = gap + J delta) by
+// projected Gauss-Seidel.
+std::vector<double> contact_multipliers(const std::vector<JacobianRow>& J, const std::vector<Constraint>& cons,
+                                        const std::vector<Eigen::Vector3d>& delta) {
+  const std::size_t nc = cons.size();
+  const Eigen::Index m = Eigen::Index(nc);
+  auto dot_rows = [&](std::size_t a, std::size_t b) {
+    double s = 0;
+    for (const auto& [ia, va] : J[a])
+      for (const auto& [ib, vb] : J[b])
+        if (ia >= 0 && ia == ib) s += va.dot(vb);
+    return s;
+  };
+  Eigen::MatrixXd M(m, m);
+  for (std::size_t a = 0; a < nc; ++a)
+    for (std::size_t b = a; b < nc; ++b) M(Eigen::Index(a), Eigen::Index(b)) = M(Eigen::Index(b), Eigen::Index(a)) = dot_rows(a, b);
+  Eigen::VectorXd q(m);
+  for (std::size_t k = 0; k < nc; ++k) {
+    double jd = 0;
+    for (const auto& [i, v] : J[k]) if (i >= 0) jd += v.dot(delta[std::size_t(i)]);
+    q[Eigen::Index(k)] = cons[k].gap + jd;
+  }
+  std::vector<double> mu(nc, 0.0);
+  for (int sweep = 0; sweep < 200; ++sweep) {
+    double change = 0;
+    for (std::size_t k = 0; k < nc; ++k) {
+      const double Mkk = M(Eigen::Index(k), Eigen::Index(k));
+      if (Mkk < 1e-12) continue;
+      double r = q[Eigen::Index(k)];
+      for (std::size_t l = 0; l < nc; ++l) r += M(Eigen::Index(k), Eigen::Index(l)) * mu[l];
+      const double nv = std::max(0.0, mu[k] - r / Mkk);
+      change = std::max(change, std::abs(nv - mu[k]));
+      mu[k] = nv;
+    }
+    if (change < 1e-12) break;
+  }
+  return mu;
+}
+
+// One projected step along the free forces; returns the largest move [m].
+double relax_step(std::vector<Pendulum>& p, const std::vector<Segment>& peduncle, double pedicel_radius,
+                  double step) {
+  const std::size_t n = p.size();
+  const auto cons = constraints(p, peduncle, pedicel_radius, 0.01);
+  const auto f = free_forces(p);
+  std::vector<Eigen::Vector3d> delta(n);
+  for (std::size_t i = 0; i < n; ++i) delta[i] = step * tangential(p[i], f[i]);
+  const auto J = contact_jacobian(p, cons);
+  const auto mu = contact_multipliers(J, cons, delta);
+  for (std::size_t k = 0; k < cons.size(); ++k)
+    for (const auto& [i, v] : J[k]) if (i >= 0) delta[std::size_t(i)] += mu[k] * v;
+  double moved = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    move_centre(p[i], delta[i]);
+    moved = std::max(moved, delta[i].norm());
+  }
+  return moved;
+}
+
+// Contact forces from the balance of every pendulum at rest (tangential
+// parts, non-negative least squares); fills the report's residual and
+// penetration.
+void balance_contacts(const std::vector<Pendulum>& p, const std::vector<Segment>& peduncle, double pedicel_radius,
+                      std::vector<TrussContact>& contacts, std::vector<Eigen::Vector3d>& contact_force,
+                      RelaxationReport& rep) {
+  const std::size_t n = p.size();
   const auto active = constraints(p, peduncle, pedicel_radius, 2e-4);
   const auto f = free_forces(p);
   const Eigen::Index rows = Eigen::Index(3 * n), cols = Eigen::Index(active.size());
@@ -276,6 +285,27 @@ RelaxationReport relax(std::vector<Pendulum>& p, const std::vector<Segment>& ped
     contacts.push_back({c.i, c.j, c.pedicel ? ContactKind::kPedicel : (c.j < 0 ? ContactKind::kPeduncle : ContactKind::kFruit),
                         lambda[Eigen::Index(k)]});
   }
+}
+
+// The rest state by gradient projection: each iteration takes a step along
+// the free (gravity + spring) forces and projects it onto the set of moves
+// that keep every contact closed or opening (linearised, within 1 cm): the
+// nearest such move, from the small QP's dual solved by projected
+// Gauss-Seidel. At the fixed point the multipliers over the step are the
+// contact forces (KKT), checked independently by balance_contacts.
+RelaxationReport relax(std::vector<Pendulum>& p, const std::vector<Segment>& peduncle, double pedicel_radius,
+                       std::vector<TrussContact>& contacts, std::vector<Eigen::Vector3d>& contact_force) {
+  RelaxationReport rep;
+  // Step [m/N] stable for the stiffest pendulum (gravity + spring restoring rate).
+  double k_max = 0.0;
+  for (const auto& q : p) k_max = std::max(k_max, (q.mass_kg * kG + q.stiffness / q.arm()) / q.arm());
+  const double step = 0.6 / k_max;
+  const int kMaxIter = 20000;
+  for (int it = 0; it < kMaxIter; ++it) {
+    ++rep.iterations;
+    if (relax_step(p, peduncle, pedicel_radius, step) < 1e-10) break;
+  }
+  balance_contacts(p, peduncle, pedicel_radius, contacts, contact_force, rep);
   rep.converged = rep.iterations < kMaxIter && rep.max_torque_residual < 1e-3 && rep.max_penetration_m < 1e-4;
   return rep;
 }
@@ -600,26 +630,10 @@ void add_fruit(const Truss& T, World& world) {
     world.add(rod(nm + "_peduncle_" + std::to_string(k), T.peduncle_m[k], T.peduncle_m[k + 1], T.params.peduncle_radius_m, stem));
 }
 
-}  // namespace
-
-std::vector<TrussTomato> add_to_world(const Truss& T, World& world) {
-  std::vector<TrussTomato> second;
-  add_fruit(T, world);
+// Leaves in front: each hides part of one tomato from the camera.
+void add_front_leaves(const Truss& T, World& world, Rng& rng, MaterialId leaf) {
   const TrussParams& P = T.params;
-  Rng rng(P.seed ^ 0x5eed1eafULL);
-  const MaterialId leaf = need(world, "leaf");
-  const MaterialId stem = need(world, "stem");
-  const std::string& nm = P.name;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& t : T.tomatoes) mean += t.centre_m;
-  mean /= static_cast<double>(T.tomatoes.size());
   const Eigen::Vector3d eye = T.T_world_camera.translation();
-
-  // The main stem the peduncle leaves from, a little behind it.
-  world.add(rod(nm + "_main_stem", P.origin_m + Eigen::Vector3d(0, 0.02, -0.6), P.origin_m + Eigen::Vector3d(0, 0.02, 0.35),
-                0.007, stem));
-
-  // Leaves in front: each hides part of one tomato from the camera.
   int front = P.front_leaves;
   if (front < 0) {
     switch (P.complexity) {
@@ -640,7 +654,7 @@ std::vector<TrussTomato> add_to_world(const Truss& T, World& world) {
     const double off = t.radius_m * rng.uniform(1.2, 1.9) * (1.0 - back / to_t.norm());
     at += off * (std::cos(a) * side + std::sin(a) * Eigen::Vector3d::UnitZ());
     Object o;
-    o.name = nm + "_leaf_front_" + std::to_string(k);
+    o.name = P.name + "_leaf_front_" + std::to_string(k);
     o.shape = leaflet(rng.uniform(0.05, 0.09), rng.uniform(0.025, 0.045), rng.uniform(0.002, 0.008));
     // Roughly facing the camera, tilted at random.
     const Eigen::Matrix3d face = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -to_t.normalized()).toRotationMatrix();
@@ -651,52 +665,75 @@ std::vector<TrussTomato> add_to_world(const Truss& T, World& world) {
     o.material = leaf;
     world.add(std::move(o));
   }
+}
 
-  if (P.background_leaves) {
-    const int nb = rng.integer(3, 6);
-    for (int k = 0; k < nb; ++k) {
-      Object o;
-      o.name = nm + "_leaf_back_" + std::to_string(k);
-      o.shape = leaflet(rng.uniform(0.06, 0.11), rng.uniform(0.03, 0.05), rng.uniform(0.002, 0.01));
-      const Eigen::Vector3d at = mean + Eigen::Vector3d(rng.uniform(-0.2, 0.2), rng.uniform(0.12, 0.3), rng.uniform(-0.15, 0.2));
-      o.T_world_object = pose_from(at, random_rotation(rng));
-      o.material = leaf;
-      world.add(std::move(o));
-    }
+// Leaves behind the truss, around the tomatoes' mean.
+void add_background_leaves(const TrussParams& P, const Eigen::Vector3d& mean, World& world, Rng& rng, MaterialId leaf) {
+  const int nb = rng.integer(3, 6);
+  for (int k = 0; k < nb; ++k) {
+    Object o;
+    o.name = P.name + "_leaf_back_" + std::to_string(k);
+    o.shape = leaflet(rng.uniform(0.06, 0.11), rng.uniform(0.03, 0.05), rng.uniform(0.002, 0.01));
+    const Eigen::Vector3d at = mean + Eigen::Vector3d(rng.uniform(-0.2, 0.2), rng.uniform(0.12, 0.3), rng.uniform(-0.15, 0.2));
+    o.T_world_object = pose_from(at, random_rotation(rng));
+    o.material = leaf;
+    world.add(std::move(o));
   }
+}
 
-  if (P.distractor_truss && P.complexity != TrussClass::kA && rng.chance(0.7)) {
-    TrussParams d;
-    d.complexity = TrussClass::kB;
-    d.num_tomatoes = rng.integer(2, 4);
-    d.seed = P.seed * 7919 + 13;
-    d.name = nm + "_second";
-    d.origin_m = P.origin_m + Eigen::Vector3d(rng.uniform(-0.2, 0.2), rng.uniform(0.22, 0.35), rng.uniform(-0.05, 0.05));
-    d.front_leaves = 0;
-    d.background_leaves = false;
-    d.distractor_truss = false;
-    d.room = false;
-    const Truss other = make_truss(d);
-    add_fruit(other, world);
-    second = other.tomatoes;
-  }
+// A second, smaller truss behind the first; returns its tomatoes.
+std::vector<TrussTomato> add_distractor_truss(const TrussParams& P, World& world, Rng& rng) {
+  TrussParams d;
+  d.complexity = TrussClass::kB;
+  d.num_tomatoes = rng.integer(2, 4);
+  d.seed = P.seed * 7919 + 13;
+  d.name = P.name + "_second";
+  d.origin_m = P.origin_m + Eigen::Vector3d(rng.uniform(-0.2, 0.2), rng.uniform(0.22, 0.35), rng.uniform(-0.05, 0.05));
+  d.front_leaves = 0;
+  d.background_leaves = false;
+  d.distractor_truss = false;
+  d.room = false;
+  const Truss other = make_truss(d);
+  add_fruit(other, world);
+  return other.tomatoes;
+}
 
-  if (P.room) {
-    const MaterialId floor = need(world, "grey_matte");
-    const MaterialId wall = need(world, "wall_paint");
-    Object f;
-    f.name = nm + "_floor";
-    f.shape = PlaneShape{Eigen::Vector2d(6, 6)};
-    f.material = floor;
-    world.add(std::move(f));
-    Object w;
-    w.name = nm + "_back_wall";
-    w.shape = PlaneShape{Eigen::Vector2d(6, 4)};
-    w.T_world_object = pose_from(Eigen::Vector3d(mean.x(), mean.y() + 1.2, 1.5),
-                                 Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitY()).toRotationMatrix());
-    w.material = wall;
-    world.add(std::move(w));
-  }
+// A floor and a back wall behind the truss.
+void add_room(const std::string& nm, const Eigen::Vector3d& mean, World& world) {
+  Object f;
+  f.name = nm + "_floor";
+  f.shape = PlaneShape{Eigen::Vector2d(6, 6)};
+  f.material = need(world, "grey_matte");
+  world.add(std::move(f));
+  Object w;
+  w.name = nm + "_back_wall";
+  w.shape = PlaneShape{Eigen::Vector2d(6, 4)};
+  w.T_world_object = pose_from(Eigen::Vector3d(mean.x(), mean.y() + 1.2, 1.5),
+                               Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitY()).toRotationMatrix());
+  w.material = need(world, "wall_paint");
+  world.add(std::move(w));
+}
+
+}  // namespace
+
+std::vector<TrussTomato> add_to_world(const Truss& T, World& world) {
+  add_fruit(T, world);
+  const TrussParams& P = T.params;
+  Rng rng(P.seed ^ 0x5eed1eafULL);
+  const MaterialId leaf = need(world, "leaf");
+  const MaterialId stem = need(world, "stem");
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& t : T.tomatoes) mean += t.centre_m;
+  mean /= static_cast<double>(T.tomatoes.size());
+
+  // The main stem the peduncle leaves from, a little behind it.
+  world.add(rod(P.name + "_main_stem", P.origin_m + Eigen::Vector3d(0, 0.02, -0.6),
+                P.origin_m + Eigen::Vector3d(0, 0.02, 0.35), 0.007, stem));
+  add_front_leaves(T, world, rng, leaf);
+  if (P.background_leaves) add_background_leaves(P, mean, world, rng, leaf);
+  std::vector<TrussTomato> second;
+  if (P.distractor_truss && P.complexity != TrussClass::kA && rng.chance(0.7)) second = add_distractor_truss(P, world, rng);
+  if (P.room) add_room(P.name, mean, world);
   return second;
 }
 
