@@ -8,6 +8,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <tinyline/bus/param_table_testing.hpp>
 #include <tinyline/bus/testing.hpp>
 
 #include "hydrus_fitting/nodes/register.hpp"
@@ -17,34 +18,11 @@ namespace hf = tinyline::hydrus_fitting;
 namespace bus = tinyline::bus;
 namespace common = tinyline::common;
 using ::testing::HasSubstr;
+using tinyline::bus::testing::param_number;
+using tinyline::bus::testing::params_by_name;
+using tinyline::bus::testing::table_defaults;
 
 namespace {
-
-// name -> default of every number or flag in `S`'s table.
-template <class S>
-std::map<std::string, double> table_defaults(std::string_view prefix = {}) {
-  std::map<std::string, double> out;
-  S s;
-  auto collect = [&out](auto& field, const common::Param& p, auto&&...) {
-    using T = std::remove_cvref_t<decltype(field)>;
-    if constexpr (std::is_arithmetic_v<T>) out[std::string(p.name)] = static_cast<double>(field);
-  };
-  common::nest(s, prefix, collect);
-  return out;
-}
-
-double number(const bus::ParamValue& v) {
-  if (const auto* d = std::get_if<double>(&v)) return *d;
-  if (const auto* i = std::get_if<std::int64_t>(&v)) return static_cast<double>(*i);
-  if (const auto* b = std::get_if<bool>(&v)) return *b ? 1.0 : 0.0;
-  return std::numeric_limits<double>::quiet_NaN();
-}
-
-std::map<std::string, const bus::ParamDescriptor*> by_name(const bus::Node& n) {
-  std::map<std::string, const bus::ParamDescriptor*> out;
-  for (const auto& d : n.parameters()) out[d.name] = &d;
-  return out;
-}
 
 std::shared_ptr<bus::Node> add(bus::testing::NodeRig& rig, const std::string& type, bus::NodeOptions o) {
   o.name = type;
@@ -64,7 +42,7 @@ TEST(HydrusParamTables, EveryDefaultIsWithinItsTable) {
 TEST(HydrusParamTables, TheCircleFitterDeclaresEveryEstimatorSettingWithItsDefault) {
   bus::testing::NodeRig rig({&hf::register_nodes});
   const auto node = add(rig, "circle_fitter", {});
-  auto declared = by_name(*node);
+  auto declared = params_by_name(*node);
   auto want = table_defaults<hf::CircleEstimatorParams>();
   want.merge(table_defaults<hf::JointBufferParams>("joint_"));
   want.merge(table_defaults<hf::BasePoseBufferParams>("base_pose_"));
@@ -72,9 +50,9 @@ TEST(HydrusParamTables, TheCircleFitterDeclaresEveryEstimatorSettingWithItsDefau
   EXPECT_EQ(want.size(), 39u);
   for (const auto& [name, value] : want) {
     ASSERT_TRUE(declared.count(name)) << name << " is not a parameter";
-    EXPECT_EQ(number(declared[name]->default_value), value) << name;
+    EXPECT_EQ(param_number(declared[name]->default_value), value) << name;
   }
-  EXPECT_EQ(number(declared["known_radius_m"]->default_value), 0.0);  // unset
+  EXPECT_EQ(param_number(declared["known_radius_m"]->default_value), 0.0);  // unset
   EXPECT_EQ(std::get<bool>(declared["second_order_correction"]->default_value), true);
   EXPECT_EQ(std::get<std::vector<double>>(declared["range_noise_sd_m"]->default_value).size(), 10u);
 }
@@ -94,11 +72,11 @@ TEST(HydrusParamTables, ANoiseModelOfUnpairedNumbersIsRefusedByName) {
 TEST(HydrusParamTables, TheSequencerKeepsItsLooserJointToleranceAndDeclaresEverySetting) {
   bus::testing::NodeRig rig({&hf::register_nodes});
   const auto node = add(rig, "sequencer", {});
-  auto declared = by_name(*node);
+  auto declared = params_by_name(*node);
   for (const auto& [name, value] : table_defaults<hf::SequencerParams>()) {
     ASSERT_TRUE(declared.count(name)) << name << " is not a parameter";
-    EXPECT_EQ(number(declared[name]->default_value), value) << name;
+    EXPECT_EQ(param_number(declared[name]->default_value), value) << name;
   }
-  EXPECT_EQ(number(declared["joint_tolerance_s"]->default_value), 0.1);
+  EXPECT_EQ(param_number(declared["joint_tolerance_s"]->default_value), 0.1);
   EXPECT_TRUE(declared.count("joint_history_s"));
 }

@@ -8,6 +8,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <tinyline/bus/param_table_testing.hpp>
 #include <tinyline/bus/testing.hpp>
 
 #include "laser_clustering/nodes/register.hpp"
@@ -17,28 +18,11 @@ namespace lc = tinyline::laser_clustering;
 namespace bus = tinyline::bus;
 namespace common = tinyline::common;
 using ::testing::HasSubstr;
+using tinyline::bus::testing::param_number;
+using tinyline::bus::testing::params_by_name;
+using tinyline::bus::testing::table_defaults;
 
 namespace {
-
-// name -> default of every numeric or flag field in `S`'s table.
-template <class S>
-std::map<std::string, double> table_defaults() {
-  std::map<std::string, double> out;
-  S s;
-  for_each_param(s, [&out](auto& field, const common::Param& p, auto&&...) {
-    using T = std::remove_cvref_t<decltype(field)>;
-    if constexpr (std::is_arithmetic_v<T>) out[std::string(p.name)] = static_cast<double>(field);
-  });
-  return out;
-}
-
-double number(const bus::ParamValue& v) {
-  if (const auto* d = std::get_if<double>(&v)) return *d;
-  if (const auto* i = std::get_if<std::int64_t>(&v)) return static_cast<double>(*i);
-  if (const auto* b = std::get_if<bool>(&v)) return *b ? 1.0 : 0.0;
-  ADD_FAILURE() << "not a number";
-  return 0.0;
-}
 
 std::shared_ptr<bus::Node> pedicel_finder(bus::testing::NodeRig& rig, bus::NodeOptions o, std::string name = "finder") {
   o.name = std::move(name);
@@ -71,14 +55,13 @@ TEST(ParamTables, AFieldOutsideItsTableIsNamedAsInLaunchFiles) {
 TEST(ParamTables, ThePedicelFinderDeclaresEveryFieldOfItsSettingsWithTheStructsDefault) {
   bus::testing::NodeRig rig({&lc::register_nodes});
   const auto node = pedicel_finder(rig, {});
-  std::map<std::string, const bus::ParamDescriptor*> declared;
-  for (const auto& d : node->parameters()) declared[d.name] = &d;
+  auto declared = params_by_name(*node);
   auto want = table_defaults<lc::PedicelFinderParams>();
   want.merge(table_defaults<lc::TwoStageParams>());
   ASSERT_EQ(want.size(), 29u);  // 14 + 3 scissor fields of the finder; 2 + 8 + 2 of the clustering
   for (const auto& [name, value] : want) {
     ASSERT_TRUE(declared.count(name)) << name << " is not a parameter";
-    EXPECT_EQ(number(declared[name]->default_value), value) << name;
+    EXPECT_EQ(param_number(declared[name]->default_value), value) << name;
   }
   EXPECT_EQ(declared["scissor_opening_m"]->constraints.unit, "m");
   EXPECT_EQ(*declared["edge_reference_px"]->constraints.max, 16.0);
@@ -91,7 +74,7 @@ TEST(ParamTables, TheFinderSettingsALaunchFileCouldNotSetBeforeAreSettable) {
   o.param("occlusion_margin_m", 0.03).param("recentre_sd_m", 0.02);
   const auto node = pedicel_finder(rig, o);
   std::map<std::string, double> value;
-  for (const auto& d : node->parameters()) value[d.name] = std::holds_alternative<double>(d.value) ? number(d.value) : 0;
+  for (const auto& d : node->parameters()) value[d.name] = std::holds_alternative<double>(d.value) ? param_number(d.value) : 0;
   EXPECT_EQ(value["layout_miss_factor"], 0.5);
   EXPECT_EQ(value["layout_extra_factor"], 0.6);
   EXPECT_EQ(value["occlusion_margin_m"], 0.03);

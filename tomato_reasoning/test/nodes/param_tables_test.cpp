@@ -8,6 +8,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <tinyline/bus/param_table_testing.hpp>
 #include <tinyline/bus/testing.hpp>
 
 #include "tomato_reasoning/nodes/register.hpp"
@@ -17,33 +18,11 @@ namespace tr = tinyline::tomato_reasoning;
 namespace bus = tinyline::bus;
 namespace common = tinyline::common;
 using ::testing::HasSubstr;
+using tinyline::bus::testing::param_number;
+using tinyline::bus::testing::params_by_name;
+using tinyline::bus::testing::table_defaults;
 
 namespace {
-
-// name -> default of every number or flag in `S`'s table.
-template <class S>
-std::map<std::string, double> table_defaults() {
-  std::map<std::string, double> out;
-  S s;
-  for_each_param(s, [&out](auto& field, const common::Param& p, auto&&...) {
-    using T = std::remove_cvref_t<decltype(field)>;
-    if constexpr (std::is_arithmetic_v<T>) out[std::string(p.name)] = static_cast<double>(field);
-  });
-  return out;
-}
-
-double number(const bus::ParamValue& v) {
-  if (const auto* d = std::get_if<double>(&v)) return *d;
-  if (const auto* i = std::get_if<std::int64_t>(&v)) return static_cast<double>(*i);
-  if (const auto* b = std::get_if<bool>(&v)) return *b ? 1.0 : 0.0;
-  return std::numeric_limits<double>::quiet_NaN();
-}
-
-std::map<std::string, const bus::ParamDescriptor*> by_name(const bus::Node& n) {
-  std::map<std::string, const bus::ParamDescriptor*> out;
-  for (const auto& d : n.parameters()) out[d.name] = &d;
-  return out;
-}
 
 }  // namespace
 
@@ -58,14 +37,14 @@ TEST(TomatoParamTables, TheDetectorDeclaresEveryPipelineSettingWithItsDefault) {
   o.name = "detector";
   o.param("smoothing.voxel_m", 0.005).param("spheres.hypothesis", std::string("four_points"));
   const auto node = rig.add("tomato_reasoning", "tomato_detector", o);
-  auto declared = by_name(*node);
+  auto declared = params_by_name(*node);
   const auto want = table_defaults<tr::PipelineParams>();
   ASSERT_EQ(want.size(), 45u);  // every field but the gravity vector and the hypothesis word
   for (const auto& [name, value] : want) {
     ASSERT_TRUE(declared.count(name)) << name << " is not a parameter";
-    EXPECT_EQ(number(declared[name]->default_value), value) << name;
+    EXPECT_EQ(param_number(declared[name]->default_value), value) << name;
   }
-  EXPECT_EQ(number(declared["smoothing.voxel_m"]->value), 0.005);
+  EXPECT_EQ(param_number(declared["smoothing.voxel_m"]->value), 0.005);
   EXPECT_EQ(std::get<std::string>(declared["spheres.hypothesis"]->value), "four_points");
   EXPECT_EQ(std::get<std::vector<double>>(declared["gravity"]->default_value), (std::vector<double>{0, 1, 0}));
 }
@@ -93,10 +72,10 @@ TEST(TomatoParamTables, ThePickVerifierDeclaresWhereTheRobotComesFrom) {
   o.name = "verifier";
   o.param("approach_from", std::vector<double>{0.0, 0.0, -1.0});
   const auto node = rig.add("tomato_reasoning", "pick_verifier", o);
-  auto declared = by_name(*node);
+  auto declared = params_by_name(*node);
   for (const auto& [name, value] : table_defaults<tr::PickPoseParams>()) {
     ASSERT_TRUE(declared.count(name)) << name;
-    EXPECT_EQ(number(declared[name]->default_value), value) << name;
+    EXPECT_EQ(param_number(declared[name]->default_value), value) << name;
   }
   EXPECT_EQ(std::get<std::vector<double>>(declared["approach_from"]->value), (std::vector<double>{0, 0, -1}));
 }
