@@ -89,6 +89,29 @@ TEST(Files, AtomicFileReplacesOnlyOnCommit) {
   EXPECT_FALSE(fs::exists(out.string() + ".part"));
 }
 
+TEST(Files, AtomicStreamWritesItsTextOnlyOnCommitAndRefusesALinkBeforeAnyWork) {
+  const auto d = scratch("stream");
+  const auto out = d / "trials.csv";
+  spit(out, "old");
+  {
+    tinyline::files::AtomicStream s(out.string());
+    s << "seed,verdict\n" << 1 << ",aligned\n";
+    EXPECT_EQ(slurp(out), "old");
+    s.commit();
+  }
+  EXPECT_EQ(slurp(out), "seed,verdict\n1,aligned\n");
+  {
+    tinyline::files::AtomicStream s(out.string());
+    s << "half a table";
+  }  // an exception before commit(): the path keeps the last complete table
+  EXPECT_EQ(slurp(out), "seed,verdict\n1,aligned\n");
+  EXPECT_FALSE(fs::exists(out.string() + ".part"));
+  fs::create_symlink(out, d / "link.csv");
+  EXPECT_NE(error_of([&] { tinyline::files::AtomicStream s((d / "link.csv").string(), tinyline::files::named("trials")); })
+                .find("trials '" + (d / "link.csv").string() + "' is a symbolic link"),
+            std::string::npos);
+}
+
 TEST(Files, AtomicFileRefusesLinksDevicesDirectoriesAndItsInputs) {
   const auto d = scratch("refuse");
   spit(d / "target", "keep");

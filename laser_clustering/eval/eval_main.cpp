@@ -14,7 +14,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <algorithm>
 #include <iostream>
 #include <numbers>
@@ -27,6 +26,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 #include <tinyline/common/seeds.hpp>
 
 #include "harness.hpp"
@@ -116,7 +116,7 @@ std::string rate_json(const ev::Rate& r) {
 // One scan with everything the pictures show.
 void write_scan(const fs::path& path, const ev::SimulatedScan& s, const std::vector<int>& labels,
                 const std::vector<double>& filtered, const std::vector<std::string>& kind, int chosen_label) {
-  std::ofstream f(path);
+  tinyline::files::AtomicStream f(path.string());
   f << "pixel,angle_rad,range_m,filtered_m,reflectance,label,chosen,truth\n";
   for (std::size_t i = 0; i < s.scan.size(); ++i) {
     f << fmt::format("{},{:.6f},{:.5f},{:.5f},{:.4f},{},{},{}\n", i, s.scan.angle_rad[i], s.scan.range_m[i],
@@ -124,6 +124,7 @@ void write_scan(const fs::path& path, const ev::SimulatedScan& s, const std::vec
                      s.scan.reflectance.empty() ? std::nan("") : s.scan.reflectance[i], labels[i],
                      labels[i] >= 0 && labels[i] == chosen_label ? 1 : 0, kind[i]);
   }
+  f.commit();
 }
 
 // What each pixel's central ray hits in a truss scene ("target", "tomato", ...).
@@ -169,7 +170,7 @@ struct Evaluation {
   const Args& args;
   std::unique_ptr<ev::Scanner> truss_scanner, tool_scanner;
   std::string seeds;
-  std::ofstream json;
+  std::ostringstream json;  ///< summary.json, written when the run ends
 
   ev::TrussResult truss(ev::TrussCase c, const ev::TrussEvalOptions& o) const {
     return ev::run_truss_case(c, *truss_scanner, args.trials, args.seed, o);
@@ -195,7 +196,6 @@ void open_evaluation(Evaluation& e, const ScannerOptions& so) {
   e.seeds = tinyline::common::seeds::describe(
       tinyline::common::seeds::kLaserClustering, tinyline::common::seeds::seed_run(args.seed, static_cast<std::uint64_t>(args.trials)));
   std::cout << "trials per case: " << args.trials << ", " << e.seeds << "\n\n";
-  e.json.open(args.out / "summary.json");
   e.json << "{\n  \"truss_scanner\": \"" << (e.truss_scanner ? e.truss_scanner->describe() : "")
          << "\",\n  \"tool_scanner\": \"" << (e.tool_scanner ? e.tool_scanner->describe() : "")
          << "\",\n  \"trials\": " << args.trials << ",\n  \"seed\": " << args.seed << ",\n  \"seeds\": \"" << e.seeds << "\"";
@@ -207,11 +207,11 @@ void open_evaluation(Evaluation& e, const ScannerOptions& so) {
 struct TrussRecorder {
   const Args& args;
   std::string name;
-  std::ofstream csv;
+  tinyline::files::AtomicStream csv;
   int pictures = 0, failures = 0, looks = 0;
 
-  TrussRecorder(const Args& a, std::string case_name) : args(a), name(std::move(case_name)) {
-    csv.open(args.out / ("trials_" + name + ".csv"));
+  TrussRecorder(const Args& a, std::string case_name)
+      : args(a), name(std::move(case_name)), csv((args.out / ("trials_" + name + ".csv")).string()) {
     csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible,neighbour_nearer,looked,registered\n";
   }
 
@@ -237,12 +237,13 @@ struct TrussRecorder {
     const std::vector<int> none(look.scan.size(), lc::kNoise);
     const std::string stem = fmt::format("look_{}_{}", name, seed);
     write_scan(args.out / "scans" / (stem + ".csv"), look, none, {}, kind, -1);
-    std::ofstream t(args.out / "scans" / (stem + "_tomatoes.csv"));
+    tinyline::files::AtomicStream t((args.out / "scans" / (stem + "_tomatoes.csv")).string());
     t << "expected_x_m,expected_z_m,height_m,radius_m,registered,shift_x_m,shift_z_m\n";
     for (const auto& e : tomatoes) {
       t << fmt::format("{:.5f},{:.5f},{:.5f},{:.5f},{},{:.5f},{:.5f}\n", e.centre_m.x(), e.centre_m.z(), e.centre_m.y(),
                        e.radius_m, reg.ok ? 1 : 0, reg.shift_xz_m.x(), reg.shift_xz_m.y());
     }
+    t.commit();
   }
 };
 
@@ -255,6 +256,7 @@ void truss_case(Evaluation& e, const std::string& name, ev::TrussCase c) {
   const auto r = ev::run_truss_case(
       c, *e.truss_scanner, args.trials, args.seed, options,
       [&rec](const auto&... trial) { rec.trial(trial...); }, [&rec](const auto&... look) { rec.look(look...); });
+  rec.csv.commit();
   std::cout << "## " << name << " (" << e.seeds << ")\n\n| verdict | rate [95 % CI] |\n|---|---|\n"
             << "| aligned | " << rate(r.aligned) << " |\n| wrong | " << rate(r.wrong) << " |\n| out of view | "
             << rate(r.out_of_view) << " |\n| missed (in view, no move) | " << rate(r.missed) << " |\n"
@@ -431,7 +433,7 @@ void write_stick_scans(const Args& args, const std::string& material, const ev::
 
 /// One stick run (material, gap): its table row and JSON entry; the first
 /// two runs' first --pictures trials get their scans written.
-void stick_run(Evaluation& e, std::ofstream& csv, std::size_t run, const char* material, double gap_m) {
+void stick_run(Evaluation& e, std::ostream& csv, std::size_t run, const char* material, double gap_m) {
   const Args& args = e.args;
   ev::StickEvalOptions so;
   so.scene.stick_material = material;
@@ -454,7 +456,7 @@ void stick_run(Evaluation& e, std::ofstream& csv, std::size_t run, const char* m
 }
 
 void stick_case(Evaluation& e) {
-  std::ofstream csv(e.args.out / "trials_stick.csv");
+  tinyline::files::AtomicStream csv((e.args.out / "trials_stick.csv").string());
   csv << "material,seed,iou_reflectance,iou_distance_only\n";
   std::cout << "## stick (Figure 5.8 B; " << e.seeds << ")\n\n"
             << "| stick | front before the panel | distance and reflectance | distance alone |\n"
@@ -465,15 +467,16 @@ void stick_case(Evaluation& e) {
   const std::vector<std::pair<const char*, double>> runs{{"metal_pan", 0.004}, {"metal_wrench", 0.004}, {"metal_pan", 0.002},
                                                          {"metal_pan", 0.008}, {"metal_pan", 0.015}, {"metal_pan", 0.03}};
   for (std::size_t run = 0; run < runs.size(); ++run) stick_run(e, csv, run, runs[run].first, runs[run].second);
+  csv.commit();
   e.json << "\n  ]";
   std::cout << "\n";
 }
 
 void wrench_case(Evaluation& e) {
   const Args& args = e.args;
-  std::ofstream csv(args.out / "trials_wrench.csv");
+  tinyline::files::AtomicStream csv((args.out / "trials_wrench.csv").string());
   csv << "seed,outcome,true_pitch_deg,best_pitch_deg,error_deg,step_error_deg\n";
-  std::ofstream sweeps(args.out / "wrench_sweeps.csv");
+  tinyline::files::AtomicStream sweeps((args.out / "wrench_sweeps.csv").string());
   sweeps << "seed,pitch_deg,reflectance,true_pitch_deg,best_pitch_deg\n";
   int pictures = 0;
   const auto r = ev::run_wrench_case(*e.tool_scanner, args.trials, args.seed, {},
@@ -489,6 +492,8 @@ void wrench_case(Evaluation& e) {
                                                                t.best_pitch_rad / kDeg);
                                        }
                                      });
+  csv.commit();
+  sweeps.commit();
   std::cout << "## wrench alignment (5.3.2; " << e.seeds << ")\n\n"
             << "| figure | value |\n|---|---|\n"
             << fmt::format("| median pitch error | {:.2f} deg |\n| 90th percentile | {:.2f} deg |\n", r.median_error_deg,
@@ -519,12 +524,18 @@ int main(int argc, char** argv) {
     return 0;
   }
   Evaluation e{args, nullptr, nullptr, {}, {}};
-  open_evaluation(e, scanners);
-  truss_cases(e);
-  if (args.ablation && e.truss_scanner) ablation(e);
-  if (args.cases.count("stick")) stick_case(e);
-  if (args.cases.count("wrench")) wrench_case(e);
-  e.json << "\n}\n";
+  try {
+    open_evaluation(e, scanners);
+    truss_cases(e);
+    if (args.ablation && e.truss_scanner) ablation(e);
+    if (args.cases.count("stick")) stick_case(e);
+    if (args.cases.count("wrench")) wrench_case(e);
+    e.json << "\n}\n";
+    tinyline::files::write_atomically((args.out / "summary.json").string(), e.json.view());
+  } catch (const tinyline::files::FileError& err) {
+    std::cerr << "laser_clustering_eval: " << err.what() << "\n";
+    return 1;
+  }
   std::cout << "outputs in " << args.out.string() << "\n";
   return 0;
 }

@@ -8,12 +8,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
 #include <string>
 
 #include <sim/fidelity.hpp>
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 using namespace tinyline::sim;
 
@@ -124,12 +124,9 @@ int main(int argc, char** argv) {
     std::printf("\n%s\n", v.ok ? "All goals met." : "Goals missed:");
     for (const auto& f : v.failures) std::printf("  - %s\n", f.c_str());
     if (!json_path.empty()) {
-      std::ofstream o(json_path);
+      tinyline::files::AtomicStream o(json_path);
       json(o, r, m, v, sensor_path);
-      if (!o) {
-        std::cerr << "sim_fidelity: cannot write " << json_path << "\n";
-        return 1;
-      }
+      o.commit();
     }
     return v.ok ? 0 : 1;
   } catch (const std::exception& e) {

@@ -21,7 +21,6 @@
 #include <vector>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <optional>
 #include <random>
@@ -30,6 +29,7 @@
 #include <sim/rail.hpp>
 #include <sim/sensor_params.hpp>
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 namespace {
 
@@ -169,9 +169,9 @@ void run(const Options& o) {
   const std::vector<double> distances = visiting_order(o);
   const std::vector<int> pixels = sampled_pixels(params, o.pixel_step);
   const Session session = record(rail, params, distances, o.sets, pixels);
-  std::ofstream f(o.out);
-  if (!f) throw std::runtime_error("cannot write " + o.out);
+  tinyline::files::AtomicStream f(o.out);
   sim::write_calibration_csv(f, session.rows, /*with_material=*/true);
+  f.commit();
   std::cout << "wrote " << session.rows.size() << " rows (" << distances.size() << " visits x " << o.sets
             << " sets, " << pixels.size() << " pixels, sensor time 0-" << session.t_end_s << " s) to " << o.out << "\n";
 }

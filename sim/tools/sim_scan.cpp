@@ -6,7 +6,7 @@
 //
 //   sim_scan SCENE.yaml [--sensor NAME] [--time S] [--index N] [--out FILE]
 #include <cmath>
-#include <fstream>
+#include <optional>
 #include <iostream>
 #include <string>
 
@@ -14,6 +14,7 @@
 #include <sim/firmware.hpp>
 #include <sim/scene.hpp>
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 using namespace tinyline::sim;
 
@@ -44,9 +45,9 @@ int main(int argc, char** argv) {
     const SensorSet set = sensor.measure(s.world, m->T_world_sensor, t, m->params.acquisition.raw_pulses, index);
     const auto model = factory_calibration(m->params);
     const auto units = firmware_distances(set, model);  // 0.1 mm
-    std::ofstream file;
-    if (!out_path.empty()) file.open(out_path);
-    std::ostream& o = out_path.empty() ? std::cout : file;
+    std::optional<tinyline::files::AtomicStream> file;
+    if (!out_path.empty()) file.emplace(out_path);
+    std::ostream& o = file ? static_cast<std::ostream&>(*file) : std::cout;
     o.precision(7);
     o << "{\"scene\": \"" << s.name << "\", \"sensor\": \"" << m->name << "\", \"temperature_c\": " << set.temperature_c
       << ", \"pulses\": [";
@@ -67,6 +68,7 @@ int main(int argc, char** argv) {
         << (i + 1 < sensor.pixels() ? ",\n" : "\n");
     }
     o << " ]}\n";
+    if (file) file->commit();
     return o ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "sim_scan: " << e.what() << "\n";

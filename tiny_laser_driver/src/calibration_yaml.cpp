@@ -3,7 +3,6 @@
 // the file, line and field, because a silently ignored typo in a calibration
 // shows up much later as a wrong distance.
 #include <cmath>
-#include <fstream>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -471,19 +470,8 @@ std::string CalibrationModel::to_yaml() const {
 }
 
 void CalibrationModel::save(const std::string& path) const {
-  // Write beside the target and rename, so a reader never sees half a file.
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(fmt::format("{}: cannot write calibration file", path));
-    out << to_yaml();
-    out.flush();
-    if (!out) throw std::runtime_error(fmt::format("{}: write failed", path));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(fmt::format("{}: cannot replace the calibration file", path));
-  }
+  // Written beside the target and renamed: a reader never sees half a file.
+  files::write_atomically(path, to_yaml(), files::named("calibration"));
 }
 
 }  // namespace tinyline::tiny_laser_driver

@@ -7,6 +7,8 @@
 #include <memory>
 #include <stdexcept>
 
+#include <tinyline/common/files.hpp>
+
 namespace tinyline::dds::probe {
 
 const char* name(Stage s) {
@@ -66,15 +68,11 @@ std::vector<std::vector<std::int64_t>> marks() {
 }
 
 void write(const std::string& path) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    const auto all = marks();
-    for (std::size_t i = 0; i < all.size(); ++i)
-      for (std::size_t k = 0; k < all[i].size(); ++k) f << i << ' ' << k << ' ' << all[i][k] << '\n';
-    if (!f.flush()) throw std::runtime_error("cannot write probe marks to " + tmp);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename " + tmp + " to " + path);
+  files::AtomicStream f(path, files::named("probe marks"));
+  const auto all = marks();
+  for (std::size_t i = 0; i < all.size(); ++i)
+    for (std::size_t k = 0; k < all[i].size(); ++k) f << i << ' ' << k << ' ' << all[i][k] << '\n';
+  f.commit();
 }
 
 std::vector<std::vector<std::int64_t>> read(const std::string& path) {

@@ -10,6 +10,9 @@
 //                  link, a device or anything not a regular file, and the
 //                  command's own inputs; the .part file is locked while
 //                  written, so a second writer of the same path fails.
+//  AtomicStream    the same for code that writes with iostreams: the text is
+//                  kept in memory and written through an AtomicFile by
+//                  commit() (reports, CSV and JSON of the tools).
 //
 // Every error is a FileError whose message names the file and its role.
 // Header-only (POSIX) and in common, so cores, nodes and tools share it.
@@ -25,6 +28,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <sstream>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -135,6 +139,13 @@ struct OutputOptions {
   /// Its role in messages ("output", "calibration").
   std::string what = "output";
 };
+
+/// Default options with the output's role for messages ("calibration").
+inline OutputOptions named(std::string what) {
+  OutputOptions o;
+  o.what = std::move(what);
+  return o;
+}
 
 class AtomicFile {
  public:
@@ -269,5 +280,27 @@ inline void write_atomically(const std::string& path, std::string_view content, 
   f.write(content);
   f.commit();
 }
+
+/// An output stream whose text becomes the file at `path` on commit(), through
+/// an AtomicFile: until then (and if commit() is never reached, e.g. on an
+/// exception) the path keeps what it had. The destination is checked when the
+/// stream is made, so a refused path fails before any work is done.
+class AtomicStream : public std::ostringstream {
+ public:
+  explicit AtomicStream(std::string path, OutputOptions options = {})
+      : file_(std::move(path), std::move(options)) {}
+
+  const std::string& path() const { return file_.path(); }
+
+  /// Writes the text and renames it into place; throws FileError.
+  void commit() {
+    if (fail()) throw FileError(detail::quoted("output", file_.path()) + ": formatting the text failed");
+    file_.write(view());
+    file_.commit();
+  }
+
+ private:
+  AtomicFile file_;
+};
 
 }  // namespace tinyline::files
