@@ -100,9 +100,9 @@ common::Validation BladeParams::validate() const {
 
 const char* to_string(CutResult r) {
   switch (r) {
-    case CutResult::kCutTarget: return "cut target";
-    case CutResult::kCutOtherPedicel: return "cut another pedicel";
-    case CutResult::kClosedOnNothing: return "closed on nothing";
+    case CutResult::kCutTarget: return "cut_target";
+    case CutResult::kCutOtherPedicel: return "cut_other_pedicel";
+    case CutResult::kClosedOnNothing: return "closed_on_nothing";
     case CutResult::kJammed: return "jammed";
   }
   return "?";
