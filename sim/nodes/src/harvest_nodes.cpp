@@ -11,7 +11,8 @@
 //     cut leaves its world.
 // tomato_reasoning/harvest_score the harvest scored against the truss's truth
 //     as the thesis's Table 4.2 counts it: on the pick_verifier's `summary`
-//     (HarvestSummary, with the `cut_outcome`s seen before it) it logs the
+//     (HarvestSummary) and the `cut_outcome` of every pick that closed the
+//     blades (the two topics arrive in either order) it logs the
 //     row beside the thesis's and publishes `score` (HarvestScore); the
 //     demo's launch ends when it does.
 #include <algorithm>
@@ -20,6 +21,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include <tinyline/bus/node.hpp>
 #include <tinyline/msg/eigen.hpp>
@@ -190,10 +192,15 @@ class HarvestScoreNode : public bus::Node {
     class_ = truss_class(*this, declare_parameter<std::string>("truss_class", "B", "the truss_camera's class"));
     seed_ = declare_parameter("seed", 1, "the truss_camera's seed", ParamConstraints::range(0, 1 << 30));
     score_pub_ = create_publisher<msgs::HarvestScore>("score", bus::QoS::keep_last(4));
-    cut_sub_ = create_subscription<msgs::CutOutcome>("cut_outcome", bus::QoS::keep_last(64),
-                                                     [this](const msgs::CutOutcome& m) { cuts_[m.pick_rank] = m; });
-    summary_sub_ = create_subscription<msgs::HarvestSummary>(
-        "summary", bus::QoS::keep_last(4), [this](const msgs::HarvestSummary& m) { on_summary(m); });
+    cut_sub_ = create_subscription<msgs::CutOutcome>("cut_outcome", bus::QoS::keep_last(64), [this](const msgs::CutOutcome& m) {
+      cuts_[m.pick_rank] = m;
+      score_when_ready();
+    });
+    summary_sub_ = create_subscription<msgs::HarvestSummary>("summary", bus::QoS::keep_last(4),
+                                                             [this](const msgs::HarvestSummary& m) {
+                                                               summary_ = m;
+                                                               score_when_ready();
+                                                             });
   }
   void on_start() override {
     sim::TrussParams p;
@@ -213,7 +220,20 @@ class HarvestScoreNode : public bus::Node {
            std::find(c.fallen.begin(), c.fallen.end(), c.target_truth) != c.fallen.end();
   }
 
-  void on_summary(const msgs::HarvestSummary& s) {
+  // The summary and the gripper's report of every closing it counts arrive
+  // on two topics, in either order: score once both are in.
+  void score_when_ready() {
+    if (!summary_ || scored_) return;
+    for (const auto& p : summary_->picks) {
+      if (p.outcome == msgs::HarvestPick::LEFT_FOR_HUMAN) continue;  // may never have closed the blades
+      const auto it = cuts_.find(p.pick_rank);
+      if (it == cuts_.end() || it->second.attempt != p.attempts) return;
+    }
+    scored_ = true;
+    score(*summary_);
+  }
+
+  void score(const msgs::HarvestSummary& s) {
     auto out = std::make_unique<msgs::HarvestScore>();
     out->header = s.header;
     out->truss_class = std::string(1, char(class_));
@@ -254,6 +274,8 @@ class HarvestScoreNode : public bus::Node {
   int seed_ = 1;
   sim::Truss truss_;
   std::map<int, msgs::CutOutcome> cuts_;  // the last closing of each pick, by rank
+  std::optional<msgs::HarvestSummary> summary_;
+  bool scored_ = false;
   std::shared_ptr<bus::Publisher<msgs::HarvestScore>> score_pub_;
   std::shared_ptr<bus::Subscription<msgs::CutOutcome>> cut_sub_;
   std::shared_ptr<bus::Subscription<msgs::HarvestSummary>> summary_sub_;
