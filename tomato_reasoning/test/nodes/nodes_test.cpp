@@ -14,6 +14,7 @@
 
 #include <laser_clustering/nodes/register.hpp>
 #include <sim/nodes/register.hpp>
+#include <sim/scenes/truss.hpp>
 
 #include "tomato_reasoning/nodes/nodes.hpp"
 #include "tomato_reasoning/eval/scenario.hpp"
@@ -251,6 +252,91 @@ TEST(TomatoNodes, PickVerifierWaitsForTheGrippersReportAndRescansOnce) {
   EXPECT_EQ(summaries[0]->picks[0].outcome, HarvestPick::CUT_FAILURE);
   EXPECT_EQ(summaries[0]->picks[0].attempts, 2);
   EXPECT_EQ(summaries[0]->picks[0].detail, "1: cut_here -> closed_on_nothing; 2: cut_here -> jammed");
+}
+
+// harvest_score against the truss's truth: Table 4.2's columns from a summary
+// and the gripper's reports, in either order; a detected tomato without a
+// pick is said, not scored as fine.
+TEST(TomatoNodes, HarvestScoreCountsTable42AgainstTheTruth) {
+  using tinyline::tinyline_msgs::msg::CutOutcome;
+  Harness h;
+  bus::NodeOptions o;
+  o.name = "score";
+  o.param("truss_class", std::string("A")).param("seed", std::int64_t(4));
+  h.add("tomato_reasoning", "harvest_score", o);
+  auto& scores = h.collect<HarvestScore>("score", bus::QoS::keep_last(10));
+  auto summary = h.io->create_publisher<HarvestSummary>("summary");
+  auto outcome = h.io->create_publisher<CutOutcome>("cut_outcome");
+  h.ex.advance_to(bus::Time::from_seconds(1.0));  // starts the node (it builds the truss)
+  h.ex.spin_until_idle();
+  tinyline::sim::TrussParams tp;
+  tp.complexity = tinyline::sim::TrussClass::kA;
+  tp.seed = 4;
+  const auto truss = tinyline::sim::make_truss(tp);
+  ASSERT_EQ(truss.tomatoes.size(), 2u);
+  auto pick = [&](int rank, int truth, std::uint8_t what, std::uint8_t attempts) {
+    HarvestPick p;
+    p.tomato = rank;
+    p.pick_rank = rank;
+    const Eigen::Vector3d c = truss.T_world_camera.inverse() * truss.tomatoes[std::size_t(truth)].centre_m;
+    p.centre.x = c.x(), p.centre.y = c.y(), p.centre.z = c.z();
+    p.radius_m = truss.tomatoes[std::size_t(truth)].radius_m;
+    p.outcome = what;
+    p.attempts = attempts;
+    return p;
+  };
+  auto report = [&](int rank, int truth, std::uint8_t result, std::uint8_t attempt) {
+    auto c = std::make_unique<CutOutcome>();
+    c->pick_rank = rank;
+    c->attempt = attempt;
+    c->result = result;
+    c->target_truth = truth;
+    if (result == CutOutcome::CUT_TARGET) c->fallen = {truth};
+    outcome->publish(std::move(c));
+    h.ex.spin_until_idle();
+  };
+  auto s = std::make_unique<HarvestSummary>();
+  s->detected = 2;
+  s->picks = {pick(0, 1, HarvestPick::PICKED, 2), pick(1, 0, HarvestPick::CUT_FAILURE, 1)};
+  report(0, 1, CutOutcome::CLOSED_ON_NOTHING, 1);  // attempt 1 of pick 0
+  summary->publish(std::move(s));
+  h.ex.spin_until_idle();
+  EXPECT_TRUE(scores.empty());  // pick 0's second closing and pick 1's are not in yet
+  report(0, 1, CutOutcome::CUT_TARGET, 2);
+  EXPECT_TRUE(scores.empty());
+  report(1, 0, CutOutcome::JAMMED, 1);
+  ASSERT_EQ(scores.size(), 1u);
+  const HarvestScore& sc = *scores[0];
+  EXPECT_TRUE(sc.accounted) << sc.reason;
+  EXPECT_EQ(sc.trials, 2u);
+  EXPECT_EQ(sc.detected, 2u);
+  EXPECT_EQ(sc.picked_first, 0u);
+  EXPECT_EQ(sc.picked_second, 1u);
+  EXPECT_EQ(sc.cut_failures, 1u);
+  EXPECT_EQ(sc.human, 0u);
+  EXPECT_EQ(sc.truss_class, "A");
+
+  // Another run: one of two detected tomatoes has no pick, and the other is
+  // not where any truss tomato is (not detected, left for a human).
+  Harness h2;
+  h2.add("tomato_reasoning", "harvest_score", o);
+  auto& scores2 = h2.collect<HarvestScore>("score", bus::QoS::keep_last(10));
+  auto summary2 = h2.io->create_publisher<HarvestSummary>("summary");
+  h2.ex.advance_to(bus::Time::from_seconds(1.0));
+  h2.ex.spin_until_idle();
+  auto bad = std::make_unique<HarvestSummary>();
+  bad->detected = 2;
+  HarvestPick nowhere = pick(0, 0, HarvestPick::LEFT_FOR_HUMAN, 1);
+  nowhere.centre.z += 0.5;
+  bad->picks = {nowhere};
+  summary2->publish(std::move(bad));
+  h2.ex.spin_until_idle();
+  ASSERT_EQ(scores2.size(), 1u);
+  EXPECT_FALSE(scores2[0]->accounted);
+  EXPECT_EQ(scores2[0]->reason, "tomato 1 has no pick");
+  EXPECT_EQ(scores2[0]->detected, 0u);
+  EXPECT_EQ(scores2[0]->human, 2u);
+  EXPECT_TRUE(h2.log->contains(bus::LogLevel::Error, "unaccounted"));
 }
 
 // The thesis's robot took two hand-camera views (4.5): the camera publishes
