@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""The harvesting demo's picture: the camera's view of the truss with the
-fitted spheres, expected pedicel directions, pick order and the laser
-verification's cuts, read back from the MCAP the demo recorded
-(launch/tomato_harvest.launch.yaml).
+"""The harvesting demo's picture: the camera's first view of the truss with
+the fitted spheres, expected pedicel directions, pick order, the laser
+verification's cuts, each pick's outcome and the harvest's score, read back
+from the MCAP the demo recorded (launch/tomato_harvest.launch.yaml).
 
 usage: .venv/bin/python scripts/plots/tomato_scene.py BAG.mcap [--out tomato_harvest.png]
 """
@@ -18,21 +18,27 @@ from mcap.reader import make_reader  # noqa: E402
 from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 
 OUTCOMES = {0: "cut here", 1: "moved", 2: "nothing found", 3: "out of view", 4: "failed"}
+PICKS = {0: "picked", 1: "cut failure", 2: "cut another's", 3: "left"}
 
 
 def first_messages(path):
-    cloud, tomatoes, verifications = None, None, []
+    cloud, tomatoes, verifications, summary, score = None, None, [], None, None
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for _schema, channel, _message, m in reader.iter_decoded_messages(
-                topics=["/camera/points", "/tomatoes", "/harvest/verification"]):
+                topics=["/camera/points", "/tomatoes", "/harvest/verification", "/harvest/summary",
+                        "/harvest/score"]):
             if channel.topic == "/camera/points" and cloud is None:
                 cloud = m
             elif channel.topic == "/tomatoes" and tomatoes is None and len(m.tomatoes) > 0:
                 tomatoes = m
             elif channel.topic == "/harvest/verification":
                 verifications.append(m)
-    return cloud, tomatoes, verifications
+            elif channel.topic == "/harvest/summary":
+                summary = m
+            elif channel.topic == "/harvest/score":
+                score = m
+    return cloud, tomatoes, verifications, summary, score
 
 
 def decode_cloud(m):
@@ -60,7 +66,7 @@ def main():
     ap.add_argument("bag")
     ap.add_argument("--out", default="tomato_harvest.png")
     args = ap.parse_args()
-    cloud, tomatoes, verifications = first_messages(args.bag)
+    cloud, tomatoes, verifications, summary, score = first_messages(args.bag)
     if cloud is None:
         sys.exit(f"{args.bag}: no /camera/points message")
     xyz, img = decode_cloud(cloud)
@@ -92,7 +98,18 @@ def main():
         colour = "cyan" if m.outcome in (0, 1) else "magenta"
         ax.plot(cu, cv, "o", mfc="none", mec=colour, ms=10, mew=2)
         ax.text(cu + 8, cv, OUTCOMES.get(m.outcome, "?"), color=colour, fontsize=8)
-    ax.set_title(title + "\nyellow: spheres, planned cuts (x); green: expected pedicels; cyan: cuts after laser verification")
+    if summary is not None:
+        for p in summary.picks:
+            c = np.array([p.centre.x, p.centre.y, p.centre.z])
+            u, v = project(c)
+            colour = "lime" if p.outcome == 0 else "orange"
+            ax.text(u, v + fx * p.radius_m / c[2] + 12, f"{PICKS.get(p.outcome, '?')} ({p.attempts})", color=colour,
+                    ha="center", fontsize=10, weight="bold")
+    if score is not None:
+        title += (f"\nclass {score.truss_class} seed {score.seed}: trials {score.trials}, SD {score.detected}, "
+                  f"SP(1) {score.picked_first}, SP(2) {score.picked_second}, HS {score.human}, CF {score.cut_failures}")
+    ax.set_title(title + "\nyellow: spheres, planned cuts (x); green: expected pedicels; cyan: cuts after laser "
+                 "verification;\nbelow each fruit: its pick's outcome (attempts)", fontsize=10)
     fig.tight_layout()
     fig.savefig(args.out, dpi=110)
     print(f"wrote {args.out}")

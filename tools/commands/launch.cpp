@@ -1,4 +1,4 @@
-// tinyline launch FILE [name:=value ...] [--duration S] [--threads N] [--no-table] [--process NAME]
+// tinyline launch FILE [name:=value ...] [--duration S] [--until TOPIC] [--threads N] [--no-table] [--process NAME]
 //
 // One process runs the nodes without a process group; each group gets a child
 // process (this same executable with --process NAME), supervised here. Topics
@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <thread>
 #include <filesystem>
 #include <memory>
 
@@ -28,6 +29,7 @@ struct LaunchArgs {
   std::string file;
   std::vector<std::string> assignments;  // name:=value
   std::optional<double> duration_s;
+  std::optional<std::string> until_topic;
   int threads = 2;
   bool no_table = false;
   bool check = false;
@@ -241,6 +243,13 @@ void wait_before_start(const LaunchArgs& a, const Loaded& l, const ProcessPlan& 
   supervisor.open_gates();
 }
 
+/// A message was published on `topic` in this process.
+bool published_on(const bus::Graph& graph, const std::string& topic) {
+  for (const auto& t : graph.topics())
+    if (t.name == topic) return t.published > 0;
+  return false;
+}
+
 int run_launch(const LaunchArgs& a) {
   auto ctx = bus::Context::create();
   Loaded l;
@@ -274,15 +283,26 @@ int run_launch(const LaunchArgs& a) {
     if (bridge) bridge->expect_departures();  // the other processes are stopping too
     supervisor->stop_all();
   };
-  if (!a.process && l.graph.has_groups()) {
+  const bool supervising = !a.process && l.graph.has_groups();
+  if (supervising || a.until_topic) {
     ro.tick = [&](std::chrono::milliseconds budget) {
-      supervisor->poll(budget);
-      return true;
+      if (supervising) {
+        supervisor->poll(budget);
+      } else {
+        std::this_thread::sleep_for(budget);  // a CLI waiting for the end, not a test
+      }
+      return !(a.until_topic && published_on(ctx->graph(), *a.until_topic));
     };
   }
-  const int rc = run_nodes(ctx, l.nodes, ro);
+  int rc = run_nodes(ctx, l.nodes, ro);
   if (bridge) fmt::print("{}", dds_table(bridge->stats()));
   supervisor.reset();
+  if (a.until_topic && !published_on(ctx->graph(), *a.until_topic) && !interrupted()) {
+    // The guard: the run was to end on that message and did not.
+    fmt::print(stderr, "error: {}: no message on {} before the run ended{}\n", a.file, *a.until_topic,
+               a.duration_s ? fmt::format(" (--duration {} s)", *a.duration_s) : std::string());
+    rc = 1;
+  }
   return rc;
 }
 
@@ -291,6 +311,11 @@ CommandRun setup_launch(CLI::App& cmd) {
   cmd.add_option("file", a->file, "the launch file")->required();
   cmd.add_option("args", a->assignments, "launch arguments, name:=value")->type_name("NAME:=VALUE");
   cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(common::seconds());
+  cmd.add_option("--until", a->until_topic,
+                 "end when a message is published on TOPIC (absolute, in this process); with --duration as a guard: "
+                 "ending without that message is an error (exit 1)")
+      ->type_name("TOPIC")
+      ->check([](const std::string& t) { return !t.empty() && t[0] == '/' ? std::string() : "must be an absolute topic name (/...)"; });
   cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(common::threads());
   cmd.add_flag("--no-table", a->no_table, "no live table");
   cmd.add_flag("--check", a->check, "validate the file, build its nodes and load their inputs, then exit");
@@ -313,8 +338,8 @@ CommandRun setup_launch(CLI::App& cmd) {
       ->check(common::non_negative());
   cmd.footer(
       "Runs the nodes of a launch file (ROS 2 YAML launch shape) and shows a live table of topics with rates and\n"
-      "drops. Stops on Ctrl-C or after --duration. Nothing starts unless the whole file is valid and every node's\n"
-      "input files load: errors name the file, line and reason.\n\n"
+      "drops. Stops on Ctrl-C, after --duration, or at the first message on the --until topic. Nothing starts\n"
+      "unless the whole file is valid and every node's input files load: errors name the file, line and reason.\n\n"
       "Nodes in a process group (group: {process: NAME, ...} or node: {process: NAME}) run in their own process,\n"
       "started and supervised here: their output comes back prefixed with [NAME], a crashed one is restarted if a\n"
       "node in it says respawn: true, Ctrl-C stops them all. Topics used by several processes, and those the file\n"

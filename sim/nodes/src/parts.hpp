@@ -24,8 +24,10 @@ void register_gripper_nodes(bus::NodeRegistry& registry);
 void register_port(bus::NodeRegistry& registry);
 /// hydrus_fitting/hydrus_sim (with hydrus_fitting).
 void register_hydrus_nodes(bus::NodeRegistry& registry);
-/// tomato_reasoning/truss_camera, tomato_reasoning/hand_laser (with
+/// tomato_reasoning/truss_camera, and with it register_harvest_nodes() (with
 /// tomato_reasoning's evaluation, which needs laser_clustering and the driver).
 void register_truss_nodes(bus::NodeRegistry& registry);
+/// tomato_reasoning/sim_gripper, tomato_reasoning/harvest_score.
+void register_harvest_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::sim::nodes

@@ -7,6 +7,7 @@
 #include <tinyline/common/param_table.hpp>
 
 #include "tomato_reasoning/branch_clustering.hpp"
+#include "tomato_reasoning/harvest.hpp"
 #include "tomato_reasoning/hsi_filter.hpp"
 #include "tomato_reasoning/pick_pose.hpp"
 #include "tomato_reasoning/pipeline.hpp"
@@ -130,6 +131,13 @@ void for_each_param(S& p, V&& v) {
   v(p.view_clearance_m, {"view_clearance_m", "m", 0.0, 0.1, "the laser's view of the throat clears other fruit by this"});
   v(p.max_turn_deg, {"max_turn_deg", "deg", 0.0, 180.0,
                      "turn the picking pose about the pedicel by up to this to see past a fruit (0: straight approach)"});
+}
+
+template <class S, class V>
+  requires common::SettingsOf<S, HarvestParams>
+void for_each_param(S& p, V&& v) {
+  v(p.max_attempts, {"max_attempts", "", 1, 5,
+                     "laser scans per pick: the picking pose, then re-scans after a move or an empty closing"});
 }
 
 }  // namespace tinyline::tomato_reasoning

@@ -329,16 +329,22 @@ void TomatoDetectorNode::publish(std::unique_ptr<msgs::TomatoEstimates> out) {
 // ---------------------------------------------------------------------------- pick_verifier
 
 PickVerifierNode::PickVerifierNode(bus::NodeOptions o) : Node(std::move(o)) {
-  bus::declare_params(*this, params_);  // the table: tomato_reasoning/param_tables.hpp
+  bus::declare_params(*this, params_);  // the tables: tomato_reasoning/param_tables.hpp
+  bus::declare_params(*this, harvest_);
+  require_valid(validate(harvest_).within("harvest"));
   max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)", ParamConstraints::range(0, 1000));
   pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pick_pose");
   expected_pub_ = create_publisher<geometry_msgs::msg::PointStamped>("expected_pedicel");
   result_pub_ = create_publisher<msgs::PickVerification>("verification", bus::QoS::keep_last(64));
+  cut_pub_ = create_publisher<msgs::CutCommand>("cut", bus::QoS::keep_last(8));
+  summary_pub_ = create_publisher<msgs::HarvestSummary>("summary", bus::QoS::keep_last(4));
   markers_pub_ = create_publisher<visualization_msgs::msg::MarkerArray>("markers");
   tomatoes_sub_ = create_subscription<msgs::TomatoEstimates>(
       "tomatoes", bus::QoS::keep_last(2), [this](const msgs::TomatoEstimates& m) { on_tomatoes(m); });
   pedicel_sub_ = create_subscription<msgs::PedicelDetection>(
       "pedicel", bus::QoS::keep_last(5), [this](const msgs::PedicelDetection& m) { on_pedicel(m); });
+  cut_sub_ = create_subscription<msgs::CutOutcome>("cut_outcome", bus::QoS::keep_last(8),
+                                                   [this](const msgs::CutOutcome& m) { on_cut_outcome(m); });
 }
 
 void PickVerifierNode::on_tomatoes(const msgs::TomatoEstimates& m) {
@@ -379,20 +385,20 @@ void PickVerifierNode::next_pick() {
     s.radius_m = o.radius_m;
     fruit.push_back(s);
   }
-  pose_ = picking_pose(eig(e.cut_point), eig(e.cut_direction), fruit, params_);
-  pose_.tomato = pose_.ok() ? k : -1;
-  if (!pose_.ok()) {
-    msgs::PickVerification v;
-    v.header = m.header;
-    v.tomato = k;
-    v.pick_rank = int(rank_);
-    v.outcome = msgs::PickVerification::FAILED;
-    v.reason = "no picking pose: " + pose_.reason;
-    results_.push_back(v);
-    result_pub_->publish(std::make_unique<msgs::PickVerification>(v));
-    ++rank_;
-    return next_pick();
+  PickPose pose = picking_pose(eig(e.cut_point), eig(e.cut_direction), fruit, params_);
+  pose.tomato = pose.ok() ? k : -1;
+  attempts_.emplace(pose, harvest_);
+  if (!pose.ok()) {
+    Verification v;
+    v.outcome = Verification::Outcome::kFailed;
+    v.reason = "no picking pose: " + pose.reason;
+    publish_verification(v);
+    return end_pick(PickOutcome::kLeftForHuman, "1: " + v.reason);
   }
+  scan();
+}
+
+void PickVerifierNode::scan() {
   // The finder's prior: the pedicel at the blade throat (laser frame).
   auto expected = std::make_unique<geometry_msgs::msg::PointStamped>();
   expected->header.stamp = now().to_msg();
@@ -401,15 +407,15 @@ void PickVerifierNode::next_pick() {
   expected_pub_->publish(std::move(expected));
   auto p = std::make_unique<geometry_msgs::msg::PoseStamped>();
   p->header.stamp = now().to_msg();
-  p->header.frame_id = m.header.frame_id;
-  p->pose = to_pose(pose_.T_ref_laser);
-  waiting_ = true;
+  p->header.frame_id = estimates_->header.frame_id;
+  p->pose = to_pose(attempts_->pose().T_ref_laser);
+  waiting_ = Waiting::kScan;
   pose_pub_->publish(std::move(p));
 }
 
 void PickVerifierNode::on_pedicel(const msgs::PedicelDetection& d) {
-  if (!waiting_ || !estimates_) return;
-  waiting_ = false;
+  if (waiting_ != Waiting::kScan || !estimates_) return;
+  waiting_ = Waiting::kNothing;
   FinderAnswer a;
   switch (d.outcome) {
     case msgs::PedicelDetection::CUT_HERE: a.outcome = FinderAnswer::Outcome::kCutHere; break;
@@ -424,15 +430,21 @@ void PickVerifierNode::on_pedicel(const msgs::PedicelDetection& d) {
   a.pedicel_z_m = d.position.z;
   a.confidence = d.confidence;
   a.reason = d.reason;
-  const Verification v = verify(pose_, a, params_);
-  const auto& m = *estimates_;
+  const Verification v = verify(attempts_->pose(), a, params_);
+  publish_verification(v);
+  act(attempts_->after_verification(v));
+}
+
+void PickVerifierNode::publish_verification(const Verification& v) {
+  const PickPose& pose = attempts_->pose();
   msgs::PickVerification out;
-  out.header.stamp = d.header.stamp;
-  out.header.frame_id = m.header.frame_id;
-  out.tomato = pose_.tomato;
+  out.header.stamp = now().to_msg();
+  out.header.frame_id = estimates_->header.frame_id;
+  out.tomato = estimates_->pick_order[rank_];
   out.pick_rank = int(rank_);
-  out.laser_pose = to_pose(pose_.T_ref_laser);
-  out.planned_cut = to_point(pose_.cut_point);
+  out.attempt = std::uint8_t(attempts_->attempt());
+  out.laser_pose = to_pose(pose.T_ref_laser);
+  out.planned_cut = to_point(pose.cut_point);
   out.outcome = std::uint8_t(v.outcome);
   static_assert(int(Verification::Outcome::kCutHere) == msgs::PickVerification::CUT_HERE);
   static_assert(int(Verification::Outcome::kFailed) == msgs::PickVerification::FAILED);
@@ -440,20 +452,74 @@ void PickVerifierNode::on_pedicel(const msgs::PedicelDetection& d) {
   out.move = vec(v.move);
   out.cut_point = to_point(v.cut_point);
   out.confidence = v.confidence;
-  logger().info("pick {} (tomato {}): {}{} ({})", rank_ + 1, pose_.tomato, to_string(v.outcome),
+  logger().info("pick {} (tomato {}), attempt {}: {}{} ({})", rank_ + 1, out.tomato, out.attempt, to_string(v.outcome),
                 v.outcome == Verification::Outcome::kMove ? " by " + std::to_string(int(std::lround(1000 * v.move.norm()))) + " mm" : "",
                 v.reason);
-  if (markers_pub_->subscription_count() > 0) {
+  if (markers_pub_->subscription_count() > 0 && pose.ok()) {
     auto mk = std::make_unique<visualization_msgs::msg::MarkerArray>();
     std_msgs::msg::Header h = out.header;
-    const int id = int(rank_);
-    const Eigen::Vector3d o = pose_.T_ref_laser.translation();
-    mk->markers.push_back(arrow(h, "hand_laser", id, o, pose_.cut_point, colour(0.2f, 0.9f, 0.9f), 0.002));
-    if (v.will_cut()) mk->markers.push_back(arrow(h, "verified_cut", id, pose_.cut_point, v.cut_point, colour(1, 0.4f, 1), 0.002));
+    const int id = int(2 * rank_) + out.attempt - 1;
+    const Eigen::Vector3d o = pose.T_ref_laser.translation();
+    mk->markers.push_back(arrow(h, "hand_laser", id, o, pose.cut_point, colour(0.2f, 0.9f, 0.9f), 0.002));
+    if (v.will_cut()) mk->markers.push_back(arrow(h, "verified_cut", id, pose.cut_point, v.cut_point, colour(1, 0.4f, 1), 0.002));
     markers_pub_->publish(std::move(mk));
   }
   results_.push_back(out);
   result_pub_->publish(std::make_unique<msgs::PickVerification>(out));
+}
+
+void PickVerifierNode::act(const GripperStep& step) {
+  switch (step.action) {
+    case GripperStep::Action::kRescan: return scan();
+    case GripperStep::Action::kDone: return end_pick(step.outcome, attempts_->detail());
+    case GripperStep::Action::kCut: break;
+  }
+  const int k = estimates_->pick_order[rank_];
+  const auto& e = estimates_->tomatoes[std::size_t(k)];
+  auto c = std::make_unique<msgs::CutCommand>();
+  c->header.stamp = now().to_msg();
+  c->header.frame_id = estimates_->header.frame_id;
+  c->tomato = k;
+  c->pick_rank = int(rank_);
+  c->attempt = std::uint8_t(attempts_->attempt());
+  c->laser_pose = to_pose(step.T_ref_laser);
+  c->throat_z_m = params_.throat_z_m;
+  c->target_centre = e.centre;
+  c->target_radius_m = e.radius_m;
+  waiting_ = Waiting::kCut;
+  cut_pub_->publish(std::move(c));
+}
+
+void PickVerifierNode::on_cut_outcome(const msgs::CutOutcome& m) {
+  if (waiting_ != Waiting::kCut || !estimates_ || m.pick_rank != int(rank_)) return;
+  waiting_ = Waiting::kNothing;
+  BladeResult r = BladeResult::kJammed;
+  switch (m.result) {
+    case msgs::CutOutcome::CUT_TARGET: r = BladeResult::kCutTarget; break;
+    case msgs::CutOutcome::CUT_OTHER_PEDICEL: r = BladeResult::kCutOtherPedicel; break;
+    case msgs::CutOutcome::CLOSED_ON_NOTHING: r = BladeResult::kClosedOnNothing; break;
+    default: r = BladeResult::kJammed; break;
+  }
+  logger().info("pick {} (tomato {}), attempt {}: the blades closed: {}{}", rank_ + 1, m.tomato, m.attempt, to_string(r),
+                m.object.empty() ? "" : " on " + m.object);
+  act(attempts_->after_cut(r));
+}
+
+void PickVerifierNode::end_pick(PickOutcome outcome, const std::string& detail) {
+  const int k = estimates_->pick_order[rank_];
+  const auto& e = estimates_->tomatoes[std::size_t(k)];
+  msgs::HarvestPick p;
+  p.tomato = k;
+  p.pick_rank = int(rank_);
+  p.centre = e.centre;
+  p.radius_m = e.radius_m;
+  p.attempts = std::uint8_t(attempts_->attempt());
+  p.outcome = std::uint8_t(outcome);
+  static_assert(int(PickOutcome::kPicked) == msgs::HarvestPick::PICKED);
+  static_assert(int(PickOutcome::kLeftForHuman) == msgs::HarvestPick::LEFT_FOR_HUMAN);
+  p.detail = detail;
+  picks_.push_back(p);
+  attempts_.reset();
   ++rank_;
   next_pick();
 }
@@ -461,15 +527,23 @@ void PickVerifierNode::on_pedicel(const msgs::PedicelDetection& d) {
 void PickVerifierNode::summary() {
   if (done_) return;
   done_ = true;
-  int cut = 0, moved = 0, nothing = 0;
-  for (const auto& r : results_) {
-    cut += r.outcome == msgs::PickVerification::CUT_HERE;
-    moved += r.outcome == msgs::PickVerification::MOVE;
-    nothing += r.outcome != msgs::PickVerification::CUT_HERE && r.outcome != msgs::PickVerification::MOVE;
+  int by_outcome[4] = {0, 0, 0, 0}, second = 0;
+  logger().info("harvest: {} tomatoes, pick by pick:", estimates_->tomatoes.size());
+  for (const auto& p : picks_) {
+    by_outcome[p.outcome] += 1;
+    second += p.outcome == msgs::HarvestPick::PICKED && p.attempts == 2;
+    logger().info("  pick {}: tomato {}, {} attempt(s): {} ({})", p.pick_rank + 1, p.tomato, p.attempts,
+                  to_string(PickOutcome(p.outcome)), p.detail);
   }
-  logger().info("harvest summary: {} tomatoes, {} picks verified by the hand laser: {} cut as planned, {} after a move, "
-                "{} nothing found",
-                estimates_->tomatoes.size(), results_.size(), cut, moved, nothing);
+  logger().info("harvest summary: {} tomatoes, {} picks: {} picked ({} at the second attempt), {} cut failures, "
+                "{} cut another's pedicel, {} left for a human",
+                estimates_->tomatoes.size(), picks_.size(), by_outcome[0], second, by_outcome[1], by_outcome[2], by_outcome[3]);
+  auto out = std::make_unique<msgs::HarvestSummary>();
+  out->header.stamp = now().to_msg();
+  out->header.frame_id = estimates_->header.frame_id;
+  out->detected = std::uint32_t(estimates_->tomatoes.size());
+  out->picks = picks_;
+  summary_pub_->publish(std::move(out));
 }
 
 }  // namespace tinyline::tomato_reasoning::nodes
@@ -480,7 +554,8 @@ void register_nodes(bus::NodeRegistry& r) {
   r.add<nodes::TomatoDetectorNode>("tomato_reasoning", "tomato_detector",
                                    "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
   r.add<nodes::PickVerifierNode>("tomato_reasoning", "pick_verifier",
-                                 "picking poses in order, the hand laser's pedicel finding -> cut here / move / nothing (4.4)");
+                                 "the harvest in pick order: picking poses, the hand laser's pedicel finding -> cut here / move / nothing (4.4), "
+                                 "re-scans, closing the scissors; a summary when every tomato had its pick");
   r.add<nodes::RgbdFolderCameraNode>("tomato_reasoning", "rgbd_folder_camera",
                                      "a folder of RGB-D frames (colour + 16-bit depth PNG + intrinsics) played as a camera: cloud");
 }

@@ -8,7 +8,7 @@ namespace tinyline::sim {
 
 /// Registers sim/virtual_sensor and sim/scene_truth; laser_clustering/
 /// sim_gripper_pitch; with the packages in the build, hydrus_fitting/
-/// hydrus_sim and tomato_reasoning/truss_camera and hand_laser (under the
+/// hydrus_sim and tomato_reasoning/truss_camera, sim_gripper and harvest_score (under the
 /// names of the packages they simulate for); and the driver's `sim:` port
 /// scheme (sim/nodes/port.hpp). The `tinyline` tool calls it with every
 /// package's register_nodes().

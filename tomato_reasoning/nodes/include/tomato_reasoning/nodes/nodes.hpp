@@ -11,13 +11,18 @@
 //                  `cloud`'s frame, as the kinematics and the hand-camera
 //                  calibration give it); the three with the same stamp make
 //                  one detection, in `cloud`'s frame.
-// pick_verifier    tomatoes -> for each tomato in pick order: the hand
-//                  laser's picking pose (`pick_pose`, PoseStamped) and the
-//                  expected pedicel in the laser's frame (`expected_pedicel`,
-//                  for laser_clustering's pedicel_finder); then the finder's
-//                  answer (`pedicel`) -> `verification` (PickVerification:
-//                  cut here, move by this much, or nothing found), markers,
-//                  and a summary in the log when every pick is verified.
+// pick_verifier    tomatoes -> the harvest, tomato by tomato in pick order
+//                  (thesis 4.4-4.5): the hand laser's picking pose
+//                  (`pick_pose`, PoseStamped) and the expected pedicel in the
+//                  laser's frame (`expected_pedicel`, for laser_clustering's
+//                  pedicel_finder); the finder's answer (`pedicel`) ->
+//                  `verification` (PickVerification: cut here, move by this
+//                  much, or nothing found); then, as harvest.hpp decides, a
+//                  re-scan after the move (`pick_pose` again), or closing the
+//                  scissors (`cut`, CutCommand) and the gripper's report
+//                  (`cut_outcome`, CutOutcome). When every detected tomato
+//                  has had its pick: `summary` (HarvestSummary) and the
+//                  per-pick outcomes in the log.
 #pragma once
 
 #include <memory>
@@ -29,12 +34,16 @@
 #include <tinyline/msg/geometry_msgs/point_stamped.hpp>
 #include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
 #include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
+#include <tinyline/msg/tinyline_msgs/cut_command.hpp>
+#include <tinyline/msg/tinyline_msgs/cut_outcome.hpp>
+#include <tinyline/msg/tinyline_msgs/harvest_summary.hpp>
 #include <tinyline/msg/tinyline_msgs/pedicel_detection.hpp>
 #include <tinyline/msg/tinyline_msgs/pick_verification.hpp>
 #include <tinyline/msg/tinyline_msgs/tomato_estimates.hpp>
 #include <tinyline/msg/visualization_msgs/marker_array.hpp>
 
 #include "tomato_reasoning/cloud.hpp"
+#include "tomato_reasoning/harvest.hpp"
 #include "tomato_reasoning/pick_pose.hpp"
 #include "tomato_reasoning/pipeline.hpp"
 
@@ -79,21 +88,33 @@ class PickVerifierNode : public bus::Node {
  private:
   void on_tomatoes(const tinyline_msgs::msg::TomatoEstimates& m);
   void on_pedicel(const tinyline_msgs::msg::PedicelDetection& m);
+  void on_cut_outcome(const tinyline_msgs::msg::CutOutcome& m);
   void next_pick();
+  void scan();                        ///< at the current attempt's pose
+  void act(const GripperStep& step);  ///< cut, re-scan, or end the pick
+  void end_pick(PickOutcome outcome, const std::string& detail);
+  void publish_verification(const Verification& v);
   void summary();
   PickPoseParams params_;
+  HarvestParams harvest_;
   int max_picks_ = 0;
   std::optional<tinyline_msgs::msg::TomatoEstimates> estimates_;
   std::size_t rank_ = 0;
-  bool waiting_ = false, done_ = false;
-  PickPose pose_;
+  enum class Waiting { kNothing, kScan, kCut };
+  Waiting waiting_ = Waiting::kNothing;
+  bool done_ = false;
+  std::optional<PickAttempts> attempts_;
   std::vector<tinyline_msgs::msg::PickVerification> results_;
+  std::vector<tinyline_msgs::msg::HarvestPick> picks_;
   std::shared_ptr<bus::Publisher<geometry_msgs::msg::PoseStamped>> pose_pub_;
   std::shared_ptr<bus::Publisher<geometry_msgs::msg::PointStamped>> expected_pub_;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::PickVerification>> result_pub_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::CutCommand>> cut_pub_;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::HarvestSummary>> summary_pub_;
   std::shared_ptr<bus::Publisher<visualization_msgs::msg::MarkerArray>> markers_pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::TomatoEstimates>> tomatoes_sub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::PedicelDetection>> pedicel_sub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::CutOutcome>> cut_sub_;
 };
 
 }  // namespace tinyline::tomato_reasoning::nodes

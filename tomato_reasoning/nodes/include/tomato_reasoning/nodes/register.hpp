@@ -5,8 +5,8 @@
 
 namespace tinyline::tomato_reasoning {
 
-/// tomato_detector, pick_verifier, rgbd_folder_camera. (The demo's simulated truss_camera and
-/// hand_laser come with the simulator's register_nodes().)
+/// tomato_detector, pick_verifier, rgbd_folder_camera. (The demo's simulated truss_camera,
+/// sim_gripper and harvest_score come with the simulator's register_nodes().)
 void register_nodes(bus::NodeRegistry& registry);
 
 }  // namespace tinyline::tomato_reasoning
