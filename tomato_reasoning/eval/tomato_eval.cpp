@@ -100,7 +100,7 @@ struct Request {
   std::vector<std::uint64_t> seeds;
   std::string out_dir;
   std::vector<std::string> variants;
-  std::vector<std::pair<std::string, std::string>> sets, verify_sets;
+  std::vector<std::pair<std::string, std::string>> sets, verify_sets, harvest_sets;
   std::vector<double> kappas;
   bool quiet = false, verify = false, fit_kappa = false, closed_loop = false, harvest = false;
   eval::ScenarioOptions scenario;
@@ -114,7 +114,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
                "tomato_eval"};
   app.footer(lists_for_help());
   std::string seeds_text;
-  std::vector<std::string> sets, verify_sets;
+  std::vector<std::string> sets, verify_sets, harvest_sets;
   std::vector<double> pose_noise;
   app.add_option("--classes", r.classes, "truss complexity classes, comma-separated")
       ->delimiter(',')
@@ -158,6 +158,8 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   app.add_flag("--harvest", r.harvest,
                "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
                "truss), written to DIR/harvest.csv");
+  app.add_option("--harvest-set", harvest_sets,
+                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=1), repeatable");
   app.add_flag("--quiet", r.quiet, "no per-truss lines");
   bool tuning = false;
   app.add_flag("--tuning", tuning,
@@ -168,6 +170,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     r.seeds = parse_seeds(seeds_text);
     for (const auto& kv : sets) r.sets.push_back(key_value("--set", kv));
     for (const auto& kv : verify_sets) r.verify_sets.push_back(key_value("--verify-set", kv));
+    for (const auto& kv : harvest_sets) r.harvest_sets.push_back(key_value("--harvest-set", kv));
   } catch (const CLI::ParseError& e) {
     (void)app.exit(e);
     return 2;
@@ -208,6 +211,7 @@ struct PickVerification {
   bool verify = false, harvest = false;
   std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
   std::ofstream harvest_csv;
+  eval::HarvestOptions harvest_options;
   std::map<char, eval::HarvestCounts> harvested;  // class -> Table 4.2 row
   std::ofstream csv;
   std::map<std::string, std::map<std::string, int>> count;  // case -> verdict -> n
@@ -258,6 +262,11 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
     throw UsageError(std::string("--verify-set: ") + e.what());
   }
   auto out = std::make_unique<PickVerification>();
+  try {
+    for (const auto& [k, v] : r.harvest_sets) eval::set_harvest_option(out->harvest_options, k, v);
+  } catch (const std::exception& e) {
+    throw UsageError(std::string("--harvest-set: ") + e.what());
+  }
   out->verify = r.verify;
   out->harvest = r.harvest;
   out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
@@ -300,7 +309,7 @@ void count_kappa_hits(KappaTally& tally, const eval::Scenario& sc, const Pipelin
 }
 
 void harvest_truss(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {
-  for (const auto& t : eval::harvest(*v.as_recognised, sc, res)) {
+  for (const auto& t : eval::harvest(*v.as_recognised, sc, res, v.harvest_options)) {
     v.harvested[t.complexity].add(t);
     v.harvest_csv << t.complexity << ',' << t.seed << ',' << t.truth << ',' << int(t.detected) << ',' << t.pick_rank << ','
                   << t.attempts << ',' << t.scans << ',' << eval::to_string(t.outcome) << ',' << t.cuts << ",\""

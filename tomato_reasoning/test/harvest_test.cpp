@@ -147,3 +147,23 @@ TEST(HarvestTrials, CountsPartitionTheTrials) {
   EXPECT_EQ(all.picked_first + all.picked_second + all.left_for_human + all.cut_failures + all.knocked_off, all.trials);
   EXPECT_GE(2 * all.picked_first, all.trials);
 }
+
+TEST(HarvestTrials, OptionsBySettingParseOrSayWhatIsWrong) {
+  eval::HarvestOptions o;
+  eval::set_harvest_option(o, "attempts", "3");
+  EXPECT_EQ(o.attempts, 3);
+  eval::set_harvest_option(o, "later_attempts_approach_far", "0");
+  EXPECT_FALSE(o.later_attempts_approach_far);
+  auto why = [&](const std::string& k, const std::string& v) {
+    try {
+      eval::set_harvest_option(o, k, v);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(why("attempts", "0").find("whole number"), std::string::npos);
+  EXPECT_NE(why("attempts", "2.5").find("whole number"), std::string::npos);
+  EXPECT_NE(why("later_attempts_approach_far", "yes").find("0 or 1"), std::string::npos);
+  EXPECT_NE(why("blades", "1").find("unknown option"), std::string::npos);
+}

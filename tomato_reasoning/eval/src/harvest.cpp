@@ -1,5 +1,7 @@
 #include "tomato_reasoning/eval/harvest.hpp"
 
+#include <stdexcept>
+
 #include "picking.hpp"
 
 namespace tinyline::tomato_reasoning::eval {
@@ -23,6 +25,19 @@ void HarvestCounts::add(const HarvestTrial& t) {
   left_for_human += t.outcome == HarvestOutcome::kLeftForHuman;
   cut_failures += t.outcome == HarvestOutcome::kCutFailure;
   knocked_off += t.outcome == HarvestOutcome::kKnockedOff;
+}
+
+void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value) {
+  if (key == "attempts") {
+    if (value.size() != 1 || value[0] < '1' || value[0] > '9')
+      throw std::invalid_argument("option 'attempts': '" + value + "' is not a whole number in [1, 9]");
+    o.attempts = value[0] - '0';
+  } else if (key == "later_attempts_approach_far") {
+    if (value != "0" && value != "1") throw std::invalid_argument("option 'later_attempts_approach_far' must be 0 or 1");
+    o.later_attempts_approach_far = value == "1";
+  } else {
+    throw std::invalid_argument("unknown option '" + key + "' (attempts, later_attempts_approach_far)");
+  }
 }
 
 HarvestCounts& HarvestCounts::operator+=(const HarvestCounts& o) {
@@ -86,7 +101,8 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
   std::optional<laser_clustering::PedicelExpectation> belief;
   for (t.attempts = 1; t.attempts <= o.attempts; ++t.attempts) {
     const std::uint64_t key = s.seed * 1000 + static_cast<std::uint64_t>(k) + kAttemptSeedStride * static_cast<std::uint64_t>(t.attempts);
-    const LoopEnd end = laser.closed_loop(h.world, s, pose, belief, key);
+    const bool far = laser.options().approach_far || (t.attempts > 1 && o.later_attempts_approach_far);
+    const LoopEnd end = laser.closed_loop(h.world, s, pose, belief, key, far);
     t.scans += end.scans;
     if (t.attempts > 1) t.cuts += ';';
     // The next attempt scans again from where this one left the hand.

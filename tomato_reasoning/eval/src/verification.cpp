@@ -158,7 +158,8 @@ constexpr std::uint64_t kRescanSeedStride = 1'000'003;
 }  // namespace
 
 LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
-                                         std::optional<lc::PedicelExpectation> belief, std::uint64_t scan_seed) {
+                                         std::optional<lc::PedicelExpectation> belief, std::uint64_t scan_seed,
+                                         bool approach_far) {
   const lc::PedicelFinderParams fp = finder();
   if (!belief) {
     lc::PedicelExpectation expect;
@@ -189,7 +190,7 @@ LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario
       return end;  // lost it after a move: the hand stays where that move put it
     }
     const Eigen::Vector2d step(d.lateral_offset_m, d.depth_offset_m);
-    if (!(o_.approach_far && finder_found(d) && step.norm() > o_.pose.max_move_m) || last_scan) {
+    if (!(approach_far && finder_found(d) && step.norm() > o_.pose.max_move_m) || last_scan) {
       end.verification = v;
       end.belief = belief;
       return end;
@@ -279,7 +280,7 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
     const auto& target = pedicels[static_cast<std::size_t>(truth)];
     trial.vision_on_pedicel = throat_on_pedicel(o_, target, pose.T_ref_laser, nullptr, nullptr);
 
-    const LoopEnd end = closed_loop(world, s, pose, std::nullopt, s.seed * 1000 + static_cast<std::uint64_t>(k));
+    const LoopEnd end = closed_loop(world, s, pose, std::nullopt, s.seed * 1000 + static_cast<std::uint64_t>(k), o_.approach_far);
     const Verification& v = end.verification;
     trial.scans = end.scans;
     trial.outcome = v.outcome;

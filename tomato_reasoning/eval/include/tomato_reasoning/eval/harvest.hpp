@@ -55,9 +55,17 @@ using CutModel =
 
 struct HarvestOptions {
   int attempts = 2;          ///< the thesis's: a second try, then human support
+  /// The attempts after the first go towards a pedicel the finder sees
+  /// beyond max_move_m (VerificationOptions::approach_far): the thesis's
+  /// "laser guide mode" when nothing is found where the pedicel should be.
+  bool later_attempts_approach_far = true;
   sim::BladeParams blades;   ///< the default cut model's scissors
   double match_m = 0.01;     ///< a detection is a true tomato when its centre is this near [m]
 };
+
+/// Sets one option by name (attempts, later_attempts_approach_far=0|1);
+/// throws std::invalid_argument saying what is wrong.
+void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value);
 
 /// Harvests the truss of `s` as `r` (the pipeline's result on it) orders,
 /// the hand laser of `laser` verifying each attempt. One trial per true

@@ -115,9 +115,12 @@ class VerificationHarness {
   /// One verification from `pose` in `world` (the scenario's reference frame
   /// is its first camera): scan, answer, and the closed loop of the options.
   /// `belief` is what the first scan expects (nullopt: the throat within
-  /// expectation_sd_m); `scan_seed` keys the scans' noise.
+  /// expectation_sd_m); `scan_seed` keys the scans' noise; `approach_far`
+  /// as VerificationOptions::approach_far (the harvest's second attempt may
+  /// set it where the options do not).
   [[nodiscard]] LoopEnd closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
-                                    std::optional<laser_clustering::PedicelExpectation> belief, std::uint64_t scan_seed);
+                                    std::optional<laser_clustering::PedicelExpectation> belief, std::uint64_t scan_seed,
+                                    bool approach_far);
 
  private:
   [[nodiscard]] laser_clustering::PedicelDetection look(const sim::World& world, const Scenario& s,
