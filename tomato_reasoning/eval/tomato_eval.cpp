@@ -159,7 +159,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
                "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
                "truss), written to DIR/harvest.csv");
   app.add_option("--harvest-set", harvest_sets,
-                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=1), repeatable");
+                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=0), repeatable");
   app.add_flag("--quiet", r.quiet, "no per-truss lines");
   bool tuning = false;
   app.add_flag("--tuning", tuning,

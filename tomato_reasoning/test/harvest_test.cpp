@@ -152,8 +152,9 @@ TEST(HarvestTrials, OptionsBySettingParseOrSayWhatIsWrong) {
   eval::HarvestOptions o;
   eval::set_harvest_option(o, "attempts", "3");
   EXPECT_EQ(o.attempts, 3);
-  eval::set_harvest_option(o, "later_attempts_approach_far", "0");
   EXPECT_FALSE(o.later_attempts_approach_far);
+  eval::set_harvest_option(o, "later_attempts_approach_far", "1");
+  EXPECT_TRUE(o.later_attempts_approach_far);
   auto why = [&](const std::string& k, const std::string& v) {
     try {
       eval::set_harvest_option(o, k, v);

@@ -58,7 +58,9 @@ struct HarvestOptions {
   /// The attempts after the first go towards a pedicel the finder sees
   /// beyond max_move_m (VerificationOptions::approach_far): the thesis's
   /// "laser guide mode" when nothing is found where the pedicel should be.
-  bool later_attempts_approach_far = true;
+  /// Off: on tuning trusses it picked 3 more fruit of 473 and jammed the
+  /// blades 23 more times (docs/tomato_reasoning.md, "Harvest trials").
+  bool later_attempts_approach_far = false;
   sim::BladeParams blades;   ///< the default cut model's scissors
   double match_m = 0.01;     ///< a detection is a true tomato when its centre is this near [m]
 };
