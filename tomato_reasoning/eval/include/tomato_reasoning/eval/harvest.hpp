@@ -28,7 +28,7 @@ namespace tinyline::tomato_reasoning::eval {
 /// Table 4.2 counts it.
 enum class HarvestOutcome {
   kPickedFirst,   ///< SP(1): its pedicel cut on the first attempt
-  kPickedSecond,  ///< SP(2): ... on the second, after the laser's re-scan and move
+  kPickedSecond,  ///< SP(2): ... on a later attempt, after the laser's re-scan from where the last left the hand
   kLeftForHuman,  ///< HS: not picked after the attempts (or never detected, or no picking pose)
   kCutFailure,    ///< CF: the blades jammed on fruit, peduncle, stem or two pedicels
   kKnockedOff,    ///< its pedicel was cut by an attempt at another tomato: it fell, not picked
