@@ -4,12 +4,15 @@
 //
 //   tomato_eval --classes A,B,C --seeds 1-100 --out DIR
 //               [--variant NAME]... [--set key=value]... [--kappa-sweep k1,k2,...]
-//               [--fit-kappa] [--views 1|2] [--verify]
+//               [--fit-kappa] [--views 1|2] [--verify] [--closed-loop] [--harvest]
 //
 // --fit-kappa fits the pedicel distribution's vMF kernel concentration
 // (force.kernel_kappa) on the given seeds: the kappa of a log grid whose HPD50
 // region holds the true pedicel closest to 50 % of the time (run it on
 // fitting seeds, never on the seeds you report).
+//
+// --harvest runs Table 4.2's harvest trials (eval/harvest.hpp) on the first
+// variant's results, written to DIR/harvest.csv and printed per class.
 //
 // Writes DIR/<variant>_tomatoes.csv (one row per true tomato) and
 // DIR/<variant>_summary.json (per class and overall), and prints a table.
@@ -27,11 +30,14 @@
 #include <string>
 #include <vector>
 
+#include "tomato_reasoning/eval/harvest.hpp"
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/eval/scoring.hpp"
 #include "tomato_reasoning/eval/variants.hpp"
 #include "tomato_reasoning/pipeline.hpp"
 #include "tomato_reasoning/eval/verification.hpp"
+
+#include "harness.hpp"  // laser_clustering's evaluation: wilson()
 
 #include <tinyline/common/cli.hpp>
 #include <tinyline/common/seeds.hpp>
@@ -94,9 +100,9 @@ struct Request {
   std::vector<std::uint64_t> seeds;
   std::string out_dir;
   std::vector<std::string> variants;
-  std::vector<std::pair<std::string, std::string>> sets, verify_sets;
+  std::vector<std::pair<std::string, std::string>> sets, verify_sets, harvest_sets;
   std::vector<double> kappas;
-  bool quiet = false, verify = false, fit_kappa = false;
+  bool quiet = false, verify = false, fit_kappa = false, closed_loop = false, harvest = false;
   eval::ScenarioOptions scenario;
   std::string seeds_label;  ///< which seeds and what they are (common/seeds.hpp), on every printed figure
 };
@@ -108,7 +114,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
                "tomato_eval"};
   app.footer(lists_for_help());
   std::string seeds_text;
-  std::vector<std::string> sets, verify_sets;
+  std::vector<std::string> sets, verify_sets, harvest_sets;
   std::vector<double> pose_noise;
   app.add_option("--classes", r.classes, "truss complexity classes, comma-separated")
       ->delimiter(',')
@@ -145,7 +151,15 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
                "offset < 5 cm (Table 4.3), written to DIR/verification.csv");
   app.add_option("--verify-set", verify_sets,
                  "the verification's options key=value (pulses=10,20,50,120,300 expectation_sd_m=0.015 "
-                 "max_move_m=0.05 max_turn_deg=60), repeatable");
+                 "max_move_m=0.05 max_turn_deg=60; the closed loop: rescans=2 approach_far=0|1), repeatable");
+  app.add_flag("--closed-loop", r.closed_loop,
+               "the verification's closed loop of thesis 4.5 (move, scan again, re-centre; rescans=2): for --verify and "
+               "--harvest; --verify-set overrides");
+  app.add_flag("--harvest", r.harvest,
+               "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
+               "truss), written to DIR/harvest.csv");
+  app.add_option("--harvest-set", harvest_sets,
+                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=0), repeatable");
   app.add_flag("--quiet", r.quiet, "no per-truss lines");
   bool tuning = false;
   app.add_flag("--tuning", tuning,
@@ -156,6 +170,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     r.seeds = parse_seeds(seeds_text);
     for (const auto& kv : sets) r.sets.push_back(key_value("--set", kv));
     for (const auto& kv : verify_sets) r.verify_sets.push_back(key_value("--verify-set", kv));
+    for (const auto& kv : harvest_sets) r.harvest_sets.push_back(key_value("--harvest-set", kv));
   } catch (const CLI::ParseError& e) {
     (void)app.exit(e);
     return 2;
@@ -190,12 +205,18 @@ struct Run {
   std::ofstream csv;
 };
 
-/// The laser verification of the first variant's picks, as recognised and with a random offset.
+/// The laser verification of the first variant's picks, as recognised and
+/// with a random offset (--verify), and the harvest trials (--harvest, as recognised).
 struct PickVerification {
+  bool verify = false, harvest = false;
   std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
+  std::ofstream harvest_csv;
+  eval::HarvestOptions harvest_options;
+  std::map<char, eval::HarvestCounts> harvested;  // class -> Table 4.2 row
   std::ofstream csv;
   std::map<std::string, std::map<std::string, int>> count;  // case -> verdict -> n
   std::map<std::string, int> vision_ok;
+  bool closed_loop = false;  ///< re-scans asked for: the CSV gets a scans column
 };
 
 /// Hits of the truth in the HPD50 region per kappa, from the first variant's
@@ -227,22 +248,41 @@ std::vector<Run> open_runs(const Request& r) {
   return runs;
 }
 
+/// The closed loop of 4.5 as --closed-loop runs it, chosen on tuning seeds
+/// (docs/tomato_reasoning.md, "Laser verification").
+void set_closed_loop(eval::VerificationOptions& vo) { vo.rescans = 2; }
+
 std::unique_ptr<PickVerification> open_verification(const Request& r) {
-  if (!r.verify) return nullptr;
+  if (!r.verify && !r.harvest) return nullptr;
   eval::VerificationOptions vo;
+  if (r.closed_loop) set_closed_loop(vo);
   try {
     for (const auto& [k, v] : r.verify_sets) eval::set_verification_option(vo, k, v);
   } catch (const std::exception& e) {
     throw UsageError(std::string("--verify-set: ") + e.what());
   }
   auto out = std::make_unique<PickVerification>();
+  try {
+    for (const auto& [k, v] : r.harvest_sets) eval::set_harvest_option(out->harvest_options, k, v);
+  } catch (const std::exception& e) {
+    throw UsageError(std::string("--harvest-set: ") + e.what());
+  }
+  out->verify = r.verify;
+  out->harvest = r.harvest;
   out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
+  std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
+  if (r.harvest) {
+    out->harvest_csv.open(r.out_dir + "/harvest.csv");
+    out->harvest_csv << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on\n";
+  }
+  if (!r.verify) return out;
   vo.random_offset_m = 0.05;
   out->with_offset = std::make_unique<eval::VerificationHarness>(vo);
-  std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
   out->csv.open(r.out_dir + "/verification.csv");
+  out->closed_loop = vo.rescans > 0;
   out->csv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,"
-              "depth_error_mm,move_mm,confidence,reason\n";
+              "depth_error_mm,move_mm,confidence,reason"
+           << (out->closed_loop ? ",scans\n" : "\n");
   return out;
 }
 
@@ -268,7 +308,18 @@ void count_kappa_hits(KappaTally& tally, const eval::Scenario& sc, const Pipelin
   }
 }
 
+void harvest_truss(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {
+  for (const auto& t : eval::harvest(*v.as_recognised, sc, res, v.harvest_options)) {
+    v.harvested[t.complexity].add(t);
+    v.harvest_csv << t.complexity << ',' << t.seed << ',' << t.truth << ',' << int(t.detected) << ',' << t.pick_rank << ','
+                  << t.attempts << ',' << t.scans << ',' << eval::to_string(t.outcome) << ',' << t.cuts << ",\""
+                  << t.jammed_on << "\"\n";
+  }
+}
+
 void verify_picks(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {
+  if (v.harvest) harvest_truss(v, sc, res);
+  if (!v.verify) return;
   for (auto* h : {v.as_recognised.get(), v.with_offset.get()}) {
     const std::string name = h == v.as_recognised.get() ? "as_recognised" : "random_offset";
     for (const auto& t : h->run(sc, res)) {
@@ -278,7 +329,9 @@ void verify_picks(PickVerification& v, const eval::Scenario& sc, const PipelineR
       v.csv << name << ',' << t.complexity << ',' << t.seed << ',' << t.truth << ',' << t.pick_rank << ','
             << t.offset_m << ',' << int(t.vision_on_pedicel) << ',' << to_string(t.outcome) << ','
             << eval::to_string(t.verdict) << ',' << int(t.on_pedicel) << ',' << 1000 * t.lateral_error_m << ','
-            << 1000 * t.depth_error_m << ',' << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << "\"\n";
+            << 1000 * t.depth_error_m << ',' << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << '"';
+      if (v.closed_loop) v.csv << ',' << t.scans;
+      v.csv << '\n';
     }
   }
 }
@@ -337,6 +390,32 @@ void write_summary(const Run& run, const Request& r) {
   const eval::Summary all = eval::summarize(run.scores);
   print_summary_row("all", all);
   js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
+}
+
+/// "k/n = p% [lo, hi]" (Wilson 95 %).
+std::string rate(int k, int n) {
+  const auto w = laser_clustering::eval::wilson(k, n);
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%d/%d = %.1f%% [%.1f, %.1f]", k, n, 100 * w.p, 100 * w.lo, 100 * w.hi);
+  return buf;
+}
+
+/// Table 4.2 per class, each count of its trials with its Wilson interval.
+void print_harvest(const PickVerification& v, const std::string& variant, const std::string& seeds_label) {
+  std::printf("\nharvest trials (%s; %s), Table 4.2: share of trials\n", variant.c_str(), seeds_label.c_str());
+  std::printf("| class | trials | SD | SP(1) | SP(2) | HS (left for a human) | CF | knocked off |\n|---|---|---|---|---|---|---|---|\n");
+  eval::HarvestCounts all;
+  auto row = [](const std::string& name, const eval::HarvestCounts& c) {
+    std::printf("| %s | %d | %s | %s | %s | %s | %s | %s |\n", name.c_str(), c.trials, rate(c.detected, c.trials).c_str(),
+                rate(c.picked_first, c.trials).c_str(), rate(c.picked_second, c.trials).c_str(),
+                rate(c.left_for_human, c.trials).c_str(), rate(c.cut_failures, c.trials).c_str(),
+                rate(c.knocked_off, c.trials).c_str());
+  };
+  for (const auto& [cls, c] : v.harvested) {
+    row(std::string(1, cls), c);
+    all += c;
+  }
+  row("all", all);
 }
 
 void print_verification(PickVerification& v, const std::string& variant, const std::string& seeds_label) {
@@ -400,7 +479,8 @@ int main(int argc, char** argv) {
     evaluate(request, runs, verification.get(), tally);
     for (const auto& run : runs) write_summary(run, request);
     const std::string& first = runs.front().name;
-    if (verification) print_verification(*verification, first, request.seeds_label);
+    if (verification && verification->verify) print_verification(*verification, first, request.seeds_label);
+    if (verification && verification->harvest) print_harvest(*verification, first, request.seeds_label);
     if (request.fit_kappa) report_kappa_fit(tally, first, request);
     if (!tally.kappas.empty()) report_kappa_sweep(tally, first, request);
   } catch (const UsageError& e) {

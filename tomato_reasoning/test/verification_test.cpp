@@ -4,6 +4,7 @@
 
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/pipeline.hpp"
+#include "tomato_reasoning/eval/variants.hpp"
 #include "tomato_reasoning/eval/verification.hpp"
 
 using namespace tinyline;
@@ -67,4 +68,38 @@ TEST(LaserVerification, OptionsBySettingParseOrSayWhatIsWrong) {
   EXPECT_NE(why("max_move_m", "-1").find("> 0"), std::string::npos);
   EXPECT_NE(why("max_turn_deg", "nan").find("not a number"), std::string::npos);
   EXPECT_NE(why("kappa", "1").find("unknown option"), std::string::npos);
+}
+
+// The closed loop of 4.5 (move, scan again, re-centre): on class B truss 204
+// (a tuning seed) the first tomato's pick from a random offset ends on
+// something else after the first scan's move alone, and on its pedicel once
+// the hand scans again from there and re-centres.
+TEST(LaserVerification, TheClosedLoopEndsOnThePedicelWhereOneScanDoesNot) {
+  eval::ScenarioOptions two_views;
+  two_views.views = 2;
+  const eval::Scenario s = eval::make_scenario(sim::TrussClass::kB, 204, two_views);
+  const PipelineResult r = eval::make_variant("default", eval::variant_params("default"))->run(s);
+  ASSERT_TRUE(r.ok) << r.reason;
+  eval::VerificationOptions o;
+  o.random_offset_m = 0.05;
+  eval::VerificationHarness one_scan(o);
+  o.rescans = 2;
+  eval::VerificationHarness loop(o);
+  const auto first = one_scan.run(s, r), looped = loop.run(s, r);
+  ASSERT_EQ(first.size(), looped.size());
+  int rescued = -1;
+  for (std::size_t i = 0; i < first.size(); ++i) {
+    EXPECT_EQ(first[i].scans, 1);
+    EXPECT_LE(looped[i].scans, 3);
+    EXPECT_EQ(looped[i].truth, first[i].truth);
+    if (first[i].truth == 0) rescued = static_cast<int>(i);
+  }
+  ASSERT_GE(rescued, 0) << "tomato 0 of truss B 204 is not picked";
+  const auto& a = first[std::size_t(rescued)];
+  const auto& b = looped[std::size_t(rescued)];
+  EXPECT_EQ(a.verdict, eval::PickVerdict::kWrong) << a.reason;
+  EXPECT_FALSE(a.on_pedicel);
+  EXPECT_EQ(b.verdict, eval::PickVerdict::kAligned) << b.reason;
+  EXPECT_TRUE(b.on_pedicel);
+  EXPECT_GE(b.scans, 2);
 }

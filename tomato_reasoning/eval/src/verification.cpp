@@ -8,6 +8,7 @@
 #include <laser_clustering/two_stage.hpp>
 
 #include "harness.hpp"
+#include "picking.hpp"
 #include <sim/eval/scanner.hpp>
 #include <tinyline/common/random.hpp>
 
@@ -76,13 +77,20 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
     const double v = number(value);
     if (!(v > 0.1 && v <= 2.0)) throw std::invalid_argument("option 'calibration_max_m' must be in (0.1, 2] m");
     o.calibration_max_m = v;
+  } else if (key == "rescans") {
+    const double v = number(value);
+    if (!(v >= 0 && v <= 10) || v != std::floor(v)) throw std::invalid_argument("option 'rescans' must be a whole number in [0, 10]");
+    o.rescans = static_cast<int>(v);
+  } else if (key == "approach_far") {
+    if (value != "0" && value != "1") throw std::invalid_argument("option 'approach_far' must be 0 or 1");
+    o.approach_far = value == "1";
   } else if (key == "max_turn_deg") {  // 0: the straight approach, whatever is in front
     const double v = number(value);
     if (!(v >= 0 && v <= 180)) throw std::invalid_argument("option 'max_turn_deg' must be in [0, 180]");
     o.pose.max_turn_deg = v;
   } else {
     throw std::invalid_argument("unknown option '" + key +
-                                "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m)");
+                                "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far)");
   }
 }
 
@@ -112,42 +120,146 @@ VerificationHarness::~VerificationHarness() = default;
 
 std::string VerificationHarness::describe() const { return scanner_->describe(); }
 
-std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const PipelineResult& r, double match_m) {
-  std::vector<VerificationTrial> out;
-  const Eigen::Isometry3d T_world_ref = s.truss.T_world_camera;  // the first view is the reference
-  const Eigen::Isometry3d T_ref_world = T_world_ref.inverse();
-  // True pedicels (anchor -> calyx) in the reference frame; the target's
-  // index is the truth index, the others are neighbours.
-  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> pedicels;
-  for (const auto& t : s.truss.tomatoes) pedicels.emplace_back(T_ref_world * t.anchor_m, T_ref_world * t.calyx_m);
+lc::PedicelFinderParams VerificationHarness::finder() const {
   lc::PedicelFinderParams finder;
   finder.scissors.centre_z_m = o_.pose.throat_z_m;
   finder.scissors.opening_m = o_.scissor_opening_m;
-  PickPoseParams pose_params = o_.pose;
-  pose_params.approach_from = Eigen::Vector3d::Zero();  // from the camera's side
+  return finder;
+}
+
+lc::PedicelDetection VerificationHarness::look(const sim::World& world, const Scenario& s, const Eigen::Isometry3d& T_ref_laser,
+                                               const std::optional<lc::PedicelExpectation>& belief, std::uint64_t scan_seed) {
+  const sim::eval::SimulatedScan scan = scanner_->scan(world, s.truss.T_world_camera * T_ref_laser, scan_seed);
+  const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
+  return lc::find_pedicel(scan.scan, objects, finder(), belief);
+}
+
+namespace {
+
+FinderAnswer answer_of(const lc::PedicelDetection& d) {
+  FinderAnswer a;
+  a.outcome = convert(d.outcome);
+  a.lateral_offset_m = d.lateral_offset_m;
+  a.depth_offset_m = d.depth_offset_m;
+  a.pedicel_x_m = d.position_xz_m.x();
+  a.pedicel_z_m = d.position_xz_m.y();
+  a.confidence = d.confidence;
+  a.reason = d.reason;
+  return a;
+}
+
+bool finder_found(const lc::PedicelDetection& d) {
+  return d.outcome == lc::PedicelOutcome::kCutHere || d.outcome == lc::PedicelOutcome::kMove;
+}
+
+// Scans after the first are keyed apart from every first scan's seed.
+constexpr std::uint64_t kRescanSeedStride = 1'000'003;
+
+}  // namespace
+
+LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
+                                         std::optional<lc::PedicelExpectation> belief, std::uint64_t scan_seed,
+                                         bool approach_far) {
+  const lc::PedicelFinderParams fp = finder();
+  if (!belief) {
+    lc::PedicelExpectation expect;
+    expect.position_xz_m = Eigen::Vector2d(0.0, o_.pose.throat_z_m);
+    expect.sd_m = o_.expectation_sd_m;
+    belief = expect;
+  }
+  LoopEnd end;
+  bool moved = false;  // a move put the hand on a pedicel: end.verification says where
+  for (;;) {
+    const lc::PedicelDetection d =
+        look(world, s, pose.T_ref_laser, belief, scan_seed + kRescanSeedStride * static_cast<std::uint64_t>(end.scans));
+    const bool last_scan = end.scans++ >= o_.rescans;
+    const Verification v = verify(pose, answer_of(d), o_.pose);
+    if (v.will_cut()) {
+      end.verification = v;
+      end.total_move += v.move;
+      end.belief = lc::expectation_after_centring(fp, belief, d);
+      if (d.outcome != lc::PedicelOutcome::kMove || last_scan) return end;
+      // Move, scan again from there, re-centre (4.5).
+      moved = true;
+      pose.T_ref_laser = v.T_ref_laser_final;
+      pose.cut_point = v.cut_point;
+      belief = end.belief;
+      continue;
+    }
+    if (moved) {
+      return end;  // lost it after a move: the hand stays where that move put it
+    }
+    const Eigen::Vector2d step(d.lateral_offset_m, d.depth_offset_m);
+    if (!(approach_far && finder_found(d) && step.norm() > o_.pose.max_move_m) || last_scan) {
+      end.verification = v;
+      end.belief = belief;
+      return end;
+    }
+    // The finder's pedicel is beyond a trusted move: go max_move_m towards it and look again.
+    const Eigen::Vector2d part = step * (o_.pose.max_move_m / step.norm());
+    const Eigen::Vector3d shift = pose.T_ref_laser.linear() * Eigen::Vector3d(part.x(), 0.0, part.y());
+    pose.T_ref_laser.translation() += shift;
+    end.total_move += shift;
+    pose.cut_point = pose.T_ref_laser * Eigen::Vector3d(0, 0, o_.pose.throat_z_m);
+    belief = lc::expectation_after_move(fp, belief, d, part);
+  }
+}
+
+bool throat_on_pedicel(const VerificationOptions& o, const std::pair<Eigen::Vector3d, Eigen::Vector3d>& pedicel,
+                       const Eigen::Isometry3d& T_ref_laser, double* lateral, double* depth) {
+  Eigen::Vector3d at;
+  if (!crossing(T_ref_laser, pedicel.first, pedicel.second, at)) return false;
+  if (lateral) *lateral = at.x();
+  if (depth) *depth = at.z() - o.pose.throat_z_m;
+  return std::abs(at.x()) <= 0.5 * o.scissor_opening_m && std::abs(at.z() - o.pose.throat_z_m) <= o.depth_tolerance_m;
+}
+
+std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> true_pedicels(const Scenario& s) {
+  const Eigen::Isometry3d T_ref_world = s.truss.T_world_camera.inverse();
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> pedicels;
+  for (const auto& t : s.truss.tomatoes) pedicels.emplace_back(T_ref_world * t.anchor_m, T_ref_world * t.calyx_m);
+  return pedicels;
+}
+
+void remove_fruit(const Scenario& s, sim::World& world, int truth) {
+  const std::string& name = s.truss.tomatoes[static_cast<std::size_t>(truth)].object_name;
+  const std::string prefix = s.truss.params.name + "_";
+  const std::string idx = name.substr(name.rfind('_') + 1);
+  for (std::size_t o = 0; o < world.size(); ++o) {
+    const std::string& n = world.object(static_cast<sim::ObjectId>(o)).name;
+    if (n.rfind(name, 0) == 0 || n == prefix + "pedicel_" + idx || n == prefix + "calyx_" + idx) {
+      Eigen::Isometry3d far = world.object(static_cast<sim::ObjectId>(o)).T_world_object;
+      far.translation() += Eigen::Vector3d(0, 0, -100);
+      world.set_pose(static_cast<sim::ObjectId>(o), far);
+    }
+  }
+}
+
+int matched_truth(const Scenario& s, const Tomato& det, double match_m) {
+  int truth = -1;
+  for (std::size_t t = 0; t < s.truth.size(); ++t)
+    if ((det.fit.sphere.centre - s.truth[t].centre_m).norm() <= match_m) truth = static_cast<int>(t);
+  return truth;
+}
+
+PickPoseParams camera_side(PickPoseParams p) {
+  p.approach_from = Eigen::Vector3d::Zero();  // from the camera's side
+  return p;
+}
+
+std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const PipelineResult& r, double match_m) {
+  std::vector<VerificationTrial> out;
+  // True pedicels (anchor -> calyx) in the reference frame (the first view);
+  // the target's index is the truth index.
+  const auto pedicels = true_pedicels(s);
+  const PickPoseParams pose_params = camera_side(o_.pose);
 
   // Harvesting goes in pick order: a picked fruit (with its pedicel and
   // sepals) is gone before the next scan.
   sim::World world = s.world;
-  auto remove_fruit = [&](int truth) {
-    const std::string& name = s.truss.tomatoes[static_cast<std::size_t>(truth)].object_name;
-    const std::string prefix = s.truss.params.name + "_";
-    const std::string idx = name.substr(name.rfind('_') + 1);
-    for (std::size_t o = 0; o < world.size(); ++o) {
-      const std::string& n = world.object(static_cast<sim::ObjectId>(o)).name;
-      if (n.rfind(name, 0) == 0 || n == prefix + "pedicel_" + idx || n == prefix + "calyx_" + idx) {
-        Eigen::Isometry3d far = world.object(static_cast<sim::ObjectId>(o)).T_world_object;
-        far.translation() += Eigen::Vector3d(0, 0, -100);
-        world.set_pose(static_cast<sim::ObjectId>(o), far);
-      }
-    }
-  };
   for (int rank = 0; rank < static_cast<int>(r.pick_order.size()); ++rank) {
     const int k = r.pick_order[static_cast<std::size_t>(rank)];
-    const Tomato& det = r.tomatoes[static_cast<std::size_t>(k)];
-    int truth = -1;
-    for (std::size_t t = 0; t < s.truth.size(); ++t)
-      if ((det.fit.sphere.centre - s.truth[t].centre_m).norm() <= match_m) truth = static_cast<int>(t);
+    const int truth = matched_truth(s, r.tomatoes[static_cast<std::size_t>(k)], match_m);
     if (truth < 0) continue;  // spheres that are no tomato are not picked in this evaluation
     VerificationTrial trial;
     trial.complexity = static_cast<char>(s.complexity);
@@ -165,46 +277,27 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
       pose.cut_point += off;
       trial.offset_m = rad;
     }
-    auto throat_on = [&](const Eigen::Isometry3d& T_ref_laser, int which, double* lateral, double* depth = nullptr) {
-      Eigen::Vector3d at;
-      if (!crossing(T_ref_laser, pedicels[std::size_t(which)].first, pedicels[std::size_t(which)].second, at)) return false;
-      if (lateral) *lateral = at.x();
-      if (depth) *depth = at.z() - o_.pose.throat_z_m;
-      return std::abs(at.x()) <= 0.5 * o_.scissor_opening_m && std::abs(at.z() - o_.pose.throat_z_m) <= o_.depth_tolerance_m;
-    };
-    trial.vision_on_pedicel = throat_on(pose.T_ref_laser, truth, nullptr);
+    const auto& target = pedicels[static_cast<std::size_t>(truth)];
+    trial.vision_on_pedicel = throat_on_pedicel(o_, target, pose.T_ref_laser, nullptr, nullptr);
 
-    const sim::eval::SimulatedScan scan =
-        scanner_->scan(world, T_world_ref * pose.T_ref_laser, s.seed * 1000 + static_cast<std::uint64_t>(k));
-    const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
-    lc::PedicelExpectation expect;
-    expect.position_xz_m = Eigen::Vector2d(0.0, o_.pose.throat_z_m);
-    expect.sd_m = o_.expectation_sd_m;
-    const lc::PedicelDetection d = lc::find_pedicel(scan.scan, objects, finder, expect);
-    FinderAnswer a;
-    a.outcome = convert(d.outcome);
-    a.lateral_offset_m = d.lateral_offset_m;
-    a.depth_offset_m = d.depth_offset_m;
-    a.pedicel_x_m = d.position_xz_m.x();
-    a.pedicel_z_m = d.position_xz_m.y();
-    a.confidence = d.confidence;
-    a.reason = d.reason;
-    const Verification v = verify(pose, a, o_.pose);
+    const LoopEnd end = closed_loop(world, s, pose, std::nullopt, s.seed * 1000 + static_cast<std::uint64_t>(k), o_.approach_far);
+    const Verification& v = end.verification;
+    trial.scans = end.scans;
     trial.outcome = v.outcome;
     trial.confidence = v.confidence;
     trial.reason = v.reason;
     if (v.will_cut()) {
       double lateral = NAN, depth = NAN;
-      trial.on_pedicel = throat_on(v.T_ref_laser_final, truth, &lateral, &depth);
+      trial.on_pedicel = throat_on_pedicel(o_, target, v.T_ref_laser_final, &lateral, &depth);
       trial.lateral_error_m = lateral;
       trial.depth_error_m = depth;
-      trial.move_m = v.move.norm();
+      trial.move_m = end.total_move.norm();
       trial.verdict = trial.on_pedicel ? PickVerdict::kAligned : PickVerdict::kWrong;
     } else {
       trial.verdict = v.outcome == Verification::Outcome::kOutOfView ? PickVerdict::kOutOfView : PickVerdict::kNothingFound;
     }
     out.push_back(trial);
-    remove_fruit(truth);  // picked (or given up on): the robot moves on
+    remove_fruit(s, world, truth);  // picked (or given up on): the robot moves on
   }
   return out;
 }

@@ -7,8 +7,11 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include <laser_clustering/pedicel_finder.hpp>
 
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/pick_pose.hpp"
@@ -43,6 +46,16 @@ struct VerificationOptions {
   /// How far the pedicel may be from the throat, for the finder's ranking [m]
   /// (laser_clustering's pedicel_finder node default).
   double expectation_sd_m = 0.015;
+  /// The closed loop of thesis 4.5, as laser_clustering's evaluation runs it:
+  /// after a move the hand scans again from where it now is and re-centres
+  /// on the pedicel the finder sees in the throat (expectation_after_centring,
+  /// the runners-up carried), up to this many further scans. 0: the first
+  /// scan's answer alone (tomato_eval --verify without --verify-set rescans).
+  int rescans = 0;
+  /// When the finder's pedicel lies beyond max_move_m (the verification's
+  /// "nothing found"), move max_move_m towards it and let the loop look from
+  /// there (expectation_after_move; one of the rescans). false: give up.
+  bool approach_far = false;
 };
 
 /// The simulated hand laser these options describe (sensor, read-out schedule,
@@ -51,7 +64,8 @@ struct VerificationOptions {
 [[nodiscard]] std::unique_ptr<sim::eval::Scanner> make_hand_laser(const VerificationOptions& o);
 
 /// Sets one option by name (pulses=10,20,50,120,300,
-/// expectation_sd_m, max_move_m, max_turn_deg); throws
+/// expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans,
+/// approach_far=0|1); throws
 /// std::invalid_argument saying what is wrong.
 void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value);
 
@@ -71,9 +85,18 @@ struct VerificationTrial {
   bool on_pedicel = false;          ///< after the verification, the throat is on the target's pedicel
   double lateral_error_m = NAN;     ///< target pedicel vs throat after the move, along the laser line
   double depth_error_m = NAN;       ///< ... along the laser's axis (+: the pedicel lies beyond the throat)
-  double move_m = NAN;              ///< length of the move the verification asked for
+  double move_m = NAN;              ///< length of the hand's net move (the closed loop's moves summed)
   double confidence = 0.0;
+  int scans = 0;                    ///< laser scans taken (1 + the closed loop's re-scans)
   std::string reason;
+};
+
+/// Where the closed loop left the hand, and what it decided there.
+struct LoopEnd {
+  Verification verification;  ///< will_cut(): the blades close at verification.T_ref_laser_final
+  std::optional<laser_clustering::PedicelExpectation> belief;  ///< what the next scan from there would expect
+  Eigen::Vector3d total_move = Eigen::Vector3d::Zero();  ///< the hand's moves, summed (reference frame) [m]
+  int scans = 0;
 };
 
 class VerificationHarness {
@@ -87,8 +110,25 @@ class VerificationHarness {
   /// truth within `match_m`), in pick order.
   [[nodiscard]] std::vector<VerificationTrial> run(const Scenario& s, const PipelineResult& result, double match_m = 0.01);
   [[nodiscard]] std::string describe() const;
+  [[nodiscard]] const VerificationOptions& options() const { return o_; }
+
+  /// One verification from `pose` in `world` (the scenario's reference frame
+  /// is its first camera): scan, answer, and the closed loop of the options.
+  /// `belief` is what the first scan expects (nullopt: the throat within
+  /// expectation_sd_m); `scan_seed` keys the scans' noise; `approach_far`
+  /// as VerificationOptions::approach_far (the harvest's second attempt may
+  /// set it where the options do not).
+  [[nodiscard]] LoopEnd closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
+                                    std::optional<laser_clustering::PedicelExpectation> belief, std::uint64_t scan_seed,
+                                    bool approach_far);
 
  private:
+  [[nodiscard]] laser_clustering::PedicelDetection look(const sim::World& world, const Scenario& s,
+                                                        const Eigen::Isometry3d& T_ref_laser,
+                                                        const std::optional<laser_clustering::PedicelExpectation>& belief,
+                                                        std::uint64_t scan_seed);
+  [[nodiscard]] laser_clustering::PedicelFinderParams finder() const;
+
   VerificationOptions o_;
   std::unique_ptr<sim::eval::Scanner> scanner_;
 };

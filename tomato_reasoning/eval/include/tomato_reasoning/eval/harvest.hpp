@@ -1,0 +1,86 @@
+// Harvest trials like the thesis's Table 4.2 (4.5), end to end on simulated
+// trusses: the truss is harvested in the pipeline's pick order; at each
+// detected tomato the hand goes to the picking pose, the laser verification
+// (with its closed loop, as configured) places the blade throat, and the
+// blades close (sim's cutter model: which object they meet). A fruit whose
+// pedicel is cut falls and leaves the world before the next scan. When the
+// first attempt does not pick the fruit, the hand scans again from where it
+// is and tries once more (the thesis's second attempt); after two, the fruit
+// is left for a human.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include <sim/scenes/cutter.hpp>
+
+#include "tomato_reasoning/eval/scenario.hpp"
+#include "tomato_reasoning/eval/verification.hpp"
+#include "tomato_reasoning/pipeline.hpp"
+
+namespace tinyline::tomato_reasoning::eval {
+
+/// How one trial (a true tomato the harvest sets out to pick) ended, as
+/// Table 4.2 counts it.
+enum class HarvestOutcome {
+  kPickedFirst,   ///< SP(1): its pedicel cut on the first attempt
+  kPickedSecond,  ///< SP(2): ... on a later attempt, after the laser's re-scan from where the last left the hand
+  kLeftForHuman,  ///< HS: not picked after the attempts (or never detected, or no picking pose)
+  kCutFailure,    ///< CF: the blades jammed on fruit, peduncle, stem or two pedicels
+  kKnockedOff,    ///< its pedicel was cut by an attempt at another tomato: it fell, not picked
+};
+[[nodiscard]] const char* to_string(HarvestOutcome o);
+
+struct HarvestTrial {
+  char complexity = 'B';
+  std::uint64_t seed = 0;
+  int truth = -1;        ///< the true tomato (index into the truss)
+  bool detected = false; ///< SD: a sphere of the pipeline matched it
+  int pick_rank = -1;    ///< its place in the pick order (-1: not attempted)
+  int attempts = 0;      ///< attempts made at it
+  int scans = 0;         ///< laser scans over its attempts
+  HarvestOutcome outcome = HarvestOutcome::kLeftForHuman;
+  std::string cuts;      ///< each attempt's end, ';'-separated: sim::to_string(CutResult), or "no cut" (the verification refused)
+  std::string jammed_on; ///< what stopped the blades (kCutFailure)
+};
+
+/// The blades closing at a throat pose on the truss as it now hangs
+/// (`target`: the tomato picked). Default: sim::close_blades.
+using CutModel =
+    std::function<sim::CutOutcome(const sim::Truss& truss, const Eigen::Isometry3d& T_world_throat, int target)>;
+
+struct HarvestOptions {
+  int attempts = 2;          ///< the thesis's: a second try, then human support
+  /// The attempts after the first go towards a pedicel the finder sees
+  /// beyond max_move_m (VerificationOptions::approach_far): the thesis's
+  /// "laser guide mode" when nothing is found where the pedicel should be.
+  /// Off: on tuning trusses it picked 3 more fruit of 473 and jammed the
+  /// blades 23 more times (docs/tomato_reasoning.md, "Harvest trials").
+  bool later_attempts_approach_far = false;
+  sim::BladeParams blades;   ///< the default cut model's scissors
+  double match_m = 0.01;     ///< a detection is a true tomato when its centre is this near [m]
+};
+
+/// Sets one option by name (attempts, later_attempts_approach_far=0|1);
+/// throws std::invalid_argument saying what is wrong.
+void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value);
+
+/// Harvests the truss of `s` as `r` (the pipeline's result on it) orders,
+/// the hand laser of `laser` verifying each attempt. One trial per true
+/// tomato, in the truss's order. `cut` replaces the cutter model (tests).
+[[nodiscard]] std::vector<HarvestTrial> harvest(VerificationHarness& laser, const Scenario& s, const PipelineResult& r,
+                                                const HarvestOptions& o = {}, const CutModel& cut = {});
+
+/// Table 4.2's row of a set of trials.
+struct HarvestCounts {
+  int trials = 0, detected = 0, picked_first = 0, picked_second = 0, left_for_human = 0, cut_failures = 0,
+      knocked_off = 0;
+  void add(const HarvestTrial& t);
+  HarvestCounts& operator+=(const HarvestCounts& o);
+};
+
+}  // namespace tinyline::tomato_reasoning::eval

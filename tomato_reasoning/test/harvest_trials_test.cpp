@@ -1,0 +1,170 @@
+// Harvest trials (Table 4.2 protocol, eval/harvest.hpp) on simulated
+// trusses: the counts, with the blades scripted where a test needs an
+// outcome, and with sim's cutter model.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "tomato_reasoning/eval/harvest.hpp"
+#include "tomato_reasoning/eval/scenario.hpp"
+#include "tomato_reasoning/eval/variants.hpp"
+#include "tomato_reasoning/eval/verification.hpp"
+
+using namespace tinyline;
+using namespace tinyline::tomato_reasoning;
+
+namespace {
+
+struct Harvested {
+  eval::Scenario scenario;
+  PipelineResult result;
+};
+
+Harvested scene(sim::TrussClass c, std::uint64_t seed) {
+  Harvested h{eval::make_scenario(c, seed), {}};
+  h.result = eval::make_variant("default", eval::variant_params("default"))->run(h.scenario);
+  return h;
+}
+
+eval::VerificationHarness& laser() {
+  static eval::VerificationHarness h([] {
+    eval::VerificationOptions o;
+    o.rescans = 2;
+    return o;
+  }());
+  return h;
+}
+
+eval::HarvestCounts count(const std::vector<eval::HarvestTrial>& trials) {
+  eval::HarvestCounts c;
+  for (const auto& t : trials) c.add(t);
+  return c;
+}
+
+}  // namespace
+
+// The first closing misses (the scripted blades close 3 cm to the side of
+// where the hand is), the second, after the laser's re-scan from there, cuts
+// with the real cutter: every pick is SP(2), none SP(1).
+TEST(HarvestTrials, AMissedFirstCutIsPickedOnTheSecondAttempt) {
+  const Harvested h = scene(sim::TrussClass::kA, 1);
+  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  std::map<int, int> calls;
+  const eval::CutModel first_misses = [&](const sim::Truss& truss, const Eigen::Isometry3d& T, int target) {
+    const Eigen::Isometry3d aside = ++calls[target] == 1 ? T * Eigen::Translation3d(0.03, 0, 0) : T;
+    return sim::close_blades(truss, aside, sim::BladeParams{}, target);
+  };
+  const auto trials = eval::harvest(laser(), h.scenario, h.result, {}, first_misses);
+  const eval::HarvestCounts c = count(trials);
+  ASSERT_GE(c.detected, 1);
+  EXPECT_EQ(c.picked_first, 0);
+  EXPECT_GE(c.picked_second, 1);
+  for (const auto& t : trials) {
+    if (t.outcome != eval::HarvestOutcome::kPickedSecond) continue;
+    EXPECT_EQ(t.attempts, 2);
+    EXPECT_EQ(t.cuts, "closed on nothing;cut target");
+  }
+  // The same truss with the real blades throughout: picked on the first attempt.
+  const eval::HarvestCounts real = count(eval::harvest(laser(), h.scenario, h.result));
+  EXPECT_EQ(real.picked_first, c.picked_second);
+  EXPECT_EQ(real.picked_second, 0);
+}
+
+// Blades that jam (on the peduncle) end each attempted trial as a cut
+// failure at the first closing (no second attempt after it); the harvest
+// goes on to the next tomato.
+TEST(HarvestTrials, AJammedCutIsACutFailure) {
+  const Harvested h = scene(sim::TrussClass::kB, 2);
+  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  const eval::CutModel jams = [](const sim::Truss&, const Eigen::Isometry3d&, int) {
+    sim::CutOutcome o;
+    o.result = sim::CutResult::kJammed;
+    o.object = "peduncle";
+    return o;
+  };
+  const auto trials = eval::harvest(laser(), h.scenario, h.result, {}, jams);
+  const eval::HarvestCounts c = count(trials);
+  EXPECT_EQ(c.picked_first + c.picked_second, 0);
+  ASSERT_GE(c.cut_failures, 2);
+  for (const auto& t : trials) {
+    if (t.outcome != eval::HarvestOutcome::kCutFailure) continue;
+    // One closing, the last thing tried: a first attempt the verification refused may come before it.
+    EXPECT_TRUE(t.cuts == "jammed" || t.cuts == "no cut;jammed") << t.cuts;
+    EXPECT_EQ(t.attempts, t.cuts == "jammed" ? 1 : 2);
+    EXPECT_EQ(t.jammed_on, "peduncle");
+  }
+}
+
+// A cut of another tomato's pedicel drops that fruit (knocked off, never
+// attempted) and the target gets its second attempt.
+TEST(HarvestTrials, ANeighboursPedicelCutKnocksItsFruitOff) {
+  const Harvested h = scene(sim::TrussClass::kB, 2);
+  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  ASSERT_GE(h.scenario.truss.tomatoes.size(), 3u);
+  int first_target = -1, victim = -1;
+  const eval::CutModel wrong_first = [&](const sim::Truss& truss, const Eigen::Isometry3d& T, int target) {
+    if (first_target < 0) {
+      first_target = target;
+      // The last tomato of the truss hangs; sever its pedicel instead.
+      victim = static_cast<int>(truss.tomatoes.size()) - 1 == target ? 0 : static_cast<int>(truss.tomatoes.size()) - 1;
+      sim::CutOutcome o;
+      o.result = sim::CutResult::kCutOtherPedicel;
+      o.tomato = victim;
+      o.severed = {victim};
+      return o;
+    }
+    return sim::close_blades(truss, T, sim::BladeParams{}, target);
+  };
+  const auto trials = eval::harvest(laser(), h.scenario, h.result, {}, wrong_first);
+  ASSERT_GE(first_target, 0);
+  const auto& victim_trial = trials[std::size_t(victim)];
+  EXPECT_EQ(victim_trial.outcome, eval::HarvestOutcome::kKnockedOff);
+  EXPECT_EQ(victim_trial.attempts, 0);
+  const auto& target_trial = trials[std::size_t(first_target)];
+  EXPECT_EQ(target_trial.cuts.rfind("cut another pedicel;", 0), 0u) << target_trial.cuts;
+  EXPECT_EQ(target_trial.attempts, 2);
+}
+
+// With the real cutter: one trial per true tomato, the outcomes partition
+// the trials, undetected tomatoes are left for a human unattempted, and
+// class A trusses are mostly picked on the first attempt.
+TEST(HarvestTrials, CountsPartitionTheTrials) {
+  eval::HarvestCounts all;
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const Harvested h = scene(sim::TrussClass::kA, seed);
+    ASSERT_TRUE(h.result.ok) << h.result.reason;
+    const auto trials = eval::harvest(laser(), h.scenario, h.result);
+    ASSERT_EQ(trials.size(), h.scenario.truss.tomatoes.size());
+    for (const auto& t : trials) {
+      if (!t.detected) {
+        EXPECT_EQ(t.outcome, eval::HarvestOutcome::kLeftForHuman);
+        EXPECT_EQ(t.attempts, 0);
+      }
+      EXPECT_LE(t.attempts, 2);
+    }
+    all += count(trials);
+  }
+  EXPECT_EQ(all.picked_first + all.picked_second + all.left_for_human + all.cut_failures + all.knocked_off, all.trials);
+  EXPECT_GE(2 * all.picked_first, all.trials);
+}
+
+TEST(HarvestTrials, OptionsBySettingParseOrSayWhatIsWrong) {
+  eval::HarvestOptions o;
+  eval::set_harvest_option(o, "attempts", "3");
+  EXPECT_EQ(o.attempts, 3);
+  EXPECT_FALSE(o.later_attempts_approach_far);
+  eval::set_harvest_option(o, "later_attempts_approach_far", "1");
+  EXPECT_TRUE(o.later_attempts_approach_far);
+  auto why = [&](const std::string& k, const std::string& v) {
+    try {
+      eval::set_harvest_option(o, k, v);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(why("attempts", "0").find("whole number"), std::string::npos);
+  EXPECT_NE(why("attempts", "2.5").find("whole number"), std::string::npos);
+  EXPECT_NE(why("later_attempts_approach_far", "yes").find("0 or 1"), std::string::npos);
+  EXPECT_NE(why("blades", "1").find("unknown option"), std::string::npos);
+}
