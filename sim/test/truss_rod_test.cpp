@@ -252,3 +252,18 @@ TEST(TrussRod, CurvedStemsAndPedicelLeavesAppearInTheWorld) {
   EXPECT_EQ(stem_pieces, 8);
   EXPECT_EQ(pedicel_leaves, 2);
 }
+
+TEST(TrussRod, SceneFilesChooseThePhysicsAndRefuseAnUnknownOne) {
+  const Scene s = load_scene_string(
+      "name: t\ngenerators:\n  - {type: truss, class: C, seed: 4, physics: elastic_rod, stem_bend_deg: 20, pedicel_leaves: 1}\n",
+      "inline.yaml", ".");
+  const TrussTruth truth = truss_truth_from_scene(s);
+  ASSERT_FALSE(truth.tomatoes.empty());
+  EXPECT_EQ(truth.tomatoes[0].pedicel_path_m.size(), 5u);
+  try {
+    (void)load_scene_string("name: t\ngenerators:\n  - {type: truss, physics: jelly}\n", "bad.yaml", ".");
+    ADD_FAILURE() << "an unknown physics was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("elastic_rod"), std::string::npos) << e.what();
+  }
+}
