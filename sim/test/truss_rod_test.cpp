@@ -36,7 +36,7 @@ Cantilever cantilever(double length, double E, double radius, int segments, doub
     cur = next;
   }
   c.tip = cur;
-  c.net.bodies.push_back({cur, -1, 0.0, tip_mass});
+  c.net.bodies.push_back({cur, -2, 0.0, tip_mass});
   return c;
 }
 

@@ -631,6 +631,36 @@ RelaxationReport settle_rods(const TrussParams& P, Layout& L, Rng& moduli, RodTr
   return rep;
 }
 
+// Tomato i and its truth at rest (R: the settled rods, kElasticRod only).
+TrussTomato tomato_at_rest(const TrussParams& params, const Pendulum& p, std::size_t i, const RodTruss& R,
+                           const Eigen::Vector3d& contact_force) {
+  TrussTomato t;
+  t.centre_m = p.centre();
+  t.radius_m = p.r_eq;
+  t.equatorial_radius_m = p.equatorial;
+  t.polar_radius_m = p.polar_m;
+  t.rib_amplitude = p.rib;
+  t.lobes = p.lobes;
+  t.rib_phase_rad = p.rib_phase;
+  t.bounding_radius_m = p.radius_m;
+  t.mass_kg = p.mass_kg;
+  t.anchor_m = p.anchor;
+  t.calyx_m = p.calyx();
+  t.pedicel_dir = -p.d;
+  t.pedicel_path_m = {t.anchor_m, t.calyx_m};
+  if (params.physics == TrussPhysics::kElasticRod) {
+    // The fruit's axis is the pedicel's tangent at the calyx.
+    t.pedicel_path_m.clear();
+    for (int k : R.pedicel_nodes[i]) t.pedicel_path_m.push_back(R.net.x[std::size_t(k)]);
+    t.calyx_m = t.pedicel_path_m.back();
+    t.pedicel_dir = (t.calyx_m - t.centre_m).normalized();
+  }
+  // Eq. 4.22: the pedicel balances gravity and the contacts on the fruit.
+  t.pedicel_force_n = -(Eigen::Vector3d(0, 0, -p.mass_kg * kG) + contact_force);
+  t.object_name = params.name + "_tomato_" + std::to_string(i);
+  return t;
+}
+
 }  // namespace
 
 std::optional<TrussClass> parse_truss_class(std::string_view s) {
@@ -767,35 +797,8 @@ Truss make_truss(const TrussParams& params) {
     if (ok || attempt >= 40) break;
   }
 
-  // Tomatoes and their truth.
-  for (std::size_t i = 0; i < L.pendulums.size(); ++i) {
-    const Pendulum& p = L.pendulums[i];
-    TrussTomato t;
-    t.centre_m = p.centre();
-    t.radius_m = p.r_eq;
-    t.equatorial_radius_m = p.equatorial;
-    t.polar_radius_m = p.polar_m;
-    t.rib_amplitude = p.rib;
-    t.lobes = p.lobes;
-    t.rib_phase_rad = p.rib_phase;
-    t.bounding_radius_m = p.radius_m;
-    t.mass_kg = p.mass_kg;
-    t.anchor_m = p.anchor;
-    t.calyx_m = p.calyx();
-    t.pedicel_dir = -p.d;
-    t.pedicel_path_m = {t.anchor_m, t.calyx_m};
-    if (params.physics == TrussPhysics::kElasticRod) {
-      // The fruit's axis is the pedicel's tangent at the calyx.
-      t.pedicel_path_m.clear();
-      for (int k : R.pedicel_nodes[i]) t.pedicel_path_m.push_back(R.net.x[std::size_t(k)]);
-      t.calyx_m = t.pedicel_path_m.back();
-      t.pedicel_dir = (t.calyx_m - t.centre_m).normalized();
-    }
-    // Eq. 4.22: the pedicel balances gravity and the contacts on the fruit.
-    t.pedicel_force_n = -(Eigen::Vector3d(0, 0, -p.mass_kg * kG) + contact_force[i]);
-    t.object_name = params.name + "_tomato_" + std::to_string(i);
-    T.tomatoes.push_back(t);
-  }
+  for (std::size_t i = 0; i < L.pendulums.size(); ++i)
+    T.tomatoes.push_back(tomato_at_rest(params, L.pendulums[i], i, R, contact_force[i]));
   T.contacts = contacts;
   T.peduncle_m = L.polyline;
 

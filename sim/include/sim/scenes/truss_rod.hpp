@@ -56,7 +56,7 @@ struct Tie {
 
 struct Body {
   int node = 0;      ///< the fruit's centre
-  int rod = -1;      ///< its own pedicel (never touched by it)
+  int rod = -2;      ///< its own pedicel's rod id, never touched by it (-2: none; -1 is the peduncle)
   double radius_m = 0.0;
   double mass_kg = 0.0;
 };
