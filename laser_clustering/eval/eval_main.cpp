@@ -56,6 +56,8 @@ struct Args {
   std::string write_calibration;  ///< write the gripper sensor's calibration here and stop
   bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
   bool tuning = false;       ///< the run chooses parameters: only tuning seeds (common/seeds.hpp)
+  ev::TrussOptions scene;    ///< truss cases' scene options (--scene-set)
+  std::string scene_label;   ///< ... as given, for the seeds' label
 };
 
 // Fills `a` from the command line; the exit code when the program stops there.
@@ -91,6 +93,17 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
   app.add_flag("--no-tomato-look", no_tomato_look, "no look through the tomatoes before a blind move");
   app.add_option("--write-calibration", a.write_calibration,
                  "write the gripper sensor's calibration to FILE and stop (with --raw-pulses)");
+  std::vector<std::string> scene_sets;
+  app.add_option("--scene-set", scene_sets, "truss cases' scene option key=value: max_tilt_deg (default 15), stem_bow_m "
+                                            "(default 0), repeatable")
+      ->check(CLI::Validator(
+          [&a](std::string& kv) -> std::string {
+            const auto eq = kv.find('=');
+            if (eq == std::string::npos) return "--scene-set wants key=value, got '" + kv + "'";
+            a.scene_label += ", scene " + kv;
+            return ev::set_truss_option(a.scene, kv.substr(0, eq), kv.substr(eq + 1));
+          },
+          "KEY=VALUE"));
   if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
   a.cases = std::set<std::string>(cases.begin(), cases.end());
   a.tomato_look = !no_tomato_look;
@@ -195,6 +208,7 @@ void open_evaluation(Evaluation& e, const ScannerOptions& so) {
   // Every figure below comes from these seeds: the label goes on the run and on each table.
   e.seeds = tinyline::common::seeds::describe(
       tinyline::common::seeds::kLaserClustering, tinyline::common::seeds::seed_run(args.seed, static_cast<std::uint64_t>(args.trials)));
+  e.seeds += args.scene_label;
   std::cout << "trials per case: " << args.trials << ", " << e.seeds << "\n\n";
   e.json << "{\n  \"truss_scanner\": \"" << (e.truss_scanner ? e.truss_scanner->describe() : "")
          << "\",\n  \"tool_scanner\": \"" << (e.tool_scanner ? e.tool_scanner->describe() : "")
@@ -251,6 +265,7 @@ void truss_case(Evaluation& e, const std::string& name, ev::TrussCase c) {
   const Args& args = e.args;
   TrussRecorder rec(args, name);
   ev::TrussEvalOptions options;
+  options.scene = args.scene;
   options.rescans = args.rescans;
   options.tomato_look = args.tomato_look;
   const auto r = ev::run_truss_case(

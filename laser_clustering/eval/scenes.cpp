@@ -76,7 +76,35 @@ void add_hanging(sim::World& w, const Hanging& h, const std::string& name, sim::
   tomato = w.add({name + "_tomato", sim::SphereShape{h.tomato_radius}, pose(h.tomato_centre), red});
 }
 
+// The curved stem's offset of a pedicel top dx along the stem from the
+// target's (TrussOptions::stem_bow_m), across the stem at angle psi in y-z.
+Eigen::Vector3d bow(const TrussOptions& o, double psi, double dx) {
+  const double a = o.stem_bow_m * (dx / 0.1) * (dx / 0.1);
+  return {0.0, a * std::cos(psi), a * std::sin(psi)};
+}
+
 }  // namespace
+
+std::string set_truss_option(TrussOptions& o, const std::string& key, const std::string& value) {
+  double x = 0.0;
+  std::size_t used = 0;
+  try {
+    x = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size() || !std::isfinite(x)) return "scene option '" + key + "' wants a number, got '" + value + "'";
+  if (key == "max_tilt_deg") {
+    if (x < 0 || x > 60) return "max_tilt_deg must be in [0, 60]";
+    o.max_tilt_deg = x;
+  } else if (key == "stem_bow_m") {
+    if (std::abs(x) > 0.1) return "stem_bow_m must be in [-0.1, 0.1]";
+    o.stem_bow_m = x;
+  } else {
+    return "unknown scene option '" + key + "' (max_tilt_deg, stem_bow_m)";
+  }
+  return {};
+}
 
 TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions& o) {
   Rng rng(seed);
@@ -101,6 +129,7 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
   std::vector<Hanging> hangings{target};
 
   // Neighbours along the stem on both sides (at least one in all).
+  const double psi = o.stem_bow_m != 0.0 ? Rng(seed ^ 0x5bd1e995ULL).uniform(0.0, 2.0 * std::numbers::pi) : 0.0;
   int left = rng.integer(0, 2), right = rng.integer(0, 2);
   if (left + right == 0) (rng.integer(0, 1) ? left : right) = 1;
   for (const int side : {-1, 1}) {
@@ -110,8 +139,9 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
       // further out each time.
       for (int attempt = 0; attempt < 50; ++attempt) {
         const double x_try = x + side * rng.uniform(o.neighbour_spacing_m) * (1.0 + 0.02 * attempt);
-        const Eigen::Vector3d top(x_try, target.top.y() + rng.uniform(-o.neighbour_drop_m, o.neighbour_drop_m),
-                                  target.top.z() + rng.uniform(-o.neighbour_depth_m, o.neighbour_depth_m));
+        Eigen::Vector3d top(x_try, target.top.y() + rng.uniform(-o.neighbour_drop_m, o.neighbour_drop_m),
+                            target.top.z() + rng.uniform(-o.neighbour_depth_m, o.neighbour_depth_m));
+        if (o.stem_bow_m != 0.0) top += bow(o, psi, x_try - target.top.x());
         const Hanging h = hang(rng, top, o);
         if (!overlaps(h, hangings)) {
           hangings.push_back(h);
@@ -135,8 +165,14 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
   std::vector<Eigen::Vector3d> tops;
   for (const auto& h : hangings) tops.push_back(h.top);
   std::sort(tops.begin(), tops.end(), [](const auto& a, const auto& b) { return a.x() < b.x(); });
-  tops.insert(tops.begin(), tops.front() - Eigen::Vector3d(0.10, 0.0, 0.0));
-  tops.push_back(tops.back() + Eigen::Vector3d(0.10, 0.0, 0.0));
+  const Eigen::Vector3d first = tops.front(), last = tops.back();
+  tops.insert(tops.begin(), first - Eigen::Vector3d(0.10, 0.0, 0.0));
+  tops.push_back(last + Eigen::Vector3d(0.10, 0.0, 0.0));
+  if (o.stem_bow_m != 0.0) {  // the ends follow the bow
+    const double x0 = target.top.x();
+    tops.front() += bow(o, psi, first.x() - 0.10 - x0) - bow(o, psi, first.x() - x0);
+    tops.back() += bow(o, psi, last.x() + 0.10 - x0) - bow(o, psi, last.x() - x0);
+  }
   for (std::size_t i = 0; i + 1 < tops.size(); ++i) {
     const sim::ObjectId id = w.add({"stem" + std::to_string(i), sim::RodShape{tops[i], tops[i + 1], 0.004},
                                     Eigen::Isometry3d::Identity(), stem_mat});

@@ -40,7 +40,11 @@ struct TrussOptions {
   double throat_z_m = 0.15;            ///< blade throat ahead of the laser [m] (gripper geometry)
   double max_offset_m = 0.05;          ///< kRandomOffset: horizontal offset, uniform in a disc [m]
   double vertical_jitter_m = 0.008;    ///< where along the pedicel the laser plane cuts, around its middle [m]
-  double max_tilt_deg = 15.0;          ///< pedicels hang within this of vertical
+  double max_tilt_deg = 15.0;          ///< pedicels hang within this of vertical (up to 60)
+  /// A curved stem: the pedicel tops leave the straight line through the
+  /// target's top by stem_bow_m (dx / 10 cm)^2 at dx along it, in a direction
+  /// across the stem drawn per scene from its own stream. 0: straight.
+  double stem_bow_m = 0.0;
   double pedicel_radius_m[2] = {0.0025, 0.0035};
   double pedicel_length_m[2] = {0.03, 0.05};
   double tomato_radius_m[2] = {0.025, 0.035};
@@ -96,6 +100,10 @@ struct TrussScene {
 };
 
 [[nodiscard]] TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions& o = {});
+
+/// Sets a scene option from text (the evaluation's --scene-set key=value):
+/// max_tilt_deg (0-60), stem_bow_m (-0.1-0.1). Returns why not, empty when set.
+[[nodiscard]] std::string set_truss_option(TrussOptions& o, const std::string& key, const std::string& value);
 
 struct StickOptions {
   double panel_distance_m[2] = {0.25, 0.35};

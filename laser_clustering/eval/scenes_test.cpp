@@ -100,3 +100,40 @@ TEST(EvalScenes, WrenchTruePitchSquaresTheOpticalAxisToTheFace) {
     }
   }
 }
+
+TEST(EvalScenes, WiderTiltsAndACurvedStemAreSceneOptions) {
+  ev::TrussOptions o;
+  EXPECT_EQ(ev::set_truss_option(o, "max_tilt_deg", "30"), "");
+  EXPECT_EQ(ev::set_truss_option(o, "stem_bow_m", "0.03"), "");
+  EXPECT_NE(ev::set_truss_option(o, "max_tilt_deg", "75"), "");
+  EXPECT_NE(ev::set_truss_option(o, "stem_bow_m", "x"), "");
+  EXPECT_NE(ev::set_truss_option(o, "wobble", "1"), "");
+  ev::TrussOptions tilted;
+  tilted.max_tilt_deg = 30.0;
+  double widest = 0.0;
+  int matched = 0;
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+    const auto bowed = ev::make_truss_scene(ev::TrussCase::kRandomOffset, seed, o);
+    const auto straight = ev::make_truss_scene(ev::TrussCase::kRandomOffset, seed, tilted);
+    auto top = [](const ev::TrussScene& s, std::size_t i) {
+      return std::get<sim::RodShape>(s.world.object(s.truth.pedicels[i]).shape).p0;
+    };
+    for (auto id : bowed.truth.pedicels) {
+      const auto& rod = std::get<sim::RodShape>(bowed.world.object(id).shape);
+      const Eigen::Vector3d d = (rod.p1 - rod.p0).normalized();
+      widest = std::max(widest, std::acos(std::clamp(d.y(), -1.0, 1.0)) * 180.0 / M_PI);
+    }
+    // Same draws: each neighbour's top moved across the stem by the bow at its distance.
+    if (bowed.truth.pedicels.size() != straight.truth.pedicels.size()) continue;
+    for (std::size_t i = 1; i < bowed.truth.pedicels.size(); ++i) {
+      const Eigen::Vector3d moved = top(bowed, i) - top(straight, i);
+      const double dx = top(straight, i).x() - top(straight, 0).x();
+      if (std::abs(moved.x()) > 1e-12) continue;  // a redrawn neighbour
+      EXPECT_NEAR(moved.norm(), 0.03 * (dx / 0.1) * (dx / 0.1), 1e-9);
+      ++matched;
+    }
+  }
+  EXPECT_GT(widest, 20.0);
+  EXPECT_LE(widest, 30.0 + 1e-9);
+  EXPECT_GT(matched, 20);
+}

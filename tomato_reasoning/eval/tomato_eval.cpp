@@ -160,6 +160,10 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
                "truss), written to DIR/harvest.csv");
   app.add_option("--harvest-set", harvest_sets,
                  "the harvest's options key=value (attempts=2 later_attempts_approach_far=0), repeatable");
+  std::vector<std::string> truss_sets;
+  app.add_option("--truss-set", truss_sets,
+                 "the simulated world's truss option key=value (physics=pendulum|elastic_rod, stem_bend_deg, "
+                 "peduncle_curl_deg, pedicel_leaves, rest_tilt_max_deg, ...; sim/scenes/truss.hpp), repeatable");
   app.add_flag("--quiet", r.quiet, "no per-truss lines");
   bool tuning = false;
   app.add_flag("--tuning", tuning,
@@ -171,6 +175,11 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     for (const auto& kv : sets) r.sets.push_back(key_value("--set", kv));
     for (const auto& kv : verify_sets) r.verify_sets.push_back(key_value("--verify-set", kv));
     for (const auto& kv : harvest_sets) r.harvest_sets.push_back(key_value("--harvest-set", kv));
+    for (const auto& kv : truss_sets) {
+      const auto [key, value] = key_value("--truss-set", kv);
+      if (const auto why = tinyline::sim::set_truss_option(r.scenario.truss, key, value); !why.valid)
+        throw CLI::ValidationError("--truss-set", why.reason);
+    }
   } catch (const CLI::ParseError& e) {
     (void)app.exit(e);
     return 2;
@@ -183,6 +192,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     return 2;
   }
   r.seeds_label = seeds::describe(seeds::kTomato, r.seeds);
+  for (const auto& kv : truss_sets) r.seeds_label += ", world " + kv;
   if (pose_noise.size() == 2) {
     r.scenario.pose_noise_m = pose_noise[0];
     r.scenario.pose_noise_deg = pose_noise[1];

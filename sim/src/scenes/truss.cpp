@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include <sim/rgbd_camera.hpp>
+#include <sim/scenes/truss_rod.hpp>
 #include <tinyline/common/random.hpp>
 
 namespace tinyline::sim {
@@ -55,8 +57,11 @@ struct Pendulum {
   // Shape (see TrussTomato).
   double r_eq = 0.0, equatorial = 0.0, rib = 0.0, rib_phase = 0.0;
   int lobes = 5;
+  // Set by the elastic-rod settle, whose centre is off the anchor -> d line
+  // when the pedicel curves.
+  std::optional<Eigen::Vector3d> rod_centre;
   double arm() const { return pedicel_m + polar_m; }
-  Eigen::Vector3d centre() const { return anchor + arm() * d; }
+  Eigen::Vector3d centre() const { return rod_centre ? *rod_centre : Eigen::Vector3d(anchor + arm() * d); }
   Eigen::Vector3d calyx() const { return anchor + pedicel_m * d; }
 };
 
@@ -390,6 +395,29 @@ Object rod(std::string name, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
   return o;
 }
 
+// A bent rod: a tube of 8 facets around a polyline (one object, so that it
+// goes when its fruit is picked, as a straight pedicel's rod does).
+MeshShape tube(const std::vector<Eigen::Vector3d>& path, double radius) {
+  constexpr int kSides = 8;
+  MeshShape m;
+  for (std::size_t k = 0; k < path.size(); ++k) {
+    const Eigen::Vector3d t = (path[std::min(k + 1, path.size() - 1)] - path[k == 0 ? 0 : k - 1]).normalized();
+    const Eigen::Vector3d a = t.unitOrthogonal(), b = t.cross(a);
+    for (int j = 0; j < kSides; ++j) {
+      const double phi = 2.0 * M_PI * j / kSides;
+      m.vertices.push_back(path[k] + radius * (std::cos(phi) * a + std::sin(phi) * b));
+    }
+  }
+  for (int k = 0; k + 1 < int(path.size()); ++k) {
+    for (int j = 0; j < kSides; ++j) {
+      const int a = k * kSides + j, b = k * kSides + (j + 1) % kSides;
+      m.triangles.emplace_back(a, b, b + kSides);
+      m.triangles.emplace_back(a, b + kSides, a + kSides);
+    }
+  }
+  return m;
+}
+
 struct Layout {
   std::vector<Pendulum> pendulums;
   std::vector<Segment> peduncle;
@@ -425,7 +453,8 @@ Layout draw_layout(const TrussParams& P, int n, Rng& rng) {
   for (int k = 0; k < segs; ++k) {
     const double s = (k + 0.5) / segs;
     const double pitch = start_angle + droop * s;
-    const Eigen::Vector3d dir(side * std::cos(pitch) * std::cos(yaw), std::cos(pitch) * std::sin(yaw), -std::sin(pitch));
+    const double turn = yaw + P.peduncle_curl_deg * M_PI / 180.0 * s;
+    const Eigen::Vector3d dir(side * std::cos(pitch) * std::cos(turn), std::cos(pitch) * std::sin(turn), -std::sin(pitch));
     pt += (length / segs) * dir;
     L.polyline.push_back(pt);
     arc.push_back(arc.back() + length / segs);
@@ -473,6 +502,165 @@ Layout draw_layout(const TrussParams& P, int n, Rng& rng) {
   return L;
 }
 
+
+// ---- kElasticRod: the same layout as a network of elastic rods ----
+
+struct RodTruss {
+  rod::Network net;
+  std::vector<int> fruit_node;                  // per tomato: its centre
+  std::vector<std::vector<int>> pedicel_nodes;  // per tomato: anchor .. calyx
+  std::vector<int> peduncle_nodes;
+};
+
+// Axial stiffness capped at 10 E I / l^2 (stretch stays under 0.5 % under
+// the truss's loads) so that bending, not stretching, sets how stiff the
+// settle's equations are.
+double axial(double E, double r, double l) {
+  return std::min(E * M_PI * r * r, 10.0 * E * rod::round_section_inertia(r) / (l * l));
+}
+
+void lump_rod_mass(rod::Network& net, int a, int b, double radius, double density) {
+  const double m = density * M_PI * radius * radius * (net.x[std::size_t(b)] - net.x[std::size_t(a)]).norm();
+  net.lumped_mass_kg[std::size_t(a)] += 0.5 * m;
+  net.lumped_mass_kg[std::size_t(b)] += 0.5 * m;
+}
+
+// The peduncle as a rod clamped at the main stem (a fixed ghost node before
+// its root holds the root's direction), its rest shape the drawn arch at
+// half the drawn resolution.
+void add_peduncle(const TrussParams& P, const Layout& L, double E, RodTruss& R) {
+  rod::Network& net = R.net;
+  std::vector<Eigen::Vector3d> poly;
+  for (std::size_t k = 0; k < L.polyline.size(); k += 2) poly.push_back(L.polyline[k]);
+  if ((L.polyline.size() - 1) % 2 != 0) poly.push_back(L.polyline.back());
+  const double r = P.peduncle_radius_m, EI = E * rod::round_section_inertia(r);
+  const int ghost = net.add_node(poly[0] - (poly[1] - poly[0]), true);
+  for (std::size_t k = 0; k < poly.size(); ++k) R.peduncle_nodes.push_back(net.add_node(poly[k], k == 0));
+  const auto& q = R.peduncle_nodes;
+  for (std::size_t k = 0; k + 1 < q.size(); ++k) {
+    const double l = (poly[k + 1] - poly[k]).norm();
+    net.add_segment(q[k], q[k + 1], axial(E, r, l));
+    net.tubes.push_back({q[k], q[k + 1], -1, r});
+    lump_rod_mass(net, q[k], q[k + 1], r, P.density_kg_m3);
+    // The clamp's hinge stands for half an element: twice the stiffness.
+    net.add_hinge(k == 0 ? ghost : q[k - 1], q[k], q[k], q[k + 1], (k == 0 ? 2.0 : 1.0) * EI / l);
+  }
+}
+
+// Pedicel i as a straight rod along its rest direction, tied to the
+// peduncle at its anchor and bent against the peduncle's direction there;
+// its fruit a node welded to the calyx (10 times a pedicel element's
+// stiffness), with the fruit's mass and bounding radius.
+void add_pedicel(const TrussParams& P, const Pendulum& p, int i, double E, RodTruss& R) {
+  rod::Network& net = R.net;
+  const auto& q = R.peduncle_nodes;
+  std::size_t seg = 0;
+  double best = 1e9, w = 0.0;
+  for (std::size_t k = 0; k + 1 < q.size(); ++k) {
+    const Eigen::Vector3d a = net.x[std::size_t(q[k])], b = net.x[std::size_t(q[k + 1])];
+    const double t = closest_t(p.anchor, a, b), d = (p.anchor - (a + t * (b - a))).norm();
+    if (d < best) best = d, seg = k, w = t;
+  }
+  const int K = P.pedicel_segments;
+  const double r = P.pedicel_radius_m, l = p.pedicel_m / K, EI = E * rod::round_section_inertia(r);
+  const double ax = axial(E, r, l);
+  std::vector<int> nodes;
+  for (int k = 0; k <= K; ++k) nodes.push_back(net.add_node(p.anchor + (k * l) * p.rest));
+  const Eigen::Vector3d on = (1 - w) * net.x[std::size_t(q[seg])] + w * net.x[std::size_t(q[seg + 1])];
+  net.ties.push_back({nodes[0], q[seg], q[seg + 1], w, p.anchor - on, 10.0 * ax / l});
+  net.add_hinge(q[seg], q[seg + 1], nodes[0], nodes[1], 2.0 * EI / l);  // the knuckle: half an element
+  for (int k = 0; k < K; ++k) {
+    net.add_segment(nodes[std::size_t(k)], nodes[std::size_t(k + 1)], ax);
+    net.tubes.push_back({nodes[std::size_t(k)], nodes[std::size_t(k + 1)], i, r});
+    lump_rod_mass(net, nodes[std::size_t(k)], nodes[std::size_t(k + 1)], r, P.density_kg_m3);
+    if (k > 0) net.add_hinge(nodes[std::size_t(k - 1)], nodes[std::size_t(k)], nodes[std::size_t(k)], nodes[std::size_t(k + 1)], EI / l);
+  }
+  const int calyx = nodes.back(), centre = net.add_node(p.anchor + p.arm() * p.rest);
+  net.add_segment(calyx, centre, 10.0 * ax * p.polar_m / l);
+  net.add_hinge(nodes[std::size_t(K - 1)], calyx, calyx, centre, 10.0 * EI / l);
+  net.bodies.push_back({centre, i, p.radius_m, p.mass_kg});
+  R.fruit_node.push_back(centre);
+  R.pedicel_nodes.push_back(std::move(nodes));
+}
+
+// Moduli from their own stream, so that the layout's draws are the
+// pendulum world's.
+RodTruss build_rod_truss(const TrussParams& P, const Layout& L, Rng& moduli) {
+  RodTruss R;
+  add_peduncle(P, L, moduli.uniform(P.peduncle_young_min_pa, P.peduncle_young_max_pa), R);
+  for (std::size_t i = 0; i < L.pendulums.size(); ++i)
+    add_pedicel(P, L.pendulums[i], int(i), moduli.uniform(P.pedicel_young_min_pa, P.pedicel_young_max_pa), R);
+  return R;
+}
+
+// The settled rods back into the layout (pendulum directions anchor ->
+// centre, for the camera and the class checks) and the truth's contacts and
+// forces; a rest state with penetrations over 0.5 mm does not count as settled.
+RelaxationReport settle_rods(const TrussParams& P, Layout& L, Rng& moduli, RodTruss& R, std::vector<TrussContact>& contacts,
+                             std::vector<Eigen::Vector3d>& contact_force) {
+  R = build_rod_truss(P, L, moduli);
+  rod::SettleOptions o;
+  o.friction = P.friction;
+  const rod::SettleReport s = rod::settle(R.net, o);
+  RelaxationReport rep;
+  double lightest = 1e9;
+  for (const auto& p : L.pendulums) lightest = std::min(lightest, p.mass_kg * kG);
+  rep.iterations = s.iterations;
+  rep.max_torque_residual = s.max_residual_n / lightest;
+  rep.max_penetration_m = s.max_penetration_m;
+  rep.converged = s.converged && s.max_penetration_m < 5e-4;
+  contacts.clear();
+  contact_force.assign(L.pendulums.size(), Eigen::Vector3d::Zero());
+  for (const auto& c : s.contacts) {
+    contact_force[std::size_t(c.body)] += c.force_on_body;
+    if (c.with == rod::ContactWith::kBody) {
+      contact_force[std::size_t(c.other)] -= c.force_on_body;
+      contacts.push_back({c.body, c.other, ContactKind::kFruit, c.normal_n});
+    } else {
+      contacts.push_back({c.body, c.other, c.other < 0 ? ContactKind::kPeduncle : ContactKind::kPedicel, c.normal_n});
+    }
+  }
+  for (std::size_t i = 0; i < L.pendulums.size(); ++i) {
+    Pendulum& p = L.pendulums[i];
+    p.anchor = R.net.x[std::size_t(R.pedicel_nodes[i].front())];
+    p.rod_centre = R.net.x[std::size_t(R.fruit_node[i])];
+    p.d = (*p.rod_centre - p.anchor).normalized();
+  }
+  L.polyline.clear();
+  for (int k : R.peduncle_nodes) L.polyline.push_back(R.net.x[std::size_t(k)]);
+  return rep;
+}
+
+// Tomato i and its truth at rest (R: the settled rods, kElasticRod only).
+TrussTomato tomato_at_rest(const TrussParams& params, const Pendulum& p, std::size_t i, const RodTruss& R,
+                           const Eigen::Vector3d& contact_force) {
+  TrussTomato t;
+  t.centre_m = p.centre();
+  t.radius_m = p.r_eq;
+  t.equatorial_radius_m = p.equatorial;
+  t.polar_radius_m = p.polar_m;
+  t.rib_amplitude = p.rib;
+  t.lobes = p.lobes;
+  t.rib_phase_rad = p.rib_phase;
+  t.bounding_radius_m = p.radius_m;
+  t.mass_kg = p.mass_kg;
+  t.anchor_m = p.anchor;
+  t.calyx_m = p.calyx();
+  t.pedicel_dir = -p.d;
+  t.pedicel_path_m = {t.anchor_m, t.calyx_m};
+  if (params.physics == TrussPhysics::kElasticRod) {
+    // The fruit's axis is the pedicel's tangent at the calyx.
+    t.pedicel_path_m.clear();
+    for (int k : R.pedicel_nodes[i]) t.pedicel_path_m.push_back(R.net.x[std::size_t(k)]);
+    t.calyx_m = t.pedicel_path_m.back();
+    t.pedicel_dir = (t.calyx_m - t.centre_m).normalized();
+  }
+  // Eq. 4.22: the pedicel balances gravity and the contacts on the fruit.
+  t.pedicel_force_n = -(Eigen::Vector3d(0, 0, -p.mass_kg * kG) + contact_force);
+  t.object_name = params.name + "_tomato_" + std::to_string(i);
+  return t;
+}
+
 }  // namespace
 
 std::optional<TrussClass> parse_truss_class(std::string_view s) {
@@ -480,6 +668,54 @@ std::optional<TrussClass> parse_truss_class(std::string_view s) {
   if (s == "B" || s == "b") return TrussClass::kB;
   if (s == "C" || s == "c") return TrussClass::kC;
   return std::nullopt;
+}
+
+std::optional<TrussPhysics> parse_truss_physics(std::string_view s) {
+  if (s == "pendulum") return TrussPhysics::kPendulum;
+  if (s == "elastic_rod") return TrussPhysics::kElasticRod;
+  return std::nullopt;
+}
+
+common::Validation set_truss_option(TrussParams& p, std::string_view key, std::string_view value) {
+  const std::string v(value);
+  if (key == "physics") {
+    const auto ph = parse_truss_physics(v);
+    if (!ph) return common::Validation::invalid("physics must be pendulum or elastic_rod, got '" + v + "'");
+    p.physics = *ph;
+    return p.validate();
+  }
+  double x = 0.0;
+  std::size_t used = 0;
+  try {
+    x = std::stod(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != v.size() || !std::isfinite(x))
+    return common::Validation::invalid("truss option '" + std::string(key) + "' wants a number, got '" + v + "'");
+  auto integer = [&](int& field) {
+    if (x != std::floor(x)) return common::Validation::invalid("truss option '" + std::string(key) + "' wants a whole number");
+    field = static_cast<int>(x);
+    return p.validate();
+  };
+  const std::pair<const char*, double*> reals[] = {
+      {"pedicel_young_min_pa", &p.pedicel_young_min_pa}, {"pedicel_young_max_pa", &p.pedicel_young_max_pa},
+      {"peduncle_young_min_pa", &p.peduncle_young_min_pa}, {"peduncle_young_max_pa", &p.peduncle_young_max_pa},
+      {"friction", &p.friction}, {"stem_bend_deg", &p.stem_bend_deg}, {"peduncle_curl_deg", &p.peduncle_curl_deg},
+      {"front_leaf_offset_min", &p.front_leaf_offset_min}, {"front_leaf_offset_max", &p.front_leaf_offset_max},
+      {"rest_tilt_max_deg", &p.rest_tilt_max_deg}};
+  for (const auto& [name, field] : reals) {
+    if (key != name) continue;
+    *field = x;
+    return p.validate();
+  }
+  if (key == "pedicel_segments") return integer(p.pedicel_segments);
+  if (key == "pedicel_leaves") return integer(p.pedicel_leaves);
+  if (key == "front_leaves") return integer(p.front_leaves);
+  return common::Validation::invalid("unknown truss option '" + std::string(key) +
+                                     "' (physics, pedicel_young_min_pa, pedicel_young_max_pa, peduncle_young_min_pa, "
+                                     "peduncle_young_max_pa, friction, pedicel_segments, stem_bend_deg, peduncle_curl_deg, "
+                                     "pedicel_leaves, front_leaves, front_leaf_offset_min, front_leaf_offset_max, rest_tilt_max_deg)");
 }
 
 common::Validation TrussParams::validate() const {
@@ -499,6 +735,16 @@ common::Validation TrussParams::validate() const {
   if (!(camera_distance_m >= 0.2 && camera_distance_m <= 2.0)) return common::Validation::invalid("camera_distance_m must be in [0.2, 2] m");
   if (!(camera_jitter_m >= 0) || !(camera_yaw_jitter_deg >= 0)) return common::Validation::invalid("camera jitters must be >= 0");
   if (!origin_m.allFinite()) return common::Validation::invalid("origin_m must be finite");
+  if (!(pedicel_young_min_pa > 0) || !(pedicel_young_max_pa >= pedicel_young_min_pa) || !(peduncle_young_min_pa > 0) ||
+      !(peduncle_young_max_pa >= peduncle_young_min_pa) || pedicel_young_max_pa > 1e12 || peduncle_young_max_pa > 1e12)
+    return common::Validation::invalid("Young's moduli must satisfy 0 < min <= max <= 1e12 Pa");
+  if (!(friction >= 0 && friction <= 2)) return common::Validation::invalid("friction must be in [0, 2]");
+  if (pedicel_segments < 2 || pedicel_segments > 16) return common::Validation::invalid("pedicel_segments must be in 2..16");
+  if (!(std::abs(stem_bend_deg) <= 120)) return common::Validation::invalid("stem_bend_deg must be in [-120, 120]");
+  if (!(std::abs(peduncle_curl_deg) <= 180)) return common::Validation::invalid("peduncle_curl_deg must be in [-180, 180]");
+  if (pedicel_leaves < 0 || pedicel_leaves > 8) return common::Validation::invalid("pedicel_leaves must be in 0..8");
+  if (!(front_leaf_offset_min >= 0) || !(front_leaf_offset_max >= front_leaf_offset_min) || !(front_leaf_offset_max <= 5))
+    return common::Validation::invalid("front leaf offsets must satisfy 0 <= min <= max <= 5 radii");
   return common::Validation::ok();
 }
 
@@ -510,11 +756,16 @@ Truss make_truss(const TrussParams& params) {
   const int n = params.num_tomatoes > 0 ? params.num_tomatoes : tomato_count(params.complexity, rng);
 
   Layout L;
+  RodTruss R;
+  Rng moduli(params.seed ^ 0x3c6ef372fe94f82bULL);
   std::vector<TrussContact> contacts;
   std::vector<Eigen::Vector3d> contact_force;
   for (int attempt = 0;; ++attempt) {
     L = draw_layout(params, n, rng);
-    T.relaxation = relax(L.pendulums, L.peduncle, params.pedicel_radius_m, contacts, contact_force);
+    if (params.physics == TrussPhysics::kElasticRod)
+      T.relaxation = settle_rods(params, L, moduli, R, contacts, contact_force);
+    else
+      T.relaxation = relax(L.pendulums, L.peduncle, params.pedicel_radius_m, contacts, contact_force);
     T.relaxation.restarts = attempt;
     bool ok = T.relaxation.converged;
     // Fruit must clear the floor.
@@ -546,27 +797,8 @@ Truss make_truss(const TrussParams& params) {
     if (ok || attempt >= 40) break;
   }
 
-  // Tomatoes and their truth.
-  for (std::size_t i = 0; i < L.pendulums.size(); ++i) {
-    const Pendulum& p = L.pendulums[i];
-    TrussTomato t;
-    t.centre_m = p.centre();
-    t.radius_m = p.r_eq;
-    t.equatorial_radius_m = p.equatorial;
-    t.polar_radius_m = p.polar_m;
-    t.rib_amplitude = p.rib;
-    t.lobes = p.lobes;
-    t.rib_phase_rad = p.rib_phase;
-    t.bounding_radius_m = p.radius_m;
-    t.mass_kg = p.mass_kg;
-    t.anchor_m = p.anchor;
-    t.calyx_m = p.calyx();
-    t.pedicel_dir = -p.d;
-    // Eq. 4.22: the pedicel balances gravity and the contacts on the fruit.
-    t.pedicel_force_n = -(Eigen::Vector3d(0, 0, -p.mass_kg * kG) + contact_force[i]);
-    t.object_name = params.name + "_tomato_" + std::to_string(i);
-    T.tomatoes.push_back(t);
-  }
+  for (std::size_t i = 0; i < L.pendulums.size(); ++i)
+    T.tomatoes.push_back(tomato_at_rest(params, L.pendulums[i], i, R, contact_force[i]));
   T.contacts = contacts;
   T.peduncle_m = L.polyline;
 
@@ -617,7 +849,15 @@ void add_fruit(const Truss& T, World& world) {
       s.material = skin;
       world.add(std::move(s));
     }
-    world.add(rod(nm + "_pedicel_" + std::to_string(i), t.anchor_m, t.calyx_m, T.params.pedicel_radius_m, stem));
+    if (t.pedicel_path_m.size() > 2) {
+      Object o;
+      o.name = nm + "_pedicel_" + std::to_string(i);
+      o.shape = tube(t.pedicel_path_m, T.params.pedicel_radius_m);
+      o.material = stem;
+      world.add(std::move(o));
+    } else {
+      world.add(rod(nm + "_pedicel_" + std::to_string(i), t.anchor_m, t.calyx_m, T.params.pedicel_radius_m, stem));
+    }
     // Sepals: a thin green disc on the fruit's top, around the calyx.
     Object c;
     c.name = nm + "_calyx_" + std::to_string(i);
@@ -651,7 +891,7 @@ void add_front_leaves(const Truss& T, World& world, Rng& rng, MaterialId leaf) {
     // Offset sideways so that the leaf covers an edge of the fruit only.
     const Eigen::Vector3d side = to_t.cross(Eigen::Vector3d::UnitZ()).normalized();
     const double a = rng.uniform(-M_PI, M_PI);
-    const double off = t.radius_m * rng.uniform(1.2, 1.9) * (1.0 - back / to_t.norm());
+    const double off = t.radius_m * rng.uniform(P.front_leaf_offset_min, P.front_leaf_offset_max) * (1.0 - back / to_t.norm());
     at += off * (std::cos(a) * side + std::sin(a) * Eigen::Vector3d::UnitZ());
     Object o;
     o.name = P.name + "_leaf_front_" + std::to_string(k);
@@ -664,6 +904,48 @@ void add_front_leaves(const Truss& T, World& world, Rng& rng, MaterialId leaf) {
     o.T_world_object = pose_from(at, face * tilt);
     o.material = leaf;
     world.add(std::move(o));
+  }
+}
+
+// Leaves between the camera and pedicels: each hides the middle of one
+// pedicel (what the laser verification and the cut look for), from its own
+// random stream so that the other leaves stay where they were.
+void add_pedicel_leaves(const Truss& T, World& world, MaterialId leaf) {
+  const TrussParams& P = T.params;
+  Rng rng(P.seed ^ 0x1eaf5eedULL);
+  const Eigen::Vector3d eye = T.T_world_camera.translation();
+  for (int k = 0; k < P.pedicel_leaves; ++k) {
+    const TrussTomato& t = T.tomatoes[static_cast<std::size_t>(k) % T.tomatoes.size()];
+    const Eigen::Vector3d mid = 0.5 * (t.anchor_m + t.calyx_m), to = mid - eye;
+    const Eigen::Vector3d at = mid - rng.uniform(0.05, 0.12) * to.normalized() +
+                               rng.uniform(-0.01, 0.01) * to.cross(Eigen::Vector3d::UnitZ()).normalized();
+    Object o;
+    o.name = P.name + "_leaf_pedicel_" + std::to_string(k);
+    o.shape = leaflet(rng.uniform(0.04, 0.07), rng.uniform(0.02, 0.035), rng.uniform(0.002, 0.006));
+    const Eigen::Matrix3d face = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -to.normalized()).toRotationMatrix();
+    o.T_world_object = pose_from(at, face * Eigen::AngleAxisd(rng.uniform(-M_PI, M_PI), Eigen::Vector3d::UnitZ()).toRotationMatrix());
+    o.material = leaf;
+    world.add(std::move(o));
+  }
+}
+
+// The main stem the peduncle leaves from, a little behind it: one straight
+// rod, or a bow of 8 rods bending by stem_bend_deg in x about the origin.
+void add_main_stem(const TrussParams& P, World& world, MaterialId stem) {
+  const Eigen::Vector3d base = P.origin_m + Eigen::Vector3d(0, 0.02, 0);
+  if (P.stem_bend_deg == 0.0) {
+    world.add(rod(P.name + "_main_stem", base + Eigen::Vector3d(0, 0, -0.6), base + Eigen::Vector3d(0, 0, 0.35), 0.007, stem));
+    return;
+  }
+  constexpr int kPieces = 8;
+  const double bend = P.stem_bend_deg * M_PI / 180.0, length = 0.95;
+  auto at = [&](double s) {  // s from -0.6 to 0.35 along the stem; curvature bend / length
+    const double phi = bend * s / length;
+    return Eigen::Vector3d(base + Eigen::Vector3d(length / bend * (1.0 - std::cos(phi)), 0, length / bend * std::sin(phi)));
+  };
+  for (int k = 0; k < kPieces; ++k) {
+    const double s0 = -0.6 + length * k / kPieces, s1 = -0.6 + length * (k + 1) / kPieces;
+    world.add(rod(P.name + "_main_stem" + (k == 0 ? std::string() : "_" + std::to_string(k)), at(s0), at(s1), 0.007, stem));
   }
 }
 
@@ -693,6 +975,15 @@ std::vector<TrussTomato> add_distractor_truss(const TrussParams& P, World& world
   d.background_leaves = false;
   d.distractor_truss = false;
   d.room = false;
+  d.physics = P.physics;  // the same world's physics and ranges
+  d.pedicel_young_min_pa = P.pedicel_young_min_pa;
+  d.pedicel_young_max_pa = P.pedicel_young_max_pa;
+  d.peduncle_young_min_pa = P.peduncle_young_min_pa;
+  d.peduncle_young_max_pa = P.peduncle_young_max_pa;
+  d.friction = P.friction;
+  d.pedicel_segments = P.pedicel_segments;
+  d.peduncle_curl_deg = P.peduncle_curl_deg;
+  d.rest_tilt_max_deg = P.rest_tilt_max_deg;
   const Truss other = make_truss(d);
   add_fruit(other, world);
   return other.tomatoes;
@@ -726,14 +1017,13 @@ std::vector<TrussTomato> add_to_world(const Truss& T, World& world) {
   for (const auto& t : T.tomatoes) mean += t.centre_m;
   mean /= static_cast<double>(T.tomatoes.size());
 
-  // The main stem the peduncle leaves from, a little behind it.
-  world.add(rod(P.name + "_main_stem", P.origin_m + Eigen::Vector3d(0, 0.02, -0.6),
-                P.origin_m + Eigen::Vector3d(0, 0.02, 0.35), 0.007, stem));
+  add_main_stem(P, world, stem);
   add_front_leaves(T, world, rng, leaf);
   if (P.background_leaves) add_background_leaves(P, mean, world, rng, leaf);
   std::vector<TrussTomato> second;
   if (P.distractor_truss && P.complexity != TrussClass::kA && rng.chance(0.7)) second = add_distractor_truss(P, world, rng);
   if (P.room) add_room(P.name, mean, world);
+  add_pedicel_leaves(T, world, leaf);
   return second;
 }
 
@@ -764,7 +1054,44 @@ void write_truth(const Truss& T, Scene& scene, const std::vector<TrussTomato>& d
   std::vector<double> second;
   for (const auto& d : distractors) second.insert(second.end(), {d.centre_m.x(), d.centre_m.y(), d.centre_m.z()});
   tr["truss_distractor_centres_m"] = second;
+  if (std::any_of(T.tomatoes.begin(), T.tomatoes.end(), [](const TrussTomato& t) { return t.pedicel_path_m.size() > 2; })) {
+    std::vector<double> counts, paths;
+    for (const auto& t : T.tomatoes) {
+      counts.push_back(double(t.pedicel_path_m.size()));
+      for (const auto& q : t.pedicel_path_m) paths.insert(paths.end(), {q.x(), q.y(), q.z()});
+    }
+    tr["truss_pedicel_path_counts"] = counts;
+    tr["truss_pedicel_paths_m"] = paths;
+  }
 }
+
+namespace {
+
+// The pedicels' paths when the truth has them; straight anchor -> calyx
+// otherwise (the calyx: polar radius from the centre along the pedicel).
+void read_pedicel_paths(const Scene& scene, std::vector<TrussTomato>& tomatoes) {
+  const auto counts = scene.truth.find("truss_pedicel_path_counts");
+  const auto paths = scene.truth.find("truss_pedicel_paths_m");
+  if (counts == scene.truth.end() || paths == scene.truth.end()) {
+    for (auto& t : tomatoes) t.pedicel_path_m = {t.anchor_m, t.centre_m + t.polar_radius_m * t.pedicel_dir};
+    return;
+  }
+  if (counts->second.size() != tomatoes.size())
+    throw std::runtime_error("scene truth 'truss_pedicel_path_counts' has " + std::to_string(counts->second.size()) +
+                             " numbers for " + std::to_string(tomatoes.size()) + " tomatoes");
+  std::size_t at = 0;
+  for (std::size_t i = 0; i < tomatoes.size(); ++i) {
+    const double c = counts->second[i];
+    if (!(c >= 2 && c <= 64 && c == std::floor(c)) || paths->second.size() < 3 * (at + std::size_t(c)))
+      throw std::runtime_error("scene truth 'truss_pedicel_paths_m' does not hold the points its counts promise");
+    for (std::size_t k = 0; k < std::size_t(c); ++k, ++at)
+      tomatoes[i].pedicel_path_m.emplace_back(paths->second[3 * at], paths->second[3 * at + 1], paths->second[3 * at + 2]);
+    tomatoes[i].calyx_m = tomatoes[i].pedicel_path_m.back();
+  }
+  if (paths->second.size() != 3 * at) throw std::runtime_error("scene truth 'truss_pedicel_paths_m' has points left over");
+}
+
+}  // namespace
 
 TrussTruth truss_truth_from_scene(const Scene& scene) {
   auto get = [&](const char* key, std::size_t multiple) -> const std::vector<double>& {
@@ -808,6 +1135,7 @@ TrussTruth truss_truth_from_scene(const Scene& scene) {
       out.contacts.push_back({static_cast<int>(c[k]), static_cast<int>(c[k + 1]), static_cast<ContactKind>(kind), c[k + 3]});
     }
   }
+  read_pedicel_paths(scene, out.tomatoes);
   const auto& pose = get("truss_camera_pose", 7);
   if (pose.size() != 7) throw std::runtime_error("scene truth 'truss_camera_pose' must hold 7 numbers");
   out.T_world_camera = pose_from({pose[0], pose[1], pose[2]},
@@ -839,7 +1167,8 @@ namespace {
 void make_truss_from_yaml(const tinyline::sim::YamlNode& p, tinyline::sim::Scene& scene) {
   using namespace tinyline::sim;
   p.check_keys({"type", "name", "class", "seed", "num_tomatoes", "origin", "front_leaves", "background_leaves",
-                "distractor_truss", "room", "camera_distance_m", "camera_jitter_m"});
+                "distractor_truss", "room", "camera_distance_m", "camera_jitter_m", "physics", "stem_bend_deg",
+                "peduncle_curl_deg", "pedicel_leaves", "rest_tilt_max_deg"});
   TrussParams t;
   t.name = p.get_string("name", "truss");
   if (auto c = p.find("class")) {
@@ -860,6 +1189,15 @@ void make_truss_from_yaml(const tinyline::sim::YamlNode& p, tinyline::sim::Scene
   t.room = p.get_bool("room", true);
   t.camera_distance_m = p.in_range("camera_distance_m", t.camera_distance_m, 0.2, 2.0);
   t.camera_jitter_m = p.in_range("camera_jitter_m", t.camera_jitter_m, 0.0, 0.5);
+  if (auto ph = p.find("physics")) {
+    const auto v = parse_truss_physics(ph->as_string());
+    if (!v) ph->fail("physics must be pendulum or elastic_rod, got '" + ph->as_string() + "'");
+    t.physics = *v;
+  }
+  t.stem_bend_deg = p.in_range("stem_bend_deg", 0.0, -120.0, 120.0);
+  t.peduncle_curl_deg = p.in_range("peduncle_curl_deg", 0.0, -180.0, 180.0);
+  t.pedicel_leaves = static_cast<int>(p.in_range("pedicel_leaves", 0, 0, 8));
+  t.rest_tilt_max_deg = p.in_range("rest_tilt_max_deg", t.rest_tilt_max_deg, 0.0, 80.0);
   try {
     const Truss truss = make_truss(t);
     const auto second = add_to_world(truss, scene.world);
@@ -874,6 +1212,7 @@ void make_truss_from_yaml(const tinyline::sim::YamlNode& p, tinyline::sim::Scene
 TINYLINE_SIM_SCENE_GENERATOR(truss) {
   registry.add("truss",
                "a tomato truss in static equilibrium (thesis 4.5 classes A/B/C): class, seed, num_tomatoes, origin, "
-               "front_leaves, background_leaves, distractor_truss, room, camera_distance_m, camera_jitter_m",
+               "front_leaves, background_leaves, distractor_truss, room, camera_distance_m, camera_jitter_m, physics "
+               "(pendulum | elastic_rod), stem_bend_deg, peduncle_curl_deg, pedicel_leaves, rest_tilt_max_deg",
                &make_truss_from_yaml);
 }

@@ -30,7 +30,7 @@ Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed, const Sce
   Scenario s;
   s.complexity = complexity;
   s.seed = seed;
-  sim::TrussParams p;
+  sim::TrussParams p = o.truss;
   p.complexity = complexity;
   p.seed = seed;
   s.truss = sim::make_truss(p);

@@ -20,6 +20,16 @@
 // penalties, continued until every tomato's net torque vanishes), and the
 // contact forces at the rest state are the ground truth of Eq. 4.18-4.22.
 //
+// A second physics, `physics = kElasticRod` (scenes/truss_rod.hpp), is NOT
+// the model the reasoning inverts: pedicels and the peduncle are discretised
+// elastic rods (bending stiffness E I from a Young's modulus and the 6 mm /
+// 9 mm round sections), so pedicels curve, the fruit's axis is the pedicel's
+// tangent at the calyx rather than the anchor -> centre line, and the
+// peduncle sags under the fruit; fruit touch with penalty contacts and
+// Coulomb friction (forces off the line of centres); the rest state comes
+// from a damped dynamic settle. The layout draws are the same as the
+// pendulum world's, so a seed gives the same truss before settling.
+//
 // World frame: z up. The truss hangs in front of a hand camera that looks
 // along +y from about 0.45 m (thesis hand-camera range 0.35-0.6 m).
 #pragma once
@@ -39,6 +49,12 @@
 namespace tinyline::sim {
 
 enum class TrussClass : char { kA = 'A', kB = 'B', kC = 'C' };
+
+/// How the truss settles (see the top of this file).
+enum class TrussPhysics : int { kPendulum = 0, kElasticRod = 1 };
+
+/// "pendulum" or "elastic_rod" to the physics; nullopt otherwise.
+[[nodiscard]] std::optional<TrussPhysics> parse_truss_physics(std::string_view s);
 
 /// "A", "B" or "C" (case-insensitive) to the class; nullopt otherwise.
 [[nodiscard]] std::optional<TrussClass> parse_truss_class(std::string_view s);
@@ -77,8 +93,38 @@ struct TrussParams {
   double camera_jitter_m = 0.03;        ///< random lateral / vertical offset of the camera [m]
   double camera_yaw_jitter_deg = 10.0;
 
+  TrussPhysics physics = TrussPhysics::kPendulum;
+  /// kElasticRod: Young's moduli, drawn per pedicel and per truss. The
+  /// pedicels' range puts E I / L over the pendulum world's torsion springs
+  /// (0.08-0.45 m g arm per radian); the peduncle's lets a loaded truss sag
+  /// by centimetres. Assumptions, not measurements.
+  double pedicel_young_min_pa = 2e6;
+  double pedicel_young_max_pa = 14e6;
+  double peduncle_young_min_pa = 0.4e9;
+  double peduncle_young_max_pa = 1.2e9;
+  double friction = 0.5;                ///< kElasticRod: Coulomb coefficient between fruit, pedicels and peduncle
+  int pedicel_segments = 4;             ///< kElasticRod: rod elements per pedicel
+
+  /// Scene ranges beyond the thesis's trusses (all 0: today's scenes).
+  double stem_bend_deg = 0.0;           ///< the main stem bends by this over its length (a bow in x)
+  double peduncle_curl_deg = 0.0;       ///< the peduncle turns sideways (yaw) by this over its length
+  int pedicel_leaves = 0;               ///< leaves between the camera and that many pedicels
+  /// Front leaves sit this many fruit radii off the line of sight to their
+  /// fruit, uniform in [min, max]: 1.2-1.9 covers an edge, under 1 the centre.
+  double front_leaf_offset_min = 1.2;
+  double front_leaf_offset_max = 1.9;
+
   common::Validation validate() const;
 };
+
+/// Sets one TrussParams field from text (the evaluation's `key=value`
+/// options): physics, pedicel_young_min_pa, pedicel_young_max_pa,
+/// peduncle_young_min_pa, peduncle_young_max_pa, friction, pedicel_segments,
+/// stem_bend_deg, peduncle_curl_deg, pedicel_leaves, front_leaves,
+/// front_leaf_offset_min, front_leaf_offset_max, rest_tilt_max_deg.
+/// Returns why not when the key is unknown, the value malformed or the
+/// result invalid (the field may then hold the rejected value).
+common::Validation set_truss_option(TrussParams& p, std::string_view key, std::string_view value);
 
 struct TrussTomato {
   Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
@@ -98,6 +144,9 @@ struct TrussTomato {
   /// Force of the pedicel on the fruit at rest [N] (balances gravity and
   /// contacts, Eq. 4.22). Not parallel to pedicel_dir when the pedicel bends.
   Eigen::Vector3d pedicel_force_n = Eigen::Vector3d::Zero();
+  /// The pedicel's axis from the anchor to the calyx (two points when it is
+  /// straight, the pendulum world; the settled rod's nodes otherwise).
+  std::vector<Eigen::Vector3d> pedicel_path_m;
   /// Its object in the world; a meshed fruit is several objects named
   /// object_name + "_p<k>" (patches), a spherical one exactly object_name.
   std::string object_name;
@@ -118,7 +167,9 @@ struct TrussContact {
 struct RelaxationReport {
   bool converged = false;
   int iterations = 0;
-  double max_torque_residual = 0.0;  ///< largest net torque / (m g l) left at rest [1]
+  /// Pendulum: largest net torque / (m g l) left at rest; elastic rod:
+  /// largest net force on a rod node / the lightest fruit's weight [1].
+  double max_torque_residual = 0.0;
   double max_penetration_m = 0.0;    ///< deepest overlap left at rest [m]
   int restarts = 0;                  ///< re-draws of a layout that could not settle
 };
@@ -148,7 +199,9 @@ std::vector<TrussTomato> add_to_world(const Truss& truss, World& world);
 ///   truss_pedicel_anchors_m [3n], truss_pedicel_forces_n [3n],
 ///   truss_contacts [4m: i, j, kind (ContactKind), force],
 ///   truss_camera_pose [7: x y z qx qy qz qw], truss_class [1: 0 A, 1 B, 2 C], truss_seed [1],
-///   truss_distractor_centres_m [3k] (the second branch's fruit; may be empty)
+///   truss_distractor_centres_m [3k] (the second branch's fruit; may be empty);
+/// and when a pedicel is not straight (kElasticRod) its path:
+///   truss_pedicel_path_counts [n], truss_pedicel_paths_m [3 * sum of counts]
 void write_truth(const Truss& truss, Scene& scene, const std::vector<TrussTomato>& distractors = {});
 
 struct TrussTruth {

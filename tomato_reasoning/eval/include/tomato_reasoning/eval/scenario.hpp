@@ -39,6 +39,9 @@ struct ScenarioOptions {
   double pose_noise_m = 0.0015;
   double pose_noise_deg = 0.2;
   sim::RgbdCameraParams camera;
+  /// The world's truss options (physics, scene ranges); class and seed are
+  /// set per truss.
+  sim::TrussParams truss;
 };
 
 struct Scenario {
