@@ -126,9 +126,9 @@ int main(int argc, char** argv) {
         csv << c.name << ',' << seed << ',' << (o.named ? 1 : 0) << ',' << o.names() << ',' << o.result.rmse_before_m << ','
             << o.result.rmse_after_m << ',' << o.floor_m << ',' << o.twin.effects.size() << '\n';
       }
-      std::fprintf(stderr, "%s seed %llu: %s, %.2f -> %.2f cm (floor %.2f cm)\n", c.name.c_str(),
+      std::fprintf(stderr, "%s seed %llu: %s, %.2f -> %.2f cm (floor %.2f cm); twin: %s\n", c.name.c_str(),
                    static_cast<unsigned long long>(seed), o.names().c_str(), 100 * o.result.rmse_before_m,
-                   100 * o.result.rmse_after_m, 100 * o.floor_m);
+                   100 * o.result.rmse_after_m, 100 * o.floor_m, tt::effect_names(o.twin).c_str());
     }
     std::sort(ratio.begin(), ratio.end());
     std::printf("| %s | %d | %d (%.0f %%) | %d | %.2f, %.2f | %d |\n", c.name.c_str(), runs, hits, 100.0 * hits / runs, any,
