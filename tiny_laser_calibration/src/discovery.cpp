@@ -503,7 +503,7 @@ RoundScores score_round(const RoundInput& in, const std::vector<CvTerm>& forms,
 double family_threshold(const std::vector<CvTerm>& forms, const DiscoveryParams& p) {
   double looks = 0.0;
   for (const auto& f : forms) looks += f.looks;
-  return normal_upper_quantile(p.alpha / (kStatistics * looks * std::max(1, p.max_terms)));
+  return normal_upper_quantile(p.alpha / (kStatistics * looks));
 }
 
 LoopOutcome run_loop(const CalibrationDataset& data, const Prepare& prepare, const DiscoveryParams& p,
