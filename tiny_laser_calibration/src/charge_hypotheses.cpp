@@ -109,6 +109,28 @@ void centre_columns(std::vector<Entries>& rows, const CvTerm& t, const CvData& d
   }
 }
 
+// A charge term's column is in metres per charge_unit (a constant charge moves a
+// far read-out by millimetres per unit), so the ridge every term gets (term_ridge
+// pseudo-observations on its coefficients) would hold a charge of several units
+// near 0: each column is scaled to RMS 1 over the fitted rows, as a distance
+// term's basis is, so the ridge weighs the same on every form.
+void unit_columns(std::vector<Entries>& rows, std::size_t ncols, const CvData& d) {
+  std::vector<double> ss(ncols, 0.0);
+  double n = 0.0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (d.fold[i] == -2) continue;
+    n += 1.0;
+    for (const auto& [c, v] : rows[i]) ss[c] += v * v;
+  }
+  std::vector<double> scale(ncols, 1.0);
+  for (std::size_t c = 0; c < ncols; ++c) {
+    if (ss[c] > 0.0 && n > 0.0) scale[c] = 1.0 / std::sqrt(ss[c] / n);
+  }
+  for (auto& e : rows) {
+    for (auto& [c, v] : e) v *= scale[c];
+  }
+}
+
 }  // namespace
 
 void materialise(CvTerm& t, const CvData& d, const CalibrationDataset& data) {
@@ -145,6 +167,7 @@ void materialise(CvTerm& t, const CvData& d, const CalibrationDataset& data) {
   }
   if (charge && !d.sens.empty() && centred_charge_term(t.term, d.per_pulse_charge_levels)) centre_columns(rows, t, d);
   if (charge && d.rsen_per_pixel && !d.sens.empty()) project_off_pixel_sensitivity(rows, t.ncols, d, data);
+  if (charge) unit_columns(rows, t.ncols, d);
   for (const auto& e : rows) t.cols.push(e);
 }
 
@@ -286,13 +309,21 @@ void build_charge_forms(const CalibrationDataset& data, const CvData& d, const D
     std::vector<TermForm> forms = {TermForm::kChargeA, TermForm::kChargeB, TermForm::kChargeAPerPulse,
                                    TermForm::kChargeBPerPulse};
     // On both capacitors a constant is the declared leakage (Vle, Eq. 3.16) unless it was measured apart.
-    const bool both = c.name != "one" || !p.declared.fit_leakage;
-    if (both) forms.push_back(TermForm::kChargeBoth);
-    // A level per pulse acts as a distance cue unless surfaces share distances (per_pulse_charge_levels).
-    if (c.name == "one" && !p.declared.per_pulse_charge_levels) {
-      std::erase_if(forms, [](TermForm f) { return f == TermForm::kChargeAPerPulse || f == TermForm::kChargeBPerPulse; });
-    } else if (both) {
+    // On one surface (per_pulse_charge_levels false) a level per pulse acts as a distance cue (the
+    // twin of the group-leakage case, seed 6, named one on both); and between pixel groups, which the lens lights unevenly, so does any charge
+    // but one per pulse on one capacitor (the effect-free synthetic rail, seed 5, named a constant
+    // charge over banks of 16 at 0.95-0.96 of its floor, on A or on both).
+    const bool one_surface = !p.declared.per_pulse_charge_levels;
+    if (c.group && one_surface) forms = {TermForm::kChargeAPerPulse, TermForm::kChargeBPerPulse};
+    const bool both = (c.name != "one" || !p.declared.fit_leakage) && !(c.group && one_surface);
+    if (both) {
+      forms.push_back(TermForm::kChargeBoth);
       forms.push_back(TermForm::kChargeBothPerPulse);
+    }
+    if (c.name == "one" && one_surface) {  // a level per pulse: the declared leakage's
+      std::erase_if(forms, [](TermForm f) {
+        return f == TermForm::kChargeAPerPulse || f == TermForm::kChargeBPerPulse || f == TermForm::kChargeBothPerPulse;
+      });
     }
     // Gains over pixel groups only: a constant gain is the common Rsen (absorbed by the polynomial), a
     // per-pixel one the per-pixel Rsen; and over a measured covariate a gain of A mimics a delay on one

@@ -116,6 +116,9 @@ bool centred_charge_term(const CalibrationTerm& t, bool per_pulse_charge_levels)
   if (per_pulse_charge_levels) return false;
   const bool one_capacitor = t.form == TermForm::kChargeAPerPulse || t.form == TermForm::kChargeBPerPulse;
   const Covariate k = covariate_from_name(t.covariate);
+  // Over pixel groups a charge term holds the contrast between them; the level is `one`'s.
+  const bool gain = t.form == TermForm::kGainA || t.form == TermForm::kGainB;
+  if (pixel_group_charge(t)) return !gain && t.form != TermForm::kReadout;
   // On both capacitors the level is the declared leakage's, except over a measured
   // column (such as ambient light), whose level the declared leakage was measured without.
   return k != Covariate::kOne && (one_capacitor || (t.form == TermForm::kChargeBothPerPulse && k != Covariate::kExtra));

@@ -37,9 +37,10 @@ struct ChargeSensitivity {
 /// leakage's or Rsen's. Not for a centred term (centred_charge_term).
 bool first_value_fixed(const CalibrationTerm& t, bool per_pulse_charge_levels);
 
-/// A per-pulse charge on one capacitor over a covariate other than `one`, fitted
-/// with its mean over the fitted read-outs held at 0 (DeclaredFitParams::
-/// per_pulse_charge_levels false): over pixel groups the contrast between them.
+/// A charge term fitted with its mean over the fitted read-outs held at 0 (when
+/// DeclaredFitParams::per_pulse_charge_levels is false): a per-pulse charge on one
+/// capacitor over a covariate other than `one`, on both over a built-in covariate,
+/// and every added charge over pixel groups (the contrast between them).
 bool centred_charge_term(const CalibrationTerm& t, bool per_pulse_charge_levels);
 
 /// Mean hat-basis weight of each knot of `t` over the covariate values `z` (NaNs skipped).

@@ -302,3 +302,4 @@ TEST(CalibrationSimDiscovery, DISABLED_ReadOutNonlinearityIsNamedOnTheCharges) {
 
 TEST(CalibrationSimDiscovery, DISABLED_ChannelOffsetIsNamedOnCapacitorB) { expect_case("channel_offset"); }
 
+
