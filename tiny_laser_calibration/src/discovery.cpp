@@ -496,10 +496,11 @@ RoundScores score_round(const RoundInput& in, const std::vector<CvTerm>& forms,
   return out;
 }
 
-// The z a candidate must beat: one-sided Bonferroni over every test the loop
-// can make (kStatistics per candidate, a candidate chosen from the data
-// counting as every one it was chosen from, max_terms rounds), so the chance
-// that the loop names anything on effect-free data stays under alpha.
+// The z a candidate must beat: one-sided Bonferroni over every test of the
+// round (kStatistics per candidate, a candidate chosen from the data counting
+// as every one it was chosen from). The loop stops at the first round where
+// nothing passes, so on effect-free data only round 0 can name anything and
+// the chance that it does stays under alpha.
 double family_threshold(const std::vector<CvTerm>& forms, const DiscoveryParams& p) {
   double looks = 0.0;
   for (const auto& f : forms) looks += f.looks;
