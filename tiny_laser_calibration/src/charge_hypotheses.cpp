@@ -296,44 +296,47 @@ CvTerm charge_term(const CalibrationDataset& data, const CvData& d, const Charge
   return t;
 }
 
+// The forms tried over one covariate.
+std::vector<TermForm> charge_forms(const ChargeCovariate& c, const DiscoveryParams& p) {
+  std::vector<TermForm> forms = {TermForm::kChargeA, TermForm::kChargeB, TermForm::kChargeAPerPulse,
+                                 TermForm::kChargeBPerPulse};
+  // On both capacitors a constant is the declared leakage (Vle, Eq. 3.16) unless it was measured apart.
+  // On one surface (per_pulse_charge_levels false) a level per pulse acts as a distance cue (the twin of
+  // the group-leakage case, seed 6, named one on both); and between pixel groups, which the lens lights
+  // unevenly, so does any charge but one per pulse on one capacitor (the effect-free synthetic rail,
+  // seed 5, named a constant charge over banks of 16 at 0.95-0.96 of its floor, on A or on both).
+  const bool one_surface = !p.declared.per_pulse_charge_levels;
+  if (c.group && one_surface) forms = {TermForm::kChargeAPerPulse, TermForm::kChargeBPerPulse};
+  if ((c.name != "one" || !p.declared.fit_leakage) && !(c.group && one_surface)) {
+    forms.push_back(TermForm::kChargeBoth);
+    forms.push_back(TermForm::kChargeBothPerPulse);
+  }
+  if (c.name == "one" && one_surface) {  // a level per pulse: the declared leakage's
+    std::erase_if(forms, [](TermForm f) {
+      return f == TermForm::kChargeAPerPulse || f == TermForm::kChargeBPerPulse || f == TermForm::kChargeBothPerPulse;
+    });
+  }
+  // Gains over pixel groups only: a constant gain is the common Rsen (absorbed by the polynomial), a
+  // per-pixel one the per-pixel Rsen; and over a measured covariate a gain of A mimics a delay on one
+  // surface (a small delay moves charge from A to B in proportion to the signal), which the distance
+  // terms of that covariate already hold.
+  if (c.group && p.declared.sensitivity_ratio_mode != SensitivityRatioMode::kPerPixel) {
+    forms.push_back(TermForm::kGainA);
+    forms.push_back(TermForm::kGainB);
+  }
+  return forms;
+}
+
 }  // namespace
 
 void build_charge_forms(const CalibrationDataset& data, const CvData& d, const DiscoveryParams& p,
                         const std::vector<double>& residual, const std::vector<std::string>& used,
                         std::vector<CvTerm>& out, std::vector<std::string>& notes) {
   if (d.sens.empty() || excluded(p, "charge")) return;
-  const bool rsen_per_pixel = p.declared.sensitivity_ratio_mode == SensitivityRatioMode::kPerPixel;
   for (const auto& c : charge_covariates(data, d, p, residual, notes)) {
     if (std::find(used.begin(), used.end(), c.name) != used.end()) continue;  // one term per covariate
     const auto z = values_on_rows(data, d, c.name);
-    std::vector<TermForm> forms = {TermForm::kChargeA, TermForm::kChargeB, TermForm::kChargeAPerPulse,
-                                   TermForm::kChargeBPerPulse};
-    // On both capacitors a constant is the declared leakage (Vle, Eq. 3.16) unless it was measured apart.
-    // On one surface (per_pulse_charge_levels false) a level per pulse acts as a distance cue (the
-    // twin of the group-leakage case, seed 6, named one on both); and between pixel groups, which the lens lights unevenly, so does any charge
-    // but one per pulse on one capacitor (the effect-free synthetic rail, seed 5, named a constant
-    // charge over banks of 16 at 0.95-0.96 of its floor, on A or on both).
-    const bool one_surface = !p.declared.per_pulse_charge_levels;
-    if (c.group && one_surface) forms = {TermForm::kChargeAPerPulse, TermForm::kChargeBPerPulse};
-    const bool both = (c.name != "one" || !p.declared.fit_leakage) && !(c.group && one_surface);
-    if (both) {
-      forms.push_back(TermForm::kChargeBoth);
-      forms.push_back(TermForm::kChargeBothPerPulse);
-    }
-    if (c.name == "one" && one_surface) {  // a level per pulse: the declared leakage's
-      std::erase_if(forms, [](TermForm f) {
-        return f == TermForm::kChargeAPerPulse || f == TermForm::kChargeBPerPulse || f == TermForm::kChargeBothPerPulse;
-      });
-    }
-    // Gains over pixel groups only: a constant gain is the common Rsen (absorbed by the polynomial), a
-    // per-pixel one the per-pixel Rsen; and over a measured covariate a gain of A mimics a delay on one
-    // surface (a small delay moves charge from A to B in proportion to the signal), which the distance
-    // terms of that covariate already hold.
-    if (c.group && !rsen_per_pixel) {
-      forms.push_back(TermForm::kGainA);
-      forms.push_back(TermForm::kGainB);
-    }
-    for (TermForm f : forms) out.push_back(charge_term(data, d, c, f, z));
+    for (TermForm f : charge_forms(c, p)) out.push_back(charge_term(data, d, c, f, z));
   }
   // Read-out nonlinearity: g(v) on both capacitors' own read-outs.
   if (std::find(used.begin(), used.end(), "charge") == used.end()) {
