@@ -11,6 +11,7 @@
 //   calibration_discovery_sweep --seeds 1000-1019 --case none
 //   calibration_discovery_sweep --seeds 1000-1004 --case ambient_light --case group_leakage
 //   calibration_discovery_sweep --seeds 1000-1004 --all --out sweep.csv
+//   calibration_discovery_sweep --seeds 1-5 --case channel_offset --rounds   (why each run named what it named)
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -33,6 +34,7 @@ struct Args {
   seeds::SeedRange seeds{1, 5};
   std::vector<std::string> cases;
   std::string out;
+  bool rounds = false;  ///< print each run's strongest candidates per round (why it named what it named)
 };
 
 // The use every seed of the range shares; nullopt when they differ or one is unregistered.
@@ -46,7 +48,7 @@ std::optional<seeds::SeedUse> range_use(const seeds::SeedRange& r) {
 
 int usage(const std::string& why) {
   std::cerr << "calibration_discovery_sweep: " << why
-            << "\nusage: calibration_discovery_sweep --seeds FIRST-LAST (--case NAME ... | --all) [--out FILE.csv]\n"
+            << "\nusage: calibration_discovery_sweep --seeds FIRST-LAST (--case NAME ... | --all) [--out FILE.csv] [--rounds]\n"
             << "cases:";
   for (const auto& c : tt::discovery_cases()) std::cerr << " " << c.name;
   const auto& e = seeds::kCalibration;
@@ -79,6 +81,8 @@ int parse(int argc, char** argv, Args& a) {
       a.cases.push_back(argv[++i]);
     } else if (k == "--all") {
       for (const auto& c : tt::discovery_cases()) a.cases.push_back(c.name);
+    } else if (k == "--rounds") {
+      a.rounds = true;
     } else if (k == "--out" && has_value) {
       a.out = argv[++i];
     } else {
@@ -93,6 +97,19 @@ int parse(int argc, char** argv, Args& a) {
   }
   if (!range_use(a.seeds)) return usage("seeds mix tuning and held-out seeds (or are unregistered)");
   return 0;
+}
+
+// The four strongest candidates of each round and the bar of round 0.
+void print_rounds(const tinyline::tiny_laser_calibration::DiscoveryResult& r) {
+  for (std::size_t k = 0; k < r.rounds.size(); ++k) {
+    std::fprintf(stderr, "  round %zu (z > %.2f):", k, r.z_threshold);
+    for (std::size_t j = 0; j < std::min<std::size_t>(4, r.rounds[k].size()); ++j) {
+      const auto& sc = r.rounds[k][j];
+      std::fprintf(stderr, " %s/%s gain %.3f z %.1f;", sc.covariate.c_str(),
+                   std::string(tinyline::tiny_laser_driver::to_string(sc.form)).c_str(), sc.gain, sc.z);
+    }
+    std::fprintf(stderr, "\n");
+  }
 }
 
 }  // namespace
@@ -126,9 +143,10 @@ int main(int argc, char** argv) {
         csv << c.name << ',' << seed << ',' << (o.named ? 1 : 0) << ',' << o.names() << ',' << o.result.rmse_before_m << ','
             << o.result.rmse_after_m << ',' << o.floor_m << ',' << o.twin.effects.size() << '\n';
       }
-      std::fprintf(stderr, "%s seed %llu: %s, %.2f -> %.2f cm (floor %.2f cm)\n", c.name.c_str(),
+      std::fprintf(stderr, "%s seed %llu: %s, %.2f -> %.2f cm (floor %.2f cm); twin: %s\n", c.name.c_str(),
                    static_cast<unsigned long long>(seed), o.names().c_str(), 100 * o.result.rmse_before_m,
-                   100 * o.result.rmse_after_m, 100 * o.floor_m);
+                   100 * o.result.rmse_after_m, 100 * o.floor_m, tt::effect_names(o.twin).c_str());
+      if (a.rounds) print_rounds(o.result);
     }
     std::sort(ratio.begin(), ratio.end());
     std::printf("| %s | %d | %d (%.0f %%) | %d | %.2f, %.2f | %d |\n", c.name.c_str(), runs, hits, 100.0 * hits / runs, any,

@@ -496,14 +496,15 @@ RoundScores score_round(const RoundInput& in, const std::vector<CvTerm>& forms,
   return out;
 }
 
-// The z a candidate must beat: one-sided Bonferroni over every test the loop
-// can make (kStatistics per candidate, a candidate chosen from the data
-// counting as every one it was chosen from, max_terms rounds), so the chance
-// that the loop names anything on effect-free data stays under alpha.
+// The z a candidate must beat: one-sided Bonferroni over every test of the
+// round (kStatistics per candidate, a candidate chosen from the data counting
+// as every one it was chosen from). The loop stops at the first round where
+// nothing passes, so on effect-free data only round 0 can name anything and
+// the chance that it does stays under alpha.
 double family_threshold(const std::vector<CvTerm>& forms, const DiscoveryParams& p) {
   double looks = 0.0;
   for (const auto& f : forms) looks += f.looks;
-  return normal_upper_quantile(p.alpha / (kStatistics * looks * std::max(1, p.max_terms)));
+  return normal_upper_quantile(p.alpha / (kStatistics * looks));
 }
 
 LoopOutcome run_loop(const CalibrationDataset& data, const Prepare& prepare, const DiscoveryParams& p,
@@ -583,6 +584,28 @@ std::vector<bool> valid_rows(const CalibrationDataset& data, const ValidityRule&
     n_valid += valid[i] ? 1 : 0;
   }
   return valid;
+}
+
+// Whether surfaces of a `material` column share target distances (at least half
+// of the distances seen on two or more): only then is a charge per pulse's level
+// told apart from the distance, which on one surface the light per pulse encodes.
+bool surfaces_share_distances(const CalibrationDataset& data, const std::vector<bool>& valid) {
+  const std::vector<int> target = target_distance_groups(data);
+  std::vector<std::pair<int, int>> seen;  // (target group, material)
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (valid[i] && target[i] >= 0 && data.material[i] >= 0) seen.emplace_back(target[i], data.material[i]);
+  }
+  std::sort(seen.begin(), seen.end());
+  seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+  std::size_t groups = 0, shared = 0;
+  for (std::size_t k = 0; k < seen.size();) {
+    std::size_t e = k;
+    while (e < seen.size() && seen[e].first == seen[k].first) ++e;
+    ++groups;
+    shared += e - k >= 2 ? 1 : 0;
+    k = e;
+  }
+  return groups > 0 && 2 * shared >= groups;
 }
 
 // The split into training and held-out groups, recorded in the result; false
@@ -770,8 +793,9 @@ void record_loop(DiscoveryResult& res, LoopOutcome& loop) {
 
 // ------------------------------------------------------------------ discover_effects
 
-DiscoveryResult discover_effects(const CalibrationDataset& input, const DiscoveryParams& p) {
+DiscoveryResult discover_effects(const CalibrationDataset& input, const DiscoveryParams& given) {
   DiscoveryResult res;
+  DiscoveryParams p = given;
   const CalibrationDataset data = with_time_covariates(input, p, res.notes);
   if (data.empty()) {
     res.reason = fmt::format("{}: no rows", data.source);
@@ -790,6 +814,11 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
   }
   Split split;
   if (!split_into(res, data, p, valid, split)) return res;
+  if (p.declared.per_pulse_charge_levels && !surfaces_share_distances(data, valid)) {
+    p.declared.per_pulse_charge_levels = false;
+    res.notes.push_back("one surface per target distance: charge terms per pulse are fitted without a level (their "
+                        "mean held at 0); a level would act as a distance cue");
+  }
 
   // Each round: the declared model plus the accepted terms fitted on the training
   // groups fixes Rsen, leakage, X and the weights; the loop varies only linear terms.
@@ -806,6 +835,9 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
     engine->fit();
     if (accepted.empty()) res.train_before = engine->model();
     in.d = cv_data_from_engine(data, *engine, split, p.folds);
+    in.d.rsen_per_pixel = p.declared.sensitivity_ratio_mode == SensitivityRatioMode::kPerPixel;
+    in.d.rsen_min_rows = p.declared.min_rows_per_pixel;
+    in.d.per_pulse_charge_levels = p.declared.per_pulse_charge_levels;
     for (const auto& t : accepted) in.accepted.push_back(evaluate_term(data, in.d, t));
     return in;
   };

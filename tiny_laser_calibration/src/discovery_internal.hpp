@@ -25,6 +25,9 @@ struct CvData {
   std::size_t groups = 0;
   int folds = 0;
   const AmplitudeReference* reference = nullptr;
+  bool rsen_per_pixel = false;   // the fit refits each pixel's Rsen (charge terms are scored beyond it)
+  double rsen_min_rows = 0.0;    // ... for pixels with this many fitted rows
+  bool per_pulse_charge_levels = true;  // DeclaredFitParams::per_pulse_charge_levels of the fit
 };
 
 /// A candidate term on the CV rows: its columns, computed once.

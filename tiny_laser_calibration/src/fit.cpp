@@ -101,9 +101,46 @@ AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const
   return ref;
 }
 
-bool first_value_fixed(const CalibrationTerm& t) {
+namespace {
+bool pixel_group_charge(const CalibrationTerm& t) {
   const Covariate k = covariate_from_name(t.covariate);
   return acts_on_charges(t.form) && (k == Covariate::kPixelParity || k == Covariate::kPixelBank || k == Covariate::kPixelIs);
+}
+}  // namespace
+
+bool first_value_fixed(const CalibrationTerm& t, bool per_pulse_charge_levels) {
+  return pixel_group_charge(t) && !centred_charge_term(t, per_pulse_charge_levels);
+}
+
+bool centred_charge_term(const CalibrationTerm& t, bool per_pulse_charge_levels) {
+  if (per_pulse_charge_levels) return false;
+  const bool one_capacitor = t.form == TermForm::kChargeAPerPulse || t.form == TermForm::kChargeBPerPulse;
+  const Covariate k = covariate_from_name(t.covariate);
+  // Over pixel groups a charge term holds the contrast between them; the level is `one`'s.
+  const bool gain = t.form == TermForm::kGainA || t.form == TermForm::kGainB;
+  if (pixel_group_charge(t)) return !gain && t.form != TermForm::kReadout;
+  // On both capacitors the level is the declared leakage's, except over a measured
+  // column (such as ambient light), whose level the declared leakage was measured without.
+  return k != Covariate::kOne && (one_capacitor || (t.form == TermForm::kChargeBothPerPulse && k != Covariate::kExtra));
+}
+
+std::vector<double> mean_knot_weights(const CalibrationTerm& t, const std::vector<double>& z) {
+  CalibrationTerm hat = t;
+  hat.form = TermForm::kSmooth;
+  std::vector<double> m(t.knots.size(), 0.0);
+  Entries e;
+  double n = 0.0;
+  for (double v : z) {
+    if (!std::isfinite(v)) continue;
+    e.clear();
+    hat.basis(v, 0.0, e);
+    for (const auto& [c, w] : e) m[c] += w;
+    n += 1.0;
+  }
+  if (n > 0.0) {
+    for (double& w : m) w /= n;
+  }
+  return m;
 }
 
 FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
@@ -132,6 +169,7 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
   decide_leakage_offset();
   decide_temperature();
   if (!resolve_terms()) return;
+  centre_charge_terms();
   declared_cols_ = static_cast<std::size_t>(p_.degree + 1) + (use_temp_ ? 1 : 0);
   cols_ = declared_cols_;
   for (const auto& t : terms_) {
@@ -428,6 +466,38 @@ double FitEngine::residual_cost(std::vector<double>* residuals) {
   return sse;
 }
 
+void FitEngine::centre_charge_terms() {
+  centre_.assign(charge_.size(), {});
+  centre_dep_.assign(charge_.size(), 0);
+  for (std::size_t k = 0; k < charge_.size(); ++k) {
+    const auto& t = charge_[k];
+    if (!centred_charge_term(t, p_.per_pulse_charge_levels)) continue;
+    std::vector<double> z;
+    z.reserve(rows_.size());
+    for (std::size_t i : rows_) {
+      z.push_back(CalibrationModel::Impl::covariate_value(t.kind, t.extra_index, data_.readouts[i], kNaN, kNaN,
+                                                          AmplitudeReference{}));
+    }
+    centre_[k] = mean_knot_weights(t, z);
+    centre_dep_[k] = static_cast<std::size_t>(std::max_element(centre_[k].begin(), centre_[k].end()) - centre_[k].begin());
+    if (!(centre_[k][centre_dep_[k]] > 0.0)) centre_[k].clear();
+  }
+  apply_centring();
+}
+
+void FitEngine::apply_centring() {
+  for (std::size_t k = 0; k < charge_.size(); ++k) {
+    if (centre_[k].empty()) continue;
+    auto& v = charge_[k].values;
+    const std::size_t dep = centre_dep_[k];
+    double sum = 0.0;
+    for (std::size_t j = 0; j < v.size(); ++j) {
+      if (j != dep) sum += centre_[k][j] * v[j];
+    }
+    v[dep] = -sum / centre_[k][dep];
+  }
+}
+
 std::vector<FitEngine::GlobalParam> FitEngine::global_parameters() {
   std::vector<GlobalParam> ps;
   if (fit_leak_offset_) ps.push_back({&leak_offset_, 1.0, -50.0, 50.0});
@@ -438,7 +508,9 @@ std::vector<FitEngine::GlobalParam> FitEngine::global_parameters() {
                            t.form == TermForm::kChargeBothPerPulse;
     const bool gain = t.form == TermForm::kGainA || t.form == TermForm::kGainB;
     const double typical = per_pulse ? 0.01 : gain ? 0.01 : 1.0, bound = per_pulse ? 1.0 : gain ? 0.5 : 100.0;
-    for (std::size_t j = first_value_fixed(t) ? 1 : 0; j < t.values.size(); ++j) {
+    const std::size_t k = static_cast<std::size_t>(&t - charge_.data());
+    for (std::size_t j = first_value_fixed(t, p_.per_pulse_charge_levels) ? 1 : 0; j < t.values.size(); ++j) {
+      if (!centre_[k].empty() && j == centre_dep_[k]) continue;  // set from the others (apply_centring)
       ps.push_back({&t.values[j], typical, -bound, bound});
     }
   }
@@ -478,6 +550,7 @@ void FitEngine::optimise_global() {
     for (std::size_t j = 0; j < k; ++j) {
       *ps[j].value = std::clamp(t[static_cast<Eigen::Index>(j)] * ps[j].typical, ps[j].lo, ps[j].hi);
     }
+    apply_centring();
   };
   // r = sqrt(w)(y - pred): minimise |r|^2 with a forward-difference Jacobian.
   struct Problem {

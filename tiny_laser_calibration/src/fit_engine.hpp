@@ -34,8 +34,17 @@ struct ChargeSensitivity {
 
 /// The pixel-group covariates' first group is the reference (its value held
 /// at 0): the others are told apart from it, the level itself is the declared
-/// leakage's or Rsen's.
-bool first_value_fixed(const CalibrationTerm& t);
+/// leakage's or Rsen's. Not for a centred term (centred_charge_term).
+bool first_value_fixed(const CalibrationTerm& t, bool per_pulse_charge_levels);
+
+/// A charge term fitted with its mean over the fitted read-outs held at 0 (when
+/// DeclaredFitParams::per_pulse_charge_levels is false): a per-pulse charge on one
+/// capacitor over a covariate other than `one`, on both over a built-in covariate,
+/// and every added charge over pixel groups (the contrast between them).
+bool centred_charge_term(const CalibrationTerm& t, bool per_pulse_charge_levels);
+
+/// Mean hat-basis weight of each knot of `t` over the covariate values `z` (NaNs skipped).
+std::vector<double> mean_knot_weights(const CalibrationTerm& t, const std::vector<double>& z);
 
 class FitEngine {
  public:
@@ -100,6 +109,8 @@ class FitEngine {
     double lo, hi;
   };
   std::vector<GlobalParam> global_parameters();  // leakage and the charge terms' values
+  void centre_charge_terms();   // the knot weights of the centred terms (after resolve_terms)
+  void apply_centring();        // each centred term's dependent value from the others
   void optimise_global();
   void refine_per_pixel();
   void reweight_inverse_variance();
@@ -130,6 +141,8 @@ class FitEngine {
   static constexpr double kRatioRangeTail = 0.001;
   std::vector<CalibrationTerm> terms_;          // the distance terms (linear columns)
   std::vector<CalibrationTerm> charge_;        // the terms on the charges (nonlinear, fitted around the solve)
+  std::vector<std::vector<double>> centre_;    // per charge term: mean knot weights when centred, else empty
+  std::vector<std::size_t> centre_dep_;        // per charge term: the value set from the others when centred
   std::vector<std::pair<bool, std::size_t>> order_;  // given order: (charge?, index)
   std::vector<int> term_extra_;                // dataset extra column per term
   std::vector<std::vector<double>> z_;         // per term, per kept row

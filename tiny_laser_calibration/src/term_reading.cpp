@@ -50,10 +50,14 @@ std::string charge_reading(const CalibrationTerm& t) {
   }
   if (k == Covariate::kOne) return fmt::format("{} {}", value(t.values.front()), what(t.form));
   if (k == Covariate::kPixelParity || k == Covariate::kPixelBank || k == Covariate::kPixelIs) {
+    // The first group is the reference (held at 0), unless the term is centred (a charge
+    // per pulse fitted on one surface): then every group, their mean held at 0.
+    const bool centred = t.values.front() != 0.0;
     std::string s;
-    for (std::size_t i = 1; i < t.knots.size(); ++i) {
+    for (std::size_t i = centred ? 0 : 1; i < t.knots.size(); ++i) {
       s += fmt::format("{}{} {}", s.empty() ? "" : "; ", value(t.values[i]), group_name(t, t.knots[i]));
     }
+    if (centred) return fmt::format("{} ({}; their mean over the calibration's read-outs is 0)", s, what(t.form));
     return fmt::format("{} ({} relative to {})", s, what(t.form), group_name(t, t.knots.front()));
   }
   // A continuous covariate: the slope over its range, and the values at the ends.

@@ -156,8 +156,10 @@ TEST(CalibrationDiscovery, SlowTimeDriftIsNamed) {
   expect_named_and_at_floor(o, first == "t_s" ? "t_s" : cal::lagged_temperature_tau(first) > 0 ? first : "t_s");
 }
 
-TEST(CalibrationDiscovery, CapacitorNonlinearityIsNamedAsAnAmplitudeInteraction) {
-  // Each capacitor reads 15% low at full scale: the error depends on the charges, not on X alone.
+TEST(CalibrationDiscovery, CapacitorNonlinearityIsNamedAsTheReadOutsTransferCurve) {
+  // Each capacitor reads 15% low at full scale: the error depends on the charges, not on X
+  // alone. Named where it acts, as a correction of each capacitor's read-out (the `readout`
+  // form over the read-out itself).
   Case c;
   c.sensor.effects.capacitor_nonlinearity = true;
   c.sensor.effects.nonlinearity_eta = 0.15;
@@ -165,7 +167,8 @@ TEST(CalibrationDiscovery, CapacitorNonlinearityIsNamedAsAnAmplitudeInteraction)
   const auto& r = o.result;
   ASSERT_TRUE(r.ok) << r.reason;
   ASSERT_FALSE(r.effects.empty());
-  EXPECT_EQ(r.effects.front().form, tl::TermForm::kAmplitudeInteraction) << named(r);
+  EXPECT_EQ(r.effects.front().form, tl::TermForm::kReadout) << named(r);
+  EXPECT_EQ(r.effects.front().covariate, "charge") << named(r);
   EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m);
 }
 

@@ -116,9 +116,9 @@ void expect_named_and_at_floor(const Outcome& o, const std::string& covariate) {
 
 // One case of sim_discovery_cases.cpp at the tests' seed: named, and the
 // held-out error after within 20 % of the effect-free twin's.
-void expect_case(const std::string& name) {
+tt::CaseOutcome expect_case(const std::string& name) {
   const auto& c = tt::discovery_case(name);
-  const auto o = tt::run_case(c, 7);
+  auto o = tt::run_case(c, 7);
   std::printf("%s: held-out RMSE %.2f cm -> %.2f cm, noise floor %.2f cm, named %s (twin: %zu effects)\n", name.c_str(),
               100 * o.result.rmse_before_m, 100 * o.result.rmse_after_m, 100 * o.floor_m, o.names().c_str(),
               o.twin.effects.size());
@@ -133,7 +133,8 @@ void expect_case(const std::string& name) {
     }
     std::printf("\n");
   }
-  ASSERT_TRUE(o.result.ok) << o.result.reason;
+  EXPECT_TRUE(o.result.ok) << o.result.reason;
+  if (!o.result.ok) return o;
   EXPECT_TRUE(o.named) << "named " << o.names();
   EXPECT_LT(o.result.rmse_after_m, 1.2 * o.floor_m);
   EXPECT_GT(o.result.rmse_before_m, c.min_before_over_floor * o.floor_m) << "the injected effect is too small to matter";
@@ -143,6 +144,7 @@ void expect_case(const std::string& name) {
   if (!o.result.effects.empty()) {
     EXPECT_FALSE(o.result.effects.front().reading.empty());
   }
+  return o;
 }
 
 }  // namespace
@@ -268,15 +270,36 @@ TEST(CalibrationSimDiscovery, DelayFollowingALaggedTemperatureIsNamed) { expect_
 // a gain of A, or of B by the inverse factor (the ratio cannot tell the two apart).
 TEST(CalibrationSimDiscovery, AGainOnOnePixelsCapacitorIsFoundFromTheData) { expect_case("odd_pixel_gain"); }
 
+// A charge per pulse on capacitor B of pixels 136-199, on a sensor with one Rsen (a
+// per-pixel Rsen half absorbs it): named as a charge on B per pulse over a bank of
+// pixels, the bank's own pixels standing out from the others in the fitted values.
+TEST(CalibrationSimDiscovery, ExtraLeakageOfOneCapacitorInABankOfPixelsIsNamed) {
+  const auto o = expect_case("group_leakage");
+  ASSERT_FALSE(o.result.effects.empty());
+  EXPECT_EQ(o.result.effects.front().form, tl::TermForm::kChargeBPerPulse);
+  const auto& terms = o.result.model.impl().terms;
+  ASSERT_FALSE(terms.empty());
+  const auto& t = terms.front();
+  const int bank = tl::covariate_parameter(t.covariate);
+  ASSERT_GT(bank, 0) << t.covariate;
+  // Every group inside 136-199 reads more charge than every group outside it (by at
+  // least half the injected 0.03 charge_unit per pulse).
+  double inside = 1e9, outside = -1e9;
+  for (std::size_t g = 0; g < t.knots.size(); ++g) {
+    const int first = 8 + static_cast<int>(t.knots[g]) * bank, last = first + bank - 1;
+    if (first >= 136 && last <= 199) inside = std::min(inside, t.values[g]);
+    if (last < 136 || first > 199) outside = std::max(outside, t.values[g]);
+  }
+  EXPECT_GT(inside - outside, 0.015) << o.result.effects.front().reading;
+}
+
 // Not yet met (disabled so `make test` stays green; run with --gtest_also_run_disabled_tests).
 // At seed 7 the loop names today:
-//  - group_leakage: charge_b_per_pulse of temperature_c, then a smooth of amplitude_per_pulse (2.64 -> 1.81 cm,
-//    floor 2.68): the right capacitor and form, the wrong covariate; and the error after is below the floor, the
-//    mark of a distance cue on one surface (docs/calibration.md, section 9);
 //  - readout_nonlinearity: the declared fit itself fails at 30 % compression (28 cm), nothing named;
 //  - channel_offset: nothing (3.42 cm against a 2.62 cm floor);
-TEST(CalibrationSimDiscovery, DISABLED_ExtraLeakageOfOneCapacitorInABankOfPixelsIsNamed) { expect_case("group_leakage"); }
 
 TEST(CalibrationSimDiscovery, DISABLED_ReadOutNonlinearityIsNamedOnTheCharges) { expect_case("readout_nonlinearity"); }
 
 TEST(CalibrationSimDiscovery, DISABLED_ChannelOffsetIsNamedOnCapacitorB) { expect_case("channel_offset"); }
+
+

@@ -39,7 +39,7 @@ TEST(CalibrationSweep, DISABLED_FiveSeedsPerEffect) {
          s.effects.time_drift_m_per_ks = 0.02;
          p.passes = 3;
        }},
-      {"capacitor nonlinearity", "ratio",
+      {"capacitor nonlinearity", "charge",
        [](auto& s, auto&) {
          s.effects.capacitor_nonlinearity = true;
          s.effects.nonlinearity_eta = 0.15;

@@ -49,6 +49,9 @@ struct CaseOutcome {
   [[nodiscard]] std::string names() const;
 };
 
+/// "covariate/form " of each effect named, "(none)" when none.
+std::string effect_names(const DiscoveryResult& r);
+
 /// Runs one case at one seed (the rail's visit order and noise, the sensor's per-pixel constants).
 CaseOutcome run_case(const DiscoveryCase& c, std::uint64_t seed);
 

@@ -55,7 +55,7 @@ struct DiscoveryParams {
   std::uint64_t seed = 1;           ///< shuffles groups into hold-out and folds
   int max_terms = 4;
   /// Chance of naming anything on effect-free data: Bonferroni over every candidate
-  /// of every round (max_terms rounds).
+  /// of the round (the loop stops at the first round where nothing passes).
   double alpha = 0.01;
   double min_relative_gain = 0.05;  ///< share of the cross-validated squared error a term must remove
   int smooth_knots = 8;             ///< knots of a smooth term (at quantiles of the covariate)

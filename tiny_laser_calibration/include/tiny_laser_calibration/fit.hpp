@@ -63,6 +63,12 @@ struct DeclaredFitParams {
   int min_rows_per_pixel = 20;       ///< per-pixel Rsen only for pixels with this many valid read-outs
   int min_distances_per_pixel = 4;   ///< ... spread over at least this many target distances
   double term_ridge = 1.0;           ///< pseudo-observations pulling each term coefficient to 0
+  /// false: a per-pulse charge term over a continuous covariate is fitted centred (its
+  /// mean over the fitted read-outs held at 0, the level left to the declared leakage).
+  /// On one surface the light per pulse falls with the distance, so such a term's level
+  /// mixes that light into the ratio and acts as a distance cue; only its variation with
+  /// the covariate is an effect of the sensor. The residual loop sets it from the data.
+  bool per_pulse_charge_levels = true;
   int passes = 3;                    ///< outer passes (global parameters <-> per-pixel Rsen)
 };
 
