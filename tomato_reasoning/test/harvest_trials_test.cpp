@@ -62,7 +62,7 @@ TEST(HarvestTrials, AMissedFirstCutIsPickedOnTheSecondAttempt) {
   for (const auto& t : trials) {
     if (t.outcome != eval::HarvestOutcome::kPickedSecond) continue;
     EXPECT_EQ(t.attempts, 2);
-    EXPECT_EQ(t.cuts, "closed on nothing;cut target");
+    EXPECT_EQ(t.cuts, "closed_on_nothing;cut_target");
   }
   // The same truss with the real blades throughout: picked on the first attempt.
   const eval::HarvestCounts real = count(eval::harvest(laser(), h.scenario, h.result));
@@ -89,7 +89,7 @@ TEST(HarvestTrials, AJammedCutIsACutFailure) {
   for (const auto& t : trials) {
     if (t.outcome != eval::HarvestOutcome::kCutFailure) continue;
     // One closing, the last thing tried: a first attempt the verification refused may come before it.
-    EXPECT_TRUE(t.cuts == "jammed" || t.cuts == "no cut;jammed") << t.cuts;
+    EXPECT_TRUE(t.cuts == "jammed" || t.cuts == "no_cut;jammed") << t.cuts;
     EXPECT_EQ(t.attempts, t.cuts == "jammed" ? 1 : 2);
     EXPECT_EQ(t.jammed_on, "peduncle");
   }
@@ -121,7 +121,7 @@ TEST(HarvestTrials, ANeighboursPedicelCutKnocksItsFruitOff) {
   EXPECT_EQ(victim_trial.outcome, eval::HarvestOutcome::kKnockedOff);
   EXPECT_EQ(victim_trial.attempts, 0);
   const auto& target_trial = trials[std::size_t(first_target)];
-  EXPECT_EQ(target_trial.cuts.rfind("cut another pedicel;", 0), 0u) << target_trial.cuts;
+  EXPECT_EQ(target_trial.cuts.rfind("cut_other_pedicel;", 0), 0u) << target_trial.cuts;
   EXPECT_EQ(target_trial.attempts, 2);
 }
 

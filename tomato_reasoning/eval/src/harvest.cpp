@@ -110,7 +110,7 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
     pose.cut_point = end.verification.cut_point;
     belief = end.belief;
     if (!end.verification.will_cut()) {
-      t.cuts += "no cut";
+      t.cuts += "no_cut";
       continue;
     }
     const Eigen::Isometry3d T_world_throat =
