@@ -15,7 +15,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <string>
 
@@ -24,11 +23,12 @@
 #include "tomato_reasoning/pipeline.hpp"
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   CLI::App app{"One simulated truss through the tomato pipeline, written as CSV for the pictures of "
                "docs/tomato_reasoning.md.",
                "tomato_dump"};
@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
   std::printf("class %c seed %llu: %zu true tomatoes, %zu spheres (%s%s%s)\n", char(*cls), static_cast<unsigned long long>(seed),
               s.truth.size(), r.tomatoes.size(), r.ok ? "ok" : r.stage.c_str(), r.ok ? "" : ": ", r.reason.c_str());
 
-  std::ofstream pts(out / "points.csv");
+  tinyline::files::AtomicStream pts((out / "points.csv").string());
   pts << "x,y,z,r,g,b,red\n";
   const ColorCloud& c = s.cloud();
   const HsiFilter hsi(p.hsi);
@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
     pts << c.xyz[i].x() << ',' << c.xyz[i].y() << ',' << c.xyz[i].z() << ',' << int(c.rgb[i][0]) << ',' << int(c.rgb[i][1]) << ','
         << int(c.rgb[i][2]) << ',' << int(red) << '\n';
   }
+  pts.commit();
   // Gravity-aligned frame for the distribution: z up (against gravity).
   const Eigen::Vector3d up = -s.gravity_camera.normalized();
   Eigen::Matrix3d R;  // rows: the new axes in camera coordinates
@@ -69,7 +70,7 @@ int main(int argc, char** argv) {
   R.row(0) = x;
   R.row(1) = y;
   R.row(2) = up;
-  std::ofstream sph(out / "spheres.csv");
+  tinyline::files::AtomicStream sph((out / "spheres.csv").string());
   sph << "k,cx,cy,cz,radius,pick_rank,ex,ey,ez,spread50_deg,spread90_deg,edges,tcx,tcy,tcz,tradius,tpx,tpy,tpz,gux,guy,guz,gtx,gty,gtz\n";
   for (std::size_t k = 0; k < r.tomatoes.size(); ++k) {
     const Tomato& t = r.tomatoes[k];
@@ -86,14 +87,20 @@ int main(int argc, char** argv) {
         << ',' << t.pedicel.expected_dir.z() << ',' << t.pedicel.spread50_deg << ',' << t.pedicel.spread90_deg << ','
         << t.pedicel.edges << ',' << tc.x() << ',' << tc.y() << ',' << tc.z() << ',' << tr << ',' << tp.x() << ',' << tp.y() << ','
         << tp.z() << ',' << eu.x() << ',' << eu.y() << ',' << eu.z() << ',' << tu.x() << ',' << tu.y() << ',' << tu.z() << '\n';
-    std::ofstream g(out / ("grid_" + std::to_string(k) + ".csv"));
+    tinyline::files::AtomicStream g((out / ("grid_" + std::to_string(k) + ".csv")).string());
     for (const auto& row : t.pedicel.distribution.rotated(R).grid(72, 36)) {
       for (std::size_t j = 0; j < row.size(); ++j) g << (j ? "," : "") << row[j];
       g << '\n';
     }
+    g.commit();
   }
-  std::ofstream e(out / "edges.csv");
+  sph.commit();
+  tinyline::files::AtomicStream e((out / "edges.csv").string());
   e << "i,j,gap_m\n";
   for (const auto& edge : r.edges) e << edge.i << ',' << edge.j << ',' << edge.gap_m << '\n';
+  e.commit();
   return 0;
+} catch (const std::exception& e) {
+  std::fprintf(stderr, "tomato_dump: %s\n", e.what());
+  return 1;
 }

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <optional>
 #include <ostream>
@@ -13,7 +12,7 @@
 #include <cstring>
 
 #include <fmt/format.h>
-#include <tinyline/bus/files.hpp>
+#include <tinyline/common/files.hpp>
 
 #include <tiny_laser_calibration/collect.hpp>
 #include <tiny_laser_calibration/discovery.hpp>
@@ -357,8 +356,7 @@ std::string summary_json(const ReportContext& c) {
 void write_residuals(const ReportContext& c, const std::string& path) {
   const auto& data = *c.data;
   const auto& r = *c.result;
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(fmt::format("{}: cannot write", path));
+  files::AtomicStream out(path);
   out << "line,distance_m,target_group,material";
   for (Covariate k : builtin_covariates()) out << ',' << covariate_name(k);
   for (const auto& n : data.extra_names) out << ',' << n;
@@ -383,15 +381,14 @@ void write_residuals(const ReportContext& c, const std::string& path) {
     line += (std::isfinite(b) ? fmt::format(",{}", b) : ",") + (std::isfinite(a) ? fmt::format(",{}", a) : ",");
     out << line << '\n';
   }
-  if (!out) throw std::runtime_error(fmt::format("{}: write failed", path));
+  out.commit();
 }
 
 // Data points (X, truth) under the final model and the model's polynomial.
 void write_curve(const ReportContext& c, const std::string& path) {
   const auto& data = *c.data;
   const auto& m = c.final_model->impl();
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(fmt::format("{}: cannot write", path));
+  files::AtomicStream out(path);
   out << "kind,ratio,distance_m\n";
   const auto rows = select_readouts(data, {}, m.validity, c.params->declared.selection);
   const std::size_t step = std::max<std::size_t>(1, rows.size() / 6000);
@@ -404,6 +401,7 @@ void write_curve(const ReportContext& c, const std::string& path) {
     const double x = m.ratio_min - margin + (m.ratio_max - m.ratio_min + 2 * margin) * i / 200.0;
     out << fmt::format("model,{},{}\n", x, m.polynomial_m(x));
   }
+  out.commit();
 }
 
 std::string report_markdown(const ReportContext& c, const std::string& dir, const std::string& plot_note) {
@@ -476,18 +474,12 @@ void write_report(const ReportContext& c, const std::string& dir, const CalibToo
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec || !fs::is_directory(dir)) throw std::runtime_error(fmt::format("{}: cannot create the report directory", dir));
-  {
-    std::ofstream out(fs::path(dir) / "summary.json");
-    out << summary_json(c);
-    if (!out) throw std::runtime_error(fmt::format("{}/summary.json: write failed", dir));
-  }
+  files::write_atomically((fs::path(dir) / "summary.json").string(), summary_json(c));
   write_residuals(c, (fs::path(dir) / "residuals.csv").string());
   write_curve(c, (fs::path(dir) / "curve.csv").string());
   std::string note;
   if (tool::run_plot_script(env, dir, note) != 0) err << "tinyline calib: warning: " << note << "; report without plots\n";
-  std::ofstream md(fs::path(dir) / "report.md");
-  md << report_markdown(c, dir, note);
-  if (!md) throw std::runtime_error(fmt::format("{}/report.md: write failed", dir));
+  files::write_atomically((fs::path(dir) / "report.md").string(), report_markdown(c, dir, note));
 }
 
 void print_summary(std::ostream& out, const DiscoveryResult& r) {

@@ -1,10 +1,10 @@
 // `tinyline calib measured`: the calibration loop on every real measurement
 // the project holds (measured.hpp), as a report.
 #include <filesystem>
-#include <fstream>
 #include <ostream>
 
 #include <fmt/format.h>
+#include <tinyline/common/files.hpp>
 
 #include <tiny_laser_calibration/data.hpp>
 #include <tiny_laser_calibration/measured.hpp>
@@ -123,7 +123,7 @@ void write_plot_data(const std::string& dir, const MeasuredData& d, const Materi
                      const std::vector<CurveAnalysis>& cs) {
   namespace fs = std::filesystem;
   {
-    std::ofstream out(fs::path(dir) / "measured_materials.csv");
+    files::AtomicStream out((fs::path(dir) / "measured_materials.csv").string());
     out << "material,reflectance,bias_cm,sd_cm,loo_residual_cm\n";
     const auto* h = m.best >= 0 ? &m.hypotheses[static_cast<std::size_t>(m.best)] : nullptr;
     for (std::size_t i = 0; i < d.table32.size(); ++i) {
@@ -131,8 +131,9 @@ void write_plot_data(const std::string& dir, const MeasuredData& d, const Materi
       out << fmt::format("{},{},{},{},{}\n", t.name, t.reflectance, t.mean_cm - 30.0, t.sd_cm,
                          h ? json_number(h->loo_residual_cm[i]) : "null");
     }
+    out.commit();
   }
-  std::ofstream out(fs::path(dir) / "measured_curves.csv");
+  files::AtomicStream out((fs::path(dir) / "measured_curves.csv").string());
   out << "sensor,k,l_cm,residual_declared_cm,residual_best_cm\n";
   for (const auto& c : cs) {
     for (std::size_t i = 0; i < c.k.size(); ++i) {
@@ -140,19 +141,10 @@ void write_plot_data(const std::string& dir, const MeasuredData& d, const Materi
                          c.best_residual_cm[i]);
     }
   }
-  if (!out) throw std::runtime_error(fmt::format("{}: cannot write the plot data", dir));
+  out.commit();
 }
 
-void write_text(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << text;
-    out.flush();
-    if (!out) throw std::runtime_error(fmt::format("{}: write failed", path));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(fmt::format("{}: cannot rename into place", path));
-}
+void write_text(const std::string& path, const std::string& text) { files::write_atomically(path, text); }
 
 }  // namespace
 
