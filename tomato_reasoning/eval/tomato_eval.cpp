@@ -20,7 +20,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
@@ -40,6 +39,7 @@
 #include "harness.hpp"  // laser_clustering's evaluation: wilson()
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 #include <tinyline/common/seeds.hpp>
 
 using namespace tinyline;
@@ -212,7 +212,8 @@ struct Run {
   std::unique_ptr<eval::Variant> variant;
   std::vector<eval::TrussScore> scores;
   std::map<char, std::vector<eval::TrussScore>> by_class;
-  std::ofstream csv;
+  std::ostringstream csv;  ///< written to csv_path when the run ends
+  std::string csv_path;
 };
 
 /// The laser verification of the first variant's picks, as recognised and
@@ -220,10 +221,10 @@ struct Run {
 struct PickVerification {
   bool verify = false, harvest = false;
   std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
-  std::ofstream harvest_csv;
+  std::ostringstream harvest_csv, csv;  ///< written to their paths when the run ends
+  std::string harvest_path, csv_path;
   eval::HarvestOptions harvest_options;
   std::map<char, eval::HarvestCounts> harvested;  // class -> Table 4.2 row
-  std::ofstream csv;
   std::map<std::string, std::map<std::string, int>> count;  // case -> verdict -> n
   std::map<std::string, int> vision_ok;
   bool closed_loop = false;  ///< re-scans asked for: the CSV gets a scans column
@@ -251,7 +252,7 @@ std::vector<Run> open_runs(const Request& r) {
     } catch (const std::exception& e) {
       throw UsageError("variant '" + v + "': " + e.what());
     }
-    run.csv.open(r.out_dir + "/" + v + "_tomatoes.csv");
+    run.csv_path = r.out_dir + "/" + v + "_tomatoes.csv";
     run.csv << eval::csv_header();
     runs.push_back(std::move(run));
   }
@@ -282,13 +283,13 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
   out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
   std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
   if (r.harvest) {
-    out->harvest_csv.open(r.out_dir + "/harvest.csv");
+    out->harvest_path = r.out_dir + "/harvest.csv";
     out->harvest_csv << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on\n";
   }
   if (!r.verify) return out;
   vo.random_offset_m = 0.05;
   out->with_offset = std::make_unique<eval::VerificationHarness>(vo);
-  out->csv.open(r.out_dir + "/verification.csv");
+  out->csv_path = r.out_dir + "/verification.csv";
   out->closed_loop = vo.rescans > 0;
   out->csv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,"
               "depth_error_mm,move_mm,confidence,reason"
@@ -385,7 +386,7 @@ void print_summary_row(const std::string& label, const eval::Summary& s) {
 
 /// Per class and overall: printed, and DIR/<variant>_summary.json.
 void write_summary(const Run& run, const Request& r) {
-  std::ofstream js(r.out_dir + "/" + run.name + "_summary.json");
+  tinyline::files::AtomicStream js(r.out_dir + "/" + run.name + "_summary.json");
   js << "{\n\"variant\": \"" << run.name << "\",\n\"seeds\": \"" << r.seeds_label << "\",\n\"classes\": {\n";
   std::printf("\n%s (%s)\n%-6s %9s %9s %9s %8s %8s %8s %8s %9s %9s %7s %7s %8s\n", run.name.c_str(),
               r.seeds_label.c_str(), "class", "detected", "rate", "visible", "ctr_med", "ctr_p95", "rad_med", "rad_p95",
@@ -400,6 +401,7 @@ void write_summary(const Run& run, const Request& r) {
   const eval::Summary all = eval::summarize(run.scores);
   print_summary_row("all", all);
   js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
+  js.commit();
 }
 
 /// "k/n = p% [lo, hi]" (Wilson 95 %).
@@ -448,10 +450,11 @@ void report_kappa_fit(KappaTally& t, const std::string& variant, const Request& 
   std::size_t best = t.fit_from;
   for (std::size_t k = t.fit_from; k < t.kappas.size(); ++k)
     if (std::abs(t.hits[k] - 0.5 * t.n) < std::abs(t.hits[best] - 0.5 * t.n)) best = k;
-  std::ofstream kf(r.out_dir + "/kappa_fit.csv");
+  tinyline::files::AtomicStream kf(r.out_dir + "/kappa_fit.csv");
   kf << "kappa,hpd50_hits,n,fitted\n";
   for (std::size_t k = t.fit_from; k < t.kappas.size(); ++k)
     kf << t.kappas[k] << ',' << t.hits[k] << ',' << t.n << ',' << int(k == best) << '\n';
+  kf.commit();
   if (t.n == 0) {
     std::printf("\nkappa fit: no detected tomato to fit on\n");
   } else {
@@ -464,7 +467,7 @@ void report_kappa_fit(KappaTally& t, const std::string& variant, const Request& 
 
 /// The --kappa-sweep values' HPD50 hit rates: printed and DIR/kappa_sweep.csv.
 void report_kappa_sweep(const KappaTally& t, const std::string& variant, const Request& r) {
-  std::ofstream ks(r.out_dir + "/kappa_sweep.csv");
+  tinyline::files::AtomicStream ks(r.out_dir + "/kappa_sweep.csv");
   ks << "kappa,hpd50_hit_rate,n\n";
   std::printf("\nkappa sweep (%s, %s, %d detected tomatoes): share of true pedicels inside the HPD50 region\n",
               variant.c_str(), r.seeds_label.c_str(), t.n);
@@ -473,6 +476,14 @@ void report_kappa_sweep(const KappaTally& t, const std::string& variant, const R
     std::printf("  kappa %7.2f  %5.1f%%\n", t.kappas[k], 100 * rate);
     ks << t.kappas[k] << ',' << rate << ',' << t.n << '\n';
   }
+  ks.commit();
+}
+
+/// The per-tomato, verification and harvest CSVs, each renamed into place.
+void write_tables(const std::vector<Run>& runs, const PickVerification* v) {
+  for (const auto& run : runs) tinyline::files::write_atomically(run.csv_path, run.csv.view());
+  if (v && v->verify) tinyline::files::write_atomically(v->csv_path, v->csv.view());
+  if (v && v->harvest) tinyline::files::write_atomically(v->harvest_path, v->harvest_csv.view());
 }
 
 }  // namespace
@@ -487,6 +498,7 @@ int main(int argc, char** argv) {
     std::vector<Run> runs = open_runs(request);
     const std::unique_ptr<PickVerification> verification = open_verification(request);
     evaluate(request, runs, verification.get(), tally);
+    write_tables(runs, verification.get());
     for (const auto& run : runs) write_summary(run, request);
     const std::string& first = runs.front().name;
     if (verification && verification->verify) print_verification(*verification, first, request.seeds_label);
@@ -496,6 +508,9 @@ int main(int argc, char** argv) {
   } catch (const UsageError& e) {
     std::fprintf(stderr, "tomato_eval: %s\n", e.what());
     return 2;
+  } catch (const tinyline::files::FileError& e) {
+    std::fprintf(stderr, "tomato_eval: %s\n", e.what());
+    return 1;
   }
   return 0;
 }
