@@ -2,8 +2,6 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <cstdio>
-#include <fstream>
 #include <optional>
 #include <sstream>
 
@@ -268,20 +266,12 @@ void write_calibration_csv(const CalibrationDataset& data, std::ostream& out) {
 
 void write_calibration_csv(const CalibrationDataset& data, const std::string& path) {
   // A temporary name renamed at the end: a full disk or a crash never leaves half a file under `path`.
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw CalibrationDataError(fmt::format("{}: cannot write data file", path));
+  try {
+    files::AtomicStream out(path, files::named("data file"));
     write_calibration_csv(data, out);
-    out.flush();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw CalibrationDataError(fmt::format("{}: write failed", path));
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw CalibrationDataError(fmt::format("{}: cannot rename the written file into place", path));
+    out.commit();
+  } catch (const files::FileError& e) {
+    throw CalibrationDataError(e.what());
   }
 }
 
