@@ -107,6 +107,25 @@ struct Request {
   std::string seeds_label;  ///< which seeds and what they are (common/seeds.hpp), on every printed figure
 };
 
+/// The laser verification's and the harvest's options (Table 4.3, Table 4.2).
+void add_pick_options(CLI::App& app, Request& r, std::vector<std::string>& verify_sets,
+                      std::vector<std::string>& harvest_sets) {
+  app.add_flag("--verify", r.verify,
+               "laser verification of every detected tomato's pick (first variant), as recognised and with a random "
+               "offset < 5 cm (Table 4.3), written to DIR/verification.csv");
+  app.add_option("--verify-set", verify_sets,
+                 "the verification's options key=value (pulses=10,20,50,120,300 expectation_sd_m=0.015 "
+                 "max_move_m=0.05 max_turn_deg=60; the closed loop: rescans=2 approach_far=0|1), repeatable");
+  app.add_flag("--closed-loop", r.closed_loop,
+               "the verification's closed loop of thesis 4.5 (move, scan again, re-centre; rescans=2): for --verify and "
+               "--harvest; --verify-set overrides");
+  app.add_flag("--harvest", r.harvest,
+               "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
+               "truss), written to DIR/harvest.csv");
+  app.add_option("--harvest-set", harvest_sets,
+                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=0), repeatable");
+}
+
 /// Fills `r` from the command line; the exit code when the program stops there.
 std::optional<int> parse(int argc, char** argv, Request& r) {
   CLI::App app{"Scores the tomato pipeline on seeded simulated trusses (docs/tomato_reasoning.md); every variant "
@@ -146,20 +165,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
       ->delimiter(',')
       ->expected(2)
       ->check(tinyline::common::non_negative());
-  app.add_flag("--verify", r.verify,
-               "laser verification of every detected tomato's pick (first variant), as recognised and with a random "
-               "offset < 5 cm (Table 4.3), written to DIR/verification.csv");
-  app.add_option("--verify-set", verify_sets,
-                 "the verification's options key=value (pulses=10,20,50,120,300 expectation_sd_m=0.015 "
-                 "max_move_m=0.05 max_turn_deg=60; the closed loop: rescans=2 approach_far=0|1), repeatable");
-  app.add_flag("--closed-loop", r.closed_loop,
-               "the verification's closed loop of thesis 4.5 (move, scan again, re-centre; rescans=2): for --verify and "
-               "--harvest; --verify-set overrides");
-  app.add_flag("--harvest", r.harvest,
-               "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
-               "truss), written to DIR/harvest.csv");
-  app.add_option("--harvest-set", harvest_sets,
-                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=0), repeatable");
+  add_pick_options(app, r, verify_sets, harvest_sets);
   std::vector<std::string> truss_sets;
   app.add_option("--truss-set", truss_sets,
                  "the simulated world's truss option key=value (physics=pendulum|elastic_rod, stem_bend_deg, "
