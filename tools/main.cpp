@@ -10,16 +10,18 @@
 
 #include "src/cli.hpp"
 
+namespace cli = tinyline::cli;
+
 int main(int argc, char** argv) {
   using namespace tinyline::tools;
-  CLI::App app("The command line of the tinyline node suite (tinyline COMMAND --help for details).", "tinyline");
+  cli::App app("The command line of the tinyline node suite (tinyline COMMAND --help for details).", "tinyline");
   app.require_subcommand(1);
-  app.get_formatter()->column_width(24);
+  app.column_width(24);
   auto table = command_table();
   std::sort(table.begin(), table.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
-  std::vector<std::pair<CLI::App*, CommandRun>> runs;
+  std::vector<std::pair<cli::App*, CommandRun>> runs;
   for (const auto& c : table) {
-    CLI::App* sub = app.add_subcommand(c.name, c.summary);
+    cli::App* sub = app.add_subcommand(c.name, c.summary);
     runs.emplace_back(sub, c.setup(*sub));
   }
   const bool known = argc < 2 || argv[1][0] == '-' ||
@@ -31,18 +33,15 @@ int main(int argc, char** argv) {
   std::string where = "tinyline";
   try {
     app.parse(argc, argv);
-    const std::string path = cli::command_path(app);
+    const std::string path = parsing::command_path(app);
     where = "tinyline " + path;
     for (const auto& [sub, run] : runs) {
       if (sub->parsed()) return run();
     }
     return 2;
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);  // the help of the command named (0)
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    const std::string path = cli::command_path(app);
+  } catch (const cli::ParseError& e) {
+    if (e.help()) return app.exit(e);  // the help of the command named (0)
+    const std::string path = parsing::command_path(app);
     const std::string cmd = path.empty() ? "tinyline" : "tinyline " + path;
     if (argc == 1) {
       fmt::print(stderr, "{}", app.help());

@@ -29,6 +29,8 @@
 #include "montecarlo.hpp"
 #include "write_output.hpp"
 
+namespace cli = tinyline::cli;
+
 namespace ev = tinyline::hydrus_fitting::eval;
 
 namespace {
@@ -50,19 +52,19 @@ struct Request {
 };
 
 /// --trials and --out for every study; the grid options for kcr and second_order.
-void add_options(CLI::App& study, Request& r, bool grid) {
-  study.add_option("--trials", r.trials, "trials (second_order: noise draws)")->check(CLI::Range(1, 1 << 30));
+void add_options(cli::App& study, Request& r, bool grid) {
+  study.add_option("--trials", r.trials, "trials (second_order: noise draws)")->check(cli::range(1, 1 << 30));
   study.add_option("--out", r.out, "CSV file to write (default: stdout)");
-  study.add_option("--seed", r.seed, "seed of the noise draws")->check(tinyline::common::non_negative());
+  study.add_option("--seed", r.seed, "seed of the noise draws")->check(cli::non_negative());
   study.add_flag("--tuning", r.tuning, "this run is for choosing parameters: refuse a seed that is not a tuning seed");
   if (!grid) return;
-  study.add_option("--points", r.points, "points per arc")->check(CLI::Range(3, 1 << 20));
+  study.add_option("--points", r.points, "points per arc")->check(cli::range(3, 1 << 20));
   study.add_option("--arcs", r.arcs_deg, "arcs [deg], comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::positive());
+      ->check(cli::positive());
   study.add_option("--sigmas", r.sigmas_m, "noise SDs [m], comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::positive());
+      ->check(cli::positive());
 }
 
 /// The study's seed from the request; false (said on stderr) when a tuning
@@ -91,39 +93,39 @@ void apply_grid(const Request& r, Params& p) {
 }
 
 /// The correction study's own grid options.
-void add_correction_options(CLI::App& study, Request& r) {
+void add_correction_options(cli::App& study, Request& r) {
   add_options(study, r, false);
-  study.add_option("--arcs", r.arcs_deg, "arcs [deg], comma-separated")->delimiter(',')->check(tinyline::common::positive());
+  study.add_option("--arcs", r.arcs_deg, "arcs [deg], comma-separated")->delimiter(',')->check(cli::positive());
   study.add_option("--point-counts", r.point_counts, "points per arc, comma-separated")
       ->delimiter(',')
-      ->check(CLI::Range(4, 1 << 20));
+      ->check(cli::range(4, 1 << 20));
   study.add_option("--sigma-over-r", r.sigma_over_r, "noise SD over the radius, comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::positive());
-  study.add_option("--outliers", r.outliers, "shares of outliers, comma-separated")->delimiter(',')->check(CLI::Range(0.0, 0.5));
+      ->check(cli::positive());
+  study.add_option("--outliers", r.outliers, "shares of outliers, comma-separated")->delimiter(',')->check(cli::range(0.0, 0.5));
   study.add_option("--noise", r.noise, "isotropic and/or rays, comma-separated")
       ->delimiter(',')
-      ->check(CLI::IsMember({"isotropic", "rays"}));
+      ->check(cli::one_of({"isotropic", "rays"}));
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"The Monte-Carlo studies of docs/hydrus_fitting.md, written as CSV.", "hydrus_eval"};
+  cli::App app{"The Monte-Carlo studies of docs/hydrus_fitting.md, written as CSV.", "hydrus_eval"};
   app.require_subcommand(1);
   Request r;
-  CLI::App* kcr = app.add_subcommand("kcr", "circle fits against the KCR bound over arcs and noise");
-  CLI::App* robustness = app.add_subcommand("robustness", "robust fitting on the robot's fused scans with clutter");
-  CLI::App* ray_noise = app.add_subcommand("ray_noise", "noise along the rays versus isotropic noise");
-  CLI::App* second_order = app.add_subcommand("second_order", "the second-order correction over arcs and noise");
-  CLI::App* correction = app.add_subcommand(
+  cli::App* kcr = app.add_subcommand("kcr", "circle fits against the KCR bound over arcs and noise");
+  cli::App* robustness = app.add_subcommand("robustness", "robust fitting on the robot's fused scans with clutter");
+  cli::App* ray_noise = app.add_subcommand("ray_noise", "noise along the rays versus isotropic noise");
+  cli::App* second_order = app.add_subcommand("second_order", "the second-order correction over arcs and noise");
+  cli::App* correction = app.add_subcommand(
       "correction", "the second-order correction outside its design: points, sigma/r, outliers, ray noise");
   add_options(*kcr, r, true);
   add_options(*robustness, r, false);
   add_options(*ray_noise, r, false);
   add_options(*second_order, r, true);
   add_correction_options(*correction, r);
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
 
   const std::string description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
   if (kcr->parsed()) {

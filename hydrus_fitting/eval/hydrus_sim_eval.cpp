@@ -23,6 +23,8 @@
 #include "sim_study.hpp"
 #include "write_output.hpp"
 
+namespace cli = tinyline::cli;
+
 namespace ev = tinyline::hydrus_fitting::eval;
 
 namespace {
@@ -40,18 +42,18 @@ int main(int argc, char** argv) {
   std::string calibration = src + "/tiny_laser_driver/config/calibration/sim_tiny_tof_3p6mm.yaml";
   double start_s = 0.0, end_s = -1.0;
   bool no_base_motion = false;
-  CLI::App app{"The Hydrus grasp in the physics simulator under the emission schedules, written as CSV for "
+  cli::App app{"The Hydrus grasp in the physics simulator under the emission schedules, written as CSV for "
                "docs/hydrus_fitting.md.",
                "hydrus_sim_eval"};
   app.add_option("--schedules", schedules, "emission schedules, comma-separated")
       ->delimiter(',')
-      ->check(CLI::IsMember({"all_on", "time_slicing", "colouring"}))
+      ->check(cli::one_of({"all_on", "time_slicing", "colouring"}))
       ->capture_default_str();
   app.add_option("--start", start_s, "simulate the manoeuvre from this time [s]")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
   app.add_option("--end", end_s, "... to this time [s]; < 0: its whole duration")
-      ->check(tinyline::common::finite())
+      ->check(cli::finite())
       ->capture_default_str();
   app.add_option("--scene", scene, "scene YAML")->capture_default_str();
   app.add_option("--robot", robot, "robot description YAML")->capture_default_str();
@@ -59,7 +61,7 @@ int main(int argc, char** argv) {
   app.add_option("--updates", updates_path, "CSV of every circle update (default: stdout)");
   app.add_option("--rates", rates_path, "CSV of the update rates (default: stdout)");
   app.add_flag("--no-base-motion", no_base_motion, "leave the scans where the joints put them");
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   const bool base_motion = !no_base_motion;
 
   std::vector<ev::SimStudyResult> runs;

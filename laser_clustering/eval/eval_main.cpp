@@ -32,6 +32,8 @@
 #include "harness.hpp"
 #include <sim/eval/scanner.hpp>
 
+namespace cli = tinyline::cli;
+
 namespace ev = tinyline::laser_clustering::eval;
 namespace sim = tinyline::sim;
 namespace lc = tinyline::laser_clustering;
@@ -62,32 +64,32 @@ struct Args {
 
 // Fills `a` from the command line; the exit code when the program stops there.
 std::optional<int> parse(int argc, char** argv, Args& a) {
-  CLI::App app{"The evaluation of docs/laser_clustering.md on the simulated sensor: prints the Markdown tables, "
+  cli::App app{"The evaluation of docs/laser_clustering.md on the simulated sensor: prints the Markdown tables, "
                "writes summary.json, one CSV per case and the scans of the first trials.",
                "laser_clustering_eval"};
-  app.add_option("--trials", a.trials, "trials per case")->check(CLI::Range(1, 1 << 30))->capture_default_str();
-  app.add_option("--seed", a.seed, "seed of the first trial")->check(tinyline::common::non_negative())->capture_default_str();
+  app.add_option("--trials", a.trials, "trials per case")->check(cli::range(1, 1 << 30))->capture_default_str();
+  app.add_option("--seed", a.seed, "seed of the first trial")->check(cli::non_negative())->capture_default_str();
   app.add_option("--out", a.out, "output directory")->capture_default_str();
   std::vector<std::string> cases(a.cases.begin(), a.cases.end());
   app.add_option("--cases", cases, "comma-separated cases")
       ->delimiter(',')
-      ->check(CLI::IsMember({"random_offset", "recognition_error", "stick", "wrench"}))
+      ->check(cli::one_of({"random_offset", "recognition_error", "stick", "wrench"}))
       ->capture_default_str();
   app.add_option("--pictures", a.pictures, "scans of the first K trials of each case")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
   app.add_option("--failure-pictures", a.failure_pictures, "and of the first K truss trials that did not align")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
   app.add_flag("--tuning", a.tuning,
                "this run is for choosing parameters: refuse any seed that is not a tuning seed (docs/evaluation.md)");
   app.add_flag("--ablation", a.ablation, "also the truss cases under earlier parameter sets and a one-stage baseline");
   app.add_option("--raw-pulses", a.raw_pulses, "raw-mode read-out schedule of both sensors [pulses], comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::positive())
+      ->check(cli::positive())
       ->capture_default_str();
   app.add_option("--rescans", a.rescans, "truss cases: scans after the first move")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
   bool no_tomato_look = false;
   app.add_flag("--no-tomato-look", no_tomato_look, "no look through the tomatoes before a blind move");
@@ -96,7 +98,7 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
   std::vector<std::string> scene_sets;
   app.add_option("--scene-set", scene_sets, "truss cases' scene option key=value: max_tilt_deg (default 15), stem_bow_m "
                                             "(default 0), repeatable")
-      ->check(CLI::Validator(
+      ->check(cli::Validator(
           [&a](std::string& kv) -> std::string {
             const auto eq = kv.find('=');
             if (eq == std::string::npos) return "--scene-set wants key=value, got '" + kv + "'";
@@ -104,7 +106,7 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
             return ev::set_truss_option(a.scene, kv.substr(0, eq), kv.substr(eq + 1));
           },
           "KEY=VALUE"));
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return rc;
   a.cases = std::set<std::string>(cases.begin(), cases.end());
   a.tomato_look = !no_tomato_look;
   if (a.tuning) {

@@ -15,6 +15,8 @@
 #include <tinyline/common/cli.hpp>
 #include <tinyline/common/files.hpp>
 
+namespace cli = tinyline::cli;
+
 using namespace tinyline::sim;
 
 namespace {
@@ -66,18 +68,18 @@ int main(int argc, char** argv) {
   std::string sensor_path, measured_path = std::string(TINYLINE_SIM_SOURCE_DIR) + "/config/fidelity/thesis_measured.yaml";
   std::string json_path, tune;
   FidelityOptions opt;
-  CLI::App app{"Runs the thesis's experiments on a simulated sensor and prints them beside the measured figures "
+  cli::App app{"Runs the thesis's experiments on a simulated sensor and prints them beside the measured figures "
                "(docs/simulator_fidelity.md). Exit code 0 when every goal is met, 1 when one is missed, 2 on bad usage.",
                "sim_fidelity"};
   app.add_option("--sensor", sensor_path, "sensor YAML (sim/config/sensors/...)")->required();
   app.add_option("--measured", measured_path, "the thesis's measured figures (YAML)")->capture_default_str();
   app.add_option("--json", json_path, "also write the report as JSON here");
   app.add_option("--seed", opt.seed_offset, "offset of every experiment's seed")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
   app.add_option("--tune", tune, "tune one group of the sensor's constants instead")
-      ->check(CLI::IsMember({"trap", "noise", "offset"}));
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+      ->check(cli::one_of({"trap", "noise", "offset"}));
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   try {
     const SensorParams p = load_sensor_params(sensor_path);
     const ThesisFigures m = load_thesis_figures(measured_path);

@@ -31,6 +31,8 @@
 #include <tinyline/common/cli.hpp>
 #include <tinyline/common/files.hpp>
 
+namespace cli = tinyline::cli;
+
 namespace {
 
 namespace sim = tinyline::sim;
@@ -45,21 +47,21 @@ struct Options {
 
 /// The command line; an exit code when the program should stop (help, bad options).
 std::optional<int> parse(int argc, char** argv, Options& o) {
-  CLI::App app{"Calibration data from the simulated sensor on the simulated calibration rail, as the CSV "
+  cli::App app{"Calibration data from the simulated sensor on the simulated calibration rail, as the CSV "
                "`tinyline calib fit` reads; or (--constants) the leakage per pulse and Rsen measured as the thesis did.",
                "sim_rail_csv"};
   app.add_option("--sensor", o.sensor, "sensor YAML")->required();
   app.add_option("-o", o.out, "CSV file to write (required unless --constants)");
-  app.add_option("--from", o.from, "nearest target distance [m]")->check(tinyline::common::positive())->capture_default_str();
-  app.add_option("--to", o.to, "farthest target distance [m]")->check(tinyline::common::positive())->capture_default_str();
-  app.add_option("--step", o.step, "distance step [m]")->check(tinyline::common::positive())->capture_default_str();
-  app.add_option("--visits", o.visits, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
-  app.add_option("--sets", o.sets, "sets per visit")->check(CLI::Range(1, 1000))->capture_default_str();
-  app.add_option("--pixel-step", o.pixel_step, "every N-th effective pixel")->check(CLI::Range(1, 256))->capture_default_str();
+  app.add_option("--from", o.from, "nearest target distance [m]")->check(cli::positive())->capture_default_str();
+  app.add_option("--to", o.to, "farthest target distance [m]")->check(cli::positive())->capture_default_str();
+  app.add_option("--step", o.step, "distance step [m]")->check(cli::positive())->capture_default_str();
+  app.add_option("--visits", o.visits, "visits of each distance")->check(cli::range(1, 1000))->capture_default_str();
+  app.add_option("--sets", o.sets, "sets per visit")->check(cli::range(1, 1000))->capture_default_str();
+  app.add_option("--pixel-step", o.pixel_step, "every N-th effective pixel")->check(cli::range(1, 256))->capture_default_str();
   app.add_option("--material", o.material, "target material")->capture_default_str();
-  app.add_option("--seed", o.seed, "seed of the visiting order")->check(tinyline::common::non_negative())->capture_default_str();
+  app.add_option("--seed", o.seed, "seed of the visiting order")->check(cli::non_negative())->capture_default_str();
   app.add_flag("--constants", o.constants, "measure the leakage per pulse and Rsen instead (laser off)");
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return rc;
   if (o.out.empty() && !o.constants) {
     std::cerr << "sim_rail_csv: -o OUT.csv is required (or --constants)\nRun with --help for more information.\n";
     return 2;

@@ -16,24 +16,26 @@
 #include <tinyline/common/cli.hpp>
 #include <tinyline/common/files.hpp>
 
+namespace cli = tinyline::cli;
+
 using namespace tinyline::sim;
 
 int main(int argc, char** argv) {
   std::string scene_path, sensor_name, out_path;
   double t = 3600.0;
   std::uint64_t index = 1;
-  CLI::App app{"One simulated measurement set of a scene's sensor, as JSON: per pixel the ray, the true range and "
+  cli::App app{"One simulated measurement set of a scene's sensor, as JSON: per pixel the ray, the true range and "
                "what it hits, the raw read-outs, the read-out the driver would choose and the on-board calibration's "
                "distance (docs/simulator.md).",
                "sim_scan"};
   app.add_option("SCENE", scene_path, "scene YAML")->required();
   app.add_option("--sensor", sensor_name, "sensor name in the scene (default: the first)");
   app.add_option("--time", t, "sensor time of the set [s]")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
-  app.add_option("--index", index, "set index (seeds its noise)")->check(tinyline::common::non_negative())->capture_default_str();
+  app.add_option("--index", index, "set index (seeds its noise)")->check(cli::non_negative())->capture_default_str();
   app.add_option("--out", out_path, "JSON file to write (default: stdout)");
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   try {
     const Scene s = load_scene(scene_path);
     const SensorMount* m = sensor_name.empty() ? (s.sensors.empty() ? nullptr : &s.sensors[0]) : s.sensor(sensor_name);

@@ -13,27 +13,29 @@
 
 #include <tinyline/common/cli.hpp>
 
+namespace cli = tinyline::cli;
+
 int main(int argc, char** argv) {
   namespace tt = tinyline::tiny_laser_calibration::testing;
   tt::SimRailSession s;
   double from = 0.15, to = 2.0, step = 0.05;
   int visits = 2;
   unsigned seed = 7;
-  CLI::App app{"Records a calibration session on the simulated rail as a bag (virtual sensor + recorder on sim "
+  cli::App app{"Records a calibration session on the simulated rail as a bag (virtual sensor + recorder on sim "
                "time), the input of `tinyline calib collect` (docs/calibration.md).",
                "calibration_sim_rail_bag"};
   app.add_option("--scene", s.scene, "rail scene YAML")->required();
   app.add_option("-o", s.bag_path, "bag to write (MCAP)")->required();
-  app.add_option("--from", from, "nearest target distance [m]")->check(tinyline::common::positive())->capture_default_str();
-  app.add_option("--to", to, "farthest target distance [m]")->check(tinyline::common::positive())->capture_default_str();
-  app.add_option("--step", step, "distance step [m]")->check(tinyline::common::positive())->capture_default_str();
-  app.add_option("--visits", visits, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
-  app.add_option("--sets", s.sets_per_distance, "sets per visit")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--from", from, "nearest target distance [m]")->check(cli::positive())->capture_default_str();
+  app.add_option("--to", to, "farthest target distance [m]")->check(cli::positive())->capture_default_str();
+  app.add_option("--step", step, "distance step [m]")->check(cli::positive())->capture_default_str();
+  app.add_option("--visits", visits, "visits of each distance")->check(cli::range(1, 1000))->capture_default_str();
+  app.add_option("--sets", s.sets_per_distance, "sets per visit")->check(cli::range(1, 1000))->capture_default_str();
   app.add_option("--power-on-age", s.power_on_age_s, "sensor time at the start [s] (0: the warm-up is in the data)")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
-  app.add_option("--seed", seed, "seed of the visiting order")->check(tinyline::common::non_negative())->capture_default_str();
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  app.add_option("--seed", seed, "seed of the visiting order")->check(cli::non_negative())->capture_default_str();
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   if (!(to >= from)) {
     std::cerr << "calibration_sim_rail_bag: --to (" << to << ") must not be below --from (" << from << ")\n";
     return 2;

@@ -13,6 +13,8 @@
 
 #include "synthetic_sensor.hpp"
 
+namespace cli = tinyline::cli;
+
 namespace tl = tinyline::tiny_laser_driver;
 namespace cal = tinyline::tiny_laser_calibration;
 namespace tt = tinyline::tiny_laser_calibration::testing;
@@ -23,22 +25,22 @@ int main(int argc, char** argv) {
   std::string out, materials = "white";
   int pixel_step = 4;
   std::vector<std::string> effects;
-  CLI::App app{"Writes a calibration CSV from the two-capacitor model of the calibration tests, with chosen "
+  cli::App app{"Writes a calibration CSV from the two-capacitor model of the calibration tests, with chosen "
                "undeclared effects (docs/calibration.md).",
                "calibration_synthetic_rail"};
   app.add_option("-o", out, "CSV file to write")->required();
   app.add_option("--effect", effects, "an undeclared effect (repeatable)")
-      ->check(CLI::IsMember({"material", "supply", "time", "nonlin", "pixel"}));
+      ->check(cli::one_of({"material", "supply", "time", "nonlin", "pixel"}));
   app.add_flag("--supply-column", s.effects.supply_column, "also write the supply voltage as a column");
   app.add_option("--materials", materials, "target materials")
-      ->check(CLI::IsMember({"white", "table32"}))
+      ->check(cli::one_of({"white", "table32"}))
       ->capture_default_str();
-  app.add_option("--passes", plan.passes, "visits of each distance")->check(CLI::Range(1, 1000))->capture_default_str();
-  app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")->check(CLI::Range(1, 256))->capture_default_str();
+  app.add_option("--passes", plan.passes, "visits of each distance")->check(cli::range(1, 1000))->capture_default_str();
+  app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")->check(cli::range(1, 256))->capture_default_str();
   app.add_option("--seed", plan.seed, "seed of the visiting order and the noise")
-      ->check(tinyline::common::non_negative())
+      ->check(cli::non_negative())
       ->capture_default_str();
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   for (const std::string& e : effects) {
     if (e == "material") {
       s.effects.material_bias = true;

@@ -10,6 +10,8 @@
 
 #include <tinyline/common/cli.hpp>
 
+namespace cli = tinyline::cli;
+
 namespace tl = tinyline::tiny_laser_driver;
 
 namespace {
@@ -51,9 +53,9 @@ void write(const std::string& dir, const std::string& name, std::uint8_t mode, c
 
 int main(int argc, char** argv) {
   std::string dir;
-  CLI::App app{"Writes the seed corpus of the driver's parser fuzzer.", "driver_parser_fuzz_seeds"};
+  cli::App app{"Writes the seed corpus of the driver's parser fuzzer.", "driver_parser_fuzz_seeds"};
   app.add_option("SEED_DIR", dir, "directory to write into")->required();
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   const std::uint8_t raw5 = 4 << 1;  // readouts 5, raw mode
   auto two = raw_set(1);
   const auto second = raw_set(2);

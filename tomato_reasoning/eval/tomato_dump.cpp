@@ -29,18 +29,18 @@ using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
 
 int main(int argc, char** argv) try {
-  CLI::App app{"One simulated truss through the tomato pipeline, written as CSV for the pictures of "
+  cli::App app{"One simulated truss through the tomato pipeline, written as CSV for the pictures of "
                "docs/tomato_reasoning.md.",
                "tomato_dump"};
   std::string class_name, out_dir;
   std::uint64_t seed = 0;
   std::optional<double> kernel_kappa;
-  app.add_option("CLASS", class_name, "truss complexity class")->required()->check(CLI::IsMember({"A", "B", "C"}));
-  app.add_option("SEED", seed, "truss seed")->required()->check(tinyline::common::non_negative());
+  app.add_option("CLASS", class_name, "truss complexity class")->required()->check(cli::one_of({"A", "B", "C"}));
+  app.add_option("SEED", seed, "truss seed")->required()->check(cli::non_negative());
   app.add_option("OUT_DIR", out_dir, "output directory")->required();
   app.add_option("KERNEL_KAPPA", kernel_kappa, "force.kernel_kappa (default: the fitted one)")
-      ->check(tinyline::common::non_negative());
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+      ->check(cli::non_negative());
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   const auto cls = sim::parse_truss_class(class_name);
   const std::filesystem::path out = out_dir;
   std::filesystem::create_directories(out);

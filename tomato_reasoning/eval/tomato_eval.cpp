@@ -83,7 +83,7 @@ std::vector<std::uint64_t> parse_seeds(const std::string& s) {
 /// "key=value" as a pair; throws naming the option when there is no '='.
 std::pair<std::string, std::string> key_value(const std::string& option, const std::string& kv) {
   const auto eq = kv.find('=');
-  if (eq == std::string::npos) throw CLI::ValidationError(option, "wants key=value, got '" + kv + "'");
+  if (eq == std::string::npos) throw cli::ParseError(option, "wants key=value, got '" + kv + "'");
   return {kv.substr(0, eq), kv.substr(eq + 1)};
 }
 
@@ -108,7 +108,7 @@ struct Request {
 };
 
 /// The laser verification's and the harvest's options (Table 4.3, Table 4.2).
-void add_pick_options(CLI::App& app, Request& r, std::vector<std::string>& verify_sets,
+void add_pick_options(cli::App& app, Request& r, std::vector<std::string>& verify_sets,
                       std::vector<std::string>& harvest_sets) {
   app.add_flag("--verify", r.verify,
                "laser verification of every detected tomato's pick (first variant), as recognised and with a random "
@@ -128,7 +128,7 @@ void add_pick_options(CLI::App& app, Request& r, std::vector<std::string>& verif
 
 /// Fills `r` from the command line; the exit code when the program stops there.
 std::optional<int> parse(int argc, char** argv, Request& r) {
-  CLI::App app{"Scores the tomato pipeline on seeded simulated trusses (docs/tomato_reasoning.md); every variant "
+  cli::App app{"Scores the tomato pipeline on seeded simulated trusses (docs/tomato_reasoning.md); every variant "
                "runs on the same clouds. Writes DIR/<variant>_tomatoes.csv and DIR/<variant>_summary.json.",
                "tomato_eval"};
   app.footer(lists_for_help());
@@ -137,11 +137,11 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   std::vector<double> pose_noise;
   app.add_option("--classes", r.classes, "truss complexity classes, comma-separated")
       ->delimiter(',')
-      ->check(CLI::IsMember({"A", "B", "C"}))
+      ->check(cli::one_of({"A", "B", "C"}))
       ->capture_default_str();
   app.add_option("--seeds", seeds_text, "seeds: a list of numbers and ranges, e.g. 1-100 or 1,5,7-9")
       ->required()
-      ->check(CLI::Validator(
+      ->check(cli::Validator(
           [](std::string& s) -> std::string {
             try {
               (void)parse_seeds(s);
@@ -156,15 +156,15 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   app.add_option("--set", sets, "pipeline parameter key=value (repeatable)");
   app.add_option("--kappa-sweep", r.kappas, "force.kernel_kappa values to score, comma-separated")
       ->delimiter(',')
-      ->check(tinyline::common::non_negative());
+      ->check(cli::non_negative());
   app.add_flag("--fit-kappa", r.fit_kappa,
                "fit force.kernel_kappa on these seeds (HPD50 coverage closest to 50 %, log grid 2..1000), written to "
                "DIR/kappa_fit.csv");
-  app.add_option("--views", r.scenario.views, "camera views per truss")->check(CLI::Range(1, 2))->capture_default_str();
+  app.add_option("--views", r.scenario.views, "camera views per truss")->check(cli::range(1, 2))->capture_default_str();
   app.add_option("--pose-noise", pose_noise, "the second view's pose error: METRES,DEGREES")
       ->delimiter(',')
       ->expected(2)
-      ->check(tinyline::common::non_negative());
+      ->check(cli::non_negative());
   add_pick_options(app, r, verify_sets, harvest_sets);
   std::vector<std::string> truss_sets;
   app.add_option("--truss-set", truss_sets,
@@ -176,7 +176,7 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
                "this run is for choosing parameters (as --fit-kappa is): refuse any seed that is not a tuning seed "
                "(docs/evaluation.md)");
   try {
-    if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return rc;
+    if (const auto rc = cli::parse_command_line(app, argc, argv)) return rc;
     r.seeds = parse_seeds(seeds_text);
     for (const auto& kv : sets) r.sets.push_back(key_value("--set", kv));
     for (const auto& kv : verify_sets) r.verify_sets.push_back(key_value("--verify-set", kv));
@@ -184,9 +184,9 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     for (const auto& kv : truss_sets) {
       const auto [key, value] = key_value("--truss-set", kv);
       if (const auto why = tinyline::sim::set_truss_option(r.scenario.truss, key, value); !why.valid)
-        throw CLI::ValidationError("--truss-set", why.reason);
+        throw cli::ParseError("--truss-set", why.reason);
     }
-  } catch (const CLI::ParseError& e) {
+  } catch (const cli::ParseError& e) {
     (void)app.exit(e);
     return 2;
   }

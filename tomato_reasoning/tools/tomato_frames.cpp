@@ -16,6 +16,8 @@
 #include "tomato_reasoning/io/rgbd_files.hpp"
 #include "tomato_reasoning/pipeline.hpp"
 
+namespace cli = tinyline::cli;
+
 namespace tr = tinyline::tomato_reasoning;
 
 namespace {
@@ -41,7 +43,7 @@ void print(const std::string& name, const tr::PipelineResult& r) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"The tomato pipeline on a folder of RGB-D frames (intrinsics.yaml, rgb/NAME.png|jpg, depth/NAME.png "
+  cli::App app{"The tomato pipeline on a folder of RGB-D frames (intrinsics.yaml, rgb/NAME.png|jpg, depth/NAME.png "
                "16-bit): tomatoes, pedicel estimates and pick order per frame; with --out, annotated images.",
                "tomato_frames"};
   std::string folder, out;
@@ -50,8 +52,8 @@ int main(int argc, char** argv) {
   app.add_option("--out", out, "write DIR/NAME.png: each colour image with the detections drawn on it");
   app.add_option("--gravity", gravity, "gravity's direction in the camera's optical frame (a level camera: 0 1 0)")
       ->expected(3)
-      ->check(tinyline::common::finite());
-  if (const auto rc = tinyline::common::parse_command_line(app, argc, argv)) return *rc;
+      ->check(cli::finite());
+  if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   tr::PipelineParams p;
   p.gravity = Eigen::Vector3d(gravity[0], gravity[1], gravity[2]);
   if (!(p.gravity.norm() > 0)) {

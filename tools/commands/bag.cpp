@@ -53,10 +53,10 @@ std::string human_time(bag::Timestamp t) {
   return fmt::format("{}.{:03d} UTC ({:.3f})", buf, static_cast<int>((t / 1'000'000ULL) % 1000), s);
 }
 
-CLI::Option* add_compression(CLI::App& cmd, std::string& value) {
+cli::Option* add_compression(cli::App& cmd, std::string& value) {
   return cmd.add_option("--compression", value, "chunk compression")
       ->capture_default_str()
-      ->check(CLI::IsMember({"none", "lz4", "zstd"}));
+      ->check(cli::one_of({"none", "lz4", "zstd"}));
 }
 
 // Opens a bag, printing why not on stderr.
@@ -160,7 +160,7 @@ int info(const std::string& path, bool verify) {
   return 0;
 }
 
-CommandRun setup_info(CLI::App& cmd) {
+CommandRun setup_info(cli::App& cmd) {
   auto path = std::make_shared<std::string>();
   auto verify = std::make_shared<bool>(false);
   cmd.add_option("file", *path, "the bag")->required();
@@ -228,11 +228,11 @@ int echo(const EchoArgs& a) {
   return rc;
 }
 
-CommandRun setup_echo(CLI::App& cmd) {
+CommandRun setup_echo(cli::App& cmd) {
   auto a = std::make_shared<EchoArgs>();
   cmd.add_option("file", a->path, "the bag")->required();
   cmd.add_option("topic", a->topic, "the topic to print")->required();
-  cmd.add_option("--limit", a->limit, "print at most N messages (0: all)")->check(common::count());
+  cmd.add_option("--limit", a->limit, "print at most N messages (0: all)")->check(cli::count());
   cmd.add_flag("--full", a->full, "print long arrays whole (default: the first 32 elements)");
   cmd.footer("Prints a topic's messages as YAML.");
   return [a] { return echo(*a); };
@@ -263,7 +263,7 @@ int recover(const RecoverArgs& a) {
   return 0;
 }
 
-CommandRun setup_recover(CLI::App& cmd) {
+CommandRun setup_recover(cli::App& cmd) {
   auto a = std::make_shared<RecoverArgs>();
   cmd.add_option("in", a->in, "the damaged or unfinished bag")->required();
   cmd.add_option("out", a->out, "the complete bag to write (an existing file is replaced only on success)")
@@ -324,26 +324,26 @@ int play(const PlayArgs& a) {
   return st.failed > 0 ? 1 : rc;
 }
 
-CommandRun setup_play(CLI::App& cmd) {
+CommandRun setup_play(cli::App& cmd) {
   auto a = std::make_shared<PlayArgs>();
   bag::PlayerOptions& p = a->player;
   cmd.add_option("file", p.path, "the bag")->required();
   cmd.add_option("--rate", p.rate, "playback speed, x real time (0: as fast as possible)")
       ->capture_default_str()
-      ->check(common::non_negative());
+      ->check(cli::non_negative());
   cmd.add_flag("--loop", p.loop, "start over at the end");
   cmd.add_option("--topics", p.topics, "play only these topics (T T ... or T,T)")->delimiter(',')->expected(1, 10000);
   cmd.add_option("--start", p.start_offset_s, "skip the first S seconds of the bag")
       ->type_name("S")
-      ->check(common::non_negative());
+      ->check(cli::non_negative());
   cmd.add_flag("--clock", p.clock, "publish /clock (rosgraph_msgs/Clock) and drive sim time");
   cmd.add_option("--clock-hz", p.clock_hz, "/clock rate between messages")
       ->capture_default_str()
-      ->check(common::finite_above(0.1, true, 10000.0));
+      ->check(cli::finite_above(0.1, true, 10000.0));
   cmd.add_option("--duration", a->duration_s,
                  "stop after S seconds of playing (default: the bag's end, or Ctrl-C with --loop)")
       ->type_name("S")
-      ->check(common::seconds());
+      ->check(cli::seconds());
   cmd.footer("Publishes a bag's messages on their topics.");
   return [a] { return play(*a); };
 }
@@ -372,7 +372,7 @@ std::vector<std::shared_ptr<bus::Node>> record_nodes(const RecordArgs& a, const 
   lo.share_dir = share_dir();
   for (const auto& p : a.positionals) {
     if (p.find(":=") != std::string::npos) {
-      lo.args.insert(cli::split_assignment(p));
+      lo.args.insert(parsing::split_assignment(p));
     } else {
       ro.topics.push_back(p);
     }
@@ -431,7 +431,7 @@ int record(const RecordArgs& a) {
   return rc != 0 || st.dropped > 0 ? 1 : 0;
 }
 
-CommandRun setup_record(CLI::App& cmd) {
+CommandRun setup_record(cli::App& cmd) {
   auto a = std::make_shared<RecordArgs>();
   cmd.add_option("topics", a->positionals,
                  "topics to record (all by default; relative names resolve against /); with --launch, name:=value "
@@ -443,10 +443,10 @@ CommandRun setup_record(CLI::App& cmd) {
   add_compression(cmd, a->compression);
   cmd.add_option("--chunk-size", a->chunk_kib, "uncompressed chunk size [KiB]")
       ->capture_default_str()
-      ->check(common::whole(1, 1 << 20));
+      ->check(cli::whole(1, 1 << 20));
   cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")
       ->type_name("S")
-      ->check(common::seconds());
+      ->check(cli::seconds());
   cmd.footer(
       "`bag record` records the topics of its own process: those of --launch, and those a transport bridges in.\n"
       "To record inside a running launch file, add a node {pkg: bag, exec: recorder} to it (parameters:\n"
@@ -456,8 +456,8 @@ CommandRun setup_record(CLI::App& cmd) {
 
 // ---------------------------------------------------------------------------- the group
 
-CommandRun setup_bag(CLI::App& cmd) {
-  return cli::nested(
+CommandRun setup_bag(cli::App& cmd) {
+  return parsing::nested(
       cmd, {{"record", "record topics (all by default) to an MCAP bag", &setup_record},
             {"play", "publish a bag's messages on their topics", &setup_play},
             {"info", "topics, types, counts, duration, compression", &setup_info},

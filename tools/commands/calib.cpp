@@ -32,10 +32,8 @@ int calib(const std::vector<std::string>& args) {
 
 // The calibration tool parses its own arguments (tiny_laser_calibration's
 // tool library): everything after `calib`, --help included, goes to it.
-CommandRun setup_calib(CLI::App& cmd) {
-  cmd.set_help_flag();
-  cmd.prefix_command();
-  cmd.allow_extras();
+CommandRun setup_calib(cli::App& cmd) {
+  cmd.pass_through();
   return [&cmd] { return calib(cmd.remaining()); };
 }
 

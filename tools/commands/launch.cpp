@@ -147,7 +147,7 @@ struct Loaded {
 Loaded load(const LaunchArgs& a, const std::shared_ptr<bus::Context>& ctx) {
   launch::LoadOptions lo;
   lo.share_dir = share_dir();
-  lo.args = cli::assignments(a.assignments);
+  lo.args = parsing::assignments(a.assignments);
   Loaded l;
   l.plan = launch::load_launch_file(a.file, lo);
   l.graph = plan_processes(l.plan, node_registry());  // builds and configures every node once: the whole file is valid
@@ -306,17 +306,17 @@ int run_launch(const LaunchArgs& a) {
   return rc;
 }
 
-CommandRun setup_launch(CLI::App& cmd) {
+CommandRun setup_launch(cli::App& cmd) {
   auto a = std::make_shared<LaunchArgs>();
   cmd.add_option("file", a->file, "the launch file")->required();
   cmd.add_option("args", a->assignments, "launch arguments, name:=value")->type_name("NAME:=VALUE");
-  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(common::seconds());
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(cli::seconds());
   cmd.add_option("--until", a->until_topic,
                  "end when a message is published on TOPIC (absolute, in this process); with --duration as a guard: "
                  "ending without that message is an error (exit 1)")
       ->type_name("TOPIC")
       ->check([](const std::string& t) { return !t.empty() && t[0] == '/' ? std::string() : "must be an absolute topic name (/...)"; });
-  cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(common::threads());
+  cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(cli::threads());
   cmd.add_flag("--no-table", a->no_table, "no live table");
   cmd.add_flag("--check", a->check, "validate the file, build its nodes and load their inputs, then exit");
   cmd.add_option("--process", a->process,
@@ -324,7 +324,7 @@ CommandRun setup_launch(CLI::App& cmd) {
                  "machine)");
   cmd.add_option("--dds-wait", a->dds_wait_s, "longest wait for DDS peers before nodes start [s]")
       ->capture_default_str()
-      ->check(common::non_negative());
+      ->check(cli::non_negative());
   cmd.add_flag("--rejoin", a->rejoin,
                "with --process: a restart into a running graph; wait only for the peers still alive");
   cmd.add_flag("--start-gate", a->start_gate,
@@ -332,10 +332,10 @@ CommandRun setup_launch(CLI::App& cmd) {
                "a line (the supervisor does this so all processes start together)");
   cmd.add_option("--respawn-delay", a->respawn_delay_s, "wait before restarting a crashed process [s]")
       ->capture_default_str()
-      ->check(common::non_negative());
+      ->check(cli::non_negative());
   cmd.add_option("--grace", a->grace_s, "after Ctrl-C, wait this long before killing [s]")
       ->capture_default_str()
-      ->check(common::non_negative());
+      ->check(cli::non_negative());
   cmd.footer(
       "Runs the nodes of a launch file (ROS 2 YAML launch shape) and shows a live table of topics with rates and\n"
       "drops. Stops on Ctrl-C, after --duration, or at the first message on the --until topic. Nothing starts\n"

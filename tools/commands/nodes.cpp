@@ -17,7 +17,7 @@
 namespace tinyline::tools {
 namespace {
 
-CommandRun setup_nodes(CLI::App& cmd) {
+CommandRun setup_nodes(cli::App& cmd) {
   cmd.footer("Lists every registered node type (what a launch file's pkg/exec can name).");
   return [] {
     for (const auto* t : node_registry().all()) fmt::print("{:<40} {}\n", t->full_name(), t->description);
@@ -144,7 +144,7 @@ int describe_all() {
   return rc;
 }
 
-CommandRun setup_describe(CLI::App& cmd) {
+CommandRun setup_describe(cli::App& cmd) {
   struct Args {
     std::string type;
     bool markdown = false;

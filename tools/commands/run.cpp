@@ -32,11 +32,11 @@ bus::NodeOptions node_options(const RunArgs& a, const std::shared_ptr<bus::Conte
   o.ns = a.ns;
   o.where = bus::SourceLocation{"command line", 0, 0};
   for (const auto& p : a.params) {
-    auto [k, v] = cli::split_assignment(p);
+    auto [k, v] = parsing::split_assignment(p);
     o.params.push_back({k, bus::parse_param_text(v), bus::SourceLocation{"command line (-p " + p + ")", 0, 0}});
   }
   for (const auto& r : a.remaps) {
-    auto [from, to] = cli::split_assignment(r);
+    auto [from, to] = parsing::split_assignment(r);
     o.remaps.push_back({from, to});
   }
   return o;
@@ -68,7 +68,7 @@ int run(const RunArgs& a) {
   return run_nodes(ctx, nodes, ro);
 }
 
-CommandRun setup_run(CLI::App& cmd) {
+CommandRun setup_run(cli::App& cmd) {
   auto a = std::make_shared<RunArgs>();
   cmd.add_option("pkg", a->pkg, "package of the node type (tinyline nodes lists them)")->required();
   cmd.add_option("type", a->type, "the node type")->required();
@@ -78,8 +78,8 @@ CommandRun setup_run(CLI::App& cmd) {
   cmd.add_option("-r", a->remaps, "remap a topic, from:=to")->type_name("FROM:=TO")->allow_extra_args(false);
   cmd.add_option("--name", a->name, "node name (default: TYPE)");
   cmd.add_option("--ns", a->ns, "namespace")->capture_default_str();
-  cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")->type_name("S")->check(common::seconds());
-  cmd.add_option("--threads", a->threads, "executor threads")->capture_default_str()->check(common::threads());
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")->type_name("S")->check(cli::seconds());
+  cmd.add_option("--threads", a->threads, "executor threads")->capture_default_str()->check(cli::threads());
   cmd.add_flag("--no-table", a->no_table, "no live topic table");
   cmd.add_flag("--dds", a->dds,
                "put the node's topics on DDS (ROS_DOMAIN_ID, CYCLONEDDS_URI; loopback by default), to join a graph "

@@ -41,7 +41,7 @@ int sensors(const SensorsArgs& a) {
   return 0;
 }
 
-CommandRun setup_sensors(CLI::App& cmd) {
+CommandRun setup_sensors(cli::App& cmd) {
   auto a = std::make_shared<SensorsArgs>();
   cmd.add_option("--vid-pid", a->vid_pid, "USB VID:PID of the adapter in hex (default 0403:6001, the FT232R)");
   cmd.add_flag("--all", a->all, "list every USB serial adapter");

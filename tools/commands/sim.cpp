@@ -21,7 +21,6 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -32,6 +31,7 @@
 
 namespace {
 
+namespace cli = tinyline::cli;
 namespace sim = tinyline::sim;
 namespace tld = tinyline::tiny_laser_driver;
 using Clock = std::chrono::steady_clock;
@@ -229,25 +229,23 @@ int run_serve(const ServeOptions& o) {
   return serve(o);
 }
 
-tinyline::tools::CommandRun setup_serve(CLI::App& cmd) {
-  namespace cli = tinyline::tools::cli;
-  namespace common = tinyline::common;
+tinyline::tools::CommandRun setup_serve(cli::App& cmd) {
   auto o = std::make_shared<ServeOptions>();
-  cmd.add_option("scene", o->scene, "scene YAML (sim/config/scenes/...)")->required()->check(CLI::ExistingFile);
+  cmd.add_option("scene", o->scene, "scene YAML (sim/config/scenes/...)")->required()->check(cli::existing_file());
   cmd.add_option("--sensor", o->sensor, "sensor name in the scene (default: the first)");
   cmd.add_option("--link", o->link, "make PATH a symlink to the pty (kept across unplug/replug)");
   cmd.add_option("--firmware", o->firmware, "override the sensor's firmware profile")
-      ->check(CLI::IsMember({"published", "thesis_raw"}));
+      ->check(cli::one_of({"published", "thesis_raw"}));
   cmd.add_option("--truth", o->truth, "write what the firmware sent, one JSON object per line, to FILE");
-  cmd.add_option("--baud", o->baud, "link rate [bit/s]")->check(common::finite_above(1200.0, true, 12e6));
+  cmd.add_option("--baud", o->baud, "link rate [bit/s]")->check(cli::finite_above(1200.0, true, 12e6));
   cmd.add_option("--duration", o->duration_s, "stop after this many seconds (0: until stopped)")
-      ->check(common::non_negative());
+      ->check(cli::non_negative());
   cmd.footer("docs/driver.md, \"tinyline sim serve\"");
   return [o] { return run_serve(*o); };
 }
 
-tinyline::tools::CommandRun setup_sim(CLI::App& cmd) {
-  return tinyline::tools::cli::nested(
+tinyline::tools::CommandRun setup_sim(cli::App& cmd) {
+  return tinyline::tools::parsing::nested(
       cmd, {{"serve", "serve one sensor of a scene on a pty any serial program can open", &setup_serve}});
 }
 

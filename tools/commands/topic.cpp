@@ -251,24 +251,24 @@ CommandRun guarded(const char* name, int (*fn)(const TopicArgs&), std::shared_pt
   };
 }
 
-void add_common(CLI::App& cmd, TopicArgs& a, double wait_default) {
+void add_common(cli::App& cmd, TopicArgs& a, double wait_default) {
   a.wait_s = wait_default;
   cmd.add_option("--wait", a.wait_s, "how long to wait for discovery / a publisher [s]")
       ->type_name("S")
       ->capture_default_str()
-      ->check(common::non_negative());
-  cmd.add_option("--domain", a.domain, "DDS domain (default ROS_DOMAIN_ID or 0)")->check(common::whole(0, 232));
+      ->check(cli::non_negative());
+  cmd.add_option("--domain", a.domain, "DDS domain (default ROS_DOMAIN_ID or 0)")->check(cli::whole(0, 232));
 }
 
-void add_topic(CLI::App& cmd, TopicArgs& a) {
-  cmd.add_option("topic", a.topic, "an absolute topic name")->required()->check(CLI::Validator(
+void add_topic(cli::App& cmd, TopicArgs& a) {
+  cmd.add_option("topic", a.topic, "an absolute topic name")->required()->check(cli::Validator(
       [](std::string& t) -> std::string {
         return t.empty() || t[0] != '/' ? "topic '" + t + "' must be absolute (start with '/')" : std::string();
       },
       "/TOPIC"));
 }
 
-CommandRun setup_list(CLI::App& cmd) {
+CommandRun setup_list(cli::App& cmd) {
   auto a = std::make_shared<TopicArgs>();
   add_common(cmd, *a, 2.0);
   cmd.add_flag("--all", a->all, "DDS topics that are not ROS topics too");
@@ -276,34 +276,34 @@ CommandRun setup_list(CLI::App& cmd) {
   return guarded("list", &cmd_list, a);
 }
 
-CommandRun setup_echo(CLI::App& cmd) {
+CommandRun setup_echo(cli::App& cmd) {
   auto a = std::make_shared<TopicArgs>();
   add_topic(cmd, *a);
   add_common(cmd, *a, 10.0);
-  cmd.add_option("--count", a->count, "stop after N messages (0: Ctrl-C)")->check(common::count());
+  cmd.add_option("--count", a->count, "stop after N messages (0: Ctrl-C)")->check(cli::count());
   cmd.add_option("--type", a->type, "decode as this type, pkg/msg/Type (default: the publisher's)");
   cmd.add_option("--max-array", a->max_array, "elements of long arrays to show (0: all)")
       ->capture_default_str()
-      ->check(common::count());
+      ->check(cli::count());
   return guarded("echo", &cmd_echo, a);
 }
 
-CommandRun setup_hz(CLI::App& cmd) {
+CommandRun setup_hz(cli::App& cmd) {
   auto a = std::make_shared<TopicArgs>();
   add_topic(cmd, *a);
   add_common(cmd, *a, 10.0);
-  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(common::seconds());
-  cmd.add_option("--messages", a->messages, "stop after N messages (0: Ctrl-C)")->check(common::count());
-  cmd.add_option("--window", a->window, "rate over the last N messages")->capture_default_str()->check(common::whole(2, 100000000));
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(cli::seconds());
+  cmd.add_option("--messages", a->messages, "stop after N messages (0: Ctrl-C)")->check(cli::count());
+  cmd.add_option("--window", a->window, "rate over the last N messages")->capture_default_str()->check(cli::whole(2, 100000000));
   return guarded("hz", &cmd_hz, a);
 }
 
-CommandRun setup_topic(CLI::App& cmd) {
+CommandRun setup_topic(cli::App& cmd) {
   cmd.footer(
       "Looks at the topics of running graphs over DDS: every topic that travels between processes, or that a\n"
       "launch file marks with dds. Uses the DDS domain and configuration of the environment (ROS_DOMAIN_ID,\n"
       "CYCLONEDDS_URI; the loopback default otherwise), like every tinyline process and ROS 2 node.");
-  return cli::nested(cmd, {{"list", "topics with their type, publishers, subscribers and processes", &setup_list},
+  return parsing::nested(cmd, {{"list", "topics with their type, publishers, subscribers and processes", &setup_list},
                            {"echo", "print each message as YAML, '---' between messages", &setup_echo},
                            {"hz", "print the publishing rate once a second", &setup_hz}});
 }

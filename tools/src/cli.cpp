@@ -2,7 +2,7 @@
 
 #include <memory>
 
-namespace tinyline::tools::cli {
+namespace tinyline::tools::parsing {
 
 std::pair<std::string, std::string> split_assignment(const std::string& s) {
   const auto at = s.find(":=");
@@ -16,11 +16,11 @@ std::map<std::string, std::string> assignments(const std::vector<std::string>& a
   return out;
 }
 
-CommandRun nested(CLI::App& cmd, const std::vector<Nested>& subs) {
+CommandRun nested(cli::App& cmd, const std::vector<Nested>& subs) {
   cmd.require_subcommand(1);
-  auto runs = std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
+  auto runs = std::make_shared<std::vector<std::pair<cli::App*, CommandRun>>>();
   for (const auto& s : subs) {
-    CLI::App* sub = cmd.add_subcommand(s.name, s.summary);
+    cli::App* sub = cmd.add_subcommand(s.name, s.summary);
     runs->emplace_back(sub, s.setup(*sub));
   }
   return [runs] {
@@ -30,12 +30,12 @@ CommandRun nested(CLI::App& cmd, const std::vector<Nested>& subs) {
   };
 }
 
-std::string command_path(const CLI::App& app) {
-  for (const CLI::App* sub : app.get_subcommands()) {
+std::string command_path(const cli::App& app) {
+  for (const cli::App* sub : app.parsed_subcommands()) {
     const std::string rest = command_path(*sub);
-    return sub->get_name() + (rest.empty() ? "" : " " + rest);
+    return sub->name() + (rest.empty() ? "" : " " + rest);
   }
   return {};
 }
 
-}  // namespace tinyline::tools::cli
+}  // namespace tinyline::tools::parsing

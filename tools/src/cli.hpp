@@ -1,4 +1,4 @@
-// What only the sub-commands' command lines share (CLI11): name:=value
+// What only the sub-commands' command lines share: name:=value
 // arguments and nested commands (bag record, topic list). The checks for
 // numbers are every program's: <tinyline/common/cli.hpp>.
 #pragma once
@@ -8,12 +8,11 @@
 #include <utility>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <tinyline/common/cli.hpp>
 
 #include <tinyline/tools/command.hpp>
 
-namespace tinyline::tools::cli {
+namespace tinyline::tools::parsing {
 
 /// "name:=value" -> {name, value}; throws UsageError otherwise.
 std::pair<std::string, std::string> split_assignment(const std::string& s);
@@ -28,9 +27,9 @@ struct Nested {
 };
 /// Declares `subs` under `cmd` (one of them required) and returns a run that
 /// runs the one named on the command line.
-CommandRun nested(CLI::App& cmd, const std::vector<Nested>& subs);
+CommandRun nested(cli::App& cmd, const std::vector<Nested>& subs);
 
 /// The command path of the deepest sub-command parsed ("bag record").
-std::string command_path(const CLI::App& app);
+std::string command_path(const cli::App& app);
 
-}  // namespace tinyline::tools::cli
+}  // namespace tinyline::tools::parsing

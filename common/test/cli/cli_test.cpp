@@ -3,11 +3,11 @@
 
 #include <tinyline/common/cli.hpp>
 
-namespace c = tinyline::common;
+namespace c = tinyline::cli;
 
 namespace {
 // What the check says about `text`: "" when it passes.
-std::string check(const CLI::Validator& v, std::string text) { return v(text); }
+std::string check(const c::Validator& v, std::string text) { return v(text); }
 }  // namespace
 
 TEST(CliNumbers, FiniteRefusesNanInfinityAndText) {
@@ -37,20 +37,20 @@ TEST(CliNumbers, WholeNumbersStayInTheirRange) {
 
 TEST(CliParse, HelpIsExitZeroAndABadNumberExitTwo) {
   double d = 0.0;
-  CLI::App app("test");
+  c::App app("test");
   app.add_option("--d", d)->check(c::positive());
   const char* help[] = {"prog", "--help"};
   testing::internal::CaptureStdout();
   EXPECT_EQ(c::parse_command_line(app, 2, const_cast<char**>(help)), 0);
   EXPECT_NE(testing::internal::GetCapturedStdout().find("Usage: "), std::string::npos);
-  CLI::App app2("test");
+  c::App app2("test");
   app2.add_option("--d", d)->check(c::positive());
   const char* bad[] = {"prog", "--d", "nan"};
   testing::internal::CaptureStderr();
   EXPECT_EQ(c::parse_command_line(app2, 3, const_cast<char**>(bad)), 2);
   EXPECT_NE(testing::internal::GetCapturedStderr().find("--d: 'nan' is not a finite number"), std::string::npos);
   const char* good[] = {"prog", "--d", "2"};
-  CLI::App app3("test");
+  c::App app3("test");
   app3.add_option("--d", d)->check(c::positive());
   EXPECT_EQ(c::parse_command_line(app3, 3, const_cast<char**>(good)), std::nullopt);
   EXPECT_EQ(d, 2.0);

@@ -1,9 +1,9 @@
 // The `tinyline` command line is one executable with sub-commands, parsed
-// with CLI11. Each command group lives in its own file under tools/commands/
+// with <tinyline/common/cli.hpp> (CLI11). Each command group lives in its own file under tools/commands/
 // and registers itself with a static CommandRegistration, so adding one edits
 // no shared file:
 //
-//   CommandRun setup_bag(CLI::App& cmd);   // declares options, returns what to run
+//   CommandRun setup_bag(cli::App& cmd);   // declares options, returns what to run
 //   static const tinyline::tools::CommandRegistration kBag{
 //       "bag", "record, play, inspect and recover MCAP bags", &setup_bag};
 //
@@ -19,7 +19,7 @@
 
 #include <tinyline/bus/registry.hpp>
 
-namespace CLI {
+namespace tinyline::cli {
 class App;
 }
 
@@ -35,7 +35,7 @@ class UsageError : public std::runtime_error {
 using CommandRun = std::function<int()>;
 /// Declares a sub-command's options and positionals on `cmd`; their values
 /// land in state the returned CommandRun holds.
-using CommandSetup = CommandRun (*)(CLI::App& cmd);
+using CommandSetup = CommandRun (*)(cli::App& cmd);
 
 struct CommandInfo {
   std::string name;
