@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <tinyline/common/files.hpp>
+#include <tinyline/common/yaml_fields.hpp>
 
 #include <tiny_laser_calibration/data.hpp>
 #include <tiny_laser_calibration/measured.hpp>
@@ -11,78 +12,31 @@ namespace tinyline::tiny_laser_calibration {
 
 namespace {
 
-class Fields {
- public:
-  explicit Fields(std::string source) : source_(std::move(source)) {}
+using Fields = common::YamlFields<CalibrationDataError>;
 
-  [[noreturn]] void fail(const YAML::Node& at, const std::string& field, const std::string& what) const {
-    const auto mark = at.Mark();
-    const std::string where = mark.line >= 0 ? fmt::format("{}:{}", source_, mark.line + 1) : source_;
-    throw CalibrationDataError(fmt::format("{}: field '{}': {}", where, field, what));
-  }
-  YAML::Node need(const YAML::Node& map, const std::string& parent, const std::string& key) const {
-    if (!map.IsMap()) fail(map, parent, "expected a mapping");
-    const YAML::Node n = map[key];
-    if (!n) fail(map, parent.empty() ? key : parent + "." + key, "missing");
-    return n;
-  }
-  double number(const YAML::Node& map, const std::string& parent, const std::string& key) const {
-    const YAML::Node n = need(map, parent, key);
-    const std::string field = parent + "." + key;
-    if (!n.IsScalar()) fail(n, field, "expected a number");
-    double v = 0.0;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      fail(n, field, fmt::format("'{}' is not a number", n.Scalar()));
-    }
-    if (!std::isfinite(v)) fail(n, field, "must be finite");
-    return v;
-  }
-  std::vector<double> numbers(const YAML::Node& map, const std::string& parent, const std::string& key) const {
-    const YAML::Node n = need(map, parent, key);
-    if (!n.IsSequence()) fail(n, parent + "." + key, "expected a list of numbers");
-    std::vector<double> v;
-    for (std::size_t i = 0; i < n.size(); ++i) {
-      try {
-        v.push_back(n[i].as<double>());
-      } catch (const YAML::Exception&) {
-        fail(n[i], fmt::format("{}.{}[{}]", parent, key, i), "not a number");
-      }
-    }
-    return v;
-  }
-  std::string text(const YAML::Node& map, const std::string& parent, const std::string& key) const {
-    const YAML::Node n = need(map, parent, key);
-    if (!n.IsScalar()) fail(n, parent + "." + key, "expected text");
-    return n.Scalar();
-  }
-  YAML::Node list(const YAML::Node& root, const std::string& key) const {
-    const YAML::Node n = need(root, "", key);
-    if (!n.IsSequence() || n.size() == 0) fail(n, key, "expected a non-empty list");
-    return n;
-  }
-
- private:
-  std::string source_;
-};
+/// root[key]: a non-empty list.
+YAML::Node list(const YAML::Node& root, const Fields& f, const std::string& key) {
+  const YAML::Node n = f.required(root, "", key);
+  if (!n.IsSequence() || n.size() == 0) f.fail(n, key, "expected a non-empty list");
+  return n;
+}
 
 void read_tables(const YAML::Node& root, const Fields& f, MeasuredData& d) {
-  const auto t31 = f.list(root, "noise_vs_distance_cm");
+  const auto t31 = list(root, f, "noise_vs_distance_cm");
   for (std::size_t i = 0; i < t31.size(); ++i) {
     const std::string at = fmt::format("noise_vs_distance_cm[{}]", i);
     d.table31.push_back({f.number(t31[i], at, "truth"), f.number(t31[i], at, "mean"), f.number(t31[i], at, "var"),
                          f.number(t31[i], at, "sd")});
     if (!(d.table31.back().sd_cm > 0.0)) f.fail(t31[i], at + ".sd", "must be positive");
   }
-  const auto t32 = f.list(root, "materials_at_30cm");
+  const auto t32 = list(root, f, "materials_at_30cm");
   for (std::size_t i = 0; i < t32.size(); ++i) {
     const std::string at = fmt::format("materials_at_30cm[{}]", i);
     d.table32.push_back({f.text(t32[i], at, "material"), f.number(t32[i], at, "mean_cm"), f.number(t32[i], at, "sd_cm"),
                          f.number(t32[i], at, "reflectance")});
     if (!(d.table32.back().reflectance > 0.0)) f.fail(t32[i], at + ".reflectance", "must be positive");
   }
-  const auto fits = f.need(root, "", "calibration_fits_cm");
+  const auto fits = f.required(root, "", "calibration_fits_cm");
   if (!fits.IsMap()) f.fail(fits, "calibration_fits_cm", "expected a mapping");
   for (const auto& kv : fits) {
     const std::string name = kv.first.as<std::string>();
@@ -95,7 +49,7 @@ void read_tables(const YAML::Node& root, const Fields& f, MeasuredData& d) {
 }
 
 void read_sensors(const YAML::Node& root, const Fields& f, MeasuredData& d) {
-  const auto s = f.need(root, "", "real_sensor_polynomials");
+  const auto s = f.required(root, "", "real_sensor_polynomials");
   if (!s.IsMap() || s.size() == 0) f.fail(s, "real_sensor_polynomials", "expected a non-empty mapping");
   for (const auto& kv : s) {
     RealSensorCurve c;
@@ -124,7 +78,7 @@ MeasuredData parse_measured_data(const std::string& text, const std::string& sou
   d.source = source;
   const Fields f(source);
   try {
-    const auto sensor = f.need(root, "", "sensor");
+    const auto sensor = f.required(root, "", "sensor");
     d.pulse_width_ns = f.number(sensor, "sensor", "pulse_width_ns");
     d.warm_temperature_c = f.number(sensor, "sensor", "warm_temperature_c");
     read_tables(root, f, d);

@@ -13,6 +13,7 @@
 
 #include <tinyline/common/files.hpp>
 #include <tinyline/common/yaml_documents.hpp>
+#include <tinyline/common/yaml_fields.hpp>
 
 #include <tiny_laser_driver/calibration_impl.hpp>
 #include <tiny_laser_driver/protocol.hpp>
@@ -46,99 +47,7 @@ const RequiredSection kRequired[] = {
     {"temperature", {"reference_c", "coefficient_m_per_c"}},
 };
 
-class Reader {
- public:
-  explicit Reader(std::string source) : source_(std::move(source)) {}
-
-  [[noreturn]] void fail(const YAML::Node& at, const std::string& field, const std::string& what) const {
-    const auto mark = at.Mark();
-    const std::string where = mark.line >= 0 ? fmt::format("{}:{}", source_, mark.line + 1) : source_;
-    throw std::runtime_error(fmt::format("{}: field '{}': {}", where, field, what));
-  }
-
-  // A mapping of known keys, each at most once (yaml-cpp keeps a repeated
-  // key and lookups see the first: the second would be ignored silently).
-  void only_keys(const YAML::Node& map, const std::string& field, std::initializer_list<std::string_view> known) const {
-    if (!map.IsMap()) fail(map, field, "expected a mapping");
-    std::set<std::string> seen;
-    for (const auto& kv : map) {
-      if (!kv.first.IsScalar()) fail(kv.first, field, "expected a key, not a list or mapping");
-      const auto key = kv.first.Scalar();
-      const std::string where = field.empty() ? key : field + "." + key;
-      bool ok = false;
-      for (auto k : known) ok = ok || k == key;
-      if (!ok) {
-        std::string list;
-        for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
-        fail(kv.first, where, fmt::format("unknown key (known here: {})", list));
-      }
-      if (!seen.insert(key).second) fail(kv.first, where, "given twice");
-    }
-  }
-
-  YAML::Node required(const YAML::Node& map, const std::string& parent, const char* key) const {
-    const YAML::Node n = map[key];
-    if (!n) fail(map, join(parent, key), "missing");
-    return n;
-  }
-
-  double number(const YAML::Node& n, const std::string& field) const {
-    if (!n.IsScalar()) fail(n, field, "expected a number");
-    double v = 0.0;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      fail(n, field, fmt::format("'{}' is not a number", n.Scalar()));
-    }
-    if (!std::isfinite(v)) fail(n, field, "must be finite");
-    return v;
-  }
-
-  double number_or(const YAML::Node& map, const std::string& parent, const char* key, double fallback) const {
-    const YAML::Node n = map[key];
-    return n ? number(n, join(parent, key)) : fallback;
-  }
-
-  void bounded_list(const YAML::Node& n, const std::string& field, const char* of) const {
-    if (!n.IsSequence()) fail(n, field, fmt::format("expected a list of {}", of));
-    if (n.size() > kMaxListLength) fail(n, field, fmt::format("has {} values, more than {}", n.size(), kMaxListLength));
-  }
-
-  std::vector<double> numbers(const YAML::Node& n, const std::string& field) const {
-    bounded_list(n, field, "numbers");
-    std::vector<double> v;
-    v.reserve(n.size());
-    for (std::size_t i = 0; i < n.size(); ++i) v.push_back(number(n[i], fmt::format("{}[{}]", field, i)));
-    return v;
-  }
-
-  std::vector<long> integers(const YAML::Node& n, const std::string& field) const {
-    bounded_list(n, field, "integers");
-    std::vector<long> v;
-    for (std::size_t i = 0; i < n.size(); ++i) {
-      long x = 0;
-      try {
-        x = n[i].as<long>();
-      } catch (const YAML::Exception&) {
-        fail(n[i], fmt::format("{}[{}]", field, i), fmt::format("'{}' is not an integer", n[i].Scalar()));
-      }
-      v.push_back(x);
-    }
-    return v;
-  }
-
-  std::string text(const YAML::Node& n, const std::string& field) const {
-    if (!n.IsScalar()) fail(n, field, "expected text");
-    return n.Scalar();
-  }
-
-  static std::string join(const std::string& parent, const char* key) {
-    return parent.empty() ? std::string(key) : parent + "." + key;
-  }
-
- private:
-  std::string source_;
-};
+using Reader = common::YamlFields<std::runtime_error>;
 
 template <typename T>
 bool strictly_increasing(const std::vector<T>& v) {
@@ -390,7 +299,7 @@ CalibrationModel CalibrationModel::from_yaml(const std::string& text, const std:
   }
   if (!root || root.IsNull()) throw std::runtime_error(fmt::format("{}: empty calibration file", source_name));
   CalibrationModel model;
-  Reader rd(source_name);
+  const Reader rd(source_name, kMaxListLength);
   try {
     parse(root, rd, model.impl());
   } catch (const YAML::Exception& e) {
