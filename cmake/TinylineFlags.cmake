@@ -29,3 +29,18 @@ function(tinyline_apply_flags target)
     target_link_options(${target} PRIVATE ${_tl_san_flags})
   endif()
 endfunction()
+
+# The linker: gold where the toolchain has it (binutils ships it). Our -g
+# binaries link in about half the CPU time of the default ld.bfd
+# (docs/developing.md, "Build time"). -DTINYLINE_LINKER=default keeps the
+# compiler's default; any name -fuse-ld= takes (lld, mold) works too.
+set(TINYLINE_LINKER "gold" CACHE STRING "Linker for -fuse-ld=, or 'default'")
+if(NOT TINYLINE_LINKER STREQUAL "default")
+  include(CheckLinkerFlag)
+  check_linker_flag(CXX "-fuse-ld=${TINYLINE_LINKER}" TINYLINE_HAVE_LINKER_${TINYLINE_LINKER})
+  if(TINYLINE_HAVE_LINKER_${TINYLINE_LINKER})
+    add_link_options(-fuse-ld=${TINYLINE_LINKER})
+  else()
+    message(STATUS "tinyline: linker '${TINYLINE_LINKER}' not usable here; using the compiler's default")
+  endif()
+endif()
