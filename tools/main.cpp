@@ -8,7 +8,7 @@
 
 #include <tinyline/tools/command.hpp>
 
-#include "src/cli.hpp"
+#include "src/parsing.hpp"
 
 namespace cli = tinyline::cli;
 

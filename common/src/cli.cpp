@@ -5,7 +5,6 @@
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
-#include <cstdio>
 
 #include <CLI/CLI.hpp>
 
@@ -221,18 +220,13 @@ std::optional<int> parse_command_line(App& app, int argc, char** argv) {
 template Option* App::add_typed_option(std::string, std::string&, std::string);
 template Option* App::add_typed_option(std::string, std::filesystem::path&, std::string);
 template Option* App::add_typed_option(std::string, double&, std::string);
-template Option* App::add_typed_option(std::string, float&, std::string);
 template Option* App::add_typed_option(std::string, int&, std::string);
 template Option* App::add_typed_option(std::string, unsigned&, std::string);
 template Option* App::add_typed_option(std::string, long&, std::string);
 template Option* App::add_typed_option(std::string, unsigned long&, std::string);
-template Option* App::add_typed_option(std::string, long long&, std::string);
-template Option* App::add_typed_option(std::string, unsigned long long&, std::string);
 template Option* App::add_typed_option(std::string, std::vector<std::string>&, std::string);
 template Option* App::add_typed_option(std::string, std::vector<double>&, std::string);
 template Option* App::add_typed_option(std::string, std::vector<int>&, std::string);
-template Option* App::add_typed_option(std::string, std::vector<unsigned>&, std::string);
-template Option* App::add_typed_option(std::string, std::vector<unsigned long>&, std::string);
 template Option* App::add_typed_option(std::string, std::optional<int>&, std::string);
 template Option* App::add_typed_option(std::string, std::optional<unsigned long>&, std::string);
 template Option* App::add_typed_option(std::string, std::optional<double>&, std::string);

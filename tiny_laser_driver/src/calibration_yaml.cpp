@@ -3,7 +3,6 @@
 // the file, line and field, because a silently ignored typo in a calibration
 // shows up much later as a wrong distance.
 #include <cmath>
-#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>

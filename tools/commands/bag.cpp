@@ -18,7 +18,7 @@
 #include <tinyline/msg/yaml_writer.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 #include "../src/graph_runner.hpp"
 
 namespace tinyline::tools {

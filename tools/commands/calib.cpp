@@ -8,7 +8,7 @@
 #include <tiny_laser_calibration/tool.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 
 namespace tinyline::tools {
 namespace {

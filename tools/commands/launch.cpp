@@ -17,7 +17,7 @@
 #include <tinyline/launch/launch.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 #include "../src/graph_runner.hpp"
 #include "../src/process_plan.hpp"
 #include "../src/supervisor.hpp"

@@ -12,7 +12,7 @@
 
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 
 namespace tinyline::tools {
 namespace {

@@ -6,7 +6,7 @@
 #include <tinyline/dds/bridge.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 #include "../src/graph_runner.hpp"
 
 namespace tinyline::tools {

@@ -9,7 +9,7 @@
 #include <tiny_laser_driver/io/usb_discovery.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 
 namespace tinyline::tools {
 namespace {

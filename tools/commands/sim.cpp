@@ -27,7 +27,7 @@
 #include <sim/virtual_device.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 
 namespace {
 

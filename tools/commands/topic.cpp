@@ -16,7 +16,7 @@
 #include <tinyline/msg/yaml_writer.hpp>
 #include <tinyline/tools/command.hpp>
 
-#include "../src/cli.hpp"
+#include "../src/parsing.hpp"
 
 namespace tinyline::tools {
 namespace {

@@ -132,10 +132,9 @@ inline constexpr bool one_of_types = (std::is_same_v<T, Ts> || ...);
 /// The variables an option can fill (instantiated in common/src/cli.cpp).
 template <class T>
 inline constexpr bool option_type =
-    one_of_types<T, std::string, std::filesystem::path, double, float, int, unsigned, long, unsigned long, long long,
-                 unsigned long long, std::vector<std::string>, std::vector<double>, std::vector<int>,
-                 std::vector<unsigned>, std::vector<unsigned long>, std::optional<int>, std::optional<unsigned long>,
-                 std::optional<double>, std::optional<std::string>>;
+    one_of_types<T, std::string, std::filesystem::path, double, int, unsigned, long, unsigned long,
+                 std::vector<std::string>, std::vector<double>, std::vector<int>, std::optional<int>,
+                 std::optional<unsigned long>, std::optional<double>, std::optional<std::string>>;
 }  // namespace detail
 
 /// A program or a sub-command (CLI::App's part the programs use).

@@ -1,7 +1,7 @@
 // The `tinyline` command line is one executable with sub-commands, parsed
-// with <tinyline/common/cli.hpp> (CLI11). Each command group lives in its own file under tools/commands/
-// and registers itself with a static CommandRegistration, so adding one edits
-// no shared file:
+// with <tinyline/common/cli.hpp> (CLI11). Each command group lives in its own
+// file under tools/commands/ and registers itself with a static
+// CommandRegistration, so adding one edits no shared file:
 //
 //   CommandRun setup_bag(cli::App& cmd);   // declares options, returns what to run
 //   static const tinyline::tools::CommandRegistration kBag{

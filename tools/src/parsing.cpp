@@ -1,4 +1,4 @@
-#include "cli.hpp"
+#include "parsing.hpp"
 
 #include <memory>
 
