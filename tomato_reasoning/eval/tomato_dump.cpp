@@ -52,7 +52,7 @@ int main(int argc, char** argv) try {
   std::printf("class %c seed %llu: %zu true tomatoes, %zu spheres (%s%s%s)\n", char(*cls), static_cast<unsigned long long>(seed),
               s.truth.size(), r.tomatoes.size(), r.ok ? "ok" : r.stage.c_str(), r.ok ? "" : ": ", r.reason.c_str());
 
-  tinyline::files::AtomicStream pts((out / "points.csv").string());
+  files::AtomicStream pts((out / "points.csv").string());
   pts << "x,y,z,r,g,b,red\n";
   const ColorCloud& c = s.cloud();
   const HsiFilter hsi(p.hsi);
@@ -70,7 +70,7 @@ int main(int argc, char** argv) try {
   R.row(0) = x;
   R.row(1) = y;
   R.row(2) = up;
-  tinyline::files::AtomicStream sph((out / "spheres.csv").string());
+  files::AtomicStream sph((out / "spheres.csv").string());
   sph << "k,cx,cy,cz,radius,pick_rank,ex,ey,ez,spread50_deg,spread90_deg,edges,tcx,tcy,tcz,tradius,tpx,tpy,tpz,gux,guy,guz,gtx,gty,gtz\n";
   for (std::size_t k = 0; k < r.tomatoes.size(); ++k) {
     const Tomato& t = r.tomatoes[k];
@@ -87,7 +87,7 @@ int main(int argc, char** argv) try {
         << ',' << t.pedicel.expected_dir.z() << ',' << t.pedicel.spread50_deg << ',' << t.pedicel.spread90_deg << ','
         << t.pedicel.edges << ',' << tc.x() << ',' << tc.y() << ',' << tc.z() << ',' << tr << ',' << tp.x() << ',' << tp.y() << ','
         << tp.z() << ',' << eu.x() << ',' << eu.y() << ',' << eu.z() << ',' << tu.x() << ',' << tu.y() << ',' << tu.z() << '\n';
-    tinyline::files::AtomicStream g((out / ("grid_" + std::to_string(k) + ".csv")).string());
+    files::AtomicStream g((out / ("grid_" + std::to_string(k) + ".csv")).string());
     for (const auto& row : t.pedicel.distribution.rotated(R).grid(72, 36)) {
       for (std::size_t j = 0; j < row.size(); ++j) g << (j ? "," : "") << row[j];
       g << '\n';
@@ -95,7 +95,7 @@ int main(int argc, char** argv) try {
     g.commit();
   }
   sph.commit();
-  tinyline::files::AtomicStream e((out / "edges.csv").string());
+  files::AtomicStream e((out / "edges.csv").string());
   e << "i,j,gap_m\n";
   for (const auto& edge : r.edges) e << edge.i << ',' << edge.j << ',' << edge.gap_m << '\n';
   e.commit();

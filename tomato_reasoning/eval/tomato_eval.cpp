@@ -218,8 +218,7 @@ struct Run {
   std::unique_ptr<eval::Variant> variant;
   std::vector<eval::TrussScore> scores;
   std::map<char, std::vector<eval::TrussScore>> by_class;
-  std::ostringstream csv;  ///< written to csv_path when the run ends
-  std::string csv_path;
+  std::ostringstream csv;  ///< DIR/<variant>_tomatoes.csv, written when the run ends
 };
 
 /// The laser verification of the first variant's picks, as recognised and
@@ -227,8 +226,7 @@ struct Run {
 struct PickVerification {
   bool verify = false, harvest = false;
   std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
-  std::ostringstream harvest_csv, csv;  ///< written to their paths when the run ends
-  std::string harvest_path, csv_path;
+  std::ostringstream harvest_csv, csv;  ///< DIR/harvest.csv, DIR/verification.csv, written when the run ends
   eval::HarvestOptions harvest_options;
   std::map<char, eval::HarvestCounts> harvested;  // class -> Table 4.2 row
   std::map<std::string, std::map<std::string, int>> count;  // case -> verdict -> n
@@ -258,7 +256,6 @@ std::vector<Run> open_runs(const Request& r) {
     } catch (const std::exception& e) {
       throw UsageError("variant '" + v + "': " + e.what());
     }
-    run.csv_path = r.out_dir + "/" + v + "_tomatoes.csv";
     run.csv << eval::csv_header();
     runs.push_back(std::move(run));
   }
@@ -289,13 +286,11 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
   out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
   std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
   if (r.harvest) {
-    out->harvest_path = r.out_dir + "/harvest.csv";
     out->harvest_csv << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on\n";
   }
   if (!r.verify) return out;
   vo.random_offset_m = 0.05;
   out->with_offset = std::make_unique<eval::VerificationHarness>(vo);
-  out->csv_path = r.out_dir + "/verification.csv";
   out->closed_loop = vo.rescans > 0;
   out->csv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,"
               "depth_error_mm,move_mm,confidence,reason"
@@ -392,7 +387,7 @@ void print_summary_row(const std::string& label, const eval::Summary& s) {
 
 /// Per class and overall: printed, and DIR/<variant>_summary.json.
 void write_summary(const Run& run, const Request& r) {
-  tinyline::files::AtomicStream js(r.out_dir + "/" + run.name + "_summary.json");
+  files::AtomicStream js(r.out_dir + "/" + run.name + "_summary.json");
   js << "{\n\"variant\": \"" << run.name << "\",\n\"seeds\": \"" << r.seeds_label << "\",\n\"classes\": {\n";
   std::printf("\n%s (%s)\n%-6s %9s %9s %9s %8s %8s %8s %8s %9s %9s %7s %7s %8s\n", run.name.c_str(),
               r.seeds_label.c_str(), "class", "detected", "rate", "visible", "ctr_med", "ctr_p95", "rad_med", "rad_p95",
@@ -456,7 +451,7 @@ void report_kappa_fit(KappaTally& t, const std::string& variant, const Request& 
   std::size_t best = t.fit_from;
   for (std::size_t k = t.fit_from; k < t.kappas.size(); ++k)
     if (std::abs(t.hits[k] - 0.5 * t.n) < std::abs(t.hits[best] - 0.5 * t.n)) best = k;
-  tinyline::files::AtomicStream kf(r.out_dir + "/kappa_fit.csv");
+  files::AtomicStream kf(r.out_dir + "/kappa_fit.csv");
   kf << "kappa,hpd50_hits,n,fitted\n";
   for (std::size_t k = t.fit_from; k < t.kappas.size(); ++k)
     kf << t.kappas[k] << ',' << t.hits[k] << ',' << t.n << ',' << int(k == best) << '\n';
@@ -473,7 +468,7 @@ void report_kappa_fit(KappaTally& t, const std::string& variant, const Request& 
 
 /// The --kappa-sweep values' HPD50 hit rates: printed and DIR/kappa_sweep.csv.
 void report_kappa_sweep(const KappaTally& t, const std::string& variant, const Request& r) {
-  tinyline::files::AtomicStream ks(r.out_dir + "/kappa_sweep.csv");
+  files::AtomicStream ks(r.out_dir + "/kappa_sweep.csv");
   ks << "kappa,hpd50_hit_rate,n\n";
   std::printf("\nkappa sweep (%s, %s, %d detected tomatoes): share of true pedicels inside the HPD50 region\n",
               variant.c_str(), r.seeds_label.c_str(), t.n);
@@ -486,10 +481,10 @@ void report_kappa_sweep(const KappaTally& t, const std::string& variant, const R
 }
 
 /// The per-tomato, verification and harvest CSVs, each renamed into place.
-void write_tables(const std::vector<Run>& runs, const PickVerification* v) {
-  for (const auto& run : runs) tinyline::files::write_atomically(run.csv_path, run.csv.view());
-  if (v && v->verify) tinyline::files::write_atomically(v->csv_path, v->csv.view());
-  if (v && v->harvest) tinyline::files::write_atomically(v->harvest_path, v->harvest_csv.view());
+void write_tables(const std::vector<Run>& runs, const PickVerification* v, const Request& r) {
+  for (const auto& run : runs) files::write_atomically(r.out_dir + "/" + run.name + "_tomatoes.csv", run.csv.view());
+  if (v && v->verify) files::write_atomically(r.out_dir + "/verification.csv", v->csv.view());
+  if (v && v->harvest) files::write_atomically(r.out_dir + "/harvest.csv", v->harvest_csv.view());
 }
 
 }  // namespace
@@ -504,7 +499,7 @@ int main(int argc, char** argv) {
     std::vector<Run> runs = open_runs(request);
     const std::unique_ptr<PickVerification> verification = open_verification(request);
     evaluate(request, runs, verification.get(), tally);
-    write_tables(runs, verification.get());
+    write_tables(runs, verification.get(), request);
     for (const auto& run : runs) write_summary(run, request);
     const std::string& first = runs.front().name;
     if (verification && verification->verify) print_verification(*verification, first, request.seeds_label);
@@ -514,7 +509,7 @@ int main(int argc, char** argv) {
   } catch (const UsageError& e) {
     std::fprintf(stderr, "tomato_eval: %s\n", e.what());
     return 2;
-  } catch (const tinyline::files::FileError& e) {
+  } catch (const files::FileError& e) {
     std::fprintf(stderr, "tomato_eval: %s\n", e.what());
     return 1;
   }

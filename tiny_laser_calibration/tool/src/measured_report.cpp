@@ -144,8 +144,6 @@ void write_plot_data(const std::string& dir, const MeasuredData& d, const Materi
   out.commit();
 }
 
-void write_text(const std::string& path, const std::string& text) { files::write_atomically(path, text); }
-
 }  // namespace
 
 int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
@@ -169,13 +167,13 @@ int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::o
     fs::create_directories(*report, ec);
     if (ec || !fs::is_directory(*report)) throw std::runtime_error(fmt::format("{}: cannot create the report directory", *report));
     write_plot_data(*report, d, mat, curves);
-    write_text((fs::path(*report) / "measured.json").string(), report_json(mat, dist, fits, curves));
+    files::write_atomically((fs::path(*report) / "measured.json").string(), report_json(mat, dist, fits, curves));
     std::string note;
     if (run_plot_script(env, *report, note) != 0) err << "tinyline calib: warning: " << note << "; report without plots\n";
     for (const char* png : {"measured_materials.png", "measured_curves.png"}) {
       if (fs::exists(fs::path(*report) / png)) md += fmt::format("![{}]({})\n\n", png, png);
     }
-    write_text((fs::path(*report) / "measured.md").string(), md);
+    files::write_atomically((fs::path(*report) / "measured.md").string(), md);
     out << fmt::format("wrote {}/measured.md\n", *report);
   }
   if (o.flag("--json")) {
