@@ -492,7 +492,11 @@ void write_tables(const std::vector<Run>& runs, const PickVerification* v, const
 int main(int argc, char** argv) {
   Request request;
   if (const auto rc = parse(argc, argv, request)) return *rc;
-  std::filesystem::create_directories(request.out_dir);
+  if (std::error_code ec; !std::filesystem::create_directories(request.out_dir, ec) && ec) {
+    std::fprintf(stderr, "tomato_eval: cannot create the output directory %s: %s\n", request.out_dir.c_str(),
+                 ec.message().c_str());
+    return 1;
+  }
   std::printf("%s\n", request.seeds_label.c_str());
   try {
     KappaTally tally = kappa_tally(request);
