@@ -263,7 +263,8 @@ std::string write_traffic_bag(const char* name, double seconds, bool with_cloud,
 }
 
 const std::string& read_bag() {
-  static const std::string path = write_traffic_bag("read.mcap", kReadSeconds, /*with_cloud=*/true, /*with_extra=*/true, 5);
+  static const std::string path =
+      write_traffic_bag("read.mcap", kReadSeconds, /*with_cloud=*/true, /*with_extra=*/true, 5);
   return path;
 }
 
@@ -279,22 +280,25 @@ void read_one_topic(benchmark::State& state, bool ignore_summary) {
     q.topics = {"/tiny/scan"};
     n = 0;
     if (!r.for_each(q, [&](const bag::MessageView& v) {
-           ++n;
-           bytes += v.message.data.size();
-           return true;
-         }).ok())
+            ++n;
+            bytes += v.message.data.size();
+            return true;
+          }).ok())
       std::abort();
     if (n != static_cast<std::uint64_t>(kReadSeconds * 100)) std::abort();  // line scans at 100 Hz
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
   state.counters["file_MB"] = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
-  state.counters["bag_s_per_s"] = benchmark::Counter(kReadSeconds * static_cast<double>(state.iterations()),
-                                                     benchmark::Counter::kIsRate);
+  state.counters["bag_s_per_s"] =
+      benchmark::Counter(kReadSeconds * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 void BM_IndexedRead_OneTopicOfFive(benchmark::State& state) { read_one_topic(state, false); }
 void BM_LinearRead_OneTopicOfFive(benchmark::State& state) { read_one_topic(state, true); }
-BENCHMARK(BM_IndexedRead_OneTopicOfFive)->Unit(benchmark::kMillisecond)->UseRealTime()->ComputeStatistics("min", min_of);
+BENCHMARK(BM_IndexedRead_OneTopicOfFive)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->ComputeStatistics("min", min_of);
 BENCHMARK(BM_LinearRead_OneTopicOfFive)->Unit(benchmark::kMillisecond)->UseRealTime()->ComputeStatistics("min", min_of);
 
 // ---------------------------------------------------------------------------- replay
@@ -311,16 +315,16 @@ const std::string& laser_bag() {
 class ScanSink : public bus::Node {
  public:
   explicit ScanSink(bus::NodeOptions o) : Node(std::move(o)) {
-    a_ = create_subscription<tinyline_msgs::msg::LineScan>(
-        "/tiny/scan", bus::QoS::reliable(1000), [this](const tinyline_msgs::msg::LineScan& m) {
-          for (float d : m.distance_m) sum_ += d == d ? d : 0.0F;
-          received.fetch_add(1, std::memory_order_relaxed);
-        });
-    b_ = create_subscription<tinyline_msgs::msg::RawScan>(
-        "/tiny/raw", bus::QoS::reliable(1000), [this](const tinyline_msgs::msg::RawScan& m) {
-          sum_ += static_cast<float>(m.a.size());
-          received.fetch_add(1, std::memory_order_relaxed);
-        });
+    a_ = create_subscription<tinyline_msgs::msg::LineScan>("/tiny/scan", bus::QoS::reliable(1000),
+                                                           [this](const tinyline_msgs::msg::LineScan& m) {
+                                                             for (float d : m.distance_m) sum_ += d == d ? d : 0.0F;
+                                                             received.fetch_add(1, std::memory_order_relaxed);
+                                                           });
+    b_ = create_subscription<tinyline_msgs::msg::RawScan>("/tiny/raw", bus::QoS::reliable(1000),
+                                                          [this](const tinyline_msgs::msg::RawScan& m) {
+                                                            sum_ += static_cast<float>(m.a.size());
+                                                            received.fetch_add(1, std::memory_order_relaxed);
+                                                          });
   }
   std::atomic<std::uint64_t> received{0};
   float sum_ = 0;

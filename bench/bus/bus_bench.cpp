@@ -140,8 +140,7 @@ void BM_Floor_LockFreeHandoff(benchmark::State& state) {
     m->data[stamp.size()] = ' ';
     slot.store(m.release(), std::memory_order_release);
     ++sent;
-    while (received.load(std::memory_order_acquire) < sent) {
-    }
+    while (received.load(std::memory_order_acquire) < sent) {}
   }
   stop.store(true);
   consumer.join();
@@ -172,8 +171,7 @@ void BM_Bus_AcrossThreads(benchmark::State& state) {
     m->data[stamp.size()] = ' ';
     pub->publish(std::move(m));
     ++sent;
-    while (received.load(std::memory_order_acquire) < sent) {
-    }
+    while (received.load(std::memory_order_acquire) < sent) {}
   }
   ex.stop();
   spinner.join();
@@ -210,8 +208,7 @@ void BM_ZeroMQ_InprocAcrossThreads(benchmark::State& state) {
     data[stamp.size()] = ' ';
     zmq_send(tx, data.data(), data.size(), 0);
     ++sent;
-    while (received.load(std::memory_order_acquire) < sent) {
-    }
+    while (received.load(std::memory_order_acquire) < sent) {}
   }
   stop.store(true);
   consumer.join();
@@ -233,8 +230,8 @@ void BM_Bus_Throughput(benchmark::State& state) {
   auto src = node(ctx, "src");
   auto dst = node(ctx, "dst");
   std::atomic<int> received{0};
-  auto sub = dst->create_subscription<StringMsg>("t", bus::QoS::reliable(4096),
-                                                 [&](const StringMsg&) { received.fetch_add(1, std::memory_order_relaxed); });
+  auto sub = dst->create_subscription<StringMsg>(
+      "t", bus::QoS::reliable(4096), [&](const StringMsg&) { received.fetch_add(1, std::memory_order_relaxed); });
   auto pub = src->create_publisher<StringMsg>("t");
   bus::SingleThreadedExecutor ex(ctx->clock());
   ex.add_node(dst);
@@ -243,8 +240,7 @@ void BM_Bus_Throughput(benchmark::State& state) {
   for (auto _ : state) {
     const int start = received.load();
     for (int i = 0; i < kBurst; ++i) pub->publish(payload(16));
-    while (received.load(std::memory_order_acquire) < start + kBurst) {
-    }
+    while (received.load(std::memory_order_acquire) < start + kBurst) {}
     total += kBurst;
   }
   ex.stop();

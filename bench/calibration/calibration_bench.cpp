@@ -45,12 +45,14 @@ struct Fixture {
     with_terms.impl().resolve();
     // A frame: the driver's read-out of every ranging pixel at 0.8 m.
     for (std::size_t i = 0; i < data.size() && frame.size() < 256; ++i) {
-      if (std::abs(data.distance_m[i] - 0.8) < 0.05 && data.readouts[i].pulses == 400) frame.push_back(data.readouts[i]);
+      if (std::abs(data.distance_m[i] - 0.8) < 0.05 && data.readouts[i].pulses == 400)
+        frame.push_back(data.readouts[i]);
     }
     while (frame.size() < 256) frame.push_back(frame[frame.size() % 64]);
     for (std::size_t i = 0; i < frame.size(); ++i) frame[i].pixel = static_cast<int>(8 + i);
-    public_poly = {2.147918234375362e+06,  -7.736068312640203e+06, 1.154494186428487e+07, -9.137795412258314e+06,
-                   4.045684724836031e+06,  -9.494901699902674e+05, 9.219599710241470e+04};  // the public driver's sensor K
+    public_poly = {
+        2.147918234375362e+06, -7.736068312640203e+06, 1.154494186428487e+07, -9.137795412258314e+06,
+        4.045684724836031e+06, -9.494901699902674e+05, 9.219599710241470e+04};  // the public driver's sensor K
   }
 };
 
@@ -74,8 +76,8 @@ void BM_RawSet_Reference_PublicDriverPolynomial(benchmark::State& state) {
     }
     benchmark::DoNotOptimize(sum);
   }
-  state.counters["pixels/s"] = benchmark::Counter(static_cast<double>(state.iterations() * f.frame.size()),
-                                                  benchmark::Counter::kIsRate);
+  state.counters["pixels/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * f.frame.size()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_RawSet_Reference_PublicDriverPolynomial);
 
@@ -86,8 +88,8 @@ void BM_RawSet_DeclaredModel(benchmark::State& state) {
     for (const auto& r : f.frame) sum += f.declared.distance_m(r);
     benchmark::DoNotOptimize(sum);
   }
-  state.counters["pixels/s"] = benchmark::Counter(static_cast<double>(state.iterations() * f.frame.size()),
-                                                  benchmark::Counter::kIsRate);
+  state.counters["pixels/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * f.frame.size()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_RawSet_DeclaredModel);
 
@@ -98,8 +100,8 @@ void BM_RawSet_ModelWithAlbedoAndPixelTerms(benchmark::State& state) {
     for (const auto& r : f.frame) sum += f.with_terms.distance_m(r);
     benchmark::DoNotOptimize(sum);
   }
-  state.counters["pixels/s"] = benchmark::Counter(static_cast<double>(state.iterations() * f.frame.size()),
-                                                  benchmark::Counter::kIsRate);
+  state.counters["pixels/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * f.frame.size()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_RawSet_ModelWithAlbedoAndPixelTerms);
 

@@ -48,7 +48,8 @@ std::optional<seeds::SeedUse> range_use(const seeds::SeedRange& r) {
 
 int usage(const std::string& why) {
   std::cerr << "calibration_discovery_sweep: " << why
-            << "\nusage: calibration_discovery_sweep --seeds FIRST-LAST (--case NAME ... | --all) [--out FILE.csv] [--rounds]\n"
+            << "\nusage: calibration_discovery_sweep --seeds FIRST-LAST (--case NAME ... | --all) [--out FILE.csv] "
+               "[--rounds]\n"
             << "cases:";
   for (const auto& c : tt::discovery_cases()) std::cerr << " " << c.name;
   const auto& e = seeds::kCalibration;
@@ -126,7 +127,8 @@ int main(int argc, char** argv) {
   }
   std::printf("seeds %llu-%llu (%s)\n", static_cast<unsigned long long>(a.seeds.first),
               static_cast<unsigned long long>(a.seeds.last), std::string(seeds::to_string(use)).c_str());
-  std::printf("| case | runs | named as expected | named anything | after / floor (median, max) | twin named anything |\n");
+  std::printf(
+      "| case | runs | named as expected | named anything | after / floor (median, max) | twin named anything |\n");
   std::printf("|---|---|---|---|---|---|\n");
   for (const auto& name : a.cases) {
     const auto& c = tt::discovery_case(name);
@@ -140,8 +142,8 @@ int main(int argc, char** argv) {
       twin_any += o.twin.effects.empty() ? 0 : 1;
       ratio.push_back(o.result.rmse_after_m / o.floor_m);
       if (csv) {
-        csv << c.name << ',' << seed << ',' << (o.named ? 1 : 0) << ',' << o.names() << ',' << o.result.rmse_before_m << ','
-            << o.result.rmse_after_m << ',' << o.floor_m << ',' << o.twin.effects.size() << '\n';
+        csv << c.name << ',' << seed << ',' << (o.named ? 1 : 0) << ',' << o.names() << ',' << o.result.rmse_before_m
+            << ',' << o.result.rmse_after_m << ',' << o.floor_m << ',' << o.twin.effects.size() << '\n';
       }
       std::fprintf(stderr, "%s seed %llu: %s, %.2f -> %.2f cm (floor %.2f cm); twin: %s\n", c.name.c_str(),
                    static_cast<unsigned long long>(seed), o.names().c_str(), 100 * o.result.rmse_before_m,
@@ -149,8 +151,8 @@ int main(int argc, char** argv) {
       if (a.rounds) print_rounds(o.result);
     }
     std::sort(ratio.begin(), ratio.end());
-    std::printf("| %s | %d | %d (%.0f %%) | %d | %.2f, %.2f | %d |\n", c.name.c_str(), runs, hits, 100.0 * hits / runs, any,
-                ratio[ratio.size() / 2], ratio.back(), twin_any);
+    std::printf("| %s | %d | %d (%.0f %%) | %d | %.2f, %.2f | %d |\n", c.name.c_str(), runs, hits, 100.0 * hits / runs,
+                any, ratio[ratio.size() / 2], ratio.back(), twin_any);
     std::fflush(stdout);
   }
   return 0;

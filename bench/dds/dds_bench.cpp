@@ -151,17 +151,19 @@ void idle_cpu(const char* what, P& p, Ping&& ping, int seconds) {
   const double self0 = cpu_seconds(getpid()), pong0 = cpu_seconds(pong);
   std::this_thread::sleep_for(std::chrono::seconds(seconds));
   const double self1 = cpu_seconds(getpid()), pong1 = cpu_seconds(pong);
-  std::printf("%s, idle %d s: ping process %.2f%% of a core (%.1f ms), pong process %.2f%% (%.1f ms)\n", what,
-              seconds, 100 * (self1 - self0) / seconds, 1e3 * (self1 - self0), 100 * (pong1 - pong0) / seconds,
+  std::printf("%s, idle %d s: ping process %.2f%% of a core (%.1f ms), pong process %.2f%% (%.1f ms)\n", what, seconds,
+              100 * (self1 - self0) / seconds, 1e3 * (self1 - self0), 100 * (pong1 - pong0) / seconds,
               1e3 * (pong1 - pong0));
 }
 
 int idle_cpu_main(int seconds) {
   EnginePinger& e = Sessions::get().engine();
   e.set_payload(64);
-  idle_cpu("Cyclone alone", e, [&] { e.ping(); }, seconds);
+  idle_cpu(
+      "Cyclone alone", e, [&] { e.ping(); }, seconds);
   Pinger& t = Sessions::get().tinyline();
-  idle_cpu("tinyline", t, [&] { t.pub->publish(cloud(64)); }, seconds);
+  idle_cpu(
+      "tinyline", t, [&] { t.pub->publish(cloud(64)); }, seconds);
   Sessions::get().close();
   return 0;
 }

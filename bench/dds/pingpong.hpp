@@ -52,7 +52,7 @@ namespace tinyline::bench_dds {
 using Cloud = sensor_msgs::msg::PointCloud2;
 using SteadyClock = std::chrono::steady_clock;
 
-inline std::string g_self;  ///< this executable, for the pong process
+inline std::string g_self;           ///< this executable, for the pong process
 constexpr std::size_t kWindow = 64;  ///< messages in flight in the stream benchmarks
 constexpr std::size_t kDepth = kWindow * 4;
 
@@ -193,7 +193,9 @@ inline void write_copy(dds_entity_t w, const ddsi_sertype* type, std::span<const
   const dds_return_t rc =
       dds_writecdr(w, dds::detail::make_serdata(type, std::vector<std::uint8_t>(bytes.begin(), bytes.end())));
   TL_DDS_PROBE(Written);
-  if (rc < 0) throw std::runtime_error(fmt::format("engine: write failed in {} (parent {}): {}", getpid(), getppid(), dds_strretcode(rc)));
+  if (rc < 0)
+    throw std::runtime_error(
+        fmt::format("engine: write failed in {} (parent {}): {}", getpid(), getppid(), dds_strretcode(rc)));
 }
 
 /// Takes every sample of `r`, calling fn(bytes) for each.
@@ -301,8 +303,7 @@ inline int pong_main(PongKind kind) {
   std::fputs("ready\n", stdout);
   std::fflush(stdout);
   char c;
-  while (read(STDIN_FILENO, &c, 1) > 0) {
-  }
+  while (read(STDIN_FILENO, &c, 1) > 0) {}
   if (ex) {
     ex->stop();
     spinner.join();
@@ -381,8 +382,7 @@ struct Pinger {
 
   explicit Pinger(Mode mode) {
     pub = node->create_publisher<Cloud>("/bench/ping", bench_qos());
-    sub = node->create_subscription<Cloud>("/bench/pong", bench_qos(),
-                                           [this](const Cloud&) { arrivals.arrived(); });
+    sub = node->create_subscription<Cloud>("/bench/pong", bench_qos(), [this](const Cloud&) { arrivals.arrived(); });
     if (mode != Mode::Dds) relay = std::make_unique<Relay>(ctx, "relay");
     if (mode != Mode::InProcess) {
       dds::BridgeOptions bo;

@@ -168,7 +168,9 @@ BENCHMARK(BM_Update_Estimator_OpenChain_BaseMotion)->Unit(benchmark::kMicrosecon
 static void BM_Update_Estimator_OpenChain_MovingNoPoses(benchmark::State& s) { run_estimator_moving_base(s, false); }
 BENCHMARK(BM_Update_Estimator_OpenChain_MovingNoPoses)->Unit(benchmark::kMicrosecond);
 // The compensation's own cost: a base standing still, its poses given.
-static void BM_Update_Estimator_OpenChain_StaticWithPoses(benchmark::State& s) { run_estimator_moving_base(s, true, 0.0); }
+static void BM_Update_Estimator_OpenChain_StaticWithPoses(benchmark::State& s) {
+  run_estimator_moving_base(s, true, 0.0);
+}
 BENCHMARK(BM_Update_Estimator_OpenChain_StaticWithPoses)->Unit(benchmark::kMicrosecond);
 static void BM_Update_Estimator_OpenChain_PlainRefit(benchmark::State& s) {
   run_estimator(s, open_chain(), hf::ArcCorrection::kNone);
@@ -197,8 +199,8 @@ static void run_arc_fit(benchmark::State& state, hf::ArcCorrection correction) {
       Eigen::Matrix2Xd p(2, 100);
       for (int i = 0; i < 100; ++i) {
         const double a = std::numbers::pi / 2 + (i / 99.0 - 0.5) * 2.0 * std::numbers::pi / 3.0;
-        p.col(i) = Eigen::Vector2d(0.15 * std::cos(a) + 0.019593 * rng.normal(),
-                                   0.15 * std::sin(a) + 0.019593 * rng.normal());
+        p.col(i) =
+            Eigen::Vector2d(0.15 * std::cos(a) + 0.019593 * rng.normal(), 0.15 * std::sin(a) + 0.019593 * rng.normal());
       }
       d.push_back(p);
     }

@@ -72,8 +72,10 @@ BENCHMARK(BM_TwoStageOnly);
 // same run: BM_TwoStagePlusPedicel, the per-scan work, and the sensor's
 // frame period (10 ms at 100 Hz) is the budget it must fit.
 void BM_RegisterTomatoes(benchmark::State& state) {
-  const std::vector<lc::test::Disc> truth{{-0.11, 0.23, 0.028, 6.0, 1}, {-0.04, 0.21, 0.033, 6.0, 2},
-                                          {0.035, 0.24, 0.026, 6.0, 3}, {0.10, 0.22, 0.031, 6.0, 4}};
+  const std::vector<lc::test::Disc> truth{{-0.11, 0.23, 0.028, 6.0, 1},
+                                          {-0.04, 0.21, 0.033, 6.0, 2},
+                                          {0.035, 0.24, 0.026, 6.0, 3},
+                                          {0.10, 0.22, 0.031, 6.0, 4}};
   lc::test::SynthParams sp;
   sp.wall_z_m = 0.45;
   sp.noise_sd_m = 0.003;

@@ -51,7 +51,8 @@ void BM_RaycastReference(benchmark::State& state) {
   const int n = p.lens.pixels, sub = p.lens.subrays_per_pixel;
   std::vector<Eigen::Vector3d> dirs;
   const double pitch = p.lens.pitch_mm();
-  for (int j = 0; j < n * sub; ++j) dirs.push_back(T.linear() * Eigen::Vector3d(((j + 0.5) / sub - 0.5 * n) * pitch, 0, p.lens.focal_mm).normalized());
+  for (int j = 0; j < n * sub; ++j)
+    dirs.push_back(T.linear() * Eigen::Vector3d(((j + 0.5) / sub - 0.5 * n) * pitch, 0, p.lens.focal_mm).normalized());
   for (int i = 0; i < n; ++i) dirs.push_back(T.linear() * sensor.pixel_direction(i));
   for (auto _ : state) {
     int hits = 0;
@@ -106,7 +107,8 @@ BENCHMARK(BM_SetCrosstalk)->Unit(benchmark::kMicrosecond);
 void BM_EncodeRawSet(benchmark::State& state) {
   const Scene s = load_scene(scene("calibration_rail.yaml"));
   const TofLineSensor sensor(s.sensors[0].params);
-  const SensorSet set = sensor.measure(s.world, s.sensors[0].T_world_sensor, 3600.0, sensor.params().acquisition.raw_pulses, 1);
+  const SensorSet set =
+      sensor.measure(s.world, s.sensors[0].T_world_sensor, 3600.0, sensor.params().acquisition.raw_pulses, 1);
   std::vector<std::uint8_t> bytes;
   for (auto _ : state) {
     bytes.clear();

@@ -80,9 +80,8 @@ void BM_PublicDriverFormula(benchmark::State& state) {
   tl::Parser parser;
   parser.feed(bytes);
   const tl::RawSet set = *parser.next_set();
-  const double poly[7] = {2.147918234375362e+06, -7.736068312640203e+06, 1.154494186428487e+07,
-                          -9.137795412258314e+06, 4.045684724836031e+06, -9.494901699902674e+05,
-                          9.219599710241470e+04};
+  const double poly[7] = {2.147918234375362e+06, -7.736068312640203e+06, 1.154494186428487e+07, -9.137795412258314e+06,
+                          4.045684724836031e+06, -9.494901699902674e+05, 9.219599710241470e+04};
   std::vector<double> dist(tl::kPixels), refl(tl::kPixels);
   for (auto _ : state) {
     for (const auto& f : set.frames) {
@@ -92,7 +91,8 @@ void BM_PublicDriverFormula(benchmark::State& state) {
         const double k = top / (bot + top);
         double d = 0.0;
         if (bot <= 240 && bot >= 0 && bot + top > 10 + (f.pulses / 10) * 0.4) {
-          d = ((((((poly[0] * k + poly[1]) * k + poly[2]) * k + poly[3]) * k + poly[4]) * k + poly[5]) * k + poly[6]) + temp;
+          d = ((((((poly[0] * k + poly[1]) * k + poly[2]) * k + poly[3]) * k + poly[4]) * k + poly[5]) * k + poly[6]) +
+              temp;
         }
         d = d > 0 ? d : 0;
         if (bot > 10 && top > 10 && bot < 230 && top < 230 && d != 0) {

@@ -75,7 +75,8 @@ const std::vector<Frame>& frames(char cls) {
 int matched(const eval::Scenario& s, const std::vector<Eigen::Vector3d>& centres) {
   int n = 0;
   for (const auto& t : s.truth)
-    n += std::any_of(centres.begin(), centres.end(), [&](const Eigen::Vector3d& c) { return (c - t.centre_m).norm() <= 0.01; });
+    n += std::any_of(centres.begin(), centres.end(),
+                     [&](const Eigen::Vector3d& c) { return (c - t.centre_m).norm() <= 0.01; });
   return n;
 }
 
@@ -168,7 +169,8 @@ pcl::PointCloud<PointT> as_pcl(const std::vector<Eigen::Vector3f>& pts, const In
 // Euclidean clusters at the branch tolerance; the points of the one whose
 // centroid is closest to the camera.
 template <typename PointT>
-typename pcl::PointCloud<PointT>::Ptr pcl_branch(const typename pcl::PointCloud<PointT>::Ptr& red, const BranchClusteringParams& bp) {
+typename pcl::PointCloud<PointT>::Ptr pcl_branch(const typename pcl::PointCloud<PointT>::Ptr& red,
+                                                 const BranchClusteringParams& bp) {
   typename pcl::PointCloud<PointT>::Ptr branch(new pcl::PointCloud<PointT>);
   if (red->empty()) return branch;
   typename pcl::search::KdTree<PointT>::Ptr tree(new pcl::search::KdTree<PointT>);
@@ -324,7 +326,8 @@ void BM_StageThinning(benchmark::State& state, bool pcl) {
     const Frame& f = fs[k++ % fs.size()];
     if (pcl) {
       state.PauseTiming();
-      pcl::PointCloud<pcl::PointXYZ>::Ptr branch(new pcl::PointCloud<pcl::PointXYZ>(as_pcl<pcl::PointXYZ>(f.red, &f.branch)));
+      pcl::PointCloud<pcl::PointXYZ>::Ptr branch(
+          new pcl::PointCloud<pcl::PointXYZ>(as_pcl<pcl::PointXYZ>(f.red, &f.branch)));
       state.ResumeTiming();
       benchmark::DoNotOptimize(pcl_thin<pcl::PointXYZ>(branch, f.params.smoothing.voxel_m)->size());
     } else {

@@ -6,8 +6,7 @@ namespace tinyline::bus {
 
 Time Clock::now() const {
   if (is_sim()) return Time{sim_ns_.load(std::memory_order_acquire)};
-  return Time{std::chrono::duration_cast<std::chrono::nanoseconds>(
-                  std::chrono::system_clock::now().time_since_epoch())
+  return Time{std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
                   .count()};
 }
 

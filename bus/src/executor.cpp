@@ -54,9 +54,7 @@ struct WorkerCount {
 };
 }  // namespace
 
-Executor* current_executor() {
-  return tl_core ? tl_core->owner : nullptr;
-}
+Executor* current_executor() { return tl_core ? tl_core->owner : nullptr; }
 
 // ---------------------------------------------------------------------------- CallbackGroup
 

@@ -13,11 +13,7 @@ namespace tinyline::bus {
 
 SubscriptionBase::SubscriptionBase(std::string topic, const msg::TypeSupport* type, QoS qos,
                                    std::shared_ptr<CallbackGroup> group)
-    : topic_(std::move(topic)),
-      type_(type),
-      qos_(qos),
-      group_(std::move(group)),
-      ring_(std::min(qos.depth, kMaxRing)) {
+    : topic_(std::move(topic)), type_(type), qos_(qos), group_(std::move(group)), ring_(std::min(qos.depth, kMaxRing)) {
   if (qos_.depth == 0) throw std::invalid_argument("subscription to '" + topic_ + "': QoS depth must be at least 1");
 }
 
@@ -25,8 +21,7 @@ bool SubscriptionBase::would_wait() {
   return qos_.history == QoS::History::Reliable && !group_->unbounded_reliable() && full();
 }
 
-bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why,
-                               Wait wait) {
+bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why, Wait wait) {
   if (ignore_origin != 0 && info.origin == ignore_origin) return true;
   CallbackGroup& g = *group_;
   if (cancelled_.load(std::memory_order_acquire) || g.dead()) return true;
@@ -64,8 +59,7 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
       {
         std::unique_lock lk(slow_mu_);
         room = room_.wait_for(lk, qos_.max_block, [&] {
-          return size() < qos_.depth || cancelled_.load(std::memory_order_acquire) || g.dead() ||
-                 g.executor_stopping();
+          return size() < qos_.depth || cancelled_.load(std::memory_order_acquire) || g.dead() || g.executor_stopping();
         });
       }
       waiting_.fetch_sub(1, std::memory_order_relaxed);
@@ -73,10 +67,9 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
       if (!room || (g.executor_stopping() && size() >= qos_.depth)) {
         timeouts_.fetch_add(1, std::memory_order_relaxed);
         if (why) {
-          *why = g.executor_stopping()
-                     ? stopping_reason(g)
-                     : fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, g.owner(),
-                                   qos_.depth, to_seconds(qos_.max_block));
+          *why = g.executor_stopping() ? stopping_reason(g)
+                                       : fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s",
+                                                     topic_, g.owner(), qos_.depth, to_seconds(qos_.max_block));
         }
         return false;
       }
@@ -224,8 +217,8 @@ void Topic::remove_tap(int id) {
 
 void Topic::add_subscription(const std::shared_ptr<SubscriptionBase>& s) {
   if (s->type().name != type_->name) {
-    throw std::invalid_argument(fmt::format("topic '{}' has type {}, cannot subscribe with {}", name_,
-                                            type_->name, s->type().name));
+    throw std::invalid_argument(
+        fmt::format("topic '{}' has type {}, cannot subscribe with {}", name_, type_->name, s->type().name));
   }
   std::deque<QueuedMessage> latched;
   {

@@ -25,8 +25,8 @@ void StderrSink::write(const LogRecord& r) {
     on = r.level == LogLevel::Error ? "\033[31m" : r.level == LogLevel::Warn ? "\033[33m" : "";
   }
   const char* off = color && *on ? "\033[0m" : "";
-  std::string line = fmt::format("{}[{}] [{:.3f}] [{}]: {}{}\n", on, to_string(r.level), r.stamp.seconds(),
-                                 r.logger, r.text, off);
+  std::string line =
+      fmt::format("{}[{}] [{:.3f}] [{}]: {}{}\n", on, to_string(r.level), r.stamp.seconds(), r.logger, r.text, off);
   std::lock_guard lk(mu_);
   std::fwrite(line.data(), 1, line.size(), stderr);
 }

@@ -80,8 +80,8 @@ void Node::record_endpoint(bool publisher, const std::string& topic, std::string
   context_->graph().endpoints_changed(topic);
 }
 
-std::shared_ptr<GenericPublisher> Node::create_generic_publisher(const std::string& topic,
-                                                                 const msg::TypeSupport& type, QoS qos) {
+std::shared_ptr<GenericPublisher> Node::create_generic_publisher(const std::string& topic, const msg::TypeSupport& type,
+                                                                 QoS qos) {
   auto t = context_->graph().topic(resolve_topic(topic), type);
   auto p = std::make_shared<GenericPublisher>(*this, t, qos);
   record_endpoint(true, t->name(), type.name, qos);
@@ -145,9 +145,9 @@ ParamValue Node::declare_parameter_value(const std::string& name, ParamType type
   if (chosen != nullptr) {
     auto v = coerce(chosen->value, type);
     if (!v) {
-      throw ParamError(chosen->where, fmt::format("{}: parameter '{}' expects {}, got {} {}", who, name,
-                                                  to_string(type), to_string(type_of(chosen->value)),
-                                                  format_value(chosen->value)));
+      throw ParamError(chosen->where,
+                       fmt::format("{}: parameter '{}' expects {}, got {} {}", who, name, to_string(type),
+                                   to_string(type_of(chosen->value)), format_value(chosen->value)));
     }
     d.value = *v;
     d.set_from = chosen->where;

@@ -96,8 +96,7 @@ ScalarKind classify(const YAML::Node& n, bool& b, std::int64_t& i, double& d) {
       i = v;
       return ScalarKind::Int;
     }
-  } catch (...) {
-  }
+  } catch (...) {}
   try {
     std::size_t pos = 0;
     const double v = std::stod(s, &pos);
@@ -105,8 +104,7 @@ ScalarKind classify(const YAML::Node& n, bool& b, std::int64_t& i, double& d) {
       d = v;
       return ScalarKind::Double;
     }
-  } catch (...) {
-  }
+  } catch (...) {}
   if (s == ".nan" || s == ".NaN") {
     d = std::nan("");
     return ScalarKind::Double;
@@ -152,9 +150,19 @@ std::optional<ParamValue> param_from_yaml(const YAML::Node& n, std::string* why)
         return std::nullopt;
       }
       switch (classify(e, b, i, d)) {
-        case ScalarKind::Bool: any_bool = true; bs.push_back(b); break;
-        case ScalarKind::Int: any_int = true; is.push_back(i); ds.push_back(static_cast<double>(i)); break;
-        case ScalarKind::Double: any_double = true; ds.push_back(d); break;
+        case ScalarKind::Bool:
+          any_bool = true;
+          bs.push_back(b);
+          break;
+        case ScalarKind::Int:
+          any_int = true;
+          is.push_back(i);
+          ds.push_back(static_cast<double>(i));
+          break;
+        case ScalarKind::Double:
+          any_double = true;
+          ds.push_back(d);
+          break;
         case ScalarKind::String: any_string = true; break;
       }
       ss.push_back(e.Scalar());

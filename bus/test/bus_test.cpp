@@ -83,7 +83,8 @@ TEST(Bus, KeepLastDropsTheOldestAndCountsIt) {
   bus::DeterministicExecutor ex(ctx->clock());
   auto n = make_node(ctx, "n");
   std::vector<std::string> got;
-  auto sub = n->create_subscription<StringMsg>("t", QoS::keep_last(3), [&](const StringMsg& m) { got.push_back(m.data); });
+  auto sub =
+      n->create_subscription<StringMsg>("t", QoS::keep_last(3), [&](const StringMsg& m) { got.push_back(m.data); });
   auto pub = n->create_publisher<StringMsg>("t");
   ex.add_node(n);
   for (int i = 0; i < 5; ++i) pub->publish(text(std::to_string(i)));
@@ -141,7 +142,8 @@ TEST(Bus, APublishThatMustNotWaitGoesPastAFullReliableQueueInOrderAndWouldWaitSa
   auto ctx = bus::Context::create(o);  // wall clock, no executor yet: nobody drains
   auto n = make_node(ctx, "n");
   std::vector<std::string> got;
-  auto sub = n->create_subscription<StringMsg>("t", QoS::reliable(2, 10s), [&](const StringMsg& m) { got.push_back(m.data); });
+  auto sub =
+      n->create_subscription<StringMsg>("t", QoS::reliable(2, 10s), [&](const StringMsg& m) { got.push_back(m.data); });
   auto pub = n->create_generic_publisher("t", msg::type_support<StringMsg>(), QoS::reliable(2));
   EXPECT_FALSE(pub->would_wait());
   EXPECT_TRUE(pub->publish(text("a")).ok());
@@ -192,9 +194,8 @@ TEST(Bus, DeterministicExecutorRunsEverythingAMessageTriggersBeforeTheNext) {
     log.push_back("a:" + m.data);
     a_out->publish(text(m.data + "'"));
   });
-  auto sb = b->create_subscription<StringMsg>("mid", QoS::keep_last(1), [&](const StringMsg& m) {
-    log.push_back("b:" + m.data);
-  });
+  auto sb = b->create_subscription<StringMsg>("mid", QoS::keep_last(1),
+                                              [&](const StringMsg& m) { log.push_back("b:" + m.data); });
   auto src = make_node(ctx, "src");
   auto in = src->create_publisher<StringMsg>("in");
   ex.add_node(a);
@@ -747,7 +748,9 @@ TEST(Topic, RemovingATapWaitsForACallInProgress) {
 // ---------------------------------------------------------------------------- lock-free queues
 
 namespace {
-std::unique_ptr<StringMsg> tagged(int publisher, int seq) { return text(std::to_string(publisher) + ":" + std::to_string(seq)); }
+std::unique_ptr<StringMsg> tagged(int publisher, int seq) {
+  return text(std::to_string(publisher) + ":" + std::to_string(seq));
+}
 std::pair<int, int> untag(const std::string& s) {
   const auto colon = s.find(':');
   return {std::stoi(s.substr(0, colon)), std::stoi(s.substr(colon + 1))};
@@ -870,13 +873,14 @@ TEST(Bus, ReliableQueueOfDepthOneUnderManyPublishersDeliversEveryMessageIntact) 
   std::vector<int> last(kPublishers, -1);
   int out_of_order = 0;
   std::atomic<int> delivered{0};
-  auto sub = n->create_subscription<StringMsg>("t", QoS::reliable(1, 30s), [&](const std::shared_ptr<const StringMsg>& m) {
-    ASSERT_NE(m, nullptr);
-    const auto [p, seq] = untag(m->data);
-    if (seq <= last[static_cast<std::size_t>(p)]) ++out_of_order;
-    last[static_cast<std::size_t>(p)] = seq;
-    delivered.fetch_add(1, std::memory_order_release);
-  });
+  auto sub =
+      n->create_subscription<StringMsg>("t", QoS::reliable(1, 30s), [&](const std::shared_ptr<const StringMsg>& m) {
+        ASSERT_NE(m, nullptr);
+        const auto [p, seq] = untag(m->data);
+        if (seq <= last[static_cast<std::size_t>(p)]) ++out_of_order;
+        last[static_cast<std::size_t>(p)] = seq;
+        delivered.fetch_add(1, std::memory_order_release);
+      });
   bus::MultiThreadedExecutor ex(ctx->clock(), 4);
   ex.add_node(n);
   std::thread spinner([&] { ex.spin(); });
@@ -977,7 +981,8 @@ struct InlineGraph {
   void run() {
     auto probe = make_node(ctx, "probe");
     std::promise<void> ran;
-    auto s = probe->create_subscription<StringMsg>("probe", QoS::keep_last(1), [&](const StringMsg&) { ran.set_value(); });
+    auto s =
+        probe->create_subscription<StringMsg>("probe", QoS::keep_last(1), [&](const StringMsg&) { ran.set_value(); });
     ex.add_node(probe);
     spinner = std::thread([this] { ex.spin(); });
     make_node(ctx, "p")->create_publisher<StringMsg>("probe")->publish(text("x"));
@@ -1078,8 +1083,7 @@ TEST(InlineDelivery, CallbacksThatKeepTakingLongGoBackToTheWorkers) {
   InlineGraph g;
   g.during = [](const StringMsg&) {  // longer than an inline run may take
     const auto until = std::chrono::steady_clock::now() + 2ms;
-    while (std::chrono::steady_clock::now() < until) {
-    }
+    while (std::chrono::steady_clock::now() < until) {}
   };
   g.run();
   const auto me = std::this_thread::get_id();
@@ -1087,5 +1091,5 @@ TEST(InlineDelivery, CallbacksThatKeepTakingLongGoBackToTheWorkers) {
   g.publish_inline("3");
   const auto seen = g.wait_for(4);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(seen[i].second, me) << i;  // a slow run may be a lost core: tried again
-  EXPECT_NE(seen[3].second, me);  // three in a row: the workers take it
+  EXPECT_NE(seen[3].second, me);                                   // three in a row: the workers take it
 }

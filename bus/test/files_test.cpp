@@ -55,15 +55,17 @@ TEST(Files, ReadTextRefusesAFifoWithoutBlocking) {
 }
 
 TEST(Files, ReadTextRefusesADeviceAndTooLargeFiles) {
-  EXPECT_NE(error_of([] { (void)tinyline::files::read_text("/dev/zero", "scene", 1024); })
-                .find("scene '/dev/zero' is a character device"),
+  EXPECT_NE(error_of([] {
+              (void)tinyline::files::read_text("/dev/zero", "scene", 1024);
+            }).find("scene '/dev/zero' is a character device"),
             std::string::npos);
   const auto d = scratch("large");
   spit(d / "big.csv", std::string(2000, 'x'));
   const std::string e = error_of([&] { (void)tinyline::files::read_text((d / "big.csv").string(), "CSV", 1000); });
   EXPECT_NE(e.find("is 2000 bytes, more than the limit of 1000"), std::string::npos) << e;
-  EXPECT_NE(error_of([&] { tinyline::files::check_input((d / "nope").string(), "calibration", 0); }).find("cannot open"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of([&] { tinyline::files::check_input((d / "nope").string(), "calibration", 0); }).find("cannot open"),
+      std::string::npos);
 }
 
 TEST(Files, AtomicFileReplacesOnlyOnCommit) {
@@ -107,8 +109,9 @@ TEST(Files, AtomicStreamWritesItsTextOnlyOnCommitAndRefusesALinkBeforeAnyWork) {
   EXPECT_EQ(slurp(out), "seed,verdict\n1,aligned\n");
   EXPECT_FALSE(fs::exists(out.string() + ".part"));
   fs::create_symlink(out, d / "link.csv");
-  EXPECT_NE(error_of([&] { tinyline::files::AtomicStream s((d / "link.csv").string(), tinyline::files::named("trials")); })
-                .find("trials '" + (d / "link.csv").string() + "' is a symbolic link"),
+  EXPECT_NE(error_of([&] {
+              tinyline::files::AtomicStream s((d / "link.csv").string(), tinyline::files::named("trials"));
+            }).find("trials '" + (d / "link.csv").string() + "' is a symbolic link"),
             std::string::npos);
 }
 

@@ -29,8 +29,8 @@ std::string Validator::operator()(std::string text) const { return (*impl_)(text
 
 Validator range_of(double lo, double hi, bool whole) {
   if (whole) {
-    return Validator(std::make_shared<const CLI::Validator>(
-        CLI::Range(static_cast<long long>(lo), static_cast<long long>(hi))));
+    return Validator(
+        std::make_shared<const CLI::Validator>(CLI::Range(static_cast<long long>(lo), static_cast<long long>(hi))));
   }
   return Validator(std::make_shared<const CLI::Validator>(CLI::Range(lo, hi)));
 }

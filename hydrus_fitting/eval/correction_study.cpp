@@ -104,8 +104,9 @@ CorrectionRow run_cell(const CorrectionStudyParams& p, double arc, int n, double
   row.noise = noise;
   row.trials = p.trials;
   const KcrBound b = kcr_bound(cell.exact, cell.truth, cell.normal_sd);
-  common::SplitMixRandom rng(common::mix_seed(p.seed, static_cast<std::uint64_t>(arc * 10 + n * 1000),
-                                              static_cast<std::uint64_t>(rel_sigma * 1e4 + outliers * 1e3 + 7 * int(noise))));
+  common::SplitMixRandom rng(
+      common::mix_seed(p.seed, static_cast<std::uint64_t>(arc * 10 + n * 1000),
+                       static_cast<std::uint64_t>(rel_sigma * 1e4 + outliers * 1e3 + 7 * int(noise))));
   std::vector<double> err[3][3];  // [fit][component]
   int applied = 0;
   Eigen::Matrix2Xd noisy(2, n);
@@ -167,8 +168,8 @@ std::string correction_csv(const std::vector<CorrectionRow>& rows) {
       "noise,outlier_fraction,arc_deg,points,sigma_over_r,trials,failed,applied_share,robust_plain,robust_always,"
       "robust_shipped,rms_plain,rms_always,rms_shipped\n";
   for (const auto& r : rows) {
-    s += fmt::format("{},{},{},{},{},{},{},{:.4f}", r.noise == NoiseKind::kRays ? "rays" : "isotropic", r.outlier_fraction,
-                     r.arc_deg, r.points, r.sigma_over_r, r.trials, r.failed, r.applied_share);
+    s += fmt::format("{},{},{},{},{},{},{},{:.4f}", r.noise == NoiseKind::kRays ? "rays" : "isotropic",
+                     r.outlier_fraction, r.arc_deg, r.points, r.sigma_over_r, r.trials, r.failed, r.applied_share);
     for (const auto* v : {r.robust, r.rms})
       for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", v[k]);
     s += "\n";

@@ -59,12 +59,8 @@ void add_options(cli::App& study, Request& r, bool grid) {
   study.add_flag("--tuning", r.tuning, "this run is for choosing parameters: refuse a seed that is not a tuning seed");
   if (!grid) return;
   study.add_option("--points", r.points, "points per arc")->check(cli::range(3, 1 << 20));
-  study.add_option("--arcs", r.arcs_deg, "arcs [deg], comma-separated")
-      ->delimiter(',')
-      ->check(cli::positive());
-  study.add_option("--sigmas", r.sigmas_m, "noise SDs [m], comma-separated")
-      ->delimiter(',')
-      ->check(cli::positive());
+  study.add_option("--arcs", r.arcs_deg, "arcs [deg], comma-separated")->delimiter(',')->check(cli::positive());
+  study.add_option("--sigmas", r.sigmas_m, "noise SDs [m], comma-separated")->delimiter(',')->check(cli::positive());
 }
 
 /// The study's seed from the request; false (said on stderr) when a tuning
@@ -102,7 +98,9 @@ void add_correction_options(cli::App& study, Request& r) {
   study.add_option("--sigma-over-r", r.sigma_over_r, "noise SD over the radius, comma-separated")
       ->delimiter(',')
       ->check(cli::positive());
-  study.add_option("--outliers", r.outliers, "shares of outliers, comma-separated")->delimiter(',')->check(cli::range(0.0, 0.5));
+  study.add_option("--outliers", r.outliers, "shares of outliers, comma-separated")
+      ->delimiter(',')
+      ->check(cli::range(0.0, 0.5));
   study.add_option("--noise", r.noise, "isotropic and/or rays, comma-separated")
       ->delimiter(',')
       ->check(cli::one_of({"isotropic", "rays"}));

@@ -42,9 +42,10 @@ int main(int argc, char** argv) {
   std::string calibration = src + "/tiny_laser_driver/config/calibration/sim_tiny_tof_3p6mm.yaml";
   double start_s = 0.0, end_s = -1.0;
   bool no_base_motion = false;
-  cli::App app{"The Hydrus grasp in the physics simulator under the emission schedules, written as CSV for "
-               "docs/hydrus_fitting.md.",
-               "hydrus_sim_eval"};
+  cli::App app{
+      "The Hydrus grasp in the physics simulator under the emission schedules, written as CSV for "
+      "docs/hydrus_fitting.md.",
+      "hydrus_sim_eval"};
   app.add_option("--schedules", schedules, "emission schedules, comma-separated")
       ->delimiter(',')
       ->check(cli::one_of({"all_on", "time_slicing", "colouring"}))

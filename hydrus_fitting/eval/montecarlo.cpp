@@ -72,7 +72,8 @@ std::vector<KcrRow> kcr_study(const KcrStudyParams& p) {
       const KcrBound known_bound = kcr_bound(exact, truth, sig, true);
       for (const Method m : p.methods) {
         // The same noise draws for every method (paired comparison).
-        common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000) + static_cast<std::uint64_t>(sigma * 1e7));
+        common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000) +
+                                   static_cast<std::uint64_t>(sigma * 1e7));
         std::vector<double> err[3], rep[3];
         KcrRow row;
         row.arc_deg = arc;
@@ -148,7 +149,8 @@ std::vector<KcrRow> kcr_study(const KcrStudyParams& p) {
 std::string kcr_csv(const std::vector<KcrRow>& rows) {
   std::string s =
       "arc_deg,sigma_m,method,trials,failed,kcr_sd_cx,kcr_sd_cy,kcr_sd_r,rmse_cx,rmse_cy,rmse_r,spread_cx,spread_cy,"
-      "spread_r,bias_cx,bias_cy,bias_r,ratio_cx,ratio_cy,ratio_r,reported_ratio_cx,reported_ratio_cy,reported_ratio_r\n";
+      "spread_r,bias_cx,bias_cy,bias_r,ratio_cx,ratio_cy,ratio_r,reported_ratio_cx,reported_ratio_cy,reported_ratio_"
+      "r\n";
   for (const auto& r : rows) {
     s += fmt::format("{},{},{},{},{}", r.arc_deg, r.sigma_m, to_string(r.method), r.trials, r.failed);
     for (const auto* v : {r.kcr_sd, r.rmse, r.spread, r.bias, r.ratio, r.reported_sd_ratio})
@@ -269,10 +271,11 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
       const bool geo = (m == 0);
       const bool expand = (m < 2);  // the Taylor series of the two smooth fits; the weighted one by Monte-Carlo only
       // Per draw: a1, a2, a3 (3 components each) and the estimator's error at every sigma.
-      std::vector<Eigen::Matrix3d> coef;  // columns a1 a2 a3
+      std::vector<Eigen::Matrix3d> coef;           // columns a1 a2 a3
       std::vector<Eigen::Vector3d> cross_of_draw;  // the normal x tangential part of a2
       std::vector<std::vector<Eigen::Vector3d>> err(p.sigmas_m.size());
-      Eigen::Vector3d En2 = Eigen::Vector3d::Zero(), Et2 = En2, Ex2 = En2;  // E[a2^2] of the normal, tangential, cross parts
+      Eigen::Vector3d En2 = Eigen::Vector3d::Zero(), Et2 = En2,
+                      Ex2 = En2;  // E[a2^2] of the normal, tangential, cross parts
       common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000));
       Eigen::Matrix2Xd e(2, p.points), q(2, p.points);
       for (int t = 0; t < p.draws; ++t) {
@@ -375,10 +378,10 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
           row.forced_robust[k] = robust_rms(forced) / kcr;
           row.forced_shorth[k] = shorth_rms(forced) / kcr;
           if (!expand) {
-            for (double* v : {&row.first_order[k], &row.second_order[k], &row.mse_terms[k][0], &row.mse_terms[k][1],
-                              &row.mse_terms[k][2], &row.a2_split[k][0], &row.a2_split[k][1], &row.a2_split[k][2],
-                              &row.bias2[k], &row.series2_robust[k], &row.series3_robust[k],
-                              &row.forced_robust[k], &row.forced_shorth[k]})
+            for (double* v :
+                 {&row.first_order[k], &row.second_order[k], &row.mse_terms[k][0], &row.mse_terms[k][1],
+                  &row.mse_terms[k][2], &row.a2_split[k][0], &row.a2_split[k][1], &row.a2_split[k][2], &row.bias2[k],
+                  &row.series2_robust[k], &row.series3_robust[k], &row.forced_robust[k], &row.forced_shorth[k]})
               *v = std::nan("");
           }
         }
@@ -392,8 +395,8 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
 std::string second_order_csv(const std::vector<SecondOrderRow>& rows) {
   std::string s = "arc_deg,sigma_m,method,draws";
   for (const char* f : {"kcr_sd", "first_order", "second_order", "mse_a2sq", "mse_2a1a3", "mse_bias2", "a2sq_normal",
-                        "a2sq_tangential", "a2sq_cross", "bias2",
-                        "mc_rms", "mc_mean_bias", "mc_robust", "mc_shorth", "series2_robust", "series3_robust", "forced_robust", "forced_shorth"})
+                        "a2sq_tangential", "a2sq_cross", "bias2", "mc_rms", "mc_mean_bias", "mc_robust", "mc_shorth",
+                        "series2_robust", "series3_robust", "forced_robust", "forced_shorth"})
     for (const char* c : {"cx", "cy", "r"}) s += fmt::format(",{}_{}", f, c);
   s += "\n";
   for (const auto& r : rows) {
@@ -405,8 +408,8 @@ std::string second_order_csv(const std::vector<SecondOrderRow>& rows) {
       for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", r.mse_terms[k][t]);
     for (int t = 0; t < 3; ++t)
       for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", r.a2_split[k][t]);
-    for (const auto* v : {r.bias2, r.mc_rms, r.mc_mean_bias, r.mc_robust, r.mc_shorth, r.series2_robust, r.series3_robust,
-                          r.forced_robust, r.forced_shorth})
+    for (const auto* v : {r.bias2, r.mc_rms, r.mc_mean_bias, r.mc_robust, r.mc_shorth, r.series2_robust,
+                          r.series3_robust, r.forced_robust, r.forced_shorth})
       for (int k = 0; k < 3; ++k) s += fmt::format(",{:.4f}", v[k]);
     s += "\n";
   }
@@ -437,77 +440,80 @@ std::vector<RobustnessRow> robustness_study(const RobustnessParams& p) {
                        {"msac_views_known_radius", true, true, false, 0, 0, true}};
   std::vector<RobustnessRow> rows;
   for (const int clutter : p.clutter_objects) {
-  for (const auto& m : methods) {
-    RobustnessRow row;
-    row.method = m.name;
-    row.clutter_objects = clutter;
-    std::vector<double> centre_err, outlier_frac;
-    common::SplitMixRandom rng(p.seed);
-    for (int t = 0; t < p.trials; ++t) {
-      PlanarWorld world;
-      const Circle truth{ring + Eigen::Vector2d(0.04 * (rng.uniform() - 0.5), 0.04 * (rng.uniform() - 0.5)), p.radius_m};
-      world.cylinders.push_back(truth);
-      // Clutter: smaller objects inside the ring, close to but clear of the target.
-      for (int c = 0; c < clutter; ++c) {
-        for (int tries = 0; tries < 50; ++tries) {
-          const double a = 2 * kPi * rng.uniform();
-          const double d = p.radius_m + 0.06 + 0.08 * rng.uniform();
-          const Circle o{truth.centre_m + d * Eigen::Vector2d(std::cos(a), std::sin(a)), 0.025 + 0.02 * rng.uniform()};
-          bool clear = (o.centre_m - truth.centre_m).norm() > truth.radius_m + o.radius_m + 0.03;
-          for (const auto& w : world.cylinders) clear = clear && (o.centre_m - w.centre_m).norm() > w.radius_m + o.radius_m;
-          if (clear) {
-            world.cylinders.push_back(o);
-            break;
+    for (const auto& m : methods) {
+      RobustnessRow row;
+      row.method = m.name;
+      row.clutter_objects = clutter;
+      std::vector<double> centre_err, outlier_frac;
+      common::SplitMixRandom rng(p.seed);
+      for (int t = 0; t < p.trials; ++t) {
+        PlanarWorld world;
+        const Circle truth{ring + Eigen::Vector2d(0.04 * (rng.uniform() - 0.5), 0.04 * (rng.uniform() - 0.5)),
+                           p.radius_m};
+        world.cylinders.push_back(truth);
+        // Clutter: smaller objects inside the ring, close to but clear of the target.
+        for (int c = 0; c < clutter; ++c) {
+          for (int tries = 0; tries < 50; ++tries) {
+            const double a = 2 * kPi * rng.uniform();
+            const double d = p.radius_m + 0.06 + 0.08 * rng.uniform();
+            const Circle o{truth.centre_m + d * Eigen::Vector2d(std::cos(a), std::sin(a)),
+                           0.025 + 0.02 * rng.uniform()};
+            bool clear = (o.centre_m - truth.centre_m).norm() > truth.radius_m + o.radius_m + 0.03;
+            for (const auto& w : world.cylinders)
+              clear = clear && (o.centre_m - w.centre_m).norm() > w.radius_m + o.radius_m;
+            if (clear) {
+              world.cylinders.push_back(o);
+              break;
+            }
           }
         }
+        world.robot_links_visible = true;
+        const auto scans = scan_all(model, joints, world, {}, rng);
+        // Outlier share of what the fit is offered (self points included when
+        // the self-filter is off).
+        JointStateBuffer jb(model.joint_names());
+        (void)jb.add(0, model.joint_names(), joints);
+        CircleEstimatorParams ep;
+        ep.fusion.self_filter = m.self_filter;
+        ep.use_viewpoints = m.views;
+        ep.robust.max_radius_m = 0.5;
+        if (m.max_r > 0) {
+          ep.robust.min_radius_m = m.min_r * p.radius_m;
+          ep.robust.max_radius_m = m.max_r * p.radius_m;
+        }
+        if (m.known) ep.robust.known_radius_m = p.radius_m;
+        ep.robust.seed = static_cast<std::uint64_t>(t + 1);
+        CircleEstimator est(model, ep);
+        std::vector<ScanView> views;
+        for (const auto& s : scans) views.push_back({s.sensor, 0, s.angle_rad, s.range_m});
+        CircleEstimate e = est.estimate(views, jb);
+        const FusedCloud& cloud = est.cloud();
+        int out = 0;
+        for (int i = 0; i < cloud.size(); ++i) {
+          const double d = std::abs((cloud.points_m().col(i) - truth.centre_m).norm() - truth.radius_m);
+          out += d > 0.03;
+        }
+        outlier_frac.push_back(cloud.size() ? static_cast<double>(out) / cloud.size() : 0.0);
+        if (!m.robust) {
+          const std::span<const double> sig(cloud.sigma_m);
+          e.fit = fit_circle(cloud.points_m(), {}, sig);
+        }
+        ++row.trials;
+        const bool hard = outlier_frac.back() >= 0.4;
+        row.trials_over_40 += hard;
+        if (!e.fit.ok()) continue;
+        ++row.ok;
+        const double ce = (e.fit.circle.centre_m - truth.centre_m).norm();
+        centre_err.push_back(ce);
+        if (ce < 0.01 && std::abs(e.fit.circle.radius_m - truth.radius_m) < 0.01) {
+          ++row.correct;
+          row.correct_over_40 += hard;
+        }
       }
-      world.robot_links_visible = true;
-      const auto scans = scan_all(model, joints, world, {}, rng);
-      // Outlier share of what the fit is offered (self points included when
-      // the self-filter is off).
-      JointStateBuffer jb(model.joint_names());
-      (void)jb.add(0, model.joint_names(), joints);
-      CircleEstimatorParams ep;
-      ep.fusion.self_filter = m.self_filter;
-      ep.use_viewpoints = m.views;
-      ep.robust.max_radius_m = 0.5;
-      if (m.max_r > 0) {
-        ep.robust.min_radius_m = m.min_r * p.radius_m;
-        ep.robust.max_radius_m = m.max_r * p.radius_m;
-      }
-      if (m.known) ep.robust.known_radius_m = p.radius_m;
-      ep.robust.seed = static_cast<std::uint64_t>(t + 1);
-      CircleEstimator est(model, ep);
-      std::vector<ScanView> views;
-      for (const auto& s : scans) views.push_back({s.sensor, 0, s.angle_rad, s.range_m});
-      CircleEstimate e = est.estimate(views, jb);
-      const FusedCloud& cloud = est.cloud();
-      int out = 0;
-      for (int i = 0; i < cloud.size(); ++i) {
-        const double d = std::abs((cloud.points_m().col(i) - truth.centre_m).norm() - truth.radius_m);
-        out += d > 0.03;
-      }
-      outlier_frac.push_back(cloud.size() ? static_cast<double>(out) / cloud.size() : 0.0);
-      if (!m.robust) {
-        const std::span<const double> sig(cloud.sigma_m);
-        e.fit = fit_circle(cloud.points_m(), {}, sig);
-      }
-      ++row.trials;
-      const bool hard = outlier_frac.back() >= 0.4;
-      row.trials_over_40 += hard;
-      if (!e.fit.ok()) continue;
-      ++row.ok;
-      const double ce = (e.fit.circle.centre_m - truth.centre_m).norm();
-      centre_err.push_back(ce);
-      if (ce < 0.01 && std::abs(e.fit.circle.radius_m - truth.radius_m) < 0.01) {
-        ++row.correct;
-        row.correct_over_40 += hard;
-      }
+      row.median_centre_error_m = median(centre_err);
+      row.median_outlier_fraction = median(outlier_frac);
+      rows.push_back(row);
     }
-    row.median_centre_error_m = median(centre_err);
-    row.median_outlier_fraction = median(outlier_frac);
-    rows.push_back(row);
-  }
   }
   return rows;
 }
@@ -517,8 +523,8 @@ std::string robustness_csv(const std::vector<RobustnessRow>& rows) {
       "clutter_objects,method,trials,ok,correct,trials_over_40,correct_over_40,median_centre_error_m,"
       "median_outlier_fraction\n";
   for (const auto& r : rows)
-    s += fmt::format("{},{},{},{},{},{},{},{:.6g},{:.4f}\n", r.clutter_objects, r.method, r.trials, r.ok, r.correct, r.trials_over_40,
-                     r.correct_over_40, r.median_centre_error_m, r.median_outlier_fraction);
+    s += fmt::format("{},{},{},{},{},{},{},{:.6g},{:.4f}\n", r.clutter_objects, r.method, r.trials, r.ok, r.correct,
+                     r.trials_over_40, r.correct_over_40, r.median_centre_error_m, r.median_outlier_fraction);
   return s;
 }
 

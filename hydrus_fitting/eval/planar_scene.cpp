@@ -19,7 +19,8 @@ double ray_circle(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eige
   return kInf;  // origin inside or behind: no front face
 }
 
-double ray_segment(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& p, const Eigen::Vector2d& q) {
+double ray_segment(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& p,
+                   const Eigen::Vector2d& q) {
   const Eigen::Vector2d e = q - p;
   const double den = d.x() * e.y() - d.y() * e.x();
   if (std::abs(den) < 1e-15) return kInf;

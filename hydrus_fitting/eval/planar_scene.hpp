@@ -23,9 +23,9 @@ struct PlanarWorld {
 };
 
 struct SyntheticScanParams {
-  int pixels = 256;                 ///< effective pixels across the lens's field of view
-  RangeNoiseModel noise;            ///< SD along the ray vs range
-  double noise_scale = 1.0;         ///< multiplies the SD (0: exact ranges)
+  int pixels = 256;          ///< effective pixels across the lens's field of view
+  RangeNoiseModel noise;     ///< SD along the ray vs range
+  double noise_scale = 1.0;  ///< multiplies the SD (0: exact ranges)
 };
 
 enum HitKind : int { kHitNone = -1, kHitCylinder = 0, kHitObstacle = 1, kHitRobot = 2 };

@@ -42,8 +42,10 @@ std::int64_t to_ns(double s) { return static_cast<std::int64_t>(std::llround(s *
 
 SimStudyResult sim_study(const SimStudyParams& p) {
   if (p.schedule != "all_on" && p.schedule != "time_slicing" && p.schedule != "colouring")
-    throw std::invalid_argument("sim_study: schedule must be all_on, time_slicing or colouring, got '" + p.schedule + "'");
-  if (const common::Validation why = p.approach.validate(); !why.valid) throw std::invalid_argument("sim_study: " + why.reason);
+    throw std::invalid_argument("sim_study: schedule must be all_on, time_slicing or colouring, got '" + p.schedule +
+                                "'");
+  if (const common::Validation why = p.approach.validate(); !why.valid)
+    throw std::invalid_argument("sim_study: " + why.reason);
 
   const RobotModel model = RobotModel::load(p.robot_description);
   sim::SimulatedSystem sys(sim::load_scene(p.scene_path));

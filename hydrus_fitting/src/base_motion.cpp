@@ -11,13 +11,14 @@ namespace tinyline::hydrus_fitting {
 
 common::Validation validate(const BasePoseBufferParams& params) {
   if (!(params.tolerance_s >= 0.0) || !(params.history_s > 0.0))
-    return common::Validation::invalid(fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}",
-                                                   params.tolerance_s, params.history_s));
+    return common::Validation::invalid(
+        fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}", params.tolerance_s, params.history_s));
   return common::Validation::ok();
 }
 
 BasePoseBuffer::BasePoseBuffer(BasePoseBufferParams params) : params_(params) {
-  if (const common::Validation v = validate(params_); !v.valid) throw std::invalid_argument("BasePoseBuffer: " + v.reason);
+  if (const common::Validation v = validate(params_); !v.valid)
+    throw std::invalid_argument("BasePoseBuffer: " + v.reason);
 }
 
 bool BasePoseBuffer::add(std::int64_t stamp_ns, const Eigen::Vector2d& xy_m, double yaw_rad) {
@@ -51,9 +52,9 @@ BasePoseLookup BasePoseBuffer::at(std::int64_t stamp_ns) const {
     const Pose& end = after ? poses_.back() : poses_.front();
     const double gap = 1e-9 * static_cast<double>(after ? stamp_ns - end.t_ns : end.t_ns - stamp_ns);
     if (gap > params_.tolerance_s) {
-      out.reason = fmt::format("the {} base pose is {:.3f} s {} the scan (tolerance {:.3f} s)",
-                               after ? "newest" : "oldest kept", gap, after ? "older than" : "newer than",
-                               params_.tolerance_s);
+      out.reason =
+          fmt::format("the {} base pose is {:.3f} s {} the scan (tolerance {:.3f} s)", after ? "newest" : "oldest kept",
+                      gap, after ? "older than" : "newer than", params_.tolerance_s);
       return out;
     }
     return make(end.x, end.y, end.yaw);

@@ -129,8 +129,8 @@ std::optional<Circle> circle_from_algebraic(const Eigen::Vector4d& A, const Norm
 }
 
 /// The same as a fit result, with the RMS distance of `points`.
-CircleFit from_algebraic(const Eigen::Vector4d& A, const Normalised& n, const Eigen::Ref<const Eigen::Matrix2Xd>& points,
-                         const char* method) {
+CircleFit from_algebraic(const Eigen::Vector4d& A, const Normalised& n,
+                         const Eigen::Ref<const Eigen::Matrix2Xd>& points, const char* method) {
   const auto circle = circle_from_algebraic(A, n);
   if (!circle) {
     return failed(FitStatus::kCollinear,
@@ -177,25 +177,31 @@ common::Validation validate_second_order(const SecondOrderCorrection& so) {
   if (bad(so.end_weight) || so.end_weight < 0.0)
     return common::Validation::invalid(fmt::format("second_order.end_weight must be >= 0, got {}", so.end_weight));
   if (bad(so.max_end_weight) || so.max_end_weight < 0.0 || so.max_end_weight > 1.0)
-    return common::Validation::invalid(fmt::format("second_order.max_end_weight must be in [0, 1], got {}", so.max_end_weight));
+    return common::Validation::invalid(
+        fmt::format("second_order.max_end_weight must be in [0, 1], got {}", so.max_end_weight));
   if (bad(so.reference_sigma_over_r) || !(so.reference_sigma_over_r > 0.0))
-    return common::Validation::invalid(fmt::format("second_order.reference_sigma_over_r must be > 0, got {}", so.reference_sigma_over_r));
+    return common::Validation::invalid(
+        fmt::format("second_order.reference_sigma_over_r must be > 0, got {}", so.reference_sigma_over_r));
   if (bad(so.full_weighting_arc_deg) || bad(so.no_weighting_arc_deg) || so.full_weighting_arc_deg < 0.0 ||
       so.no_weighting_arc_deg < so.full_weighting_arc_deg)
-    return common::Validation::invalid(fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
-                       so.full_weighting_arc_deg, so.no_weighting_arc_deg));
+    return common::Validation::invalid(
+        fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
+                    so.full_weighting_arc_deg, so.no_weighting_arc_deg));
   if (bad(so.full_weighting_rel_sd_r) || bad(so.no_weighting_rel_sd_r) || so.full_weighting_rel_sd_r < 0.0 ||
       so.no_weighting_rel_sd_r < so.full_weighting_rel_sd_r)
-    return common::Validation::invalid(fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
-                       so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r));
+    return common::Validation::invalid(
+        fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
+                    so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r));
   if (std::isnan(so.max_sigma_over_r) || !(so.max_sigma_over_r > 0.0))
-    return common::Validation::invalid(fmt::format("second_order.max_sigma_over_r must be > 0, got {}", so.max_sigma_over_r));
+    return common::Validation::invalid(
+        fmt::format("second_order.max_sigma_over_r must be > 0, got {}", so.max_sigma_over_r));
   if (so.max_points < 3)
     return common::Validation::invalid(fmt::format("second_order.max_points must be >= 3, got {}", so.max_points));
   if (bad(so.mode_shift) || so.mode_shift < 0.0)
     return common::Validation::invalid(fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift));
   if (bad(so.max_shift_sds) || so.max_shift_sds < 0.0)
-    return common::Validation::invalid(fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds));
+    return common::Validation::invalid(
+        fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds));
   return common::Validation::ok();
 }
 
@@ -348,7 +354,8 @@ CircleFit fit_circle_taubin(const Eigen::Ref<const Eigen::Matrix2Xd>& points) {
 
 common::Validation validate(const RefineParams& params) {
   if (params.known_radius_m && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
-    return common::Validation::invalid(fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
+    return common::Validation::invalid(
+        fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
   if (params.max_iterations < 1)
     return common::Validation::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
   if (params.correction == ArcCorrection::kSecondOrder) return validate_second_order(params.second_order);
@@ -358,18 +365,21 @@ common::Validation validate(const RefineParams& params) {
 common::Validation validate(const RobustCircleParams& params) {
   const bool known = params.known_radius_m.has_value();
   if (!(params.inlier_threshold_m > 0.0) || !std::isfinite(params.inlier_threshold_m))
-    return common::Validation::invalid(fmt::format("inlier_threshold_m must be > 0, got {}", params.inlier_threshold_m));
+    return common::Validation::invalid(
+        fmt::format("inlier_threshold_m must be > 0, got {}", params.inlier_threshold_m));
   if (!(params.min_radius_m >= 0.0) || !(params.max_radius_m > params.min_radius_m))
-    return common::Validation::invalid(fmt::format("need 0 <= min_radius_m < max_radius_m, got [{}, {}]",
-                                                   params.min_radius_m, params.max_radius_m));
+    return common::Validation::invalid(
+        fmt::format("need 0 <= min_radius_m < max_radius_m, got [{}, {}]", params.min_radius_m, params.max_radius_m));
   if (known && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
-    return common::Validation::invalid(fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
+    return common::Validation::invalid(
+        fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
   if (params.max_iterations < 1)
     return common::Validation::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
   if (!(params.confidence > 0.0 && params.confidence < 1.0))
     return common::Validation::invalid(fmt::format("confidence must be in (0, 1), got {}", params.confidence));
   if (params.min_inliers < (known ? 2 : 3))
-    return common::Validation::invalid(fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
+    return common::Validation::invalid(
+        fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
   if (!(params.inlier_threshold_sigmas >= 0.0))
     return common::Validation::invalid(
         fmt::format("inlier_threshold_sigmas must be >= 0, got {}", params.inlier_threshold_sigmas));
@@ -409,7 +419,9 @@ struct GeometricCircleProblem {
     return pending.cost;
   }
   void accept() { at = pending; }
-  bool converged(double old_cost, double new_cost, const Vector&) const { return old_cost - new_cost <= 1e-15 * old_cost; }
+  bool converged(double old_cost, double new_cost, const Vector&) const {
+    return old_cost - new_cost <= 1e-15 * old_cost;
+  }
 };
 
 template <int D, class Evaluate, class Pass>
@@ -503,8 +515,8 @@ struct EvaluatePass {
     const double* px = pts.px;
     const double* py = pts.py;
     const double* pw = pts.pw;
-    A2 cost = A2::Zero(), rss = A2::Zero(), hxx = A2::Zero(), hxy = A2::Zero(), hyy = A2::Zero(),
-       hxr = A2::Zero(), hyr = A2::Zero(), hrr = A2::Zero(), gx = A2::Zero(), gy = A2::Zero(), gr = A2::Zero();
+    A2 cost = A2::Zero(), rss = A2::Zero(), hxx = A2::Zero(), hxy = A2::Zero(), hyy = A2::Zero(), hxr = A2::Zero(),
+       hyr = A2::Zero(), hrr = A2::Zero(), gx = A2::Zero(), gy = A2::Zero(), gr = A2::Zero();
     const auto point = [&](const auto& dx, const auto& dy, const auto& w, const auto& rho) {
       const auto d = (rho - r).eval();
       const auto inv = rho.max(std::numeric_limits<double>::min()).inverse().eval();
@@ -644,15 +656,15 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   const bool known = params.known_radius_m.has_value();
   if (const common::Validation v = validate(params); !v.valid) return failed(FitStatus::kInvalidParams, v.reason);
   if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols())) {
-    return failed(FitStatus::kInvalidParams, fmt::format("sigma_m has {} entries for {} points", sigma_m.size(),
-                                                         points.cols()));
+    return failed(FitStatus::kInvalidParams,
+                  fmt::format("sigma_m has {} entries for {} points", sigma_m.size(), points.cols()));
   }
   const int p = known ? 2 : 3;
   UsedPoints pts = used_points(points, sigma_m);
   const int n = pts.n;
   if (n < p) {
-    return failed(FitStatus::kTooFewPoints,
-                  fmt::format("geometric fit needs at least {} finite points, got {}", p, n), pts.non_finite);
+    return failed(FitStatus::kTooFewPoints, fmt::format("geometric fit needs at least {} finite points, got {}", p, n),
+                  pts.non_finite);
   }
   if (!finite(initial.centre_m) || !std::isfinite(initial.radius_m)) {
     return failed(FitStatus::kInvalidParams, "initial circle is not finite", pts.non_finite);
@@ -668,7 +680,8 @@ CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const 
   CircleFit f = first_order_fit(run, theta, pts, params, !sigma_m.empty());
   const double dof = static_cast<double>(n - p);
   const double q = dof > 0 ? std::sqrt(run.at.rss / dof) / f.circle.radius_m : 0.0;  // noise over radius, as seen
-  if (params.correction == ArcCorrection::kSecondOrder && !known && n > p && second_order_applies(params.second_order, n, q)) {
+  if (params.correction == ArcCorrection::kSecondOrder && !known && n > p &&
+      second_order_applies(params.second_order, n, q)) {
     f.second_order_applied = true;
     weight_the_ends(f, run, pts, theta, q, params.second_order);
     shift_to_the_mode(f, params.second_order);
@@ -776,8 +789,8 @@ std::optional<CircleFit> check_robust_input(const Eigen::Ref<const Eigen::Matrix
                                viewpoints.sensor_of_point.size(), points.cols()));
   for (const int s : viewpoints.sensor_of_point)
     if (s < 0 || static_cast<std::size_t>(s) >= viewpoints.origins_m.size())
-      return invalid(fmt::format("viewpoints.sensor_of_point holds {} but there are {} origins", s,
-                                 viewpoints.origins_m.size()));
+      return invalid(
+          fmt::format("viewpoints.sensor_of_point holds {} but there are {} origins", s, viewpoints.origins_m.size()));
   return std::nullopt;
 }
 
@@ -788,8 +801,12 @@ class RobustCircleFitter {
  public:
   RobustCircleFitter(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RobustCircleParams& params,
                      std::span<const double> sigma_m, const Viewpoints& viewpoints)
-      : points_(points), params_(params), sigma_m_(sigma_m), viewpoints_(viewpoints),
-        known_(params.known_radius_m.has_value()), s_(known_ ? 2 : 3) {}
+      : points_(points),
+        params_(params),
+        sigma_m_(sigma_m),
+        viewpoints_(viewpoints),
+        known_(params.known_radius_m.has_value()),
+        s_(known_ ? 2 : 3) {}
 
   CircleFit run() {
     if (auto f = lay_out()) return *f;
@@ -804,7 +821,7 @@ class RobustCircleFitter {
   std::span<const double> sigma_m_;
   const Viewpoints& viewpoints_;
   const bool known_;
-  const int s_;  ///< minimal sample
+  const int s_;           ///< minimal sample
   std::vector<int> idx_;  ///< finite points
   int n_ = 0, non_finite_ = 0;
   double T2_ = 0.0, trunc_ = 0.0;
@@ -934,11 +951,11 @@ std::optional<CircleFit> RobustCircleFitter::lay_out() {
   }
   n_ = static_cast<int>(idx_.size());
   if (n_ < std::max(s_, params_.min_inliers)) {
-    return failed(FitStatus::kTooFewPoints,
-                  fmt::format("robust circle fit needs at least {} finite points, got {}{}",
-                              std::max(s_, params_.min_inliers), n_,
-                              non_finite_ ? fmt::format(" ({} non-finite skipped)", non_finite_) : ""),
-                  non_finite_);
+    return failed(
+        FitStatus::kTooFewPoints,
+        fmt::format("robust circle fit needs at least {} finite points, got {}{}", std::max(s_, params_.min_inliers),
+                    n_, non_finite_ ? fmt::format(" ({} non-finite skipped)", non_finite_) : ""),
+        non_finite_);
   }
   const double T = params_.inlier_threshold_m;
   T2_ = T * T;
@@ -997,8 +1014,9 @@ void RobustCircleFitter::consider(const Circle& c) {
     if (pin >= 1.0) {
       needed_ = 0;
     } else if (pin > 0.0) {
-      needed_ = std::min<long long>(params_.max_iterations,
-                                    static_cast<long long>(std::ceil(std::log(1.0 - params_.confidence) / std::log1p(-pin))));
+      needed_ =
+          std::min<long long>(params_.max_iterations,
+                              static_cast<long long>(std::ceil(std::log(1.0 - params_.confidence) / std::log1p(-pin))));
     }
   }
 }
@@ -1040,7 +1058,8 @@ std::optional<CircleFit> RobustCircleFitter::sample() {
                   non_finite_);
   }
   return failed(FitStatus::kNoConsensus,
-                fmt::format("no circle hypothesis from {} samples of {} points was supported", drawn_, n_), non_finite_);
+                fmt::format("no circle hypothesis from {} samples of {} points was supported", drawn_, n_),
+                non_finite_);
 }
 
 // Fit the consensus set, re-select, repeat. The first selection uses

@@ -30,8 +30,8 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
       const BasePoseLookup m = base_poses->motion(scans[i].stamp_ns, newest);
       if (!m.ok) {
         e.base_motion_compensated = false;
-        e.base_motion_reason = fmt::format("scan of '{}': {}; no scan moved by the base's motion", scans[i].sensor,
-                                           m.reason);
+        e.base_motion_reason =
+            fmt::format("scan of '{}': {}; no scan moved by the base's motion", scans[i].sensor, m.reason);
         motion_.assign(scans.size(), Eigen::Isometry2d::Identity());
       } else {
         motion_[i] = m.T_fixed_base;
@@ -55,8 +55,8 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
   const FusedCloud& c = fuser_.cloud();
   e.points = c.size();
   e.self_filtered = c.self_filtered;
-  const std::span<const double> sigma = params_.weight_by_range ? std::span<const double>(c.sigma_m)
-                                                                : std::span<const double>();
+  const std::span<const double> sigma =
+      params_.weight_by_range ? std::span<const double>(c.sigma_m) : std::span<const double>();
   Viewpoints views;
   if (params_.use_viewpoints) views = {c.views, c.view_of_point};
   e.fit = fit_circle_robust(c.points_m(), params_.robust, sigma, views);

@@ -77,7 +77,8 @@ bool on_robot(const RobotModel& model, const Kinematics& k, const Eigen::Vector2
 
 common::Validation validate(const FusionParams& params) {
   if (!(params.self_filter_margin_m >= 0.0))
-    return common::Validation::invalid(fmt::format("self_filter_margin_m must be >= 0, got {}", params.self_filter_margin_m));
+    return common::Validation::invalid(
+        fmt::format("self_filter_margin_m must be >= 0, got {}", params.self_filter_margin_m));
   return common::Validation::ok();
 }
 

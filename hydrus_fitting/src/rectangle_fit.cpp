@@ -64,7 +64,7 @@ struct RectangleFitter {
   bool two = false;    ///< a second side was found
   bool have2 = false;  ///< ... and kept its support through the refinement
   std::vector<Eigen::Vector2d> s1, s2;
-  std::vector<int> rest;  ///< finite points off side 1 after its refit
+  std::vector<int> rest;        ///< finite points off side 1 after its refit
   double lo1 = 0.0, hi1 = 0.0;  ///< side 1's extent along u1
 
   RectangleFit fail(FitStatus s, std::string r) {
@@ -122,8 +122,9 @@ struct RectangleFitter {
         if (pin >= 1.0) {
           needed = 0;
         } else if (pin > 0.0) {
-          needed = std::min<long long>(params.max_iterations,
-                                       static_cast<long long>(std::ceil(std::log(1.0 - params.confidence) / std::log1p(-pin))));
+          needed = std::min<long long>(
+              params.max_iterations,
+              static_cast<long long>(std::ceil(std::log(1.0 - params.confidence) / std::log1p(-pin))));
         }
       }
     }
@@ -324,7 +325,8 @@ struct RectangleFitter {
       double toward = 0.0;
       for (const int i : idx) {
         if (out.side_of_point[static_cast<std::size_t>(i)] != 1) continue;
-        const auto& o = viewpoints.origins_m[static_cast<std::size_t>(viewpoints.sensor_of_point[static_cast<std::size_t>(i)])];
+        const auto& o =
+            viewpoints.origins_m[static_cast<std::size_t>(viewpoints.sensor_of_point[static_cast<std::size_t>(i)])];
         toward += n1.dot(o - points.col(i));
       }
       const double away = toward > 0.0 ? -1.0 : 1.0;

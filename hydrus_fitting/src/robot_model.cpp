@@ -171,8 +171,9 @@ void parse_sensor_optics(const Reader& r, const YAML::Node& n, const std::string
 SensorSpec parse_sensor(const Reader& r, const YAML::Node& n, std::size_t i, std::set<std::string>& names,
                         const std::vector<LinkSpec>& links, const SensorSpec* first) {
   const std::string where = fmt::format("sensors[{}]", i);
-  r.check_keys(n, where, {"name", "link", "position_m", "yaw_deg", "height_m", "focal_mm", "sensor_length_mm",
-                          "fan_half_angle_deg", "line_axis", "range_m"});
+  r.check_keys(n, where,
+               {"name", "link", "position_m", "yaw_deg", "height_m", "focal_mm", "sensor_length_mm",
+                "fan_half_angle_deg", "line_axis", "range_m"});
   SensorSpec s;
   if (!n["name"]) r.fail(n, where + ".name", "missing");
   s.name = r.text(n["name"], where + ".name");
@@ -214,13 +215,15 @@ RobotModel RobotModel::parse(const std::string& yaml_text, const std::string& so
   m.name_ = root["name"] ? r.text(root["name"], "name") : "robot";
   std::set<std::string> names;  // links, joints and sensors share one namespace
   const YAML::Node links = root["links"];
-  if (!links || !links.IsSequence() || links.size() == 0) r.fail(links ? links : root, "links", "expected a non-empty list");
+  if (!links || !links.IsSequence() || links.size() == 0)
+    r.fail(links ? links : root, "links", "expected a non-empty list");
   for (std::size_t i = 0; i < links.size(); ++i) m.links_.push_back(parse_link(r, links[i], i, names));
   const YAML::Node sensors = root["sensors"];
   if (!sensors || !sensors.IsSequence() || sensors.size() == 0)
     r.fail(sensors ? sensors : root, "sensors", "expected a non-empty list");
   for (std::size_t i = 0; i < sensors.size(); ++i)
-    m.sensors_.push_back(parse_sensor(r, sensors[i], i, names, m.links_, m.sensors_.empty() ? nullptr : &m.sensors_.front()));
+    m.sensors_.push_back(
+        parse_sensor(r, sensors[i], i, names, m.links_, m.sensors_.empty() ? nullptr : &m.sensors_.front()));
   for (std::size_t i = 1; i < m.links_.size(); ++i) m.joints_.push_back(m.links_[i].joint);
   return m;
 }
@@ -269,8 +272,8 @@ std::optional<int> RobotModel::joint_index(std::string_view name) const {
 
 Kinematics RobotModel::forward(std::span<const double> q) const {
   if (q.size() != joints_.size())
-    throw std::invalid_argument(fmt::format("forward kinematics of '{}': {} joint angles for {} joints", name_, q.size(),
-                                            joints_.size()));
+    throw std::invalid_argument(
+        fmt::format("forward kinematics of '{}': {} joint angles for {} joints", name_, q.size(), joints_.size()));
   Kinematics k;
   k.T_base_link.reserve(links_.size());
   Eigen::Isometry2d T = Eigen::Isometry2d::Identity();
@@ -283,7 +286,8 @@ Kinematics RobotModel::forward(std::span<const double> q) const {
     k.T_base_link.push_back(T);
   }
   k.T_base_sensor.reserve(sensors_.size());
-  for (const auto& s : sensors_) k.T_base_sensor.push_back(k.T_base_link[static_cast<std::size_t>(s.link)] * s.T_link_sensor());
+  for (const auto& s : sensors_)
+    k.T_base_sensor.push_back(k.T_base_link[static_cast<std::size_t>(s.link)] * s.T_link_sensor());
   return k;
 }
 
@@ -301,14 +305,15 @@ const char* to_string(JointLookupStatus s) {
 
 common::Validation validate(const JointBufferParams& params) {
   if (!(params.tolerance_s >= 0.0) || !(params.history_s > 0.0))
-    return common::Validation::invalid(fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}",
-                                                   params.tolerance_s, params.history_s));
+    return common::Validation::invalid(
+        fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}", params.tolerance_s, params.history_s));
   return common::Validation::ok();
 }
 
 JointStateBuffer::JointStateBuffer(std::vector<std::string> joint_names, JointBufferParams params)
     : names_(std::move(joint_names)), params_(params), series_(names_.size()) {
-  if (const common::Validation v = validate(params_); !v.valid) throw std::invalid_argument("joint buffer: " + v.reason);
+  if (const common::Validation v = validate(params_); !v.valid)
+    throw std::invalid_argument("joint buffer: " + v.reason);
 }
 
 void JointStateBuffer::clear() {
@@ -335,7 +340,8 @@ JointAddResult JointStateBuffer::add(std::int64_t stamp_ns, std::span<const std:
     }
     auto& s = series_[static_cast<std::size_t>(it - names_.begin())];
     // Keep the series sorted; messages normally arrive in order (append).
-    auto pos = std::upper_bound(s.begin(), s.end(), stamp_ns, [](std::int64_t t, const Sample& x) { return t < x.t_ns; });
+    auto pos =
+        std::upper_bound(s.begin(), s.end(), stamp_ns, [](std::int64_t t, const Sample& x) { return t < x.t_ns; });
     if (pos != s.begin() && std::prev(pos)->t_ns == stamp_ns) {
       std::prev(pos)->q = positions[k];
     } else {
@@ -376,15 +382,16 @@ JointLookup JointStateBuffer::at(std::int64_t stamp_ns) const {
       const double gap = 1e-9 * static_cast<double>(s.front().t_ns - stamp_ns);
       if (gap > tol) {
         out.status = JointLookupStatus::kBeforeHistory;
-        out.reason = fmt::format("joint '{}': the scan is {:.3f} s older than the oldest kept state (tolerance {:.3f} s)",
-                                 names_[j], gap, tol);
+        out.reason =
+            fmt::format("joint '{}': the scan is {:.3f} s older than the oldest kept state (tolerance {:.3f} s)",
+                        names_[j], gap, tol);
         return out;
       }
       out.positions[j] = s.front().q;
       out.max_gap_s = std::max(out.max_gap_s, gap);
     } else {
-      const auto hi = std::upper_bound(s.begin(), s.end(), stamp_ns,
-                                       [](std::int64_t t, const Sample& x) { return t < x.t_ns; });
+      const auto hi =
+          std::upper_bound(s.begin(), s.end(), stamp_ns, [](std::int64_t t, const Sample& x) { return t < x.t_ns; });
       const auto lo = std::prev(hi);
       const double span = static_cast<double>(hi->t_ns - lo->t_ns);
       const double w = static_cast<double>(stamp_ns - lo->t_ns) / span;

@@ -30,7 +30,8 @@ double ray_circle(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eige
 }
 
 /// Smallest t > eps where the ray crosses segment p-q, or inf.
-double ray_segment(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& p, const Eigen::Vector2d& q) {
+double ray_segment(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& p,
+                   const Eigen::Vector2d& q) {
   const Eigen::Vector2d e = q - p;
   const double den = d.x() * e.y() - d.y() * e.x();
   if (std::abs(den) < 1e-15) return kInf;
@@ -98,8 +99,8 @@ bool in_view(const SensorView2D& s, const Eigen::Vector2d& q, double margin) {
 }
 
 /// A point lit by emitter j that receiver i sees, if any.
-std::optional<Eigen::Vector2d> conflict_witness(const SensorView2D& i_rx, const SensorView2D& j_tx, const Scene2D& scene,
-                                                const InterferenceParams& p) {
+std::optional<Eigen::Vector2d> conflict_witness(const SensorView2D& i_rx, const SensorView2D& j_tx,
+                                                const Scene2D& scene, const InterferenceParams& p) {
   const double margin = p.angle_margin_rad;
   // Direct: j's emitter in i's view and i inside j's fan, line of sight free.
   {
@@ -185,8 +186,8 @@ InterferenceGraph interference_graph(std::span<const SensorView2D> sensors, cons
   for (int i = 0; i < g.n; ++i) {
     for (int j = 0; j < g.n; ++j) {
       if (i == j) continue;
-      const auto w = conflict_witness(sensors[static_cast<std::size_t>(i)], sensors[static_cast<std::size_t>(j)], scene,
-                                      params);
+      const auto w =
+          conflict_witness(sensors[static_cast<std::size_t>(i)], sensors[static_cast<std::size_t>(j)], scene, params);
       if (!w) continue;
       // Conflicts are symmetric for scheduling: neither may emit while the other integrates.
       g.adjacency[static_cast<std::size_t>(i * g.n + j)] = g.adjacency[static_cast<std::size_t>(j * g.n + i)] = 1;
@@ -201,7 +202,8 @@ InterferenceGraph graph_from_edges(int n, std::span<const std::pair<int, int>> e
   InterferenceGraph g;
   g.n = n;
   g.adjacency.assign(static_cast<std::size_t>(n * n), 0);
-  g.witness_m.assign(static_cast<std::size_t>(n * n), Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  g.witness_m.assign(static_cast<std::size_t>(n * n),
+                     Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN()));
   for (const auto& [a, b] : edges) {
     if (a < 0 || b < 0 || a >= n || b >= n || a == b)
       throw std::invalid_argument(fmt::format("graph_from_edges: bad edge ({}, {}) for {} vertices", a, b, n));
@@ -242,8 +244,7 @@ Colouring dsatur(const InterferenceGraph& g) {
     int col = 0;
     for (;; ++col) {
       bool used = false;
-      for (int u = 0; u < g.n && !used; ++u)
-        used = g.conflict(best, u) && c.colour[static_cast<std::size_t>(u)] == col;
+      for (int u = 0; u < g.n && !used; ++u) used = g.conflict(best, u) && c.colour[static_cast<std::size_t>(u)] == col;
       if (!used) break;
     }
     c.colour[static_cast<std::size_t>(best)] = col;
@@ -372,7 +373,8 @@ Schedule with_always_emitting(Schedule s, std::span<const int> always) {
   if (kept.empty()) kept.emplace_back();
   for (auto& slot : kept) {
     for (const int v : always) {
-      if (v >= 0 && v < n && !std::binary_search(slot.begin(), slot.end(), v)) slot.insert(std::upper_bound(slot.begin(), slot.end(), v), v);
+      if (v >= 0 && v < n && !std::binary_search(slot.begin(), slot.end(), v))
+        slot.insert(std::upper_bound(slot.begin(), slot.end(), v), v);
     }
   }
   s.slots = std::move(kept);

@@ -16,13 +16,17 @@ Eigen::Isometry2d RobotPose2D::T_world_base() const {
 
 common::Validation ApproachParams::validate() const {
   if (joints < 0) return common::Validation::invalid(fmt::format("joints must be >= 0, got {}", joints));
-  if (!grasp_base_xy_m.allFinite() || !std::isfinite(base_yaw_rad)) return common::Validation::invalid("grasp pose must be finite");
+  if (!grasp_base_xy_m.allFinite() || !std::isfinite(base_yaw_rad))
+    return common::Validation::invalid("grasp pose must be finite");
   if (!(approach_direction.norm() > 0.0) || !approach_direction.allFinite())
     return common::Validation::invalid("approach_direction must be a non-zero finite vector");
-  if (!(start_distance_m >= 0.0)) return common::Validation::invalid(fmt::format("start_distance_m must be >= 0, got {}", start_distance_m));
-  if (!std::isfinite(open_joint_rad) || !std::isfinite(closed_joint_rad)) return common::Validation::invalid("joint angles must be finite");
+  if (!(start_distance_m >= 0.0))
+    return common::Validation::invalid(fmt::format("start_distance_m must be >= 0, got {}", start_distance_m));
+  if (!std::isfinite(open_joint_rad) || !std::isfinite(closed_joint_rad))
+    return common::Validation::invalid("joint angles must be finite");
   if (!(approach_s >= 0.0) || !(close_s >= 0.0) || !(hold_s >= 0.0))
-    return common::Validation::invalid(fmt::format("phase durations must be >= 0 s, got approach {} close {} hold {}", approach_s, close_s, hold_s));
+    return common::Validation::invalid(
+        fmt::format("phase durations must be >= 0 s, got approach {} close {} hold {}", approach_s, close_s, hold_s));
   return common::Validation::ok();
 }
 
@@ -35,7 +39,8 @@ RobotPose2D approach_pose(const ApproachParams& p, double t_s) {
   const Eigen::Vector2d dir = p.approach_direction.normalized();
   pose.base_xy_m = p.grasp_base_xy_m - (1.0 - a) * p.start_distance_m * dir;
   // Phase 2: close the links; phase 3: hold.
-  const double c = p.close_s > 0.0 ? std::clamp((t - p.approach_s) / p.close_s, 0.0, 1.0) : (t >= p.approach_s ? 1.0 : 0.0);
+  const double c =
+      p.close_s > 0.0 ? std::clamp((t - p.approach_s) / p.close_s, 0.0, 1.0) : (t >= p.approach_s ? 1.0 : 0.0);
   pose.joints_rad.assign(static_cast<std::size_t>(std::max(0, p.joints)),
                          p.open_joint_rad + c * (p.closed_joint_rad - p.open_joint_rad));
   return pose;

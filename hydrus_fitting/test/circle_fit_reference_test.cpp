@@ -60,10 +60,12 @@ std::map<std::string, std::map<std::string, Eigen::Vector3d>> reference_fits(con
     std::ofstream f(dir / "points.csv");
     f << "case,x,y\n";
     for (const auto& c : cases)
-      for (Eigen::Index i = 0; i < c.points.cols(); ++i) f << fmt::format("{},{:a},{:a}\n", c.name, c.points(0, i), c.points(1, i));
+      for (Eigen::Index i = 0; i < c.points.cols(); ++i)
+        f << fmt::format("{},{:a},{:a}\n", c.name, c.points(0, i), c.points(1, i));
   }
-  const std::string cmd = fmt::format("'{}' '{}/hydrus_fitting/test/circle_fit_reference.py' '{}' '{}'", TINYLINE_VENV_PYTHON,
-                                      TINYLINE_SOURCE_DIR, (dir / "points.csv").string(), (dir / "fits.csv").string());
+  const std::string cmd =
+      fmt::format("'{}' '{}/hydrus_fitting/test/circle_fit_reference.py' '{}' '{}'", TINYLINE_VENV_PYTHON,
+                  TINYLINE_SOURCE_DIR, (dir / "points.csv").string(), (dir / "fits.csv").string());
   EXPECT_EQ(std::system(cmd.c_str()), 0) << "failed: " << cmd;
   std::map<std::string, std::map<std::string, Eigen::Vector3d>> out;
   std::ifstream f(dir / "fits.csv");
@@ -82,7 +84,9 @@ std::map<std::string, std::map<std::string, Eigen::Vector3d>> reference_fits(con
   return out;
 }
 
-Eigen::Vector3d as_vector(const hf::CircleFit& f) { return {f.circle.centre_m.x(), f.circle.centre_m.y(), f.circle.radius_m}; }
+Eigen::Vector3d as_vector(const hf::CircleFit& f) {
+  return {f.circle.centre_m.x(), f.circle.centre_m.y(), f.circle.radius_m};
+}
 
 }  // namespace
 
@@ -94,8 +98,8 @@ TEST(CircleFitReference, TheStandardFitsAgreeWithPublishedImplementations) {
     for (const int n : {12, 100, 400})
       for (const double rel_sigma : {0.01, 0.1, 0.25}) {
         const hf::Circle truth{{2.0 * rng.uniform() - 1.0 + 3.0 * (k % 2), rng.uniform()}, 0.05 + 0.5 * rng.uniform()};
-        cases.push_back({fmt::format("c{}", k++), noisy_arc(truth, arc, n, rel_sigma * truth.radius_m, 360.0 * rng.uniform(), rng),
-                         truth});
+        cases.push_back({fmt::format("c{}", k++),
+                         noisy_arc(truth, arc, n, rel_sigma * truth.radius_m, 360.0 * rng.uniform(), rng), truth});
       }
   const auto ref = reference_fits(cases, "agree");
   ASSERT_EQ(ref.size(), cases.size());
@@ -107,11 +111,13 @@ TEST(CircleFitReference, TheStandardFitsAgreeWithPublishedImplementations) {
                         hyper = hf::fit_circle_hyper(c.points), geometric = hf::fit_circle(c.points);
     // The algebraic fits are closed forms: the same circle to rounding
     // (relative to its radius; an ill-posed short noisy arc loosens it).
-    for (const auto& [method, ours] : {std::pair{"kasa", &kasa}, std::pair{"taubin", &taubin}, std::pair{"hyper", &hyper}}) {
+    for (const auto& [method, ours] :
+         {std::pair{"kasa", &kasa}, std::pair{"taubin", &taubin}, std::pair{"hyper", &hyper}}) {
       ASSERT_TRUE(ours->ok()) << method << ": " << ours->reason;
       ASSERT_TRUE(r.count(method)) << method;
       const Eigen::Vector3d d = as_vector(*ours) - r.at(method);
-      EXPECT_LT(d.cwiseAbs().maxCoeff(), 1e-7 * std::max(1.0, ours->circle.radius_m)) << method << ": " << d.transpose();
+      EXPECT_LT(d.cwiseAbs().maxCoeff(), 1e-7 * std::max(1.0, ours->circle.radius_m))
+          << method << ": " << d.transpose();
     }
     // The geometric fit is a minimum of the same sum of squares: where both
     // found it (the library's LM stops at its own tolerance) the same circle,
@@ -121,7 +127,8 @@ TEST(CircleFitReference, TheStandardFitsAgreeWithPublishedImplementations) {
     const hf::Circle lib_circle{lib.head<2>(), lib(2)};
     auto rss = [&](const hf::Circle& cc) {
       double s = 0;
-      for (Eigen::Index i = 0; i < c.points.cols(); ++i) s += std::pow((c.points.col(i) - cc.centre_m).norm() - cc.radius_m, 2);
+      for (Eigen::Index i = 0; i < c.points.cols(); ++i)
+        s += std::pow((c.points.col(i) - cc.centre_m).norm() - cc.radius_m, 2);
       return s;
     };
     EXPECT_LE(rss(geometric.circle), rss(lib_circle) * (1 + 1e-9) + 1e-18);
@@ -140,7 +147,8 @@ TEST(CircleFitReference, TheCorrectedFitIsNearerTheTruthThanEveryLibraryFitAtSig
   tinyline::common::SplitMixRandom rng(seed);
   const hf::Circle truth{{0.0, 0.0}, 0.15};
   std::vector<Case> cases;
-  for (int t = 0; t < 600; ++t) cases.push_back({fmt::format("d{}", t), noisy_arc(truth, 120.0, 100, 0.019593, 30.0, rng), truth});
+  for (int t = 0; t < 600; ++t)
+    cases.push_back({fmt::format("d{}", t), noisy_arc(truth, 120.0, 100, 0.019593, 30.0, rng), truth});
   const auto ref = reference_fits(cases, "efficiency");
   ASSERT_EQ(ref.size(), cases.size());
   hf::RefineParams corrected;

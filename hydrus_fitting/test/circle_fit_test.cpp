@@ -63,9 +63,10 @@ const hf::Circle kTruth{{0.4, -0.2}, 0.3};
 TEST(CircleFit, ExactPointsRecoveredByEveryFit) {
   for (const double arc_deg : {20.0, 90.0, 360.0}) {
     const auto p = arc(kTruth, arc_deg, 50);
-    for (const auto& [name, f] : {std::pair{"kasa", hf::fit_circle_kasa(p)}, std::pair{"hyper", hf::fit_circle_hyper(p)},
-                                  std::pair{"taubin", hf::fit_circle_taubin(p)}, std::pair{"geometric", hf::fit_circle(p)},
-                                  std::pair{"robust", hf::fit_circle_robust(p)}}) {
+    for (const auto& [name, f] :
+         {std::pair{"kasa", hf::fit_circle_kasa(p)}, std::pair{"hyper", hf::fit_circle_hyper(p)},
+          std::pair{"taubin", hf::fit_circle_taubin(p)}, std::pair{"geometric", hf::fit_circle(p)},
+          std::pair{"robust", hf::fit_circle_robust(p)}}) {
       ASSERT_TRUE(f.ok()) << name << " " << arc_deg << ": " << f.reason;
       EXPECT_NEAR(f.circle.centre_m.x(), 0.4, 1e-8) << name << " " << arc_deg;
       EXPECT_NEAR(f.circle.centre_m.y(), -0.2, 1e-8) << name << " " << arc_deg;
@@ -143,7 +144,11 @@ TEST(CircleFit, InvalidParametersAreNamed) {
   };
   EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.inlier_threshold_m = -1; })).reason,
               HasSubstr("inlier_threshold_m"));
-  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.min_radius_m = 2; r.max_radius_m = 1; })).reason,
+  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) {
+                                      r.min_radius_m = 2;
+                                      r.max_radius_m = 1;
+                                    }))
+                  .reason,
               HasSubstr("min_radius_m"));
   EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.known_radius_m = -0.3; })).reason,
               HasSubstr("known_radius_m"));
@@ -346,9 +351,9 @@ TEST(CircleFit, ViewpointsRejectCirclesThroughPointsFacingAway) {
   const hf::Circle truth{{0.0, 0.0}, 0.2};
   const hf::Circle bogus{{0.0, 0.55}, 0.2};
   Eigen::Matrix2Xd p(2, 90);
-  p.leftCols(30) = arc(truth, 60, 30, -90);    // seen from (0, -1)
+  p.leftCols(30) = arc(truth, 60, 30, -90);      // seen from (0, -1)
   p.middleCols(30, 30) = arc(truth, 60, 30, 0);  // seen from (1, 0)
-  p.rightCols(30) = arc(bogus, 110, 30, 90);    // far side of bogus, seen from (0, -1)
+  p.rightCols(30) = arc(bogus, 110, 30, 90);     // far side of bogus, seen from (0, -1)
   std::vector<Eigen::Vector2d> origins{{0.0, -1.0}, {1.0, 0.0}};
   std::vector<int> sensor(90, 0);
   for (int i = 30; i < 60; ++i) sensor[static_cast<std::size_t>(i)] = 1;
@@ -439,7 +444,8 @@ TEST(CircleFitSecondOrder, LeavesThePlainFitAloneAtLowNoiseAndOnAClosedCircle) {
     double arc_deg, sigma_m, tolerance_sds;
   };
   // Tolerances in SDs of the KCR bound, per component and per draw.
-  for (const Case c : {Case{120, 0.001, 0.02}, Case{120, 0.003625, 0.1}, Case{90, 0.001, 0.03}, Case{360, 0.019593, 0.08}}) {
+  for (const Case c :
+       {Case{120, 0.001, 0.02}, Case{120, 0.003625, 0.1}, Case{90, 0.001, 0.03}, Case{360, 0.019593, 0.08}}) {
     double worst = 0.0;
     const Eigen::Matrix2Xd exact = arc(truth, c.arc_deg, 100);
     const std::vector<double> sig{c.sigma_m};

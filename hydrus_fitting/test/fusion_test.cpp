@@ -154,10 +154,10 @@ TEST(Fusion, SelfFilterRemovesPointsOnTheRobotsOwnLinks) {
 
 TEST(Fusion, RangeNoiseModelInterpolatesTable31) {
   const hf::RangeNoiseModel n;
-  EXPECT_DOUBLE_EQ(n.sd_at(0.1), 0.003625);   // held below 20.5 cm
+  EXPECT_DOUBLE_EQ(n.sd_at(0.1), 0.003625);  // held below 20.5 cm
   EXPECT_DOUBLE_EQ(n.sd_at(0.5), 0.006164);
   EXPECT_NEAR(n.sd_at(0.875), 0.5 * (0.006385 + 0.010480), 1e-12);
-  EXPECT_DOUBLE_EQ(n.sd_at(3.0), 0.019593);   // held beyond 125 cm
+  EXPECT_DOUBLE_EQ(n.sd_at(3.0), 0.019593);  // held beyond 125 cm
 }
 
 TEST(BasePoseBuffer, InterpolatesPoseAndYawTheShortWayRound) {

@@ -17,11 +17,11 @@
 namespace hf = tinyline::hydrus_fitting;
 namespace ev = tinyline::hydrus_fitting::eval;
 namespace bus = tinyline::bus;
+using ::testing::HasSubstr;
 using tinyline::sensor_msgs::msg::JointState;
 using tinyline::tinyline_msgs::msg::CircleFit;
 using tinyline::tinyline_msgs::msg::LineScan;
 using tinyline::visualization_msgs::msg::MarkerArray;
-using ::testing::HasSubstr;
 
 namespace {
 
@@ -202,7 +202,8 @@ TEST(HydrusFittingNodes, CircleFitterNeedsAValidRobotDescription) {
     h.ex.spin_until_idle();
     FAIL() << "started without a robot description";
   } catch (const std::exception& e) {
-    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/hydrus.yaml: file: robot description '/nonexistent/hydrus.yaml': cannot open"));
+    EXPECT_THAT(e.what(),
+                HasSubstr("/nonexistent/hydrus.yaml: file: robot description '/nonexistent/hydrus.yaml': cannot open"));
   }
 }
 
@@ -236,9 +237,11 @@ struct SequencerRig {
     o.param("object_max_age_s", 10.0);
     node = std::dynamic_pointer_cast<hf::SequencerNode>(h.add("sequencer", o));
     cmd_sub = h.io->create_subscription<LaserCommand>(
-        "laser_command", bus::QoS::keep_last(1000), [this](const std::shared_ptr<const LaserCommand>& m) { cmds.push_back(m); });
+        "laser_command", bus::QoS::keep_last(1000),
+        [this](const std::shared_ptr<const LaserCommand>& m) { cmds.push_back(m); });
     diag_sub = h.io->create_subscription<DiagnosticArray>(
-        "diagnostics", bus::QoS::keep_last(100), [this](const std::shared_ptr<const DiagnosticArray>& m) { diags.push_back(m); });
+        "diagnostics", bus::QoS::keep_last(100),
+        [this](const std::shared_ptr<const DiagnosticArray>& m) { diags.push_back(m); });
     joints = h.io->create_publisher<JointState>("joint_states");
     circle = h.io->create_publisher<CircleFit>("circle");
     advance(0.0);  // starts the sim clock and the node

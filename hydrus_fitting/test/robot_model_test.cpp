@@ -58,7 +58,8 @@ TEST(RobotModel, ForwardKinematicsOfAStraightAndASquareChain) {
   const std::vector<double> straight{0, 0, 0};
   const auto k0 = m.forward(straight);
   for (int i = 0; i < 4; ++i) {
-    EXPECT_NEAR((k0.T_base_link[static_cast<std::size_t>(i)].translation() - Eigen::Vector2d(0.5 * i, 0)).norm(), 0, 1e-12);
+    EXPECT_NEAR((k0.T_base_link[static_cast<std::size_t>(i)].translation() - Eigen::Vector2d(0.5 * i, 0)).norm(), 0,
+                1e-12);
   }
   // Sensor 1 at the middle of link 1, 5 cm to the left, looking left (+y).
   EXPECT_NEAR((k0.T_base_sensor[0].translation() - Eigen::Vector2d(0.25, 0.05)).norm(), 0, 1e-12);
@@ -90,29 +91,40 @@ TEST(RobotModel, PixelRaysFollowTheLineAxis) {
 TEST(RobotModel, ErrorsNameFileLineAndField) {
   EXPECT_THAT(parse_error("name: x\nlinks:\n  - {name: a, length_m: 0.5, colour: red}\nsensors: []\n"),
               HasSubstr("robot.yaml:3: links[0].colour: unknown key"));
-  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: -1}\nsensors:\n  - {name: s, link: a, position_m: [0, 0], yaw_deg: 0}\n"),
-              HasSubstr("robot.yaml:2: links[0].length_m: must be > 0"));
-  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\n  - {name: b, length_m: 1}\nsensors:\n  - {name: s, link: a, position_m: [0, 0], yaw_deg: 0}\n"),
+  EXPECT_THAT(
+      parse_error(
+          "links:\n  - {name: a, length_m: -1}\nsensors:\n  - {name: s, link: a, position_m: [0, 0], yaw_deg: 0}\n"),
+      HasSubstr("robot.yaml:2: links[0].length_m: must be > 0"));
+  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\n  - {name: b, length_m: 1}\nsensors:\n  - {name: s, "
+                          "link: a, position_m: [0, 0], yaw_deg: 0}\n"),
               HasSubstr("links[1].joint: missing"));
-  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: s, link: nowhere, position_m: [0, 0], yaw_deg: 0}\n"),
+  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: s, link: nowhere, position_m: [0, "
+                          "0], yaw_deg: 0}\n"),
               HasSubstr("robot.yaml:4: sensors[0].link: no link named 'nowhere'"));
-  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: s, link: a, position_m: [0], yaw_deg: 0}\n"),
-              HasSubstr("sensors[0].position_m: expected a list of 2 numbers"));
-  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: s, link: a, position_m: [0, 0], yaw_deg: abc}\n"),
-              HasSubstr("sensors[0].yaw_deg: expected a number, got 'abc'"));
+  EXPECT_THAT(
+      parse_error(
+          "links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: s, link: a, position_m: [0], yaw_deg: 0}\n"),
+      HasSubstr("sensors[0].position_m: expected a list of 2 numbers"));
+  EXPECT_THAT(
+      parse_error(
+          "links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: s, link: a, position_m: [0, 0], yaw_deg: abc}\n"),
+      HasSubstr("sensors[0].yaw_deg: expected a number, got 'abc'"));
   EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\nsensors:\n"
                           "  - {name: s, link: a, position_m: [0, 0], yaw_deg: 0}\n"
                           "  - {name: t, link: a, position_m: [0, 0], yaw_deg: 0, height_m: 0.1}\n"),
               HasSubstr("robot.yaml:5: sensors[1].height_m"));
-  EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: a, link: a, position_m: [0, 0], yaw_deg: 0}\n"),
-              HasSubstr("duplicate name 'a'"));
+  EXPECT_THAT(
+      parse_error(
+          "links:\n  - {name: a, length_m: 1}\nsensors:\n  - {name: a, link: a, position_m: [0, 0], yaw_deg: 0}\n"),
+      HasSubstr("duplicate name 'a'"));
   EXPECT_THAT(parse_error("links: [\n"), HasSubstr("robot.yaml:"));
   EXPECT_THAT(parse_error("links:\n  - {name: a, length_m: 1}\n"), HasSubstr("sensors: expected a non-empty list"));
   try {
     (void)hf::RobotModel::load("/nonexistent/robot.yaml");
     FAIL() << "no error";
   } catch (const hf::RobotModelError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/robot.yaml: file: robot description '/nonexistent/robot.yaml': cannot open"));
+    EXPECT_THAT(e.what(),
+                HasSubstr("/nonexistent/robot.yaml: file: robot description '/nonexistent/robot.yaml': cannot open"));
   }
 }
 

@@ -78,9 +78,9 @@ TEST(Colouring, MinimumColouringsOfKnownGraphs) {
   const std::vector<std::pair<int, int>> k4{{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
   const std::vector<std::pair<int, int>> none;
   // The Groetzsch graph (11 vertices, triangle-free, chromatic number 4).
-  const std::vector<std::pair<int, int>> groetzsch{{0, 1}, {1, 2}, {2, 3}, {3, 4}, {4, 0}, {5, 1}, {5, 4}, {6, 0},
-                                                   {6, 2}, {7, 1}, {7, 3}, {8, 2}, {8, 4}, {9, 3}, {9, 0}, {10, 5},
-                                                   {10, 6}, {10, 7}, {10, 8}, {10, 9}};
+  const std::vector<std::pair<int, int>> groetzsch{{0, 1}, {1, 2},  {2, 3},  {3, 4},  {4, 0},  {5, 1}, {5, 4},
+                                                   {6, 0}, {6, 2},  {7, 1},  {7, 3},  {8, 2},  {8, 4}, {9, 3},
+                                                   {9, 0}, {10, 5}, {10, 6}, {10, 7}, {10, 8}, {10, 9}};
   const struct {
     int n;
     const std::vector<std::pair<int, int>>& e;
@@ -116,7 +116,8 @@ TEST(Schedule, ColouringScheduleIsSafeAndFillsFreeSlots) {
   EXPECT_NEAR(s.rate_hz[3], 100.0, 1e-9);
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(s.rate_hz[static_cast<std::size_t>(i)], 100.0 / 3.0, 1e-9);
   const auto thesis = hf::time_slicing_schedule(4, t);
-  for (int i = 0; i < 4; ++i) EXPECT_GT(s.rate_hz[static_cast<std::size_t>(i)], thesis.rate_hz[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < 4; ++i)
+    EXPECT_GT(s.rate_hz[static_cast<std::size_t>(i)], thesis.rate_hz[static_cast<std::size_t>(i)]);
   // Without filling, each sensor gets exactly its colour's slot.
   const auto plain = hf::colouring_schedule(g, col, t, false);
   EXPECT_NEAR(plain.rate_hz[3], 100.0 / 3.0, 1e-9);

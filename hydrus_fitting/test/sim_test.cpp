@@ -57,8 +57,8 @@ TEST(HydrusScene, TheSceneIsTheRobotDescriptionAtTheStartOfTheApproach) {
     const sim::SensorMount* m = scene.sensor(model.sensors()[s].name);
     ASSERT_NE(m, nullptr) << model.sensors()[s].name;
     const Eigen::Isometry2d T = start.T_world_base() * k.T_base_sensor[s];
-    const Eigen::Isometry3d expected = sim::planar_sensor_frame(
-        T.translation(), Eigen::Rotation2Dd(T.linear()).angle(), height, model.sensors()[s].line_axis_left);
+    const Eigen::Isometry3d expected = sim::planar_sensor_frame(T.translation(), Eigen::Rotation2Dd(T.linear()).angle(),
+                                                                height, model.sensors()[s].line_axis_left);
     EXPECT_LT((m->T_world_sensor.matrix() - expected.matrix()).cwiseAbs().maxCoeff(), 1e-9) << m->name;
     // The receiver's focal length is the description's (fields of view agree).
     EXPECT_DOUBLE_EQ(m->params.lens.focal_mm, model.sensors()[s].focal_mm);
@@ -77,8 +77,7 @@ TEST(HydrusScene, PlanarSensorFrameLooksAlongYawWithTheLineToTheLeft) {
 }
 
 TEST(HydrusScene, GeneratorErrorsNameTheFieldAndLine) {
-  const std::string bad_joints =
-      "name: x\ngenerators:\n  - type: hydrus\n    links: 4\n    joints_deg: [10, 20]\n";
+  const std::string bad_joints = "name: x\ngenerators:\n  - type: hydrus\n    links: 4\n    joints_deg: [10, 20]\n";
   try {
     (void)sim::load_scene_string(bad_joints, "bad.yaml", kSrc + "/sim/config/scenes");
     FAIL() << "expected a ConfigError";

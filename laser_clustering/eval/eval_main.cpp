@@ -48,25 +48,26 @@ struct Args {
   std::uint64_t seed = 1;
   fs::path out = "out/laser_clustering_eval";
   std::set<std::string> cases{"random_offset", "recognition_error", "stick", "wrench"};
-  int pictures = 4;        ///< scans of the first K trials of each case
+  int pictures = 4;          ///< scans of the first K trials of each case
   int failure_pictures = 4;  ///< and of the first K truss trials that did not align
   /// Raw-mode schedule of both sensors [pulses]: the nearest to close work a
   /// real sensor can run (the wire sets pulses in tens, tiny_laser_driver/protocol.hpp).
   std::vector<int> raw_pulses = {10, 20, 50, 120, 300};
-  int rescans = 2;  ///< truss cases: scans after the first move (TrussEvalOptions::rescans)
-  bool tomato_look = true;  ///< TrussEvalOptions::tomato_look
+  int rescans = 2;                ///< truss cases: scans after the first move (TrussEvalOptions::rescans)
+  bool tomato_look = true;        ///< TrussEvalOptions::tomato_look
   std::string write_calibration;  ///< write the gripper sensor's calibration here and stop
-  bool ablation = false;     ///< also the truss cases under earlier parameter sets and a one-stage baseline
-  bool tuning = false;       ///< the run chooses parameters: only tuning seeds (common/seeds.hpp)
-  ev::TrussOptions scene;    ///< truss cases' scene options (--scene-set)
-  std::string scene_label;   ///< ... as given, for the seeds' label
+  bool ablation = false;          ///< also the truss cases under earlier parameter sets and a one-stage baseline
+  bool tuning = false;            ///< the run chooses parameters: only tuning seeds (common/seeds.hpp)
+  ev::TrussOptions scene;         ///< truss cases' scene options (--scene-set)
+  std::string scene_label;        ///< ... as given, for the seeds' label
 };
 
 // Fills `a` from the command line; the exit code when the program stops there.
 std::optional<int> parse(int argc, char** argv, Args& a) {
-  cli::App app{"The evaluation of docs/laser_clustering.md on the simulated sensor: prints the Markdown tables, "
-               "writes summary.json, one CSV per case and the scans of the first trials.",
-               "laser_clustering_eval"};
+  cli::App app{
+      "The evaluation of docs/laser_clustering.md on the simulated sensor: prints the Markdown tables, "
+      "writes summary.json, one CSV per case and the scans of the first trials.",
+      "laser_clustering_eval"};
   app.add_option("--trials", a.trials, "trials per case")->check(cli::range(1, 1 << 30))->capture_default_str();
   app.add_option("--seed", a.seed, "seed of the first trial")->check(cli::non_negative())->capture_default_str();
   app.add_option("--out", a.out, "output directory")->capture_default_str();
@@ -96,8 +97,9 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
   app.add_option("--write-calibration", a.write_calibration,
                  "write the gripper sensor's calibration to FILE and stop (with --raw-pulses)");
   std::vector<std::string> scene_sets;
-  app.add_option("--scene-set", scene_sets, "truss cases' scene option key=value: max_tilt_deg (default 15), stem_bow_m "
-                                            "(default 0), repeatable")
+  app.add_option("--scene-set", scene_sets,
+                 "truss cases' scene option key=value: max_tilt_deg (default 15), stem_bow_m "
+                 "(default 0), repeatable")
       ->check(cli::Validator(
           [&a](std::string& kv) -> std::string {
             const auto eq = kv.find('=');
@@ -111,8 +113,9 @@ std::optional<int> parse(int argc, char** argv, Args& a) {
   a.tomato_look = !no_tomato_look;
   if (a.tuning) {
     try {
-      tinyline::common::seeds::require_tuning(tinyline::common::seeds::kLaserClustering,
-                                              tinyline::common::seeds::seed_run(a.seed, static_cast<std::uint64_t>(a.trials)));
+      tinyline::common::seeds::require_tuning(
+          tinyline::common::seeds::kLaserClustering,
+          tinyline::common::seeds::seed_run(a.seed, static_cast<std::uint64_t>(a.trials)));
     } catch (const std::invalid_argument& e) {
       std::cerr << "laser_clustering_eval: " << e.what() << "\n";
       return 2;
@@ -172,11 +175,12 @@ ScannerOptions scanner_options(const Args& args) {
 
 void write_calibration(const Args& args, const sim::eval::SimScannerOptions& gripper) {
   const auto c = sim::eval::write_sim_calibration(gripper, args.write_calibration);
-  std::cout << fmt::format("wrote {}: {} sensor, raw pulses {}, rail 5-{:.0f} cm every {:.0f} mm, in-sample RMSE {:.1f} mm; "
-                           "white paper's reflectance figure {:.1f} (2 %: {:.1f})\n",
-                           args.write_calibration, gripper.sensor_config, fmt::join(gripper.raw_pulses, "/"),
-                           gripper.calibration_max_m * 100, gripper.calibration_step_m * 1000, c.rmse_m * 1e3,
-                           c.white_reflectance, 0.02 * c.white_reflectance);
+  std::cout << fmt::format(
+      "wrote {}: {} sensor, raw pulses {}, rail 5-{:.0f} cm every {:.0f} mm, in-sample RMSE {:.1f} mm; "
+      "white paper's reflectance figure {:.1f} (2 %: {:.1f})\n",
+      args.write_calibration, gripper.sensor_config, fmt::join(gripper.raw_pulses, "/"),
+      gripper.calibration_max_m * 100, gripper.calibration_step_m * 1000, c.rmse_m * 1e3, c.white_reflectance,
+      0.02 * c.white_reflectance);
 }
 
 /// What every case's step needs: the options, the scanners, the seeds' label
@@ -209,12 +213,14 @@ void open_evaluation(Evaluation& e, const ScannerOptions& so) {
   }
   // Every figure below comes from these seeds: the label goes on the run and on each table.
   e.seeds = tinyline::common::seeds::describe(
-      tinyline::common::seeds::kLaserClustering, tinyline::common::seeds::seed_run(args.seed, static_cast<std::uint64_t>(args.trials)));
+      tinyline::common::seeds::kLaserClustering,
+      tinyline::common::seeds::seed_run(args.seed, static_cast<std::uint64_t>(args.trials)));
   e.seeds += args.scene_label;
   std::cout << "trials per case: " << args.trials << ", " << e.seeds << "\n\n";
   e.json << "{\n  \"truss_scanner\": \"" << (e.truss_scanner ? e.truss_scanner->describe() : "")
          << "\",\n  \"tool_scanner\": \"" << (e.tool_scanner ? e.tool_scanner->describe() : "")
-         << "\",\n  \"trials\": " << args.trials << ",\n  \"seed\": " << args.seed << ",\n  \"seeds\": \"" << e.seeds << "\"";
+         << "\",\n  \"trials\": " << args.trials << ",\n  \"seed\": " << args.seed << ",\n  \"seeds\": \"" << e.seeds
+         << "\"";
 }
 
 /// A truss case's trials: every trial a CSV row; the scans of the first
@@ -231,11 +237,11 @@ struct TrussRecorder {
     csv << "seed,verdict,outcome,chosen,lateral_error_m,confidence,target_visible,neighbour_nearer,looked,registered\n";
   }
 
-  void trial(const ev::TrussTrial& t, const ev::TrussScene& scene, const ev::SimulatedScan& s, const lc::TwoStageResult& o,
-             const lc::PedicelDetection& d) {
-    csv << fmt::format("{},{},{},{},{:.5f},{:.3f},{},{},{},{}\n", t.seed, ev::to_string(t.verdict), lc::to_string(t.outcome),
-                       t.chosen_kind, t.lateral_error_m, t.confidence, t.target_visible ? 1 : 0,
-                       t.neighbour_nearer ? 1 : 0, t.looked ? 1 : 0, t.registered ? 1 : 0);
+  void trial(const ev::TrussTrial& t, const ev::TrussScene& scene, const ev::SimulatedScan& s,
+             const lc::TwoStageResult& o, const lc::PedicelDetection& d) {
+    csv << fmt::format("{},{},{},{},{:.5f},{:.3f},{},{},{},{}\n", t.seed, ev::to_string(t.verdict),
+                       lc::to_string(t.outcome), t.chosen_kind, t.lateral_error_m, t.confidence,
+                       t.target_visible ? 1 : 0, t.neighbour_nearer ? 1 : 0, t.looked ? 1 : 0, t.registered ? 1 : 0);
     const bool failure = t.verdict != ev::Verdict::kAligned && failures < args.failure_pictures;
     if (pictures >= args.pictures && !failure) return;
     ++(failure ? failures : pictures);
@@ -271,8 +277,8 @@ void truss_case(Evaluation& e, const std::string& name, ev::TrussCase c) {
   options.rescans = args.rescans;
   options.tomato_look = args.tomato_look;
   const auto r = ev::run_truss_case(
-      c, *e.truss_scanner, args.trials, args.seed, options,
-      [&rec](const auto&... trial) { rec.trial(trial...); }, [&rec](const auto&... look) { rec.look(look...); });
+      c, *e.truss_scanner, args.trials, args.seed, options, [&rec](const auto&... trial) { rec.trial(trial...); },
+      [&rec](const auto&... look) { rec.look(look...); });
   rec.csv.commit();
   std::cout << "## " << name << " (" << e.seeds << ")\n\n| verdict | rate [95 % CI] |\n|---|---|\n"
             << "| aligned | " << rate(r.aligned) << " |\n| wrong | " << rate(r.wrong) << " |\n| out of view | "
@@ -282,8 +288,8 @@ void truss_case(Evaluation& e, const std::string& name, ev::TrussCase c) {
   e.json << fmt::format(
       ",\n  \"{}\": {{\"aligned\": {}, \"wrong\": {}, \"out_of_view\": {}, \"missed\": {}, \"ambiguous\": {}, "
       "\"aligned_unambiguous\": {}}}",
-      name, rate_json(r.aligned), rate_json(r.wrong), rate_json(r.out_of_view), rate_json(r.missed), rate_json(r.ambiguous),
-      rate_json(r.aligned_unambiguous));
+      name, rate_json(r.aligned), rate_json(r.wrong), rate_json(r.out_of_view), rate_json(r.missed),
+      rate_json(r.ambiguous), rate_json(r.aligned_unambiguous));
 }
 
 void truss_cases(Evaluation& e) {
@@ -331,12 +337,14 @@ void ablation_without_look(Evaluation& e) {
   no_look.tomato_look = false;
   const auto a = e.truss(ev::TrussCase::kRandomOffset, no_look);
   const auto b = e.truss(ev::TrussCase::kRecognitionError, no_look);
-  std::cout << "without the tomato look (the pedicel plane alone): random offset aligned " << rate(a.aligned) << ", wrong "
-            << rate(a.wrong) << "; recognition error aligned " << rate(b.aligned) << ", wrong " << rate(b.wrong) << "\n\n"
+  std::cout << "without the tomato look (the pedicel plane alone): random offset aligned " << rate(a.aligned)
+            << ", wrong " << rate(a.wrong) << "; recognition error aligned " << rate(b.aligned) << ", wrong "
+            << rate(b.wrong) << "\n\n"
             << "(the rows below are the finder's own steps, all without the tomato look)\n\n";
-  e.json << fmt::format(",\n  \"without_tomato_look\": {{\"random_offset_aligned\": {}, \"random_offset_wrong\": {}, "
-                        "\"recognition_error_aligned\": {}}}",
-                        rate_json(a.aligned), rate_json(a.wrong), rate_json(b.aligned));
+  e.json << fmt::format(
+      ",\n  \"without_tomato_look\": {{\"random_offset_aligned\": {}, \"random_offset_wrong\": {}, "
+      "\"recognition_error_aligned\": {}}}",
+      rate_json(a.aligned), rate_json(a.wrong), rate_json(b.aligned));
 }
 
 /// Both truss cases under each clustering of the history, on the same seeds.
@@ -353,10 +361,11 @@ void ablation_table(Evaluation& e) {
     o.rescans = e.args.rescans;
     const auto a = e.truss(ev::TrussCase::kRandomOffset, o);
     const auto b = e.truss(ev::TrussCase::kRecognitionError, o);
-    std::cout << "| " << variants[i].name << " | " << rate(a.aligned) << " | " << rate(a.wrong) << " | " << rate(b.aligned)
-              << " | " << rate(b.wrong) << " |\n";
-    e.json << fmt::format("{}\n    {{\"name\": \"{}\", \"random_offset_aligned\": {}, \"recognition_error_aligned\": {}}}",
-                          i ? "," : "", variants[i].name, rate_json(a.aligned), rate_json(b.aligned));
+    std::cout << "| " << variants[i].name << " | " << rate(a.aligned) << " | " << rate(a.wrong) << " | "
+              << rate(b.aligned) << " | " << rate(b.wrong) << " |\n";
+    e.json << fmt::format(
+        "{}\n    {{\"name\": \"{}\", \"random_offset_aligned\": {}, \"recognition_error_aligned\": {}}}", i ? "," : "",
+        variants[i].name, rate_json(a.aligned), rate_json(b.aligned));
   }
   e.json << "\n  ]";
 }
@@ -388,9 +397,10 @@ void ablation_without_runners_up(Evaluation& e) {
   std::cout << "\nre-scans without the runners-up (re-centring on the first choice): random offset aligned "
             << rate(c1.aligned) << ", wrong " << rate(c1.wrong) << "; recognition error aligned " << rate(c2.aligned)
             << ", wrong " << rate(c2.wrong) << "\n";
-  e.json << fmt::format(",\n  \"rescans_without_runners_up\": {{\"random_offset_aligned\": {}, \"random_offset_wrong\": {}, "
-                        "\"recognition_error_aligned\": {}}}",
-                        rate_json(c1.aligned), rate_json(c1.wrong), rate_json(c2.aligned));
+  e.json << fmt::format(
+      ",\n  \"rescans_without_runners_up\": {{\"random_offset_aligned\": {}, \"random_offset_wrong\": {}, "
+      "\"recognition_error_aligned\": {}}}",
+      rate_json(c1.aligned), rate_json(c1.wrong), rate_json(c2.aligned));
 }
 
 /// Both truss cases from the first scan alone (no closed loop): the before
@@ -401,11 +411,13 @@ void ablation_first_scan_alone(Evaluation& e) {
   single.rescans = 0;
   const auto s1 = e.truss(ev::TrussCase::kRandomOffset, single);
   const auto s2 = e.truss(ev::TrussCase::kRecognitionError, single);
-  std::cout << "\nfirst scan alone (no re-scan): random offset aligned " << rate(s1.aligned) << ", wrong " << rate(s1.wrong)
-            << "; recognition error aligned " << rate(s2.aligned) << ", wrong " << rate(s2.wrong) << "\n";
-  e.json << fmt::format(",\n  \"first_scan_alone\": {{\"random_offset_aligned\": {}, \"random_offset_wrong\": {}, "
-                        "\"recognition_error_aligned\": {}}}",
-                        rate_json(s1.aligned), rate_json(s1.wrong), rate_json(s2.aligned));
+  std::cout << "\nfirst scan alone (no re-scan): random offset aligned " << rate(s1.aligned) << ", wrong "
+            << rate(s1.wrong) << "; recognition error aligned " << rate(s2.aligned) << ", wrong " << rate(s2.wrong)
+            << "\n";
+  e.json << fmt::format(
+      ",\n  \"first_scan_alone\": {{\"random_offset_aligned\": {}, \"random_offset_wrong\": {}, "
+      "\"recognition_error_aligned\": {}}}",
+      rate_json(s1.aligned), rate_json(s1.wrong), rate_json(s2.aligned));
 }
 
 /// The recognition-error case as the thesis's robot met it: the nearest
@@ -434,9 +446,9 @@ void ablation(Evaluation& e) {
 }
 
 /// The scans of a stick trial: what each pixel sees, clustered with and without reflectance.
-void write_stick_scans(const Args& args, const std::string& material, const ev::StickTrial& t, const ev::StickScene& scene,
-                       const ev::SimulatedScan& s, const lc::ReflectanceClusteringResult& with,
-                       const lc::ReflectanceClusteringResult& without) {
+void write_stick_scans(const Args& args, const std::string& material, const ev::StickTrial& t,
+                       const ev::StickScene& scene, const ev::SimulatedScan& s,
+                       const lc::ReflectanceClusteringResult& with, const lc::ReflectanceClusteringResult& without) {
   std::vector<std::string> kind(s.scan.size(), "none");
   for (std::size_t i = 0; i < kind.size(); ++i) {
     if (s.truth_object[i] == scene.stick) kind[i] = s.truth_mixed[i] ? "stick_mixed" : "stick";
@@ -460,16 +472,18 @@ void stick_run(Evaluation& e, std::ostream& csv, std::size_t run, const char* ma
       *e.tool_scanner, args.trials, args.seed, so,
       [&](const ev::StickTrial& t, const ev::StickScene& scene, const ev::SimulatedScan& s,
           const lc::ReflectanceClusteringResult& with, const lc::ReflectanceClusteringResult& without) {
-        csv << fmt::format("{},{},{:.4f},{:.4f}\n", so.scene.stick_material, t.seed, t.iou_reflectance, t.iou_distance_only);
+        csv << fmt::format("{},{},{:.4f},{:.4f}\n", so.scene.stick_material, t.seed, t.iou_reflectance,
+                           t.iou_distance_only);
         if (run > 1 || pictures >= args.pictures) return;
         ++pictures;
         write_stick_scans(args, so.scene.stick_material, t, scene, s, with, without);
       });
   std::cout << fmt::format("| {} | {:.0f} mm | {} | {} |\n", so.scene.stick_material, so.scene.front_gap_m * 1e3,
                            rate(r.reflectance_correct), rate(r.distance_only_correct));
-  e.json << fmt::format("{}\n    {{\"material\": \"{}\", \"front_gap_m\": {}, \"reflectance\": {}, \"distance_only\": {}}}",
-                        run == 0 ? "" : ",", so.scene.stick_material, so.scene.front_gap_m, rate_json(r.reflectance_correct),
-                        rate_json(r.distance_only_correct));
+  e.json << fmt::format(
+      "{}\n    {{\"material\": \"{}\", \"front_gap_m\": {}, \"reflectance\": {}, \"distance_only\": {}}}",
+      run == 0 ? "" : ",", so.scene.stick_material, so.scene.front_gap_m, rate_json(r.reflectance_correct),
+      rate_json(r.distance_only_correct));
 }
 
 void stick_case(Evaluation& e) {
@@ -481,8 +495,9 @@ void stick_case(Evaluation& e) {
   e.json << ",\n  \"stick\": [";
   // A brushed and a polished metal stick 4 mm before a cardboard panel, and
   // the brushed one at other gaps (where distance alone starts to work).
-  const std::vector<std::pair<const char*, double>> runs{{"metal_pan", 0.004}, {"metal_wrench", 0.004}, {"metal_pan", 0.002},
-                                                         {"metal_pan", 0.008}, {"metal_pan", 0.015}, {"metal_pan", 0.03}};
+  const std::vector<std::pair<const char*, double>> runs{{"metal_pan", 0.004}, {"metal_wrench", 0.004},
+                                                         {"metal_pan", 0.002}, {"metal_pan", 0.008},
+                                                         {"metal_pan", 0.015}, {"metal_pan", 0.03}};
   for (std::size_t run = 0; run < runs.size(); ++run) stick_run(e, csv, run, runs[run].first, runs[run].second);
   csv.commit();
   e.json << "\n  ]";
@@ -496,25 +511,24 @@ void wrench_case(Evaluation& e) {
   tinyline::files::AtomicStream sweeps((args.out / "wrench_sweeps.csv").string());
   sweeps << "seed,pitch_deg,reflectance,true_pitch_deg,best_pitch_deg\n";
   int pictures = 0;
-  const auto r = ev::run_wrench_case(*e.tool_scanner, args.trials, args.seed, {},
-                                     [&](const ev::WrenchTrial& t, const std::vector<lc::AlignmentSample>& sweep) {
-                                       csv << fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.seed,
-                                                          lc::to_string(t.outcome), t.true_pitch_rad / kDeg,
-                                                          t.best_pitch_rad / kDeg, t.error_rad / kDeg,
-                                                          t.step_error_rad / kDeg);
-                                       if (pictures++ >= args.pictures) return;
-                                       for (const auto& s : sweep) {
-                                         sweeps << fmt::format("{},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.seed,
-                                                               s.pitch_rad / kDeg, s.reflectance, t.true_pitch_rad / kDeg,
-                                                               t.best_pitch_rad / kDeg);
-                                       }
-                                     });
+  const auto r =
+      ev::run_wrench_case(*e.tool_scanner, args.trials, args.seed, {},
+                          [&](const ev::WrenchTrial& t, const std::vector<lc::AlignmentSample>& sweep) {
+                            csv << fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.seed, lc::to_string(t.outcome),
+                                               t.true_pitch_rad / kDeg, t.best_pitch_rad / kDeg, t.error_rad / kDeg,
+                                               t.step_error_rad / kDeg);
+                            if (pictures++ >= args.pictures) return;
+                            for (const auto& s : sweep) {
+                              sweeps << fmt::format("{},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.seed, s.pitch_rad / kDeg,
+                                                    s.reflectance, t.true_pitch_rad / kDeg, t.best_pitch_rad / kDeg);
+                            }
+                          });
   csv.commit();
   sweeps.commit();
   std::cout << "## wrench alignment (5.3.2; " << e.seeds << ")\n\n"
             << "| figure | value |\n|---|---|\n"
-            << fmt::format("| median pitch error | {:.2f} deg |\n| 90th percentile | {:.2f} deg |\n", r.median_error_deg,
-                           r.p90_error_deg)
+            << fmt::format("| median pitch error | {:.2f} deg |\n| 90th percentile | {:.2f} deg |\n",
+                           r.median_error_deg, r.p90_error_deg)
             << fmt::format("| median error of the brightest step alone (2 deg steps) | {:.2f} deg |\n",
                            r.median_step_error_deg)
             << "| within 1 deg | " << rate(r.within_1deg) << " |\n| peak found | " << rate(r.found) << " |\n\n";

@@ -100,7 +100,9 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
     if (o.use_expectation && (scene.truth.use_expectation || layout)) {
       // kRandomOffset has no expectation of its own: the throat, with the finder's search spread.
       expectation = PedicelExpectation{scene.truth.expected_xz_m,
-                                       scene.truth.use_expectation ? scene.truth.expected_sd_m : finder.search_sd_m, {}, 0.015};
+                                       scene.truth.use_expectation ? scene.truth.expected_sd_m : finder.search_sd_m,
+                                       {},
+                                       0.015};
       if (layout) expectation->neighbours = scene.truth.neighbours_expected;
     }
     PedicelDetection d = find_pedicel(s.scan, objects, finder, expectation);
@@ -114,8 +116,9 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       const double down = scene.truth.tomatoes_expected.front().centre_m.y();
       std::vector<ExpectedTomato> tomatoes = scene.truth.tomatoes_expected;
       for (auto& t : tomatoes) t.centre_m += Eigen::Vector3d(0.0, -down, o.look_back_m);
-      const SimulatedScan look = scanner.scan(scene.world, scene.T_world_sensor * Eigen::Translation3d(0.0, down, -o.look_back_m),
-                                              seed + kRescanSeedStride * 97);
+      const SimulatedScan look =
+          scanner.scan(scene.world, scene.T_world_sensor * Eigen::Translation3d(0.0, down, -o.look_back_m),
+                       seed + kRescanSeedStride * 97);
       // The vision's common offset is searched as far as the expectation's
       // own spread allows (3 sd): a tomato-based expectation (kRecognitionError)
       // is good to 1.5 cm, a shifted recognition (kRandomOffset) is not.
@@ -152,8 +155,9 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
     for (const auto id : s.truth_object) target_pixels += id == scene.truth.target_pedicel;
     trial.target_visible = target_pixels >= 2;
     if (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove) {
-      trial.chosen = d.cluster >= 0 ? majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s)
-                                    : sim::kNoObject;
+      trial.chosen = d.cluster >= 0
+                         ? majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s)
+                         : sim::kNoObject;
       Eigen::Isometry3d T_world_sensor = scene.T_world_sensor;
       PedicelDetection last = d;
       std::optional<PedicelExpectation> belief = expectation;
@@ -203,8 +207,9 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
     // Geometric ambiguity: where each pedicel's axis crosses the laser plane.
     {
       const Eigen::Isometry3d T_sensor_world = scene.T_world_sensor.inverse();
-      const Eigen::Vector2d expected = expectation ? scene.truth.expected_xz_m
-                                                   : Eigen::Vector2d(finder.scissors.centre_x_m, finder.scissors.centre_z_m);
+      const Eigen::Vector2d expected = expectation
+                                           ? scene.truth.expected_xz_m
+                                           : Eigen::Vector2d(finder.scissors.centre_x_m, finder.scissors.centre_z_m);
       const Eigen::Vector3d& tgt = scene.truth.target_in_sensor;
       const double target_d = (Eigen::Vector2d(tgt.x(), tgt.z()) - expected).norm();
       for (const auto id : scene.truth.pedicels) {
@@ -244,7 +249,8 @@ double stick_iou(const std::vector<int>& labels, const SimulatedScan& s, sim::Ob
     if (s.truth_object[i] == stick && !s.truth_mixed[i] && labels[i] >= 0) ++votes[labels[i]];
   }
   if (votes.empty()) return 0.0;
-  const int best = std::max_element(votes.begin(), votes.end(), [](auto& a, auto& b) { return a.second < b.second; })->first;
+  const int best =
+      std::max_element(votes.begin(), votes.end(), [](auto& a, auto& b) { return a.second < b.second; })->first;
   int inter = 0, uni = 0;
   for (std::size_t i = 0; i < labels.size(); ++i) {
     if (s.truth_mixed[i]) continue;

@@ -58,7 +58,7 @@ struct TrussTrial {
   /// throat, or the case's expectation) than the target: a finder that takes
   /// the nearest pedicel cannot be right (the thesis's "nearby pedicels").
   bool neighbour_nearer = false;
-  int rescans = 0;  ///< scans after the first (TrussEvalOptions::rescans)
+  int rescans = 0;          ///< scans after the first (TrussEvalOptions::rescans)
   bool looked = false;      ///< a look through the tomatoes was taken (TrussEvalOptions::tomato_look)
   bool registered = false;  ///< ... and registered the vision's tomatoes
 };
@@ -69,8 +69,8 @@ struct TrussTrial {
 struct TrussResult {
   std::vector<TrussTrial> trials;
   Rate aligned, wrong, out_of_view, missed;
-  Rate ambiguous;              ///< trials with neighbour_nearer
-  Rate aligned_unambiguous;    ///< aligned among the others
+  Rate ambiguous;            ///< trials with neighbour_nearer
+  Rate aligned_unambiguous;  ///< aligned among the others
 };
 
 struct TrussEvalOptions {
@@ -134,7 +134,7 @@ using LookObserver = std::function<void(std::uint64_t seed, const TrussScene&, c
 
 struct StickTrial {
   std::uint64_t seed = 0;
-  double iou_reflectance = 0.0;    ///< best cluster vs the stick's pure pixels
+  double iou_reflectance = 0.0;  ///< best cluster vs the stick's pure pixels
   double iou_distance_only = 0.0;
 };
 
@@ -149,10 +149,11 @@ struct StickEvalOptions {
   double min_iou = 0.8;
 };
 
-using StickObserver = std::function<void(const StickTrial&, const StickScene&, const SimulatedScan&,
-                                         const ReflectanceClusteringResult& with, const ReflectanceClusteringResult& without)>;
-[[nodiscard]] StickResult run_stick_case(Scanner& scanner, int trials, std::uint64_t seed0, const StickEvalOptions& o = {},
-                                         const StickObserver& on_trial = {});
+using StickObserver =
+    std::function<void(const StickTrial&, const StickScene&, const SimulatedScan&,
+                       const ReflectanceClusteringResult& with, const ReflectanceClusteringResult& without)>;
+[[nodiscard]] StickResult run_stick_case(Scanner& scanner, int trials, std::uint64_t seed0,
+                                         const StickEvalOptions& o = {}, const StickObserver& on_trial = {});
 
 // ---------------------------------------------------------------------------- wrench (5.3.2)
 
@@ -161,7 +162,7 @@ struct WrenchTrial {
   AlignmentOutcome outcome = AlignmentOutcome::kInvalidInput;
   double true_pitch_rad = 0.0;
   double best_pitch_rad = 0.0;
-  double error_rad = 0.0;  ///< |best - true|; infinite when no pitch was found
+  double error_rad = 0.0;       ///< |best - true|; infinite when no pitch was found
   double step_error_rad = 0.0;  ///< the same for the brightest sample alone (no refinement)
 };
 

@@ -34,7 +34,9 @@ Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Matrix3d& R = Eige
   return T;
 }
 
-Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) { return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix(); }
+Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) {
+  return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+}
 
 struct Hanging {
   Eigen::Vector3d top, bottom, dir;
@@ -93,7 +95,8 @@ std::string set_truss_option(TrussOptions& o, const std::string& key, const std:
   } catch (const std::exception&) {
     used = 0;
   }
-  if (used == 0 || used != value.size() || !std::isfinite(x)) return "scene option '" + key + "' wants a number, got '" + value + "'";
+  if (used == 0 || used != value.size() || !std::isfinite(x))
+    return "scene option '" + key + "' wants a number, got '" + value + "'";
   if (key == "max_tilt_deg") {
     if (x < 0 || x > 60) return "max_tilt_deg must be in [0, 60]";
     o.max_tilt_deg = x;
@@ -115,7 +118,8 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
   // The target pedicel crosses the world's y = 0 plane at `cross`.
   Eigen::Vector3d cross(0.0, 0.0, o.throat_z_m);
   if (c == TrussCase::kRandomOffset) {
-    const double rho = o.max_offset_m * std::sqrt(rng.uniform(0.0, 1.0)), phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
+    const double rho = o.max_offset_m * std::sqrt(rng.uniform(0.0, 1.0)),
+                 phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
     cross += Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
   }
   Hanging target = hang(rng, Eigen::Vector3d::Zero(), o);
@@ -190,7 +194,8 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
   if (c == TrussCase::kRecognitionError) {
     const double rho = rng.uniform(o.recognition_offset_m), phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
     const Eigen::Vector3d estimate = cross + Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
-    const Eigen::Matrix3d yaw = rot(Eigen::Vector3d::UnitY(), rng.uniform(-o.recognition_yaw_deg, o.recognition_yaw_deg) * kDeg);
+    const Eigen::Matrix3d yaw =
+        rot(Eigen::Vector3d::UnitY(), rng.uniform(-o.recognition_yaw_deg, o.recognition_yaw_deg) * kDeg);
     s.T_world_sensor = pose(estimate - yaw * Eigen::Vector3d(0.0, 0.0, o.throat_z_m), yaw);
     // The vision's tomato is right (within a few mm): the pedicel is expected
     // right above its centre.
@@ -222,7 +227,8 @@ TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions&
     for (std::size_t i = 0; i < estimate.size(); ++i) {
       const Eigen::Vector3d centre(estimate[i].x(), top_y[i] + hangings[i].tomato_radius, estimate[i].z());
       const Eigen::Vector3d e = c == TrussCase::kRandomOffset
-                                    ? Eigen::Vector3d(0.0, 0.0, o.throat_z_m) + (centre - Eigen::Vector3d(estimate[0].x(), 0.0, estimate[0].z()))
+                                    ? Eigen::Vector3d(0.0, 0.0, o.throat_z_m) +
+                                          (centre - Eigen::Vector3d(estimate[0].x(), 0.0, estimate[0].z()))
                                     : Eigen::Vector3d(T_sensor_world * centre);
       s.truth.tomatoes_expected.push_back(
           {e, std::max(0.005, hangings[i].tomato_radius + radius_noise.normal(o.tomato_radius_sd_m))});
@@ -272,7 +278,8 @@ StickScene make_stick_scene(std::uint64_t seed, const StickOptions& o) {
 
 Eigen::Isometry3d WrenchScene::T_world_sensor(double pitch_rad) const {
   // Rotate about the laser's x axis around a pivot behind it.
-  return pose(Eigen::Vector3d(0.0, 0.0, -pivot_behind_m)) * pose(Eigen::Vector3d::Zero(), rot(Eigen::Vector3d::UnitX(), pitch_rad)) *
+  return pose(Eigen::Vector3d(0.0, 0.0, -pivot_behind_m)) *
+         pose(Eigen::Vector3d::Zero(), rot(Eigen::Vector3d::UnitX(), pitch_rad)) *
          pose(Eigen::Vector3d(0.0, 0.0, pivot_behind_m));
 }
 
@@ -282,13 +289,15 @@ WrenchScene make_wrench_scene(std::uint64_t seed, const WrenchOptions& o) {
   s.pivot_behind_m = o.pivot_behind_m;
   sim::World& w = s.world;
   const double d = rng.uniform(o.panel_distance_m);
-  w.add({"panel", sim::PlaneShape{Eigen::Vector2d(0.8, 0.8)}, pose(Eigen::Vector3d(0, 0, d)), material(w, o.panel_material)});
+  w.add({"panel", sim::PlaneShape{Eigen::Vector2d(0.8, 0.8)}, pose(Eigen::Vector3d(0, 0, d)),
+         material(w, o.panel_material)});
   const double pitch = rng.uniform(-o.max_face_pitch_deg, o.max_face_pitch_deg) * kDeg;
   const double yaw = rng.uniform(-o.max_face_yaw_deg, o.max_face_yaw_deg) * kDeg;
   const Eigen::Matrix3d R = rot(Eigen::Vector3d::UnitY(), yaw) * rot(Eigen::Vector3d::UnitX(), pitch);
   const Eigen::Vector3d size(o.wrench_size_m[0], o.wrench_size_m[1], o.wrench_size_m[2]);
   // Hanging on the panel: pulled forward so no corner goes through it.
-  const double reach = 0.5 * (std::abs(R(2, 0)) * size.x() + std::abs(R(2, 1)) * size.y() + std::abs(R(2, 2)) * size.z());
+  const double reach =
+      0.5 * (std::abs(R(2, 0)) * size.x() + std::abs(R(2, 1)) * size.y() + std::abs(R(2, 2)) * size.z());
   s.wrench = w.add({"wrench", sim::BoxShape{size},
                     pose(Eigen::Vector3d(rng.uniform(-o.lateral_m, o.lateral_m), 0.0, d - reach - 0.001), R),
                     material(w, o.wrench_material)});

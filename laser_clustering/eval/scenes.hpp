@@ -37,10 +37,10 @@ enum class TrussCase {
 };
 
 struct TrussOptions {
-  double throat_z_m = 0.15;            ///< blade throat ahead of the laser [m] (gripper geometry)
-  double max_offset_m = 0.05;          ///< kRandomOffset: horizontal offset, uniform in a disc [m]
-  double vertical_jitter_m = 0.008;    ///< where along the pedicel the laser plane cuts, around its middle [m]
-  double max_tilt_deg = 15.0;          ///< pedicels hang within this of vertical (up to 60)
+  double throat_z_m = 0.15;          ///< blade throat ahead of the laser [m] (gripper geometry)
+  double max_offset_m = 0.05;        ///< kRandomOffset: horizontal offset, uniform in a disc [m]
+  double vertical_jitter_m = 0.008;  ///< where along the pedicel the laser plane cuts, around its middle [m]
+  double max_tilt_deg = 15.0;        ///< pedicels hang within this of vertical (up to 60)
   /// A curved stem: the pedicel tops leave the straight line through the
   /// target's top by stem_bow_m (dx / 10 cm)^2 at dx along it, in a direction
   /// across the stem drawn per scene from its own stream. 0: straight.
@@ -49,9 +49,9 @@ struct TrussOptions {
   double pedicel_length_m[2] = {0.03, 0.05};
   double tomato_radius_m[2] = {0.025, 0.035};
   double neighbour_spacing_m[2] = {0.045, 0.085};  ///< along the stem between pedicel tops
-  double neighbour_depth_m = 0.025;    ///< neighbours sit up to this before/behind the target [m]
-  double neighbour_drop_m = 0.02;      ///< neighbours' tops up to this above/below the target's [m]
-  double leaf_probability = 0.6;       ///< a leaf wall behind the truss
+  double neighbour_depth_m = 0.025;                ///< neighbours sit up to this before/behind the target [m]
+  double neighbour_drop_m = 0.02;                  ///< neighbours' tops up to this above/below the target's [m]
+  double leaf_probability = 0.6;                   ///< a leaf wall behind the truss
   double leaf_z_m[2] = {0.30, 0.60};
   /// kRecognitionError: the gripper's error (offset in a disc, yaw) and the
   /// error of the tomato-based expectation.
@@ -107,11 +107,11 @@ struct TrussScene {
 
 struct StickOptions {
   double panel_distance_m[2] = {0.25, 0.35};
-  double front_gap_m = 0.004;            ///< the stick's front face before the panel [m]
+  double front_gap_m = 0.004;  ///< the stick's front face before the panel [m]
   double stick_width_m = 0.012;
   double stick_thickness_m = 0.003;
-  double lateral_m = 0.04;               ///< stick centre within +- this of the axis [m]
-  double max_tilt_deg = 4.0;             ///< stick and panel each tilted up to this
+  double lateral_m = 0.04;                   ///< stick centre within +- this of the axis [m]
+  double max_tilt_deg = 4.0;                 ///< stick and panel each tilted up to this
   const char* stick_material = "metal_pan";  ///< brushed (broad lobe); "metal_wrench" is polished
   const char* panel_material = "cardboard";
 };
@@ -129,9 +129,9 @@ struct WrenchOptions {
   double panel_distance_m[2] = {0.20, 0.30};
   double wrench_size_m[3] = {0.022, 0.18, 0.006};  ///< width (x), length (y), thickness
   double lateral_m = 0.03;
-  double max_face_pitch_deg = 8.0;       ///< the hanging wrench's face is pitched up to this
+  double max_face_pitch_deg = 8.0;  ///< the hanging wrench's face is pitched up to this
   double max_face_yaw_deg = 3.0;
-  double pivot_behind_m = 0.10;          ///< the gripper pitches about an axis this far behind the laser
+  double pivot_behind_m = 0.10;  ///< the gripper pitches about an axis this far behind the laser
   const char* wrench_material = "metal_wrench";
   const char* panel_material = "panel_grey";
 };

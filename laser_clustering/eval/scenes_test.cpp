@@ -33,7 +33,8 @@ TEST(EvalScenes, TrussTargetIsWhereTheTruthSaysAndTomatoesDoNotOverlap) {
         for (std::size_t j = i + 1; j < t.tomatoes.size(); ++j) {
           const auto& a = s.world.object(t.tomatoes[i]);
           const auto& b = s.world.object(t.tomatoes[j]);
-          const double ra = std::get<sim::SphereShape>(a.shape).radius_m, rb = std::get<sim::SphereShape>(b.shape).radius_m;
+          const double ra = std::get<sim::SphereShape>(a.shape).radius_m,
+                       rb = std::get<sim::SphereShape>(b.shape).radius_m;
           EXPECT_GT((a.T_world_object.translation() - b.T_world_object.translation()).norm(), ra + rb);
         }
       }

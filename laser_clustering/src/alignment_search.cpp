@@ -51,12 +51,13 @@ AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const A
   const int n = static_cast<int>(u.size());
   out.num_samples = n;
   if (n < 3) {
-    out.reason = fmt::format("need at least 3 usable pitches, got {} ({} samples skipped as non-finite or <= 0)", n, skipped);
+    out.reason =
+        fmt::format("need at least 3 usable pitches, got {} ({} samples skipped as non-finite or <= 0)", n, skipped);
     return out;
   }
-  const auto k = static_cast<int>(std::max_element(u.begin(), u.end(), [](const auto& a, const auto& b) {
-                                    return a.reflectance < b.reflectance;
-                                  }) - u.begin());
+  const auto k = static_cast<int>(
+      std::max_element(u.begin(), u.end(), [](const auto& a, const auto& b) { return a.reflectance < b.reflectance; }) -
+      u.begin());
   out.peak_sample = k;
   out.best_pitch_rad = u[static_cast<std::size_t>(k)].pitch_rad;
   out.peak_reflectance = u[static_cast<std::size_t>(k)].reflectance;
@@ -104,7 +105,8 @@ AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const A
 }
 
 common::Validation validate(const SurfaceReflectanceParams& p) {
-  if (!(p.quantile > 0.0 && p.quantile <= 1.0)) return {false, fmt::format("quantile must be in (0, 1] (got {})", p.quantile)};
+  if (!(p.quantile > 0.0 && p.quantile <= 1.0))
+    return {false, fmt::format("quantile must be in (0, 1] (got {})", p.quantile)};
   if (p.first_pixel < 0) return {false, fmt::format("first_pixel must be >= 0 (got {})", p.first_pixel)};
   if (p.last_pixel >= 0 && p.last_pixel < p.first_pixel) {
     return {false, fmt::format("last_pixel ({}) is before first_pixel ({})", p.last_pixel, p.first_pixel)};

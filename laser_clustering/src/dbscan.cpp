@@ -134,7 +134,8 @@ DbscanResult dbscan_brute_force(const Eigen::Ref<const Eigen::MatrixXd>& points,
     lists.offset[i] = lists.nbr.size();
     if (!valid[i]) continue;
     for (std::size_t j = 0; j < n; ++j) {
-      if (valid[j] && detail::squared_distance(points, static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) <= eps2) {
+      if (valid[j] &&
+          detail::squared_distance(points, static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) <= eps2) {
         lists.nbr.push_back(static_cast<int>(j));
       }
     }
@@ -229,7 +230,8 @@ void OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanParams& p
   // A sensor's pixel angles are the same scan after scan: keep their sines
   // and cosines (they would cost more than the clustering itself).
   const std::size_t n = angle_rad.size();
-  if (trig_angle_.size() == n && (n == 0 || std::memcmp(trig_angle_.data(), angle_rad.data(), n * sizeof(double)) == 0)) {
+  if (trig_angle_.size() == n &&
+      (n == 0 || std::memcmp(trig_angle_.data(), angle_rad.data(), n * sizeof(double)) == 0)) {
     return;
   }
   trig_angle_.assign(angle_rad.begin(), angle_rad.end());
@@ -262,7 +264,8 @@ template <bool with_f, bool with_g>
 // satisfies |r_i - r_j| <= eps) and each pixel's squared distance to the
 // previous valid one. Returns the number of valid pixels.
 template <bool with_f, bool with_g>
-[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::compact(const OrderedScanPoints& scan, double eps, DbscanResult& r) {
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::compact(const OrderedScanPoints& scan, double eps,
+                                                                     DbscanResult& r) {
   constexpr int kBlock = detail::CompactScan<with_f, with_g>::kBlock;
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const std::size_t n_all = scan.range_m.size();
@@ -276,7 +279,7 @@ template <bool with_f, bool with_g>
   block_hi_.assign(n_all / kBlock + 1, -kInf);
   std::size_t m = 0;
   double blo = kInf, bhi = -kInf;  // the current block's depth interval (kept in registers)
-  double direction = 0.0;  // +1 ascending, -1 descending, 0 unknown yet
+  double direction = 0.0;          // +1 ascending, -1 descending, 0 unknown yet
   for (std::size_t i = 0; i < n_all; ++i) {
     if (!pixel_valid_as<with_f, with_g>(scan, i)) continue;
     const double ri = scan.range_m[i], ti = scan.angle_rad[i];
@@ -326,8 +329,8 @@ template <bool with_f, bool with_g>
 
 template <bool with_f, bool with_g>
 [[gnu::always_inline]] inline detail::CompactScan<with_f, with_g> OrderedScanDbscan::view(int n, double eps) const {
-  return {x_.data(),     z_.data(),        f_.data(),        g_.data(),         theta_.data(), range_.data(),
-          block_lo_.data(), block_hi_.data(), adjacent_.data(), n, eps, eps * eps};
+  return {x_.data(),        z_.data(),        f_.data(),        g_.data(), theta_.data(), range_.data(),
+          block_lo_.data(), block_hi_.data(), adjacent_.data(), n,         eps,           eps * eps};
 }
 
 namespace {
@@ -336,7 +339,8 @@ namespace {
 // pixels first, then walks outwards from there (right, then left), stopping
 // as soon as min_points is reached.
 template <bool with_f, bool with_g>
-[[gnu::always_inline]] inline bool reaches_min_points(const detail::CompactScan<with_f, with_g>& s, int i, int min_points) {
+[[gnu::always_inline]] inline bool reaches_min_points(const detail::CompactScan<with_f, with_g>& s, int i,
+                                                      int min_points) {
   const int n = s.n;
   int count = 1 + (i > 0 && s.adjacent_within(i - 1)) + (i + 1 < n && s.adjacent_within(i));
   if (count >= min_points) return true;
@@ -359,7 +363,8 @@ template <bool with_f, bool with_g>
 }  // namespace
 
 template <bool with_f, bool with_g>
-[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::mark_core(const detail::CompactScan<with_f, with_g>& s, int min_points, DbscanResult& r) {
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::mark_core(const detail::CompactScan<with_f, with_g>& s,
+                                                                       int min_points, DbscanResult& r) {
   std::size_t num_core = 0;
   for (int i = 0; i < s.n; ++i) {
     const std::uint8_t c = reaches_min_points(s, i, min_points) ? 1 : 0;
@@ -493,8 +498,8 @@ template <bool with_f, bool with_g>
 // non-core point is noise without a search (stage 3 of the two-stage
 // clustering runs with 2). Returns the number of noise points.
 template <bool with_f, bool with_g>
-[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::label_borders(const detail::CompactScan<with_f, with_g>& s, int min_points,
-                                             DbscanResult& r) {
+[[gnu::always_inline]] inline std::size_t OrderedScanDbscan::label_borders(const detail::CompactScan<with_f, with_g>& s,
+                                                                           int min_points, DbscanResult& r) {
   auto core = [&](int i) { return core_[static_cast<std::size_t>(i)] != 0; };
   auto label = [&](int i) -> int& { return r.labels[static_cast<std::size_t>(index_[static_cast<std::size_t>(i)])]; };
   std::size_t num_noise = 0;

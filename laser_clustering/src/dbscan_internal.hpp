@@ -75,8 +75,7 @@ struct NeighbourLists {
 /// The labelling every search shares: core flags from neighbour counts,
 /// clusters as connected components of core points numbered by their lowest
 /// index, border points to the lowest-numbered adjacent cluster.
-DbscanResult label_from_neighbours(const std::vector<std::uint8_t>& valid, const NeighbourLists& lists,
-                                   int min_points);
+DbscanResult label_from_neighbours(const std::vector<std::uint8_t>& valid, const NeighbourLists& lists, int min_points);
 
 /// Fills the counters (counted here, or given) and the note of a finished result.
 void finish(DbscanResult& r);

@@ -25,12 +25,15 @@ std::size_t saturated_reflectance_bound(LineScan& scan, const std::vector<std::u
     double range = std::numeric_limits<double>::quiet_NaN();
     for (int g = 1; g <= max_gap_px && !std::isfinite(range); ++g) {
       const auto gap = static_cast<std::size_t>(g);
-      if (i >= gap && scan.valid(i - gap)) range = scan.range_m[i - gap];
-      else if (i + gap < n && scan.valid(i + gap)) range = scan.range_m[i + gap];
+      if (i >= gap && scan.valid(i - gap))
+        range = scan.range_m[i - gap];
+      else if (i + gap < n && scan.valid(i + gap))
+        range = scan.range_m[i + gap];
     }
     if (!std::isfinite(range)) continue;
     const double d_cm = 100.0 * range;
-    scan.reflectance[i] = d_cm * d_cm * intensity[i] * 10.0;  // the sensor's reflectance figure with pulses/10 folded in
+    scan.reflectance[i] =
+        d_cm * d_cm * intensity[i] * 10.0;  // the sensor's reflectance figure with pulses/10 folded in
     ++bounded;
   }
   return bounded;

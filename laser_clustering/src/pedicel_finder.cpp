@@ -24,11 +24,13 @@ common::Validation validate(const PedicelFinderParams& p) {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!positive(p.diameter_m)) return {false, fmt::format("diameter_m must be > 0 (got {})", p.diameter_m)};
   if (!positive(p.diameter_sd_m)) return {false, fmt::format("diameter_sd_m must be > 0 (got {})", p.diameter_sd_m)};
-  if (!std::isfinite(p.min_width_m) || p.min_width_m < 0.0 || !positive(p.max_width_m) || p.max_width_m <= p.min_width_m) {
+  if (!std::isfinite(p.min_width_m) || p.min_width_m < 0.0 || !positive(p.max_width_m) ||
+      p.max_width_m <= p.min_width_m) {
     return {false, fmt::format("need 0 <= min_width_m < max_width_m (got {} and {})", p.min_width_m, p.max_width_m)};
   }
   if (p.min_points < 1) return {false, fmt::format("min_points must be >= 1 (got {})", p.min_points)};
-  if (!std::isfinite(p.min_range_m) || p.min_range_m < 0.0 || !positive(p.max_range_m) || p.max_range_m <= p.min_range_m) {
+  if (!std::isfinite(p.min_range_m) || p.min_range_m < 0.0 || !positive(p.max_range_m) ||
+      p.max_range_m <= p.min_range_m) {
     return {false, fmt::format("need 0 <= min_range_m < max_range_m (got {} and {})", p.min_range_m, p.max_range_m)};
   }
   if (!positive(p.search_sd_m)) return {false, fmt::format("search_sd_m must be > 0 (got {})", p.search_sd_m)};
@@ -61,8 +63,12 @@ namespace {
 class Visibility {
  public:
   Visibility(const LineScan& scan, const PedicelFinderParams& p)
-      : scan_(scan), p_(p), lo_(scan.angle_rad.front()), hi_(scan.angle_rad.back()),
-        rising_(scan.angle_rad.back() > scan.angle_rad.front()), npx_(static_cast<std::ptrdiff_t>(scan.size())) {
+      : scan_(scan),
+        p_(p),
+        lo_(scan.angle_rad.front()),
+        hi_(scan.angle_rad.back()),
+        rising_(scan.angle_rad.back() > scan.angle_rad.front()),
+        npx_(static_cast<std::ptrdiff_t>(scan.size())) {
     if (lo_ > hi_) std::swap(lo_, hi_);
   }
 
@@ -71,7 +77,8 @@ class Visibility {
     const double angle = std::atan2(q.x(), q.y()), range = q.norm();
     if (!(angle > lo_ && angle < hi_) || range < p_.min_range_m || range > p_.max_range_m) return false;
     const auto& a = scan_.angle_rad;
-    const auto it = rising_ ? std::lower_bound(a.begin(), a.end(), angle) : std::lower_bound(a.begin(), a.end(), angle, std::greater<>());
+    const auto it = rising_ ? std::lower_bound(a.begin(), a.end(), angle)
+                            : std::lower_bound(a.begin(), a.end(), angle, std::greater<>());
     const std::ptrdiff_t i = it - a.begin();
     if (i < kEdgePx || i >= npx_ - kEdgePx) return false;
     for (std::ptrdiff_t k = std::max<std::ptrdiff_t>(0, i - kNearPx); k <= std::min(npx_ - 1, i + kNearPx); ++k) {
@@ -107,7 +114,8 @@ Eigen::Vector2d layout_shift(const std::vector<PedicelCandidate>& cands, std::si
         const double d2 = (cands[k].position_xz_m - q).squaredNorm();
         if (k != j && d2 < best) best = d2, nearest[i] = static_cast<int>(k);
       }
-      if (nearest[i] >= 0) sum += cands[static_cast<std::size_t>(nearest[i])].position_xz_m - e.neighbours[i].position_xz_m, ++pairs;
+      if (nearest[i] >= 0)
+        sum += cands[static_cast<std::size_t>(nearest[i])].position_xz_m - e.neighbours[i].position_xz_m, ++pairs;
     }
     shift = sum / pairs;
   }
@@ -124,7 +132,9 @@ Eigen::Vector2d layout_shift(const std::vector<PedicelCandidate>& cands, std::si
 void score_layout(const LineScan& scan, const PedicelExpectation& e, const PedicelFinderParams& p,
                   std::vector<PedicelCandidate>& cands) {
   const double inv_var = 1.0 / (e.neighbour_sd_m * e.neighbour_sd_m);
-  auto match = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return std::exp(-0.5 * (a - b).squaredNorm() * inv_var); };
+  auto match = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return std::exp(-0.5 * (a - b).squaredNorm() * inv_var);
+  };
   const Visibility in_view(scan, p);
   std::vector<int> nearest(e.neighbours.size());
   std::vector<double> explained(cands.size());
@@ -152,7 +162,8 @@ void score_layout(const LineScan& scan, const PedicelExpectation& e, const Pedic
 
 }  // namespace
 
-PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before) {
+PedicelExpectation expectation_after_centring(const PedicelFinderParams& p,
+                                              const std::optional<PedicelExpectation>& before) {
   PedicelExpectation e;
   e.position_xz_m = Eigen::Vector2d(p.scissors.centre_x_m, p.scissors.centre_z_m);
   e.sd_m = p.recentre_sd_m;
@@ -209,9 +220,11 @@ PedicelExpectation expectation_after_move(const PedicelFinderParams& p, const st
   return e;
 }
 
-PedicelExpectation expectation_after_centring(const PedicelFinderParams& p, const std::optional<PedicelExpectation>& before,
+PedicelExpectation expectation_after_centring(const PedicelFinderParams& p,
+                                              const std::optional<PedicelExpectation>& before,
                                               const PedicelDetection& moved) {
-  if (moved.candidates.empty() || !(moved.candidates.front().weight > 0.0)) return expectation_after_centring(p, before);
+  if (moved.candidates.empty() || !(moved.candidates.front().weight > 0.0))
+    return expectation_after_centring(p, before);
   const Eigen::Vector2d throat(p.scissors.centre_x_m, p.scissors.centre_z_m);
   return expectation_after_move(p, before, moved, moved.candidates.front().position_xz_m - throat);
 }
@@ -228,7 +241,8 @@ std::string check_expectation(const PedicelExpectation& e) {
       return fmt::format("expectation neighbour_sd_m must be > 0 (got {})", e.neighbour_sd_m);
     }
     for (std::size_t i = 0; i < e.neighbours.size(); ++i) {
-      if (!e.neighbours[i].position_xz_m.allFinite()) return fmt::format("expectation neighbour {} has a non-finite position", i);
+      if (!e.neighbours[i].position_xz_m.allFinite())
+        return fmt::format("expectation neighbour {} has a non-finite position", i);
     }
   }
   if (!(e.gate_sd > 0.0)) return fmt::format("expectation gate_sd must be > 0 (got {})", e.gate_sd);
@@ -339,18 +353,18 @@ void rank(std::vector<PedicelCandidate>& cands) {
 void explain_no_candidate(const Census& n, const Prior& prior, PedicelDetection& d) {
   if (n.beyond_gate > 0) {
     d.outcome = PedicelOutcome::kNothingToCut;
-    d.reason = fmt::format("{} pedicel-like object{} in view, none within {:.3f} m ({} sd) of where the pedicel is expected "
-                           "(nearest {:.3f} m)",
-                           n.beyond_gate, n.beyond_gate == 1 ? "" : "s", prior.gate_sd * prior.sd, prior.gate_sd,
-                           n.nearest_beyond_m);
+    d.reason = fmt::format(
+        "{} pedicel-like object{} in view, none within {:.3f} m ({} sd) of where the pedicel is expected "
+        "(nearest {:.3f} m)",
+        n.beyond_gate, n.beyond_gate == 1 ? "" : "s", prior.gate_sd * prior.sd, prior.gate_sd, n.nearest_beyond_m);
   } else if (n.cut_by_edge > 0) {
     d.outcome = PedicelOutcome::kOutOfView;
     d.reason = fmt::format("the only pedicel-sized object{} cut by the edge of the field of view",
                            n.cut_by_edge > 1 ? "s are" : " is");
   } else {
     d.outcome = PedicelOutcome::kNothingToCut;
-    d.reason = fmt::format("{} object{} in range, none pedicel-like", n.in_range_objects,
-                           n.in_range_objects == 1 ? "" : "s");
+    d.reason =
+        fmt::format("{} object{} in range, none pedicel-like", n.in_range_objects, n.in_range_objects == 1 ? "" : "s");
   }
 }
 

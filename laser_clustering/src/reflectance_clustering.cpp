@@ -53,7 +53,8 @@ std::vector<double> smooth_ranges(const LineScan& scan, const ReflectanceCluster
 // The DBSCAN feature: log reflectance scaled so that a ratio of
 // reflectance_ratio_at_eps is eps apart (NaN without a positive
 // reflectance). Returns the valid pixels left out for want of one.
-std::size_t reflectance_feature(const LineScan& scan, const ReflectanceClusteringParams& p, std::vector<double>& feature) {
+std::size_t reflectance_feature(const LineScan& scan, const ReflectanceClusteringParams& p,
+                                std::vector<double>& feature) {
   std::size_t no_reflectance = 0;
   const double scale = p.dbscan.eps / std::log(p.reflectance_ratio_at_eps);
   feature.assign(scan.size(), kNaN);
@@ -84,7 +85,8 @@ void sum_clusters(const LineScan& scan, const std::vector<double>& range, const 
     ++c.num_points;
     c.mean_range_m += range[i];
     c.centroid_xz_m += Eigen::Vector2d(range[i] * std::sin(scan.angle_rad[i]), range[i] * std::cos(scan.angle_rad[i]));
-    if (!scan.reflectance.empty() && std::isfinite(scan.reflectance[i])) refl[static_cast<std::size_t>(l)].push_back(scan.reflectance[i]);
+    if (!scan.reflectance.empty() && std::isfinite(scan.reflectance[i]))
+      refl[static_cast<std::size_t>(l)].push_back(scan.reflectance[i]);
   }
 }
 

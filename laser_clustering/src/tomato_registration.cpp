@@ -22,7 +22,8 @@ common::Validation validate(const TomatoRegistrationParams& p) {
   if (!std::isfinite(p.min_section_radius_m) || p.min_section_radius_m < 0.0) {
     return {false, fmt::format("min_section_radius_m must be >= 0 (got {})", p.min_section_radius_m)};
   }
-  if (!std::isfinite(p.min_range_m) || p.min_range_m < 0.0 || !positive(p.max_range_m) || p.max_range_m <= p.min_range_m) {
+  if (!std::isfinite(p.min_range_m) || p.min_range_m < 0.0 || !positive(p.max_range_m) ||
+      p.max_range_m <= p.min_range_m) {
     return {false, fmt::format("need 0 <= min_range_m < max_range_m (got {} and {})", p.min_range_m, p.max_range_m)};
   }
   if (!(p.core_fraction > 0.0 && p.core_fraction <= 1.0)) {
@@ -31,8 +32,10 @@ common::Validation validate(const TomatoRegistrationParams& p) {
   if (!(std::isfinite(p.free_space_margin_m) && p.free_space_margin_m >= 0.0) ||
       !(std::isfinite(p.violation_cost) && p.violation_cost >= 0.0) ||
       !(std::isfinite(p.no_return_cost) && p.no_return_cost >= 0.0)) {
-    return {false, fmt::format("free_space_margin_m, violation_cost and no_return_cost must be finite and >= 0 (got {}, {}, {})",
-                               p.free_space_margin_m, p.violation_cost, p.no_return_cost)};
+    return {
+        false,
+        fmt::format("free_space_margin_m, violation_cost and no_return_cost must be finite and >= 0 (got {}, {}, {})",
+                    p.free_space_margin_m, p.violation_cost, p.no_return_cost)};
   }
   if (p.min_tomatoes < 1 || p.min_points_per_tomato < 1) {
     return {false, fmt::format("min_tomatoes and min_points_per_tomato must be >= 1 (got {} and {})", p.min_tomatoes,
@@ -214,7 +217,8 @@ Eigen::Vector2d grid_search(const std::vector<Point>& points, const std::vector<
       cells.push_back({s, support(points, rays, sections, s, p, scratch)});
     }
   }
-  const auto best = std::max_element(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.support < b.support; });
+  const auto best =
+      std::max_element(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) { return a.support < b.support; });
   for (const Cell& c : cells) {
     if ((c.shift - best->shift).norm() > p.distinct_shift_m && c.support > out.runner_up_support) {
       out.runner_up_support = c.support;
@@ -283,13 +287,14 @@ void judge(const TomatoRegistrationParams& p, TomatoRegistration& out) {
     return;
   }
   if (out.runner_up_support >= p.ambiguity_ratio * out.support) {
-    out.reason = fmt::format("ambiguous: a shift {:.3f} m away has {:.0f} % of the best's support",
-                             (out.runner_up_shift_xz_m - out.shift_xz_m).norm(), 100.0 * out.runner_up_support / out.support);
+    out.reason =
+        fmt::format("ambiguous: a shift {:.3f} m away has {:.0f} % of the best's support",
+                    (out.runner_up_shift_xz_m - out.shift_xz_m).norm(), 100.0 * out.runner_up_support / out.support);
     return;
   }
   out.ok = true;
-  out.reason = fmt::format("{} of {} tomatoes matched, {} returns, RMS {:.4f} m, {} pixels see through", out.tomatoes_matched,
-                           out.tomatoes_in_plane, out.inliers, out.rms_m, out.violations);
+  out.reason = fmt::format("{} of {} tomatoes matched, {} returns, RMS {:.4f} m, {} pixels see through",
+                           out.tomatoes_matched, out.tomatoes_in_plane, out.inliers, out.rms_m, out.violations);
 }
 
 }  // namespace

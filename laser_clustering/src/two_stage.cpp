@@ -17,7 +17,7 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // An object within this many pixels of the scan's ends may be cut by the field of view.
 constexpr int kFovEdgePx = 1;
-}
+}  // namespace
 
 common::Validation validate(const TwoStageParams& p) {
   if (auto v = validate(p.groups); !v.valid) return {false, "groups: " + v.reason};
@@ -25,7 +25,8 @@ common::Validation validate(const TwoStageParams& p) {
   const auto& e = p.edge;
   if (e.edge_width_px < 0) return {false, fmt::format("edge.edge_width_px must be >= 0 (got {})", e.edge_width_px)};
   if (e.reference_px < 1 || e.reference_px > detail::kMaxReferencePx) {
-    return {false, fmt::format("edge.reference_px must be in [1, {}] (got {})", detail::kMaxReferencePx, e.reference_px)};
+    return {false,
+            fmt::format("edge.reference_px must be in [1, {}] (got {})", detail::kMaxReferencePx, e.reference_px)};
   }
   if (!std::isfinite(e.step_m) || e.step_m < 0.0) {
     return {false, fmt::format("edge.step_m must be finite and >= 0 (got {})", e.step_m)};
@@ -163,8 +164,9 @@ void LineScanClusterer::reset(TwoStageResult& out) {
 
 std::string LineScanClusterer::check_once(const LineScan& scan) {
   // A sensor's pixel angles are the same scan after scan: check them once.
-  const bool same_angles = checked_angle_.size() == scan.angle_rad.size() && !checked_angle_.empty() &&
-                           std::memcmp(checked_angle_.data(), scan.angle_rad.data(), checked_angle_.size() * sizeof(double)) == 0;
+  const bool same_angles =
+      checked_angle_.size() == scan.angle_rad.size() && !checked_angle_.empty() &&
+      std::memcmp(checked_angle_.data(), scan.angle_rad.data(), checked_angle_.size() * sizeof(double)) == 0;
   if (same_angles && scan.range_m.size() == scan.angle_rad.size() &&
       (scan.reflectance.empty() || scan.reflectance.size() == scan.range_m.size())) {
     return {};  // checked before

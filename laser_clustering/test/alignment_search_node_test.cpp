@@ -37,4 +37,3 @@ TEST(LaserClusteringNodes, AlignmentSearchFindsThePitchOfAPitchSweep) {
   EXPECT_TRUE(last.refined);
   EXPECT_NEAR(last.best_pitch_rad, best, 0.5 * deg);
 }
-

@@ -225,11 +225,13 @@ TEST(DbscanSklearn, IdenticalCoreNoiseAndPartitionOnRandomAndAdversarialData) {
       std::vector<int> near;
       for (Eigen::Index j = 0; j < c.points.cols(); ++j) {
         if (flann.is_core[static_cast<std::size_t>(j)] &&
-            (c.points.col(static_cast<Eigen::Index>(i)) - c.points.col(j)).squaredNorm() <= c.params.eps * c.params.eps) {
+            (c.points.col(static_cast<Eigen::Index>(i)) - c.points.col(j)).squaredNorm() <=
+                c.params.eps * c.params.eps) {
           near.push_back(flann.labels[static_cast<std::size_t>(j)]);
         }
       }
-      if (std::find_if(near.begin(), near.end(), [&](int l) { return l != near.front(); }) != near.end()) ++shared_borders;
+      if (std::find_if(near.begin(), near.end(), [&](int l) { return l != near.front(); }) != near.end())
+        ++shared_borders;
     }
     compare(c, it->second, lc::dbscan_brute_force(c.points, c.params), "brute force");
     if (!c.angle.empty()) {

@@ -114,7 +114,8 @@ TEST(Dbscan, DuplicatesCountAsSeparateNeighbours) {
 
 TEST(Dbscan, RejectsBadParameters) {
   const auto p = line_1d({0.0, 1.0});
-  for (const double eps : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+  for (const double eps :
+       {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     const auto r = lc::dbscan(p, {eps, 2});
     EXPECT_FALSE(r.ok);
     EXPECT_THAT(r.reason, HasSubstr("eps"));
@@ -229,7 +230,8 @@ TEST(Dbscan, OrderedScanFastPathMatchesBruteForce) {
   for (int trial = 0; trial < 200; ++trial) {
     const auto s = random_scan(rng, 256, trial % 3 == 0);
     const bool with_feature = trial % 4 == 1;
-    lc::OrderedScanPoints scan{s.angle, s.range, with_feature ? std::span<const double>(s.feature) : std::span<const double>()};
+    lc::OrderedScanPoints scan{s.angle, s.range,
+                               with_feature ? std::span<const double>(s.feature) : std::span<const double>()};
     const lc::DbscanParams params{0.002 + 0.001 * (trial % 40), 1 + trial % 9};
     const auto points = lc::to_points(scan);
     const auto ref = lc::dbscan_brute_force(points, params);
@@ -272,7 +274,8 @@ TEST(Dbscan, OrderedScanMatchesBruteForceOnSurfacesCutByThinObjects) {
       s.feature.push_back(0.01 * g(rng));
     }
     const bool with_feature = trial % 5 == 4;
-    lc::OrderedScanPoints scan{s.angle, s.range, with_feature ? std::span<const double>(s.feature) : std::span<const double>()};
+    lc::OrderedScanPoints scan{s.angle, s.range,
+                               with_feature ? std::span<const double>(s.feature) : std::span<const double>()};
     const lc::DbscanParams params{0.01 + 0.005 * (trial % 7), 2 + trial % 5};
     const auto ref = lc::dbscan_brute_force(lc::to_points(scan), params);
     expect_same(fast.run(scan, params), ref, "cut surfaces: ordered scan vs brute force");

@@ -31,7 +31,6 @@ TEST(LaserClusteringNodes, LineClustererPublishesObjectsAndNotesBadScans) {
   EXPECT_THAT(got[1]->note, HasSubstr("255 statuses"));
 }
 
-
 TEST(LaserClusteringNodes, MinReflectanceDropsDimReturns) {
   Harness h;
   bus::NodeOptions o;
@@ -52,4 +51,3 @@ TEST(LaserClusteringNodes, MinReflectanceDropsDimReturns) {
   EXPECT_TRUE(got[1]->clusters.empty()) << "every pixel is below min_reflectance";
   for (const int l : got[1]->labels) EXPECT_LT(l, 0);
 }
-

@@ -21,6 +21,7 @@
 
 namespace lc = tinyline::laser_clustering;
 namespace bus = tinyline::bus;
+using ::testing::HasSubstr;
 using tinyline::geometry_msgs::msg::PointStamped;
 using tinyline::sensor_msgs::msg::JointState;
 using tinyline::tinyline_msgs::msg::AlignmentResult;
@@ -30,7 +31,6 @@ using tinyline::tinyline_msgs::msg::LineScan;
 using tinyline::tinyline_msgs::msg::PedicelDetection;
 using tinyline::tinyline_msgs::msg::PedicelLayout;
 using tinyline::tinyline_msgs::msg::TrussRegistration;
-using ::testing::HasSubstr;
 
 namespace lc_node_test {
 

@@ -74,7 +74,8 @@ TEST(ParamTables, TheFinderSettingsALaunchFileCouldNotSetBeforeAreSettable) {
   o.param("occlusion_margin_m", 0.03).param("recentre_sd_m", 0.02);
   const auto node = pedicel_finder(rig, o);
   std::map<std::string, double> value;
-  for (const auto& d : node->parameters()) value[d.name] = std::holds_alternative<double>(d.value) ? param_number(d.value) : 0;
+  for (const auto& d : node->parameters())
+    value[d.name] = std::holds_alternative<double>(d.value) ? param_number(d.value) : 0;
   EXPECT_EQ(value["layout_miss_factor"], 0.5);
   EXPECT_EQ(value["layout_extra_factor"], 0.6);
   EXPECT_EQ(value["occlusion_margin_m"], 0.03);

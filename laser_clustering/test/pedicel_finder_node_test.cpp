@@ -377,4 +377,3 @@ TEST(LaserClusteringNodes, PedicelFinderGatesOnTheLayoutAndDropsABadOne) {
   EXPECT_TRUE(h.log->contains(bus::LogLevel::Warn, "expected_layout (stamp"));
   EXPECT_TRUE(h.log->contains(bus::LogLevel::Warn, "frame 'laser') ignored"));
 }
-

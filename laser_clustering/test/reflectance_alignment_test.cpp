@@ -113,7 +113,8 @@ TEST(ReflectanceClustering, BadInput) {
   EXPECT_TRUE(lc::cluster_by_reflectance(no_refl, p).ok) << "distance-only needs no reflectance";
   p = {};
   p.reflectance_ratio_at_eps = 1.0;
-  EXPECT_THAT(lc::cluster_by_reflectance(s.scan, p).reason, HasSubstr("reflectance_ratio_at_eps must be finite and > 1"));
+  EXPECT_THAT(lc::cluster_by_reflectance(s.scan, p).reason,
+              HasSubstr("reflectance_ratio_at_eps must be finite and > 1"));
   p = {};
   p.dbscan.eps = -1.0;
   EXPECT_THAT(lc::cluster_by_reflectance(s.scan, p).reason, HasSubstr("dbscan: DbscanParams.eps"));
@@ -206,7 +207,8 @@ TEST(AlignmentSearch, EdgeFlatAndTooFewSamples) {
   std::vector<lc::AlignmentSample> flat{{0.0, 5.0}, {0.1, 5.1}, {0.2, 4.9}, {0.3, 5.0}};
   EXPECT_EQ(lc::find_alignment(flat).outcome, AlignmentOutcome::kNoPeak);
 
-  std::vector<lc::AlignmentSample> few{{0.0, 5.0}, {0.1, std::numeric_limits<double>::quiet_NaN()}, {0.2, -1.0}, {0.3, 9.0}};
+  std::vector<lc::AlignmentSample> few{
+      {0.0, 5.0}, {0.1, std::numeric_limits<double>::quiet_NaN()}, {0.2, -1.0}, {0.3, 9.0}};
   const auto f = lc::find_alignment(few);
   EXPECT_EQ(f.outcome, AlignmentOutcome::kInvalidInput);
   EXPECT_THAT(f.reason, HasSubstr("need at least 3 usable pitches, got 2 (2 samples skipped"));

@@ -9,7 +9,7 @@ TEST(LaserClusteringNodes, ReflectanceClustererFindsTheMetal) {
   h.add("reflectance_clusterer", o);
   std::shared_ptr<const LineClusters> got;
   auto sub = h.io->create_subscription<LineClusters>("clusters", bus::QoS::keep_last(1),
-                                                      [&](const std::shared_ptr<const LineClusters>& m) { got = m; });
+                                                     [&](const std::shared_ptr<const LineClusters>& m) { got = m; });
   auto pub = h.io->create_publisher<LineScan>("scan");
   pub->publish(to_msg(stick_scan(0.0, 0.0, 3), 1.0));
   h.ex.spin_until_idle();
@@ -19,4 +19,3 @@ TEST(LaserClusteringNodes, ReflectanceClustererFindsTheMetal) {
   EXPECT_NEAR(c.reflectance, 37.0, 4.0);
   EXPECT_NEAR(c.centroid_x_m, 0.0, 0.002);
 }
-

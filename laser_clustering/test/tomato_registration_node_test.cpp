@@ -7,8 +7,10 @@ namespace {
 // The tomato look (tomato_registration_test's truss): four tomatoes, each
 // its own size and depth, cut 1 cm below their centres; the vision sees them
 // all moved by -offset, each off by its own few millimetres.
-const std::vector<lc::test::Disc> kTruss{{-0.11, 0.23, 0.028, 6.0, 1}, {-0.04, 0.21, 0.033, 6.0, 2},
-                                         {0.035, 0.24, 0.026, 6.0, 3}, {0.10, 0.22, 0.031, 6.0, 4}};
+const std::vector<lc::test::Disc> kTruss{{-0.11, 0.23, 0.028, 6.0, 1},
+                                         {-0.04, 0.21, 0.033, 6.0, 2},
+                                         {0.035, 0.24, 0.026, 6.0, 3},
+                                         {0.10, 0.22, 0.031, 6.0, 4}};
 
 lc::test::SynthScan truss_scan(unsigned seed) {
   lc::test::SynthParams sp;
@@ -264,4 +266,3 @@ TEST(LaserClusteringNodes, TomatoRegistrationRejectsBadParametersAtStart) {
   unknown.param("max_shift", 0.05);  // max_shift_m is
   expect_error(unknown, "max_shift");
 }
-

@@ -30,7 +30,8 @@ SynthParams wall(unsigned seed) {
 // The vision's tomatoes: the true ones moved back by `offset` (what the
 // registration must find), each off by its own few millimetres, their
 // centres `height` off the plane.
-std::vector<lc::ExpectedTomato> vision(const std::vector<Disc>& truth, const Eigen::Vector2d& offset, double height = 0.0) {
+std::vector<lc::ExpectedTomato> vision(const std::vector<Disc>& truth, const Eigen::Vector2d& offset,
+                                       double height = 0.0) {
   std::vector<lc::ExpectedTomato> out;
   const double jitter[][2] = {{0.002, -0.003}, {-0.003, 0.001}, {0.001, 0.003}, {-0.002, -0.002}};
   for (std::size_t i = 0; i < truth.size(); ++i) {
@@ -46,9 +47,12 @@ std::vector<lc::ExpectedTomato> vision(const std::vector<Disc>& truth, const Eig
 
 TEST(TomatoRegistration, RecoversTheVisionsCommonOffset) {
   // Four tomatoes, each its own size and depth, cut 1 cm below their centres.
-  const std::vector<Disc> truth{{-0.11, 0.23, 0.028, 6.0, 1}, {-0.04, 0.21, 0.033, 6.0, 2},
-                                {0.035, 0.24, 0.026, 6.0, 3}, {0.10, 0.22, 0.031, 6.0, 4}};
-  for (const Eigen::Vector2d& offset : {Eigen::Vector2d(0.03, -0.015), Eigen::Vector2d(-0.045, 0.01), Eigen::Vector2d(0.0, 0.0)}) {
+  const std::vector<Disc> truth{{-0.11, 0.23, 0.028, 6.0, 1},
+                                {-0.04, 0.21, 0.033, 6.0, 2},
+                                {0.035, 0.24, 0.026, 6.0, 3},
+                                {0.10, 0.22, 0.031, 6.0, 4}};
+  for (const Eigen::Vector2d& offset :
+       {Eigen::Vector2d(0.03, -0.015), Eigen::Vector2d(-0.045, 0.01), Eigen::Vector2d(0.0, 0.0)}) {
     const auto s = synth_scan(truth, wall(11));
     const auto r = lc::register_tomatoes(s.scan, vision(truth, offset, 0.01));
     ASSERT_TRUE(r.ok) << r.reason;
@@ -102,7 +106,8 @@ TEST(TomatoRegistration, TooFewTomatoesInThePlaneOrInTheScanIsNoRegistration) {
   EXPECT_FALSE(one.ok);
   EXPECT_THAT(one.reason, HasSubstr("need 2"));
   // Centres 4 cm off the plane: no tomato is cut by it.
-  const auto above = lc::register_tomatoes(s.scan, {{{Eigen::Vector3d(0.0, 0.04, 0.22), 0.03}, {Eigen::Vector3d(0.07, 0.04, 0.22), 0.03}}});
+  const auto above = lc::register_tomatoes(
+      s.scan, {{{Eigen::Vector3d(0.0, 0.04, 0.22), 0.03}, {Eigen::Vector3d(0.07, 0.04, 0.22), 0.03}}});
   EXPECT_FALSE(above.ok);
   EXPECT_THAT(above.reason, HasSubstr("cut by the laser plane"));
   EXPECT_EQ(above.tomatoes_in_plane, 0);

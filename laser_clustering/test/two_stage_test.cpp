@@ -72,7 +72,8 @@ TEST(TwoStage, DragTrailLeavesNoSpuriousObjectAndDoesNotWidenThePedicel) {
   int spurious = 0, pedicels_found = 0, dropped = 0;
   for (unsigned seed = 1; seed <= 40; ++seed) {
     sp.seed = seed;
-    const auto s = synth_scan({{-0.05, 0.16, 0.003, 6.0, 1}, {0.0, 0.14, 0.003, 6.0, 2}, {0.045, 0.18, 0.003, 6.0, 3}}, sp);
+    const auto s =
+        synth_scan({{-0.05, 0.16, 0.003, 6.0, 1}, {0.0, 0.14, 0.003, 6.0, 2}, {0.045, 0.18, 0.003, 6.0, 3}}, sp);
     const auto r = lc::cluster_line_scan(s.scan);
     ASSERT_TRUE(r.ok) << r.reason;
     dropped += r.num_edge_dropped;

@@ -42,7 +42,7 @@ struct SynthParams {
 
 struct SynthScan {
   LineScan scan;
-  std::vector<int> truth;  ///< per pixel: id of the dominant object, 0 wall, -1 nothing
+  std::vector<int> truth;      ///< per pixel: id of the dominant object, 0 wall, -1 nothing
   std::vector<double> purity;  ///< per pixel: the dominant object's share of the received energy
 };
 
@@ -109,7 +109,8 @@ inline SynthScan synth_scan(const std::vector<Disc>& discs, const SynthParams& p
     }
     out.scan.range_m.push_back(swr / sw);
     out.scan.reflectance.push_back(swref / p.subrays);
-    const auto dominant = std::max_element(energy.begin(), energy.end(), [](auto& l, auto& r) { return l.second < r.second; });
+    const auto dominant =
+        std::max_element(energy.begin(), energy.end(), [](auto& l, auto& r) { return l.second < r.second; });
     out.truth.push_back(dominant->first);
     out.purity.push_back(dominant->second / sw);
   }
@@ -126,7 +127,8 @@ inline SynthScan synth_scan(const std::vector<Disc>& discs, const SynthParams& p
       if (!edge) continue;
       for (int k = 0; k < p.drag_px; ++k) {
         const int q = i - s * k;
-        if (q < 0 || q >= p.pixels || out.truth[static_cast<std::size_t>(q)] != out.truth[static_cast<std::size_t>(i)]) break;
+        if (q < 0 || q >= p.pixels || out.truth[static_cast<std::size_t>(q)] != out.truth[static_cast<std::size_t>(i)])
+          break;
         out.scan.range_m[static_cast<std::size_t>(q)] += p.drag_m / (1 << (2 * k));
       }
     }

@@ -15,7 +15,9 @@
 namespace tinyline::msgtest {
 
 template <class T>
-concept Message = requires { T::kTypeName; };
+concept Message = requires {
+  T::kTypeName;
+};
 
 struct Filler {
   std::mt19937_64& rng;
@@ -28,12 +30,10 @@ struct Filler {
 
   void fill(bool& b) { b = rng() & 1; }
   template <class T>
-    requires std::is_integral_v<T>
-  void fill(T& v) {
-    v = static_cast<T>(rng());
-  }
+  requires std::is_integral_v<T>
+  void fill(T& v) { v = static_cast<T>(rng()); }
   template <class T>
-    requires std::is_floating_point_v<T>
+  requires std::is_floating_point_v<T>
   void fill(T& v) {
     std::uniform_real_distribution<double> mant(-1.0, 1.0);
     std::uniform_int_distribution<int> ex(-20, 20);
@@ -77,12 +77,10 @@ struct JsonDumper {
 
   void dump(bool b) { out += b ? "true" : "false"; }
   template <class T>
-    requires std::is_integral_v<T>
-  void dump(T v) {
-    out += std::to_string(v);
-  }
+  requires std::is_integral_v<T>
+  void dump(T v) { out += std::to_string(v); }
   template <class T>
-    requires std::is_floating_point_v<T>
+  requires std::is_floating_point_v<T>
   void dump(T v) {
     out += fmt::format("{:.17g}", static_cast<double>(v));  // exact as a double
   }
@@ -95,15 +93,16 @@ struct JsonDumper {
     out += '"';
   }
   template <class C>
-    requires requires(const C& c) { c.begin(); c.size(); } && (!std::is_same_v<C, std::string>)
-  void dump(const C& c) {
+  requires requires(const C& c) {
+    c.begin();
+    c.size();
+  } &&(!std::is_same_v<C, std::string>)void dump(const C& c) {
     out += '[';
     bool first = true;
     for (const auto& x : c) {
       if (!first) out += ", ";
       first = false;
-      if constexpr (std::is_same_v<std::decay_t<decltype(x)>, bool> ||
-                    std::is_same_v<C, std::vector<bool>>) {
+      if constexpr (std::is_same_v<std::decay_t<decltype(x)>, bool> || std::is_same_v<C, std::vector<bool>>) {
         dump(static_cast<bool>(x));
       } else {
         dump(x);

@@ -164,8 +164,8 @@ TEST(Messages, InteropWithRosbagsBothWays) {
       if (n > 0) fill.fill(m);  // sample 0 is the default-constructed message
       const auto bytes = msg::serialize(m);
       const std::string stem = std::string(pkg) + "__" + name + "__" + std::to_string(n);
-      std::ofstream(work / (stem + ".cdr"), std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                                                    static_cast<std::streamsize>(bytes.size()));
+      std::ofstream(work / (stem + ".cdr"), std::ios::binary)
+          .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
       std::ofstream(work / (stem + ".json")) << msgtest::to_json(m);
       ++written;
     }

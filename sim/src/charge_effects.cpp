@@ -67,7 +67,8 @@ ChargeEffect read_charge_effect(const YamlNode& n) {
   e.per_pulse = n.in_range("per_pulse", e.per_pulse, -10.0, 10.0);
   e.gain = n.in_range("gain", e.gain, 0.1, 10.0);
   e.covariate = n.get_string("covariate", "");
-  if (e.kind == ChargeEffect::Kind::kAmbient && e.covariate.empty()) n.fail("an ambient charge effect needs `covariate`");
+  if (e.kind == ChargeEffect::Kind::kAmbient && e.covariate.empty())
+    n.fail("an ambient charge effect needs `covariate`");
   if (auto p = n.find("pixels")) {
     for (const auto& item : p->items()) e.pixels.pixels.push_back(item.as_int());
   }

@@ -18,7 +18,8 @@ int select_readout(const SensorSet& set, int pixel) {
   for (std::size_t k = set.readouts.size(); k-- > 0;) {
     const auto& r = set.readouts[k];
     const double a = r.a[i], b = r.b[i];
-    if (a > 10.0 && a < 230.0 && b > 10.0 && b < 230.0 && a + b > 10.0 + 0.4 * r.pulses / 10.0) return static_cast<int>(k);
+    if (a > 10.0 && a < 230.0 && b > 10.0 && b < 230.0 && a + b > 10.0 + 0.4 * r.pulses / 10.0)
+      return static_cast<int>(k);
   }
   return -1;
 }
@@ -66,7 +67,7 @@ void measure_constants(const SensorParams& params, int pixel, double t_s, std::u
   const std::vector<int> one{400};
   for (int k = 0; k < 20; ++k) {
     const SensorSet s = lamp.measure(t_s, one, seed + 2000 + static_cast<std::uint64_t>(k), off);
-    sa += s.readouts[0].a[static_cast<std::size_t>(pixel)] ;
+    sa += s.readouts[0].a[static_cast<std::size_t>(pixel)];
     sb += s.readouts[0].b[static_cast<std::size_t>(pixel)];
   }
   m.rsen = sb / sa;  // equal charge in both: b / a = R_sen
@@ -182,8 +183,8 @@ void fit_calibrations(const CalibrationRail& rail, const FidelityOptions& o, std
 }
 
 // Table 3.1: continuous raw mode, read-out selection as the driver does it.
-void measure_table31(const SensorParams& sensor, const CalibrationRail& rail, const FidelityOptions& o, std::uint64_t base,
-                     FidelityReport& rep) {
+void measure_table31(const SensorParams& sensor, const CalibrationRail& rail, const FidelityOptions& o,
+                     std::uint64_t base, FidelityReport& rep) {
   const auto px = static_cast<std::size_t>(o.pixel);
   CalibrationRail r = rail;
   std::uint64_t index = base + 700000;
@@ -272,7 +273,8 @@ void temperature_drift(const SensorParams& sensor, const CalibrationRail& rail, 
   for (double t = 0.0; t < 5.0 * sensor.thermal.time_constant_s; t += sensor.thermal.time_constant_s / 60.0) {
     const SensorSet s = r.measure(t, sched, index++);
     if (select_readout(s, o.pixel) != 0) continue;
-    const double cm = model_cm(rep.calibration, s.readouts[0], px, sensor.thermal.reference_c);  // no temperature correction
+    const double cm =
+        model_cm(rep.calibration, s.readouts[0], px, sensor.thermal.reference_c);  // no temperature correction
     if (!std::isfinite(cm)) continue;
     temp.push_back(s.temperature_c);
     dist.push_back(cm);
@@ -356,8 +358,8 @@ void judge_table31(const FidelityReport& r, const ThesisFigures& m, FidelityVerd
     v.worst_sd_ratio_error = std::max(v.worst_sd_ratio_error, std::abs(e));
     if (!(std::abs(e) <= 0.30)) {
       std::ostringstream s;
-      s << "Table 3.1 at " << meas.truth_cm << " cm: SD " << it->sd_cm << " cm vs measured " << meas.sd_cm
-        << " cm (" << 100.0 * e << " %, goal within 30 %)";
+      s << "Table 3.1 at " << meas.truth_cm << " cm: SD " << it->sd_cm << " cm vs measured " << meas.sd_cm << " cm ("
+        << 100.0 * e << " %, goal within 30 %)";
       fail(v, s.str());
     }
   }
@@ -366,7 +368,8 @@ void judge_table31(const FidelityReport& r, const ThesisFigures& m, FidelityVerd
 // Table 3.2: each material's bias within 0.5 cm of the thesis (2 cm for the foam).
 void judge_table32(const FidelityReport& r, const ThesisFigures& m, FidelityVerdict& v) {
   for (const auto& meas : m.table32) {
-    const auto it = std::find_if(r.table32.begin(), r.table32.end(), [&](const MaterialRow& x) { return x.material == meas.material; });
+    const auto it = std::find_if(r.table32.begin(), r.table32.end(),
+                                 [&](const MaterialRow& x) { return x.material == meas.material; });
     if (it == r.table32.end()) {
       fail(v, "Table 3.2: no simulated row for " + meas.material);
       continue;
@@ -374,8 +377,10 @@ void judge_table32(const FidelityReport& r, const ThesisFigures& m, FidelityVerd
     const double e = std::abs((it->mean_cm - 30.0) - (meas.mean_cm - 30.0));
     const bool foam = meas.material == "ic_foam";
     const double goal = foam ? 2.0 : 0.5;
-    if (foam) v.ic_foam_bias_error_cm = e;
-    else v.worst_material_bias_cm = std::max(v.worst_material_bias_cm, e);
+    if (foam)
+      v.ic_foam_bias_error_cm = e;
+    else
+      v.worst_material_bias_cm = std::max(v.worst_material_bias_cm, e);
     if (!(e <= goal) || it->n < 3) {
       std::ostringstream s;
       s << "Table 3.2 " << meas.material << ": bias " << it->mean_cm - 30.0 << " cm vs measured " << meas.mean_cm - 30.0
@@ -411,10 +416,12 @@ void judge_fits(const FidelityReport& r, const ThesisFigures& m, FidelityVerdict
   const double e = lin->sd_cm / std::sqrt(lin_m->var_cm2) - 1.0;
   if (!(std::abs(e) <= 0.30)) {
     std::ostringstream s;
-    s << "section 3.5: linear fit SD " << lin->sd_cm << " cm vs measured " << std::sqrt(lin_m->var_cm2) << " cm (goal within 30 %)";
+    s << "section 3.5: linear fit SD " << lin->sd_cm << " cm vs measured " << std::sqrt(lin_m->var_cm2)
+      << " cm (goal within 30 %)";
     fail(v, s.str());
   }
-  if (!(pm->var_cm2 > 2.0 * p6->var_cm2)) fail(v, "section 3.5: multi-discharge should fit clearly worse than a single 40 % discharge");
+  if (!(pm->var_cm2 > 2.0 * p6->var_cm2))
+    fail(v, "section 3.5: multi-discharge should fit clearly worse than a single 40 % discharge");
 }
 
 }  // namespace
@@ -446,7 +453,8 @@ double material_error(const FidelityReport& r, const ThesisFigures& m, const std
 double sd_error(const FidelityReport& r, const ThesisFigures& m, double truth) {
   for (const auto& s : r.table31)
     for (const auto& t : m.table31)
-      if (std::abs(s.truth_cm - truth) < 1e-6 && std::abs(t.truth_cm - truth) < 1e-6) return std::abs(s.sd_cm / t.sd_cm - 1.0);
+      if (std::abs(s.truth_cm - truth) < 1e-6 && std::abs(t.truth_cm - truth) < 1e-6)
+        return std::abs(s.sd_cm / t.sd_cm - 1.0);
   return kNaN;
 }
 
@@ -521,7 +529,8 @@ TuneResult tune_offset(const SensorParams& base, const ThesisFigures& m, const F
       b2 += d * d;
     }
     const double brms = std::sqrt(b2 / static_cast<double>(std::max<std::size_t>(1, r.table31.size())));
-    table << fmt(off) << "," << fmt(mv) << "," << fmt(fe) << "," << fmt(var_of(r.fits, "linear_eq_3_16")) << "," << fmt(brms) << "\n";
+    table << fmt(off) << "," << fmt(mv) << "," << fmt(fe) << "," << fmt(var_of(r.fits, "linear_eq_3_16")) << ","
+          << fmt(brms) << "\n";
     if (fe < best) {
       best = fe;
       t.best = {{"adc_offset_b", off}};

@@ -81,7 +81,8 @@ std::vector<std::uint16_t> firmware_distances(const SensorSet& set, const tld::C
     r.pixel = static_cast<int>(i);
     r.t_s = ro.t_s;
     const double units = 1e4 * model.distance_m(r);  // 0.1 mm
-    if (std::isfinite(units) && units >= 1.0 && units <= 65535.0) out[i] = static_cast<std::uint16_t>(std::lround(units));
+    if (std::isfinite(units) && units >= 1.0 && units <= 65535.0)
+      out[i] = static_cast<std::uint16_t>(std::lround(units));
   }
   return out;
 }
@@ -156,7 +157,8 @@ PublishedFirmware::PublishedFirmware(const SensorParams& params)
     : fw_(params.firmware), dark_pixels_(params.lens.dark_pixels) {
   std::vector<double> ks, targets;
   published_factory_samples(params, *this, ks, targets);
-  if (ks.size() < 20) throw std::runtime_error("published firmware: the factory sweep left too few valid read-outs to fit");
+  if (ks.size() < 20)
+    throw std::runtime_error("published firmware: the factory sweep left too few valid read-outs to fit");
   Eigen::MatrixXd A(static_cast<Eigen::Index>(ks.size()), 7);
   Eigen::VectorXd y(static_cast<Eigen::Index>(ks.size()));
   for (std::size_t r = 0; r < ks.size(); ++r) {
@@ -220,7 +222,8 @@ PublishedCycle PublishedFirmware::compute(const SensorSet& lit, const SensorSet&
       c.distance[i] = static_cast<std::uint16_t>(std::min(cm * 100.0, 65535.0));
     }
   }
-  for (const auto& [dst, src] : kPublishedPixelCopies) c.distance[static_cast<std::size_t>(dst)] = c.distance[static_cast<std::size_t>(src)];
+  for (const auto& [dst, src] : kPublishedPixelCopies)
+    c.distance[static_cast<std::size_t>(dst)] = c.distance[static_cast<std::size_t>(src)];
   return c;
 }
 

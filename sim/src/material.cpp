@@ -77,7 +77,7 @@ MaterialLibrary MaterialLibrary::builtin() {
   // Table 3.2 (sim/config/fidelity/thesis_measured.yaml materials_at_30cm).
   lib.add(from_figure("white_paper", 6.92, {0.90, 0.90, 0.88}));
   lib.add(from_figure("black_cushion", 4.6955, {0.04, 0.04, 0.05}));
-  lib.add(metal("metal_pan", 25.0071, 0.30, 30.0, {0.55, 0.55, 0.56}));   // "without gloss": broad lobe
+  lib.add(metal("metal_pan", 25.0071, 0.30, 30.0, {0.55, 0.55, 0.56}));  // "without gloss": broad lobe
   lib.add(from_figure("cloth_bag", 5.1638, {0.10, 0.20, 0.55}));
   lib.add(from_figure("styrofoam", 4.8961, {0.15, 0.35, 0.75}));
   lib.add(from_figure("white_towel", 5.6881, {0.85, 0.85, 0.85}));

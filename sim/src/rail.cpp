@@ -62,7 +62,8 @@ SensorSet CalibrationRail::measure(double t_s, std::span<const int> pulses, std:
 int CalibrationRail::pulses_for_discharge(double fraction, int pixel, double t_s) const {
   const PulseCharges pc = sensor_.pulse_charges(world_, T_world_sensor_, t_s);
   const auto i = static_cast<std::size_t>(pixel);
-  const double per_pulse = std::max((pc.qa[i] + pc.ambient[i]) / sensor_.sensitivity_ratio(pixel), pc.qb[i] + pc.ambient[i]);
+  const double per_pulse =
+      std::max((pc.qa[i] + pc.ambient[i]) / sensor_.sensitivity_ratio(pixel), pc.qb[i] + pc.ambient[i]);
   const double leak_per_pulse = sensor_.leakage_per_ms(pixel) * 1e3 / params_.emitter.pulse_rate_hz;
   const double target = fraction * params_.pixel.full_scale;
   if (per_pulse + leak_per_pulse <= 0.0) return 990;

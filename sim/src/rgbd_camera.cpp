@@ -34,7 +34,10 @@ std::uint64_t stream_key(std::uint64_t seed, std::uint64_t frame, std::uint64_t 
 class CorrelatedField {
  public:
   CorrelatedField(int width, int height, int cell, std::uint64_t key)
-      : cell_(std::max(1, cell)), gw_(width / cell_ + 2), gh_(height / cell_ + 2), g_(static_cast<std::size_t>(gw_ * gh_)) {
+      : cell_(std::max(1, cell)),
+        gw_(width / cell_ + 2),
+        gh_(height / cell_ + 2),
+        g_(static_cast<std::size_t>(gw_ * gh_)) {
     for (std::size_t i = 0; i < g_.size(); ++i) g_[i] = gaussian(key + i);
   }
   double at(int u, int v) const {
@@ -134,15 +137,18 @@ common::Validation RgbdCameraParams::validate() const {
   const auto& k = intrinsics;
   auto finite_pos = [](double x) { return std::isfinite(x) && x > 0.0; };
   if (k.width < 2 || k.height < 2) return common::Validation::invalid("intrinsics: width and height must be >= 2 px");
-  if (!finite_pos(k.fx) || !finite_pos(k.fy)) return common::Validation::invalid("intrinsics: fx and fy must be finite and > 0");
-  if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) return common::Validation::invalid("intrinsics: cx and cy must be finite");
+  if (!finite_pos(k.fx) || !finite_pos(k.fy))
+    return common::Validation::invalid("intrinsics: fx and fy must be finite and > 0");
+  if (!std::isfinite(k.cx) || !std::isfinite(k.cy))
+    return common::Validation::invalid("intrinsics: cx and cy must be finite");
   if (!finite_pos(min_depth_m) || !(max_depth_m > min_depth_m) || !std::isfinite(max_depth_m))
     return common::Validation::invalid("min_depth_m must be > 0 and below max_depth_m (finite)");
   if (!finite_pos(projector_baseline_m)) return common::Validation::invalid("projector_baseline_m must be > 0");
   if (!(disparity_noise_px >= 0) || !(disparity_noise_correlated_px >= 0) || !(disparity_step_px >= 0))
     return common::Validation::invalid("disparity noise and step must be >= 0");
   if (correlation_window_px < 1) return common::Validation::invalid("correlation_window_px must be >= 1");
-  if (!(edge_jump_m > 0) || !(edge_jump_per_m >= 0)) return common::Validation::invalid("edge_jump_m must be > 0 and edge_jump_per_m >= 0");
+  if (!(edge_jump_m > 0) || !(edge_jump_per_m >= 0))
+    return common::Validation::invalid("edge_jump_m must be > 0 and edge_jump_per_m >= 0");
   if (!(edge_dropout >= 0 && edge_dropout <= 1)) return common::Validation::invalid("edge_dropout must be in [0, 1]");
   if (!(grazing_start_deg >= 0 && grazing_start_deg < grazing_end_deg && grazing_end_deg <= 90))
     return common::Validation::invalid("grazing angles must satisfy 0 <= start < end <= 90 deg");
@@ -150,7 +156,8 @@ common::Validation RgbdCameraParams::validate() const {
   if (!(light_intensity >= 0) || !(ambient >= 0) || !(exposure > 0) || !(colour_noise_dn >= 0))
     return common::Validation::invalid("light_intensity, ambient, colour_noise_dn must be >= 0 and exposure > 0");
   for (const auto& g : gloss)
-    if (!(g.strength >= 0 && g.strength <= 1) || !(g.exponent >= 1)) return common::Validation::invalid("gloss: strength in [0, 1], exponent >= 1");
+    if (!(g.strength >= 0 && g.strength <= 1) || !(g.exponent >= 1))
+      return common::Validation::invalid("gloss: strength in [0, 1], exponent >= 1");
   for (double c : distortion.spatial_m)
     if (!std::isfinite(c)) return common::Validation::invalid("distortion coefficients must be finite");
   if (!std::isfinite(distortion.z_slope)) return common::Validation::invalid("distortion z_slope must be finite");
@@ -159,8 +166,10 @@ common::Validation RgbdCameraParams::validate() const {
 
 Eigen::Vector3f RgbdFrame::point(std::size_t i) const {
   const float z = depth_m[i];
-  const int u = static_cast<int>(i % static_cast<std::size_t>(width)), v = static_cast<int>(i / static_cast<std::size_t>(width));
-  return {static_cast<float>((u - intrinsics.cx) / intrinsics.fx) * z, static_cast<float>((v - intrinsics.cy) / intrinsics.fy) * z, z};
+  const int u = static_cast<int>(i % static_cast<std::size_t>(width)),
+            v = static_cast<int>(i / static_cast<std::size_t>(width));
+  return {static_cast<float>((u - intrinsics.cx) / intrinsics.fx) * z,
+          static_cast<float>((v - intrinsics.cy) / intrinsics.fy) * z, z};
 }
 
 std::size_t RgbdFrame::num_valid() const {
@@ -168,7 +177,8 @@ std::size_t RgbdFrame::num_valid() const {
 }
 
 RgbdCamera::RgbdCamera(RgbdCameraParams params) : params_(std::move(params)) {
-  if (const common::Validation why = params_.validate(); !why.valid) throw std::invalid_argument("RgbdCamera: " + why.reason);
+  if (const common::Validation why = params_.validate(); !why.valid)
+    throw std::invalid_argument("RgbdCamera: " + why.reason);
 }
 
 bool RgbdCamera::project(const Eigen::Vector3d& p, Eigen::Vector2d& uv) const {
@@ -275,7 +285,8 @@ class FrameRenderer {
         if (!has_depth[i]) continue;
         if (edge[i] && uniform01(key_dropout + i) < P.edge_dropout) continue;
         const double z = z_true[i];
-        double d = fb / z + P.disparity_noise_px * gaussian(key_white + i) + P.disparity_noise_correlated_px * field.at(u, v);
+        double d =
+            fb / z + P.disparity_noise_px * gaussian(key_white + i) + P.disparity_noise_correlated_px * field.at(u, v);
         if (P.disparity_step_px > 0) d = std::round(d / P.disparity_step_px) * P.disparity_step_px;
         if (!(d > 0)) continue;
         double zm = fb / d;
@@ -312,7 +323,8 @@ class FrameRenderer {
     constexpr int kLut = 4096;
     static const std::vector<float> lut = [] {
       std::vector<float> t(kLut + 1);
-      for (int k = 0; k <= kLut; ++k) t[static_cast<std::size_t>(k)] = static_cast<float>(srgb_encode(static_cast<double>(k) / kLut));
+      for (int k = 0; k <= kLut; ++k)
+        t[static_cast<std::size_t>(k)] = static_cast<float>(srgb_encode(static_cast<double>(k) / kLut));
       return t;
     }();
     const double x = std::clamp(lin, 0.0, 1.0) * kLut;
@@ -391,7 +403,8 @@ class FrameRenderer {
           if (!hit_ok_[t] || hits_[t].object != object) continue;
           const Eigen::Vector3d dir_c = K.ray(u, v);
           const Ray ray{eye, R * dir_c};
-          shade(pixel(u, v), ray, dir_c.z(), hits_[t], primary.original[static_cast<std::size_t>(object)], shadow.world);
+          shade(pixel(u, v), ray, dir_c.z(), hits_[t], primary.original[static_cast<std::size_t>(object)],
+                shadow.world);
         }
       }
     }
@@ -468,7 +481,8 @@ class FrameRenderer {
 
 }  // namespace
 
-RgbdFrame RgbdCamera::render(const World& world, const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index) const {
+RgbdFrame RgbdCamera::render(const World& world, const Eigen::Isometry3d& T_world_camera,
+                             std::uint64_t frame_index) const {
   RgbdFrame f;
   FrameRenderer r(params_, world, T_world_camera, frame_index, f);
   if (params_.tile_culling) {

@@ -76,7 +76,8 @@ Shape read_shape(const YamlNode& n, const std::string& type) {
       const auto idx = t.as_doubles(3);
       Eigen::Vector3i tri;
       for (int k = 0; k < 3; ++k) {
-        if (idx[static_cast<std::size_t>(k)] != std::floor(idx[static_cast<std::size_t>(k)]) || idx[static_cast<std::size_t>(k)] < 0 ||
+        if (idx[static_cast<std::size_t>(k)] != std::floor(idx[static_cast<std::size_t>(k)]) ||
+            idx[static_cast<std::size_t>(k)] < 0 ||
             idx[static_cast<std::size_t>(k)] >= static_cast<double>(m.vertices.size()))
           t.fail("vertex index out of range (the mesh has " + std::to_string(m.vertices.size()) + " vertices)");
         tri[k] = static_cast<int>(idx[static_cast<std::size_t>(k)]);
@@ -191,7 +192,8 @@ std::string Scene::check_sensor_placement(const SensorMount& m) const {
   for (const auto& [what, p] : {std::pair{"receiver", receiver}, std::pair{"emitter", emitter}}) {
     const auto inside = world.containing(p);
     if (!inside.empty()) {
-      return std::string("sensor '") + m.name + "' " + what + " is inside object '" + world.object(inside.front()).name + "'";
+      return std::string("sensor '") + m.name + "' " + what + " is inside object '" +
+             world.object(inside.front()).name + "'";
     }
   }
   return {};

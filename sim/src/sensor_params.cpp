@@ -29,7 +29,8 @@ std::vector<int> read_pulses(const YamlNode& n) {
   if (items.empty() || items.size() > 9) n.fail("expected 1 to 9 pulse counts");
   for (const auto& e : items) {
     const int p = e.as_int();
-    if (p < 10 || p > 990 || p % 10 != 0) e.fail("pulse count must be a multiple of 10 in [10, 990] (got " + std::to_string(p) + ")");
+    if (p < 10 || p > 990 || p % 10 != 0)
+      e.fail("pulse count must be a multiple of 10 in [10, 990] (got " + std::to_string(p) + ")");
     if (!out.empty() && p <= out.back()) e.fail("pulse counts must increase");
     out.push_back(p);
   }
@@ -88,7 +89,8 @@ EffectSpec read_effect(const YamlNode& n) {
     e.name = n.get_string("name", e.name);
     if (e.name.empty()) n.at("name").fail("must not be empty");
     for (char c : e.name)
-      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) n.at("name").fail("use letters, digits and '_' only (it becomes a CSV column)");
+      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_'))
+        n.at("name").fail("use letters, digits and '_' only (it becomes a CSV column)");
     e.mean = n.get_double("mean", e.mean);
     e.amplitude = n.non_negative("amplitude", e.amplitude);
     e.period_s = n.positive("period_s", e.period_s);
@@ -124,8 +126,9 @@ void read_lens(const YamlNode* l, LensParams& x) {
 }
 
 void read_emitter(const YamlNode* e, EmitterParams& x) {
-  e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "sheet_thickness_mm", "sheet_divergence_deg", "pulse_width_ns", "pulse_rise_exponent",
-                 "pulse_fall_exponent", "diffusion_tail_ns", "pulse_rate_hz", "charge_per_pulse_1m"});
+  e->check_keys({"baseline_m", "fan_half_angle_deg", "fan_edge_deg", "sheet_thickness_mm", "sheet_divergence_deg",
+                 "pulse_width_ns", "pulse_rise_exponent", "pulse_fall_exponent", "diffusion_tail_ns", "pulse_rate_hz",
+                 "charge_per_pulse_1m"});
   x.baseline_m = e->in_range("baseline_m", x.baseline_m, -0.2, 0.2);
   x.fan_half_angle_deg = e->in_range("fan_half_angle_deg", x.fan_half_angle_deg, 0.5, 89.0);
   x.fan_edge_deg = e->in_range("fan_edge_deg", x.fan_edge_deg, 0.0, 30.0);
@@ -141,7 +144,8 @@ void read_emitter(const YamlNode* e, EmitterParams& x) {
 
 void read_pixel(const YamlNode* q, PixelParams& x) {
   q->check_keys({"gate_split_ns", "sensitivity_ratio", "sensitivity_ratio_sd", "leakage_per_ms", "leakage_sd",
-                 "prnu_sd", "full_scale", "knee", "nonlinearity", "read_noise", "shot_noise_gain", "transfer_noise_per_pulse", "adc_offset_a", "adc_offset_b", "adc_lsb", "adc_max"});
+                 "prnu_sd", "full_scale", "knee", "nonlinearity", "read_noise", "shot_noise_gain",
+                 "transfer_noise_per_pulse", "adc_offset_a", "adc_offset_b", "adc_lsb", "adc_max"});
   x.gate_split_ns = q->in_range("gate_split_ns", x.gate_split_ns, -1000.0, 1000.0);
   x.sensitivity_ratio = q->in_range("sensitivity_ratio", x.sensitivity_ratio, 0.1, 10.0);
   x.sensitivity_ratio_sd = q->in_range("sensitivity_ratio_sd", x.sensitivity_ratio_sd, 0.0, 0.5);
@@ -161,8 +165,8 @@ void read_pixel(const YamlNode* q, PixelParams& x) {
 }
 
 void read_firmware(const YamlNode& f, FirmwareParams& x) {
-  f.check_keys({"profile", "tick_s", "cycle_ticks", "sensitivity_ratio", "compensated_pixel", "compensated_pixel_factor",
-                "saturation_charge"});
+  f.check_keys({"profile", "tick_s", "cycle_ticks", "sensitivity_ratio", "compensated_pixel",
+                "compensated_pixel_factor", "saturation_charge"});
   if (auto pr = f.find("profile")) {
     const auto profile = firmware_profile_from_string(pr->as_string());
     if (!profile) pr->fail("unknown firmware profile '" + pr->as_string() + "' (known: thesis_raw, published)");
@@ -199,7 +203,8 @@ const char* effect_type(const EffectSpec& e) {
 }
 
 std::vector<std::string> effect_types() {
-  return {"trap_delay", "material_bias", "fixed_pattern", "range_walk", "time_drift", "covariate", "temperature_lag", "charge"};
+  return {"trap_delay", "material_bias", "fixed_pattern",   "range_walk",
+          "time_drift", "covariate",     "temperature_lag", "charge"};
 }
 
 void apply_sensor_params(const YamlNode& n, SensorParams& p) {
@@ -231,7 +236,8 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
   }
   if (auto e = n.find("environment")) {
     e->check_keys({"ambient_charge_per_pulse"});
-    p.environment.ambient_charge_per_pulse = e->non_negative("ambient_charge_per_pulse", p.environment.ambient_charge_per_pulse);
+    p.environment.ambient_charge_per_pulse =
+        e->non_negative("ambient_charge_per_pulse", p.environment.ambient_charge_per_pulse);
   }
   if (auto f = n.find("firmware")) read_firmware(*f, p.firmware);
   if (auto e = n.find("effects")) {
@@ -248,7 +254,8 @@ SensorParams load_sensor_params(const std::string& path) {
   if (auto b = root.find("base")) {
     std::filesystem::path base = b->as_string();
     if (base.is_relative()) base = std::filesystem::path(path).parent_path() / base;
-    if (std::filesystem::weakly_canonical(base) == std::filesystem::weakly_canonical(path)) b->fail("a sensor file cannot be its own base");
+    if (std::filesystem::weakly_canonical(base) == std::filesystem::weakly_canonical(path))
+      b->fail("a sensor file cannot be its own base");
     try {
       p = load_sensor_params(base.string());
     } catch (const ConfigError& e) {
@@ -261,13 +268,19 @@ SensorParams load_sensor_params(const std::string& path) {
 }
 
 common::Validation SensorParams::validate() const {
-  if (lens.pixels <= 2 * lens.dark_pixels) return common::Validation::invalid("lens.pixels must exceed twice lens.dark_pixels");
+  if (lens.pixels <= 2 * lens.dark_pixels)
+    return common::Validation::invalid("lens.pixels must exceed twice lens.dark_pixels");
   if (pixel.knee > pixel.full_scale) return common::Validation::invalid("pixel.knee must not exceed pixel.full_scale");
-  if (pixel.adc_max < pixel.full_scale) return common::Validation::invalid("pixel.adc_max must be at least pixel.full_scale");
-  if (pixel.adc_max * 10.0 > 32767.0) return common::Validation::invalid("pixel.adc_max * 10 must fit the wire's int16");
-  if (thermal.warm_c < thermal.ambient_c - 50.0) return common::Validation::invalid("thermal.warm_c is implausibly below thermal.ambient_c");
-  if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5) return common::Validation::invalid("temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)");
-  if (firmware.compensated_pixel >= lens.pixels) return common::Validation::invalid("firmware.compensated_pixel must be a pixel (or -1: none)");
+  if (pixel.adc_max < pixel.full_scale)
+    return common::Validation::invalid("pixel.adc_max must be at least pixel.full_scale");
+  if (pixel.adc_max * 10.0 > 32767.0)
+    return common::Validation::invalid("pixel.adc_max * 10 must fit the wire's int16");
+  if (thermal.warm_c < thermal.ambient_c - 50.0)
+    return common::Validation::invalid("thermal.warm_c is implausibly below thermal.ambient_c");
+  if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5)
+    return common::Validation::invalid("temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)");
+  if (firmware.compensated_pixel >= lens.pixels)
+    return common::Validation::invalid("firmware.compensated_pixel must be a pixel (or -1: none)");
   return common::Validation::ok();
 }
 
@@ -281,11 +294,11 @@ std::string to_yaml(const SensorParams& p) {
   };
   s << "name: " << p.name << "\nseed: " << p.seed << "\n";
   const auto& l = p.lens;
-  s << "lens:\n  focal_mm: " << l.focal_mm << "\n  sensor_length_mm: " << l.sensor_length_mm << "\n  pixels: " << l.pixels
-    << "\n  dark_pixels: " << l.dark_pixels << "\n  subrays_per_pixel: " << l.subrays_per_pixel
-    << "\n  psf_sigma_px: " << l.psf_sigma_px << "\n  halo_fraction: " << l.halo_fraction
-    << "\n  halo_length_px: " << l.halo_length_px << "\n  vignetting_cos_power: " << l.vignetting_cos_power
-    << "\n  pixel_height_mm: " << l.pixel_height_mm << "\n";
+  s << "lens:\n  focal_mm: " << l.focal_mm << "\n  sensor_length_mm: " << l.sensor_length_mm
+    << "\n  pixels: " << l.pixels << "\n  dark_pixels: " << l.dark_pixels
+    << "\n  subrays_per_pixel: " << l.subrays_per_pixel << "\n  psf_sigma_px: " << l.psf_sigma_px
+    << "\n  halo_fraction: " << l.halo_fraction << "\n  halo_length_px: " << l.halo_length_px
+    << "\n  vignetting_cos_power: " << l.vignetting_cos_power << "\n  pixel_height_mm: " << l.pixel_height_mm << "\n";
   const auto& e = p.emitter;
   s << "emitter:\n  baseline_m: " << e.baseline_m << "\n  fan_half_angle_deg: " << e.fan_half_angle_deg
     << "\n  fan_edge_deg: " << e.fan_edge_deg << "\n  sheet_thickness_mm: " << e.sheet_thickness_mm
@@ -297,28 +310,32 @@ std::string to_yaml(const SensorParams& p) {
   s << "pixel:\n  gate_split_ns: " << q.gate_split_ns << "\n  sensitivity_ratio: " << q.sensitivity_ratio
     << "\n  sensitivity_ratio_sd: " << q.sensitivity_ratio_sd << "\n  leakage_per_ms: " << q.leakage_per_ms
     << "\n  leakage_sd: " << q.leakage_sd << "\n  prnu_sd: " << q.prnu_sd << "\n  full_scale: " << q.full_scale
-    << "\n  knee: " << q.knee << "\n  nonlinearity: " << q.nonlinearity << "\n  read_noise: " << q.read_noise << "\n  shot_noise_gain: " << q.shot_noise_gain << "\n  transfer_noise_per_pulse: " << q.transfer_noise_per_pulse
-    << "\n  adc_offset_a: " << q.adc_offset_a << "\n  adc_offset_b: " << q.adc_offset_b << "\n  adc_lsb: " << q.adc_lsb << "\n  adc_max: " << q.adc_max << "\n";
+    << "\n  knee: " << q.knee << "\n  nonlinearity: " << q.nonlinearity << "\n  read_noise: " << q.read_noise
+    << "\n  shot_noise_gain: " << q.shot_noise_gain << "\n  transfer_noise_per_pulse: " << q.transfer_noise_per_pulse
+    << "\n  adc_offset_a: " << q.adc_offset_a << "\n  adc_offset_b: " << q.adc_offset_b << "\n  adc_lsb: " << q.adc_lsb
+    << "\n  adc_max: " << q.adc_max << "\n";
   const auto& t = p.thermal;
-  s << "thermal:\n  ambient_c: " << t.ambient_c << "\n  warm_c: " << t.warm_c << "\n  time_constant_s: " << t.time_constant_s
-    << "\n  reference_c: " << t.reference_c << "\n  delay_drift_ns_per_c: " << t.delay_drift_ns_per_c
-    << "\n  reading_noise_c: " << t.reading_noise_c << "\n";
+  s << "thermal:\n  ambient_c: " << t.ambient_c << "\n  warm_c: " << t.warm_c
+    << "\n  time_constant_s: " << t.time_constant_s << "\n  reference_c: " << t.reference_c
+    << "\n  delay_drift_ns_per_c: " << t.delay_drift_ns_per_c << "\n  reading_noise_c: " << t.reading_noise_c << "\n";
   s << "acquisition:\n  raw_pulses: " << list(p.acquisition.raw_pulses)
     << "\n  distance_pulses: " << list(p.acquisition.distance_pulses) << "\n";
   s << "environment:\n  ambient_charge_per_pulse: " << p.environment.ambient_charge_per_pulse << "\n";
   const auto& f = p.firmware;
-  s << "firmware:\n  profile: " << to_string(f.profile) << "\n  tick_s: " << f.tick_s << "\n  cycle_ticks: " << f.cycle_ticks
-    << "\n  sensitivity_ratio: " << f.sensitivity_ratio << "\n  compensated_pixel: " << f.compensated_pixel
-    << "\n  compensated_pixel_factor: " << f.compensated_pixel_factor << "\n  saturation_charge: " << f.saturation_charge
-    << "\n";
+  s << "firmware:\n  profile: " << to_string(f.profile) << "\n  tick_s: " << f.tick_s
+    << "\n  cycle_ticks: " << f.cycle_ticks << "\n  sensitivity_ratio: " << f.sensitivity_ratio
+    << "\n  compensated_pixel: " << f.compensated_pixel
+    << "\n  compensated_pixel_factor: " << f.compensated_pixel_factor
+    << "\n  saturation_charge: " << f.saturation_charge << "\n";
   s << "effects:";
   if (p.effects.empty()) s << " []";
   s << "\n";
   for (const auto& fx : p.effects) {
     s << "  - type: " << effect_type(fx) << "\n";
-    std::visit(Overloaded{
-                   [&](const TrapDelayEffect& x) {
-                     s << "    capacity_per_pulse: " << x.capacity_per_pulse << "\n    release_delay_ns: " << x.release_delay_ns << "\n";
+    std::visit(
+        Overloaded{[&](const TrapDelayEffect& x) {
+                     s << "    capacity_per_pulse: " << x.capacity_per_pulse
+                       << "\n    release_delay_ns: " << x.release_delay_ns << "\n";
                    },
                    [&](const MaterialBiasEffect& x) {
                      s << "    path_mm: {";
@@ -330,11 +347,13 @@ std::string to_yaml(const SensorParams& p) {
                      s << "}\n";
                    },
                    [&](const FixedPatternEffect& x) {
-                     s << "    sigma_ps: " << x.sigma_ps << "\n    ramp_ps: " << x.ramp_ps << "\n    seed: " << x.seed << "\n";
+                     s << "    sigma_ps: " << x.sigma_ps << "\n    ramp_ps: " << x.ramp_ps << "\n    seed: " << x.seed
+                       << "\n";
                    },
                    [&](const RangeWalkEffect& x) {
-                     s << "    ns_per_decade: " << x.ns_per_decade << "\n    reference_charge_per_pulse: "
-                       << x.reference_charge_per_pulse << "\n    max_ns: " << x.max_ns << "\n";
+                     s << "    ns_per_decade: " << x.ns_per_decade
+                       << "\n    reference_charge_per_pulse: " << x.reference_charge_per_pulse
+                       << "\n    max_ns: " << x.max_ns << "\n";
                    },
                    [&](const TimeDriftEffect& x) {
                      s << "    ns_per_hour: " << x.ns_per_hour << "\n    sine_amplitude_ns: " << x.sine_amplitude_ns
@@ -342,12 +361,13 @@ std::string to_yaml(const SensorParams& p) {
                    },
                    [&](const CovariateEffect& x) {
                      s << "    name: " << x.name << "\n    mean: " << x.mean << "\n    amplitude: " << x.amplitude
-                       << "\n    period_s: " << x.period_s << "\n    random_walk_per_sqrt_s: " << x.random_walk_per_sqrt_s
+                       << "\n    period_s: " << x.period_s
+                       << "\n    random_walk_per_sqrt_s: " << x.random_walk_per_sqrt_s
                        << "\n    ns_per_unit: " << x.ns_per_unit << "\n";
                    },
                    [&](const TemperatureLagEffect& x) { s << "    time_constant_s: " << x.time_constant_s << "\n"; },
                    [&](const ChargeEffect& x) { detail::write_charge_effect(s, x); }},
-               fx);
+        fx);
   }
   return s.str();
 }

@@ -18,7 +18,8 @@ SimulatedSystem::SimulatedSystem(Scene scene, SystemOptions options)
     const SensorMount& m = scene_.sensors[i];
     common::XoshiroRandom rng(common::mix_seed(m.params.seed, 0xC10Cull, i));
     const double ppm = options_.clock_ppm_sd * rng.normal();
-    sensors_.push_back(SensorState{m, TofLineSensor(m.params), m.params.emitter.pulse_rate_hz * (1.0 + 1e-6 * ppm), {}, 0.0});
+    sensors_.push_back(
+        SensorState{m, TofLineSensor(m.params), m.params.emitter.pulse_rate_hz * (1.0 + 1e-6 * ppm), {}, 0.0});
   }
 }
 
@@ -73,8 +74,8 @@ std::size_t SimulatedSystem::sensor_index(const std::string& name) const {
     if (sensors_[i].mount.name == name) return i;
     known += (known.empty() ? "" : ", ") + sensors_[i].mount.name;
   }
-  throw std::invalid_argument("no sensor named '" + name + "' in scene '" + scene_.name + "' (sensors: " +
-                              (known.empty() ? "none" : known) + ")");
+  throw std::invalid_argument("no sensor named '" + name + "' in scene '" + scene_.name +
+                              "' (sensors: " + (known.empty() ? "none" : known) + ")");
 }
 
 Eigen::Isometry3d SimulatedSystem::sensor_pose(std::size_t i) const {

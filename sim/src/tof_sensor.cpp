@@ -55,8 +55,8 @@ struct TofLineSensor::Impl {
   std::vector<double> rsen, leak, prnu, skew_ns;
 
   // Lens: core blur over sub-rays (FIR), halo over pixels (two-sided exponential IIR).
-  int core_radius = 0;               // in sub-rays, each side
-  std::vector<double> core_w;        // index o + core_radius, o = j - s*i
+  int core_radius = 0;         // in sub-rays, each side
+  std::vector<double> core_w;  // index o + core_radius, o = j - s*i
   double halo_h = 0.0, halo_a = 0.0;
 
   // Gate tables over the arrival delay Td [ns].
@@ -158,7 +158,8 @@ void init_geometry(TofLineSensor::Impl& m, const LensParams& lens) {
   m.dark.resize(static_cast<std::size_t>(m.n));
   for (int i = 0; i < m.n; ++i) {
     m.px_dir[static_cast<std::size_t>(i)] = dir_at(i + 0.5);
-    m.px_angle[static_cast<std::size_t>(i)] = std::atan2(m.px_dir[static_cast<std::size_t>(i)].x(), m.px_dir[static_cast<std::size_t>(i)].z());
+    m.px_angle[static_cast<std::size_t>(i)] =
+        std::atan2(m.px_dir[static_cast<std::size_t>(i)].x(), m.px_dir[static_cast<std::size_t>(i)].z());
     m.dark[static_cast<std::size_t>(i)] = (i < lens.dark_pixels || i >= m.n - lens.dark_pixels) ? 1 : 0;
   }
 }
@@ -264,7 +265,8 @@ void resolve_effects(TofLineSensor::Impl& m, const std::vector<EffectSpec>& effe
                           [&](const FixedPatternEffect& e) {
                             common::XoshiroRandom r(common::mix_seed(e.seed, 0xF1CEDull, 0));
                             for (int i = 0; i < m.n; ++i) {
-                              const double ramp = m.n > 1 ? (static_cast<double>(i) / (m.n - 1) - 0.5) * e.ramp_ps : 0.0;
+                              const double ramp =
+                                  m.n > 1 ? (static_cast<double>(i) / (m.n - 1) - 0.5) * e.ramp_ps : 0.0;
                               m.skew_ns[static_cast<std::size_t>(i)] += 1e-3 * (e.sigma_ps * r.normal() + ramp);
                             }
                             m.need_derivative = true;
@@ -281,7 +283,8 @@ void resolve_effects(TofLineSensor::Impl& m, const std::vector<EffectSpec>& effe
 }  // namespace
 
 TofLineSensor::TofLineSensor(SensorParams params) : params_(std::move(params)), impl_(std::make_unique<Impl>()) {
-  if (const common::Validation why = params_.validate(); !why.valid) throw std::invalid_argument("sensor parameters: " + why.reason);
+  if (const common::Validation why = params_.validate(); !why.valid)
+    throw std::invalid_argument("sensor parameters: " + why.reason);
   Impl& m = *impl_;
   init_geometry(m, params_.lens);
   init_pixel_constants(m, params_.pixel, params_.seed);
@@ -296,7 +299,9 @@ TofLineSensor& TofLineSensor::operator=(TofLineSensor&&) noexcept = default;
 
 bool TofLineSensor::is_dark(int pixel) const { return impl_->dark.at(static_cast<std::size_t>(pixel)) != 0; }
 double TofLineSensor::pixel_angle_rad(int pixel) const { return impl_->px_angle.at(static_cast<std::size_t>(pixel)); }
-Eigen::Vector3d TofLineSensor::pixel_direction(int pixel) const { return impl_->px_dir.at(static_cast<std::size_t>(pixel)); }
+Eigen::Vector3d TofLineSensor::pixel_direction(int pixel) const {
+  return impl_->px_dir.at(static_cast<std::size_t>(pixel));
+}
 double TofLineSensor::sensitivity_ratio(int pixel) const { return impl_->rsen.at(static_cast<std::size_t>(pixel)); }
 double TofLineSensor::leakage_per_ms(int pixel) const { return impl_->leak.at(static_cast<std::size_t>(pixel)); }
 double TofLineSensor::gate_fraction_a(double td_ns) const { return impl_->lookup(impl_->fa, td_ns); }
@@ -480,10 +485,12 @@ void pixel_truth(const TofLineSensor::Impl& m, const SensorParams& p, const Worl
     t.lit = vs.z() > 0.0 && fan_weight(std::atan2(vs.x(), vs.z()), p.emitter) > 0.0 && hit->normal.dot(-v) > 0.0 &&
             !world.occluded(hit->point + 1e-7 * hit->normal, pose.E);
     const int s = m.s;
-    const int j0 = std::max(0, static_cast<int>(i) * s - s), j1 = std::min(m.nsub - 1, static_cast<int>(i) * s + 2 * s - 1);
+    const int j0 = std::max(0, static_cast<int>(i) * s - s),
+              j1 = std::min(m.nsub - 1, static_cast<int>(i) * s + 2 * s - 1);
     for (int j = j0; j <= j1 && !t.mixed; ++j) {
       const auto js = static_cast<std::size_t>(j);
-      if (c.object[js] != t.object || std::isnan(c.range[js]) || std::abs(c.range[js] - t.range_m) > 0.02) t.mixed = true;
+      if (c.object[js] != t.object || std::isnan(c.range[js]) || std::abs(c.range[js] - t.range_m) > 0.02)
+        t.mixed = true;
     }
   }
 }
@@ -564,7 +571,8 @@ std::vector<std::pair<int, double>> crosstalk_candidates(const TofLineSensor::Im
 }
 
 Eigen::Vector3d pixel_ray(const Receiver& rx, double th, double psi) {
-  return Eigen::Vector3d(rx.R * Eigen::Vector3d(std::sin(th) * std::cos(psi), std::sin(psi), std::cos(th) * std::cos(psi)));
+  return Eigen::Vector3d(rx.R *
+                         Eigen::Vector3d(std::sin(th) * std::cos(psi), std::sin(psi), std::cos(th) * std::cos(psi)));
 }
 
 // The vertical angle within a pixel's view (ray angle `th`) at which the
@@ -838,7 +846,8 @@ SensorSet TofLineSensor::measure(const World& world, const Eigen::Isometry3d& T_
     r.a.resize(n);
     r.b.resize(n);
   }
-  for (std::size_t i = 0; i < n; ++i) read_out_pixel(m, *this, params_.pixel, i, pc, pulses, xa, xb, options.noise, rng, set);
+  for (std::size_t i = 0; i < n; ++i)
+    read_out_pixel(m, *this, params_.pixel, i, pc, pulses, xa, xb, options.noise, rng, set);
 
   set.true_temperature_c = temperature_c(set.t_end_s);
   double reading = set.true_temperature_c;

@@ -35,7 +35,7 @@ struct VirtualDevice::State {
   common::XoshiroRandom fault_rng{1};
   std::deque<std::vector<std::uint8_t>> tx;  // whole frames waiting to be sent
   std::size_t tx_bytes = 0;
-  std::size_t tx_offset = 0;                 // bytes of tx.front() already sent
+  std::size_t tx_offset = 0;  // bytes of tx.front() already sent
   double last_write_t = 0.0;
   tld::CommandParser commands;
 
@@ -44,25 +44,25 @@ struct VirtualDevice::State {
   bool laser = true;
   int shot_pulses = 100;
   bool shot_requested = false;
-  std::optional<SensorSet> set;              // the set being read out
-  std::vector<tld::RawFrame> frames;         // its frames (raw and single shot)
+  std::optional<SensorSet> set;       // the set being read out
+  std::vector<tld::RawFrame> frames;  // its frames (raw and single shot)
   std::size_t next_frame = 0;
   std::uint64_t index = 0;
   std::optional<tld::CalibrationModel> onboard;  // distance mode, made on first use
   std::uint64_t frames_made = 0;
-  std::uint64_t garbage_seen = 0;                // the command parser's garbage count already in stats
+  std::uint64_t garbage_seen = 0;  // the command parser's garbage count already in stats
 
   // Published firmware: one frame buffer, sent round and round by the DMA.
-  std::optional<PublishedFirmware> published;    // made in start()
-  std::vector<std::uint8_t> txbuff;              // the frame buffer (header, 272 words, ender)
-  bool dma_running = false;                      // from the end of the first cycle on
-  std::size_t dma_pos = 0;                       // next byte of txbuff the DMA sends
-  double cycle_start = 0.0;                      // shared time the current cycle began
+  std::optional<PublishedFirmware> published;  // made in start()
+  std::vector<std::uint8_t> txbuff;            // the frame buffer (header, 272 words, ender)
+  bool dma_running = false;                    // from the end of the first cycle on
+  std::size_t dma_pos = 0;                     // next byte of txbuff the DMA sends
+  double cycle_start = 0.0;                    // shared time the current cycle began
 
   VirtualDeviceStats stats;
   std::function<void(const SensorSet&)> on_set;
   std::function<void(const WireTruth&)> on_wire;
-  std::vector<std::uint8_t> to_host;             // bytes the pty could not take yet
+  std::vector<std::uint8_t> to_host;  // bytes the pty could not take yet
 };
 
 namespace {
@@ -83,7 +83,8 @@ VirtualDevice::VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDev
 }
 
 std::pair<std::string, std::string> VirtualDevice::parse_port(const std::string& port) {
-  if (port.rfind("sim:", 0) != 0) throw std::invalid_argument("virtual device port must look like sim:SCENE.yaml[#sensor], got '" + port + "'");
+  if (port.rfind("sim:", 0) != 0)
+    throw std::invalid_argument("virtual device port must look like sim:SCENE.yaml[#sensor], got '" + port + "'");
   std::string scene = port.substr(4);
   std::string sensor;
   if (const auto hash = scene.find('#'); hash != std::string::npos) {
@@ -387,12 +388,12 @@ void VirtualDevice::apply_command(const tld::HostCommand& c, double now) {
       break;
     case K::StreamMode:
       s.mode = c.value == 0 ? FirmwareMode::kDistance : FirmwareMode::kRaw;
-      if (s.mode == FirmwareMode::kDistance && !s.onboard) s.onboard = factory_calibration(system_->sensor(sensor_).params());
+      if (s.mode == FirmwareMode::kDistance && !s.onboard)
+        s.onboard = factory_calibration(system_->sensor(sensor_).params());
       s.set.reset();
       s.frames.clear();
       break;
-    case K::Unknown:
-      break;
+    case K::Unknown: break;
   }
 }
 

@@ -49,7 +49,8 @@ void cylinder_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double r,
     for (double zc : {-h, h}) {
       const double t = (zc - o.z()) / d.z();
       const Eigen::Vector3d p = o + t * d;
-      if (p.x() * p.x() + p.y() * p.y() <= r * r) consider(t, Eigen::Vector3d(0, 0, zc > 0 ? 1.0 : -1.0), t_min, t_best, n_best);
+      if (p.x() * p.x() + p.y() * p.y() <= r * r)
+        consider(t, Eigen::Vector3d(0, 0, zc > 0 ? 1.0 : -1.0), t_min, t_best, n_best);
     }
   }
 }
@@ -85,8 +86,16 @@ void box_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const BoxShape
       std::swap(ta, tb);
       std::swap(sa, sb);
     }
-    if (ta > t0) { t0 = ta; a0 = i; s0 = sa; }
-    if (tb < t1) { t1 = tb; a1 = i; s1 = sb; }
+    if (ta > t0) {
+      t0 = ta;
+      a0 = i;
+      s0 = sa;
+    }
+    if (tb < t1) {
+      t1 = tb;
+      a1 = i;
+      s1 = sb;
+    }
   }
   if (t0 > t1) return;
   if (a0 >= 0) {
@@ -150,53 +159,60 @@ void mesh_hits(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const MeshSha
 }  // namespace
 
 const char* shape_name(const Shape& s) {
-  return std::visit(Overloaded{[](const PlaneShape&) { return "plane"; }, [](const BoxShape&) { return "box"; },
-                               [](const SphereShape&) { return "sphere"; },
-                               [](const CylinderShape&) { return "cylinder"; }, [](const RodShape&) { return "rod"; },
-                               [](const MeshShape&) { return "mesh"; }},
-                    s);
+  return std::visit(
+      Overloaded{[](const PlaneShape&) { return "plane"; }, [](const BoxShape&) { return "box"; },
+                 [](const SphereShape&) { return "sphere"; }, [](const CylinderShape&) { return "cylinder"; },
+                 [](const RodShape&) { return "rod"; }, [](const MeshShape&) { return "mesh"; }},
+      s);
 }
 
 common::Validation validate_shape(const Shape& s) {
-  return std::visit(
-      Overloaded{
-          [](const PlaneShape& p) -> common::Validation {
-            if (std::isnan(p.size_m.x()) || std::isnan(p.size_m.y()) || !(p.size_m.x() > 0) || !(p.size_m.y() > 0))
-              return common::Validation::invalid("plane size_m must be > 0");
-            return common::Validation::ok();
-          },
-          [](const BoxShape& b) -> common::Validation {
-            if (!finite(b.size_m) || (b.size_m.array() <= 0.0).any()) return common::Validation::invalid("box size_m must be finite and > 0");
-            return common::Validation::ok();
-          },
-          [](const SphereShape& s) -> common::Validation {
-            if (!std::isfinite(s.radius_m) || s.radius_m <= 0) return common::Validation::invalid("sphere radius_m must be finite and > 0");
-            return common::Validation::ok();
-          },
-          [](const CylinderShape& c) -> common::Validation {
-            if (!std::isfinite(c.radius_m) || c.radius_m <= 0) return common::Validation::invalid("cylinder radius_m must be finite and > 0");
-            if (!std::isfinite(c.length_m) || c.length_m <= 0) return common::Validation::invalid("cylinder length_m must be finite and > 0");
-            return common::Validation::ok();
-          },
-          [](const RodShape& r) -> common::Validation {
-            if (!std::isfinite(r.radius_m) || r.radius_m <= 0) return common::Validation::invalid("rod radius_m must be finite and > 0");
-            if (!finite(r.p0) || !finite(r.p1)) return common::Validation::invalid("rod end points must be finite");
-            if ((r.p1 - r.p0).norm() < 1e-9) return common::Validation::invalid("rod end points p0 and p1 coincide");
-            return common::Validation::ok();
-          },
-          [](const MeshShape& m) -> common::Validation {
-            if (m.triangles.empty()) return common::Validation::invalid("mesh has no triangles");
-            for (const auto& v : m.vertices)
-              if (!finite(v)) return common::Validation::invalid("mesh vertex is not finite");
-            const int n = static_cast<int>(m.vertices.size());
-            for (std::size_t i = 0; i < m.triangles.size(); ++i) {
-              const auto& t = m.triangles[i];
-              if ((t.array() < 0).any() || (t.array() >= n).any())
-                return common::Validation::invalid("mesh triangle " + std::to_string(i) + " indexes a vertex that does not exist");
-            }
-            return common::Validation::ok();
-          }},
-      s);
+  return std::visit(Overloaded{[](const PlaneShape& p) -> common::Validation {
+                                 if (std::isnan(p.size_m.x()) || std::isnan(p.size_m.y()) || !(p.size_m.x() > 0) ||
+                                     !(p.size_m.y() > 0))
+                                   return common::Validation::invalid("plane size_m must be > 0");
+                                 return common::Validation::ok();
+                               },
+                               [](const BoxShape& b) -> common::Validation {
+                                 if (!finite(b.size_m) || (b.size_m.array() <= 0.0).any())
+                                   return common::Validation::invalid("box size_m must be finite and > 0");
+                                 return common::Validation::ok();
+                               },
+                               [](const SphereShape& s) -> common::Validation {
+                                 if (!std::isfinite(s.radius_m) || s.radius_m <= 0)
+                                   return common::Validation::invalid("sphere radius_m must be finite and > 0");
+                                 return common::Validation::ok();
+                               },
+                               [](const CylinderShape& c) -> common::Validation {
+                                 if (!std::isfinite(c.radius_m) || c.radius_m <= 0)
+                                   return common::Validation::invalid("cylinder radius_m must be finite and > 0");
+                                 if (!std::isfinite(c.length_m) || c.length_m <= 0)
+                                   return common::Validation::invalid("cylinder length_m must be finite and > 0");
+                                 return common::Validation::ok();
+                               },
+                               [](const RodShape& r) -> common::Validation {
+                                 if (!std::isfinite(r.radius_m) || r.radius_m <= 0)
+                                   return common::Validation::invalid("rod radius_m must be finite and > 0");
+                                 if (!finite(r.p0) || !finite(r.p1))
+                                   return common::Validation::invalid("rod end points must be finite");
+                                 if ((r.p1 - r.p0).norm() < 1e-9)
+                                   return common::Validation::invalid("rod end points p0 and p1 coincide");
+                                 return common::Validation::ok();
+                               },
+                               [](const MeshShape& m) -> common::Validation {
+                                 if (m.triangles.empty()) return common::Validation::invalid("mesh has no triangles");
+                                 for (const auto& v : m.vertices)
+                                   if (!finite(v)) return common::Validation::invalid("mesh vertex is not finite");
+                                 const int n = static_cast<int>(m.vertices.size());
+                                 for (std::size_t i = 0; i < m.triangles.size(); ++i) {
+                                   const auto& t = m.triangles[i];
+                                   if ((t.array() < 0).any() || (t.array() >= n).any())
+                                     return common::Validation::invalid("mesh triangle " + std::to_string(i) +
+                                                                        " indexes a vertex that does not exist");
+                                 }
+                                 return common::Validation::ok();
+                               }},
+                    s);
 }
 
 ObjectId World::add(Object o) {
@@ -206,7 +222,8 @@ ObjectId World::add(Object o) {
   if (o.material < 0 || static_cast<std::size_t>(o.material) >= materials_.size()) {
     throw std::invalid_argument("object '" + o.name + "': unknown material id " + std::to_string(o.material));
   }
-  if (!o.T_world_object.matrix().allFinite()) throw std::invalid_argument("object '" + o.name + "': pose is not finite");
+  if (!o.T_world_object.matrix().allFinite())
+    throw std::invalid_argument("object '" + o.name + "': pose is not finite");
   Entry e;
   e.obj = std::move(o);
   refresh(e);
@@ -216,7 +233,8 @@ ObjectId World::add(Object o) {
 
 void World::set_pose(ObjectId id, const Eigen::Isometry3d& T_world_object) {
   auto& e = objects_.at(static_cast<std::size_t>(id));
-  if (!T_world_object.matrix().allFinite()) throw std::invalid_argument("object '" + e.obj.name + "': pose is not finite");
+  if (!T_world_object.matrix().allFinite())
+    throw std::invalid_argument("object '" + e.obj.name + "': pose is not finite");
   e.obj.T_world_object = T_world_object;
   refresh(e);
 }
@@ -231,32 +249,33 @@ void World::refresh(Entry& e) {
   const auto& T = e.obj.T_world_object;
   e.T_object_world = T.inverse();
   e.centre_w = T.translation();
-  std::visit(Overloaded{
-                 [&](const PlaneShape& p) {
-                   e.radius = (std::isinf(p.size_m.x()) || std::isinf(p.size_m.y())) ? kInf : 0.5 * p.size_m.norm();
-                 },
-                 [&](const BoxShape& b) { e.radius = 0.5 * b.size_m.norm(); },
-                 [&](const SphereShape& s) { e.radius = s.radius_m; },
-                 [&](const CylinderShape& c) { e.radius = std::hypot(c.radius_m, 0.5 * c.length_m); },
-                 [&](const RodShape& r) {
-                   const Eigen::Vector3d axis = r.p1 - r.p0;
-                   e.half_len = 0.5 * axis.norm();
-                   Eigen::Isometry3d L = Eigen::Isometry3d::Identity();
-                   L.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), axis.normalized())
-                                    .toRotationMatrix();
-                   L.translation() = 0.5 * (r.p0 + r.p1);
-                   e.T_world_local = T * L;
-                   e.T_local_world = e.T_world_local.inverse();
-                   e.centre_w = e.T_world_local.translation();
-                   e.radius = std::hypot(r.radius_m, e.half_len);
-                 },
-                 [&](const MeshShape& m) {
-                   e.mesh_box.setEmpty();
-                   for (const auto& v : m.vertices) e.mesh_box.extend(v);
-                   e.centre_w = T * e.mesh_box.center();
-                   e.radius = 0.5 * e.mesh_box.diagonal().norm() + 1e-9;
-                 }},
-             e.obj.shape);
+  std::visit(
+      Overloaded{
+          [&](const PlaneShape& p) {
+            e.radius = (std::isinf(p.size_m.x()) || std::isinf(p.size_m.y())) ? kInf : 0.5 * p.size_m.norm();
+          },
+          [&](const BoxShape& b) { e.radius = 0.5 * b.size_m.norm(); },
+          [&](const SphereShape& s) { e.radius = s.radius_m; },
+          [&](const CylinderShape& c) { e.radius = std::hypot(c.radius_m, 0.5 * c.length_m); },
+          [&](const RodShape& r) {
+            const Eigen::Vector3d axis = r.p1 - r.p0;
+            e.half_len = 0.5 * axis.norm();
+            Eigen::Isometry3d L = Eigen::Isometry3d::Identity();
+            L.linear() =
+                Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), axis.normalized()).toRotationMatrix();
+            L.translation() = 0.5 * (r.p0 + r.p1);
+            e.T_world_local = T * L;
+            e.T_local_world = e.T_world_local.inverse();
+            e.centre_w = e.T_world_local.translation();
+            e.radius = std::hypot(r.radius_m, e.half_len);
+          },
+          [&](const MeshShape& m) {
+            e.mesh_box.setEmpty();
+            for (const auto& v : m.vertices) e.mesh_box.extend(v);
+            e.centre_w = T * e.mesh_box.center();
+            e.radius = 0.5 * e.mesh_box.diagonal().norm() + 1e-9;
+          }},
+      e.obj.shape);
 }
 
 bool World::intersect(const Entry& e, const Ray& ray, double t_min, double t_max, Hit& hit) const {
@@ -275,13 +294,14 @@ bool World::intersect(const Entry& e, const Ray& ray, double t_min, double t_max
   double t_best = t_max;
   Eigen::Vector3d n_best = Eigen::Vector3d::Zero();
 
-  std::visit(Overloaded{
-                 [&](const PlaneShape& p) { plane_hits(o, d, p, t_min, t_best, n_best); },
-                 [&](const BoxShape& b) { box_hits(o, d, b, t_min, t_max, t_best, n_best); },
-                 [&](const SphereShape& s) { sphere_hits(o, d, s, t_min, t_best, n_best); },
-                 [&](const CylinderShape& c) { cylinder_hits(o, d, c.radius_m, 0.5 * c.length_m, t_min, t_best, n_best); },
-                 [&](const RodShape& r) { cylinder_hits(o, d, r.radius_m, e.half_len, t_min, t_best, n_best); },
-                 [&](const MeshShape& m) { mesh_hits(o, d, m, e.mesh_box, t_min, t_best, n_best); }},
+  std::visit(Overloaded{[&](const PlaneShape& p) { plane_hits(o, d, p, t_min, t_best, n_best); },
+                        [&](const BoxShape& b) { box_hits(o, d, b, t_min, t_max, t_best, n_best); },
+                        [&](const SphereShape& s) { sphere_hits(o, d, s, t_min, t_best, n_best); },
+                        [&](const CylinderShape& c) {
+                          cylinder_hits(o, d, c.radius_m, 0.5 * c.length_m, t_min, t_best, n_best);
+                        },
+                        [&](const RodShape& r) { cylinder_hits(o, d, r.radius_m, e.half_len, t_min, t_best, n_best); },
+                        [&](const MeshShape& m) { mesh_hits(o, d, m, e.mesh_box, t_min, t_best, n_best); }},
              e.obj.shape);
 
   if (!(t_best < t_max)) return false;
@@ -327,20 +347,22 @@ std::vector<ObjectId> World::containing(const Eigen::Vector3d& p) const {
   std::vector<ObjectId> out;
   for (std::size_t i = 0; i < objects_.size(); ++i) {
     const auto& e = objects_[i];
-    const bool in = std::visit(
-        Overloaded{[&](const PlaneShape&) { return false; },
-                   [&](const BoxShape& b) { return ((e.T_object_world * p).cwiseAbs().array() < 0.5 * b.size_m.array()).all(); },
-                   [&](const SphereShape& s) { return (e.T_object_world * p).norm() < s.radius_m; },
-                   [&](const CylinderShape& c) {
-                     const Eigen::Vector3d q = e.T_object_world * p;
-                     return q.head<2>().norm() < c.radius_m && std::abs(q.z()) < 0.5 * c.length_m;
-                   },
-                   [&](const RodShape& r) {
-                     const Eigen::Vector3d q = e.T_local_world * p;
-                     return q.head<2>().norm() < r.radius_m && std::abs(q.z()) < e.half_len;
-                   },
-                   [&](const MeshShape&) { return false; }},
-        e.obj.shape);
+    const bool in =
+        std::visit(Overloaded{[&](const PlaneShape&) { return false; },
+                              [&](const BoxShape& b) {
+                                return ((e.T_object_world * p).cwiseAbs().array() < 0.5 * b.size_m.array()).all();
+                              },
+                              [&](const SphereShape& s) { return (e.T_object_world * p).norm() < s.radius_m; },
+                              [&](const CylinderShape& c) {
+                                const Eigen::Vector3d q = e.T_object_world * p;
+                                return q.head<2>().norm() < c.radius_m && std::abs(q.z()) < 0.5 * c.length_m;
+                              },
+                              [&](const RodShape& r) {
+                                const Eigen::Vector3d q = e.T_local_world * p;
+                                return q.head<2>().norm() < r.radius_m && std::abs(q.z()) < e.half_len;
+                              },
+                              [&](const MeshShape&) { return false; }},
+                   e.obj.shape);
     if (in) out.push_back(static_cast<ObjectId>(i));
   }
   return out;

@@ -69,9 +69,7 @@ void YamlNode::require_map() const {
   if (!node_.IsMap()) fail("expected a mapping of keys to values");
 }
 
-bool YamlNode::has(std::string_view key) const {
-  return node_.IsMap() && node_[std::string(key)].IsDefined();
-}
+bool YamlNode::has(std::string_view key) const { return node_.IsMap() && node_[std::string(key)].IsDefined(); }
 
 std::optional<YamlNode> YamlNode::find(std::string_view key) const {
   if (!node_.IsMap()) fail("expected a mapping of keys to values");
@@ -99,7 +97,8 @@ std::vector<YamlNode> YamlNode::items() const {
   if (!node_.IsSequence()) fail("expected a list");
   std::vector<YamlNode> out;
   out.reserve(node_.size());
-  for (std::size_t i = 0; i < node_.size(); ++i) out.emplace_back(node_[i], file_, path_ + "[" + std::to_string(i) + "]");
+  for (std::size_t i = 0; i < node_.size(); ++i)
+    out.emplace_back(node_[i], file_, path_ + "[" + std::to_string(i) + "]");
   return out;
 }
 
@@ -215,9 +214,7 @@ double YamlNode::positive(std::string_view key) const {
   return v;
 }
 
-double YamlNode::positive(std::string_view key, double fallback) const {
-  return has(key) ? positive(key) : fallback;
-}
+double YamlNode::positive(std::string_view key, double fallback) const { return has(key) ? positive(key) : fallback; }
 
 double YamlNode::non_negative(std::string_view key, double fallback) const {
   auto c = find(key);
@@ -247,10 +244,10 @@ Eigen::Isometry3d YamlNode::as_pose() const {
   if (has("rpy_deg") && has("quat_xyzw")) fail("give either rpy_deg or quat_xyzw, not both");
   if (auto rpy = find("rpy_deg")) {
     const Eigen::Vector3d r = rpy->as_vec3() * (M_PI / 180.0);
-    T.linear() = (Eigen::AngleAxisd(r.z(), Eigen::Vector3d::UnitZ()) *
-                  Eigen::AngleAxisd(r.y(), Eigen::Vector3d::UnitY()) *
-                  Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX()))
-                     .toRotationMatrix();
+    T.linear() =
+        (Eigen::AngleAxisd(r.z(), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(r.y(), Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX()))
+            .toRotationMatrix();
   } else if (auto q = find("quat_xyzw")) {
     const auto v = q->as_doubles(4);
     Eigen::Quaterniond quat(v[3], v[0], v[1], v[2]);

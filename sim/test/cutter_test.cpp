@@ -214,7 +214,7 @@ TEST(Cutter, ACutFruitFallsOutOfTheTrussAndTheWorld) {
   EXPECT_FALSE(dropped(truss, 0));
   EXPECT_EQ(close_blades(truss, T, BladeParams{}, 1).result, CutResult::kClosedOnNothing);
   const int moved = drop_tomato(world, truss, 1);
-  EXPECT_GE(moved, 3);  // fruit, pedicel, sepals
+  EXPECT_GE(moved, 3);                         // fruit, pedicel, sepals
   EXPECT_EQ(drop_tomato(world, truss, 1), 0);  // already gone
   EXPECT_FALSE(fruit_hit());
   // The others stay.

@@ -28,7 +28,9 @@ struct Rig : bus::testing::NodeRig {
   Rig() : NodeRig({&tinyline::sim::register_nodes}) {}
   std::vector<std::shared_ptr<const JointState>>& joints = collect<JointState>("joint_states");
   std::vector<std::shared_ptr<const CircleFit>>& truth = collect<CircleFit>("truth");
-  std::shared_ptr<bus::Node> add(bus::NodeOptions o) { return NodeRig::add("hydrus_fitting", "hydrus_sim", std::move(o)); }
+  std::shared_ptr<bus::Node> add(bus::NodeOptions o) {
+    return NodeRig::add("hydrus_fitting", "hydrus_sim", std::move(o));
+  }
 };
 
 }  // namespace
@@ -45,7 +47,7 @@ TEST(HydrusSimNode, PublishesTheManoeuvreAndMovesTheSensors) {
   ASSERT_NE(node, nullptr);
   r.ex.advance_to(bus::Time::from_seconds(0.0));  // starts the node (its timer)
   r.ex.advance_to(bus::Time::from_seconds(8.0));  // mid-way through closing the links
-  ASSERT_GT(r.joints.size(), 700u);                // 100 Hz
+  ASSERT_GT(r.joints.size(), 700u);               // 100 Hz
   ASSERT_EQ(r.joints.size(), r.truth.size());
   const hf::ApproachParams a;
   const auto& q = *r.joints.back();

@@ -20,7 +20,9 @@ using tinyline::tinyline_msgs::msg::SceneTruth;
 
 namespace sim_node_test {
 
-inline std::string scene_path() { return std::string(TINYLINE_SOURCE_DIR) + "/sim/config/scenes/calibration_rail.yaml"; }
+inline std::string scene_path() {
+  return std::string(TINYLINE_SOURCE_DIR) + "/sim/config/scenes/calibration_rail.yaml";
+}
 
 // The sim nodes on stepped sim time from t = 100 s (bus/testing.hpp), with
 // everything they publish kept.

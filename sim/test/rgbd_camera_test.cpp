@@ -238,7 +238,10 @@ TEST(RgbdCamera, BadParametersAreRefused) {
   };
   bad([](RgbdCameraParams& p) { p.intrinsics.width = 0; });
   bad([](RgbdCameraParams& p) { p.intrinsics.fx = NAN; });
-  bad([](RgbdCameraParams& p) { p.min_depth_m = 2.0; p.max_depth_m = 1.0; });
+  bad([](RgbdCameraParams& p) {
+    p.min_depth_m = 2.0;
+    p.max_depth_m = 1.0;
+  });
   bad([](RgbdCameraParams& p) { p.edge_dropout = 1.5; });
   bad([](RgbdCameraParams& p) { p.correlation_window_px = 0; });
   bad([](RgbdCameraParams& p) { p.distortion.z_slope = INFINITY; });

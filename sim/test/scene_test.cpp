@@ -40,7 +40,8 @@ objects:
 sensors:
   - {name: laser, pose: {xyz: [0, 0, 0]}, params: {seed: 9, lens: {focal_mm: 3.6}}}
 truth: {ball_radius_m: 0.04, ball_centre: [0, 0, 0.5]}
-)", "demo.yaml", ".");
+)",
+                                    "demo.yaml", ".");
   EXPECT_EQ(s.name, "demo");
   EXPECT_EQ(s.world.size(), 3u);
   ASSERT_EQ(s.sensors.size(), 1u);
@@ -62,7 +63,8 @@ generators:
   - {type: room, size_m: [3, 3, 3]}
 sensors:
   - {name: laser}
-)", "m.yaml", ".");
+)",
+                                    "m.yaml", ".");
   EXPECT_EQ(s.world.size(), 7u);  // plate + 6 walls
   const auto& m = s.world.materials().get(*s.world.materials().find("shiny_red"));
   EXPECT_GT(m.specular, 0.0);
@@ -80,9 +82,10 @@ TEST(Scene, ErrorsNameFileLineAndField) {
   expect_error("objects:\n  - {name: a, shape: cone, material: wood}\n", 2, "objects[0].shape", "unknown shape 'cone'");
   expect_error("objects:\n  - {name: a, shape: sphere, radius_m: 0.1, material: unobtainium}\n", 2,
                "objects[0].material", "unknown material");
-  expect_error("objects:\n  - {name: a, shape: sphere, radius_m: 0.1, material: wood}\n"
-               "  - {name: a, shape: sphere, radius_m: 0.1, material: wood}\n",
-               3, "objects[1].name", "duplicate");
+  expect_error(
+      "objects:\n  - {name: a, shape: sphere, radius_m: 0.1, material: wood}\n"
+      "  - {name: a, shape: sphere, radius_m: 0.1, material: wood}\n",
+      3, "objects[1].name", "duplicate");
   expect_error("objects:\n  - {name: a, shape: box, size_m: [1, 2], material: wood}\n", 2, "objects[0].size_m",
                "expected 3 numbers");
   expect_error("objectz: []\n", 1, "objectz", "did you mean 'objects'");
@@ -96,7 +99,8 @@ TEST(Scene, SensorInsideAnObjectIsAnError) {
 sensors:
   - name: laser
     pose: {xyz: [0.1, 0, 0]}
-)", 5, "sensors[0].pose", "inside object 'crate'");
+)",
+               5, "sensors[0].pose", "inside object 'crate'");
 }
 
 TEST(Scene, SensorParamErrorsPointIntoTheScene) {

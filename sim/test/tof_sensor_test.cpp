@@ -121,8 +121,8 @@ TEST(TofSensor, ReadoutsAreQuantisedSaturateAndGrowWithPulses) {
   }
   const auto i = static_cast<std::size_t>(kCentre);
   EXPECT_LT(s.readouts[0].a[i], s.readouts[1].a[i]);
-  EXPECT_GT(s.readouts[4].b[i], 230.0);             // saturated at 700 pulses
-  EXPECT_EQ(select_readout(s, kCentre), 0);         // only the 20-pulse read-out is usable
+  EXPECT_GT(s.readouts[4].b[i], 230.0);      // saturated at 700 pulses
+  EXPECT_EQ(select_readout(s, kCentre), 0);  // only the 20-pulse read-out is usable
   EXPECT_NEAR(s.t_end_s - s.t_start_s, 700.0 / rail.sensor().params().emitter.pulse_rate_hz, 1e-12);
 }
 
@@ -170,8 +170,8 @@ TEST(TofSensor, NoiseIsCorrelatedAcrossNonDestructiveReadouts) {
     s34 += e3[k] * e4[k];
   }
   const double corr = s34 / std::sqrt(s33 * s44);
-  EXPECT_GT(corr, 0.5);   // the 700-pulse read-out carries the 400-pulse read-out's noise
-  EXPECT_GT(s44, s33);    // and adds its own
+  EXPECT_GT(corr, 0.5);  // the 700-pulse read-out carries the 400-pulse read-out's noise
+  EXPECT_GT(s44, s33);   // and adds its own
 }
 
 TEST(TofSensor, WarmUpDriftsTheDelay) {
@@ -201,7 +201,8 @@ TEST(TofSensor, BaselineShadowAndEmitterSideDrag) {
   p.effects.clear();
   World w;
   w.add({"wall", PlaneShape{}, at(0, 0, 0.6), *w.materials().find("wall_paint")});
-  w.add({"stick", RodShape{{0, -0.2, 0.2}, {0, 0.2, 0.2}, 0.005}, Eigen::Isometry3d::Identity(), *w.materials().find("wood")});
+  w.add({"stick", RodShape{{0, -0.2, 0.2}, {0, 0.2, 0.2}, 0.005}, Eigen::Isometry3d::Identity(),
+         *w.materials().find("wood")});
   const TofLineSensor s(p);
   std::vector<PixelTruth> truth;
   const auto pc = s.pulse_charges(w, Eigen::Isometry3d::Identity(), 3600, &truth);
@@ -313,7 +314,8 @@ TEST(TofSensor, RejectsImpossibleParameters) {
   const TofLineSensor s(q);
   World w;
   EXPECT_THROW((void)s.measure(w, Eigen::Isometry3d::Identity(), 0.0, std::vector<int>{}, 0), std::invalid_argument);
-  EXPECT_THROW((void)s.measure(w, Eigen::Isometry3d::Identity(), 0.0, std::vector<int>{200, 100}, 0), std::invalid_argument);
+  EXPECT_THROW((void)s.measure(w, Eigen::Isometry3d::Identity(), 0.0, std::vector<int>{200, 100}, 0),
+               std::invalid_argument);
   // Nothing in view: every pixel is dark but the set is well formed.
   const SensorSet empty = s.measure(w, Eigen::Isometry3d::Identity(), 0.0, std::vector<int>{100}, 0);
   EXPECT_TRUE(std::isnan(empty.truth[kCentre].range_m));

@@ -145,8 +145,9 @@ TEST(TrussRod, ElasticTrussesSettleWithoutInterpenetration) {
       p.physics = TrussPhysics::kElasticRod;
       const Truss t = make_truss(p);
       SCOPED_TRACE(std::string("class ") + static_cast<char>(c) + " seed " + std::to_string(seed));
-      ASSERT_TRUE(t.relaxation.converged) << "residual " << t.relaxation.max_torque_residual << ", penetration "
-                                          << t.relaxation.max_penetration_m << ", " << t.relaxation.iterations << " iterations";
+      ASSERT_TRUE(t.relaxation.converged)
+          << "residual " << t.relaxation.max_torque_residual << ", penetration " << t.relaxation.max_penetration_m
+          << ", " << t.relaxation.iterations << " iterations";
       EXPECT_LT(t.relaxation.max_torque_residual, 1e-3);
       for (std::size_t i = 0; i < t.tomatoes.size(); ++i) {
         const auto& a = t.tomatoes[i];
@@ -157,7 +158,8 @@ TEST(TrussRod, ElasticTrussesSettleWithoutInterpenetration) {
         EXPECT_NEAR((a.calyx_m - a.centre_m).norm(), a.polar_radius_m, 5e-4);
         for (std::size_t j = i + 1; j < t.tomatoes.size(); ++j) {
           const auto& b = t.tomatoes[j];
-          EXPECT_GE((a.centre_m - b.centre_m).norm(), a.bounding_radius_m + b.bounding_radius_m - 5e-4) << i << " overlaps " << j;
+          EXPECT_GE((a.centre_m - b.centre_m).norm(), a.bounding_radius_m + b.bounding_radius_m - 5e-4)
+              << i << " overlaps " << j;
         }
       }
     }
@@ -255,7 +257,8 @@ TEST(TrussRod, CurvedStemsAndPedicelLeavesAppearInTheWorld) {
 
 TEST(TrussRod, SceneFilesChooseThePhysicsAndRefuseAnUnknownOne) {
   const Scene s = load_scene_string(
-      "name: t\ngenerators:\n  - {type: truss, class: C, seed: 4, physics: elastic_rod, stem_bend_deg: 20, pedicel_leaves: 1}\n",
+      "name: t\ngenerators:\n  - {type: truss, class: C, seed: 4, physics: elastic_rod, stem_bend_deg: 20, "
+      "pedicel_leaves: 1}\n",
       "inline.yaml", ".");
   const TrussTruth truth = truss_truth_from_scene(s);
   ASSERT_FALSE(truth.tomatoes.empty());

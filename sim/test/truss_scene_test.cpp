@@ -54,7 +54,8 @@ TEST(Truss, EveryClassSettlesWithoutOverlapAndKeepsItsGeometry) {
         EXPECT_GT(a.pedicel_dir.z(), -0.5);
         for (int j = i + 1; j < n; ++j) {
           const auto& b = t.tomatoes[std::size_t(j)];
-          EXPECT_GE((a.centre_m - b.centre_m).norm(), a.bounding_radius_m + b.bounding_radius_m - 1e-4) << i << " overlaps " << j;
+          EXPECT_GE((a.centre_m - b.centre_m).norm(), a.bounding_radius_m + b.bounding_radius_m - 1e-4)
+              << i << " overlaps " << j;
         }
       }
       if (c == TrussClass::kA) {
@@ -157,7 +158,8 @@ TEST(Truss, SceneFilesLoadWithTruth) {
     // The truth matches the world: from each centre, the first surface in
     // any direction is that fruit's skin, between its polar and equatorial radii.
     for (const auto& t : truth.tomatoes) {
-      const Eigen::Vector3d dirs[] = {Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, -1, 0), Eigen::Vector3d(0.3, 0.2, -1).normalized()};
+      const Eigen::Vector3d dirs[] = {Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, -1, 0),
+                                      Eigen::Vector3d(0.3, 0.2, -1).normalized()};
       for (const Eigen::Vector3d& dir : dirs) {
         const auto hit = s.world.raycast({t.centre_m, dir});
         ASSERT_TRUE(hit);

@@ -28,8 +28,8 @@ std::string scene_path() { return std::string(TINYLINE_SOURCE_DIR) + "/sim/confi
 struct TempDir {
   std::filesystem::path path;
   TempDir() {
-    path = std::filesystem::temp_directory_path() /
-           ("tinyline_vdev_" + std::to_string(::getpid()) + "_" + std::to_string(Clock::now().time_since_epoch().count()));
+    path = std::filesystem::temp_directory_path() / ("tinyline_vdev_" + std::to_string(::getpid()) + "_" +
+                                                     std::to_string(Clock::now().time_since_epoch().count()));
     std::filesystem::create_directories(path);
   }
   ~TempDir() { std::filesystem::remove_all(path); }
@@ -55,7 +55,9 @@ class Host {
     fd_ = -1;
   }
   bool ok() const { return fd_ >= 0; }
-  void send(const std::vector<std::uint8_t>& b) { ASSERT_EQ(::write(fd_, b.data(), b.size()), static_cast<ssize_t>(b.size())); }
+  void send(const std::vector<std::uint8_t>& b) {
+    ASSERT_EQ(::write(fd_, b.data(), b.size()), static_cast<ssize_t>(b.size()));
+  }
   /// Reads into the parser until `done()` or the deadline; returns false on EOF/error (device gone).
   template <class Done>
   bool read_until(tld::Parser& parser, double seconds, Done done, std::size_t* bytes = nullptr) {
@@ -63,7 +65,8 @@ class Host {
     std::uint8_t buf[4096];
     while (!done() && Clock::now() < end) {
       pollfd p{fd_, POLLIN, 0};
-      const int ms = static_cast<int>(std::max<long>(1, std::chrono::duration_cast<std::chrono::milliseconds>(end - Clock::now()).count()));
+      const int ms = static_cast<int>(
+          std::max<long>(1, std::chrono::duration_cast<std::chrono::milliseconds>(end - Clock::now()).count()));
       if (::poll(&p, 1, ms) <= 0) continue;
       const ssize_t n = ::read(fd_, buf, sizeof buf);
       if (n <= 0) {
@@ -124,7 +127,9 @@ TEST(VirtualDevice, StreamsRawSetsThatMatchTheSimulation) {
   const auto& wire = sets.back().frames[2];
   bool found = false;
   for (const auto& t : truth) {
-    if (std::lround(t.readouts[2].a[136] * 10.0) == wire.a[136] && std::lround(t.readouts[2].b[140] * 10.0) == wire.b[140]) found = true;
+    if (std::lround(t.readouts[2].a[136] * 10.0) == wire.a[136] &&
+        std::lround(t.readouts[2].b[140] * 10.0) == wire.b[140])
+      found = true;
   }
   EXPECT_TRUE(found);
 }
@@ -140,7 +145,8 @@ TEST(VirtualDevice, PacesFramesAtTheLinkRate) {
   tld::Parser parser;
   std::size_t bytes = 0;
   const auto t0 = Clock::now();
-  host.read_until(parser, 0.6, [] { return false; }, &bytes);
+  host.read_until(
+      parser, 0.6, [] { return false; }, &bytes);
   const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
   EXPECT_LE(static_cast<double>(bytes), 20000.0 * dt + 1100.0);  // never faster than the link
   EXPECT_GE(static_cast<double>(bytes), 0.5 * 20000.0 * dt);     // and keeps it busy
@@ -255,7 +261,7 @@ TEST(VirtualDevice, DistanceModeReportsTenthsOfAMillimetre) {
   std::optional<tld::DistanceFrame> f;
   host.read_until(parser, 2.0, [&] { return (f = parser.next_distance()).has_value(); });
   ASSERT_TRUE(f);
-  EXPECT_EQ(f->distance[0], 0);    // dark pixels carry no range
+  EXPECT_EQ(f->distance[0], 0);  // dark pixels carry no range
   EXPECT_EQ(f->distance[271], 0);
   // The target is 0.5 m away; pixel 136 looks along the axis.
   EXPECT_NEAR(f->distance[136], 5000, 500);  // one polynomial for all pixels: a few cm per pixel
@@ -313,7 +319,7 @@ TEST(VirtualDevice, ThePublishedFirmwareRepeatsItsFrameAndIgnoresCommands) {
     std::lock_guard lock(mu);
     return cycles.size() >= 4 && frames.size() >= 60;
   });
-  ASSERT_GE(frames.size(), 60u);  // about 365 frames a second against about 10 updates
+  ASSERT_GE(frames.size(), 60u);    // about 365 frames a second against about 10 updates
   EXPECT_FALSE(parser.next_set());  // never a raw frame
   EXPECT_EQ(parser.stats().raw_frames, 0u);
   std::size_t repeats = 0;
@@ -342,7 +348,8 @@ TEST(VirtualDevice, SequenceModeLaserOffIsSilent) {
   Host host(dev.path());
   tld::Parser parser;
   std::size_t bytes = 0;
-  host.read_until(parser, 0.3, [] { return false; }, &bytes);
+  host.read_until(
+      parser, 0.3, [] { return false; }, &bytes);
   EXPECT_EQ(bytes, 0u);
   host.send(tld::cmd_laser(true));
   std::size_t n = 0;
@@ -351,7 +358,8 @@ TEST(VirtualDevice, SequenceModeLaserOffIsSilent) {
   host.send(tld::cmd_laser(false));
   host.read_until(parser, 0.15, [] { return false; });  // what was in flight
   bytes = 0;
-  host.read_until(parser, 0.3, [] { return false; }, &bytes);
+  host.read_until(
+      parser, 0.3, [] { return false; }, &bytes);
   EXPECT_EQ(bytes, 0u);
   EXPECT_FALSE(dev.laser_on());
 }
@@ -367,10 +375,12 @@ TEST(VirtualDevice, StallHoldsTheLink) {
   // machine the device thread may have been mid-write. Then the link is quiet.
   host.read_until(parser, 0.15, [] { return false; });
   std::size_t bytes = 0;
-  host.read_until(parser, 0.4, [] { return false; }, &bytes);
+  host.read_until(
+      parser, 0.4, [] { return false; }, &bytes);
   EXPECT_LT(bytes, 4096u);  // at most one write that was already under way
   bytes = 0;
-  host.read_until(parser, 5.0, [&] { return bytes > 10000u; }, &bytes);  // the stream resumes
+  host.read_until(
+      parser, 5.0, [&] { return bytes > 10000u; }, &bytes);  // the stream resumes
   EXPECT_GT(bytes, 10000u);
   EXPECT_GT(dev.stats().frames_overflowed, 0u);
 }

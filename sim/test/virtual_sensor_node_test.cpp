@@ -43,8 +43,10 @@ TEST(SimNodes, VirtualSensorIsReproducibleOnSimTime) {
     h.add("virtual_sensor", o);
     h.ex.advance_to(bus::Time::from_seconds(100.1));
     ASSERT_FALSE(h.raw.empty());
-    if (run == 0) first = h.raw.front()->a;
-    else EXPECT_EQ(h.raw.front()->a, first);
+    if (run == 0)
+      first = h.raw.front()->a;
+    else
+      EXPECT_EQ(h.raw.front()->a, first);
   }
 }
 

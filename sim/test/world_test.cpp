@@ -154,7 +154,8 @@ TEST(Materials, TableFiguresSetEffectiveAlbedo) {
     const auto id = lib.find(name);
     ASSERT_TRUE(id) << name;
     const auto& m = lib.get(*id);
-    EXPECT_NEAR(m.effective_albedo() / paper.effective_albedo(), m.reflectance_figure / kWhitePaperFigure, 1e-9) << name;
+    EXPECT_NEAR(m.effective_albedo() / paper.effective_albedo(), m.reflectance_figure / kWhitePaperFigure, 1e-9)
+        << name;
   }
 }
 
@@ -166,6 +167,6 @@ TEST(Materials, MetalLobeFallsOffWithTilt) {
   const Eigen::Vector3d tilted = Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitY()) * view;
   const double off = wrench.return_factor(n, tilted, tilted);
   EXPECT_NEAR(head_on, wrench.effective_albedo(), 1e-9);
-  EXPECT_LT(off, 0.2 * head_on);   // a 10 degree tilt loses most of the lobe
-  EXPECT_GE(off, wrench.albedo);   // the diffuse part remains
+  EXPECT_LT(off, 0.2 * head_on);  // a 10 degree tilt loses most of the lobe
+  EXPECT_GE(off, wrench.albedo);  // the diffuse part remains
 }

@@ -25,7 +25,8 @@ void json(std::ostream& o, const FidelityReport& r, const ThesisFigures& m, cons
           const std::string& sensor) {
   o.precision(8);
   o << "{\n  \"sensor\": \"" << sensor << "\",\n  \"goals_met\": " << (v.ok ? "true" : "false") << ",\n";
-  o << "  \"calibration\": {\"rsen\": " << r.constants.rsen << ", \"vle_per_pulse\": " << r.constants.vle_per_pulse << "},\n";
+  o << "  \"calibration\": {\"rsen\": " << r.constants.rsen << ", \"vle_per_pulse\": " << r.constants.vle_per_pulse
+    << "},\n";
   o << "  \"fits\": [";
   for (std::size_t i = 0; i < r.fits.size(); ++i) {
     const auto& f = r.fits[i];
@@ -50,13 +51,14 @@ void json(std::ostream& o, const FidelityReport& r, const ThesisFigures& m, cons
   for (std::size_t i = 0; i < r.table32.size(); ++i) {
     const auto& d = r.table32[i];
     const auto& md = m.table32.at(i);
-    o << (i ? "," : "") << "\n    {\"material\": \"" << d.material << "\", \"pulses\": " << d.pulses << ", \"mean\": " << d.mean_cm
-      << ", \"sd\": " << d.sd_cm << ", \"reflectance\": " << d.reflectance << ", \"n\": " << d.n
-      << ", \"measured_mean\": " << md.mean_cm << ", \"measured_sd\": " << md.sd_cm
+    o << (i ? "," : "") << "\n    {\"material\": \"" << d.material << "\", \"pulses\": " << d.pulses
+      << ", \"mean\": " << d.mean_cm << ", \"sd\": " << d.sd_cm << ", \"reflectance\": " << d.reflectance
+      << ", \"n\": " << d.n << ", \"measured_mean\": " << md.mean_cm << ", \"measured_sd\": " << md.sd_cm
       << ", \"measured_reflectance\": " << md.reflectance << "}";
   }
   o << "\n  ],\n  \"curve\": [";
-  for (std::size_t i = 0; i < r.curve.size(); ++i) o << (i ? "," : "") << "[" << r.curve[i].first << "," << r.curve[i].second << "]";
+  for (std::size_t i = 0; i < r.curve.size(); ++i)
+    o << (i ? "," : "") << "[" << r.curve[i].first << "," << r.curve[i].second << "]";
   o << "],\n  \"temperature_cm_per_c\": " << r.temperature_cm_per_c << ",\n  \"failures\": [";
   for (std::size_t i = 0; i < v.failures.size(); ++i) o << (i ? ", " : "") << "\"" << v.failures[i] << "\"";
   o << "]\n}\n";
@@ -65,12 +67,14 @@ void json(std::ostream& o, const FidelityReport& r, const ThesisFigures& m, cons
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string sensor_path, measured_path = std::string(TINYLINE_SIM_SOURCE_DIR) + "/config/fidelity/thesis_measured.yaml";
+  std::string sensor_path,
+      measured_path = std::string(TINYLINE_SIM_SOURCE_DIR) + "/config/fidelity/thesis_measured.yaml";
   std::string json_path, tune;
   FidelityOptions opt;
-  cli::App app{"Runs the thesis's experiments on a simulated sensor and prints them beside the measured figures "
-               "(docs/simulator_fidelity.md). Exit code 0 when every goal is met, 1 when one is missed, 2 on bad usage.",
-               "sim_fidelity"};
+  cli::App app{
+      "Runs the thesis's experiments on a simulated sensor and prints them beside the measured figures "
+      "(docs/simulator_fidelity.md). Exit code 0 when every goal is met, 1 when one is missed, 2 on bad usage.",
+      "sim_fidelity"};
   app.add_option("--sensor", sensor_path, "sensor YAML (sim/config/sensors/...)")->required();
   app.add_option("--measured", measured_path, "the thesis's measured figures (YAML)")->capture_default_str();
   app.add_option("--json", json_path, "also write the report as JSON here");
@@ -84,7 +88,9 @@ int main(int argc, char** argv) {
     const SensorParams p = load_sensor_params(sensor_path);
     const ThesisFigures m = load_thesis_figures(measured_path);
     if (!tune.empty()) {
-      const TuneResult t = tune == "trap" ? tune_trap(p, m, opt) : tune == "noise" ? tune_noise(p, m, opt) : tune_offset(p, m, opt);
+      const TuneResult t = tune == "trap"    ? tune_trap(p, m, opt)
+                           : tune == "noise" ? tune_noise(p, m, opt)
+                                             : tune_offset(p, m, opt);
       std::printf("%s\n%s\nfit set:", t.what.c_str(), t.table.c_str());
       for (const auto& f : t.fit_set) std::printf(" %s;", f.c_str());
       std::printf("\nheld out:");
@@ -106,21 +112,23 @@ int main(int argc, char** argv) {
           mv = x.var_cm2;
           ms = x.sd_cm;
         }
-      std::printf("  %-26s %9.3f %8.3f %8.3f | %9.3f %9.3f\n", f.name.c_str(), f.var_cm2, f.sd_cm, f.heldout_sd_cm, mv, ms);
+      std::printf("  %-26s %9.3f %8.3f %8.3f | %9.3f %9.3f\n", f.name.c_str(), f.var_cm2, f.sd_cm, f.heldout_sd_cm, mv,
+                  ms);
     }
     std::printf("\nTable 3.1 [cm]   sim bias   sim SD  pulses | thesis bias  thesis SD  SD ratio\n");
     for (std::size_t i = 0; i < r.table31.size(); ++i) {
       const auto& d = r.table31[i];
       const auto& md = m.table31.at(i);
-      std::printf("  %6.1f      %8.3f %8.3f %7.0f | %10.3f %10.3f %8.2f%s\n", d.truth_cm, d.mean_cm - d.truth_cm, d.sd_cm,
-                  d.mean_pulses, md.mean_cm - md.truth_cm, md.sd_cm, d.sd_cm / md.sd_cm, d.invalid ? " (invalid sets!)" : "");
+      std::printf("  %6.1f      %8.3f %8.3f %7.0f | %10.3f %10.3f %8.2f%s\n", d.truth_cm, d.mean_cm - d.truth_cm,
+                  d.sd_cm, d.mean_pulses, md.mean_cm - md.truth_cm, md.sd_cm, d.sd_cm / md.sd_cm,
+                  d.invalid ? " (invalid sets!)" : "");
     }
     std::printf("\nTable 3.2 [cm]     pulses  sim bias   sim SD  refl/pulse | thesis bias  thesis SD  thesis refl\n");
     for (std::size_t i = 0; i < r.table32.size(); ++i) {
       const auto& d = r.table32[i];
       const auto& md = m.table32.at(i);
-      std::printf("  %-15s %5d %8.3f %8.3f %10.3f | %10.3f %10.3f %10.3f\n", d.material.c_str(), d.pulses, d.mean_cm - 30.0,
-                  d.sd_cm, d.reflectance, md.mean_cm - 30.0, md.sd_cm, md.reflectance);
+      std::printf("  %-15s %5d %8.3f %8.3f %10.3f | %10.3f %10.3f %10.3f\n", d.material.c_str(), d.pulses,
+                  d.mean_cm - 30.0, d.sd_cm, d.reflectance, md.mean_cm - 30.0, md.sd_cm, md.reflectance);
     }
     std::printf("\nTemperature (3.3.4): %.3f cm per degC during warm-up\n", r.temperature_cm_per_c);
     std::printf("\n%s\n", v.ok ? "All goals met." : "Goals missed:");

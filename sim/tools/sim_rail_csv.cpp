@@ -47,9 +47,10 @@ struct Options {
 
 /// The command line; an exit code when the program should stop (help, bad options).
 std::optional<int> parse(int argc, char** argv, Options& o) {
-  cli::App app{"Calibration data from the simulated sensor on the simulated calibration rail, as the CSV "
-               "`tinyline calib fit` reads; or (--constants) the leakage per pulse and Rsen measured as the thesis did.",
-               "sim_rail_csv"};
+  cli::App app{
+      "Calibration data from the simulated sensor on the simulated calibration rail, as the CSV "
+      "`tinyline calib fit` reads; or (--constants) the leakage per pulse and Rsen measured as the thesis did.",
+      "sim_rail_csv"};
   app.add_option("--sensor", o.sensor, "sensor YAML")->required();
   app.add_option("-o", o.out, "CSV file to write (required unless --constants)");
   app.add_option("--from", o.from, "nearest target distance [m]")->check(cli::positive())->capture_default_str();
@@ -57,7 +58,9 @@ std::optional<int> parse(int argc, char** argv, Options& o) {
   app.add_option("--step", o.step, "distance step [m]")->check(cli::positive())->capture_default_str();
   app.add_option("--visits", o.visits, "visits of each distance")->check(cli::range(1, 1000))->capture_default_str();
   app.add_option("--sets", o.sets, "sets per visit")->check(cli::range(1, 1000))->capture_default_str();
-  app.add_option("--pixel-step", o.pixel_step, "every N-th effective pixel")->check(cli::range(1, 256))->capture_default_str();
+  app.add_option("--pixel-step", o.pixel_step, "every N-th effective pixel")
+      ->check(cli::range(1, 256))
+      ->capture_default_str();
   app.add_option("--material", o.material, "target material")->capture_default_str();
   app.add_option("--seed", o.seed, "seed of the visiting order")->check(cli::non_negative())->capture_default_str();
   app.add_flag("--constants", o.constants, "measure the leakage per pulse and Rsen instead (laser off)");
@@ -140,8 +143,8 @@ struct Session {
 /// a set carries the set's time: the calibration tool groups the read-outs of
 /// one frame by t_s (to pick the one the driver uses), and the driver sees
 /// them as one set.
-Session record(sim::CalibrationRail r, const sim::SensorParams& params, const std::vector<double>& distances,
-               int sets, const std::vector<int>& pixels) {
+Session record(sim::CalibrationRail r, const sim::SensorParams& params, const std::vector<double>& distances, int sets,
+               const std::vector<int>& pixels) {
   Session s;
   std::uint64_t index = 0;
   for (double d : distances) {
@@ -174,8 +177,8 @@ void run(const Options& o) {
   tinyline::files::AtomicStream f(o.out);
   sim::write_calibration_csv(f, session.rows, /*with_material=*/true);
   f.commit();
-  std::cout << "wrote " << session.rows.size() << " rows (" << distances.size() << " visits x " << o.sets
-            << " sets, " << pixels.size() << " pixels, sensor time 0-" << session.t_end_s << " s) to " << o.out << "\n";
+  std::cout << "wrote " << session.rows.size() << " rows (" << distances.size() << " visits x " << o.sets << " sets, "
+            << pixels.size() << " pixels, sensor time 0-" << session.t_end_s << " s) to " << o.out << "\n";
 }
 
 }  // namespace

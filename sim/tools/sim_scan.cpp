@@ -24,15 +24,14 @@ int main(int argc, char** argv) {
   std::string scene_path, sensor_name, out_path;
   double t = 3600.0;
   std::uint64_t index = 1;
-  cli::App app{"One simulated measurement set of a scene's sensor, as JSON: per pixel the ray, the true range and "
-               "what it hits, the raw read-outs, the read-out the driver would choose and the on-board calibration's "
-               "distance (docs/simulator.md).",
-               "sim_scan"};
+  cli::App app{
+      "One simulated measurement set of a scene's sensor, as JSON: per pixel the ray, the true range and "
+      "what it hits, the raw read-outs, the read-out the driver would choose and the on-board calibration's "
+      "distance (docs/simulator.md).",
+      "sim_scan"};
   app.add_option("SCENE", scene_path, "scene YAML")->required();
   app.add_option("--sensor", sensor_name, "sensor name in the scene (default: the first)");
-  app.add_option("--time", t, "sensor time of the set [s]")
-      ->check(cli::non_negative())
-      ->capture_default_str();
+  app.add_option("--time", t, "sensor time of the set [s]")->check(cli::non_negative())->capture_default_str();
   app.add_option("--index", index, "set index (seeds its noise)")->check(cli::non_negative())->capture_default_str();
   app.add_option("--out", out_path, "JSON file to write (default: stdout)");
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
@@ -40,7 +39,8 @@ int main(int argc, char** argv) {
     const Scene s = load_scene(scene_path);
     const SensorMount* m = sensor_name.empty() ? (s.sensors.empty() ? nullptr : &s.sensors[0]) : s.sensor(sensor_name);
     if (!m) {
-      std::cerr << "sim_scan: " << scene_path << ": no sensor" << (sensor_name.empty() ? "" : " named '" + sensor_name + "'") << "\n";
+      std::cerr << "sim_scan: " << scene_path << ": no sensor"
+                << (sensor_name.empty() ? "" : " named '" + sensor_name + "'") << "\n";
       return 1;
     }
     const TofLineSensor sensor(m->params);
@@ -61,8 +61,9 @@ int main(int argc, char** argv) {
       const int sel = select_readout(set, i);
       auto num = [](double v) { return std::isfinite(v) ? std::to_string(v) : std::string("null"); };
       o << "  {\"i\": " << i << ", \"angle\": " << sensor.pixel_angle_rad(i) << ", \"range\": " << num(tr.range_m)
-        << ", \"object\": \"" << (tr.object >= 0 ? s.world.object(tr.object).name : "") << "\", \"lit\": " << (tr.lit ? "true" : "false")
-        << ", \"mixed\": " << (tr.mixed ? "true" : "false") << ", \"a\": [";
+        << ", \"object\": \"" << (tr.object >= 0 ? s.world.object(tr.object).name : "")
+        << "\", \"lit\": " << (tr.lit ? "true" : "false") << ", \"mixed\": " << (tr.mixed ? "true" : "false")
+        << ", \"a\": [";
       for (std::size_t k = 0; k < set.readouts.size(); ++k) o << (k ? "," : "") << set.readouts[k].a[u];
       o << "], \"b\": [";
       for (std::size_t k = 0; k < set.readouts.size(); ++k) o << (k ? "," : "") << set.readouts[k].b[u];

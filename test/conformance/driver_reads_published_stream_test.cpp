@@ -92,8 +92,8 @@ TEST(Conformance, TheDriverReadsThePublishedFirmwaresStreamWithDefaultParameters
     EXPECT_EQ(beyond_32767, 50) << "the far wall, 4.2 m and more";
     // Stamped at the start of its first whole frame.
     const double first_end = cyc[c]["first_frame_end"].as<double>();
-    EXPECT_NEAR(bus::Time::from_msg(s.header.stamp).seconds(), (t0 + bus::from_seconds((first_end - 548) * byte_s)).seconds(),
-                1e-6)
+    EXPECT_NEAR(bus::Time::from_msg(s.header.stamp).seconds(),
+                (t0 + bus::from_seconds((first_end - 548) * byte_s)).seconds(), 1e-6)
         << "cycle " << c;
   }
   EXPECT_EQ(scans[5]->status[static_cast<std::size_t>(stuck)], LineScan::STATUS_VALID);

@@ -78,39 +78,45 @@ class ChildProcess {
   std::optional<std::string> wait_for_line(const std::regex& re, std::chrono::milliseconds timeout,
                                            std::size_t from = 0) {
     std::optional<std::string> found;
-    wait([&] {
-      for (std::size_t i = from; i < lines_.size(); ++i) {
-        if (std::regex_search(lines_[i], re)) {
-          found = lines_[i];
-          return true;
-        }
-      }
-      return false;
-    }, timeout);
+    wait(
+        [&] {
+          for (std::size_t i = from; i < lines_.size(); ++i) {
+            if (std::regex_search(lines_[i], re)) {
+              found = lines_[i];
+              return true;
+            }
+          }
+          return false;
+        },
+        timeout);
     return found;
   }
   std::optional<std::string> wait_for_text(const std::string& needle, std::chrono::milliseconds timeout,
                                            std::size_t from = 0) {
     std::optional<std::string> found;
-    wait([&] {
-      for (std::size_t i = from; i < lines_.size(); ++i) {
-        if (lines_[i].find(needle) != std::string::npos) {
-          found = lines_[i];
-          return true;
-        }
-      }
-      return false;
-    }, timeout);
+    wait(
+        [&] {
+          for (std::size_t i = from; i < lines_.size(); ++i) {
+            if (lines_[i].find(needle) != std::string::npos) {
+              found = lines_[i];
+              return true;
+            }
+          }
+          return false;
+        },
+        timeout);
     return found;
   }
   /// Waits until `n` lines contain `needle`; true if they did in time.
   bool wait_for_count(const std::string& needle, std::size_t n, std::chrono::milliseconds timeout) {
     bool ok = false;
-    wait([&] {
-      std::size_t c = 0;
-      for (const auto& l : lines_) c += l.find(needle) != std::string::npos ? 1 : 0;
-      return ok = c >= n;
-    }, timeout);
+    wait(
+        [&] {
+          std::size_t c = 0;
+          for (const auto& l : lines_) c += l.find(needle) != std::string::npos ? 1 : 0;
+          return ok = c >= n;
+        },
+        timeout);
     return ok;
   }
   /// Index of the first line containing `needle` at or after `from`, if any.

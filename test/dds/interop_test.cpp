@@ -66,16 +66,20 @@ struct Graph : tlt::BridgedGraph {
 std::pair<dds::Settings, std::vector<std::string>> settings() {
   dds::Settings s;
   s.domain_id = 1 + static_cast<int>(getpid() % 200);
-  s.config = dds::loopback_config(fmt::format("py_{}_{}", ::testing::UnitTest::GetInstance()->current_test_info()->name(),
-                                              getpid()));
+  s.config = dds::loopback_config(
+      fmt::format("py_{}_{}", ::testing::UnitTest::GetInstance()->current_test_info()->name(), getpid()));
   s.process_name = "interop";
   return {s, {fmt::format("ROS_DOMAIN_ID={}", s.domain_id), "CYCLONEDDS_URI=" + s.config}};
 }
 
 std::vector<std::string> python(const std::string& mode, const std::string& topic, int n,
                                 const std::string& reliability = "reliable") {
-  return {TINYLINE_VENV_PYTHON, std::string(TINYLINE_SOURCE_DIR) + "/test/dds/ros2_laserscan.py", mode, topic,
-          std::to_string(n), reliability};
+  return {TINYLINE_VENV_PYTHON,
+          std::string(TINYLINE_SOURCE_DIR) + "/test/dds/ros2_laserscan.py",
+          mode,
+          topic,
+          std::to_string(n),
+          reliability};
 }
 
 }  // namespace

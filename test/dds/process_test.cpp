@@ -33,8 +33,7 @@ const std::string kLaunchDir = std::string(TINYLINE_SOURCE_DIR) + "/test/dds/lau
 std::vector<std::string> dds_env() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   const std::string tag = fmt::format("{}_{}", info ? info->name() : "t", getpid());
-  return {fmt::format("ROS_DOMAIN_ID={}", 1 + getpid() % 200),
-          "CYCLONEDDS_URI=" + tinyline::dds::loopback_config(tag)};
+  return {fmt::format("ROS_DOMAIN_ID={}", 1 + getpid() % 200), "CYCLONEDDS_URI=" + tinyline::dds::loopback_config(tag)};
 }
 
 std::vector<std::string> cli(std::vector<std::string> args) {
@@ -76,7 +75,7 @@ TEST(MultiProcess, ThreeProcessesOverDdsPrintWhatOneProcessPrints) {
   std::vector<std::string> one, three;
   {
     ChildProcess p(cli({"launch", kLaunchDir + "chain.launch.yaml", "source_process:=", "relay_process:=",
-                             fmt::format("count:={}", n), "rate_hz:=20", "--no-table"}),
+                        fmt::format("count:={}", n), "rate_hz:=20", "--no-table"}),
                    env);
     ASSERT_TRUE(p.wait_for_text(fmt::format("data: \"pulse {}\"", n), 30s)) << p.output();
     interrupt_and_expect_clean_exit(p);
@@ -84,9 +83,9 @@ TEST(MultiProcess, ThreeProcessesOverDdsPrintWhatOneProcessPrints) {
     EXPECT_EQ(p.find("[launch] started process"), std::nullopt) << "one process expected";
   }
   {
-    ChildProcess p(cli({"launch", kLaunchDir + "chain.launch.yaml", fmt::format("count:={}", n), "rate_hz:=20",
-                        "--no-table"}),
-                   env);
+    ChildProcess p(
+        cli({"launch", kLaunchDir + "chain.launch.yaml", fmt::format("count:={}", n), "rate_hz:=20", "--no-table"}),
+        env);
     ASSERT_TRUE(p.wait_for_text(fmt::format("data: \"pulse {}\"", n), 30s)) << p.output();
     ASSERT_TRUE(p.find("[launch] started process 'source'"));
     ASSERT_TRUE(p.find("[launch] started process 'relay'"));
@@ -101,8 +100,7 @@ TEST(MultiProcess, ThreeProcessesOverDdsPrintWhatOneProcessPrints) {
 }
 
 TEST(MultiProcess, AKilledProcessIsReportedAndARestartedPublisherIsRediscovered) {
-  ChildProcess p(cli({"launch", kLaunchDir + "loss.launch.yaml", "--no-table", "--respawn-delay", "0.2"}),
-                 dds_env());
+  ChildProcess p(cli({"launch", kLaunchDir + "loss.launch.yaml", "--no-table", "--respawn-delay", "0.2"}), dds_env());
   ASSERT_TRUE(p.wait_for_text("[sink] data: \"pulse 3\"", 30s)) << p.output();
   ASSERT_TRUE(p.wait_for_line(std::regex("^data: \"pulse 3\""), 30s)) << p.output();
   std::smatch m;
@@ -118,16 +116,14 @@ TEST(MultiProcess, AKilledProcessIsReportedAndARestartedPublisherIsRediscovered)
   // The sink dies for good: the supervisor says so, the source reports the
   // lost subscriber, and the graph goes on.
   kill(sink, SIGKILL);
-  ASSERT_TRUE(p.wait_for_text(fmt::format("[launch] process 'sink' (pid {}; nodes /remote_echo) was killed by signal 9",
-                                          sink),
-                              10s))
+  ASSERT_TRUE(p.wait_for_text(
+      fmt::format("[launch] process 'sink' (pid {}; nodes /remote_echo) was killed by signal 9", sink), 10s))
       << p.output();
   EXPECT_TRUE(p.find("the others keep running"));
   ASSERT_TRUE(p.wait_for_text(fmt::format("lost the remote subscriber in process 'sink' (pid {}", sink), 15s))
       << p.output();
   const std::size_t after_sink = p.lines().size();
-  ASSERT_TRUE(p.wait_for_line(std::regex("^data: \"pulse"), 10s, after_sink)) << "local echo stopped\n"
-                                                                               << p.output();
+  ASSERT_TRUE(p.wait_for_line(std::regex("^data: \"pulse"), 10s, after_sink)) << "local echo stopped\n" << p.output();
 
   // The source dies and is restarted: the launching process reports the lost
   // publisher, finds the new one and hears it from its first message on.
@@ -157,8 +153,7 @@ TEST(MultiProcess, AKilledProcessIsReportedAndARestartedPublisherIsRediscovered)
 
 TEST(TopicTools, ListEchoAndHzSeeARunningMultiProcessGraph) {
   const auto env = dds_env();
-  ChildProcess graph(cli({"launch", kLaunchDir + "chain.launch.yaml", "count:=0", "rate_hz:=20", "--no-table"}),
-                     env);
+  ChildProcess graph(cli({"launch", kLaunchDir + "chain.launch.yaml", "count:=0", "rate_hz:=20", "--no-table"}), env);
   ASSERT_TRUE(graph.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), 30s)) << graph.output();
 
   // Discovery takes its time on a loaded machine: list again until both
@@ -245,9 +240,8 @@ TEST(TopicTools, ASingleNodeStartedWithRunDdsJoinsALaunchedGraph) {
   const auto env = dds_env();
   ChildProcess graph(cli({"launch", kLaunchDir + "chain.launch.yaml", "count:=0", "rate_hz:=20", "--no-table"}), env);
   ASSERT_TRUE(graph.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), 30s)) << graph.output();
-  ChildProcess node(cli({"run", "tinyline", "echo", "--name", "visitor", "-r", "input:=/chain/raw", "--dds",
-                         "--no-table"}),
-                    env);
+  ChildProcess node(
+      cli({"run", "tinyline", "echo", "--name", "visitor", "-r", "input:=/chain/raw", "--dds", "--no-table"}), env);
   ASSERT_TRUE(node.wait_for_line(std::regex("^data: \"pulse [0-9]+\"$"), 30s)) << node.output();
   EXPECT_TRUE(node.find("remote publisher in process 'source'")) << node.output();
   interrupt_and_expect_clean_exit(node);
@@ -334,9 +328,9 @@ TEST(MultiProcess, DriverAndClusteringInTwoProcessesGiveWhatOneProcessGivesOnARe
 
   std::vector<std::string> one, two;
   {
-    ChildProcess p(cli({"launch", launch_file, "bag:=" + bag_path, "driver_process:=", "clustering_process:=",
-                        "--no-table"}),
-                   env);
+    ChildProcess p(
+        cli({"launch", launch_file, "bag:=" + bag_path, "driver_process:=", "clustering_process:=", "--no-table"}),
+        env);
     ASSERT_TRUE(p.wait_for_count(sink_start, n, 60s)) << p.output();
     interrupt_and_expect_clean_exit(p);
     EXPECT_EQ(p.find("[launch] started process"), std::nullopt) << "one process expected";

@@ -85,8 +85,9 @@ TEST(LaserClusteringLaunch, WrenchAlignFindsTheSquarePitchAndTurnsTheGripperToIt
     auto s3 = l.io->create_subscription<JointState>("/gripper/joint_states", bus::QoS::keep_last(100),
                                                     [&](const JointState& m) { states.push_back(m.position.at(0)); });
     int results = 0;
-    auto s4 = l.io->create_subscription<AlignmentResult>("/gripper/alignment", bus::QoS::keep_last(100),
-                                                         [&](const AlignmentResult& m) { results += m.outcome != AlignmentResult::INVALID_INPUT; });
+    auto s4 = l.io->create_subscription<AlignmentResult>(
+        "/gripper/alignment", bus::QoS::keep_last(100),
+        [&](const AlignmentResult& m) { results += m.outcome != AlignmentResult::INVALID_INPUT; });
     l.run_for(4.0);
     EXPECT_TRUE(aligned.empty()) << "the sweep (17 pitches x 0.3 s) is not over after 4 s";
     l.run_for(2.0);
@@ -226,8 +227,10 @@ struct TomatoLookRun {
   // The scene's tomatoes as a vision off by -offset sees them, each a few
   // millimetres off on its own.
   void send_tomatoes(double offset_x_m, double offset_z_m) {
-    const double truth[][4] = {{-0.10, 0.01, 0.23, 0.029}, {-0.035, 0.01, 0.21, 0.034},
-                               {0.035, 0.01, 0.24, 0.027}, {0.095, 0.01, 0.22, 0.032}};
+    const double truth[][4] = {{-0.10, 0.01, 0.23, 0.029},
+                               {-0.035, 0.01, 0.21, 0.034},
+                               {0.035, 0.01, 0.24, 0.027},
+                               {0.095, 0.01, 0.22, 0.032}};
     const double jitter[][2] = {{0.002, -0.003}, {-0.003, 0.001}, {0.001, 0.003}, {-0.002, -0.002}};
     auto m = std::make_unique<ExpectedTomatoes>();
     m->header.stamp = ctx->clock().now().to_msg();

@@ -72,8 +72,9 @@ struct Launched {
     return bus::Context::create(o);
   }
   std::vector<std::shared_ptr<const TomatoEstimates>>& collect_tomatoes() {
-    sub = io->create_subscription<TomatoEstimates>("/tomatoes", bus::QoS::keep_last(100),
-                                                   [this](const std::shared_ptr<const TomatoEstimates>& m) { got.push_back(m); });
+    sub = io->create_subscription<TomatoEstimates>(
+        "/tomatoes", bus::QoS::keep_last(100),
+        [this](const std::shared_ptr<const TomatoEstimates>& m) { got.push_back(m); });
     return got;
   }
   void run_for(double s) { ex.advance_to(ctx->clock().now() + bus::Duration(static_cast<std::int64_t>(s * 1e9))); }
@@ -119,9 +120,9 @@ TEST(RgbdFrames, FramesWrittenFromTheSimulatedCameraGiveTheLiveCamerasTomatoes) 
   const auto k = tinyline::tomato_reasoning::eval::ScenarioOptions{}.camera.intrinsics;
   std::string out;
   const std::string cmd = std::string(TINYLINE_VENV_PYTHON) + " " + TINYLINE_SOURCE_DIR +
-                          "/test/rgbd_frames/write_frames.py " + dir / "live.mcap" + " " + dir / "frames" +
-                          " --fx " + std::to_string(k.fx) + " --fy " + std::to_string(k.fy) + " --cx " +
-                          std::to_string(k.cx) + " --cy " + std::to_string(k.cy);
+                          "/test/rgbd_frames/write_frames.py " + dir / "live.mcap" + " " + dir / "frames" + " --fx " +
+                          std::to_string(k.fx) + " --fy " + std::to_string(k.fy) + " --cx " + std::to_string(k.cx) +
+                          " --cy " + std::to_string(k.cy);
   ASSERT_EQ(run(cmd, out), 0) << out;
   ASSERT_TRUE(fs::exists(dir / "frames/depth/000000.png")) << out;
 
@@ -132,9 +133,10 @@ TEST(RgbdFrames, FramesWrittenFromTheSimulatedCameraGiveTheLiveCamerasTomatoes) 
       << printed;
   std::string order;
   for (int i : want.pick_order) order += (order.empty() ? "" : " ") + std::to_string(i);
-  EXPECT_THAT(printed, ::testing::HasSubstr("000000: " + std::to_string(want.tomatoes.size()) + " tomatoes, pick order [" +
-                                            order + "]"));
-  const cv::Mat colour = cv::imread(dir / "frames/rgb/000000.png"), annotated = cv::imread(dir / "annotated/000000.png");
+  EXPECT_THAT(printed, ::testing::HasSubstr("000000: " + std::to_string(want.tomatoes.size()) +
+                                            " tomatoes, pick order [" + order + "]"));
+  const cv::Mat colour = cv::imread(dir / "frames/rgb/000000.png"),
+                annotated = cv::imread(dir / "annotated/000000.png");
   ASSERT_EQ(annotated.size(), colour.size());
   EXPECT_GT(cv::countNonZero(cv::Mat(colour != annotated).reshape(1)), 1000);  // drawn on, not a copy
 

@@ -40,13 +40,13 @@ const std::string kHere = std::string(TINYLINE_SOURCE_DIR) + "/test/ros2/";
 constexpr auto kDiscovery = 30s;
 constexpr auto kLease = 60s;
 
-#define REQUIRE_ROS2_SANDBOX()                                                                                  \
-  do {                                                                                                          \
-    if (std::getenv("TINYLINE_NETNS") == nullptr) {                                                             \
-      const char* why = std::getenv("TINYLINE_NETNS_REASON");                                                   \
+#define REQUIRE_ROS2_SANDBOX()                                                                                    \
+  do {                                                                                                            \
+    if (std::getenv("TINYLINE_NETNS") == nullptr) {                                                               \
+      const char* why = std::getenv("TINYLINE_NETNS_REASON");                                                     \
       GTEST_SKIP() << "needs a network namespace of its own (" << (why ? why : "run through in_netns.sh") << ")"; \
-    }                                                                                                           \
-    if (access(TINYLINE_VENV_PYTHON, X_OK) != 0) GTEST_SKIP() << "no test venv at " << TINYLINE_VENV_PYTHON;    \
+    }                                                                                                             \
+    if (access(TINYLINE_VENV_PYTHON, X_OK) != 0) GTEST_SKIP() << "no test venv at " << TINYLINE_VENV_PYTHON;      \
   } while (0)
 
 std::vector<std::string> peer(std::vector<std::string> args) {
@@ -112,15 +112,15 @@ std::vector<int> one_to(int n) {
 TEST(Ros2Discovery, ADefaultRos2NodeAndADefaultTinylineProcessFindEachOtherBothWays) {
   REQUIRE_ROS2_SANDBOX();
   // The newcomer's case: nobody set anything, the machine has a network card.
-  ChildProcess pulse(cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/chatter", "-p", "rate_hz:=20",
-                          "--no-table"}));
+  ChildProcess pulse(
+      cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/chatter", "-p", "rate_hz:=20", "--no-table"}));
   ChildProcess listener(peer({"sub", "--type", "string", "--topic", "/chatter", "--count", "3", "--any"}));
   ASSERT_TRUE(exited_ok(listener, kDiscovery + 30s)) << listener.output() << pulse.output();
   EXPECT_TRUE(listener.wait_for_line(std::regex("^HEARD pulse [0-9]+$"), 0ms)) << listener.output();
 
   ChildProcess echo(cli({"run", "tinyline", "echo", "--dds", "-r", "input:=/ros_chatter", "--no-table"}));
-  ChildProcess talker(peer({"pub", "--type", "string", "--topic", "/ros_chatter", "--count", "600", "--period",
-                            "0.1"}));
+  ChildProcess talker(
+      peer({"pub", "--type", "string", "--topic", "/ros_chatter", "--count", "600", "--period", "0.1"}));
   ASSERT_TRUE(echo.wait_for_line(std::regex("^data: \"tinyline interop [0-9]+: grüße\"$"), kDiscovery + 30s))
       << echo.output() << talker.output();
   EXPECT_TRUE(echo.find("remote publisher in a participant that is not tinyline connected")) << echo.output();
@@ -136,8 +136,8 @@ TEST(Ros2Discovery, ANodeOnRmwCycloneddsDefaultsFindsUsToo) {
   const std::vector<std::string> rmw_subnet = {
       "CYCLONEDDS_URI=<CycloneDDS><Domain><Discovery><ParticipantIndex>auto</ParticipantIndex>"
       "<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>"};
-  ChildProcess ours(cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/cyclone/ours", "-p", "rate_hz:=20",
-                         "--no-table"}));
+  ChildProcess ours(
+      cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/cyclone/ours", "-p", "rate_hz:=20", "--no-table"}));
   ChildProcess theirs(cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/cyclone/theirs", "-p", "rate_hz:=20",
                            "--name", "rmw_pulse", "--no-table"}),
                       rmw_subnet);
@@ -169,8 +169,8 @@ TEST(Ros2Discovery, NothingLeavesTheMachineByDefault) {
   ASSERT_GE(before, 0);
   {
     ChildProcess echo(cli({"run", "tinyline", "echo", "--dds", "-r", "input:=/local", "--no-table"}));
-    ChildProcess pulse(cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/local", "-p", "rate_hz:=50",
-                            "--no-table"}));
+    ChildProcess pulse(
+        cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/local", "-p", "rate_hz:=50", "--no-table"}));
     ASSERT_TRUE(echo.wait_for_count("data: \"pulse", 20, kDiscovery)) << echo.output() << pulse.output();
   }
   EXPECT_EQ(tx(), before) << "packets went out of the network card";
@@ -189,9 +189,9 @@ TEST(Ros2Discovery, Ros2DiscoveryVariablesSetForBothSidesConnectThemAsTheySay) {
   };
   for (const auto& env : settings) {
     SCOPED_TRACE(fmt::format("{}", fmt::join(env, " ")));
-    ChildProcess pulse(cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/env_chatter", "-p", "rate_hz:=20",
-                            "--no-table"}),
-                       env);
+    ChildProcess pulse(
+        cli({"run", "tinyline", "pulse", "--dds", "-r", "output:=/env_chatter", "-p", "rate_hz:=20", "--no-table"}),
+        env);
     ChildProcess listener(peer({"sub", "--type", "string", "--topic", "/env_chatter", "--count", "2", "--any"}), env);
     EXPECT_TRUE(exited_ok(listener, kDiscovery + 30s)) << listener.output() << pulse.output();
     if (env[0] == "ROS_LOCALHOST_ONLY=1") {
@@ -227,8 +227,8 @@ TEST(Ros2Client, TheLaserDemosScansReachADefaultRos2Subscriber) {
   // The newcomer's first try: the shipped demo as it is, and what
   // `ros2 topic echo /laser/laser_scan` subscribes with.
   const std::string bag = fmt::format("{}/tl_ros2_demo_{}.mcap", ::testing::TempDir(), getpid());
-  ChildProcess demo(cli({"launch", std::string(TINYLINE_SOURCE_DIR) + "/launch/laser_demo.launch.yaml",
-                         "bag:=" + bag, "--no-table"}));
+  ChildProcess demo(cli(
+      {"launch", std::string(TINYLINE_SOURCE_DIR) + "/launch/laser_demo.launch.yaml", "bag:=" + bag, "--no-table"}));
   ChildProcess echo(peer({"sub", "--type", "laser_scan", "--topic", "/laser/laser_scan", "--count", "5", "--any"}));
   ASSERT_TRUE(exited_ok(echo, kDiscovery + 60s)) << echo.output() << demo.output();
   const auto lines = echo.lines();
@@ -278,8 +278,8 @@ TEST(Ros2Client, ReliablePairsDeliverEveryMessageInOrderBothWays) {
   // rclpy publishes once both sides matched (the go file says ours did).
   const std::string go = fmt::format("{}/tl_ros2_go_{}", ::testing::TempDir(), getpid());
   std::filesystem::remove(go);
-  ChildProcess ros_pub(peer({"pub", "--topic", "/reliable/from_ros", "--count", "20", "--depth", "100", "--go-file",
-                             go, "--linger", "10"}));
+  ChildProcess ros_pub(peer(
+      {"pub", "--topic", "/reliable/from_ros", "--count", "20", "--depth", "100", "--go-file", go, "--linger", "10"}));
   ASSERT_TRUE(g.bridge->wait_for_peers({{"/reliable/from_ros", 0, 1}}, kDiscovery).ok) << g.sink->dump();
   std::ofstream(go).put('\n');
   ASSERT_TRUE(g.signal->wait_for([&] { return in.size() >= 20; }, kDiscovery)) << ros_pub.output() << g.sink->dump();
@@ -299,8 +299,8 @@ TEST(Ros2Client, SensorDataPairsAreBestEffortBothWays) {
   auto sub = g.node->create_subscription<StringMsg>("/sensor/from_ros", bus::QoS::sensor_data(),
                                                     [&](const StringMsg&) { in.push(1); });
   g.run();
-  ChildProcess ros_sub(peer({"sub", "--type", "laser_scan", "--topic", "/sensor/to_ros", "--count", "5", "--qos",
-                             "sensor_data", "--any"}));
+  ChildProcess ros_sub(peer(
+      {"sub", "--type", "laser_scan", "--topic", "/sensor/to_ros", "--count", "5", "--qos", "sensor_data", "--any"}));
   ASSERT_TRUE(ros_sub.wait_for_text("READY", kDiscovery)) << ros_sub.output();
   ASSERT_TRUE(g.bridge->wait_for_peers({{"/sensor/to_ros", 1, 0}}, kDiscovery).ok) << g.sink->dump();
   // Best effort may drop; a stream until five arrived is the behaviour.
@@ -313,15 +313,16 @@ TEST(Ros2Client, SensorDataPairsAreBestEffortBothWays) {
     pub->publish(std::move(m));
   }
   const auto lines = ros_sub.lines();
-  EXPECT_EQ(std::count_if(lines.begin(), lines.end(),
-                          [](const std::string& l) { return l.rfind("HEARD frame=laser ranges=256 in_range=256", 0) == 0; }),
-            5)
+  EXPECT_EQ(
+      std::count_if(lines.begin(), lines.end(),
+                    [](const std::string& l) { return l.rfind("HEARD frame=laser ranges=256 in_range=256", 0) == 0; }),
+      5)
       << ros_sub.output();
   const auto links = g.bridge->stats();
   for (const auto& l : links) EXPECT_EQ(l.incompatible, 0u) << l.topic;
 
-  ChildProcess ros_pub(peer({"pub", "--topic", "/sensor/from_ros", "--qos", "sensor_data", "--count", "200",
-                             "--period", "0.02"}));
+  ChildProcess ros_pub(
+      peer({"pub", "--topic", "/sensor/from_ros", "--qos", "sensor_data", "--count", "200", "--period", "0.02"}));
   EXPECT_TRUE(g.signal->wait_for([&] { return in.size() >= 5; }, kDiscovery)) << ros_pub.output() << g.sink->dump();
 }
 
@@ -337,8 +338,8 @@ TEST(Ros2Client, LatchedTopicsReachLateJoinersOnEitherSide) {
   EXPECT_EQ(got(late_ros), one_to(1));
 
   // A ROS 2 latched publisher, then a tinyline subscription made afterwards.
-  ChildProcess ros_pub(peer({"pub", "--topic", "/latched/from_ros", "--qos", "latched", "--count", "1",
-                             "--wait-subs", "0", "--linger", "60"}));
+  ChildProcess ros_pub(peer({"pub", "--topic", "/latched/from_ros", "--qos", "latched", "--count", "1", "--wait-subs",
+                             "0", "--linger", "60"}));
   ASSERT_TRUE(ros_pub.wait_for_text("DONE", kDiscovery)) << ros_pub.output();
   tlt::Inbox<std::string> in(g.signal);
   bus::NodeOptions no;
@@ -356,12 +357,12 @@ TEST(Ros2Client, IncompatibleQosIsRefusedOnBothSidesAsBetweenTwoRos2Nodes) {
   REQUIRE_ROS2_SANDBOX();
   Graph g;
   auto pub = g.node->create_publisher<StringMsg>("/mismatch/volatile");
-  auto sub = g.node->create_subscription<StringMsg>("/mismatch/best_effort", bus::QoS::keep_last(10),
-                                                    [](const StringMsg&) {});
+  auto sub =
+      g.node->create_subscription<StringMsg>("/mismatch/best_effort", bus::QoS::keep_last(10), [](const StringMsg&) {});
   g.run();
   // A latched ROS 2 subscriber cannot take a volatile publisher...
-  ChildProcess ros_sub(peer({"sub", "--topic", "/mismatch/volatile", "--qos", "latched", "--count", "1",
-                             "--timeout", "30"}));
+  ChildProcess ros_sub(
+      peer({"sub", "--topic", "/mismatch/volatile", "--qos", "latched", "--count", "1", "--timeout", "30"}));
   EXPECT_TRUE(ros_sub.wait_for_text("INCOMPATIBLE DURABILITY", kDiscovery)) << ros_sub.output();
   EXPECT_TRUE(g.logged(bus::LogLevel::Warn, "durability (volatile vs transient local)", kDiscovery)) << g.sink->dump();
   // ...nor a reliable subscriber a best-effort ROS 2 publisher.
@@ -378,8 +379,8 @@ TEST(Ros2Client, AKilledRos2NodeIsNoticedAndARestartedOneReconnects) {
   auto sub = g.node->create_subscription<StringMsg>("/beat", bus::QoS::keep_last(100),
                                                     [&](const StringMsg& m) { in.push(m.data); });
   g.run();
-  const std::vector<std::string> beat = peer({"pub", "--topic", "/beat", "--count", "100000", "--period", "0.05",
-                                              "--timeout", "600"});
+  const std::vector<std::string> beat =
+      peer({"pub", "--topic", "/beat", "--count", "100000", "--period", "0.05", "--timeout", "600"});
   {
     ChildProcess first(beat);
     ASSERT_TRUE(g.signal->wait_for([&] { return in.size() >= 3; }, kDiscovery)) << first.output() << g.sink->dump();
@@ -387,22 +388,24 @@ TEST(Ros2Client, AKilledRos2NodeIsNoticedAndARestartedOneReconnects) {
     ASSERT_TRUE(first.wait_exit(10s));
   }
   // Noticed when the killed node's lease runs out.
-  ASSERT_TRUE(g.logged(bus::LogLevel::Warn, "/beat: lost the remote publisher in a participant that is not tinyline",
-                       kLease))
+  ASSERT_TRUE(
+      g.logged(bus::LogLevel::Warn, "/beat: lost the remote publisher in a participant that is not tinyline", kLease))
       << g.sink->dump();
   const std::size_t before = in.size();
   ChildProcess second(beat);
-  ASSERT_TRUE(g.signal->wait_for([&] { return in.size() >= before + 3; }, kDiscovery)) << second.output()
-                                                                                      << g.sink->dump();
-  EXPECT_TRUE(g.sink->contains(bus::LogLevel::Info, "/beat: remote publisher in a participant that is not tinyline "
-                                                    "connected"));
+  ASSERT_TRUE(g.signal->wait_for([&] { return in.size() >= before + 3; }, kDiscovery))
+      << second.output() << g.sink->dump();
+  EXPECT_TRUE(g.sink->contains(bus::LogLevel::Info,
+                               "/beat: remote publisher in a participant that is not tinyline "
+                               "connected"));
   // What arrives now is the restarted node's: messages it says it sent, in order.
   const auto items = in.items();
   for (std::size_t k = before; k < before + 3; ++k) {
     const std::string index = items[k].substr(std::string("tinyline interop ").size());
     // Its line may still be on the way through the pipe when the message is here.
     EXPECT_TRUE(second.wait_for_line(std::regex("^SENT " + index.substr(0, index.find(':')) + "$"), 10s))
-        << items[k] << "\n" << second.output();
+        << items[k] << "\n"
+        << second.output();
     if (k > before) {
       EXPECT_EQ(std::stoi(index), std::stoi(items[k - 1].substr(17)) + 1) << items[k];
     }
@@ -448,7 +451,8 @@ std::string write_our_hashes(const std::string& path, const std::string& only_pk
   std::ofstream f(path);
   for (const auto* ts : msg::all_type_supports()) {
     const bool ours = ts->name.rfind("tinyline_msgs/", 0) == 0;
-    if (only_pkg.empty() ? !ours : ts->name.rfind(only_pkg + "/", 0) == 0) f << ts->name << " " << ts->type_hash << "\n";
+    if (only_pkg.empty() ? !ours : ts->name.rfind(only_pkg + "/", 0) == 0)
+      f << ts->name << " " << ts->type_hash << "\n";
   }
   return path;
 }
@@ -485,8 +489,8 @@ TEST(Ros2InterfacePackage, AWorkspaceBuildsTinylineMsgsFromOurMsgFilesAndExchang
   // rosidl's hashes of our types are the ones our generator computed.
   const std::string ours =
       write_our_hashes(fmt::format("{}/tl_own_hashes_{}.txt", ::testing::TempDir(), getpid()), "tinyline_msgs");
-  ChildProcess check({TINYLINE_VENV_PYTHON, kHere + "type_hashes.py", ours, install + "/share", "--require",
-                      "tinyline_msgs"});
+  ChildProcess check(
+      {TINYLINE_VENV_PYTHON, kHere + "type_hashes.py", ours, install + "/share", "--require", "tinyline_msgs"});
   EXPECT_TRUE(exited_ok(check, 120s)) << check.output();
   // Every one of our .msg files.
   std::size_t ours_count = 0;
@@ -499,9 +503,9 @@ TEST(Ros2InterfacePackage, AWorkspaceBuildsTinylineMsgsFromOurMsgFilesAndExchang
   // A ROS 2 node using the built package exchanges LineScans with tinyline.
   ChildProcess relay(cli({"run", "tinyline", "relay", "--dds", "-p", "type:=tinyline_msgs/msg/LineScan", "-r",
                           "input:=/ros2/line_scan/in", "-r", "output:=/ros2/line_scan/out", "--no-table"}));
-  const std::vector<std::string> env = {
-      "PYTHONPATH=" + install + "/lib/python3.11/site-packages", "LD_LIBRARY_PATH=" + install + "/lib",
-      "AMENT_PREFIX_PATH=" + install + ":" + venv_prefix()};
+  const std::vector<std::string> env = {"PYTHONPATH=" + install + "/lib/python3.11/site-packages",
+                                        "LD_LIBRARY_PATH=" + install + "/lib",
+                                        "AMENT_PREFIX_PATH=" + install + ":" + venv_prefix()};
   ChildProcess rt(peer({"roundtrip", "--type", "line_scan", "--out", "/ros2/line_scan/in", "--back",
                         "/ros2/line_scan/out", "--count", "5"}),
                   env);

@@ -199,7 +199,8 @@ std::vector<double> values_on_rows(const CalibrationDataset& data, const CvData&
 
 // The pixel whose training residuals stand out most (|mean| / standard error);
 // -1 when no pixel has enough read-outs.
-int odd_pixel(const CalibrationDataset& data, const CvData& d, const std::vector<double>& residual, std::size_t& pixels) {
+int odd_pixel(const CalibrationDataset& data, const CvData& d, const std::vector<double>& residual,
+              std::size_t& pixels) {
   using tiny_laser_driver::kPixels;
   std::vector<double> sum(kPixels, 0.0), sum2(kPixels, 0.0), n(kPixels, 0.0);
   for (std::size_t i = 0; i < d.y.size(); ++i) {
@@ -243,8 +244,9 @@ std::vector<double> continuous_knots(const std::vector<double>& z, const CvData&
   return k.size() >= 2 ? k : std::vector<double>{};
 }
 
-std::vector<ChargeCovariate> charge_covariates(const CalibrationDataset& data, const CvData& d, const DiscoveryParams& p,
-                                               const std::vector<double>& residual, std::vector<std::string>& notes) {
+std::vector<ChargeCovariate> charge_covariates(const CalibrationDataset& data, const CvData& d,
+                                               const DiscoveryParams& p, const std::vector<double>& residual,
+                                               std::vector<std::string>& notes) {
   std::vector<ChargeCovariate> out;
   out.push_back({"one", {1.0}, 1.0, false});
   // Continuous: what the sensor measures beside the charges, and time.
@@ -277,7 +279,8 @@ std::vector<ChargeCovariate> charge_covariates(const CalibrationDataset& data, c
     if (ids.size() >= 2) out.push_back({name, ids, looks, true});
   }
   if (odd >= 0) {
-    notes.push_back(fmt::format("pixel {} stands out most in the residuals: tried alone, counted as {} looks", odd, pixels));
+    notes.push_back(
+        fmt::format("pixel {} stands out most in the residuals: tried alone, counted as {} looks", odd, pixels));
   }
   return out;
 }
@@ -346,7 +349,8 @@ void build_charge_forms(const CalibrationDataset& data, const CvData& d, const D
       v.push_back(s.b);
     }
     ChargeCovariate c{"charge", quantile_knots(v, p.charge_knots), 1.0, false};
-    if (c.knots.size() >= 2) out.push_back(charge_term(data, d, c, TermForm::kReadout, std::vector<double>(d.y.size(), 0.0)));
+    if (c.knots.size() >= 2)
+      out.push_back(charge_term(data, d, c, TermForm::kReadout, std::vector<double>(d.y.size(), 0.0)));
   }
 }
 

@@ -116,7 +116,8 @@ struct CsvLayout {
 // Numbers of one data line, each failure naming the file, line and column.
 class CellReader {
  public:
-  CellReader(const CsvLayout& layout, const std::vector<std::string>& cells, const std::string& source, std::size_t line)
+  CellReader(const CsvLayout& layout, const std::vector<std::string>& cells, const std::string& source,
+             std::size_t line)
       : layout_(layout), cells_(cells), source_(source), line_(line) {}
   [[nodiscard]] CalibrationDataError fail(const std::string& what) const {
     return CalibrationDataError(fmt::format("{}:{}: {}", source_, line_, what));
@@ -132,8 +133,8 @@ class CellReader {
   int integer(int c, double lo, double hi) const {
     const double v = number(c);
     if (v != std::floor(v) || v < lo || v > hi) {
-      throw fail(fmt::format("column '{}': '{}' is not an integer in [{}, {}]", layout_.header[static_cast<std::size_t>(c)],
-                             cells_[static_cast<std::size_t>(c)], lo, hi));
+      throw fail(fmt::format("column '{}': '{}' is not an integer in [{}, {}]",
+                             layout_.header[static_cast<std::size_t>(c)], cells_[static_cast<std::size_t>(c)], lo, hi));
     }
     return static_cast<int>(v);
   }
@@ -149,7 +150,9 @@ class CellReader {
 // the material (text) or further numeric covariates.
 CsvLayout read_header(const std::vector<std::string>& cells, const std::string& source, std::size_t line_no,
                       CalibrationDataset& data) {
-  auto fail = [&](const std::string& what) { return CalibrationDataError(fmt::format("{}:{}: {}", source, line_no, what)); };
+  auto fail = [&](const std::string& what) {
+    return CalibrationDataError(fmt::format("{}:{}: {}", source, line_no, what));
+  };
   CsvLayout l;
   l.header = cells;
   const auto& header = l.header;
@@ -162,14 +165,16 @@ CsvLayout read_header(const std::vector<std::string>& cells, const std::string& 
   for (int c = 0; c < CsvLayout::kCount; ++c) {
     const auto it = std::find(header.begin(), header.end(), kRequiredCalibrationColumns[c]);
     if (it == header.end()) {
-      throw fail(fmt::format("missing required column '{}' (header has: {}; required: "
-                             "t_s,pixel,pulses,a,b,temperature_c,distance_m)",
-                             kRequiredCalibrationColumns[c], fmt::join(header, ",")));
+      throw fail(
+          fmt::format("missing required column '{}' (header has: {}; required: "
+                      "t_s,pixel,pulses,a,b,temperature_c,distance_m)",
+                      kRequiredCalibrationColumns[c], fmt::join(header, ",")));
     }
     l.col[c] = static_cast<int>(it - header.begin());
   }
   for (std::size_t i = 0; i < header.size(); ++i) {
-    const bool required = std::any_of(std::begin(l.col), std::end(l.col), [&](int c) { return c == static_cast<int>(i); });
+    const bool required =
+        std::any_of(std::begin(l.col), std::end(l.col), [&](int c) { return c == static_cast<int>(i); });
     if (required) continue;
     if (header[i] == "material") {
       l.material_col = static_cast<int>(i);
@@ -199,7 +204,8 @@ void add_row(const CsvLayout& l, const std::vector<std::string>& cells, const st
   if (!(d > 0.0)) throw cell.fail(fmt::format("column 'distance_m': {} is not a positive distance", d));
   r.extra.reserve(l.extra_cols.size());
   for (int c : l.extra_cols) r.extra.push_back(cell.number(c));
-  data.add(std::move(r), d, l.material_col >= 0 ? cells[static_cast<std::size_t>(l.material_col)] : std::string(), line_no);
+  data.add(std::move(r), d, l.material_col >= 0 ? cells[static_cast<std::size_t>(l.material_col)] : std::string(),
+           line_no);
 }
 
 }  // namespace
@@ -208,7 +214,8 @@ CalibrationDataset parse_calibration_csv(std::string_view text, const std::strin
   CalibrationDataset data;
   data.source = source;
   auto fail = [&](std::size_t line, const std::string& what) -> CalibrationDataError {
-    return CalibrationDataError(line ? fmt::format("{}:{}: {}", source, line, what) : fmt::format("{}: {}", source, what));
+    return CalibrationDataError(line ? fmt::format("{}:{}: {}", source, line, what)
+                                     : fmt::format("{}: {}", source, what));
   };
   std::optional<CsvLayout> layout;
   std::vector<std::string> cells;
@@ -297,7 +304,8 @@ std::vector<int> target_distance_groups(const CalibrationDataset& data, double b
   const auto frames = frame_ids(data);
   const int n_frames = frames.empty() ? 0 : *std::max_element(frames.begin(), frames.end()) + 1;
   std::vector<std::vector<double>> per_frame(static_cast<std::size_t>(n_frames));
-  for (std::size_t i = 0; i < data.size(); ++i) per_frame[static_cast<std::size_t>(frames[i])].push_back(data.distance_m[i]);
+  for (std::size_t i = 0; i < data.size(); ++i)
+    per_frame[static_cast<std::size_t>(frames[i])].push_back(data.distance_m[i]);
   std::vector<long long> key(static_cast<std::size_t>(n_frames));
   for (std::size_t f = 0; f < per_frame.size(); ++f) {
     auto& v = per_frame[f];
@@ -310,7 +318,8 @@ std::vector<int> target_distance_groups(const CalibrationDataset& data, double b
   std::vector<int> ids;
   ids.reserve(data.size());
   for (int f : frames) {
-    ids.push_back(static_cast<int>(std::lower_bound(keys.begin(), keys.end(), key[static_cast<std::size_t>(f)]) - keys.begin()));
+    ids.push_back(
+        static_cast<int>(std::lower_bound(keys.begin(), keys.end(), key[static_cast<std::size_t>(f)]) - keys.begin()));
   }
   return ids;
 }

@@ -17,7 +17,8 @@ constexpr std::string_view kLagPrefix = "temperature_c_lp";
 std::string lagged_temperature_name(double tau_s) { return fmt::format("{}{}s", kLagPrefix, std::lround(tau_s)); }
 
 double lagged_temperature_tau(std::string_view name) {
-  if (name.size() < kLagPrefix.size() + 2 || name.substr(0, kLagPrefix.size()) != kLagPrefix || name.back() != 's') return 0.0;
+  if (name.size() < kLagPrefix.size() + 2 || name.substr(0, kLagPrefix.size()) != kLagPrefix || name.back() != 's')
+    return 0.0;
   double tau = 0.0;
   for (char c : name.substr(kLagPrefix.size(), name.size() - kLagPrefix.size() - 1)) {
     if (c < '0' || c > '9') return 0.0;
@@ -48,7 +49,8 @@ CalibrationDataset with_lagged_temperature(const CalibrationDataset& data, const
       lp[f] = first ? temp[f] : lp[f - 1] + (1.0 - std::exp(-(t[f] - t[f - 1]) / tau)) * (temp[f] - lp[f - 1]);
     }
     out.extra_names.push_back(name);
-    for (std::size_t i = 0; i < out.size(); ++i) out.readouts[i].extra.push_back(lp[static_cast<std::size_t>(frames[i])]);
+    for (std::size_t i = 0; i < out.size(); ++i)
+      out.readouts[i].extra.push_back(lp[static_cast<std::size_t>(frames[i])]);
   }
   return out;
 }

@@ -51,10 +51,10 @@ using detail::quantile_knots;
 
 struct Split {
   GroupBy grouping = GroupBy::kAuto;
-  std::vector<int> group;             // per dataset row
+  std::vector<int> group;  // per dataset row
   std::size_t groups = 0;
-  std::vector<bool> holdout;          // per group
-  std::vector<int> fold;              // per group: -1 always in training
+  std::vector<bool> holdout;  // per group
+  std::vector<int> fold;      // per group: -1 always in training
   std::size_t holdout_groups = 0;
   std::string problem;
 };
@@ -92,9 +92,10 @@ Split make_split(const CalibrationDataset& data, const DiscoveryParams& p, const
   }
   s.groups = ids.size();
   if (s.groups < need) {
-    s.problem = fmt::format("only {} {} groups among the valid read-outs: {}-fold cross-validation with a held-out "
-                            "share needs at least {}",
-                            s.groups, to_string(g), p.folds, need);
+    s.problem = fmt::format(
+        "only {} {} groups among the valid read-outs: {}-fold cross-validation with a held-out "
+        "share needs at least {}",
+        s.groups, to_string(g), p.folds, need);
     return s;
   }
   std::mt19937_64 rng(p.seed);
@@ -157,7 +158,8 @@ Eigen::VectorXd ridge_vector(const CvData& d, std::size_t cols, double term_ridg
   return r;
 }
 
-detail::SparseRows design(const CvData& d, const std::vector<const CvTerm*>& terms, const std::vector<std::size_t>& offsets) {
+detail::SparseRows design(const CvData& d, const std::vector<const CvTerm*>& terms,
+                          const std::vector<std::size_t>& offsets) {
   detail::SparseRows rows;
   rows.entries.reserve(d.y.size() * (d.base.empty() ? 1 : d.base.front().size() + 2 * terms.size()));
   Entries e;
@@ -242,7 +244,9 @@ struct CovariateInfo {
 
 std::vector<CovariateInfo> candidate_covariates(const CalibrationDataset& data, const DiscoveryParams& p) {
   std::vector<CovariateInfo> out;
-  auto excluded = [&](const std::string& n) { return std::find(p.exclude.begin(), p.exclude.end(), n) != p.exclude.end(); };
+  auto excluded = [&](const std::string& n) {
+    return std::find(p.exclude.begin(), p.exclude.end(), n) != p.exclude.end();
+  };
   for (Covariate c : builtin_covariates()) {
     const std::string n(covariate_name(c));
     if (!excluded(n)) out.push_back({n, c, -1});
@@ -294,9 +298,10 @@ bool albedo_spread_enough(const CalibrationDataset& data, const CvData& d, const
   const double p10 = albedo[albedo.size() / 10], p90 = albedo[albedo.size() * 9 / 10];
   if (p10 > 0.0 && p90 / p10 >= p.min_albedo_spread) return true;
   if (cov.kind == Covariate::kAlbedo) {
-    notes.push_back(fmt::format("albedo spans {:.2f}x (90th/10th percentile < {:.2f}): one kind of surface, so albedo "
-                                "and reflectance are not tried",
-                                p10 > 0.0 ? p90 / p10 : 0.0, p.min_albedo_spread));
+    notes.push_back(
+        fmt::format("albedo spans {:.2f}x (90th/10th percentile < {:.2f}): one kind of surface, so albedo "
+                    "and reflectance are not tried",
+                    p10 > 0.0 ? p90 / p10 : 0.0, p.min_albedo_spread));
   }
   return false;
 }
@@ -312,8 +317,9 @@ void add_interaction_form(const CvData& d, const CvTerm& base, const std::vector
   if (!(q.size() == 5 && q[3] > q[1])) return;
   CvTerm t = base;
   t.term.form = TermForm::kAmplitudeInteraction;
-  t.term.knots = distinct.size() <= static_cast<std::size_t>(p.interaction_knots) ? distinct
-                                                                                  : quantile_knots(fitted, p.interaction_knots);
+  t.term.knots = distinct.size() <= static_cast<std::size_t>(p.interaction_knots)
+                     ? distinct
+                     : quantile_knots(fitted, p.interaction_knots);
   t.term.amplitude_reference = q[2];
   t.term.amplitude_scale = (q[3] - q[1]) / 1.349;  // IQR as an SD
   if (t.term.knots.size() >= 2) out.push_back(std::move(t));
@@ -342,8 +348,8 @@ void build_forms(const CalibrationDataset& data, const CvData& d, const Covariat
   if (distinct.size() >= 3) {
     CvTerm t = base;
     t.term.form = TermForm::kSmooth;
-    t.term.knots = distinct.size() <= static_cast<std::size_t>(p.smooth_knots) ? distinct
-                                                                               : quantile_knots(fitted, p.smooth_knots);
+    t.term.knots =
+        distinct.size() <= static_cast<std::size_t>(p.smooth_knots) ? distinct : quantile_knots(fitted, p.smooth_knots);
     if (t.term.knots.size() >= 3) out.push_back(std::move(t));
   }
   if (integer && distinct.size() <= static_cast<std::size_t>(p.table_max_values)) {
@@ -626,7 +632,8 @@ bool split_into(DiscoveryResult& res, const CalibrationDataset& data, const Disc
 }
 
 // The CV rows of a fitted engine: its declared columns, truth, weights, X and folds.
-CvData cv_data_from_engine(const CalibrationDataset& data, const detail::FitEngine& engine, const Split& split, int folds) {
+CvData cv_data_from_engine(const CalibrationDataset& data, const detail::FitEngine& engine, const Split& split,
+                           int folds) {
   CvData d;
   d.folds = folds;
   d.base_cols = engine.declared_columns();
@@ -659,7 +666,8 @@ std::vector<CalibrationTerm> confirm_on_holdout(DiscoveryResult& res, const Cali
   const ErrorStats before = evaluate_model(res.train_before, data, res.holdout_rows, p.declared.selection);
   res.rmse_before_m = before.rmse_m;
   if (before.out_of_range > 0) {
-    res.notes.push_back(fmt::format("{} held-out read-outs fall outside the ratio range of the training fit", before.out_of_range));
+    res.notes.push_back(
+        fmt::format("{} held-out read-outs fall outside the ratio range of the training fit", before.out_of_range));
   }
   std::vector<CalibrationTerm> kept_terms;
   double current = before.rmse_m;
@@ -668,13 +676,13 @@ std::vector<CalibrationTerm> confirm_on_holdout(DiscoveryResult& res, const Cali
     auto trial = kept_terms;
     trial.push_back(loop.accepted[k]);
     const auto fit = fit_calibration_model(data, res.train_rows, p.declared, trial);
-    const double after =
-        fit.ok ? evaluate_model(fit.model, data, res.holdout_rows, p.declared.selection).rmse_m : kNaN;
+    const double after = fit.ok ? evaluate_model(fit.model, data, res.holdout_rows, p.declared.selection).rmse_m : kNaN;
     if (!confirmed(current, after, p)) {
       res.rejected_on_holdout.push_back(loop.accepted[k]);
-      res.notes.push_back(fmt::format("{} of {} passed cross-validation but did not lower the held-out error "
-                                      "enough ({:.5f} -> {:.5f} m): dropped",
-                                      to_string(loop.accepted[k].form), loop.accepted[k].covariate, current, after));
+      res.notes.push_back(
+          fmt::format("{} of {} passed cross-validation but did not lower the held-out error "
+                      "enough ({:.5f} -> {:.5f} m): dropped",
+                      to_string(loop.accepted[k].form), loop.accepted[k].covariate, current, after));
       continue;
     }
     DiscoveredEffect e = loop.effects[k];
@@ -725,8 +733,8 @@ std::vector<double> session_values(const CalibrationDataset& data, const std::ve
 // Whether term k of `terms` holds on another session: fitted on the first
 // session's rows with and without it, judged on the other sessions' rows.
 bool holds_on_other_session(const CalibrationDataset& data, const DiscoveryParams& p,
-                            const std::vector<CalibrationTerm>& terms, std::size_t k, const std::vector<std::size_t>& rows,
-                            std::string& why) {
+                            const std::vector<CalibrationTerm>& terms, std::size_t k,
+                            const std::vector<std::size_t>& rows, std::string& why) {
   const auto sessions = session_values(data, rows);
   if (sessions.size() < 2) {
     why = "one session only: record another warm-up (a `session` column) to confirm it";
@@ -734,15 +742,16 @@ bool holds_on_other_session(const CalibrationDataset& data, const DiscoveryParam
   }
   const int col = data.extra_index("session");
   std::vector<std::size_t> first, others;
-  for (std::size_t i : rows) (data.readouts[i].extra[static_cast<std::size_t>(col)] == sessions.front() ? first : others).push_back(i);
+  for (std::size_t i : rows)
+    (data.readouts[i].extra[static_cast<std::size_t>(col)] == sessions.front() ? first : others).push_back(i);
   std::vector<CalibrationTerm> without = terms;
   without.erase(without.begin() + static_cast<std::ptrdiff_t>(k));
   const auto a = fit_calibration_model(data, first, p.declared, without);
   const auto b = fit_calibration_model(data, first, p.declared, terms);
   const double before = a.ok ? evaluate_model(a.model, data, others, p.declared.selection).rmse_m : kNaN;
   const double after = b.ok ? evaluate_model(b.model, data, others, p.declared.selection).rmse_m : kNaN;
-  why = fmt::format("fitted on session {}, the other sessions read {:.3f} -> {:.3f} cm", sessions.front(), 100.0 * before,
-                    100.0 * after);
+  why = fmt::format("fitted on session {}, the other sessions read {:.3f} -> {:.3f} cm", sessions.front(),
+                    100.0 * before, 100.0 * after);
   return std::isfinite(before) && confirmed(before, after, p);
 }
 
@@ -758,7 +767,8 @@ void gate_on_sessions(DiscoveryResult& res, const CalibrationDataset& data, cons
       res.notes.push_back(fmt::format("{} of t_s holds on another session ({})", to_string(kept[k].form), why));
       continue;
     }
-    res.notes.push_back(fmt::format("{} of t_s (time since power-on) is reported, not written: {}", to_string(kept[k].form), why));
+    res.notes.push_back(
+        fmt::format("{} of t_s (time since power-on) is reported, not written: {}", to_string(kept[k].form), why));
     res.unconfirmed_session.push_back(kept[k]);
     for (auto& e : res.effects) {
       if (e.covariate == kept[k].covariate && e.form == kept[k].form) e.written = false;
@@ -816,8 +826,9 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
   if (!split_into(res, data, p, valid, split)) return res;
   if (p.declared.per_pulse_charge_levels && !surfaces_share_distances(data, valid)) {
     p.declared.per_pulse_charge_levels = false;
-    res.notes.push_back("one surface per target distance: charge terms per pulse are fitted without a level (their "
-                        "mean held at 0); a level would act as a distance cue");
+    res.notes.push_back(
+        "one surface per target distance: charge terms per pulse are fitted without a level (their "
+        "mean held at 0); a level would act as a distance cue");
   }
 
   // Each round: the declared model plus the accepted terms fitted on the training
@@ -875,7 +886,8 @@ namespace {
 // Read-outs the given model gives a distance for and the driver would pick;
 // `reason` says why there are none.
 std::vector<bool> diagnosable_rows(const CalibrationModel& model, const CalibrationDataset& data,
-                                   const DiscoveryParams& p, std::vector<CalibrationEvaluation>& ev, std::string& reason) {
+                                   const DiscoveryParams& p, std::vector<CalibrationEvaluation>& ev,
+                                   std::string& reason) {
   const auto readouts = readouts_for_model(data, model);
   std::vector<bool> selected(data.size(), false);
   for (std::size_t i : select_readouts(data, {}, model.validity(), p.declared.selection)) selected[i] = true;
@@ -893,16 +905,18 @@ std::vector<bool> diagnosable_rows(const CalibrationModel& model, const Calibrat
     n_valid += valid[i] ? 1 : 0;
   }
   if (n_valid == 0) {
-    reason = fmt::format("the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
-                         "{} outside its ratio range, {} missing a covariate",
-                         data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
+    reason = fmt::format(
+        "the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
+        "{} outside its ratio range, {} missing a covariate",
+        data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
   }
   return valid;
 }
 
 // Residual mode: a constant plus the terms, fitted to truth - model.
 CvData residual_cv_data(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p,
-                        const std::vector<bool>& valid, const std::vector<CalibrationEvaluation>& ev, const Split& split) {
+                        const std::vector<bool>& valid, const std::vector<CalibrationEvaluation>& ev,
+                        const Split& split) {
   CvData d;
   d.folds = p.folds;
   d.base_cols = 1;
@@ -971,7 +985,8 @@ void confirm_residual_terms(DiscoveryResult& res, const CalibrationDataset& data
 
 }  // namespace
 
-DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationDataset& data, const DiscoveryParams& p) {
+DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationDataset& data,
+                               const DiscoveryParams& p) {
   DiscoveryResult res;
   res.model = model;
   if (data.empty()) {

@@ -20,13 +20,13 @@ struct CvData {
   std::size_t base_cols = 0;
   std::vector<double> y, w, x, declared, amplitude;
   std::vector<ChargeSensitivity> sens;  // per row; empty in residual mode (no model to move)
-  std::vector<int> fold;         // -1: always training; -2: held out (never fitted on)
-  std::vector<int> group;        // dense among rows with fold >= 0
+  std::vector<int> fold;                // -1: always training; -2: held out (never fitted on)
+  std::vector<int> group;               // dense among rows with fold >= 0
   std::size_t groups = 0;
   int folds = 0;
   const AmplitudeReference* reference = nullptr;
-  bool rsen_per_pixel = false;   // the fit refits each pixel's Rsen (charge terms are scored beyond it)
-  double rsen_min_rows = 0.0;    // ... for pixels with this many fitted rows
+  bool rsen_per_pixel = false;          // the fit refits each pixel's Rsen (charge terms are scored beyond it)
+  double rsen_min_rows = 0.0;           // ... for pixels with this many fitted rows
   bool per_pulse_charge_levels = true;  // DeclaredFitParams::per_pulse_charge_levels of the fit
 };
 
@@ -37,7 +37,7 @@ struct CvTerm {
   std::vector<double> z;  // per CvData row
   SparseRows cols;        // per CvData row, columns relative to the term's first
   std::size_t ncols = 0;
-  double looks = 1.0;     // hypotheses this one stands for (a pixel chosen from the data stands for every pixel)
+  double looks = 1.0;  // hypotheses this one stands for (a pixel chosen from the data stands for every pixel)
 };
 
 /// Fills t.cols: the term's basis (distance forms) or, for a form that acts on

@@ -90,7 +90,8 @@ AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const
     hat.basis(d[j], 0.0, e);
     e.emplace_back(nk + static_cast<std::size_t>(r.pixel), 1.0);
     const int m = n_mat ? data.material[rows[use[j]]] : -1;
-    if (m >= 0 && static_cast<std::size_t>(m) != ref_mat) e.emplace_back(nk + kPixels + static_cast<std::size_t>(m), 1.0);
+    if (m >= 0 && static_cast<std::size_t>(m) != ref_mat)
+      e.emplace_back(nk + kPixels + static_cast<std::size_t>(m), 1.0);
     ne.add(e, std::log((r.a + r.b) / r.pulses), 1.0);
   }
   Eigen::VectorXd ridge = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(cols), 1e-9);
@@ -104,7 +105,8 @@ AmplitudeReference fit_amplitude_reference(const CalibrationDataset& data, const
 namespace {
 bool pixel_group_charge(const CalibrationTerm& t) {
   const Covariate k = covariate_from_name(t.covariate);
-  return acts_on_charges(t.form) && (k == Covariate::kPixelParity || k == Covariate::kPixelBank || k == Covariate::kPixelIs);
+  return acts_on_charges(t.form) &&
+         (k == Covariate::kPixelParity || k == Covariate::kPixelBank || k == Covariate::kPixelIs);
 }
 }  // namespace
 
@@ -199,7 +201,8 @@ bool FitEngine::group_rows() {
   std::vector<int> group_ids = group_;
   std::sort(group_ids.begin(), group_ids.end());
   group_ids.erase(std::unique(group_ids.begin(), group_ids.end()), group_ids.end());
-  for (int& g : group_) g = static_cast<int>(std::lower_bound(group_ids.begin(), group_ids.end(), g) - group_ids.begin());
+  for (int& g : group_)
+    g = static_cast<int>(std::lower_bound(group_ids.begin(), group_ids.end(), g) - group_ids.begin());
   groups_ = group_ids.size();
   std::sort(mm.begin(), mm.end());
   mm.erase(std::unique(mm.begin(), mm.end()), mm.end());
@@ -210,7 +213,8 @@ bool FitEngine::group_rows() {
 bool FitEngine::enough_data() {
   const std::size_t min_rows = 2 * static_cast<std::size_t>(p_.degree + 2);
   if (rows_.size() < min_rows) {
-    problem_ = fmt::format("only {} valid read-outs: a degree-{} fit needs at least {}", rows_.size(), p_.degree, min_rows);
+    problem_ =
+        fmt::format("only {} valid read-outs: a degree-{} fit needs at least {}", rows_.size(), p_.degree, min_rows);
     return false;
   }
   if (distances < static_cast<std::size_t>(p_.degree + 1)) {
@@ -228,7 +232,8 @@ void FitEngine::decide_leakage_offset() {
   if (!fit_leak_offset_) return;
   std::vector<std::tuple<double, int, int>> keys;
   keys.reserve(rows_.size());
-  for (std::size_t i : rows_) keys.emplace_back(data_.readouts[i].t_s, data_.readouts[i].pixel, data_.readouts[i].pulses);
+  for (std::size_t i : rows_)
+    keys.emplace_back(data_.readouts[i].t_s, data_.readouts[i].pixel, data_.readouts[i].pulses);
   std::sort(keys.begin(), keys.end());
   std::size_t multi = 0;
   for (std::size_t k = 1; k < keys.size(); ++k) {
@@ -362,8 +367,8 @@ ChargeSensitivity FitEngine::charge_sensitivity(std::size_t i) const {
   const double ap = a * rsen - vle, bp = b - vle, sum = ap + bp;
   // X = B' / (A' + B'), A' = a Rsen - Vle, B' = b - Vle (Eq. 3.16); pred = P(X).
   const double k = polynomial_slope(i) / (sum * sum);
-  s.add_a = k * rsen * bp;  // a - delta
-  s.add_b = -k * ap;        // b - delta
+  s.add_a = k * rsen * bp;       // a - delta
+  s.add_b = -k * ap;             // b - delta
   s.gain_a = k * bp * a * rsen;  // a / (1 + gamma)
   s.gain_b = -k * ap * b;
   return s;
@@ -479,7 +484,8 @@ void FitEngine::centre_charge_terms() {
                                                           AmplitudeReference{}));
     }
     centre_[k] = mean_knot_weights(t, z);
-    centre_dep_[k] = static_cast<std::size_t>(std::max_element(centre_[k].begin(), centre_[k].end()) - centre_[k].begin());
+    centre_dep_[k] =
+        static_cast<std::size_t>(std::max_element(centre_[k].begin(), centre_[k].end()) - centre_[k].begin());
     if (!(centre_[k][centre_dep_[k]] > 0.0)) centre_[k].clear();
   }
   apply_centring();
@@ -555,8 +561,8 @@ void FitEngine::optimise_global() {
   // r = sqrt(w)(y - pred): minimise |r|^2 with a forward-difference Jacobian.
   struct Problem {
     FitEngine& engine;
-    decltype(get)& read;   // the parameters, scaled
-    decltype(set)& write;  // ... clamped into their ranges
+    decltype(get)& read;         // the parameters, scaled
+    decltype(set)& write;        // ... clamped into their ranges
     std::vector<double> r0, r1;  // residuals at x, and at the last candidate
 
     std::pair<Eigen::MatrixXd, Eigen::VectorXd> linearise(const Eigen::VectorXd& theta) {
@@ -606,7 +612,8 @@ std::vector<bool> FitEngine::rsen_eligible_pixels(std::size_t& n_eligible) const
   std::vector<bool> eligible(kPixels, false);
   n_eligible = 0;
   for (std::size_t px = 0; px < kPixels; ++px) {
-    eligible[px] = count[px] >= p_.min_rows_per_pixel && static_cast<int>(seen[px].size()) >= p_.min_distances_per_pixel;
+    eligible[px] =
+        count[px] >= p_.min_rows_per_pixel && static_cast<int>(seen[px].size()) >= p_.min_distances_per_pixel;
     n_eligible += eligible[px] ? 1 : 0;
   }
   return eligible;
@@ -648,8 +655,9 @@ void FitEngine::refine_per_pixel() {
   const std::vector<bool> eligible = rsen_eligible_pixels(n_eligible);
   if (n_eligible == 0) {
     rsen_pixel_.clear();
-    if (notes_rsen_once_) notes.push_back(fmt::format("no pixel has {} valid read-outs over {} distances: one global Rsen",
-                                p_.min_rows_per_pixel, p_.min_distances_per_pixel));
+    if (notes_rsen_once_)
+      notes.push_back(fmt::format("no pixel has {} valid read-outs over {} distances: one global Rsen",
+                                  p_.min_rows_per_pixel, p_.min_distances_per_pixel));
     notes_rsen_once_ = false;
     return;
   }
@@ -667,7 +675,8 @@ void FitEngine::refine_per_pixel() {
   rsen_ = p_.sensitivity_ratio;
   if (n_eligible < kPixels - 2 * kDarkPixels && notes_rsen_once_) {
     notes_rsen_once_ = false;
-    notes.push_back(fmt::format("per-pixel Rsen fitted for {} pixels; the others use the median {:.4f}", n_eligible, rsen_));
+    notes.push_back(
+        fmt::format("per-pixel Rsen fitted for {} pixels; the others use the median {:.4f}", n_eligible, rsen_));
   }
   compute_x();
   solve_linear();
@@ -700,7 +709,8 @@ void FitEngine::fit() {
       compute_covariates();
       optimise_global();
       if (per_pixel) refine_per_pixel();
-      if (!per_pixel && !p_.fit_leakage && terms_.empty() && charge_.empty() && pass > 0) break;  // nothing left to iterate
+      if (!per_pixel && !p_.fit_leakage && terms_.empty() && charge_.empty() && pass > 0)
+        break;  // nothing left to iterate
     }
   };
   run_passes(std::max(p_.passes, 1));
@@ -876,7 +886,7 @@ std::vector<double> model_residuals(const CalibrationModel& model, const Calibra
     }
     const auto ev = model.evaluate(r);
     out.push_back(ev.status == CalibrationEvaluation::Status::kValid ? ev.distance_m - data.distance_m[i]
-                                                                      : std::numeric_limits<double>::quiet_NaN());
+                                                                     : std::numeric_limits<double>::quiet_NaN());
   }
   return out;
 }

@@ -93,7 +93,7 @@ class FitEngine {
   std::vector<bool> rsen_eligible_pixels(std::size_t& n_eligible) const;
   double rsen_jacobian(std::size_t i, double rsen) const;
   void corrected(std::size_t i, double& a, double& b) const;  // kept row i's charges after the charge terms
-  double polynomial_slope(std::size_t i) const;                // dP/dX at kept row i [m]
+  double polynomial_slope(std::size_t i) const;               // dP/dX at kept row i [m]
   void rsen_step(const std::vector<bool>& eligible);
 
   void compute_x();
@@ -109,8 +109,8 @@ class FitEngine {
     double lo, hi;
   };
   std::vector<GlobalParam> global_parameters();  // leakage and the charge terms' values
-  void centre_charge_terms();   // the knot weights of the centred terms (after resolve_terms)
-  void apply_centring();        // each centred term's dependent value from the others
+  void centre_charge_terms();                    // the knot weights of the centred terms (after resolve_terms)
+  void apply_centring();                         // each centred term's dependent value from the others
   void optimise_global();
   void refine_per_pixel();
   void reweight_inverse_variance();
@@ -122,7 +122,7 @@ class FitEngine {
 
   std::vector<std::size_t> rows_;  // dataset rows kept
   std::vector<double> y_, w_, x_;
-  std::vector<int> group_;         // target-distance group of each kept row
+  std::vector<int> group_;  // target-distance group of each kept row
   std::size_t groups_ = 0;
 
   double rsen_ = 1.0;
@@ -139,18 +139,18 @@ class FitEngine {
   void set_ratio_range();
   /// Share of the data left out of the ratio range at each end (set_ratio_range).
   static constexpr double kRatioRangeTail = 0.001;
-  std::vector<CalibrationTerm> terms_;          // the distance terms (linear columns)
-  std::vector<CalibrationTerm> charge_;        // the terms on the charges (nonlinear, fitted around the solve)
-  std::vector<std::vector<double>> centre_;    // per charge term: mean knot weights when centred, else empty
-  std::vector<std::size_t> centre_dep_;        // per charge term: the value set from the others when centred
+  std::vector<CalibrationTerm> terms_;               // the distance terms (linear columns)
+  std::vector<CalibrationTerm> charge_;              // the terms on the charges (nonlinear, fitted around the solve)
+  std::vector<std::vector<double>> centre_;          // per charge term: mean knot weights when centred, else empty
+  std::vector<std::size_t> centre_dep_;              // per charge term: the value set from the others when centred
   std::vector<std::pair<bool, std::size_t>> order_;  // given order: (charge?, index)
-  std::vector<int> term_extra_;                // dataset extra column per term
-  std::vector<std::vector<double>> z_;         // per term, per kept row
-  std::vector<std::size_t> term_col_;          // first column per term
+  std::vector<int> term_extra_;                      // dataset extra column per term
+  std::vector<std::vector<double>> z_;               // per term, per kept row
+  std::vector<std::size_t> term_col_;                // first column per term
   std::size_t declared_cols_ = 0, cols_ = 0;
   Eigen::VectorXd coef_;
-  SparseRows design_;              // of the last solve
-  std::vector<double> residual_;   // y - prediction of the last solve (unweighted)
+  SparseRows design_;             // of the last solve
+  std::vector<double> residual_;  // y - prediction of the last solve (unweighted)
   mutable Entries tmp_;
   std::string weighting_note_ = "K_i = 1";
 };

@@ -47,7 +47,8 @@ Eigen::VectorXd solve_basis(const Basis& f, const std::vector<double>& x, const 
   Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(f.size()));
   Eigen::VectorXd b(static_cast<Eigen::Index>(rows.size()));
   for (std::size_t r = 0; r < rows.size(); ++r) {
-    for (std::size_t j = 0; j < f.size(); ++j) a(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(j)) = f[j](x[rows[r]]);
+    for (std::size_t j = 0; j < f.size(); ++j)
+      a(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(j)) = f[j](x[rows[r]]);
     b[static_cast<Eigen::Index>(r)] = y[rows[r]];
   }
   return a.colPivHouseholderQr().solve(b);
@@ -91,7 +92,8 @@ FamilyFit fit_family(const Family& fam, const std::vector<double>& x, const std:
 // Fits the family on every usable point and leave-one-out; `anchor` points
 // (the calibration target) are always fitted on and never predicted.
 EffectHypothesis hold_against(const std::string& effect, const std::string& form, const Family& fam,
-                              const std::vector<double>& x, const std::vector<double>& y, const std::vector<bool>& anchor) {
+                              const std::vector<double>& x, const std::vector<double>& y,
+                              const std::vector<bool>& anchor) {
   EffectHypothesis h;
   h.effect = effect;
   h.form = form;
@@ -128,7 +130,8 @@ std::vector<double> log_grid(double lo, double hi, int n) {
 int lowest_loo(const std::vector<EffectHypothesis>& hs) {
   int best = -1;
   for (std::size_t i = 0; i < hs.size(); ++i) {
-    if (std::isfinite(hs[i].loo_rmse_cm) && (best < 0 || hs[i].loo_rmse_cm < hs[static_cast<std::size_t>(best)].loo_rmse_cm)) {
+    if (std::isfinite(hs[i].loo_rmse_cm) &&
+        (best < 0 || hs[i].loo_rmse_cm < hs[static_cast<std::size_t>(best)].loo_rmse_cm)) {
       best = static_cast<int>(i);
     }
   }
@@ -181,8 +184,8 @@ std::vector<EffectHypothesis> material_hypotheses(const std::vector<double>& q, 
                                                   const std::vector<bool>& anchor) {
   std::vector<EffectHypothesis> hs;
   auto one = [](const std::function<double(double)>& f) { return Family{{0.0}, [f](double) { return Basis{f}; }}; };
-  hs.push_back(hold_against("additive charge per pulse (ambient light, leakage), on A, B or both",
-                            "bias = c (1/q - 1)", one([](double v) { return 1.0 / v - 1.0; }), q, y, anchor));
+  hs.push_back(hold_against("additive charge per pulse (ambient light, leakage), on A, B or both", "bias = c (1/q - 1)",
+                            one([](double v) { return 1.0 / v - 1.0; }), q, y, anchor));
   hs.push_back(hold_against("timing that follows the light (range walk)", "bias = c ln q",
                             one([](double v) { return std::log(v); }), q, y, anchor));
   hs.push_back(hold_against("read-out nonlinearity (compression of bright returns)", "bias = c (q - 1)",
@@ -190,8 +193,8 @@ std::vector<EffectHypothesis> material_hypotheses(const std::vector<double>& q, 
   Family trap;
   trap.grid = log_grid(0.01, 10.0, 61);
   trap.basis = [](double eps) { return Basis{[eps](double v) { return eps / (v + eps) - eps / (1.0 + eps); }}; };
-  hs.push_back(hold_against("charge trapping (a share eps/(q+eps) released late)", "bias = D (eps/(q+eps) - eps/(1+eps))",
-                            trap, q, y, anchor));
+  hs.push_back(hold_against("charge trapping (a share eps/(q+eps) released late)",
+                            "bias = D (eps/(q+eps) - eps/(1+eps))", trap, q, y, anchor));
   hs.push_back(hold_against("a constant offset of every other surface (no effect of the light)", "bias = c (q != 1)",
                             one([](double v) { return std::abs(v - 1.0) < 1e-12 ? 0.0 : 1.0; }), q, y, anchor));
   return hs;
@@ -314,7 +317,8 @@ FitsAnalysis analyse_fits(const MeasuredData& data) {
     }
     return kNaN;
   };
-  const double v40 = var("poly6_discharge_40pct"), v20 = var("poly6_discharge_20pct"), vm = var("poly6_multi_discharge");
+  const double v40 = var("poly6_discharge_40pct"), v20 = var("poly6_discharge_20pct"),
+               vm = var("poly6_multi_discharge");
   const double v3 = var("poly3_discharge_40pct"), vl = var("linear_eq_3_16");
   a.discharge_variance_ratio = v20 / v40;
   // Halving the charge multiplies var(X) by 4^gamma.
@@ -388,7 +392,8 @@ struct CurveProblem {
       const double h = 1e-6 * std::max(1.0, std::abs(p[c]));
       q[c] += h;
       residuals(q, r1);
-      for (Eigen::Index i = 0; i < n; ++i) j(i, c) = (r1[static_cast<std::size_t>(i)] - r0[static_cast<std::size_t>(i)]) / h;
+      for (Eigen::Index i = 0; i < n; ++i)
+        j(i, c) = (r1[static_cast<std::size_t>(i)] - r0[static_cast<std::size_t>(i)]) / h;
     }
     const Eigen::Map<const Eigen::VectorXd> f(r0.data(), n);
     return {j.transpose() * j, j.transpose() * f};
@@ -428,7 +433,8 @@ void name_curve_models(CurveAnalysis& c) {
   const char* effects[] = {"declared, Eq. 3.16 as the public driver applies it (Rsen = 1, no leakage)",
                            "+ gain on capacitor A (sensitivity ratio Rsen)",
                            "+ pulse shape (power tilted across the pulse, 3.3.2)"};
-  const char* forms[] = {"L = K k + D", "L = K X + D, X = k / (Rsen (1-k) + k)", "L = K u + D, X = u + beta/2 (u^2 - u)"};
+  const char* forms[] = {"L = K k + D", "L = K X + D, X = k / (Rsen (1-k) + k)",
+                         "L = K u + D, X = u + beta/2 (u^2 - u)"};
   for (std::size_t i = 0; i < c.models.size(); ++i) {
     auto& h = c.models[i];
     h.effect = effects[i];
@@ -471,7 +477,8 @@ std::vector<CurveAnalysis> analyse_curves(const MeasuredData& data) {
     c.l_max_cm = c.l_cm.back();
     // Start: the chord of the curve.
     Eigen::VectorXd p(2);
-    p << (c.l_max_cm - c.l_min_cm) / (c.k_max - c.k_min), c.l_min_cm - (c.l_max_cm - c.l_min_cm) / (c.k_max - c.k_min) * c.k_min;
+    p << (c.l_max_cm - c.l_min_cm) / (c.k_max - c.k_min),
+        c.l_min_cm - (c.l_max_cm - c.l_min_cm) / (c.k_max - c.k_min) * c.k_min;
     c.models.push_back(fit_curve_model(c.k, c.l_cm, 0, p));
     Eigen::VectorXd p1(3);
     p1 << p[0], p[1], 0.0;

@@ -57,7 +57,8 @@ void read_sensors(const YAML::Node& root, const Fields& f, MeasuredData& d) {
     const std::string at = "real_sensor_polynomials." + c.name;
     c.poly = f.numbers(kv.second, at, "poly");
     c.offsets = f.numbers(kv.second, at, "offsets_added");
-    if (c.poly.size() != 7 || c.offsets.size() != 7) f.fail(kv.second, at, "poly and offsets_added need 7 coefficients");
+    if (c.poly.size() != 7 || c.offsets.size() != 7)
+      f.fail(kv.second, at, "poly and offsets_added need 7 coefficients");
     c.stable_temperature_decic = f.number(kv.second, at, "stable_temperature");
     c.temperature_sensi_cm_per_decic = f.number(kv.second, at, "temperature_sensi");
     d.sensors.push_back(std::move(c));
@@ -73,7 +74,8 @@ MeasuredData parse_measured_data(const std::string& text, const std::string& sou
   } catch (const YAML::ParserException& e) {
     throw CalibrationDataError(fmt::format("{}:{}: not valid YAML: {}", source, e.mark.line + 1, e.msg));
   }
-  if (!root || !root.IsMap()) throw CalibrationDataError(fmt::format("{}: expected a mapping of measured figures", source));
+  if (!root || !root.IsMap())
+    throw CalibrationDataError(fmt::format("{}: expected a mapping of measured figures", source));
   MeasuredData d;
   d.source = source;
   const Fields f(source);

@@ -19,8 +19,9 @@ struct NormalEquations {
   double weight = 0.0;
 
   NormalEquations() = default;
-  explicit NormalEquations(std::size_t p) : gram(Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(p))),
-                                            rhs(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p))) {}
+  explicit NormalEquations(std::size_t p)
+      : gram(Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(p))),
+        rhs(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p))) {}
 
   void add(const Entries& e, double y, double w) { add(e.data(), e.size(), y, w); }
 

@@ -86,9 +86,9 @@ TEST_F(CollectRail, ATapeMeasureLogReplacesTheTruthTopic) {
   cal::CalibToolEnv env;
   std::ostringstream out, err;
   const std::string csv = path("rail.csv");
-  ASSERT_EQ(cal::run_calib_command({"collect", bag_path, "-o", csv, "--positions", log, "--pixels", "130-140",
-                                    "--focal-mm", "8"},
-                                   out, err, env),
+  ASSERT_EQ(cal::run_calib_command(
+                {"collect", bag_path, "-o", csv, "--positions", log, "--pixels", "130-140", "--focal-mm", "8"}, out,
+                err, env),
             0)
       << err.str();
   EXPECT_THAT(out.str(), HasSubstr("6 raw scans on /laser/raw, 5 at a logged rail position, 1 between positions"));
@@ -100,7 +100,8 @@ TEST_F(CollectRail, ATapeMeasureLogReplacesTheTruthTopic) {
   for (std::size_t i = 0; i < data.size(); ++i) {
     const auto& r = data.readouts[i];
     const double logged = r.t_s < 0.6 ? 0.3 : r.t_s < 2.0 ? 0.6 : 1.0;
-    EXPECT_NEAR(data.distance_m[i], logged / std::cos(tinyline::tiny_laser_driver::pixel_angle_rad(optics, r.pixel)), 1e-9);
+    EXPECT_NEAR(data.distance_m[i], logged / std::cos(tinyline::tiny_laser_driver::pixel_angle_rad(optics, r.pixel)),
+                1e-9);
     EXPECT_GE(r.pixel, 130);
     EXPECT_LE(r.pixel, 140);
   }
@@ -111,8 +112,9 @@ TEST_F(CollectRail, ATapeMeasureLogReplacesTheTruthTopic) {
   // The CSV is the calibration data set `calib fit` reads: the tool runs on it (too few distances to fit a
   // degree-6 polynomial, said plainly).
   std::ostringstream fout, ferr;
-  EXPECT_EQ(cal::run_calib_command({"fit", csv, "-o", path("c.yaml"), "--degree", "2", "--no-temperature"}, fout, ferr, env),
-            0)
+  EXPECT_EQ(
+      cal::run_calib_command({"fit", csv, "-o", path("c.yaml"), "--degree", "2", "--no-temperature"}, fout, ferr, env),
+      0)
       << ferr.str();
 }
 

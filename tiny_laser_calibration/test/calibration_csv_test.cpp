@@ -133,7 +133,8 @@ TEST(CalibrationCsv, AFifoOrADeviceIsRefusedNamingItInsteadOfReadForEver) {
   std::filesystem::create_directories(dir);
   const std::string fifo = (dir / "data.csv").string();
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  for (const auto& [path, kind] : {std::pair{fifo, "is a FIFO"}, std::pair{std::string("/dev/zero"), "is a character device"}}) {
+  for (const auto& [path, kind] :
+       {std::pair{fifo, "is a FIFO"}, std::pair{std::string("/dev/zero"), "is a character device"}}) {
     try {
       (void)cal::read_calibration_csv(path);
       ADD_FAILURE() << "read " << path;
@@ -157,9 +158,13 @@ TEST(CalibrationCsv, MangledBytesGiveEitherDataOrAClearError) {
     for (int e = 0; e < edits; ++e) {
       const std::size_t at = rng() % (s.size() + 1);
       switch (rng() % 3) {
-        case 0: if (at < s.size()) s[at] = static_cast<char>(rng() % 256); break;
+        case 0:
+          if (at < s.size()) s[at] = static_cast<char>(rng() % 256);
+          break;
         case 1: s.insert(at, 1, static_cast<char>(rng() % 256)); break;
-        default: if (at < s.size()) s.erase(at, 1); break;
+        default:
+          if (at < s.size()) s.erase(at, 1);
+          break;
       }
     }
     try {

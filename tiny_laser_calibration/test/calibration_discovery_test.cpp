@@ -74,8 +74,8 @@ void expect_named_and_at_floor(const Outcome& o, const std::string& covariate) {
   ASSERT_TRUE(r.ok) << r.reason;
   ASSERT_FALSE(r.effects.empty()) << "nothing named";
   EXPECT_EQ(r.effects.front().covariate, covariate) << named(r);
-  EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m) << "held-out error after " << r.rmse_after_m << " m, noise floor "
-                                             << o.floor_m << " m";
+  EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m)
+      << "held-out error after " << r.rmse_after_m << " m, noise floor " << o.floor_m << " m";
   EXPECT_LT(r.rmse_after_m, r.rmse_before_m);
   EXPECT_DOUBLE_EQ(r.model.impl().info.heldout_rmse_after_m, r.rmse_after_m);
   // The model written carries the term, except one on time since power-on that a

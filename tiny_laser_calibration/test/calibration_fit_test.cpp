@@ -108,7 +108,8 @@ TEST(CalibrationFit, PerPixelSensitivityMattersOnThisSensor) {
   // On other noise than the fits saw: in-sample, the per-pixel model (which
   // nests the fixed one) could not do worse.
   const double fixed_rmse = held_out_rmse(a), per_pixel_rmse = held_out_rmse(b);
-  EXPECT_GT(fixed_rmse, 1.3 * per_pixel_rmse) << "held-out RMSE: fixed " << fixed_rmse << " m, per pixel " << per_pixel_rmse;
+  EXPECT_GT(fixed_rmse, 1.3 * per_pixel_rmse)
+      << "held-out RMSE: fixed " << fixed_rmse << " m, per pixel " << per_pixel_rmse;
 }
 
 TEST(CalibrationFit, HigherDegreeFitsTheCurvedPulseBetter) {

@@ -175,7 +175,8 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
     bag::ros2::Ros2Writer w;
     ASSERT_TRUE(w.open(tmp / "raw_only.mcap").ok());
     bag::ChannelId ch = 0;
-    ASSERT_TRUE(w.add_topic("/tiny/raw", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::RawScan>(), ch).ok());
+    ASSERT_TRUE(
+        w.add_topic("/tiny/raw", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::RawScan>(), ch).ok());
     tinyline::tinyline_msgs::msg::RawScan m;
     m.header.frame_id = "laser";
     m.pixels = 272;
@@ -200,7 +201,8 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
     ASSERT_TRUE(w.open(tmp / "sizes.mcap").ok());
     bag::ChannelId raw = 0, truth = 0;
     ASSERT_TRUE(w.add_topic("/raw", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::RawScan>(), raw).ok());
-    ASSERT_TRUE(w.add_topic("/truth", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::ScanTruth>(), truth).ok());
+    ASSERT_TRUE(
+        w.add_topic("/truth", tinyline::msg::type_support<tinyline::tinyline_msgs::msg::ScanTruth>(), truth).ok());
     tinyline::tinyline_msgs::msg::RawScan m;
     m.header.frame_id = "laser";
     m.header.stamp.sec = 5;
@@ -225,8 +227,9 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
   {
     cal::CollectParams p;
     p.raw_topic = "/other";
-    EXPECT_THAT(cal::collect_calibration_data(tmp / "raw_only.mcap", p).reason,
-                HasSubstr("no tinyline_msgs/msg/RawScan topic '/other' (its tinyline_msgs/msg/RawScan topics: /tiny/raw)"));
+    EXPECT_THAT(
+        cal::collect_calibration_data(tmp / "raw_only.mcap", p).reason,
+        HasSubstr("no tinyline_msgs/msg/RawScan topic '/other' (its tinyline_msgs/msg/RawScan topics: /tiny/raw)"));
   }
   // A good session asked for the wrong sensor or an impossible pixel step.
   {

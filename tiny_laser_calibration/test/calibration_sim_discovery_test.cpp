@@ -106,8 +106,8 @@ void expect_named_and_at_floor(const Outcome& o, const std::string& covariate) {
   ASSERT_TRUE(r.ok) << r.reason;
   ASSERT_FALSE(r.effects.empty()) << "nothing named";
   EXPECT_EQ(r.effects.front().covariate, covariate) << named(r);
-  EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m) << "held-out error after " << r.rmse_after_m << " m, noise floor "
-                                             << o.floor_m << " m";
+  EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m)
+      << "held-out error after " << r.rmse_after_m << " m, noise floor " << o.floor_m << " m";
   EXPECT_GT(r.rmse_before_m, 1.2 * o.floor_m) << "the injected effect is too small to matter";
   if (!r.effects.front().written) return;  // a time-since-power-on term one session cannot confirm
   ASSERT_FALSE(r.model.impl().terms.empty());
@@ -122,8 +122,10 @@ tt::CaseOutcome expect_case(const std::string& name) {
   std::printf("%s: held-out RMSE %.2f cm -> %.2f cm, noise floor %.2f cm, named %s (twin: %zu effects)\n", name.c_str(),
               100 * o.result.rmse_before_m, 100 * o.result.rmse_after_m, 100 * o.floor_m, o.names().c_str(),
               o.twin.effects.size());
-  for (const auto& e : o.twin.effects) std::printf("  twin: %s %s: %s\n", e.covariate.c_str(), tl::to_string(e.form).data(), e.reading.c_str());
-  for (const auto& e : o.result.effects) std::printf("  %s %s: %s\n", e.covariate.c_str(), tl::to_string(e.form).data(), e.reading.c_str());
+  for (const auto& e : o.twin.effects)
+    std::printf("  twin: %s %s: %s\n", e.covariate.c_str(), tl::to_string(e.form).data(), e.reading.c_str());
+  for (const auto& e : o.result.effects)
+    std::printf("  %s %s: %s\n", e.covariate.c_str(), tl::to_string(e.form).data(), e.reading.c_str());
   // The strongest candidates of each round and the bar they had to clear: why a case names what it names.
   for (std::size_t k = 0; k < o.result.rounds.size(); ++k) {
     std::printf("  round %zu (z > %.2f in round 0):", k, o.result.z_threshold);
@@ -137,7 +139,8 @@ tt::CaseOutcome expect_case(const std::string& name) {
   if (!o.result.ok) return o;
   EXPECT_TRUE(o.named) << "named " << o.names();
   EXPECT_LT(o.result.rmse_after_m, 1.2 * o.floor_m);
-  EXPECT_GT(o.result.rmse_before_m, c.min_before_over_floor * o.floor_m) << "the injected effect is too small to matter";
+  EXPECT_GT(o.result.rmse_before_m, c.min_before_over_floor * o.floor_m)
+      << "the injected effect is too small to matter";
   if (c.twin_must_be_null) {
     EXPECT_TRUE(o.twin.effects.empty()) << "the effect-free twin names something";
   }
@@ -228,8 +231,8 @@ TEST(CalibrationSimDiscovery, RangeWalkIsNamedAsAnAmplitudeEffect) {
   const auto& r = o.result;
   ASSERT_TRUE(r.ok) << r.reason;
   ASSERT_FALSE(r.effects.empty()) << "nothing named";
-  EXPECT_THAT(r.effects.front().covariate, ::testing::AnyOf("amplitude_per_pulse", "amplitude", "reflectance",
-                                                             "albedo", "pulses"))
+  EXPECT_THAT(r.effects.front().covariate,
+              ::testing::AnyOf("amplitude_per_pulse", "amplitude", "reflectance", "albedo", "pulses"))
       << named(r);
   EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m);
   EXPECT_GT(r.rmse_before_m, 1.2 * o.floor_m);
@@ -301,5 +304,3 @@ TEST(CalibrationSimDiscovery, ExtraLeakageOfOneCapacitorInABankOfPixelsIsNamed) 
 TEST(CalibrationSimDiscovery, DISABLED_ReadOutNonlinearityIsNamedOnTheCharges) { expect_case("readout_nonlinearity"); }
 
 TEST(CalibrationSimDiscovery, DISABLED_ChannelOffsetIsNamedOnCapacitorB) { expect_case("channel_offset"); }
-
-

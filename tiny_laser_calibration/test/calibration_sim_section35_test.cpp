@@ -63,7 +63,7 @@ cal::DeclaredFitParams fit_params(int degree) {
   p.sensitivity_ratio = c.sensitivity_ratio;
   p.fit_leakage = false;
   p.leakage_per_pulse = c.leakage_per_pulse;
-  p.fit_temperature = false;  // warm: the thesis's 3.5 data hold no warm-up
+  p.fit_temperature = false;                  // warm: the thesis's 3.5 data hold no warm-up
   p.selection = cal::ReadoutSelection::kAll;  // every valid read-out of the data set (Eq. 3.20, K = 1)
   return p;
 }

@@ -63,8 +63,9 @@ TEST(CalibrationSweep, DISABLED_FiveSeedsPerEffect) {
       ASSERT_TRUE(r.ok && floor.ok) << r.reason << floor.reason;
       std::string named;
       for (const auto& e : r.effects) named += e.covariate + "/" + std::string(tl::to_string(e.form)) + " ";
-      const bool hit = std::string(c.expected).empty() ? r.effects.empty()
-                                                        : (!r.effects.empty() && r.effects.front().covariate == c.expected);
+      const bool hit = std::string(c.expected).empty()
+                           ? r.effects.empty()
+                           : (!r.effects.empty() && r.effects.front().covariate == c.expected);
       hits += hit ? 1 : 0;
       std::printf("| %s | %d | %s | %.3f | %.3f | %.3f | %.3f |\n", c.name, seed, named.empty() ? "-" : named.c_str(),
                   100 * r.rmse_before_m, 100 * r.rmse_after_m, 100 * floor.rmse_before_m,

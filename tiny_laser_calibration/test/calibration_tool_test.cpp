@@ -94,7 +94,8 @@ TEST_F(CalibTool, FitDiscoverWritesModelSummaryAndReportWithPlots) {
   }
   // The held-out figures in summary.json are valid JSON numbers, the effect's after below its before.
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(summary, m, std::regex(R"("rmse_before_m": ([0-9.e-]+),\s*"rmse_after_m": ([0-9.e-]+))")));
+  ASSERT_TRUE(
+      std::regex_search(summary, m, std::regex(R"("rmse_before_m": ([0-9.e-]+),\s*"rmse_after_m": ([0-9.e-]+))")));
   EXPECT_LT(std::stod(m[2]), 0.8 * std::stod(m[1]));
   const std::string md = slurp(report + "/report.md");
   EXPECT_THAT(md, HasSubstr("| supply_v | smooth |"));
@@ -118,7 +119,8 @@ TEST_F(CalibTool, EvalPrintsTheIssuesJsonOfTheModelTheToolWrote) {
   const std::string json = out_.str();
   std::smatch m;
   ASSERT_TRUE(std::regex_match(
-      json, m, std::regex(R"(\{"n": ([0-9]+), "rmse_m": ([0-9.e-]+), "bias_m": ([0-9.e-]+), "p95_abs_m": ([0-9.e-]+)\}\n)")))
+      json, m,
+      std::regex(R"(\{"n": ([0-9]+), "rmse_m": ([0-9.e-]+), "bias_m": ([0-9.e-]+), "p95_abs_m": ([0-9.e-]+)\}\n)")))
       << json;
   // The same figures as the loaded model applied read-out by read-out (what the driver does).
   const auto model = tl::CalibrationModel::load(yaml);
@@ -241,7 +243,8 @@ TEST_F(CalibTool, BadInputGetsAClearErrorAndExitCode) {
   EXPECT_EQ(run({"--help"}), 0);
   EXPECT_THAT(out_.str(), HasSubstr("tinyline calib <command>"));
   // A calibration file that is not one.
-  const auto bad_yaml = write_file("bad.yaml", "format: tinyline_calibration/1\npolynomial: {coefficients_m: [1, x]}\n");
+  const auto bad_yaml =
+      write_file("bad.yaml", "format: tinyline_calibration/1\npolynomial: {coefficients_m: [1, x]}\n");
   EXPECT_EQ(run({"eval", invalid, "--calib", bad_yaml}), 1);
   EXPECT_THAT(err_.str(), HasSubstr("bad.yaml:2: field 'polynomial.coefficients_m[1]'"));
 }

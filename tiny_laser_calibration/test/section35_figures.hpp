@@ -23,8 +23,8 @@ struct Section35Figures {
   double thesis_var = 0.0, thesis_sd = 0.0;
 };
 
-inline Section35Figures section35_figures(const char* name, const CalibrationDataset& data,
-                                          const DeclaredFitParams& p, double thesis_var, double thesis_sd) {
+inline Section35Figures section35_figures(const char* name, const CalibrationDataset& data, const DeclaredFitParams& p,
+                                          double thesis_var, double thesis_sd) {
   Section35Figures f;
   f.name = name;
   f.thesis_var = thesis_var;

@@ -21,9 +21,10 @@ int main(int argc, char** argv) {
   double from = 0.15, to = 2.0, step = 0.05;
   int visits = 2;
   unsigned seed = 7;
-  cli::App app{"Records a calibration session on the simulated rail as a bag (virtual sensor + recorder on sim "
-               "time), the input of `tinyline calib collect` (docs/calibration.md).",
-               "calibration_sim_rail_bag"};
+  cli::App app{
+      "Records a calibration session on the simulated rail as a bag (virtual sensor + recorder on sim "
+      "time), the input of `tinyline calib collect` (docs/calibration.md).",
+      "calibration_sim_rail_bag"};
   app.add_option("--scene", s.scene, "rail scene YAML")->required();
   app.add_option("-o", s.bag_path, "bag to write (MCAP)")->required();
   app.add_option("--from", from, "nearest target distance [m]")->check(cli::positive())->capture_default_str();

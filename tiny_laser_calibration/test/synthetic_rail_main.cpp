@@ -25,9 +25,10 @@ int main(int argc, char** argv) {
   std::string out, materials = "white";
   int pixel_step = 4;
   std::vector<std::string> effects;
-  cli::App app{"Writes a calibration CSV from the two-capacitor model of the calibration tests, with chosen "
-               "undeclared effects (docs/calibration.md).",
-               "calibration_synthetic_rail"};
+  cli::App app{
+      "Writes a calibration CSV from the two-capacitor model of the calibration tests, with chosen "
+      "undeclared effects (docs/calibration.md).",
+      "calibration_synthetic_rail"};
   app.add_option("-o", out, "CSV file to write")->required();
   app.add_option("--effect", effects, "an undeclared effect (repeatable)")
       ->check(cli::one_of({"material", "supply", "time", "nonlin", "pixel"}));
@@ -36,7 +37,9 @@ int main(int argc, char** argv) {
       ->check(cli::one_of({"white", "table32"}))
       ->capture_default_str();
   app.add_option("--passes", plan.passes, "visits of each distance")->check(cli::range(1, 1000))->capture_default_str();
-  app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")->check(cli::range(1, 256))->capture_default_str();
+  app.add_option("--pixel-step", pixel_step, "every N-th effective pixel")
+      ->check(cli::range(1, 256))
+      ->capture_default_str();
   app.add_option("--seed", plan.seed, "seed of the visiting order and the noise")
       ->check(cli::non_negative())
       ->capture_default_str();

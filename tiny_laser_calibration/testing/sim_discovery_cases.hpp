@@ -20,15 +20,15 @@ namespace tinyline::tiny_laser_calibration::testing {
 
 struct DiscoveryCase {
   std::string name;
-  std::string what;                          ///< the effect and its size, for the docs
-  std::vector<std::string> expected;         ///< the first effect named is one of these covariates (empty: none)
-  bool on_charges = false;                   ///< ... in a form that acts on the charges
+  std::string what;                   ///< the effect and its size, for the docs
+  std::vector<std::string> expected;  ///< the first effect named is one of these covariates (empty: none)
+  bool on_charges = false;            ///< ... in a form that acts on the charges
   std::function<void(tinyline::sim::SensorParams&)> inject;
-  std::function<void(RailPlan&)> plan;       ///< changes to the default rail
+  std::function<void(RailPlan&)> plan;                       ///< changes to the default rail
   std::function<void(tinyline::sim::SensorParams&)> sensor;  ///< changes to both twins (the sensor it needs)
-  bool rsen_fixed = false;                   ///< one Rsen for every pixel (the published firmware's model)
-  bool twin_must_be_null = true;             ///< the effect-free twin names nothing
-  double min_before_over_floor = 1.2;        ///< the effect matters: held-out error before / floor
+  bool rsen_fixed = false;             ///< one Rsen for every pixel (the published firmware's model)
+  bool twin_must_be_null = true;       ///< the effect-free twin names nothing
+  double min_before_over_floor = 1.2;  ///< the effect matters: held-out error before / floor
   /// Set: both twins also record a second warm-up (a `session` column; the first
   /// session is 0), on the sensor changed by this (e.g. another day's ambient).
   std::function<void(tinyline::sim::SensorParams&)> second_session{};
@@ -42,10 +42,10 @@ const DiscoveryCase& discovery_case(const std::string& name);
 tinyline::sim::SensorParams declared_sensor();
 
 struct CaseOutcome {
-  DiscoveryResult result;      ///< with the effect
-  DiscoveryResult twin;        ///< without it
-  double floor_m = 0.0;        ///< the twin's held-out error of the declared model
-  bool named = false;          ///< the first effect is one of the expected (none expected: nothing named)
+  DiscoveryResult result;  ///< with the effect
+  DiscoveryResult twin;    ///< without it
+  double floor_m = 0.0;    ///< the twin's held-out error of the declared model
+  bool named = false;      ///< the first effect is one of the expected (none expected: nothing named)
   [[nodiscard]] std::string names() const;
 };
 

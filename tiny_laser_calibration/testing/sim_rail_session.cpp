@@ -29,7 +29,8 @@ SimRailSessionResult record_sim_rail_session(const SimRailSession& s) {
     const auto system = sim::SimulatedSystem::shared(s.scene, so);
     const auto target = system->with_scene([&](const sim::Scene& sc) { return sc.world.find(s.target); });
     if (!target) throw std::invalid_argument(s.scene + ": no object named '" + s.target + "'");
-    Eigen::Isometry3d pose = system->with_scene([&](const sim::Scene& sc) { return sc.world.object(*target).T_world_object; });
+    Eigen::Isometry3d pose =
+        system->with_scene([&](const sim::Scene& sc) { return sc.world.object(*target).T_world_object; });
     const auto& params = system->sensor(0).params();
     const double period_s = params.acquisition.raw_pulses.back() / params.emitter.pulse_rate_hz;
 

@@ -16,12 +16,12 @@
 namespace tinyline::tiny_laser_calibration::testing {
 
 struct SimRailSession {
-  std::string scene;                 ///< scene YAML with a plane named `target` facing the sensor
+  std::string scene;  ///< scene YAML with a plane named `target` facing the sensor
   std::string target = "target";
-  std::vector<double> distances_m;   ///< rail positions, visited in this order
+  std::vector<double> distances_m;  ///< rail positions, visited in this order
   int sets_per_distance = 3;
-  double power_on_age_s = 3600.0;    ///< sensor time at the start (0: the warm-up is in the data)
-  std::string ns = "/rail";          ///< the sensor node's namespace: topics ns/raw_scan, ns/scan_truth
+  double power_on_age_s = 3600.0;  ///< sensor time at the start (0: the warm-up is in the data)
+  std::string ns = "/rail";        ///< the sensor node's namespace: topics ns/raw_scan, ns/scan_truth
   std::string bag_path;
 };
 
@@ -55,15 +55,15 @@ struct RailPlan {
   int visits = 2;
   int sets_per_visit = 1;
   int pixel_step = 8;
-  int pixel_from = -1, pixel_to = -1;  ///< pixels used (default: every effective one)
-  double set_period_s = 2.0;   ///< sensor time between sets (the rail moves meanwhile)
-  double power_on_s = 0.0;     ///< sensor time of the first set: 0 = the warm-up is in the data
+  int pixel_from = -1, pixel_to = -1;                 ///< pixels used (default: every effective one)
+  double set_period_s = 2.0;                          ///< sensor time between sets (the rail moves meanwhile)
+  double power_on_s = 0.0;                            ///< sensor time of the first set: 0 = the warm-up is in the data
   std::vector<std::string> materials{"white_paper"};  ///< pass v visits every position with material v
-  std::vector<std::string> extra_columns;  ///< covariate effects recorded as columns
-  std::uint64_t seed = 7;      ///< visit order and noise
-  int session = -1;            ///< >= 0: a `session` column with this value (another warm-up)
+  std::vector<std::string> extra_columns;             ///< covariate effects recorded as columns
+  std::uint64_t seed = 7;                             ///< visit order and noise
+  int session = -1;                                   ///< >= 0: a `session` column with this value (another warm-up)
 };
-[[nodiscard]] tinyline::tiny_laser_calibration::CalibrationDataset simulate_rail(const tinyline::sim::SensorParams& params,
-                                                                                const RailPlan& plan);
+[[nodiscard]] tinyline::tiny_laser_calibration::CalibrationDataset simulate_rail(
+    const tinyline::sim::SensorParams& params, const RailPlan& plan);
 
 }  // namespace tinyline::tiny_laser_calibration::testing

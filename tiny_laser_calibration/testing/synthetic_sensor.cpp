@@ -32,7 +32,8 @@ struct PulseIntegral {
     g[0] = 0.0;
     for (int i = 1; i <= kShapeSteps; ++i) {
       const double s0 = (i - 1.0) / kShapeSteps, s1 = static_cast<double>(i) / kShapeSteps;
-      g[static_cast<std::size_t>(i)] = g[static_cast<std::size_t>(i - 1)] + 0.5 * (pulse_power(s0) + pulse_power(s1)) / kShapeSteps;
+      g[static_cast<std::size_t>(i)] =
+          g[static_cast<std::size_t>(i - 1)] + 0.5 * (pulse_power(s0) + pulse_power(s1)) / kShapeSteps;
     }
   }
   // Fraction of the pulse energy emitted before s01 (0-1 of T0).
@@ -77,8 +78,10 @@ struct Echo {
   double q1 = 0.0, q2 = 0.0;  // per pulse
 };
 
-Echo echo(const SyntheticSensor& s, double ray_m, double angle, double albedo, double extra_delay_ns, double temperature_c) {
-  const double td = s.tau_ref_ns + s.kappa_ns_per_c * (temperature_c - s.t_ref_c) + 2.0 * ray_m / kLightMPerNs + extra_delay_ns;
+Echo echo(const SyntheticSensor& s, double ray_m, double angle, double albedo, double extra_delay_ns,
+          double temperature_c) {
+  const double td =
+      s.tau_ref_ns + s.kappa_ns_per_c * (temperature_c - s.t_ref_c) + 2.0 * ray_m / kLightMPerNs + extra_delay_ns;
   const double c = std::cos(angle);
   const double overlap = 1.0 - std::exp(-(ray_m / s.overlap_m) * (ray_m / s.overlap_m));
   const double e = s.e0 * albedo * c * c * c * c * c * overlap / (ray_m * ray_m);
@@ -90,19 +93,22 @@ Echo echo(const SyntheticSensor& s, double ray_m, double angle, double albedo, d
 
 const std::vector<SyntheticMaterial>& table_3_2_materials() {
   static const std::vector<SyntheticMaterial> m = {
-      {"white_paper", 6.92 / 6.92},   {"black_cushion", 4.6955 / 6.92}, {"metal_pan", 25.0071 / 6.92},
-      {"cloth_bag", 5.1638 / 6.92},   {"styrofoam", 4.8961 / 6.92},     {"white_towel", 5.6881 / 6.92},
-      {"cardboard", 4.7981 / 6.92},   {"metal_wrench", 37.125 / 6.92},  {"ic_foam", 0.5699 / 6.92},
+      {"white_paper", 6.92 / 6.92}, {"black_cushion", 4.6955 / 6.92}, {"metal_pan", 25.0071 / 6.92},
+      {"cloth_bag", 5.1638 / 6.92}, {"styrofoam", 4.8961 / 6.92},     {"white_towel", 5.6881 / 6.92},
+      {"cardboard", 4.7981 / 6.92}, {"metal_wrench", 37.125 / 6.92},  {"ic_foam", 0.5699 / 6.92},
   };
   return m;
 }
 
 double material_bias_m(double albedo) {
   // (log albedo, bias) from Table 3.2, low-reflectance materials averaged.
-  static const std::vector<std::pair<double, double>> pts = {
-      {std::log(0.5699 / 6.92), 0.098339}, {std::log(4.75 / 6.92), 0.0095}, {std::log(5.1638 / 6.92), 0.0098},
-      {std::log(5.6881 / 6.92), 0.0037},   {0.0, 0.0007},                   {std::log(25.0071 / 6.92), -0.0150},
-      {std::log(37.125 / 6.92), -0.0151}};
+  static const std::vector<std::pair<double, double>> pts = {{std::log(0.5699 / 6.92), 0.098339},
+                                                             {std::log(4.75 / 6.92), 0.0095},
+                                                             {std::log(5.1638 / 6.92), 0.0098},
+                                                             {std::log(5.6881 / 6.92), 0.0037},
+                                                             {0.0, 0.0007},
+                                                             {std::log(25.0071 / 6.92), -0.0150},
+                                                             {std::log(37.125 / 6.92), -0.0151}};
   const double x = std::log(albedo);
   if (x <= pts.front().first) return pts.front().second;
   if (x >= pts.back().first) return pts.back().second;

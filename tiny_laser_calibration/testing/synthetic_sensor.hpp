@@ -42,31 +42,31 @@ struct SyntheticEffects {
   bool supply_voltage = false;         ///< adds the supply_v column and its delay effect
   double supply_delay_ns = 0.4;        ///< delay scale of the supply effect [ns]
   bool capacitor_nonlinearity = false;
-  double nonlinearity_eta = 0.06;      ///< relative loss at full scale
+  double nonlinearity_eta = 0.06;  ///< relative loss at full scale
   /// Always add a supply_v column (random, with no effect unless supply_voltage).
   bool supply_column = false;
 };
 
 struct SyntheticSensor {
-  double t0_ns = 40.0;                 ///< pulse width T0
-  double tau_ref_ns = 16.0;            ///< driver delay at T_ref (after the hardware trim of 3.3.1)
-  double kappa_ns_per_c = 0.064;       ///< delay drift: 1.6 ns over 25 degC (thesis: 1-2 ns over tens of degC)
-  double t_ref_c = 48.0;               ///< warm temperature
-  double ambient_c = 25.0;             ///< temperature at start
-  double warmup_s = 300.0;             ///< warm-up time constant
-  double e0 = 0.4;                     ///< charge per pulse from white paper at 1 m, on axis [charge_unit m^2]
+  double t0_ns = 40.0;            ///< pulse width T0
+  double tau_ref_ns = 16.0;       ///< driver delay at T_ref (after the hardware trim of 3.3.1)
+  double kappa_ns_per_c = 0.064;  ///< delay drift: 1.6 ns over 25 degC (thesis: 1-2 ns over tens of degC)
+  double t_ref_c = 48.0;          ///< warm temperature
+  double ambient_c = 25.0;        ///< temperature at start
+  double warmup_s = 300.0;        ///< warm-up time constant
+  double e0 = 0.4;                ///< charge per pulse from white paper at 1 m, on axis [charge_unit m^2]
   double overlap_m = 0.15;
-  double ambient_per_pulse = 0.002;    ///< [charge_unit per pulse], both capacitors
-  double leak_per_pulse = 0.003;       ///< [charge_unit per pulse], both capacitors
-  double rsen_sd = 0.02;               ///< per-pixel sensitivity ratio spread around 1
-  double adc_sd = 0.15;                ///< [charge_unit]
-  double shot_gain = 0.0008;           ///< shot-noise variance per unit charge [charge_unit]
-  double full_scale = 250.0;           ///< ADC ceiling [charge_unit]
-  bool quantise = true;                ///< round read-outs to 0.1 charge_unit as the wire does
+  double ambient_per_pulse = 0.002;  ///< [charge_unit per pulse], both capacitors
+  double leak_per_pulse = 0.003;     ///< [charge_unit per pulse], both capacitors
+  double rsen_sd = 0.02;             ///< per-pixel sensitivity ratio spread around 1
+  double adc_sd = 0.15;              ///< [charge_unit]
+  double shot_gain = 0.0008;         ///< shot-noise variance per unit charge [charge_unit]
+  double full_scale = 250.0;         ///< ADC ceiling [charge_unit]
+  bool quantise = true;              ///< round read-outs to 0.1 charge_unit as the wire does
   double focal_mm = 8.0;
-  double pixel_pitch_mm = 0.02;        ///< 5.12 mm over 256 pixels
+  double pixel_pitch_mm = 0.02;  ///< 5.12 mm over 256 pixels
   SyntheticEffects effects;
-  std::uint64_t seed = 1;              ///< per-pixel constants (Rsen, fixed pattern)
+  std::uint64_t seed = 1;  ///< per-pixel constants (Rsen, fixed pattern)
 };
 
 struct SyntheticMaterial {
@@ -81,10 +81,10 @@ double material_bias_m(double albedo);
 /// A calibration rail: a flat target, normal to the optical axis, visited at
 /// each distance `passes` times in shuffled order.
 struct RailPlan {
-  std::vector<double> distances_m;     ///< default: 0.05 to 2.0 m every 5 cm
+  std::vector<double> distances_m;  ///< default: 0.05 to 2.0 m every 5 cm
   std::vector<SyntheticMaterial> materials{{"white_paper", 1.0}};
   std::vector<int> pulses{20, 100, 200, 400, 700};  ///< read-outs per frame (the firmware's buffer)
-  std::vector<int> pixels;             ///< default: every 4th ranging pixel
+  std::vector<int> pixels;                          ///< default: every 4th ranging pixel
   /// When > 0: one read-out per pixel and frame, its pulse count (a multiple of 10 in
   /// [10, 990]) chosen per pixel and distance so the fuller capacitor reaches this share
   /// of full scale: the thesis's fixed-discharge data (3.5: 0.4 and 0.2).
@@ -92,7 +92,7 @@ struct RailPlan {
   int passes = 2;
   int frames_per_visit = 3;
   double frame_period_s = 0.03;
-  double move_time_s = 15.0;           ///< time to move the target between visits
+  double move_time_s = 15.0;  ///< time to move the target between visits
   std::uint64_t seed = 7;
 };
 RailPlan default_rail();
@@ -114,7 +114,7 @@ Charges dark_charges(const SyntheticSensor& sensor, int pixel, int pulses);
 struct Charges {
   double a = 0.0, b = 0.0;
 };
-Charges expected_charges(const SyntheticSensor& sensor, double distance_m, double albedo, int pixel, double temperature_c,
-                         int pulses);
+Charges expected_charges(const SyntheticSensor& sensor, double distance_m, double albedo, int pixel,
+                         double temperature_c, int pulses);
 
 }  // namespace tinyline::tiny_laser_calibration::testing

@@ -39,8 +39,8 @@ Out drain(tl::Parser& p) {
 }
 
 bool same_frame(const tl::RawFrame& x, const tl::RawFrame& y) {
-  return x.index == y.index && x.last == y.last && x.temperature_decic == y.temperature_decic &&
-         x.pulses == y.pulses && x.a == y.a && x.b == y.b && x.end_byte == y.end_byte;
+  return x.index == y.index && x.last == y.last && x.temperature_decic == y.temperature_decic && x.pulses == y.pulses &&
+         x.a == y.a && x.b == y.b && x.end_byte == y.end_byte;
 }
 
 bool same(const Out& x, const Out& y) {

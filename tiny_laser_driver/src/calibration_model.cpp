@@ -158,9 +158,7 @@ ValidityRule::Verdict ValidityRule::check(const Readout& r) const {
 
 // ------------------------------------------------------------------ terms
 
-std::size_t CalibrationTerm::basis_size() const {
-  return form == TermForm::kTable ? keys.size() : knots.size();
-}
+std::size_t CalibrationTerm::basis_size() const { return form == TermForm::kTable ? keys.size() : knots.size(); }
 
 void CalibrationTerm::basis(double z, double amplitude, std::vector<std::pair<std::size_t, double>>& out) const {
   if (!std::isfinite(z)) return;
@@ -219,7 +217,7 @@ double CalibrationModel::Impl::sensitivity_ratio_of(int pixel) const {
 }
 
 double CalibrationModel::Impl::charge_ratio(double a, double b, int pulses, double rsen, double leakage_offset,
-                                           double leakage_per_pulse) {
+                                            double leakage_per_pulse) {
   const double vle = leakage_offset + leakage_per_pulse * pulses;  // Eq. 3.16: Vle grows with the pulses
   const double num = b - vle;
   const double den = (a * rsen - vle) + num;
@@ -250,8 +248,8 @@ bool CalibrationModel::Impl::correct_charges(const std::vector<CalibrationTerm>&
       if (f == TermForm::kGainA) a /= 1.0 + g;
       if (f == TermForm::kGainB) b /= 1.0 + g;
       if (gain) continue;
-      const bool per_pulse = f == TermForm::kChargeAPerPulse || f == TermForm::kChargeBPerPulse ||
-                             f == TermForm::kChargeBothPerPulse;
+      const bool per_pulse =
+          f == TermForm::kChargeAPerPulse || f == TermForm::kChargeBPerPulse || f == TermForm::kChargeBothPerPulse;
       const double q = per_pulse ? g * r.pulses : g;
       if (f != TermForm::kChargeB && f != TermForm::kChargeBPerPulse) a -= q;
       if (f != TermForm::kChargeA && f != TermForm::kChargeAPerPulse) b -= q;
@@ -302,12 +300,12 @@ double CalibrationModel::Impl::covariate_value(Covariate kind, int extra_index, 
     case Covariate::kAmplitudePerPulse: return r.pulses > 0 ? (r.a + r.b) / r.pulses : kNaN;
     case Covariate::kRatio: return x;
     case Covariate::kTemperature: return r.temperature_c;
-    case Covariate::kReflectance:
-      return r.pulses > 0 ? declared * declared * (r.a + r.b) / r.pulses : kNaN;
+    case Covariate::kReflectance: return r.pulses > 0 ? declared * declared * (r.a + r.b) / r.pulses : kNaN;
     case Covariate::kAlbedo: return reference.albedo(r, declared);
     case Covariate::kOne: return 1.0;
     case Covariate::kPixelParity: return r.pixel % 2;
-    case Covariate::kPixelBank: return extra_index > 0 ? std::max(0, r.pixel - static_cast<int>(kDarkPixels)) / extra_index : kNaN;
+    case Covariate::kPixelBank:
+      return extra_index > 0 ? std::max(0, r.pixel - static_cast<int>(kDarkPixels)) / extra_index : kNaN;
     case Covariate::kPixelIs: return r.pixel == extra_index ? 1.0 : 0.0;
     case Covariate::kCharge: return kNaN;  // the readout form takes each capacitor's own value
     case Covariate::kExtra:
@@ -328,7 +326,8 @@ void CalibrationModel::Impl::resolve() {
                    t.keys.back() - t.keys.front() + 1 == static_cast<long>(t.keys.size());
     t.first_key = t.keys.empty() ? 0 : t.keys.front();
     t.extra_index = -1;
-    if (t.kind == Covariate::kPixelBank || t.kind == Covariate::kPixelIs) t.extra_index = covariate_parameter(t.covariate);
+    if (t.kind == Covariate::kPixelBank || t.kind == Covariate::kPixelIs)
+      t.extra_index = covariate_parameter(t.covariate);
     if (t.kind != Covariate::kExtra) continue;
     const auto it = std::find(extra_covariates.begin(), extra_covariates.end(), t.covariate);
     t.extra_index = static_cast<int>(it - extra_covariates.begin());
@@ -345,7 +344,9 @@ CalibrationModel& CalibrationModel::operator=(const CalibrationModel& o) {
   if (this != &o) *impl_ = *o.impl_;
   return *this;
 }
-CalibrationModel::CalibrationModel(CalibrationModel&& o) noexcept : impl_(o.impl_) { o.impl_ = new (std::nothrow) Impl; }
+CalibrationModel::CalibrationModel(CalibrationModel&& o) noexcept : impl_(o.impl_) {
+  o.impl_ = new (std::nothrow) Impl;
+}
 CalibrationModel& CalibrationModel::operator=(CalibrationModel&& o) noexcept {
   std::swap(impl_, o.impl_);
   return *this;
@@ -395,8 +396,8 @@ CalibrationEvaluation compute(const CalibrationModel::Impl& m, const Readout& r)
   const double amplitude = r.a + r.b;
   for (const auto& t : m.terms) {
     if (acts_on_charges(t.form)) continue;
-    const double z = CalibrationModel::Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio,
-                                                             ev.declared_distance_m, m.amplitude_reference);
+    const double z = CalibrationModel::Impl::covariate_value(t.kind, t.extra_index, r, ev.ratio, ev.declared_distance_m,
+                                                             m.amplitude_reference);
     if (!std::isfinite(z)) {
       missing = true;
       continue;
@@ -419,8 +420,7 @@ std::string CalibrationModel::describe() const {
   std::string s;
   const bool per_pixel = !m.sensitivity_ratio_per_pixel.empty();
   s += fmt::format("charge ratio (Eq. 3.16): Rsen {}{:.4f}, leakage {:.4g} + {:.4g} * pulses charge_unit\n",
-                   per_pixel ? "per pixel, median " : "", m.sensitivity_ratio, m.leakage_offset,
-                   m.leakage_per_pulse);
+                   per_pixel ? "per pixel, median " : "", m.sensitivity_ratio, m.leakage_offset, m.leakage_per_pulse);
   s += fmt::format("polynomial (Eq. 3.18): degree {} in X on [{:.3f}, {:.3f}]\n",
                    m.poly_m.empty() ? 0 : m.poly_m.size() - 1, m.ratio_min, m.ratio_max);
   s += fmt::format("temperature (3.3.4): {:.4g} mm/degC below {:.1f} degC\n", m.temperature_coef_m_per_c * 1e3,
@@ -437,8 +437,8 @@ CalibrationModel CalibrationModel::from_public_driver(const std::vector<double>&
                                                       double temperature_sensi_cm_per_decic) {
   if (poly.empty()) throw std::invalid_argument("from_public_driver: empty polynomial");
   if (!offsets_added.empty() && offsets_added.size() != poly.size()) {
-    throw std::invalid_argument(fmt::format("from_public_driver: {} offsets for {} coefficients",
-                                            offsets_added.size(), poly.size()));
+    throw std::invalid_argument(
+        fmt::format("from_public_driver: {} offsets for {} coefficients", offsets_added.size(), poly.size()));
   }
   CalibrationModel model;
   Impl& m = model.impl();
@@ -469,7 +469,8 @@ CalibrationModel CalibrationModel::from_public_driver(const std::vector<double>&
       best = i;
     }
   }
-  if (best < 0) throw std::invalid_argument("from_public_driver: the polynomial rises nowhere inside 0-3 m on k in [0, 1]");
+  if (best < 0)
+    throw std::invalid_argument("from_public_driver: the polynomial rises nowhere inside 0-3 m on k in [0, 1]");
   int lo = best, hi = best;
   while (lo > 0 && usable(lo - 1)) --lo;
   while (usable(hi + 1)) ++hi;

@@ -77,7 +77,8 @@ void parse_validity(const YAML::Node& v, const Reader& rd, ValidityRule& rule) {
 // One positive value per pixel (sensitivity ratio), or one value per pixel (offsets).
 std::vector<double> per_pixel(const YAML::Node& n, const Reader& rd, const std::string& field, bool positive) {
   auto v = rd.numbers(n, field);
-  if (v.size() != kPixels) rd.fail(n, field, fmt::format("has {} values, expected one per pixel ({})", v.size(), kPixels));
+  if (v.size() != kPixels)
+    rd.fail(n, field, fmt::format("has {} values, expected one per pixel ({})", v.size(), kPixels));
   for (std::size_t i = 0; positive && i < kPixels; ++i) {
     if (!(v[i] > 0.0)) rd.fail(n, fmt::format("{}[{}]", field, i), "must be positive");
   }
@@ -85,8 +86,9 @@ std::vector<double> per_pixel(const YAML::Node& n, const Reader& rd, const std::
 }
 
 void parse_ratio(const YAML::Node& r, const Reader& rd, Impl& m) {
-  rd.only_keys(r, "ratio", {"sensitivity_ratio", "sensitivity_ratio_per_pixel", "leakage_offset",
-                            "leakage_per_pulse", "range", "range_margin"});
+  rd.only_keys(r, "ratio",
+               {"sensitivity_ratio", "sensitivity_ratio_per_pixel", "leakage_offset", "leakage_per_pulse", "range",
+                "range_margin"});
   m.sensitivity_ratio = rd.number_or(r, "ratio", "sensitivity_ratio", 1.0);
   if (!(m.sensitivity_ratio > 0.0)) rd.fail(r["sensitivity_ratio"], "ratio.sensitivity_ratio", "must be positive");
   if (const auto pp = r["sensitivity_ratio_per_pixel"]) {
@@ -157,7 +159,8 @@ void parse_table_term(const YAML::Node& n, const Reader& rd, const std::string& 
 void parse_knot_term(const YAML::Node& n, const Reader& rd, const std::string& f, CalibrationTerm& t) {
   const auto kn = rd.required(n, f, "knots");
   t.knots = rd.numbers(kn, f + ".knots");
-  if (t.knots.empty() || !strictly_increasing(t.knots)) rd.fail(kn, f + ".knots", "must be a non-empty, strictly increasing list");
+  if (t.knots.empty() || !strictly_increasing(t.knots))
+    rd.fail(kn, f + ".knots", "must be a non-empty, strictly increasing list");
   const auto vn = rd.required(n, f, "values_m");
   t.values = rd.numbers(vn, f + ".values_m");
   if (t.values.size() != t.knots.size()) {
@@ -172,14 +175,17 @@ void parse_knot_term(const YAML::Node& n, const Reader& rd, const std::string& f
 }
 
 CalibrationTerm parse_term(const YAML::Node& n, const Reader& rd, const std::string& f) {
-  rd.only_keys(n, f, {"covariate", "form", "knots", "values_m", "keys", "offsets_m", "amplitude_reference",
-                      "amplitude_scale", "heldout_rmse_before_m", "heldout_rmse_after_m"});
+  rd.only_keys(n, f,
+               {"covariate", "form", "knots", "values_m", "keys", "offsets_m", "amplitude_reference", "amplitude_scale",
+                "heldout_rmse_before_m", "heldout_rmse_after_m"});
   CalibrationTerm t;
   t.covariate = rd.text(rd.required(n, f, "covariate"), f + ".covariate");
   if (t.covariate.empty()) rd.fail(n, f + ".covariate", "must not be empty");
   const auto form_node = rd.required(n, f, "form");
   const auto form = term_form_from_string(rd.text(form_node, f + ".form"));
-  if (!form) rd.fail(form_node, f + ".form", fmt::format("'{}' is not smooth, table or amplitude_interaction", form_node.Scalar()));
+  if (!form)
+    rd.fail(form_node, f + ".form",
+            fmt::format("'{}' is not smooth, table or amplitude_interaction", form_node.Scalar()));
   t.form = *form;
   if (t.form == TermForm::kTable) {
     parse_table_term(n, rd, f, t);
@@ -193,8 +199,10 @@ CalibrationTerm parse_term(const YAML::Node& n, const Reader& rd, const std::str
 
 void parse_terms(const YAML::Node& terms, const Reader& rd, Impl& m) {
   if (!terms.IsSequence()) rd.fail(terms, "terms", "expected a list");
-  if (terms.size() > kMaxTerms) rd.fail(terms, "terms", fmt::format("has {} terms, more than {}", terms.size(), kMaxTerms));
-  for (std::size_t i = 0; i < terms.size(); ++i) m.terms.push_back(parse_term(terms[i], rd, fmt::format("terms[{}]", i)));
+  if (terms.size() > kMaxTerms)
+    rd.fail(terms, "terms", fmt::format("has {} terms, more than {}", terms.size(), kMaxTerms));
+  for (std::size_t i = 0; i < terms.size(); ++i)
+    m.terms.push_back(parse_term(terms[i], rd, fmt::format("terms[{}]", i)));
 }
 
 void parse_fit(const YAML::Node& fit, const Reader& rd, CalibrationFitInfo& info) {
@@ -225,7 +233,8 @@ void require_plausible(const YAML::Node& root, const Reader& rd, const Impl& m) 
   for (int i = 0; i <= kRangeSamples; ++i) {
     const double x = m.ratio_min + (m.ratio_max - m.ratio_min) * i / kRangeSamples;
     const double d = m.polynomial_m(x);
-    if (std::isfinite(d) && d >= kPhysicalMinDistanceM - kLoadToleranceM && d <= kPhysicalMaxDistanceM + kLoadToleranceM) {
+    if (std::isfinite(d) && d >= kPhysicalMinDistanceM - kLoadToleranceM &&
+        d <= kPhysicalMaxDistanceM + kLoadToleranceM) {
       continue;
     }
     rd.fail(root["polynomial"]["coefficients_m"], "polynomial.coefficients_m",
@@ -236,7 +245,8 @@ void require_plausible(const YAML::Node& root, const Reader& rd, const Impl& m) 
 }
 
 void parse(const YAML::Node& root, const Reader& rd, Impl& m) {
-  rd.only_keys(root, "", {"format", "validity", "ratio", "polynomial", "temperature", "amplitude_reference", "terms", "fit"});
+  rd.only_keys(root, "",
+               {"format", "validity", "ratio", "polynomial", "temperature", "amplitude_reference", "terms", "fit"});
   parse_format(root, rd);
   if (const auto v = root["validity"]) parse_validity(v, rd, m.validity);
   if (const auto r = root["ratio"]) parse_ratio(r, rd, m);
@@ -320,9 +330,10 @@ std::string CalibrationModel::to_yaml() const {
   y += "# Distance [m] = P(u) + temperature offset + terms, u = (X - center) / scale,\n";
   y += "# X = (b - Vle) / ((a Rsen - Vle) + (b - Vle)), Vle = leakage_offset + leakage_per_pulse * pulses.\n";
   y += fmt::format("format: {}\n", kFormat);
-  y += "validity:                 # a read-out is used when low < a, b < high and a + b > min_sum + per_pulse * pulses / 10\n";
-  y += fmt::format("  low: {}\n  high: {}\n  min_sum: {}\n  per_pulse: {}\n", num(m.validity.low),
-                   num(m.validity.high), num(m.validity.min_sum), num(m.validity.per_pulse));
+  y += "validity:                 # a read-out is used when low < a, b < high and a + b > min_sum + per_pulse * pulses "
+       "/ 10\n";
+  y += fmt::format("  low: {}\n  high: {}\n  min_sum: {}\n  per_pulse: {}\n", num(m.validity.low), num(m.validity.high),
+                   num(m.validity.min_sum), num(m.validity.per_pulse));
   y += "ratio:                    # Eq. 3.16; charges in charge_unit\n";
   y += fmt::format("  sensitivity_ratio: {}\n", num(m.sensitivity_ratio));
   if (!m.sensitivity_ratio_per_pixel.empty()) {
@@ -339,16 +350,19 @@ std::string CalibrationModel::to_yaml() const {
                    num(m.temperature_coef_m_per_c));
   if (!m.amplitude_reference.empty()) {
     const auto& ref = m.amplitude_reference;
-    y += "amplitude_reference:      # ln((a + b) / pulses) of the calibration target: the albedo covariate's reference\n";
-    y += fmt::format("  knots_m: {}\n  log_amplitude: {}\n", list(ref.knots_m, "    "), list(ref.log_amplitude, "    "));
+    y += "amplitude_reference:      # ln((a + b) / pulses) of the calibration target: the albedo covariate's "
+         "reference\n";
+    y +=
+        fmt::format("  knots_m: {}\n  log_amplitude: {}\n", list(ref.knots_m, "    "), list(ref.log_amplitude, "    "));
     if (!ref.pixel_log_offset.empty()) y += fmt::format("  pixel_log_offset: {}\n", list(ref.pixel_log_offset, "    "));
   }
   if (m.terms.empty()) {
     y += "terms: []                # effects found by the residual analysis (none)\n";
   } else {
-    y += "terms:                   # effects found by the residual analysis: smooth/table/amplitude_interaction add\n"
-         "                         # to the distance [m]; charge_*, gain_*, readout act on the charges before Eq. 3.16\n"
-         "                         # (values_m then in charge_unit, charge_unit per pulse or a relative gain)\n";
+    y +=
+        "terms:                   # effects found by the residual analysis: smooth/table/amplitude_interaction add\n"
+        "                         # to the distance [m]; charge_*, gain_*, readout act on the charges before Eq. 3.16\n"
+        "                         # (values_m then in charge_unit, charge_unit per pulse or a relative gain)\n";
     for (const auto& t : m.terms) {
       y += fmt::format("  - covariate: {}\n    form: {}\n", quoted(t.covariate), to_string(t.form));
       if (t.form == TermForm::kTable) {

@@ -55,7 +55,8 @@ std::uint16_t RawSet::temperature_decic() const {
   std::array<std::uint16_t, 128> t{};
   const std::size_t n = std::min(frames.size(), t.size());
   for (std::size_t i = 0; i < n; ++i) t[i] = frames[i].temperature_decic;
-  std::nth_element(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(n / 2), t.begin() + static_cast<std::ptrdiff_t>(n));
+  std::nth_element(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(n / 2),
+                   t.begin() + static_cast<std::ptrdiff_t>(n));
   return t[n / 2];
 }
 
@@ -64,7 +65,8 @@ void encode_raw_frame(const RawFrame& f, std::vector<std::uint8_t>& out) {
     throw std::invalid_argument("raw frame pulses must be a multiple of 10 below 1000");
   }
   const std::uint32_t packed = static_cast<std::uint32_t>(f.temperature_decic) * 100 + f.pulses / 10;
-  if (packed > 0xFFFF) throw std::invalid_argument("raw frame temperature too high for the packed word (about 65.5 degC)");
+  if (packed > 0xFFFF)
+    throw std::invalid_argument("raw frame temperature too high for the packed word (about 65.5 degC)");
   if (f.index >= kLastFrameFlag) throw std::invalid_argument("raw frame index must be below 100");
   out.reserve(out.size() + kRawFrameBytes);
   out.insert(out.end(), std::begin(kHeader), std::end(kHeader));
@@ -104,7 +106,7 @@ void Parser::reset() {
   if (left >= 2) {
     drop(DropReason::kTruncated);  // a header and part of its frame
   } else if (left == 1) {
-    drop(DropReason::kGarbage);    // a lone first header byte
+    drop(DropReason::kGarbage);  // a lone first header byte
   }
   abandon_pending();
   broken_ = false;
@@ -237,7 +239,7 @@ void Parser::place_in_set(std::uint16_t index, std::uint16_t pulses) {
   if (new_set) {
     abandon_pending();  // the previous set lost its tail
     broken_ = false;
-    if (index != 0) {   // this one lost its head
+    if (index != 0) {  // this one lost its head
       drop(DropReason::kIncompleteSet);
       broken_ = true;
     }
@@ -308,9 +310,7 @@ std::optional<DistanceFrame> Parser::next_distance() {
   return distances_[distances_taken_++];
 }
 
-std::size_t Parser::ready() const {
-  return (sets_.size() - sets_taken_) + (distances_.size() - distances_taken_);
-}
+std::size_t Parser::ready() const { return (sets_.size() - sets_taken_) + (distances_.size() - distances_taken_); }
 
 // ---------------------------------------------------------------------------- host commands
 

@@ -38,7 +38,8 @@ void clear_pixel(ProcessedScan& out, std::size_t p, PixelStatus s) {
 }  // namespace
 
 common::Validation OpticsParams::validate() const {
-  if (!(focal_mm > 0.0) || !std::isfinite(focal_mm)) return common::Validation::invalid(fmt::format("focal_mm must be positive, got {}", focal_mm));
+  if (!(focal_mm > 0.0) || !std::isfinite(focal_mm))
+    return common::Validation::invalid(fmt::format("focal_mm must be positive, got {}", focal_mm));
   if (!(sensor_length_mm > 0.0) || !std::isfinite(sensor_length_mm)) {
     return common::Validation::invalid(fmt::format("sensor_length_mm must be positive, got {}", sensor_length_mm));
   }
@@ -51,9 +52,9 @@ double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
   return std::atan(u_mm / optics.focal_mm);
 }
 
-ScanProcessor::ScanProcessor(CalibrationModel model, OpticsParams optics)
-    : model_(std::move(model)), optics_(optics) {
-  if (const common::Validation why = optics_.validate(); !why.valid) throw std::invalid_argument("optics: " + why.reason);
+ScanProcessor::ScanProcessor(CalibrationModel model, OpticsParams optics) : model_(std::move(model)), optics_(optics) {
+  if (const common::Validation why = optics_.validate(); !why.valid)
+    throw std::invalid_argument("optics: " + why.reason);
   for (std::size_t p = 0; p < kPixels; ++p) angles_[p] = static_cast<float>(pixel_angle_rad(optics_, p));
 }
 
@@ -109,7 +110,8 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
       const double d_m = ev.distance_m;
       const double d_cm = 100.0 * d_m;
       out.distance_m[p] = static_cast<float>(d_m);
-      out.reflectance[p] = static_cast<float>(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));  // the sensor's reflectance figure
+      out.reflectance[p] =
+          static_cast<float>(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));  // the sensor's reflectance figure
       out.status[p] = PixelStatus::kValid;
       ++out.valid;
       continue;

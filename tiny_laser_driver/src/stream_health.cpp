@@ -151,8 +151,10 @@ std::string RangeShares::verdict() const {
   if (valid < 100) return {};
   const double far = static_cast<double>(beyond) / static_cast<double>(valid);
   const double near = static_cast<double>(under) / static_cast<double>(valid);
-  if (far > 0.5) return fmt::format("{:.0f}% of the valid pixels are beyond {} m: is distance_unit_m right?", 100 * far, max_m);
-  if (near > 0.5) return fmt::format("{:.0f}% of the valid pixels are under {} m: is distance_unit_m right?", 100 * near, min_m);
+  if (far > 0.5)
+    return fmt::format("{:.0f}% of the valid pixels are beyond {} m: is distance_unit_m right?", 100 * far, max_m);
+  if (near > 0.5)
+    return fmt::format("{:.0f}% of the valid pixels are under {} m: is distance_unit_m right?", 100 * near, min_m);
   return {};
 }
 
@@ -195,8 +197,9 @@ void CommandWatch::measured(StreamMode kind, std::span<const std::uint16_t> puls
     mode_pending_.reset();
   }
   if (reset_pending_ && stamp_ns > reset_pending_->second + grace_ns_) {
-    const bool took = kind == StreamMode::Raw &&
-                      std::find(pulses.begin(), pulses.end(), static_cast<std::uint16_t>(reset_pending_->first)) != pulses.end();
+    const bool took =
+        kind == StreamMode::Raw &&
+        std::find(pulses.begin(), pulses.end(), static_cast<std::uint16_t>(reset_pending_->first)) != pulses.end();
     ++(took ? reset_.obeyed : reset_.ignored);
     reset_pending_.reset();
   }
@@ -206,7 +209,8 @@ std::string CommandWatch::summary() const {
   std::string out;
   auto add = [&](const char* name, const Counts& c) {
     if (c.sent == 0) return;
-    out += fmt::format("{}{}: sent {}, obeyed {}, ignored {}", out.empty() ? "" : "; ", name, c.sent, c.obeyed, c.ignored);
+    out +=
+        fmt::format("{}{}: sent {}, obeyed {}, ignored {}", out.empty() ? "" : "; ", name, c.sent, c.obeyed, c.ignored);
   };
   add("laser off", laser_off_);
   add("stream mode", stream_mode_);

@@ -67,7 +67,8 @@ std::string minimal(const std::string& section = "", const std::string& replacem
       {"format", "format: tinyline_calibration/1\n"},
       {"polynomial", "polynomial:\n  center: 0\n  scale: 1\n  coefficients_m: [0.1, 2.0]\n"},
       {"validity", "validity: {low: 10, high: 230, min_sum: 10, per_pulse: 0.4}\n"},
-      {"ratio", "ratio: {sensitivity_ratio: 1, leakage_offset: 0, leakage_per_pulse: 0, range: [0, 1], range_margin: 0.05}\n"},
+      {"ratio",
+       "ratio: {sensitivity_ratio: 1, leakage_offset: 0, leakage_per_pulse: 0, range: [0, 1], range_margin: 0.05}\n"},
       {"temperature", "temperature: {reference_c: 48, coefficient_m_per_c: 0}\n"},
   };
   std::string y;
@@ -211,8 +212,7 @@ TEST(CalibrationYaml, ErrorsNameFileLineAndField) {
   EXPECT_THAT(expect_load_error("format: [unclosed\n"), HasSubstr("calib.yaml:"));
   EXPECT_THAT(expect_load_error("format: other/2\npolynomial: {coefficients_m: [1]}\n"),
               HasSubstr("calib.yaml:1: field 'format'"));
-  EXPECT_THAT(expect_load_error("format: tinyline_calibration/1\n"),
-              HasSubstr("field 'polynomial': missing"));
+  EXPECT_THAT(expect_load_error("format: tinyline_calibration/1\n"), HasSubstr("field 'polynomial': missing"));
   EXPECT_THAT(expect_load_error(minimal("temperature", "temperature:\n  refrence_c: 40\n")),
               HasSubstr("calib.yaml:9: field 'temperature.refrence_c': unknown key"));
   EXPECT_THAT(expect_load_error("format: tinyline_calibration/1\npolynomial:\n  coefficients_m: [0.1, abc]\n"),
@@ -223,19 +223,18 @@ TEST(CalibrationYaml, ErrorsNameFileLineAndField) {
               HasSubstr("has 2 values, expected one per pixel (272)"));
   EXPECT_THAT(expect_load_error(minimal("ratio", "ratio:\n  sensitivity_ratio: -1\n")),
               HasSubstr("ratio.sensitivity_ratio': must be positive"));
-  EXPECT_THAT(expect_load_error(kMinimal +
-                                "terms:\n  - covariate: pixel\n    form: table\n    keys: [3, 2]\n    offsets_m: [0, 0]\n"),
-              HasSubstr("calib.yaml:12: field 'terms[0].keys': must be strictly increasing"));
-  EXPECT_THAT(expect_load_error(kMinimal +
-                                "terms:\n  - covariate: pixel\n    form: wiggly\n"),
+  EXPECT_THAT(
+      expect_load_error(kMinimal +
+                        "terms:\n  - covariate: pixel\n    form: table\n    keys: [3, 2]\n    offsets_m: [0, 0]\n"),
+      HasSubstr("calib.yaml:12: field 'terms[0].keys': must be strictly increasing"));
+  EXPECT_THAT(expect_load_error(kMinimal + "terms:\n  - covariate: pixel\n    form: wiggly\n"),
               HasSubstr("terms[0].form': 'wiggly' is not smooth, table or amplitude_interaction"));
   EXPECT_THAT(expect_load_error(kMinimal +
                                 "terms:\n  - covariate: t_s\n    form: smooth\n    knots: [0, 1]\n    values_m: [0]\n"),
               HasSubstr("has 1 values for 2 knots"));
   EXPECT_THAT(expect_load_error(minimal("validity", "validity: {low: 300, high: 230}\n")),
               HasSubstr("low must be below high"));
-  EXPECT_THAT(expect_load_error(kMinimal +
-                                "amplitude_reference:\n  knots_m: [0.1, 1]\n  log_amplitude: [1]\n"),
+  EXPECT_THAT(expect_load_error(kMinimal + "amplitude_reference:\n  knots_m: [0.1, 1]\n  log_amplitude: [1]\n"),
               HasSubstr("calib.yaml:11: field 'amplitude_reference.log_amplitude': has 1 values for 2 knots"));
 }
 
@@ -243,8 +242,8 @@ TEST(CalibrationYaml, ARepeatedKeyIsRefusedNamingFileLineAndField) {
   // yaml-cpp keeps both; a lookup sees the first, so the second was ignored.
   EXPECT_THAT(expect_load_error(kMinimal + "polynomial:\n  center: 0\n  scale: 1\n  coefficients_m: [9]\n"),
               HasSubstr("calib.yaml:9: field 'polynomial': given twice"));
-  EXPECT_THAT(expect_load_error(minimal("temperature",
-                                        "temperature:\n  reference_c: 48\n  coefficient_m_per_c: 0\n  reference_c: 20\n")),
+  EXPECT_THAT(expect_load_error(minimal(
+                  "temperature", "temperature:\n  reference_c: 48\n  coefficient_m_per_c: 0\n  reference_c: 20\n")),
               HasSubstr("calib.yaml:11: field 'temperature.reference_c': given twice"));
   EXPECT_THAT(expect_load_error(kMinimal + "terms:\n  - covariate: pixel\n    form: table\n    keys: [1]\n"
                                            "    offsets_m: [0]\n    keys: [2]\n"),
@@ -267,8 +266,9 @@ TEST(CalibrationYaml, AFileWithoutASectionOrFieldThatCalibFitWritesIsRefused) {
   for (const char* section : {"polynomial", "validity", "ratio", "temperature"}) {
     EXPECT_THAT(expect_load_error(minimal(section)), HasSubstr(fmt::format("field '{}': missing", section)));
   }
-  EXPECT_THAT(expect_load_error(minimal("ratio", "ratio: {sensitivity_ratio: 1, leakage_offset: 0, "
-                                                 "leakage_per_pulse: 0, range_margin: 0.05}\n")),
+  EXPECT_THAT(expect_load_error(minimal("ratio",
+                                        "ratio: {sensitivity_ratio: 1, leakage_offset: 0, "
+                                        "leakage_per_pulse: 0, range_margin: 0.05}\n")),
               HasSubstr("calib.yaml:8: field 'ratio.range': missing"));
   EXPECT_THAT(expect_load_error(minimal("polynomial", "polynomial: {center: 0, coefficients_m: [0.1, 2]}\n")),
               HasSubstr("field 'polynomial.scale': missing"));
@@ -277,8 +277,8 @@ TEST(CalibrationYaml, AFileWithoutASectionOrFieldThatCalibFitWritesIsRefused) {
 TEST(CalibrationYaml, APolynomialWithAnAbsurdNumberOfCoefficientsIsRefused) {
   std::string coefficients = "[0.1, 2";
   for (int i = 2; i < 500; ++i) coefficients += ", 0";
-  EXPECT_THAT(expect_load_error(minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: " +
-                                                          coefficients + "]}\n")),
+  EXPECT_THAT(expect_load_error(
+                  minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: " + coefficients + "]}\n")),
               HasSubstr("calib.yaml:5: field 'polynomial.coefficients_m': has 500 coefficients, at most 13"));
   // Degree 12, the fitter's largest, loads.
   std::string twelve = "[0.1, 2";
@@ -290,8 +290,8 @@ TEST(CalibrationYaml, APolynomialWithAnAbsurdNumberOfCoefficientsIsRefused) {
 TEST(CalibrationYaml, APolynomialThatReadsOutsideThePhysicalRangeIsRefused) {
   // Each reads absurdly somewhere on the fitted ratio range [0, 1].
   for (const std::string coefficients : {"[-1e19]", "[-5, 0.1]", "[0.1, 1e308, 1e308]", "[0.1, 20]"}) {
-    EXPECT_THAT(expect_load_error(minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: " +
-                                                            coefficients + "}\n")),
+    EXPECT_THAT(expect_load_error(
+                    minimal("polynomial", "polynomial: {center: 0, scale: 1, coefficients_m: " + coefficients + "}\n")),
                 HasSubstr("calib.yaml:5: field 'polynomial.coefficients_m': reads"))
         << coefficients;
   }

@@ -63,7 +63,8 @@ struct Rig : bus::testing::NodeRig {
   std::vector<std::shared_ptr<const RawScan>>& raws = collect<RawScan>("/raw", bus::QoS::keep_last(1000));
   std::vector<std::shared_ptr<const LineScan>> scans;
   std::vector<bus::Time> scan_seen_at;  // sim time when each LineScan arrived
-  std::vector<std::shared_ptr<const LaserScan>>& laser_scans = collect<LaserScan>("/laser_scan", bus::QoS::keep_last(1000));
+  std::vector<std::shared_ptr<const LaserScan>>& laser_scans =
+      collect<LaserScan>("/laser_scan", bus::QoS::keep_last(1000));
   std::vector<std::shared_ptr<const DiagnosticArray>>& diags =
       collect<DiagnosticArray>("/diagnostics", bus::QoS::keep_last(1000));
   std::shared_ptr<bus::Subscription<LineScan>> scan_sub;
@@ -84,10 +85,11 @@ struct Rig : bus::testing::NodeRig {
     o.param("port", "mem:" + link_name).param("calibration", calib).param("threaded", false);
     for (auto& [k, v] : extra) o.param(k, v);
     driver = std::make_shared<tl::LaserDriver>(o);
-    scan_sub = io->create_subscription<LineScan>("/scan", bus::QoS::keep_last(1000), [this](const std::shared_ptr<const LineScan>& m) {
-      scans.push_back(m);
-      scan_seen_at.push_back(ctx->clock().now());
-    });
+    scan_sub = io->create_subscription<LineScan>("/scan", bus::QoS::keep_last(1000),
+                                                 [this](const std::shared_ptr<const LineScan>& m) {
+                                                   scans.push_back(m);
+                                                   scan_seen_at.push_back(ctx->clock().now());
+                                                 });
     commands = io->create_publisher<LaserCommand>("/laser_command");
     add(driver);
     if (start) ex.spin_until_idle();  // runs on_start
@@ -290,7 +292,8 @@ TEST(LaserDriverNode, AnImplausibleUnitAndAnUnexpectedKindAreReportedNotDropped)
   const auto& st = rig.diags.back()->status[0];
   EXPECT_EQ(st.level, tinyline::diagnostic_msgs::msg::DiagnosticStatus::WARN);
   EXPECT_NE(st.message.find("expected raw frames, the sensor sends distance frames"), std::string::npos) << st.message;
-  EXPECT_NE(rig.diag_value("distance_unit_check").find("under 0.05 m"), std::string::npos) << rig.diag_value("distance_unit_check");
+  EXPECT_NE(rig.diag_value("distance_unit_check").find("under 0.05 m"), std::string::npos)
+      << rig.diag_value("distance_unit_check");
 }
 
 TEST(LaserDriverNode, ASensorThatIgnoresLaserOffIsReported) {

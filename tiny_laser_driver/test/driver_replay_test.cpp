@@ -86,10 +86,12 @@ TEST(LaserDriverReplay, ARecordedBagReplaysToIdenticalMessages) {
     lo.name = "listener";
     auto listener = std::make_shared<bus::Node>(lo);
     auto q = bus::QoS::reliable(1000);
-    auto s1 = listener->create_subscription<RawScan>("/tiny/raw", q, [&](const RawScan& m) { live["raw"].push_back(cdr(m)); });
-    auto s2 = listener->create_subscription<LineScan>("/tiny/scan", q, [&](const LineScan& m) { live["scan"].push_back(cdr(m)); });
-    auto s3 = listener->create_subscription<LaserScan>("/tiny/laser_scan", q,
-                                                       [&](const LaserScan& m) { live["laser_scan"].push_back(cdr(m)); });
+    auto s1 = listener->create_subscription<RawScan>("/tiny/raw", q,
+                                                     [&](const RawScan& m) { live["raw"].push_back(cdr(m)); });
+    auto s2 = listener->create_subscription<LineScan>("/tiny/scan", q,
+                                                      [&](const LineScan& m) { live["scan"].push_back(cdr(m)); });
+    auto s3 = listener->create_subscription<LaserScan>(
+        "/tiny/laser_scan", q, [&](const LaserScan& m) { live["laser_scan"].push_back(cdr(m)); });
     ex.add_node(recorder);
     ex.add_node(driver);
     ex.add_node(listener);
@@ -130,7 +132,8 @@ TEST(LaserDriverReplay, ARecordedBagReplaysToIdenticalMessages) {
   bag::ReplayOptions opts;
   opts.topics = {"/tiny/raw"};
   bag::Replay replay(bag_path, opts);
-  replay.add<tl::RawProcessor>("processor", {{"raw", "/tiny/raw"}, {"scan", "/again/scan"}, {"laser_scan", "/again/laser_scan"}},
+  replay.add<tl::RawProcessor>("processor",
+                               {{"raw", "/tiny/raw"}, {"scan", "/again/scan"}, {"laser_scan", "/again/laser_scan"}},
                                {{"calibration", calib_path, {}}});
   const bag::ReplayResult out = replay.run();
   ASSERT_TRUE(out.status.ok()) << out.status.str();
@@ -139,7 +142,8 @@ TEST(LaserDriverReplay, ARecordedBagReplaysToIdenticalMessages) {
   for (const auto& m : out.messages<LaserScan>("/again/laser_scan")) laser_scans.push_back(cdr(*m));
   ASSERT_EQ(scans.size(), live["scan"].size());
   for (std::size_t i = 0; i < scans.size(); ++i) EXPECT_EQ(scans[i], live["scan"][i]) << "scan " << i;
-  for (std::size_t i = 0; i < laser_scans.size(); ++i) EXPECT_EQ(laser_scans[i], live["laser_scan"][i]) << "laser scan " << i;
+  for (std::size_t i = 0; i < laser_scans.size(); ++i)
+    EXPECT_EQ(laser_scans[i], live["laser_scan"][i]) << "laser scan " << i;
 }
 
 TEST(RawProcessor, RefusesRawScansThatCannotBeASet) {

@@ -32,7 +32,6 @@
 #include <tiny_laser_driver/io/port.hpp>
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 
-
 namespace tl = tinyline::tiny_laser_driver;
 namespace sim = tinyline::sim;
 namespace bus = tinyline::bus;
@@ -83,7 +82,9 @@ struct Bench {
     bus::NodeOptions d;
     d.context = ctx;
     d.name = "laser";
-    d.param("port", o.link_path).param("calibration", std::string("default")).param("focal_mm", 8.0)
+    d.param("port", o.link_path)
+        .param("calibration", std::string("default"))
+        .param("focal_mm", 8.0)
         .param("diagnostics_period_s", 0.1);
     driver = std::make_shared<tl::LaserDriver>(d);
     bus::NodeOptions l;
@@ -139,8 +140,7 @@ struct SteppedDriver : bus::testing::NodeRig {
     bus::NodeOptions d;
     d.context = ctx;
     d.name = "laser";
-    d.param("port", port).param("calibration", std::string("default")).param("focal_mm", 8.0)
-        .param("threaded", false);
+    d.param("port", port).param("calibration", std::string("default")).param("focal_mm", 8.0).param("threaded", false);
     driver = add(std::make_shared<tl::LaserDriver>(d));
     ex.spin_until_idle();  // on_start
   }
@@ -248,7 +248,7 @@ TEST(EndToEnd, OnePercentByteCorruptionCostsOnlyWholeSetsAndEveryOneIsCounted) {
   auto& driver = h.driver;
   auto& scans = h.scans;
   auto& raws = h.raws;
-  driver->pump(0ms);     // connects
+  driver->pump(0ms);  // connects
   ASSERT_TRUE(driver->status().connected);
 
   constexpr int kSets = 200;
@@ -307,7 +307,8 @@ TEST(EndToEnd, OnePercentByteCorruptionCostsOnlyWholeSetsAndEveryOneIsCounted) {
   // The books: every set sent is published whole or counted incomplete, once.
   EXPECT_EQ(ps.sets + ps.dropped(tl::DropReason::kIncompleteSet), static_cast<std::uint64_t>(kSets));
   EXPECT_EQ(ps.dropped(tl::DropReason::kIncompleteSet), static_cast<std::uint64_t>(lost))
-      << "the sets lost are those with a flip in a frame's header, index or ender, or a packed word whose pulses no longer rise";
+      << "the sets lost are those with a flip in a frame's header, index or ender, or a packed word whose pulses no "
+         "longer rise";
   EXPECT_GT(lost, kSets / 5);  // about 1 - 0.99^30 of them: the test exercises the damage
   // Frames lost, by reason: a hit header makes the frame garbage, a hit ender a bad ender.
   EXPECT_EQ(ps.dropped(tl::DropReason::kBadEnder), static_cast<std::uint64_t>(ender_hit_frames));
@@ -372,10 +373,12 @@ TEST(EndToEnd, UnplugAndReplugWhileStreamingResumesWithinASecond) {
   ASSERT_TRUE(step_until([&] { return scans.size() >= 10; }, 3000)) << "no scans from the virtual device";
   device.unplug();
   // The driver notices, keeps trying, and backs off to its longest wait.
-  ASSERT_TRUE(step_until([&] {
-    const auto st = driver->status();
-    return !st.connected && st.open_failures >= 5;
-  }, 3000));
+  ASSERT_TRUE(step_until(
+      [&] {
+        const auto st = driver->status();
+        return !st.connected && st.open_failures >= 5;
+      },
+      3000));
   const std::size_t before = scans.size();
   const std::uint64_t bytes_before = driver->status().bytes;
   device.replug();

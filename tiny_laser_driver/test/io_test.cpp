@@ -68,8 +68,8 @@ void write_file(const fs::path& p, const std::string& text) {
 
 // A fake sysfs: an FT232R with a tty, a second one without a driver bound,
 // and an unrelated adapter.
-void make_fake_usb(const fs::path& root, const std::string& serial, const std::string& usb_path,
-                   const std::string& tty, const std::string& vidpid = "0403:6001", bool bind_driver = true) {
+void make_fake_usb(const fs::path& root, const std::string& serial, const std::string& usb_path, const std::string& tty,
+                   const std::string& vidpid = "0403:6001", bool bind_driver = true) {
   const fs::path dev = root / "sys/bus/usb/devices" / usb_path;
   write_file(dev / "idVendor", vidpid.substr(0, 4));
   write_file(dev / "idProduct", vidpid.substr(5, 4));
@@ -226,10 +226,10 @@ TEST(SerialPort, FtdiRatesAreTheOnesItsDivisorMakes) {
   EXPECT_DOUBLE_EQ(io::ftdi_rate(2'000'000).actual_baud, 2'000'000.0);
   EXPECT_DOUBLE_EQ(io::ftdi_rate(3'000'000).actual_baud, 3'000'000.0);
   EXPECT_DOUBLE_EQ(io::ftdi_rate(1'000'000).actual_baud, 1'000'000.0);  // divisor 3
-  const auto r = io::ftdi_rate(921'600);  // 3e6 / 3.25
+  const auto r = io::ftdi_rate(921'600);                                // 3e6 / 3.25
   EXPECT_NEAR(r.actual_baud, 3e6 / 3.25, 1e-6);
   EXPECT_LT(r.relative_error, 0.002);
-  EXPECT_GT(io::ftdi_rate(2'500'000).relative_error, 0.19);  // between divisors 1 and 1.5
+  EXPECT_GT(io::ftdi_rate(2'500'000).relative_error, 0.19);         // between divisors 1 and 1.5
   EXPECT_NEAR(io::ftdi_rate(115'200).actual_baud, 3e6 / 26, 1e-6);  // the FT232R's well-known 115,384
 }
 

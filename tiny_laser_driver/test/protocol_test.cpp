@@ -52,8 +52,8 @@ std::vector<tl::RawSet> drain(tl::Parser& p) {
 }
 
 bool same_frame(const tl::RawFrame& x, const tl::RawFrame& y) {
-  return x.index == y.index && x.last == y.last && x.temperature_decic == y.temperature_decic &&
-         x.pulses == y.pulses && x.a == y.a && x.b == y.b && x.end_byte == y.end_byte;
+  return x.index == y.index && x.last == y.last && x.temperature_decic == y.temperature_decic && x.pulses == y.pulses &&
+         x.a == y.a && x.b == y.b && x.end_byte == y.end_byte;
 }
 
 bool same_sets(const std::vector<tl::RawSet>& x, const std::vector<tl::RawSet>& y) {
@@ -127,7 +127,7 @@ TEST(Protocol, EncoderRefusesFieldsThePackedWordCannotCarry) {
   f.pulses = 700;
   f.temperature_decic = 655;  // 65570 does not fit 16 bits
   EXPECT_THROW(tl::encode_raw_frame(f, out), std::invalid_argument);
-  f.pulses = 350;             // 65535 does
+  f.pulses = 350;  // 65535 does
   EXPECT_NO_THROW(tl::encode_raw_frame(f, out));
   EXPECT_EQ(out.size(), tl::kRawFrameBytes);
 }
@@ -336,8 +336,8 @@ TEST(Protocol, EverySingleBitFlipInTheFramingCostsOneSetCountedOnce) {
         tl::Parser p;
         p.feed(b);
         const auto sets = drain(p);
-        const std::string where = "frame " + std::to_string(frame) + " byte " + std::to_string(off) + " bit " +
-                                  std::to_string(bit);
+        const std::string where =
+            "frame " + std::to_string(frame) + " byte " + std::to_string(off) + " bit " + std::to_string(bit);
         EXPECT_EQ(sets.size() + d(p, tl::DropReason::kIncompleteSet), 3u) << where;
         ASSERT_GE(sets.size(), 2u) << where;  // the neighbours are never touched
         EXPECT_EQ(sets.front().frames[0].a[0], make_frame(0, 450, 0).a[0]) << where;
@@ -392,7 +392,7 @@ TEST(Protocol, ASetFlaggedTooEarlyOrNotAtAllIsIncomplete) {
   }
   for (int i = 0; i < 5; ++i) {
     auto f = make_frame(i, 450, 2);
-    f.last = false;   // never flagged
+    f.last = false;  // never flagged
     tl::encode_raw_frame(f, stream);
   }
   append(stream, make_set(450, 3));
@@ -533,8 +533,8 @@ Damaged damaged_stream(std::uint32_t seed, int sets, double byte_error) {
     Bytes set = make_set(static_cast<std::uint16_t>(440 + s % 20), s);
     for (std::uint8_t b : set) {
       const double x = u(rng);
-      if (x < byte_error / 3) continue;                                         // dropped
-      if (x < 2 * byte_error / 3) b = static_cast<std::uint8_t>(rng());         // flipped
+      if (x < byte_error / 3) continue;                                  // dropped
+      if (x < 2 * byte_error / 3) b = static_cast<std::uint8_t>(rng());  // flipped
       out.bytes.push_back(b);
       if (x > 1.0 - byte_error / 3) out.bytes.push_back(static_cast<std::uint8_t>(rng()));  // inserted
     }

@@ -16,11 +16,13 @@ namespace {
 constexpr std::uint16_t kPulses[5] = {20, 100, 200, 400, 700};
 
 // distance_cm = 300 k, k = b / (a + b): easy to check by hand.
-tl::CalibrationModel linear_model() { return tl::CalibrationModel::from_public_driver({0, 0, 0, 0, 0, 300, 0}, {}, 450, 0); }
+tl::CalibrationModel linear_model() {
+  return tl::CalibrationModel::from_public_driver({0, 0, 0, 0, 0, 300, 0}, {}, 450, 0);
+}
 
 // Sensor K of the public driver.
-const std::vector<double> kPolyK = {2.147918234375362e+06, -7.736068312640203e+06, 1.154494186428487e+07,
-                                    -9.137795412258314e+06, 4.045684724836031e+06, -9.494901699902674e+05,
+const std::vector<double> kPolyK = {2.147918234375362e+06,  -7.736068312640203e+06, 1.154494186428487e+07,
+                                    -9.137795412258314e+06, 4.045684724836031e+06,  -9.494901699902674e+05,
                                     9.219599710241470e+04};
 
 // A set whose pixel p reads a = ka * pulses, b = kb * pulses (charge units) at every read-out.

@@ -76,7 +76,7 @@ TEST(StreamHealth, AStreamThatDoesNotRepeatIsPassedOnAtOnce) {
 TEST(StreamHealth, AHeldContentIsPublishedWhenTheStreamStops) {
   tl::DistanceRepeats r(25'000'000);
   EXPECT_TRUE(r.push(frame(1), 0));
-  EXPECT_FALSE(r.push(frame(1), kFrameNs));  // repeating now
+  EXPECT_FALSE(r.push(frame(1), kFrameNs));      // repeating now
   EXPECT_FALSE(r.push(frame(2), 2 * kFrameNs));  // held: torn or not?
   EXPECT_FALSE(r.flush(2 * kFrameNs + 10'000'000));
   const auto x = r.flush(2 * kFrameNs + 25'000'000);
@@ -89,8 +89,8 @@ TEST(StreamHealth, AStuckPixelAndItsStuckNeighboursAreFlagged) {
   std::array<std::uint32_t, tl::kPixels> v{};
   for (int k = 0; k < 8; ++k) {
     for (std::size_t p = 8; p < 264; ++p) v[p] = static_cast<std::uint32_t>(1000 + p + 7 * k);
-    v[100] = 4000;                      // one stuck pixel
-    v[200] = v[201] = v[202] = 5000;    // a stuck patch
+    v[100] = 4000;                    // one stuck pixel
+    v[200] = v[201] = v[202] = 5000;  // a stuck patch
     s.update(v);
     if (k < 5) {
       EXPECT_EQ(s.count(), 0) << k;

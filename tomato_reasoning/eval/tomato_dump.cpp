@@ -29,9 +29,10 @@ using namespace tinyline;
 using namespace tinyline::tomato_reasoning;
 
 int main(int argc, char** argv) try {
-  cli::App app{"One simulated truss through the tomato pipeline, written as CSV for the pictures of "
-               "docs/tomato_reasoning.md.",
-               "tomato_dump"};
+  cli::App app{
+      "One simulated truss through the tomato pipeline, written as CSV for the pictures of "
+      "docs/tomato_reasoning.md.",
+      "tomato_dump"};
   std::string class_name, out_dir;
   std::uint64_t seed = 0;
   std::optional<double> kernel_kappa;
@@ -49,8 +50,9 @@ int main(int argc, char** argv) try {
   p.gravity = s.gravity_camera;
   if (kernel_kappa) p.force.kernel_kappa = *kernel_kappa;
   const PipelineResult r = TomatoPipeline(p).run(s.cloud());
-  std::printf("class %c seed %llu: %zu true tomatoes, %zu spheres (%s%s%s)\n", char(*cls), static_cast<unsigned long long>(seed),
-              s.truth.size(), r.tomatoes.size(), r.ok ? "ok" : r.stage.c_str(), r.ok ? "" : ": ", r.reason.c_str());
+  std::printf("class %c seed %llu: %zu true tomatoes, %zu spheres (%s%s%s)\n", char(*cls),
+              static_cast<unsigned long long>(seed), s.truth.size(), r.tomatoes.size(), r.ok ? "ok" : r.stage.c_str(),
+              r.ok ? "" : ": ", r.reason.c_str());
 
   files::AtomicStream pts((out / "points.csv").string());
   pts << "x,y,z,r,g,b,red\n";
@@ -59,8 +61,8 @@ int main(int argc, char** argv) try {
   for (std::size_t i = 0; i < c.size(); i += 3) {
     if (!c.finite(i)) continue;
     const bool red = hsi.passes(c.rgb[i]);
-    pts << c.xyz[i].x() << ',' << c.xyz[i].y() << ',' << c.xyz[i].z() << ',' << int(c.rgb[i][0]) << ',' << int(c.rgb[i][1]) << ','
-        << int(c.rgb[i][2]) << ',' << int(red) << '\n';
+    pts << c.xyz[i].x() << ',' << c.xyz[i].y() << ',' << c.xyz[i].z() << ',' << int(c.rgb[i][0]) << ','
+        << int(c.rgb[i][1]) << ',' << int(c.rgb[i][2]) << ',' << int(red) << '\n';
   }
   pts.commit();
   // Gravity-aligned frame for the distribution: z up (against gravity).
@@ -71,7 +73,8 @@ int main(int argc, char** argv) try {
   R.row(1) = y;
   R.row(2) = up;
   files::AtomicStream sph((out / "spheres.csv").string());
-  sph << "k,cx,cy,cz,radius,pick_rank,ex,ey,ez,spread50_deg,spread90_deg,edges,tcx,tcy,tcz,tradius,tpx,tpy,tpz,gux,guy,guz,gtx,gty,gtz\n";
+  sph << "k,cx,cy,cz,radius,pick_rank,ex,ey,ez,spread50_deg,spread90_deg,edges,tcx,tcy,tcz,tradius,tpx,tpy,tpz,gux,guy,"
+         "guz,gtx,gty,gtz\n";
   for (std::size_t k = 0; k < r.tomatoes.size(); ++k) {
     const Tomato& t = r.tomatoes[k];
     int match = -1;
@@ -82,11 +85,12 @@ int main(int argc, char** argv) try {
     const Eigen::Vector3d tp = match >= 0 ? s.truth[std::size_t(match)].pedicel_dir : Eigen::Vector3d::Constant(nan);
     const double tr = match >= 0 ? s.truth[std::size_t(match)].radius_m : nan;
     const Eigen::Vector3d eu = R * t.pedicel.expected_dir, tu = R * tp;
-    sph << k << ',' << t.fit.sphere.centre.x() << ',' << t.fit.sphere.centre.y() << ',' << t.fit.sphere.centre.z() << ','
-        << t.fit.sphere.radius_m << ',' << t.pick_rank << ',' << t.pedicel.expected_dir.x() << ',' << t.pedicel.expected_dir.y()
-        << ',' << t.pedicel.expected_dir.z() << ',' << t.pedicel.spread50_deg << ',' << t.pedicel.spread90_deg << ','
-        << t.pedicel.edges << ',' << tc.x() << ',' << tc.y() << ',' << tc.z() << ',' << tr << ',' << tp.x() << ',' << tp.y() << ','
-        << tp.z() << ',' << eu.x() << ',' << eu.y() << ',' << eu.z() << ',' << tu.x() << ',' << tu.y() << ',' << tu.z() << '\n';
+    sph << k << ',' << t.fit.sphere.centre.x() << ',' << t.fit.sphere.centre.y() << ',' << t.fit.sphere.centre.z()
+        << ',' << t.fit.sphere.radius_m << ',' << t.pick_rank << ',' << t.pedicel.expected_dir.x() << ','
+        << t.pedicel.expected_dir.y() << ',' << t.pedicel.expected_dir.z() << ',' << t.pedicel.spread50_deg << ','
+        << t.pedicel.spread90_deg << ',' << t.pedicel.edges << ',' << tc.x() << ',' << tc.y() << ',' << tc.z() << ','
+        << tr << ',' << tp.x() << ',' << tp.y() << ',' << tp.z() << ',' << eu.x() << ',' << eu.y() << ',' << eu.z()
+        << ',' << tu.x() << ',' << tu.y() << ',' << tu.z() << '\n';
     files::AtomicStream g((out / ("grid_" + std::to_string(k) + ".csv")).string());
     for (const auto& row : t.pedicel.distribution.rotated(R).grid(72, 36)) {
       for (std::size_t j = 0; j < row.size(); ++j) g << (j ? "," : "") << row[j];

@@ -116,9 +116,10 @@ void add_pick_options(cli::App& app, Request& r, std::vector<std::string>& verif
   app.add_option("--verify-set", verify_sets,
                  "the verification's options key=value (pulses=10,20,50,120,300 expectation_sd_m=0.015 "
                  "max_move_m=0.05 max_turn_deg=60; the closed loop: rescans=2 approach_far=0|1), repeatable");
-  app.add_flag("--closed-loop", r.closed_loop,
-               "the verification's closed loop of thesis 4.5 (move, scan again, re-centre; rescans=2): for --verify and "
-               "--harvest; --verify-set overrides");
+  app.add_flag(
+      "--closed-loop", r.closed_loop,
+      "the verification's closed loop of thesis 4.5 (move, scan again, re-centre; rescans=2): for --verify and "
+      "--harvest; --verify-set overrides");
   app.add_flag("--harvest", r.harvest,
                "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
                "truss), written to DIR/harvest.csv");
@@ -128,9 +129,10 @@ void add_pick_options(cli::App& app, Request& r, std::vector<std::string>& verif
 
 /// Fills `r` from the command line; the exit code when the program stops there.
 std::optional<int> parse(int argc, char** argv, Request& r) {
-  cli::App app{"Scores the tomato pipeline on seeded simulated trusses (docs/tomato_reasoning.md); every variant "
-               "runs on the same clouds. Writes DIR/<variant>_tomatoes.csv and DIR/<variant>_summary.json.",
-               "tomato_eval"};
+  cli::App app{
+      "Scores the tomato pipeline on seeded simulated trusses (docs/tomato_reasoning.md); every variant "
+      "runs on the same clouds. Writes DIR/<variant>_tomatoes.csv and DIR/<variant>_summary.json.",
+      "tomato_eval"};
   app.footer(lists_for_help());
   std::string seeds_text;
   std::vector<std::string> sets, verify_sets, harvest_sets;
@@ -228,7 +230,7 @@ struct PickVerification {
   std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
   std::ostringstream harvest_csv, csv;  ///< DIR/harvest.csv, DIR/verification.csv, written when the run ends
   eval::HarvestOptions harvest_options;
-  std::map<char, eval::HarvestCounts> harvested;  // class -> Table 4.2 row
+  std::map<char, eval::HarvestCounts> harvested;            // class -> Table 4.2 row
   std::map<std::string, std::map<std::string, int>> count;  // case -> verdict -> n
   std::map<std::string, int> vision_ok;
   bool closed_loop = false;  ///< re-scans asked for: the CSV gets a scans column
@@ -316,15 +318,16 @@ void count_kappa_hits(KappaTally& tally, const eval::Scenario& sc, const Pipelin
     const auto& d = res.tomatoes[std::size_t(t.detection)].pedicel.distribution;
     ++tally.n;
     for (std::size_t k = 0; k < tally.kappas.size(); ++k)
-      tally.hits[k] += PedicelDistribution(d.draws(), tally.kappas[k], 99).in_hpd(sc.truth[std::size_t(t.truth)].pedicel_dir, 0.5);
+      tally.hits[k] +=
+          PedicelDistribution(d.draws(), tally.kappas[k], 99).in_hpd(sc.truth[std::size_t(t.truth)].pedicel_dir, 0.5);
   }
 }
 
 void harvest_truss(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {
   for (const auto& t : eval::harvest(*v.as_recognised, sc, res, v.harvest_options)) {
     v.harvested[t.complexity].add(t);
-    v.harvest_csv << t.complexity << ',' << t.seed << ',' << t.truth << ',' << int(t.detected) << ',' << t.pick_rank << ','
-                  << t.attempts << ',' << t.scans << ',' << eval::to_string(t.outcome) << ',' << t.cuts << ",\""
+    v.harvest_csv << t.complexity << ',' << t.seed << ',' << t.truth << ',' << int(t.detected) << ',' << t.pick_rank
+                  << ',' << t.attempts << ',' << t.scans << ',' << eval::to_string(t.outcome) << ',' << t.cuts << ",\""
                   << t.jammed_on << "\"\n";
   }
 }
@@ -338,10 +341,10 @@ void verify_picks(PickVerification& v, const eval::Scenario& sc, const PipelineR
       v.count[name][eval::to_string(t.verdict)]++;
       v.count[name]["trials"]++;
       v.vision_ok[name] += t.vision_on_pedicel;
-      v.csv << name << ',' << t.complexity << ',' << t.seed << ',' << t.truth << ',' << t.pick_rank << ','
-            << t.offset_m << ',' << int(t.vision_on_pedicel) << ',' << to_string(t.outcome) << ','
-            << eval::to_string(t.verdict) << ',' << int(t.on_pedicel) << ',' << 1000 * t.lateral_error_m << ','
-            << 1000 * t.depth_error_m << ',' << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << '"';
+      v.csv << name << ',' << t.complexity << ',' << t.seed << ',' << t.truth << ',' << t.pick_rank << ',' << t.offset_m
+            << ',' << int(t.vision_on_pedicel) << ',' << to_string(t.outcome) << ',' << eval::to_string(t.verdict)
+            << ',' << int(t.on_pedicel) << ',' << 1000 * t.lateral_error_m << ',' << 1000 * t.depth_error_m << ','
+            << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << '"';
       if (v.closed_loop) v.csv << ',' << t.scans;
       v.csv << '\n';
     }
@@ -416,13 +419,15 @@ std::string rate(int k, int n) {
 /// Table 4.2 per class, each count of its trials with its Wilson interval.
 void print_harvest(const PickVerification& v, const std::string& variant, const std::string& seeds_label) {
   std::printf("\nharvest trials (%s; %s), Table 4.2: share of trials\n", variant.c_str(), seeds_label.c_str());
-  std::printf("| class | trials | SD | SP(1) | SP(2) | HS (left for a human) | CF | knocked off |\n|---|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "| class | trials | SD | SP(1) | SP(2) | HS (left for a human) | CF | knocked off "
+      "|\n|---|---|---|---|---|---|---|---|\n");
   eval::HarvestCounts all;
   auto row = [](const std::string& name, const eval::HarvestCounts& c) {
-    std::printf("| %s | %d | %s | %s | %s | %s | %s | %s |\n", name.c_str(), c.trials, rate(c.detected, c.trials).c_str(),
-                rate(c.picked_first, c.trials).c_str(), rate(c.picked_second, c.trials).c_str(),
-                rate(c.left_for_human, c.trials).c_str(), rate(c.cut_failures, c.trials).c_str(),
-                rate(c.knocked_off, c.trials).c_str());
+    std::printf("| %s | %d | %s | %s | %s | %s | %s | %s |\n", name.c_str(), c.trials,
+                rate(c.detected, c.trials).c_str(), rate(c.picked_first, c.trials).c_str(),
+                rate(c.picked_second, c.trials).c_str(), rate(c.left_for_human, c.trials).c_str(),
+                rate(c.cut_failures, c.trials).c_str(), rate(c.knocked_off, c.trials).c_str());
   };
   for (const auto& [cls, c] : v.harvested) {
     row(std::string(1, cls), c);
@@ -437,8 +442,8 @@ void print_verification(PickVerification& v, const std::string& variant, const s
               "vision_only");
   for (auto& [name, c] : v.count) {
     const double n = std::max(1, c["trials"]);
-    std::printf("%-15s %7d %8.1f%% %8.1f%% %8.1f%% %8.1f%% %11.1f%%\n", name.c_str(), c["trials"], 100 * c["aligned"] / n,
-                100 * c["wrong"] / n, 100 * c["out_of_view"] / n, 100 * c["nothing_found"] / n,
+    std::printf("%-15s %7d %8.1f%% %8.1f%% %8.1f%% %8.1f%% %11.1f%%\n", name.c_str(), c["trials"],
+                100 * c["aligned"] / n, 100 * c["wrong"] / n, 100 * c["out_of_view"] / n, 100 * c["nothing_found"] / n,
                 100 * v.vision_ok[name] / n);
   }
 }
@@ -459,8 +464,10 @@ void report_kappa_fit(KappaTally& t, const std::string& variant, const Request& 
   if (t.n == 0) {
     std::printf("\nkappa fit: no detected tomato to fit on\n");
   } else {
-    std::printf("\nkappa fit (%s, %s, %d detected tomatoes): force.kernel_kappa = %.1f puts the truth in the HPD50 region %.1f%% of the time\n",
-                variant.c_str(), r.seeds_label.c_str(), t.n, t.kappas[best], 100.0 * t.hits[best] / t.n);
+    std::printf(
+        "\nkappa fit (%s, %s, %d detected tomatoes): force.kernel_kappa = %.1f puts the truth in the HPD50 region "
+        "%.1f%% of the time\n",
+        variant.c_str(), r.seeds_label.c_str(), t.n, t.kappas[best], 100.0 * t.hits[best] / t.n);
   }
   t.kappas.resize(t.fit_from);
   t.hits.resize(t.fit_from);

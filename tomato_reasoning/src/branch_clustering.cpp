@@ -17,7 +17,8 @@ struct UnionFind {
   std::vector<int> parent;
   explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
   int root(int a) {
-    while (parent[static_cast<std::size_t>(a)] != a) a = parent[static_cast<std::size_t>(a)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(a)])];
+    while (parent[static_cast<std::size_t>(a)] != a)
+      a = parent[static_cast<std::size_t>(a)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(a)])];
     return a;
   }
   void join(int a, int b) {
@@ -30,9 +31,11 @@ struct UnionFind {
 }  // namespace
 
 common::Validation validate(const BranchClusteringParams& p) {
-  if (!(p.tolerance_m > 0) || !std::isfinite(p.tolerance_m)) return common::Validation::invalid("tolerance_m must be finite and > 0");
+  if (!(p.tolerance_m > 0) || !std::isfinite(p.tolerance_m))
+    return common::Validation::invalid("tolerance_m must be finite and > 0");
   if (p.min_points < 1) return common::Validation::invalid("min_points must be >= 1");
-  if (!(p.min_range_m >= 0) || !(p.max_range_m > p.min_range_m)) return common::Validation::invalid("ranges must satisfy 0 <= min_range_m < max_range_m");
+  if (!(p.min_range_m >= 0) || !(p.max_range_m > p.min_range_m))
+    return common::Validation::invalid("ranges must satisfy 0 <= min_range_m < max_range_m");
   if (!(p.max_extent_m > 0)) return common::Validation::invalid("max_extent_m must be > 0");
   return common::Validation::ok();
 }
@@ -74,7 +77,8 @@ std::vector<Indices> euclidean_clusters(const std::vector<Eigen::Vector3f>& poin
           for (const int* p = grid.begin(c); p != grid.end(c) && !joined; ++p) {
             const Eigen::Vector3f& pp = points[static_cast<std::size_t>(*p)];
             if (b.squaredExteriorDistance(pp) > d2) continue;
-            for (const int* q = grid.begin(static_cast<std::size_t>(o)); q != grid.end(static_cast<std::size_t>(o)); ++q) {
+            for (const int* q = grid.begin(static_cast<std::size_t>(o)); q != grid.end(static_cast<std::size_t>(o));
+                 ++q) {
               if ((pp - points[static_cast<std::size_t>(*q)]).squaredNorm() <= d2) {
                 joined = true;
                 break;
@@ -104,7 +108,8 @@ std::vector<Indices> euclidean_clusters(const std::vector<Eigen::Vector3f>& poin
 
 BranchResult cluster_branches(const ColorCloud& cloud, const Indices& candidates, const BranchClusteringParams& p,
                               const std::vector<Eigen::Vector3f>& viewpoints_in) {
-  const std::vector<Eigen::Vector3f> viewpoints = viewpoints_in.empty() ? std::vector<Eigen::Vector3f>{Eigen::Vector3f::Zero()} : viewpoints_in;
+  const std::vector<Eigen::Vector3f> viewpoints =
+      viewpoints_in.empty() ? std::vector<Eigen::Vector3f>{Eigen::Vector3f::Zero()} : viewpoints_in;
   BranchResult r;
   if (const common::Validation why = validate(p); !why.valid) {
     r.reason = "bad branch clustering parameters: " + why.reason;
@@ -116,7 +121,8 @@ BranchResult cluster_branches(const ColorCloud& cloud, const Indices& candidates
   }
   for (int k : candidates) {
     if (k < 0 || static_cast<std::size_t>(k) >= cloud.size()) {
-      r.reason = "candidate index " + std::to_string(k) + " outside the cloud of " + std::to_string(cloud.size()) + " points";
+      r.reason =
+          "candidate index " + std::to_string(k) + " outside the cloud of " + std::to_string(cloud.size()) + " points";
       return r;
     }
   }
@@ -140,8 +146,8 @@ BranchResult cluster_branches(const ColorCloud& cloud, const Indices& candidates
     if (static_cast<int>(c.indices.size()) < p.min_points) {
       c.why_not = "only " + std::to_string(c.indices.size()) + " points (< " + std::to_string(p.min_points) + ")";
     } else if (c.range_m < p.min_range_m || c.range_m > p.max_range_m) {
-      c.why_not = "centroid at " + std::to_string(c.range_m) + " m, outside the reach [" + std::to_string(p.min_range_m) +
-                  ", " + std::to_string(p.max_range_m) + "] m";
+      c.why_not = "centroid at " + std::to_string(c.range_m) + " m, outside the reach [" +
+                  std::to_string(p.min_range_m) + ", " + std::to_string(p.max_range_m) + "] m";
     } else if (c.extent_m > p.max_extent_m) {
       c.why_not = "spans " + std::to_string(c.extent_m) + " m (> " + std::to_string(p.max_extent_m) + " m)";
     } else {

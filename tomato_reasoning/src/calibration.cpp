@@ -17,7 +17,8 @@
 namespace tinyline::tomato_reasoning {
 
 common::Validation validate(const DepthCorrectionParams& p) {
-  if (p.cells_u < 1 || p.cells_v < 1 || p.cells_u * p.cells_v > 10000) return common::Validation::invalid("cells_u x cells_v must be 1..10000 cells");
+  if (p.cells_u < 1 || p.cells_v < 1 || p.cells_u * p.cells_v > 10000)
+    return common::Validation::invalid("cells_u x cells_v must be 1..10000 cells");
   if (p.degree < 0 || p.degree > 6) return common::Validation::invalid("degree must be 0..6");
   return common::Validation::ok();
 }
@@ -51,7 +52,8 @@ DepthCorrection fit_depth_correction(const std::vector<DepthSample>& samples, in
   std::vector<int> count(std::size_t(cells), 0);
   double sse_before = 0;
   for (const auto& s : samples) {
-    if (!std::isfinite(s.measured_m) || !std::isfinite(s.true_m) || s.u < 0 || s.v < 0 || s.u >= width || s.v >= height) continue;
+    if (!std::isfinite(s.measured_m) || !std::isfinite(s.true_m) || s.u < 0 || s.v < 0 || s.u >= width || s.v >= height)
+      continue;
     const int c = cell_of(p, width, height, s.u, s.v);
     Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
     a(c) = 1.0;
@@ -88,7 +90,8 @@ DepthCorrection fit_depth_correction(const std::vector<DepthSample>& samples, in
   d.ok = true;
   double sse_after = 0;
   for (const auto& s : samples) {
-    if (!std::isfinite(s.measured_m) || !std::isfinite(s.true_m) || s.u < 0 || s.v < 0 || s.u >= width || s.v >= height) continue;
+    if (!std::isfinite(s.measured_m) || !std::isfinite(s.true_m) || s.u < 0 || s.v < 0 || s.u >= width || s.v >= height)
+      continue;
     const double e = s.true_m - d.correct(s.u, s.v, s.measured_m);
     sse_after += e * e;
   }
@@ -103,7 +106,8 @@ pcl::PointCloud<pcl::PointXYZ>::Ptr thinned(const ColorCloud& c, double voxel_m,
   pcl::PointCloud<pcl::PointXYZ>::Ptr raw(new pcl::PointCloud<pcl::PointXYZ>);
   raw->reserve(c.size());
   for (std::size_t i = 0; i < c.size(); ++i)
-    if (c.finite(i) && c.xyz[i].norm() <= max_range_m) raw->push_back(pcl::PointXYZ(c.xyz[i].x(), c.xyz[i].y(), c.xyz[i].z()));
+    if (c.finite(i) && c.xyz[i].norm() <= max_range_m)
+      raw->push_back(pcl::PointXYZ(c.xyz[i].x(), c.xyz[i].y(), c.xyz[i].z()));
   if (raw->empty() || voxel_m <= 0) return raw;
   pcl::PointCloud<pcl::PointXYZ>::Ptr out(new pcl::PointCloud<pcl::PointXYZ>);
   pcl::VoxelGrid<pcl::PointXYZ> vg;
@@ -121,10 +125,13 @@ HandToHeadResult calibrate_hand_to_head(const ColorCloud& head, const ColorCloud
   if (const auto bad = check_cloud(head); !bad.empty()) return r.reason = "head cloud: " + bad, r;
   if (const auto bad = check_cloud(hand); !bad.empty()) return r.reason = "hand cloud: " + bad, r;
   if (!guess.matrix().allFinite()) return r.reason = "the guess is not finite", r;
-  if (!(p.max_correspondence_m > 0) || p.max_iterations < 1) return r.reason = "max_correspondence_m and max_iterations must be positive", r;
+  if (!(p.max_correspondence_m > 0) || p.max_iterations < 1)
+    return r.reason = "max_correspondence_m and max_iterations must be positive", r;
   const auto target = thinned(head, p.voxel_m, p.max_range_m), source = thinned(hand, p.voxel_m, p.max_range_m);
   if (target->size() < 10 || source->size() < 10)
-    return r.reason = "too few points with depth (head " + std::to_string(target->size()) + ", hand " + std::to_string(source->size()) + ")", r;
+    return r.reason = "too few points with depth (head " + std::to_string(target->size()) + ", hand " +
+                      std::to_string(source->size()) + ")",
+           r;
   // Coarse to fine: the correspondence distance shrinks so that the last
   // rounds pair only points that truly face each other.
   pcl::PointCloud<pcl::PointXYZ> aligned;
@@ -163,9 +170,11 @@ HandToHeadResult calibrate_hand_to_head(const ColorCloud& head, const ColorCloud
   r.overlap = double(paired) / double(aligned.size());
   r.rms_m = paired ? std::sqrt(sse / paired) : 0.0;
   r.converged = converged && r.overlap >= p.min_overlap;
-  if (!converged) r.reason = "ICP did not converge";
+  if (!converged)
+    r.reason = "ICP did not converge";
   else if (r.overlap < p.min_overlap)
-    r.reason = "only " + std::to_string(int(100 * r.overlap)) + "% of the hand's points found a partner (the views barely overlap, or the guess is far off)";
+    r.reason = "only " + std::to_string(int(100 * r.overlap)) +
+               "% of the hand's points found a partner (the views barely overlap, or the guess is far off)";
   return r;
 }
 

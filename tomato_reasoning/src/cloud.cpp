@@ -5,7 +5,8 @@ namespace tinyline::tomato_reasoning {
 std::string check_cloud(const ColorCloud& c) {
   if (c.xyz.size() != c.rgb.size())
     return "cloud has " + std::to_string(c.xyz.size()) + " points but " + std::to_string(c.rgb.size()) + " colours";
-  if (c.width < 0 || c.height < 1) return "cloud has width " + std::to_string(c.width) + ", height " + std::to_string(c.height);
+  if (c.width < 0 || c.height < 1)
+    return "cloud has width " + std::to_string(c.width) + ", height " + std::to_string(c.height);
   if (static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height) != c.xyz.size())
     return "cloud is " + std::to_string(c.width) + " x " + std::to_string(c.height) + " but holds " +
            std::to_string(c.xyz.size()) + " points";
@@ -26,7 +27,8 @@ CloudView::CloudView(const ColorCloud& c) : problem(check_cloud(c)) {
 
 std::string check_view(const CloudView& v) {
   if (!v.problem.empty()) return v.problem;
-  if (v.width < 0 || v.height < 1) return "cloud has width " + std::to_string(v.width) + ", height " + std::to_string(v.height);
+  if (v.width < 0 || v.height < 1)
+    return "cloud has width " + std::to_string(v.width) + ", height " + std::to_string(v.height);
   if (v.empty()) return {};
   if (!v.xyz || !v.r || !v.g || !v.b) return "cloud of " + std::to_string(v.size()) + " points has no point data";
   if (v.xyz_stride < 3 * sizeof(float) && v.size() > 1)

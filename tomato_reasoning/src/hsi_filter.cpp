@@ -24,10 +24,12 @@ int saturation(const Rgb& c, int i) {
 
 common::Validation validate(const HsiFilterParams& p) {
   if (!(p.h_min_deg >= -180 && p.h_max_deg <= 180 && p.h_min_deg <= p.h_max_deg))
-    return common::Validation::invalid("hue range must satisfy -180 <= h_min_deg <= h_max_deg <= 180 (got [" + std::to_string(p.h_min_deg) + ", " +
-           std::to_string(p.h_max_deg) + "])");
-  if (p.s_min < 0 || p.s_max > 255 || p.s_min > p.s_max) return common::Validation::invalid("saturation range must satisfy 0 <= s_min <= s_max <= 255");
-  if (p.i_min < 0 || p.i_max > 255 || p.i_min > p.i_max) return common::Validation::invalid("intensity range must satisfy 0 <= i_min <= i_max <= 255");
+    return common::Validation::invalid("hue range must satisfy -180 <= h_min_deg <= h_max_deg <= 180 (got [" +
+                                       std::to_string(p.h_min_deg) + ", " + std::to_string(p.h_max_deg) + "])");
+  if (p.s_min < 0 || p.s_max > 255 || p.s_min > p.s_max)
+    return common::Validation::invalid("saturation range must satisfy 0 <= s_min <= s_max <= 255");
+  if (p.i_min < 0 || p.i_max > 255 || p.i_min > p.i_max)
+    return common::Validation::invalid("intensity range must satisfy 0 <= i_min <= i_max <= 255");
   return common::Validation::ok();
 }
 
@@ -38,7 +40,8 @@ Hsi to_hsi(const Rgb& c) {
 }
 
 HsiFilter::HsiFilter(const HsiFilterParams& params) : params_(params) {
-  if (const common::Validation why = validate(params); !why.valid) throw std::invalid_argument("HSI filter: " + why.reason);
+  if (const common::Validation why = validate(params); !why.valid)
+    throw std::invalid_argument("HSI filter: " + why.reason);
   const double a = params.h_min_deg * M_PI / 180.0, b = params.h_max_deg * M_PI / 180.0;
   cos_min_ = std::cos(a);
   sin_min_ = std::sin(a);

@@ -29,8 +29,8 @@ PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& p
   return pose;
 }
 
-PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis, const std::vector<Sphere>& fruit,
-                      const PickPoseParams& p) {
+PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis,
+                      const std::vector<Sphere>& fruit, const PickPoseParams& p) {
   const PickPose pose = picking_pose(cut_point, pedicel_axis, p);
   if (!pose.ok() || !(p.max_turn_deg > 0)) return pose;
   // How far the laser's rays to the throat (and a blade opening either side)

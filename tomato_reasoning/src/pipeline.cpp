@@ -11,9 +11,9 @@ double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std
 }  // namespace
 
 common::Validation validate(const PipelineParams& p) {
-  for (const common::Validation& v : {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"),
-                                      validate(p.smoothing).within("smoothing"), validate(p.spheres).within("spheres"),
-                                      validate(p.force).within("force")}) {
+  for (const common::Validation& v :
+       {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"), validate(p.smoothing).within("smoothing"),
+        validate(p.spheres).within("spheres"), validate(p.force).within("force")}) {
     if (!v.valid) return v;
   }
   if (!p.gravity.allFinite() || !(p.gravity.norm() > 1e-9))
@@ -24,7 +24,8 @@ common::Validation validate(const PipelineParams& p) {
 }
 
 TomatoPipeline::TomatoPipeline(PipelineParams params) : params_(std::move(params)) {
-  if (const common::Validation why = validate(params_); !why.valid) throw std::invalid_argument("tomato pipeline: " + why.reason);
+  if (const common::Validation why = validate(params_); !why.valid)
+    throw std::invalid_argument("tomato pipeline: " + why.reason);
 }
 
 PipelineResult TomatoPipeline::run(const CloudView& cloud) const {
@@ -45,7 +46,8 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   std::size_t total = 0;
   for (std::size_t v = 0; v < views.size(); ++v) {
     const std::string name = views.size() > 1 ? "view " + std::to_string(v) + ": " : "";
-    if (const std::string why = check_view(views[v].cloud); !why.empty()) return stop("input", name + "malformed cloud: " + why);
+    if (const std::string why = check_view(views[v].cloud); !why.empty())
+      return stop("input", name + "malformed cloud: " + why);
     if (!views[v].T_ref_camera.matrix().allFinite()) return stop("input", name + "camera pose is not finite");
     total += views[v].cloud.size();
   }

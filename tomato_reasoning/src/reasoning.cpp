@@ -6,7 +6,6 @@
 
 #include <Eigen/Geometry>
 
-
 #include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning {
@@ -61,14 +60,20 @@ std::vector<ContactEdge> contact_graph(const std::vector<Sphere>& s, double d_e_
 }
 
 common::Validation validate(const ForceModelParams& p) {
-  if (!(p.contact_tolerance_m >= 0) || !std::isfinite(p.contact_tolerance_m)) return common::Validation::invalid("contact_tolerance_m must be finite and >= 0");
+  if (!(p.contact_tolerance_m >= 0) || !std::isfinite(p.contact_tolerance_m))
+    return common::Validation::invalid("contact_tolerance_m must be finite and >= 0");
   if (!std::isfinite(p.eps_mean) || !(p.eps_variance > 0) || !std::isfinite(p.eps_variance))
     return common::Validation::invalid("eps_mean must be finite and eps_variance finite and > 0");
-  if (!(p.eps_max > 0) || !std::isfinite(p.eps_max)) return common::Validation::invalid("eps_max must be finite and > 0");
-  if (normal_cdf((p.eps_max - p.eps_mean) / std::sqrt(p.eps_variance)) - normal_cdf(-p.eps_mean / std::sqrt(p.eps_variance)) < 1e-6)
+  if (!(p.eps_max > 0) || !std::isfinite(p.eps_max))
+    return common::Validation::invalid("eps_max must be finite and > 0");
+  if (normal_cdf((p.eps_max - p.eps_mean) / std::sqrt(p.eps_variance)) -
+          normal_cdf(-p.eps_mean / std::sqrt(p.eps_variance)) <
+      1e-6)
     return common::Validation::invalid("eps ~ N(eps_mean, eps_variance) has (almost) no mass in [0, eps_max)");
-  if (!(p.weight_exponent >= 0) || !std::isfinite(p.weight_exponent)) return common::Validation::invalid("weight_exponent must be finite and >= 0");
-  if (!(p.kernel_kappa >= 0) || !std::isfinite(p.kernel_kappa)) return common::Validation::invalid("kernel_kappa must be finite and >= 0");
+  if (!(p.weight_exponent >= 0) || !std::isfinite(p.weight_exponent))
+    return common::Validation::invalid("weight_exponent must be finite and >= 0");
+  if (!(p.kernel_kappa >= 0) || !std::isfinite(p.kernel_kappa))
+    return common::Validation::invalid("kernel_kappa must be finite and >= 0");
   if (p.samples < 10) return common::Validation::invalid("samples must be >= 10");
   return common::Validation::ok();
 }
@@ -120,7 +125,8 @@ double PedicelDistribution::hpd_level(double mass, int n, double cell_deg) const
   std::vector<double> p;
   p.reserve(xs.size());
   for (const auto& x : xs) p.push_back(density(x, cell_deg));
-  const std::size_t k = std::min(p.size() - 1, static_cast<std::size_t>(std::floor((1.0 - mass) * static_cast<double>(p.size()))));
+  const std::size_t k =
+      std::min(p.size() - 1, static_cast<std::size_t>(std::floor((1.0 - mass) * static_cast<double>(p.size()))));
   std::nth_element(p.begin(), p.begin() + static_cast<std::ptrdiff_t>(k), p.end());
   return p[k];
 }
@@ -130,7 +136,8 @@ bool PedicelDistribution::in_hpd(const Eigen::Vector3d& d, double mass, int n, d
 }
 
 std::vector<std::vector<double>> PedicelDistribution::grid(int n_phi, int n_theta, double cell_deg) const {
-  std::vector<std::vector<double>> g(static_cast<std::size_t>(n_theta), std::vector<double>(static_cast<std::size_t>(n_phi)));
+  std::vector<std::vector<double>> g(static_cast<std::size_t>(n_theta),
+                                     std::vector<double>(static_cast<std::size_t>(n_phi)));
   for (int t = 0; t < n_theta; ++t) {
     const double theta = (t + 0.5) * M_PI / n_theta;
     for (int f = 0; f < n_phi; ++f) {
@@ -149,14 +156,17 @@ PedicelDistribution PedicelDistribution::rotated(const Eigen::Matrix3d& R) const
   return PedicelDistribution(std::move(d), kappa_, seed_);
 }
 
-std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& spheres, const std::vector<ContactEdge>& edges,
-                                               const Eigen::Vector3d& gravity, const ForceModelParams& P) {
+std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& spheres,
+                                               const std::vector<ContactEdge>& edges, const Eigen::Vector3d& gravity,
+                                               const ForceModelParams& P) {
   std::vector<PedicelEstimate> out;
   if (!validate(P).valid || spheres.empty() || !(gravity.norm() > 0) || !gravity.allFinite()) return out;
   const Eigen::Vector3d g = gravity.normalized();
   const double sd = std::sqrt(P.eps_variance);
   const double eps_mean = truncated_normal_mean(P.eps_mean, P.eps_variance, P.eps_max);
-  auto weight = [&](double r) { return kRefRadius * std::pow(r / kRefRadius, P.weight_exponent); };  // theta r for exponent 1
+  auto weight = [&](double r) {
+    return kRefRadius * std::pow(r / kRefRadius, P.weight_exponent);
+  };  // theta r for exponent 1
   common::SplitMixRandom rng(common::stream_seed(P.seed, 0x632be59bd9b4e019ULL));
   for (std::size_t i = 0; i < spheres.size(); ++i) {
     PedicelEstimate e;
@@ -197,7 +207,8 @@ std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& sphere
     e.distribution = PedicelDistribution(std::move(draws), P.kernel_kappa, P.seed * 1000003ULL + i);
     // Spread: angles of the full distribution (kernel included) from the expectation.
     std::vector<double> ang;
-    for (const auto& d : e.distribution.sample(P.samples, P.seed + 7 * i + 1)) ang.push_back(angle_between(d, e.expected_dir));
+    for (const auto& d : e.distribution.sample(P.samples, P.seed + 7 * i + 1))
+      ang.push_back(angle_between(d, e.expected_dir));
     std::sort(ang.begin(), ang.end());
     e.spread50_deg = ang[ang.size() / 2] * 180.0 / M_PI;
     e.spread90_deg = ang[std::min(ang.size() - 1, ang.size() * 9 / 10)] * 180.0 / M_PI;
@@ -218,10 +229,10 @@ std::vector<PickCost> pick_order(const std::vector<Sphere>& spheres, const std::
     PickCost c;
     c.sphere = static_cast<int>(i);
     const double height = -spheres[i].centre.dot(g) - lowest;
-    const double Ep = spheres[i].radius_m / kRefRadius * height;  // theta r h, theta per 3 cm tomato
-    c.energy_term = -P.w_energy_per_m * Ep;                           // Eq. 4.23: -Ep
-    c.edge_term = P.w_edges * pedicels[i].edges;                      // N
-    c.angle_term = P.w_angle_per_rad * pedicels[i].gravity_angle_rad; // <F^e_ip, -G_i>
+    const double Ep = spheres[i].radius_m / kRefRadius * height;       // theta r h, theta per 3 cm tomato
+    c.energy_term = -P.w_energy_per_m * Ep;                            // Eq. 4.23: -Ep
+    c.edge_term = P.w_edges * pedicels[i].edges;                       // N
+    c.angle_term = P.w_angle_per_rad * pedicels[i].gravity_angle_rad;  // <F^e_ip, -G_i>
     c.cost = c.energy_term + c.edge_term + c.angle_term;
     out.push_back(c);
   }
@@ -248,7 +259,8 @@ CutPlan plan_cut(const std::vector<Sphere>& spheres, int index, const PedicelEst
       if (static_cast<int>(j) != index && (q - spheres[j].centre).norm() < spheres[j].radius_m) return true;
     return false;
   };
-  std::vector<Eigen::Vector3d> cands = ped.distribution.sample(P.candidates, 0xca7ULL + static_cast<std::uint64_t>(index));
+  std::vector<Eigen::Vector3d> cands =
+      ped.distribution.sample(P.candidates, 0xca7ULL + static_cast<std::uint64_t>(index));
   cands.insert(cands.begin(), ped.expected_dir);
   double best = -1;
   bool any_free = false;

@@ -9,10 +9,14 @@
 namespace tinyline::tomato_reasoning {
 
 common::Validation validate(const SmoothingParams& p) {
-  if (!(p.voxel_m >= 0) || !std::isfinite(p.voxel_m)) return common::Validation::invalid("voxel_m must be finite and >= 0");
-  if (!(p.search_radius_m > 0) || !std::isfinite(p.search_radius_m)) return common::Validation::invalid("search_radius_m must be finite and > 0");
-  if (p.polynomial_order < 1 || p.polynomial_order > 2) return common::Validation::invalid("polynomial_order must be 1 or 2");
-  if (p.min_neighbours < 3) return common::Validation::invalid("min_neighbours must be >= 3 (a plane needs three points)");
+  if (!(p.voxel_m >= 0) || !std::isfinite(p.voxel_m))
+    return common::Validation::invalid("voxel_m must be finite and >= 0");
+  if (!(p.search_radius_m > 0) || !std::isfinite(p.search_radius_m))
+    return common::Validation::invalid("search_radius_m must be finite and > 0");
+  if (p.polynomial_order < 1 || p.polynomial_order > 2)
+    return common::Validation::invalid("polynomial_order must be 1 or 2");
+  if (p.min_neighbours < 3)
+    return common::Validation::invalid("min_neighbours must be >= 3 (a plane needs three points)");
   return common::Validation::ok();
 }
 
@@ -57,7 +61,8 @@ SmoothedCloud smooth(const std::vector<Eigen::Vector3f>& points, const Indices& 
 
 }  // namespace
 
-std::vector<Eigen::Vector3f> voxel_thin(const std::vector<Eigen::Vector3f>& points, const Indices& indices, double voxel_m) {
+std::vector<Eigen::Vector3f> voxel_thin(const std::vector<Eigen::Vector3f>& points, const Indices& indices,
+                                        double voxel_m) {
   std::vector<std::uint8_t> views;
   return thin(points, indices, voxel_m, nullptr, views);
 }
@@ -71,12 +76,14 @@ SmoothedCloud smooth_mls(const std::vector<Eigen::Vector3f>& points, const Indic
                          const std::vector<Eigen::Vector3f>& viewpoints, const std::vector<std::uint8_t>& view_of) {
   SmoothedCloud out;
   if (view_of.size() != points.size()) {
-    out.reason = "view_of has " + std::to_string(view_of.size()) + " entries for " + std::to_string(points.size()) + " points";
+    out.reason =
+        "view_of has " + std::to_string(view_of.size()) + " entries for " + std::to_string(points.size()) + " points";
     return out;
   }
   for (std::uint8_t v : view_of) {
     if (v >= viewpoints.size()) {
-      out.reason = "a point's view " + std::to_string(v) + " has no viewpoint (" + std::to_string(viewpoints.size()) + " given)";
+      out.reason =
+          "a point's view " + std::to_string(v) + " has no viewpoint (" + std::to_string(viewpoints.size()) + " given)";
       return out;
     }
   }
@@ -86,8 +93,8 @@ SmoothedCloud smooth_mls(const std::vector<Eigen::Vector3f>& points, const Indic
 namespace {
 
 // Why the input cannot be smoothed, or empty.
-std::string smoothing_input_problem(const std::vector<Eigen::Vector3f>& points, const Indices& indices, const SmoothingParams& p,
-                                    const std::vector<Eigen::Vector3f>& viewpoints) {
+std::string smoothing_input_problem(const std::vector<Eigen::Vector3f>& points, const Indices& indices,
+                                    const SmoothingParams& p, const std::vector<Eigen::Vector3f>& viewpoints) {
   if (viewpoints.empty()) return "no viewpoint";
   if (const common::Validation why = validate(p); !why.valid) return "bad smoothing parameters: " + why.reason;
   for (int k : indices) {
@@ -104,8 +111,8 @@ struct LocalPlane {
   float curvature = 0.0f;
 };
 
-LocalPlane weighted_plane(const std::vector<Eigen::Vector3f>& pts, const std::vector<int>& nb, const Eigen::Vector3d& qd,
-                          double h2, std::vector<double>& w) {
+LocalPlane weighted_plane(const std::vector<Eigen::Vector3f>& pts, const std::vector<int>& nb,
+                          const Eigen::Vector3d& qd, double h2, std::vector<double>& w) {
   w.resize(nb.size());
   double wsum = 0;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -140,25 +147,38 @@ bool fit_height_field(const std::vector<Eigen::Vector3f>& pts, const std::vector
                       const LocalPlane& pl, double radius_m, Eigen::Vector3d& proj, Eigen::Vector3d& normal) {
   // Normal equations from the weighted moments of (u, v) up to order four.
   const double s = 1.0 / radius_m;  // scale u, v to ~1 for conditioning
-  double m[15] = {0};  // 1 u v uu uv vv uuu uuv uvv vvv uuuu uuuv uuvv uvvv vvvv
+  double m[15] = {0};               // 1 u v uu uv vv uuu uuv uvv vvv uuuu uuuv uuvv uvvv vvvv
   double r6[6] = {0};
   for (std::size_t k = 0; k < nb.size(); ++k) {
     const Eigen::Vector3d d = pts[static_cast<std::size_t>(nb[k])].cast<double>() - pl.base;
     const double uu = d.dot(pl.u) * s, vv = d.dot(pl.v) * s, hh = d.dot(pl.n), wk = w[k];
     const double u2 = uu * uu, v2 = vv * vv, uv = uu * vv;
-    m[0] += wk; m[1] += wk * uu; m[2] += wk * vv; m[3] += wk * u2; m[4] += wk * uv; m[5] += wk * v2;
-    m[6] += wk * u2 * uu; m[7] += wk * u2 * vv; m[8] += wk * uu * v2; m[9] += wk * v2 * vv;
-    m[10] += wk * u2 * u2; m[11] += wk * u2 * uv; m[12] += wk * u2 * v2; m[13] += wk * uv * v2; m[14] += wk * v2 * v2;
+    m[0] += wk;
+    m[1] += wk * uu;
+    m[2] += wk * vv;
+    m[3] += wk * u2;
+    m[4] += wk * uv;
+    m[5] += wk * v2;
+    m[6] += wk * u2 * uu;
+    m[7] += wk * u2 * vv;
+    m[8] += wk * uu * v2;
+    m[9] += wk * v2 * vv;
+    m[10] += wk * u2 * u2;
+    m[11] += wk * u2 * uv;
+    m[12] += wk * u2 * v2;
+    m[13] += wk * uv * v2;
+    m[14] += wk * v2 * v2;
     const double wh = wk * hh;
-    r6[0] += wh; r6[1] += wh * uu; r6[2] += wh * vv; r6[3] += wh * u2; r6[4] += wh * uv; r6[5] += wh * v2;
+    r6[0] += wh;
+    r6[1] += wh * uu;
+    r6[2] += wh * vv;
+    r6[3] += wh * u2;
+    r6[4] += wh * uv;
+    r6[5] += wh * v2;
   }
   Eigen::Matrix<double, 6, 6> A;
-  A << m[0], m[1], m[2], m[3], m[4], m[5],
-       m[1], m[3], m[4], m[6], m[7], m[8],
-       m[2], m[4], m[5], m[7], m[8], m[9],
-       m[3], m[6], m[7], m[10], m[11], m[12],
-       m[4], m[7], m[8], m[11], m[12], m[13],
-       m[5], m[8], m[9], m[12], m[13], m[14];
+  A << m[0], m[1], m[2], m[3], m[4], m[5], m[1], m[3], m[4], m[6], m[7], m[8], m[2], m[4], m[5], m[7], m[8], m[9], m[3],
+      m[6], m[7], m[10], m[11], m[12], m[4], m[7], m[8], m[11], m[12], m[13], m[5], m[8], m[9], m[12], m[13], m[14];
   const Eigen::Matrix<double, 6, 1> b = Eigen::Map<const Eigen::Matrix<double, 6, 1>>(r6);
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(A);
   const Eigen::Matrix<double, 6, 1> c = ldlt.solve(b);
@@ -200,7 +220,8 @@ SmoothedCloud smooth(const std::vector<Eigen::Vector3f>& points, const Indices& 
     const LocalPlane pl = weighted_plane(pts, nb, qd, h2, w);
     Eigen::Vector3d proj = pl.base;
     Eigen::Vector3d normal = pl.n;
-    if (p.polynomial_order == 2 && nb.size() >= 6 && !fit_height_field(pts, nb, w, pl, p.search_radius_m, proj, normal)) {
+    if (p.polynomial_order == 2 && nb.size() >= 6 &&
+        !fit_height_field(pts, nb, w, pl, p.search_radius_m, proj, normal)) {
       proj = pl.base;
       normal = pl.n;
     }
@@ -210,7 +231,9 @@ SmoothedCloud smooth(const std::vector<Eigen::Vector3f>& points, const Indices& 
     out.curvature.push_back(pl.curvature);
     out.view.push_back(pt_view[qi]);
   }
-  if (out.points.empty()) out.reason = "every point is isolated (fewer than " + std::to_string(p.min_neighbours) + " neighbours within " + std::to_string(p.search_radius_m) + " m)";
+  if (out.points.empty())
+    out.reason = "every point is isolated (fewer than " + std::to_string(p.min_neighbours) + " neighbours within " +
+                 std::to_string(p.search_radius_m) + " m)";
   return out;
 }
 

@@ -14,8 +14,8 @@
 
 namespace tinyline::tomato_reasoning {
 
-std::optional<Sphere> sphere_from_four_points(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                                              const Eigen::Vector3d& d) {
+std::optional<Sphere> sphere_from_four_points(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                              const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
   // Eq. 4.11: |p_i - c|^2 = r^2 for all four; subtracting the first leaves
   // the linear system 2 (p_i - p_0) . c = |p_i|^2 - |p_0|^2.
   Eigen::Matrix3d A;
@@ -59,9 +59,7 @@ struct SphereProblem {
   bool fix_radius;
   double radius_m;  // the held radius when fix_radius
 
-  Sphere sphere(const Eigen::VectorXd& x) const {
-    return {x.head<3>(), fix_radius ? radius_m : x[3]};
-  }
+  Sphere sphere(const Eigen::VectorXd& x) const { return {x.head<3>(), fix_radius ? radius_m : x[3]}; }
   double cost_of(const Sphere& q) const {
     double e = 0;
     for (int k : idx) {
@@ -121,8 +119,8 @@ SphereRefinement lm(const std::vector<Eigen::Vector3f>& pts, const Indices& idx,
 
 }  // namespace
 
-SphereRefinement refine_sphere(const std::vector<Eigen::Vector3f>& points, const Indices& indices, const Sphere& initial,
-                               double r_min, double r_max) {
+SphereRefinement refine_sphere(const std::vector<Eigen::Vector3f>& points, const Indices& indices,
+                               const Sphere& initial, double r_min, double r_max) {
   Sphere start = initial;
   start.radius_m = std::clamp(start.radius_m, r_min, r_max);
   SphereRefinement free = lm(points, indices, start, false);
@@ -140,8 +138,10 @@ SphereRefinement refine_sphere(const std::vector<Eigen::Vector3f>& points, const
 common::Validation validate(const SphereRansacParams& p) {
   if (!(p.radius_min_m > 0) || !(p.radius_max_m >= p.radius_min_m) || !std::isfinite(p.radius_max_m))
     return common::Validation::invalid("radius range must satisfy 0 < radius_min_m <= radius_max_m (finite)");
-  if (!(p.inlier_distance_m > 0) || !std::isfinite(p.inlier_distance_m)) return common::Validation::invalid("inlier_distance_m must be finite and > 0");
-  if (!(p.normal_tolerance_deg < 90) || std::isnan(p.normal_tolerance_deg)) return common::Validation::invalid("normal_tolerance_deg must be < 90 (<= 0: off)");
+  if (!(p.inlier_distance_m > 0) || !std::isfinite(p.inlier_distance_m))
+    return common::Validation::invalid("inlier_distance_m must be finite and > 0");
+  if (!(p.normal_tolerance_deg < 90) || std::isnan(p.normal_tolerance_deg))
+    return common::Validation::invalid("normal_tolerance_deg must be < 90 (<= 0: off)");
   if (p.max_iterations < 1) return common::Validation::invalid("max_iterations must be >= 1");
   if (!(p.confidence > 0 && p.confidence < 1)) return common::Validation::invalid("confidence must be in (0, 1)");
   if (p.min_inliers < 4) return common::Validation::invalid("min_inliers must be >= 4 (a sphere has four parameters)");
@@ -153,8 +153,9 @@ common::Validation validate(const SphereRansacParams& p) {
   return common::Validation::ok();
 }
 
-SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
-                                   const SphereRansacParams& P, const Eigen::Vector3f& viewpoint) {
+SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
+                                   const std::vector<Eigen::Vector3f>& normals, const SphereRansacParams& P,
+                                   const Eigen::Vector3f& viewpoint) {
   return segment_spheres(points, normals, P, std::vector<Eigen::Vector3f>{viewpoint});
 }
 
@@ -193,8 +194,9 @@ class SphereSegmenter {
       const Scored best = best_model_of_round();
       if (best.count < P_.min_inliers) {
         if (++failed >= P_.max_failed_rounds) {
-          out_.stop_reason = std::to_string(failed) + " round(s) without a model of >= " + std::to_string(P_.min_inliers) +
-                             " inliers (" + std::to_string(out_.remaining_points) + " points left)";
+          out_.stop_reason = std::to_string(failed) +
+                             " round(s) without a model of >= " + std::to_string(P_.min_inliers) + " inliers (" +
+                             std::to_string(out_.remaining_points) + " points left)";
           break;
         }
         continue;
@@ -203,7 +205,8 @@ class SphereSegmenter {
         // Refinement moved it somewhere unacceptable: drop its points from
         // sampling this round's way (keep them for others) by failing the round.
         if (++failed >= P_.max_failed_rounds) {
-          out_.stop_reason = "the best models were refused (cap facing away or overlap) " + std::to_string(failed) + " times";
+          out_.stop_reason =
+              "the best models were refused (cap facing away or overlap) " + std::to_string(failed) + " times";
           break;
         }
         continue;
@@ -287,7 +290,8 @@ class SphereSegmenter {
                       alive_list_.end());
     out_.remaining_points = static_cast<int>(alive_list_.size());
     if (out_.remaining_points < P_.min_remaining) {
-      out_.stop_reason = std::to_string(out_.remaining_points) + " points remain (< " + std::to_string(P_.min_remaining) + ")";
+      out_.stop_reason =
+          std::to_string(out_.remaining_points) + " points remain (< " + std::to_string(P_.min_remaining) + ")";
       return false;
     }
     if (static_cast<int>(out_.spheres.size()) >= P_.max_spheres) {
@@ -345,7 +349,8 @@ class SphereSegmenter {
     const double w = (best.count / n_alive) * std::pow(local_share, k_points_ - 1);
     if (w >= 1.0) return it + 1;
     if (w > 0)
-      return std::min<long>(P_.max_iterations, static_cast<long>(std::ceil(std::log(1.0 - P_.confidence) / std::log(1.0 - w))));
+      return std::min<long>(P_.max_iterations,
+                            static_cast<long>(std::ceil(std::log(1.0 - P_.confidence) / std::log(1.0 - w))));
     return needed;
   }
 
@@ -432,8 +437,9 @@ class SphereSegmenter {
 
 }  // namespace
 
-SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
-                                   const SphereRansacParams& P, const std::vector<Eigen::Vector3f>& viewpoints) {
+SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
+                                   const std::vector<Eigen::Vector3f>& normals, const SphereRansacParams& P,
+                                   const std::vector<Eigen::Vector3f>& viewpoints) {
   SphereSegmentation out;
   if (viewpoints.empty()) {
     out.stop_reason = "no viewpoint";
@@ -455,8 +461,9 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points, c
     if (points[k].allFinite() && (!use_normals || normals[k].allFinite())) alive_list.push_back(static_cast<int>(k));
   if (static_cast<int>(alive_list.size()) < P.min_remaining) {
     out.remaining_points = static_cast<int>(alive_list.size());
-    out.stop_reason = points.empty() ? "no points" : "only " + std::to_string(alive_list.size()) + " usable points (< " +
-                                                         std::to_string(P.min_remaining) + ")";
+    out.stop_reason = points.empty() ? "no points"
+                                     : "only " + std::to_string(alive_list.size()) + " usable points (< " +
+                                           std::to_string(P.min_remaining) + ")";
     return out;
   }
   SphereSegmenter(points, normals, P, viewpoints, use_normals, std::move(alive_list), out).run();

@@ -43,7 +43,8 @@ class VoxelGrid {
     for (std::size_t c = 0; c < keys_.size(); ++c) start_[c + 1] += start_[c];
     members_.resize(indices.size());
     std::vector<int> fill(start_.begin(), start_.end() - 1);
-    for (std::size_t k = 0; k < indices.size(); ++k) members_[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[k])]++)] = indices[k];
+    for (std::size_t k = 0; k < indices.size(); ++k)
+      members_[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[k])]++)] = indices[k];
   }
 
   CellKey key_of(const Eigen::Vector3f& p) const {
@@ -64,7 +65,8 @@ class VoxelGrid {
 
   /// Calls f(index) for every point within `radius` of p (radius <= reach * cell).
   template <class F>
-  void for_each_within(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& p, float radius, F&& f) const {
+  void for_each_within(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& p, float radius,
+                       F&& f) const {
     const CellKey k = key_of(p);
     const int reach = std::max(1, static_cast<int>(std::ceil(radius * inv_ - 1e-6)));
     const float r2 = radius * radius;

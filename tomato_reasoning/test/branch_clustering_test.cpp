@@ -62,7 +62,8 @@ TEST(BranchClustering, SamePartitionAsPclEuclideanClusterExtraction) {
 TEST(BranchClustering, ChoosesTheClosestFeasibleBranch) {
   ColorCloud c;
   auto blob = [&](const Eigen::Vector3f& at, int n) {
-    for (int k = 0; k < n; ++k) c.push_back(at + Eigen::Vector3f(0.001f * (k % 20), 0.001f * (k / 20 % 20), 0.0005f * (k / 400)), {200, 40, 30});
+    for (int k = 0; k < n; ++k)
+      c.push_back(at + Eigen::Vector3f(0.001f * (k % 20), 0.001f * (k / 20 % 20), 0.0005f * (k / 400)), {200, 40, 30});
   };
   blob({0, 0, 0.6f}, 400);      // a branch at 0.6 m
   blob({0.3f, 0, 0.45f}, 400);  // a nearer one

@@ -12,7 +12,9 @@ using namespace tinyline::tomato_reasoning;
 namespace {
 // A camera whose depth is off by a smooth image-dependent bias plus a
 // quadratic in depth, measuring flat targets at known depths.
-double bias(int u, int v, double z) { return 0.004 * std::sin(u / 200.0) - 0.003 * (v / 480.0) + 0.006 * z + 0.01 * z * z; }
+double bias(int u, int v, double z) {
+  return 0.004 * std::sin(u / 200.0) - 0.003 * (v / 480.0) + 0.006 * z + 0.01 * z * z;
+}
 std::vector<DepthSample> frames(std::vector<double> depths, unsigned seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 0.001);
@@ -64,7 +66,8 @@ TEST(HandToHead, IcpRecoversTheHandCameraPoseFromAnOffGuess) {
   const Eigen::Isometry3d truth = s.T_ref_camera[1];
   Eigen::Isometry3d guess = truth;
   guess.translation() += Eigen::Vector3d(0.008, -0.006, 0.005);
-  guess.linear() = guess.linear() * Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+  guess.linear() =
+      guess.linear() * Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
   const HandToHeadResult r = calibrate_hand_to_head(s.clouds[0], s.clouds[1], guess);
   ASSERT_TRUE(r.converged) << r.reason;
   EXPECT_LT((r.T_head_hand.translation() - truth.translation()).norm(), 0.003);
@@ -77,7 +80,8 @@ TEST(HandToHead, BadInputGivesNoPoseAndTheReason) {
   EXPECT_FALSE(calibrate_hand_to_head(empty, empty, Eigen::Isometry3d::Identity()).converged);
   ColorCloud broken;
   broken.xyz.resize(3);
-  EXPECT_NE(calibrate_hand_to_head(broken, empty, Eigen::Isometry3d::Identity()).reason.find("head cloud"), std::string::npos);
+  EXPECT_NE(calibrate_hand_to_head(broken, empty, Eigen::Isometry3d::Identity()).reason.find("head cloud"),
+            std::string::npos);
   ColorCloud few;
   few.push_back({0, 0, 1}, {1, 1, 1});
   EXPECT_NE(calibrate_hand_to_head(few, few, Eigen::Isometry3d::Identity()).reason.find("too few"), std::string::npos);

@@ -57,7 +57,8 @@ TEST(Harvest, AMoveIsFollowedByARescanThereAndTheLastAttemptCutsAfterItsMove) {
 }
 
 TEST(Harvest, NothingFoundIsLeftForAHuman) {
-  for (auto o : {Verification::Outcome::kNothingFound, Verification::Outcome::kOutOfView, Verification::Outcome::kFailed}) {
+  for (auto o :
+       {Verification::Outcome::kNothingFound, Verification::Outcome::kOutOfView, Verification::Outcome::kFailed}) {
     PickAttempts p(pose_at(0), HarvestParams{});
     const GripperStep s = p.after_verification(said(o));
     EXPECT_EQ(s.action, Action::kDone);

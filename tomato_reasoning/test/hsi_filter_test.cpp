@@ -21,8 +21,9 @@ double hue(const Rgb& c) { return to_hsi(c).h_deg; }
 }  // namespace
 
 TEST(HsiFilter, MatchesPclArithmeticOnEveryThirdColour) {
-  for (const HsiFilterParams& p : {HsiFilterParams{}, HsiFilterParams{-170, 170, 0, 255, 0, 255},
-                                   HsiFilterParams{60, 150, 30, 200, 20, 220}, HsiFilterParams{-180, 180, 100, 250, 25, 180}}) {
+  for (const HsiFilterParams& p :
+       {HsiFilterParams{}, HsiFilterParams{-170, 170, 0, 255, 0, 255}, HsiFilterParams{60, 150, 30, 200, 20, 220},
+        HsiFilterParams{-180, 180, 100, 250, 25, 180}}) {
     const HsiFilter f(p);
     long mismatches = 0, passing = 0;
     for (int r = 0; r < 256; r += 3)
@@ -32,7 +33,8 @@ TEST(HsiFilter, MatchesPclArithmeticOnEveryThirdColour) {
           const bool ref = reference_passes(c, p);
           passing += ref;
           // A colour exactly on a hue bound may round either way.
-          if (f.passes(c) != ref && std::abs(hue(c) - p.h_min_deg) > 1e-9 && std::abs(hue(c) - p.h_max_deg) > 1e-9) ++mismatches;
+          if (f.passes(c) != ref && std::abs(hue(c) - p.h_min_deg) > 1e-9 && std::abs(hue(c) - p.h_max_deg) > 1e-9)
+            ++mismatches;
         }
     EXPECT_EQ(mismatches, 0) << "range [" << p.h_min_deg << ", " << p.h_max_deg << "]";
     EXPECT_GT(passing, 0);
@@ -40,14 +42,14 @@ TEST(HsiFilter, MatchesPclArithmeticOnEveryThirdColour) {
 }
 
 TEST(HsiFilter, ThesisRangesKeepRipeRedAndDropFoliageAndHighlights) {
-  const HsiFilter f;  // -15..15 deg, S 100..250, I 25..180
-  EXPECT_TRUE(f.passes({200, 40, 30}));    // ripe tomato, lit
-  EXPECT_TRUE(f.passes({110, 30, 25}));    // ripe tomato in shade
-  EXPECT_FALSE(f.passes({60, 130, 40}));   // leaf
-  EXPECT_FALSE(f.passes({250, 200, 190})); // specular highlight: too bright, too pale
-  EXPECT_FALSE(f.passes({20, 5, 4}));      // too dark (I < 25)
-  EXPECT_FALSE(f.passes({200, 120, 30}));  // orange: hue beyond 15 deg
-  EXPECT_FALSE(f.passes({128, 128, 128})); // grey: no saturation
+  const HsiFilter f;                        // -15..15 deg, S 100..250, I 25..180
+  EXPECT_TRUE(f.passes({200, 40, 30}));     // ripe tomato, lit
+  EXPECT_TRUE(f.passes({110, 30, 25}));     // ripe tomato in shade
+  EXPECT_FALSE(f.passes({60, 130, 40}));    // leaf
+  EXPECT_FALSE(f.passes({250, 200, 190}));  // specular highlight: too bright, too pale
+  EXPECT_FALSE(f.passes({20, 5, 4}));       // too dark (I < 25)
+  EXPECT_FALSE(f.passes({200, 120, 30}));   // orange: hue beyond 15 deg
+  EXPECT_FALSE(f.passes({128, 128, 128}));  // grey: no saturation
   const Hsi x = to_hsi({255, 0, 0});
   EXPECT_NEAR(x.h_deg, 0.0, 1e-12);
   EXPECT_EQ(x.s, 255);

@@ -39,8 +39,8 @@ pcl::PointCloud<pcl::PointXYZRGB> without_nan(const pcl::PointCloud<pcl::PointXY
 }  // namespace
 
 TEST(PclClouds, OrganisedAndUnorganisedPclCloudsGiveTheColorCloudsDetections) {
-  for (const auto& [cls, seed] : {std::pair{sim::TrussClass::kA, 3u}, std::pair{sim::TrussClass::kB, 1u},
-                                  std::pair{sim::TrussClass::kC, 2u}}) {
+  for (const auto& [cls, seed] :
+       {std::pair{sim::TrussClass::kA, 3u}, std::pair{sim::TrussClass::kB, 1u}, std::pair{sim::TrussClass::kC, 2u}}) {
     const eval::Scenario s = eval::make_scenario(cls, seed);
     PipelineParams p;
     p.gravity = s.gravity_camera;
@@ -68,9 +68,11 @@ TEST(PclClouds, TwoViewsOfPclCloudsGiveTheColorCloudsDetections) {
   p.gravity = s.gravity_camera;
   const TomatoPipeline pipe(p);
   const pcl::PointCloud<pcl::PointXYZRGB> c0 = to_pcl(s.clouds[0]), c1 = to_pcl(s.clouds[1]);
-  const PipelineResult reference = pipe.run({View{s.clouds[0], s.T_ref_camera[0]}, View{s.clouds[1], s.T_ref_camera[1]}});
+  const PipelineResult reference =
+      pipe.run({View{s.clouds[0], s.T_ref_camera[0]}, View{s.clouds[1], s.T_ref_camera[1]}});
   ASSERT_TRUE(reference.ok) << reference.reason;
-  expect_same_detections(reference, pipe.run({View{view_of(c0), s.T_ref_camera[0]}, View{view_of(c1), s.T_ref_camera[1]}}));
+  expect_same_detections(reference,
+                         pipe.run({View{view_of(c0), s.T_ref_camera[0]}, View{view_of(c1), s.T_ref_camera[1]}}));
 }
 
 TEST(PclClouds, TheViewReadsThePclPointsInPlace) {

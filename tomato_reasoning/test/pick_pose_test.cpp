@@ -18,7 +18,7 @@ TEST(PickingPose, PutsTheThroatOnTheCutWithTheLineAcrossThePedicel) {
   const Eigen::Matrix3d R = pose.T_ref_laser.linear();
   EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 1e-12);
   EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
-  EXPECT_NEAR(R.col(1).dot(pedicel), 1.0, 1e-12);   // the laser plane (x-z) is square to the pedicel
+  EXPECT_NEAR(R.col(1).dot(pedicel), 1.0, 1e-12);       // the laser plane (x-z) is square to the pedicel
   EXPECT_GT(R.col(2).dot(cut - p.approach_from), 0.0);  // looking from the robot's side
 }
 
@@ -33,9 +33,11 @@ TEST(PickingPose, TurnsAboutThePedicelToSeePastAFruitInFront) {
   const PickPose straight = picking_pose(cut, up, p);
   const PickPose turned = picking_pose(cut, up, std::vector<Sphere>{front}, p);
   ASSERT_TRUE(turned.ok());
-  EXPECT_LT((turned.T_ref_laser * Eigen::Vector3d(0, 0, p.throat_z_m) - cut).norm(), 1e-12);  // the throat stays on the cut
-  EXPECT_NEAR(turned.T_ref_laser.linear().col(1).dot(up), 1.0, 1e-12);                       // still square to the pedicel
-  const double turn = std::acos(std::clamp(turned.T_ref_laser.linear().col(2).dot(straight.T_ref_laser.linear().col(2)), -1.0, 1.0));
+  EXPECT_LT((turned.T_ref_laser * Eigen::Vector3d(0, 0, p.throat_z_m) - cut).norm(),
+            1e-12);                                                     // the throat stays on the cut
+  EXPECT_NEAR(turned.T_ref_laser.linear().col(1).dot(up), 1.0, 1e-12);  // still square to the pedicel
+  const double turn =
+      std::acos(std::clamp(turned.T_ref_laser.linear().col(2).dot(straight.T_ref_laser.linear().col(2)), -1.0, 1.0));
   EXPECT_GT(turn, 0.2);
   EXPECT_LE(turn, p.max_turn_deg * M_PI / 180.0 + 1e-9);
   // The turned laser's ray to the throat passes the fruit.
@@ -47,7 +49,9 @@ TEST(PickingPose, TurnsAboutThePedicelToSeePastAFruitInFront) {
   const PickPose clear = picking_pose(cut, up, std::vector<Sphere>{aside}, p);
   EXPECT_LT((clear.T_ref_laser.matrix() - straight.T_ref_laser.matrix()).norm(), 1e-12);
   p.max_turn_deg = 0;  // turning off: the straight approach whatever is in front
-  EXPECT_LT((picking_pose(cut, up, std::vector<Sphere>{front}, p).T_ref_laser.matrix() - straight.T_ref_laser.matrix()).norm(), 1e-12);
+  EXPECT_LT((picking_pose(cut, up, std::vector<Sphere>{front}, p).T_ref_laser.matrix() - straight.T_ref_laser.matrix())
+                .norm(),
+            1e-12);
 }
 
 TEST(PickingPose, BadInputGivesNoPoseAndTheReason) {

@@ -93,7 +93,8 @@ TEST(PedicelDistribution, HpdRegionHoldsItsMassAndTheKernelSpreadsIt) {
   double integral = 0;
   for (int t = 0; t < ntheta; ++t)
     for (int f = 0; f < nphi; ++f)
-      integral += g[std::size_t(t)][std::size_t(f)] * std::sin((t + 0.5) * M_PI / ntheta) * (M_PI / ntheta) * (2 * M_PI / nphi);
+      integral +=
+          g[std::size_t(t)][std::size_t(f)] * std::sin((t + 0.5) * M_PI / ntheta) * (M_PI / ntheta) * (2 * M_PI / nphi);
   EXPECT_NEAR(integral, 1.0, 0.03);
   EXPECT_GT(e[0].spread50_deg, 3.0);
   EXPECT_GT(e[0].spread90_deg, e[0].spread50_deg);
@@ -101,7 +102,8 @@ TEST(PedicelDistribution, HpdRegionHoldsItsMassAndTheKernelSpreadsIt) {
 
 TEST(PickOrder, HighLooseAndUprightFirst) {
   // 0: high, alone, upright; 1: low with two neighbours; 2, 3: its neighbours.
-  const std::vector<Sphere> s{{{-0.3, 0, 1.2}, 0.03}, {{0, 0, 1.0}, 0.03}, {{0.06, 0, 1.0}, 0.03}, {{-0.06, 0, 1.0}, 0.03}};
+  const std::vector<Sphere> s{
+      {{-0.3, 0, 1.2}, 0.03}, {{0, 0, 1.0}, 0.03}, {{0.06, 0, 1.0}, 0.03}, {{-0.06, 0, 1.0}, 0.03}};
   const auto edges = contact_graph(s, 0.01);
   const auto peds = estimate_pedicels(s, edges, kDown);
   const auto order = pick_order(s, peds, kDown);

@@ -39,7 +39,7 @@ TEST(Smoothing, MlsPullsANoisyCapOntoItsSphereWithRadialNormals) {
     facing += out.normals[k].dot(-out.points[k]) > 0;  // towards the camera at the origin
   }
   std::sort(err.begin(), err.end());
-  EXPECT_LT(err[err.size() / 2], 3.0);         // median
+  EXPECT_LT(err[err.size() / 2], 3.0);        // median
   EXPECT_LT(err[err.size() * 9 / 10], 12.0);  // the cap's rim has one-sided neighbourhoods
   EXPECT_EQ(facing, int(out.size()));
 }
@@ -57,7 +57,8 @@ TEST(Smoothing, QuadraticFitBeatsThePlaneOnACurvedSurface) {
 }
 
 TEST(Smoothing, VoxelThinningKeepsOneCentroidPerCube) {
-  std::vector<Eigen::Vector3f> pts{{0.0001f, 0.0001f, 0.5001f}, {0.0009f, 0.0009f, 0.5009f}, {0.05f, 0, 0.5f}, {NAN, 0, 0}};
+  std::vector<Eigen::Vector3f> pts{
+      {0.0001f, 0.0001f, 0.5001f}, {0.0009f, 0.0009f, 0.5009f}, {0.05f, 0, 0.5f}, {NAN, 0, 0}};
   const auto thin = voxel_thin(pts, all_of(pts.size()), 0.002);
   ASSERT_EQ(thin.size(), 2u);
   EXPECT_NEAR(thin[0].x(), 0.0005, 1e-6);

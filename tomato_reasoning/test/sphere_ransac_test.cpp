@@ -31,7 +31,8 @@ TEST(SphereHypotheses, FourPointsGiveTheSphereAndCoplanarOnesNone) {
 
 TEST(SphereHypotheses, TwoPointsWithNormalsMeetAtTheCentre) {
   const Sphere s{{0.1, -0.05, 0.6}, 0.035};
-  const Eigen::Vector3d n1 = Eigen::Vector3d(0.3, 0.2, -1).normalized(), n2 = Eigen::Vector3d(-0.4, 0.1, -1).normalized();
+  const Eigen::Vector3d n1 = Eigen::Vector3d(0.3, 0.2, -1).normalized(),
+                        n2 = Eigen::Vector3d(-0.4, 0.1, -1).normalized();
   const auto r = sphere_from_two_points_with_normals(s.centre + s.radius_m * n1, n1, s.centre + s.radius_m * n2, n2);
   ASSERT_TRUE(r);
   EXPECT_NEAR((r->centre - s.centre).norm(), 0.0, 1e-12);
@@ -83,8 +84,11 @@ struct Scene {
 Scene cluster_of_caps(std::uint32_t seed) {
   std::mt19937 rng(seed);
   Scene s;
-  s.truth = {{{-0.07, 0.0, 0.50}, 0.032}, {{0.0, 0.01, 0.52}, 0.036}, {{0.07, -0.01, 0.49}, 0.028},
-             {{-0.035, 0.065, 0.51}, 0.030}, {{0.04, 0.07, 0.50}, 0.026}};
+  s.truth = {{{-0.07, 0.0, 0.50}, 0.032},
+             {{0.0, 0.01, 0.52}, 0.036},
+             {{0.07, -0.01, 0.49}, 0.028},
+             {{-0.035, 0.065, 0.51}, 0.030},
+             {{0.04, 0.07, 0.50}, 0.026}};
   for (const auto& t : s.truth) test::add_cap(s.pts, &s.normals, t, 350, 0.001, rng);
   return s;
 }

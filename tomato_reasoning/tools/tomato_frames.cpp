@@ -33,19 +33,21 @@ void print(const std::string& name, const tr::PipelineResult& r) {
   for (std::size_t i = 0; i < r.tomatoes.size(); ++i) {
     const tr::Tomato& t = r.tomatoes[i];
     const Eigen::Vector3d &c = t.fit.sphere.centre, &d = t.pedicel.expected_dir, &cut = t.cut.point;
-    std::printf("  tomato %zu: centre (%.3f, %.3f, %.3f) m, r %.1f mm, pedicel (%.2f, %.2f, %.2f) +-%.0f deg, "
-                "cut at (%.3f, %.3f, %.3f)\n",
-                i, c.x(), c.y(), c.z(), 1e3 * t.fit.sphere.radius_m, d.x(), d.y(), d.z(), t.pedicel.spread50_deg, cut.x(),
-                cut.y(), cut.z());
+    std::printf(
+        "  tomato %zu: centre (%.3f, %.3f, %.3f) m, r %.1f mm, pedicel (%.2f, %.2f, %.2f) +-%.0f deg, "
+        "cut at (%.3f, %.3f, %.3f)\n",
+        i, c.x(), c.y(), c.z(), 1e3 * t.fit.sphere.radius_m, d.x(), d.y(), d.z(), t.pedicel.spread50_deg, cut.x(),
+        cut.y(), cut.z());
   }
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  cli::App app{"The tomato pipeline on a folder of RGB-D frames (intrinsics.yaml, rgb/NAME.png|jpg, depth/NAME.png "
-               "16-bit): tomatoes, pedicel estimates and pick order per frame; with --out, annotated images.",
-               "tomato_frames"};
+  cli::App app{
+      "The tomato pipeline on a folder of RGB-D frames (intrinsics.yaml, rgb/NAME.png|jpg, depth/NAME.png "
+      "16-bit): tomatoes, pedicel estimates and pick order per frame; with --out, annotated images.",
+      "tomato_frames"};
   std::string folder, out;
   std::vector<double> gravity{0.0, 1.0, 0.0};
   app.add_option("FOLDER", folder, "folder of RGB-D frames")->required();

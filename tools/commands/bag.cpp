@@ -77,7 +77,8 @@ void print_overview(const bag::Reader& r, const std::string& path) {
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
   fmt::print("file:         {} ({}, {}, {})\n", path, human_bytes(ec ? 0 : size),
-             r.complete() ? "complete" : "NOT complete: no footer", r.has_summary() ? "indexed" : "no summary, scanned");
+             r.complete() ? "complete" : "NOT complete: no footer",
+             r.has_summary() ? "indexed" : "no summary, scanned");
   fmt::print("profile:      {} (written by {})\n", sum.header.profile.empty() ? "(none)" : sum.header.profile,
              sum.header.library);
   if (st.message_count > 0) {
@@ -132,7 +133,8 @@ void print_metadata(bag::Reader& r) {
     bag::Metadata md;
     if (!r.read_metadata(mi, md).ok()) continue;
     std::string kv;
-    for (const auto& [k, v] : md.metadata) kv += fmt::format("{}{}={}", kv.empty() ? "" : ", ", k, v.empty() ? "\"\"" : v);
+    for (const auto& [k, v] : md.metadata)
+      kv += fmt::format("{}{}={}", kv.empty() ? "" : ", ", k, v.empty() ? "\"\"" : v);
     fmt::print("metadata '{}': {}\n", md.name, kv);
   }
 }
@@ -218,9 +220,8 @@ int echo(const EchoArgs& a) {
   ro.topics = {a.topic};
   std::int64_t n = 0;
   int rc = 0;
-  const bag::Status s = r.for_each(ro, [&](const bag::MessageView& v) {
-    return echo_one(v, a, rc) && (a.limit == 0 || ++n < a.limit);
-  });
+  const bag::Status s =
+      r.for_each(ro, [&](const bag::MessageView& v) { return echo_one(v, a, rc) && (a.limit == 0 || ++n < a.limit); });
   if (!s.ok()) {
     fmt::print(stderr, "{}\n", s.str());
     return 1;
@@ -266,8 +267,7 @@ int recover(const RecoverArgs& a) {
 CommandRun setup_recover(cli::App& cmd) {
   auto a = std::make_shared<RecoverArgs>();
   cmd.add_option("in", a->in, "the damaged or unfinished bag")->required();
-  cmd.add_option("out", a->out, "the complete bag to write (an existing file is replaced only on success)")
-      ->required();
+  cmd.add_option("out", a->out, "the complete bag to write (an existing file is replaced only on success)")->required();
   add_compression(cmd, a->compression);
   cmd.footer("Rewrites what is readable in a damaged or unfinished bag as a complete one.");
   return [a] { return recover(*a); };
@@ -426,8 +426,9 @@ int record(const RecordArgs& a) {
   const auto st = recorder->stats();
   fmt::print("recorded {} messages on {} topics to {} ({}){}\n", st.written, st.topics, recorder->path(),
              human_bytes(st.file_bytes),
-             st.dropped > 0 ? fmt::format("; {} messages DROPPED (see the bag's tinyline_recorder metadata)", st.dropped)
-                            : std::string());
+             st.dropped > 0
+                 ? fmt::format("; {} messages DROPPED (see the bag's tinyline_recorder metadata)", st.dropped)
+                 : std::string());
   return rc != 0 || st.dropped > 0 ? 1 : 0;
 }
 
@@ -439,7 +440,9 @@ CommandRun setup_record(cli::App& cmd) {
   cmd.add_option("-o", a->path, "output file (default tinyline_<date>_<time>.mcap)")->type_name("FILE");
   cmd.add_option("--launch", a->launch_file, "run this launch file in the same process and record its topics")
       ->type_name("FILE");
-  cmd.add_option("--exclude", a->exclude, "do not record TOPIC (repeatable)")->type_name("TOPIC")->allow_extra_args(false);
+  cmd.add_option("--exclude", a->exclude, "do not record TOPIC (repeatable)")
+      ->type_name("TOPIC")
+      ->allow_extra_args(false);
   add_compression(cmd, a->compression);
   cmd.add_option("--chunk-size", a->chunk_kib, "uncompressed chunk size [KiB]")
       ->capture_default_str()
@@ -457,12 +460,11 @@ CommandRun setup_record(cli::App& cmd) {
 // ---------------------------------------------------------------------------- the group
 
 CommandRun setup_bag(cli::App& cmd) {
-  return parsing::nested(
-      cmd, {{"record", "record topics (all by default) to an MCAP bag", &setup_record},
-            {"play", "publish a bag's messages on their topics", &setup_play},
-            {"info", "topics, types, counts, duration, compression", &setup_info},
-            {"echo", "print a topic's messages as YAML", &setup_echo},
-            {"recover", "rewrite a damaged or unfinished bag as a complete one", &setup_recover}});
+  return parsing::nested(cmd, {{"record", "record topics (all by default) to an MCAP bag", &setup_record},
+                               {"play", "publish a bag's messages on their topics", &setup_play},
+                               {"info", "topics, types, counts, duration, compression", &setup_info},
+                               {"echo", "print a topic's messages as YAML", &setup_echo},
+                               {"recover", "rewrite a damaged or unfinished bag as a complete one", &setup_recover}});
 }
 
 const CommandRegistration kBag{"bag", "record, play, inspect and recover MCAP bags", &setup_bag};

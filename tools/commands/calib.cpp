@@ -37,7 +37,8 @@ CommandRun setup_calib(cli::App& cmd) {
   return [&cmd] { return calib(cmd.remaining()); };
 }
 
-const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags", &setup_calib};
+const CommandRegistration kCalib{"calib", "calibration: fit, discover effects, diagnose, eval, collect from bags",
+                                 &setup_calib};
 
 }  // namespace
 }  // namespace tinyline::tools

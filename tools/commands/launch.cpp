@@ -73,10 +73,10 @@ void wait_at_start_gate(std::chrono::milliseconds limit, const bus::Logger& log)
 
 /// How many of the planned remote peers the bridge sees now.
 struct PeerCount {
-  bool all = true;        ///< every planned peer is matched
-  bool some = true;       ///< each expected kind of peer is matched at least once
-  std::string counts;     ///< a fingerprint, to see when it stops changing
-  std::string short_of;   ///< what is missing, for the log
+  bool all = true;       ///< every planned peer is matched
+  bool some = true;      ///< each expected kind of peer is matched at least once
+  std::string counts;    ///< a fingerprint, to see when it stops changing
+  std::string short_of;  ///< what is missing, for the log
 };
 
 PeerCount count_peers(const dds::Bridge& bridge, const std::vector<dds::PeerExpectation>& expect) {
@@ -130,9 +130,8 @@ std::string dds_table(const std::vector<dds::LinkStats>& links) {
   std::string s = fmt::format("over DDS:\n{:<34} {:>11} {:>11} {:>10} {:>10} {:>9} {:>7}\n", "topic", "remote subs",
                               "remote pubs", "sent", "received", "no reader", "errors");
   for (const auto& l : links) {
-    s += fmt::format("{:<34} {:>11} {:>11} {:>10} {:>10} {:>9} {:>7}\n", l.topic, l.remote_readers,
-                     l.remote_writers, l.sent, l.received, l.unmatched,
-                     l.decode_errors + l.write_errors + l.incompatible);
+    s += fmt::format("{:<34} {:>11} {:>11} {:>10} {:>10} {:>9} {:>7}\n", l.topic, l.remote_readers, l.remote_writers,
+                     l.sent, l.received, l.unmatched, l.decode_errors + l.write_errors + l.incompatible);
   }
   return s;
 }
@@ -315,7 +314,9 @@ CommandRun setup_launch(cli::App& cmd) {
                  "end when a message is published on TOPIC (absolute, in this process); with --duration as a guard: "
                  "ending without that message is an error (exit 1)")
       ->type_name("TOPIC")
-      ->check([](const std::string& t) { return !t.empty() && t[0] == '/' ? std::string() : "must be an absolute topic name (/...)"; });
+      ->check([](const std::string& t) {
+        return !t.empty() && t[0] == '/' ? std::string() : "must be an absolute topic name (/...)";
+      });
   cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(cli::threads());
   cmd.add_flag("--no-table", a->no_table, "no live table");
   cmd.add_flag("--check", a->check, "validate the file, build its nodes and load their inputs, then exit");

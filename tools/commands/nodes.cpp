@@ -35,8 +35,10 @@ std::string placeholder_file() {
   static const std::filesystem::path path = [] {
     auto p = std::filesystem::temp_directory_path() / ("tinyline_describe_" + std::to_string(::getpid()));
     std::ofstream{p};
-    std::atexit([] { std::filesystem::remove(std::filesystem::temp_directory_path() /
-                                             ("tinyline_describe_" + std::to_string(::getpid()))); });
+    std::atexit([] {
+      std::filesystem::remove(std::filesystem::temp_directory_path() /
+                              ("tinyline_describe_" + std::to_string(::getpid())));
+    });
     return p;
   }();
   return path.string();
@@ -135,10 +137,11 @@ int describe(const std::string& full, bool markdown) {
 
 // Every registered type as markdown: the text of docs/parameters.md.
 int describe_all() {
-  fmt::print("# Node parameters\n\n"
-             "Every node type's parameters: name, type, default, range, unit and what it means. This file is made\n"
-             "by `tinyline describe --all --markdown > docs/parameters.md` from the settings' tables the nodes\n"
-             "declare their parameters from; the test `params.docs_match_the_tables` fails when it is out of date.\n\n");
+  fmt::print(
+      "# Node parameters\n\n"
+      "Every node type's parameters: name, type, default, range, unit and what it means. This file is made\n"
+      "by `tinyline describe --all --markdown > docs/parameters.md` from the settings' tables the nodes\n"
+      "declare their parameters from; the test `params.docs_match_the_tables` fails when it is out of date.\n\n");
   int rc = 0;
   for (const auto* t : node_registry().all()) rc = std::max(rc, describe(t->full_name(), true));
   return rc;
@@ -154,8 +157,9 @@ CommandRun setup_describe(cli::App& cmd) {
   cmd.add_option("type", a->type, "the node type, PKG/TYPE (tinyline nodes lists them)");
   cmd.add_flag("--markdown", a->markdown, "print the parameters as a markdown table (the docs' form)");
   cmd.add_flag("--all", a->all, "every registered node type (with --markdown: docs/parameters.md)");
-  cmd.footer("Shows a node type's parameters (type, default, range, unit, description) and its topics with types "
-             "and QoS.");
+  cmd.footer(
+      "Shows a node type's parameters (type, default, range, unit, description) and its topics with types "
+      "and QoS.");
   return [a] {
     if (a->all == !a->type.empty()) throw UsageError("give either a node type (PKG/TYPE) or --all");
     if (a->all && !a->markdown) throw UsageError("--all needs --markdown");

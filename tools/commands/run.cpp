@@ -78,7 +78,9 @@ CommandRun setup_run(cli::App& cmd) {
   cmd.add_option("-r", a->remaps, "remap a topic, from:=to")->type_name("FROM:=TO")->allow_extra_args(false);
   cmd.add_option("--name", a->name, "node name (default: TYPE)");
   cmd.add_option("--ns", a->ns, "namespace")->capture_default_str();
-  cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")->type_name("S")->check(cli::seconds());
+  cmd.add_option("--duration", a->duration_s, "stop after S seconds (default: Ctrl-C)")
+      ->type_name("S")
+      ->check(cli::seconds());
   cmd.add_option("--threads", a->threads, "executor threads")->capture_default_str()->check(cli::threads());
   cmd.add_flag("--no-table", a->no_table, "no live topic table");
   cmd.add_flag("--dds", a->dds,

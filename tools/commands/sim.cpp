@@ -91,11 +91,13 @@ class TruthFile {
     }
     const sim::FirmwareParams& fw = w.firmware->params();
     std::string copies;
-    for (const auto& [dst, src] : sim::kPublishedPixelCopies) copies += fmt::format("{}[{}, {}]", copies.empty() ? "" : ", ", dst, src);
+    for (const auto& [dst, src] : sim::kPublishedPixelCopies)
+      copies += fmt::format("{}[{}, {}]", copies.empty() ? "" : ", ", dst, src);
     return fmt::format(
         R"({}, "kind": "published", "distance": [{}], "ambient": {}, "readouts": [{}], "firmware": {{"sensitivity_ratio": {}, "compensated_pixel": {}, "compensated_pixel_factor": {}, "saturation_counts": {}, "poly": [{}], "copies": [{}]}}}})",
-        head, fmt::join(c.distance, ","), c.ambient_counts_per_pulse, readouts, fw.sensitivity_ratio, fw.compensated_pixel,
-        fw.compensated_pixel_factor, w.firmware->saturation_counts(), fmt::join(w.firmware->polynomial(), ","), copies);
+        head, fmt::join(c.distance, ","), c.ambient_counts_per_pulse, readouts, fw.sensitivity_ratio,
+        fw.compensated_pixel, fw.compensated_pixel_factor, w.firmware->saturation_counts(),
+        fmt::join(w.firmware->polynomial(), ","), copies);
   }
   std::string path_, tmp_;
   std::mutex mu_;
@@ -138,8 +140,8 @@ std::string status_line(const sim::VirtualDevice& dev, double elapsed_s) {
   return fmt::format(
       "{:.1f} s  {}  sent {} frames ({} bytes, {} lost to a slow host)  received {} bytes: {} commands ({} ignored), "
       "{} garbage",
-      elapsed_s, dev.plugged() ? "plugged" : "UNPLUGGED", s.frames_sent, s.bytes_sent, s.bytes_overrun, s.bytes_received,
-      s.commands, s.commands_ignored, s.command_garbage);
+      elapsed_s, dev.plugged() ? "plugged" : "UNPLUGGED", s.frames_sent, s.bytes_sent, s.bytes_overrun,
+      s.bytes_received, s.commands, s.commands_ignored, s.command_garbage);
 }
 
 void announce(const sim::VirtualDevice& dev, const ServeOptions& o) {
@@ -186,7 +188,8 @@ int serve(const ServeOptions& o) {
   dev.start();
   announce(dev, o);
   const KeyReader keys;
-  fmt::print("{}Ctrl-C or SIGTERM stops; SIGUSR1 unplugs and replugs\n", keys.tty() ? "u unplugs and replugs, q or " : "");
+  fmt::print("{}Ctrl-C or SIGTERM stops; SIGUSR1 unplugs and replugs\n",
+             keys.tty() ? "u unplugs and replugs, q or " : "");
   std::fflush(stdout);
   const auto t0 = Clock::now();
   auto last_status = t0;

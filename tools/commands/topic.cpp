@@ -21,7 +21,6 @@
 namespace tinyline::tools {
 namespace {
 
-
 std::atomic<int> g_stop{0};
 extern "C" void on_topic_signal(int sig) { g_stop.store(sig); }
 
@@ -80,8 +79,10 @@ int cmd_list(const TopicArgs& a) {
     r.processes.insert(e.owner.known() ? e.owner.process : "(other)");
   }
   if (rows.empty()) {
-    fmt::print(stderr, "no topics on DDS domain {} (is a graph running with the same ROS_DOMAIN_ID and "
-               "CYCLONEDDS_URI?)\n", p.settings().domain_id);
+    fmt::print(stderr,
+               "no topics on DDS domain {} (is a graph running with the same ROS_DOMAIN_ID and "
+               "CYCLONEDDS_URI?)\n",
+               p.settings().domain_id);
     return 1;
   }
   fmt::print("{:<34} {:<34} {:>4} {:>4}  {}\n", "topic", "type", "pubs", "subs", "processes");
@@ -136,22 +137,26 @@ int cmd_echo(const TopicArgs& a) {
   const msg::TypeSupport* ts = nullptr;
   if (!a.type.empty()) {
     ts = msg::find_type_support(a.type);
-    if (ts == nullptr) throw UsageError("unknown message type '" + a.type + "' (tinyline nodes lists node types; "
-                                        "message types are pkg/msg/Type)");
+    if (ts == nullptr)
+      throw UsageError("unknown message type '" + a.type +
+                       "' (tinyline nodes lists node types; "
+                       "message types are pkg/msg/Type)");
     dds_type = ts->dds_type_name();
   }
   const auto pub = find_publisher(d, topic, wait);
   if (!pub && ts == nullptr) {
     if (g_stop.load() != 0) return 0;
-    fmt::print(stderr, "no publisher of {} appeared within {:.1f} s on DDS domain {}\n", topic,
-               wait.count() / 1000.0, p.settings().domain_id);
+    fmt::print(stderr, "no publisher of {} appeared within {:.1f} s on DDS domain {}\n", topic, wait.count() / 1000.0,
+               p.settings().domain_id);
     return 1;
   }
   if (ts == nullptr) {
     ts = dds::find_type_by_dds_name(pub->dds_type);
     if (ts == nullptr) {
-      fmt::print(stderr, "{} carries {}, which is not a tinyline message type; cannot decode it "
-                 "(tinyline topic hz still measures it)\n", topic, pub->dds_type);
+      fmt::print(stderr,
+                 "{} carries {}, which is not a tinyline message type; cannot decode it "
+                 "(tinyline topic hz still measures it)\n",
+                 topic, pub->dds_type);
       return 1;
     }
     dds_type = pub->dds_type;
@@ -187,8 +192,8 @@ int cmd_hz(const TopicArgs& a) {
   const auto pub = find_publisher(d, topic, wait);
   if (!pub) {
     if (g_stop.load() != 0) return 0;
-    fmt::print(stderr, "no publisher of {} appeared within {:.1f} s on DDS domain {}\n", topic,
-               wait.count() / 1000.0, p.settings().domain_id);
+    fmt::print(stderr, "no publisher of {} appeared within {:.1f} s on DDS domain {}\n", topic, wait.count() / 1000.0,
+               p.settings().domain_id);
     return 1;
   }
   dds::RawReader reader(p, pub->dds_topic, pub->dds_type, qos_for(d, topic));
@@ -217,8 +222,7 @@ int cmd_hz(const TopicArgs& a) {
     for (double x : dt) var += (x - mean) * (x - mean);
     const double sd = std::sqrt(var / static_cast<double>(dt.size()));
     fmt::print("average rate: {:.3f}\n\tmin: {:.4f}s max: {:.4f}s std dev: {:.5f}s window: {}\n", 1.0 / mean,
-               *std::min_element(dt.begin(), dt.end()), *std::max_element(dt.begin(), dt.end()), sd,
-               arrivals.size());
+               *std::min_element(dt.begin(), dt.end()), *std::max_element(dt.begin(), dt.end()), sd, arrivals.size());
     std::fflush(stdout);
   };
   while (g_stop.load() == 0) {
@@ -261,11 +265,13 @@ void add_common(cli::App& cmd, TopicArgs& a, double wait_default) {
 }
 
 void add_topic(cli::App& cmd, TopicArgs& a) {
-  cmd.add_option("topic", a.topic, "an absolute topic name")->required()->check(cli::Validator(
-      [](std::string& t) -> std::string {
-        return t.empty() || t[0] != '/' ? "topic '" + t + "' must be absolute (start with '/')" : std::string();
-      },
-      "/TOPIC"));
+  cmd.add_option("topic", a.topic, "an absolute topic name")
+      ->required()
+      ->check(cli::Validator(
+          [](std::string& t) -> std::string {
+            return t.empty() || t[0] != '/' ? "topic '" + t + "' must be absolute (start with '/')" : std::string();
+          },
+          "/TOPIC"));
 }
 
 CommandRun setup_list(cli::App& cmd) {
@@ -294,7 +300,9 @@ CommandRun setup_hz(cli::App& cmd) {
   add_common(cmd, *a, 10.0);
   cmd.add_option("--duration", a->duration_s, "stop after S seconds")->type_name("S")->check(cli::seconds());
   cmd.add_option("--messages", a->messages, "stop after N messages (0: Ctrl-C)")->check(cli::count());
-  cmd.add_option("--window", a->window, "rate over the last N messages")->capture_default_str()->check(cli::whole(2, 100000000));
+  cmd.add_option("--window", a->window, "rate over the last N messages")
+      ->capture_default_str()
+      ->check(cli::whole(2, 100000000));
   return guarded("hz", &cmd_hz, a);
 }
 
@@ -304,8 +312,8 @@ CommandRun setup_topic(cli::App& cmd) {
       "launch file marks with dds. Uses the DDS domain and configuration of the environment (ROS_DOMAIN_ID,\n"
       "CYCLONEDDS_URI; the loopback default otherwise), like every tinyline process and ROS 2 node.");
   return parsing::nested(cmd, {{"list", "topics with their type, publishers, subscribers and processes", &setup_list},
-                           {"echo", "print each message as YAML, '---' between messages", &setup_echo},
-                           {"hz", "print the publishing rate once a second", &setup_hz}});
+                               {"echo", "print each message as YAML, '---' between messages", &setup_echo},
+                               {"hz", "print the publishing rate once a second", &setup_hz}});
 }
 
 const CommandRegistration kTopic{"topic", "list, echo and measure topics of running graphs over DDS", &setup_topic};

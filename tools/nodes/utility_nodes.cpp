@@ -41,8 +41,8 @@ class Echo : public bus::Node {
 class Relay : public bus::Node {
  public:
   explicit Relay(bus::NodeOptions o) : Node(std::move(o)) {
-    const auto& ts = type_param(*this, declare_parameter<std::string>("type", "std_msgs/msg/String",
-                                                                       "message type of the topic"));
+    const auto& ts =
+        type_param(*this, declare_parameter<std::string>("type", "std_msgs/msg/String", "message type of the topic"));
     const int depth = declare_parameter("depth", 10, "queue depth", bus::ParamConstraints::at_least(1));
     pub_ = create_generic_publisher("output", ts, bus::QoS::keep_last(static_cast<std::size_t>(depth)));
     sub_ = create_generic_subscription(
@@ -60,8 +60,8 @@ class Relay : public bus::Node {
 class Pulse : public bus::Node {
  public:
   explicit Pulse(bus::NodeOptions o) : Node(std::move(o)) {
-    const double rate = declare_parameter("rate_hz", 10.0, "publish rate [Hz]",
-                                          bus::ParamConstraints::range(0.001, 100000.0));
+    const double rate =
+        declare_parameter("rate_hz", 10.0, "publish rate [Hz]", bus::ParamConstraints::range(0.001, 100000.0));
     text_ = declare_parameter<std::string>("text", "pulse", "text before the counter");
     limit_ = declare_parameter("count", 0, "messages to publish, then stay quiet (0: no limit)",
                                bus::ParamConstraints::at_least(0));

@@ -19,9 +19,9 @@ std::atomic<int> g_signal{0};
 extern "C" void on_signal(int sig) { g_signal.store(sig); }
 
 bus::Time wall_now() {
-  return bus::Time{std::chrono::duration_cast<std::chrono::nanoseconds>(
-                       std::chrono::system_clock::now().time_since_epoch())
-                       .count()};
+  return bus::Time{
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count()};
 }
 
 using SteadyClock = std::chrono::steady_clock;
@@ -64,7 +64,8 @@ class Spinner {
 // The live table on a terminal, redrawn in place.
 class LiveTable {
  public:
-  LiveTable(const bus::Graph& g, const RunOptions& o) : graph_(g), options_(o), live_(o.table && isatty(STDOUT_FILENO)) {
+  LiveTable(const bus::Graph& g, const RunOptions& o)
+      : graph_(g), options_(o), live_(o.table && isatty(STDOUT_FILENO)) {
     rates_.sample(graph_, wall_now());
     next_ = SteadyClock::now() + period();
   }
@@ -143,9 +144,8 @@ std::string topic_table(const bus::Graph& graph, bus::RateMonitor& rates, bus::T
   std::string s = fmt::format("{:<34} {:<34} {:>4} {:>4} {:>9} {:>10} {:>8}\n", "topic", "type", "pubs", "subs",
                               "rate Hz", "published", "dropped");
   for (const auto& r : rates.sample(graph, now)) {
-    s += fmt::format("{:<34} {:<34} {:>4} {:>4} {:>9.1f} {:>10} {:>8}\n", r.info.name, r.info.type,
-                     r.info.publishers, r.info.subscriptions, r.rate_hz, r.info.published,
-                     r.info.dropped + r.info.timeouts);
+    s += fmt::format("{:<34} {:<34} {:>4} {:>4} {:>9.1f} {:>10} {:>8}\n", r.info.name, r.info.type, r.info.publishers,
+                     r.info.subscriptions, r.rate_hz, r.info.published, r.info.dropped + r.info.timeouts);
   }
   return s;
 }

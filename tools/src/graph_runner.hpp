@@ -17,7 +17,7 @@ struct RunOptions {
   int threads = 2;                   ///< executor threads
   bool table = true;                 ///< live topic table (only on a terminal)
   double table_period_s = 1.0;
-  bool summary = true;               ///< the topic table with average rates at the end
+  bool summary = true;  ///< the topic table with average rates at the end
   /// Called about every 200 ms with the seconds run so far (a progress line).
   std::function<void(double elapsed_s)> progress;
   /// Runs after the nodes are on the executor and before it starts (the DDS

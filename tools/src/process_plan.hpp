@@ -22,10 +22,10 @@
 namespace tinyline::tools {
 
 struct ProcessPlan {
-  std::string name;                        ///< "" for the launching process
-  std::vector<std::string> nodes;          ///< full names of its nodes
-  bool respawn = false;                    ///< some node asks to be restarted
-  dds::TopicSelection dds;                 ///< topics this process puts on DDS
+  std::string name;                          ///< "" for the launching process
+  std::vector<std::string> nodes;            ///< full names of its nodes
+  bool respawn = false;                      ///< some node asks to be restarted
+  dds::TopicSelection dds;                   ///< topics this process puts on DDS
   std::vector<dds::PeerExpectation> expect;  ///< remote endpoints to wait for
   bool uses_dds() const { return dds.all || !dds.topics.empty(); }
 };

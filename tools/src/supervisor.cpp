@@ -232,8 +232,8 @@ void Supervisor::reap(bool stopping) {
       c->restart_at = SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(
                                                std::chrono::duration<double>(options_.respawn_delay_s));
     } else {
-      fmt::print(options_.err, "[launch] process '{}' (pid {}; nodes {}) {}; the others keep running\n",
-                 c->spec.name, pid, nodes, describe_exit(st));
+      fmt::print(options_.err, "[launch] process '{}' (pid {}; nodes {}) {}; the others keep running\n", c->spec.name,
+                 pid, nodes, describe_exit(st));
     }
     std::fflush(options_.err);
   }

@@ -25,7 +25,8 @@ TEST(ShippedLaunchFiles, EveryOneLoadsAndBuildsItsNodes) {
       std::set<std::string> processes;
       for (const auto& n : plan.nodes) processes.insert(n.process);
       std::size_t built = 0;
-      for (const auto& p : processes) built += launch::instantiate(plan, tools::node_registry(), bus::Context::create(co), p).size();
+      for (const auto& p : processes)
+        built += launch::instantiate(plan, tools::node_registry(), bus::Context::create(co), p).size();
       EXPECT_EQ(built, plan.nodes.size());
       EXPECT_GT(built, 0u);
     } catch (const std::exception& ex) {

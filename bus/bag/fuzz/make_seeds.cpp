@@ -14,7 +14,8 @@ using namespace tinyline::bag;
 
 int main(int argc, char** argv) {
   std::string dir;
-  cli::App app{"Writes small valid bags of every writer variant: the seed corpus of bag_reader_fuzz.", "bag_fuzz_seeds"};
+  cli::App app{"Writes small valid bags of every writer variant: the seed corpus of bag_reader_fuzz.",
+               "bag_fuzz_seeds"};
   app.add_option("DIR", dir, "directory to write into")->required();
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   struct V {

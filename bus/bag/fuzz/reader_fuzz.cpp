@@ -38,8 +38,7 @@ void read_all(Reader& r, ReadOrder order, bool skip, std::vector<std::string> to
     if (const auto* ts = ros2::type_support_for(v.schema, *v.channel, &why)) {
       try {
         (void)ts->deserialize(v.message.data);
-      } catch (const std::exception&) {
-      }
+      } catch (const std::exception&) {}
     }
   }
   check_message(cursor->status(), "read");

@@ -56,9 +56,7 @@ Status Compressor::compress(std::span<const std::uint8_t> in, std::vector<std::u
     if (out.size() < n) out.resize(n);
   };
   switch (type_) {
-    case Compression::None:
-      result = in;
-      return {};
+    case Compression::None: result = in; return {};
     case Compression::Lz4: {
       if (impl_->lz4 == nullptr) return {StatusCode::WriteFailed, "lz4: cannot create a compression context"};
       LZ4F_preferences_t prefs{};
@@ -81,8 +79,8 @@ Status Compressor::compress(std::span<const std::uint8_t> in, std::vector<std::u
         total += LZ4F_isError(n) ? 0 : n;
       }
       if (LZ4F_isError(n)) {
-        return {StatusCode::WriteFailed, fmt::format("lz4 compression of {} bytes failed: {}", in.size(),
-                                                     LZ4F_getErrorName(n))};
+        return {StatusCode::WriteFailed,
+                fmt::format("lz4 compression of {} bytes failed: {}", in.size(), LZ4F_getErrorName(n))};
       }
       result = std::span<const std::uint8_t>(out.data(), total);
       return {};
@@ -157,8 +155,8 @@ Status lz4_stream(std::span<const std::uint8_t> in, std::uint64_t limit, std::ve
     const std::size_t r = LZ4F_decompress(d.ctx, out.data() + p.produced, &dst, in.data() + p.consumed, &src, nullptr);
     if (LZ4F_isError(r)) {
       LZ4F_resetDecompressionContext(d.ctx);
-      return {StatusCode::DecompressFailed, fmt::format("{}: lz4 data corrupt at compressed byte {}: {}", where,
-                                                        p.consumed, LZ4F_getErrorName(r))};
+      return {StatusCode::DecompressFailed,
+              fmt::format("{}: lz4 data corrupt at compressed byte {}: {}", where, p.consumed, LZ4F_getErrorName(r))};
     }
     p.produced += dst;
     p.consumed += src;
@@ -182,8 +180,8 @@ Status zstd_stream(std::span<const std::uint8_t> in, std::uint64_t limit, std::v
     const std::size_t r = ZSTD_decompressStream(d.ctx, &ob, &ib);
     if (ZSTD_isError(r)) {
       ZSTD_DCtx_reset(d.ctx, ZSTD_reset_session_only);
-      return {StatusCode::DecompressFailed, fmt::format("{}: zstd data corrupt at compressed byte {}: {}", where,
-                                                        p.consumed, ZSTD_getErrorName(r))};
+      return {StatusCode::DecompressFailed,
+              fmt::format("{}: zstd data corrupt at compressed byte {}: {}", where, p.consumed, ZSTD_getErrorName(r))};
     }
     const bool progress = ob.pos != p.produced || ib.pos != p.consumed;
     p.produced = ob.pos;
@@ -199,8 +197,8 @@ Status zstd_stream(std::span<const std::uint8_t> in, std::uint64_t limit, std::v
 Status check_end(const Progress& p, std::string_view compression, std::size_t in_size, std::uint64_t uncompressed_size,
                  std::string_view where) {
   if (p.produced > uncompressed_size) {
-    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to more than the declared {} bytes",
-                                                   where, compression, uncompressed_size)};
+    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to more than the declared {} bytes", where,
+                                                   compression, uncompressed_size)};
   }
   if (!p.frame_done || p.consumed != in_size) {
     return {StatusCode::DecompressFailed,
@@ -208,8 +206,8 @@ Status check_end(const Progress& p, std::string_view compression, std::size_t in
                         p.consumed, in_size, p.produced)};
   }
   if (p.produced != uncompressed_size) {
-    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to {} bytes, the chunk declares {}",
-                                                   where, compression, p.produced, uncompressed_size)};
+    return {StatusCode::InvalidRecord, fmt::format("{}: {} data decompresses to {} bytes, the chunk declares {}", where,
+                                                   compression, p.produced, uncompressed_size)};
   }
   return {};
 }

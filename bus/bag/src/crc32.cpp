@@ -42,10 +42,10 @@ std::uint32_t crc_tables(std::uint32_t c, const std::uint8_t* p, std::size_t n) 
     const std::uint32_t b = load32(p + 4);
     const std::uint32_t d = load32(p + 8);
     const std::uint32_t e = load32(p + 12);
-    c = T[15][a & 0xFF] ^ T[14][(a >> 8) & 0xFF] ^ T[13][(a >> 16) & 0xFF] ^ T[12][a >> 24] ^
-        T[11][b & 0xFF] ^ T[10][(b >> 8) & 0xFF] ^ T[9][(b >> 16) & 0xFF] ^ T[8][b >> 24] ^
-        T[7][d & 0xFF] ^ T[6][(d >> 8) & 0xFF] ^ T[5][(d >> 16) & 0xFF] ^ T[4][d >> 24] ^
-        T[3][e & 0xFF] ^ T[2][(e >> 8) & 0xFF] ^ T[1][(e >> 16) & 0xFF] ^ T[0][e >> 24];
+    c = T[15][a & 0xFF] ^ T[14][(a >> 8) & 0xFF] ^ T[13][(a >> 16) & 0xFF] ^ T[12][a >> 24] ^ T[11][b & 0xFF] ^
+        T[10][(b >> 8) & 0xFF] ^ T[9][(b >> 16) & 0xFF] ^ T[8][b >> 24] ^ T[7][d & 0xFF] ^ T[6][(d >> 8) & 0xFF] ^
+        T[5][(d >> 16) & 0xFF] ^ T[4][d >> 24] ^ T[3][e & 0xFF] ^ T[2][(e >> 8) & 0xFF] ^ T[1][(e >> 16) & 0xFF] ^
+        T[0][e >> 24];
     p += 16;
     n -= 16;
   }
@@ -69,9 +69,9 @@ __attribute__((target("pclmul,sse4.1"))) inline __m128i load16(const std::uint8_
 
 __attribute__((target("pclmul,sse4.1"))) std::uint32_t crc_pclmul(std::uint32_t c, const std::uint8_t* p,
                                                                   std::size_t n) {
-  const __m128i k1k2 = _mm_set_epi64x(0x1c6e41596LL, 0x154442bd4LL);  // x^(4*128+32), x^(4*128-32) mod P
-  const __m128i k3k4 = _mm_set_epi64x(0x0ccaa009eLL, 0x1751997d0LL);  // x^(128+32), x^(128-32) mod P
-  const __m128i k5 = _mm_set_epi64x(0, 0x163cd6124LL);                // x^64 mod P
+  const __m128i k1k2 = _mm_set_epi64x(0x1c6e41596LL, 0x154442bd4LL);     // x^(4*128+32), x^(4*128-32) mod P
+  const __m128i k3k4 = _mm_set_epi64x(0x0ccaa009eLL, 0x1751997d0LL);     // x^(128+32), x^(128-32) mod P
+  const __m128i k5 = _mm_set_epi64x(0, 0x163cd6124LL);                   // x^64 mod P
   const __m128i poly_mu = _mm_set_epi64x(0x1f7011641LL, 0x1db710641LL);  // mu, P (bit-reflected)
   const __m128i mask32 = _mm_set_epi32(0, 0, 0, -1);
   __m128i x0 = _mm_xor_si128(load16(p), _mm_cvtsi32_si128(static_cast<int>(c)));
@@ -146,7 +146,7 @@ std::uint32_t crc32_combine(std::uint32_t crc1, std::uint32_t crc2, std::uint64_
   for (int n = 1; n < 32; ++n, row <<= 1) odd[n] = row;
   gf2_square(even, odd);  // two zero bits
   gf2_square(odd, even);  // four
-  do {  // apply len2 bytes of zeros to crc1
+  do {                    // apply len2 bytes of zeros to crc1
     gf2_square(even, odd);
     if (len2 & 1U) crc1 = gf2_times(even, crc1);
     len2 >>= 1;

@@ -46,7 +46,8 @@ Status FileReadable::read(std::uint64_t offset, std::span<std::uint8_t> out) {
     const ssize_t n = ::pread(fd_, out.data() + done, out.size() - done, static_cast<off_t>(offset + done));
     if (n < 0) {
       if (errno == EINTR) continue;
-      return {StatusCode::ReadFailed, fmt::format("{}: read at byte {} failed: {}", path_, offset + done, errno_text())};
+      return {StatusCode::ReadFailed,
+              fmt::format("{}: read at byte {} failed: {}", path_, offset + done, errno_text())};
     }
     if (n == 0) {
       return {StatusCode::Truncated,

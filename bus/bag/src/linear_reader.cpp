@@ -32,7 +32,7 @@ struct LinearReader::Impl {
   std::uint64_t chunk_offset = 0;
   std::vector<std::uint8_t> chunk_buf;  // decompressed records
   std::size_t chunk_pos = 0;
-  std::map<SchemaId, Schema> known_schemas;    // know(): trusted over the file's copies
+  std::map<SchemaId, Schema> known_schemas;  // know(): trusted over the file's copies
   std::map<ChannelId, Channel> known_channels;
   bool single_record = false;  // read_chunk_at(): stop after that record
   bool crc_gap = false;        // bytes were skipped: no data section CRC
@@ -98,8 +98,8 @@ struct LinearReader::Impl {
   bool read_prefix(std::uint8_t& op, std::uint64_t& len) {
     const std::uint64_t size = src.size();
     if (pos == size) {
-      return truncated_end(pos, fmt::format("{}: file ends at byte {} without a Data End record or footer",
-                                            src.name(), pos));
+      return truncated_end(
+          pos, fmt::format("{}: file ends at byte {} without a Data End record or footer", src.name(), pos));
     }
     if (size - pos < kRecordPrefix) {
       return truncated_end(pos, fmt::format("{}: file ends inside a record prefix at byte {}", src.name(), pos));
@@ -109,8 +109,8 @@ struct LinearReader::Impl {
     op = p[0];
     std::memcpy(&len, p + 1, 8);
     if (len > size - pos - kRecordPrefix) {
-      return truncated_end(pos, fmt::format("{} claims {} content bytes but the file has {} after it",
-                                            where(pos, op), len, size - pos - kRecordPrefix));
+      return truncated_end(pos, fmt::format("{} claims {} content bytes but the file has {} after it", where(pos, op),
+                                            len, size - pos - kRecordPrefix));
     }
     if (len > opt.max_record_bytes) {
       return fatal({StatusCode::LimitExceeded, fmt::format("{} is {} bytes, more than the limit of {}", where(pos, op),
@@ -166,7 +166,8 @@ struct LinearReader::Impl {
                         o == Opcode::DataEnd || o == Opcode::Footer;
     if (single_record && o != Opcode::Chunk) {
       state = State::Done;
-      problem(at, {StatusCode::InvalidRecord, fmt::format("{}: a chunk index points here, at no chunk", where(at, op))});
+      problem(at,
+              {StatusCode::InvalidRecord, fmt::format("{}: a chunk index points here, at no chunk", where(at, op))});
       return Step::Stop;
     }
     if (!wanted && !(opt.validate_crcs && !data_end)) {  // skip without reading
@@ -190,10 +191,8 @@ struct LinearReader::Impl {
         out.kind = LinearRecord::Kind::Header;
         out.header = &header;
         return Step::Emit;
-      case Opcode::Schema:
-        return on_schema(rec, w, at, false, out);
-      case Opcode::Channel:
-        return on_channel(rec, w, at, false, out);
+      case Opcode::Schema: return on_schema(rec, w, at, false, out);
+      case Opcode::Channel: return on_channel(rec, w, at, false, out);
       case Opcode::Message:
         if (message(rec, w, at, out)) return Step::Emit;
         return state == State::Done ? Step::Stop : Step::Skip;
@@ -202,31 +201,28 @@ struct LinearReader::Impl {
         out.kind = LinearRecord::Kind::ChunkBegin;
         out.chunk = &chunk;
         return Step::Emit;
-      case Opcode::Attachment:
-        return on_attachment(w, at, out);
+      case Opcode::Attachment: return on_attachment(w, at, out);
       case Opcode::Metadata:
-        if (Status s = wire::parse_lazy(rec, metadata, w); !s.ok()) return problem(at, std::move(s)) ? Step::Skip : Step::Stop;
+        if (Status s = wire::parse_lazy(rec, metadata, w); !s.ok())
+          return problem(at, std::move(s)) ? Step::Skip : Step::Stop;
         out.kind = LinearRecord::Kind::Metadata;
         out.metadata = &metadata;
         return Step::Emit;
-      case Opcode::DataEnd:
-        return on_data_end(w, at, crc_before, out);
+      case Opcode::DataEnd: return on_data_end(w, at, crc_before, out);
       case Opcode::Footer:
         footer = true;
         state = State::Done;
         out.kind = LinearRecord::Kind::Footer;
         return Step::Emit;
-      default:
-        return Step::Skip;  // index and summary records, unknown opcodes: skipped (read only for the CRC)
+      default: return Step::Skip;  // index and summary records, unknown opcodes: skipped (read only for the CRC)
     }
   }
 
   // Where a definition from the file disagrees with one given by know() (the
   // summary's, under its own CRC), the known one is used and the difference noted.
   template <class R, class W>
-  Step on_definition(std::map<std::uint16_t, R>& slots, const std::map<std::uint16_t, R>& known, R&& parsed,
-                     const W& w, std::uint64_t at, const char* what, LinearRecord& out, const R*& field,
-                     LinearRecord::Kind kind) {
+  Step on_definition(std::map<std::uint16_t, R>& slots, const std::map<std::uint16_t, R>& known, R&& parsed, const W& w,
+                     std::uint64_t at, const char* what, LinearRecord& out, const R*& field, LinearRecord::Kind kind) {
     auto k = known.find(parsed.id);
     if (k != known.end() && !(k->second == parsed)) {
       problem(at, {StatusCode::InvalidRecord, fmt::format("{}: {} {} differs from the summary's copy ('{}' here, '{}' "
@@ -245,7 +241,8 @@ struct LinearReader::Impl {
   static const std::string& label(const Channel& c) { return c.topic; }
 
   template <class W>
-  Step on_schema(std::span<const std::uint8_t> content, const W& w, std::uint64_t at, bool in_chunk, LinearRecord& out) {
+  Step on_schema(std::span<const std::uint8_t> content, const W& w, std::uint64_t at, bool in_chunk,
+                 LinearRecord& out) {
     Schema sc;
     if (Status s = wire::parse_lazy(content, sc, w); !s.ok()) {
       if (in_chunk) {
@@ -300,8 +297,8 @@ struct LinearReader::Impl {
       return Step::Stop;
     }
     if (opt.validate_crcs && !crc_gap && de.data_section_crc != 0 && de.data_section_crc != crc_before) {
-      problem(at, {StatusCode::CrcMismatch,
-                   fmt::format("{}: data section CRC 0x{:08x} != stored 0x{:08x}", w(), crc_before, de.data_section_crc)});
+      problem(at, {StatusCode::CrcMismatch, fmt::format("{}: data section CRC 0x{:08x} != stored 0x{:08x}", w(),
+                                                        crc_before, de.data_section_crc)});
       if (!opt.recover) return Step::Stop;
     }
     out.kind = LinearRecord::Kind::DataEnd;
@@ -327,9 +324,9 @@ struct LinearReader::Impl {
     if (Status s = wire::parse_lazy(content, m, w); !s.ok()) return problem(at, std::move(s)) && false;
     auto it = channels.find(m.channel_id);
     if (it == channels.end()) {
-      problem(at, {StatusCode::InvalidRecord,
-                   fmt::format("{}: refers to channel {}, which no Channel record defined before it", w(),
-                               m.channel_id)});
+      problem(at,
+              {StatusCode::InvalidRecord,
+               fmt::format("{}: refers to channel {}, which no Channel record defined before it", w(), m.channel_id)});
       return false;
     }
     out = LinearRecord{};
@@ -346,8 +343,8 @@ struct LinearReader::Impl {
 
   bool open_chunk(std::uint64_t at, const std::string& w) {
     if (Status s = parse(rec, chunk, w); !s.ok()) return problem(at, std::move(s), true) && false;
-    if (Status s = decompress(chunk.compression, chunk.records, chunk.uncompressed_size, opt.max_record_bytes,
-                              chunk_buf, w);
+    if (Status s =
+            decompress(chunk.compression, chunk.records, chunk.uncompressed_size, opt.max_record_bytes, chunk_buf, w);
         !s.ok()) {
       if (s.code == StatusCode::LimitExceeded && !opt.recover) return fatal(std::move(s));
       return problem(at, std::move(s), true) && false;
@@ -355,9 +352,10 @@ struct LinearReader::Impl {
     if (opt.validate_crcs && chunk.uncompressed_crc != 0) {
       const std::uint32_t got = crc32(chunk_buf);
       if (got != chunk.uncompressed_crc) {
-        return problem(at, {StatusCode::CrcMismatch, fmt::format("{}: CRC of the uncompressed records 0x{:08x} != "
-                                                                 "stored 0x{:08x}",
-                                                                 w, got, chunk.uncompressed_crc)},
+        return problem(at,
+                       {StatusCode::CrcMismatch, fmt::format("{}: CRC of the uncompressed records 0x{:08x} != "
+                                                             "stored 0x{:08x}",
+                                                             w, got, chunk.uncompressed_crc)},
                        true) &&
                false;
       }
@@ -382,9 +380,9 @@ struct LinearReader::Impl {
       std::uint64_t len;
       std::memcpy(&len, chunk_buf.data() + inner + 1, 8);
       if (len > left - kRecordPrefix) {
-        return end_chunk_with({StatusCode::InvalidRecord,
-                               fmt::format("{} claims {} bytes but the chunk has {} after it",
-                                           where_in_chunk(inner, op), len, left - kRecordPrefix)});
+        return end_chunk_with(
+            {StatusCode::InvalidRecord, fmt::format("{} claims {} bytes but the chunk has {} after it",
+                                                    where_in_chunk(inner, op), len, left - kRecordPrefix)});
       }
       chunk_pos += kRecordPrefix + static_cast<std::size_t>(len);
       const auto content = std::span<const std::uint8_t>(chunk_buf).subspan(inner + kRecordPrefix, len);
@@ -405,8 +403,7 @@ struct LinearReader::Impl {
           if (message(content, w, chunk_offset, out)) return true;
           if (state == State::Done) return false;
           continue;
-        default:
-          continue;  // anything else inside a chunk is skipped
+        default: continue;  // anything else inside a chunk is skipped
       }
     }
     state = State::Records;

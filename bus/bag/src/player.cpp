@@ -17,9 +17,9 @@ PlayerOptions declare(bus::Node& n, PlayerOptions d) {
                                        bus::ParamConstraints::range(0.0, 1e6));
   d.loop = n.declare_parameter<bool>("loop", d.loop, "start over at the end of the bag");
   d.topics = n.declare_parameter<std::vector<std::string>>("topics", d.topics, "topics to play (empty: all)");
-  d.start_offset_s = n.declare_parameter<double>("start_offset_s", d.start_offset_s,
-                                                 "skip this much of the bag's beginning [s]",
-                                                 bus::ParamConstraints::at_least(0.0));
+  d.start_offset_s =
+      n.declare_parameter<double>("start_offset_s", d.start_offset_s, "skip this much of the bag's beginning [s]",
+                                  bus::ParamConstraints::at_least(0.0));
   d.clock = n.declare_parameter<bool>("clock", d.clock, "publish /clock and drive sim time");
   d.clock_hz = n.declare_parameter<double>("clock_hz", d.clock_hz, "/clock rate between messages [Hz]",
                                            bus::ParamConstraints::range(0.1, 10000.0));
@@ -33,8 +33,8 @@ Player::Player(bus::NodeOptions options) : Player(std::move(options), PlayerOpti
 Player::Player(bus::NodeOptions options, PlayerOptions defaults) : Node(std::move(options)) {
   opts_ = declare(*this, std::move(defaults));
   if (opts_.path.empty()) {
-    throw bus::ParamError(bus::SourceLocation{}, fmt::format("node '{}': parameter 'path' (the bag) is required",
-                                                             full_name()));
+    throw bus::ParamError(bus::SourceLocation{},
+                          fmt::format("node '{}': parameter 'path' (the bag) is required", full_name()));
   }
   if (opts_.clock) clock_pub_ = create_publisher<rosgraph_msgs::msg::Clock>("/clock", bus::QoS::keep_last(1));
 }

@@ -15,7 +15,8 @@ namespace tinyline::bag {
 
 namespace {
 
-std::set<ChannelId> wanted_channels(const std::map<ChannelId, Channel>& channels, const std::vector<std::string>& topics) {
+std::set<ChannelId> wanted_channels(const std::map<ChannelId, Channel>& channels,
+                                    const std::vector<std::string>& topics) {
   std::set<ChannelId> ids;
   for (const auto& [id, ch] : channels) {
     if (topics.empty() || std::find(topics.begin(), topics.end(), ch.topic) != topics.end()) ids.insert(id);
@@ -91,9 +92,8 @@ class IndexedCursor final : public MessageCursor {
     while (true) {
       const bool have_more_chunks = next_chunk_ < chunks_.size();
       if (heap_.empty() && !have_more_chunks) return false;
-      if (have_more_chunks &&
-          (heap_.empty() ||
-           (opts_.order == ReadOrder::LogTime && chunks_[next_chunk_]->message_start_time <= heap_.top().time))) {
+      if (have_more_chunks && (heap_.empty() || (opts_.order == ReadOrder::LogTime &&
+                                                 chunks_[next_chunk_]->message_start_time <= heap_.top().time))) {
         if (!load(next_chunk_++)) {
           if (!status_.ok()) return false;
         }
@@ -114,8 +114,8 @@ class IndexedCursor final : public MessageCursor {
 
  private:
   struct Entry {
-    Timestamp time = 0;      // log time (0 in file order)
-    std::size_t chunk = 0;   // ordinal in chunks_
+    Timestamp time = 0;     // log time (0 in file order)
+    std::size_t chunk = 0;  // ordinal in chunks_
     std::uint64_t offset = 0;
     bool operator>(const Entry& o) const {
       if (time != o.time) return time > o.time;
@@ -150,9 +150,9 @@ class IndexedCursor final : public MessageCursor {
                                                                 w, ci.chunk_start_offset, ci.chunk_length, size)});
     }
     if (ci.chunk_length > ro_.max_record_bytes) {
-      return fail_chunk(ci.chunk_start_offset, {StatusCode::LimitExceeded,
-                                                fmt::format("{}: {} bytes, more than the limit of {}", w,
-                                                            ci.chunk_length, ro_.max_record_bytes)});
+      return fail_chunk(ci.chunk_start_offset,
+                        {StatusCode::LimitExceeded, fmt::format("{}: {} bytes, more than the limit of {}", w,
+                                                                ci.chunk_length, ro_.max_record_bytes)});
     }
     record_.resize(static_cast<std::size_t>(ci.chunk_length));
     if (Status s = src_.read(ci.chunk_start_offset, record_); !s.ok()) return fail_chunk(ci.chunk_start_offset, s);
@@ -168,8 +168,8 @@ class IndexedCursor final : public MessageCursor {
     if (Status s = parse(std::span(record_).subspan(kRecordPrefix), chunk, w); !s.ok())
       return fail_chunk(ci.chunk_start_offset, s);
     auto buffer = std::make_shared<std::vector<std::uint8_t>>();
-    if (Status s = decompress(chunk.compression, chunk.records, chunk.uncompressed_size, ro_.max_record_bytes, *buffer,
-                              w);
+    if (Status s =
+            decompress(chunk.compression, chunk.records, chunk.uncompressed_size, ro_.max_record_bytes, *buffer, w);
         !s.ok())
       return fail_chunk(ci.chunk_start_offset, s);
     if (ro_.validate_crcs && chunk.uncompressed_crc != 0) {
@@ -204,20 +204,21 @@ class IndexedCursor final : public MessageCursor {
   bool index_entries(std::size_t ordinal, const ChunkIndex& ci, std::vector<Entry>& entries) {
     const std::uint64_t start = ci.chunk_start_offset + ci.chunk_length;
     const std::uint64_t size = src_.size();
-    const std::string w = fmt::format("{}: message indexes of the chunk at byte {}", src_.name(), ci.chunk_start_offset);
+    const std::string w =
+        fmt::format("{}: message indexes of the chunk at byte {}", src_.name(), ci.chunk_start_offset);
     if (start > size || ci.message_index_length > size - start) {
-      return fail_chunk(ci.chunk_start_offset, {StatusCode::InvalidRecord,
-                                                fmt::format("{}: [{}, +{}) lies outside the file of {} bytes", w,
-                                                            start, ci.message_index_length, size)});
+      return fail_chunk(ci.chunk_start_offset,
+                        {StatusCode::InvalidRecord, fmt::format("{}: [{}, +{}) lies outside the file of {} bytes", w,
+                                                                start, ci.message_index_length, size)});
     }
     index_.resize(static_cast<std::size_t>(ci.message_index_length));
     if (Status s = src_.read(start, index_); !s.ok()) return fail_chunk(ci.chunk_start_offset, s);
     for (const auto& [id, off] : ci.message_index_offsets) {
       if (wanted_.count(id) == 0) continue;
       if (off < start || off - start > index_.size() || index_.size() - (off - start) < kRecordPrefix) {
-        return fail_chunk(ci.chunk_start_offset, {StatusCode::InvalidRecord,
-                                                  fmt::format("{}: channel {}'s index offset {} is outside them", w,
-                                                              id, off)});
+        return fail_chunk(
+            ci.chunk_start_offset,
+            {StatusCode::InvalidRecord, fmt::format("{}: channel {}'s index offset {} is outside them", w, id, off)});
       }
       const std::size_t rel = static_cast<std::size_t>(off - start);
       std::uint64_t len;
@@ -281,8 +282,8 @@ class IndexedCursor final : public MessageCursor {
     std::uint64_t len;
     std::memcpy(&len, buf.data() + e.offset + 1, 8);
     if (len > buf.size() - e.offset - kRecordPrefix) {
-      return fail_chunk(file_offset, {StatusCode::InvalidRecord,
-                                      fmt::format("{}: claims {} bytes, past the chunk's end", w(), len)});
+      return fail_chunk(
+          file_offset, {StatusCode::InvalidRecord, fmt::format("{}: claims {} bytes, past the chunk's end", w(), len)});
     }
     Message m;
     if (Status s = wire::parse_lazy(std::span(buf).subspan(e.offset + kRecordPrefix, len), m, w); !s.ok())
@@ -434,9 +435,7 @@ Status Reader::summary_record(std::uint8_t op, std::span<const std::uint8_t> con
       summary_.channels[c.id] = std::move(c);
       return {};
     }
-    case Opcode::Statistics:
-      have_stats = true;
-      return parse(content, summary_.statistics, w);
+    case Opcode::Statistics: have_stats = true; return parse(content, summary_.statistics, w);
     case Opcode::ChunkIndex: {
       ChunkIndex ci;
       if (Status st = parse(content, ci, w); !st.ok()) return st;
@@ -462,8 +461,7 @@ Status Reader::summary_record(std::uint8_t op, std::span<const std::uint8_t> con
       summary_.metadata_indexes.push_back(std::move(mi));
       return {};
     }
-    default:
-      return {};  // unknown or unexpected records in the summary are skipped
+    default: return {};  // unknown or unexpected records in the summary are skipped
   }
 }
 
@@ -490,9 +488,8 @@ Status Reader::open_summary(std::uint64_t footer_offset, const Footer& footer) {
   if (options_.validate_crcs && footer.summary_crc != 0) {
     const std::uint32_t got = crc32(std::span(buf).first(buf.size() - 4));
     if (got != footer.summary_crc) {
-      return {StatusCode::CrcMismatch,
-              fmt::format("{}: summary section at byte {}: CRC 0x{:08x} != stored 0x{:08x}", name,
-                          footer.summary_start, got, footer.summary_crc)};
+      return {StatusCode::CrcMismatch, fmt::format("{}: summary section at byte {}: CRC 0x{:08x} != stored 0x{:08x}",
+                                                   name, footer.summary_start, got, footer.summary_crc)};
     }
   }
   const std::uint64_t end =
@@ -547,14 +544,9 @@ Status Reader::scan() {
         ++s.statistics.chunk_count;
         ++s.chunks_by_compression[r.chunk->compression];
         break;
-      case LinearRecord::Kind::Attachment:
-        ++s.statistics.attachment_count;
-        break;
-      case LinearRecord::Kind::Metadata:
-        ++s.statistics.metadata_count;
-        break;
-      default:
-        break;
+      case LinearRecord::Kind::Attachment: ++s.statistics.attachment_count; break;
+      case LinearRecord::Kind::Metadata: ++s.statistics.metadata_count; break;
+      default: break;
     }
   }
   s.schemas = lr.schemas();
@@ -591,8 +583,8 @@ Status Reader::read_attachment(const AttachmentIndex& index, std::vector<std::ui
   const std::string w = where(index.offset, "Attachment record");
   if (index.offset > size || index.length > size - index.offset || index.length < kRecordPrefix ||
       index.length > options_.max_record_bytes) {
-    return {StatusCode::InvalidRecord, fmt::format("{}: index gives a length of {} in a file of {} bytes", w,
-                                                   index.length, size)};
+    return {StatusCode::InvalidRecord,
+            fmt::format("{}: index gives a length of {} in a file of {} bytes", w, index.length, size)};
   }
   data.resize(static_cast<std::size_t>(index.length));
   if (Status s = source_->read(index.offset, data); !s.ok()) return s;
@@ -616,8 +608,8 @@ Status Reader::read_metadata(const MetadataIndex& index, Metadata& out) {
   const std::string w = where(index.offset, "Metadata record");
   if (index.offset > size || index.length > size - index.offset || index.length < kRecordPrefix ||
       index.length > options_.max_record_bytes) {
-    return {StatusCode::InvalidRecord, fmt::format("{}: index gives a length of {} in a file of {} bytes", w,
-                                                   index.length, size)};
+    return {StatusCode::InvalidRecord,
+            fmt::format("{}: index gives a length of {} in a file of {} bytes", w, index.length, size)};
   }
   std::vector<std::uint8_t> data(static_cast<std::size_t>(index.length));
   if (Status s = source_->read(index.offset, data); !s.ok()) return s;
@@ -650,8 +642,8 @@ Status Reader::verify() {
   if (has_summary_) {
     const Statistics& st = summary_.statistics;
     if (st.message_count != 0 && st.message_count != messages) {
-      return {StatusCode::InvalidRecord, fmt::format("{}: statistics count {} messages, the data holds {}", name,
-                                                     st.message_count, messages)};
+      return {StatusCode::InvalidRecord,
+              fmt::format("{}: statistics count {} messages, the data holds {}", name, st.message_count, messages)};
     }
     for (const auto& [id, n] : st.channel_message_counts) {
       if (counts[id] != n) {
@@ -661,8 +653,8 @@ Status Reader::verify() {
       }
     }
     if (!summary_.chunk_indexes.empty() && summary_.chunk_indexes.size() != chunks) {
-      return {StatusCode::InvalidRecord, fmt::format("{}: {} chunk indexes for {} chunks", name,
-                                                     summary_.chunk_indexes.size(), chunks)};
+      return {StatusCode::InvalidRecord,
+              fmt::format("{}: {} chunk indexes for {} chunks", name, summary_.chunk_indexes.size(), chunks)};
     }
   }
   return {};

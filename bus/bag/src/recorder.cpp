@@ -26,7 +26,8 @@ ros2::QosProfile to_profile(const bus::QoS& q) {
   p.history = ros2::QosProfile::History::KeepLast;
   p.depth = q.depth;
   p.reliability = q.best_effort ? ros2::QosProfile::Reliability::BestEffort : ros2::QosProfile::Reliability::Reliable;
-  p.durability = q.transient_local ? ros2::QosProfile::Durability::TransientLocal : ros2::QosProfile::Durability::Volatile;
+  p.durability =
+      q.transient_local ? ros2::QosProfile::Durability::TransientLocal : ros2::QosProfile::Durability::Volatile;
   return p;
 }
 
@@ -111,11 +112,9 @@ void Recorder::subscribe(const std::shared_ptr<bus::Topic>& topic) {
     t = topics_.back().get();
     t->name = name;
   }
-  auto sub = create_generic_subscription(
-      name, topic->type(), bus::QoS::reliable(opts_.queue_depth),
-      [this, t](const std::shared_ptr<const void>& m, const msg::TypeSupport& type, const bus::MessageInfo& info) {
-        on_message(*t, m, type, info);
-      });
+  auto sub = create_generic_subscription(name, topic->type(), bus::QoS::reliable(opts_.queue_depth),
+                                         [this, t](const std::shared_ptr<const void>& m, const msg::TypeSupport& type,
+                                                   const bus::MessageInfo& info) { on_message(*t, m, type, info); });
   std::lock_guard lk(mu_);
   t->sub = std::move(sub);
 }
@@ -182,9 +181,9 @@ Status Recorder::stop() {
   stopped_ = true;
   if (!recording_.load()) return final_;
   context().graph().remove_on_topic(listener_);
-  drain();                    // what the queues hold was accepted: record it
-  recording_.store(false);    // callbacks from here on are counted as dropped
-  cancel_subscriptions();     // and so is what is still queued
+  drain();                  // what the queues hold was accepted: record it
+  recording_.store(false);  // callbacks from here on are counted as dropped
+  cancel_subscriptions();   // and so is what is still queued
   final_ = writer_.close("tinyline_recorder", [this](const AsyncWriterStats& ws) { return metadata(ws); });
   report(final_);
   return final_;
@@ -203,8 +202,8 @@ KeyValueMap Recorder::metadata(const AsyncWriterStats& ws) const {
 void Recorder::report(const Status& final_status) const {
   const RecorderStats st = stats();
   if (!final_status.ok()) {
-    logger().error("recording to {} failed: {}; what was recorded is in {}.part (tinyline bag recover)",
-                   writer_.name(), final_status.str(), writer_.name());
+    logger().error("recording to {} failed: {}; what was recorded is in {}.part (tinyline bag recover)", writer_.name(),
+                   final_status.str(), writer_.name());
   } else if (st.dropped != 0) {
     logger().error("recorded {} messages to {}; {} dropped ({}), {} of them when a publisher found the queue full",
                    st.written, writer_.name(), st.dropped, join_counts(st.dropped_by_topic), st.subscription_timeouts);

@@ -53,15 +53,16 @@ bool fits_cdr(const Schema& s) { return s.encoding == "ros2msg" || s.encoding ==
 
 bool is_name(std::string_view s) {
   if (s.empty() || !std::isalpha(static_cast<unsigned char>(s[0]))) return false;
-  return std::all_of(s.begin(), s.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+  return std::all_of(s.begin(), s.end(),
+                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
 }
 
 // A field type: a primitive, or a message type (Type, pkg/Type, pkg/msg/Type),
 // with an optional string bound (<=N) and array suffix ([], [N], [<=N]).
 bool is_field_type(std::string_view t) {
-  static const std::set<std::string_view> primitives = {
-      "bool",  "byte",   "char",   "float32", "float64", "int8",   "uint8",  "int16",
-      "uint16", "int32", "uint32", "int64",   "uint64",  "string", "wstring"};
+  static const std::set<std::string_view> primitives = {"bool",   "byte",  "char",   "float32", "float64",
+                                                        "int8",   "uint8", "int16",  "uint16",  "int32",
+                                                        "uint32", "int64", "uint64", "string",  "wstring"};
   if (const auto bracket = t.find('['); bracket != std::string_view::npos) {
     if (t.back() != ']') return false;
     t = t.substr(0, bracket);
@@ -72,7 +73,8 @@ bool is_field_type(std::string_view t) {
   std::size_t start = 0;
   while (true) {
     const std::size_t slash = t.find('/', start);
-    const std::string_view part = t.substr(start, slash == std::string_view::npos ? std::string_view::npos : slash - start);
+    const std::string_view part =
+        t.substr(start, slash == std::string_view::npos ? std::string_view::npos : slash - start);
     if (!is_name(part)) return false;
     if (slash == std::string_view::npos) return std::isupper(static_cast<unsigned char>(part[0])) != 0;
     if (std::any_of(part.begin(), part.end(), [](char c) { return std::isupper(static_cast<unsigned char>(c)); })) {
@@ -108,7 +110,8 @@ std::string_view strip_line(std::string_view line) {
 bool fits_rosidl(std::string_view name, bool constant) {
   return is_name(name) && std::all_of(name.begin(), name.end(), [constant](char c) {
            return std::isdigit(static_cast<unsigned char>(c)) || c == '_' ||
-                  (constant ? std::isupper(static_cast<unsigned char>(c)) : std::islower(static_cast<unsigned char>(c)));
+                  (constant ? std::isupper(static_cast<unsigned char>(c))
+                            : std::islower(static_cast<unsigned char>(c)));
          });
 }
 
@@ -164,7 +167,8 @@ std::optional<std::string> missing_definition(const std::vector<std::string_view
 std::optional<std::string> ros2msg_damage(std::string_view text, std::string_view name) {
   if (!valid_utf8(text)) return "its text is not UTF-8";
   for (const char c : text) {
-    if (static_cast<unsigned char>(c) < 0x20 && c != '\n' && c != '\t' && c != '\r') return "its text has control characters";
+    if (static_cast<unsigned char>(c) < 0x20 && c != '\n' && c != '\t' && c != '\r')
+      return "its text has control characters";
   }
   const auto lines = lines_of(text);
   for (const auto l : lines) {
@@ -189,7 +193,8 @@ std::optional<std::string> damage_in(const Schema& s) {
 }
 
 std::optional<std::string> damage_in(const Channel& c) {
-  if (!is_identifier(c.message_encoding)) return "its message encoding '" + c.message_encoding + "' is no encoding name";
+  if (!is_identifier(c.message_encoding))
+    return "its message encoding '" + c.message_encoding + "' is no encoding name";
   if (c.topic.empty() || !is_text(c.topic)) return "its topic is no text";
   if (is_ros2(c)) {
     try {
@@ -311,26 +316,14 @@ class Recovery {
 
   Status handle(const LinearRecord& r) {
     switch (r.kind) {
-      case LinearRecord::Kind::Schema:
-        (void)schema(*r.schema);
-        return {};
-      case LinearRecord::Kind::Channel:
-        (void)channel(*r.channel, r.offset);
-        return {};
-      case LinearRecord::Kind::Message:
-        return message(r);
-      case LinearRecord::Kind::ChunkBegin:
-        ++report_.chunks;
-        return {};
-      case LinearRecord::Kind::Attachment:
-        return attachment(r.attachment);
-      case LinearRecord::Kind::Metadata:
-        return metadata(*r.metadata, r.offset);
-      case LinearRecord::Kind::DataEnd:
-        report_.input_complete = true;
-        return {};
-      default:
-        return {};
+      case LinearRecord::Kind::Schema: (void)schema(*r.schema); return {};
+      case LinearRecord::Kind::Channel: (void)channel(*r.channel, r.offset); return {};
+      case LinearRecord::Kind::Message: return message(r);
+      case LinearRecord::Kind::ChunkBegin: ++report_.chunks; return {};
+      case LinearRecord::Kind::Attachment: return attachment(r.attachment);
+      case LinearRecord::Kind::Metadata: return metadata(*r.metadata, r.offset);
+      case LinearRecord::Kind::DataEnd: report_.input_complete = true; return {};
+      default: return {};
     }
   }
 
@@ -391,8 +384,8 @@ class Recovery {
     if (!why && c.schema_id != 0) {
       auto known = lr_.schemas().find(c.schema_id);
       if (known == lr_.schemas().end() && is_ros2(c)) {
-        why = fmt::format("its schema {} is nowhere in the file (cdr messages cannot be read without one)",
-                          in.schema_id);
+        why =
+            fmt::format("its schema {} is nowhere in the file (cdr messages cannot be read without one)", in.schema_id);
       } else if (known == lr_.schemas().end()) {
         c.schema_id = 0;  // its schema never made it: keep the messages, schemaless
       } else if (is_ros2(c) && !fits_cdr(known->second)) {
@@ -422,11 +415,11 @@ class Recovery {
         (r.message.log_time < summary_->statistics.message_start_time ||
          r.message.log_time > summary_->statistics.message_end_time)) {
       ++report_.messages_skipped;
-      note(r.offset, {StatusCode::InvalidRecord, fmt::format("{}: Message record at byte {}: log time {} is outside "
-                                                             "the file's [{}, {}]: not trusted",
-                                                             in_.name(), r.offset, r.message.log_time,
-                                                             summary_->statistics.message_start_time,
-                                                             summary_->statistics.message_end_time)});
+      note(r.offset, {StatusCode::InvalidRecord,
+                      fmt::format("{}: Message record at byte {}: log time {} is outside "
+                                  "the file's [{}, {}]: not trusted",
+                                  in_.name(), r.offset, r.message.log_time, summary_->statistics.message_start_time,
+                                  summary_->statistics.message_end_time)});
       return {};
     }
     const auto id = channel(*r.channel, r.offset);
@@ -443,8 +436,8 @@ class Recovery {
 
   Status attachment(const Attachment& a) {
     if (!is_text(a.name) || !is_text(a.media_type)) {
-      note(0, {StatusCode::InvalidRecord, fmt::format("{}: attachment refused: its name or media type is no text",
-                                                      in_.name())});
+      note(0, {StatusCode::InvalidRecord,
+               fmt::format("{}: attachment refused: its name or media type is no text", in_.name())});
       return {};
     }
     if (Status s = ensure_open(); !s.ok()) return s;
@@ -481,12 +474,12 @@ class Recovery {
   bool open_ = false;
   Header header_;
   std::optional<BagSummary> summary_;
-  std::set<std::uint64_t> chunks_read_;  // chunk offsets the linear pass read or tried
+  std::set<std::uint64_t> chunks_read_;         // chunk offsets the linear pass read or tried
   std::map<SchemaId, SchemaId> schema_ids_;     // input -> output
   std::map<ChannelId, ChannelId> channel_ids_;  // input -> output
   std::set<SchemaId> refused_schemas_;
   std::set<ChannelId> refused_channels_;
-  std::vector<ReadProblem> notes_;              // refusals, in the order met
+  std::vector<ReadProblem> notes_;  // refusals, in the order met
 };
 
 }  // namespace

@@ -41,7 +41,8 @@ int start_capture(bus::Graph& graph, bus::Node& capture, const ReplayOptions& op
 bool make_publishers(const Reader& reader, bus::Node& source, const ReplayOptions& options, Outs& outs,
                      std::vector<std::string>& topics, ReplayResult& result) {
   for (const auto& [id, ch] : reader.channels()) {
-    if (!options.topics.empty() && std::find(options.topics.begin(), options.topics.end(), ch.topic) == options.topics.end())
+    if (!options.topics.empty() &&
+        std::find(options.topics.begin(), options.topics.end(), ch.topic) == options.topics.end())
       continue;
     auto sc = reader.schemas().find(ch.schema_id);
     std::string why;
@@ -113,8 +114,8 @@ std::string ReplayResult::to_yaml() const {
   for (const auto& c : captured) {
     msg::YamlWriter y;
     c.type->to_yaml(c.message.get(), y);
-    out += "---\ntopic: " + msg::YamlWriter::quote(c.topic) + "\ntime_ns: " + std::to_string(c.time.ns) +
-           "\nmessage:\n";
+    out +=
+        "---\ntopic: " + msg::YamlWriter::quote(c.topic) + "\ntime_ns: " + std::to_string(c.time.ns) + "\nmessage:\n";
     std::string body = y.str();
     std::size_t start = 0;
     while (start < body.size()) {

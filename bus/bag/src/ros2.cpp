@@ -53,8 +53,8 @@ const msg::TypeSupport* type_support_for(const Schema* schema, const Channel& ch
   if (schema == nullptr) return no(fmt::format("topic {} has no schema", channel.topic));
   const msg::TypeSupport* ts = msg::find_type_support(schema->name);
   if (ts == nullptr) {
-    return no(fmt::format("topic {} has type {}, which this build of tinyline does not know", channel.topic,
-                          schema->name));
+    return no(
+        fmt::format("topic {} has type {}, which this build of tinyline does not know", channel.topic, schema->name));
   }
   return ts;
 }

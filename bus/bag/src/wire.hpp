@@ -124,9 +124,9 @@ class Cursor {
   bool need(std::uint64_t n, const char* field) {
     if (!ok()) return false;
     if (n > remaining()) {
-      status_ = Status(StatusCode::InvalidRecord,
-                       fmt::format("{}: field '{}' at content byte {} needs {} bytes, {} left", where_, field, pos_, n,
-                                   remaining()));
+      status_ =
+          Status(StatusCode::InvalidRecord, fmt::format("{}: field '{}' at content byte {} needs {} bytes, {} left",
+                                                        where_, field, pos_, n, remaining()));
       return false;
     }
     return true;

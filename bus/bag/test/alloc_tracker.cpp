@@ -11,8 +11,7 @@ std::atomic<bool> g_tracking{false};
 void note(std::size_t n) {
   if (!g_tracking.load(std::memory_order_relaxed)) return;
   std::size_t cur = g_largest.load(std::memory_order_relaxed);
-  while (n > cur && !g_largest.compare_exchange_weak(cur, n)) {
-  }
+  while (n > cur && !g_largest.compare_exchange_weak(cur, n)) {}
 }
 
 void* allocate(std::size_t n) {

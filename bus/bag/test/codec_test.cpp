@@ -47,7 +47,8 @@ TEST(Crc32, TheFastPathAgreesWithTheTablesAtEveryLengthAndAlignment) {
       ASSERT_EQ(crc32(s, 0xDEADBEEF), crc32_portable(s, 0xDEADBEEF)) << "offset " << offset << " length " << n;
     }
   }
-  for (std::size_t n : {1000UL, 4096UL, 4999UL, 5000UL}) EXPECT_EQ(crc32(std::span(data).first(n)), crc32_portable(std::span(data).first(n)));
+  for (std::size_t n : {1000UL, 4096UL, 4999UL, 5000UL})
+    EXPECT_EQ(crc32(std::span(data).first(n)), crc32_portable(std::span(data).first(n)));
   EXPECT_EQ(crc32(bytes_of(std::string(100, 'a'))), crc32_portable(bytes_of(std::string(100, 'a'))));
 }
 
@@ -93,8 +94,8 @@ TEST_P(CompressionRoundTrip, RefusesAWrongDeclaredSize) {
   EXPECT_EQ(s.code, StatusCode::LimitExceeded);
 }
 
-INSTANTIATE_TEST_SUITE_P(All, CompressionRoundTrip, ::testing::Values(Compression::None, Compression::Lz4,
-                                                                     Compression::Zstd),
+INSTANTIATE_TEST_SUITE_P(All, CompressionRoundTrip,
+                         ::testing::Values(Compression::None, Compression::Lz4, Compression::Zstd),
                          [](const auto& info) { return std::string(to_string(info.param)); });
 
 TEST(Compression, CorruptStreamsAreErrorsNotCrashes) {
@@ -331,7 +332,8 @@ TEST(Writer, LargeMessagesGetChunksOfTheirOwnStoredWhenIncompressible) {
       const bool large = i % 4 == 0;
       Bytes b(large ? 100000 : 300);
       const bool noisy = i < 20;
-      for (auto& x : b) x = large && noisy ? static_cast<std::uint8_t>(rng()) : static_cast<std::uint8_t>(large ? 0 : i);
+      for (auto& x : b)
+        x = large && noisy ? static_cast<std::uint8_t>(rng()) : static_cast<std::uint8_t>(large ? 0 : i);
       payloads.push_back(b);
       channel_of.push_back(large ? big.id : small.id);
       Message m;

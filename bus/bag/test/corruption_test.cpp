@@ -221,8 +221,7 @@ TEST(Corruption, BadMagicIsRefusedWithAReason) {
   // Too short to be anything.
   for (std::size_t len : {0, 3, 8, 12}) {
     Reader r3;
-    EXPECT_FALSE(r3.open(std::make_unique<MemoryReadable>(Bytes(f.begin(), f.begin() + static_cast<long>(len))))
-                     .ok());
+    EXPECT_FALSE(r3.open(std::make_unique<MemoryReadable>(Bytes(f.begin(), f.begin() + static_cast<long>(len)))).ok());
   }
 }
 
@@ -256,8 +255,7 @@ TEST(Corruption, AWrongChunkCrcNamesTheChunkAndCanBeSkipped) {
   int n = 0;
   Status s = r.for_each({}, [&](const MessageView&) { return ++n; });
   EXPECT_EQ(s.code, StatusCode::CrcMismatch);
-  EXPECT_NE(s.message.find("crc.mcap: Chunk record at byte " + std::to_string(second)), std::string::npos)
-      << s.message;
+  EXPECT_NE(s.message.find("crc.mcap: Chunk record at byte " + std::to_string(second)), std::string::npos) << s.message;
   EXPECT_GT(n, 0);  // the first chunk was delivered before the error
 
   ReadOptions skip;
@@ -332,11 +330,9 @@ TEST(Corruption, ARecordLengthPastTheEndIsAnErrorNotAnAllocation) {
       MemoryReadable src(g, "long.mcap");
       LinearReader lr(src);
       LinearRecord rec;
-      while (lr.next(rec)) {
-      }
+      while (lr.next(rec)) {}
       EXPECT_EQ(lr.status().code, StatusCode::Truncated) << opcode_name(static_cast<std::uint8_t>(op));
-      EXPECT_NE(lr.status().message.find("at byte " + std::to_string(at)), std::string::npos)
-          << lr.status().message;
+      EXPECT_NE(lr.status().message.find("at byte " + std::to_string(at)), std::string::npos) << lr.status().message;
       (void)exercise(g);
       EXPECT_LT(t.largest(), std::size_t{2} << 20);
     }
@@ -355,8 +351,7 @@ TEST(Corruption, ADeclaredChunkSizeCannotForceAHugeAllocation) {
   MemoryReadable src(f);
   LinearReader lr(src);
   LinearRecord rec;
-  while (lr.next(rec)) {
-  }
+  while (lr.next(rec)) {}
   EXPECT_EQ(lr.status().code, StatusCode::LimitExceeded) << lr.status().str();
 }
 
@@ -392,8 +387,7 @@ TEST(Corruption, UnknownChannelInAMessageIsAnErrorOrSkippedInRecovery) {
   MemoryReadable src(f);
   LinearReader strict(src);
   LinearRecord rec;
-  while (strict.next(rec)) {
-  }
+  while (strict.next(rec)) {}
   EXPECT_EQ(strict.status().code, StatusCode::InvalidRecord);
   EXPECT_NE(strict.status().message.find("channel 77"), std::string::npos) << strict.status().message;
   RecoverReport rep;

@@ -15,7 +15,9 @@ namespace cli = tinyline::cli;
 int main(int argc, char** argv) {
   using namespace tinyline::bag;
   std::string dir;
-  cli::App app{"Writes the sample bag of the command-line tests (DIR/sample.mcap) and a copy cut mid-chunk (DIR/cut.mcap).", "bag_make_sample"};
+  cli::App app{
+      "Writes the sample bag of the command-line tests (DIR/sample.mcap) and a copy cut mid-chunk (DIR/cut.mcap).",
+      "bag_make_sample"};
   app.add_option("DIR", dir, "directory to write into")->required();
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   ros2::Ros2Writer w;

@@ -127,7 +127,7 @@ TEST(Recorder, ABurstAtTenTimesTheSensorRateFor10sIsRecordedCompletely) {
   exec.add_node(recorder);
   exec.add_node(sensor);
   const bus::Time t0 = bus::Time::from_seconds(1.0);
-  exec.advance_to(t0);                          // sim time starts; timers count from here
+  exec.advance_to(t0);                             // sim time starts; timers count from here
   exec.advance_to(t0 + std::chrono::seconds(10));  // 10 s at 1000 Hz + 360 Hz
   ASSERT_EQ(sensor->n_scan_, 10000U);
   ASSERT_EQ(sensor->n_raw_, 3600U);
@@ -202,7 +202,7 @@ TEST(Recorder, AQueueThatWouldOverflowIsReportedNeverASilentLoss) {
   exec.add_node(recorder);
   exec.add_node(pub_node);
   exec.advance_to(bus::Time::from_seconds(1));
-  gate->set_open(false);  // the disk stalls
+  gate->set_open(false);                // the disk stalls
   constexpr std::uint32_t kSent = 600;  // ~6 KB each: 3.6 MB against a 1 MiB queue
   for (std::uint32_t i = 0; i < kSent; ++i) {
     EXPECT_TRUE(pub->publish(line_scan(i)).ok());  // the publisher is never refused or blocked
@@ -294,7 +294,7 @@ TEST(Recorder, TakesItsSettingsFromItsParameterTableInTheTablesUnits) {
                    .param("topics", std::vector<std::string>{"demo/raw"}));
   const RecorderOptions& o = rec.options();
   EXPECT_EQ(o.writer.writer.chunk_size_bytes, 2u * 1024u);  // set in KiB, held in bytes
-  EXPECT_EQ(o.writer.max_queue_bytes, 3u << 20);             // set in MiB
+  EXPECT_EQ(o.writer.max_queue_bytes, 3u << 20);            // set in MiB
   EXPECT_EQ(o.queue_depth, 7u);
   EXPECT_EQ(o.writer.writer.compression, Compression::None);
   EXPECT_DOUBLE_EQ(o.writer.flush_interval_s, 0.25);
@@ -443,8 +443,8 @@ TEST(Replay, TimersFireOnSimTimeFromTheFirstMessageWithExactCounts) {
   EXPECT_EQ(echoes.front()->data.rfind("scan 0 #1 at ", 0), 0U) << echoes.front()->data;
   EXPECT_EQ(echoes.back()->data.rfind("scan 99 #100 at ", 0), 0U) << echoes.back()->data;
   // Ticks every 250 ms of sim time from the first message, none after the last.
-  const auto ticks = std::count_if(out.captured.begin(), out.captured.end(),
-                                   [](const Captured& c) { return c.topic == "/tick"; });
+  const auto ticks =
+      std::count_if(out.captured.begin(), out.captured.end(), [](const Captured& c) { return c.topic == "/tick"; });
   const bus::Time first = out.captured.front().time;  // the first echo, at the first message
   const std::int64_t span = static_cast<std::int64_t>(last) - first.ns;
   EXPECT_EQ(ticks, span / 250'000'000);

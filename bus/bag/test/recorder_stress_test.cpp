@@ -40,7 +40,8 @@ std::map<std::string, std::uint64_t> parse_counts(const std::string& s) {
   while (at < s.size()) {
     const std::size_t colon = s.find(": ", at);
     const std::size_t comma = s.find(", ", colon);
-    out[s.substr(at, colon - at)] = std::stoull(s.substr(colon + 2, comma == std::string::npos ? comma : comma - colon - 2));
+    out[s.substr(at, colon - at)] =
+        std::stoull(s.substr(colon + 2, comma == std::string::npos ? comma : comma - colon - 2));
     if (comma == std::string::npos) break;
     at = comma + 2;
   }
@@ -51,7 +52,7 @@ struct Outcome {
   std::map<std::string, std::uint64_t> published;
   std::map<std::string, std::uint64_t> in_bag;
   std::map<std::string, std::uint64_t> dropped;  // from the bag's metadata
-  std::uint64_t bad_messages = 0;                 // torn, duplicated or out of order
+  std::uint64_t bad_messages = 0;                // torn, duplicated or out of order
   RecorderStats stats;
   Status status;
 };
@@ -117,7 +118,8 @@ Outcome run_overload(std::size_t queue_depth, int threads) {
     }
     const std::size_t c1 = m.data.find(':');
     const std::size_t c2 = m.data.find(':', c1 + 1);
-    if (c1 == std::string::npos || c2 == std::string::npos || m.data.compare(0, v.channel->topic.size(), v.channel->topic) != 0) {
+    if (c1 == std::string::npos || c2 == std::string::npos ||
+        m.data.compare(0, v.channel->topic.size(), v.channel->topic) != 0) {
       ++out.bad_messages;
       return true;
     }

@@ -97,8 +97,10 @@ TEST(Recover, ADamagedSchemaOrChannelLengthStillRecoversEveryMessageTheSummaryKn
   ASSERT_GE(recs.size(), 4U);  // header, schema, channel, channel
   int checked = 0;
   for (const auto& r : recs) {
-    if (r.op != static_cast<std::uint8_t>(Opcode::Schema) && r.op != static_cast<std::uint8_t>(Opcode::Channel)) continue;
-    for (const std::uint64_t bad : {std::uint64_t{0}, r.length - 1, r.length + 1, r.length + 100, std::uint64_t{1} << 40}) {
+    if (r.op != static_cast<std::uint8_t>(Opcode::Schema) && r.op != static_cast<std::uint8_t>(Opcode::Channel))
+      continue;
+    for (const std::uint64_t bad :
+         {std::uint64_t{0}, r.length - 1, r.length + 1, r.length + 100, std::uint64_t{1} << 40}) {
       SCOPED_TRACE(opcode_name(r.op) + " at " + std::to_string(r.offset) + " length " + std::to_string(bad));
       Bytes f = good;
       std::memcpy(f.data() + r.offset + 1, &bad, 8);
@@ -177,7 +179,8 @@ TEST(Recover, WithoutASummaryASchemaNameWithACapitalisedPackageIsRefused) {
   for (const auto& r : leading_records(good)) {
     if (r.op != static_cast<std::uint8_t>(Opcode::Schema)) continue;
     const auto* begin = good.data() + r.offset;
-    name_at = static_cast<std::size_t>(std::search(begin, begin + 9 + r.length, "std_msgs/", "std_msgs/" + 9) - good.data());
+    name_at =
+        static_cast<std::size_t>(std::search(begin, begin + 9 + r.length, "std_msgs/", "std_msgs/" + 9) - good.data());
     break;
   }
   ASSERT_NE(name_at, 0U);

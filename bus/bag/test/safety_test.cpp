@@ -164,7 +164,6 @@ TEST(BagFiles, TwoRecordersOnOnePathTheSecondFailsWithAClearError) {
   EXPECT_TRUE(r.verify().ok()) << r.verify().str();
 }
 
-
 TEST(BagFiles, ARecorderGivenARelativeTopicRecordsItLikeRos) {
   // `tinyline bag record -o x.mcap demo/raw` used to record nothing: the
   // name was compared with "/demo/raw" as given.

@@ -259,7 +259,8 @@ inline std::string yaml_doc(const std::string& topic, const msg::TypeSupport& ty
 
 inline void write_expected(const std::string& path, const std::vector<SampleMessage>& samples) {
   std::ofstream f(path);
-  for (const auto& s : samples) f << yaml_doc(s.topic, *s.type, s.message.get(), s.log_time, s.publish_time, s.sequence);
+  for (const auto& s : samples)
+    f << yaml_doc(s.topic, *s.type, s.message.get(), s.log_time, s.publish_time, s.sequence);
 }
 
 }  // namespace tinyline::bag::testing

@@ -103,14 +103,13 @@ struct Bridge::Link {
   // that finds it busy leaves `pending` for the holder to look again.
   std::mutex deliver_mu;
   std::atomic<bool> pending{false};
-  std::atomic<bool> handed_over{false};  // the back-pressure thread delivers until the reader is empty
-  EndpointQos wq, rq;  // written under sync_mu_ and peers_mu; stats() reads them under peers_mu
-  std::shared_ptr<bus::Topic> local;            // the local topic
-  int tap = 0;                                  // local -> DDS, on the publishers' threads
-  std::shared_ptr<bus::GenericPublisher> in;    // DDS -> local
+  std::atomic<bool> handed_over{false};       // the back-pressure thread delivers until the reader is empty
+  EndpointQos wq, rq;                         // written under sync_mu_ and peers_mu; stats() reads them under peers_mu
+  std::shared_ptr<bus::Topic> local;          // the local topic
+  int tap = 0;                                // local -> DDS, on the publishers' threads
+  std::shared_ptr<bus::GenericPublisher> in;  // DDS -> local
   std::atomic<std::size_t> remote_readers{0}, remote_writers{0};
-  std::atomic<std::uint64_t> sent{0}, unmatched{0}, received{0}, decode_errors{0}, write_errors{0},
-      incompatible{0};
+  std::atomic<std::uint64_t> sent{0}, unmatched{0}, received{0}, decode_errors{0}, write_errors{0}, incompatible{0};
   std::atomic<std::size_t> last_size{64};  // serialization buffer guess
   std::mutex peers_mu;
   std::map<dds_instance_handle_t, Identity> readers_seen, writers_seen;
@@ -174,9 +173,10 @@ void update_peers(Bridge::Link& l, dds_entity_t entity, std::uint32_t status_cou
   const char* what = kWriter ? "subscriber" : "publisher";
   for (const auto& j : joined) log.info("{}: remote {} in {} connected", l.name, what, j);
   for (const auto& m : mismatched) {
-    log.warn("{}: the remote {} in {}: the two definitions differ (REP 2011 type hashes), so its messages may not "
-             "decode",
-             l.name, what, m);
+    log.warn(
+        "{}: the remote {} in {}: the two definitions differ (REP 2011 type hashes), so its messages may not "
+        "decode",
+        l.name, what, m);
   }
   for (const auto& g : left) {
     if (departures_expected) {

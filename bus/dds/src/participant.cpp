@@ -20,9 +20,7 @@ namespace tinyline::dds {
 
 namespace detail {
 
-void fail(const std::string& what, dds_return_t rc) {
-  throw DdsError(fmt::format("{}: {}", what, dds_strretcode(rc)));
-}
+void fail(const std::string& what, dds_return_t rc) { throw DdsError(fmt::format("{}: {}", what, dds_strretcode(rc))); }
 
 void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who, const msg::TypeSupport* type) {
   dds_qset_reliability(out.q, q.reliable ? DDS_RELIABILITY_RELIABLE : DDS_RELIABILITY_BEST_EFFORT,
@@ -117,9 +115,7 @@ std::string Identity::describe() const {
   return fmt::format("process '{}' (pid {} on {})", process, pid, host);
 }
 
-std::string Identity::to_user_data() const {
-  return fmt::format("process={};pid={};host={};", process, pid, host);
-}
+std::string Identity::to_user_data() const { return fmt::format("process={};pid={};host={};", process, pid, host); }
 
 Identity Identity::parse(std::string_view ud) {
   Identity id;
@@ -175,8 +171,8 @@ std::string host_name() {
 Participant::Participant(Settings settings) : settings_(std::move(settings)) {
   check_domain_id(settings_.domain_id, "Settings.domain_id");
   const std::string config = settings_.effective_config();
-  identity_.process = settings_.process_name.empty() ? std::string(program_invocation_short_name)
-                                                     : settings_.process_name;
+  identity_.process =
+      settings_.process_name.empty() ? std::string(program_invocation_short_name) : settings_.process_name;
   identity_.pid = static_cast<long>(getpid());
   identity_.host = host_name();
   {
@@ -192,8 +188,8 @@ Participant::Participant(Settings settings) : settings_(std::move(settings)) {
       }
       it = g_domains.emplace(settings_.domain_id, DomainUse{d < 0 ? 0 : d, config, 0}).first;
     } else if (it->second.config != config) {
-      throw DdsError(fmt::format("DDS domain {} already runs in this process with another configuration",
-                                 settings_.domain_id));
+      throw DdsError(
+          fmt::format("DDS domain {} already runs in this process with another configuration", settings_.domain_id));
     }
     ++it->second.users;
   }
@@ -454,9 +450,9 @@ std::vector<DiscoveredEndpoint> Discovery::wait_for(
     const auto left = deadline - SC::now();
     if (left <= SC::duration::zero()) break;
     // Bounded so endpoints that vanish (no new sample to trigger on) are noticed.
-    dds_waitset_wait(ws, nullptr, 0,
-                     std::min<std::int64_t>(DDS_MSECS(200),
-                                            std::chrono::duration_cast<std::chrono::nanoseconds>(left).count()));
+    dds_waitset_wait(
+        ws, nullptr, 0,
+        std::min<std::int64_t>(DDS_MSECS(200), std::chrono::duration_cast<std::chrono::nanoseconds>(left).count()));
     snap = snapshot();
   }
   dds_delete(c1);

@@ -44,9 +44,8 @@ Marks& g() {
 }  // namespace
 
 void mark(Stage s) {
-  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                      std::chrono::steady_clock::now().time_since_epoch())
-                      .count();
+  const auto ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
   auto& m = g();
   const auto i = static_cast<std::size_t>(s);
   const std::size_t k = m.next[i].fetch_add(1, std::memory_order_relaxed);

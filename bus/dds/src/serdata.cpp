@@ -19,12 +19,12 @@ extern "C" void __tsan_release(void* addr);
 // of ours that shares data between our threads. Every binary linking
 // tinyline::dds under TSan gets these (TSan asks for them at start).
 extern "C" const char* __tsan_default_suppressions() {
-  return "race:ddsrt_recvmsg\n"     // receive buffers reused by Cyclone
-         "race:ddsrt_sendmsg\n"     // transmit buffers freed by Cyclone's gc thread
+  return "race:ddsrt_recvmsg\n"  // receive buffers reused by Cyclone
+         "race:ddsrt_sendmsg\n"  // transmit buffers freed by Cyclone's gc thread
          "race:ddsrt_mutex_destroy\n"
          "race:ddsrt_mutex_lock\n"  // mutexes in memory Cyclone published with its atomics
          "race:sd_free\n"           // a sample freed on Cyclone's last unref
-         "race_top:^strcmp$\n";     // Cyclone's gc frees a name another Cyclone thread compares (frames without symbols)
+         "race_top:^strcmp$\n";  // Cyclone's gc frees a name another Cyclone thread compares (frames without symbols)
 }
 #endif
 

@@ -61,8 +61,8 @@ std::optional<DiscoveryRange> read_range(std::vector<std::string>& notes) {
   if (v == "LOCALHOST") return DiscoveryRange::Localhost;
   if (v == "SUBNET") return DiscoveryRange::Subnet;
   if (v == "SYSTEM_DEFAULT") return DiscoveryRange::SystemDefault;
-  notes.push_back(fmt::format("Invalid value '{}' specified for 'ROS_AUTOMATIC_DISCOVERY_RANGE', assuming localhost only",
-                              v));
+  notes.push_back(
+      fmt::format("Invalid value '{}' specified for 'ROS_AUTOMATIC_DISCOVERY_RANGE', assuming localhost only", v));
   return DiscoveryRange::Localhost;
 }
 
@@ -76,7 +76,8 @@ std::vector<std::string> read_static_peers(std::vector<std::string>& notes) {
     const std::size_t end = std::min(v.find(';', start), v.size());
     const std::string p = v.substr(start, end - start);
     if (p.size() > 255) {
-      notes.push_back(fmt::format("Static peer {} specified to 'ROS_STATIC_PEERS' is too long (maximum of 255); skipping", p));
+      notes.push_back(
+          fmt::format("Static peer {} specified to 'ROS_STATIC_PEERS' is too long (maximum of 255); skipping", p));
     } else if (!p.empty()) {
       peers.push_back(p);
     }
@@ -111,11 +112,13 @@ Settings Settings::from_environment() {
   // other non-empty value hands over to the two newer variables.
   const std::string localhost_only = env("ROS_LOCALHOST_ONLY");
   if (!localhost_only.empty()) {
-    s.notes.emplace_back("ROS_LOCALHOST_ONLY is deprecated but still honored if it is enabled. "
-                         "Use ROS_AUTOMATIC_DISCOVERY_RANGE and ROS_STATIC_PEERS instead.");
+    s.notes.emplace_back(
+        "ROS_LOCALHOST_ONLY is deprecated but still honored if it is enabled. "
+        "Use ROS_AUTOMATIC_DISCOVERY_RANGE and ROS_STATIC_PEERS instead.");
   }
   if (localhost_only == "1") {
-    s.notes.emplace_back("'localhost_only' is enabled, 'automatic_discovery_range' and 'static_peers' will be ignored.");
+    s.notes.emplace_back(
+        "'localhost_only' is enabled, 'automatic_discovery_range' and 'static_peers' will be ignored.");
     s.range = DiscoveryRange::Localhost;
     return s;
   }
@@ -125,16 +128,18 @@ Settings Settings::from_environment() {
   s.range = read_range(s.notes);
   if (s.range == DiscoveryRange::Off) {
     if (!env("ROS_STATIC_PEERS").empty()) {
-      s.notes.emplace_back("Note: ROS_AUTOMATIC_DISCOVERY_RANGE is set to OFF, but found static peers in "
-                           "ROS_STATIC_PEERS. ROS_STATIC_PEERS will be ignored.");
+      s.notes.emplace_back(
+          "Note: ROS_AUTOMATIC_DISCOVERY_RANGE is set to OFF, but found static peers in "
+          "ROS_STATIC_PEERS. ROS_STATIC_PEERS will be ignored.");
     }
     return s;
   }
   s.static_peers = read_static_peers(s.notes);
   if (s.range == DiscoveryRange::SystemDefault && !s.static_peers.empty()) {
-    s.notes.push_back(fmt::format("{} static peers were specified, but discovery is set to use the DDS default "
-                                  "(SYSTEM_DEFAULT), so these static peers will be ignored.",
-                                  s.static_peers.size()));
+    s.notes.push_back(
+        fmt::format("{} static peers were specified, but discovery is set to use the DDS default "
+                    "(SYSTEM_DEFAULT), so these static peers will be ignored.",
+                    s.static_peers.size()));
   }
   return s;
 }
@@ -155,22 +160,25 @@ std::string discovery_config(DiscoveryRange range, const std::vector<std::string
     case DiscoveryRange::Off:
       // A tag no other process has: nothing can join (rmw_cyclonedds' way);
       // no participant index, so no limit on processes per machine.
-      return fmt::format("<CycloneDDS><Domain Id=\"any\"><General><AllowMulticast>false</AllowMulticast></General>"
-                         "<Discovery><ParticipantIndex>none</ParticipantIndex><Tag>ros_discovery_off_{}</Tag>"
-                         "</Discovery></Domain></CycloneDDS>",
-                         pid);
+      return fmt::format(
+          "<CycloneDDS><Domain Id=\"any\"><General><AllowMulticast>false</AllowMulticast></General>"
+          "<Discovery><ParticipantIndex>none</ParticipantIndex><Tag>ros_discovery_off_{}</Tag>"
+          "</Discovery></Domain></CycloneDDS>",
+          pid);
     case DiscoveryRange::Localhost: return this_machine_config(machine_interfaces(), static_peers);
     case DiscoveryRange::Subnet:
-      return fmt::format("<CycloneDDS><Domain Id=\"any\"><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-                         "<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex>{}</Discovery></Domain></CycloneDDS>",
-                         static_peers.empty() ? "" : "<Peers>" + peer_elements(static_peers) + "</Peers>");
+      return fmt::format(
+          "<CycloneDDS><Domain Id=\"any\"><Discovery><ParticipantIndex>auto</ParticipantIndex>"
+          "<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex>{}</Discovery></Domain></CycloneDDS>",
+          static_peers.empty() ? "" : "<Peers>" + peer_elements(static_peers) + "</Peers>");
     case DiscoveryRange::SystemDefault: return {};
   }
   return {};
 }
 
-std::string this_machine_config(const std::vector<std::string>& interfaces, const std::vector<std::string>& static_peers,
-                                const std::string& tag, int max_participants) {
+std::string this_machine_config(const std::vector<std::string>& interfaces,
+                                const std::vector<std::string>& static_peers, const std::string& tag,
+                                int max_participants) {
   const bool local = static_peers.empty();
   // Cyclone prefers loopback (priority 2) wherever it reaches a participant,
   // so processes here keep talking if a card goes away; it also sends to a
@@ -180,7 +188,8 @@ std::string this_machine_config(const std::vector<std::string>& interfaces, cons
   for (std::size_t i = 0; i < interfaces.size() && i < 3; ++i) {
     nics += "<NetworkInterface name=\"" + xml_escape(interfaces[i]) + "\"/>";
   }
-  nics += local ? "<NetworkInterface address=\"127.0.0.1\"/>" : "<NetworkInterface address=\"127.0.0.1\" priority=\"0\"/>";
+  nics +=
+      local ? "<NetworkInterface address=\"127.0.0.1\"/>" : "<NetworkInterface address=\"127.0.0.1\" priority=\"0\"/>";
   // Unicast discovery needs a participant index per process (its ports); the
   // peer 127.0.0.1 makes discovery probe the first `max_participants` of them.
   // Loopback has a 64 KiB MTU: fragments of 60 kB instead of Cyclone's

@@ -44,8 +44,7 @@ dds::Settings test_settings(const std::string& process) {
 
 struct Side {
   std::shared_ptr<testing_signal> signal = std::make_shared<testing_signal>();
-  std::shared_ptr<tinyline::testing::SignallingSink> sink =
-      std::make_shared<tinyline::testing::SignallingSink>(signal);
+  std::shared_ptr<tinyline::testing::SignallingSink> sink = std::make_shared<tinyline::testing::SignallingSink>(signal);
   std::shared_ptr<bus::Context> ctx;
   std::shared_ptr<dds::Bridge> bridge;
   std::vector<std::shared_ptr<bus::Node>> nodes;
@@ -143,8 +142,9 @@ TEST(DdsSettings, ByDefaultThisMachineOnlyKnowingItsInterfacesButSendingOnlyToLo
   // Loopback and the cards are interfaces (so a ROS 2 node announcing only
   // its card's address is accepted), multicast is off, the only peer is
   // loopback: nothing is sent to the network unless a participant answers.
-  EXPECT_TRUE(has(c, "<Interfaces><NetworkInterface name=\"eth0\"/><NetworkInterface name=\"wlan0\"/>"
-                     "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"))
+  EXPECT_TRUE(has(c,
+                  "<Interfaces><NetworkInterface name=\"eth0\"/><NetworkInterface name=\"wlan0\"/>"
+                  "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"))
       << c;
   EXPECT_TRUE(has(c, "<AllowMulticast>false</AllowMulticast>")) << c;
   EXPECT_TRUE(has(c, "<Peers><Peer address=\"127.0.0.1\"/></Peers>")) << c;
@@ -199,8 +199,9 @@ TEST(DdsSettings, DiscoveryRangeAndStaticPeersAreHonouredAsRmwCycloneddsHonoursT
     const auto s = dds::Settings::from_environment();
     EXPECT_EQ(s.static_peers, (std::vector<std::string>{"robot.local", "10.0.0.2"}));
     const std::string c = s.effective_config();
-    EXPECT_TRUE(has(c, "<Peers><Peer address=\"127.0.0.1\"/><Peer address=\"robot.local\"/>"
-                       "<Peer address=\"10.0.0.2\"/></Peers>"))
+    EXPECT_TRUE(has(c,
+                    "<Peers><Peer address=\"127.0.0.1\"/><Peer address=\"robot.local\"/>"
+                    "<Peer address=\"10.0.0.2\"/></Peers>"))
         << c;
     EXPECT_TRUE(has(c, "<AllowMulticast>false</AllowMulticast>")) << c;
     EXPECT_FALSE(has(c, "FragmentSize")) << "loopback-sized fragments on the way to another machine: " << c;
@@ -208,9 +209,11 @@ TEST(DdsSettings, DiscoveryRangeAndStaticPeersAreHonouredAsRmwCycloneddsHonoursT
     EXPECT_TRUE(has(c, "<NetworkInterface address=\"127.0.0.1\" priority=\"0\"/>")) << c;
   }
   {
-    Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"}, {"ROS_STATIC_PEERS", "10.0.0.2"},
-             {"CYCLONEDDS_URI", "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"wlan0\"/>"
-                                "</Interfaces></General></Domain></CycloneDDS>"}};
+    Env env{{"ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"},
+            {"ROS_STATIC_PEERS", "10.0.0.2"},
+            {"CYCLONEDDS_URI",
+             "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"wlan0\"/>"
+             "</Interfaces></General></Domain></CycloneDDS>"}};
     const std::string c = dds::Settings::from_environment().effective_config();
     EXPECT_FALSE(has(c, "AllowMulticast")) << "the subnet range multicasts: " << c;
     EXPECT_TRUE(has(c, "<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex><Peers><Peer address=\"10.0.0.2\"/>"))
@@ -381,11 +384,12 @@ TEST(DdsBridge, TwoGraphsShareATopicAndNothingIsEchoedBackOrCopiedLocally) {
   auto lsub = a.node("local")->create_subscription<StringMsg>(
       "/chatter", bus::QoS::keep_last(100), [&](const std::shared_ptr<const StringMsg>& m) { local.push(m); });
   tinyline::testing::Inbox<std::pair<std::string, std::uint32_t>> remote(b.signal);
-  auto rsub = b.node("listener")->create_subscription<StringMsg>(
-      "/chatter", bus::QoS::keep_last(100),
-      [&](const std::shared_ptr<const StringMsg>& m, const bus::MessageInfo& info) {
-        remote.push({m->data, info.origin});
-      });
+  auto rsub = b.node("listener")
+                  ->create_subscription<StringMsg>(
+                      "/chatter", bus::QoS::keep_last(100),
+                      [&](const std::shared_ptr<const StringMsg>& m, const bus::MessageInfo& info) {
+                        remote.push({m->data, info.origin});
+                      });
   a.run();
   b.run();
   auto ok = a.bridge->wait_for_peers({{"/chatter", 1, 0}}, 10s);
@@ -407,7 +411,8 @@ TEST(DdsBridge, TwoGraphsShareATopicAndNothingIsEchoedBackOrCopiedLocally) {
   }
   ASSERT_TRUE(a.signal->wait_for([&] { return local.size() >= 50; }, 10s));
   const auto mine = local.items();
-  for (int i = 0; i < 50; ++i) EXPECT_EQ(mine[static_cast<std::size_t>(i)].get(), published[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < 50; ++i)
+    EXPECT_EQ(mine[static_cast<std::size_t>(i)].get(), published[static_cast<std::size_t>(i)]);
   // Flush: one more round trip proves nothing else is in flight, then counts are exact.
   pub->publish(text("last"));
   ASSERT_TRUE(b.signal->wait_for([&] { return remote.size() >= 51; }, 10s));
@@ -529,22 +534,25 @@ TEST(DdsBridge, IncompatibleQosIsReportedWithThePolicyNotSilentlyDropped) {
       << b.sink->dump();
   EXPECT_TRUE(b.sink->contains(bus::LogLevel::Warn, "/map: a remote publisher offers QoS"));
   EXPECT_GE(b.stats("/map").incompatible, 1u);
-  ASSERT_TRUE(a.signal->wait_for([&] { return a.sink->contains(bus::LogLevel::Warn, "a remote subscriber requests"); },
-                                 10s))
+  ASSERT_TRUE(
+      a.signal->wait_for([&] { return a.sink->contains(bus::LogLevel::Warn, "a remote subscriber requests"); }, 10s))
       << a.sink->dump();
   EXPECT_EQ(dds::incompatibility(dds::offered_qos({bus::QoS::keep_last(5)}),
                                  dds::requested_qos({bus::QoS::keep_last(5).latched()})),
             "the subscribers require transient local (latched), the publishers are volatile");
-  EXPECT_EQ(dds::incompatibility(dds::offered_qos({bus::QoS::sensor_data()}), dds::requested_qos({bus::QoS::keep_last()})),
-            "");
+  EXPECT_EQ(
+      dds::incompatibility(dds::offered_qos({bus::QoS::sensor_data()}), dds::requested_qos({bus::QoS::keep_last()})),
+      "");
 }
 
 TEST(DdsBridge, BytesThatDoNotDecodeAreDroppedAndReportedAndLaterOnesStillArrive) {
   const auto s = test_settings("x");
   Side b("b", s);
   tinyline::testing::Inbox<std::string> got(b.signal);
-  auto sub = b.node("listener")->create_subscription<StringMsg>("/chatter", bus::QoS::keep_last(10),
-                                                                [&](const StringMsg& m) { got.push(m.data); });
+  auto sub =
+      b.node("listener")->create_subscription<StringMsg>("/chatter", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+        got.push(m.data);
+      });
   b.run();
   dds::Settings ws = s;
   ws.process_name = "vandal";
@@ -566,8 +574,10 @@ TEST(DdsBridge, TheLossOfAPeerIsReportedAndANewOneIsDiscovered) {
   const auto s = test_settings("x");
   Side b("b", s);
   tinyline::testing::Inbox<std::string> got(b.signal);
-  auto sub = b.node("listener")->create_subscription<StringMsg>("/beat", bus::QoS::keep_last(10),
-                                                                [&](const StringMsg& m) { got.push(m.data); });
+  auto sub =
+      b.node("listener")->create_subscription<StringMsg>("/beat", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+        got.push(m.data);
+      });
   b.run();
   for (int round = 1; round <= 2; ++round) {
     SCOPED_TRACE(round);
@@ -579,8 +589,8 @@ TEST(DdsBridge, TheLossOfAPeerIsReportedAndANewOneIsDiscovered) {
       ASSERT_TRUE(w.ok) << w.missing << "\n" << a.sink->dump() << "\n" << b.sink->dump();
       pub->publish(text("beat " + std::to_string(round)));
       ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= static_cast<std::size_t>(round); }, 10s));
-      EXPECT_TRUE(b.sink->contains(bus::LogLevel::Info, "remote publisher in process 'driver" +
-                                                            std::to_string(round) + "'"));
+      EXPECT_TRUE(
+          b.sink->contains(bus::LogLevel::Info, "remote publisher in process 'driver" + std::to_string(round) + "'"));
     }
     ASSERT_TRUE(b.signal->wait_for(
         [&] {
@@ -608,11 +618,11 @@ TEST(DdsBridge, AFullReliableSubscriberHoldsBackItsTopicInOrderWhileOtherTopicsK
   std::promise<void> open;
   std::shared_future<void> gate = open.get_future().share();
   tinyline::testing::Inbox<std::string> bulk(b.signal), other(b.signal);
-  auto bulk_sub = b.node("slow")->create_subscription<StringMsg>("/bulk", bus::QoS::reliable(2, 60s),
-                                                                 [&](const StringMsg& m) {
-                                                                   gate.wait();
-                                                                   bulk.push(m.data);
-                                                                 });
+  auto bulk_sub =
+      b.node("slow")->create_subscription<StringMsg>("/bulk", bus::QoS::reliable(2, 60s), [&](const StringMsg& m) {
+        gate.wait();
+        bulk.push(m.data);
+      });
   auto other_sub = b.node("quick")->create_subscription<StringMsg>("/other", bus::QoS::keep_last(100),
                                                                    [&](const StringMsg& m) { other.push(m.data); });
   a.run();
@@ -624,7 +634,8 @@ TEST(DdsBridge, AFullReliableSubscriberHoldsBackItsTopicInOrderWhileOtherTopicsK
   // The subscriber holds one message in its callback and two in its queue.
   ASSERT_TRUE(b.signal->wait_for([&] { return b.stats("/bulk").received >= 3; }, 10s)) << b.sink->dump();
   for (int i = 1; i <= 20; ++i) other_pub->publish(text("o" + std::to_string(i)));
-  ASSERT_TRUE(b.signal->wait_for([&] { return other.size() >= 20; }, 10s)) << "the full /bulk subscriber held up /other";
+  ASSERT_TRUE(b.signal->wait_for([&] { return other.size() >= 20; }, 10s))
+      << "the full /bulk subscriber held up /other";
   EXPECT_EQ(bulk.size(), 0u);
   EXPECT_LT(b.stats("/bulk").received, static_cast<std::uint64_t>(kBulk));  // the rest waits in DDS
   open.set_value();
@@ -644,8 +655,10 @@ TEST(DdsBridge, EndpointsCreatedAfterStartAreBridgedToo) {
   b.run();
   auto pub = a.node("late_pub")->create_publisher<StringMsg>("/late");
   tinyline::testing::Inbox<std::string> got(b.signal);
-  auto sub = b.node("late_sub")->create_subscription<StringMsg>("/late", bus::QoS::keep_last(10),
-                                                                [&](const StringMsg& m) { got.push(m.data); });
+  auto sub =
+      b.node("late_sub")->create_subscription<StringMsg>("/late", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+        got.push(m.data);
+      });
   // Nodes made after the executor started run on it once added.
   b.ex->add_node(b.nodes.back());
   ASSERT_TRUE(a.bridge->wait_for_peers({{"/late", 1, 0}}, 10s).ok);
@@ -681,8 +694,9 @@ TEST(DdsBridge, EndpointsCarryTheirTypeHashInUserDataAsRos2Does) {
 TEST(DdsBridge, ARemoteEndpointWithAnotherDefinitionOfTheTypeIsReported) {
   const auto s = test_settings("x");
   Side b("b", s);
-  auto sub = b.node("listener")->create_subscription<StringMsg>("/other_def", bus::QoS::keep_last(10),
-                                                                [](const StringMsg&) {});
+  auto sub =
+      b.node("listener")->create_subscription<StringMsg>("/other_def", bus::QoS::keep_last(10), [](const StringMsg&) {
+      });
   b.run();
   // A writer of the same type name whose user data names another hash, as a
   // program built from a changed .msg file would announce it.
@@ -705,7 +719,6 @@ TEST(DdsBridge, ARemoteEndpointWithAnotherDefinitionOfTheTypeIsReported) {
   dds_delete(w);
   dds_delete(t);
 }
-
 
 TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMayWait) {
   // What a split graph gains: no hand-off from the thread Cyclone delivers on

@@ -60,7 +60,8 @@ class SignallingSink : public bus::CaptureSink {
   }
   std::string dump() const {
     std::string s;
-    for (const auto& r : records()) s += "[" + std::string(bus::to_string(r.level)) + "] " + r.logger + ": " + r.text + "\n";
+    for (const auto& r : records())
+      s += "[" + std::string(bus::to_string(r.level)) + "] " + r.logger + ": " + r.text + "\n";
     return s;
   }
 

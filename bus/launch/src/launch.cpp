@@ -119,13 +119,15 @@ struct Loader {
   // Keeps every value and the whole load within the expansion limits.
   void account(const Scope& s, const YAML::Node& n, const std::string& out) {
     if (out.size() > options.max_value_bytes) {
-      fail(s, n, fmt::format("a value grows past {} bytes through substitutions (the expansion limit)",
-                             options.max_value_bytes));
+      fail(s, n,
+           fmt::format("a value grows past {} bytes through substitutions (the expansion limit)",
+                       options.max_value_bytes));
     }
     if (expanded > options.max_expanded_bytes) {
-      fail(s, n, fmt::format("substitutions produced more than {} bytes in this launch (the expansion limit: "
-                             "values that nest $(var ...) of each other grow exponentially)",
-                             options.max_expanded_bytes));
+      fail(s, n,
+           fmt::format("substitutions produced more than {} bytes in this launch (the expansion limit: "
+                       "values that nest $(var ...) of each other grow exponentially)",
+                       options.max_expanded_bytes));
     }
   }
 
@@ -135,8 +137,9 @@ struct Loader {
     if (it != s.vars.end()) return it->second;
     std::string known;
     for (const auto& [k, v] : s.vars) known += (known.empty() ? "" : ", ") + k;
-    fail(s, n, fmt::format("unknown launch argument '{}' in $(var {}) (known: {})", argv[0], argv[0],
-                           known.empty() ? "none" : known));
+    fail(s, n,
+         fmt::format("unknown launch argument '{}' in $(var {}) (known: {})", argv[0], argv[0],
+                     known.empty() ? "none" : known));
   }
 
   std::string env(const Scope& s, const YAML::Node& n, const std::vector<std::string>& argv) const {
@@ -315,8 +318,9 @@ struct Loader {
     } else if (a.has_default) {
       s.vars[a.name] = a.default_value;
     } else {
-      fail(s, v, fmt::format("missing required launch argument '{}'{} (pass {}:=VALUE)", a.name,
-                             a.description.empty() ? "" : " (" + a.description + ")", a.name));
+      fail(s, v,
+           fmt::format("missing required launch argument '{}'{} (pass {}:=VALUE)", a.name,
+                       a.description.empty() ? "" : " (" + a.description + ")", a.name));
     }
     if (top) plan.args.push_back(a);
   }
@@ -438,7 +442,8 @@ struct Loader {
       }
       check_keys(s, p, {"name", "value"}, "param");
       if (!p["name"] || !p["value"]) fail(s, p, "param needs name and value");
-      out.push_back(bus::ParamOverride{str(s, p["name"], "param name"), param_value(s, p["value"]), loc(s, p["value"])});
+      out.push_back(
+          bus::ParamOverride{str(s, p["name"], "param name"), param_value(s, p["value"]), loc(s, p["value"])});
     }
     return out;
   }
@@ -584,7 +589,8 @@ std::vector<bus::ParamOverride> load_param_file(const std::string& path, const s
                                                 const LoadOptions& options) {
   // A file that cannot be read: the message names it; the caller knows the line.
   const YAML::Node root = parse_one_document(read_input(options, path, "parameter file", {}), path, "parameter file");
-  if (!root.IsMap()) throw LaunchError(SourceLocation{path, 1, 1}, "a parameter file maps node names to ros__parameters");
+  if (!root.IsMap())
+    throw LaunchError(SourceLocation{path, 1, 1}, "a parameter file maps node names to ros__parameters");
   check_unique_keys(root, path, "the parameter file");
   const std::string short_name = node_full_name.substr(node_full_name.rfind('/') + 1);
   std::vector<bus::ParamOverride> out;
@@ -637,9 +643,9 @@ std::vector<std::shared_ptr<bus::Node>> instantiate(const LaunchPlan& plan, cons
     if (registry.find(spec.pkg, spec.exec) == nullptr) {
       std::string known;
       for (const auto* t : registry.all()) known += (known.empty() ? "" : ", ") + t->full_name();
-      throw LaunchError(spec.exec_where.known() ? spec.exec_where : spec.where,
-                        fmt::format("unknown node type '{}/{}' (known: {})", spec.pkg, spec.exec,
-                                    known.empty() ? "none" : known));
+      throw LaunchError(
+          spec.exec_where.known() ? spec.exec_where : spec.where,
+          fmt::format("unknown node type '{}/{}' (known: {})", spec.pkg, spec.exec, known.empty() ? "none" : known));
     }
     bus::NodeOptions o;
     o.name = spec.name;
@@ -654,8 +660,8 @@ std::vector<std::shared_ptr<bus::Node>> instantiate(const LaunchPlan& plan, cons
       throw LaunchError(e.where().known() ? e.where() : spec.where,
                         e.where().known() ? std::string(e.what()).substr(e.where().str().size() + 2) : e.what());
     } catch (const std::exception& e) {
-      throw LaunchError(spec.where, fmt::format("node '{}' ({}/{}) could not be built: {}", full, spec.pkg,
-                                                spec.exec, e.what()));
+      throw LaunchError(spec.where,
+                        fmt::format("node '{}' ({}/{}) could not be built: {}", full, spec.pkg, spec.exec, e.what()));
     }
   }
   return nodes;
@@ -673,17 +679,15 @@ void configure(const LaunchPlan& plan, const std::vector<std::shared_ptr<bus::No
       throw LaunchError(e.where().known() ? e.where() : spec.where,
                         e.where().known() ? std::string(e.what()).substr(e.where().str().size() + 2) : e.what());
     } catch (const std::exception& e) {
-      throw LaunchError(spec.where, fmt::format("node '{}' ({}/{}) cannot start: {}", n->full_name(), spec.pkg,
-                                                spec.exec, e.what()));
+      throw LaunchError(
+          spec.where, fmt::format("node '{}' ({}/{}) cannot start: {}", n->full_name(), spec.pkg, spec.exec, e.what()));
     }
   }
 }
 
 void check_files(const std::vector<std::shared_ptr<bus::Node>>& nodes) {
   std::map<std::string, FileUse> inputs, outputs;
-  auto where = [](const FileUse& u) {
-    return u.where.known() ? u.where.str() : "its default";
-  };
+  auto where = [](const FileUse& u) { return u.where.known() ? u.where.str() : "its default"; };
   for (const auto& n : nodes) {
     for (const auto& p : n->parameters()) {
       const auto* value = std::get_if<std::string>(&p.value);
@@ -696,18 +700,18 @@ void check_files(const std::vector<std::shared_ptr<bus::Node>>& nodes) {
       }
       auto [it, fresh] = outputs.emplace(key, use);
       if (!fresh) {
-        throw LaunchError(use.where, fmt::format("node '{}' writes '{}' ({}), which node '{}' writes too (its {} at {})",
-                                                 use.node, *value, use.param, it->second.node, it->second.param,
-                                                 where(it->second)));
+        throw LaunchError(use.where,
+                          fmt::format("node '{}' writes '{}' ({}), which node '{}' writes too (its {} at {})", use.node,
+                                      *value, use.param, it->second.node, it->second.param, where(it->second)));
       }
     }
   }
   for (const auto& [key, out] : outputs) {
     auto in = inputs.find(key);
     if (in == inputs.end()) continue;
-    throw LaunchError(out.where, fmt::format("node '{}' would write '{}' ({}), which node '{}' reads (its {} at {})",
-                                             out.node, key, out.param, in->second.node, in->second.param,
-                                             where(in->second)));
+    throw LaunchError(
+        out.where, fmt::format("node '{}' would write '{}' ({}), which node '{}' reads (its {} at {})", out.node, key,
+                               out.param, in->second.node, in->second.param, where(in->second)));
   }
 }
 

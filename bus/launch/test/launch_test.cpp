@@ -324,12 +324,14 @@ TEST_F(LaunchTest, AFifoOrADeviceAsLaunchFileIncludeOrParamFileIsRefusedNamingIt
   EXPECT_EQ(error_of([] { (void)launch::load_launch_file("/dev/zero"); }),
             "launch file '/dev/zero' is a character device, not a regular file");
   std::ofstream(d / "zero.launch.yaml") << "launch:\n- include: {file: /dev/zero}\n";
-  EXPECT_NE(error_of([&] { (void)launch::load_launch_file((d / "zero.launch.yaml").string()); })
-                .find(":2:12: launch file '/dev/zero' is a character device"),
+  EXPECT_NE(error_of([&] {
+              (void)launch::load_launch_file((d / "zero.launch.yaml").string());
+            }).find(":2:12: launch file '/dev/zero' is a character device"),
             std::string::npos);
   std::ofstream(d / "big.launch.yaml") << "launch: []\n# " << std::string(2 << 20, 'x') << "\n";
-  EXPECT_NE(error_of([&] { (void)launch::load_launch_file((d / "big.launch.yaml").string()); })
-                .find("more than the limit of 1048576"),
+  EXPECT_NE(error_of([&] {
+              (void)launch::load_launch_file((d / "big.launch.yaml").string());
+            }).find("more than the limit of 1048576"),
             std::string::npos);
 }
 
@@ -358,15 +360,17 @@ TEST_F(LaunchTest, ManyLargeSubstitutionsStopAtTheTotalExpansionLimit) {
   EXPECT_NE(e.find("substitutions produced more than 16777216 bytes in this launch"), std::string::npos) << e;
   std::string deep = "x";
   for (int i = 0; i < 40; ++i) deep = "$(var " + deep + ")";
-  EXPECT_NE(error_of([&] { (void)launch::load_launch_string("launch:\n- let: {name: a, value: \"" + deep + "\"}\n", "deep.yaml"); })
-                .find("substitutions nest deeper than 16 levels"),
+  EXPECT_NE(error_of([&] {
+              (void)launch::load_launch_string("launch:\n- let: {name: a, value: \"" + deep + "\"}\n", "deep.yaml");
+            }).find("substitutions nest deeper than 16 levels"),
             std::string::npos);
 }
 
 TEST_F(LaunchTest, AParameterFileWithARepeatedKeyOrASecondDocumentIsAnError) {
   const fs::path d = scratch("params");
   std::ofstream(d / "dup.yaml") << "/**:\n  ros__parameters:\n    count: 1\n    count: 2\n";
-  std::ofstream(d / "docs.yaml") << "/**:\n  ros__parameters:\n    count: 1\n---\n/**:\n  ros__parameters:\n    count: 2\n";
+  std::ofstream(d / "docs.yaml")
+      << "/**:\n  ros__parameters:\n    count: 1\n---\n/**:\n  ros__parameters:\n    count: 2\n";
   EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "dup.yaml").string(), "/t"); }),
             (d / "dup.yaml").string() + ":4:5: key 'count' given twice in ros__parameters (first at line 3)");
   EXPECT_EQ(error_of([&] { (void)launch::load_param_file((d / "docs.yaml").string(), "/t"); }),
@@ -379,8 +383,9 @@ TEST_F(LaunchTest, AMissingInputFileStopsTheLaunchAtTheLineThatNamesIt) {
   const fs::path d = scratch("inputs");
   std::ofstream(d / "ok.txt") << "fine\n";
   std::ofstream(d / "broken.txt") << "broken\n";
-  const std::string yaml = "launch:\n- arg: {name: in}\n- node:\n    pkg: demo\n    exec: file_user\n"
-                           "    param: [{name: input, value: \"$(var in)\"}]\n";
+  const std::string yaml =
+      "launch:\n- arg: {name: in}\n- node:\n    pkg: demo\n    exec: file_user\n"
+      "    param: [{name: input, value: \"$(var in)\"}]\n";
   auto build = [&](const std::string& in) {
     launch::LoadOptions o;
     o.args = {{"in", in}};
@@ -391,15 +396,16 @@ TEST_F(LaunchTest, AMissingInputFileStopsTheLaunchAtTheLineThatNamesIt) {
   EXPECT_EQ(error_of([&] { build((d / "missing.txt").string()); }),
             "in.yaml:6:34: node '/file_user' (demo/file_user): parameter 'input': file '" +
                 (d / "missing.txt").string() + "': cannot open: No such file or directory");
-  EXPECT_NE(error_of([&] { build("/dev/zero"); }).find("in.yaml:6:34: node '/file_user' (demo/file_user): parameter "
-                                                       "'input': file '/dev/zero' is a character device"),
+  EXPECT_NE(error_of([&] { build("/dev/zero"); })
+                .find("in.yaml:6:34: node '/file_user' (demo/file_user): parameter "
+                      "'input': file '/dev/zero' is a character device"),
             std::string::npos);
   EXPECT_EQ(error_of([&] { build((d / "ok.txt").string()); }), "no error");
   EXPECT_EQ(error_of([&] { build("default"); }), "no error");
   EXPECT_EQ(error_of([&] { build("builtin:x"); }), "no error");
-  EXPECT_EQ(error_of([&] { build((d / "broken.txt").string()); }),
-            "in.yaml:4:5: node '/file_user' (demo/file_user) cannot start: '" + (d / "broken.txt").string() +
-                "' is broken");
+  EXPECT_EQ(
+      error_of([&] { build((d / "broken.txt").string()); }),
+      "in.yaml:4:5: node '/file_user' (demo/file_user) cannot start: '" + (d / "broken.txt").string() + "' is broken");
 }
 
 TEST_F(LaunchTest, TwoNodesWritingOneFileOrOneWritingAnothersInputAreRefused) {
@@ -413,10 +419,12 @@ TEST_F(LaunchTest, TwoNodesWritingOneFileOrOneWritingAnothersInputAreRefused) {
   const std::string same = (d / "." / "out.mcap").string();
   EXPECT_EQ(error_of([&] {
               check("launch:\n- node: {pkg: demo, exec: file_user, name: a, param: [{name: output, value: " + out +
-                    "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + same + "}]}\n");
+                    "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + same +
+                    "}]}\n");
             }),
-            "out.yaml:3:77: node '/b' writes '" + same + "' (output), which node '/a' writes too (its output at "
-            "out.yaml:2:77)");
+            "out.yaml:3:77: node '/b' writes '" + same +
+                "' (output), which node '/a' writes too (its output at "
+                "out.yaml:2:77)");
   const std::string in = (d / "in.txt").string();
   EXPECT_NE(error_of([&] {
               check("launch:\n- node: {pkg: demo, exec: file_user, name: a, param: [{name: input, value: " + in +
@@ -425,7 +433,8 @@ TEST_F(LaunchTest, TwoNodesWritingOneFileOrOneWritingAnothersInputAreRefused) {
             std::string::npos);
   EXPECT_EQ(error_of([&] {
               check("launch:\n- node: {pkg: demo, exec: file_user, name: a, param: [{name: output, value: " + out +
-                    "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + out + "2}]}\n");
+                    "}]}\n- node: {pkg: demo, exec: file_user, name: b, param: [{name: output, value: " + out +
+                    "2}]}\n");
             }),
             "no error");
 }
@@ -443,8 +452,9 @@ TEST_F(LaunchTest, AnInvalidGroupNamespaceIsAnErrorAtItsLine) {
   // Found by the fuzzer: the group's namespace was checked only at a node
   // without one of its own, whose missing 'namespace' key then threw
   // yaml-cpp's InvalidNode ("error: invalid node") instead of a located error.
-  const std::string yaml = "launch:\n- group:\n    namespace: \"bad-ns\"\n    children:\n"
-                           "    - node: {pkg: demo, exec: talker}\n";
+  const std::string yaml =
+      "launch:\n- group:\n    namespace: \"bad-ns\"\n    children:\n"
+      "    - node: {pkg: demo, exec: talker}\n";
   EXPECT_EQ(error_of([&] { (void)launch::load_launch_string(yaml, "g.yaml"); }),
             "g.yaml:3:16: namespace '/bad-ns' is invalid: character '-' is not allowed (letters, digits, '_' and '/')");
 }

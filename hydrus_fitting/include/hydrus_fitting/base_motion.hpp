@@ -27,7 +27,7 @@ common::Validation validate(const BasePoseBufferParams& params);
 
 struct BasePoseLookup {
   bool ok = false;
-  std::string reason;                                            ///< why not, when !ok
+  std::string reason;                                              ///< why not, when !ok
   Eigen::Isometry2d T_fixed_base = Eigen::Isometry2d::Identity();  ///< the base in the fixed frame
 };
 

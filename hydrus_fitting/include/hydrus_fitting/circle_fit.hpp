@@ -55,19 +55,19 @@ enum class FitStatus : std::uint8_t {
 /// known radius the r row and column are zero.
 struct CircleFit {
   FitStatus status = FitStatus::kTooFewPoints;
-  std::string reason;                 ///< why !ok(), empty when ok
+  std::string reason;  ///< why !ok(), empty when ok
   Circle circle;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< [m^2]; zero for the algebraic fits
-  double rms_residual_m = 0.0;        ///< RMS orthogonal distance of the points used
-  int points_used = 0;                ///< finite points fitted (the consensus set for robust fits)
-  int non_finite = 0;                 ///< input points skipped for a NaN/inf coordinate
-  int iterations = 0;                 ///< LM iterations (refine) or hypotheses drawn (robust)
-  bool converged = false;             ///< LM met its tolerance (refine, robust)
-  double radius_bias_removed_m = 0.0; ///< subtracted from the radius (RefineParams::remove_radius_bias)
-  bool second_order_applied = false;  ///< the second-order correction was asked for and its rule let it act
-  double end_weight_applied = 0.0;    ///< k of the second-order end weighting (0: none)
+  double rms_residual_m = 0.0;                           ///< RMS orthogonal distance of the points used
+  int points_used = 0;                                   ///< finite points fitted (the consensus set for robust fits)
+  int non_finite = 0;                                    ///< input points skipped for a NaN/inf coordinate
+  int iterations = 0;                                    ///< LM iterations (refine) or hypotheses drawn (robust)
+  bool converged = false;                                ///< LM met its tolerance (refine, robust)
+  double radius_bias_removed_m = 0.0;  ///< subtracted from the radius (RefineParams::remove_radius_bias)
+  bool second_order_applied = false;   ///< the second-order correction was asked for and its rule let it act
+  double end_weight_applied = 0.0;     ///< k of the second-order end weighting (0: none)
   Eigen::Vector3d mode_shift_m = Eigen::Vector3d::Zero();  ///< (cx, cy, r) added by the second-order mode shift
-  std::vector<std::uint8_t> inlier_mask;  ///< robust fit: 1 per input point in the consensus set
+  std::vector<std::uint8_t> inlier_mask;                   ///< robust fit: 1 per input point in the consensus set
 
   [[nodiscard]] bool ok() const { return status == FitStatus::kOk; }
 };
@@ -110,7 +110,7 @@ enum class ArcCorrection : std::uint8_t {
 ///     it where that small-noise expansion holds.
 /// Constants chosen on noise draws (seeds 5, 7) other than the reported ones.
 struct SecondOrderCorrection {
-  double end_weight = 0.6;                ///< k at sigma/r = reference_sigma_over_r (0: no refit)
+  double end_weight = 0.6;  ///< k at sigma/r = reference_sigma_over_r (0: no refit)
   double reference_sigma_over_r = 0.13;
   double max_end_weight = 1.0;            ///< k at most (weights stay >= 5 %)
   double full_weighting_arc_deg = 150.0;  ///< end weighting fades out between these arcs [deg]
@@ -121,8 +121,8 @@ struct SecondOrderCorrection {
   /// with, 1.09 without).
   double full_weighting_rel_sd_r = 0.14;
   double no_weighting_rel_sd_r = 0.20;
-  double mode_shift = 2.5;                ///< gamma (0: no shift)
-  double max_shift_sds = 0.5;             ///< |radius shift| <= this many SDs of the fitted radius
+  double mode_shift = 2.5;     ///< gamma (0: no shift)
+  double max_shift_sds = 0.5;  ///< |radius shift| <= this many SDs of the fitted radius
   /// Where the correction is applied at all (second_order_applies): only
   /// while the noise over the radius seen in the residuals, q, is at most
   /// max_sigma_over_r (and the fit has at most max_points points). From
@@ -141,8 +141,8 @@ struct SecondOrderCorrection {
 
 struct RefineParams {
   int max_iterations = 50;
-  double step_tolerance_m = 1e-10;    ///< stop when the update is shorter than this
-  double initial_lambda = 1e-3;       ///< LM damping (Marquardt, scaled by diag(J^T W J))
+  double step_tolerance_m = 1e-10;  ///< stop when the update is shorter than this
+  double initial_lambda = 1e-3;     ///< LM damping (Marquardt, scaled by diag(J^T W J))
   /// Fix the radius to this value [m] (> 0), fitting only the centre.
   std::optional<double> known_radius_m;
   /// Covariance scale: true uses the residuals (sigma^2 = weighted RSS /
@@ -210,12 +210,12 @@ struct RobustCircleParams {
   /// so clutter just inside a generous threshold cannot hold the fit (three
   /// extra rounds allowed for it). 0 disables.
   double final_threshold_sigmas = 3.0;
-  std::uint64_t seed = 1;             ///< sampling is deterministic for a seed
+  std::uint64_t seed = 1;  ///< sampling is deterministic for a seed
   /// End with the geometric (LM) fit of the consensus set, which gives the
   /// covariance. Off: the algebraic fit of the last round is returned (no
   /// covariance), for callers that refit the inliers themselves.
   bool final_geometric_fit = true;
-  RefineParams refine;                ///< known_radius_m here is ignored: set it above
+  RefineParams refine;  ///< known_radius_m here is ignored: set it above
 };
 
 /// Where each point was seen from (optional): a hypothesis is only supported

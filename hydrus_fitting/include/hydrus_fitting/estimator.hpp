@@ -20,8 +20,8 @@ namespace tinyline::hydrus_fitting {
 struct CircleEstimatorParams {
   FusionParams fusion;
   RobustCircleParams robust;
-  bool use_viewpoints = true;     ///< reject circles through points their sensor could not see
-  bool weight_by_range = true;    ///< per-point sigma from fusion.noise (else equal weights)
+  bool use_viewpoints = true;   ///< reject circles through points their sensor could not see
+  bool weight_by_range = true;  ///< per-point sigma from fusion.noise (else equal weights)
   /// Range noise moves a point along its ray; across the surface that is
   /// sigma_r cos(incidence) (what the fit feels) and sigma_r sin(incidence)
   /// (what biases the radius). After the robust fit, refit the inliers with
@@ -45,9 +45,9 @@ struct CircleEstimate {
   CircleFit fit;
   std::vector<ScanOutcome> scans;  ///< per scan offered, in order (skipped stale scans: kJointState with a reason)
   int scans_fused = 0;
-  int points = 0;                  ///< fused points offered to the fit
+  int points = 0;  ///< fused points offered to the fit
   int self_filtered = 0;
-  std::int64_t stamp_ns = 0;       ///< newest scan offered
+  std::int64_t stamp_ns = 0;  ///< newest scan offered
   /// With base poses: every fused scan was moved into the base frame at
   /// stamp_ns. False when none were given, or (with the reason) when a pose
   /// was missing for a scan or the reference: then no scan is moved, since
@@ -81,7 +81,7 @@ class CircleEstimator {
   // normal and tangential noise SDs.
   std::vector<double> in_xy_, in_dist_, sr_, sn_, st_;
   std::vector<Eigen::Vector2d> in_o_, in_ray_;
-  std::vector<Eigen::Isometry2d> motion_;     // per scan offered: base frame at its stamp -> at the newest
+  std::vector<Eigen::Isometry2d> motion_;  // per scan offered: base frame at its stamp -> at the newest
 };
 
 }  // namespace tinyline::hydrus_fitting

@@ -42,17 +42,17 @@ common::Validation validate(const FusionParams& params);
 
 /// One line scan in the robot description's terms (LineScan, converted).
 struct ScanView {
-  std::string_view sensor;                ///< name in the robot description
-  std::int64_t stamp_ns = 0;              ///< the scan's time (joint states are taken there)
-  std::span<const double> angle_rad;      ///< per pixel (LineScan.angles)
-  std::span<const double> range_m;        ///< per pixel along its ray; NaN or <= 0 when invalid
+  std::string_view sensor;            ///< name in the robot description
+  std::int64_t stamp_ns = 0;          ///< the scan's time (joint states are taken there)
+  std::span<const double> angle_rad;  ///< per pixel (LineScan.angles)
+  std::span<const double> range_m;    ///< per pixel along its ray; NaN or <= 0 when invalid
 };
 
 enum class ScanStatus : std::uint8_t {
   kOk = 0,
-  kUnknownSensor,   ///< the scan's sensor is not in the robot description
-  kJointState,      ///< no usable joint state at the scan's time (see joints)
-  kBadScan,         ///< angles and ranges differ in length
+  kUnknownSensor,  ///< the scan's sensor is not in the robot description
+  kJointState,     ///< no usable joint state at the scan's time (see joints)
+  kBadScan,        ///< angles and ranges differ in length
 };
 [[nodiscard]] const char* to_string(ScanStatus s);
 
@@ -60,22 +60,22 @@ struct ScanOutcome {
   ScanStatus status = ScanStatus::kOk;
   std::string reason;
   JointLookupStatus joints = JointLookupStatus::kOk;
-  int sensor = -1;          ///< index in the robot description
-  int added = 0;            ///< points appended to the cloud
-  int invalid = 0;          ///< pixels without a valid range (NaN, <= 0)
-  int out_of_range = 0;     ///< outside the sensor's range_m
-  int self_filtered = 0;    ///< on the robot's own links
+  int sensor = -1;        ///< index in the robot description
+  int added = 0;          ///< points appended to the cloud
+  int invalid = 0;        ///< pixels without a valid range (NaN, <= 0)
+  int out_of_range = 0;   ///< outside the sensor's range_m
+  int self_filtered = 0;  ///< on the robot's own links
   [[nodiscard]] bool ok() const { return status == ScanStatus::kOk; }
 };
 
 /// The fused points in the robot (base) frame, with what the fitters need.
 struct FusedCloud {
-  std::vector<double> xy_m;             ///< x0, y0, x1, y1, ... in the base frame
-  std::vector<double> sigma_m;          ///< range noise SD per point (RangeNoiseModel)
-  std::vector<double> range_m;          ///< measured range per point
-  std::vector<int> view_of_point;       ///< index into views
-  std::vector<Eigen::Vector2d> views;   ///< per accepted scan: its sensor's origin in the base frame
-  std::vector<int> view_sensor;         ///< per accepted scan: sensor index
+  std::vector<double> xy_m;            ///< x0, y0, x1, y1, ... in the base frame
+  std::vector<double> sigma_m;         ///< range noise SD per point (RangeNoiseModel)
+  std::vector<double> range_m;         ///< measured range per point
+  std::vector<int> view_of_point;      ///< index into views
+  std::vector<Eigen::Vector2d> views;  ///< per accepted scan: its sensor's origin in the base frame
+  std::vector<int> view_sensor;        ///< per accepted scan: sensor index
   std::vector<std::int64_t> view_stamp_ns;
   int self_filtered = 0;
   [[nodiscard]] int size() const { return static_cast<int>(xy_m.size() / 2); }

@@ -24,7 +24,7 @@ struct RectangleFitParams {
   int min_points_per_side = 8;        ///< a side with fewer inliers does not count
   int max_iterations = 500;
   double confidence = 0.999;
-  double max_corner_gap_m = 0.05;     ///< second side's corner within this of the first side's end
+  double max_corner_gap_m = 0.05;  ///< second side's corner within this of the first side's end
   int refine_rounds = 3;
   std::uint64_t seed = 1;
   /// Side lengths of the box [m] (any order), if known: gives the centre.
@@ -34,15 +34,16 @@ struct RectangleFitParams {
 struct RectangleFit {
   FitStatus status = FitStatus::kTooFewPoints;
   std::string reason;
-  int sides_visible = 0;              ///< 1 or 2
-  double yaw_rad = 0.0;               ///< direction u1 of the first side, in (-pi/2, pi/2]
-  Eigen::Vector2d u1 = Eigen::Vector2d::UnitX(), u2 = Eigen::Vector2d::UnitY();  ///< side directions (u2 = u1 turned +90 deg)
+  int sides_visible = 0;  ///< 1 or 2
+  double yaw_rad = 0.0;   ///< direction u1 of the first side, in (-pi/2, pi/2]
+  Eigen::Vector2d u1 = Eigen::Vector2d::UnitX(),
+                  u2 = Eigen::Vector2d::UnitY();       ///< side directions (u2 = u1 turned +90 deg)
   Eigen::Vector2d corner_m = Eigen::Vector2d::Zero();  ///< where the sides meet (2 sides) or the first side's start (1)
   Eigen::Vector2d extent_m = Eigen::Vector2d::Zero();  ///< visible length along u1 and u2 from the corner (signed)
   /// Box centre: from known_size_m when given; with two sides and no size,
   /// the centre of the visible extents (a box at least that big).
   std::optional<Eigen::Vector2d> centre_m;
-  Eigen::Vector2d size_m = Eigen::Vector2d::Zero();     ///< along u1, u2 (known or visible)
+  Eigen::Vector2d size_m = Eigen::Vector2d::Zero();  ///< along u1, u2 (known or visible)
   double rms_residual_m = 0.0;
   int points_used = 0;
   int points_side1 = 0, points_side2 = 0;

@@ -58,22 +58,22 @@ class RobotModelError : public std::runtime_error {
 struct LinkSpec {
   std::string name;
   double length_m = 0.6;
-  double width_m = 0.1;              ///< footprint across the link, for the self-filter
-  std::string joint;                 ///< joint at its near end (empty for the first link)
-  double joint_min_rad = -3.2;       ///< joint limits (first link: unused)
+  double width_m = 0.1;         ///< footprint across the link, for the self-filter
+  std::string joint;            ///< joint at its near end (empty for the first link)
+  double joint_min_rad = -3.2;  ///< joint limits (first link: unused)
   double joint_max_rad = 3.2;
 };
 
 struct SensorSpec {
   std::string name;
-  int link = 0;                      ///< index into links
+  int link = 0;                                          ///< index into links
   Eigen::Vector2d position_m = Eigen::Vector2d::Zero();  ///< in the link frame
-  double yaw_rad = 0.0;              ///< optical axis in the link frame
+  double yaw_rad = 0.0;                                  ///< optical axis in the link frame
   double height_m = 0.0;
   double focal_mm = 3.6;
-  double sensor_length_mm = 5.12;    ///< length of the 256 effective pixels
-  double fan_half_angle_rad = 0.663; ///< 38 deg
-  bool line_axis_left = true;        ///< +pixel angle is to the left of the optical axis
+  double sensor_length_mm = 5.12;     ///< length of the 256 effective pixels
+  double fan_half_angle_rad = 0.663;  ///< 38 deg
+  bool line_axis_left = true;         ///< +pixel angle is to the left of the optical axis
   double min_range_m = 0.05;
   double max_range_m = 2.0;
 
@@ -138,25 +138,25 @@ common::Validation validate(const JointBufferParams& params);
 
 enum class JointLookupStatus : std::uint8_t {
   kOk = 0,
-  kNoData,          ///< a joint has no sample yet
-  kStale,           ///< the newest sample of a joint is older than the scan beyond the tolerance
-  kBeforeHistory,   ///< the scan is older than the oldest kept sample beyond the tolerance
+  kNoData,         ///< a joint has no sample yet
+  kStale,          ///< the newest sample of a joint is older than the scan beyond the tolerance
+  kBeforeHistory,  ///< the scan is older than the oldest kept sample beyond the tolerance
 };
 [[nodiscard]] const char* to_string(JointLookupStatus s);
 
 struct JointLookup {
   JointLookupStatus status = JointLookupStatus::kNoData;
-  std::string reason;                ///< names the joint and the times when not ok
-  std::vector<double> positions;     ///< per joint of the model [rad], interpolated
-  double max_gap_s = 0.0;            ///< largest time to the nearest sample used, over the joints
+  std::string reason;             ///< names the joint and the times when not ok
+  std::vector<double> positions;  ///< per joint of the model [rad], interpolated
+  double max_gap_s = 0.0;         ///< largest time to the nearest sample used, over the joints
   [[nodiscard]] bool ok() const { return status == JointLookupStatus::kOk; }
 };
 
 struct JointAddResult {
-  int used = 0;                      ///< values stored
-  int unknown = 0;                   ///< names not in the model (ignored)
-  int non_finite = 0;                ///< NaN/inf positions (ignored)
-  std::string reason;                ///< set when something was ignored
+  int used = 0;        ///< values stored
+  int unknown = 0;     ///< names not in the model (ignored)
+  int non_finite = 0;  ///< NaN/inf positions (ignored)
+  std::string reason;  ///< set when something was ignored
 };
 
 /// Per-joint time series of positions (a JointState may carry a subset of the

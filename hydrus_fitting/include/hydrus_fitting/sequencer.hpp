@@ -62,8 +62,8 @@ struct Occluders {
 [[nodiscard]] std::vector<Capsule> link_capsules(const RobotModel& model, const Kinematics& k);
 
 struct InterferenceParams {
-  int rays_per_fan = 64;              ///< rays cast across each emitter's fan
-  double step_m = 0.02;               ///< sampling along rays that hit nothing
+  int rays_per_fan = 64;  ///< rays cast across each emitter's fan
+  double step_m = 0.02;   ///< sampling along rays that hit nothing
   /// Widens every field of view and fan [rad]: the sensors move between
   /// recomputations, and fans have soft edges.
   double angle_margin_rad = 0.05;
@@ -75,11 +75,9 @@ struct InterferenceParams {
 /// Conflicts between sensors: symmetric, no self edges.
 struct InterferenceGraph {
   int n = 0;
-  std::vector<std::uint8_t> adjacency;       ///< n x n, row-major
-  std::vector<Eigen::Vector2d> witness_m;    ///< n x n: a point lit by column j seen by row i (NaN if none)
-  [[nodiscard]] bool conflict(int i, int j) const {
-    return adjacency[static_cast<std::size_t>(i * n + j)] != 0;
-  }
+  std::vector<std::uint8_t> adjacency;     ///< n x n, row-major
+  std::vector<Eigen::Vector2d> witness_m;  ///< n x n: a point lit by column j seen by row i (NaN if none)
+  [[nodiscard]] bool conflict(int i, int j) const { return adjacency[static_cast<std::size_t>(i * n + j)] != 0; }
   [[nodiscard]] int edges() const;
 };
 
@@ -91,7 +89,7 @@ struct InterferenceGraph {
 struct Colouring {
   std::vector<int> colour;  ///< per sensor, 0 .. colours-1
   int colours = 0;
-  bool optimal = false;     ///< proven minimum (exact search finished)
+  bool optimal = false;  ///< proven minimum (exact search finished)
 };
 
 /// Minimum colouring: exact branch and bound up to `exact_limit` vertices,
@@ -107,9 +105,9 @@ struct SlotTiming {
 };
 
 struct Schedule {
-  std::string name;                       ///< "time_slicing" (thesis) or "colouring"
-  std::vector<std::vector<int>> slots;    ///< sensors emitting in each slot, ascending
-  std::vector<double> rate_hz;            ///< sets per second per sensor
+  std::string name;                     ///< "time_slicing" (thesis) or "colouring"
+  std::vector<std::vector<int>> slots;  ///< sensors emitting in each slot, ascending
+  std::vector<double> rate_hz;          ///< sets per second per sensor
   SlotTiming timing;
   [[nodiscard]] int slot_count() const { return static_cast<int>(slots.size()); }
   [[nodiscard]] double cycle_s() const { return timing.slot_s() * static_cast<double>(slots.size()); }
@@ -140,7 +138,7 @@ struct SequencerParams {
   double recompute_rotation_rad = 0.035;
   /// ...or the object estimate moved (centre or radius) this far [m].
   double recompute_object_m = 0.02;
-  bool links_occlude = true;          ///< the robot's links block light
+  bool links_occlude = true;  ///< the robot's links block light
 };
 
 /// Keeps the schedule of a moving robot up to date.

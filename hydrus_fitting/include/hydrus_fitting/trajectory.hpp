@@ -27,9 +27,9 @@ struct ApproachParams {
   /// frame is then the world origin (the cylinder's axis in the scene).
   Eigen::Vector2d grasp_base_xy_m{-0.25, -0.4330127018922193};
   double base_yaw_rad = 0.0;
-  Eigen::Vector2d approach_direction{0.0, 1.0};   ///< direction of flight (world, normalised on use)
-  double start_distance_m = 0.75;                 ///< the base starts this far before the grasp point
-  double open_joint_rad = 0.3490658503988659;     ///< 20 deg while flying in
+  Eigen::Vector2d approach_direction{0.0, 1.0};  ///< direction of flight (world, normalised on use)
+  double start_distance_m = 0.75;                ///< the base starts this far before the grasp point
+  double open_joint_rad = 0.3490658503988659;    ///< 20 deg while flying in
   /// 60 deg around the object: the sensors end 28 cm from a 10 cm radius
   /// cylinder, inside the sensor's characterised range (Table 3.1: 20-125 cm);
   /// closer, the simulated 3.6 mm sensor saturates at its shortest read-out.

@@ -121,9 +121,10 @@ void CircleFitterNode::on_scan(const msgs::LineScan& m) {
     if (unknown_[m.header.frame_id]++ == 0) {
       std::string known;
       for (const auto& s : model_->sensors()) known += (known.empty() ? "" : ", ") + s.name;
-      logger().error("scan from sensor '{}' (header.frame_id) is not in the robot description '{}' ({}); its scans "
-                     "are ignored. Sensors there: {}",
-                     m.header.frame_id, model_->name(), description_path_, known);
+      logger().error(
+          "scan from sensor '{}' (header.frame_id) is not in the robot description '{}' ({}); its scans "
+          "are ignored. Sensors there: {}",
+          m.header.frame_id, model_->name(), description_path_, known);
     }
     return;
   }

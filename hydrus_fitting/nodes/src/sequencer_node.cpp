@@ -31,7 +31,8 @@ SequencerNode::SequencerNode(bus::NodeOptions o) : Node(std::move(o)) {
                                      ParamConstraints::range(0.1, 600.0));
   joint_params_.tolerance_s = 0.1;  // the schedule may use joint states this old: looser than a fit's
   bus::declare_params(*this, joint_params_, "joint_");
-  const double diag_period = declare_parameter("diagnostics_period_s", 1.0, "[s]", ParamConstraints::range(0.01, 3600.0));
+  const double diag_period =
+      declare_parameter("diagnostics_period_s", 1.0, "[s]", ParamConstraints::range(0.01, 3600.0));
   ignore_after_ = declare_parameter("ignore_after", 3,
                                     "scans read out well after a sensor was told off before it is taken as always "
                                     "emitting (its firmware ignores the command)",
@@ -48,10 +49,11 @@ SequencerNode::SequencerNode(bus::NodeOptions o) : Node(std::move(o)) {
           last_problem_ = r.reason;
         }
       });
-  circle_sub_ = create_subscription<msgs::CircleFit>("circle", bus::QoS::keep_last(5), [this](const msgs::CircleFit& m) {
-    if (m.status != msgs::CircleFit::STATUS_OK) return;
-    object_ = std::make_pair(bus::Time::from_msg(m.header.stamp), Circle{{m.centre.x, m.centre.y}, m.radius_m});
-  });
+  circle_sub_ =
+      create_subscription<msgs::CircleFit>("circle", bus::QoS::keep_last(5), [this](const msgs::CircleFit& m) {
+        if (m.status != msgs::CircleFit::STATUS_OK) return;
+        object_ = std::make_pair(bus::Time::from_msg(m.header.stamp), Circle{{m.centre.x, m.centre.y}, m.radius_m});
+      });
   scan_sub_ = create_subscription<msgs::LineScan>("scans", bus::QoS::keep_last(20), [this](const msgs::LineScan& m) {
     if (!model_) return;
     const auto s = model_->sensor_index(m.header.frame_id);
@@ -73,9 +75,9 @@ void SequencerNode::on_start() {
   scans_while_off_.assign(model_->sensors().size(), 0);
   const int n = static_cast<int>(model_->sensors().size());
   // Until joint states arrive the safe schedule is the thesis's.
-  schedule_ = mode_ == "all_on" ? Schedule{"all_on", {{}}, std::vector<double>(static_cast<std::size_t>(n), 0.0),
-                                           params_.timing}
-                                : time_slicing_schedule(n, params_.timing);
+  schedule_ = mode_ == "all_on"
+                  ? Schedule{"all_on", {{}}, std::vector<double>(static_cast<std::size_t>(n), 0.0), params_.timing}
+                  : time_slicing_schedule(n, params_.timing);
   if (mode_ == "all_on") {
     for (int i = 0; i < n; ++i) schedule_.slots[0].push_back(i);
     schedule_.rate_hz.assign(static_cast<std::size_t>(n), 1.0 / params_.timing.slot_s());
@@ -174,9 +176,9 @@ void SequencerNode::publish_diagnostics() {
     kv(name + ".thesis_rate_hz", fmt::format("{:.2f}", thesis.rate_hz[static_cast<std::size_t>(i)]));
     kv(name + ".achieved_hz", fmt::format("{:.2f}", static_cast<double>(q.size()) / rate_window_s_));
     const bool always = std::find(always_on_.begin(), always_on_.end(), i) != always_on_.end();
-    kv(name + ".obeys_laser_off", always ? fmt::format("no ({} scans while off): always emitting",
-                                                      scans_while_off_[static_cast<std::size_t>(i)])
-                                         : "yes or untested");
+    kv(name + ".obeys_laser_off",
+       always ? fmt::format("no ({} scans while off): always emitting", scans_while_off_[static_cast<std::size_t>(i)])
+              : "yes or untested");
   }
   arr->status.push_back(std::move(st));
   diag_pub_->publish(std::move(arr));

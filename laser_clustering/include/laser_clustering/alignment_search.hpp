@@ -50,7 +50,8 @@ struct AlignmentResult {
 
 /// Samples may come in any order; non-finite or non-positive ones are skipped.
 /// Samples at the same pitch are averaged.
-[[nodiscard]] AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const AlignmentParams& params = {});
+[[nodiscard]] AlignmentResult find_alignment(std::span<const AlignmentSample> samples,
+                                             const AlignmentParams& params = {});
 
 /// How one scan's target reflectance is measured.
 struct SurfaceReflectanceParams {

@@ -30,15 +30,15 @@ struct ScissorGeometry {
 };
 
 struct PedicelFinderParams {
-  double diameter_m = 0.006;     ///< pedicel prior [m] (the thesis's pedicel diameter)
+  double diameter_m = 0.006;  ///< pedicel prior [m] (the thesis's pedicel diameter)
   /// Spread of a measured width around the prior [m]: pixel footprint,
   /// mixed edge pixels and real pedicels together.
   double diameter_sd_m = 0.0025;
-  double min_width_m = 0.002;    ///< narrower objects are never pedicels [m]
-  double max_width_m = 0.014;    ///< wider objects (stems, tomatoes, leaves) are never pedicels [m]
-  int min_points = 2;            ///< fewer points cannot show a width
-  double min_range_m = 0.05;     ///< working range of the gripper [m]; nearer returns are ignored
-  double max_range_m = 0.35;     ///< farther returns are background [m]
+  double min_width_m = 0.002;  ///< narrower objects are never pedicels [m]
+  double max_width_m = 0.014;  ///< wider objects (stems, tomatoes, leaves) are never pedicels [m]
+  int min_points = 2;          ///< fewer points cannot show a width
+  double min_range_m = 0.05;   ///< working range of the gripper [m]; nearer returns are ignored
+  double max_range_m = 0.35;   ///< farther returns are background [m]
   /// Spread of where the pedicel is believed to be around the expected point
   /// (the blade throat unless the caller gives one) [m]; it ranks candidates.
   double search_sd_m = 0.03;
@@ -111,22 +111,22 @@ enum class PedicelOutcome {
 [[nodiscard]] const char* to_string(PedicelOutcome o);
 
 struct PedicelCandidate {
-  int cluster = -1;          ///< index into TwoStageResult::clusters
+  int cluster = -1;  ///< index into TwoStageResult::clusters
   double width_m = 0.0;
   Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();
-  double shape_score = 0.0;  ///< width fit to the prior, in (0, 1]
-  double isolation = 0.0;    ///< 1 free on both sides, 0.5 per occluded side
+  double shape_score = 0.0;     ///< width fit to the prior, in (0, 1]
+  double isolation = 0.0;       ///< 1 free on both sides, 0.5 per occluded side
   double position_score = 0.0;  ///< closeness to the expected point, in (0, 1]
   /// How well the expected truss layout, shifted onto this candidate, meets
   /// the other candidates (1 without a layout), in (0, 1].
   double layout_score = 1.0;
-  double weight = 0.0;       ///< product of the four
+  double weight = 0.0;  ///< product of the four
 };
 
 struct PedicelDetection {
   PedicelOutcome outcome = PedicelOutcome::kInvalidInput;
   std::string reason;
-  int cluster = -1;  ///< the chosen object (index into clusters), -1 if none
+  int cluster = -1;                                         ///< the chosen object (index into clusters), -1 if none
   Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();  ///< its centre, laser frame [m]
   double width_m = 0.0;
   /// Translation of the gripper (laser frame) that puts the pedicel in the

@@ -51,10 +51,10 @@ struct ReflectanceCluster {
 
 struct ReflectanceClusteringResult {
   bool ok = false;
-  std::string reason;      ///< why !ok, or a note ("no valid pixels", "12 pixels without reflectance")
-  std::vector<int> labels; ///< per pixel: cluster id, kNoise or kInvalid (no range or no positive reflectance)
+  std::string reason;       ///< why !ok, or a note ("no valid pixels", "12 pixels without reflectance")
+  std::vector<int> labels;  ///< per pixel: cluster id, kNoise or kInvalid (no range or no positive reflectance)
   std::vector<ReflectanceCluster> clusters;
-  int brightest = -1;      ///< index of the cluster with the highest median reflectance, -1 if none
+  int brightest = -1;  ///< index of the cluster with the highest median reflectance, -1 if none
 };
 
 /// Needs scan.reflectance unless params.use_reflectance is false.

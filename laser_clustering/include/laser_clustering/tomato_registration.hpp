@@ -39,14 +39,14 @@ struct TomatoRegistrationParams {
   /// 2 cm off its tomato's vertical). It bounds the grid search; the
   /// refinement follows the returns and may end a little beyond it.
   double max_shift_m = 0.07;
-  double grid_step_m = 0.0025;   ///< coarse search step [m]; then a 4x finer grid around the best, then Gauss-Newton
+  double grid_step_m = 0.0025;  ///< coarse search step [m]; then a 4x finer grid around the best, then Gauss-Newton
   /// A return within this of a shifted cross-section's near arc supports the
   /// shift (range noise, calibration bias, the vision's per-tomato error) [m].
   double inlier_m = 0.01;
   /// A cross-section narrower than this is too small to show (the plane
   /// grazes the tomato's top or bottom) and is left out [m].
   double min_section_radius_m = 0.01;
-  double min_range_m = 0.05;     ///< returns outside the working range are ignored [m]
+  double min_range_m = 0.05;  ///< returns outside the working range are ignored [m]
   double max_range_m = 0.40;
   /// Free space: a pixel whose ray would pass through the middle of a
   /// shifted cross-section (within core_fraction of its radius from the
@@ -72,7 +72,7 @@ struct TomatoRegistrationParams {
 common::Validation validate(const TomatoRegistrationParams& params);
 
 struct TomatoRegistration {
-  bool ok = false;        ///< a clear shift was found (else see reason)
+  bool ok = false;  ///< a clear shift was found (else see reason)
   std::string reason;
   /// Add this to every position the vision expected (in the plane) to get
   /// where the truss is [m].
@@ -81,8 +81,9 @@ struct TomatoRegistration {
   int tomatoes_matched = 0;   ///< of those, met by the scan at the shift
   int inliers = 0;            ///< returns on a shifted near arc
   double rms_m = 0.0;         ///< their RMS distance to it [m]
-  double support = 0.0;       ///< the best shift's score (sum over inliers of 1 - (d / inlier_m)^2, less free-space violations)
-  int violations = 0;         ///< pixels that see through a shifted tomato
+  double support =
+      0.0;  ///< the best shift's score (sum over inliers of 1 - (d / inlier_m)^2, less free-space violations)
+  int violations = 0;              ///< pixels that see through a shifted tomato
   double runner_up_support = 0.0;  ///< the best distinct shift's
   Eigen::Vector2d runner_up_shift_xz_m = Eigen::Vector2d::Zero();
 };

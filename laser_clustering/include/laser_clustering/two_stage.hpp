@@ -95,13 +95,13 @@ struct ScanCluster {
 };
 
 struct TwoStageResult {
-  bool ok = false;     ///< false: bad parameters or a malformed scan; see reason
-  std::string reason;  ///< why !ok, or a note ("empty scan", "no valid pixels")
-  std::vector<int> group_labels;   ///< per pixel: stage-1 group, kNoise or kInvalid
-  std::vector<PixelFate> fate;     ///< per pixel
+  bool ok = false;                       ///< false: bad parameters or a malformed scan; see reason
+  std::string reason;                    ///< why !ok, or a note ("empty scan", "no valid pixels")
+  std::vector<int> group_labels;         ///< per pixel: stage-1 group, kNoise or kInvalid
+  std::vector<PixelFate> fate;           ///< per pixel
   std::vector<double> smoothed_range_m;  ///< per pixel: the range stage 3 saw (NaN unless kept)
-  std::vector<int> labels;         ///< per pixel: final object id, kNoise or kInvalid
-  std::vector<ScanCluster> clusters;  ///< one per final object, ordered by id
+  std::vector<int> labels;               ///< per pixel: final object id, kNoise or kInvalid
+  std::vector<ScanCluster> clusters;     ///< one per final object, ordered by id
   int num_groups = 0;
   int num_edge_dropped = 0;
 };

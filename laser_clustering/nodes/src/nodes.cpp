@@ -40,7 +40,7 @@ LineClustererNode::LineClustererNode(bus::NodeOptions o)
   min_reflectance_ = nodes::declare_min_reflectance(*this);
   pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
-                                       [this](const msgs::LineScan& m) { on_scan(m); });
+                                             [this](const msgs::LineScan& m) { on_scan(m); });
 }
 
 void LineClustererNode::on_scan(const msgs::LineScan& m) {
@@ -64,21 +64,22 @@ PedicelFinderNode::PedicelFinderNode(bus::NodeOptions o)
       clusterer_(bus::declared_settings<TwoStageParams>(*this)),
       finder_(bus::declared_settings<PedicelFinderParams>(*this)) {
   min_reflectance_ = nodes::declare_min_reflectance(*this);
-  expectation_sd_m_ = declare_parameter("expectation_sd_m", 0.015,
-                                        "how far off the vision's expected pedicel may be [m]",
-                                        ParamConstraints::range(1e-4, 1.0));
+  expectation_sd_m_ =
+      declare_parameter("expectation_sd_m", 0.015, "how far off the vision's expected pedicel may be [m]",
+                        ParamConstraints::range(1e-4, 1.0));
   expectation_max_age_s_ = declare_parameter("expectation_max_age_s", 1.0,
                                              "an expected_pedicel older than this (vs the scan) is ignored [s]",
                                              ParamConstraints::range(0.0, 3600.0));
   pub_ = create_publisher<msgs::PedicelDetection>("pedicel");
   clusters_pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
-                                       [this](const msgs::LineScan& m) { on_scan(m); });
+                                             [this](const msgs::LineScan& m) { on_scan(m); });
   // The laser plane is x-z: the points' y (off the plane) is not used.
   expected_sub_ = create_subscription<geometry_msgs::msg::PointStamped>(
       "expected_pedicel", bus::QoS::keep_last(1), [this](const geometry_msgs::msg::PointStamped& p) {
-        expected_ = std::make_pair(bus::Time::from_msg(p.header.stamp),
-                                   PedicelExpectation{Eigen::Vector2d(p.point.x, p.point.z), expectation_sd_m_, {}, 0.015});
+        expected_ =
+            std::make_pair(bus::Time::from_msg(p.header.stamp),
+                           PedicelExpectation{Eigen::Vector2d(p.point.x, p.point.z), expectation_sd_m_, {}, 0.015});
       });
   layout_sub_ = create_subscription<msgs::PedicelLayout>(
       "expected_layout", bus::QoS::keep_last(1), [this](const msgs::PedicelLayout& l) {
@@ -135,7 +136,7 @@ TomatoRegistrationNode::TomatoRegistrationNode(bus::NodeOptions o)
   tomatoes_sub_ = create_subscription<msgs::ExpectedTomatoes>(
       "expected_tomatoes", bus::QoS::keep_last(1), [this](const msgs::ExpectedTomatoes& m) { on_tomatoes(m); });
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
-                                       [this](const msgs::LineScan& m) { on_scan(m); });
+                                             [this](const msgs::LineScan& m) { on_scan(m); });
 }
 
 void TomatoRegistrationNode::on_tomatoes(const msgs::ExpectedTomatoes& m) {
@@ -162,9 +163,10 @@ void TomatoRegistrationNode::on_tomatoes(const msgs::ExpectedTomatoes& m) {
   }
   if (!e.malformed.empty()) {
     e.tomatoes.clear();
-    logger().warn("expected_tomatoes (stamp {:.3f} s, frame '{}') malformed; scans of that frame get ok = false "
-                  "with why: {}",
-                  e.stamp.seconds(), e.frame_id, e.malformed);
+    logger().warn(
+        "expected_tomatoes (stamp {:.3f} s, frame '{}') malformed; scans of that frame get ok = false "
+        "with why: {}",
+        e.stamp.seconds(), e.frame_id, e.malformed);
   }
   expected_ = std::move(e);
 }
@@ -225,7 +227,7 @@ ReflectanceClustererNode::ReflectanceClustererNode(bus::NodeOptions o)
   min_reflectance_ = nodes::declare_min_reflectance(*this);
   pub_ = create_publisher<msgs::LineClusters>("clusters");
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
-                                       [this](const msgs::LineScan& m) { on_scan(m); });
+                                             [this](const msgs::LineScan& m) { on_scan(m); });
 }
 
 void ReflectanceClustererNode::on_scan(const msgs::LineScan& m) {
@@ -252,14 +254,14 @@ AlignmentSearchNode::AlignmentSearchNode(bus::NodeOptions o)
                                           "joint of sensor_msgs/JointState whose position is the gripper pitch [rad]");
   window_s_ = declare_parameter("window_s", 10.0, "samples older than this (vs the newest scan) leave the sweep [s]",
                                 ParamConstraints::range(0.01, 3600.0));
-  max_joint_age_s_ = declare_parameter("max_joint_age_s", 0.05,
-                                       "a scan needs a pitch reading within this of its stamp [s]",
-                                       ParamConstraints::range(0.0, 10.0));
+  max_joint_age_s_ =
+      declare_parameter("max_joint_age_s", 0.05, "a scan needs a pitch reading within this of its stamp [s]",
+                        ParamConstraints::range(0.0, 10.0));
   pub_ = create_publisher<msgs::AlignmentResult>("alignment");
   joints_sub_ = create_subscription<sensor_msgs::msg::JointState>(
       "joint_states", bus::QoS::keep_last(50), [this](const sensor_msgs::msg::JointState& m) { on_joints(m); });
   sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
-                                       [this](const msgs::LineScan& m) { on_scan(m); });
+                                             [this](const msgs::LineScan& m) { on_scan(m); });
 }
 
 void AlignmentSearchNode::on_joints(const sensor_msgs::msg::JointState& m) {
@@ -317,25 +319,27 @@ void AlignmentSearchNode::on_scan(const msgs::LineScan& m) {
 
 PitchSweepNode::PitchSweepNode(bus::NodeOptions o) : Node(std::move(o)) {
   joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch", "the joint commanded [rad]");
-  const double from = declare_parameter("from_deg", -16.0, "first pitch of the sweep [deg]",
-                                        ParamConstraints::range(-90.0, 90.0));
-  const double to = declare_parameter("to_deg", 16.0, "last pitch of the sweep [deg]", ParamConstraints::range(-90.0, 90.0));
+  const double from =
+      declare_parameter("from_deg", -16.0, "first pitch of the sweep [deg]", ParamConstraints::range(-90.0, 90.0));
+  const double to =
+      declare_parameter("to_deg", 16.0, "last pitch of the sweep [deg]", ParamConstraints::range(-90.0, 90.0));
   const double step = declare_parameter("step_deg", 2.0, "pitch step [deg]", ParamConstraints::range(0.01, 90.0));
-  const double dwell = declare_parameter("dwell_s", 0.3, "time at each pitch: several scans [s]",
-                                         ParamConstraints::range(0.001, 60.0));
+  const double dwell =
+      declare_parameter("dwell_s", 0.3, "time at each pitch: several scans [s]", ParamConstraints::range(0.001, 60.0));
   if (!(to > from)) {
     throw bus::ParamError({}, fmt::format("node '{}': to_deg ({}) must be above from_deg ({})", full_name(), to, from));
   }
   const int steps = static_cast<int>(std::floor((to - from) / step + 1e-9));
   if (steps < 2) {
     throw bus::ParamError({}, fmt::format("node '{}': the sweep {}..{} deg in {} deg steps has {} pitches; the "
-                                          "alignment search needs at least 3", full_name(), from, to, step, steps + 1));
+                                          "alignment search needs at least 3",
+                                          full_name(), from, to, step, steps + 1));
   }
   for (int k = 0; k <= steps; ++k) pitches_rad_.push_back((from + k * step) * std::numbers::pi / 180.0);
   command_pub_ = create_publisher<sensor_msgs::msg::JointState>("joint_command", bus::QoS::keep_last(10));
   aligned_pub_ = create_publisher<msgs::AlignmentResult>("aligned", bus::QoS::keep_last(10));
-  alignment_sub_ = create_subscription<msgs::AlignmentResult>(
-      "alignment", bus::QoS::keep_last(kScanQueue), [this](const msgs::AlignmentResult& m) { latest_ = m; });
+  alignment_sub_ = create_subscription<msgs::AlignmentResult>("alignment", bus::QoS::keep_last(kScanQueue),
+                                                              [this](const msgs::AlignmentResult& m) { latest_ = m; });
   // One step per period: the first command one dwell after start, the
   // verdict one dwell after the last (its scans are in by then).
   timer_ = create_timer(std::chrono::nanoseconds(static_cast<std::int64_t>(dwell * 1e9)), [this] { tick(); });
@@ -358,7 +362,8 @@ void PitchSweepNode::tick() {
   state_ = State::kDone;
   timer_->cancel();
   auto out = std::make_unique<msgs::AlignmentResult>();
-  if (latest_) *out = *latest_;
+  if (latest_)
+    *out = *latest_;
   else {
     out->outcome = msgs::AlignmentResult::INVALID_INPUT;
     out->reason = "no alignment result arrived during the sweep (is alignment_search running on this scan?)";

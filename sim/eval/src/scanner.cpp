@@ -92,7 +92,8 @@ Calibration calibrate(const SimScannerOptions& o, const sim::SensorParams& param
 
 // White paper's reflectance figure through the driver's processing (a wall
 // 15-45 cm ahead, pixels near the axis): the reference of the dark threshold.
-double white_reflectance(const SimScannerOptions& o, const sim::SensorParams& params, const tld::ScanProcessor& processor) {
+double white_reflectance(const SimScannerOptions& o, const sim::SensorParams& params,
+                         const tld::ScanProcessor& processor) {
   sim::CalibrationRail rail(params);
   std::vector<double> white;
   std::uint64_t index = (1u << 30) + 100000;
@@ -113,7 +114,10 @@ double white_reflectance(const SimScannerOptions& o, const sim::SensorParams& pa
 class SimScanner : public Scanner {
  public:
   explicit SimScanner(const SimScannerOptions& o)
-      : options_(o), params_(load(o)), sensor_(params_), calibration_(calibrate(o, params_)),
+      : options_(o),
+        params_(load(o)),
+        sensor_(params_),
+        calibration_(calibrate(o, params_)),
         processor_(calibration_.model, optics(params_)) {
     white_reflectance_ = white_reflectance(o, params_, processor_);
   }
@@ -158,8 +162,8 @@ class SimScanner : public Scanner {
         "declared model fitted to a white-paper rail 5-{:.0f} cm every {:.1f} cm (in-sample RMSE {:.1f} mm), returns "
         "below {:.0f} % of white paper's reflectance dropped",
         params_.name, params_.lens.focal_mm, params_.emitter.fan_half_angle_deg,
-        fmt::join(params_.acquisition.raw_pulses, "/"), options_.calibration_max_m * 100, options_.calibration_step_m * 100,
-        calibration_.rmse_m * 1e3, options_.min_reflectance_of_white * 100);
+        fmt::join(params_.acquisition.raw_pulses, "/"), options_.calibration_max_m * 100,
+        options_.calibration_step_m * 100, calibration_.rmse_m * 1e3, options_.min_reflectance_of_white * 100);
   }
 
  private:
@@ -176,7 +180,9 @@ class SimScanner : public Scanner {
 
 }  // namespace
 
-std::unique_ptr<Scanner> make_sim_scanner(const SimScannerOptions& options) { return std::make_unique<SimScanner>(options); }
+std::unique_ptr<Scanner> make_sim_scanner(const SimScannerOptions& options) {
+  return std::make_unique<SimScanner>(options);
+}
 
 SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, const std::string& path) {
   const sim::SensorParams params = load(options);

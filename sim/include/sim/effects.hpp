@@ -34,7 +34,7 @@ namespace tinyline::sim {
 /// pulse) is held and released release_delay_ns later. Dim returns are delayed
 /// most: a positive range bias that fades with intensity (Table 3.2's pattern).
 struct TrapDelayEffect {
-  double capacity_per_pulse = 0.05;   ///< [charge_unit per pulse]
+  double capacity_per_pulse = 0.05;  ///< [charge_unit per pulse]
   double release_delay_ns = 1.8;
 };
 
@@ -88,9 +88,9 @@ struct TemperatureLagEffect {
 /// Pixels an effect applies to: the listed ones, a range, a parity, or (all
 /// empty) every pixel.
 struct PixelGroup {
-  std::vector<int> pixels;   ///< these pixels (e.g. {176})
-  int first = -1, last = -1; ///< a bank [first, last] (both >= 0 to use)
-  int parity = -1;           ///< 0 even, 1 odd, -1 any
+  std::vector<int> pixels;    ///< these pixels (e.g. {176})
+  int first = -1, last = -1;  ///< a bank [first, last] (both >= 0 to use)
+  int parity = -1;            ///< 0 even, 1 odd, -1 any
   [[nodiscard]] bool contains(int pixel) const;
 };
 
@@ -108,9 +108,9 @@ struct ChargeEffect {
   enum class Capacitor { kA, kB, kBoth };
   Kind kind = Kind::kLeakage;
   Capacitor capacitor = Capacitor::kB;
-  double per_pulse = 0.0;     ///< [charge_unit per pulse] (ambient: per unit of the covariate)
+  double per_pulse = 0.0;  ///< [charge_unit per pulse] (ambient: per unit of the covariate)
   double gain = 1.0;
-  std::string covariate;      ///< ambient: the `covariate` effect whose value drives it
+  std::string covariate;  ///< ambient: the `covariate` effect whose value drives it
   PixelGroup pixels;
 };
 

@@ -32,8 +32,8 @@ namespace tinyline::sim {
 /// sets (laser off, no ambient light), R_sen from an even exposure with the
 /// laser off. They are handed to the declared-model fitter as fixed values.
 struct MeasuredConstants {
-  double rsen = 1.0;               ///< sensitivity ratio of the pixel
-  double vle_per_pulse = 0.0;      ///< leakage per accumulated pulse [charge_unit]
+  double rsen = 1.0;           ///< sensitivity ratio of the pixel
+  double vle_per_pulse = 0.0;  ///< leakage per accumulated pulse [charge_unit]
 };
 
 /// The driver's validity rule (tiny_laser_driver/protocol.hpp) and selection: the read-out
@@ -43,12 +43,12 @@ struct MeasuredConstants {
 
 struct FidelityOptions {
   int pixel = 136;
-  std::uint64_t seed_offset = 0;       ///< added to set indices (a different draw)
+  std::uint64_t seed_offset = 0;  ///< added to set indices (a different draw)
   int calib_sets_per_distance = 10;
-  double calib_step_m = 0.025;         ///< 5 cm .. 200 cm
+  double calib_step_m = 0.025;  ///< 5 cm .. 200 cm
   int table31_sets = 300;
-  int table32_sets = 60;               ///< more than the thesis's 10, to pin the simulator's mean
-  double warm_time_s = 3600.0;         ///< sensor time of the runs (warm)
+  int table32_sets = 60;        ///< more than the thesis's 10, to pin the simulator's mean
+  double warm_time_s = 3600.0;  ///< sensor time of the runs (warm)
   // Parts to run (the tuning searches skip what they do not score).
   bool fits = true;
   bool table31 = true;
@@ -58,9 +58,9 @@ struct FidelityOptions {
 
 struct FitScore {
   std::string name;
-  double var_cm2 = 0.0;       ///< residual variance on the data it was fitted to (as the thesis reports)
+  double var_cm2 = 0.0;  ///< residual variance on the data it was fitted to (as the thesis reports)
   double sd_cm = 0.0;
-  double heldout_sd_cm = 0.0; ///< RMS error on fresh sets of the same protocol
+  double heldout_sd_cm = 0.0;  ///< RMS error on fresh sets of the same protocol
 };
 
 struct DistanceRow {
@@ -73,14 +73,14 @@ struct MaterialRow {
   std::string material;
   int pulses = 0;
   double mean_cm = 0.0, sd_cm = 0.0;
-  double reflectance = 0.0;   ///< (a + b) / pulse, the figure Table 3.2 reports
+  double reflectance = 0.0;  ///< (a + b) / pulse, the figure Table 3.2 reports
   int n = 0, invalid = 0;
 };
 
 struct FidelityReport {
   MeasuredConstants constants;
   tiny_laser_driver::CalibrationModel calibration;  ///< the 6th-degree, 40 % model used for the tables
-  std::vector<FitScore> fits;       ///< linear, poly3_40, poly6_40, poly6_20, poly6_multi
+  std::vector<FitScore> fits;                       ///< linear, poly3_40, poly6_40, poly6_20, poly6_multi
   std::vector<DistanceRow> table31;
   std::vector<MaterialRow> table32;
   /// Calibration curve samples (distance, X) of the 40 % data, for plots.
@@ -101,8 +101,8 @@ struct ThesisFigures {
 /// The fidelity goals (docs/simulator_fidelity.md), checked against the measured figures.
 struct FidelityVerdict {
   bool ok = true;
-  std::vector<std::string> failures;  ///< one line per missed goal
-  double worst_sd_ratio_error = 0.0;  ///< max |sim/measured - 1| over Table 3.1 SDs
+  std::vector<std::string> failures;    ///< one line per missed goal
+  double worst_sd_ratio_error = 0.0;    ///< max |sim/measured - 1| over Table 3.1 SDs
   double worst_material_bias_cm = 0.0;  ///< max |sim bias - measured bias| excluding IC foam
   double ic_foam_bias_error_cm = 0.0;
 };
@@ -115,9 +115,9 @@ struct TuneResult {
   std::string what;
   std::vector<std::string> fit_set, held_out;
   std::vector<std::pair<std::string, double>> best;  ///< parameter name, value
-  double fit_error = 0.0;       ///< the objective on the fit subset
-  double held_out_error = 0.0;  ///< the same measure on the held-out figures
-  std::string table;            ///< every grid point, for the record
+  double fit_error = 0.0;                            ///< the objective on the fit subset
+  double held_out_error = 0.0;                       ///< the same measure on the held-out figures
+  std::string table;                                 ///< every grid point, for the record
 };
 /// trap_delay (capacity_per_pulse, release_delay_ns) on Table 3.2: fit on
 /// white paper, black cushion, cloth bag, metal pan, IC foam; held out:

@@ -66,8 +66,8 @@ struct ReadoutCounts {
 
 /// What one accumulation cycle of the published firmware computed.
 struct PublishedCycle {
-  std::vector<ReadoutCounts> readouts;        ///< in pulse order
-  double ambient_counts_per_pulse = 0.0;      ///< the level subtracted from both capacitors, per pulse
+  std::vector<ReadoutCounts> readouts;    ///< in pulse order
+  double ambient_counts_per_pulse = 0.0;  ///< the level subtracted from both capacitors, per pulse
   std::array<std::uint16_t, tiny_laser_driver::kPixels> distance{};  ///< the words sent [0.1 mm]
 };
 

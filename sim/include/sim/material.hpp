@@ -23,9 +23,9 @@ inline constexpr MaterialId kNoMaterial = -1;
 
 struct Material {
   std::string name;
-  double albedo = 0.5;             ///< Lambertian reflectance at 905 nm [0, 1]
-  double specular = 0.0;           ///< weight k_s of the specular lobe (0 = matte)
-  double specular_exponent = 1.0;  ///< Phong exponent n of the lobe (larger = glossier)
+  double albedo = 0.5;                 ///< Lambertian reflectance at 905 nm [0, 1]
+  double specular = 0.0;               ///< weight k_s of the specular lobe (0 = matte)
+  double specular_exponent = 1.0;      ///< Phong exponent n of the lobe (larger = glossier)
   Eigen::Vector3d rgb{0.5, 0.5, 0.5};  ///< linear RGB albedo in [0, 1], for cameras
   /// The sensor's reflectance figure this material was set from (Table 3.2,
   /// (a+b)/pulse at 30 cm, normal incidence); NaN when not from the table.

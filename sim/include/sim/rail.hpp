@@ -17,7 +17,7 @@ namespace tinyline::sim {
 
 struct RailParams {
   std::string material = "white_paper";
-  double target_width_m = 1.0;         ///< along the sensor's line (x)
+  double target_width_m = 1.0;  ///< along the sensor's line (x)
   double target_height_m = 0.5;
   /// A wall behind the target at this distance from the sensor (NaN: none,
   /// the rays that miss the target see nothing).
@@ -63,12 +63,12 @@ struct CalibrationRow {
   double t_s = 0.0;
   int pixel = 0;
   int pulses = 0;
-  double a = 0.0;               ///< [charge_unit]
-  double b = 0.0;               ///< [charge_unit]
+  double a = 0.0;  ///< [charge_unit]
+  double b = 0.0;  ///< [charge_unit]
   double temperature_c = 0.0;
-  double distance_m = kNaN;     ///< true range along the pixel's ray
+  double distance_m = kNaN;  ///< true range along the pixel's ray
   std::string material;
-  std::vector<double> extra;    ///< values of the extra columns, in column order
+  std::vector<double> extra;  ///< values of the extra columns, in column order
 };
 
 /// Rows of every read-out of the chosen pixels of a set (non-dark pixels with
@@ -87,10 +87,10 @@ void write_calibration_csv(std::ostream& out, const std::vector<CalibrationRow>&
 struct RailSweep {
   std::vector<double> distances_m;
   int sets_per_distance = 10;
-  std::optional<double> discharge_fraction;   ///< e.g. 0.4; unset: use `schedule`
+  std::optional<double> discharge_fraction;  ///< e.g. 0.4; unset: use `schedule`
   std::vector<int> schedule{20, 100, 200, 400, 700};
   std::vector<int> pixels{135, 136};
-  double t_start_s = 3600.0;                  ///< sensor time of the first set (warm by default)
+  double t_start_s = 3600.0;  ///< sensor time of the first set (warm by default)
   double set_period_s = 0.05;
   std::uint64_t first_index = 0;
 };

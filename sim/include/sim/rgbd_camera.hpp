@@ -37,12 +37,12 @@
 namespace tinyline::sim {
 
 struct PinholeIntrinsics {
-  int width = 640;      ///< [px] VGA
-  int height = 480;     ///< [px]
-  double fx = 570.3;    ///< [px] (58 deg horizontal field of view at VGA, as the Xtion/Carmine)
-  double fy = 570.3;    ///< [px]
-  double cx = 319.5;    ///< [px]
-  double cy = 239.5;    ///< [px]
+  int width = 640;    ///< [px] VGA
+  int height = 480;   ///< [px]
+  double fx = 570.3;  ///< [px] (58 deg horizontal field of view at VGA, as the Xtion/Carmine)
+  double fy = 570.3;  ///< [px]
+  double cx = 319.5;  ///< [px]
+  double cy = 239.5;  ///< [px]
 
   /// Unit ray through the centre of pixel (u, v) in the optical frame.
   [[nodiscard]] Eigen::Vector3d ray(double u, double v) const {
@@ -72,33 +72,33 @@ struct Gloss {
 
 struct RgbdCameraParams {
   PinholeIntrinsics intrinsics;
-  double min_depth_m = 0.35;  ///< no depth nearer than this (Carmine 1.09 short range)
-  double max_depth_m = 3.5;   ///< ... or farther
+  double min_depth_m = 0.35;            ///< no depth nearer than this (Carmine 1.09 short range)
+  double max_depth_m = 3.5;             ///< ... or farther
   double projector_baseline_m = 0.075;  ///< projector offset along +x of the optical frame
 
   // Depth noise. The depth error of a structured-light camera comes from the
   // disparity error sigma_d [px]: sigma_z = z^2 sigma_d / (f b).
-  double disparity_noise_px = 0.07;       ///< per-pixel part [px rms]
+  double disparity_noise_px = 0.07;             ///< per-pixel part [px rms]
   double disparity_noise_correlated_px = 0.05;  ///< part shared over the matching window [px rms]
-  int correlation_window_px = 9;          ///< matching window (correlated part's length scale) [px]
-  double disparity_step_px = 0.125;       ///< quantisation of the disparity (1/8 px)
+  int correlation_window_px = 9;                ///< matching window (correlated part's length scale) [px]
+  double disparity_step_px = 0.125;             ///< quantisation of the disparity (1/8 px)
 
   // Missing depth.
-  bool projector_shadow = true;       ///< no depth where the projector cannot see the point
-  double edge_jump_m = 0.02;          ///< a depth jump larger than this inside the 3x3 window...
-  double edge_jump_per_m = 0.02;      ///< ... plus this times the range, is a silhouette edge
-  double edge_dropout = 0.85;         ///< probability of losing depth at a silhouette edge pixel
-  double grazing_start_deg = 70.0;    ///< beyond this incidence the pattern starts to fade...
-  double grazing_end_deg = 85.0;      ///< ... and beyond this no depth is returned
+  bool projector_shadow = true;     ///< no depth where the projector cannot see the point
+  double edge_jump_m = 0.02;        ///< a depth jump larger than this inside the 3x3 window...
+  double edge_jump_per_m = 0.02;    ///< ... plus this times the range, is a silhouette edge
+  double edge_dropout = 0.85;       ///< probability of losing depth at a silhouette edge pixel
+  double grazing_start_deg = 70.0;  ///< beyond this incidence the pattern starts to fade...
+  double grazing_end_deg = 85.0;    ///< ... and beyond this no depth is returned
 
   // Colour.
-  Eigen::Vector3d light_position_m{0.3, -0.2, 1.2};  ///< lamp in the world frame [m]
-  double light_intensity = 1.15;      ///< diffuse irradiance scale of the lamp at normal incidence
-  double ambient = 0.30;              ///< ambient (indirect) light scale
-  bool shadows = true;                ///< the lamp's shadows (one shadow ray per pixel)
-  double exposure = 1.0;              ///< linear gain before sRGB encoding
-  double colour_noise_dn = 1.5;       ///< sensor noise per channel [8-bit counts rms]
-  std::vector<Gloss> gloss{Gloss{}};  ///< glossy materials
+  Eigen::Vector3d light_position_m{0.3, -0.2, 1.2};   ///< lamp in the world frame [m]
+  double light_intensity = 1.15;                      ///< diffuse irradiance scale of the lamp at normal incidence
+  double ambient = 0.30;                              ///< ambient (indirect) light scale
+  bool shadows = true;                                ///< the lamp's shadows (one shadow ray per pixel)
+  double exposure = 1.0;                              ///< linear gain before sRGB encoding
+  double colour_noise_dn = 1.5;                       ///< sensor noise per channel [8-bit counts rms]
+  std::vector<Gloss> gloss{Gloss{}};                  ///< glossy materials
   Eigen::Vector3d background_rgb{0.02, 0.02, 0.025};  ///< where a ray hits nothing (linear)
 
   DepthDistortion distortion;  ///< off by default

@@ -45,7 +45,7 @@ struct SensorMount {
 struct Scene {
   std::string name;
   std::string description;
-  std::string source_file;   ///< empty when built in code
+  std::string source_file;  ///< empty when built in code
   World world;
   std::vector<SensorMount> sensors;
   /// Free-form ground-truth numbers (`truth:`), e.g. cylinder_radius_m.
@@ -98,8 +98,8 @@ void register_builtin_scene_generators(SceneGeneratorRegistry& r);  // generated
 ///   TINYLINE_SIM_SCENE_GENERATOR(room) {
 ///     registry.add("room", "a box-shaped room around the origin", &make_room);
 ///   }
-#define TINYLINE_SIM_SCENE_GENERATOR(name)                                                         \
-  namespace tinyline::sim::detail {                                                               \
-  void register_scene_generator_##name(::tinyline::sim::SceneGeneratorRegistry& registry);        \
-  }                                                                                                \
+#define TINYLINE_SIM_SCENE_GENERATOR(name)                                                 \
+  namespace tinyline::sim::detail {                                                        \
+  void register_scene_generator_##name(::tinyline::sim::SceneGeneratorRegistry& registry); \
+  }                                                                                        \
   void tinyline::sim::detail::register_scene_generator_##name(::tinyline::sim::SceneGeneratorRegistry& registry)

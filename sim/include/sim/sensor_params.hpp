@@ -50,30 +50,30 @@ struct EmitterParams {
   double pulse_width_ns = 40.0;       ///< T0, emitted pulse length
   double pulse_rise_exponent = 1.0;   ///< pulse power ~ s^rise (1-s)^fall, s in [0,1]
   double pulse_fall_exponent = 1.4;
-  double diffusion_tail_ns = 1.0;     ///< slow photo-charge (exponential tail) [ns]
-  double pulse_rate_hz = 25000.0;     ///< laser pulse repetition rate (0.1% duty at 40 ns)
+  double diffusion_tail_ns = 1.0;  ///< slow photo-charge (exponential tail) [ns]
+  double pulse_rate_hz = 25000.0;  ///< laser pulse repetition rate (0.1% duty at 40 ns)
   /// Received (a+b) per pulse [charge_unit] from a Lambertian albedo-1 target
   /// at 1 m, normal incidence, on the optical axis. Sets the radiometric scale.
   double charge_per_pulse_1m = 0.787;
 };
 
 struct PixelParams {
-  double gate_split_ns = 21.0;        ///< gate A closes / gate B opens this long after emission starts
-  double sensitivity_ratio = 1.0;     ///< mean R_sen (Eq. 3.16): raw a = (q_A + V_le) / R_sen
-  double sensitivity_ratio_sd = 0.03; ///< pixel-to-pixel spread of R_sen
+  double gate_split_ns = 21.0;         ///< gate A closes / gate B opens this long after emission starts
+  double sensitivity_ratio = 1.0;      ///< mean R_sen (Eq. 3.16): raw a = (q_A + V_le) / R_sen
+  double sensitivity_ratio_sd = 0.03;  ///< pixel-to-pixel spread of R_sen
   /// Mean V_le growth [charge_unit per ms of accumulation]. The public
   /// driver's validity rule (a + b > 10 + 0.4 pulses/10) implies the two
   /// capacitors leak well under 0.04 per pulse together.
   double leakage_per_ms = 0.6;
-  double leakage_sd = 0.1;            ///< relative pixel-to-pixel spread of the leakage
-  double prnu_sd = 0.02;              ///< photo-response non-uniformity (relative gain spread)
-  double full_scale = 250.0;          ///< saturation of a capacitor read-out [charge_unit]
-  double knee = 225.0;                ///< soft compression starts here [charge_unit]
+  double leakage_sd = 0.1;    ///< relative pixel-to-pixel spread of the leakage
+  double prnu_sd = 0.02;      ///< photo-response non-uniformity (relative gain spread)
+  double full_scale = 250.0;  ///< saturation of a capacitor read-out [charge_unit]
+  double knee = 225.0;        ///< soft compression starts here [charge_unit]
   /// Charge-to-voltage non-linearity of the storage node: a read-out v of
   /// charge q is q * (1 - nonlinearity * q / full_scale) (compression at full scale).
   double nonlinearity = 0.0;
-  double read_noise = 0.15;           ///< ADC + reset noise per read-out [charge_unit rms]
-  double shot_noise_gain = 4e-4;      ///< shot-noise variance per unit of collected charge [charge_unit]
+  double read_noise = 0.15;       ///< ADC + reset noise per read-out [charge_unit rms]
+  double shot_noise_gain = 4e-4;  ///< shot-noise variance per unit of collected charge [charge_unit]
   /// Zero-mean charge each gate cycle adds (reset and transfer noise of the
   /// photodiode, drained and refilled every pulse) [charge_unit rms per pulse].
   double transfer_noise_per_pulse = 0.045;
@@ -82,17 +82,17 @@ struct PixelParams {
   /// the declared leakage V_le * pulses cannot absorb them.
   double adc_offset_a = 0.0;
   double adc_offset_b = -1.75;
-  double adc_lsb = 0.1;               ///< quantisation step [charge_unit] (the wire carries 10x)
-  double adc_max = 409.5;             ///< ADC full range [charge_unit] (12 bit)
+  double adc_lsb = 0.1;    ///< quantisation step [charge_unit] (the wire carries 10x)
+  double adc_max = 409.5;  ///< ADC full range [charge_unit] (12 bit)
 };
 
 struct ThermalParams {
-  double ambient_c = 25.0;            ///< temperature at power-on
-  double warm_c = 48.0;               ///< saturation temperature after warm-up
-  double time_constant_s = 120.0;     ///< first-order warm-up time constant
-  double reference_c = 48.0;          ///< temperature at which the gate timing was aligned
-  double delay_drift_ns_per_c = 0.05; ///< MOSFET driver delay drift (1-2 ns over tens of degC)
-  double reading_noise_c = 0.05;      ///< MCU temperature sensor noise [degC rms]
+  double ambient_c = 25.0;             ///< temperature at power-on
+  double warm_c = 48.0;                ///< saturation temperature after warm-up
+  double time_constant_s = 120.0;      ///< first-order warm-up time constant
+  double reference_c = 48.0;           ///< temperature at which the gate timing was aligned
+  double delay_drift_ns_per_c = 0.05;  ///< MOSFET driver delay drift (1-2 ns over tens of degC)
+  double reading_noise_c = 0.05;       ///< MCU temperature sensor noise [degC rms]
 };
 
 struct AcquisitionParams {
@@ -119,10 +119,10 @@ enum class FirmwareProfile {
 /// Src/itcallback.cpp); the thesis profile uses `acquisition` only.
 struct FirmwareParams {
   FirmwareProfile profile = FirmwareProfile::kThesisRaw;
-  double tick_s = 100e-6;                  ///< published: timer interrupt period (one count of the pulse counter)
-  int cycle_ticks = 1001;                  ///< published: ticks per accumulation cycle (it sends when the counter passes 1000)
-  double sensitivity_ratio = 1.04;         ///< published: SR, the factor on capacitor A's discharge
-  int compensated_pixel = 176;             ///< published: the pixel whose A discharge is scaled once more ...
+  double tick_s = 100e-6;           ///< published: timer interrupt period (one count of the pulse counter)
+  int cycle_ticks = 1001;           ///< published: ticks per accumulation cycle (it sends when the counter passes 1000)
+  double sensitivity_ratio = 1.04;  ///< published: SR, the factor on capacitor A's discharge
+  int compensated_pixel = 176;      ///< published: the pixel whose A discharge is scaled once more ...
   double compensated_pixel_factor = 1.04;  ///< ... by this (a defect of the authors' unit, compensated by hand)
   /// published: discharge [charge_unit] from which a capacitor counts as
   /// saturated (the firmware's ADC output below 2200 counts, from a reset
@@ -141,8 +141,8 @@ struct SensorParams {
   AcquisitionParams acquisition;
   EnvironmentParams environment;
   FirmwareParams firmware;
-  std::vector<EffectSpec> effects;    ///< undeclared extras, off unless listed
-  std::uint64_t seed = 1;             ///< per-pixel constants and noise
+  std::vector<EffectSpec> effects;  ///< undeclared extras, off unless listed
+  std::uint64_t seed = 1;           ///< per-pixel constants and noise
 
   /// Why the parameters cannot work (empty when they can).
   common::Validation validate() const;

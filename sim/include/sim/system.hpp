@@ -68,8 +68,8 @@ class SimulatedSystem {
   void set_emitting(std::size_t i, bool on, double shared_s);
   /// Simulates one set of sensor i starting at shared time t_start (crosstalk
   /// from every other sensor that emits meanwhile).
-  [[nodiscard]] SensorSet measure(std::size_t i, double t_start_shared, std::span<const int> pulses, std::uint64_t index,
-                                  bool laser_on = true);
+  [[nodiscard]] SensorSet measure(std::size_t i, double t_start_shared, std::span<const int> pulses,
+                                  std::uint64_t index, bool laser_on = true);
 
   /// Observers of every set any device of this system measures (called on the
   /// device's thread: keep them short). Returns an id for remove_observer().
@@ -82,9 +82,9 @@ class SimulatedSystem {
   struct SensorState {
     SensorMount mount;
     TofLineSensor model;
-    double pulse_rate_hz = 0.0;  // nominal * (1 + ppm)
+    double pulse_rate_hz = 0.0;                 // nominal * (1 + ppm)
     std::vector<std::pair<double, double>> on;  // emission intervals (shared time), open end = +inf
-    double train_start = 0.0;    // start of the current pulse train
+    double train_start = 0.0;                   // start of the current pulse train
   };
   Scene scene_;
   SystemOptions options_;

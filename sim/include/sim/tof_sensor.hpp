@@ -35,7 +35,7 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// Ground truth of one pixel, from its central ray.
 struct PixelTruth {
-  double range_m = kNaN;        ///< receiver to the first surface along the pixel's ray (NaN: none)
+  double range_m = kNaN;  ///< receiver to the first surface along the pixel's ray (NaN: none)
   ObjectId object = kNoObject;
   MaterialId material = kNoMaterial;
   double incidence_rad = kNaN;  ///< angle between the ray and the surface normal
@@ -46,24 +46,24 @@ struct PixelTruth {
 /// One non-destructive read-out of every pixel (dark pixels included).
 struct Readout {
   int pulses = 0;
-  double t_s = 0.0;             ///< time of the read-out since power-on
-  std::vector<double> a;        ///< capacitor A discharge [charge_unit], quantised
-  std::vector<double> b;        ///< capacitor B discharge [charge_unit], quantised
+  double t_s = 0.0;       ///< time of the read-out since power-on
+  std::vector<double> a;  ///< capacitor A discharge [charge_unit], quantised
+  std::vector<double> b;  ///< capacitor B discharge [charge_unit], quantised
 };
 
 /// One measurement set: the read-outs of one accumulation.
 struct SensorSet {
   std::uint64_t index = 0;
-  double t_start_s = 0.0;       ///< accumulation start, since power-on
-  double t_end_s = 0.0;         ///< last read-out
-  double temperature_c = 0.0;   ///< MCU reading at the end (0.1 degC steps, with noise)
+  double t_start_s = 0.0;      ///< accumulation start, since power-on
+  double t_end_s = 0.0;        ///< last read-out
+  double temperature_c = 0.0;  ///< MCU reading at the end (0.1 degC steps, with noise)
   double true_temperature_c = 0.0;
   bool laser_on = true;
   Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
   std::vector<Readout> readouts;
   std::vector<PixelTruth> truth;
   std::map<std::string, double> covariates;  ///< values of `covariate` effects
-  int crosstalk_pulses = 0;     ///< own pulses that caught another sensor's light in their gates
+  int crosstalk_pulses = 0;                  ///< own pulses that caught another sensor's light in their gates
 };
 
 /// Another sensor emitting into the same world (for crosstalk). Pulses at
@@ -73,13 +73,13 @@ struct ForeignEmitter {
   Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
   EmitterParams emitter;
   double first_pulse_s = 0.0;
-  double pulse_rate_hz = 25000.0;   ///< its actual rate (nominal times its clock error)
+  double pulse_rate_hz = 25000.0;                       ///< its actual rate (nominal times its clock error)
   std::vector<std::pair<double, double>> on_intervals;  ///< [start, end) on the shared clock
 };
 
 struct MeasureOptions {
-  bool noise = true;            ///< false: expected values (no shot/read noise, no quantisation)
-  bool laser_on = true;         ///< false: a dark set (leakage, ambient, crosstalk only)
+  bool noise = true;     ///< false: expected values (no shot/read noise, no quantisation)
+  bool laser_on = true;  ///< false: a dark set (leakage, ambient, crosstalk only)
   /// Offset of this sensor's clock on the shared clock (crosstalk timing):
   /// shared time = sensor time + clock_offset_s.
   double clock_offset_s = 0.0;
@@ -128,11 +128,12 @@ class TofLineSensor {
   /// raw-mode schedule). `index` seeds the set's noise (same index, same set).
   [[nodiscard]] SensorSet measure(const World& world, const Eigen::Isometry3d& T_world_sensor, double t_start_s,
                                   std::span<const int> pulses, std::uint64_t index,
-                                  std::span<const ForeignEmitter> others = {}, const MeasureOptions& options = {}) const;
+                                  std::span<const ForeignEmitter> others = {},
+                                  const MeasureOptions& options = {}) const;
 
   /// Expected per-pulse charges (no noise, no crosstalk) at time t_s.
-  [[nodiscard]] PulseCharges pulse_charges(const World& world, const Eigen::Isometry3d& T_world_sensor,
-                                           double t_s, std::vector<PixelTruth>* truth = nullptr) const;
+  [[nodiscard]] PulseCharges pulse_charges(const World& world, const Eigen::Isometry3d& T_world_sensor, double t_s,
+                                           std::vector<PixelTruth>* truth = nullptr) const;
 
   struct Impl;  ///< implementation detail (tables, per-pixel constants)
 

@@ -68,9 +68,9 @@ enum class FirmwareMode { kRaw, kDistance, kSingleShot };
 struct WireTruth {
   enum class Kind { kRawFrame, kDistanceFrame, kPublishedCycle };
   Kind kind = Kind::kRawFrame;
-  std::uint64_t sequence = 0;   ///< frames (thesis) or cycles (published) made so far
-  double t_s = 0.0;             ///< shared time it was made
-  bool queued = true;           ///< thesis: false when dropped before the link (no host, buffer full)
+  std::uint64_t sequence = 0;  ///< frames (thesis) or cycles (published) made so far
+  double t_s = 0.0;            ///< shared time it was made
+  bool queued = true;          ///< thesis: false when dropped before the link (no host, buffer full)
   const tiny_laser_driver::RawFrame* raw = nullptr;            ///< kRawFrame
   const tiny_laser_driver::DistanceFrame* distance = nullptr;  ///< kDistanceFrame
   const PublishedCycle* cycle = nullptr;                       ///< kPublishedCycle: read-outs, ambient, words
@@ -78,27 +78,27 @@ struct WireTruth {
 };
 
 struct VirtualDeviceOptions {
-  std::string sensor;            ///< sensor name in the scene; empty: the first sensor
+  std::string sensor;  ///< sensor name in the scene; empty: the first sensor
   /// A stable path for the host: a symlink to the current pty, created by
   /// start(), removed by unplug()/stop(), re-created by replug(). Empty: none
   /// (path() is then the pty itself, which changes on replug).
   std::string link_path;
-  double baud = 2000000.0;       ///< the FT232's rate; frames are paced at baud / 10 bytes per second
+  double baud = 2000000.0;  ///< the FT232's rate; frames are paced at baud / 10 bytes per second
   /// The firmware; empty: the sensor's `firmware.profile`.
   std::optional<FirmwareProfile> firmware;
   FirmwareMode mode = FirmwareMode::kRaw;  ///< thesis firmware: the power-on mode
-  bool laser_on = true;          ///< false: silent until the host's laser-on (sequence mode)
-  int single_shot_pulses = 100;  ///< pulses before the host's first reset command
+  bool laser_on = true;                    ///< false: silent until the host's laser-on (sequence mode)
+  int single_shot_pulses = 100;            ///< pulses before the host's first reset command
   LinkFaults faults;
   std::size_t tx_buffer_bytes = 16384;  ///< device-side buffer; beyond it frames are dropped
 };
 
 struct VirtualDeviceStats {
-  std::uint64_t sets = 0;              ///< sets measured
-  std::uint64_t frames_sent = 0;       ///< frames whose bytes went to the pty (before faults)
-  std::uint64_t frames_overflowed = 0; ///< frames dropped because the host lagged
-  std::uint64_t frames_no_host = 0;    ///< frames discarded while no host had the port open
-  std::uint64_t bytes_no_host = 0;     ///< published firmware: bytes the DMA sent while no host had the port open
+  std::uint64_t sets = 0;               ///< sets measured
+  std::uint64_t frames_sent = 0;        ///< frames whose bytes went to the pty (before faults)
+  std::uint64_t frames_overflowed = 0;  ///< frames dropped because the host lagged
+  std::uint64_t frames_no_host = 0;     ///< frames discarded while no host had the port open
+  std::uint64_t bytes_no_host = 0;      ///< published firmware: bytes the DMA sent while no host had the port open
   std::uint64_t bytes_sent = 0;
   std::uint64_t bytes_corrupted = 0;   ///< bytes sent with a flipped bit
   std::uint64_t bytes_dropped = 0;     ///< bytes the fault injector removed

@@ -70,9 +70,9 @@ struct Object {
 };
 
 struct Hit {
-  double t_m = kInf;                 ///< distance along the ray
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();   ///< world
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); ///< world, unit, facing the ray origin
+  double t_m = kInf;                                  ///< distance along the ray
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();    ///< world
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< world, unit, facing the ray origin
   ObjectId object = kNoObject;
   MaterialId material = kNoMaterial;
 };
@@ -110,8 +110,8 @@ class World {
   struct Entry {
     Object obj;
     Eigen::Isometry3d T_object_world;
-    Eigen::Vector3d centre_w;     // bounding sphere in world
-    double radius = kInf;         // kInf: unbounded (infinite plane)
+    Eigen::Vector3d centre_w;  // bounding sphere in world
+    double radius = kInf;      // kInf: unbounded (infinite plane)
     // Rods are cylinders in a frame along p0->p1:
     Eigen::Isometry3d T_world_local;
     Eigen::Isometry3d T_local_world;

@@ -75,7 +75,7 @@ class YamlNode {
   /// Throws ConfigError at this node.
   [[noreturn]] void fail(const std::string& what) const;
   /// Range checks with the field named in the error.
-  double positive(std::string_view key) const;                 ///< required, > 0
+  double positive(std::string_view key) const;  ///< required, > 0
   double positive(std::string_view key, double fallback) const;
   double non_negative(std::string_view key, double fallback) const;
   double in_range(std::string_view key, double fallback, double lo, double hi) const;

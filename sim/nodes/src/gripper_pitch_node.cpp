@@ -17,8 +17,9 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 SimGripperPitchNode::SimGripperPitchNode(bus::NodeOptions o) : bus::Node(std::move(o)) {
   using bus::ParamConstraints;
-  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML whose sensor the gripper carries [required]; "
-                                                            "the same path as the virtual_sensor's",
+  scene_path_ = declare_parameter<std::string>("scene", "",
+                                               "scene YAML whose sensor the gripper carries [required]; "
+                                               "the same path as the virtual_sensor's",
                                                scene_file());
   sensor_name_ = declare_parameter<std::string>("sensor", "", "sensor name in the scene; empty: the first");
   joint_ = declare_parameter<std::string>("pitch_joint", "gripper_pitch", "the joint's name in JointState");
@@ -29,8 +30,10 @@ SimGripperPitchNode::SimGripperPitchNode(bus::NodeOptions o) : bus::Node(std::mo
                                               ParamConstraints::range(-90.0, 90.0));
   pitch_rad_ = kDeg * declare_parameter("initial_pitch_deg", 0.0, "joint pitch at start [deg]",
                                         ParamConstraints::range(-90.0, 90.0));
-  min_pitch_rad_ = kDeg * declare_parameter("min_pitch_deg", -45.0, "joint limit [deg]", ParamConstraints::range(-90.0, 90.0));
-  max_pitch_rad_ = kDeg * declare_parameter("max_pitch_deg", 45.0, "joint limit [deg]", ParamConstraints::range(-90.0, 90.0));
+  min_pitch_rad_ =
+      kDeg * declare_parameter("min_pitch_deg", -45.0, "joint limit [deg]", ParamConstraints::range(-90.0, 90.0));
+  max_pitch_rad_ =
+      kDeg * declare_parameter("max_pitch_deg", 45.0, "joint limit [deg]", ParamConstraints::range(-90.0, 90.0));
   rate_hz_ = declare_parameter("rate_hz", 100.0, "joint_states per second", ParamConstraints::range(1.0, 10000.0));
   if (!(max_pitch_rad_ > min_pitch_rad_)) {
     throw bus::ParamError({}, fmt::format("node '{}': max_pitch_deg must be above min_pitch_deg", full_name()));
@@ -48,7 +51,8 @@ void SimGripperPitchNode::on_start() {
   T_base_ = system_->sensor_pose(sensor_);
   pitch_rad_ = std::clamp(pitch_rad_, min_pitch_rad_, max_pitch_rad_);
   system_->set_sensor_pose(sensor_, sensor_pose(pitch_rad_));
-  timer_ = create_timer(std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / rate_hz_)), [this] { publish_state(); });
+  timer_ =
+      create_timer(std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / rate_hz_)), [this] { publish_state(); });
 }
 
 Eigen::Isometry3d SimGripperPitchNode::sensor_pose(double pitch_rad) const {
@@ -67,7 +71,8 @@ void SimGripperPitchNode::on_command(const sensor_msgs::msg::JointState& m) {
     return;
   }
   const double p = std::clamp(m.position[k], min_pitch_rad_, max_pitch_rad_);
-  if (p != m.position[k]) logger().warn("'{}' command {:.2f} deg clamped to the joint limits", joint_, m.position[k] / kDeg);
+  if (p != m.position[k])
+    logger().warn("'{}' command {:.2f} deg clamped to the joint limits", joint_, m.position[k] / kDeg);
   pitch_rad_ = p;
   if (system_) system_->set_sensor_pose(sensor_, sensor_pose(pitch_rad_));
   publish_state();

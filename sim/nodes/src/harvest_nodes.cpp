@@ -51,8 +51,8 @@ Eigen::Vector3d eig(const geometry_msgs::msg::Point& p) { return {p.x, p.y, p.z}
 bool finite_pose(const geometry_msgs::msg::Pose& p) {
   const auto& q = p.orientation;
   const double n = std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
-  return std::isfinite(p.position.x) && std::isfinite(p.position.y) && std::isfinite(p.position.z) && std::isfinite(n) &&
-         std::abs(n - 1.0) < 1e-3;
+  return std::isfinite(p.position.x) && std::isfinite(p.position.y) && std::isfinite(p.position.z) &&
+         std::isfinite(n) && std::abs(n - 1.0) < 1e-3;
 }
 
 std::uint8_t to_msg(sim::CutResult r) {
@@ -175,8 +175,8 @@ std::string unaccounted(const msgs::HarvestSummary& s) {
   std::vector<int> seen(s.detected, 0);
   for (const auto& p : s.picks) {
     if (p.tomato < 0 || std::size_t(p.tomato) >= seen.size())
-      return "pick " + std::to_string(p.pick_rank + 1) + " is for tomato " + std::to_string(p.tomato) + ", not one of the " +
-             std::to_string(s.detected) + " detected";
+      return "pick " + std::to_string(p.pick_rank + 1) + " is for tomato " + std::to_string(p.tomato) +
+             ", not one of the " + std::to_string(s.detected) + " detected";
     if (++seen[std::size_t(p.tomato)] > 1) return "tomato " + std::to_string(p.tomato) + " has more than one pick";
   }
   for (std::size_t k = 0; k < seen.size(); ++k)
@@ -192,10 +192,11 @@ class HarvestScoreNode : public bus::Node {
     class_ = truss_class(*this, declare_parameter<std::string>("truss_class", "B", "the truss_camera's class"));
     seed_ = declare_parameter("seed", 1, "the truss_camera's seed", ParamConstraints::range(0, 1 << 30));
     score_pub_ = create_publisher<msgs::HarvestScore>("score", bus::QoS::keep_last(4));
-    cut_sub_ = create_subscription<msgs::CutOutcome>("cut_outcome", bus::QoS::keep_last(64), [this](const msgs::CutOutcome& m) {
-      cuts_[m.pick_rank] = m;
-      score_when_ready();
-    });
+    cut_sub_ = create_subscription<msgs::CutOutcome>("cut_outcome", bus::QoS::keep_last(64),
+                                                     [this](const msgs::CutOutcome& m) {
+                                                       cuts_[m.pick_rank] = m;
+                                                       score_when_ready();
+                                                     });
     summary_sub_ = create_subscription<msgs::HarvestSummary>("summary", bus::QoS::keep_last(4),
                                                              [this](const msgs::HarvestSummary& m) {
                                                                summary_ = m;
@@ -249,7 +250,9 @@ class HarvestScoreNode : public bus::Node {
       out->cut_failures += p.outcome == msgs::HarvestPick::CUT_FAILURE;
       logger().info("  pick {}: tomato {} is {}: {} after {} attempt(s)", p.pick_rank + 1, p.tomato,
                     t >= 0 ? "truss tomato " + std::to_string(t) : std::string("no truss tomato"),
-                    picked ? "picked" : p.outcome == msgs::HarvestPick::PICKED ? "NOT picked (the truth disagrees)" : "not picked",
+                    picked                                   ? "picked"
+                    : p.outcome == msgs::HarvestPick::PICKED ? "NOT picked (the truth disagrees)"
+                                                             : "not picked",
                     p.attempts);
     }
     out->detected = std::uint32_t(std::count(detected.begin(), detected.end(), 1));
@@ -257,11 +260,13 @@ class HarvestScoreNode : public bus::Node {
     out->reason = unaccounted(s);
     out->accounted = out->reason.empty();
     const ThesisRow t = thesis_row(class_);
-    logger().info("harvest score, class {} seed {} (thesis Table 4.2's columns): trials {}, SD {}, SP(1) {}, SP(2) {}, HS {}, CF {}",
-                  char(class_), seed_, out->trials, out->detected, out->picked_first, out->picked_second, out->human,
-                  out->cut_failures);
-    logger().info("  thesis Table 4.2, class {}: trials {}, SD {}, SP(1) {}, SP(2) {}, HS {}, CF {}", char(class_), t.trials,
-                  t.sd, t.sp1, t.sp2, t.hs, t.cf);
+    logger().info(
+        "harvest score, class {} seed {} (thesis Table 4.2's columns): trials {}, SD {}, SP(1) {}, SP(2) {}, HS {}, CF "
+        "{}",
+        char(class_), seed_, out->trials, out->detected, out->picked_first, out->picked_second, out->human,
+        out->cut_failures);
+    logger().info("  thesis Table 4.2, class {}: trials {}, SD {}, SP(1) {}, SP(2) {}, HS {}, CF {}", char(class_),
+                  t.trials, t.sd, t.sp1, t.sp2, t.hs, t.cf);
     if (out->accounted) {
       logger().info("harvest ended: every one of {} detected tomatoes accounted for", s.detected);
     } else {
@@ -282,9 +287,10 @@ class HarvestScoreNode : public bus::Node {
 };
 
 void register_harvest_nodes(bus::NodeRegistry& r) {
-  r.add<SimGripperNode>("tomato_reasoning", "sim_gripper",
-                        "simulated hand in the truss_camera's truss: pick_pose -> laser scan; cut -> the scissors close, "
-                        "cut_outcome (a cut fruit falls)");
+  r.add<SimGripperNode>(
+      "tomato_reasoning", "sim_gripper",
+      "simulated hand in the truss_camera's truss: pick_pose -> laser scan; cut -> the scissors close, "
+      "cut_outcome (a cut fruit falls)");
   r.add<HarvestScoreNode>("tomato_reasoning", "harvest_score",
                           "the harvest's summary scored against the truss's truth as Table 4.2 counts it -> score");
 }

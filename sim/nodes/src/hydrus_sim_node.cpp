@@ -26,12 +26,12 @@ namespace msgs = tinyline_msgs::msg;
 HydrusSimNode::HydrusSimNode(bus::NodeOptions o) : Node(std::move(o)) {
   ParamConstraints scene = scene_file();
   scene.required = true;
-  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML with the Hydrus (sim/config/scenes/hydrus4_grasp.yaml)",
-                                               scene);
+  scene_path_ = declare_parameter<std::string>(
+      "scene", "", "scene YAML with the Hydrus (sim/config/scenes/hydrus4_grasp.yaml)", scene);
   ParamConstraints description = ParamConstraints::input_file(hydrus_fitting::kMaxRobotDescriptionBytes);
   description.required = true;
-  description_path_ = declare_parameter<std::string>("robot_description", "",
-                                                     "robot description YAML (links, joints, sensor mounts)", description);
+  description_path_ = declare_parameter<std::string>(
+      "robot_description", "", "robot description YAML (links, joints, sensor mounts)", description);
   frame_id_ = declare_parameter<std::string>("frame_id", "base", "frame of `truth`: the robot description's base");
   rate_hz_ = declare_parameter("rate_hz", 100.0, "joint states (and pose updates) per second",
                                ParamConstraints::range(1.0, 1000.0));

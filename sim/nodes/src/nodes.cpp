@@ -56,7 +56,8 @@ void to_msg(const SensorSet& set, const std::string& sensor, const World& world,
     out.object[i] = t.object;
     out.material[i] = t.material;
     out.incidence_rad[i] = static_cast<float>(t.incidence_rad);
-    out.flags[i] = static_cast<std::uint8_t>((t.lit ? msgs::ScanTruth::FLAG_LIT : 0) | (t.mixed ? msgs::ScanTruth::FLAG_MIXED : 0) |
+    out.flags[i] = static_cast<std::uint8_t>((t.lit ? msgs::ScanTruth::FLAG_LIT : 0) |
+                                             (t.mixed ? msgs::ScanTruth::FLAG_MIXED : 0) |
                                              ((i < dark || i + dark >= n) ? msgs::ScanTruth::FLAG_DARK : 0));
   }
   out.objects.clear();
@@ -79,12 +80,18 @@ void to_msg(const Scene& scene, msgs::SceneTruth& out) {
     std::visit(
         [&](const auto& s) {
           using S = std::decay_t<decltype(s)>;
-          if constexpr (std::is_same_v<S, PlaneShape>) t.dimensions = {s.size_m.x(), s.size_m.y()};
-          else if constexpr (std::is_same_v<S, BoxShape>) t.dimensions = {s.size_m.x(), s.size_m.y(), s.size_m.z()};
-          else if constexpr (std::is_same_v<S, SphereShape>) t.dimensions = {s.radius_m};
-          else if constexpr (std::is_same_v<S, CylinderShape>) t.dimensions = {s.radius_m, s.length_m};
-          else if constexpr (std::is_same_v<S, RodShape>) t.dimensions = {s.radius_m, s.p0.x(), s.p0.y(), s.p0.z(), s.p1.x(), s.p1.y(), s.p1.z()};
-          else t.dimensions.clear();
+          if constexpr (std::is_same_v<S, PlaneShape>)
+            t.dimensions = {s.size_m.x(), s.size_m.y()};
+          else if constexpr (std::is_same_v<S, BoxShape>)
+            t.dimensions = {s.size_m.x(), s.size_m.y(), s.size_m.z()};
+          else if constexpr (std::is_same_v<S, SphereShape>)
+            t.dimensions = {s.radius_m};
+          else if constexpr (std::is_same_v<S, CylinderShape>)
+            t.dimensions = {s.radius_m, s.length_m};
+          else if constexpr (std::is_same_v<S, RodShape>)
+            t.dimensions = {s.radius_m, s.p0.x(), s.p0.y(), s.p0.z(), s.p1.x(), s.p1.y(), s.p1.z()};
+          else
+            t.dimensions.clear();
         },
         o.shape);
     out.objects.push_back(std::move(t));
@@ -102,8 +109,8 @@ void to_msg(const Scene& scene, msgs::SceneTruth& out) {
 // ---------------------------------------------------------------------------- virtual_sensor
 
 VirtualSensorNode::VirtualSensorNode(bus::NodeOptions o) : bus::Node(std::move(o)) {
-  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]",
-                                               scene_file());
+  scene_path_ =
+      declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]", scene_file());
   sensor_name_ = declare_parameter<std::string>("sensor", "", "sensor name in the scene; empty: the first");
   frame_id_ = declare_parameter<std::string>("frame_id", "", "frame of the published scans; empty: the sensor's name");
   publish_truth_ = declare_parameter("publish_truth", true, "also publish scan_truth for every set");
@@ -152,11 +159,12 @@ void VirtualSensorNode::tick() {
 // ---------------------------------------------------------------------------- scene_truth
 
 SceneTruthNode::SceneTruthNode(bus::NodeOptions o) : bus::Node(std::move(o)) {
-  scene_path_ = declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]",
-                                               scene_file());
+  scene_path_ =
+      declare_parameter<std::string>("scene", "", "scene YAML (sim/config/scenes/...) [required]", scene_file());
   frame_id_ = declare_parameter<std::string>("frame_id", "world", "the scene's world frame");
   rate_hz_ = declare_parameter("rate_hz", 10.0, "object poses per second", bus::ParamConstraints::range(0.01, 1000.0));
-  scan_truth_ = declare_parameter("scan_truth", true, "publish the ScanTruth of the sets this process's virtual devices measure");
+  scan_truth_ =
+      declare_parameter("scan_truth", true, "publish the ScanTruth of the sets this process's virtual devices measure");
   objects_pub_ = create_publisher<msgs::SceneTruth>("objects");
   truth_pub_ = create_publisher<msgs::ScanTruth>("scan_truth", bus::QoS::keep_last(64));
 }
@@ -174,7 +182,8 @@ void SceneTruthNode::on_start() {
     });
     drain_timer_ = create_timer(std::chrono::milliseconds(5), [this] { drain(); });
   }
-  objects_timer_ = create_timer(std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / rate_hz_)), [this] { publish_objects(); });
+  objects_timer_ =
+      create_timer(std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / rate_hz_)), [this] { publish_objects(); });
 }
 
 void SceneTruthNode::on_stop() {

@@ -44,8 +44,9 @@ class SimOpener : public io::PortOpener {
         dev->start();
         device_ = std::move(dev);
       } catch (const std::exception& e) {
-        return {nullptr, io::IoStatus::fail(io::IoError::kNotFound,
-                                            fmt::format("sim:{}: cannot start the virtual device: {}", arg_, e.what()))};
+        return {nullptr,
+                io::IoStatus::fail(io::IoError::kNotFound,
+                                   fmt::format("sim:{}: cannot start the virtual device: {}", arg_, e.what()))};
       }
     }
     auto r = io::SerialPort::open(device_->path(), options_.serial);
@@ -65,9 +66,10 @@ class SimOpener : public io::PortOpener {
 void register_port_scheme() {
   static std::once_flag once;
   std::call_once(once, [] {
-    io::register_port_scheme("sim", [](const std::string& arg, const io::PortOptions& o) -> std::unique_ptr<io::PortOpener> {
-      return std::make_unique<SimOpener>(arg, o);
-    });
+    io::register_port_scheme("sim",
+                             [](const std::string& arg, const io::PortOptions& o) -> std::unique_ptr<io::PortOpener> {
+                               return std::make_unique<SimOpener>(arg, o);
+                             });
   });
 }
 

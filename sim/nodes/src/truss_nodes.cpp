@@ -43,8 +43,10 @@ using tomato_reasoning::nodes::to_msg;
 class TrussCameraNode : public bus::Node {
  public:
   explicit TrussCameraNode(bus::NodeOptions o) : Node(std::move(o)) {
-    class_ = truss_class(*this, declare_parameter<std::string>("truss_class", "B", "complexity class of section 4.5: A, B or C"));
-    seed_ = declare_parameter("seed", 1, "truss seed (the same seed gives the same truss)", ParamConstraints::range(0, 1 << 30));
+    class_ = truss_class(
+        *this, declare_parameter<std::string>("truss_class", "B", "complexity class of section 4.5: A, B or C"));
+    seed_ = declare_parameter("seed", 1, "truss seed (the same seed gives the same truss)",
+                              ParamConstraints::range(0, 1 << 30));
     rate_hz_ = declare_parameter("rate_hz", 1.0, "frames per second", ParamConstraints::range(0.01, 30.0));
     frame_id_ = declare_parameter<std::string>("frame_id", "camera", "the camera's optical frame");
     views_ = declare_parameter("views", 1, "1: one hand-camera view (cloud); 2: also cloud2 and cloud2_pose",
@@ -81,7 +83,8 @@ class TrussCameraNode : public bus::Node {
   void render_again() {
     const sim::RgbdCamera camera(te::ScenarioOptions{}.camera);
     for (std::size_t v = 0; v < scenario_->frames.size(); ++v) {
-      scenario_->frames[v] = camera.render(scenario_->world, scenario_->frames[v].T_world_camera, scenario_->seed * 16 + v);
+      scenario_->frames[v] =
+          camera.render(scenario_->world, scenario_->frames[v].T_world_camera, scenario_->seed * 16 + v);
       scenario_->clouds[v] = te::to_cloud(scenario_->frames[v]);
     }
     stale_ = false;
@@ -142,8 +145,9 @@ class TrussCameraNode : public bus::Node {
 };
 
 void register_truss_nodes(bus::NodeRegistry& r) {
-  r.add<TrussCameraNode>("tomato_reasoning", "truss_camera",
-                         "simulated RGB-D camera on a seeded tomato truss (class A/B/C): cloud + truth markers; cut fruit leave it");
+  r.add<TrussCameraNode>(
+      "tomato_reasoning", "truss_camera",
+      "simulated RGB-D camera on a seeded tomato truss (class A/B/C): cloud + truth markers; cut fruit leave it");
   register_harvest_nodes(r);
 }
 

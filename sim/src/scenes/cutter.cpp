@@ -21,7 +21,8 @@ double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, cons
 bool inside_fruit(const TrussTomato& t, const Eigen::Vector3d& p_world) {
   const Eigen::Vector3d d = p_world - t.centre_m;
   if (d.norm() > t.bounding_radius_m + 1e-9 && d.norm() > t.radius_m) return false;
-  const Eigen::Matrix3d R = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), t.pedicel_dir).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), t.pedicel_dir).toRotationMatrix();
   const Eigen::Vector3d q = R.transpose() * d;  // fruit frame: z towards the calyx
   const double rho = std::hypot(q.x(), q.y());
   const double sin_theta = q.norm() > 0 ? rho / q.norm() : 0.0;
@@ -59,7 +60,8 @@ std::string find_blocker(const Truss& truss, const std::vector<Eigen::Vector3d>&
     for (std::size_t i = 0; i < truss.tomatoes.size(); ++i)
       if (inside_fruit(truss.tomatoes[i], q)) return "fruit " + std::to_string(i);
     for (std::size_t k = 0; k + 1 < truss.peduncle_m.size(); ++k)
-      if (segment_distance(q, truss.peduncle_m[k], truss.peduncle_m[k + 1]) <= truss.params.peduncle_radius_m) return "peduncle";
+      if (segment_distance(q, truss.peduncle_m[k], truss.peduncle_m[k + 1]) <= truss.params.peduncle_radius_m)
+        return "peduncle";
     if (segment_distance(q, stem.p0, stem.p1) <= stem.radius_m) return "main stem";
   }
   return {};
@@ -91,7 +93,8 @@ std::string list_pedicels(const std::vector<int>& ids) {
 common::Validation BladeParams::validate() const {
   if (!(opening_m > 0 && opening_m < 0.2)) return common::Validation::invalid("opening_m must be in (0, 0.2) m");
   if (!(reach_m > 0 && reach_m < 0.2)) return common::Validation::invalid("reach_m must be in (0, 0.2) m");
-  if (!(thickness_m > 0 && thickness_m < 0.05)) return common::Validation::invalid("thickness_m must be in (0, 0.05) m");
+  if (!(thickness_m > 0 && thickness_m < 0.05))
+    return common::Validation::invalid("thickness_m must be in (0, 0.05) m");
   if (!(max_cut_diameter_m >= 0 && max_cut_diameter_m < 0.1))
     return common::Validation::invalid("max_cut_diameter_m must be in [0, 0.1) m");
   if (!(grid_m >= 1e-4 && grid_m <= 0.01)) return common::Validation::invalid("grid_m must be in [0.0001, 0.01] m");
@@ -118,7 +121,8 @@ StemRod main_stem(const Truss& truss) {
   return {o + Eigen::Vector3d(0, 0.02, -0.6), o + Eigen::Vector3d(0, 0.02, 0.35), 0.007};
 }
 
-CutOutcome close_blades(const Truss& truss, const Eigen::Isometry3d& T_world_throat, const BladeParams& params, int target) {
+CutOutcome close_blades(const Truss& truss, const Eigen::Isometry3d& T_world_throat, const BladeParams& params,
+                        int target) {
   CutOutcome out;
   if (const auto v = params.validate(); !v.valid) {
     out.result = CutResult::kJammed;
@@ -169,8 +173,8 @@ int drop_tomato(World& world, const Truss& truss, int i) {
     const auto id = static_cast<ObjectId>(o);
     const Object& obj = world.object(id);
     const std::string& n = obj.name;
-    const bool mine = n == fruit || n.rfind(fruit + "_p", 0) == 0 || n == prefix + "pedicel_" + idx ||
-                      n == prefix + "calyx_" + idx;
+    const bool mine =
+        n == fruit || n.rfind(fruit + "_p", 0) == 0 || n == prefix + "pedicel_" + idx || n == prefix + "calyx_" + idx;
     if (!mine || obj.T_world_object.translation().z() < gone_below) continue;
     Eigen::Isometry3d fallen = obj.T_world_object;
     fallen.translation().z() -= kFallenDrop_m;

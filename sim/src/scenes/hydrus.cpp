@@ -17,13 +17,14 @@ common::Validation HydrusChainParams::validate() const {
   if (!(link_width_m > 0.0)) return common::Validation::invalid("link_width_m must be > 0");
   if (!(link_thickness_m > 0.0)) return common::Validation::invalid("link_thickness_m must be > 0");
   if (!std::isfinite(height_m)) return common::Validation::invalid("height_m must be finite");
-  if (!sensor_mount_m.allFinite() || !std::isfinite(sensor_yaw_rad)) return common::Validation::invalid("sensor mount must be finite");
+  if (!sensor_mount_m.allFinite() || !std::isfinite(sensor_yaw_rad))
+    return common::Validation::invalid("sensor mount must be finite");
   return common::Validation::ok();
 }
 
 Eigen::Isometry3d planar_sensor_frame(const Eigen::Vector2d& origin_m, double yaw_rad, double height_m,
                                       bool line_axis_left) {
-  const Eigen::Vector3d z(std::cos(yaw_rad), std::sin(yaw_rad), 0.0);       // optical axis
+  const Eigen::Vector3d z(std::cos(yaw_rad), std::sin(yaw_rad), 0.0);  // optical axis
   const double side = line_axis_left ? 1.0 : -1.0;
   const Eigen::Vector3d x = side * Eigen::Vector3d(-std::sin(yaw_rad), std::cos(yaw_rad), 0.0);  // along the line
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -57,8 +58,8 @@ HydrusPoses hydrus_poses(const HydrusChainParams& chain, const HydrusState& stat
     box.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     box.translation() = Eigen::Vector3d(c.x(), c.y(), chain.height_m);
     p.T_world_link_box.push_back(box);
-    p.T_world_sensor.push_back(
-        planar_sensor_frame(T * chain.sensor_mount_m, yaw + chain.sensor_yaw_rad, chain.height_m, chain.line_axis_left));
+    p.T_world_sensor.push_back(planar_sensor_frame(T * chain.sensor_mount_m, yaw + chain.sensor_yaw_rad, chain.height_m,
+                                                   chain.line_axis_left));
   }
   return p;
 }

@@ -27,10 +27,11 @@ void make_room(const tinyline::sim::YamlNode& p, tinyline::sim::Scene& scene) {
     const char* suffix;
     Eigen::Vector3d normal;
   };
-  const W walls[] = {{"_xp", {1, 0, 0}}, {"_xn", {-1, 0, 0}}, {"_yp", {0, 1, 0}},
-                     {"_yn", {0, -1, 0}}, {"_zp", {0, 0, 1}}, {"_zn", {0, 0, -1}}};
+  const W walls[] = {{"_xp", {1, 0, 0}},  {"_xn", {-1, 0, 0}}, {"_yp", {0, 1, 0}},
+                     {"_yn", {0, -1, 0}}, {"_zp", {0, 0, 1}},  {"_zn", {0, 0, -1}}};
   for (const auto& w : walls) {
-    const int axis = w.normal.cwiseAbs().maxCoeff() == std::abs(w.normal.x()) ? 0 : (std::abs(w.normal.y()) > 0.5 ? 1 : 2);
+    const int axis =
+        w.normal.cwiseAbs().maxCoeff() == std::abs(w.normal.x()) ? 0 : (std::abs(w.normal.y()) > 0.5 ? 1 : 2);
     Object o;
     o.name = name + w.suffix;
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -77,8 +77,8 @@ struct Constraint {
   int i = -1, j = -1;
   bool pedicel = false;
   double lever = 1.0;
-  double gap = 0.0;         // distance minus contact distance [m] (< 0: overlap)
-  Eigen::Vector3d n;        // unit, pushes i away from the other body
+  double gap = 0.0;   // distance minus contact distance [m] (< 0: overlap)
+  Eigen::Vector3d n;  // unit, pushes i away from the other body
 };
 
 std::vector<Constraint> constraints(const std::vector<Pendulum>& p, const std::vector<Segment>& peduncle,
@@ -111,7 +111,8 @@ std::vector<Constraint> constraints(const std::vector<Pendulum>& p, const std::v
       const Eigen::Vector3d v = c[i] - (a + t * (b - a));
       const double dist = v.norm();
       const double gap = dist - p[i].radius_m - pedicel_radius;
-      if (gap < reach && dist > 1e-12) out.push_back({int(i), int(j), true, t * p[j].pedicel_m / p[j].arm(), gap, v / dist});
+      if (gap < reach && dist > 1e-12)
+        out.push_back({int(i), int(j), true, t * p[j].pedicel_m / p[j].arm(), gap, v / dist});
     }
   }
   return out;
@@ -143,12 +144,16 @@ Eigen::VectorXd nnls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
     Eigen::Index best = -1;
     double wmax = 1e-12;
     for (Eigen::Index k = 0; k < m; ++k)
-      if (!passive[std::size_t(k)] && w[k] > wmax) { wmax = w[k]; best = k; }
+      if (!passive[std::size_t(k)] && w[k] > wmax) {
+        wmax = w[k];
+        best = k;
+      }
     if (best < 0) break;
     passive[std::size_t(best)] = true;
     for (int inner = 0; inner < 3 * m + 10; ++inner) {
       std::vector<Eigen::Index> idx;
-      for (Eigen::Index k = 0; k < m; ++k) if (passive[std::size_t(k)]) idx.push_back(k);
+      for (Eigen::Index k = 0; k < m; ++k)
+        if (passive[std::size_t(k)]) idx.push_back(k);
       Eigen::MatrixXd Ap(A.rows(), Eigen::Index(idx.size()));
       for (std::size_t k = 0; k < idx.size(); ++k) Ap.col(Eigen::Index(k)) = A.col(idx[k]);
       const Eigen::VectorXd z = Ap.completeOrthogonalDecomposition().solve(b);
@@ -162,9 +167,16 @@ Eigen::VectorXd nnls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
           alpha = std::min(alpha, x[k] / std::max(1e-300, x[k] - s[k]));
         }
       }
-      if (feasible) { x = s; break; }
+      if (feasible) {
+        x = s;
+        break;
+      }
       x += alpha * (s - x);
-      for (Eigen::Index k : idx) if (x[k] <= 1e-15) { passive[std::size_t(k)] = false; x[k] = 0; }
+      for (Eigen::Index k : idx)
+        if (x[k] <= 1e-15) {
+          passive[std::size_t(k)] = false;
+          x[k] = 0;
+        }
     }
   }
   return x;
@@ -180,7 +192,7 @@ std::vector<JacobianRow> contact_jacobian(const std::vector<Pendulum>& p, const 
     const auto& c = cons[k];
     J[k][0] = {c.i, tangential(p[std::size_t(c.i)], c.n)};
     J[k][1] = {c.j, c.j >= 0 ? Eigen::Vector3d(-(c.pedicel ? c.lever : 1.0) * tangential(p[std::size_t(c.j)], c.n))
-                            : Eigen::Vector3d::Zero()};
+                             : Eigen::Vector3d::Zero()};
   }
   return J;
 }
@@ -201,11 +213,13 @@ std::vector<double> contact_multipliers(const std::vector<JacobianRow>& J, const
   };
   Eigen::MatrixXd M(m, m);
   for (std::size_t a = 0; a < nc; ++a)
-    for (std::size_t b = a; b < nc; ++b) M(Eigen::Index(a), Eigen::Index(b)) = M(Eigen::Index(b), Eigen::Index(a)) = dot_rows(a, b);
+    for (std::size_t b = a; b < nc; ++b)
+      M(Eigen::Index(a), Eigen::Index(b)) = M(Eigen::Index(b), Eigen::Index(a)) = dot_rows(a, b);
   Eigen::VectorXd q(m);
   for (std::size_t k = 0; k < nc; ++k) {
     double jd = 0;
-    for (const auto& [i, v] : J[k]) if (i >= 0) jd += v.dot(delta[std::size_t(i)]);
+    for (const auto& [i, v] : J[k])
+      if (i >= 0) jd += v.dot(delta[std::size_t(i)]);
     q[Eigen::Index(k)] = cons[k].gap + jd;
   }
   std::vector<double> mu(nc, 0.0);
@@ -226,8 +240,7 @@ std::vector<double> contact_multipliers(const std::vector<JacobianRow>& J, const
 }
 
 // One projected step along the free forces; returns the largest move [m].
-double relax_step(std::vector<Pendulum>& p, const std::vector<Segment>& peduncle, double pedicel_radius,
-                  double step) {
+double relax_step(std::vector<Pendulum>& p, const std::vector<Segment>& peduncle, double pedicel_radius, double step) {
   const std::size_t n = p.size();
   const auto cons = constraints(p, peduncle, pedicel_radius, 0.01);
   const auto f = free_forces(p);
@@ -236,7 +249,8 @@ double relax_step(std::vector<Pendulum>& p, const std::vector<Segment>& peduncle
   const auto J = contact_jacobian(p, cons);
   const auto mu = contact_multipliers(J, cons, delta);
   for (std::size_t k = 0; k < cons.size(); ++k)
-    for (const auto& [i, v] : J[k]) if (i >= 0) delta[std::size_t(i)] += mu[k] * v;
+    for (const auto& [i, v] : J[k])
+      if (i >= 0) delta[std::size_t(i)] += mu[k] * v;
   double moved = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     move_centre(p[i], delta[i]);
@@ -275,7 +289,8 @@ void balance_contacts(const std::vector<Pendulum>& p, const std::vector<Segment>
   const Eigen::VectorXd lambda = cols > 0 ? nnls(A, b) : Eigen::VectorXd();
   const Eigen::VectorXd r = (cols > 0 ? Eigen::VectorXd(A * lambda) : Eigen::VectorXd::Zero(rows)) - b;
   rep.max_torque_residual = 0.0;
-  for (std::size_t i = 0; i < n; ++i) rep.max_torque_residual = std::max(rep.max_torque_residual, r.segment<3>(Eigen::Index(3 * i)).norm());
+  for (std::size_t i = 0; i < n; ++i)
+    rep.max_torque_residual = std::max(rep.max_torque_residual, r.segment<3>(Eigen::Index(3 * i)).norm());
 
   contacts.clear();
   contact_force.assign(n, Eigen::Vector3d::Zero());
@@ -287,7 +302,8 @@ void balance_contacts(const std::vector<Pendulum>& p, const std::vector<Segment>
     const Eigen::Vector3d F = lambda[Eigen::Index(k)] * c.n;
     contact_force[std::size_t(c.i)] += F;
     if (c.j >= 0 && !c.pedicel) contact_force[std::size_t(c.j)] -= F;
-    contacts.push_back({c.i, c.j, c.pedicel ? ContactKind::kPedicel : (c.j < 0 ? ContactKind::kPeduncle : ContactKind::kFruit),
+    contacts.push_back({c.i, c.j,
+                        c.pedicel ? ContactKind::kPedicel : (c.j < 0 ? ContactKind::kPeduncle : ContactKind::kFruit),
                         lambda[Eigen::Index(k)]});
   }
 }
@@ -358,7 +374,8 @@ std::vector<MeshShape> fruit_patches(const TrussTomato& t) {
     const double theta = M_PI * r / kRings, phi = 2.0 * M_PI * k / kSegs;
     const double rr = 1.0 + t.rib_amplitude * std::pow(std::sin(theta), 2) * std::cos(t.lobes * phi + t.rib_phase_rad);
     return Eigen::Vector3d(t.equatorial_radius_m * rr * std::sin(theta) * std::cos(phi),
-                           t.equatorial_radius_m * rr * std::sin(theta) * std::sin(phi), t.polar_radius_m * std::cos(theta));
+                           t.equatorial_radius_m * rr * std::sin(theta) * std::sin(phi),
+                           t.polar_radius_m * std::cos(theta));
   };
   std::vector<MeshShape> patches;
   for (int r0 = 0; r0 < kRings; r0 += kPatchRings) {
@@ -371,8 +388,8 @@ std::vector<MeshShape> fruit_patches(const TrussTomato& t) {
       for (int r = r0; r < r0 + kPatchRings; ++r) {
         for (int k = k0; k < k0 + kPatchSegs; ++k) {
           const Eigen::Vector3d a = vertex(r, k), b = vertex(r + 1, k), c = vertex(r + 1, k + 1), d = vertex(r, k + 1);
-          if (r > 0) m.triangles.emplace_back(add(a), add(c), add(d));         // not at the calyx pole
-          if (r + 1 < kRings) m.triangles.emplace_back(add(a), add(b), add(c)); // not at the blossom pole
+          if (r > 0) m.triangles.emplace_back(add(a), add(c), add(d));           // not at the calyx pole
+          if (r + 1 < kRings) m.triangles.emplace_back(add(a), add(b), add(c));  // not at the blossom pole
         }
       }
       patches.push_back(std::move(m));
@@ -431,8 +448,16 @@ Layout draw_layout(const TrussParams& P, int n, Rng& rng) {
   double spacing_lo = 0.07, spacing_hi = 0.10, depth_scatter = 0.0;
   switch (P.complexity) {
     case TrussClass::kA: break;
-    case TrussClass::kB: spacing_lo = 0.035; spacing_hi = 0.055; depth_scatter = 0.012; break;
-    case TrussClass::kC: spacing_lo = 0.018; spacing_hi = 0.032; depth_scatter = 0.03; break;
+    case TrussClass::kB:
+      spacing_lo = 0.035;
+      spacing_hi = 0.055;
+      depth_scatter = 0.012;
+      break;
+    case TrussClass::kC:
+      spacing_lo = 0.018;
+      spacing_hi = 0.032;
+      depth_scatter = 0.03;
+      break;
   }
   // The peduncle leaves the main stem sideways and arches down.
   const double side = rng.chance(0.5) ? 1.0 : -1.0;
@@ -443,7 +468,7 @@ Layout draw_layout(const TrussParams& P, int n, Rng& rng) {
     s = rng.uniform(spacing_lo, spacing_hi);
     length += s;
   }
-  const double droop = rng.uniform(0.2, 0.9);  // how fast it bends down [rad over its length]
+  const double droop = rng.uniform(0.2, 0.9);           // how fast it bends down [rad over its length]
   const double start_angle = rng.uniform(-0.15, 0.35);  // initial angle below horizontal
   const double yaw = rng.uniform(-0.35, 0.35);          // swing towards or away from the camera
   const int segs = std::max(4, static_cast<int>(length / 0.015));
@@ -454,7 +479,8 @@ Layout draw_layout(const TrussParams& P, int n, Rng& rng) {
     const double s = (k + 0.5) / segs;
     const double pitch = start_angle + droop * s;
     const double turn = yaw + P.peduncle_curl_deg * M_PI / 180.0 * s;
-    const Eigen::Vector3d dir(side * std::cos(pitch) * std::cos(turn), std::cos(pitch) * std::sin(turn), -std::sin(pitch));
+    const Eigen::Vector3d dir(side * std::cos(pitch) * std::cos(turn), std::cos(pitch) * std::sin(turn),
+                              -std::sin(pitch));
     pt += (length / segs) * dir;
     L.polyline.push_back(pt);
     arc.push_back(arc.back() + length / segs);
@@ -501,7 +527,6 @@ Layout draw_layout(const TrussParams& P, int n, Rng& rng) {
   }
   return L;
 }
-
 
 // ---- kElasticRod: the same layout as a network of elastic rods ----
 
@@ -573,7 +598,9 @@ void add_pedicel(const TrussParams& P, const Pendulum& p, int i, double E, RodTr
     net.add_segment(nodes[std::size_t(k)], nodes[std::size_t(k + 1)], ax);
     net.tubes.push_back({nodes[std::size_t(k)], nodes[std::size_t(k + 1)], i, r});
     lump_rod_mass(net, nodes[std::size_t(k)], nodes[std::size_t(k + 1)], r, P.density_kg_m3);
-    if (k > 0) net.add_hinge(nodes[std::size_t(k - 1)], nodes[std::size_t(k)], nodes[std::size_t(k)], nodes[std::size_t(k + 1)], EI / l);
+    if (k > 0)
+      net.add_hinge(nodes[std::size_t(k - 1)], nodes[std::size_t(k)], nodes[std::size_t(k)], nodes[std::size_t(k + 1)],
+                    EI / l);
   }
   const int calyx = nodes.back(), centre = net.add_node(p.anchor + p.arm() * p.rest);
   net.add_segment(calyx, centre, 10.0 * ax * p.polar_m / l);
@@ -596,8 +623,8 @@ RodTruss build_rod_truss(const TrussParams& P, const Layout& L, Rng& moduli) {
 // The settled rods back into the layout (pendulum directions anchor ->
 // centre, for the camera and the class checks) and the truth's contacts and
 // forces; a rest state with penetrations over 0.5 mm does not count as settled.
-RelaxationReport settle_rods(const TrussParams& P, Layout& L, Rng& moduli, RodTruss& R, std::vector<TrussContact>& contacts,
-                             std::vector<Eigen::Vector3d>& contact_force) {
+RelaxationReport settle_rods(const TrussParams& P, Layout& L, Rng& moduli, RodTruss& R,
+                             std::vector<TrussContact>& contacts, std::vector<Eigen::Vector3d>& contact_force) {
   R = build_rod_truss(P, L, moduli);
   rod::SettleOptions o;
   o.friction = P.friction;
@@ -694,16 +721,21 @@ common::Validation set_truss_option(TrussParams& p, std::string_view key, std::s
   if (used == 0 || used != v.size() || !std::isfinite(x))
     return common::Validation::invalid("truss option '" + std::string(key) + "' wants a number, got '" + v + "'");
   auto integer = [&](int& field) {
-    if (x != std::floor(x)) return common::Validation::invalid("truss option '" + std::string(key) + "' wants a whole number");
+    if (x != std::floor(x))
+      return common::Validation::invalid("truss option '" + std::string(key) + "' wants a whole number");
     field = static_cast<int>(x);
     return p.validate();
   };
-  const std::pair<const char*, double*> reals[] = {
-      {"pedicel_young_min_pa", &p.pedicel_young_min_pa}, {"pedicel_young_max_pa", &p.pedicel_young_max_pa},
-      {"peduncle_young_min_pa", &p.peduncle_young_min_pa}, {"peduncle_young_max_pa", &p.peduncle_young_max_pa},
-      {"friction", &p.friction}, {"stem_bend_deg", &p.stem_bend_deg}, {"peduncle_curl_deg", &p.peduncle_curl_deg},
-      {"front_leaf_offset_min", &p.front_leaf_offset_min}, {"front_leaf_offset_max", &p.front_leaf_offset_max},
-      {"rest_tilt_max_deg", &p.rest_tilt_max_deg}};
+  const std::pair<const char*, double*> reals[] = {{"pedicel_young_min_pa", &p.pedicel_young_min_pa},
+                                                   {"pedicel_young_max_pa", &p.pedicel_young_max_pa},
+                                                   {"peduncle_young_min_pa", &p.peduncle_young_min_pa},
+                                                   {"peduncle_young_max_pa", &p.peduncle_young_max_pa},
+                                                   {"friction", &p.friction},
+                                                   {"stem_bend_deg", &p.stem_bend_deg},
+                                                   {"peduncle_curl_deg", &p.peduncle_curl_deg},
+                                                   {"front_leaf_offset_min", &p.front_leaf_offset_min},
+                                                   {"front_leaf_offset_max", &p.front_leaf_offset_max},
+                                                   {"rest_tilt_max_deg", &p.rest_tilt_max_deg}};
   for (const auto& [name, field] : reals) {
     if (key != name) continue;
     *field = x;
@@ -712,38 +744,49 @@ common::Validation set_truss_option(TrussParams& p, std::string_view key, std::s
   if (key == "pedicel_segments") return integer(p.pedicel_segments);
   if (key == "pedicel_leaves") return integer(p.pedicel_leaves);
   if (key == "front_leaves") return integer(p.front_leaves);
-  return common::Validation::invalid("unknown truss option '" + std::string(key) +
-                                     "' (physics, pedicel_young_min_pa, pedicel_young_max_pa, peduncle_young_min_pa, "
-                                     "peduncle_young_max_pa, friction, pedicel_segments, stem_bend_deg, peduncle_curl_deg, "
-                                     "pedicel_leaves, front_leaves, front_leaf_offset_min, front_leaf_offset_max, rest_tilt_max_deg)");
+  return common::Validation::invalid(
+      "unknown truss option '" + std::string(key) +
+      "' (physics, pedicel_young_min_pa, pedicel_young_max_pa, peduncle_young_min_pa, "
+      "peduncle_young_max_pa, friction, pedicel_segments, stem_bend_deg, peduncle_curl_deg, "
+      "pedicel_leaves, front_leaves, front_leaf_offset_min, front_leaf_offset_max, rest_tilt_max_deg)");
 }
 
 common::Validation TrussParams::validate() const {
-  if (num_tomatoes < 0 || num_tomatoes > 8) return common::Validation::invalid("num_tomatoes must be 0 (by class) or 1..8");
+  if (num_tomatoes < 0 || num_tomatoes > 8)
+    return common::Validation::invalid("num_tomatoes must be 0 (by class) or 1..8");
   if (!(radius_min_m > 0.005) || !(radius_max_m >= radius_min_m) || radius_max_m > 0.08)
     return common::Validation::invalid("tomato radii must satisfy 0.005 < radius_min_m <= radius_max_m <= 0.08 m");
   if (!(pedicel_length_min_m > 0.005) || !(pedicel_length_max_m >= pedicel_length_min_m) || pedicel_length_max_m > 0.15)
     return common::Validation::invalid("pedicel lengths must satisfy 0.005 < min <= max <= 0.15 m");
-  if (!(pedicel_radius_m > 0) || !(peduncle_radius_m > 0)) return common::Validation::invalid("pedicel and peduncle radii must be > 0");
+  if (!(pedicel_radius_m > 0) || !(peduncle_radius_m > 0))
+    return common::Validation::invalid("pedicel and peduncle radii must be > 0");
   if (!(flatness_min >= 0.5) || !(flatness_max >= flatness_min) || !(flatness_max <= 1.2))
     return common::Validation::invalid("flatness must satisfy 0.5 <= flatness_min <= flatness_max <= 1.2");
   if (!(rib_max >= 0 && rib_max <= 0.1)) return common::Validation::invalid("rib_max must be in [0, 0.1]");
   if (!(density_kg_m3 > 0)) return common::Validation::invalid("density_kg_m3 must be > 0");
-  if (!(stiffness_ratio_min >= 0) || !(stiffness_ratio_max >= stiffness_ratio_min)) return common::Validation::invalid("stiffness ratios must be 0 <= min <= max");
-  if (!(rest_tilt_max_deg >= 0 && rest_tilt_max_deg <= 80)) return common::Validation::invalid("rest_tilt_max_deg must be in [0, 80]");
-  if (front_leaves < -1 || front_leaves > 8) return common::Validation::invalid("front_leaves must be -1 (by class) or 0..8");
-  if (!(camera_distance_m >= 0.2 && camera_distance_m <= 2.0)) return common::Validation::invalid("camera_distance_m must be in [0.2, 2] m");
-  if (!(camera_jitter_m >= 0) || !(camera_yaw_jitter_deg >= 0)) return common::Validation::invalid("camera jitters must be >= 0");
+  if (!(stiffness_ratio_min >= 0) || !(stiffness_ratio_max >= stiffness_ratio_min))
+    return common::Validation::invalid("stiffness ratios must be 0 <= min <= max");
+  if (!(rest_tilt_max_deg >= 0 && rest_tilt_max_deg <= 80))
+    return common::Validation::invalid("rest_tilt_max_deg must be in [0, 80]");
+  if (front_leaves < -1 || front_leaves > 8)
+    return common::Validation::invalid("front_leaves must be -1 (by class) or 0..8");
+  if (!(camera_distance_m >= 0.2 && camera_distance_m <= 2.0))
+    return common::Validation::invalid("camera_distance_m must be in [0.2, 2] m");
+  if (!(camera_jitter_m >= 0) || !(camera_yaw_jitter_deg >= 0))
+    return common::Validation::invalid("camera jitters must be >= 0");
   if (!origin_m.allFinite()) return common::Validation::invalid("origin_m must be finite");
   if (!(pedicel_young_min_pa > 0) || !(pedicel_young_max_pa >= pedicel_young_min_pa) || !(peduncle_young_min_pa > 0) ||
       !(peduncle_young_max_pa >= peduncle_young_min_pa) || pedicel_young_max_pa > 1e12 || peduncle_young_max_pa > 1e12)
     return common::Validation::invalid("Young's moduli must satisfy 0 < min <= max <= 1e12 Pa");
   if (!(friction >= 0 && friction <= 2)) return common::Validation::invalid("friction must be in [0, 2]");
-  if (pedicel_segments < 2 || pedicel_segments > 16) return common::Validation::invalid("pedicel_segments must be in 2..16");
+  if (pedicel_segments < 2 || pedicel_segments > 16)
+    return common::Validation::invalid("pedicel_segments must be in 2..16");
   if (!(std::abs(stem_bend_deg) <= 120)) return common::Validation::invalid("stem_bend_deg must be in [-120, 120]");
-  if (!(std::abs(peduncle_curl_deg) <= 180)) return common::Validation::invalid("peduncle_curl_deg must be in [-180, 180]");
+  if (!(std::abs(peduncle_curl_deg) <= 180))
+    return common::Validation::invalid("peduncle_curl_deg must be in [-180, 180]");
   if (pedicel_leaves < 0 || pedicel_leaves > 8) return common::Validation::invalid("pedicel_leaves must be in 0..8");
-  if (!(front_leaf_offset_min >= 0) || !(front_leaf_offset_max >= front_leaf_offset_min) || !(front_leaf_offset_max <= 5))
+  if (!(front_leaf_offset_min >= 0) || !(front_leaf_offset_max >= front_leaf_offset_min) ||
+      !(front_leaf_offset_max <= 5))
     return common::Validation::invalid("front leaf offsets must satisfy 0 <= min <= max <= 5 radii");
   return common::Validation::ok();
 }
@@ -790,7 +833,8 @@ Truss make_truss(const TrussParams& params) {
           const Eigen::Vector3d a = T_cam_world * L.pendulums[i].centre(), b = T_cam_world * L.pendulums[j].centre();
           // Angular separation against the sum of angular radii.
           const double sep = std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0));
-          ok = sep > std::asin(L.pendulums[i].radius_m / a.norm()) + std::asin(L.pendulums[j].radius_m / b.norm()) + 0.01;
+          ok = sep >
+               std::asin(L.pendulums[i].radius_m / a.norm()) + std::asin(L.pendulums[j].radius_m / b.norm()) + 0.01;
         }
       }
     }
@@ -829,7 +873,8 @@ void add_fruit(const Truss& T, World& world) {
   const std::string& nm = T.params.name;
   for (std::size_t i = 0; i < T.tomatoes.size(); ++i) {
     const TrussTomato& t = T.tomatoes[i];
-    const Eigen::Matrix3d up_to_axis = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), t.pedicel_dir).toRotationMatrix();
+    const Eigen::Matrix3d up_to_axis =
+        Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), t.pedicel_dir).toRotationMatrix();
     const MaterialId skin = need(world, T.materials[i].name);
     if (T.params.mesh_fruit) {
       int k = 0;
@@ -867,7 +912,8 @@ void add_fruit(const Truss& T, World& world) {
     world.add(std::move(c));
   }
   for (std::size_t k = 0; k + 1 < T.peduncle_m.size(); ++k)
-    world.add(rod(nm + "_peduncle_" + std::to_string(k), T.peduncle_m[k], T.peduncle_m[k + 1], T.params.peduncle_radius_m, stem));
+    world.add(rod(nm + "_peduncle_" + std::to_string(k), T.peduncle_m[k], T.peduncle_m[k + 1],
+                  T.params.peduncle_radius_m, stem));
 }
 
 // Leaves in front: each hides part of one tomato from the camera.
@@ -883,7 +929,8 @@ void add_front_leaves(const Truss& T, World& world, Rng& rng, MaterialId leaf) {
     }
   }
   for (int k = 0; k < front; ++k) {
-    const TrussTomato& t = T.tomatoes[static_cast<std::size_t>(rng.integer(0, static_cast<int>(T.tomatoes.size()) - 1))];
+    const TrussTomato& t =
+        T.tomatoes[static_cast<std::size_t>(rng.integer(0, static_cast<int>(T.tomatoes.size()) - 1))];
     const Eigen::Vector3d to_t = t.centre_m - eye;
     // Between the camera and the fruit, well clear of the fruit.
     const double back = rng.uniform(t.radius_m + 0.04, t.radius_m + 0.12);
@@ -891,13 +938,15 @@ void add_front_leaves(const Truss& T, World& world, Rng& rng, MaterialId leaf) {
     // Offset sideways so that the leaf covers an edge of the fruit only.
     const Eigen::Vector3d side = to_t.cross(Eigen::Vector3d::UnitZ()).normalized();
     const double a = rng.uniform(-M_PI, M_PI);
-    const double off = t.radius_m * rng.uniform(P.front_leaf_offset_min, P.front_leaf_offset_max) * (1.0 - back / to_t.norm());
+    const double off =
+        t.radius_m * rng.uniform(P.front_leaf_offset_min, P.front_leaf_offset_max) * (1.0 - back / to_t.norm());
     at += off * (std::cos(a) * side + std::sin(a) * Eigen::Vector3d::UnitZ());
     Object o;
     o.name = P.name + "_leaf_front_" + std::to_string(k);
     o.shape = leaflet(rng.uniform(0.05, 0.09), rng.uniform(0.025, 0.045), rng.uniform(0.002, 0.008));
     // Roughly facing the camera, tilted at random.
-    const Eigen::Matrix3d face = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -to_t.normalized()).toRotationMatrix();
+    const Eigen::Matrix3d face =
+        Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -to_t.normalized()).toRotationMatrix();
     const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(rng.uniform(-M_PI, M_PI), Eigen::Vector3d::UnitZ()) *
                                   Eigen::AngleAxisd(rng.uniform(-0.6, 0.6), Eigen::Vector3d::UnitX()))
                                      .toRotationMatrix();
@@ -922,8 +971,10 @@ void add_pedicel_leaves(const Truss& T, World& world, MaterialId leaf) {
     Object o;
     o.name = P.name + "_leaf_pedicel_" + std::to_string(k);
     o.shape = leaflet(rng.uniform(0.04, 0.07), rng.uniform(0.02, 0.035), rng.uniform(0.002, 0.006));
-    const Eigen::Matrix3d face = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -to.normalized()).toRotationMatrix();
-    o.T_world_object = pose_from(at, face * Eigen::AngleAxisd(rng.uniform(-M_PI, M_PI), Eigen::Vector3d::UnitZ()).toRotationMatrix());
+    const Eigen::Matrix3d face =
+        Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -to.normalized()).toRotationMatrix();
+    o.T_world_object =
+        pose_from(at, face * Eigen::AngleAxisd(rng.uniform(-M_PI, M_PI), Eigen::Vector3d::UnitZ()).toRotationMatrix());
     o.material = leaf;
     world.add(std::move(o));
   }
@@ -934,18 +985,21 @@ void add_pedicel_leaves(const Truss& T, World& world, MaterialId leaf) {
 void add_main_stem(const TrussParams& P, World& world, MaterialId stem) {
   const Eigen::Vector3d base = P.origin_m + Eigen::Vector3d(0, 0.02, 0);
   if (P.stem_bend_deg == 0.0) {
-    world.add(rod(P.name + "_main_stem", base + Eigen::Vector3d(0, 0, -0.6), base + Eigen::Vector3d(0, 0, 0.35), 0.007, stem));
+    world.add(rod(P.name + "_main_stem", base + Eigen::Vector3d(0, 0, -0.6), base + Eigen::Vector3d(0, 0, 0.35), 0.007,
+                  stem));
     return;
   }
   constexpr int kPieces = 8;
   const double bend = P.stem_bend_deg * M_PI / 180.0, length = 0.95;
   auto at = [&](double s) {  // s from -0.6 to 0.35 along the stem; curvature bend / length
     const double phi = bend * s / length;
-    return Eigen::Vector3d(base + Eigen::Vector3d(length / bend * (1.0 - std::cos(phi)), 0, length / bend * std::sin(phi)));
+    return Eigen::Vector3d(base +
+                           Eigen::Vector3d(length / bend * (1.0 - std::cos(phi)), 0, length / bend * std::sin(phi)));
   };
   for (int k = 0; k < kPieces; ++k) {
     const double s0 = -0.6 + length * k / kPieces, s1 = -0.6 + length * (k + 1) / kPieces;
-    world.add(rod(P.name + "_main_stem" + (k == 0 ? std::string() : "_" + std::to_string(k)), at(s0), at(s1), 0.007, stem));
+    world.add(
+        rod(P.name + "_main_stem" + (k == 0 ? std::string() : "_" + std::to_string(k)), at(s0), at(s1), 0.007, stem));
   }
 }
 
@@ -956,7 +1010,8 @@ void add_background_leaves(const TrussParams& P, const Eigen::Vector3d& mean, Wo
     Object o;
     o.name = P.name + "_leaf_back_" + std::to_string(k);
     o.shape = leaflet(rng.uniform(0.06, 0.11), rng.uniform(0.03, 0.05), rng.uniform(0.002, 0.01));
-    const Eigen::Vector3d at = mean + Eigen::Vector3d(rng.uniform(-0.2, 0.2), rng.uniform(0.12, 0.3), rng.uniform(-0.15, 0.2));
+    const Eigen::Vector3d at =
+        mean + Eigen::Vector3d(rng.uniform(-0.2, 0.2), rng.uniform(0.12, 0.3), rng.uniform(-0.15, 0.2));
     o.T_world_object = pose_from(at, random_rotation(rng));
     o.material = leaf;
     world.add(std::move(o));
@@ -999,8 +1054,9 @@ void add_room(const std::string& nm, const Eigen::Vector3d& mean, World& world) 
   Object w;
   w.name = nm + "_back_wall";
   w.shape = PlaneShape{Eigen::Vector2d(6, 4)};
-  w.T_world_object = pose_from(Eigen::Vector3d(mean.x(), mean.y() + 1.2, 1.5),
-                               Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitY()).toRotationMatrix());
+  w.T_world_object = pose_from(
+      Eigen::Vector3d(mean.x(), mean.y() + 1.2, 1.5),
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitY()).toRotationMatrix());
   w.material = need(world, "wall_paint");
   world.add(std::move(w));
 }
@@ -1021,7 +1077,8 @@ std::vector<TrussTomato> add_to_world(const Truss& T, World& world) {
   add_front_leaves(T, world, rng, leaf);
   if (P.background_leaves) add_background_leaves(P, mean, world, rng, leaf);
   std::vector<TrussTomato> second;
-  if (P.distractor_truss && P.complexity != TrussClass::kA && rng.chance(0.7)) second = add_distractor_truss(P, world, rng);
+  if (P.distractor_truss && P.complexity != TrussClass::kA && rng.chance(0.7))
+    second = add_distractor_truss(P, world, rng);
   if (P.room) add_room(P.name, mean, world);
   add_pedicel_leaves(T, world, leaf);
   return second;
@@ -1038,7 +1095,8 @@ void write_truth(const Truss& T, Scene& scene, const std::vector<TrussTomato>& d
     anchors.insert(anchors.end(), {t.anchor_m.x(), t.anchor_m.y(), t.anchor_m.z()});
     forces.insert(forces.end(), {t.pedicel_force_n.x(), t.pedicel_force_n.y(), t.pedicel_force_n.z()});
   }
-  for (const auto& c : T.contacts) contacts.insert(contacts.end(), {double(c.i), double(c.j), double(int(c.kind)), c.force_n});
+  for (const auto& c : T.contacts)
+    contacts.insert(contacts.end(), {double(c.i), double(c.j), double(int(c.kind)), c.force_n});
   tr["truss_tomato_centres_m"] = centres;
   tr["truss_tomato_radii_m"] = radii;
   tr["truss_tomato_shapes_m"] = shapes;
@@ -1054,7 +1112,8 @@ void write_truth(const Truss& T, Scene& scene, const std::vector<TrussTomato>& d
   std::vector<double> second;
   for (const auto& d : distractors) second.insert(second.end(), {d.centre_m.x(), d.centre_m.y(), d.centre_m.z()});
   tr["truss_distractor_centres_m"] = second;
-  if (std::any_of(T.tomatoes.begin(), T.tomatoes.end(), [](const TrussTomato& t) { return t.pedicel_path_m.size() > 2; })) {
+  if (std::any_of(T.tomatoes.begin(), T.tomatoes.end(),
+                  [](const TrussTomato& t) { return t.pedicel_path_m.size() > 2; })) {
     std::vector<double> counts, paths;
     for (const auto& t : T.tomatoes) {
       counts.push_back(double(t.pedicel_path_m.size()));
@@ -1085,10 +1144,12 @@ void read_pedicel_paths(const Scene& scene, std::vector<TrussTomato>& tomatoes) 
     if (!(c >= 2 && c <= 64 && c == std::floor(c)) || paths->second.size() < 3 * (at + std::size_t(c)))
       throw std::runtime_error("scene truth 'truss_pedicel_paths_m' does not hold the points its counts promise");
     for (std::size_t k = 0; k < std::size_t(c); ++k, ++at)
-      tomatoes[i].pedicel_path_m.emplace_back(paths->second[3 * at], paths->second[3 * at + 1], paths->second[3 * at + 2]);
+      tomatoes[i].pedicel_path_m.emplace_back(paths->second[3 * at], paths->second[3 * at + 1],
+                                              paths->second[3 * at + 2]);
     tomatoes[i].calyx_m = tomatoes[i].pedicel_path_m.back();
   }
-  if (paths->second.size() != 3 * at) throw std::runtime_error("scene truth 'truss_pedicel_paths_m' has points left over");
+  if (paths->second.size() != 3 * at)
+    throw std::runtime_error("scene truth 'truss_pedicel_paths_m' has points left over");
 }
 
 }  // namespace
@@ -1096,7 +1157,8 @@ void read_pedicel_paths(const Scene& scene, std::vector<TrussTomato>& tomatoes) 
 TrussTruth truss_truth_from_scene(const Scene& scene) {
   auto get = [&](const char* key, std::size_t multiple) -> const std::vector<double>& {
     const auto it = scene.truth.find(key);
-    if (it == scene.truth.end()) throw std::runtime_error(std::string("scene '") + scene.name + "' has no truth '" + key + "'");
+    if (it == scene.truth.end())
+      throw std::runtime_error(std::string("scene '") + scene.name + "' has no truth '" + key + "'");
     if (multiple == 0 ? it->second.empty() : it->second.size() % multiple != 0)
       throw std::runtime_error(std::string("scene truth '") + key + "' has " + std::to_string(it->second.size()) +
                                " numbers, not a multiple of " + std::to_string(multiple));
@@ -1118,7 +1180,8 @@ TrussTruth truss_truth_from_scene(const Scene& scene) {
     t.pedicel_dir = {dirs[3 * i], dirs[3 * i + 1], dirs[3 * i + 2]};
     t.anchor_m = {anchors[3 * i], anchors[3 * i + 1], anchors[3 * i + 2]};
     t.pedicel_force_n = {forces[3 * i], forces[3 * i + 1], forces[3 * i + 2]};
-    if (const auto it = scene.truth.find("truss_tomato_shapes_m"); it != scene.truth.end() && it->second.size() == 3 * n) {
+    if (const auto it = scene.truth.find("truss_tomato_shapes_m");
+        it != scene.truth.end() && it->second.size() == 3 * n) {
       t.equatorial_radius_m = it->second[3 * i];
       t.polar_radius_m = it->second[3 * i + 1];
       t.rib_amplitude = it->second[3 * i + 2];
@@ -1131,15 +1194,18 @@ TrussTruth truss_truth_from_scene(const Scene& scene) {
     const auto& c = get("truss_contacts", 4);
     for (std::size_t k = 0; k + 4 <= c.size(); k += 4) {
       const int kind = static_cast<int>(c[k + 2]);
-      if (kind < 0 || kind > 2) throw std::runtime_error("scene truth 'truss_contacts': unknown contact kind " + std::to_string(kind));
-      out.contacts.push_back({static_cast<int>(c[k]), static_cast<int>(c[k + 1]), static_cast<ContactKind>(kind), c[k + 3]});
+      if (kind < 0 || kind > 2)
+        throw std::runtime_error("scene truth 'truss_contacts': unknown contact kind " + std::to_string(kind));
+      out.contacts.push_back(
+          {static_cast<int>(c[k]), static_cast<int>(c[k + 1]), static_cast<ContactKind>(kind), c[k + 3]});
     }
   }
   read_pedicel_paths(scene, out.tomatoes);
   const auto& pose = get("truss_camera_pose", 7);
   if (pose.size() != 7) throw std::runtime_error("scene truth 'truss_camera_pose' must hold 7 numbers");
-  out.T_world_camera = pose_from({pose[0], pose[1], pose[2]},
-                                 Eigen::Quaterniond(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix());
+  out.T_world_camera =
+      pose_from({pose[0], pose[1], pose[2]},
+                Eigen::Quaterniond(pose[6], pose[3], pose[4], pose[5]).normalized().toRotationMatrix());
   const auto& cls = get("truss_class", 1);
   out.complexity = static_cast<TrussClass>('A' + static_cast<int>(cls[0]));
   out.seed = static_cast<std::uint64_t>(get("truss_seed", 1)[0]);

@@ -32,7 +32,8 @@ void add_elastic(const Network& n, Forces& f) {
     f[std::size_t(s.b)] -= t;
   }
   for (const auto& h : n.hinges) {
-    const Vec e1 = n.x[std::size_t(h.b1)] - n.x[std::size_t(h.a1)], e2 = n.x[std::size_t(h.b2)] - n.x[std::size_t(h.a2)];
+    const Vec e1 = n.x[std::size_t(h.b1)] - n.x[std::size_t(h.a1)],
+              e2 = n.x[std::size_t(h.b2)] - n.x[std::size_t(h.a2)];
     const Vec g = h.k_nm * (unit(e2) - unit(e1) - h.rest);  // dE / d(u2 - u1)
     const Vec g2 = direction_gradient(e2, g), g1 = direction_gradient(e1, g);
     f[std::size_t(h.b2)] -= g2;
@@ -61,7 +62,7 @@ struct Touch {
   int a = -1, b = -1;  // the other's nodes (b = -1: a body's node)
   double t = 0.0;      // where on a-b
   double gap = 0.0;
-  Vec n;               // unit, pushes the body away
+  Vec n;  // unit, pushes the body away
 };
 
 std::vector<Touch> touches(const Network& net) {
@@ -83,7 +84,8 @@ std::vector<Touch> touches(const Network& net) {
       const double d = v.norm(), gap = d - B[i].radius_m - s.radius_m;
       if (gap >= 0 || d < 1e-12) continue;
       auto it = best.find(s.rod);
-      if (it == best.end() || gap < it->second.gap) best[s.rod] = {int(i), ContactWith::kTube, s.rod, s.a, s.b, t, gap, v / d};
+      if (it == best.end() || gap < it->second.gap)
+        best[s.rod] = {int(i), ContactWith::kTube, s.rod, s.a, s.b, t, gap, v / d};
     }
     for (const auto& [rod, t] : best) out.push_back(t);
   }

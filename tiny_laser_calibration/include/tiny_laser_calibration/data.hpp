@@ -22,6 +22,7 @@ namespace tinyline::tiny_laser_calibration {
 // The model this package fits is the driver's (tiny_laser_driver/
 // calibration.hpp, calibration_impl.hpp): the driver applies what the fit
 // writes. Its vocabulary, by name here.
+using tiny_laser_driver::acts_on_charges;
 using tiny_laser_driver::AmplitudeReference;
 using tiny_laser_driver::builtin_covariates;
 using tiny_laser_driver::CalibrationEvaluation;
@@ -30,7 +31,6 @@ using tiny_laser_driver::CalibrationModel;
 using tiny_laser_driver::CalibrationTerm;
 using tiny_laser_driver::Covariate;
 using tiny_laser_driver::covariate_from_name;
-using tiny_laser_driver::acts_on_charges;
 using tiny_laser_driver::covariate_name;
 using tiny_laser_driver::covariate_parameter;
 using tiny_laser_driver::Readout;
@@ -51,9 +51,9 @@ struct CalibrationDataset {
   std::vector<Readout> readouts;         ///< Readout::extra holds the extra columns in extra_names order
   std::vector<double> distance_m;        ///< ground truth along the pixel's ray [m]
   bool has_material = false;
-  std::vector<std::string> materials;    ///< distinct material names
-  std::vector<int> material;             ///< per row: index into materials, -1 without a material column
-  std::vector<std::size_t> line;         ///< per row: 1-based line in the file (0 if not from a file)
+  std::vector<std::string> materials;  ///< distinct material names
+  std::vector<int> material;           ///< per row: index into materials, -1 without a material column
+  std::vector<std::size_t> line;       ///< per row: 1-based line in the file (0 if not from a file)
 
   [[nodiscard]] std::size_t size() const { return readouts.size(); }
   [[nodiscard]] bool empty() const { return readouts.empty(); }
@@ -65,8 +65,8 @@ struct CalibrationDataset {
   [[nodiscard]] CalibrationDataset subset(const std::vector<std::size_t>& rows) const;
 };
 
-inline constexpr const char* kRequiredCalibrationColumns[] = {"t_s", "pixel", "pulses", "a",
-                                                              "b", "temperature_c", "distance_m"};
+inline constexpr const char* kRequiredCalibrationColumns[] = {"t_s", "pixel",         "pulses",    "a",
+                                                              "b",   "temperature_c", "distance_m"};
 
 /// The largest calibration CSV read [bytes]: about 15 million rows.
 inline constexpr std::uint64_t kMaxCalibrationCsvBytes = std::uint64_t{1} << 30;

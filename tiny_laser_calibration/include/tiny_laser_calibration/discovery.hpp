@@ -51,8 +51,8 @@ struct DiscoveryParams {
   DeclaredFitParams declared;
   GroupBy group_by = GroupBy::kAuto;
   int folds = 5;
-  double holdout_fraction = 0.25;   ///< share of groups held out of fitting and selection
-  std::uint64_t seed = 1;           ///< shuffles groups into hold-out and folds
+  double holdout_fraction = 0.25;  ///< share of groups held out of fitting and selection
+  std::uint64_t seed = 1;          ///< shuffles groups into hold-out and folds
   int max_terms = 4;
   /// Chance of naming anything on effect-free data: Bonferroni over every candidate
   /// of the round (the loop stops at the first round where nothing passes).
@@ -65,7 +65,7 @@ struct DiscoveryParams {
   /// albedo and reflectance are tried only when the albedo's 90th/10th percentile
   /// ratio reaches this: on one surface they only echo the distance error.
   double min_albedo_spread = 1.5;
-  std::vector<std::string> exclude; ///< covariates never tried ("charge": no hypothesis on the charges)
+  std::vector<std::string> exclude;  ///< covariates never tried ("charge": no hypothesis on the charges)
   /// Time constants of the low-pass filtered temperatures tried as covariates
   /// (lagged_temperature_name()): a delay that follows a part warming more slowly
   /// than the MCU. Only when the temperature moves and the session lasts.
@@ -77,8 +77,8 @@ struct CandidateScore {
   std::string covariate;
   TermForm form = TermForm::kSmooth;
   double cv_rmse_m = std::numeric_limits<double>::quiet_NaN();  ///< with the term
-  double gain = 0.0;  ///< relative cross-validated squared error removed
-  double z = 0.0;     ///< paired statistic over groups
+  double gain = 0.0;                                            ///< relative cross-validated squared error removed
+  double z = 0.0;                                               ///< paired statistic over groups
   bool passes = false;
 };
 
@@ -91,8 +91,8 @@ struct DiscoveredEffect {
   double cv_rmse_after_m = std::numeric_limits<double>::quiet_NaN();
   double gain = 0.0;
   double z = 0.0;
-  std::string reading;   ///< the fitted term in physical units (term_reading())
-  bool written = true;   ///< false: reported only (a time-since-power-on term one session cannot confirm)
+  std::string reading;  ///< the fitted term in physical units (term_reading())
+  bool written = true;  ///< false: reported only (a time-since-power-on term one session cannot confirm)
 };
 
 struct DiscoveryResult {

@@ -49,10 +49,10 @@ enum class ReadoutSelection {
 struct DeclaredFitParams {
   int degree = 6;  ///< polynomial degree of Eq. 3.18 (1 reproduces the linear Eq. 3.16)
   SensitivityRatioMode sensitivity_ratio_mode = SensitivityRatioMode::kPerPixel;
-  double sensitivity_ratio = 1.0;    ///< common Rsen (measured separately; 1 when unknown)
-  bool fit_leakage = true;           ///< false: keep the two values below
-  double leakage_offset = 0.0;       ///< [charge_unit] start / fixed value
-  double leakage_per_pulse = 0.0;    ///< [charge_unit per pulse] start / fixed value
+  double sensitivity_ratio = 1.0;  ///< common Rsen (measured separately; 1 when unknown)
+  bool fit_leakage = true;         ///< false: keep the two values below
+  double leakage_offset = 0.0;     ///< [charge_unit] start / fixed value
+  double leakage_per_pulse = 0.0;  ///< [charge_unit per pulse] start / fixed value
   bool fit_temperature = true;
   double temperature_reference_c = 48.0;  ///< T_ref: the warm temperature (the thesis's warm-sensor temperature)
   double min_temperature_span_c = 1.0;    ///< less spread than this: no temperature term (not identifiable)
@@ -60,55 +60,58 @@ struct DeclaredFitParams {
   DistanceWeighting weighting = DistanceWeighting::kOnes;
   ReadoutSelection selection = ReadoutSelection::kDriver;
   ValidityRule validity;
-  int min_rows_per_pixel = 20;       ///< per-pixel Rsen only for pixels with this many valid read-outs
-  int min_distances_per_pixel = 4;   ///< ... spread over at least this many target distances
-  double term_ridge = 1.0;           ///< pseudo-observations pulling each term coefficient to 0
+  int min_rows_per_pixel = 20;      ///< per-pixel Rsen only for pixels with this many valid read-outs
+  int min_distances_per_pixel = 4;  ///< ... spread over at least this many target distances
+  double term_ridge = 1.0;          ///< pseudo-observations pulling each term coefficient to 0
   /// false: a per-pulse charge term over a continuous covariate is fitted centred (its
   /// mean over the fitted read-outs held at 0, the level left to the declared leakage).
   /// On one surface the light per pulse falls with the distance, so such a term's level
   /// mixes that light into the ratio and acts as a distance cue; only its variation with
   /// the covariate is an effect of the sensor. The residual loop sets it from the data.
   bool per_pulse_charge_levels = true;
-  int passes = 3;                    ///< outer passes (global parameters <-> per-pixel Rsen)
+  int passes = 3;  ///< outer passes (global parameters <-> per-pixel Rsen)
 };
 
 struct DeclaredFitResult {
   bool ok = false;
   std::string reason;  ///< why not ok
   CalibrationModel model;
-  std::size_t rows = 0;        ///< rows offered
-  std::size_t used = 0;        ///< valid read-outs the fit used
-  std::size_t saturated = 0;   ///< rows the validity rule calls saturated
-  std::size_t too_dark = 0;    ///< rows the validity rule calls too dark
-  std::size_t not_selected = 0;  ///< valid rows left out by ReadoutSelection::kDriver
-  std::size_t distances = 0;   ///< distinct true distances (mm) among the used rows
+  std::size_t rows = 0;                                      ///< rows offered
+  std::size_t used = 0;                                      ///< valid read-outs the fit used
+  std::size_t saturated = 0;                                 ///< rows the validity rule calls saturated
+  std::size_t too_dark = 0;                                  ///< rows the validity rule calls too dark
+  std::size_t not_selected = 0;                              ///< valid rows left out by ReadoutSelection::kDriver
+  std::size_t distances = 0;                                 ///< distinct true distances (mm) among the used rows
   double rmse_m = std::numeric_limits<double>::quiet_NaN();  ///< in-sample, unweighted
-  std::vector<std::string> notes;  ///< decisions the fit took (e.g. no temperature term)
+  std::vector<std::string> notes;                            ///< decisions the fit took (e.g. no temperature term)
 };
 
 /// Fits the declared model (no discovered terms) to every row of `data`.
-[[nodiscard]] DeclaredFitResult fit_declared_model(const CalibrationDataset& data, const DeclaredFitParams& params = {});
+[[nodiscard]] DeclaredFitResult fit_declared_model(const CalibrationDataset& data,
+                                                   const DeclaredFitParams& params = {});
 
 /// Fits the declared model plus `terms` (their structure: covariate, form,
 /// knots or keys, amplitude reference; coefficients are fitted) on the rows
 /// `rows` of `data` (all rows when empty).
-[[nodiscard]] DeclaredFitResult fit_calibration_model(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
+[[nodiscard]] DeclaredFitResult fit_calibration_model(const CalibrationDataset& data,
+                                                      const std::vector<std::size_t>& rows,
                                                       const DeclaredFitParams& params,
                                                       const std::vector<CalibrationTerm>& terms);
 
 /// Of rows `rows` of `data` (all when empty), the read-outs valid under `rule`; with
 /// kDriver, per pixel and frame (same t_s) only the one with the most pulses. Sorted.
 /// Counts what it left out when given the pointers.
-[[nodiscard]] std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
-                                                       const ValidityRule& rule, ReadoutSelection selection,
-                                                       std::size_t* saturated = nullptr, std::size_t* too_dark = nullptr,
+[[nodiscard]] std::vector<std::size_t> select_readouts(const CalibrationDataset& data,
+                                                       const std::vector<std::size_t>& rows, const ValidityRule& rule,
+                                                       ReadoutSelection selection, std::size_t* saturated = nullptr,
+                                                       std::size_t* too_dark = nullptr,
                                                        std::size_t* not_selected = nullptr);
 
 /// Error of a model on data, over the read-outs it gives a distance for.
 struct ErrorStats {
   std::size_t n = 0;  ///< read-outs with a distance
   double rmse_m = std::numeric_limits<double>::quiet_NaN();
-  double bias_m = std::numeric_limits<double>::quiet_NaN();     ///< mean(model - truth)
+  double bias_m = std::numeric_limits<double>::quiet_NaN();  ///< mean(model - truth)
   double sd_m = std::numeric_limits<double>::quiet_NaN();
   double p95_abs_m = std::numeric_limits<double>::quiet_NaN();  ///< 95th percentile of |model - truth|
   std::size_t saturated = 0, too_dark = 0, out_of_range = 0, missing_covariate = 0;

@@ -67,32 +67,32 @@ inline constexpr std::uint64_t kMaxMeasuredFileBytes = 1u << 20;
 /// One candidate effect held against a small table: fitted on every point,
 /// and leave-one-out (each point predicted from the others).
 struct EffectHypothesis {
-  std::string effect;     ///< the physical effect ("additive charge per pulse")
-  std::string form;       ///< how it shows on this data ("bias = c (1/q - 1)")
+  std::string effect;  ///< the physical effect ("additive charge per pulse")
+  std::string form;    ///< how it shows on this data ("bias = c (1/q - 1)")
   std::vector<double> params;
   std::vector<std::string> param_names;
   double in_sample_rmse_cm = std::numeric_limits<double>::quiet_NaN();
   double loo_rmse_cm = std::numeric_limits<double>::quiet_NaN();  ///< leave-one-out
   std::vector<double> loo_residual_cm;  ///< per point (measured - predicted), NaN for the anchor
-  std::string reading;    ///< the fitted effect in physical units
+  std::string reading;                  ///< the fitted effect in physical units
 };
 
 /// The local charge-ratio slope of the real sensors at a distance, from their
 /// factory curves: what turns a charge effect into a distance effect.
 struct RatioSlope {
   double distance_cm = 0.0;
-  double ratio = 0.0;            ///< k = b / (a + b) where the curve reads distance_cm (median of the sensors)
+  double ratio = 0.0;              ///< k = b / (a + b) where the curve reads distance_cm (median of the sensors)
   double cm_per_unit_ratio = 0.0;  ///< dL/dk there (median)
   double cm_per_unit_ratio_lo = 0.0, cm_per_unit_ratio_hi = 0.0;  ///< spread over the sensors
 };
 [[nodiscard]] RatioSlope real_ratio_slope(const MeasuredData& data, double distance_cm);
 
 struct MaterialAnalysis {
-  double white_bias_cm = 0.0;          ///< the calibration target's own bias (the anchor)
-  double before_rmse_cm = 0.0;         ///< declared model: every surface reads like white paper
+  double white_bias_cm = 0.0;   ///< the calibration target's own bias (the anchor)
+  double before_rmse_cm = 0.0;  ///< declared model: every surface reads like white paper
   std::vector<EffectHypothesis> hypotheses;
-  int best = -1;                       ///< lowest leave-one-out error
-  RatioSlope slope;                    ///< at 30 cm
+  int best = -1;                         ///< lowest leave-one-out error
+  RatioSlope slope;                      ///< at 30 cm
   std::vector<std::string> unexplained;  ///< what the best hypothesis leaves, in words
 };
 /// Table 3.2: leave-one-material-out over the surfaces other than the
@@ -103,17 +103,17 @@ struct DistanceAnalysis {
   double before_rmse_cm = 0.0;  ///< the calibration as published: bias as measured
   std::vector<EffectHypothesis> hypotheses;
   int best = -1;
-  double sd_log_slope = 0.0;    ///< d ln SD / d ln distance
-  std::string sd_reading;       ///< what that slope says about the noise
+  double sd_log_slope = 0.0;  ///< d ln SD / d ln distance
+  std::string sd_reading;     ///< what that slope says about the noise
 };
 /// Table 3.1: leave-one-distance-out.
 [[nodiscard]] DistanceAnalysis analyse_distances(const MeasuredData& data);
 
 struct FitsAnalysis {
-  double discharge_variance_ratio = 0.0;  ///< var(20 %) / var(40 %)
-  double noise_exponent = 0.0;            ///< gamma in SD(X) ~ S^-gamma (0.5 shot, 1 read noise)
-  double multi_shot_prediction_cm2 = 0.0; ///< multi-discharge variance if shot noise alone (stated read-outs)
-  double multi_read_prediction_cm2 = 0.0; ///< ... if read noise alone
+  double discharge_variance_ratio = 0.0;   ///< var(20 %) / var(40 %)
+  double noise_exponent = 0.0;             ///< gamma in SD(X) ~ S^-gamma (0.5 shot, 1 read noise)
+  double multi_shot_prediction_cm2 = 0.0;  ///< multi-discharge variance if shot noise alone (stated read-outs)
+  double multi_read_prediction_cm2 = 0.0;  ///< ... if read noise alone
   std::vector<std::string> readings;
 };
 /// Section 3.5.
@@ -121,11 +121,11 @@ struct FitsAnalysis {
 
 struct CurveAnalysis {
   std::string sensor;
-  double k_min = 0.0, k_max = 0.0;          ///< usable stretch of k
-  double l_min_cm = 0.0, l_max_cm = 0.0;    ///< distances it spans
-  std::vector<EffectHypothesis> models;     ///< declared Eq. 3.16, + gain on A, + pulse shape
-  double delay_drift_ps_per_c = 0.0;        ///< from its temperature coefficient
-  double effective_pulse_ns = 0.0;          ///< 2 K / c of the best model
+  double k_min = 0.0, k_max = 0.0;                ///< usable stretch of k
+  double l_min_cm = 0.0, l_max_cm = 0.0;          ///< distances it spans
+  std::vector<EffectHypothesis> models;           ///< declared Eq. 3.16, + gain on A, + pulse shape
+  double delay_drift_ps_per_c = 0.0;              ///< from its temperature coefficient
+  double effective_pulse_ns = 0.0;                ///< 2 K / c of the best model
   std::vector<double> k, l_cm, best_residual_cm;  ///< the curve and the best model's residual (plots)
 };
 /// The declared physical model against each real sensor's factory curve on its usable range.

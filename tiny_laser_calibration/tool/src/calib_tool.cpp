@@ -32,7 +32,8 @@ Options::Options(const std::vector<std::string>& argv, const std::vector<std::st
                  const std::vector<std::string>& flags) {
   for (std::size_t i = 0; i < argv.size(); ++i) {
     const std::string& a = argv[i];
-    if (a.size() > 1 && a[0] == '-' && !(a.size() > 1 && (std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.'))) {
+    if (a.size() > 1 && a[0] == '-' &&
+        !(a.size() > 1 && (std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.'))) {
       if (std::find(flags.begin(), flags.end(), a) != flags.end()) {
         flags_.push_back(a);
       } else if (std::find(valued.begin(), valued.end(), a) != valued.end()) {
@@ -195,8 +196,10 @@ std::vector<std::string> split_list(const std::string& s) {
   return out;
 }
 
-const std::vector<std::string> kLoopValued = {"--select", "--group-by", "--folds", "--seed", "--max-terms", "--exclude"};
-const std::vector<std::string> kFitValued = {"-o", "--output", "--report", "--degree", "--rsen", "--rsen-value",
+const std::vector<std::string> kLoopValued = {"--select", "--group-by",  "--folds",
+                                              "--seed",   "--max-terms", "--exclude"};
+const std::vector<std::string> kFitValued = {"-o",        "--output",    "--report",
+                                             "--degree",  "--rsen",      "--rsen-value",
                                              "--leakage", "--weighting", "--temperature-reference"};
 
 void apply_loop_options(const Options& o, DiscoveryParams& p) {
@@ -311,16 +314,18 @@ std::string summary_json(const ReportContext& c) {
     const auto& e = r.effects[k];
     j += fmt::format(
         "{}\n    {{\"covariate\": {}, \"form\": {}, \"rmse_before_m\": {}, \"rmse_after_m\": {}, "
-        "\"cv_rmse_before_m\": {}, \"cv_rmse_after_m\": {}, \"gain\": {}, \"z\": {}, \"written\": {}, \"reading\": {}}}",
-        k ? "," : "", json_string(e.covariate), json_string(std::string(to_string(e.form))), json_number(e.rmse_before_m),
-        json_number(e.rmse_after_m), json_number(e.cv_rmse_before_m), json_number(e.cv_rmse_after_m),
-        json_number(e.gain), json_number(e.z), e.written ? "true" : "false", json_string(e.reading));
+        "\"cv_rmse_before_m\": {}, \"cv_rmse_after_m\": {}, \"gain\": {}, \"z\": {}, \"written\": {}, \"reading\": "
+        "{}}}",
+        k ? "," : "", json_string(e.covariate), json_string(std::string(to_string(e.form))),
+        json_number(e.rmse_before_m), json_number(e.rmse_after_m), json_number(e.cv_rmse_before_m),
+        json_number(e.cv_rmse_after_m), json_number(e.gain), json_number(e.z), e.written ? "true" : "false",
+        json_string(e.reading));
   }
   j += r.effects.empty() ? "],\n" : "\n  ],\n";
-  j += fmt::format("  \"acceptance\": {{\"folds\": {}, \"alpha\": {}, \"z_threshold\": {}, \"min_relative_gain\": {}, "
-                   "\"max_terms\": {}}},\n",
-                   p.folds, json_number(p.alpha), json_number(r.z_threshold), json_number(p.min_relative_gain),
-                   p.max_terms);
+  j += fmt::format(
+      "  \"acceptance\": {{\"folds\": {}, \"alpha\": {}, \"z_threshold\": {}, \"min_relative_gain\": {}, "
+      "\"max_terms\": {}}},\n",
+      p.folds, json_number(p.alpha), json_number(r.z_threshold), json_number(p.min_relative_gain), p.max_terms);
   j += "  \"candidates\": [";
   for (std::size_t k = 0; k < r.candidates.size(); ++k) j += (k ? ", " : "") + json_string(r.candidates[k]);
   j += "],\n  \"rounds\": [";
@@ -328,10 +333,11 @@ std::string summary_json(const ReportContext& c) {
     j += k ? ",\n    [" : "\n    [";
     for (std::size_t i = 0; i < r.rounds[k].size(); ++i) {
       const auto& s = r.rounds[k][i];
-      j += fmt::format("{}\n      {{\"covariate\": {}, \"form\": {}, \"cv_rmse_m\": {}, \"gain\": {}, \"z\": {}, "
-                       "\"passes\": {}}}",
-                       i ? "," : "", json_string(s.covariate), json_string(std::string(to_string(s.form))),
-                       json_number(s.cv_rmse_m), json_number(s.gain), json_number(s.z), s.passes ? "true" : "false");
+      j += fmt::format(
+          "{}\n      {{\"covariate\": {}, \"form\": {}, \"cv_rmse_m\": {}, \"gain\": {}, \"z\": {}, "
+          "\"passes\": {}}}",
+          i ? "," : "", json_string(s.covariate), json_string(std::string(to_string(s.form))), json_number(s.cv_rmse_m),
+          json_number(s.gain), json_number(s.z), s.passes ? "true" : "false");
     }
     j += "\n    ]";
   }
@@ -418,16 +424,19 @@ std::string report_markdown(const ReportContext& c, const std::string& dir, cons
                     r.groups, to_string(r.grouping), r.heldout_eval_rows.size());
   md += "```\n" + c.final_model->describe() + "```\n\n";
   md += "## Error on held-out data\n\n| | RMSE |\n|---|---|\n";
-  md += fmt::format("| {} | {} |\n", c.command == "fit" ? "declared model" : "calibration as given", cm(r.rmse_before_m));
+  md +=
+      fmt::format("| {} | {} |\n", c.command == "fit" ? "declared model" : "calibration as given", cm(r.rmse_before_m));
   md += fmt::format("| with the accepted terms | {} |\n\n", cm(r.rmse_after_m));
   md += "## Effects found\n\n";
   if (r.effects.empty()) {
-    md += fmt::format("None: no candidate removed {:.0f}% of the cross-validated squared error with z above the "
-                      "round's Bonferroni threshold ({:.2f}).\n\n",
-                      100.0 * p.min_relative_gain, r.z_threshold);
+    md += fmt::format(
+        "None: no candidate removed {:.0f}% of the cross-validated squared error with z above the "
+        "round's Bonferroni threshold ({:.2f}).\n\n",
+        100.0 * p.min_relative_gain, r.z_threshold);
   } else {
-    md += "| covariate | form | held-out RMSE before | after | CV gain | z | in physical units |\n"
-          "|---|---|---|---|---|---|---|\n";
+    md +=
+        "| covariate | form | held-out RMSE before | after | CV gain | z | in physical units |\n"
+        "|---|---|---|---|---|---|---|\n";
     for (const auto& e : r.effects) {
       md += fmt::format("| {} | {} | {} | {} | {:.1f}% | {:.1f} | {}{} |\n", e.covariate, to_string(e.form),
                         cm(e.rmse_before_m), cm(e.rmse_after_m), 100.0 * e.gain, e.z, e.reading,
@@ -436,10 +445,11 @@ std::string report_markdown(const ReportContext& c, const std::string& dir, cons
     md += "\n";
   }
   if (!r.rounds.empty()) {
-    md += fmt::format("## Candidates of the first round\n\nAccepted when the gain exceeds {:.0f}% and z exceeds {:.2f} "
-                      "(one-sided, alpha {} shared over every test of every round: two paired statistics per "
-                      "candidate).\n\n",
-                      100.0 * p.min_relative_gain, r.z_threshold, p.alpha);
+    md += fmt::format(
+        "## Candidates of the first round\n\nAccepted when the gain exceeds {:.0f}% and z exceeds {:.2f} "
+        "(one-sided, alpha {} shared over every test of every round: two paired statistics per "
+        "candidate).\n\n",
+        100.0 * p.min_relative_gain, r.z_threshold, p.alpha);
     md += "| covariate | form | CV RMSE | gain | z | passes |\n|---|---|---|---|---|---|\n";
     for (const auto& s : r.rounds.front()) {
       md += fmt::format("| {} | {} | {} | {:.1f}% | {:.1f} | {} |\n", s.covariate, to_string(s.form), cm(s.cv_rmse_m),
@@ -473,12 +483,14 @@ void write_report(const ReportContext& c, const std::string& dir, const CalibToo
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir)) throw std::runtime_error(fmt::format("{}: cannot create the report directory", dir));
+  if (ec || !fs::is_directory(dir))
+    throw std::runtime_error(fmt::format("{}: cannot create the report directory", dir));
   files::write_atomically((fs::path(dir) / "summary.json").string(), summary_json(c));
   write_residuals(c, (fs::path(dir) / "residuals.csv").string());
   write_curve(c, (fs::path(dir) / "curve.csv").string());
   std::string note;
-  if (tool::run_plot_script(env, dir, note) != 0) err << "tinyline calib: warning: " << note << "; report without plots\n";
+  if (tool::run_plot_script(env, dir, note) != 0)
+    err << "tinyline calib: warning: " << note << "; report without plots\n";
   files::write_atomically((fs::path(dir) / "report.md").string(), report_markdown(c, dir, note));
 }
 
@@ -522,10 +534,10 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
     err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, declared.reason);
     return 1;
   }
-  out << fmt::format("declared model: {} of {} rows used ({} saturated, {} too dark, {} not the driver's choice), "
-                     "in-sample RMSE {}\n",
-                     declared.used, declared.rows, declared.saturated, declared.too_dark, declared.not_selected,
-                     cm(declared.rmse_m));
+  out << fmt::format(
+      "declared model: {} of {} rows used ({} saturated, {} too dark, {} not the driver's choice), "
+      "in-sample RMSE {}\n",
+      declared.used, declared.rows, declared.saturated, declared.too_dark, declared.not_selected, cm(declared.rmse_m));
   out << declared.model.describe();
   for (const auto& n : declared.notes) out << "note: " << n << "\n";
 
@@ -629,9 +641,10 @@ int cmd_eval(const std::vector<std::string>& argv, std::ostream& out, std::ostre
   const auto data = with_derived_covariates(read_calibration_csv(o.positional()[0]), model.extra_covariates());
   const auto s = evaluate_model(model, data, {}, sel);
   if (s.n == 0) {
-    err << fmt::format("tinyline calib eval: error: {}: the calibration gives no distance for any read-out ({} "
-                       "saturated, {} too dark, {} outside its ratio range, {} missing a covariate)\n",
-                       o.positional()[0], s.saturated, s.too_dark, s.out_of_range, s.missing_covariate);
+    err << fmt::format(
+        "tinyline calib eval: error: {}: the calibration gives no distance for any read-out ({} "
+        "saturated, {} too dark, {} outside its ratio range, {} missing a covariate)\n",
+        o.positional()[0], s.saturated, s.too_dark, s.out_of_range, s.missing_covariate);
     return 1;
   }
   out << fmt::format("{{\"n\": {}, \"rmse_m\": {}, \"bias_m\": {}, \"p95_abs_m\": {}}}\n", s.n, json_number(s.rmse_m),
@@ -644,8 +657,9 @@ int cmd_eval(const std::vector<std::string>& argv, std::ostream& out, std::ostre
 }
 
 int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {
-  const Options o(argv, {"-o", "--output", "--raw-topic", "--truth-topic", "--sensor", "--max-gap", "--pixel-step",
-                         "--positions", "--focal-mm", "--pixels"},
+  const Options o(argv,
+                  {"-o", "--output", "--raw-topic", "--truth-topic", "--sensor", "--max-gap", "--pixel-step",
+                   "--positions", "--focal-mm", "--pixels"},
                   {"--keep-mixed", "--incidence"});
   if (o.positional().size() != 1) throw UsageError("collect needs exactly one BAG");
   const auto output = o.value("-o") ? o.value("-o") : o.value("--output");
@@ -672,7 +686,8 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
     } catch (const std::exception&) {
       throw UsageError(fmt::format("--pixels: '{}' is not FROM-TO", *px));
     }
-    if (p.pixel_from < 0 || p.pixel_to < p.pixel_from || p.pixel_to > 271) throw UsageError("--pixels: expected 0 <= FROM <= TO <= 271");
+    if (p.pixel_from < 0 || p.pixel_to < p.pixel_from || p.pixel_to > 271)
+      throw UsageError("--pixels: expected 0 <= FROM <= TO <= 271");
   }
   files::AtomicFile output_file(*output, {.inputs = {o.positional()[0], p.positions_csv}, .what = "data file"});
   const auto r = collect_calibration_data(o.positional()[0], p);
@@ -690,8 +705,8 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
     out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.positional()[0], r.raw_scans,
                        r.raw_topic, r.truths, r.truth_topic, r.paired);
   } else {
-    out << fmt::format("{}: {} raw scans on {}, {} at a logged rail position, {} between positions\n", o.positional()[0],
-                       r.raw_scans, r.raw_topic, r.paired, r.between_positions);
+    out << fmt::format("{}: {} raw scans on {}, {} at a logged rail position, {} between positions\n",
+                       o.positional()[0], r.raw_scans, r.raw_topic, r.paired, r.between_positions);
   }
   out << fmt::format("pixels left out per set: {} dark, {} without a range, {} unlit, {} mixed (totals over sets)\n",
                      r.dark_pixels, r.no_range, r.unlit, r.mixed);
@@ -710,7 +725,8 @@ int run_calib_command(const std::vector<std::string>& args, std::ostream& out, s
   }
   const std::string sub = args[0];
   const std::vector<std::string> rest(args.begin() + 1, args.end());
-  if (std::find(rest.begin(), rest.end(), "--help") != rest.end() || std::find(rest.begin(), rest.end(), "-h") != rest.end()) {
+  if (std::find(rest.begin(), rest.end(), "--help") != rest.end() ||
+      std::find(rest.begin(), rest.end(), "-h") != rest.end()) {
     out << kUsage;
     return 0;
   }

@@ -106,7 +106,8 @@ bool read_topics(bag::Reader& reader, CollectResult& out, BagContent& content) {
     out.reason = status.str();
     return false;
   }
-  if (!decode_error.empty()) out.notes.push_back(fmt::format("messages that do not decode were skipped: {}", decode_error));
+  if (!decode_error.empty())
+    out.notes.push_back(fmt::format("messages that do not decode were skipped: {}", decode_error));
   return true;
 }
 
@@ -137,15 +138,16 @@ bool keep_one_sensor(const std::string& bag_path, const CollectParams& params, C
     out.reason = fmt::format("{}: no ground truth of sensor '{}' on {}", bag_path, sensor, out.truth_topic);
     return false;
   }
-  std::sort(c.truths.begin(), c.truths.end(), [](const TruthEntry& a, const TruthEntry& b) { return a.stamp < b.stamp; });
+  std::sort(c.truths.begin(), c.truths.end(),
+            [](const TruthEntry& a, const TruthEntry& b) { return a.stamp < b.stamp; });
   std::stable_sort(c.scans.begin(), c.scans.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   return true;
 }
 
 // Nearest unused truth within the gap (nullptr when none).
 TruthEntry* nearest_truth(std::vector<TruthEntry>& truths, double stamp, double max_gap) {
-  const auto it = std::lower_bound(truths.begin(), truths.end(), stamp,
-                                   [](const TruthEntry& t, double s) { return t.stamp < s; });
+  const auto it =
+      std::lower_bound(truths.begin(), truths.end(), stamp, [](const TruthEntry& t, double s) { return t.stamp < s; });
   TruthEntry* best = nullptr;
   auto consider = [&](TruthEntry& t) {
     if (!t.used && (!best || std::abs(t.stamp - stamp) < std::abs(best->stamp - stamp))) best = &t;
@@ -230,9 +232,10 @@ void pair_and_add(const std::string& bag_path, const CollectParams& params, Coll
     if (!sizes_agree(r, t)) {
       ++out.bad_scans;
       if (sizes_note++ == 0) {
-        out.notes.push_back(fmt::format("raw scan at {:.6f} s left out: {} pixels x {} read-outs, a {} and b {} values, "
-                                        "truth of {} pixels",
-                                        stamp, r.pixels, r.pulses.size(), r.a.size(), r.b.size(), t.range_m.size()));
+        out.notes.push_back(
+            fmt::format("raw scan at {:.6f} s left out: {} pixels x {} read-outs, a {} and b {} values, "
+                        "truth of {} pixels",
+                        stamp, r.pixels, r.pulses.size(), r.a.size(), r.b.size(), t.range_m.size()));
       }
       continue;
     }
@@ -265,8 +268,9 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
   }
   out.truth_topic = pick_topic(reader, ScanTruth::kTypeName, params.truth_topic, bag_path, why);
   if (out.truth_topic.empty()) {
-    out.reason = why + " (record the simulator's scan_truth beside the raw scans, or give a real sensor's rail "
-                       "positions with --positions)";
+    out.reason = why +
+                 " (record the simulator's scan_truth beside the raw scans, or give a real sensor's rail "
+                 "positions with --positions)";
     return out;
   }
   BagContent content;
@@ -284,9 +288,10 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
   }
   if (out.other_sensor > 0) out.notes.push_back(fmt::format("{} truths of other sensors ignored", out.other_sensor));
   if (out.data.empty()) {
-    out.reason = fmt::format("{}: no rows: {} raw scans paired with their truth; pixels left out: {} without a range, "
-                             "{} unlit, {} mixed",
-                             bag_path, out.paired, out.no_range, out.unlit, out.mixed);
+    out.reason = fmt::format(
+        "{}: no rows: {} raw scans paired with their truth; pixels left out: {} without a range, "
+        "{} unlit, {} mixed",
+        bag_path, out.paired, out.no_range, out.unlit, out.mixed);
     return out;
   }
   out.ok = true;

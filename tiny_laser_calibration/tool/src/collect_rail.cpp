@@ -43,8 +43,7 @@ double number_cell(const std::string& cell, const std::string& where, const char
     std::size_t used = 0;
     const double v = std::stod(cell, &used);
     if (used == cell.size() && std::isfinite(v)) return v;
-  } catch (const std::exception&) {
-  }
+  } catch (const std::exception&) {}
   throw CalibrationDataError(fmt::format("{}: column '{}': '{}' is not a number", where, column, cell));
 }
 
@@ -68,8 +67,8 @@ std::vector<RailPosition> read_rail_positions(const std::string& path) {
       header = cells;
       if (header.size() < 3 || header[0] != "t_from_s" || header[1] != "t_to_s" || header[2] != "distance_m" ||
           (header.size() > 3 && header[3] != "material") || header.size() > 4) {
-        throw CalibrationDataError(fmt::format("{}: expected the header t_from_s,t_to_s,distance_m[,material], found '{}'",
-                                               where, line));
+        throw CalibrationDataError(
+            fmt::format("{}: expected the header t_from_s,t_to_s,distance_m[,material], found '{}'", where, line));
       }
       continue;
     }
@@ -86,7 +85,8 @@ std::vector<RailPosition> read_rail_positions(const std::string& path) {
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.t_from_s < b.t_from_s; });
   for (std::size_t k = 1; k < out.size(); ++k) {
     if (out[k].t_from_s < out[k - 1].t_to_s) {
-      throw CalibrationDataError(fmt::format("{}:{}: overlaps the position of line {}", path, out[k].line, out[k - 1].line));
+      throw CalibrationDataError(
+          fmt::format("{}:{}: overlaps the position of line {}", path, out[k].line, out[k - 1].line));
     }
   }
   return out;
@@ -123,8 +123,9 @@ bool read_raw_scans(const std::string& bag_path, const CollectParams& params, Co
       if (sc != reader.schemas().end() && sc->second.name == RawScan::kTypeName) topics.insert(ch.topic);
     }
     if (topics.size() != 1) {
-      out.reason = topics.empty() ? fmt::format("{}: no {} topic in the bag", bag_path, RawScan::kTypeName)
-                                  : fmt::format("{}: several raw scan topics ({}); choose one", bag_path, fmt::join(topics, ", "));
+      out.reason = topics.empty()
+                       ? fmt::format("{}: no {} topic in the bag", bag_path, RawScan::kTypeName)
+                       : fmt::format("{}: several raw scan topics ({}); choose one", bag_path, fmt::join(topics, ", "));
       return false;
     }
     out.raw_topic = *topics.begin();
@@ -148,11 +149,12 @@ bool read_raw_scans(const std::string& bag_path, const CollectParams& params, Co
   }
   out.raw_scans = scans.size() + out.bad_scans;
   if (params.sensor.empty() && frames.size() > 1) {
-    out.reason = fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor", bag_path,
-                             out.raw_topic, fmt::join(frames, ", "));
+    out.reason = fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor",
+                             bag_path, out.raw_topic, fmt::join(frames, ", "));
     return false;
   }
-  if (!params.sensor.empty()) std::erase_if(scans, [&](const auto& s) { return s.second.header.frame_id != params.sensor; });
+  if (!params.sensor.empty())
+    std::erase_if(scans, [&](const auto& s) { return s.second.header.frame_id != params.sensor; });
   std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   if (scans.empty()) out.reason = fmt::format("{}: no raw scan on {}", bag_path, out.raw_topic);
   return !scans.empty();
@@ -206,7 +208,8 @@ CollectResult collect_rail_positions(const std::string& bag_path, const CollectP
   std::vector<std::pair<double, RawScan>> scans;
   if (!read_raw_scans(bag_path, params, out, scans)) return out;
   out.data.source = bag_path;
-  out.data.has_material = std::any_of(positions.begin(), positions.end(), [](const auto& p) { return !p.material.empty(); });
+  out.data.has_material =
+      std::any_of(positions.begin(), positions.end(), [](const auto& p) { return !p.material.empty(); });
   const double t0 = scans.front().first;
   for (const auto& [stamp, r] : scans) {
     const std::size_t n = r.pixels, k = r.pulses.size();
@@ -223,9 +226,10 @@ CollectResult collect_rail_positions(const std::string& bag_path, const CollectP
     add_rail_rows(r, stamp - t0, *pos, params, optics, out);
   }
   if (out.between_positions > 0) {
-    out.notes.push_back(fmt::format("{} raw scans fell outside every logged rail position (the target moving) and were "
-                                    "left out",
-                                    out.between_positions));
+    out.notes.push_back(
+        fmt::format("{} raw scans fell outside every logged rail position (the target moving) and were "
+                    "left out",
+                    out.between_positions));
   }
   if (out.data.empty()) {
     out.reason = fmt::format("{}: no raw scan of {} lies inside a position of {}", bag_path, out.raw_topic,

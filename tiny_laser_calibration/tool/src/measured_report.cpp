@@ -16,8 +16,8 @@ namespace tinyline::tiny_laser_calibration::tool {
 namespace {
 
 std::string hypothesis_table(const std::vector<EffectHypothesis>& hs, int best, const char* error_name) {
-  std::string md = fmt::format("| effect | form | {} | in-sample RMSE | fitted, in physical units |\n|---|---|---|---|---|\n",
-                               error_name);
+  std::string md = fmt::format(
+      "| effect | form | {} | in-sample RMSE | fitted, in physical units |\n|---|---|---|---|---|\n", error_name);
   for (std::size_t i = 0; i < hs.size(); ++i) {
     const auto& h = hs[i];
     md += fmt::format("| {}{} | `{}` | {:.2f} cm | {:.2f} cm | {} |\n", static_cast<int>(i) == best ? "**best:** " : "",
@@ -60,9 +60,10 @@ std::string materials_section(const MeasuredData& d, const MaterialAnalysis& a) 
 
 std::string distances_section(const MeasuredData& d, const DistanceAnalysis& a) {
   std::string md = "## Table 3.1: bias and spread against distance (white paper)\n\n";
-  md += fmt::format("Before (the published calibration): **{:.2f} cm** RMS bias over the {} distances. "
-                    "Leave-one-distance-out:\n\n",
-                    a.before_rmse_cm, d.table31.size());
+  md += fmt::format(
+      "Before (the published calibration): **{:.2f} cm** RMS bias over the {} distances. "
+      "Leave-one-distance-out:\n\n",
+      a.before_rmse_cm, d.table31.size());
   md += hypothesis_table(a.hypotheses, a.best, "leave-one-out RMSE");
   md += fmt::format("Spread: {}.\n\n", a.sd_reading);
   return md;
@@ -76,16 +77,19 @@ std::string fits_section(const FitsAnalysis& a) {
 
 std::string curves_section(const std::vector<CurveAnalysis>& cs) {
   std::string md = "## The five real sensors' factory curves\n\n";
-  md += "Each curve held against the declared physical model where it reads the thesis's calibration range "
-        "(5-200 cm), 401 points evenly in k = b / (a + b); Rsen kept within a factor 2 of 1 and the pulse power "
-        "positive; RMS residual of each model:\n\n";
-  md += "| sensor | k | distance [cm] | Eq. 3.16 (before) | + gain on A | + pulse shape (after) | fitted | delay drift |\n"
-        "|---|---|---|---|---|---|---|---|\n";
+  md +=
+      "Each curve held against the declared physical model where it reads the thesis's calibration range "
+      "(5-200 cm), 401 points evenly in k = b / (a + b); Rsen kept within a factor 2 of 1 and the pulse power "
+      "positive; RMS residual of each model:\n\n";
+  md +=
+      "| sensor | k | distance [cm] | Eq. 3.16 (before) | + gain on A | + pulse shape (after) | fitted | delay drift "
+      "|\n"
+      "|---|---|---|---|---|---|---|---|\n";
   for (const auto& c : cs) {
-    md += fmt::format("| {} | {:.3f}-{:.3f} | {:.0f}-{:.0f} | {:.2f} cm | {:.2f} cm | {:.2f} cm | {} | {:.1f} ps/degC |\n",
-                      c.sensor, c.k_min, c.k_max, c.l_min_cm, c.l_max_cm, c.models[0].in_sample_rmse_cm,
-                      c.models[1].in_sample_rmse_cm, c.models[2].in_sample_rmse_cm, c.models[2].reading,
-                      c.delay_drift_ps_per_c);
+    md += fmt::format(
+        "| {} | {:.3f}-{:.3f} | {:.0f}-{:.0f} | {:.2f} cm | {:.2f} cm | {:.2f} cm | {} | {:.1f} ps/degC |\n", c.sensor,
+        c.k_min, c.k_max, c.l_min_cm, c.l_max_cm, c.models[0].in_sample_rmse_cm, c.models[1].in_sample_rmse_cm,
+        c.models[2].in_sample_rmse_cm, c.models[2].reading, c.delay_drift_ps_per_c);
   }
   return md + "\n";
 }
@@ -95,23 +99,24 @@ std::string report_json(const MaterialAnalysis& m, const DistanceAnalysis& dist,
   auto hyps = [](const std::vector<EffectHypothesis>& hs) {
     std::string j = "[";
     for (std::size_t i = 0; i < hs.size(); ++i) {
-      j += fmt::format("{}{{\"effect\": {}, \"form\": {}, \"loo_rmse_cm\": {}, \"in_sample_rmse_cm\": {}}}", i ? ", " : "",
-                       json_string(hs[i].effect), json_string(hs[i].form), json_number(hs[i].loo_rmse_cm),
-                       json_number(hs[i].in_sample_rmse_cm));
+      j += fmt::format("{}{{\"effect\": {}, \"form\": {}, \"loo_rmse_cm\": {}, \"in_sample_rmse_cm\": {}}}",
+                       i ? ", " : "", json_string(hs[i].effect), json_string(hs[i].form),
+                       json_number(hs[i].loo_rmse_cm), json_number(hs[i].in_sample_rmse_cm));
     }
     return j + "]";
   };
   std::string j = "{\n";
   j += fmt::format("  \"table32\": {{\"before_rmse_cm\": {}, \"best\": {}, \"hypotheses\": {}}},\n",
                    json_number(m.before_rmse_cm), m.best, hyps(m.hypotheses));
-  j += fmt::format("  \"table31\": {{\"before_rmse_cm\": {}, \"best\": {}, \"sd_log_slope\": {}, \"hypotheses\": {}}},\n",
-                   json_number(dist.before_rmse_cm), dist.best, json_number(dist.sd_log_slope), hyps(dist.hypotheses));
+  j += fmt::format(
+      "  \"table31\": {{\"before_rmse_cm\": {}, \"best\": {}, \"sd_log_slope\": {}, \"hypotheses\": {}}},\n",
+      json_number(dist.before_rmse_cm), dist.best, json_number(dist.sd_log_slope), hyps(dist.hypotheses));
   j += fmt::format("  \"section35\": {{\"noise_exponent\": {}, \"multi_shot_prediction_cm2\": {}}},\n",
                    json_number(f.noise_exponent), json_number(f.multi_shot_prediction_cm2));
   j += "  \"curves\": [";
   for (std::size_t i = 0; i < cs.size(); ++i) {
-    j += fmt::format("{}\n    {{\"sensor\": {}, \"k_min\": {}, \"k_max\": {}, \"rmse_cm\": [{}, {}, {}]}}", i ? "," : "",
-                     json_string(cs[i].sensor), json_number(cs[i].k_min), json_number(cs[i].k_max),
+    j += fmt::format("{}\n    {{\"sensor\": {}, \"k_min\": {}, \"k_max\": {}, \"rmse_cm\": [{}, {}, {}]}}",
+                     i ? "," : "", json_string(cs[i].sensor), json_number(cs[i].k_min), json_number(cs[i].k_max),
                      json_number(cs[i].models[0].in_sample_rmse_cm), json_number(cs[i].models[1].in_sample_rmse_cm),
                      json_number(cs[i].models[2].in_sample_rmse_cm));
   }
@@ -156,20 +161,23 @@ int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::o
   const DistanceAnalysis dist = analyse_distances(d);
   const FitsAnalysis fits = analyse_fits(d);
   const std::vector<CurveAnalysis> curves = analyse_curves(d);
-  std::string md = fmt::format("# The calibration loop on the real sensor's measurements\n\nData: `{}` ({} materials, "
-                               "{} distances, {} published fits, {} factory curves).\n\n",
-                               std::filesystem::path(path).filename().string(), d.table32.size(), d.table31.size(),
-                               d.fits.size(), d.sensors.size());
+  std::string md = fmt::format(
+      "# The calibration loop on the real sensor's measurements\n\nData: `{}` ({} materials, "
+      "{} distances, {} published fits, {} factory curves).\n\n",
+      std::filesystem::path(path).filename().string(), d.table32.size(), d.table31.size(), d.fits.size(),
+      d.sensors.size());
   md += materials_section(d, mat) + distances_section(d, dist) + fits_section(fits) + curves_section(curves);
   if (const auto report = o.value("--report")) {
     namespace fs = std::filesystem;
     std::error_code ec;
     fs::create_directories(*report, ec);
-    if (ec || !fs::is_directory(*report)) throw std::runtime_error(fmt::format("{}: cannot create the report directory", *report));
+    if (ec || !fs::is_directory(*report))
+      throw std::runtime_error(fmt::format("{}: cannot create the report directory", *report));
     write_plot_data(*report, d, mat, curves);
     files::write_atomically((fs::path(*report) / "measured.json").string(), report_json(mat, dist, fits, curves));
     std::string note;
-    if (run_plot_script(env, *report, note) != 0) err << "tinyline calib: warning: " << note << "; report without plots\n";
+    if (run_plot_script(env, *report, note) != 0)
+      err << "tinyline calib: warning: " << note << "; report without plots\n";
     for (const char* png : {"measured_materials.png", "measured_curves.png"}) {
       if (fs::exists(fs::path(*report) / png)) md += fmt::format("![{}]({})\n\n", png, png);
     }

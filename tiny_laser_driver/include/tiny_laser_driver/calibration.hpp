@@ -52,10 +52,10 @@ struct Readout {
 /// The declared validity rule (public driver): a read-out is usable when both
 /// charges are inside (low, high) and a + b exceeds min_sum + per_pulse * pulses/10.
 struct ValidityRule {
-  double low = 10.0;         ///< [charge_unit] below: too little light
-  double high = 230.0;       ///< [charge_unit] above: saturated
-  double min_sum = 10.0;     ///< [charge_unit]
-  double per_pulse = 0.4;    ///< [charge_unit per 10 pulses]
+  double low = 10.0;       ///< [charge_unit] below: too little light
+  double high = 230.0;     ///< [charge_unit] above: saturated
+  double min_sum = 10.0;   ///< [charge_unit]
+  double per_pulse = 0.4;  ///< [charge_unit per 10 pulses]
 
   enum class Verdict { kValid, kSaturated, kTooDark };
   [[nodiscard]] Verdict check(const Readout& r) const;
@@ -118,10 +118,8 @@ class CalibrationModel {
   /// (public_driver_sensors.hpp): distance_cm = sum_i poly[i] k^(6-i)
   /// + offsets, k = b / (a + b), plus (stable - t) * sensi with t in 0.1 degC.
   /// `poly` and `offsets_added` are highest power first.
-  static CalibrationModel from_public_driver(const std::vector<double>& poly,
-                                             const std::vector<double>& offsets_added,
-                                             double stable_temperature_decic,
-                                             double temperature_sensi_cm_per_decic);
+  static CalibrationModel from_public_driver(const std::vector<double>& poly, const std::vector<double>& offsets_added,
+                                             double stable_temperature_decic, double temperature_sensi_cm_per_decic);
 
   // The representation is the calibration tool's business (see calibration.cpp).
   struct Impl;

@@ -27,11 +27,11 @@ enum class Covariate {
   kAlbedo,             ///< "albedo": (a + b) / pulses relative to the calibration target's at that distance and pixel
   kExtra,              ///< a further numeric column, by name (Readout::extra)
   // Covariates of the terms that act on the charges (not in builtin_covariates()):
-  kOne,                ///< "one": 1 (a constant charge, or one per pulse)
-  kPixelParity,        ///< "pixel_parity": pixel % 2
-  kPixelBank,          ///< "pixel_bankN": (pixel - 8) / N, the bank of N effective pixels it is in
-  kPixelIs,            ///< "pixel_isN": 1 for pixel N, else 0 (a single odd pixel)
-  kCharge,             ///< "charge": the capacitor's own read-out (the readout form only)
+  kOne,          ///< "one": 1 (a constant charge, or one per pulse)
+  kPixelParity,  ///< "pixel_parity": pixel % 2
+  kPixelBank,    ///< "pixel_bankN": (pixel - 8) / N, the bank of N effective pixels it is in
+  kPixelIs,      ///< "pixel_isN": 1 for pixel N, else 0 (a single odd pixel)
+  kCharge,       ///< "charge": the capacitor's own read-out (the readout form only)
 };
 
 /// Name used in CSV headers, YAML and reports ("pixel", "t_s", ...); "" for kExtra.
@@ -85,7 +85,7 @@ struct CalibrationTerm {
 
   // Resolved on load / when added to a model.
   Covariate kind = Covariate::kExtra;
-  int extra_index = -1;  ///< index into Readout::extra for kExtra; N of kPixelBank / kPixelIs
+  int extra_index = -1;     ///< index into Readout::extra for kExtra; N of kPixelBank / kPixelIs
   bool dense_keys = false;  ///< keys are first_key, first_key + 1, ...: a table lookup is an index
   long first_key = 0;
 
@@ -105,9 +105,9 @@ struct CalibrationTerm {
 /// the emitter/receiver overlap at close range and the lens vignetting, which
 /// the thesis's reflectance figure (L^2 (a + b) / pulses) leaves in.
 struct AmplitudeReference {
-  std::vector<double> knots_m;            ///< declared distances [m], increasing
-  std::vector<double> log_amplitude;      ///< ln((a + b) / pulses) at the knots [ln charge_unit]
-  std::vector<double> pixel_log_offset;   ///< empty, or per pixel (0-271) [ln]
+  std::vector<double> knots_m;           ///< declared distances [m], increasing
+  std::vector<double> log_amplitude;     ///< ln((a + b) / pulses) at the knots [ln charge_unit]
+  std::vector<double> pixel_log_offset;  ///< empty, or per pixel (0-271) [ln]
   [[nodiscard]] bool empty() const { return knots_m.empty(); }
   /// (a + b) / pulses over the reference at `declared_m` (NaN when empty or not positive).
   [[nodiscard]] double albedo(const Readout& r, double declared_m) const;
@@ -115,12 +115,12 @@ struct AmplitudeReference {
 
 /// Provenance and in-sample figures written beside the model (informational).
 struct CalibrationFitInfo {
-  std::string data;          ///< data file the model was fitted on
-  std::size_t rows = 0;      ///< valid read-outs used
+  std::string data;                                          ///< data file the model was fitted on
+  std::size_t rows = 0;                                      ///< valid read-outs used
   double rmse_m = std::numeric_limits<double>::quiet_NaN();  ///< in-sample
   double heldout_rmse_before_m = std::numeric_limits<double>::quiet_NaN();
   double heldout_rmse_after_m = std::numeric_limits<double>::quiet_NaN();
-  std::string weighting;     ///< K_i of Eq. 3.20
+  std::string weighting;  ///< K_i of Eq. 3.20
 };
 
 struct CalibrationModel::Impl {

@@ -10,7 +10,7 @@
 namespace tinyline::tiny_laser_driver {
 
 template <class S, class V>
-  requires common::SettingsOf<S, OpticsParams>
+requires common::SettingsOf<S, OpticsParams>
 void for_each_param(S& p, V&& v) {
   v(p.focal_mm, {"focal_mm", "mm", 0.5, 100.0, "receiver lens focal length (3.6 or 8 shipped)"});
   v(p.sensor_length_mm, {"sensor_length_mm", "mm", 0.1, 100.0, "length of the 256 effective pixels"});

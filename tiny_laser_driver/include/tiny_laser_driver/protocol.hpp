@@ -28,8 +28,8 @@
 
 namespace tinyline::tiny_laser_driver {
 
-inline constexpr std::size_t kPixels = 272;      ///< transmitted pixels per line
-inline constexpr std::size_t kDarkPixels = 8;    ///< dark pixels at each end (no range)
+inline constexpr std::size_t kPixels = 272;    ///< transmitted pixels per line
+inline constexpr std::size_t kDarkPixels = 8;  ///< dark pixels at each end (no range)
 inline constexpr std::size_t kReadoutsPerSet = 5;
 inline constexpr std::uint8_t kHeader[2] = {0xA2, 0xA1};
 inline constexpr std::uint8_t kEnder[2] = {0x2A, 0x2B};
@@ -37,7 +37,7 @@ inline constexpr std::uint8_t kEnder[2] = {0x2A, 0x2B};
 /// as its set's last when the index word is above 100 (`num > 100`), so a
 /// set of one frame (single shot) sends 101, never 100 (last_frame_word()).
 inline constexpr std::uint16_t kLastFrameFlag = 100;
-inline constexpr std::size_t kDistanceFrameBytes = 2 + kPixels * 2 + 2;   // 548
+inline constexpr std::size_t kDistanceFrameBytes = 2 + kPixels * 2 + 2;     // 548
 inline constexpr std::size_t kRawFrameBytes = 2 + 4 + 2 * kPixels * 2 + 2;  // 1096
 /// Largest magnitude a raw pixel value can have on the wire: the 12-bit ADC
 /// reads 0-4095 tenths of a charge unit, and a discharge is a difference of two.
@@ -47,10 +47,10 @@ inline constexpr int kBitsPerByte8N1 = 10;
 
 /// One raw frame: one non-destructive read-out of both capacitors.
 struct RawFrame {
-  std::uint16_t index = 0;        ///< position within the set (0-based, flag removed)
-  bool last = false;              ///< the sensor marked it as the set's last frame
-  std::uint16_t temperature_decic = 0;  ///< MCU temperature [0.1 degC]
-  std::uint16_t pulses = 0;       ///< accumulated pulses (a multiple of 10)
+  std::uint16_t index = 0;                ///< position within the set (0-based, flag removed)
+  bool last = false;                      ///< the sensor marked it as the set's last frame
+  std::uint16_t temperature_decic = 0;    ///< MCU temperature [0.1 degC]
+  std::uint16_t pulses = 0;               ///< accumulated pulses (a multiple of 10)
   std::array<std::int16_t, kPixels> a{};  ///< capacitor A, ten times the charge unit
   std::array<std::int16_t, kPixels> b{};  ///< capacitor B, ten times the charge unit
   /// Parser only: stream offset just past the frame's last byte (bytes fed
@@ -183,8 +183,8 @@ class Parser {
  private:
   // Steps of feed().
   void append(std::span<const std::uint8_t> bytes);
-  void skip_to_header();                                  // counts what it skips as garbage
-  bool take_frame();                                      // false: the frame at start_ is not complete yet
+  void skip_to_header();  // counts what it skips as garbage
+  bool take_frame();      // false: the frame at start_ is not complete yet
   bool accept_frame(std::size_t len);
   bool skip_frame(DropReason why, std::size_t len);
   void consume_distance(const std::uint8_t* frame, std::uint64_t end_byte);
@@ -193,18 +193,18 @@ class Parser {
   void place_in_set(std::uint16_t index, std::uint16_t pulses);
   void keep_raw_frame(const std::uint8_t* p, std::uint16_t index, bool last, std::uint16_t packed,
                       std::uint64_t end_byte);
-  void close_set();                                       // after a frame flagged last
+  void close_set();  // after a frame flagged last
   void abandon_pending();
   void drop(DropReason r, std::uint64_t n = 1) { stats_.drops[static_cast<std::size_t>(r)] += n; }
 
   Options options_;
-  std::vector<std::uint8_t> buf_;   // unparsed bytes
-  std::size_t start_ = 0;           // first unparsed byte in buf_
-  std::uint64_t buf_origin_ = 0;    // stream offset of buf_[0]
-  std::vector<RawFrame> pending_;   // frames of the set being assembled
-  bool broken_ = false;             // the current set is already counted as incomplete
-  int prev_index_ = -1;             // index of the previous frame of the current set (-1: at a set boundary)
-  std::uint16_t prev_pulses_ = 0;   // its pulses
+  std::vector<std::uint8_t> buf_;  // unparsed bytes
+  std::size_t start_ = 0;          // first unparsed byte in buf_
+  std::uint64_t buf_origin_ = 0;   // stream offset of buf_[0]
+  std::vector<RawFrame> pending_;  // frames of the set being assembled
+  bool broken_ = false;            // the current set is already counted as incomplete
+  int prev_index_ = -1;            // index of the previous frame of the current set (-1: at a set boundary)
+  std::uint16_t prev_pulses_ = 0;  // its pulses
   std::vector<RawSet> sets_;
   std::vector<DistanceFrame> distances_;
   std::size_t sets_taken_ = 0;
@@ -225,8 +225,8 @@ std::vector<std::uint8_t> cmd_sample_restart();
 inline constexpr std::uint8_t kCmdStart = 0xF8;
 inline constexpr std::uint8_t kCmdEnd = 0x8F;
 enum class FramedCommand : std::uint8_t {
-  kReset = 0x01,       ///< int16 pulses (real firmware)
-  kSample = 0x02,      ///< int16 (real firmware)
+  kReset = 0x01,   ///< int16 pulses (real firmware)
+  kSample = 0x02,  ///< int16 (real firmware)
   // tinyline extensions (opt-in; a sensor that does not know them ignores the frame):
   kLaser = 0x10,       ///< uint8 0/1: laser emission off/on (multi-sensor sequence mode, Algorithm 4)
   kStreamMode = 0x11,  ///< uint8 0 distance-only, 1 raw

@@ -47,13 +47,14 @@ enum class PixelStatus : std::uint8_t {
 /// One processed scan. Arrays are indexed by transmitted pixel (0-271).
 struct ProcessedScan {
   static constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-  std::array<float, kPixels> distance_m{};    ///< along the pixel's ray; NaN unless kValid
-  std::array<float, kPixels> intensity{};     ///< (a + b) / pulses of the chosen read-out [charge_unit per pulse]
-  std::array<float, kPixels> reflectance{};   ///< distance_cm^2 (a + b) / (pulses / 10) (the sensor's reflectance figure); NaN unless kValid
+  std::array<float, kPixels> distance_m{};  ///< along the pixel's ray; NaN unless kValid
+  std::array<float, kPixels> intensity{};   ///< (a + b) / pulses of the chosen read-out [charge_unit per pulse]
+  std::array<float, kPixels>
+      reflectance{};  ///< distance_cm^2 (a + b) / (pulses / 10) (the sensor's reflectance figure); NaN unless kValid
   std::array<std::uint16_t, kPixels> pulses{};  ///< pulses of the chosen read-out (0: none)
   std::array<std::int8_t, kPixels> readout{};   ///< index of the chosen read-out in the set (-1: none)
   std::array<PixelStatus, kPixels> status{};
-  double temperature_c = std::numeric_limits<double>::quiet_NaN();  ///< MCU temperature of the set
+  double temperature_c = std::numeric_limits<double>::quiet_NaN();          ///< MCU temperature of the set
   int valid = 0, saturated = 0, too_dark = 0, out_of_range = 0, stale = 0;  ///< counts over the 256 effective pixels
 
   /// Share of the effective pixels saturated at every read-out.

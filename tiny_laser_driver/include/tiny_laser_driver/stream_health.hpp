@@ -131,7 +131,7 @@ class CommandWatch {
 
  private:
   std::int64_t grace_ns_;
-  std::optional<std::int64_t> off_since_;     // laser off pending judgement
+  std::optional<std::int64_t> off_since_;  // laser off pending judgement
   bool off_judged_ = false;
   std::optional<std::pair<StreamMode, std::int64_t>> mode_pending_;
   std::optional<std::pair<int, std::int64_t>> reset_pending_;

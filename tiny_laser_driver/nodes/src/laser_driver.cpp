@@ -90,7 +90,7 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
   po.laser_on_at_start = p.sequence_slot < 0;
   try {
     opener_ = io::make_port_opener(p.port, po);  // parses the spec; opens nothing
-  } catch (const std::invalid_argument& e) {  // named at the line that set it (a sim: port's scene is checked here)
+  } catch (const std::invalid_argument& e) {     // named at the line that set it (a sim: port's scene is checked here)
     const auto& ps = parameters();
     const auto port = std::find_if(ps.begin(), ps.end(), [](const auto& d) { return d.name == "port"; });
     throw bus::ParamError(port != ps.end() ? port->set_from : bus::SourceLocation{},
@@ -106,8 +106,7 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
   laser_scan_pub_ = create_publisher<sensor_msgs::msg::LaserScan>("laser_scan", bus::QoS::sensor_data());
   diag_pub_ = create_publisher<diagnostic_msgs::msg::DiagnosticArray>("/diagnostics", bus::QoS::keep_last(10));
   command_sub_ = create_subscription<tinyline_msgs::msg::LaserCommand>(
-      "laser_command", bus::QoS::keep_last(10),
-      [this](const tinyline_msgs::msg::LaserCommand& m) { on_command(m); });
+      "laser_command", bus::QoS::keep_last(10), [this](const tinyline_msgs::msg::LaserCommand& m) { on_command(m); });
   diag_timer_ = create_timer(bus::from_seconds(p.diagnostics_period_s), [this] { publish_diagnostics(); });
 }
 
@@ -115,7 +114,8 @@ LaserDriver::~LaserDriver() { on_stop(); }
 
 bus::ParamConstraints calibration_file_constraints() {
   return bus::ParamConstraints::input_file(
-      kMaxCalibrationFileBytes, std::vector<std::string>(std::begin(kCalibrationNotAFile), std::end(kCalibrationNotAFile)));
+      kMaxCalibrationFileBytes,
+      std::vector<std::string>(std::begin(kCalibrationNotAFile), std::end(kCalibrationNotAFile)));
 }
 
 // Before any node starts (and in `launch --check`): a bad calibration stops
@@ -454,13 +454,15 @@ void LaserDriver::diagnose_level(const DriverStatus& s, const DriverStatus& prev
   const bool heard = s.bytes > 0 && s.last_receive >= s.connected_at;
   const double since_data_s = (now() - (heard ? s.last_receive : s.connected_at)).count() * 1e-9;
   const bool silent = since_data_s > params_.stall_timeout_s;
-  const bool frames_but_nothing_new = dt > 0 && s.parser.frames > prev.parser.frames && s.scans_published == prev.scans_published;
+  const bool frames_but_nothing_new =
+      dt > 0 && s.parser.frames > prev.parser.frames && s.scans_published == prev.scans_published;
   std::vector<std::string> warnings;
   if (const auto m = unexpected_kind(expected_, s.parser); !m.empty()) warnings.push_back(m);
   if (const auto m = s.ranges.verdict(); !m.empty()) warnings.push_back(m);
   if (s.ignores_laser_off) warnings.push_back("the sensor ignores laser off: treat it as always emitting");
   if (frames_but_nothing_new) warnings.push_back(fmt::format("frames keep coming but none was new for {:.1f} s", dt));
-  if (period_drops > 0) warnings.push_back(fmt::format("{} frames or sets dropped in the last {:.1f} s", period_drops, dt));
+  if (period_drops > 0)
+    warnings.push_back(fmt::format("{} frames or sets dropped in the last {:.1f} s", period_drops, dt));
   if (!s.connected) {
     st.level = DiagnosticStatus::ERROR;
     st.message = s.last_error_message.empty() ? "connecting" : "no device: " + s.last_error_message;
@@ -484,7 +486,8 @@ void LaserDriver::diagnose_values(const DriverStatus& s, const DriverStatus& pre
   auto per_s = [&](std::uint64_t a, std::uint64_t b) { return dt > 0 ? static_cast<double>(a - b) / dt : 0.0; };
   const double bytes_per_s = per_s(s.bytes, prev.bytes);
   const std::uint64_t frames = s.parser.frames - prev.parser.frames;
-  const std::uint64_t repeats = (s.distance_repeats.repeats - prev.distance_repeats.repeats) + (s.raw_repeats - prev.raw_repeats);
+  const std::uint64_t repeats =
+      (s.distance_repeats.repeats - prev.distance_repeats.repeats) + (s.raw_repeats - prev.raw_repeats);
   auto kv = [&](std::string k, std::string v) {
     st.values.push_back(diagnostic_msgs::msg::KeyValue{std::move(k), std::move(v)});
   };
@@ -496,7 +499,8 @@ void LaserDriver::diagnose_values(const DriverStatus& s, const DriverStatus& pre
   kv("frames_per_s", fmt::format("{:.2f}", per_s(s.parser.frames, prev.parser.frames)));
   kv("fresh_per_s", fmt::format("{:.2f}", per_s(s.scans_published, prev.scans_published)));
   kv("frame_rate_hz", fmt::format("{:.2f}", per_s(s.scans_published, prev.scans_published)));
-  kv("repeat_share", fmt::format("{:.3f}", frames > 0 ? static_cast<double>(repeats) / static_cast<double>(frames) : 0.0));
+  kv("repeat_share",
+     fmt::format("{:.3f}", frames > 0 ? static_cast<double>(repeats) / static_cast<double>(frames) : 0.0));
   kv("repeats", std::to_string(s.distance_repeats.repeats + s.raw_repeats));
   kv("torn_frames", std::to_string(s.distance_repeats.torn));
   kv("bytes_per_s", fmt::format("{:.0f}", bytes_per_s));
@@ -513,7 +517,9 @@ void LaserDriver::diagnose_values(const DriverStatus& s, const DriverStatus& pre
   kv("stale_pixels", std::to_string(s.last_stale_pixels));
   kv("distance_unit_m", fmt::format("{}", params_.distance_unit_m));
   const std::string unit = s.ranges.verdict();
-  kv("distance_unit_check", s.ranges.valid < 100 ? "too few distance pixels to tell" : unit.empty() ? "plausible" : unit);
+  kv("distance_unit_check", s.ranges.valid < 100 ? "too few distance pixels to tell"
+                            : unit.empty()       ? "plausible"
+                                                 : unit);
   kv("temperature_c", fmt::format("{:.1f}", s.last_temperature_c));
   kv("connects", std::to_string(s.connects));
   kv("disconnects", std::to_string(s.disconnects));

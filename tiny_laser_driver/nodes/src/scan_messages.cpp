@@ -14,7 +14,7 @@ constexpr double kRangeMaxM = 3.0;   // the outer limit quoted beside it
 }  // namespace
 
 std::unique_ptr<tinyline_msgs::msg::RawScan> to_raw_scan(const RawSet& set, bus::Time stamp,
-                                                        const std::string& frame_id) {
+                                                         const std::string& frame_id) {
   auto m = std::make_unique<tinyline_msgs::msg::RawScan>();
   m->header.stamp = stamp.to_msg();
   m->header.frame_id = frame_id;
@@ -74,7 +74,7 @@ ScanMessages::ScanMessages(const ScanProcessor& processor, std::string frame_id,
       scan_frame_id_(std::move(scan_frame_id)) {}
 
 std::unique_ptr<tinyline_msgs::msg::LineScan> ScanMessages::line(const ProcessedScan& scan, std::uint32_t index,
-                                                                bus::Time stamp, float temperature_c) const {
+                                                                 bus::Time stamp, float temperature_c) const {
   auto line = std::make_unique<tinyline_msgs::msg::LineScan>();
   line->header.stamp = stamp.to_msg();
   line->header.frame_id = frame_id_;
@@ -91,7 +91,7 @@ std::unique_ptr<tinyline_msgs::msg::LineScan> ScanMessages::line(const Processed
 }
 
 std::unique_ptr<sensor_msgs::msg::LaserScan> ScanMessages::laser(const ProcessedScan& scan, bus::Time stamp,
-                                                                double scan_time_s) const {
+                                                                 double scan_time_s) const {
   auto ls = std::make_unique<sensor_msgs::msg::LaserScan>();
   ls->header.stamp = stamp.to_msg();
   ls->header.frame_id = scan_frame_id_;

@@ -66,7 +66,8 @@ class MemoryOpener : public PortOpener {
       std::lock_guard lk(r.mu);
       if (auto it = r.links.find(name_); it != r.links.end()) link = it->second;
     }
-    if (!link) return {nullptr, IoStatus::fail(IoError::kNotFound, fmt::format("mem:{}: no such in-memory link", name_))};
+    if (!link)
+      return {nullptr, IoStatus::fail(IoError::kNotFound, fmt::format("mem:{}: no such in-memory link", name_))};
     return link->open();
   }
   std::string describe() const override { return "mem:" + name_; }
@@ -123,8 +124,8 @@ std::unique_ptr<PortOpener> make_port_opener(const std::string& spec, const Port
     if (auto it = r.schemes.find(scheme); it != r.schemes.end()) factory = it->second;
   }
   if (!factory) {
-    throw std::invalid_argument(fmt::format("port '{}': unknown scheme '{}'; expected {}", spec, scheme,
-                                            accepted_forms()));
+    throw std::invalid_argument(
+        fmt::format("port '{}': unknown scheme '{}'; expected {}", spec, scheme, accepted_forms()));
   }
   return factory(arg, options);
 }

@@ -53,12 +53,36 @@ std::string group_of(const std::string& path) {
 
 std::optional<speed_t> standard_speed(double baud) {
   static constexpr std::array<std::pair<unsigned, speed_t>, 31> kTable{{
-      {50, B50},           {75, B75},           {110, B110},         {134, B134},         {150, B150},
-      {200, B200},         {300, B300},         {600, B600},         {1200, B1200},       {1800, B1800},
-      {2400, B2400},       {4800, B4800},       {9600, B9600},       {19200, B19200},     {38400, B38400},
-      {57600, B57600},     {115200, B115200},   {230400, B230400},   {460800, B460800},   {500000, B500000},
-      {576000, B576000},   {921600, B921600},   {1000000, B1000000}, {1152000, B1152000}, {1500000, B1500000},
-      {2000000, B2000000}, {2500000, B2500000}, {3000000, B3000000}, {3500000, B3500000}, {4000000, B4000000},
+      {50, B50},
+      {75, B75},
+      {110, B110},
+      {134, B134},
+      {150, B150},
+      {200, B200},
+      {300, B300},
+      {600, B600},
+      {1200, B1200},
+      {1800, B1800},
+      {2400, B2400},
+      {4800, B4800},
+      {9600, B9600},
+      {19200, B19200},
+      {38400, B38400},
+      {57600, B57600},
+      {115200, B115200},
+      {230400, B230400},
+      {460800, B460800},
+      {500000, B500000},
+      {576000, B576000},
+      {921600, B921600},
+      {1000000, B1000000},
+      {1152000, B1152000},
+      {1500000, B1500000},
+      {2000000, B2000000},
+      {2500000, B2500000},
+      {3000000, B3000000},
+      {3500000, B3500000},
+      {4000000, B4000000},
       {0, B0},
   }};
   if (baud != std::floor(baud)) return std::nullopt;
@@ -132,19 +156,16 @@ IoStatus open_error_status(int err, const std::string& path) {
                                         "ModemManager probes new serial ports, the udev rule tells it to keep off). "
                                         "A sensor serves one driver at a time",
                                         path, path));
-    case ENOTTY:
-      return IoStatus::fail(IoError::kNotSerial, fmt::format("{}: not a serial port", path));
-    case EIO:
-      return IoStatus::fail(IoError::kDisconnected, fmt::format("{}: I/O error (the device went away)", path));
-    default:
-      return IoStatus::fail(IoError::kIo, fmt::format("{}: cannot open: {}", path, errno_text(err)));
+    case ENOTTY: return IoStatus::fail(IoError::kNotSerial, fmt::format("{}: not a serial port", path));
+    case EIO: return IoStatus::fail(IoError::kDisconnected, fmt::format("{}: I/O error (the device went away)", path));
+    default: return IoStatus::fail(IoError::kIo, fmt::format("{}: cannot open: {}", path, errno_text(err)));
   }
 }
 
 SerialPort::Opened SerialPort::open(const std::string& path, const SerialOptions& options) {
   if (!(options.baud > 0.0) || options.baud > 12'000'000.0) {
-    return {nullptr, IoStatus::fail(IoError::kBadSetting,
-                                    fmt::format("{}: baud rate {} out of range (1 to 12,000,000)", path, options.baud))};
+    return {nullptr, IoStatus::fail(IoError::kBadSetting, fmt::format("{}: baud rate {} out of range (1 to 12,000,000)",
+                                                                      path, options.baud))};
   }
   const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) return {nullptr, open_error_status(errno, path)};
@@ -175,9 +196,10 @@ SerialPort::Opened SerialPort::open(const std::string& path, const SerialOptions
     if (r.relative_error > options.max_baud_error) {
       return fail(IoStatus::fail(
           IoError::kBadSetting,
-          fmt::format("{}: an FTDI adapter cannot run at {:.0f} baud: the nearest rate it makes is {:.0f} ({:.1f}% off, "
-                      "more than the {:.1f}% allowed)",
-                      path, options.baud, r.actual_baud, 100.0 * r.relative_error, 100.0 * options.max_baud_error)));
+          fmt::format(
+              "{}: an FTDI adapter cannot run at {:.0f} baud: the nearest rate it makes is {:.0f} ({:.1f}% off, "
+              "more than the {:.1f}% allowed)",
+              path, options.baud, r.actual_baud, 100.0 * r.relative_error, 100.0 * options.max_baud_error)));
     }
     actual = r.actual_baud;
   }
@@ -243,7 +265,8 @@ ReadResult SerialPort::read(std::span<std::uint8_t> buf, std::chrono::millisecon
     }
     if (errno == EAGAIN || errno == EINTR) return {};
     if (errno == EIO || errno == ENODEV || errno == ENXIO) {
-      return {0, IoStatus::fail(IoError::kDisconnected, fmt::format("{}: {} (device unplugged?)", path_, errno_text(errno)))};
+      return {0, IoStatus::fail(IoError::kDisconnected,
+                                fmt::format("{}: {} (device unplugged?)", path_, errno_text(errno)))};
     }
     return {0, IoStatus::fail(IoError::kIo, fmt::format("{}: read: {}", path_, errno_text(errno)))};
   }

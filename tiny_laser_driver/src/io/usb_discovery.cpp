@@ -249,11 +249,12 @@ std::string tty_access(const UsbSerialDevice& d) {
 
 std::string format_sensor_list(const Discovery& d, const DiscoveryOptions& o) {
   std::string out;
-  const std::string what =
-      o.any_device ? std::string("USB serial adapters") : fmt::format("{:04x}:{:04x} adapters", o.vendor_id, o.product_id);
+  const std::string what = o.any_device ? std::string("USB serial adapters")
+                                        : fmt::format("{:04x}:{:04x} adapters", o.vendor_id, o.product_id);
   if (d.devices.empty()) {
     out += fmt::format("no {} found (searched with {}{}).\n", what, d.backend, d.note.empty() ? "" : "; " + d.note);
-    out += "Check the cable; a sensor shows up as an FTDI FT232R (0403:6001). `dmesg | tail` shows what the kernel saw.\n";
+    out +=
+        "Check the cable; a sensor shows up as an FTDI FT232R (0403:6001). `dmesg | tail` shows what the kernel saw.\n";
     return out;
   }
   out += fmt::format("{:<22} {:<14} {:<9} {:<9} {:<9} {}\n", "PORT", "TTY", "USB", "VID:PID", "DRIVER", "ACCESS");
@@ -269,8 +270,9 @@ std::string format_sensor_list(const Discovery& d, const DiscoveryOptions& o) {
   out += fmt::format("({} found with {}; give the driver `port: usb:SERIAL` to follow a sensor across sockets)\n",
                      d.devices.size(), d.backend);
   if (permission) {
-    out += "No permission: `sudo usermod -aG dialout $USER` (then log in again), or install "
-           "tiny_laser_driver/config/99-tinyline-laser.rules into /etc/udev/rules.d/.\n";
+    out +=
+        "No permission: `sudo usermod -aG dialout $USER` (then log in again), or install "
+        "tiny_laser_driver/config/99-tinyline-laser.rules into /etc/udev/rules.d/.\n";
   }
   return out;
 }

@@ -33,7 +33,8 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
       throw std::invalid_argument("option 'attempts': '" + value + "' is not a whole number in [1, 9]");
     o.attempts = value[0] - '0';
   } else if (key == "later_attempts_approach_far") {
-    if (value != "0" && value != "1") throw std::invalid_argument("option 'later_attempts_approach_far' must be 0 or 1");
+    if (value != "0" && value != "1")
+      throw std::invalid_argument("option 'later_attempts_approach_far' must be 0 or 1");
     o.later_attempts_approach_far = value == "1";
   } else {
     throw std::invalid_argument("unknown option '" + key + "' (attempts, later_attempts_approach_far)");
@@ -100,7 +101,8 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
   if (!pose.ok()) return;  // left for a human
   std::optional<laser_clustering::PedicelExpectation> belief;
   for (t.attempts = 1; t.attempts <= o.attempts; ++t.attempts) {
-    const std::uint64_t key = s.seed * 1000 + static_cast<std::uint64_t>(k) + kAttemptSeedStride * static_cast<std::uint64_t>(t.attempts);
+    const std::uint64_t key =
+        s.seed * 1000 + static_cast<std::uint64_t>(k) + kAttemptSeedStride * static_cast<std::uint64_t>(t.attempts);
     const bool far = laser.options().approach_far || (t.attempts > 1 && o.later_attempts_approach_far);
     const LoopEnd end = laser.closed_loop(h.world, s, pose, belief, key, far);
     t.scans += end.scans;
@@ -113,8 +115,8 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
       t.cuts += "no_cut";
       continue;
     }
-    const Eigen::Isometry3d T_world_throat =
-        sim::throat_from_laser(s.truss.T_world_camera * end.verification.T_ref_laser_final, laser.options().pose.throat_z_m);
+    const Eigen::Isometry3d T_world_throat = sim::throat_from_laser(
+        s.truss.T_world_camera * end.verification.T_ref_laser_final, laser.options().pose.throat_z_m);
     if (settle_cut(h, t, cut(h.truss, T_world_throat, t.truth))) return;
   }
   t.attempts = o.attempts;
@@ -132,9 +134,10 @@ std::vector<HarvestTrial> harvest(VerificationHarness& laser, const Scenario& s,
   }
   for (const auto& det : r.tomatoes)
     if (const int t = matched_truth(s, det, o.match_m); t >= 0) trials[static_cast<std::size_t>(t)].detected = true;
-  const CutModel cut = cut_model ? cut_model : CutModel([&o](const sim::Truss& truss, const Eigen::Isometry3d& T, int target) {
-    return sim::close_blades(truss, T, o.blades, target);
-  });
+  const CutModel cut =
+      cut_model ? cut_model : CutModel([&o](const sim::Truss& truss, const Eigen::Isometry3d& T, int target) {
+        return sim::close_blades(truss, T, o.blades, target);
+      });
   HangingTruss h{s.truss, s.world, trials};
   for (int rank = 0; rank < static_cast<int>(r.pick_order.size()); ++rank) {
     const int k = r.pick_order[static_cast<std::size_t>(rank)];

@@ -22,7 +22,8 @@ namespace tinyline::tomato_reasoning::eval {
 /// The blade throat at `T_ref_laser` holds `pedicel`: it crosses the laser
 /// plane within half the opening of the throat across it and within the
 /// depth tolerance along the blades. `lateral`, `depth` (optional) get where.
-[[nodiscard]] bool throat_on_pedicel(const VerificationOptions& o, const std::pair<Eigen::Vector3d, Eigen::Vector3d>& pedicel,
+[[nodiscard]] bool throat_on_pedicel(const VerificationOptions& o,
+                                     const std::pair<Eigen::Vector3d, Eigen::Vector3d>& pedicel,
                                      const Eigen::Isometry3d& T_ref_laser, double* lateral, double* depth);
 
 /// Fruit `truth` (with its pedicel and sepals) leaves `world`: picked, or finished by hand.

@@ -61,7 +61,8 @@ TrussScore score_truss(const Scenario& s, const PipelineResult& r, const ScorePa
     TomatoScore ts;
     ts.truth = int(t);
     const double z = tr.centre_m.z();
-    const double disc_px = z > tr.radius_m ? M_PI * std::pow(K.fx * tr.radius_m / std::sqrt(z * z - tr.radius_m * tr.radius_m), 2) : 0;
+    const double disc_px =
+        z > tr.radius_m ? M_PI * std::pow(K.fx * tr.radius_m / std::sqrt(z * z - tr.radius_m * tr.radius_m), 2) : 0;
     // The best view's share (equal distances: the orbit keeps the range).
     ts.visible_share = disc_px > 0 ? std::min(1.0, tr.visible_pixels_any / disc_px) : 0.0;
     ts.edges_true = tr.edges;
@@ -174,9 +175,10 @@ std::string csv_rows(const TrussScore& s) {
   o.precision(6);
   for (const auto& t : s.tomatoes) {
     o << s.complexity << ',' << s.seed << ',' << t.truth << ',' << t.detection << ',' << t.visible_share << ','
-      << 1000 * t.centre_error_m << ',' << 1000 * t.radius_error_m << ',' << t.edges_true << ',' << t.edges_estimated << ','
-      << t.pedicel_error_deg << ',' << t.gravity_only_error_deg << ',' << t.force_dir_error_deg << ',' << int(t.truth_in_hpd)
-      << ',' << t.spread50_deg << ',' << t.cut_coverage << ',' << int(t.cut_covers_truth) << ',' << t.pick_rank << '\n';
+      << 1000 * t.centre_error_m << ',' << 1000 * t.radius_error_m << ',' << t.edges_true << ',' << t.edges_estimated
+      << ',' << t.pedicel_error_deg << ',' << t.gravity_only_error_deg << ',' << t.force_dir_error_deg << ','
+      << int(t.truth_in_hpd) << ',' << t.spread50_deg << ',' << t.cut_coverage << ',' << int(t.cut_covers_truth) << ','
+      << t.pick_rank << '\n';
   }
   return o.str();
 }
@@ -186,8 +188,10 @@ std::string to_json(const Summary& s) {
   o.precision(6);
   auto num = [&](const char* k, double v, bool last = false) {
     o << "  \"" << k << "\": ";
-    if (std::isnan(v)) o << "null";
-    else o << v;
+    if (std::isnan(v))
+      o << "null";
+    else
+      o << v;
     o << (last ? "\n" : ",\n");
   };
   o << "{\n";

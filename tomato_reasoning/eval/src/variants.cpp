@@ -34,12 +34,12 @@ class Ours : public Variant {
 // lose their depth and the HSI filter is opened wide, so the mask alone
 // decides which points go on to the branch clustering.
 struct ImageSegmentation {
-  bool hsv = true;      ///< false: the HSI filter's test (the pipeline's hsi parameters) per pixel
-  int hue_half_deg = 15;  ///< HSV: |hue - red| at most this [deg]
-  int s_min = 100;        ///< HSV saturation [0, 255]
-  int v_min = 25, v_max = 230;  ///< HSV value [0, 255]
+  bool hsv = true;                ///< false: the HSI filter's test (the pipeline's hsi parameters) per pixel
+  int hue_half_deg = 15;          ///< HSV: |hue - red| at most this [deg]
+  int s_min = 100;                ///< HSV saturation [0, 255]
+  int v_min = 25, v_max = 230;    ///< HSV value [0, 255]
   int open_px = 0, close_px = 0;  ///< elliptic structuring elements (0: none)
-  int min_area_px = 0;             ///< smaller 8-connected components are dropped
+  int min_area_px = 0;            ///< smaller 8-connected components are dropped
 };
 
 ImageSegmentation parse_segmentation(const std::string& name) {
@@ -50,13 +50,14 @@ ImageSegmentation parse_segmentation(const std::string& name) {
   std::string item;
   std::getline(ss, item, ':');
   const std::map<std::string, int*> keys = {{"hh", &g.hue_half_deg}, {"s", &g.s_min},      {"vmin", &g.v_min},
-                                           {"vmax", &g.v_max},       {"open", &g.open_px}, {"close", &g.close_px},
-                                           {"area", &g.min_area_px}};
+                                            {"vmax", &g.v_max},      {"open", &g.open_px}, {"close", &g.close_px},
+                                            {"area", &g.min_area_px}};
   while (std::getline(ss, item, ':')) {
     const auto eq = item.find('=');
     const auto it = keys.find(item.substr(0, eq));
     if (eq == std::string::npos || it == keys.end())
-      throw std::invalid_argument("variant '" + name + "': '" + item + "' is not one of hh, s, vmin, vmax, open, close, area =N");
+      throw std::invalid_argument("variant '" + name + "': '" + item +
+                                  "' is not one of hh, s, vmin, vmax, open, close, area =N");
     *it->second = std::stoi(item.substr(eq + 1));
   }
   return g;
@@ -81,7 +82,8 @@ cv::Mat red_mask(const ColorCloud& c, const ImageSegmentation& g, const HsiFilte
   if (g.open_px > 0)
     cv::morphologyEx(mask, mask, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, {g.open_px, g.open_px}));
   if (g.close_px > 0)
-    cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, cv::getStructuringElement(cv::MORPH_ELLIPSE, {g.close_px, g.close_px}));
+    cv::morphologyEx(mask, mask, cv::MORPH_CLOSE,
+                     cv::getStructuringElement(cv::MORPH_ELLIPSE, {g.close_px, g.close_px}));
   if (g.min_area_px > 0) {
     cv::Mat labels, stats, centroids;
     const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
@@ -137,7 +139,8 @@ const std::map<std::string, Setter>& setters() {
       {"spheres.radius_max_m", [](PipelineParams& p, double v) { p.spheres.radius_max_m = v; }},
       {"spheres.inlier_distance_m", [](PipelineParams& p, double v) { p.spheres.inlier_distance_m = v; }},
       {"spheres.normal_tolerance_deg", [](PipelineParams& p, double v) { p.spheres.normal_tolerance_deg = v; }},
-      {"spheres.hypothesis", [](PipelineParams& p, double v) {
+      {"spheres.hypothesis",
+       [](PipelineParams& p, double v) {
          p.spheres.hypothesis = v == 4 ? SphereHypothesis::kFourPoints : SphereHypothesis::kTwoPointsWithNormals;
        }},
       {"spheres.max_iterations", [](PipelineParams& p, double v) { p.spheres.max_iterations = int(v); }},
@@ -163,7 +166,13 @@ const std::map<std::string, Setter>& setters() {
 }  // namespace
 
 std::vector<std::string> variant_names() {
-  return {"default",         "four_points", "thesis_model", "no_voxel", "plane_mls", "global_sampling", "no_refine",
+  return {"default",
+          "four_points",
+          "thesis_model",
+          "no_voxel",
+          "plane_mls",
+          "global_sampling",
+          "no_refine",
           "opencv_hsv[:hh=15:s=100:vmin=25:vmax=230:open=0:close=0:area=0]",
           "opencv_hsi[:open=0:close=0:area=0]"};
 }

@@ -34,7 +34,8 @@ FinderAnswer::Outcome convert(lc::PedicelOutcome o) {
 
 // Where a pedicel segment (a -> b, reference frame) crosses the laser's
 // scan plane (y = 0), in laser coordinates; false when it does not.
-bool crossing(const Eigen::Isometry3d& T_ref_laser, const Eigen::Vector3d& a, const Eigen::Vector3d& b, Eigen::Vector3d& at) {
+bool crossing(const Eigen::Isometry3d& T_ref_laser, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+              Eigen::Vector3d& at) {
   const Eigen::Isometry3d T = T_ref_laser.inverse();
   const Eigen::Vector3d pa = T * a, pb = T * b;
   if ((pa.y() > 0) == (pb.y() > 0)) return false;
@@ -64,7 +65,8 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
     while (from <= value.size()) {
       const std::size_t comma = std::min(value.find(',', from), value.size());
       const double n = number(value.substr(from, comma - from));
-      if (!(n >= 1) || n != std::floor(n)) throw std::invalid_argument("option 'pulses': counts must be whole and >= 1");
+      if (!(n >= 1) || n != std::floor(n))
+        throw std::invalid_argument("option 'pulses': counts must be whole and >= 1");
       pulses.push_back(static_cast<int>(n));
       from = comma + 1;
     }
@@ -79,7 +81,8 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
     o.calibration_max_m = v;
   } else if (key == "rescans") {
     const double v = number(value);
-    if (!(v >= 0 && v <= 10) || v != std::floor(v)) throw std::invalid_argument("option 'rescans' must be a whole number in [0, 10]");
+    if (!(v >= 0 && v <= 10) || v != std::floor(v))
+      throw std::invalid_argument("option 'rescans' must be a whole number in [0, 10]");
     o.rescans = static_cast<int>(v);
   } else if (key == "approach_far") {
     if (value != "0" && value != "1") throw std::invalid_argument("option 'approach_far' must be 0 or 1");
@@ -89,8 +92,9 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
     if (!(v >= 0 && v <= 180)) throw std::invalid_argument("option 'max_turn_deg' must be in [0, 180]");
     o.pose.max_turn_deg = v;
   } else {
-    throw std::invalid_argument("unknown option '" + key +
-                                "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far)");
+    throw std::invalid_argument(
+        "unknown option '" + key +
+        "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far)");
   }
 }
 
@@ -127,8 +131,10 @@ lc::PedicelFinderParams VerificationHarness::finder() const {
   return finder;
 }
 
-lc::PedicelDetection VerificationHarness::look(const sim::World& world, const Scenario& s, const Eigen::Isometry3d& T_ref_laser,
-                                               const std::optional<lc::PedicelExpectation>& belief, std::uint64_t scan_seed) {
+lc::PedicelDetection VerificationHarness::look(const sim::World& world, const Scenario& s,
+                                               const Eigen::Isometry3d& T_ref_laser,
+                                               const std::optional<lc::PedicelExpectation>& belief,
+                                               std::uint64_t scan_seed) {
   const sim::eval::SimulatedScan scan = scanner_->scan(world, s.truss.T_world_camera * T_ref_laser, scan_seed);
   const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
   return lc::find_pedicel(scan.scan, objects, finder(), belief);
@@ -272,7 +278,8 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
       // Uniform in the disc square to the pedicel (the laser's x-z plane).
       const std::uint64_t key = splitmix64(s.seed * 7919 + static_cast<std::uint64_t>(k) * 31 + 5);
       const double rad = o_.random_offset_m * std::sqrt(uniform(key)), ang = 2 * M_PI * uniform(key + 1);
-      const Eigen::Vector3d off = pose.T_ref_laser.linear() * Eigen::Vector3d(rad * std::cos(ang), 0, rad * std::sin(ang));
+      const Eigen::Vector3d off =
+          pose.T_ref_laser.linear() * Eigen::Vector3d(rad * std::cos(ang), 0, rad * std::sin(ang));
       pose.T_ref_laser.translation() += off;
       pose.cut_point += off;
       trial.offset_m = rad;
@@ -280,7 +287,8 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
     const auto& target = pedicels[static_cast<std::size_t>(truth)];
     trial.vision_on_pedicel = throat_on_pedicel(o_, target, pose.T_ref_laser, nullptr, nullptr);
 
-    const LoopEnd end = closed_loop(world, s, pose, std::nullopt, s.seed * 1000 + static_cast<std::uint64_t>(k), o_.approach_far);
+    const LoopEnd end =
+        closed_loop(world, s, pose, std::nullopt, s.seed * 1000 + static_cast<std::uint64_t>(k), o_.approach_far);
     const Verification& v = end.verification;
     trial.scans = end.scans;
     trial.outcome = v.outcome;
@@ -294,7 +302,8 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
       trial.move_m = end.total_move.norm();
       trial.verdict = trial.on_pedicel ? PickVerdict::kAligned : PickVerdict::kWrong;
     } else {
-      trial.verdict = v.outcome == Verification::Outcome::kOutOfView ? PickVerdict::kOutOfView : PickVerdict::kNothingFound;
+      trial.verdict =
+          v.outcome == Verification::Outcome::kOutOfView ? PickVerdict::kOutOfView : PickVerdict::kNothingFound;
     }
     out.push_back(trial);
     remove_fruit(s, world, truth);  // picked (or given up on): the robot moves on

@@ -29,9 +29,9 @@ struct BranchClusteringParams {
   /// A branch needs this many points (a 2.5 cm tomato at 0.6 m shows about
   /// 2000 pixels at VGA; fewer is noise, a leaf edge or a far-off fruit).
   int min_points = 150;
-  double min_range_m = 0.2;  ///< feasible: the branch centroid is this far from the camera at least [m]
-  double max_range_m = 1.2;  ///< ... and at most (the arm's reach) [m]
-  double max_extent_m = 0.6; ///< a cluster wider than this (bounding-box diagonal) is not one branch [m]
+  double min_range_m = 0.2;   ///< feasible: the branch centroid is this far from the camera at least [m]
+  double max_range_m = 1.2;   ///< ... and at most (the arm's reach) [m]
+  double max_extent_m = 0.6;  ///< a cluster wider than this (bounding-box diagonal) is not one branch [m]
 };
 
 common::Validation validate(const BranchClusteringParams& p);
@@ -39,10 +39,10 @@ common::Validation validate(const BranchClusteringParams& p);
 struct Cluster {
   Indices indices;  ///< into the cloud
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  double extent_m = 0.0;   ///< bounding-box diagonal [m]
-  double range_m = 0.0;    ///< centroid distance from the nearest viewpoint [m]
+  double extent_m = 0.0;  ///< bounding-box diagonal [m]
+  double range_m = 0.0;   ///< centroid distance from the nearest viewpoint [m]
   bool feasible = false;
-  std::string why_not;     ///< when not feasible
+  std::string why_not;  ///< when not feasible
 };
 
 struct BranchResult {
@@ -50,12 +50,14 @@ struct BranchResult {
   int chosen = -1;                ///< index into clusters of the closest feasible branch, -1 if none
   std::string reason;             ///< why nothing was chosen
 
-  [[nodiscard]] const Cluster* branch() const { return chosen >= 0 ? &clusters[static_cast<std::size_t>(chosen)] : nullptr; }
+  [[nodiscard]] const Cluster* branch() const {
+    return chosen >= 0 ? &clusters[static_cast<std::size_t>(chosen)] : nullptr;
+  }
 };
 
 /// Euclidean clusters of `indices` (all finite points of the cloud when empty).
-[[nodiscard]] std::vector<Indices> euclidean_clusters(const std::vector<Eigen::Vector3f>& points, const Indices& indices,
-                                                      double tolerance_m);
+[[nodiscard]] std::vector<Indices> euclidean_clusters(const std::vector<Eigen::Vector3f>& points,
+                                                      const Indices& indices, double tolerance_m);
 
 /// Clusters the points and picks the closest feasible branch: the one whose
 /// centroid is nearest to a viewpoint (the camera; the origin of the cloud's

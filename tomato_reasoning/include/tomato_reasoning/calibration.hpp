@@ -21,28 +21,28 @@
 namespace tinyline::tomato_reasoning {
 
 struct DepthSample {
-  int u = 0, v = 0;          ///< pixel
-  double measured_m = 0.0;   ///< the camera's depth z
-  double true_m = 0.0;       ///< the target's depth there
+  int u = 0, v = 0;         ///< pixel
+  double measured_m = 0.0;  ///< the camera's depth z
+  double true_m = 0.0;      ///< the target's depth there
 };
 
 struct DepthCorrectionParams {
-  int cells_u = 16;   ///< Z(u, v) is constant on a cells_u x cells_v grid over the image
+  int cells_u = 16;  ///< Z(u, v) is constant on a cells_u x cells_v grid over the image
   int cells_v = 12;
-  int degree = 2;     ///< theta(z) = sum_{k=1..degree} c_k z^k (its constant is Z's)
+  int degree = 2;  ///< theta(z) = sum_{k=1..degree} c_k z^k (its constant is Z's)
 };
 
 common::Validation validate(const DepthCorrectionParams& p);
 
 struct DepthCorrection {
   bool ok = false;
-  std::string reason;             ///< why not ok, or notes (cells without samples)
+  std::string reason;  ///< why not ok, or notes (cells without samples)
   int width = 0, height = 0;
   DepthCorrectionParams params;
   std::vector<double> cell_offset_m;  ///< Z per cell, row-major (cells_v rows)
   std::vector<double> theta;          ///< c_1 .. c_degree [m / m^k]
   std::size_t samples_used = 0;
-  int empty_cells = 0;                ///< cells without samples (their Z is 0)
+  int empty_cells = 0;                           ///< cells without samples (their Z is 0)
   double rms_before_m = 0.0, rms_after_m = 0.0;  ///< on the fitting samples
 
   /// z_c for pixel (u, v); z unchanged when not ok or the pixel is outside the image.
@@ -55,22 +55,22 @@ struct DepthCorrection {
                                                    const DepthCorrectionParams& params = {});
 
 struct HandToHeadParams {
-  double voxel_m = 0.003;                  ///< both clouds are thinned to this before ICP [m]
+  double voxel_m = 0.003;  ///< both clouds are thinned to this before ICP [m]
   /// Only points nearer than this to their camera take part [m]: the
   /// calibration object (a truss, a box), not the walls and floor behind it,
   /// along which ICP slides.
   double max_range_m = 0.8;
-  double max_correspondence_m = 0.03;      ///< ICP pairs farther apart are ignored [m]
+  double max_correspondence_m = 0.03;  ///< ICP pairs farther apart are ignored [m]
   int max_iterations = 60;
-  double min_overlap = 0.3;                ///< share of hand points that must find a partner
+  double min_overlap = 0.3;  ///< share of hand points that must find a partner
 };
 
 struct HandToHeadResult {
   bool converged = false;
   Eigen::Isometry3d T_head_hand = Eigen::Isometry3d::Identity();
-  double rms_m = 0.0;          ///< RMS distance of the final pairs [m]
-  double overlap = 0.0;        ///< share of the hand's (thinned) points paired
-  std::string reason;          ///< why not converged
+  double rms_m = 0.0;    ///< RMS distance of the final pairs [m]
+  double overlap = 0.0;  ///< share of the hand's (thinned) points paired
+  std::string reason;    ///< why not converged
 };
 
 /// The hand camera's pose in the head camera's frame from a guess (the

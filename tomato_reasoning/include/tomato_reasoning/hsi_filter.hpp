@@ -54,9 +54,9 @@ class HsiFilter {
 };
 
 struct HsiFilterResult {
-  Indices indices;        ///< finite points that pass, in cloud order
-  std::size_t finite = 0; ///< finite points looked at
-  std::string reason;     ///< why `indices` is empty (empty cloud, no depth, no red points, bad parameters)
+  Indices indices;         ///< finite points that pass, in cloud order
+  std::size_t finite = 0;  ///< finite points looked at
+  std::string reason;      ///< why `indices` is empty (empty cloud, no depth, no red points, bad parameters)
 };
 
 /// Over a ColorCloud or any CloudView (a PCL cloud: pcl_conversions.hpp).

@@ -18,7 +18,7 @@
 namespace tinyline::tomato_reasoning {
 
 template <class S, class V>
-  requires common::SettingsOf<S, HsiFilterParams>
+requires common::SettingsOf<S, HsiFilterParams>
 void for_each_param(S& p, V&& v) {
   v(p.h_min_deg, {"h_min_deg", "deg", -180.0, 180.0, "HSI filter hue range, low end"});
   v(p.h_max_deg, {"h_max_deg", "deg", -180.0, 180.0, "HSI filter hue range, high end"});
@@ -29,17 +29,18 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, BranchClusteringParams>
+requires common::SettingsOf<S, BranchClusteringParams>
 void for_each_param(S& p, V&& v) {
   v(p.tolerance_m, {"tolerance_m", "m", 1e-3, 1.0, "Euclidean branch clustering distance (Eq. 4.9)"});
   v(p.min_points, {"min_points", "", 1, 10'000'000, "points a branch has at least"});
   v(p.min_range_m, {"min_range_m", "m", 0.0, 10.0, "nearest feasible branch (its centroid from the camera)"});
   v(p.max_range_m, {"max_range_m", "m", 0.05, 10.0, "farthest feasible branch"});
-  v(p.max_extent_m, {"max_extent_m", "m", 1e-3, 10.0, "a cluster wider than this (bounding-box diagonal) is not one branch"});
+  v(p.max_extent_m,
+    {"max_extent_m", "m", 1e-3, 10.0, "a cluster wider than this (bounding-box diagonal) is not one branch"});
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, SmoothingParams>
+requires common::SettingsOf<S, SmoothingParams>
 void for_each_param(S& p, V&& v) {
   v(p.voxel_m, {"voxel_m", "m", 0.0, 0.1, "voxel-grid thinning before smoothing (0: every point)"});
   v(p.search_radius_m, {"search_radius_m", "m", 1e-4, 0.5, "MLS neighbourhood"});
@@ -55,7 +56,7 @@ inline constexpr common::Choice<SphereHypothesis> kSphereHypotheses[] = {
 };
 
 template <class S, class V>
-  requires common::SettingsOf<S, SphereRansacParams>
+requires common::SettingsOf<S, SphereRansacParams>
 void for_each_param(S& p, V&& v) {
   v(p.radius_min_m, {"radius_min_m", "m", 0.005, 0.2, "smallest tomato radius"});
   v(p.radius_max_m, {"radius_max_m", "m", 0.005, 0.2, "largest tomato radius"});
@@ -78,7 +79,7 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, ForceModelParams>
+requires common::SettingsOf<S, ForceModelParams>
 void for_each_param(S& p, V&& v) {
   v(p.contact_tolerance_m, {"contact_tolerance_m", "m", 0.0, 0.1, "contact graph tolerance d_e (Eq. 4.17)"});
   v(p.eps_mean, {"eps_mean", "", 0.0, 1.0, "interaction weight mean (Eq. 4.19)"});
@@ -93,7 +94,7 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, PickOrderParams>
+requires common::SettingsOf<S, PickOrderParams>
 void for_each_param(S& p, V&& v) {
   v(p.w_energy_per_m, {"w_energy_per_m", "1/m", 0.0, 1e6, "Eq. 4.23 sigma_1: per metre of height"});
   v(p.w_edges, {"w_edges", "", 0.0, 1e6, "Eq. 4.23 sigma_2: per contact edge"});
@@ -101,7 +102,7 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, CutParams>
+requires common::SettingsOf<S, CutParams>
 void for_each_param(S& p, V&& v) {
   v(p.scissor_opening_m, {"scissor_opening_m", "m", 1e-3, 0.2, "blade opening"});
   v(p.cut_offset_m, {"cut_offset_m", "m", 0.0, 0.1, "cut beyond the fruit's surface along the pedicel"});
@@ -109,7 +110,7 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, PipelineParams>
+requires common::SettingsOf<S, PipelineParams>
 void for_each_param(S& p, V&& v) {
   common::nest(p.hsi, "hsi.", v);
   common::nest(p.branch, "branch.", v);
@@ -122,19 +123,21 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, PickPoseParams>
+requires common::SettingsOf<S, PickPoseParams>
 void for_each_param(S& p, V&& v) {
   v(p.throat_z_m, {"throat_z_m", "m", 0.01, 1.0, "blade throat along the hand laser's axis"});
   v(p.approach_from, {"approach_from", "m", -1e6, 1e6,
                       "where the robot comes from, reference frame (3 numbers): the laser looks from this side"});
   v(p.max_move_m, {"max_move_m", "m", 0.0, 1.0, "a longer move is not trusted: nothing found"});
-  v(p.view_clearance_m, {"view_clearance_m", "m", 0.0, 0.1, "the laser's view of the throat clears other fruit by this"});
-  v(p.max_turn_deg, {"max_turn_deg", "deg", 0.0, 180.0,
-                     "turn the picking pose about the pedicel by up to this to see past a fruit (0: straight approach)"});
+  v(p.view_clearance_m,
+    {"view_clearance_m", "m", 0.0, 0.1, "the laser's view of the throat clears other fruit by this"});
+  v(p.max_turn_deg,
+    {"max_turn_deg", "deg", 0.0, 180.0,
+     "turn the picking pose about the pedicel by up to this to see past a fruit (0: straight approach)"});
 }
 
 template <class S, class V>
-  requires common::SettingsOf<S, HarvestParams>
+requires common::SettingsOf<S, HarvestParams>
 void for_each_param(S& p, V&& v) {
   v(p.max_attempts, {"max_attempts", "", 1, 5,
                      "laser scans per pick: the picking pose, then re-scans after a move or an empty closing"});

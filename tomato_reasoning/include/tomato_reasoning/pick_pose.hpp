@@ -43,11 +43,11 @@ struct PickPoseParams {
 };
 
 struct PickPose {
-  int tomato = -1;                    ///< index into PipelineResult::tomatoes
+  int tomato = -1;  ///< index into PipelineResult::tomatoes
   Eigen::Isometry3d T_ref_laser = Eigen::Isometry3d::Identity();
-  Eigen::Vector3d cut_point = Eigen::Vector3d::Zero();     ///< reference frame [m]
-  Eigen::Vector3d pedicel_axis = Eigen::Vector3d::UnitZ(); ///< expected pedicel direction (unit)
-  std::string reason;                 ///< why there is no pose (tomato index out of range)
+  Eigen::Vector3d cut_point = Eigen::Vector3d::Zero();      ///< reference frame [m]
+  Eigen::Vector3d pedicel_axis = Eigen::Vector3d::UnitZ();  ///< expected pedicel direction (unit)
+  std::string reason;                                       ///< why there is no pose (tomato index out of range)
   [[nodiscard]] bool ok() const { return tomato >= 0; }
 };
 
@@ -78,8 +78,8 @@ struct FinderAnswer {
 struct Verification {
   enum class Outcome { kCutHere, kMove, kNothingFound, kOutOfView, kFailed };
   Outcome outcome = Outcome::kFailed;
-  Eigen::Vector3d move = Eigen::Vector3d::Zero();        ///< gripper translation, reference frame [m]
-  Eigen::Vector3d cut_point = Eigen::Vector3d::Zero();   ///< where the blades will meet, reference frame [m]
+  Eigen::Vector3d move = Eigen::Vector3d::Zero();       ///< gripper translation, reference frame [m]
+  Eigen::Vector3d cut_point = Eigen::Vector3d::Zero();  ///< where the blades will meet, reference frame [m]
   Eigen::Isometry3d T_ref_laser_final = Eigen::Isometry3d::Identity();  ///< the pose after the move
   double confidence = 0.0;
   std::string reason;

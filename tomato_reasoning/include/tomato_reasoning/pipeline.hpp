@@ -60,8 +60,8 @@ struct View {
 };
 
 struct PipelineResult {
-  bool ok = false;      ///< false: nothing found (see stage and reason) or bad input
-  std::string stage;    ///< where it stopped: "input", "hsi", "branch", "smoothing", "spheres" or "" when ok
+  bool ok = false;    ///< false: nothing found (see stage and reason) or bad input
+  std::string stage;  ///< where it stopped: "input", "hsi", "branch", "smoothing", "spheres" or "" when ok
   std::string reason;
   std::size_t finite_points = 0;
   std::size_t red_points = 0;

@@ -41,8 +41,8 @@
 namespace tinyline::tomato_reasoning {
 
 struct ContactEdge {
-  int i = -1, j = -1;     ///< sphere indices, i < j
-  double gap_m = 0.0;     ///< |c_i - c_j| - (r_i + r_j) [m]
+  int i = -1, j = -1;  ///< sphere indices, i < j
+  double gap_m = 0.0;  ///< |c_i - c_j| - (r_i + r_j) [m]
 };
 
 /// Eq. 4.17 with tolerance d_e [m].
@@ -50,16 +50,16 @@ struct ContactEdge {
 
 struct ForceModelParams {
   double contact_tolerance_m = 0.012;  ///< Eq. 4.17 d_e [m]
-  double eps_mean = 0.3;                ///< Eq. 4.19 mu
-  double eps_variance = 0.25;           ///< Eq. 4.19 sigma^2
-  double eps_max = 1.0;                 ///< truncation [0, eps_max)
-  double weight_exponent = 1.0;         ///< gravity ~ r^exponent (thesis: theta * r)
+  double eps_mean = 0.3;               ///< Eq. 4.19 mu
+  double eps_variance = 0.25;          ///< Eq. 4.19 sigma^2
+  double eps_max = 1.0;                ///< truncation [0, eps_max)
+  double weight_exponent = 1.0;        ///< gravity ~ r^exponent (thesis: theta * r)
   /// vMF concentration of the kernel (0: the thesis's model, far too sure of
   /// itself). Fitted so that the truth lies in the HPD50 region half the time:
   /// `tomato_eval --classes A,B,C --seeds 201-250 --views 2 --fit-kappa`
   /// (fitting trusses, two views; docs/tomato_reasoning.md).
   double kernel_kappa = 152.0;
-  int samples = 400;                    ///< Monte Carlo draws per tomato
+  int samples = 400;  ///< Monte Carlo draws per tomato
   std::uint64_t seed = 1;
 };
 
@@ -99,12 +99,12 @@ class PedicelDistribution {
 
 struct PedicelEstimate {
   int sphere = -1;
-  int edges = 0;                       ///< N of Eq. 4.23
+  int edges = 0;                                             ///< N of Eq. 4.23
   Eigen::Vector3d expected_force = Eigen::Vector3d::Zero();  ///< E[F_ip] in units of theta [m of radius]
   Eigen::Vector3d expected_dir = Eigen::Vector3d::UnitZ();   ///< unit F^e_ip
-  double spread50_deg = 0.0;           ///< median angle of the distribution from expected_dir
-  double spread90_deg = 0.0;           ///< 90th percentile angle
-  double gravity_angle_rad = 0.0;      ///< angle(F^e_ip, -G_i) of Eq. 4.23
+  double spread50_deg = 0.0;                                 ///< median angle of the distribution from expected_dir
+  double spread90_deg = 0.0;                                 ///< 90th percentile angle
+  double gravity_angle_rad = 0.0;                            ///< angle(F^e_ip, -G_i) of Eq. 4.23
   PedicelDistribution distribution;
 };
 
@@ -136,16 +136,16 @@ struct CutParams {
   /// Cut this far beyond the fruit's surface along the pedicel [m]: close
   /// to the calyx, where the pedicel surely is (pedicels are 1-4 cm long).
   double cut_offset_m = 0.008;
-  int candidates = 200;             ///< directions tried (draws of the distribution)
+  int candidates = 200;  ///< directions tried (draws of the distribution)
 };
 
 struct CutPlan {
   Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();  ///< unit, from the centre towards the cut
   Eigen::Vector3d point = Eigen::Vector3d::Zero();       ///< where the blades should meet [m]
-  double half_angle_rad = 0.0;  ///< the blades' angular cover seen from the centre
-  double coverage = 0.0;        ///< pedicel probability inside that cover
-  double expected_coverage = 0.0;  ///< ... for a cut along the expectation, for comparison
-  bool blocked = false;         ///< every candidate's cut point lies inside another tomato
+  double half_angle_rad = 0.0;                           ///< the blades' angular cover seen from the centre
+  double coverage = 0.0;                                 ///< pedicel probability inside that cover
+  double expected_coverage = 0.0;                        ///< ... for a cut along the expectation, for comparison
+  bool blocked = false;                                  ///< every candidate's cut point lies inside another tomato
 };
 
 /// Eq. 4.24 for sphere `index`.

@@ -37,14 +37,14 @@ struct SmoothedCloud {
   std::vector<float> curvature;          ///< surface variation lambda_0 / sum(lambda) of the neighbourhood
   std::vector<std::uint8_t> view;        ///< the view each point's normal faces (index into the viewpoints)
   int dropped_isolated = 0;
-  std::string reason;                    ///< why `points` is empty
+  std::string reason;  ///< why `points` is empty
 
   [[nodiscard]] std::size_t size() const { return points.size(); }
 };
 
 /// Voxel-grid thinning of cloud points `indices`: the centroid per occupied cube.
-[[nodiscard]] std::vector<Eigen::Vector3f> voxel_thin(const std::vector<Eigen::Vector3f>& points, const Indices& indices,
-                                                      double voxel_m);
+[[nodiscard]] std::vector<Eigen::Vector3f> voxel_thin(const std::vector<Eigen::Vector3f>& points,
+                                                      const Indices& indices, double voxel_m);
 
 /// Thins (voxel_m > 0) and smooths the cloud points `indices`; normals face
 /// `viewpoint` (the camera).

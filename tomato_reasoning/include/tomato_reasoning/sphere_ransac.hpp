@@ -58,7 +58,7 @@ struct SphereRefinement {
   bool converged = false;
   bool radius_at_limit = false;  ///< the best radius inside the range is a limit of it
   int iterations = 0;
-  double rms_m = 0.0;            ///< RMS distance of the points to the surface
+  double rms_m = 0.0;  ///< RMS distance of the points to the surface
 };
 
 /// Geometric least squares, min sum (|p - c| - r)^2 with r in [r_min, r_max]
@@ -78,44 +78,44 @@ struct SphereRansacParams {
   /// direction [deg]; <= 0 turns the test off (no normals needed).
   double normal_tolerance_deg = 35.0;
   SphereHypothesis hypothesis = SphereHypothesis::kTwoPointsWithNormals;
-  int max_iterations = 300;       ///< hypotheses per round at most
-  double confidence = 0.995;      ///< Eq. 4.15 early stop: P(at least one all-inlier sample)
-  bool local_sampling = true;     ///< draw a hypothesis's other points near its first
-  int min_inliers = 40;           ///< a model needs this many inliers
-  int min_remaining = 40;         ///< stop when fewer points remain
+  int max_iterations = 300;    ///< hypotheses per round at most
+  double confidence = 0.995;   ///< Eq. 4.15 early stop: P(at least one all-inlier sample)
+  bool local_sampling = true;  ///< draw a hypothesis's other points near its first
+  int min_inliers = 40;        ///< a model needs this many inliers
+  int min_remaining = 40;      ///< stop when fewer points remain
   int max_spheres = 12;
-  int max_failed_rounds = 3;      ///< stop after this many rounds in a row without a model
-  double max_overlap_m = 0.008;   ///< a new sphere may reach this far into an accepted one [m]
+  int max_failed_rounds = 3;     ///< stop after this many rounds in a row without a model
+  double max_overlap_m = 0.008;  ///< a new sphere may reach this far into an accepted one [m]
   /// Points within this many inlier distances of an accepted sphere (and
   /// facing along its radius) are removed with it.
   double removal_factor = 1.5;
-  bool refine = true;             ///< geometric least squares within the radius range
-  std::uint64_t seed = 1;         ///< sampling is reproducible
+  bool refine = true;      ///< geometric least squares within the radius range
+  std::uint64_t seed = 1;  ///< sampling is reproducible
 };
 
 common::Validation validate(const SphereRansacParams& p);
 
 struct SphereFit {
   Sphere sphere;
-  Indices inliers;               ///< into the input points
+  Indices inliers;  ///< into the input points
   double rms_m = 0.0;
   bool radius_at_limit = false;
   /// Cosine between the sphere-to-camera direction and the sphere-to-inlier-
   /// centroid direction (the best of the viewpoints): > 0 means the visible
   /// cap faces the camera.
   double cap_facing = 0.0;
-  int round = 0;                 ///< the round that found it
+  int round = 0;  ///< the round that found it
 };
 
 struct SphereSegmentation {
   std::vector<SphereFit> spheres;
   int rounds = 0;
-  long hypotheses = 0;           ///< samples drawn, all rounds
-  long degenerate = 0;           ///< samples without a sphere (coplanar, parallel normals, out of range)
-  int rejected_cap = 0;          ///< best models refused because the cap faced away
-  int rejected_overlap = 0;      ///< ... because they reached into an accepted sphere
+  long hypotheses = 0;       ///< samples drawn, all rounds
+  long degenerate = 0;       ///< samples without a sphere (coplanar, parallel normals, out of range)
+  int rejected_cap = 0;      ///< best models refused because the cap faced away
+  int rejected_overlap = 0;  ///< ... because they reached into an accepted sphere
   int remaining_points = 0;
-  std::string stop_reason;       ///< why the rounds stopped (or why nothing was done)
+  std::string stop_reason;  ///< why the rounds stopped (or why nothing was done)
 };
 
 /// Segments spheres among `points` (with `normals`, required for

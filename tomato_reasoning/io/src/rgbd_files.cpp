@@ -51,7 +51,8 @@ cv::Mat decode(const std::string& path, const char* what, int flags) {
   } catch (const cv::Exception& e) {
     throw RgbdFileError(std::string(what) + " '" + path + "' cannot be decoded: " + e.what());
   }
-  if (m.empty()) throw RgbdFileError(std::string(what) + " '" + path + "' is not an image OpenCV can decode (PNG or JPEG)");
+  if (m.empty())
+    throw RgbdFileError(std::string(what) + " '" + path + "' is not an image OpenCV can decode (PNG or JPEG)");
   return m;
 }
 
@@ -59,8 +60,10 @@ cv::Mat decode(const std::string& path, const char* what, int flags) {
 
 std::string check_intrinsics(const CameraIntrinsics& k) {
   if (k.width < 1 || k.height < 1 || k.width > kMaxSidePx || k.height > kMaxSidePx)
-    return "width and height must be 1-" + std::to_string(kMaxSidePx) + " px (are " + size_text(k.width, k.height) + ")";
-  if (!(std::isfinite(k.fx) && k.fx > 0) || !(std::isfinite(k.fy) && k.fy > 0)) return "fx and fy must be finite and > 0";
+    return "width and height must be 1-" + std::to_string(kMaxSidePx) + " px (are " + size_text(k.width, k.height) +
+           ")";
+  if (!(std::isfinite(k.fx) && k.fx > 0) || !(std::isfinite(k.fy) && k.fy > 0))
+    return "fx and fy must be finite and > 0";
   if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) return "cx and cy must be finite";
   if (!(std::isfinite(k.depth_scale) && k.depth_scale > 0))
     return "depth_scale must be finite and > 0 (depth image units per metre, 1000 for millimetres)";
@@ -75,7 +78,8 @@ CameraIntrinsics read_intrinsics(const std::string& path) {
   } catch (const YAML::Exception& e) {
     throw RgbdFileError("intrinsics file '" + path + "' is not YAML: " + e.what());
   }
-  if (!doc.IsMap()) throw RgbdFileError("intrinsics file '" + path + "' is not a YAML map of width, height, fx, fy, cx, cy");
+  if (!doc.IsMap())
+    throw RgbdFileError("intrinsics file '" + path + "' is not a YAML map of width, height, fx, fy, cx, cy");
   CameraIntrinsics k;
   k.width = field<int>(doc, "width", path);
   k.height = field<int>(doc, "height", path);
@@ -124,8 +128,8 @@ RgbdFolder open_folder(const std::string& folder) {
   std::sort(f.frames.begin(), f.frames.end(), [](const FrameFiles& a, const FrameFiles& b) { return a.name < b.name; });
   for (std::size_t i = 1; i < f.frames.size(); ++i)
     if (f.frames[i].name == f.frames[i - 1].name)
-      throw RgbdFileError("frame '" + f.frames[i].name + "' has two colour images: '" + f.frames[i - 1].colour + "' and '" +
-                          f.frames[i].colour + "'");
+      throw RgbdFileError("frame '" + f.frames[i].name + "' has two colour images: '" + f.frames[i - 1].colour +
+                          "' and '" + f.frames[i].colour + "'");
   return f;
 }
 

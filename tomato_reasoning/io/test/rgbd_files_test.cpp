@@ -46,8 +46,10 @@ struct Folder {
     for (int v = 0; v < h; ++v)
       for (int u = 0; u < w; ++u) {
         bgr.at<cv::Vec3b>(v, u) = {7, std::uint8_t(20 * v), std::uint8_t(10 * u)};
-        if (depth_type == CV_16UC1) d.at<std::uint16_t>(v, u) = std::uint16_t(u == 1 && v == 1 ? 0 : 1000 + 100 * u + v);
-        else d.at<std::uint8_t>(v, u) = std::uint8_t(100 + u);
+        if (depth_type == CV_16UC1)
+          d.at<std::uint16_t>(v, u) = std::uint16_t(u == 1 && v == 1 ? 0 : 1000 + 100 * u + v);
+        else
+          d.at<std::uint8_t>(v, u) = std::uint8_t(100 + u);
       }
     ASSERT_TRUE(cv::imwrite(rgb(name + ".png"), bgr));
     ASSERT_TRUE(cv::imwrite(depth(name + ".png"), d));
@@ -86,7 +88,7 @@ TEST(RgbdFiles, FolderFramesBecomeTheOrganisedCloud) {
   EXPECT_FLOAT_EQ(c.xyz[i].x(), 0.15f * 1.503f);
   EXPECT_FLOAT_EQ(c.xyz[i].y(), float(0.5 / 12) * 1.503f);
   EXPECT_EQ(c.rgb[i], (tinyline::tomato_reasoning::Rgb{50, 60, 7}));  // RGB order, not OpenCV's BGR
-  EXPECT_FALSE(c.finite(1 * 8 + 1));  // depth 0: no point
+  EXPECT_FALSE(c.finite(1 * 8 + 1));                                  // depth 0: no point
   EXPECT_TRUE(c.finite(0));
 }
 
@@ -113,15 +115,17 @@ TEST(RgbdFiles, MissingFilesAreNamed) {
   EXPECT_THAT(error_of([&] { (void)io::open_folder(f.root.string()); }),
               AllOf(HasSubstr(f.rgb("000000.png")), HasSubstr("has no depth image '" + f.depth("000000.png") + "'")));
   fs::remove(f.root / "intrinsics.yaml");
-  EXPECT_THAT(error_of([&] { (void)io::open_folder(f.root.string()); }),
-              AllOf(HasSubstr("intrinsics file '" + (f.root / "intrinsics.yaml").string() + "'"), HasSubstr("No such file")));
+  EXPECT_THAT(
+      error_of([&] { (void)io::open_folder(f.root.string()); }),
+      AllOf(HasSubstr("intrinsics file '" + (f.root / "intrinsics.yaml").string() + "'"), HasSubstr("No such file")));
 }
 
 TEST(RgbdFiles, BadIntrinsicsAreRefusedWithTheReason) {
   Folder f;
   const std::string p = (f.root / "intrinsics.yaml").string();
   f.write(p, "width: 8\nheight: 6\nfx: .nan\nfy: 12\ncx: 3.5\ncy: 2.5\n");
-  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), AllOf(HasSubstr(p), HasSubstr("fx and fy must be finite")));
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }),
+              AllOf(HasSubstr(p), HasSubstr("fx and fy must be finite")));
   f.write(p, "width: 8\nheight: 6\nfx: 10\nfy: 12\ncx: 3.5\n");
   EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("has no 'cy'"));
   f.write(p, "width: 8.5\nheight: 6\nfx: 10\nfy: 12\ncx: 3.5\ncy: 1\n");
@@ -200,5 +204,6 @@ TEST(RgbdFiles, DebugImagesAreDrawnAndWrittenWhole) {
               HasSubstr(out + ".part"));
   EXPECT_EQ(cv::norm(cv::imread(out), img, cv::NORM_INF), 0.0);
   EXPECT_THAT(error_of([&] { io::write_image((f.root / "rgb").string(), img); }), HasSubstr(".png, .jpg or .jpeg"));
-  EXPECT_THAT(error_of([&] { io::write_image((f.root / "rgb.png").string() + "/x.png", img); }), HasSubstr("x.png.part"));
+  EXPECT_THAT(error_of([&] { io::write_image((f.root / "rgb.png").string() + "/x.png", img); }),
+              HasSubstr("x.png.part"));
 }

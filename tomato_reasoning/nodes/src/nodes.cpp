@@ -81,8 +81,8 @@ std::string to_core(const sensor_msgs::msg::PointCloud2& m, ColorCloud& out) {
   if (m.point_step < 16 || std::size_t(std::max({ox, oy, oz, orgb})) + 4 > m.point_step)
     return "PointCloud2 point_step " + std::to_string(m.point_step) + " is shorter than its fields";
   if (m.row_step < std::size_t(m.width) * m.point_step || m.data.size() < std::size_t(m.row_step) * m.height)
-    return "PointCloud2 holds " + std::to_string(m.data.size()) + " bytes, too few for " + std::to_string(m.width) + " x " +
-           std::to_string(m.height) + " points";
+    return "PointCloud2 holds " + std::to_string(m.data.size()) + " bytes, too few for " + std::to_string(m.width) +
+           " x " + std::to_string(m.height) + " points";
   out.width = int(m.width);
   out.height = int(m.height);
   out.xyz.resize(n);
@@ -214,17 +214,18 @@ TomatoDetectorNode::TomatoDetectorNode(bus::NodeOptions o) : Node(std::move(o)) 
   p.gravity.normalize();
   require_valid(validate(p).within("tomato pipeline"));
   pipeline_ = std::make_unique<TomatoPipeline>(p);
-  views_ = declare_parameter("views", 1,
-                              "camera views fused per detection: 1 (cloud), or 2 (cloud + cloud2 at cloud2_pose), as the "
-                              "thesis's robot (4.5)",
-                              ParamConstraints::range(1, 2));
+  views_ =
+      declare_parameter("views", 1,
+                        "camera views fused per detection: 1 (cloud), or 2 (cloud + cloud2 at cloud2_pose), as the "
+                        "thesis's robot (4.5)",
+                        ParamConstraints::range(1, 2));
   pub_ = create_publisher<msgs::TomatoEstimates>("tomatoes");
   markers_pub_ = create_publisher<visualization_msgs::msg::MarkerArray>("markers");
-  sub_ = create_subscription<sensor_msgs::msg::PointCloud2>("cloud", bus::QoS::keep_last(2),
-                                                            [this](const sensor_msgs::msg::PointCloud2& m) { on_cloud(m); });
+  sub_ = create_subscription<sensor_msgs::msg::PointCloud2>(
+      "cloud", bus::QoS::keep_last(2), [this](const sensor_msgs::msg::PointCloud2& m) { on_cloud(m); });
   if (views_ == 2) {
-    sub2_ = create_subscription<sensor_msgs::msg::PointCloud2>("cloud2", bus::QoS::keep_last(2),
-                                                               [this](const sensor_msgs::msg::PointCloud2& m) { on_cloud2(m); });
+    sub2_ = create_subscription<sensor_msgs::msg::PointCloud2>(
+        "cloud2", bus::QoS::keep_last(2), [this](const sensor_msgs::msg::PointCloud2& m) { on_cloud2(m); });
     pose2_sub_ = create_subscription<geometry_msgs::msg::PoseStamped>(
         "cloud2_pose", bus::QoS::keep_last(4), [this](const geometry_msgs::msg::PoseStamped& m) { on_cloud2_pose(m); });
   }
@@ -284,7 +285,8 @@ void TomatoDetectorNode::detect() {
     if (!r.ok) logger().info("no tomatoes ({}): {}", r.stage, r.reason);
   } else {
     // One detection per stamp: wait for the other view and its pose.
-    if (!header2_ || !pose2_header_ || !same_stamp(*header_, *header2_) || !same_stamp(*header_, *pose2_header_)) return;
+    if (!header2_ || !pose2_header_ || !same_stamp(*header_, *header2_) || !same_stamp(*header_, *pose2_header_))
+      return;
     if (!bad_.empty()) {
       out->stage = "input";
       out->reason = bad_;
@@ -332,7 +334,8 @@ PickVerifierNode::PickVerifierNode(bus::NodeOptions o) : Node(std::move(o)) {
   bus::declare_params(*this, params_);  // the tables: tomato_reasoning/param_tables.hpp
   bus::declare_params(*this, harvest_);
   require_valid(validate(harvest_).within("harvest"));
-  max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)", ParamConstraints::range(0, 1000));
+  max_picks_ = declare_parameter("max_picks", 0, "verify at most this many picks (0: every tomato)",
+                                 ParamConstraints::range(0, 1000));
   pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pick_pose");
   expected_pub_ = create_publisher<geometry_msgs::msg::PointStamped>("expected_pedicel");
   result_pub_ = create_publisher<msgs::PickVerification>("verification", bus::QoS::keep_last(64));
@@ -360,18 +363,20 @@ void PickVerifierNode::on_tomatoes(const msgs::TomatoEstimates& m) {
   logger().info("{} tomatoes found; pick order [{}]", m.tomatoes.size(), order);
   for (int k : m.pick_order) {
     const auto& e = m.tomatoes[std::size_t(k)];
-    logger().info("  tomato {}: centre ({:.3f}, {:.3f}, {:.3f}) m, r {:.1f} mm, {} contacts, pedicel ({:+.2f}, {:+.2f}, {:+.2f}) "
-                  "+-{:.0f} deg, cut at ({:.3f}, {:.3f}, {:.3f}) covering {:.0f}%",
-                  k, e.centre.x, e.centre.y, e.centre.z, 1000 * e.radius_m, e.contacts.size(), e.pedicel_direction.x,
-                  e.pedicel_direction.y, e.pedicel_direction.z, e.pedicel_spread50_deg, e.cut_point.x, e.cut_point.y,
-                  e.cut_point.z, 100 * e.cut_coverage);
+    logger().info(
+        "  tomato {}: centre ({:.3f}, {:.3f}, {:.3f}) m, r {:.1f} mm, {} contacts, pedicel ({:+.2f}, {:+.2f}, {:+.2f}) "
+        "+-{:.0f} deg, cut at ({:.3f}, {:.3f}, {:.3f}) covering {:.0f}%",
+        k, e.centre.x, e.centre.y, e.centre.z, 1000 * e.radius_m, e.contacts.size(), e.pedicel_direction.x,
+        e.pedicel_direction.y, e.pedicel_direction.z, e.pedicel_spread50_deg, e.cut_point.x, e.cut_point.y,
+        e.cut_point.z, 100 * e.cut_coverage);
   }
   next_pick();
 }
 
 void PickVerifierNode::next_pick() {
   const auto& m = *estimates_;
-  const std::size_t n = max_picks_ > 0 ? std::min<std::size_t>(std::size_t(max_picks_), m.pick_order.size()) : m.pick_order.size();
+  const std::size_t n =
+      max_picks_ > 0 ? std::min<std::size_t>(std::size_t(max_picks_), m.pick_order.size()) : m.pick_order.size();
   if (rank_ >= n) {
     summary();
     return;
@@ -453,7 +458,9 @@ void PickVerifierNode::publish_verification(const Verification& v) {
   out.cut_point = to_point(v.cut_point);
   out.confidence = v.confidence;
   logger().info("pick {} (tomato {}), attempt {}: {}{} ({})", rank_ + 1, out.tomato, out.attempt, to_string(v.outcome),
-                v.outcome == Verification::Outcome::kMove ? " by " + std::to_string(int(std::lround(1000 * v.move.norm()))) + " mm" : "",
+                v.outcome == Verification::Outcome::kMove
+                    ? " by " + std::to_string(int(std::lround(1000 * v.move.norm()))) + " mm"
+                    : "",
                 v.reason);
   if (markers_pub_->subscription_count() > 0 && pose.ok()) {
     auto mk = std::make_unique<visualization_msgs::msg::MarkerArray>();
@@ -461,7 +468,8 @@ void PickVerifierNode::publish_verification(const Verification& v) {
     const int id = int(2 * rank_) + out.attempt - 1;
     const Eigen::Vector3d o = pose.T_ref_laser.translation();
     mk->markers.push_back(arrow(h, "hand_laser", id, o, pose.cut_point, colour(0.2f, 0.9f, 0.9f), 0.002));
-    if (v.will_cut()) mk->markers.push_back(arrow(h, "verified_cut", id, pose.cut_point, v.cut_point, colour(1, 0.4f, 1), 0.002));
+    if (v.will_cut())
+      mk->markers.push_back(arrow(h, "verified_cut", id, pose.cut_point, v.cut_point, colour(1, 0.4f, 1), 0.002));
     markers_pub_->publish(std::move(mk));
   }
   results_.push_back(out);
@@ -500,8 +508,8 @@ void PickVerifierNode::on_cut_outcome(const msgs::CutOutcome& m) {
     case msgs::CutOutcome::CLOSED_ON_NOTHING: r = BladeResult::kClosedOnNothing; break;
     default: r = BladeResult::kJammed; break;
   }
-  logger().info("pick {} (tomato {}), attempt {}: the blades closed: {}{}", rank_ + 1, m.tomato, m.attempt, to_string(r),
-                m.object.empty() ? "" : " on " + m.object);
+  logger().info("pick {} (tomato {}), attempt {}: the blades closed: {}{}", rank_ + 1, m.tomato, m.attempt,
+                to_string(r), m.object.empty() ? "" : " on " + m.object);
   act(attempts_->after_cut(r));
 }
 
@@ -535,9 +543,10 @@ void PickVerifierNode::summary() {
     logger().info("  pick {}: tomato {}, {} attempt(s): {} ({})", p.pick_rank + 1, p.tomato, p.attempts,
                   to_string(PickOutcome(p.outcome)), p.detail);
   }
-  logger().info("harvest summary: {} tomatoes, {} picks: {} picked ({} at the second attempt), {} cut failures, "
-                "{} cut another's pedicel, {} left for a human",
-                estimates_->tomatoes.size(), picks_.size(), by_outcome[0], second, by_outcome[1], by_outcome[2], by_outcome[3]);
+  logger().info(
+      "harvest summary: {} tomatoes, {} picks: {} picked ({} at the second attempt), {} cut failures, "
+      "{} cut another's pedicel, {} left for a human",
+      estimates_->tomatoes.size(), picks_.size(), by_outcome[0], second, by_outcome[1], by_outcome[2], by_outcome[3]);
   auto out = std::make_unique<msgs::HarvestSummary>();
   out->header.stamp = now().to_msg();
   out->header.frame_id = estimates_->header.frame_id;
@@ -551,13 +560,16 @@ void PickVerifierNode::summary() {
 namespace tinyline::tomato_reasoning {
 
 void register_nodes(bus::NodeRegistry& r) {
-  r.add<nodes::TomatoDetectorNode>("tomato_reasoning", "tomato_detector",
-                                   "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
-  r.add<nodes::PickVerifierNode>("tomato_reasoning", "pick_verifier",
-                                 "the harvest in pick order: picking poses, the hand laser's pedicel finding -> cut here / move / nothing (4.4), "
-                                 "re-scans, closing the scissors; a summary when every tomato had its pick");
-  r.add<nodes::RgbdFolderCameraNode>("tomato_reasoning", "rgbd_folder_camera",
-                                     "a folder of RGB-D frames (colour + 16-bit depth PNG + intrinsics) played as a camera: cloud");
+  r.add<nodes::TomatoDetectorNode>(
+      "tomato_reasoning", "tomato_detector",
+      "RGB-D cloud -> tomato spheres, pedicel estimates, pick order, cut plans (thesis 4.3)");
+  r.add<nodes::PickVerifierNode>(
+      "tomato_reasoning", "pick_verifier",
+      "the harvest in pick order: picking poses, the hand laser's pedicel finding -> cut here / move / nothing (4.4), "
+      "re-scans, closing the scissors; a summary when every tomato had its pick");
+  r.add<nodes::RgbdFolderCameraNode>(
+      "tomato_reasoning", "rgbd_folder_camera",
+      "a folder of RGB-D frames (colour + 16-bit depth PNG + intrinsics) played as a camera: cloud");
 }
 
 }  // namespace tinyline::tomato_reasoning

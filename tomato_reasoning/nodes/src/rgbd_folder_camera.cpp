@@ -17,7 +17,8 @@ namespace {
 /// The camera's pose from the two parameters; throws ParamError naming the bad one.
 Eigen::Isometry3d camera_pose(const bus::Node& n, const std::vector<double>& p, const std::vector<double>& q) {
   const std::string who = "node '" + n.full_name() + "': ";
-  if (p.size() != 3) throw bus::ParamError({}, who + "position_m needs 3 numbers (x, y, z), got " + std::to_string(p.size()));
+  if (p.size() != 3)
+    throw bus::ParamError({}, who + "position_m needs 3 numbers (x, y, z), got " + std::to_string(p.size()));
   if (q.size() != 4)
     throw bus::ParamError({}, who + "orientation_xyzw needs 4 numbers (x, y, z, w), got " + std::to_string(q.size()));
   const Eigen::Quaterniond rot(q[3], q[0], q[1], q[2]);
@@ -42,13 +43,15 @@ RgbdFolderCameraNode::RgbdFolderCameraNode(bus::NodeOptions o) : Node(std::move(
   metres.unit = "m";
   rate_hz_ = declare_parameter("rate_hz", 1.0, "frames per second", rate);
   loop_ = declare_parameter("loop", false, "start again at the first frame after the last");
-  frame_id_ = declare_parameter<std::string>("frame_id", "camera", "the camera's optical frame (x right, y down, z forward)");
+  frame_id_ =
+      declare_parameter<std::string>("frame_id", "camera", "the camera's optical frame (x right, y down, z forward)");
   pose_frame_id_ = declare_parameter<std::string>(
-      "pose_frame_id", "", "frame the camera's pose is given in; set: publish `pose` with every frame (empty: no pose)");
+      "pose_frame_id", "",
+      "frame the camera's pose is given in; set: publish `pose` with every frame (empty: no pose)");
   const auto p = declare_parameter<std::vector<double>>("position_m", {0.0, 0.0, 0.0},
                                                         "camera origin in pose_frame_id: x, y, z", metres);
-  const auto q = declare_parameter<std::vector<double>>("orientation_xyzw", {0.0, 0.0, 0.0, 1.0},
-                                                        "camera orientation in pose_frame_id: unit quaternion x, y, z, w");
+  const auto q = declare_parameter<std::vector<double>>(
+      "orientation_xyzw", {0.0, 0.0, 0.0, 1.0}, "camera orientation in pose_frame_id: unit quaternion x, y, z, w");
   T_parent_camera_ = camera_pose(*this, p, q);
   cloud_pub_ = create_publisher<sensor_msgs::msg::PointCloud2>("cloud");
   if (!pose_frame_id_.empty()) pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pose");
@@ -62,8 +65,8 @@ void RgbdFolderCameraNode::on_configure() {
 
 void RgbdFolderCameraNode::on_start() {
   const auto& k = frames_.intrinsics;
-  logger().info("{}: {} frame(s), {} x {} px, fx {:.1f} fy {:.1f}, {} at {} Hz", folder_, frames_.frames.size(), k.width,
-                k.height, k.fx, k.fy, loop_ ? "looped" : "once", rate_hz_);
+  logger().info("{}: {} frame(s), {} x {} px, fx {:.1f} fy {:.1f}, {} at {} Hz", folder_, frames_.frames.size(),
+                k.width, k.height, k.fx, k.fy, loop_ ? "looped" : "once", rate_hz_);
   // The first frame one period after start: every node (the recorder too) is listening by then.
   timer_ = create_timer(std::chrono::nanoseconds(std::int64_t(1e9 / rate_hz_)), [this] { tick(); });
 }
@@ -73,8 +76,10 @@ void RgbdFolderCameraNode::tick() {
     if (!loop_) return;
     next_ = 0;
   }
-  if (publish_frame(frames_.frames[next_])) ++played_;
-  else ++skipped_;
+  if (publish_frame(frames_.frames[next_]))
+    ++played_;
+  else
+    ++skipped_;
   if (++next_ == frames_.frames.size() && !loop_) {
     timer_->cancel();
     logger().info("{}: played {} frame(s), skipped {}", folder_, played_, skipped_);

@@ -23,11 +23,11 @@
 namespace bus = tinyline::bus;
 namespace tr = tinyline::tomato_reasoning;
 using tinyline::geometry_msgs::msg::PoseStamped;
+using tinyline::sensor_msgs::msg::PointCloud2;
 using tinyline::tinyline_msgs::msg::CutOutcome;
 using tinyline::tinyline_msgs::msg::HarvestPick;
 using tinyline::tinyline_msgs::msg::HarvestScore;
 using tinyline::tinyline_msgs::msg::HarvestSummary;
-using tinyline::sensor_msgs::msg::PointCloud2;
 using tinyline::tinyline_msgs::msg::PickVerification;
 using tinyline::tinyline_msgs::msg::TomatoEstimates;
 using tinyline::visualization_msgs::msg::MarkerArray;
@@ -110,8 +110,12 @@ void add_harvest(Harness& h, const std::string& truss_class, std::int64_t seed) 
   det.param("views", std::int64_t(2)).remap("cloud", "/camera/cloud").remap("cloud2", "/camera2/cloud");
   det.remap("cloud2_pose", "/camera2/pose").remap("tomatoes", "/tomatoes").remap("markers", "/tomatoes/markers");
   ver.name = "verifier";
-  ver.remap("tomatoes", "/tomatoes").remap("pick_pose", "/hand/pick_pose").remap("expected_pedicel", "/hand/expected_pedicel");
-  ver.remap("pedicel", "/hand/pedicel").remap("verification", "/verification").remap("markers", "/verification/markers");
+  ver.remap("tomatoes", "/tomatoes")
+      .remap("pick_pose", "/hand/pick_pose")
+      .remap("expected_pedicel", "/hand/expected_pedicel");
+  ver.remap("pedicel", "/hand/pedicel")
+      .remap("verification", "/verification")
+      .remap("markers", "/verification/markers");
   ver.remap("cut", "/hand/cut").remap("cut_outcome", "/hand/cut_outcome").remap("summary", "/harvest/summary");
   hand.name = "hand";
   hand.param("truss_class", truss_class).param("seed", seed);
@@ -119,7 +123,9 @@ void add_harvest(Harness& h, const std::string& truss_class, std::int64_t seed) 
   hand.remap("cut_outcome", "/hand/cut_outcome");
   finder.name = "pedicel_finder";
   finder.param("scissor_centre_z_m", 0.12);
-  finder.remap("scan", "/hand/scan").remap("expected_pedicel", "/hand/expected_pedicel").remap("pedicel", "/hand/pedicel");
+  finder.remap("scan", "/hand/scan")
+      .remap("expected_pedicel", "/hand/expected_pedicel")
+      .remap("pedicel", "/hand/pedicel");
   score.name = "harvest_score";
   score.param("truss_class", truss_class).param("seed", seed);
   score.remap("summary", "/harvest/summary").remap("cut_outcome", "/hand/cut_outcome").remap("score", "/harvest/score");
@@ -143,7 +149,7 @@ TEST(TomatoNodes, HarvestPipelineFindsOrdersVerifiesAndCutsEveryTomato) {
   auto& summaries = h.collect<HarvestSummary>("/harvest/summary", bus::QoS::keep_last(10));
   auto& scores = h.collect<HarvestScore>("/harvest/score", bus::QoS::keep_last(10));
   h.ex.advance_to(bus::Time::from_seconds(100.0));  // starts the nodes; timers count from here
-  EXPECT_TRUE(tomatoes.empty());  // the camera's first frame comes one period after start
+  EXPECT_TRUE(tomatoes.empty());                    // the camera's first frame comes one period after start
   h.ex.advance_to(bus::Time::from_seconds(101.0));
   h.ex.spin_until_idle();
   ASSERT_EQ(tomatoes.size(), 1u);
@@ -349,7 +355,10 @@ TEST(TomatoNodes, TwoViewDetectorFusesTheSecondViewAtItsPose) {
     Harness h;
     bus::NodeOptions cam, one, two;
     cam.name = "camera";
-    cam.param("truss_class", std::string("C")).param("seed", seed).param("rate_hz", 1.0).param("views", std::int64_t(2));
+    cam.param("truss_class", std::string("C"))
+        .param("seed", seed)
+        .param("rate_hz", 1.0)
+        .param("views", std::int64_t(2));
     one.name = "one_view";
     one.remap("tomatoes", "/one/tomatoes");
     two.name = "two_views";
@@ -358,10 +367,12 @@ TEST(TomatoNodes, TwoViewDetectorFusesTheSecondViewAtItsPose) {
     h.add("tomato_reasoning", "tomato_detector", one);
     h.add("tomato_reasoning", "tomato_detector", two);
     std::vector<std::shared_ptr<const TomatoEstimates>> got1, got2;
-    auto s1 = h.io->create_subscription<TomatoEstimates>("/one/tomatoes", bus::QoS::keep_last(4),
-                                                         [&](const std::shared_ptr<const TomatoEstimates>& m) { got1.push_back(m); });
-    auto s2 = h.io->create_subscription<TomatoEstimates>("/two/tomatoes", bus::QoS::keep_last(4),
-                                                         [&](const std::shared_ptr<const TomatoEstimates>& m) { got2.push_back(m); });
+    auto s1 = h.io->create_subscription<TomatoEstimates>(
+        "/one/tomatoes", bus::QoS::keep_last(4),
+        [&](const std::shared_ptr<const TomatoEstimates>& m) { got1.push_back(m); });
+    auto s2 = h.io->create_subscription<TomatoEstimates>(
+        "/two/tomatoes", bus::QoS::keep_last(4),
+        [&](const std::shared_ptr<const TomatoEstimates>& m) { got2.push_back(m); });
     h.ex.advance_to(bus::Time::from_seconds(100.0));  // starts the nodes; the first frame one period later
     h.ex.advance_to(bus::Time::from_seconds(101.0));
     h.ex.spin_until_idle();

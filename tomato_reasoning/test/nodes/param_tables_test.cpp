@@ -22,9 +22,7 @@ using tinyline::bus::testing::param_number;
 using tinyline::bus::testing::params_by_name;
 using tinyline::bus::testing::table_defaults;
 
-namespace {
-
-}  // namespace
+namespace {}  // namespace
 
 TEST(TomatoParamTables, EveryDefaultIsWithinItsTable) {
   EXPECT_TRUE(common::within_table(tr::PipelineParams{}).valid) << common::within_table(tr::PipelineParams{}).reason;

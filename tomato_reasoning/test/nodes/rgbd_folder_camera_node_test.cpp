@@ -16,9 +16,9 @@
 
 namespace bus = tinyline::bus;
 namespace tr = tinyline::tomato_reasoning;
+using ::testing::HasSubstr;
 using tinyline::geometry_msgs::msg::PoseStamped;
 using tinyline::sensor_msgs::msg::PointCloud2;
-using ::testing::HasSubstr;
 
 namespace {
 
@@ -109,7 +109,8 @@ TEST(RgbdFolderCamera, SkipsABrokenFrameNamingItsFile) {
   rig.run_until(110);
   ASSERT_EQ(clouds.size(), 2u);
   EXPECT_FLOAT_EQ(first_z(*clouds[1]), 3.0f);
-  EXPECT_TRUE(rig.log->contains(bus::LogLevel::Warn, "skipping frame 000001: depth image '" + f.dir / "depth/000001.png" + "' is 8-bit"));
+  EXPECT_TRUE(rig.log->contains(bus::LogLevel::Warn,
+                                "skipping frame 000001: depth image '" + f.dir / "depth/000001.png" + "' is 8-bit"));
   EXPECT_TRUE(rig.log->contains(bus::LogLevel::Info, "played 2 frame(s), skipped 1"));
 }
 
@@ -129,7 +130,8 @@ TEST(RgbdFolderCamera, AFolderThatCannotBeOpenedStopsTheStart) {
     return std::string("started");
   };
   EXPECT_THAT(start(f.dir.path.string()), HasSubstr("'" + f.dir.path.string() + "' has no frames in rgb/"));
-  EXPECT_THAT(start(f.dir / "missing"), HasSubstr("node '/camera' failed to configure: RGB-D folder '" + f.dir / "missing" + "' is not a directory"));
+  EXPECT_THAT(start(f.dir / "missing"), HasSubstr("node '/camera' failed to configure: RGB-D folder '" +
+                                                  f.dir / "missing" + "' is not a directory"));
   std::filesystem::remove(f.dir / "intrinsics.yaml");
   EXPECT_THAT(start(f.dir.path.string()), HasSubstr("intrinsics file '" + f.dir / "intrinsics.yaml" + "'"));
 }

@@ -51,7 +51,7 @@ struct ExecutorCore {
   bool fifo = false;
   std::deque<std::shared_ptr<CallbackGroup>> ready;  ///< fifo mode only
   int threads = 1;
-  Executor* owner = nullptr;  ///< nulled when the executor goes away (under mu)
+  Executor* owner = nullptr;                           ///< nulled when the executor goes away (under mu)
   std::vector<std::shared_ptr<CallbackGroup>> groups;  ///< attached (under mu)
   std::atomic<std::uint64_t> groups_version{0};
   // Read by every publish, written only when a worker sleeps: its own line.
@@ -223,8 +223,8 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   std::atomic<std::uint64_t> errors_{0};
   // Inline runs (InlineDelivery).
   std::atomic<bool> inline_refused_{false};
-  std::atomic<int> slow_inline_runs_{0};                      ///< in a row over the budget
-  std::atomic<std::int64_t> inline_paused_until_ns_{0};        ///< steady clock; 0: not paused
+  std::atomic<int> slow_inline_runs_{0};                 ///< in a row over the budget
+  std::atomic<std::int64_t> inline_paused_until_ns_{0};  ///< steady clock; 0: not paused
   // Deterministic executors: in the FIFO already.
   alignas(64) std::atomic<bool> scheduled_{false};
 };

@@ -53,8 +53,7 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
   /// for max_block (or could never drain because the publisher is the thread
   /// that drains it); `why` then says which. With Wait::Never a full reliable
   /// queue takes the message beyond its depth instead.
-  bool enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why,
-               Wait wait = Wait::ForRoom);
+  bool enqueue(std::shared_ptr<const void> msg, const MessageInfo& info, std::string* why, Wait wait = Wait::ForRoom);
   /// True when a publisher would wait here now (a full reliable queue).
   bool would_wait();
 
@@ -173,7 +172,7 @@ class Topic {
   std::atomic<std::size_t> publishers_{0};
   std::atomic<std::uint64_t> published_{0};
   std::atomic<std::uint64_t> sequence_{0};
-  std::uint64_t gone_dropped_ = 0;   // from removed subscriptions (under mu_)
+  std::uint64_t gone_dropped_ = 0;  // from removed subscriptions (under mu_)
   std::uint64_t gone_timeouts_ = 0;
   // Transient-local: the last messages published, for late subscribers.
   std::atomic<std::size_t> latched_depth_{0};

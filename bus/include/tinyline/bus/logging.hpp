@@ -22,8 +22,8 @@ std::string_view to_string(LogLevel l);
 
 struct LogRecord {
   LogLevel level = LogLevel::Info;
-  Time stamp;           ///< context clock time
-  std::string logger;   ///< node full name, e.g. /hand/laser_driver
+  Time stamp;          ///< context clock time
+  std::string logger;  ///< node full name, e.g. /hand/laser_driver
   std::string text;
 };
 

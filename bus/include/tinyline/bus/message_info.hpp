@@ -10,9 +10,9 @@ namespace tinyline::bus {
 
 /// What a subscriber learns about a message besides its content.
 struct MessageInfo {
-  Time publish_time;            ///< context clock at publish
-  std::uint64_t sequence = 0;   ///< per-topic publish counter, from 1
-  std::uint32_t origin = 0;     ///< 0: published in this process; else the transport that brought it
+  Time publish_time;           ///< context clock at publish
+  std::uint64_t sequence = 0;  ///< per-topic publish counter, from 1
+  std::uint32_t origin = 0;    ///< 0: published in this process; else the transport that brought it
 };
 
 /// One queued message: the shared object and its info.

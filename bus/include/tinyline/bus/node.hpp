@@ -225,8 +225,8 @@ class Node {
   /// Declares a float parameter (stored as double).
   float declare_parameter(const std::string& name, float default_value, std::string description,
                           ParamConstraints constraints = {}) {
-    return static_cast<float>(declare_parameter<double>(name, default_value, std::move(description),
-                                                        std::move(constraints)));
+    return static_cast<float>(
+        declare_parameter<double>(name, default_value, std::move(description), std::move(constraints)));
   }
 
   const std::vector<ParamDescriptor>& parameters() const { return params_; }

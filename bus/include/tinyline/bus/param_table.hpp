@@ -40,11 +40,14 @@ void declare_field(Node& node, T& field, const common::Param& p) {
   if constexpr (std::is_floating_point_v<T>) {
     // Declared in the parameter's unit: the field is the parameter times p.scale.
     field = static_cast<T>(p.scale * node.declare_parameter<double>(name, field / p.scale, what, constraints_of(p)));
-  } else if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, double> ||
-                std::is_same_v<T, float> || std::is_same_v<T, std::string> ||
-                std::is_same_v<T, std::vector<double>> || std::is_same_v<T, std::vector<std::string>>) {
+  } else if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, double> || std::is_same_v<T, float> ||
+                       std::is_same_v<T, std::string> || std::is_same_v<T, std::vector<double>> ||
+                       std::is_same_v<T, std::vector<std::string>>) {
     field = node.declare_parameter(name, field, what, constraints_of(p));
-  } else if constexpr (requires { T::RowsAtCompileTime; T::SizeAtCompileTime; }) {
+  } else if constexpr (requires {
+                         T::RowsAtCompileTime;
+                         T::SizeAtCompileTime;
+                       }) {
     // A fixed-size Eigen vector: an array of exactly that many numbers.
     constexpr auto n = static_cast<std::size_t>(T::SizeAtCompileTime);
     const std::vector<double> d(field.data(), field.data() + n);
@@ -66,8 +69,8 @@ void declare_field(Node& node, T& field, const common::Param& p) {
 
 /// Declares an optional number: 0 (the default when unset) means none.
 inline void declare_field(Node& node, std::optional<double>& field, const common::Param& p) {
-  const double v = node.declare_parameter(std::string(p.name), field.value_or(0.0), std::string(p.description),
-                                          constraints_of(p));
+  const double v =
+      node.declare_parameter(std::string(p.name), field.value_or(0.0), std::string(p.description), constraints_of(p));
   field = v == 0.0 ? std::nullopt : std::optional<double>(v);
 }
 
@@ -87,8 +90,8 @@ inline void declare_field(Node& node, std::vector<std::pair<double, double>>& fi
 /// Declares a two-valued enum as a flag.
 template <class E>
 void declare_field(Node& node, E& field, const common::Param& p, const common::Flag<E>& flag) {
-  const bool on = node.declare_parameter(std::string(p.name), field == flag.on, std::string(p.description),
-                                         constraints_of(p));
+  const bool on =
+      node.declare_parameter(std::string(p.name), field == flag.on, std::string(p.description), constraints_of(p));
   field = on ? flag.on : flag.off;
 }
 

@@ -15,8 +15,8 @@
 
 namespace tinyline::bus {
 
-using ParamValue = std::variant<bool, std::int64_t, double, std::string, std::vector<bool>,
-                                std::vector<std::int64_t>, std::vector<double>, std::vector<std::string>>;
+using ParamValue = std::variant<bool, std::int64_t, double, std::string, std::vector<bool>, std::vector<std::int64_t>,
+                                std::vector<double>, std::vector<std::string>>;
 
 enum class ParamType { Bool, Int, Double, String, BoolArray, IntArray, DoubleArray, StringArray };
 
@@ -48,12 +48,12 @@ struct ParamConstraints {
   /// writes another's input.
   enum class File { None, Input, Output };
 
-  std::optional<double> min;          ///< numbers (and each element of numeric arrays)
+  std::optional<double> min;  ///< numbers (and each element of numeric arrays)
   std::optional<double> max;
-  std::vector<std::string> choices;   ///< strings: the allowed values (empty = any)
-  bool required = false;              ///< must be set from outside (no usable default)
+  std::vector<std::string> choices;  ///< strings: the allowed values (empty = any)
+  bool required = false;             ///< must be set from outside (no usable default)
   File file = File::None;
-  std::uint64_t file_max_bytes = 0;   ///< Input: the largest file accepted [bytes] (0: any size)
+  std::uint64_t file_max_bytes = 0;  ///< Input: the largest file accepted [bytes] (0: any size)
   /// Values that name no file: exact words ("default"), or prefixes ending
   /// in ':' ("public:"). The empty string never names a file.
   std::vector<std::string> not_a_file;

@@ -19,10 +19,10 @@ struct QoS {
   enum class History { KeepLast, Reliable };
 
   History history = History::KeepLast;
-  std::size_t depth = 10;                             ///< queue length (messages)
-  Duration max_block = std::chrono::seconds(1);       ///< Reliable: longest wait for room
-  bool transient_local = false;                       ///< latched: late subscribers get the last `depth`
-  bool best_effort = false;                           ///< across DDS: best-effort delivery
+  std::size_t depth = 10;                        ///< queue length (messages)
+  Duration max_block = std::chrono::seconds(1);  ///< Reliable: longest wait for room
+  bool transient_local = false;                  ///< latched: late subscribers get the last `depth`
+  bool best_effort = false;                      ///< across DDS: best-effort delivery
 
   static QoS keep_last(std::size_t depth = 10) {
     QoS q;

@@ -72,8 +72,7 @@ struct Fd {
 
 /// Opens `path` read-only if it is a regular file of at most `max_bytes`
 /// (0: no limit). O_NONBLOCK: opening a FIFO must not wait for a writer.
-inline int open_regular(const std::string& path, std::string_view what, std::uint64_t max_bytes,
-                        std::uint64_t* size) {
+inline int open_regular(const std::string& path, std::string_view what, std::uint64_t max_bytes, std::uint64_t* size) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) throw FileError(quoted(what, path) + ": cannot open: " + errno_text(errno));
   struct stat st {};
@@ -229,8 +228,9 @@ class AtomicFile {
       return;  // a new file
     }
     if (S_ISLNK(st.st_mode)) {
-      throw FileError(what() + " is a symbolic link: not replaced (give the path of the file itself, or remove the "
-                               "link)");
+      throw FileError(what() +
+                      " is a symbolic link: not replaced (give the path of the file itself, or remove the "
+                      "link)");
     }
     if (!S_ISREG(st.st_mode)) throw FileError(what() + " is " + detail::kind_of(st.st_mode) + ": not replaced");
     for (const auto& in : options_.inputs) {
@@ -255,12 +255,16 @@ class AtomicFile {
     }
     if (!fresh) {
       struct stat st {};
-      if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) throw FileError(what() + ": " + temp_ + " is not a regular file");
+      if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode))
+        throw FileError(what() + ": " + temp_ + " is not a regular file");
       if (options_.keep_partial) {
-        throw FileError(what() + ": " + temp_ + " exists: an earlier write that did not finish (a recording: "
-                                 "`tinyline bag recover " + temp_ + " FIXED.mcap` saves it); remove it to go on");
+        throw FileError(what() + ": " + temp_ +
+                        " exists: an earlier write that did not finish (a recording: "
+                        "`tinyline bag recover " +
+                        temp_ + " FIXED.mcap` saves it); remove it to go on");
       }
-      if (::ftruncate(fd, 0) != 0) throw FileError(what() + ": cannot truncate " + temp_ + ": " + detail::errno_text(errno));
+      if (::ftruncate(fd, 0) != 0)
+        throw FileError(what() + ": cannot truncate " + temp_ + ": " + detail::errno_text(errno));
       if (::fcntl(fd, F_SETFL, 0) != 0) throw FileError(what() + ": " + temp_ + ": " + detail::errno_text(errno));
     }
     if (mode_ != 0) (void)::fchmod(fd, mode_);  // the replaced file's permissions
@@ -287,8 +291,7 @@ inline void write_atomically(const std::string& path, std::string_view content, 
 /// stream is made, so a refused path fails before any work is done.
 class AtomicStream : public std::ostringstream {
  public:
-  explicit AtomicStream(std::string path, OutputOptions options = {})
-      : file_(std::move(path), std::move(options)) {}
+  explicit AtomicStream(std::string path, OutputOptions options = {}) : file_(std::move(path), std::move(options)) {}
 
   const std::string& path() const { return file_.path(); }
 

@@ -124,7 +124,8 @@ static_assert(disjoint(kLaserClustering) && disjoint(kTomato) && disjoint(kHydru
   if (held.size() == seeds.size()) return head + " (held-out)";
   if (none.size() == seeds.size()) return head + " (unregistered)";
   std::string parts;
-  for (const auto& [v, what] : {std::pair{&tuning, "tuning"}, std::pair{&held, "held-out"}, std::pair{&none, "unregistered"}}) {
+  for (const auto& [v, what] :
+       {std::pair{&tuning, "tuning"}, std::pair{&held, "held-out"}, std::pair{&none, "unregistered"}}) {
     if (v->empty()) continue;
     parts += (parts.empty() ? "" : ", ") + format_seeds(*v) + " " + what;
   }

@@ -25,8 +25,7 @@
 
 namespace tinyline::cdr {
 
-static_assert(std::endian::native == std::endian::little,
-              "tinyline's CDR writer assumes a little-endian host");
+static_assert(std::endian::native == std::endian::little, "tinyline's CDR writer assumes a little-endian host");
 
 inline constexpr std::uint8_t kEncapsulationLE[4] = {0x00, 0x01, 0x00, 0x00};
 inline constexpr std::uint8_t kEncapsulationBE[4] = {0x00, 0x00, 0x00, 0x00};
@@ -69,8 +68,8 @@ class Writer {
   /// Sequence length prefix; `bound` > 0 is the declared upper bound.
   void put_count(std::size_t n, std::size_t bound, const char* field) {
     if (bound != 0 && n > bound) {
-      throw Error("field '" + std::string(field) + "' has " + std::to_string(n) +
-                  " elements, more than its bound " + std::to_string(bound));
+      throw Error("field '" + std::string(field) + "' has " + std::to_string(n) + " elements, more than its bound " +
+                  std::to_string(bound));
     }
     if (n > UINT32_MAX) throw Error("field '" + std::string(field) + "' is too long for CDR");
     put(static_cast<std::uint32_t>(n));
@@ -102,8 +101,7 @@ class Writer {
 /// Reads one CDR payload (the bytes after the encapsulation header).
 class Reader {
  public:
-  Reader(std::span<const std::uint8_t> payload, bool little_endian)
-      : data_(payload), swap_(!little_endian) {}
+  Reader(std::span<const std::uint8_t> payload, bool little_endian) : data_(payload), swap_(!little_endian) {}
 
   /// Names the field being read, for error messages (a pointer store, no cost).
   void at(const char* field) { field_ = field; }

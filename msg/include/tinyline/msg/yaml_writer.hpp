@@ -28,7 +28,7 @@ class YamlWriter {
   void scalar(double v);
   void scalar(float v) { scalar(static_cast<double>(v)); }
   template <class T>
-    requires std::is_integral_v<T>
+  requires std::is_integral_v<T>
   void scalar(T v) {
     if constexpr (std::is_signed_v<T>) {
       emit_scalar(std::to_string(static_cast<long long>(v)));

@@ -46,12 +46,12 @@
 namespace tinyline::sim {
 
 struct HydrusChainParams {
-  std::string name;                        ///< prefix of object and sensor names ("" -> link1.., laser1..)
+  std::string name;  ///< prefix of object and sensor names ("" -> link1.., laser1..)
   int links = 4;
   double link_length_m = 0.5;
   double link_width_m = 0.08;
-  double link_thickness_m = 0.04;          ///< box size along z
-  double height_m = 0.5;                   ///< sensing plane (and link centre) above world z = 0
+  double link_thickness_m = 0.04;              ///< box size along z
+  double height_m = 0.5;                       ///< sensing plane (and link centre) above world z = 0
   Eigen::Vector2d sensor_mount_m{0.25, 0.05};  ///< sensor origin in its link's frame
   double sensor_yaw_rad = 1.5707963267948966;  ///< optical axis in the link frame
   bool line_axis_left = true;

@@ -61,7 +61,7 @@ enum class TrussPhysics : int { kPendulum = 0, kElasticRod = 1 };
 
 struct TrussParams {
   TrussClass complexity = TrussClass::kB;
-  int num_tomatoes = 0;                 ///< 0: drawn from the class (A 1-2, B 3-4, C 5-8); else 1..8
+  int num_tomatoes = 0;  ///< 0: drawn from the class (A 1-2, B 3-4, C 5-8); else 1..8
   std::uint64_t seed = 1;
   std::string name = "truss";           ///< object name prefix
   Eigen::Vector3d origin_m{0, 0, 1.2};  ///< where the peduncle leaves the main stem [m]
@@ -75,22 +75,22 @@ struct TrussParams {
   bool mesh_fruit = true;               ///< false: perfect spheres (flatness and ribs ignored)
   double pedicel_length_min_m = 0.012;  ///< anchor to calyx [m]
   double pedicel_length_max_m = 0.035;
-  double pedicel_radius_m = 0.003;      ///< 6 mm pedicels (the thesis's pedicel diameter)
+  double pedicel_radius_m = 0.003;  ///< 6 mm pedicels (the thesis's pedicel diameter)
   double peduncle_radius_m = 0.0045;
-  double density_kg_m3 = 1000.0;        ///< tomato flesh
+  double density_kg_m3 = 1000.0;  ///< tomato flesh
   /// Pedicel bending stiffness as a share of the tomato's gravity torque
   /// m g (pedicel + radius) at one radian: drawn per tomato in this range.
   double stiffness_ratio_min = 0.08;
   double stiffness_ratio_max = 0.45;
-  double rest_tilt_max_deg = 55.0;      ///< rest direction of a pedicel: up to this from straight down
+  double rest_tilt_max_deg = 55.0;  ///< rest direction of a pedicel: up to this from straight down
   /// Leaves: -1 picks from the class (A: none in front; B: 1-2 partly in
   /// front; C: 2-4 in front), else this many in front of the truss.
   int front_leaves = -1;
-  bool background_leaves = true;        ///< leaves and a stem behind the truss
-  bool distractor_truss = true;         ///< B and C: another truss further back (a second branch)
-  bool room = true;                     ///< floor and a back wall
-  double camera_distance_m = 0.45;      ///< camera to the truss centre [m]
-  double camera_jitter_m = 0.03;        ///< random lateral / vertical offset of the camera [m]
+  bool background_leaves = true;    ///< leaves and a stem behind the truss
+  bool distractor_truss = true;     ///< B and C: another truss further back (a second branch)
+  bool room = true;                 ///< floor and a back wall
+  double camera_distance_m = 0.45;  ///< camera to the truss centre [m]
+  double camera_jitter_m = 0.03;    ///< random lateral / vertical offset of the camera [m]
   double camera_yaw_jitter_deg = 10.0;
 
   TrussPhysics physics = TrussPhysics::kPendulum;
@@ -102,13 +102,13 @@ struct TrussParams {
   double pedicel_young_max_pa = 14e6;
   double peduncle_young_min_pa = 0.4e9;
   double peduncle_young_max_pa = 1.2e9;
-  double friction = 0.5;                ///< kElasticRod: Coulomb coefficient between fruit, pedicels and peduncle
-  int pedicel_segments = 4;             ///< kElasticRod: rod elements per pedicel
+  double friction = 0.5;     ///< kElasticRod: Coulomb coefficient between fruit, pedicels and peduncle
+  int pedicel_segments = 4;  ///< kElasticRod: rod elements per pedicel
 
   /// Scene ranges beyond the thesis's trusses (all 0: today's scenes).
-  double stem_bend_deg = 0.0;           ///< the main stem bends by this over its length (a bow in x)
-  double peduncle_curl_deg = 0.0;       ///< the peduncle turns sideways (yaw) by this over its length
-  int pedicel_leaves = 0;               ///< leaves between the camera and that many pedicels
+  double stem_bend_deg = 0.0;      ///< the main stem bends by this over its length (a bow in x)
+  double peduncle_curl_deg = 0.0;  ///< the peduncle turns sideways (yaw) by this over its length
+  int pedicel_leaves = 0;          ///< leaves between the camera and that many pedicels
   /// Front leaves sit this many fruit radii off the line of sight to their
   /// fruit, uniform in [min, max]: 1.2-1.9 covers an edge, under 1 the centre.
   double front_leaf_offset_min = 1.2;
@@ -134,7 +134,7 @@ struct TrussTomato {
   double rib_amplitude = 0.0;        ///< ... with ribs of this relative depth
   int lobes = 5;
   double rib_phase_rad = 0.0;
-  double bounding_radius_m = 0.0;    ///< what contacts see
+  double bounding_radius_m = 0.0;  ///< what contacts see
   double mass_kg = 0.0;
   Eigen::Vector3d anchor_m = Eigen::Vector3d::Zero();  ///< where the pedicel leaves the peduncle
   Eigen::Vector3d calyx_m = Eigen::Vector3d::Zero();   ///< where it enters the fruit
@@ -170,8 +170,8 @@ struct RelaxationReport {
   /// Pendulum: largest net torque / (m g l) left at rest; elastic rod:
   /// largest net force on a rod node / the lightest fruit's weight [1].
   double max_torque_residual = 0.0;
-  double max_penetration_m = 0.0;    ///< deepest overlap left at rest [m]
-  int restarts = 0;                  ///< re-draws of a layout that could not settle
+  double max_penetration_m = 0.0;  ///< deepest overlap left at rest [m]
+  int restarts = 0;                ///< re-draws of a layout that could not settle
 };
 
 struct Truss {
@@ -180,8 +180,8 @@ struct Truss {
   std::vector<TrussContact> contacts;
   RelaxationReport relaxation;
   Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();  ///< suggested hand-camera pose
-  std::vector<Eigen::Vector3d> peduncle_m;  ///< peduncle polyline
-  std::vector<Material> materials;          ///< per-tomato colours (added by add_to_world)
+  std::vector<Eigen::Vector3d> peduncle_m;                           ///< peduncle polyline
+  std::vector<Material> materials;                                   ///< per-tomato colours (added by add_to_world)
 };
 
 /// Builds and settles a truss. Throws std::invalid_argument on bad parameters.

@@ -42,7 +42,7 @@ struct Segment {
 /// Bending between segment (a1 -> b1) and segment (a2 -> b2).
 struct Hinge {
   int a1 = 0, b1 = 0, a2 = 0, b2 = 0;
-  double k_nm = 0.0;  ///< E I / l [N m]
+  double k_nm = 0.0;                               ///< E I / l [N m]
   Eigen::Vector3d rest = Eigen::Vector3d::Zero();  ///< u2 - u1 at rest
 };
 
@@ -55,8 +55,8 @@ struct Tie {
 };
 
 struct Body {
-  int node = 0;      ///< the fruit's centre
-  int rod = -2;      ///< its own pedicel's rod id, never touched by it (-2: none; -1 is the peduncle)
+  int node = 0;  ///< the fruit's centre
+  int rod = -2;  ///< its own pedicel's rod id, never touched by it (-2: none; -1 is the peduncle)
   double radius_m = 0.0;
   double mass_kg = 0.0;
 };
@@ -89,17 +89,17 @@ struct Network {
 struct SettleOptions {
   double gravity_m_s2 = 9.81;
   double contact_stiffness_n_m = 5e4;
-  double friction = 0.5;             ///< Coulomb coefficient
-  double tolerance_n = 1e-5;         ///< converged when no free node feels more [N]
+  double friction = 0.5;      ///< Coulomb coefficient
+  double tolerance_n = 1e-5;  ///< converged when no free node feels more [N]
   int max_iterations = 400000;
 };
 
 enum class ContactWith : int { kBody = 0, kTube = 1 };
 
 struct Contact {
-  int body = -1;          ///< index into bodies
+  int body = -1;  ///< index into bodies
   ContactWith with = ContactWith::kBody;
-  int other = -1;         ///< the other body, or the touched tube's rod
+  int other = -1;  ///< the other body, or the touched tube's rod
   double normal_n = 0.0;
   double tangential_n = 0.0;
   Eigen::Vector3d force_on_body = Eigen::Vector3d::Zero();  ///< normal + friction [N]

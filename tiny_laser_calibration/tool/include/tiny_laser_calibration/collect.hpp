@@ -29,13 +29,13 @@
 namespace tinyline::tiny_laser_calibration {
 
 struct CollectParams {
-  std::string raw_topic;        ///< "" = the bag's only RawScan topic
-  std::string truth_topic;      ///< "" = the bag's only ScanTruth topic
-  std::string sensor;           ///< keep this sensor's sets only ("" = the scans' one frame)
-  double max_pair_gap_s = 0.01; ///< largest stamp difference of a raw scan and its truth [s]
-  int pixel_step = 1;           ///< every n-th effective pixel (smaller files)
-  bool keep_mixed = false;      ///< also rows of mixed pixels (their truth is the central ray's)
-  bool incidence_column = false;///< add `incidence_deg` (the ray's angle to the surface normal) as a column
+  std::string raw_topic;          ///< "" = the bag's only RawScan topic
+  std::string truth_topic;        ///< "" = the bag's only ScanTruth topic
+  std::string sensor;             ///< keep this sensor's sets only ("" = the scans' one frame)
+  double max_pair_gap_s = 0.01;   ///< largest stamp difference of a raw scan and its truth [s]
+  int pixel_step = 1;             ///< every n-th effective pixel (smaller files)
+  bool keep_mixed = false;        ///< also rows of mixed pixels (their truth is the central ray's)
+  bool incidence_column = false;  ///< add `incidence_deg` (the ray's angle to the surface normal) as a column
   /// A real sensor on a rail (no truth topic): the tape-measure log of the
   /// target's positions, a CSV `t_from_s,t_to_s,distance_m[,material]` (times in
   /// seconds since the bag's first raw scan, distance from the receiver's lens to
@@ -43,8 +43,8 @@ struct CollectParams {
   /// distance over the cosine of its ray's angle; scans outside every interval
   /// (the target moving) are left out.
   std::string positions_csv;
-  double focal_mm = 3.6;            ///< receiver focal length (the pixels' ray angles)
-  double sensor_length_mm = 5.12;   ///< length of the 256 effective pixels
+  double focal_mm = 3.6;               ///< receiver focal length (the pixels' ray angles)
+  double sensor_length_mm = 5.12;      ///< length of the 256 effective pixels
   int pixel_from = -1, pixel_to = -1;  ///< keep only these pixels (-1: every effective one)
 };
 
@@ -63,15 +63,15 @@ std::vector<RailPosition> read_rail_positions(const std::string& path);
 
 struct CollectResult {
   bool ok = false;
-  std::string reason;           ///< why nothing was collected (names the bag and what is missing)
+  std::string reason;  ///< why nothing was collected (names the bag and what is missing)
   CalibrationDataset data;
   std::string raw_topic, truth_topic;
   std::size_t raw_scans = 0, truths = 0, paired = 0;
-  std::size_t unpaired_scans = 0;    ///< raw scans with no truth within max_pair_gap_s
-  std::size_t bad_scans = 0;         ///< raw scans that cannot be a set (sizes disagree) or do not decode
-  std::size_t other_sensor = 0;      ///< truths of other sensors
+  std::size_t unpaired_scans = 0;  ///< raw scans with no truth within max_pair_gap_s
+  std::size_t bad_scans = 0;       ///< raw scans that cannot be a set (sizes disagree) or do not decode
+  std::size_t other_sensor = 0;    ///< truths of other sensors
   std::size_t dark_pixels = 0, no_range = 0, unlit = 0, mixed = 0;  ///< pixel-sets left out, by reason
-  std::size_t between_positions = 0; ///< raw scans outside every logged rail position (positions_csv)
+  std::size_t between_positions = 0;  ///< raw scans outside every logged rail position (positions_csv)
   std::vector<std::string> notes;
 };
 

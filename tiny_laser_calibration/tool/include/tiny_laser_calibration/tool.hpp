@@ -11,8 +11,8 @@
 namespace tinyline::tiny_laser_calibration {
 
 struct CalibToolEnv {
-  std::string python;       ///< interpreter that runs the plot script ("" = no plots)
-  std::string plot_script;  ///< scripts/plots/calib_report.py
+  std::string python;         ///< interpreter that runs the plot script ("" = no plots)
+  std::string plot_script;    ///< scripts/plots/calib_report.py
   std::string measured_data;  ///< the real sensor's measured figures (`calib measured`'s default --data)
 };
 

@@ -14,9 +14,9 @@
 namespace tinyline::tiny_laser_driver::io {
 
 struct SerialOptions {
-  double baud = 2'000'000;       ///< [bit/s]; the sensor's FT232R runs at 2,000,000
-  bool exclusive = true;         ///< lock the port (flock + TIOCEXCL): one driver per sensor
-  bool low_latency = true;       ///< ask the kernel for low latency (FTDI latency timer 16 -> 1 ms)
+  double baud = 2'000'000;  ///< [bit/s]; the sensor's FT232R runs at 2,000,000
+  bool exclusive = true;    ///< lock the port (flock + TIOCEXCL): one driver per sensor
+  bool low_latency = true;  ///< ask the kernel for low latency (FTDI latency timer 16 -> 1 ms)
   /// Largest relative error between the requested rate and the one an FTDI
   /// divisor makes (the FT232R data sheet allows 3% in total).
   double max_baud_error = 0.03;

@@ -20,14 +20,14 @@ inline constexpr std::uint16_t kFtdiVendorId = 0x0403;
 inline constexpr std::uint16_t kFt232rProductId = 0x6001;
 
 struct UsbSerialDevice {
-  std::string usb_path;      ///< bus-port path, e.g. "1-1.2" (stable while it stays in that socket)
+  std::string usb_path;  ///< bus-port path, e.g. "1-1.2" (stable while it stays in that socket)
   std::uint16_t vendor_id = 0;
   std::uint16_t product_id = 0;
-  std::string serial;        ///< USB serial number (an FTDI's is unique, e.g. "A50285BI")
+  std::string serial;  ///< USB serial number (an FTDI's is unique, e.g. "A50285BI")
   std::string manufacturer;
   std::string product;
-  std::string tty;           ///< e.g. "/dev/ttyUSB0"; empty when no serial driver is bound
-  std::string driver;        ///< kernel driver of the tty ("ftdi_sio"), may be empty
+  std::string tty;     ///< e.g. "/dev/ttyUSB0"; empty when no serial driver is bound
+  std::string driver;  ///< kernel driver of the tty ("ftdi_sio"), may be empty
 };
 
 struct DiscoveryOptions {

@@ -41,11 +41,11 @@ struct AsyncWriterOptions {
 };
 
 struct AsyncWriterStats {
-  std::uint64_t received = 0;           ///< messages handed to push()
-  std::uint64_t written = 0;            ///< messages in the file
-  std::uint64_t dropped = 0;            ///< refused: queue full, or the file failed
-  std::uint64_t queued_bytes = 0;       ///< waiting now
-  std::uint64_t max_queued_bytes = 0;   ///< high-water mark
+  std::uint64_t received = 0;          ///< messages handed to push()
+  std::uint64_t written = 0;           ///< messages in the file
+  std::uint64_t dropped = 0;           ///< refused: queue full, or the file failed
+  std::uint64_t queued_bytes = 0;      ///< waiting now
+  std::uint64_t max_queued_bytes = 0;  ///< high-water mark
   std::map<std::string, std::uint64_t> dropped_by_topic;
   WriterStats file;
 };
@@ -102,7 +102,7 @@ class AsyncWriter {
     std::string name;
     const msg::TypeSupport* type = nullptr;
     std::vector<ros2::QosProfile> offered;
-    ChannelId channel = 0;  // writer thread only
+    ChannelId channel = 0;                         // writer thread only
     std::vector<std::vector<std::uint8_t>> spare;  // written buffers for take_buffer (under mu_)
   };
 

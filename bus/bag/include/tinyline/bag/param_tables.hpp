@@ -18,7 +18,7 @@ inline constexpr double kBytesPerKiB = 1024.0;
 inline constexpr double kBytesPerMiB = 1024.0 * 1024.0;
 
 template <class S, class V>
-  requires common::SettingsOf<S, RecorderOptions>
+requires common::SettingsOf<S, RecorderOptions>
 void for_each_param(S& p, V&& v) {
   v(p.path, {"path", "", {}, {}, "output MCAP file (empty: tinyline_<date>_<time>.mcap)"}, common::OutputFile{});
   v(p.topics, {"topics", "", {}, {}, "topics to record (empty: all)"});
@@ -29,8 +29,7 @@ void for_each_param(S& p, V&& v) {
   v(p.writer.writer.compression, {"compression", "", {}, {}, "chunk compression"}, kCompressions);
   v(p.writer.writer.compression_level,
     {"compression_level", "", 0, 19, "lz4 0 (fast) or 1-12; zstd 1-19 (0: library default)"});
-  v(p.writer.writer.chunk_size_bytes,
-    {"chunk_size_kb", "KiB", 1, 1 << 20, "uncompressed chunk size", kBytesPerKiB});
+  v(p.writer.writer.chunk_size_bytes, {"chunk_size_kb", "KiB", 1, 1 << 20, "uncompressed chunk size", kBytesPerKiB});
   v(p.writer.max_queue_bytes, {"max_queue_mb", "MiB", 1, 1 << 20,
                                "serialized bytes waiting for the disk before messages are refused", kBytesPerMiB});
   v(p.writer.flush_interval_s, {"flush_interval_s", "s", 0.0, 3600.0,

@@ -32,14 +32,14 @@ struct PlayerOptions {
 };
 
 struct PlayerStats {
-  std::uint64_t published = 0;      ///< messages handed to the bus
-  std::uint64_t failed = 0;         ///< messages that did not decode, or that a subscriber refused
-  std::uint64_t loops = 0;          ///< completed passes through the bag
-  Timestamp bag_start = 0;          ///< first message time [ns]
-  Timestamp bag_end = 0;            ///< last message time [ns]
-  Timestamp position = 0;           ///< log time of the last message published [ns]
-  bool finished = false;            ///< the last pass ended (or playback failed)
-  Status status;                    ///< why playback ended early, if it did
+  std::uint64_t published = 0;  ///< messages handed to the bus
+  std::uint64_t failed = 0;     ///< messages that did not decode, or that a subscriber refused
+  std::uint64_t loops = 0;      ///< completed passes through the bag
+  Timestamp bag_start = 0;      ///< first message time [ns]
+  Timestamp bag_end = 0;        ///< last message time [ns]
+  Timestamp position = 0;       ///< log time of the last message published [ns]
+  bool finished = false;        ///< the last pass ended (or playback failed)
+  Status status;                ///< why playback ended early, if it did
 };
 
 class Player : public bus::Node {

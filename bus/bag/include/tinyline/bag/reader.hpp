@@ -48,8 +48,8 @@ enum class ReadOrder {
 };
 
 struct ReadOptions {
-  std::vector<std::string> topics;  ///< empty: every topic
-  Timestamp start_time = 0;         ///< inclusive
+  std::vector<std::string> topics;                             ///< empty: every topic
+  Timestamp start_time = 0;                                    ///< inclusive
   Timestamp end_time = std::numeric_limits<Timestamp>::max();  ///< exclusive
   ReadOrder order = ReadOrder::LogTime;
   /// Skip chunks that fail to decompress or check, noting them in problems(),
@@ -58,9 +58,9 @@ struct ReadOptions {
 };
 
 struct MessageView {
-  Message message;                  ///< data valid until the next call to next()
+  Message message;  ///< data valid until the next call to next()
   const Channel* channel = nullptr;
-  const Schema* schema = nullptr;   ///< nullptr for schemaless channels
+  const Schema* schema = nullptr;  ///< nullptr for schemaless channels
 };
 
 /// A problem met (and, in recovery mode, stepped over) while reading.
@@ -86,7 +86,7 @@ struct LinearRecord {
   enum class Kind { Header, Schema, Channel, Message, Attachment, Metadata, ChunkBegin, DataEnd, Footer };
   Kind kind = Kind::Header;
   std::uint8_t opcode = 0;
-  std::uint64_t offset = 0;        ///< file offset of the record (of its chunk for records inside one)
+  std::uint64_t offset = 0;  ///< file offset of the record (of its chunk for records inside one)
   bool in_chunk = false;
   const Header* header = nullptr;
   const Schema* schema = nullptr;    ///< Schema records; the message's schema for Message
@@ -94,7 +94,7 @@ struct LinearRecord {
   Message message;
   Attachment attachment;
   const Metadata* metadata = nullptr;
-  const Chunk* chunk = nullptr;      ///< ChunkBegin (records span empty)
+  const Chunk* chunk = nullptr;  ///< ChunkBegin (records span empty)
 };
 
 struct LinearReaderOptions {
@@ -151,8 +151,8 @@ struct BagSummary {
   std::vector<AttachmentIndex> attachment_indexes;
   std::vector<MetadataIndex> metadata_indexes;
   std::map<std::string, std::uint64_t> chunks_by_compression;  ///< "zstd" -> count ("" = none)
-  bool from_summary_section = false;  ///< false: rebuilt by reading the file linearly
-  bool complete = false;              ///< the file ends with a footer and magic
+  bool from_summary_section = false;                           ///< false: rebuilt by reading the file linearly
+  bool complete = false;                                       ///< the file ends with a footer and magic
 };
 
 class Reader {

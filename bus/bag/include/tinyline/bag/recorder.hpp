@@ -39,10 +39,10 @@ struct RecorderOptions {
 };
 
 struct RecorderStats {
-  std::uint64_t received = 0;              ///< messages taken from subscriptions
-  std::uint64_t written = 0;               ///< messages in the file
-  std::uint64_t dropped = 0;               ///< every message not in the file, whatever the cause (reported)
-  std::uint64_t subscription_timeouts = 0; ///< of those: publishers that found a recorder queue full
+  std::uint64_t received = 0;               ///< messages taken from subscriptions
+  std::uint64_t written = 0;                ///< messages in the file
+  std::uint64_t dropped = 0;                ///< every message not in the file, whatever the cause (reported)
+  std::uint64_t subscription_timeouts = 0;  ///< of those: publishers that found a recorder queue full
   std::uint64_t file_bytes = 0;
   std::size_t topics = 0;
   std::map<std::string, std::uint64_t> dropped_by_topic;  ///< `dropped`, per topic
@@ -81,9 +81,9 @@ class Recorder : public bus::Node {
   struct TopicState {
     std::string name;
     std::shared_ptr<bus::GenericSubscription> sub;
-    std::optional<AsyncWriter::TopicId> id;       ///< declared with the first message
-    std::atomic<std::uint64_t> after_stop{0};     ///< callbacks that came after recording ended
-    std::atomic<std::uint64_t> discarded{0};      ///< left in the queue when it was cancelled
+    std::optional<AsyncWriter::TopicId> id;    ///< declared with the first message
+    std::atomic<std::uint64_t> after_stop{0};  ///< callbacks that came after recording ended
+    std::atomic<std::uint64_t> discarded{0};   ///< left in the queue when it was cancelled
   };
 
   void subscribe(const std::shared_ptr<bus::Topic>& topic);

@@ -63,7 +63,7 @@ struct Header {
 struct Footer {
   std::uint64_t summary_start = 0;         ///< file offset of the summary section, 0 if none
   std::uint64_t summary_offset_start = 0;  ///< file offset of the summary offset section, 0 if none
-  std::uint32_t summary_crc = 0;           ///< CRC32 from summary_start through summary_offset_start of the footer; 0: none
+  std::uint32_t summary_crc = 0;  ///< CRC32 from summary_start through summary_offset_start of the footer; 0: none
 };
 
 struct Schema {
@@ -76,7 +76,7 @@ struct Schema {
 
 struct Channel {
   ChannelId id = 0;
-  SchemaId schema_id = 0;        ///< 0: schemaless
+  SchemaId schema_id = 0;  ///< 0: schemaless
   std::string topic;
   std::string message_encoding;  ///< "cdr"
   KeyValueMap metadata;          ///< ros2: offered_qos_profiles
@@ -96,8 +96,8 @@ struct Chunk {
   Timestamp message_start_time = 0;
   Timestamp message_end_time = 0;
   std::uint64_t uncompressed_size = 0;
-  std::uint32_t uncompressed_crc = 0;  ///< 0: not computed
-  std::string compression;             ///< "", "lz4" or "zstd"
+  std::uint32_t uncompressed_crc = 0;     ///< 0: not computed
+  std::string compression;                ///< "", "lz4" or "zstd"
   std::span<const std::uint8_t> records;  ///< compressed records
 };
 
@@ -114,8 +114,8 @@ struct MessageIndex {
 struct ChunkIndex {
   Timestamp message_start_time = 0;
   Timestamp message_end_time = 0;
-  std::uint64_t chunk_start_offset = 0;  ///< file offset of the chunk record
-  std::uint64_t chunk_length = 0;        ///< the chunk record's full length, prefix included
+  std::uint64_t chunk_start_offset = 0;                      ///< file offset of the chunk record
+  std::uint64_t chunk_length = 0;                            ///< the chunk record's full length, prefix included
   std::map<ChannelId, std::uint64_t> message_index_offsets;  ///< file offset of each channel's message index
   std::uint64_t message_index_length = 0;
   std::string compression;

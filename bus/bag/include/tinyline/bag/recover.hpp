@@ -39,10 +39,10 @@ struct RecoverReport {
   std::uint64_t channels = 0;
   std::uint64_t attachments = 0;
   std::uint64_t metadata = 0;
-  std::uint64_t messages_skipped = 0;  ///< on a refused channel, or outside the summary's time span
-  std::uint64_t chunks = 0;           ///< chunks of the input read whole
+  std::uint64_t messages_skipped = 0;   ///< on a refused channel, or outside the summary's time span
+  std::uint64_t chunks = 0;             ///< chunks of the input read whole
   std::uint64_t chunks_from_index = 0;  ///< of those, found through the summary's chunk indexes
-  std::uint64_t chunks_skipped = 0;   ///< chunks dropped for a CRC, decompression or record error
+  std::uint64_t chunks_skipped = 0;     ///< chunks dropped for a CRC, decompression or record error
   std::uint64_t input_bytes = 0;
   std::uint64_t bytes_used = 0;       ///< input bytes up to the last readable record
   bool input_complete = false;        ///< the input already had a data end record

@@ -48,7 +48,7 @@ struct ReplayOptions {
 struct Captured {
   std::string topic;
   const msg::TypeSupport* type = nullptr;
-  bus::Time time;                    ///< sim time of publication
+  bus::Time time;  ///< sim time of publication
   std::shared_ptr<const void> message;
 
   /// The message as T; throws std::invalid_argument if it is another type.

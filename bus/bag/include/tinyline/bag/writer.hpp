@@ -140,7 +140,7 @@ class Writer {
   std::vector<std::uint8_t> prefix_;
   std::vector<std::uint8_t> skip_compression_;  // per channel: large messages left to store without trying
   std::vector<std::vector<MessageIndexEntry>> chunk_entries_;  // per channel id
-  std::vector<ChannelId> chunk_channels_;                       // channels with entries, in first-use order
+  std::vector<ChannelId> chunk_channels_;                      // channels with entries, in first-use order
   Timestamp chunk_start_ = 0;
   Timestamp chunk_end_ = 0;
   std::uint64_t chunk_messages_ = 0;

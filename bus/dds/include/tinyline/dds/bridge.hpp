@@ -66,8 +66,8 @@ struct BridgeOptions {
 struct LinkStats {
   std::string topic;
   std::string type;
-  bool writer = false;              ///< a DDS writer exists (local publishers)
-  bool reader = false;              ///< a DDS reader exists (local subscribers)
+  bool writer = false;  ///< a DDS writer exists (local publishers)
+  bool reader = false;  ///< a DDS reader exists (local subscribers)
   EndpointQos writer_qos;
   EndpointQos reader_qos;
   std::size_t remote_readers = 0;   ///< matched now

@@ -26,8 +26,7 @@ class MessageRing {
   /// next producer" carry the same sequence number, so a producer could
   /// overwrite a message while it is being taken.
   explicit MessageRing(std::size_t capacity)
-      : mask_(std::bit_ceil(std::max<std::size_t>(capacity, 2)) - 1),
-        slots_(std::make_unique<Slot[]>(mask_ + 1)) {
+      : mask_(std::bit_ceil(std::max<std::size_t>(capacity, 2)) - 1), slots_(std::make_unique<Slot[]>(mask_ + 1)) {
     for (std::size_t i = 0; i <= mask_; ++i) slots_[i].seq.store(i, std::memory_order_relaxed);
   }
   MessageRing(const MessageRing&) = delete;
@@ -127,7 +126,7 @@ class MessageRing {
   const std::unique_ptr<Slot[]> slots_;
   alignas(64) std::atomic<std::uint64_t> head_{0};  // consumers (the worker; a full keep-last publisher)
   alignas(64) std::atomic<std::uint64_t> tail_{0};  // producers
-  std::atomic<std::uint64_t> cached_head_{0};        // producers: a head seen earlier
+  std::atomic<std::uint64_t> cached_head_{0};       // producers: a head seen earlier
 };
 
 }  // namespace tinyline::bus::detail

@@ -75,28 +75,28 @@ struct ArgDecl {
 struct NodeSpec {
   std::string pkg;
   std::string exec;
-  std::string name;       ///< defaults to exec
-  std::string ns = "/";   ///< with every enclosing group's namespace applied
+  std::string name;      ///< defaults to exec
+  std::string ns = "/";  ///< with every enclosing group's namespace applied
   std::vector<bus::ParamOverride> params;
   std::vector<bus::Remap> remaps;
-  std::string process;    ///< process group ("" = the launching process)
-  bool respawn = false;   ///< restart its process if it dies (process groups only)
-  bool dds = false;       ///< every topic of this node also travels over DDS
+  std::string process;             ///< process group ("" = the launching process)
+  bool respawn = false;            ///< restart its process if it dies (process groups only)
+  bool dds = false;                ///< every topic of this node also travels over DDS
   bus::SourceLocation where;       ///< the node entry
   bus::SourceLocation exec_where;  ///< its exec value (for unknown types)
 };
 
 /// The file's `dds` actions, merged.
 struct DdsPlan {
-  bool all = false;                  ///< every topic travels over DDS
-  std::vector<std::string> topics;   ///< these (absolute names) travel over DDS
-  std::optional<int> domain_id;      ///< overrides ROS_DOMAIN_ID
-  std::string config;                ///< Cyclone DDS configuration (XML or file:// URI); overrides CYCLONEDDS_URI
-  bus::SourceLocation where;         ///< the first dds action (empty if none)
+  bool all = false;                 ///< every topic travels over DDS
+  std::vector<std::string> topics;  ///< these (absolute names) travel over DDS
+  std::optional<int> domain_id;     ///< overrides ROS_DOMAIN_ID
+  std::string config;               ///< Cyclone DDS configuration (XML or file:// URI); overrides CYCLONEDDS_URI
+  bus::SourceLocation where;        ///< the first dds action (empty if none)
 };
 
 struct LaunchPlan {
-  std::vector<ArgDecl> args;    ///< arguments of the top-level file
+  std::vector<ArgDecl> args;  ///< arguments of the top-level file
   std::vector<NodeSpec> nodes;
   DdsPlan dds;
   std::vector<std::string> files;  ///< every file read, top-level first
@@ -110,17 +110,16 @@ struct LoadOptions {
   /// messages. Empty: a regular file of at most max_file_bytes
   /// (files::read_text). Tests and the fuzzer serve files from memory.
   std::function<std::string(const std::string& path, std::string_view what)> read_file;
-  std::uint64_t max_file_bytes = 1 << 20;     ///< a launch, include or parameter file [bytes]
-  int max_include_depth = 32;                 ///< files open at once (the top file counts)
-  std::size_t max_value_bytes = 64 << 10;     ///< one value after substitution [bytes]
+  std::uint64_t max_file_bytes = 1 << 20;       ///< a launch, include or parameter file [bytes]
+  int max_include_depth = 32;                   ///< files open at once (the top file counts)
+  std::size_t max_value_bytes = 64 << 10;       ///< one value after substitution [bytes]
   std::uint64_t max_expanded_bytes = 16 << 20;  ///< all substitution output of one load [bytes]
-  int max_substitution_depth = 16;            ///< $( inside $( inside ...
+  int max_substitution_depth = 16;              ///< $( inside $( inside ...
 };
 
 /// Reads a launch file and everything it includes. Throws LaunchError.
 LaunchPlan load_launch_file(const std::string& path, const LoadOptions& options = {});
-LaunchPlan load_launch_string(const std::string& yaml, const std::string& source_name,
-                              const LoadOptions& options = {});
+LaunchPlan load_launch_string(const std::string& yaml, const std::string& source_name, const LoadOptions& options = {});
 
 /// Builds every node of the plan in `context` (those of `process` only).
 /// Throws LaunchError naming the launch-file entry: unknown node type (with

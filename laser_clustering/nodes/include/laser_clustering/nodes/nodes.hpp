@@ -150,7 +150,7 @@ class AlignmentSearchNode : public bus::Node {
   std::string joint_;
   double window_s_ = 0.0;
   double max_joint_age_s_ = 0.0;
-  std::deque<std::pair<bus::Time, double>> pitch_;    // joint history (stamp, rad)
+  std::deque<std::pair<bus::Time, double>> pitch_;  // joint history (stamp, rad)
   std::deque<std::pair<bus::Time, AlignmentSample>> samples_;
   LineScan scan_;
   double min_reflectance_ = 0.0;

@@ -23,7 +23,7 @@ namespace tinyline::sim::eval {
 /// One calibrated scan with the ground truth of every pixel.
 struct SimulatedScan {
   laser_clustering::LineScan scan;
-  std::vector<ObjectId> truth_object;    ///< per pixel: what its central ray hits (kNoObject: nothing)
+  std::vector<ObjectId> truth_object;     ///< per pixel: what its central ray hits (kNoObject: nothing)
   std::vector<std::uint8_t> truth_mixed;  ///< per pixel: its footprint spans several surfaces
 };
 

@@ -57,19 +57,20 @@ struct DriverParams {
   /// or "distance" (the firmware does). Only checked and reported: frames of
   /// either kind are always read.
   std::string mode = "auto";
-  double baud = 2'000'000;            ///< link rate [bit/s]
-  int readouts_per_set = 5;           ///< raw mode: frames per set
-  OpticsParams optics;                ///< focal_mm, sensor_length_mm
-  std::string frame_id = "laser";     ///< sensor frame: z forward, x along the line
-  std::string scan_frame_id;          ///< LaserScan frame (x = sensor z, y = sensor x); "" = frame_id + "_scan"
-  std::string calibration = "default";  ///< calibration YAML, "public:K" (R J S K T), or "default" (the simulated sensor's)
-  double distance_unit_m = 1e-4;      ///< distance frames: the firmware's unit [m] (the published firmware: 0.1 mm)
-  int stale_after = 20;               ///< fresh measurements a pixel may stay unchanged while its neighbours change
-  std::string sensor_name;            ///< name in LaserCommand.sensors; "" = the node's name
-  int sequence_slot = -1;             ///< sequence mode slot (>= 0: laser off until a LaserCommand enables the slot)
-  bool send_stream_mode = false;      ///< send the 0x11 stream-mode command on connect (tinyline extension)
-  double reconnect_min_s = 0.05;      ///< first retry after a disconnect [s]
-  double reconnect_max_s = 0.5;       ///< longest wait between retries [s] (keeps resume-after-replug under 1 s)
+  double baud = 2'000'000;         ///< link rate [bit/s]
+  int readouts_per_set = 5;        ///< raw mode: frames per set
+  OpticsParams optics;             ///< focal_mm, sensor_length_mm
+  std::string frame_id = "laser";  ///< sensor frame: z forward, x along the line
+  std::string scan_frame_id;       ///< LaserScan frame (x = sensor z, y = sensor x); "" = frame_id + "_scan"
+  std::string calibration =
+      "default";                  ///< calibration YAML, "public:K" (R J S K T), or "default" (the simulated sensor's)
+  double distance_unit_m = 1e-4;  ///< distance frames: the firmware's unit [m] (the published firmware: 0.1 mm)
+  int stale_after = 20;           ///< fresh measurements a pixel may stay unchanged while its neighbours change
+  std::string sensor_name;        ///< name in LaserCommand.sensors; "" = the node's name
+  int sequence_slot = -1;         ///< sequence mode slot (>= 0: laser off until a LaserCommand enables the slot)
+  bool send_stream_mode = false;  ///< send the 0x11 stream-mode command on connect (tinyline extension)
+  double reconnect_min_s = 0.05;  ///< first retry after a disconnect [s]
+  double reconnect_max_s = 0.5;   ///< longest wait between retries [s] (keeps resume-after-replug under 1 s)
   double diagnostics_period_s = 1.0;  ///< [s]
   double stall_timeout_s = 1.0;       ///< connected but no complete frame for this long: WARN [s]
   bool threaded = true;               ///< run the I/O thread (false: the embedding code calls pump())
@@ -79,26 +80,26 @@ struct DriverParams {
 /// What the link is doing, for diagnostics and tests (a copy, thread-safe).
 struct DriverStatus {
   bool connected = false;
-  std::string link;                  ///< the open stream, e.g. "/dev/ttyUSB0 at 2000000 baud"
+  std::string link;  ///< the open stream, e.g. "/dev/ttyUSB0 at 2000000 baud"
   io::IoError last_error = io::IoError::kNone;
   std::string last_error_message;
-  std::uint64_t connects = 0;        ///< successful opens
-  std::uint64_t disconnects = 0;     ///< streams lost while open
+  std::uint64_t connects = 0;     ///< successful opens
+  std::uint64_t disconnects = 0;  ///< streams lost while open
   std::uint64_t open_failures = 0;
-  std::uint64_t scans_published = 0; ///< LineScans
-  std::uint64_t bytes = 0;           ///< bytes received
+  std::uint64_t scans_published = 0;  ///< LineScans
+  std::uint64_t bytes = 0;            ///< bytes received
   std::uint64_t commands_sent = 0;
-  std::optional<bool> laser_on;      ///< last laser state sent (sequence mode)
+  std::optional<bool> laser_on;  ///< last laser state sent (sequence mode)
   ParserStats parser;
-  RepeatStats distance_repeats;      ///< distance frames: repeats, torn frames, fresh measurements
-  std::uint64_t raw_repeats = 0;     ///< raw sets equal to the one before (not published)
+  RepeatStats distance_repeats;   ///< distance frames: repeats, torn frames, fresh measurements
+  std::uint64_t raw_repeats = 0;  ///< raw sets equal to the one before (not published)
   int last_stale_pixels = 0;
-  RangeShares ranges;                ///< valid distance-frame pixels against the sensor's range (this period)
-  std::string commands;              ///< CommandWatch::summary()
+  RangeShares ranges;    ///< valid distance-frame pixels against the sensor's range (this period)
+  std::string commands;  ///< CommandWatch::summary()
   bool ignores_laser_off = false;
   bus::Time last_scan_stamp;
-  bus::Time last_receive;            ///< clock time of the last byte received
-  bus::Time connected_at;            ///< clock time of the last successful open
+  bus::Time last_receive;  ///< clock time of the last byte received
+  bus::Time connected_at;  ///< clock time of the last successful open
   double last_saturated_share = 0.0;
   double last_valid_share = 0.0;
   double last_temperature_c = 0.0;

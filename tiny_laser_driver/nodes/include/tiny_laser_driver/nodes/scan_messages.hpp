@@ -20,7 +20,7 @@ namespace tinyline::tiny_laser_driver {
 
 /// RawScan of a set, as transmitted.
 [[nodiscard]] std::unique_ptr<tinyline_msgs::msg::RawScan> to_raw_scan(const RawSet& set, bus::Time stamp,
-                                                                      const std::string& frame_id);
+                                                                       const std::string& frame_id);
 
 /// The set a RawScan carries, or nullopt with `why` when the message cannot
 /// be one (pixel count, array lengths, pulses).
@@ -32,11 +32,11 @@ class ScanMessages {
   ScanMessages(const ScanProcessor& processor, std::string frame_id, std::string scan_frame_id);
 
   [[nodiscard]] std::unique_ptr<tinyline_msgs::msg::LineScan> line(const ProcessedScan& scan, std::uint32_t index,
-                                                                  bus::Time stamp, float temperature_c) const;
+                                                                   bus::Time stamp, float temperature_c) const;
   /// REP 117 ranges: the distance, +inf where nothing came back (too dark),
   /// NaN where the reading is unusable; intensities: (a + b) per pulse.
   [[nodiscard]] std::unique_ptr<sensor_msgs::msg::LaserScan> laser(const ProcessedScan& scan, bus::Time stamp,
-                                                                  double scan_time_s) const;
+                                                                   double scan_time_s) const;
   [[nodiscard]] const std::string& frame_id() const { return frame_id_; }
 
  private:

@@ -38,14 +38,15 @@ enum class HarvestOutcome {
 struct HarvestTrial {
   char complexity = 'B';
   std::uint64_t seed = 0;
-  int truth = -1;        ///< the true tomato (index into the truss)
-  bool detected = false; ///< SD: a sphere of the pipeline matched it
-  int pick_rank = -1;    ///< its place in the pick order (-1: not attempted)
-  int attempts = 0;      ///< attempts made at it
-  int scans = 0;         ///< laser scans over its attempts
+  int truth = -1;         ///< the true tomato (index into the truss)
+  bool detected = false;  ///< SD: a sphere of the pipeline matched it
+  int pick_rank = -1;     ///< its place in the pick order (-1: not attempted)
+  int attempts = 0;       ///< attempts made at it
+  int scans = 0;          ///< laser scans over its attempts
   HarvestOutcome outcome = HarvestOutcome::kLeftForHuman;
-  std::string cuts;      ///< each attempt's end, ';'-separated: sim::to_string(CutResult), or "no cut" (the verification refused)
-  std::string jammed_on; ///< what stopped the blades (kCutFailure)
+  std::string
+      cuts;  ///< each attempt's end, ';'-separated: sim::to_string(CutResult), or "no cut" (the verification refused)
+  std::string jammed_on;  ///< what stopped the blades (kCutFailure)
 };
 
 /// The blades closing at a throat pose on the truss as it now hangs
@@ -54,15 +55,15 @@ using CutModel =
     std::function<sim::CutOutcome(const sim::Truss& truss, const Eigen::Isometry3d& T_world_throat, int target)>;
 
 struct HarvestOptions {
-  int attempts = 2;          ///< the thesis's: a second try, then human support
+  int attempts = 2;  ///< the thesis's: a second try, then human support
   /// The attempts after the first go towards a pedicel the finder sees
   /// beyond max_move_m (VerificationOptions::approach_far): the thesis's
   /// "laser guide mode" when nothing is found where the pedicel should be.
   /// Off: on tuning trusses it picked 3 more fruit of 473 and jammed the
   /// blades 23 more times (docs/tomato_reasoning.md, "Harvest trials").
   bool later_attempts_approach_far = false;
-  sim::BladeParams blades;   ///< the default cut model's scissors
-  double match_m = 0.01;     ///< a detection is a true tomato when its centre is this near [m]
+  sim::BladeParams blades;  ///< the default cut model's scissors
+  double match_m = 0.01;    ///< a detection is a true tomato when its centre is this near [m]
 };
 
 /// Sets one option by name (attempts, later_attempts_approach_far=0|1);

@@ -20,13 +20,13 @@ namespace tinyline::tomato_reasoning::eval {
 [[nodiscard]] ColorCloud to_cloud(const sim::RgbdFrame& frame);
 
 struct TruthTomato {
-  Eigen::Vector3d centre_m;      ///< camera frame
+  Eigen::Vector3d centre_m;  ///< camera frame
   double radius_m = 0;
-  Eigen::Vector3d pedicel_dir;   ///< camera frame, unit
+  Eigen::Vector3d pedicel_dir;  ///< camera frame, unit
   Eigen::Vector3d pedicel_force_n;
-  int visible_pixels = 0;        ///< pixels of the first frame that see this fruit
-  int visible_pixels_any = 0;    ///< ... of the view that sees most of it
-  int edges = 0;                 ///< fruit-fruit contacts
+  int visible_pixels = 0;      ///< pixels of the first frame that see this fruit
+  int visible_pixels_any = 0;  ///< ... of the view that sees most of it
+  int edges = 0;               ///< fruit-fruit contacts
 };
 
 struct ScenarioOptions {
@@ -54,16 +54,17 @@ struct Scenario {
   std::vector<sim::RgbdFrame> frames;
   std::vector<ColorCloud> clouds;
   std::vector<Eigen::Isometry3d> T_ref_camera;  ///< as the pipeline is told (with the pose noise)
-  std::vector<TruthTomato> truth;             ///< reference frame, in the truss's order
-  std::vector<Eigen::Vector3d> distractors;   ///< the second branch's fruit, reference frame
-  std::vector<std::pair<int, int>> contacts;  ///< fruit-fruit contacts (truth indices)
-  Eigen::Vector3d gravity_camera;             ///< unit gravity in the reference frame
+  std::vector<TruthTomato> truth;               ///< reference frame, in the truss's order
+  std::vector<Eigen::Vector3d> distractors;     ///< the second branch's fruit, reference frame
+  std::vector<std::pair<int, int>> contacts;    ///< fruit-fruit contacts (truth indices)
+  Eigen::Vector3d gravity_camera;               ///< unit gravity in the reference frame
 
   [[nodiscard]] const sim::RgbdFrame& frame() const { return frames.front(); }
   [[nodiscard]] const ColorCloud& cloud() const { return clouds.front(); }
 };
 
 /// Builds the truss of (class, seed) and renders it from its hand-camera pose(s).
-[[nodiscard]] Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed, const ScenarioOptions& options = {});
+[[nodiscard]] Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed,
+                                     const ScenarioOptions& options = {});
 
 }  // namespace tinyline::tomato_reasoning::eval

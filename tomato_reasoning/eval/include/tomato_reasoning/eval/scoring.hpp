@@ -27,19 +27,19 @@ struct ScoreParams {
 
 struct TomatoScore {
   int truth = -1;
-  int detection = -1;              ///< index into PipelineResult::tomatoes, -1 if missed
-  double visible_share = 0.0;      ///< seen pixels / pixels of its unoccluded disc
+  int detection = -1;          ///< index into PipelineResult::tomatoes, -1 if missed
+  double visible_share = 0.0;  ///< seen pixels / pixels of its unoccluded disc
   double centre_error_m = NAN;
-  double radius_error_m = NAN;     ///< estimate - truth
+  double radius_error_m = NAN;  ///< estimate - truth
   int edges_true = 0;
   int edges_estimated = -1;
-  double pedicel_error_deg = NAN;  ///< expected direction vs the true pedicel
+  double pedicel_error_deg = NAN;       ///< expected direction vs the true pedicel
   double gravity_only_error_deg = NAN;  ///< straight up (no reasoning) vs the true pedicel
   double force_dir_error_deg = NAN;     ///< expected direction vs the true pedicel *force*
   bool truth_in_hpd = false;
   double spread50_deg = NAN;
-  double cut_coverage = NAN;       ///< predicted probability inside the planned cut's cover
-  bool cut_covers_truth = false;   ///< the true pedicel lies inside the planned cut's cover
+  double cut_coverage = NAN;      ///< predicted probability inside the planned cut's cover
+  bool cut_covers_truth = false;  ///< the true pedicel lies inside the planned cut's cover
   int pick_rank = -1;
 };
 
@@ -50,13 +50,13 @@ struct TrussScore {
   std::string stage, reason;
   int truth = 0;
   int detected = 0;
-  int visible = 0;                 ///< tomatoes with visible_share >= the threshold
+  int visible = 0;  ///< tomatoes with visible_share >= the threshold
   int visible_detected = 0;
   int detections = 0;
-  int unmatched = 0;               ///< spheres not within match_distance of any tomato
-  int on_distractor = 0;           ///< ... of which near a fruit of the second branch
+  int unmatched = 0;                             ///< spheres not within match_distance of any tomato
+  int on_distractor = 0;                         ///< ... of which near a fruit of the second branch
   int edges_tp = 0, edges_fp = 0, edges_fn = 0;  ///< among detected tomatoes
-  bool first_pick_real = false;    ///< the first pick is a detected true tomato
+  bool first_pick_real = false;                  ///< the first pick is a detected true tomato
   StageTimes times;
   std::vector<TomatoScore> tomatoes;
 };
@@ -66,7 +66,7 @@ struct TrussScore {
 struct Summary {
   int trusses = 0, truth = 0, detected = 0, visible = 0, visible_detected = 0, detections = 0, unmatched = 0;
   double centre_median_mm = NAN, centre_p95_mm = NAN;
-  double radius_median_mm = NAN, radius_p95_mm = NAN;    ///< of |error|
+  double radius_median_mm = NAN, radius_p95_mm = NAN;  ///< of |error|
   double pedicel_median_deg = NAN, pedicel_p95_deg = NAN;
   double gravity_only_median_deg = NAN, gravity_only_p95_deg = NAN;
   double hpd_hit_rate = NAN;

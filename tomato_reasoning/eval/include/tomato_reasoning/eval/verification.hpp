@@ -28,8 +28,8 @@ struct VerificationOptions {
   /// Table 4.3 "random offset alignment": the pose is moved by up to this
   /// much (uniform in the disc square to the pedicel) before the scan [m]; 0 off.
   double random_offset_m = 0.0;
-  double scissor_opening_m = 0.02;   ///< the throat holds the pedicel within half of this laterally
-  double depth_tolerance_m = 0.02;   ///< ... and within this of the throat's depth (the blades are long)
+  double scissor_opening_m = 0.02;  ///< the throat holds the pedicel within half of this laterally
+  double depth_tolerance_m = 0.02;  ///< ... and within this of the throat's depth (the blades are long)
   /// The hand laser: the gripper's wide-fan sensor with a short read-out
   /// schedule and a calibration fitted over its close working range, as
   /// laser_clustering's evaluation configures its gripper scanner (the
@@ -76,18 +76,18 @@ enum class PickVerdict { kAligned, kWrong, kOutOfView, kNothingFound };
 struct VerificationTrial {
   char complexity = 'B';
   std::uint64_t seed = 0;
-  int truth = -1;                   ///< the true tomato picked
+  int truth = -1;  ///< the true tomato picked
   int pick_rank = -1;
-  double offset_m = 0.0;            ///< random offset applied
-  bool vision_on_pedicel = false;   ///< the throat at the (offset) picking pose is already on the pedicel
+  double offset_m = 0.0;           ///< random offset applied
+  bool vision_on_pedicel = false;  ///< the throat at the (offset) picking pose is already on the pedicel
   Verification::Outcome outcome = Verification::Outcome::kFailed;
   PickVerdict verdict = PickVerdict::kNothingFound;
-  bool on_pedicel = false;          ///< after the verification, the throat is on the target's pedicel
-  double lateral_error_m = NAN;     ///< target pedicel vs throat after the move, along the laser line
-  double depth_error_m = NAN;       ///< ... along the laser's axis (+: the pedicel lies beyond the throat)
-  double move_m = NAN;              ///< length of the hand's net move (the closed loop's moves summed)
+  bool on_pedicel = false;       ///< after the verification, the throat is on the target's pedicel
+  double lateral_error_m = NAN;  ///< target pedicel vs throat after the move, along the laser line
+  double depth_error_m = NAN;    ///< ... along the laser's axis (+: the pedicel lies beyond the throat)
+  double move_m = NAN;           ///< length of the hand's net move (the closed loop's moves summed)
   double confidence = 0.0;
-  int scans = 0;                    ///< laser scans taken (1 + the closed loop's re-scans)
+  int scans = 0;  ///< laser scans taken (1 + the closed loop's re-scans)
   std::string reason;
 };
 
@@ -95,7 +95,7 @@ struct VerificationTrial {
 struct LoopEnd {
   Verification verification;  ///< will_cut(): the blades close at verification.T_ref_laser_final
   std::optional<laser_clustering::PedicelExpectation> belief;  ///< what the next scan from there would expect
-  Eigen::Vector3d total_move = Eigen::Vector3d::Zero();  ///< the hand's moves, summed (reference frame) [m]
+  Eigen::Vector3d total_move = Eigen::Vector3d::Zero();        ///< the hand's moves, summed (reference frame) [m]
   int scans = 0;
 };
 
@@ -108,7 +108,8 @@ class VerificationHarness {
 
   /// Verifies the pick of every detected tomato of `result` (matched to the
   /// truth within `match_m`), in pick order.
-  [[nodiscard]] std::vector<VerificationTrial> run(const Scenario& s, const PipelineResult& result, double match_m = 0.01);
+  [[nodiscard]] std::vector<VerificationTrial> run(const Scenario& s, const PipelineResult& result,
+                                                   double match_m = 0.01);
   [[nodiscard]] std::string describe() const;
   [[nodiscard]] const VerificationOptions& options() const { return o_; }
 
@@ -123,10 +124,9 @@ class VerificationHarness {
                                     bool approach_far);
 
  private:
-  [[nodiscard]] laser_clustering::PedicelDetection look(const sim::World& world, const Scenario& s,
-                                                        const Eigen::Isometry3d& T_ref_laser,
-                                                        const std::optional<laser_clustering::PedicelExpectation>& belief,
-                                                        std::uint64_t scan_seed);
+  [[nodiscard]] laser_clustering::PedicelDetection look(
+      const sim::World& world, const Scenario& s, const Eigen::Isometry3d& T_ref_laser,
+      const std::optional<laser_clustering::PedicelExpectation>& belief, std::uint64_t scan_seed);
   [[nodiscard]] laser_clustering::PedicelFinderParams finder() const;
 
   VerificationOptions o_;

@@ -32,12 +32,12 @@ class RgbdFileError : public std::runtime_error {
 
 /// A pinhole camera whose depth image is registered to its colour image.
 struct CameraIntrinsics {
-  int width = 0;   ///< [px]
-  int height = 0;  ///< [px]
-  double fx = 0;   ///< [px]
-  double fy = 0;   ///< [px]
-  double cx = 0;   ///< [px]
-  double cy = 0;   ///< [px]
+  int width = 0;                ///< [px]
+  int height = 0;               ///< [px]
+  double fx = 0;                ///< [px]
+  double fy = 0;                ///< [px]
+  double cx = 0;                ///< [px]
+  double cy = 0;                ///< [px]
   double depth_scale = 1000.0;  ///< depth image units per metre (1000: mm; TUM uses 5000)
 };
 
