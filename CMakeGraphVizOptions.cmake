@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # What `cmake --graphviz` draws (scripts/architecture_graph, the picture in
 # docs/architecture.md): the project's libraries and how they link, without
 # tests, evaluation and benchmark programs or third-party libraries.

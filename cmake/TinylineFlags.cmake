@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # One place for compiler flags: every project target calls
 # tinyline_apply_flags(), which adds the warning set, warnings-as-errors and
 # the sanitizer chosen with -DTINYLINE_SANITIZE=...

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Helpers that make every package look the same:
 #
 #   tinyline_core_library(<name> SOURCES ... [DEPS ...])

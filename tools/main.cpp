@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline: the command line of the tinyline node suite.
 #include <algorithm>
 #include <exception>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bag benchmarks (docs/benchmarks.md, "Bags"), each beside its reference in
 // the same run:
 //   Record/*          the MCAP writer with none, lz4, zstd on 2 s of realistic

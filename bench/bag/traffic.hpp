@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Realistic recording traffic for the bag benchmarks, serialized once:
 //   /tiny/raw       tinyline_msgs/RawScan, 272 px x 5 read-outs (5.5 KB) at 36 Hz
 //   /tiny/scan      tinyline_msgs/LineScan, 256 px (4.9 KB) at 100 Hz

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The in-process bus against its floor and a peer, in one run.
 //
 //   floor:  a direct call (same thread); a lock-free single-slot handoff

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Cost of calibration at run time and at fit time, each beside a reference in
 // the same run:
 //   per raw set (256 pixels): CalibrationModel::distance_m vs the public

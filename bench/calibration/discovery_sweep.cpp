@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // calibration_discovery_sweep: how often the residual loop names an effect on
 // the simulator, over many seeds: the share of effect-free runs that name
 // anything (the null rate; goal <= 5 %) and, per injected effect, the share

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The graph across processes over DDS beside Cyclone DDS alone and beside the
 // same graph in one process, in one run (pingpong.hpp says what runs where).
 //

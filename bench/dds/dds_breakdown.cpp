@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where a round trip's time goes: the ping-pong of dds_bench (pingpong.hpp),
 // Cyclone alone and through tinyline's bridges, with a timestamp at every
 // stage in both processes (bus/dds/src/probe.hpp, compiled into this

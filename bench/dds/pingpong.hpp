@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The ping-pong both DDS benchmarks run (dds_bench, dds_breakdown): a ping in
 // this process, a relay in a second process this binary starts
 // (`<binary> --pong bridge|engine`), two DDS hops per round trip.

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Cyclone DDS alone beside tinyline's bridged graph, in one run.
 
 Runs dds_bench's Engine (Cyclone alone: same sertype, QoS, configuration and

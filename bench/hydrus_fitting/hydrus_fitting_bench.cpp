@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // hydrus_fitting benchmarks. Per update with 4 sensors (4 x 256 pixels): the
 // full CircleEstimator (fusion at each scan's joint angles, self-filter,
 // weighted MSAC with viewpoints, incidence refit, bias removal) beside the

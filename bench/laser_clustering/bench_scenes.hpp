@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Inputs shared by the laser_clustering benchmarks: a seeded set of
 // 256-pixel pedicel scans (pedicels, tomatoes, a background wall, drag,
 // noise) from the unit tests' scan synthesiser, and 3-D point clouds of

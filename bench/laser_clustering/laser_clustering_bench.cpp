@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // laser_clustering benchmarks. Per 256-pixel scan: the whole two-stage
 // clustering + pedicel finding (the fast path), against the same two DBSCAN
 // passes on the same points through the FLANN path and the brute-force

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Side-by-side timing of laser_clustering against scikit-learn, in one run.
 
 1. Asks the C++ benchmark for its inputs (--dump_points): the 64 scans'

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Simulated sensor sets per second on one core, against references in the
 // same run:
 //   BM_RaycastReference   the bare ray casts one set needs (sub-rays, truth

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Host cost per raw set, stage by stage, on one core:
 //   Parse                 bytes (4 KiB reads, as a serial port returns them) -> RawSet
 //   ParseSelectCalibrate  + per pixel: read-out selection, calibration model, status, reflectance

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tomato pipeline per VGA frame beside a PCL chain that does the same
 // work with PCL's classes (docs/benchmarks.md, "Tomato reasoning"):
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <tinyline/bus/qos.hpp>
 
 #include <fmt/format.h>

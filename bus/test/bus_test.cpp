@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests of the in-process bus: delivery, zero-copy fan-out, QoS, executors,
 // timers on sim time, parameters, names and graph introspection.
 #include <gtest/gtest.h>

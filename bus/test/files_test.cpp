@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests of the input and output helpers every reader and writer of files uses.
 #include <gtest/gtest.h>
 #include <sys/stat.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // bus::testing::NodeRig, the node-test helper every package's node tests use:
 // registration, creation by type, collection of a topic, stepped time, the log.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one file that compiles CLI11 (see cli.hpp).
 #include <tinyline/common/cli.hpp>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one Levenberg-Marquardt loop, on a small nonlinear fit.
 #include <algorithm>
 #include <cmath>

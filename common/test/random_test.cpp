@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one random generator: the reference sequences and the draws' ranges.
 #include <cmath>
 #include <cstdint>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The seed registry: what each seed is for, the labels figures carry, and
 // the refusal to tune on held-out seeds.
 #include <cstdint>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one way to say "these parameters are invalid".
 #include <gtest/gtest.h>
 

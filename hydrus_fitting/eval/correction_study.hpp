@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where the second-order correction helps: the fit CircleEstimator runs
 // (geometric, radius bias removed) with and without
 // RefineParams::correction = kSecondOrder, outside the design the

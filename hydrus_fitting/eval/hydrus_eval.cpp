@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Monte-Carlo studies of docs/hydrus_fitting.md, written as CSV.
 //
 //   hydrus_eval kcr        [--trials N] [--seed N] [--tuning] [--out FILE]

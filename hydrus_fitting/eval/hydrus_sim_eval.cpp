@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Hydrus grasp in the physics simulator under the three emission
 // schedules, written as CSV for docs/hydrus_fitting.md:
 //

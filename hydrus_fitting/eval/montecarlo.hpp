@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Monte-Carlo studies behind docs/hydrus_fitting.md.
 //
 //  kcr_study         circle fits against the KCR lower bound (Chernov &

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Synthetic planar scans for tests, benchmarks and the Monte-Carlo studies:
 // every pixel of every sensor on the robot ray-traced in the sensing plane
 // against cylinders, walls and the robot's own links, with the range noise

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Hydrus grasp in the physics simulator (sim/), end to end and
 // deterministic: the robot of sim/config/scenes/hydrus4_grasp.yaml flies in
 // and closes its links (ApproachParams); every set of every sensor is

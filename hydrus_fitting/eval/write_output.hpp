@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where the evaluation programs put a table: stdout, or a file they name on
 // stderr (so a shell pipeline keeps only the data).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "hydrus_fitting/base_motion.hpp"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "hydrus_fitting/circle_fit.hpp"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Independent circle fits for hydrus_fitting's circle_fit_reference_test.
 
 Reads a CSV of points (case,x,y), fits every case with published

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The standard circle fits against independent, published implementations
 // (circle_fit_reference.py in the test virtual env: scikit-image's Kasa,
 // circle-fit's Pratt, Taubin, Hyper and geometric Levenberg-Marquardt):

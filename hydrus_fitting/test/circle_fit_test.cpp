@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Circle fits: exact recovery, degenerate input, Kasa's bias against Hyper,
 // the geometric fit against the KCR bound, the reported covariance against
 // the observed spread, and robustness to outliers.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The whole update (fuse the four sensors at their joint angles, filter the
 // robot out, fit robustly) on exact planar geometry with Table 3.1 noise.
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fusion: scans placed in the robot frame with the joint angles at their own
 // timestamps, the self-filter of 6.2.3, and every bad input as an outcome.
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The hydrus_fitting nodes on the bus: built by name, fed JointState and
 // LineScan messages (exact planar scenes with Table 3.1 noise), stepped by
 // the deterministic executor on sim time (no sleeps).

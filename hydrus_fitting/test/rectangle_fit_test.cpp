@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The box-side fit (Figure 6.7 A): two perpendicular sides, one side with a
 // known size, outliers, and degenerate input.
 #include <cmath>

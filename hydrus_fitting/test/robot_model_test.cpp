@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Robot description loading (errors with file, line, field), planar forward
 // kinematics, and the joint-state buffer (interpolation, stale states).
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The sequencer: interference from geometry, minimum colourings, schedules
 // that are safe, their rates against the thesis's time slicing, and
 // recomputation as the robot moves.

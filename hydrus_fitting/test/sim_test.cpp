@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Hydrus in the physics simulator: the scene agrees with the robot
 // description, bad scenes are named, and crosstalk is there without the
 // sequencer and gone with it (short windows of eval/sim_study).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The grasp manoeuvre: fly in open, close, hold; clamped and validated.
 #include <gtest/gtest.h>
 

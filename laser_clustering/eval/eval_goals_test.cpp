@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The evaluation of docs/laser_clustering.md as a test: 200 seeded trials per
 // case on the simulated sensor (the same seeds and scanners as
 // laser_clustering_eval), failing when a goal of docs/laser_clustering.md is missed or a

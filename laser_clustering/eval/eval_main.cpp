@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // laser_clustering_eval: the evaluation of docs/laser_clustering.md.
 //
 //   laser_clustering_eval [--trials 200] [--seed 1] [--out out/laser_clustering_eval]

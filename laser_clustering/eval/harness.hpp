@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The evaluation harness of docs/laser_clustering.md: seeded trials of the
 // scenes in scenes.hpp, scanned by a Scanner (the simulated sensor and the
 // driver's processing, see sim/eval/scanner.hpp), scored against ground truth,

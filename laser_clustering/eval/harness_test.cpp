@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The harness's scoring on an idealised scanner (central rays only, Gaussian
 // range noise): the verdict logic and the confidence intervals. The reported
 // figures come from the simulated sensor, never from this scanner.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scenes of the laser_clustering evaluation (docs/laser_clustering.md),
 // built on the simulator's world (sim/world.hpp) from a seed, with their
 // ground truth:

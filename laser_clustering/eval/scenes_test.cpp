@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The evaluation's scenes: their geometry and ground truth, by ray casting.
 #include <cmath>
 #include <numbers>

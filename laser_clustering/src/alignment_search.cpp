@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "laser_clustering/alignment_search.hpp"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The general-point-set DBSCAN on FLANN's exact single kd-tree. FLANN's
 // headers are heavy, so they stay in this one file.
 #include <algorithm>

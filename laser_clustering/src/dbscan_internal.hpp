@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pieces shared by the three DBSCAN neighbour searches (not installed).
 #pragma once
 

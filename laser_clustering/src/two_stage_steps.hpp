@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The steps of the two-stage clustering's edge filter and summaries
 // (two_stage.cpp), on their own so their contracts can be tested (not installed).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Our DBSCAN against scikit-learn's, on random and adversarial data: the
 // cases are written here (hex floats, exact), clustered by sklearn_dbscan.py
 // in the test virtual env, and compared: identical core and noise sets, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // DBSCAN semantics on hand-made cases, and the three neighbour searches
 // (FLANN, brute force, ordered-scan fast path) agreeing label for label.
 #include <cmath>

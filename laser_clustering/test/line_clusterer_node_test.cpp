@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The line_clusterer node (two-stage clustering of each scan).
 
 #include "node_rig.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The laser_clustering nodes' test rig: the nodes on stepped sim time,
 // scans as messages, and the synthetic scenes the node tests share (one
 // file of tests per node includes it).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The laser_clustering nodes on the bus: built by name with remaps and
 // parameters, fed LineScan messages, stepped by the deterministic executor
 // on sim time (no sleeps). The tests of each node are in <node>_node_test.cpp;

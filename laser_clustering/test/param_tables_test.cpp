@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Each parameter described once: the settings' tables give the nodes their
 // parameters (names, defaults, ranges), and every table field is settable.
 #include <limits>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pedicel_finder node: detections, the vision's layout, the closed loop.
 
 #include "node_rig.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pedicel finder on hand-made scans: the move it reports, and its explicit
 // outcomes.
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pitch_sweep node.
 
 #include "node_rig.hpp"

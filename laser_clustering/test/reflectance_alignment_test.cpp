@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reflectance clustering (Figure 5.8) and the alignment search (5.3.2) on
 // hand-made data.
 #include <algorithm>

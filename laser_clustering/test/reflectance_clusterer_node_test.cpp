@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The reflectance_clusterer node.
 
 #include "node_rig.hpp"

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Runs scikit-learn's DBSCAN on the cases written by dbscan_sklearn_test.
 
 Input (text, one case after another):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The named stages inside the clustering, each against its own contract
 // (the headers in src/ are not installed; the whole pipelines are tested in
 // dbscan_test, two_stage_test and the brute-force agreement).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tomato_registration node.
 
 #include "node_rig.hpp"

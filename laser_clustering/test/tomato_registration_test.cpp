@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tomato registration on hand-made scans through a truss's tomatoes: the
 // vision's common offset recovered, a repeating truss reported ambiguous
 // rather than guessed, and bad input answered with a reason.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Two-stage line-scan clustering (4.4.2) on hand-made scans.
 #include <cmath>
 #include <limits>

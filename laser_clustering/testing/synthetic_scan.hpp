@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hand-made line scans for the unit tests and the benchmarks: a 2-D cut through the laser plane
 // with discs (rods and spheres cut by the plane) and an optional wall, each
 // pixel averaging several sub-rays weighted by received energy (mixed

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Generate C++ message types from ROS 2 .msg files.
 
 For each `<pkg>/<Type>.msg` this writes

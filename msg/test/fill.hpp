@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Test helpers: fill any generated message with pseudo-random values, and
 // dump it as JSON (for comparison with an independent decoder).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Messages: round trips of every type, hostile bytes, schema text, YAML, and
 // interop with an independent CDR implementation (rosbags) both ways.
 #include <gtest/gtest.h>

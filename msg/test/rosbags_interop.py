@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """CDR interop with rosbags, an independent CDR implementation.
 
 usage: rosbags_interop.py MSG_DIR WORK_DIR

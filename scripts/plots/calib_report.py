@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Plots of a `tinyline calib fit|diagnose --report DIR` report.
 
 Reads DIR/summary.json, DIR/residuals.csv (held-out read-outs with every

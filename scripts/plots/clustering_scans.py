@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Pictures of simulated scans with their clusters (docs/laser_clustering.md).
 
 Reads the scans the evaluation wrote (laser_clustering_eval --out DIR:

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """The Hydrus grasp in the simulator (docs/hydrus_fitting.md).
 
 Reads the CSVs of `hydrus_sim_eval` and writes

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Circle fits against the KCR lower bound (docs/hydrus_fitting.md).
 
 Reads the CSV of `hydrus_eval kcr` and writes docs/img/hydrus_kcr.png: the

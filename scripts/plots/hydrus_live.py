@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Centre error of a live `launch/hydrus_grasp.launch.yaml` run, from an MCAP
 bag of /hydrus/circle and /hydrus/truth (docs/hydrus_fitting.md).
 

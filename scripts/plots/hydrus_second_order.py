@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Markdown tables of the second-order analysis in docs/hydrus_fitting.md
 (why the fits exceed the KCR bound at 19.6 mm noise), from the CSV of
 `hydrus_eval second_order`.

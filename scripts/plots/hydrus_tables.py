@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Markdown tables of docs/hydrus_fitting.md from the CSVs of `hydrus_eval`.
 
     build/hydrus_fitting/hydrus_eval robustness --out /tmp/robustness.csv

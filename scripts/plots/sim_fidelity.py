@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Figures and tables of docs/simulator_fidelity.md and docs/simulator.md.
 
 Runs the fidelity harness (build/sim/sim_fidelity) on every step of the

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Pictures of docs/tomato_reasoning.md from tomato_dump's CSV files:
 a cloud with the fitted spheres, the force graph with the pedicel
 expectations, and the pedicel distribution on the sphere (thesis Figure 4.5).

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Tables of docs/tomato_reasoning.md from tomato_eval's output, with 95 %
 intervals: Wilson score intervals for rates, and for medians and 95th
 percentiles a bootstrap over trusses (tomatoes of one truss are not

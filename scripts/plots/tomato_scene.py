@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """The harvesting demo's picture: the camera's first view of the truss with
 the fitted spheres, expected pedicel directions, pick order, the laser
 verification's cuts, each pick's outcome and the harvest's score, read back

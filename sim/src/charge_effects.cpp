@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The `charge` effect (effects.hpp): undeclared physics that acts on the two
 // capacitors' charges rather than on the timing, its YAML and its application.
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The simulator against the thesis's measurements: regenerates Table 3.1,
 // Table 3.2 and the section 3.5 fits (seeded) and fails if they drift past
 // the fidelity goals. docs/simulator_fidelity.md shows the same numbers.

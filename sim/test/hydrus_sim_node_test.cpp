@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // hydrus_sim on the bus: stepped on sim time, it publishes the manoeuvre's
 // joint angles and the true cylinder in the robot frame, and moves the
 // sensors of the process's shared simulated system.

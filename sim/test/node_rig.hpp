@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The simulator's nodes' test rig: the nodes on stepped sim time with
 // everything they publish kept (one file of tests per node includes it).
 #pragma once

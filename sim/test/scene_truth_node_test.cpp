@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The scene_truth node on the bus, stepped on sim time by the deterministic
 // executor (no sleeps).
 

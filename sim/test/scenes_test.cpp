@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The shipped task scenes have the property they exist for.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A SimulatedSystem shares one scene among its sensors: who emits when is
 // recorded, so one sensor's sets catch another's light only while that one
 // emits (the host's sequence mode, Algorithm 4, relies on it).

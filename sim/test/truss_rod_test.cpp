@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The elastic-rod truss physics (scenes/truss_rod.hpp): checked against beam
 // theory computed here independently, and on whole trusses.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual device through its pseudo-terminal, as a host sees it. These
 // tests wait for bytes with poll() deadlines (the device runs on the wall
 // clock, like the hardware); none takes more than a couple of seconds.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual_sensor node on the bus, stepped on sim time by the deterministic
 // executor (no sleeps).
 

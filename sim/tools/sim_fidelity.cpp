@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // sim_fidelity: runs the thesis's experiments on a simulated sensor and
 // prints them beside the measured figures (docs/simulator_fidelity.md).
 //

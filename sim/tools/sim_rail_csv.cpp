@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // sim_rail_csv: calibration data from the simulated sensor on the simulated
 // calibration rail (sim/rail.hpp), as the CSV `tinyline calib fit` reads.
 // Used to make the default calibration the driver ships for the simulated

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // sim_scan: one simulated measurement set of a scene's sensor, as JSON: per
 // pixel the ray angle, the true range and what it hits, the raw read-outs,
 // the read-out the driver would choose, and the distance the on-board

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The driver node, with default parameters, reads a byte stream that
 // published_stream.py lays out exactly as the published firmware sends it
 // (written from the firmware's sources, not from tinyline's encoder): the

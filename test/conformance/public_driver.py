@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The sensor's public code, re-implemented in Python from reading it (not
 from tinyline's parser), for conformance checks.
 

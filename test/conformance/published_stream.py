@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A byte stream laid out exactly as the published firmware sends it, for the
 driver's conformance test (written from the firmware's Src/main.c and
 Src/itcallback.cpp, not from tinyline's encoder):

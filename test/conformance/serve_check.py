@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Conformance of `tinyline sim serve` with the sensor's public code.
 
 Runs `tinyline sim serve SCENE --link L --truth T [--firmware F]` as a

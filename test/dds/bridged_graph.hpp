@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A tinyline "process" inside a test: a context logging to a capture sink,
 // its DDS bridge with every topic selected, one node to publish and subscribe
 // from, and an executor on two threads once run() is called. For tests that

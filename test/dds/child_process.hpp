@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A child process for cross-process tests: its stdout and stderr merged into
 // lines the test waits on (with deadlines, never sleeps), signals, and a
 // destructor that leaves nothing running.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // An independent DDS implementation (the cyclonedds package from PyPI, with
 // its own Cyclone DDS and its own CDR code) exchanges sensor_msgs/LaserScan
 // with a tinyline bridge, declaring the types the way ROS 2 names them. If

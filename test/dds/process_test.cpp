@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The graph across processes over DDS, driven through the real command line:
 // tinyline launch with process groups, tinyline topic, killing and restarting
 // processes. Every test runs on its own DDS domain and tag.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """An independent DDS implementation (the cyclonedds package from PyPI, its own
 bundled Cyclone DDS and CDR code) talking to tinyline with types named the way
 ROS 2 names them.

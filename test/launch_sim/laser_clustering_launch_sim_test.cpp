@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The shipped launch files of laser_clustering, run end to end on the
 // simulator: the launch file as a user runs it (its nodes, parameters and
 // remaps), the simulated sensor on the bus clock, the driver's processing,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Fails when a package's own code includes the simulator: every file under a
 # src/, include/ or nodes/ folder of any package but sim/ (evaluation harnesses
 # under <pkg>/eval/, tests and benchmarks may). Run as

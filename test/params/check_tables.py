@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Every field of every core settings struct has a parameter.
 
 A package describes its settings once, in `param_tables.hpp` next to its core

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # docs/parameters.md is `tinyline describe --all --markdown`: fails, with the
 # command that brings it up to date, when a table changed and the doc did not.
 execute_process(COMMAND ${TINYLINE} describe --all --markdown OUTPUT_FILE ${OUT} RESULT_VARIABLE rc)

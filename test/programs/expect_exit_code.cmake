@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Runs PROGRAM with the arguments after "--" and fails unless it exits with
 # EXPECT_RC and its output matches EXPECT_REGEX.
 set(_args "")

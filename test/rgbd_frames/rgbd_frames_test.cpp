@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Run on your own frames: the simulated camera's cloud, recorded by the
 // shipped harvesting launch file, is written as a folder of RGB-D frames by
 // an independent tool (write_frames.py: the mcap packages, numpy and Pillow),

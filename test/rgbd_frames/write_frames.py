@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Writes the organised clouds a camera published (sensor_msgs/PointCloud2,
 XYZ + packed RGB, recorded in an MCAP file) as a folder of RGB-D frames in
 the layout RGB-D data sets use: rgb/NNNNNN.png (8-bit colour), depth/NNNNNN.png

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """How long a late joiner takes to hear a running publisher, tinyline and
 ROS 2 (rclpy on Fast DDS) in every pairing, both on their default settings.
 Run it in a namespace with a network card, as the tests do:

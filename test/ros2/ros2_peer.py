@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A real ROS 2 Jazzy node (rclpy on Fast DDS, default settings) for the
 interop tests: it publishes, subscribes and round-trips messages of the
 standard types tinyline mirrors (and tinyline_msgs/LineScan, from the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real ROS 2 client against tinyline: rclpy on Fast DDS (ROS 2 Jazzy's
 // default middleware, from the registry's wheels) with default settings, and
 // tinyline processes with theirs. Each test runs in a network namespace of its

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Compares tinyline's type hashes with the ones ROS 2 ships.
 
   type_hashes.py OURS SHARE [SHARE...] [--require PKG ...]

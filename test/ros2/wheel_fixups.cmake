@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Included (CMAKE_PROJECT_INCLUDE) when a ROS 2 package is built against the
 # registry's Jazzy wheels instead of a ROS 2 install: the message packages'
 # exported Python targets name the include folders of the machine that built

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hypotheses where the physics is: effects that act on the two capacitors'
 // charges before the ratio of Eq. 3.16 (an added charge on A, on B or on
 // both, constant or per pulse; a gain on A or on B; a read-out

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CSV reader/writer of calibration data sets.
 #include <algorithm>
 #include <charconv>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Covariates derived from the data set's own columns: the low-pass filtered
 // temperature (a part that warms more slowly than the MCU's sensor).
 #include <algorithm>

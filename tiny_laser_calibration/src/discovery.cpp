@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The residual loop: grouped cross-validation of candidate terms on top of the
 // declared model (or of a given model's residuals), a justified acceptance
 // margin, and before/after errors on held-out groups.

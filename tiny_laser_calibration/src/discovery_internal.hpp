@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The residual loop's working data, shared by the loop (discovery.cpp) and
 // the hypotheses that act on the charges (charge_hypotheses.cpp).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The declared-model fitter (thesis 3.3.3-3.3.4): variable projection over
 // Rsen and the leakage, an exact weighted least-squares solve for everything
 // linear (polynomial, temperature coefficient, term coefficients).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The fitter's working state, shared by the declared fit and the residual loop.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration loop on the real sensor's measured figures (measured.hpp).
 #include <algorithm>
 #include <cmath>

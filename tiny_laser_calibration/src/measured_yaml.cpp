@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reading the measured figures (measured.hpp): every field named on error.
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Weighted ridge least squares on sparse rows through normal equations that
 // can be added and subtracted, so grouped cross-validation solves each fold
 // from (total - fold) without another pass over the data.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A discovered term in the units of its physics (discovery.hpp term_reading).
 #include <algorithm>
 #include <cmath>

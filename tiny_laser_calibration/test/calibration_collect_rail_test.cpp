@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib collect --positions`: a real sensor's bag (raw scans only,
 // no simulator truth) and the tape-measure log of the rail positions become
 // the calibration CSV; the pieces a user gets wrong get errors naming them.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration CSV reader: the format of data.hpp and its bad-input errors.
 #include <filesystem>
 #include <fstream>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The residual loop on synthetic rails with one undeclared effect
 // injected at a time, and a null case. The noise floor of each case is the
 // held-out error of the declared model on the same rail (same seeds) with the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The declared-model fitter on synthetic rail data from the documented
 // two-capacitor model (synthetic_sensor.hpp), and its bad-input results.
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The loop on the real sensor's measurements (measured.hpp, `calib measured`):
 // the package's copy of the measured figures loads, every analysis runs on it,
 // the accepted explanations beat the declared model out of sample, and bad

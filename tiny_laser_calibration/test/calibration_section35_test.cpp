@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Thesis section 3.5 on simulated data: regressions of distance on the charge
 // ratio of the central pixel, 5-200 cm, with fixed discharge (40 %, 20 %) and
 // with multi-discharge data (5 read-outs from 20 to 700 pulses, K_i = 1).

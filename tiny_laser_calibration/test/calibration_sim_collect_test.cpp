@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib collect` end to end: a calibration session on the simulated
 // rail is recorded as a bag by the simulator's virtual sensor node and the bag
 // recorder (sim time, no sleeps), collected into the calibration CSV, read back,

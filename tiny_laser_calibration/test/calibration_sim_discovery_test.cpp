@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The residual loop on data from the simulator (sim/), with its
 // pluggable effects (sim/effects.hpp) configured per sensor instance: the
 // declared-physics sensor (sim/config/sensors/tiny_tof_declared.yaml) plus one

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What `tinyline calib collect -o` and `calib fit -o` write, and what they
 // never replace: their own input, a symbolic link, a FIFO; a command that
 // fails (here on a file size limit, as on a full disk) leaves the existing

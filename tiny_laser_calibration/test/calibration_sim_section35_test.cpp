@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Thesis section 3.5 on the simulator's data: regressions of distance on the
 // charge ratio of the two central pixels (135, 136) of the thesis-fidelity
 // 8 mm sensor (sim/config/sensors/tiny_tof_8mm.yaml) on the simulated rail,

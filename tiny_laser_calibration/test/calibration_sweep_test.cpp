@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Five seeds per injected effect: how reliably the residual loop names it and
 // how close the held-out error gets to the effect-free twin's. Too slow for
 // `make test` (a minute); the figures in docs/calibration.md come from

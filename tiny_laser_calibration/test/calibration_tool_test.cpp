@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib fit|diagnose|eval` driven in-process: the outputs
 // docs/calibration.md describes, the model the tool writes is the model that is applied,
 // and bad input gets a clear error naming the file, line or column.

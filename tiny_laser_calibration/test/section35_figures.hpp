@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Section 3.5's figures for one fit of the declared model: the in-sample
 // residual the thesis reports, and the held-out one (5 folds over the
 // interior target distances). Shared by the synthetic-sensor and the

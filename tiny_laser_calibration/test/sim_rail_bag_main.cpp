@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // calibration_sim_rail_bag: records a calibration session on the simulated
 // rail as a bag (virtual sensor + recorder on sim time), the input of
 // `tinyline calib collect` in docs/calibration.md. Not installed.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // calibration_synthetic_rail: writes a calibration CSV from the documented
 // two-capacitor model of the calibration tests (synthetic_sensor.hpp), with
 // chosen undeclared effects, for docs/calibration.md. Not installed.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The residual loop against the simulator, one undeclared effect at a time:
 // the cases the tests hold (one seed each) and the sweep measures
 // (calibration_discovery_sweep, many seeds). Each case is the declared-physics

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A calibration session on the simulated rail, recorded as a bag the way a
 // user records one: the simulator's virtual sensor node (raw scans + its
 // ground-truth topic) and the bag recorder on one bus, stepped on sim time by

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A documented physical model of the sensor's two gated capacitors, used to
 // make calibration data with known truth in the calibration tests (the
 // project's simulator, sim/, is the sensor for everything else; this model is

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: arbitrary bytes as a calibration YAML (what users edit by
 // hand and `tinyline calib fit` writes). Properties beyond "no crash, no
 // sanitizer report, no hang, bounded memory":

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Writes seed inputs for driver_parser_fuzz into the directory given: raw
 // sets and distance frames, clean and with the damage a serial link does.
 // Input layout: byte 0 = (readouts - 1) << 1 (bit 0 unused), byte 1 = chunking seed.

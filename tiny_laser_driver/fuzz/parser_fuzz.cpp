@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: arbitrary bytes through the streaming parser (both kinds of frame)
 // and the host-command parser. Properties beyond "no crash, no sanitizer
 // report":

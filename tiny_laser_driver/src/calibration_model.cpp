@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Run-time evaluation of the calibration model: the part the driver calls per
 // pixel. No allocation on the distance path.
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration YAML: what `tinyline calib fit` writes and the driver loads.
 // Strict on load: an unknown key, a missing field or a bad value stops with
 // the file, line and field, because a silently ignored typo in a calibration

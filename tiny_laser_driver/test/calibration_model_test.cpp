@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration model the driver applies: validity rule, Eq. 3.16 ratio,
 // polynomial, temperature offset, discovered terms, and the YAML round trip
 // with its errors.

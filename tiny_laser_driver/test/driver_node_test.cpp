@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The driver node against an in-memory device, stepped on a sim clock with
 // the deterministic executor (threaded: false): publishing, timestamps,
 // reconnect with backoff, no partial scan, laser commands, diagnostics, and

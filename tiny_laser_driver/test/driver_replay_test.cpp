@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A bag of the driver's output replays to identical messages: the recorder's
 // file holds, byte for byte, what the driver published; and its raw scans,
 // replayed through the raw processor with the same calibration, give back the

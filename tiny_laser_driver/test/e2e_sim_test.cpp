@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // End to end through the simulator: the driver opens the virtual device's
 // pseudo-terminal (behind a stable symlink) exactly as it opens a real
 // sensor (rail accuracy with its own I/O thread; unplug/replug stepped on a

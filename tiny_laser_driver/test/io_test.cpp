@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Transports without hardware: the in-memory link, the serial port on a
 // pseudo-terminal (what the simulator's virtual device is), USB discovery on
 // a fake sysfs tree, and the messages a user gets when something is wrong.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The wire protocol codec: layout, the parser under every chunking, and every
 // way a serial link damages a stream (garbage, wrong enders, lost frames,
 // frames of the other mode, impossible fields), each drop counted by reason.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Host-side processing: read-out selection, the calibration model per pixel,
 // status, intensity, reflectance and ray angles; held against the public
 // driver's own formula with a real sensor's calibration (the public driver's).

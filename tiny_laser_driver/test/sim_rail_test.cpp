@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The driver's processing on the simulated sensor: raw sets from the
 // simulator's calibration rail, through the wire encoding and the scan
 // processor with the calibration the driver ships for that sensor, against the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Repeats, torn frames, stale pixels, the unit check and the command watch,
 // on hand-made streams.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Raw sets for driver tests and benchmarks: the five read-outs of the default
 // schedule, each pixel's charges from a caller's model of its light.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tomato_dump: one simulated truss through the pipeline, written as CSV for
 // the pictures of docs/tomato_reasoning.md (scripts/plots/tomato_figures.py):
 //

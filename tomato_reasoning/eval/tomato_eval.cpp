@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tomato_eval: scores the tomato pipeline on seeded simulated trusses
 // (docs/tomato_reasoning.md). Each truss is rendered once; every variant runs
 // on the same cloud.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GCC 12 reports a false -Warray-bounds inside Eigen's Umeyama (PCL's ICP
 // instantiates it for float) at -O2; the report comes at instantiation, so
 // the whole file ignores it.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A hash grid of cubic cells over a point set: which points lie in a cell,
 // and the cells around a position. Shared by clustering, smoothing and the
 // sphere sampler (each needs fixed-radius neighbours, no kd-tree).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Harvest trials (Table 4.2 protocol, eval/harvest.hpp) on simulated
 // trusses: the counts, with the blades scripted where a test needs an
 // outcome, and with sim's cutter model.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pipeline on PCL clouds gives what it gives on ColorClouds: the same
 // frames of the simulator's RGB-D camera, organised and not, one and two views.
 #include <gtest/gtest.h>

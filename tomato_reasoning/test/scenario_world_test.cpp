@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The evaluation's world is chosen by ScenarioOptions::truss (tomato_eval
 // --truss-set): the scenario's truss and truth follow it.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Synthetic point sets for the tomato core tests: the visible caps of spheres
 // as a camera at the origin sees them, with noise, optionally with normals.
 #pragma once

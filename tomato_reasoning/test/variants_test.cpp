@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The evaluation's OpenCV segmentation variants (eval/src/variants.cpp): the
 // image mask with nothing added is the per-point HSI filter, so the
 // comparison in docs/tomato_reasoning.md measures only what OpenCV adds.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Laser verification on simulated trusses (small N; the full run is the
 // documented `tomato_eval --verify` command in docs/tomato_reasoning.md).
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tomato_frames: the tomato pipeline on a folder of RGB-D frames (the layout
 // of tomato_reasoning/io/rgbd_files.hpp), without the bus: per frame the
 // tomatoes, their pedicel estimates and the pick order on stdout, and with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline bag record|play|info|echo|recover: MCAP bags from the command line.
 #include <unistd.h>
 

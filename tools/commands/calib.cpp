@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline calib fit|diagnose|eval|collect: the calibration tool. The logic
 // lives in tiny_laser_calibration's tool library; this file finds the plot
 // script and its Python and hands over.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline launch FILE [name:=value ...] [--duration S] [--until TOPIC] [--threads N] [--no-table] [--process NAME]
 //
 // One process runs the nodes without a process group; each group gets a child

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline nodes | tinyline describe PKG/TYPE
 #include <unistd.h>
 

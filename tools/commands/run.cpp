@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline run PKG TYPE [-p name:=value] [-r from:=to] [--name N] [--ns NS] [--duration S]
 #include <memory>
 

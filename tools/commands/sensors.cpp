@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline sensors: lists the tiny laser sensors attached over USB (their
 // FTDI adapters), with the port spec to give the driver and whether this
 // user can open them.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline sim serve`: one simulated sensor of a scene on a pseudo-terminal
 // that any serial program can open (a user's own driver, a terminal, the
 // public ROS 1 driver), with a live line of what it sent and received,

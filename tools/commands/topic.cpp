@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinyline topic list | echo TOPIC | hz TOPIC: a running graph seen through
 // DDS, from any process on the same DDS domain (ROS_DOMAIN_ID, CYCLONEDDS_URI).
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <tinyline/tools/nodes.hpp>
 
 #include <tinyline/msg/std_msgs/string.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Runs a set of nodes in this process until Ctrl-C or a duration, with a live
 // table of topics (rates, drops) on a terminal. Shared by `launch` and `run`.
 #pragma once

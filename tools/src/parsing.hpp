@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What only the sub-commands' command lines share: name:=value
 // arguments and nested commands (bag record, topic list). The checks for
 // numbers are every program's: <tinyline/common/cli.hpp>.

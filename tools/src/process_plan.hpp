@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How a launch file splits into processes, and what each process puts on DDS.
 //
 // Every node of every process group is built once in a scratch context (so a

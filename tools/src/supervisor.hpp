@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Child processes of `tinyline launch`: started, their output forwarded line
 // by line with the process group's name in front, restarted when they die if
 // asked, stopped with SIGINT (then SIGKILL after a grace period) at the end.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Every launch file the project ships loads and builds with the real node
 // registry: no unknown key, node type or parameter can rot in them.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The supervisor's start gate: a gated child says it is ready, is held until
 // the gates open, and its ready line is not forwarded; a child restarted
 // after the gates opened goes through at once.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Writes small valid bags of every writer variant into a directory: the seed
 // corpus of bag_reader_fuzz.  Usage: bag_fuzz_seeds DIR
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: arbitrary bytes through every reader path. Properties
 // beyond "no crash, no sanitizer report": every failure carries a message,
 // and whatever recover() writes is itself a valid, complete file.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Little-endian field encoding of MCAP records (internal).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Records the largest single allocation made through operator new while a
 // Tracking object lives (for "no unbounded allocation" checks). The
 // replacement operators live in alloc_tracker.cpp, linked into the test.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The MCAP codec on its own: records, CRC, compression, writer and readers,
 // all in memory.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Damaged files: truncation at every length, bad magic, wrong CRCs, lengths
 // past the end, random byte flips, and a writer killed with SIGKILL. Each
 // gives a clear error or a recovered partial read; never a crash, and never an

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Interop checks of tinyline's MCAP bags against independent implementations.
 
   check-ours DIR    every DIR/*.mcap (written by tinyline) must be read by the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Our bags against independent implementations (Python `mcap`,
 // `mcap-ros2-support`, `rosbags`), both ways. The Python side runs in the
 // test virtual env (scripts/bootstrap makes it); interop_check.py next to

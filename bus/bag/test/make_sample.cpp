@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Writes the sample bag the command-line tests use (DIR/sample.mcap) and a
 // copy cut mid-chunk, as a killed recorder leaves it (DIR/cut.mcap).
 #include <cstdio>

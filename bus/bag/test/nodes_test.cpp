@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The recorder, the player and the replay helper on the bus. Time is stepped
 // (sim clock, deterministic executor) or waited for on conditions; nothing
 // sleeps.

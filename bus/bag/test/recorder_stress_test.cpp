@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The recorder under overload: fast publishers on several threads, a tiny
 // subscription queue, a small write queue, an executor with several threads
 // stopped while traffic still flows. Whatever it cannot take it must drop as

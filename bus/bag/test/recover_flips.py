@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Flips one bit at seeded random offsets of a bag, recovers each copy with
 `tinyline bag recover`, and reads every output with the Python mcap reader
 and its ROS 2 decoder. Recovery must never write a file an independent

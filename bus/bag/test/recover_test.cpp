@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `bag recover` on files whose schema and channel records are damaged: what
 // the summary still knows is recovered, and no damaged string is copied into
 // the new file (whose fresh CRCs would make it look sound).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What a bag command must never do to the files around it: wait forever on a
 // FIFO, replace an existing file with a half-written one, overwrite its own
 // input, or let two recorders share one file.

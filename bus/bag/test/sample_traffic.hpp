@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Deterministic sample traffic for bag tests: one topic per message shape the
 // project records (raw and calibrated line scans with NaNs, laser scans, point
 // clouds, joint states, markers with nested lists and UTF-8 text,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared helpers of the DDS sources: QoS mapping, topic creation, errors.
 #pragma once
 

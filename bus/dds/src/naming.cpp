@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <tinyline/dds/naming.hpp>
 
 #include <tinyline/dds/settings.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Stage timestamps for the DDS latency breakdown (bench/dds/dds_breakdown):
 // compiled in only where TINYLINE_DDS_PROBES is defined (the benchmark's own
 // build of this library); everywhere else a probe is nothing at all.

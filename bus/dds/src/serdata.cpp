@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "serdata.hpp"
 
 #include <dds/ddsi/q_radmin.h>

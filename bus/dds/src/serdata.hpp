@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A Cyclone DDS sertype whose samples are our encapsulated CDR bytes, as
 // rmw_cyclonedds does it: no IDL, no generated DDS types, every message type
 // works, and the bytes on the wire are exactly the messages' own CDR.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The DDS transport inside one test process: two contexts (two "processes"
 // as far as the bus knows), each with its own bridge and DDS participant,
 // talk over Cyclone DDS on loopback. Cross-process tests live in test/dds/.

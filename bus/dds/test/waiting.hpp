@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Waiting on conditions with deadlines (never sleeping): a log sink and an
 // inbox that signal every arrival.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: arbitrary bytes as a launch file and the files it
 // includes or reads parameters from, served from memory. The input is split
 // at NUL bytes into top.launch.yaml, a.yaml, b.yaml and c.yaml (in /fuzz/).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Launch files: structure, substitutions, namespaces, parameter files, and a
 // golden error message for every way a launch file can be wrong.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one set of checks for numbers on every program's command line.
 #include <gtest/gtest.h>
 

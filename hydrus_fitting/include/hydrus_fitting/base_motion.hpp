@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The robot base's own motion between the scans of one update: the joint
 // states place each scan in the base frame at its own time, but while the
 // robot flies in, the base frame itself moves (up to 1.5 cm over one

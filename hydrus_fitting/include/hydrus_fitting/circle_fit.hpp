@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Circle fitting on fused 2-D laser points (thesis 6.2.2, Eq. 6.7-6.8):
 //
 //   fit_circle_kasa      plain algebraic least squares (Kasa 1976): the

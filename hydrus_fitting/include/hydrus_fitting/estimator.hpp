@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One update of the whole-body object estimate (thesis 6.2.2-6.2.3): the
 // latest scan of every sensor fused at its own joint angles, the robot's own
 // links filtered out, and a robust circle fitted with each point weighted by

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fusion of the line scans of every sensor on the robot into one 2-D frame
 // at the sensors' height (thesis 6.2.2: "we mount the laser at the same plane
 // thus the laser distance data can be regressed to 2D expressions"), each

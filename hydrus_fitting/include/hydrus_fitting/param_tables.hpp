@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The parameter tables of hydrus_fitting's settings: each field's name in
 // launch files, unit, range and meaning, described once
 // (<tinyline/common/param_table.hpp>). The nodes declare their parameters

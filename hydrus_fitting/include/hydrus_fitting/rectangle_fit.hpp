@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A box seen from the side (thesis Figure 6.7 A): in the sensing plane the
 // scan points of a rectangular object lie on one or two perpendicular sides
 // of a rectangle. Robust fit: MSAC for the first side (2-point line

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The planar multi-link robot (Hydrus, thesis 6.2): a serial chain of links
 // in one plane joined by yaw joints, with laser line sensors mounted on the
 // links at one height. Loaded from a YAML robot description:

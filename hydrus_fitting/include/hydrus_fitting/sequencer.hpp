@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The multi-sensor sequence mode (thesis 6.2.1, Algorithm 4), scheduled
 // better. The sensors accumulate incident 905 nm light, so a sensor whose
 // gates are open while another's laser lights a surface it sees is

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The grasp manoeuvre of thesis 6.2.3 (Figures 6.10, 6.11 B) as a planned
 // motion: the robot flies in with its links open, stops beside the object,
 // and closes its links around it. Piecewise linear in the base pose and the

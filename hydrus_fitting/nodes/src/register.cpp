@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "hydrus_fitting/nodes/register.hpp"
 
 #include "hydrus_fitting/nodes/circle_fitter_node.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Alignment search (thesis 5.3.2): the robot pitches the gripper in small
 // steps and records the target surface's reflectance at each; the pitch of
 // maximum reflectance is where the sensor faces the wrench squarely. The

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // DBSCAN (Ester et al. 1996; thesis 4.4.2, ref. [121]) with exact semantics,
 // three neighbour searches, one labelling rule.
 //

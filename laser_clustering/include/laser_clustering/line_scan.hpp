@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One calibrated scan of the tiny TOF line sensor as the cores see it: plain
 // vectors in pixel order, no message types (a node fills it from a
 // tinyline_msgs/LineScan).

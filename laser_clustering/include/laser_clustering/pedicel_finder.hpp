@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pedicel finder (thesis 4.4.2, 4.5): from the objects of a two-stage
 // clustering, the one whose width and range fit the pedicel prior (about
 // 6 mm wide, as the thesis measured), and the move that

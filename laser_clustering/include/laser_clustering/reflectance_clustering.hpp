@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reflectance clustering (thesis 5.3, Figure 5.8): DBSCAN on position and
 // reflectance together, so a metal stick a few millimetres in front of a
 // background, indistinguishable by distance (5.8 B), separates by its far

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tomato registration: where the vision's truss really is, from one line
 // scan taken through its tomatoes.
 //

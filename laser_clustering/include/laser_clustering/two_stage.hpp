@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Two-stage line-scan clustering (thesis 4.4.2, Figure 4.6):
 //   1. DBSCAN with a large eps and a large minimum count groups the scan into
 //      objects that may touch each other; the trails of mixed pixels at an

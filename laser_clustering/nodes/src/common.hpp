@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared pieces of the laser_clustering nodes: message <-> core conversions
 // and the one parameter no core struct holds. The core settings are declared
 // from their tables (laser_clustering/param_tables.hpp).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Errors in scene and sensor configuration files. The message always names
 // the file, the line and the field, e.g.
 //   scenes/rail.yaml:14:7: objects[1].radius_m: must be > 0 (got -0.01)

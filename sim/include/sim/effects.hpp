@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pluggable effects: physics a sensor can carry on top of the declared model,
 // listed per sensor instance in its YAML (`effects:`), off unless listed.
 // Most are effects the calibration model (calibration.hpp) does NOT declare,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The simulator held against the thesis's measurements (Tables 3.1, 3.2 and
 // section 3.5), the way the thesis measured them. Used by the fidelity test,
 // by sim/tools/sim_fidelity (docs/simulator_fidelity.md) and its plots.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What the simulated sensor's MCU computes itself, in its two firmware
 // profiles (sensor_params.hpp FirmwareProfile; docs/simulator.md).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Surface materials as the tiny TOF sensor (905 nm) and an RGB camera see them.
 //
 // The 905 nm return is a Lambertian lobe plus an optional specular (Phong)

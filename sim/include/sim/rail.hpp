@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration rail (thesis 3.3.3, 3.5): a flat target of one material,
 // square to the sensor's optical axis, moved to chosen distances; and the
 // calibration data set the calibration tool reads, one row per pixel

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A structured-light RGB-D camera (the Xtion / Carmine of thesis 4.2.3) in
 // the simulated world: a pinhole camera with a z-buffer (ray cast per pixel),
 // depth registered to the colour image, and the artefacts that make real

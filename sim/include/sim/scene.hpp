@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A scene: the world, the sensors placed in it, and its ground-truth
 // annotations, loaded from one YAML file (config/scenes/*.yaml):
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Parameters of one simulated tiny TOF line sensor, with units. Defaults are
 // the thesis-fidelity values of docs/simulator_fidelity.md (8 mm lens);
 // config/sensors/*.yaml override them per instance.

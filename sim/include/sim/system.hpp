@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A running simulation: one scene, its sensors, one shared clock, and the
 // record of who emitted when (for crosstalk). Several virtual devices (one
 // per sensor) share a system; their threads call it concurrently.

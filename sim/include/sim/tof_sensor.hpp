@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tiny TOF laser line sensor, per pixel and per measurement set
 // (thesis 3.2-3.3). For every pixel: sub-rays across its width find the
 // surfaces it sees; each return's energy follows range, incidence, albedo and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The simulated sensor behind a pseudo-terminal that speaks the real serial
 // framing (tiny_laser_driver/protocol.hpp), so a
 // driver cannot tell it from the hardware. docs/simulator.md lists the bytes.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The simulated world: primitives with poses and materials, and ray casting.
 //
 // Shapes are defined in their own frame and placed with T_world_object:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A checked view of one YAML node: every read names the file, line and field
 // on failure, and check_keys() rejects keys the reader does not know. Used by
 // the scene and sensor loaders, and by scene generators others add.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The simulator's hand and referee in the harvesting demo
 // (launch/tomato_harvest.launch.yaml):
 //

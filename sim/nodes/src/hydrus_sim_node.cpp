@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <sim/nodes/hydrus_sim_node.hpp>
 
 #include "parts.hpp"

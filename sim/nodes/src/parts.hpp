@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The parts of the simulator's node library, each registering its node types
 // (and the port scheme) by name. Which parts a build has depends on the
 // packages in it; sim/CMakeLists.txt generates register_nodes() from the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The simulator side of the harvesting demo (launch/tomato_harvest.launch.yaml):
 //
 // tomato_reasoning/truss_camera  a seeded truss of class A, B or C seen by the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers the harvesting demo's simulator nodes share (truss_nodes.cpp,
 // harvest_nodes.cpp).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The harvesting scissors closing in a truss (sim/scenes/cutter.hpp).
 #include <sim/scenes/cutter.hpp>
 

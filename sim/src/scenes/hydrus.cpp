@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Hydrus chain in the world, and its scene generator "hydrus".
 #include <sim/scenes/hydrus.hpp>
 

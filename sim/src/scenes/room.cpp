@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Generator "room": the six walls of a box-shaped room around the origin, so a
 // scene has a background at a known distance (every ray ends somewhere).
 #include <sim/scene.hpp>

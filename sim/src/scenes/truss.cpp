@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Generator "truss": tomato trusses in static equilibrium (see scenes/truss.hpp).
 #include <sim/scenes/truss.hpp>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Elastic rods, rigid fruit and frictional contacts, settled by FIRE (see
 // scenes/truss_rod.hpp).
 #include <sim/scenes/truss_rod.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Uses an installed tinyline: parses a sensor frame with the core library and
 // runs a registered node on the bus for a few sim-time steps.
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A calibration data set: one row per pixel read-out with the true distance.
 // CSV columns, in any order:
 //   t_s,pixel,pulses,a,b,temperature_c,distance_m   required

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The residual loop: after the declared model, look for structure
 // left in the residuals against every covariate, name the strongest, add a
 // term for it, repeat; report the error before and after on held-out data.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fitting the declared calibration model (thesis 3.3.3-3.3.4) to a data set
 // with ground truth, and measuring a model's error on one.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration loop on the real sensor's measurements: the only measured
 // figures there are (tiny_laser_calibration/data/measured.yaml: the thesis's
 // Tables 3.1 and 3.2 and section 3.5 fits, and the factory calibration curves

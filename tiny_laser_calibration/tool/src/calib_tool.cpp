@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib`: fit, diagnose, eval, collect.
 #include <spawn.h>
 #include <sys/wait.h>

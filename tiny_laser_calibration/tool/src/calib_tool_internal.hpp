@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pieces shared by the `tinyline calib` sub-commands.
 #pragma once
 

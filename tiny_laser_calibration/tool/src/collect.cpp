@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib collect`: bag -> calibration data set (collect.hpp).
 #include <algorithm>
 #include <cmath>

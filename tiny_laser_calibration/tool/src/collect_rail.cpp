@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib collect --positions LOG.csv`: a real sensor's raw scans on a
 // rail with a tape measure -> the calibration data set (collect.hpp). No
 // ground-truth topic: the logged distance of the target, per pixel along its ray.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib measured`: the calibration loop on every real measurement
 // the project holds (measured.hpp), as a report.
 #include <filesystem>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration model of the tiny TOF line sensor: what maps one pixel's
 // read-out (two capacitor discharges at a pulse count, the MCU temperature)
 // to a distance. One implementation, used by the calibration package to fit

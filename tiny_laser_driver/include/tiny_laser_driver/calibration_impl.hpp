@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The representation behind CalibrationModel: the declared model's parameters
 // and the terms the residual analysis added. The fitter fills it; the driver
 // only needs calibration.hpp. Units are in the names.

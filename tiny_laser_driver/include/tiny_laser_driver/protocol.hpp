@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tiny TOF line sensor's serial framing (the firmware of the real sensor):
 // frame layouts, an encoder (used by the simulator's virtual device and by
 // tests), a streaming parser (used by the driver) and the host commands.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The five real sensors whose calibrations the public driver ships
 // (R, J, S, K, T), as calibration
 // models, so a driver can run a real sensor with `calibration: public:K`.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Host-side processing of the raw mode (thesis 5.3.1, Algorithm 3): per
 // pixel, the read-out with the most pulses that is not saturated (thresholds
 // in the charge unit, from the calibration's validity rule, as the public

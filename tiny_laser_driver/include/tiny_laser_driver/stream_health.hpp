@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What a stream of frames means as measurements, and what it says about the
 // sensor, independent of which firmware sends it:
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <tiny_laser_driver/nodes/raw_processor.hpp>
 
 #include <tinyline/bus/param_table.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <tiny_laser_driver/nodes/scan_messages.hpp>
 
 #include <cmath>

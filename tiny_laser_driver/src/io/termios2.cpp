@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "termios2.hpp"
 
 #include <asm/termbits.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // termios2 (arbitrary baud via BOTHER) lives in its own translation unit:
 // <asm/termbits.h> and glibc's <termios.h> define the same structs.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The verification's and the harvest's shared steps on a scenario (internal
 // to the evaluation library).
 #pragma once

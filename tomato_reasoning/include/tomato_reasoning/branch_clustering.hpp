@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Branch clustering (thesis 4.3.1, Eq. 4.9): Euclidean clustering of the
 // HSI-filtered points with a 6 cm tolerance (two points share a cluster when
 // a chain of points with gaps <= tolerance joins them), then the choice of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The two calibrations of thesis 4.2.3, as tools:
 //
 //   Depth correction of a structured-light camera: z_c = z + Z(u, v) + theta(z),

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coloured point cloud the tomato cores work on: an RGB-D camera's
 // organised XYZRGB frame (or any unorganised set of coloured points) as
 // plain vectors, so that a core signature needs neither PCL nor a message.

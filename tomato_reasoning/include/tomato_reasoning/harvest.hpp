@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The harvest of one detection, pick by pick (thesis 4.4-4.5, Table 4.2):
 // what the gripper does after each laser verification and each closing of
 // the scissors. A pick starts at the picking pose (attempt 1):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // HSI colour filter (thesis 4.3.1): the candidate points of ripe tomatoes.
 //
 // Hue, saturation and intensity are those of PCL's PackedHSIComparison (the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PCL clouds in and out of the tomato cores. `view_of` lets the pipeline
 // read a pcl::PointCloud of XYZRGB-like points (PointXYZRGB, PointXYZRGBA,
 // PointXYZRGBNormal: organised or not, NaN where no depth) in place; the

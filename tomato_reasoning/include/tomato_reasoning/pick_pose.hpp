@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Picking pose and laser verification geometry (thesis 4.4, Figure 4.10):
 // where the hand goes so that the tiny laser on it scans across the expected
 // pedicel with the scissors' throat on it, and what a pedicel finder's answer

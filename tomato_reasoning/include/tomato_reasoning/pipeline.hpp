@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The whole vision pipeline of thesis Figure 4.4 on one RGB-D frame:
 // HSI filter -> branch clustering -> smoothing -> sphere segmentation ->
 // contact graph, pedicel distributions, pick order, cut plans. Every stage is

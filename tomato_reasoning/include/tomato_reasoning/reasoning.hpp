@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Physical and geometric reasoning (thesis 4.3.3): from the spheres of one
 // branch to a contact graph, the distribution of each tomato's pedicel
 // direction, the order to pick them in and where to cut.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Smoothing (thesis 4.3.2): moving least squares, as PCL's
 // MovingLeastSquares does it (a weighted plane through each point's
 // neighbours, then a weighted polynomial height field over that plane; the

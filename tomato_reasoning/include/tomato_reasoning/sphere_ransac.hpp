@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Sphere segmentation (thesis 4.3.2, Eq. 4.10-4.15): iterative RANSAC for
 // spheres within a radius range. Each round samples hypotheses, keeps the
 // one with the most inliers, refines it, stores it and removes its inliers;

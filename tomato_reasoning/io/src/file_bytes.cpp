@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "file_bytes.hpp"
 
 #include <tinyline/common/files.hpp>

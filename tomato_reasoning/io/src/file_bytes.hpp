@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Whole files in and out, for the image and intrinsics files of an RGB-D
 // folder: only a regular file is read (opened non-blocking, so a FIFO is
 // refused instead of waited on), and a file is written to "<path>.part" and

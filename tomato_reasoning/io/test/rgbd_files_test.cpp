@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RGB-D frames from files: the folder layout read into the organised cloud,
 // bad input refused with the file named, debug images written whole.
 #include <sys/stat.h>

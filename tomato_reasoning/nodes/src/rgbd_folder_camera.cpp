@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/nodes/rgbd_folder_camera.hpp"
 
 #include <chrono>

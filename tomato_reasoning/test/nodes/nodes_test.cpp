@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The harvesting pipeline on the bus, as launch/tomato_harvest.launch.yaml
 // wires it: truss_camera -> tomato_detector -> pick_verifier -> sim_gripper
 // (scan) -> laser_clustering pedicel_finder -> pick_verifier -> sim_gripper

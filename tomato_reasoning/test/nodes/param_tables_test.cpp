@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Each parameter described once: the tomato nodes declare every field of
 // their settings from the settings' tables, with the structs' defaults.
 #include <limits>

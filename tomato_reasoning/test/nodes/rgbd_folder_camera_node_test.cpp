@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // rgbd_folder_camera: a folder of frames played as a camera on stepped sim
 // time (no sleeps): rate, order, loop, pose, bad frames skipped by name, a
 // folder that cannot be opened stops the start.

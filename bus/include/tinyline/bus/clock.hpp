@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The clock of a context: wall time, or sim time set by bag replay. Timers
 // follow it; executors listen for sim-time updates.
 #pragma once

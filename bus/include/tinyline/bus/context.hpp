@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A context: one graph, one clock and one log sink shared by the nodes of a
 // process (or of a test). Nodes of different contexts never see each other.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Executors run callbacks. The rule that makes node code lock-free: the
 // callbacks of one node (its callback group) never run concurrently, whatever
 // the executor; different nodes may run on different threads.

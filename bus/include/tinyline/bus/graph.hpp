@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The in-process graph: topics, their subscriptions, and the statistics the
 // CLI shows. Publishing hands one std::shared_ptr<const T> to every
 // subscription of the topic: zero copies on fan-out. Types are checked by

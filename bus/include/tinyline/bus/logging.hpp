@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Per-node logging. Every record carries the node's full name; a context has
 // one sink (stderr by default, a capture sink in tests, a forwarding sink in
 // the launch supervisor).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ROS-style names: namespaces, relative and private (~) names, remapping.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A node: a named object in a namespace with parameters, publishers,
 // subscriptions and timers. Built from one NodeOptions (so the registry, a
 // launch file, or a test can create it the same way), started by on_start()

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A node declares a core's settings from the settings' table
 // (<tinyline/common/param_table.hpp>): every field becomes a parameter with
 // the table's name, unit, range and description, its default read from the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Test helpers for parameter tables (<tinyline/bus/param_table.hpp>): what a
 // table says the defaults are, and what a node declared, by name.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Node parameters: declared by the node with a type, a default (taken from
 // the core's parameter struct), an optional range or choice list and a
 // description; overridden from launch files or the command line. Every

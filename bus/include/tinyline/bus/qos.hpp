@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Quality of service of a subscription (and what a publisher offers).
 //
 //  keep_last(N): a queue of N; a new message beyond N drops the oldest and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Node types by name, so launch files and `tinyline run` can create them.
 // Each package with nodes exposes `void register_nodes(bus::NodeRegistry&)`;
 // the tinyline tools call them all. A robot stack embedding one node can call

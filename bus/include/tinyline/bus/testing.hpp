@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Test support for node tests: a graph on sim time that a test steps.
 //
 //   tinyline::bus::testing::NodeRig rig({&my_pkg::register_nodes});

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Time on the bus: nanoseconds since the epoch (wall clock) or since the
 // start of a recording (sim time driven by bag replay).
 #pragma once

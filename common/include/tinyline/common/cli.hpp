@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The command lines of every program (the `tinyline` command, evaluations,
 // simulator tools, test helpers): CLI11 underneath, --help everywhere, one
 // way to fail on bad usage, and one set of checks for the numbers they take.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reading what users give us and writing what we make, safely.
 //
 //  read_text()     a hand-written text input (launch file, parameter or scene

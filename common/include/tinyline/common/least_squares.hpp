@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Levenberg-Marquardt for small nonlinear least-squares problems (a circle, a
 // sphere, a few calibration constants): the project's one damped
 // Gauss-Newton loop. The problem supplies the model; this file decides the

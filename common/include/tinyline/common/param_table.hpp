@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Each parameter described once: a settings struct's table names each field
 // for the outside world (launch files, `tinyline describe`, the docs) with
 // its unit, its range and what it means. The default is the struct's own

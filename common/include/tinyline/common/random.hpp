@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The project's one random generator: the same numbers for a seed on every
 // platform and standard library (the standard distributions promise no
 // such thing), so that seeded tests, scenes and evaluations reproduce.

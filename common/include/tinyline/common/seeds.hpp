@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which seeds each evaluation may use for what: the one registry every
 // evaluation program reads (docs/evaluation.md).
 //

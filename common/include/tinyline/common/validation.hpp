@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one way a core says "these parameters are invalid": validate(params)
 // returns a Validation, {valid, reason}, where the reason names the parameter
 // and the rule it breaks ("eps must be > 0, got -1"). A core function given

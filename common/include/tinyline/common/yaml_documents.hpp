@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A hand-written YAML file holds one document: yaml-cpp's Load() reads the
 // first and silently drops whatever follows a `---`, so readers of launch
 // files and calibration files ask where a second document starts and refuse

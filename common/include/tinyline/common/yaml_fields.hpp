@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reading the fields of a hand-written YAML file (a calibration, the
 // measured figures): every error names the file, the line and the field,
 // "calib.yaml:12: field 'ratio.range': expected a number", and is thrown as

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CDR (XCDR1, the encoding ROS 2 uses on the wire and in bags).
 //
 // A serialized message is a 4-byte encapsulation header (0x00 0x01 0x00 0x00

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Conversions between the geometry messages and Eigen, as ROS 2's tf2_eigen
 // offers them: header-only, for nodes (which already use Eigen); the message
 // structs themselves stay free of it.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Type support: what the bus, the bag recorder and the DDS transport need to
 // know about a message type without knowing the type: its full name, its
 // ros2msg schema text, its ROS 2 type hash, and type-erased serialize /

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A small block-style YAML emitter for decoded messages (`bag echo`,
 // `topic echo`). Long numeric arrays can be elided past a limit.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The harvesting scissors of the thesis's hand (4.2.2, Figure 4.3) closing
 // in a simulated truss: what the blades meet, and whether the fruit falls.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The multi-link aerial robot Hydrus (thesis 6.2, Figures 6.7-6.11) in the
 // simulated world: a chain of flat links joined by yaw joints, flying level,
 // with one tiny TOF line sensor per link, all at the height of the sensing

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tomato trusses (thesis 4.3, 4.5, Figure 4.8): 1 to 8 tomatoes hanging from
 // pedicels off a peduncle, settled in static equilibrium under gravity and
 // contact, with leaves and stems, in the three complexity classes of 4.5:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Discretised elastic rods with rigid fruit and frictional contacts: the
 // second physics of the truss generator (TrussParams::physics =
 // kElasticRod), deliberately not the pendulum-and-frictionless-contact model

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib collect`: a recorded bag (raw scans + the simulator's
 // ground-truth topic) -> the calibration data set (data.hpp), one row per
 // pixel read-out. Part of the calibration tool library (it reads bags), not

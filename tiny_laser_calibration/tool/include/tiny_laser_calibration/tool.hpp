@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tinyline calib fit|diagnose|eval|collect`: the calibration command line as a
 // library function, so tests drive it in-process and tools/commands/calib.cpp
 // stays a thin wrapper. Not part of the driver's core: it writes files and

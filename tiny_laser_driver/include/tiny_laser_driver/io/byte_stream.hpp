@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The driver reads a byte stream: the serial port, the simulator's pty and an
 // in-memory link all implement this small interface, so most driver logic is
 // tested without a device.

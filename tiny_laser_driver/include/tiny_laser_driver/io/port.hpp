@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How the driver names its sensor, and what reopens it after a disconnect:
 //
 //   /dev/ttyUSB0      a serial port path (or a pty, or a stable symlink to one)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A termios serial port (Linux): raw 8N1, no flow control, any standard rate
 // up to 4,000,000 baud and, through termios2/BOTHER, any other rate; on an
 // FTDI adapter only the rates its divisor can make (3 MHz / n, n in steps of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Finding the sensor's USB-UART adapter: by VID:PID (the FT232R's 0403:6001
 // by default) and serial number, mapped to its tty through sysfs.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The `tinyline` command line is one executable with sub-commands, parsed
 // with <tinyline/common/cli.hpp> (CLI11). Each command group lives in its own
 // file under tools/commands/ and registers itself with a static

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Generic utility nodes of the `tinyline` package: useful in any graph.
 //   tinyline/echo   logs every message of a topic as YAML
 //   tinyline/relay  republishes a topic under another name (zero-copy)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A ROS 2 bag writer on its own thread: callers hand over serialized
 // messages and return at once; compression and file I/O happen on the writer
 // thread. The queue between them has a byte budget: a message that would

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Chunk compression: lz4 (the LZ4 frame format, as MCAP requires) and zstd,
 // both from the system libraries.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CRC-32 (ISO-HDLC, polynomial 0xEDB88320, the zlib crc32) that MCAP uses for
 // chunks, the data section, the summary and attachments.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Byte sources and sinks of the MCAP codec. The reader reads at offsets from a
 // Readable, the writer appends to a Writable; files and memory buffers both
 // implement them, so tests and fuzzers need no files.

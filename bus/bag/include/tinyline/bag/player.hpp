@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The player node (`bag/player`): publishes a bag's messages on their topics,
 // decoded with each type's TypeSupport, paced by their log times (at a chosen
 // rate), optionally looping, from an offset, for chosen topics. With `clock`

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // MCAP readers.
 //
 //  Reader         opens a file through its footer and summary: schemas,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The recorder node (`bag/recorder` in launch files): one reliable
 // subscription per topic (every topic of the graph by default, including
 // topics created later), each message serialized on arrival and handed to an

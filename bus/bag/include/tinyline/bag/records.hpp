@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The records of an MCAP file (MCAP format specification, major version 0).
 //
 //   <magic><Header><data section>[<summary section>][<summary offsets>]<Footer><magic>

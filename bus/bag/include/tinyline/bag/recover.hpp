@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Recovery: rewrites what is readable in a damaged or unfinished MCAP file
 // (a recorder killed mid-file, a cut copy, flipped bytes) as a complete file
 // with a summary. Every record up to the point where the file stops making

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Registers the bag nodes for launch files and `tinyline run`:
 //   bag/recorder  records topics to an MCAP file (Recorder)
 //   bag/player    plays an MCAP file onto the bus (Player)

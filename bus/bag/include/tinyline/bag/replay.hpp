@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Replay tests: a bag through a set of nodes, deterministically.
 //
 //   bag::Replay replay(TINYLINE_SOURCE_DIR "/test/data/scans.mcap");

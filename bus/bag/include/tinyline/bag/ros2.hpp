@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The ros2 profile of MCAP, as rosbag2 writes it: schema encoding "ros2msg"
 // (the .msg text with its dependencies appended, each after a line of 80 '='
 // and "MSG: pkg/Type"), message encoding "cdr", and the channel metadata key

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Status of bag I/O: every failure says what went wrong and where (file and
 // byte offset). The codec returns Status; code that prefers exceptions wraps it
 // in BagError.

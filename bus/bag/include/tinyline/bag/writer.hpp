@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The MCAP writer. Messages go into chunks (compressed with lz4 or zstd, or
 // stored); each closed chunk is followed by one message index per channel and
 // handed to the OS at once, so a writer killed mid-file leaves every completed

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The DDS transport of the bus: a node that mirrors chosen topics of its
 // process onto DDS and back.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ROS 2 names on DDS, as rmw_cyclonedds writes them: topic /a/b travels as DDS
 // topic "rt/a/b"; type sensor_msgs/msg/LaserScan as
 // "sensor_msgs::msg::dds_::LaserScan_".

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One DDS domain participant of this process, and the raw endpoints the tools
 // build on: a reader and a writer of encapsulated CDR on any DDS topic, and a
 // snapshot of what discovery has seen. Cyclone DDS types stay out of these

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where a process finds the rest of its graph over DDS: the domain, how far
 // discovery reaches, the Cyclone DDS configuration, and how this process
 // introduces itself.

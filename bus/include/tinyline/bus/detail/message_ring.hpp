@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A bounded multi-producer multi-consumer ring of queued messages (D. Vyukov's
 // bounded MPMC queue): each slot carries a sequence number that says whose
 // turn it is, so a producer and a consumer meet on one cache line (the slot)

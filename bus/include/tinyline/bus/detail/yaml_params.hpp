@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal: parameter values from YAML nodes (launch files, -p name:=value).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Launch files: YAML in the shape of ROS 2 YAML launch files.
 //
 //   launch:

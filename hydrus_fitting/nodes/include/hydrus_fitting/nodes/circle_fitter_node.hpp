@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // circle_fitter: the whole-body object estimate of thesis 6.2.2-6.2.3 as a
 // node. Every sensor's calibrated scans arrive on one topic (`scans`, their
 // header.frame_id names the sensor in the robot description), the joint

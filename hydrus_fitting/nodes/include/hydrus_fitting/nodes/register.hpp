@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Registers the hydrus_fitting nodes by name (launch files, `tinyline run`).
 #pragma once
 

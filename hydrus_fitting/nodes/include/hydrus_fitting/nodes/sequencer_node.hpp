@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // sequencer: the multi-sensor sequence mode of thesis 6.2.1 (Algorithm 4)
 // as a node, scheduled by colouring the interference graph instead of
 // time-slicing all n sensors.

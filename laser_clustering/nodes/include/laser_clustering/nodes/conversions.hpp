@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pedicel finder's messages <-> the core's types, for the nodes and for
 // a controller on the bus that runs the closed loop of thesis 4.5 itself:
 // it reads the finder's PedicelDetection (from_msg), asks the core where to

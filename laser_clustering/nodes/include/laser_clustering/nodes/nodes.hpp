@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The laser_clustering nodes: thin shells that declare parameters (defaults
 // from the core's structs), convert tinyline_msgs/LineScan to the core's
 // LineScan, call the core and publish. Topic names are generic; launch files

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The evaluation's scanner: the project's simulated TOF line sensor
 // (sim/tof_sensor.hpp) in raw mode, its sets as wire frames
 // (sim/firmware.hpp), processed by the driver's ScanProcessor

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The robot description's Hydrus inside a simulated scene: finds the
 // description's sensors and links among the scene's sensors and objects by
 // name and moves them to a robot pose, so the simulator measures from where

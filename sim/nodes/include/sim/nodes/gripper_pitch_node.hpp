@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A gripper pitch joint for the simulator: it carries a scene's tiny TOF
 // sensor, so that the pitch sweep of 5.3.2 runs end to end on simulated scans
 // (launch/wrench_align.launch.yaml, as laser_clustering/sim_gripper_pitch).

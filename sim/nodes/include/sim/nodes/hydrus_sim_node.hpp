@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // hydrus_sim: flies the simulated Hydrus of a scene (sim/config/scenes/
 // hydrus4_grasp.yaml) through the grasp manoeuvre (ApproachParams: fly in
 // with the links open, close them around the cylinder, hold) and moves the

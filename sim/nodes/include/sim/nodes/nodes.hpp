@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Nodes of the simulator. Thin: they load a scene, call the core, convert.
 //
 // sim/virtual_sensor  runs one simulated sensor of a scene on the bus clock

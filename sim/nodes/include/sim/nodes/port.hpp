@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The driver's `sim:SCENE.yaml[#sensor]` port: the simulator's virtual device
 // started in-process and opened through its pseudo-terminal like a real
 // port, registered into the driver's port-scheme registry.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Every simulator-backed node type by name, for launch files and `tinyline
 // run`, and the driver's `sim:SCENE.yaml` port scheme.
 #pragma once

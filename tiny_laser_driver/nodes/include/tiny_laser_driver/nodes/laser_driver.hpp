@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tiny laser driver node: reads the sensor's byte stream (serial port,
 // usb:SERIAL, sim:SCENE.yaml, mem:NAME), parses raw and distance frames
 // alike (either firmware, without being told), turns repeated frames into one

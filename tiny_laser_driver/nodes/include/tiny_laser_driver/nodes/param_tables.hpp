@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The parameter table of the driver node's settings (DriverParams), described
 // once (<tinyline/common/param_table.hpp>): the node declares its parameters
 // from it, `tinyline describe` and docs/parameters.md show it.

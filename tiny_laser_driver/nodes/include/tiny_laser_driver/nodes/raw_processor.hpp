@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reprocesses recorded raw scans: subscribes to `raw` (tinyline_msgs/RawScan),
 // publishes `scan` (LineScan) and `laser_scan` (LaserScan) exactly as the
 // driver would have with the same calibration and optics. Record raw once,

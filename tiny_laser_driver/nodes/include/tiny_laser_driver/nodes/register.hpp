@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Registers the driver's node types (tiny_laser_driver/laser_driver).
 #pragma once
 

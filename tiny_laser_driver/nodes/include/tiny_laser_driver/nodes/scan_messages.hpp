@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Conversions between the driver's core types and its messages, shared by the
 // driver and the raw-scan processor (so a recorded RawScan reprocessed later
 // gives byte for byte the LineScan the driver published live).

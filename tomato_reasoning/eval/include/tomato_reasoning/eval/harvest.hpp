@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Harvest trials like the thesis's Table 4.2 (4.5), end to end on simulated
 // trusses: the truss is harvested in the pipeline's pick order; at each
 // detected tomato the hand goes to the picking pose, the laser verification

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Simulated test material for the tomato pipeline: a truss of a complexity
 // class rendered by the RGB-D camera, as the pipeline's cloud and with the
 // truth in the camera's frame. Used by the tests, the scoring tool and the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scoring of the tomato pipeline against a simulated truss's truth, as
 // docs/tomato_reasoning.md reports it (thesis 4.5, Table 4.2):
 //   detection   a true tomato counts as detected when a sphere's centre lies

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Named pipeline variants for the scoring tool and the benchmarks (the
 // shipped defaults, the thesis's choices, ablations),
 // and `section.field=value` overrides of PipelineParams.

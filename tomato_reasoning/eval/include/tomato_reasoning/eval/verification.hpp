@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Laser verification on simulated trusses (thesis 4.4, Table 4.3): at the
 // picking pose of a detected tomato, the simulated tiny laser on the hand
 // scans across the expected pedicel (the project's TOF sensor model and the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RGB-D frames on disk, in the layout RGB-D tools and data sets use (TUM,
 // Redwood, Open3D): a folder with
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Nodes of tomato_reasoning: thin shells that convert messages, call the
 // core (pipeline.hpp, pick_pose.hpp) and publish.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Registers the tomato_reasoning nodes by name (launch files, `tinyline run`).
 #pragma once
 

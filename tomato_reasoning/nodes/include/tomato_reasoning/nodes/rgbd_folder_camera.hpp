@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // rgbd_folder_camera  a folder of RGB-D frames played as a camera
 //                     (tomato_reasoning/io/rgbd_files.hpp: intrinsics.yaml,
 //                     rgb/NAME.png|jpg, depth/NAME.png, 16-bit): `cloud`
