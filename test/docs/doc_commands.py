@@ -19,6 +19,7 @@ the line just before the fence says when a block cannot run as printed:
                                parses and checks its options, then stops), a
                                benchmark lists its benchmarks, a Python script
                                shows its --help; the rest is checked as bash.
+  <!-- doc-test: fails -->     shows a command refusing: it must exit non-zero.
 
 Every fence must name its language (```sh, ```text, ```yaml, ...), so a
 command cannot hide in a block this test does not see. FILTER (a substring of
@@ -34,8 +35,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-MARKER = re.compile(r"^<!--\s*doc-test:\s*(hardware|long)\b.*-->\s*$")
-FENCE = re.compile(r"^```(\S*)\s*$")
+MARKER = re.compile(r"^\s*<!--\s*doc-test:\s*(hardware|long|fails)\b.*-->\s*$")
+FENCE = re.compile(r"^(\s*)```(\S*)\s*$")
 BLOCK_TIMEOUT_S = 600
 
 
@@ -55,15 +56,17 @@ def blocks_of(path: Path, rel: str):
         if not m:
             i += 1
             continue
-        end = next((j for j in range(i + 1, len(lines)) if lines[j].startswith("```")), len(lines))
+        indent = len(m.group(1))
+        end = next((j for j in range(i + 1, len(lines)) if lines[j].strip().startswith("```")), len(lines))
         where = f"{rel}:{i + 1}"
-        if not m.group(1):
+        lang = m.group(2)
+        if not lang:
             errors.append(f"{where}: a fence without a language (```sh runs in this test; ```text for output)")
-        elif m.group(1) in ("sh", "console"):
+        elif lang in ("sh", "console"):
             prev = next((lines[k] for k in range(i - 1, -1, -1) if lines[k].strip()), "")
             mark = MARKER.match(prev)
-            body = lines[i + 1 : end]
-            text = "\n".join(body if m.group(1) == "sh" else console_commands(body)) + "\n"
+            body = [line[indent:] for line in lines[i + 1 : end]]
+            text = "\n".join(body if lang == "sh" else console_commands(body)) + "\n"
             found.append(Block(where, mark.group(1) if mark else "run", text))
         i = end + 1
     return found, errors
@@ -165,6 +168,9 @@ def run_block(block: Block, root: Path, env: dict) -> tuple[bool, str]:
     except subprocess.TimeoutExpired:
         return False, f"still running after {BLOCK_TIMEOUT_S} s"
     tail = (r.stdout[-1500:] + r.stderr[-1500:]).strip()
+    if block.mode == "fails":
+        refused = r.returncode not in (0, 126, 127)  # 126, 127: not runnable, not found
+        return refused, f"refused as shown (exit {r.returncode})" if refused else f"exit {r.returncode}\n{tail}"
     return r.returncode == 0, f"exit {r.returncode}\n{tail}" if r.returncode else "ok"
 
 
