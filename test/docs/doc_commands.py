@@ -18,7 +18,7 @@ the line just before the fence says when a block cannot run as printed:
                                or tinyline) runs with TINYLINE_CHECK_OPTIONS=1 (it
                                parses and checks its options, then stops), a
                                benchmark lists its benchmarks, a Python script
-                               shows its --help; the rest is checked as bash.
+                               compiles; the rest is checked as bash.
   <!-- doc-test: fails -->     shows a command refusing: it must exit non-zero.
 
 Every fence must name its language (```sh, ```text, ```yaml, ...), so a
@@ -128,7 +128,7 @@ def quoted(word: str) -> str:
 
 
 def long_block_script(text: str) -> str:
-    """The script that checks a long block: programs parse options, scripts show --help."""
+    """The script that checks a long block: programs parse options, scripts compile."""
     steps = []
     for line in logical_lines(text):
         words = shlex.split(line, comments=True)
@@ -142,9 +142,9 @@ def long_block_script(text: str) -> str:
         elif prog.startswith("build/") or prog == "tinyline":
             steps.append(f"TINYLINE_CHECK_OPTIONS=1 {command}")
         elif prog.endswith("python") and len(words) > 1 and words[1].endswith(".py"):
-            steps.append(f"{shlex.quote(prog)} {shlex.quote(words[1])} --help >/dev/null")
+            steps.append(f"{shlex.quote(prog)} -m py_compile {shlex.quote(words[1])}")
         elif prog.endswith(".py"):
-            steps.append(f"{shlex.quote(prog)} --help >/dev/null")
+            steps.append(f"test -x {shlex.quote(prog)} && python3 -m py_compile {shlex.quote(prog)}")
     return "\n".join(steps) + "\n"
 
 
