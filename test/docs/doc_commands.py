@@ -38,6 +38,8 @@ from pathlib import Path
 MARKER = re.compile(r"^\s*<!--\s*doc-test:\s*(hardware|long|fails)\b.*-->\s*$")
 FENCE = re.compile(r"^(\s*)```(\S*)\s*$")
 BLOCK_TIMEOUT_S = 600
+# Parses a Python script without running it or writing bytecode beside it.
+PARSE_PY = "python3 -c 'import ast, sys; ast.parse(open(sys.argv[1]).read())'"
 
 
 @dataclass
@@ -142,9 +144,9 @@ def long_block_script(text: str) -> str:
         elif prog.startswith("build/") or prog == "tinyline":
             steps.append(f"TINYLINE_CHECK_OPTIONS=1 {command}")
         elif prog.endswith("python") and len(words) > 1 and words[1].endswith(".py"):
-            steps.append(f"{shlex.quote(prog)} -m py_compile {shlex.quote(words[1])}")
+            steps.append(f"test -x {shlex.quote(prog)} && {PARSE_PY} {shlex.quote(words[1])}")
         elif prog.endswith(".py"):
-            steps.append(f"test -x {shlex.quote(prog)} && python3 -m py_compile {shlex.quote(prog)}")
+            steps.append(f"test -x {shlex.quote(prog)} && {PARSE_PY} {shlex.quote(prog)}")
     return "\n".join(steps) + "\n"
 
 
