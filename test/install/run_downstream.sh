@@ -38,4 +38,4 @@ if [[ -n "$pulled" ]]; then
   echo "$pulled"
   exit 1
 fi
-echo "downstream: ok"
+echo "install and consumers: ok"
