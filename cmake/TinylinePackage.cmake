@@ -25,7 +25,10 @@ endfunction()
 function(_tinyline_export target name)
   add_library(tinyline::${name} ALIAS ${target})
   set_target_properties(${target} PROPERTIES EXPORT_NAME ${name})
-  install(TARGETS ${target} EXPORT tinylineTargets
+  # One export set per library: find_package(tinyline COMPONENTS <name>)
+  # loads it and only what it links (tinyline_install_components below).
+  set_property(GLOBAL APPEND PROPERTY TINYLINE_EXPORTED_TARGETS ${target})
+  install(TARGETS ${target} EXPORT tinyline_${name}Targets
     ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
     LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
     RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
@@ -102,7 +105,152 @@ function(tinyline_test name)
 endfunction()
 
 # A package whose exported targets need a third-party package downstream
-# records the find_dependency() line here; it lands in tinylineConfig.cmake.
+# records its find_dependency() line here (with the version and components it
+# needs); a component that links one of that package's targets gets the line.
 function(tinyline_export_dependency line)
-  set_property(GLOBAL APPEND PROPERTY TINYLINE_EXPORT_DEPENDENCIES "${line}")
+  string(REGEX MATCH "^find_dependency\\(([A-Za-z0-9_-]+)" _m "${line}")
+  if(NOT _m)
+    message(FATAL_ERROR "tinyline_export_dependency: expected 'find_dependency(<Package> ...)', got '${line}'")
+  endif()
+  get_property(_have GLOBAL PROPERTY TINYLINE_FIND_LINE_${CMAKE_MATCH_1} SET)
+  if(NOT _have)
+    set_property(GLOBAL PROPERTY TINYLINE_FIND_LINE_${CMAKE_MATCH_1} "${line}")
+  endif()
+endfunction()
+tinyline_export_dependency("find_dependency(Threads)")
+tinyline_export_dependency("find_dependency(Eigen3 3.4 NO_MODULE)")
+tinyline_export_dependency("find_dependency(yaml-cpp)")
+tinyline_export_dependency("find_dependency(fmt)")
+
+# The package that defines a third-party target a tinyline library links, by
+# the target's name. A target missing here stops configure: its component
+# would not find it downstream.
+set(_TL_THIRD_PARTY_PATTERNS
+    "^Threads::=Threads" "^Eigen3::=Eigen3" "^fmt::=fmt" "^yaml-cpp=yaml-cpp" "^CycloneDDS::=CycloneDDS"
+    "^pcl_=PCL" "^FLANN::=PCL" "^Boost::=PCL" "^VTK::=PCL" "^QHULL::=PCL" "^opencv_=OpenCV")
+
+function(_tinyline_third_party_package item out)
+  set(${out} "" PARENT_SCOPE)
+  foreach(pair IN LISTS _TL_THIRD_PARTY_PATTERNS)
+    string(REPLACE "=" ";" pair "${pair}")
+    list(GET pair 0 _re)
+    list(GET pair 1 _pkg)
+    if(item MATCHES "${_re}")
+      set(${out} ${_pkg} PARENT_SCOPE)
+      return()
+    endif()
+  endforeach()
+  if(ARGN STREQUAL "OPTIONAL")
+    return()
+  endif()
+  message(FATAL_ERROR "tinyline: an installed library links '${item}'; add the package that defines it to "
+                      "_TL_THIRD_PARTY_PATTERNS in cmake/TinylinePackage.cmake")
+endfunction()
+
+# What `target` needs downstream: the tinyline components (export names) and
+# the third-party packages. A static library's private links count: they
+# land in its interface as $<LINK_ONLY:...>.
+function(_tinyline_component_needs target out_components out_packages)
+  get_target_property(_type ${target} TYPE)
+  get_target_property(_items ${target} INTERFACE_LINK_LIBRARIES)
+  if(NOT _type STREQUAL "INTERFACE_LIBRARY")
+    get_target_property(_private ${target} LINK_LIBRARIES)
+    list(APPEND _items ${_private})
+  endif()
+  set(_components "")
+  set(_packages "")
+  foreach(item IN LISTS _items)
+    string(REGEX REPLACE "^\\$<LINK_ONLY:(.*)>$" "\\1" item "${item}")
+    if(NOT item OR item MATCHES "-NOTFOUND$" OR item MATCHES "^\\$<" OR item MATCHES "^-" OR IS_ABSOLUTE "${item}")
+      continue()  # flags and full paths need no find; generator expressions are not used here
+    endif()
+    if(NOT TARGET ${item})
+      # A third-party target imported in a package's folder is not visible
+      # here: known by its name; anything else is a system library (dl, m).
+      _tinyline_third_party_package(${item} _pkg OPTIONAL)
+      if(_pkg)
+        list(APPEND _packages ${_pkg})
+      elseif(item MATCHES "::")
+        _tinyline_third_party_package(${item} _pkg)
+      endif()
+      continue()
+    endif()
+    get_target_property(_real ${item} ALIASED_TARGET)
+    if(NOT _real)
+      set(_real ${item})
+    endif()
+    get_property(_exported GLOBAL PROPERTY TINYLINE_EXPORTED_TARGETS)
+    if(_real IN_LIST _exported)
+      get_target_property(_name ${_real} EXPORT_NAME)
+      list(APPEND _components ${_name})
+    else()
+      _tinyline_third_party_package(${item} _pkg)
+      list(APPEND _packages ${_pkg})
+    endif()
+  endforeach()
+  list(REMOVE_DUPLICATES _components)
+  list(REMOVE_DUPLICATES _packages)
+  set(${out_components} "${_components}" PARENT_SCOPE)
+  set(${out_packages} "${_packages}" PARENT_SCOPE)
+endfunction()
+
+# One component file per exported library: the components it links first,
+# then find_dependency() of its third-party packages, then its targets.
+function(_tinyline_write_component target dir out_file)
+  get_target_property(_name ${target} EXPORT_NAME)
+  _tinyline_component_needs(${target} _components _packages)
+  set(_text "# Generated by cmake/TinylinePackage.cmake: component ${_name} and what it links.\n")
+  string(APPEND _text "include_guard(GLOBAL)\n")
+  foreach(c IN LISTS _components)
+    string(APPEND _text "include(\"\${CMAKE_CURRENT_LIST_DIR}/tinyline_${c}-component.cmake\")\n")
+  endforeach()
+  string(APPEND _text "if(DEFINED tinyline_FOUND AND NOT tinyline_FOUND)\n  return()\nendif()\n")
+  foreach(p IN LISTS _packages)
+    get_property(_line GLOBAL PROPERTY TINYLINE_FIND_LINE_${p})
+    string(APPEND _text "${_line}\n")
+  endforeach()
+  string(APPEND _text "include(\"\${CMAKE_CURRENT_LIST_DIR}/tinyline_${_name}Targets.cmake\")\n")
+  set(_file ${dir}/tinyline_${_name}-component.cmake)
+  file(WRITE ${_file} "${_text}")
+  set(${out_file} ${_file} PARENT_SCOPE)
+  set(TINYLINE_COMPONENT_NAMES ${TINYLINE_COMPONENT_NAMES} ${_name} PARENT_SCOPE)
+endfunction()
+
+# `cmake --install --strip` strips executables but leaves static libraries
+# whole (CMake keeps their symbol tables); their debug information is most of
+# an install's size, so --strip drops it too (symbols stay: they still link).
+function(_tinyline_strip_installed_archive target)
+  get_target_property(_type ${target} TYPE)
+  if(NOT _type STREQUAL "STATIC_LIBRARY" OR NOT CMAKE_STRIP)
+    return()
+  endif()
+  install(CODE "if(CMAKE_INSTALL_DO_STRIP)
+  execute_process(COMMAND \"${CMAKE_STRIP}\" --strip-debug
+    \"\$ENV{DESTDIR}\${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_LIBDIR}/$<TARGET_FILE_NAME:${target}>\"
+    COMMAND_ERROR_IS_FATAL ANY)
+endif()")
+endfunction()
+
+# Called once at the end of the top-level CMakeLists, when every target is
+# known: installs each export set, its component file and tinylineConfig.cmake.
+function(tinyline_install_components)
+  set(_dest ${CMAKE_INSTALL_LIBDIR}/cmake/tinyline)
+  set(_dir ${PROJECT_BINARY_DIR}/tinyline-components)
+  file(REMOVE_RECURSE ${_dir})
+  get_property(_targets GLOBAL PROPERTY TINYLINE_EXPORTED_TARGETS)
+  set(TINYLINE_COMPONENT_NAMES "")
+  foreach(target IN LISTS _targets)
+    _tinyline_write_component(${target} ${_dir} _file)
+    get_target_property(_name ${target} EXPORT_NAME)
+    install(EXPORT tinyline_${_name}Targets NAMESPACE tinyline:: DESTINATION ${_dest}
+            FILE tinyline_${_name}Targets.cmake)
+    install(FILES ${_file} DESTINATION ${_dest})
+    _tinyline_strip_installed_archive(${target})
+  endforeach()
+  configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/tinylineConfig.cmake.in
+    ${PROJECT_BINARY_DIR}/tinylineConfig.cmake INSTALL_DESTINATION ${_dest})
+  write_basic_package_version_file(${PROJECT_BINARY_DIR}/tinylineConfigVersion.cmake
+    COMPATIBILITY SameMinorVersion)
+  install(FILES ${PROJECT_BINARY_DIR}/tinylineConfig.cmake ${PROJECT_BINARY_DIR}/tinylineConfigVersion.cmake
+          DESTINATION ${_dest})
 endfunction()

@@ -36,6 +36,10 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
     const std::string path = parsing::command_path(app);
     where = "tinyline " + path;
+    if (cli::only_check_options()) {
+      cli::print_options_ok(where);
+      return 0;
+    }
     for (const auto& [sub, run] : runs) {
       if (sub->parsed()) return run();
     }

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include <tinyline/common/cli.hpp>
 #include <tinyline/common/seeds.hpp>
 
 #include "sim_discovery_cases.hpp"
@@ -119,6 +120,10 @@ void print_rounds(const tinyline::tiny_laser_calibration::DiscoveryResult& r) {
 int main(int argc, char** argv) {
   Args a;
   if (const int rc = parse(argc, argv, a); rc != 0) return rc;
+  if (tinyline::cli::only_check_options()) {  // the docs test checks the printed commands so
+    tinyline::cli::print_options_ok("calibration_discovery_sweep");
+    return 0;
+  }
   const auto use = *range_use(a.seeds);
   std::ofstream csv;
   if (!a.out.empty()) {

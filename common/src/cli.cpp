@@ -5,7 +5,9 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <string_view>
 
 #include <CLI/CLI.hpp>
 
@@ -214,8 +216,19 @@ std::optional<int> parse_command_line(App& app, int argc, char** argv) {
     const int code = app.exit(e);
     return e.help() ? code : 2;
   }
+  if (only_check_options()) {
+    print_options_ok(app.name());
+    return 0;
+  }
   return std::nullopt;
 }
+
+bool only_check_options() {
+  const char* v = std::getenv("TINYLINE_CHECK_OPTIONS");
+  return v != nullptr && std::string_view(v) == "1";
+}
+
+void print_options_ok(const std::string& program) { std::printf("%s: options ok\n", program.c_str()); }
 
 // The variables an option can fill (detail::option_type).
 template Option* App::add_typed_option(std::string, std::string&, std::string);

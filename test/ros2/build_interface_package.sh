@@ -6,8 +6,9 @@
 #
 #   build_interface_package.sh VENV SOURCE_DIR WORK_DIR    -> WORK_DIR/install
 set -euo pipefail
-venv=$1
-src=$2
+# Absolute paths: the package is configured from another folder.
+venv=$(cd "$1" && pwd)
+src=$(cd "$2" && pwd)
 work=$3
 export PATH="$venv/bin:$PATH"
 export AMENT_PREFIX_PATH="$venv"

@@ -85,9 +85,15 @@ std::string term_reading(const CalibrationTerm& t) {
     return fmt::format("{:+.2f} to {:+.2f} cm per amplitude SD ({:.1f} charge_unit) over {}", 100.0 * *lo, 100.0 * *hi,
                        t.amplitude_scale, t.covariate);
   }
-  return fmt::format("a delay of {:+.0f} to {:+.0f} ps ({:+.2f} to {:+.2f} cm) over {} {:.4g}-{:.4g}",
-                     2.0 * *lo / kLightMPerPs, 2.0 * *hi / kLightMPerPs, 100.0 * *lo, 100.0 * *hi, t.covariate,
-                     t.knots.front(), t.knots.back());
+  // The term is fitted together with the polynomial in X: where the covariate
+  // follows the distance the two trade off, and the term's own span can be far
+  // larger than the change in any distance, which the held-out RMSE measures.
+  return fmt::format(
+      "the term's own offset spans {:+.2f} to {:+.2f} cm (a round-trip delay of {:+.0f} to {:+.0f} ps) over {} "
+      "{:.4g}-{:.4g}; the polynomial, fitted with it, takes back the part that follows the distance, so this "
+      "span is not a change of the distances: the held-out RMSE is",
+      100.0 * *lo, 100.0 * *hi, 2.0 * *lo / kLightMPerPs, 2.0 * *hi / kLightMPerPs, t.covariate, t.knots.front(),
+      t.knots.back());
 }
 
 }  // namespace tinyline::tiny_laser_calibration

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// tinyline run PKG TYPE [-p name:=value] [-r from:=to] [--name N] [--ns NS] [--duration S]
+// tinyline run PKG TYPE (or PKG/TYPE, as `tinyline describe` names it) [-p name:=value] [-r from:=to] [--name N] [--ns NS] [--duration S]
 #include <memory>
 
 #include <fmt/format.h>
@@ -43,7 +43,21 @@ bus::NodeOptions node_options(const RunArgs& a, const std::shared_ptr<bus::Conte
   return o;
 }
 
-int run(const RunArgs& a) {
+// `run tinyline/pulse` names the type as `nodes` and `describe` print it.
+bool split_pkg_type(RunArgs& a) {
+  if (!a.type.empty()) return true;
+  const auto slash = a.pkg.find('/');
+  if (slash == std::string::npos) {
+    fmt::print(stderr, "tinyline run: give the node type as PKG TYPE or PKG/TYPE (tinyline nodes lists them)\n");
+    return false;
+  }
+  a.type = a.pkg.substr(slash + 1);
+  a.pkg = a.pkg.substr(0, slash);
+  return true;
+}
+
+int run(RunArgs a) {
+  if (!split_pkg_type(a)) return 2;
   auto ctx = bus::Context::create();
   std::shared_ptr<bus::Node> node;
   try {
@@ -71,8 +85,8 @@ int run(const RunArgs& a) {
 
 CommandRun setup_run(cli::App& cmd) {
   auto a = std::make_shared<RunArgs>();
-  cmd.add_option("pkg", a->pkg, "package of the node type (tinyline nodes lists them)")->required();
-  cmd.add_option("type", a->type, "the node type")->required();
+  cmd.add_option("pkg", a->pkg, "package of the node type, or PKG/TYPE (tinyline nodes lists them)")->required();
+  cmd.add_option("type", a->type, "the node type (or give PKG/TYPE as one word)");
   cmd.add_option("-p", a->params, "set a parameter, name:=value (YAML typing: 3, 0.5, true, [1, 2], text)")
       ->type_name("NAME:=VALUE")
       ->allow_extra_args(false);

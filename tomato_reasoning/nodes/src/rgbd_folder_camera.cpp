@@ -3,7 +3,10 @@
 
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include <tinyline/msg/eigen.hpp>
 
@@ -55,6 +58,7 @@ RgbdFolderCameraNode::RgbdFolderCameraNode(bus::NodeOptions o) : Node(std::move(
       "orientation_xyzw", {0.0, 0.0, 0.0, 1.0}, "camera orientation in pose_frame_id: unit quaternion x, y, z, w");
   T_parent_camera_ = camera_pose(*this, p, q);
   cloud_pub_ = create_publisher<sensor_msgs::msg::PointCloud2>("cloud");
+  played_pub_ = create_publisher<std_msgs::msg::String>("played", bus::QoS::keep_last(1).latched());
   if (!pose_frame_id_.empty()) pose_pub_ = create_publisher<geometry_msgs::msg::PoseStamped>("pose");
 }
 
@@ -74,17 +78,23 @@ void RgbdFolderCameraNode::on_start() {
 
 void RgbdFolderCameraNode::tick() {
   if (next_ >= frames_.frames.size()) {
-    if (!loop_) return;
-    next_ = 0;
+    if (loop_) {
+      next_ = 0;
+    } else {
+      // One period after the last frame: the detector has had it.
+      timer_->cancel();
+      auto done = std::make_unique<std_msgs::msg::String>();
+      done->data = fmt::format("{}: played {} frame(s), skipped {}", folder_, played_, skipped_);
+      logger().info("{}", done->data);
+      played_pub_->publish(std::move(done));
+      return;
+    }
   }
   if (publish_frame(frames_.frames[next_]))
     ++played_;
   else
     ++skipped_;
-  if (++next_ == frames_.frames.size() && !loop_) {
-    timer_->cancel();
-    logger().info("{}: played {} frame(s), skipped {}", folder_, played_, skipped_);
-  }
+  ++next_;
 }
 
 bool RgbdFolderCameraNode::publish_frame(const io::FrameFiles& f) {

@@ -189,7 +189,16 @@ class App {
 
 /// Parses the command line. Returns the exit code when the program should
 /// stop here: 0 after --help (printed on stdout), 2 after a usage error
-/// (printed on stderr, with a pointer to --help); nullopt when it should run.
+/// (printed on stderr, with a pointer to --help), 0 after a good command line
+/// when only_check_options() (printed on stdout); nullopt when it should run.
 [[nodiscard]] std::optional<int> parse_command_line(App& app, int argc, char** argv);
+
+/// True when the environment sets TINYLINE_CHECK_OPTIONS=1: every program
+/// parses and checks its command line, says "options ok" and stops before it
+/// runs. The docs test checks the long evaluations' commands this way.
+[[nodiscard]] bool only_check_options();
+
+/// What a program prints when only_check_options() stops it.
+void print_options_ok(const std::string& program);
 
 }  // namespace tinyline::cli

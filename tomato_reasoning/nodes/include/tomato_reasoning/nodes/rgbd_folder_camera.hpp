@@ -8,6 +8,10 @@
 //                     `pose_frame_id` set also `pose` (PoseStamped: the
 //                     camera in that frame, as given by position_m and
 //                     orientation_xyzw), same stamp, published first.
+//                     Played once, it says so one period after the last
+//                     frame on `played` (String: frames played and skipped),
+//                     so `tinyline launch ... --until /camera/played` ends
+//                     when the detector has had the last frame.
 //                     A frame that cannot be read is skipped with a warning
 //                     naming its file; a folder that cannot be opened stops
 //                     the launch.
@@ -22,6 +26,7 @@
 #include <tinyline/bus/node.hpp>
 #include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
 #include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
+#include <tinyline/msg/std_msgs/string.hpp>
 
 #include "tomato_reasoning/io/rgbd_files.hpp"
 
@@ -44,6 +49,7 @@ class RgbdFolderCameraNode : public bus::Node {
   std::size_t next_ = 0, played_ = 0, skipped_ = 0;
   std::shared_ptr<bus::Publisher<sensor_msgs::msg::PointCloud2>> cloud_pub_;
   std::shared_ptr<bus::Publisher<geometry_msgs::msg::PoseStamped>> pose_pub_;
+  std::shared_ptr<bus::Publisher<std_msgs::msg::String>> played_pub_;
   std::shared_ptr<bus::Timer> timer_;
 };
 
