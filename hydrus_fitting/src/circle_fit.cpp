@@ -314,7 +314,7 @@ Eigen::Vector4d hyper_parameters(const Normalised& n) {
     N(1, 1) = N(2, 2) = 1.0;
     // M A = eta N A  <=>  W N^-1 W C = eta C with W = M^(1/2), C = W A; the
     // smallest positive eta (N has one negative eigenvalue) is the second.
-    const Eigen::Matrix4d V = es.eigenvectors();
+    const Eigen::Matrix4d& V = es.eigenvectors();
     const Eigen::Matrix4d W = V * lam.cwiseSqrt().asDiagonal() * V.transpose();
     const Eigen::Matrix4d Winv = V * lam.cwiseSqrt().cwiseInverse().asDiagonal() * V.transpose();
     Eigen::Matrix4d Ninv = Eigen::Matrix4d::Zero();

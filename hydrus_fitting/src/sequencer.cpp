@@ -402,7 +402,7 @@ std::string check_schedule(const InterferenceGraph& g, const Schedule& s) {
 
 // ---------------------------------------------------------------------------- Sequencer
 
-Sequencer::Sequencer(const RobotModel& model, SequencerParams params) : model_(&model), params_(std::move(params)) {}
+Sequencer::Sequencer(const RobotModel& model, SequencerParams params) : model_(&model), params_(params) {}
 
 bool Sequencer::update(std::span<const double> joint_positions, const std::optional<Circle>& object) {
   const Kinematics k = model_->forward(joint_positions);

@@ -116,7 +116,7 @@ TEST(CalibrationCsv, RangeAndShapeErrors) {
               HasSubstr("column 'pixel' appears twice"));
   EXPECT_THAT(expect_error(std::string(kHeader) + ",material\n0,10,20,1,2,40,0.5,\"open\n"),
               HasSubstr("data.csv:2: unterminated quoted cell"));
-  EXPECT_THAT(expect_error(std::string("\x89PNG\r\n\x1a\n\0\0\0", 12)), HasSubstr("data.csv:"));
+  EXPECT_THAT(expect_error(std::string("\x89PNG\r\n\x1a\n\0\0\0", 11)), HasSubstr("data.csv:"));
 }
 
 TEST(CalibrationCsv, UnreadableFile) {

@@ -32,7 +32,7 @@ bool torn_between(const Words& frame, const Words& before, const Words& after) {
 }  // namespace
 
 std::optional<DistanceRepeats::Fresh> DistanceRepeats::release() {
-  std::optional<Fresh> out = std::move(held_);
+  std::optional<Fresh> out = held_;
   held_.reset();
   if (out) {
     last_ = out->frame.distance;

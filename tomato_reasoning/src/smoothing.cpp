@@ -130,7 +130,7 @@ LocalPlane weighted_plane(const std::vector<Eigen::Vector3f>& pts, const std::ve
     cov += w[k] * d * d.transpose();
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-  const Eigen::Vector3d ev = es.eigenvalues();
+  const Eigen::Vector3d& ev = es.eigenvalues();
   LocalPlane pl;
   pl.n = es.eigenvectors().col(0);
   pl.u = es.eigenvectors().col(1);

@@ -222,7 +222,7 @@ struct LinearReader::Impl {
   // Where a definition from the file disagrees with one given by know() (the
   // summary's, under its own CRC), the known one is used and the difference noted.
   template <class R, class W>
-  Step on_definition(std::map<std::uint16_t, R>& slots, const std::map<std::uint16_t, R>& known, R&& parsed, const W& w,
+  Step on_definition(std::map<std::uint16_t, R>& slots, const std::map<std::uint16_t, R>& known, R parsed, const W& w,
                      std::uint64_t at, const char* what, LinearRecord& out, const R*& field, LinearRecord::Kind kind) {
     auto k = known.find(parsed.id);
     if (k != known.end() && !(k->second == parsed)) {

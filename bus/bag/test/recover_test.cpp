@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <string_view>
 
 #include <tinyline/bag/reader.hpp>
 #include <tinyline/bag/recover.hpp>
@@ -15,6 +16,12 @@
 
 namespace tinyline::bag {
 namespace {
+
+/// Where `text` first occurs in [begin, end), or end.
+template <class T>
+const T* find_text(const T* begin, const T* end, std::string_view text) {
+  return std::search(begin, end, text.begin(), text.end());
+}
 
 using Bytes = std::vector<std::uint8_t>;
 
@@ -125,7 +132,7 @@ TEST(Recover, ADamagedTopicInTheDataSectionIsReplacedByTheSummarysCopy) {
   for (const auto& r : recs) {
     if (r.op != static_cast<std::uint8_t>(Opcode::Channel)) continue;
     const auto* begin = f.data() + r.offset;
-    const auto* hit = std::search(begin, begin + 9 + r.length, "/demo/raw", "/demo/raw" + 9);
+    const auto* hit = find_text(begin, begin + 9 + r.length, "/demo/raw");
     if (hit != begin + 9 + r.length) at = static_cast<std::size_t>(hit - f.data());
   }
   ASSERT_NE(at, 0U);
@@ -147,10 +154,10 @@ TEST(Recover, WithoutASummaryStringsThatCannotBeRightAreRefusedNotCopied) {
     const auto* begin = good.data() + r.offset;
     const auto* end = begin + 9 + r.length;
     if (r.op == static_cast<std::uint8_t>(Opcode::Channel) && topic_at == 0) {
-      topic_at = static_cast<std::size_t>(std::search(begin, end, "/demo/raw", "/demo/raw" + 9) - good.data());
+      topic_at = static_cast<std::size_t>(find_text(begin, end, "/demo/raw") - good.data());
     }
     if (r.op == static_cast<std::uint8_t>(Opcode::Header)) {
-      profile_at = static_cast<std::size_t>(std::search(begin, end, "ros2", "ros2" + 4) - good.data());
+      profile_at = static_cast<std::size_t>(find_text(begin, end, "ros2") - good.data());
     }
   }
   ASSERT_NE(topic_at, 0U);
@@ -180,8 +187,7 @@ TEST(Recover, WithoutASummaryASchemaNameWithACapitalisedPackageIsRefused) {
   for (const auto& r : leading_records(good)) {
     if (r.op != static_cast<std::uint8_t>(Opcode::Schema)) continue;
     const auto* begin = good.data() + r.offset;
-    name_at =
-        static_cast<std::size_t>(std::search(begin, begin + 9 + r.length, "std_msgs/", "std_msgs/" + 9) - good.data());
+    name_at = static_cast<std::size_t>(find_text(begin, begin + 9 + r.length, "std_msgs/") - good.data());
     break;
   }
   ASSERT_NE(name_at, 0U);

@@ -59,7 +59,7 @@ struct CircleEstimate {
 
 class CircleEstimator {
  public:
-  CircleEstimator(const RobotModel& model, CircleEstimatorParams params = {});
+  explicit CircleEstimator(const RobotModel& model, CircleEstimatorParams params = {});
 
   /// Fuses `scans` (typically the latest of each sensor) with the joint
   /// states at their stamps, then fits. With `base_poses`, each scan is

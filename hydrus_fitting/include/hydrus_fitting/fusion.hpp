@@ -91,7 +91,7 @@ struct FusedCloud {
 /// capacity), so a node calls clear(), add() per sensor, then fits cloud().
 class ScanFuser {
  public:
-  ScanFuser(const RobotModel& model, FusionParams params = {});
+  explicit ScanFuser(const RobotModel& model, FusionParams params = {});
 
   void clear();
   /// Places one scan with the joint angles at its timestamp. A scan of an

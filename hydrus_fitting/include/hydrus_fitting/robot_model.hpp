@@ -164,7 +164,7 @@ struct JointAddResult {
 /// joints, or others, as in ROS); linear interpolation at any stamp.
 class JointStateBuffer {
  public:
-  JointStateBuffer(std::vector<std::string> joint_names, JointBufferParams params = {});
+  explicit JointStateBuffer(std::vector<std::string> joint_names, JointBufferParams params = {});
 
   /// Adds one JointState sample. Samples may arrive out of order; a second
   /// sample at the same stamp replaces the first.

@@ -155,7 +155,7 @@ struct SequencerParams {
 /// Keeps the schedule of a moving robot up to date.
 class Sequencer {
  public:
-  Sequencer(const RobotModel& model, SequencerParams params = {});
+  explicit Sequencer(const RobotModel& model, SequencerParams params = {});
 
   /// Recomputes when needed; returns true when the schedule changed.
   /// `object`: the current estimate of the object (occludes), if any.

@@ -30,7 +30,7 @@ struct RailParams {
 /// looking along +z; the target's surface is at z = distance.
 class CalibrationRail {
  public:
-  CalibrationRail(SensorParams sensor, RailParams rail = {});
+  explicit CalibrationRail(SensorParams sensor, RailParams rail = {});
 
   void set_target_distance(double distance_m);
   [[nodiscard]] double target_distance() const { return distance_m_; }

@@ -116,7 +116,7 @@ struct VirtualDeviceStats {
 class VirtualDevice {
  public:
   /// Throws std::invalid_argument when the sensor is not in the scene.
-  VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDeviceOptions options = {});
+  explicit VirtualDevice(std::shared_ptr<SimulatedSystem> system, VirtualDeviceOptions options = {});
   /// A device from a port string "sim:SCENE.yaml" or "sim:SCENE.yaml#sensor"
   /// (the driver's `port` parameter). Throws ConfigError / std::invalid_argument.
   static std::unique_ptr<VirtualDevice> from_port(const std::string& port, VirtualDeviceOptions options = {});

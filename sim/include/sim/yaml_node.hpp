@@ -24,7 +24,7 @@ inline constexpr std::uint64_t kMaxConfigFileBytes = 1u << 20;
 class YamlNode {
  public:
   YamlNode(YAML::Node node, std::string file, std::string path)
-      : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
+      : node_(node), file_(std::move(file)), path_(std::move(path)) {}
 
   /// Parses a file: a regular one (a FIFO or a device is refused, not waited
   /// on or read without end) of at most kMaxConfigFileBytes; `what` names its

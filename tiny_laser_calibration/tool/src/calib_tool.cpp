@@ -724,7 +724,7 @@ int run_calib_command(const std::vector<std::string>& args, std::ostream& out, s
     (args.empty() ? err : out) << kUsage;
     return args.empty() ? 2 : 0;
   }
-  const std::string sub = args[0];
+  const std::string& sub = args[0];
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (std::find(rest.begin(), rest.end(), "--help") != rest.end() ||
       std::find(rest.begin(), rest.end(), "-h") != rest.end()) {

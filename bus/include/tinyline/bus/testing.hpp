@@ -66,7 +66,7 @@ class NodeRig {
   /// Registers the node types of each package given (their register_nodes).
   /// With `start`, sim time starts there; without, the clock stays unstarted
   /// (as ROS's sim time before the first /clock) until the test steps it.
-  explicit NodeRig(std::initializer_list<Registration> registrations = {}, std::optional<Time> start = std::nullopt)
+  NodeRig(std::initializer_list<Registration> registrations = {}, std::optional<Time> start = std::nullopt)
       : ctx(make_context(log)), ex(ctx->clock()) {
     for (Registration r : registrations) r(registry);
     if (start) ctx->clock().set_sim_time(*start);

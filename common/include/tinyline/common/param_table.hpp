@@ -67,6 +67,8 @@ struct Flag {
   E off;
   E on;
 };
+template <class E>
+Flag(E, E) -> Flag<E>;  // GCC deduces aggregates by itself; clang before 17 needs the guide
 
 /// A text field that names a file the node reads: `v(p.scene, {...},
 /// InputFile{kMaxSceneBytes})`. The node checks it when it is built (a

@@ -109,7 +109,7 @@ struct LinearReaderOptions {
 class LinearReader {
  public:
   /// `source` must outlive the reader.
-  LinearReader(Readable& source, LinearReaderOptions options = {});
+  explicit LinearReader(Readable& source, LinearReaderOptions options = {});
   ~LinearReader();
   LinearReader(const LinearReader&) = delete;
   LinearReader& operator=(const LinearReader&) = delete;

@@ -46,7 +46,6 @@ class VirtualSensorNode : public bus::Node {
   std::shared_ptr<SimulatedSystem> system_;
   std::size_t sensor_ = 0;
   std::uint64_t index_ = 0;
-  double next_start_ = -1.0;  // shared time of the next set
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::RawScan>> raw_pub_;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::ScanTruth>> truth_pub_;
   std::shared_ptr<bus::Timer> timer_;
