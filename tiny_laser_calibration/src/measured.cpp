@@ -4,6 +4,7 @@
 #include <cmath>
 #include <functional>
 #include <numeric>
+#include <stdexcept>
 
 #include <Eigen/Dense>
 #include <fmt/format.h>
@@ -119,6 +120,10 @@ EffectHypothesis hold_against(const std::string& effect, const std::string& form
   }
   h.in_sample_rmse_cm = rms(in_res);
   h.loo_rmse_cm = rms(loo);
+  h.n_params = f.size() + (fam.grid.size() > 1 ? 1 : 0);
+  h.score_cm = penalised_loo(h.loo_rmse_cm, loo.size(), h.n_params);
+  if (fam.grid.size() > 1 && (full.theta == fam.grid.front() || full.theta == fam.grid.back()))
+    h.bound = fmt::format("the grid parameter sits on its bound ({:.3g})", full.theta);
   return h;
 }
 
@@ -128,13 +133,14 @@ std::vector<double> log_grid(double lo, double hi, int n) {
   return g;
 }
 
-int lowest_loo(const std::vector<EffectHypothesis>& hs) {
+// The lowest penalised leave-one-out error; on a tie the smaller form.
+int lowest_score(const std::vector<EffectHypothesis>& hs) {
   int best = -1;
   for (std::size_t i = 0; i < hs.size(); ++i) {
-    if (std::isfinite(hs[i].loo_rmse_cm) &&
-        (best < 0 || hs[i].loo_rmse_cm < hs[static_cast<std::size_t>(best)].loo_rmse_cm)) {
+    if (!std::isfinite(hs[i].score_cm)) continue;
+    const auto& b = hs[static_cast<std::size_t>(std::max(best, 0))];
+    if (best < 0 || hs[i].score_cm < b.score_cm || (hs[i].score_cm == b.score_cm && hs[i].n_params < b.n_params))
       best = static_cast<int>(i);
-    }
   }
   return best;
 }
@@ -147,6 +153,11 @@ tiny_laser_driver::CalibrationModel curve_model(const RealSensorCurve& s) {
 }  // namespace
 
 // ------------------------------------------------------------------ real curves: slope of L(k)
+
+double penalised_loo(double loo_rmse_cm, std::size_t n, std::size_t n_params) {
+  if (n <= n_params) return kNaN;
+  return loo_rmse_cm * std::sqrt(static_cast<double>(n) / static_cast<double>(n - n_params));
+}
 
 RatioSlope real_ratio_slope(const MeasuredData& data, double distance_cm) {
   RatioSlope out;
@@ -180,26 +191,48 @@ RatioSlope real_ratio_slope(const MeasuredData& data, double distance_cm) {
 namespace {
 
 // The materials' bias against q = reflectance / white paper's: every candidate
-// passes through the calibration target (q = 1, its own bias).
+// passes through the calibration target (q = 1, its own bias). Nested
+// families, each smaller one the larger with a coefficient held at zero.
+Family linear_family(std::vector<std::function<double(double)>> fs) {
+  return Family{{0.0}, [fs](double) { return Basis(fs.begin(), fs.end()); }};
+}
+
 std::vector<EffectHypothesis> material_hypotheses(const std::vector<double>& q, const std::vector<double>& y,
                                                   const std::vector<bool>& anchor) {
   std::vector<EffectHypothesis> hs;
-  auto one = [](const std::function<double(double)>& f) { return Family{{0.0}, [f](double) { return Basis{f}; }}; };
+  const auto inv = [](double v) { return 1.0 / v - 1.0; };
+  const auto inv2 = [](double v) { return std::pow(1.0 / v - 1.0, 2); };
+  const auto ln = [](double v) { return std::log(v); };
+  const auto ln2 = [](double v) { return std::pow(std::log(v), 2); };
+  const auto ln3 = [](double v) { return std::pow(std::log(v), 3); };
+  const auto lin = [](double v) { return v - 1.0; };
+  const auto lin2 = [](double v) { return std::pow(v - 1.0, 2); };
   hs.push_back(hold_against("additive charge per pulse (ambient light, leakage), on A, B or both", "bias = c (1/q - 1)",
-                            one([](double v) { return 1.0 / v - 1.0; }), q, y, anchor));
-  hs.push_back(hold_against("timing that follows the light (range walk)", "bias = c ln q",
-                            one([](double v) { return std::log(v); }), q, y, anchor));
+                            linear_family({inv}), q, y, anchor));
+  hs.push_back(hold_against("additive charge per pulse, to second order in the charge",
+                            "bias = c1 (1/q - 1) + c2 (1/q - 1)^2", linear_family({inv, inv2}), q, y, anchor));
+  hs.push_back(
+      hold_against("timing that follows the light (range walk)", "bias = c ln q", linear_family({ln}), q, y, anchor));
+  hs.push_back(hold_against("time walk, curved in the light (walk per decade changes with the light)",
+                            "bias = c1 ln q + c2 ln^2 q", linear_family({ln, ln2}), q, y, anchor));
+  hs.push_back(hold_against("time walk, cubic in the log of the light", "bias = c1 ln q + c2 ln^2 q + c3 ln^3 q",
+                            linear_family({ln, ln2, ln3}), q, y, anchor));
   hs.push_back(hold_against("read-out nonlinearity (compression of bright returns)", "bias = c (q - 1)",
-                            one([](double v) { return v - 1.0; }), q, y, anchor));
+                            linear_family({lin}), q, y, anchor));
+  hs.push_back(hold_against("read-out nonlinearity, quadratic", "bias = c1 (q - 1) + c2 (q - 1)^2",
+                            linear_family({lin, lin2}), q, y, anchor));
   Family trap;
   trap.grid = log_grid(0.01, 10.0, 61);
   trap.basis = [](double eps) { return Basis{[eps](double v) { return eps / (v + eps) - eps / (1.0 + eps); }}; };
-  hs.push_back(hold_against("charge trapping (a share eps/(q+eps) released late)",
+  hs.push_back(hold_against("charge trapping, or a charge on B alone to all orders (a share eps/(q+eps))",
                             "bias = D (eps/(q+eps) - eps/(1+eps))", trap, q, y, anchor));
   hs.push_back(hold_against("a constant offset of every other surface (no effect of the light)", "bias = c (q != 1)",
-                            one([](double v) { return std::abs(v - 1.0) < 1e-12 ? 0.0 : 1.0; }), q, y, anchor));
+                            linear_family({[](double v) { return std::abs(v - 1.0) < 1e-12 ? 0.0 : 1.0; }}), q, y,
+                            anchor));
   return hs;
 }
+
+std::string curved_walk_reading(const std::vector<double>& p);
 
 void read_material_hypotheses(MaterialAnalysis& a, double white_reflectance) {
   const RatioSlope& s = a.slope;
@@ -216,15 +249,64 @@ void read_material_hypotheses(MaterialAnalysis& a, double white_reflectance) {
     } else if (h.form == "bias = c ln q") {
       h.reading = fmt::format("c = {:+.3f} cm per e-fold of light: a delay of {:+.1f} ps per decade of light", c,
                               2.0 * c * std::log(10.0) / kLightCmPerNs * 1000.0);
+    } else if (h.form == "bias = c1 ln q + c2 ln^2 q") {
+      h.reading = curved_walk_reading(h.params);
     } else if (h.form == "bias = c (q - 1)") {
       h.reading = fmt::format("c = {:+.4f} cm per white-paper amplitude ({:+.4f} cm per mV/pulse of reflectance)", c,
                               c / white_reflectance);
-    } else if (h.params.size() == 2) {
+    } else if (h.form == "bias = D (eps/(q+eps) - eps/(1+eps))") {
       h.reading = fmt::format("D = {:+.2f} cm ({:+.0f} ps late), eps = {:.3f} of white paper's charge per pulse", c,
                               2.0 * c / kLightCmPerNs * 1000.0, h.params[1]);
     } else {
-      h.reading = fmt::format("c = {:+.3f} cm", c);
+      std::string cs;
+      for (std::size_t k = 0; k < h.params.size(); ++k)
+        cs += fmt::format("{}c{} = {:+.3f} cm", k ? ", " : "", k + 1, h.params[k]);
+      h.reading = cs;
     }
+    if (!h.bound.empty()) h.reading += "; " + h.bound;
+  }
+}
+
+// The walk per decade of light, 2 dL / c in time, at white paper and where it stops changing.
+std::string curved_walk_reading(const std::vector<double>& p) {
+  if (p.size() < 2) return "";
+  const double c1 = p[0], c2 = p[1];
+  const double ps_per_cm = 2.0 / kLightCmPerNs * 1000.0, decade = std::log(10.0);
+  std::string r = fmt::format(
+      "c1 = {:+.3f} cm, c2 = {:+.3f} cm: at white paper's light the reading moves {:+.2f} cm ({:+.0f} ps) per decade "
+      "more light",
+      c1, c2, c1 * decade, c1 * decade * ps_per_cm);
+  if (c2 != 0.0) {
+    const double q_flat = std::exp(-c1 / (2.0 * c2));
+    r += fmt::format(
+        ", and that walk per decade changes by {:+.2f} cm per decade; it {} at {:.2f} times white paper's light "
+        "(the bias there {:+.2f} cm)",
+        2.0 * c2 * decade * decade, c2 > 0 ? "vanishes (the front end saturates)" : "peaks", q_flat,
+        c1 * std::log(q_flat) + c2 * std::pow(std::log(q_flat), 2));
+  }
+  return r;
+}
+
+// Leaves each surface out of the whole choice (every family ranked again on
+// the others): a surface without which another form wins drives the choice.
+void name_drivers(MaterialAnalysis& a, const MeasuredData& data, const std::vector<double>& q,
+                  const std::vector<double>& y, const std::vector<bool>& anchor) {
+  const std::string chosen = a.hypotheses[static_cast<std::size_t>(a.best)].form;
+  for (std::size_t i = 0; i < q.size(); ++i) {
+    if (anchor[i]) continue;
+    std::vector<double> qi, yi;
+    std::vector<bool> ai;
+    for (std::size_t j = 0; j < q.size(); ++j) {
+      if (j == i) continue;
+      qi.push_back(q[j]);
+      yi.push_back(y[j]);
+      ai.push_back(anchor[j]);
+    }
+    const auto hs = material_hypotheses(qi, yi, ai);
+    const int b = lowest_score(hs);
+    const std::string form = b >= 0 ? hs[static_cast<std::size_t>(b)].form : "none";
+    a.choice_without.push_back(fmt::format("without {}: `{}`", data.table32[i].name, form));
+    if (form != chosen) a.drivers.push_back(data.table32[i].name);
   }
 }
 
@@ -248,12 +330,15 @@ MaterialAnalysis analyse_materials(const MeasuredData& data) {
     if (&m != white) before.push_back(y.back());
   }
   a.before_rmse_cm = rms(before);
+  a.q_min = *std::min_element(q.begin(), q.end());
+  a.q_max = *std::max_element(q.begin(), q.end());
   a.hypotheses = material_hypotheses(q, y, anchor);
   a.slope = real_ratio_slope(data, truth_cm);
   read_material_hypotheses(a, white->reflectance);
-  a.best = lowest_loo(a.hypotheses);
+  a.best = lowest_score(a.hypotheses);
   if (a.best >= 0) {
     const auto& h = a.hypotheses[static_cast<std::size_t>(a.best)];
+    name_drivers(a, data, q, y, anchor);
     for (std::size_t i = 0; i < data.table32.size(); ++i) {
       const double r = h.loo_residual_cm[i];
       const double sd = data.table32[i].sd_cm / std::sqrt(10.0);  // 10 measurements per material
@@ -264,6 +349,24 @@ MaterialAnalysis analyse_materials(const MeasuredData& data) {
     }
   }
   return a;
+}
+
+tiny_laser_driver::CalibrationTerm material_walk_term(const MaterialAnalysis& a) {
+  if (a.best < 0) throw std::runtime_error("Table 3.2: no form was chosen, so there is no term to apply");
+  const auto& h = a.hypotheses[static_cast<std::size_t>(a.best)];
+  if (h.form.rfind("bias = c ln q", 0) != 0 && h.form.rfind("bias = c1 ln q", 0) != 0)
+    throw std::runtime_error(fmt::format(
+        "Table 3.2: the chosen form `{}` is not a time walk in the log of the light; only a walk is applied", h.form));
+  tiny_laser_driver::CalibrationTerm t;
+  t.covariate = "albedo";
+  t.form = tiny_laser_driver::TermForm::kLightWalk;
+  t.knots = {a.q_min, a.q_max};
+  t.reference = 1.0;
+  // Table 3.2 is a reading that is too far by the bias: the correction subtracts it [cm -> m].
+  for (double c : h.params) t.values.push_back(-c / 100.0);
+  t.rmse_before_m = a.before_rmse_cm / 100.0;
+  t.rmse_after_m = h.loo_rmse_cm / 100.0;
+  return t;
 }
 
 // ------------------------------------------------------------------ Table 3.1
@@ -291,7 +394,7 @@ DistanceAnalysis analyse_distances(const MeasuredData& data) {
                 : h.form == "bias = c L" ? fmt::format("c = {:+.3f} cm per m ({:+.2f} % of the distance)", c, c)
                                          : fmt::format("c = {:+.3f} cm per m^2", c);
   }
-  a.best = lowest_loo(a.hypotheses);
+  a.best = lowest_score(a.hypotheses);
   // Spread: SD(L) = P'(X) SD(X); with SD(X) ~ S^-gamma and S ~ L^-2 the log slope tells the noise.
   Eigen::MatrixXd m(static_cast<Eigen::Index>(d.size()), 2);
   Eigen::VectorXd ly(static_cast<Eigen::Index>(d.size()));
@@ -411,22 +514,64 @@ struct CurveProblem {
   }
 };
 
-EffectHypothesis fit_curve_model(const std::vector<double>& k, const std::vector<double>& l, int model,
-                                 Eigen::VectorXd& p) {
-  CurveProblem prob{k, l, model, {}, {}};
+// Levenberg-Marquardt on the points with use[i]; returns the parameters.
+Eigen::VectorXd solve_curve_model(const std::vector<double>& k, const std::vector<double>& l, int model,
+                                  Eigen::VectorXd p, const std::vector<bool>& use) {
+  std::vector<double> kk, ll;
+  for (std::size_t i = 0; i < k.size(); ++i) {
+    if (!use[i]) continue;
+    kk.push_back(k[i]);
+    ll.push_back(l[i]);
+  }
+  CurveProblem prob{kk, ll, model, {}, {}};
   common::LevenbergMarquardtSettings s;
   s.max_iterations = 200;
   (void)common::levenberg_marquardt(prob, p, prob.cost(p), s);
+  return p;
+}
+
+// Which parameter the fit left on the edge of its physical range.
+std::string curve_bound(const Eigen::VectorXd& p, int model) {
+  std::string b;
+  if (model >= 1 && std::abs(p[2]) >= 0.7)
+    b = fmt::format("Rsen on its bound ({:.3f})", std::exp(std::clamp(p[2], -0.7, 0.7)));
+  if (model >= 2 && std::abs(p[3]) >= 1.9)
+    b += fmt::format("{}beta on its bound ({:+.2f})", b.empty() ? "" : ", ", std::clamp(p[3], -1.9, 1.9));
+  return b;
+}
+
+// Fitted on the whole stretch (the residual the plots draw) and held out by
+// blocks of distance: each of kCurveBlocks contiguous stretches of k is
+// predicted from a fit on the others (the end blocks are extrapolations).
+constexpr std::size_t kCurveBlocks = 5;
+
+EffectHypothesis fit_curve_model(const std::vector<double>& k, const std::vector<double>& l, int model,
+                                 Eigen::VectorXd& p) {
+  const Eigen::VectorXd start = p;
+  p = solve_curve_model(k, l, model, start, std::vector<bool>(k.size(), true));
+  CurveProblem prob{k, l, model, {}, {}};
   std::vector<double> r;
   prob.residuals(p, r);
   EffectHypothesis h;
   h.params.assign(p.data(), p.data() + p.size());
+  h.n_params = static_cast<std::size_t>(p.size());
   h.in_sample_rmse_cm = rms(r);
-  h.loo_residual_cm = r;
+  h.loo_residual_cm.assign(k.size(), kNaN);
+  for (std::size_t b = 0; b < kCurveBlocks; ++b) {
+    std::vector<bool> use(k.size(), true);
+    for (std::size_t i = 0; i < k.size(); ++i) use[i] = i * kCurveBlocks / k.size() != b;
+    const Eigen::VectorXd pb = solve_curve_model(k, l, model, start, use);
+    for (std::size_t i = 0; i < k.size(); ++i) {
+      if (!use[i]) h.loo_residual_cm[i] = l[i] - prob.predict(pb, k[i]);
+    }
+  }
+  h.loo_rmse_cm = rms(h.loo_residual_cm);
+  h.score_cm = h.loo_rmse_cm;
+  h.bound = curve_bound(p, model);
   double mx = 0.0;
   for (double v : r) mx = std::max(mx, std::abs(v));
-  h.loo_rmse_cm = h.in_sample_rmse_cm;  // a curve has no noise: the fit residual is the figure
-  h.reading = fmt::format("max |residual| {:.2f} cm", mx);
+  h.reading = fmt::format("max |residual| {:.2f} cm in sample", mx);
+  if (!h.bound.empty()) h.reading += "; " + h.bound;
   return h;
 }
 
@@ -488,8 +633,14 @@ std::vector<CurveAnalysis> analyse_curves(const MeasuredData& data) {
     p2 << p1[0], p1[1], p1[2], 0.0;
     c.models.push_back(fit_curve_model(c.k, c.l_cm, 2, p2));
     name_curve_models(c);
-    c.best_residual_cm = c.models.back().loo_residual_cm;
-    c.effective_pulse_ns = 2.0 * c.models.back().params[0] / kLightCmPerNs;
+    c.best = lowest_score(c.models);
+    const auto& best = c.models[static_cast<std::size_t>(c.best)];
+    c.best_residual_cm.clear();
+    CurveProblem prob{c.k, c.l_cm, c.best, {}, {}};
+    Eigen::VectorXd bp =
+        Eigen::Map<const Eigen::VectorXd>(best.params.data(), static_cast<Eigen::Index>(best.params.size()));
+    prob.residuals(bp, c.best_residual_cm);
+    c.effective_pulse_ns = 2.0 * best.params[0] / kLightCmPerNs;
     // temperature_sensi [cm per 0.1 degC] -> delay [ps per degC]: 2 * 10 * sensi / c.
     c.delay_drift_ps_per_c = 2.0 * 10.0 * s.temperature_sensi_cm_per_decic / kLightCmPerNs * 1000.0;
     out.push_back(std::move(c));

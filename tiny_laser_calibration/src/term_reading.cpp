@@ -81,6 +81,14 @@ std::string term_reading(const CalibrationTerm& t) {
   }
   if (t.values.empty()) return "";
   const auto [lo, hi] = std::minmax_element(t.values.begin(), t.values.end());
+  if (t.form == TermForm::kLightWalk) {
+    std::string cs;
+    for (std::size_t k = 0; k < t.values.size(); ++k)
+      cs += fmt::format("{}{:+.3f} cm ln^{}", k ? " " : "", 100.0 * t.values[k], k + 1);
+    return fmt::format("time walk {} of {} / {:.4g}, held on {:.4g}-{:.4g} ({:+.0f} ps per decade at the reference)",
+                       cs, t.covariate, t.reference, t.knots.front(), t.knots.back(),
+                       2.0 * t.values[0] * std::log(10.0) / kLightMPerPs);
+  }
   if (t.form == TermForm::kAmplitudeInteraction) {
     return fmt::format("{:+.2f} to {:+.2f} cm per amplitude SD ({:.1f} charge_unit) over {}", 100.0 * *lo, 100.0 * *hi,
                        t.amplitude_scale, t.covariate);

@@ -105,6 +105,7 @@ constexpr std::pair<TermForm, std::string_view> kForms[] = {
     {TermForm::kGainA, "gain_a"},
     {TermForm::kGainB, "gain_b"},
     {TermForm::kReadout, "readout"},
+    {TermForm::kLightWalk, "light_walk"},
 };
 }  // namespace
 
@@ -123,7 +124,8 @@ std::optional<TermForm> term_form_from_string(std::string_view s) {
 }
 
 bool acts_on_charges(TermForm f) {
-  return f != TermForm::kSmooth && f != TermForm::kTable && f != TermForm::kAmplitudeInteraction;
+  return f != TermForm::kSmooth && f != TermForm::kTable && f != TermForm::kAmplitudeInteraction &&
+         f != TermForm::kLightWalk;
 }
 
 std::string_view to_string(ValidityRule::Verdict v) {
@@ -159,7 +161,18 @@ ValidityRule::Verdict ValidityRule::check(const Readout& r) const {
 
 // ------------------------------------------------------------------ terms
 
-std::size_t CalibrationTerm::basis_size() const { return form == TermForm::kTable ? keys.size() : knots.size(); }
+std::size_t CalibrationTerm::basis_size() const {
+  if (form == TermForm::kLightWalk) return values.size();
+  return form == TermForm::kTable ? keys.size() : knots.size();
+}
+
+namespace {
+// ln(z / reference) with z held inside [knots.front(), knots.back()]; NaN when it has no log.
+double walk_log(const CalibrationTerm& t, double z) {
+  if (t.knots.size() != 2 || !(z > 0.0) || !(t.reference > 0.0)) return kNaN;
+  return std::log(std::clamp(z, t.knots.front(), t.knots.back()) / t.reference);
+}
+}  // namespace
 
 void CalibrationTerm::basis(double z, double amplitude, std::vector<std::pair<std::size_t, double>>& out) const {
   if (!std::isfinite(z)) return;
@@ -167,6 +180,12 @@ void CalibrationTerm::basis(double z, double amplitude, std::vector<std::pair<st
     const long k = std::lround(z);
     const auto it = std::lower_bound(keys.begin(), keys.end(), k);
     if (it != keys.end() && *it == k) out.emplace_back(static_cast<std::size_t>(it - keys.begin()), 1.0);
+    return;
+  }
+  if (form == TermForm::kLightWalk) {
+    const double l = walk_log(*this, z);
+    for (std::size_t k = 0; std::isfinite(l) && k < values.size(); ++k)
+      out.emplace_back(k, std::pow(l, static_cast<double>(k + 1)));
     return;
   }
   if (knots.empty()) return;
@@ -198,6 +217,13 @@ double CalibrationTerm::value(double z, double amplitude) const {
     return (it != keys.end() && *it == k) ? offsets_m[static_cast<std::size_t>(it - keys.begin())] : 0.0;
   }
   if (values.empty()) return 0.0;
+  if (form == TermForm::kLightWalk) {
+    const double l = walk_log(*this, z);
+    if (!std::isfinite(l)) return 0.0;
+    double g = 0.0;
+    for (std::size_t k = 0; k < values.size(); ++k) g += values[k] * std::pow(l, static_cast<double>(k + 1));
+    return g;
+  }
   double g = values[0];
   if (knots.size() >= 2) {
     const auto [i, t] = locate(knots, z);

@@ -157,6 +157,25 @@ void parse_table_term(const YAML::Node& n, const Reader& rd, const std::string& 
   }
 }
 
+// At most a cubic in the log of the light: more is not a walk the data can carry.
+constexpr std::size_t kMaxWalkCoefficients = 3;
+
+void parse_walk_term(const YAML::Node& n, const Reader& rd, const std::string& f, CalibrationTerm& t) {
+  const auto kn = rd.required(n, f, "knots");
+  t.knots = rd.numbers(kn, f + ".knots");
+  if (t.knots.size() != 2 || !(t.knots[0] > 0.0) || !(t.knots[1] > t.knots[0]))
+    rd.fail(kn, f + ".knots", "must be [lo, hi], the light levels it was fitted on, 0 < lo < hi");
+  const auto vn = rd.required(n, f, "values_m");
+  t.values = rd.numbers(vn, f + ".values_m");
+  if (t.values.empty() || t.values.size() > kMaxWalkCoefficients)
+    rd.fail(vn, f + ".values_m",
+            fmt::format("has {} coefficients, expected 1 to {} (of ln, ln^2, ln^3 of the light)", t.values.size(),
+                        kMaxWalkCoefficients));
+  const auto rn = rd.required(n, f, "reference");
+  t.reference = rd.number(rn, f + ".reference");
+  if (!(t.reference > 0.0)) rd.fail(rn, f + ".reference", "must be positive (the light level of zero walk)");
+}
+
 void parse_knot_term(const YAML::Node& n, const Reader& rd, const std::string& f, CalibrationTerm& t) {
   const auto kn = rd.required(n, f, "knots");
   t.knots = rd.numbers(kn, f + ".knots");
@@ -178,7 +197,7 @@ void parse_knot_term(const YAML::Node& n, const Reader& rd, const std::string& f
 CalibrationTerm parse_term(const YAML::Node& n, const Reader& rd, const std::string& f) {
   rd.only_keys(n, f,
                {"covariate", "form", "knots", "values_m", "keys", "offsets_m", "amplitude_reference", "amplitude_scale",
-                "heldout_rmse_before_m", "heldout_rmse_after_m"});
+                "reference", "heldout_rmse_before_m", "heldout_rmse_after_m"});
   CalibrationTerm t;
   t.covariate = rd.text(rd.required(n, f, "covariate"), f + ".covariate");
   if (t.covariate.empty()) rd.fail(n, f + ".covariate", "must not be empty");
@@ -186,10 +205,14 @@ CalibrationTerm parse_term(const YAML::Node& n, const Reader& rd, const std::str
   const auto form = term_form_from_string(rd.text(form_node, f + ".form"));
   if (!form)
     rd.fail(form_node, f + ".form",
-            fmt::format("'{}' is not smooth, table or amplitude_interaction", form_node.Scalar()));
+            fmt::format("'{}' is not a term form (smooth, table, amplitude_interaction, light_walk, charge_*, "
+                        "gain_*, readout)",
+                        form_node.Scalar()));
   t.form = *form;
   if (t.form == TermForm::kTable) {
     parse_table_term(n, rd, f, t);
+  } else if (t.form == TermForm::kLightWalk) {
+    parse_walk_term(n, rd, f, t);
   } else {
     parse_knot_term(n, rd, f, t);
   }
@@ -361,7 +384,8 @@ std::string CalibrationModel::to_yaml() const {
     y += "terms: []                # effects found by the residual analysis (none)\n";
   } else {
     y +=
-        "terms:                   # effects found by the residual analysis: smooth/table/amplitude_interaction add\n"
+        "terms:                   # effects found by the residual analysis: "
+        "smooth/table/amplitude_interaction/light_walk add\n"
         "                         # to the distance [m]; charge_*, gain_*, readout act on the charges before Eq. 3.16\n"
         "                         # (values_m then in charge_unit, charge_unit per pulse or a relative gain)\n";
     for (const auto& t : m.terms) {
@@ -374,6 +398,7 @@ std::string CalibrationModel::to_yaml() const {
           y += fmt::format("    amplitude_reference: {}\n    amplitude_scale: {}\n", num(t.amplitude_reference),
                            num(t.amplitude_scale));
         }
+        if (t.form == TermForm::kLightWalk) y += fmt::format("    reference: {}\n", num(t.reference));
       }
       if (std::isfinite(t.rmse_before_m)) y += fmt::format("    heldout_rmse_before_m: {}\n", num(t.rmse_before_m));
       if (std::isfinite(t.rmse_after_m)) y += fmt::format("    heldout_rmse_after_m: {}\n", num(t.rmse_after_m));

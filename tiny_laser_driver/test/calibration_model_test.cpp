@@ -229,7 +229,7 @@ TEST(CalibrationYaml, ErrorsNameFileLineAndField) {
                         "terms:\n  - covariate: pixel\n    form: table\n    keys: [3, 2]\n    offsets_m: [0, 0]\n"),
       HasSubstr("calib.yaml:12: field 'terms[0].keys': must be strictly increasing"));
   EXPECT_THAT(expect_load_error(kMinimal + "terms:\n  - covariate: pixel\n    form: wiggly\n"),
-              HasSubstr("terms[0].form': 'wiggly' is not smooth, table or amplitude_interaction"));
+              HasSubstr("terms[0].form': 'wiggly' is not a term form"));
   EXPECT_THAT(expect_load_error(kMinimal +
                                 "terms:\n  - covariate: t_s\n    form: smooth\n    knots: [0, 1]\n    values_m: [0]\n"),
               HasSubstr("has 1 values for 2 knots"));

@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include <tiny_laser_driver/calibration_impl.hpp>
+
 namespace tinyline::tiny_laser_calibration {
 
 struct MeasuredMaterial {
@@ -76,7 +78,15 @@ struct EffectHypothesis {
   double loo_rmse_cm = std::numeric_limits<double>::quiet_NaN();  ///< leave-one-out
   std::vector<double> loo_residual_cm;  ///< per point (measured - predicted), NaN for the anchor
   std::string reading;                  ///< the fitted effect in physical units
+  std::size_t n_params = 0;             ///< free parameters (linear coefficients and grid parameters)
+  /// Leave-one-out RMSE with the size penalty: loo_rmse_cm * sqrt(n / (n - n_params)), n the points
+  /// predicted; what the choice ranks (NaN when n <= n_params).
+  double score_cm = std::numeric_limits<double>::quiet_NaN();
+  std::string bound;  ///< empty, or which parameter the fit left on its bound
 };
+
+/// The size penalty of a hypothesis predicting n points (see EffectHypothesis::score_cm).
+[[nodiscard]] double penalised_loo(double loo_rmse_cm, std::size_t n, std::size_t n_params);
 
 /// The local charge-ratio slope of the real sensors at a distance, from their
 /// factory curves: what turns a charge effect into a distance effect.
@@ -92,13 +102,25 @@ struct MaterialAnalysis {
   double white_bias_cm = 0.0;   ///< the calibration target's own bias (the anchor)
   double before_rmse_cm = 0.0;  ///< declared model: every surface reads like white paper
   std::vector<EffectHypothesis> hypotheses;
-  int best = -1;                         ///< lowest leave-one-out error
+  int best = -1;                         ///< lowest penalised leave-one-out error (score_cm)
   RatioSlope slope;                      ///< at 30 cm
   std::vector<std::string> unexplained;  ///< what the best hypothesis leaves, in words
+  /// What drives the choice: per surface other than the anchor, the form chosen when that surface
+  /// is left out of the whole choice (the same ranking on the other surfaces).
+  std::vector<std::string> choice_without;
+  std::vector<std::string> drivers;  ///< the surfaces without which another form would be chosen
+  double q_min = 0.0, q_max = 0.0;   ///< the light levels (relative to white paper's) the forms were fitted on
 };
 /// Table 3.2: leave-one-material-out over the surfaces other than the
 /// calibration target (white paper, the anchor every hypothesis passes through).
 [[nodiscard]] MaterialAnalysis analyse_materials(const MeasuredData& data);
+
+/// The chosen Table 3.2 form as a term of the calibration the driver applies:
+/// a light_walk on the albedo (the light per pulse relative to the calibration
+/// target's at that distance and pixel, q of Table 3.2), zero at q = 1, held
+/// on the q the table spans. Throws std::runtime_error naming the form when
+/// the chosen form is not a walk in the log of the light.
+[[nodiscard]] tiny_laser_driver::CalibrationTerm material_walk_term(const MaterialAnalysis& a);
 
 struct DistanceAnalysis {
   double before_rmse_cm = 0.0;  ///< the calibration as published: bias as measured
@@ -122,11 +144,14 @@ struct FitsAnalysis {
 
 struct CurveAnalysis {
   std::string sensor;
-  double k_min = 0.0, k_max = 0.0;                ///< usable stretch of k
-  double l_min_cm = 0.0, l_max_cm = 0.0;          ///< distances it spans
-  std::vector<EffectHypothesis> models;           ///< declared Eq. 3.16, + gain on A, + pulse shape
+  double k_min = 0.0, k_max = 0.0;        ///< usable stretch of k
+  double l_min_cm = 0.0, l_max_cm = 0.0;  ///< distances it spans
+  /// Declared Eq. 3.16, + gain on A, + pulse shape; loo_* are held out by blocks of distance (five
+  /// contiguous stretches of k, each predicted from a fit on the other four).
+  std::vector<EffectHypothesis> models;
+  int best = -1;                                  ///< lowest held-out error
   double delay_drift_ps_per_c = 0.0;              ///< from its temperature coefficient
-  double effective_pulse_ns = 0.0;                ///< 2 K / c of the best model
+  double effective_pulse_ns = 0.0;                ///< 2 K / c of the best model (held out)
   std::vector<double> k, l_cm, best_residual_cm;  ///< the curve and the best model's residual (plots)
 };
 /// The declared physical model against each real sensor's factory curve on its usable range.

@@ -5,9 +5,12 @@
 #include <ostream>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <tinyline/common/files.hpp>
 
 #include <tiny_laser_calibration/data.hpp>
+#include <tiny_laser_calibration/discovery.hpp>
+#include <tiny_laser_driver/calibration.hpp>
 #include <tiny_laser_calibration/measured.hpp>
 
 #include "calib_tool_internal.hpp"
@@ -18,11 +21,14 @@ namespace {
 
 std::string hypothesis_table(const std::vector<EffectHypothesis>& hs, int best, const char* error_name) {
   std::string md = fmt::format(
-      "| effect | form | {} | in-sample RMSE | fitted, in physical units |\n|---|---|---|---|---|\n", error_name);
+      "| effect | form | parameters | {} | with the size penalty | in-sample RMSE | fitted, in physical units |\n"
+      "|---|---|---|---|---|---|---|\n",
+      error_name);
   for (std::size_t i = 0; i < hs.size(); ++i) {
     const auto& h = hs[i];
-    md += fmt::format("| {}{} | `{}` | {:.2f} cm | {:.2f} cm | {} |\n", static_cast<int>(i) == best ? "**best:** " : "",
-                      h.effect, h.form, h.loo_rmse_cm, h.in_sample_rmse_cm, h.reading);
+    md += fmt::format("| {}{} | `{}` | {} | {:.2f} cm | {:.2f} cm | {:.2f} cm | {} |\n",
+                      static_cast<int>(i) == best ? "**chosen:** " : "", h.effect, h.form, h.n_params, h.loo_rmse_cm,
+                      h.score_cm, h.in_sample_rmse_cm, h.reading);
   }
   return md + "\n";
 }
@@ -35,11 +41,20 @@ std::string materials_section(const MeasuredData& d, const MaterialAnalysis& a) 
       a.white_bias_cm, d.table32.size() - 1);
   md += fmt::format("Before (the declared model: every surface reads like white paper): **{:.2f} cm** RMS.\n\n",
                     a.before_rmse_cm);
+  md +=
+      "Nested families, each with its physical reading; the choice ranks the leave-one-out RMSE times "
+      "sqrt(n / (n - parameters)) (n = 8 surfaces predicted), so a larger form has to predict better by more "
+      "than its size.\n\n";
   md += hypothesis_table(a.hypotheses, a.best, "leave-one-out RMSE");
   if (a.best >= 0) {
     const auto& h = a.hypotheses[static_cast<std::size_t>(a.best)];
-    md += fmt::format("After (best, leave-one-material-out): **{:.2f} cm** RMS, from {:.2f} cm.\n\n", h.loo_rmse_cm,
-                      a.before_rmse_cm);
+    md += fmt::format("After (chosen: `{}`, leave-one-material-out): **{:.2f} cm** RMS, from {:.2f} cm. {}: {}.\n\n",
+                      h.form, h.loo_rmse_cm, a.before_rmse_cm, h.effect, h.reading);
+    md +=
+        fmt::format("What drives the choice (each surface left out of the whole ranking): {}. {}\n\n",
+                    fmt::join(a.choice_without, "; "),
+                    a.drivers.empty() ? "No single surface changes it."
+                                      : fmt::format("Without {} another form is chosen.", fmt::join(a.drivers, ", ")));
     md += "| material | reflectance | bias [cm] | left over, leave-one-out [cm] |\n|---|---|---|---|\n";
     for (std::size_t i = 0; i < d.table32.size(); ++i) {
       const auto& m = d.table32[i];
@@ -81,16 +96,18 @@ std::string curves_section(const std::vector<CurveAnalysis>& cs) {
   md +=
       "Each curve held against the declared physical model where it reads the thesis's calibration range "
       "(5-200 cm), 401 points evenly in k = b / (a + b); Rsen kept within a factor 2 of 1 and the pulse power "
-      "positive; RMS residual of each model:\n\n";
+      "positive. RMS residual held out by blocks of distance (five contiguous stretches of k, each predicted from "
+      "a fit on the other four; the end blocks are extrapolations), in-sample in brackets:\n\n";
   md +=
-      "| sensor | k | distance [cm] | Eq. 3.16 (before) | + gain on A | + pulse shape (after) | fitted | delay drift "
-      "|\n"
-      "|---|---|---|---|---|---|---|---|\n";
+      "| sensor | k | distance [cm] | Eq. 3.16 (before) | + gain on A | + pulse shape | chosen (held out) | fitted, "
+      "chosen | delay drift |\n"
+      "|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& c : cs) {
-    md += fmt::format(
-        "| {} | {:.3f}-{:.3f} | {:.0f}-{:.0f} | {:.2f} cm | {:.2f} cm | {:.2f} cm | {} | {:.1f} ps/degC |\n", c.sensor,
-        c.k_min, c.k_max, c.l_min_cm, c.l_max_cm, c.models[0].in_sample_rmse_cm, c.models[1].in_sample_rmse_cm,
-        c.models[2].in_sample_rmse_cm, c.models[2].reading, c.delay_drift_ps_per_c);
+    std::string cells;
+    for (const auto& m : c.models) cells += fmt::format("{:.2f} cm ({:.2f}) | ", m.loo_rmse_cm, m.in_sample_rmse_cm);
+    const auto& b = c.models[static_cast<std::size_t>(std::max(c.best, 0))];
+    md += fmt::format("| {} | {:.3f}-{:.3f} | {:.0f}-{:.0f} | {}{} | {} | {:.1f} ps/degC |\n", c.sensor, c.k_min,
+                      c.k_max, c.l_min_cm, c.l_max_cm, cells, b.effect, b.reading, c.delay_drift_ps_per_c);
   }
   return md + "\n";
 }
@@ -100,15 +117,23 @@ std::string report_json(const MaterialAnalysis& m, const DistanceAnalysis& dist,
   auto hyps = [](const std::vector<EffectHypothesis>& hs) {
     std::string j = "[";
     for (std::size_t i = 0; i < hs.size(); ++i) {
-      j += fmt::format("{}{{\"effect\": {}, \"form\": {}, \"loo_rmse_cm\": {}, \"in_sample_rmse_cm\": {}}}",
-                       i ? ", " : "", json_string(hs[i].effect), json_string(hs[i].form),
-                       json_number(hs[i].loo_rmse_cm), json_number(hs[i].in_sample_rmse_cm));
+      std::vector<std::string> params, res;
+      for (double v : hs[i].params) params.push_back(json_number(v));
+      for (double v : hs[i].loo_residual_cm) res.push_back(json_number(v));
+      j += fmt::format(
+          "{}{{\"effect\": {}, \"form\": {}, \"n_params\": {}, \"params\": [{}], \"loo_rmse_cm\": {}, "
+          "\"score_cm\": {}, \"in_sample_rmse_cm\": {}, \"loo_residual_cm\": [{}], \"bound\": {}}}",
+          i ? ", " : "", json_string(hs[i].effect), json_string(hs[i].form), hs[i].n_params, fmt::join(params, ", "),
+          json_number(hs[i].loo_rmse_cm), json_number(hs[i].score_cm), json_number(hs[i].in_sample_rmse_cm),
+          fmt::join(res, ", "), json_string(hs[i].bound));
     }
     return j + "]";
   };
   std::string j = "{\n";
-  j += fmt::format("  \"table32\": {{\"before_rmse_cm\": {}, \"best\": {}, \"hypotheses\": {}}},\n",
-                   json_number(m.before_rmse_cm), m.best, hyps(m.hypotheses));
+  std::vector<std::string> drivers;
+  for (const auto& d : m.drivers) drivers.push_back(json_string(d));
+  j += fmt::format("  \"table32\": {{\"before_rmse_cm\": {}, \"best\": {}, \"drivers\": [{}], \"hypotheses\": {}}},\n",
+                   json_number(m.before_rmse_cm), m.best, fmt::join(drivers, ", "), hyps(m.hypotheses));
   j += fmt::format(
       "  \"table31\": {{\"before_rmse_cm\": {}, \"best\": {}, \"sd_log_slope\": {}, \"hypotheses\": {}}},\n",
       json_number(dist.before_rmse_cm), dist.best, json_number(dist.sd_log_slope), hyps(dist.hypotheses));
@@ -116,10 +141,15 @@ std::string report_json(const MaterialAnalysis& m, const DistanceAnalysis& dist,
                    json_number(f.noise_exponent), json_number(f.multi_shot_prediction_cm2));
   j += "  \"curves\": [";
   for (std::size_t i = 0; i < cs.size(); ++i) {
-    j += fmt::format("{}\n    {{\"sensor\": {}, \"k_min\": {}, \"k_max\": {}, \"rmse_cm\": [{}, {}, {}]}}",
-                     i ? "," : "", json_string(cs[i].sensor), json_number(cs[i].k_min), json_number(cs[i].k_max),
-                     json_number(cs[i].models[0].in_sample_rmse_cm), json_number(cs[i].models[1].in_sample_rmse_cm),
-                     json_number(cs[i].models[2].in_sample_rmse_cm));
+    const auto& ms = cs[i].models;
+    j += fmt::format(
+        "{}\n    {{\"sensor\": {}, \"k_min\": {}, \"k_max\": {}, \"best\": {}, \"heldout_rmse_cm\": [{}, {}, {}], "
+        "\"in_sample_rmse_cm\": [{}, {}, {}], \"bound\": [{}, {}, {}]}}",
+        i ? "," : "", json_string(cs[i].sensor), json_number(cs[i].k_min), json_number(cs[i].k_max), cs[i].best,
+        json_number(ms[0].loo_rmse_cm), json_number(ms[1].loo_rmse_cm), json_number(ms[2].loo_rmse_cm),
+        json_number(ms[0].in_sample_rmse_cm), json_number(ms[1].in_sample_rmse_cm),
+        json_number(ms[2].in_sample_rmse_cm), json_string(ms[0].bound), json_string(ms[1].bound),
+        json_string(ms[2].bound));
   }
   return j + "\n  ]\n}\n";
 }
@@ -150,10 +180,27 @@ void write_plot_data(const std::string& dir, const MeasuredData& d, const Materi
   out.commit();
 }
 
+// Adds the chosen Table 3.2 walk to a calibration and writes it where the driver loads it from.
+void apply_walk(const MaterialAnalysis& mat, const std::string& in, const std::string& out_path, std::ostream& out) {
+  auto model = tiny_laser_driver::CalibrationModel::load(in);
+  if (model.impl().amplitude_reference.empty())
+    throw std::runtime_error(
+        fmt::format("{}: no amplitude_reference, so the driver cannot compute the albedo the walk term needs (fit the "
+                    "calibration with `tinyline calib fit` on a rail)",
+                    in));
+  const auto term = material_walk_term(mat);
+  model.impl().terms.push_back(term);
+  model.impl().resolve();
+  model.save(out_path);
+  out << fmt::format("applied: {}\nwrote {}\n", term_reading(term), out_path);
+}
+
 }  // namespace
 
 int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
-  const Options o(argv, {"--data", "--report"}, {"--json"});
+  const Options o(argv, {"--data", "--report", "--apply", "-o"}, {"--json"});
+  if (o.value("--apply").has_value() != o.value("-o").has_value())
+    throw UsageError("measured --apply CALIB.yaml needs -o OUT.yaml, and -o needs --apply");
   if (!o.positional().empty()) throw UsageError("measured takes no positional argument");
   const std::string path = o.value("--data").value_or(env.measured_data);
   if (path.empty()) throw UsageError("measured needs --data MEASURED.yaml (no default known)");
@@ -185,9 +232,10 @@ int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::o
     files::write_atomically((fs::path(*report) / "measured.md").string(), md);
     out << fmt::format("wrote {}/measured.md\n", *report);
   }
+  if (const auto in = o.value("--apply")) apply_walk(mat, *in, *o.value("-o"), out);
   if (o.flag("--json")) {
     out << report_json(mat, dist, fits, curves);
-  } else if (!o.value("--report")) {
+  } else if (!o.value("--report") && !o.value("--apply")) {
     out << md;
   }
   return 0;

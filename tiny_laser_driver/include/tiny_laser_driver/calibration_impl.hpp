@@ -61,6 +61,9 @@ enum class TermForm {
   kGainA,                 ///< capacitor A reads 1 + g(z) times its charge: a / (1 + g(z))
   kGainB,                 ///< b / (1 + g(z))
   kReadout,               ///< read-out nonlinearity of both: v + g(v), z = the read-out v itself ("charge")
+  /// Time walk with the light: sum_k values[k] ln^(k+1)(z / reference), z held inside knots = [lo, hi]
+  /// (the light levels it was fitted on; constant beyond, as kSmooth). Adds to the distance.
+  kLightWalk,
 };
 std::string_view to_string(TermForm f);
 std::optional<TermForm> term_form_from_string(std::string_view s);
@@ -73,13 +76,15 @@ struct CalibrationTerm {
   TermForm form = TermForm::kSmooth;
   // kSmooth, kAmplitudeInteraction: values at increasing knots.
   std::vector<double> knots;
-  std::vector<double> values;  ///< [m] (kSmooth) or [m per unit of u] (kAmplitudeInteraction)
+  std::vector<double> values;  ///< [m] (kSmooth), [m per unit of u] (kAmplitudeInteraction), [m per ln^k] (kLightWalk)
   // kTable: sorted integer keys and their offsets [m].
   std::vector<long> keys;
   std::vector<double> offsets_m;
   // kAmplitudeInteraction
   double amplitude_reference = 0.0;  ///< [charge_unit]
   double amplitude_scale = 1.0;      ///< [charge_unit]
+  // kLightWalk: the light level z at which the walk is zero (the calibration target's).
+  double reference = 1.0;
   // Held-out figures recorded when the term was accepted (informational; NaN if unknown).
   double rmse_before_m = std::numeric_limits<double>::quiet_NaN();
   double rmse_after_m = std::numeric_limits<double>::quiet_NaN();
