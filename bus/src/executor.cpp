@@ -41,7 +41,14 @@ thread_local bool tl_running_inline = false;
 constexpr auto kInlineBudget = std::chrono::microseconds(200);
 constexpr int kSlowInlineRuns = 3;
 constexpr auto kInlinePause = std::chrono::seconds(1);
+// One inline run this long is no lost core: the callbacks block (a full pipe,
+// a lock, a disk). They run on workers for good, where blocking holds up only
+// their own node.
+constexpr auto kInlineStall = std::chrono::milliseconds(20);
 constexpr std::size_t kInlineBatch = 8;
+// Callbacks a waiting reliable publisher runs for the full subscriber per
+// turn: enough to make room, few enough to go back to its own message soon.
+constexpr std::size_t kHelpBatch = 16;
 
 std::int64_t steady_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
@@ -122,6 +129,14 @@ bool CallbackGroup::has_work(const SubList& subs) const {
 }
 
 bool CallbackGroup::try_run(std::size_t max, std::size_t* ran, const SubList* subs) {
+  return claim_and_run(max, ran, subs, false);
+}
+
+bool CallbackGroup::try_run_after_stop(std::size_t max, std::size_t* ran) {
+  return claim_and_run(max, ran, nullptr, true);
+}
+
+bool CallbackGroup::claim_and_run(std::size_t max, std::size_t* ran, const SubList* subs, bool after_stop) {
   bool expected = false;
   if (!running_.compare_exchange_strong(expected, true, std::memory_order_acq_rel)) return false;
   running_thread_.store(std::this_thread::get_id());
@@ -130,7 +145,7 @@ bool CallbackGroup::try_run(std::size_t max, std::size_t* ran, const SubList* su
     own = subscriptions();
     subs = own.get();
   }
-  const std::size_t n = run_claimed(max, *subs);
+  const std::size_t n = run_claimed(max, *subs, after_stop);
   running_thread_.store(std::thread::id{});
   running_.store(false, std::memory_order_seq_cst);
   if (shutdown_waiting_.load(std::memory_order_seq_cst)) {
@@ -139,6 +154,15 @@ bool CallbackGroup::try_run(std::size_t max, std::size_t* ran, const SubList* su
   }
   if (ran) *ran = n;
   return true;
+}
+
+bool CallbackGroup::run_for_waiting_publisher() {
+  const detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
+  // Only a thread of the group's own executor (its callbacks stay on those
+  // threads), never one running callbacks inline for a transport.
+  if (core == nullptr || core != tl_core || core->fifo || tl_running_inline || running_here()) return false;
+  std::size_t ran = 0;
+  return try_run(kHelpBatch, &ran) && ran > 0;
 }
 
 bool CallbackGroup::accepts_inline() const {
@@ -157,7 +181,9 @@ bool CallbackGroup::try_run_inline() {
   CoreScope scope(core);  // current_executor() inside the callbacks, as on a worker
   const auto start = std::chrono::steady_clock::now();
   tl_running_inline = true;
+  inline_since_ns_.store(steady_ns(), std::memory_order_relaxed);
   const bool ran = try_run(kInlineBatch);
+  inline_since_ns_.store(0, std::memory_order_relaxed);
   tl_running_inline = false;
   if (!ran) return false;
   note_inline_run(std::chrono::steady_clock::now() - start);
@@ -167,7 +193,16 @@ bool CallbackGroup::try_run_inline() {
   return true;
 }
 
+std::chrono::nanoseconds CallbackGroup::inline_run_time() const {
+  const std::int64_t since = inline_since_ns_.load(std::memory_order_relaxed);
+  return std::chrono::nanoseconds(since == 0 ? 0 : std::max<std::int64_t>(0, steady_ns() - since));
+}
+
 void CallbackGroup::note_inline_run(std::chrono::steady_clock::duration took) {
+  if (took >= kInlineStall) {
+    stop_inline();
+    return;
+  }
   if (took <= kInlineBudget) {
     slow_inline_runs_.store(0, std::memory_order_relaxed);
     return;
@@ -197,11 +232,11 @@ void CallbackGroup::wake_publishers() const {
   for (const auto& s : *subscriptions()) s->wake_publishers();
 }
 
-std::size_t CallbackGroup::run_claimed(std::size_t max, const SubList& subs) {
+std::size_t CallbackGroup::run_claimed(std::size_t max, const SubList& subs, bool after_stop) {
   std::size_t ran = 0;
   // A stopping executor ends the batch: its callbacks may wait on queues that
   // the workers already gone will never drain.
-  while (ran < max && !dead() && !executor_stopping()) {
+  while (ran < max && !dead() && (after_stop || !executor_stopping())) {
     // The oldest stamp goes first: arrival order across the group's queues.
     SubscriptionBase* best = nullptr;
     std::uint64_t best_stamp = 0;
@@ -311,11 +346,6 @@ Executor* CallbackGroup::executor() const {
   if (!core) return nullptr;
   std::lock_guard lk(core->mu);
   return core->owner;
-}
-
-bool CallbackGroup::drained_by_this_thread_only() const {
-  const detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
-  return core != nullptr && core == tl_core && core->threads == 1;
 }
 
 // ---------------------------------------------------------------------------- Executor

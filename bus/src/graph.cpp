@@ -36,43 +36,10 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
         old.msg.reset();
       }
     } else if (!g.unbounded_reliable()) {
-      // Reliable: wait for room, unless this thread is the one that must make
-      // it, or the executor that drains the queue is stopping.
-      if (g.executor_stopping()) {
-        timeouts_.fetch_add(1, std::memory_order_relaxed);
-        if (why) *why = stopping_reason(g);
-        return false;
-      }
-      if (g.running_here() || g.drained_by_this_thread_only()) {
-        timeouts_.fetch_add(1, std::memory_order_relaxed);
-        if (why) {
-          *why = fmt::format(
-              "reliable queue of {} for '{}' is full ({}) and the publisher runs on the thread that drains it; "
-              "raise the depth or run the subscriber on another executor thread",
-              topic_, g.owner(), qos_.depth);
-        }
-        return false;
-      }
-      // Announce the wait before reading the size: the worker advances the
-      // head before reading `waiting_` (both seq_cst), so one sees the other.
-      waiting_.fetch_add(1, std::memory_order_seq_cst);
-      bool room;
-      {
-        std::unique_lock lk(slow_mu_);
-        room = room_.wait_for(lk, qos_.max_block, [&] {
-          return size() < qos_.depth || cancelled_.load(std::memory_order_acquire) || g.dead() || g.executor_stopping();
-        });
-      }
-      waiting_.fetch_sub(1, std::memory_order_relaxed);
-      if (room && (cancelled_.load(std::memory_order_acquire) || g.dead())) return true;
-      if (!room || (g.executor_stopping() && size() >= qos_.depth)) {
-        timeouts_.fetch_add(1, std::memory_order_relaxed);
-        if (why) {
-          *why = g.executor_stopping() ? stopping_reason(g)
-                                       : fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s",
-                                                     topic_, g.owner(), qos_.depth, to_seconds(qos_.max_block));
-        }
-        return false;
+      switch (wait_for_room(g, why)) {
+        case Room::Made: break;
+        case Room::Gone: return true;
+        case Room::Failed: return false;
       }
     }
   }
@@ -81,6 +48,55 @@ bool SubscriptionBase::enqueue(std::shared_ptr<const void> msg, const MessageInf
   received_.fetch_add(1, std::memory_order_relaxed);
   g.announce();
   return true;
+}
+
+SubscriptionBase::Room SubscriptionBase::wait_for_room(CallbackGroup& g, std::string* why) {
+  // Reliable: wait for room, unless the executor that drains the queue is
+  // stopping or this thread is inside the subscriber's own callback. A thread
+  // of the subscriber's executor runs the subscriber itself while it is
+  // idle: publishers blocked on every worker must not keep it from running.
+  auto fail = [&](std::string reason) {
+    timeouts_.fetch_add(1, std::memory_order_relaxed);
+    if (why) *why = std::move(reason);
+    return Room::Failed;
+  };
+  if (g.executor_stopping()) return fail(stopping_reason(g));
+  if (g.running_here()) {
+    return fail(
+        fmt::format("reliable queue of {} for '{}' is full ({}) and the publisher runs on the thread that drains it; "
+                    "raise the depth or run the subscriber on another executor thread",
+                    topic_, g.owner(), qos_.depth));
+  }
+  // A worker polls often enough that a short wait costs nothing; it bounds
+  // how long a publisher sleeps while the subscriber could run here.
+  constexpr auto kLook = std::chrono::milliseconds(1);
+  const auto deadline = std::chrono::steady_clock::now() + qos_.max_block;
+  auto has_room = [&] {
+    return size() < qos_.depth || cancelled_.load(std::memory_order_acquire) || g.dead() || g.executor_stopping();
+  };
+  // Announce the wait before reading the size: the worker advances the
+  // head before reading `waiting_` (both seq_cst), so one sees the other.
+  waiting_.fetch_add(1, std::memory_order_seq_cst);
+  bool room = false;
+  for (;;) {
+    if (has_room()) {
+      room = true;
+      break;
+    }
+    if (g.run_for_waiting_publisher()) continue;
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= deadline) break;
+    std::unique_lock lk(slow_mu_);
+    room_.wait_until(lk, std::min(deadline, now + kLook), has_room);
+  }
+  waiting_.fetch_sub(1, std::memory_order_relaxed);
+  if (room && (cancelled_.load(std::memory_order_acquire) || g.dead())) return Room::Gone;
+  if (g.executor_stopping() && size() >= qos_.depth) return fail(stopping_reason(g));
+  if (!room) {
+    return fail(fmt::format("reliable queue of {} for '{}' stayed full ({}) for {:.3f} s", topic_, g.owner(),
+                            qos_.depth, to_seconds(qos_.max_block)));
+  }
+  return Room::Made;
 }
 
 void SubscriptionBase::push(QueuedMessage& m, std::uint64_t stamp) {
@@ -260,7 +276,7 @@ std::size_t Topic::subscription_count() const { return snapshot()->size(); }
 
 std::uint64_t Topic::dropped() const {
   std::lock_guard lk(mu_);
-  std::uint64_t n = gone_dropped_;
+  std::uint64_t n = gone_dropped_ + lost();
   for (const auto& s : *subs_) n += s->dropped();
   return n;
 }
@@ -367,6 +383,25 @@ void Graph::endpoints_changed(const std::string& topic) {
     for (auto& [id, fn] : endpoint_listeners_) fns.push_back(fn);
   }
   for (auto& fn : fns) fn(topic);  // outside the lock: a listener may create endpoints itself
+}
+
+void Graph::want(const std::string& topic) {
+  {
+    std::lock_guard lk(mu_);
+    if (std::find(wanted_.begin(), wanted_.end(), topic) != wanted_.end()) return;
+    wanted_.push_back(topic);
+  }
+  endpoints_changed(topic);
+}
+
+bool Graph::wanted(const std::string& topic) const {
+  std::lock_guard lk(mu_);
+  return std::find(wanted_.begin(), wanted_.end(), topic) != wanted_.end();
+}
+
+std::vector<std::string> Graph::wants() const {
+  std::lock_guard lk(mu_);
+  return wanted_;
 }
 
 void Graph::add_node(const void* key, std::function<NodeInfo()> describe) {

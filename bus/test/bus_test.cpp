@@ -184,6 +184,58 @@ TEST(Bus, ReliablePublishFromTheDrainingThreadFailsInsteadOfDeadlocking) {
   EXPECT_TRUE(sink->contains(bus::LogLevel::Error, "runs on the thread that drains it"));
 }
 
+// Publishers that find a subscriber's small reliable queue full must not hold
+// every executor thread while the subscriber waits for one: a thread of the
+// subscriber's executor runs the subscriber itself. Each publisher stops at
+// its first failure, so a regression fails after one max_block, not hundreds.
+void publishers_outnumbering_threads_deliver_everything(int threads) {
+  auto ctx = bus::Context::create(bus::ContextOptions{});
+  constexpr int kPublishers = 4;
+  constexpr int kEach = 200;
+  std::mutex mu;
+  std::condition_variable cv;
+  int finished = 0;
+  std::atomic<int> got{0};
+  auto sink_node = make_node(ctx, "sink");
+  auto sink = sink_node->create_subscription<StringMsg>("/sink", QoS::reliable(5, 1s),
+                                                        [&](const StringMsg&) { got.fetch_add(1); });
+  std::vector<std::shared_ptr<Node>> nodes{sink_node};
+  std::vector<std::shared_ptr<bus::Subscription<StringMsg>>> triggers;
+  for (int p = 0; p < kPublishers; ++p) {
+    auto n = make_node(ctx, "talker" + std::to_string(p));
+    auto pub = n->create_publisher<StringMsg>("/sink");
+    triggers.push_back(n->create_subscription<StringMsg>("/go", QoS::keep_last(1), [&, pub](const StringMsg&) {
+      for (int i = 0; i < kEach && pub->publish(text(std::to_string(i))).ok(); ++i) {}
+      std::lock_guard lk(mu);
+      ++finished;
+      cv.notify_all();
+    }));
+    nodes.push_back(n);
+  }
+  auto go = make_node(ctx, "go")->create_publisher<StringMsg>("/go");
+  bus::MultiThreadedExecutor ex(ctx->clock(), threads);
+  for (const auto& n : nodes) ex.add_node(n);
+  std::thread spinner([&] { ex.spin(); });
+  go->publish(text("go"));
+  {
+    std::unique_lock lk(mu);
+    ASSERT_TRUE(cv.wait_for(lk, 120s, [&] { return finished == kPublishers; })) << "hang";
+  }
+  ex.stop();
+  spinner.join();
+  ex.spin_some();  // what the last publish queued
+  EXPECT_EQ(sink->timeouts(), 0u);
+  EXPECT_EQ(got.load(), kPublishers * kEach);
+}
+
+TEST(Bus, ReliablePublishersOnEveryThreadLetTheirSubscriberRunOnOne) {
+  publishers_outnumbering_threads_deliver_everything(1);
+}
+
+TEST(Bus, ReliablePublishersOnEveryThreadLetTheirSubscriberRunOnTwo) {
+  publishers_outnumbering_threads_deliver_everything(2);
+}
+
 TEST(Bus, DeterministicExecutorRunsEverythingAMessageTriggersBeforeTheNext) {
   auto ctx = sim_context();
   bus::DeterministicExecutor ex(ctx->clock());

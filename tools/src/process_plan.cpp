@@ -20,6 +20,7 @@ namespace {
 struct Use {
   std::vector<bus::QoS> pubs;
   std::vector<bus::QoS> subs;
+  std::string type;
 };
 using TopicUses = std::map<std::string, Use>;  // topic -> endpoints in one process
 
@@ -28,13 +29,17 @@ std::string describe_process(const ProcessPlan& p) {
 }
 
 // Builds the process's nodes in a scratch context and configures them (their
-// input files load), noting their endpoints and the topics marked for DDS.
+// input files load), noting their endpoints, the topics they want without an
+// endpoint yet (a recorder's topics) and the topics marked for DDS.
 std::vector<std::shared_ptr<bus::Node>> build_process(ProcessPlan& pp, const launch::LaunchPlan& plan,
-                                                      const bus::NodeRegistry& registry, TopicUses& uses) {
+                                                      const bus::NodeRegistry& registry, TopicUses& uses,
+                                                      std::vector<std::string>& wants) {
   bus::ContextOptions co;
   co.clock = bus::ClockType::Sim;
   co.log_sink = std::make_shared<bus::CaptureSink>();
-  auto nodes = launch::instantiate(plan, registry, bus::Context::create(co), pp.name);
+  const auto ctx = bus::Context::create(co);
+  auto nodes = launch::instantiate(plan, registry, ctx, pp.name);
+  wants = ctx->graph().wants();
   launch::configure(plan, nodes, pp.name);
   std::set<std::string> marked;
   for (const auto& spec : plan.nodes) {
@@ -47,6 +52,8 @@ std::vector<std::shared_ptr<bus::Node>> build_process(ProcessPlan& pp, const lau
     const auto info = n->describe();
     for (const auto& e : info.publishers) uses[e.topic].pubs.push_back(e.qos);
     for (const auto& e : info.subscriptions) uses[e.topic].subs.push_back(e.qos);
+    for (const auto* list : {&info.publishers, &info.subscriptions})
+      for (const auto& e : *list) uses[e.topic].type = e.type;
     if (marked.count(n->full_name()) != 0) {
       for (const auto* list : {&info.publishers, &info.subscriptions})
         for (const auto& e : *list) pp.dds.topics.push_back(e.topic);
@@ -55,6 +62,42 @@ std::vector<std::shared_ptr<bus::Node>> build_process(ProcessPlan& pp, const lau
   pp.dds.all = plan.dds.all;
   pp.dds.topics.insert(pp.dds.topics.end(), plan.dds.topics.begin(), plan.dds.topics.end());
   return nodes;
+}
+
+// A topic has one type in the whole graph. Within a process the bus refuses
+// a second one; across processes DDS would just never connect the two, so
+// the file is refused here, naming both.
+void check_types(const GraphPlan& g, const std::vector<TopicUses>& uses) {
+  for (std::size_t p = 0; p < g.processes.size(); ++p) {
+    for (const auto& [topic, mine] : uses[p]) {
+      for (std::size_t q = p + 1; q < g.processes.size(); ++q) {
+        const auto it = uses[q].find(topic);
+        if (it == uses[q].end() || it->second.type == mine.type) continue;
+        throw launch::LaunchError({}, fmt::format("topic {} has type {} in {} and {} in {}: a topic has one type "
+                                                  "(over DDS the two would never connect)",
+                                                  topic, mine.type, describe_process(g.processes[p]), it->second.type,
+                                                  describe_process(g.processes[q])));
+      }
+    }
+  }
+}
+
+// A topic a node wants in one process (a recorder's topics) and another
+// process publishes travels over DDS in both: the wanting process learns its
+// type from the publisher's DDS endpoint.
+void share_wanted_topics(GraphPlan& g, const std::vector<TopicUses>& uses,
+                         const std::vector<std::vector<std::string>>& wants) {
+  for (std::size_t p = 0; p < g.processes.size(); ++p) {
+    for (const auto& topic : wants[p]) {
+      if (uses[p].count(topic) != 0) continue;
+      for (std::size_t q = 0; q < g.processes.size(); ++q) {
+        const auto it = uses[q].find(topic);
+        if (q == p || it == uses[q].end() || it->second.pubs.empty()) continue;
+        g.processes[p].dds.topics.push_back(topic);
+        g.processes[q].dds.topics.push_back(topic);
+      }
+    }
+  }
 }
 
 // Topics that cross processes travel over DDS wherever they are used.
@@ -109,11 +152,14 @@ GraphPlan plan_processes(const launch::LaunchPlan& plan, const bus::NodeRegistry
     if (g.find(n.process) == nullptr) g.processes.push_back(ProcessPlan{n.process, {}, false, {}, {}});
   }
   std::vector<TopicUses> uses(g.processes.size());
+  std::vector<std::vector<std::string>> wants(g.processes.size());
   std::vector<std::shared_ptr<bus::Node>> all;  // every node once: files are checked across processes
   for (std::size_t p = 0; p < g.processes.size(); ++p) {
-    for (auto& n : build_process(g.processes[p], plan, registry, uses[p])) all.push_back(std::move(n));
+    for (auto& n : build_process(g.processes[p], plan, registry, uses[p], wants[p])) all.push_back(std::move(n));
   }
   launch::check_files(all);
+  check_types(g, uses);
+  share_wanted_topics(g, uses, wants);
   share_crossing_topics(g, uses);
   for (std::size_t p = 0; p < g.processes.size(); ++p) {
     for (const auto& [topic, mine] : uses[p]) {

@@ -45,3 +45,17 @@ TEST(ShippedLaunchFiles, AnUnknownParameterInAShippedStyleFileIsCaught) {
   co.log_sink = std::make_shared<bus::CaptureSink>();
   EXPECT_THROW(launch::instantiate(plan, tools::node_registry(), bus::Context::create(co)), launch::LaunchError);
 }
+
+// tinyline/echo writes every message to a stream nobody may be reading: a
+// transport's delivery thread must never run its callback (it would hold up
+// every topic of the process while the stream is full).
+TEST(UtilityNodes, EchoNeverRunsOnATransportsDeliveryThread) {
+  bus::ContextOptions co;
+  co.clock = bus::ClockType::Sim;
+  co.log_sink = std::make_shared<bus::CaptureSink>();
+  bus::NodeOptions o;
+  o.name = "echo";
+  o.context = bus::Context::create(co);
+  const auto echo = tools::node_registry().create("tinyline", "echo", o);
+  EXPECT_FALSE(echo->callback_group()->accepts_inline());
+}

@@ -76,6 +76,9 @@ Recorder::Recorder(bus::NodeOptions options, RecorderOptions defaults)
 Recorder::Recorder(bus::NodeOptions options, RecorderOptions defaults, std::unique_ptr<Writable> sink)
     : Node(std::move(options)), sink_(std::move(sink)) {
   opts_ = declare(*this, std::move(defaults));
+  // A named topic that only another process publishes exists here only once
+  // a transport brings it in: ask for it now, so it is there when we start.
+  for (const auto& t : opts_.topics) context().graph().want(t);
 }
 
 Recorder::~Recorder() { (void)stop(); }
@@ -112,6 +115,8 @@ void Recorder::subscribe(const std::shared_ptr<bus::Topic>& topic) {
     topics_.push_back(std::make_unique<TopicState>());
     t = topics_.back().get();
     t->name = name;
+    t->topic = topic;
+    t->lost_before = topic->lost();
   }
   auto sub = create_generic_subscription(name, topic->type(), bus::QoS::reliable(opts_.queue_depth),
                                          [this, t](const std::shared_ptr<const void>& m, const msg::TypeSupport& type,
@@ -161,10 +166,12 @@ void Recorder::drain() {
       if (t->sub) left += t->sub->queued();
   }
   // Bounded by what is queued now: publishers may go on meanwhile. A group
-  // an executor thread still runs is left to it (try_run refuses).
+  // an executor thread still runs is left to it (try_run refuses). The
+  // executor has usually stopped by now (a launch stops it first): what is
+  // queued was published before the end all the same, so it is recorded.
   while (left > 0) {
     std::size_t ran = 0;
-    if (!callback_group()->try_run(std::min<std::size_t>(left, 64), &ran) || ran == 0) break;
+    if (!callback_group()->try_run_after_stop(std::min<std::size_t>(left, 64), &ran) || ran == 0) break;
     left -= std::min(left, ran);
   }
 }
@@ -197,7 +204,8 @@ KeyValueMap Recorder::metadata(const AsyncWriterStats& ws) const {
                      {"written", std::to_string(ws.written)},
                      {"dropped", std::to_string(st.dropped)},
                      {"dropped_by_topic", join_counts(st.dropped_by_topic)},
-                     {"subscription_timeouts", std::to_string(st.subscription_timeouts)}};
+                     {"subscription_timeouts", std::to_string(st.subscription_timeouts)},
+                     {"lost_upstream", std::to_string(st.lost_upstream)}};
 }
 
 void Recorder::report(const Status& final_status) const {
@@ -228,8 +236,11 @@ RecorderStats Recorder::stats() const {
   s.topics = topics_.size();
   for (const auto& t : topics_) {
     const std::uint64_t timeouts = t->sub ? t->sub->timeouts() : 0;
+    // Published elsewhere and lost on the way (DDS said so): never here, still not recorded.
+    const std::uint64_t lost = t->topic ? t->topic->lost() - t->lost_before : 0;
     s.subscription_timeouts += timeouts;
-    s.dropped_by_topic[t->name] += timeouts + t->after_stop.load() + t->discarded.load();
+    s.lost_upstream += lost;
+    s.dropped_by_topic[t->name] += timeouts + lost + t->after_stop.load() + t->discarded.load();
   }
   for (const auto& [topic, n] : s.dropped_by_topic) s.dropped += n;
   return s;

@@ -235,6 +235,29 @@ TEST(Recorder, AQueueThatWouldOverflowIsReportedNeverASilentLoss) {
   EXPECT_EQ(md.metadata.at("dropped_by_topic"), "/tiny/scan: " + std::to_string(st.dropped));
 }
 
+// A launch stops its executor first and its nodes after: what the recorder's
+// queues hold then was published before the end and belongs in the file (a
+// loaded machine leaves a message or two there; `--until` leaves the very
+// message it waited for).
+TEST(Recorder, RecordsWhatItsQueuesHoldWhenStoppedAfterItsExecutor) {
+  auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, nullptr});
+  bus::MultiThreadedExecutor exec(ctx->clock(), 2);
+  auto sink = std::make_unique<MemoryWritable>();
+  auto recorder = std::make_shared<Recorder>(opts(ctx, "recorder"), RecorderOptions{}, std::move(sink));
+  auto pub_node = std::make_shared<bus::Node>(opts(ctx, "sensor"));
+  auto pub = pub_node->create_publisher<tinyline_msgs::msg::LineScan>("/tiny/scan");
+  exec.add_node(recorder);
+  exec.add_node(pub_node);
+  recorder->start();
+  constexpr std::uint32_t kSent = 10;
+  for (std::uint32_t i = 0; i < kSent; ++i) ASSERT_TRUE(pub->publish(line_scan(i)).ok());
+  exec.stop();  // as tinyline launch does, before the nodes' on_stop()
+  ASSERT_TRUE(recorder->stop().ok());
+  const RecorderStats st = recorder->stats();
+  EXPECT_EQ(st.written, kSent);
+  EXPECT_EQ(st.dropped, 0U);
+}
+
 TEST(Recorder, RecordsChosenTopicsIncludingOnesCreatedLaterWithTheirQos) {
   auto ctx = sim_context();
   bus::DeterministicExecutor exec(ctx->clock());

@@ -45,6 +45,11 @@ bool same(const EndpointQos& a, const EndpointQos& b) {
 /// cannot flood the log.
 bool worth_logging(std::uint64_t count) { return count == 1 || count % 100 == 0; }
 
+// An inline delivery this long is reported (the bus stops running that node
+// inline after it: see CallbackGroup::note_inline_run).
+constexpr auto kReportedStall = std::chrono::milliseconds(20);
+constexpr int kEndpointBatch = 32;
+
 }  // namespace
 
 EndpointQos offered_qos(const std::vector<bus::QoS>& pubs) {
@@ -111,6 +116,7 @@ struct Bridge::Link {
   std::shared_ptr<bus::GenericPublisher> in;  // DDS -> local
   std::atomic<std::size_t> remote_readers{0}, remote_writers{0};
   std::atomic<std::uint64_t> sent{0}, unmatched{0}, received{0}, decode_errors{0}, write_errors{0}, incompatible{0};
+  std::atomic<std::uint64_t> lost{0}, stalls{0};
   std::atomic<std::size_t> last_size{64};  // serialization buffer guess
   std::mutex peers_mu;
   std::map<dds_instance_handle_t, Identity> readers_seen, writers_seen;
@@ -222,6 +228,20 @@ struct BridgeAccess {
     auto* l = static_cast<Bridge::Link*>(arg);
     l->bridge->drain(*l, r, false);
   }
+  static void sample_lost(dds_entity_t, const dds_sample_lost_status_t st, void* arg) {
+    auto* l = static_cast<Bridge::Link*>(arg);
+    if (st.total_count_change <= 0) return;
+    const auto n = static_cast<std::uint64_t>(st.total_count_change);
+    const auto total = l->lost.fetch_add(n) + n;
+    l->local->count_lost(n);  // the live table's dropped column, a recorder's metadata
+    l->bridge->logger().error("{}: DDS lost {} message(s) on the way here ({} so far)", l->name, n, total);
+  }
+  static void remote_publications(dds_entity_t r, void* arg) {
+    static_cast<Bridge*>(arg)->read_remote_endpoints(r, true, true);
+  }
+  static void remote_subscriptions(dds_entity_t r, void* arg) {
+    static_cast<Bridge*>(arg)->read_remote_endpoints(r, false, true);
+  }
   static void offered_incompatible(dds_entity_t, const dds_offered_incompatible_qos_status_t st, void* arg) {
     auto* l = static_cast<Bridge::Link*>(arg);
     l->incompatible.fetch_add(1);
@@ -303,7 +323,86 @@ void Bridge::start() {
     if (started_ || stopped_) return;
     started_ = true;
   }
+  watch_remote_endpoints();
   for (const auto& t : context().graph().topics()) sync_topic(t.name);
+}
+
+void Bridge::watch_remote_endpoints() {
+  std::lock_guard sync(sync_mu_);
+  auto create = [&](dds_entity_t builtin, dds_on_data_available_fn fn) {
+    dds_listener_t* ls = dds_create_listener(this);
+    dds_lset_data_available(ls, fn);
+    const dds_entity_t r = dds_create_reader(participant_->handle(), builtin, nullptr, ls);
+    dds_delete_listener(ls);
+    if (r < 0) logger().warn("cannot watch remote endpoints ({}): type mismatches go unnamed", dds_strretcode(r));
+    return r < 0 ? 0 : r;
+  };
+  remote_pubs_.store(create(DDS_BUILTIN_TOPIC_DCPSPUBLICATION, &BridgeAccess::remote_publications));
+  remote_subs_.store(create(DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, &BridgeAccess::remote_subscriptions));
+}
+
+void Bridge::read_remote_endpoints(dds_entity_t reader, bool writers, bool only_new) {
+  // Read, not taken: a node that wants a topic later looks through them again.
+  for (;;) {
+    void* samples[kEndpointBatch] = {};
+    dds_sample_info_t infos[kEndpointBatch];
+    const dds_return_t n =
+        only_new ? dds_read_mask(reader, samples, infos, kEndpointBatch, kEndpointBatch, DDS_NOT_READ_SAMPLE_STATE)
+                 : dds_read(reader, samples, infos, kEndpointBatch, kEndpointBatch);
+    if (n <= 0) return;
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos[i].valid_data || infos[i].instance_state != DDS_IST_ALIVE) continue;
+      const auto* e = static_cast<const dds_builtintopic_endpoint_t*>(samples[i]);
+      if (e->topic_name == nullptr || e->type_name == nullptr) continue;
+      on_remote_endpoint(e->topic_name, e->type_name, detail::read_identity(e->qos).describe(), writers);
+    }
+    dds_return_loan(reader, samples, n);
+    if (n < kEndpointBatch || !only_new) return;
+  }
+}
+
+void Bridge::on_remote_endpoint(const std::string& dds_topic, const std::string& dds_type, const std::string& who,
+                                bool writer) {
+  const auto name = ros_topic_name(dds_topic);
+  if (!name) return;
+  const auto local = context().graph().find(*name);
+  if (local) {
+    const std::string ours = local->type().dds_type_name();
+    if (ours == dds_type) return;
+    {
+      std::lock_guard lk(remote_mu_);
+      const std::string key = *name + "|" + dds_type;
+      if (std::find(mismatches_reported_.begin(), mismatches_reported_.end(), key) != mismatches_reported_.end())
+        return;
+      mismatches_reported_.push_back(key);
+    }
+    const auto theirs = ros_type_name(dds_type);
+    logger().error("{}: a {} in {} uses it as {}, this process as {}: DDS will not connect them, nothing travels",
+                   *name, writer ? "publisher" : "subscriber", who, theirs ? *theirs : dds_type, local->type().name);
+    return;
+  }
+  if (!writer || !context().graph().wanted(*name)) return;
+  const msg::TypeSupport* type = find_type_by_dds_name(dds_type);
+  if (type == nullptr) {
+    logger().warn("{}: published in {} as {}, a type this program does not know: not recorded", *name, who, dds_type);
+    return;
+  }
+  {
+    std::lock_guard lk(slow_mu_);  // created on the bridge's thread: this may be a DDS listener
+    adopt_.emplace_back(*name, type);
+  }
+  slow_cv_.notify_one();
+}
+
+void Bridge::adopt(const std::string& name, const msg::TypeSupport& type) {
+  if (context().graph().find(name)) return;
+  logger().info("{}: published in another process as {}; a node here wants it", name, type.name);
+  bridge_topic(name);
+  try {
+    context().graph().topic(name, type);  // its wanters subscribe now; their endpoints make the reader
+  } catch (const std::invalid_argument& e) {
+    logger().error("{}", e.what());
+  }
 }
 
 void Bridge::bridge_topic(const std::string& topic) {
@@ -329,12 +428,21 @@ void Bridge::on_graph_change(const std::string& topic) {
 
 void Bridge::sync_topic(const std::string& name) {
   std::lock_guard sync(sync_mu_);
+  bool selected = false;
   {
     std::lock_guard lk(mu_);
-    if (!started_ || stopped_ || !options_.selection.selects(name)) return;
+    if (!started_ || stopped_) return;
+    selected = options_.selection.selects(name);
   }
   auto topic = context().graph().find(name);
-  if (!topic) return;
+  if (!topic) {
+    // A topic a node wants but no one here uses yet: look whether another
+    // process publishes it (its type comes from there).
+    const dds_entity_t pubs = remote_pubs_.load();
+    if (pubs != 0 && context().graph().wanted(name)) read_remote_endpoints(pubs, true, false);
+    return;
+  }
+  if (!selected) return;
   const LocalEndpoints local = local_endpoints(name);
   std::shared_ptr<Link> l = find_link(name);
   if (!l && local.publishers.empty() && local.subscribers.empty()) return;
@@ -342,7 +450,7 @@ void Bridge::sync_topic(const std::string& name) {
   struct Reset {
     ~Reset() { t_in_sync = false; }
   } reset;
-  if (!l) l = add_link(name, *topic);
+  if (!l) l = add_link(name, topic);
   sync_writer(*l, topic, local.publishers);
   sync_reader(*l, local.subscribers);
 }
@@ -367,11 +475,12 @@ std::shared_ptr<Bridge::Link> Bridge::find_link(const std::string& name) const {
   return nullptr;
 }
 
-std::shared_ptr<Bridge::Link> Bridge::add_link(const std::string& name, const bus::Topic& topic) {
+std::shared_ptr<Bridge::Link> Bridge::add_link(const std::string& name, const std::shared_ptr<bus::Topic>& topic) {
   auto l = std::make_shared<Link>();
   l->bridge = this;
   l->name = name;
-  l->type = &topic.type();
+  l->type = &topic->type();
+  l->local = topic;
   l->topic = detail::create_topic(participant_->handle(), dds_topic_name(name), std::string(l->type->dds_type_name()),
                                   l->type, options_.settings.max_sample_bytes);
   std::lock_guard lk(mu_);
@@ -411,7 +520,6 @@ void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, cons
   // (transient-local) writer here.
   Link* raw = &L;
   const std::uint32_t own = origin_;
-  L.local = topic;
   L.tap = topic->add_tap([raw, own](const std::shared_ptr<const void>& m, const bus::MessageInfo& info) {
     if (info.origin != own) raw->bridge->send(*raw, m);
   });
@@ -445,6 +553,7 @@ void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
   dds_lset_subscription_matched(ls, &BridgeAccess::subscription_matched);
   dds_lset_requested_incompatible_qos(ls, &BridgeAccess::requested_incompatible);
   dds_lset_data_available(ls, &BridgeAccess::data_available);
+  dds_lset_sample_lost(ls, &BridgeAccess::sample_lost);
   const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
   dds_delete_listener(ls);
   if (r < 0) fail("cannot create a DDS reader for " + L.name, r);
@@ -550,12 +659,28 @@ void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
       if (msg) {
         l.in->publish(std::move(msg), origin_, may_block ? bus::Wait::ForRoom : bus::Wait::Never);
         TL_DDS_PROBE(Delivered);
-        if (inline_delivery) inline_delivery->flush();
+        if (inline_delivery) flush_inline(l, *inline_delivery);
         l.received.fetch_add(1, std::memory_order_relaxed);
       }
     }
     detail::handing_over(sd);
     ddsi_serdata_unref(sd);
+  }
+}
+
+void Bridge::flush_inline(Link& l, bus::InlineDelivery& d) {
+  // A callback that runs long here holds up every topic of the process (this
+  // thread also receives them); the bus sends its node to the workers for
+  // good after one such run. Said once per 100, with how long it took.
+  const auto start = std::chrono::steady_clock::now();
+  d.flush();
+  const auto took = std::chrono::steady_clock::now() - start;
+  if (took < kReportedStall) return;
+  if (worth_logging(l.stalls.fetch_add(1) + 1)) {
+    logger().warn(
+        "{}: a subscriber's callback held DDS's receive thread for {:.0f} ms (every topic of this process waited); "
+        "its node runs on executor threads from now on",
+        l.name, std::chrono::duration<double, std::milli>(took).count());
   }
 }
 
@@ -572,16 +697,19 @@ void Bridge::backpressure_loop() {
   for (;;) {
     Link* l = nullptr;
     std::vector<std::string> resync;
+    std::vector<std::pair<std::string, const msg::TypeSupport*>> adopted;
     {
       std::unique_lock lk(slow_mu_);
-      slow_cv_.wait(lk, [&] { return quit_.load() || !slow_links_.empty() || !resync_.empty(); });
+      slow_cv_.wait(lk, [&] { return quit_.load() || !slow_links_.empty() || !resync_.empty() || !adopt_.empty(); });
       if (quit_.load()) return;
       resync.swap(resync_);
+      adopted.swap(adopt_);
       if (!slow_links_.empty()) {
         l = slow_links_.front();
         slow_links_.erase(slow_links_.begin());
       }
     }
+    for (const auto& [topic, type] : adopted) adopt(topic, *type);
     for (const auto& topic : resync) sync_topic(topic);
     if (l == nullptr) continue;
     const dds_entity_t r = l->reader.load();
@@ -663,6 +791,8 @@ std::vector<LinkStats> Bridge::stats() const {
     s.decode_errors = l->decode_errors.load();
     s.write_errors = l->write_errors.load();
     s.incompatible = l->incompatible.load();
+    s.lost = l->lost.load();
+    s.stalls = l->stalls.load();
     out.push_back(std::move(s));
   }
   std::sort(out.begin(), out.end(), [](const LinkStats& a, const LinkStats& b) { return a.topic < b.topic; });

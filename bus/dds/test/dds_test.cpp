@@ -829,3 +829,126 @@ TEST(DdsBridge, TwoGraphsOfOneProcessAnsweringEachOtherDoNotRecurseOnOneThread) 
   ping->publish(text("ping"));
   EXPECT_TRUE(a.signal->wait_for([&] { return pongs.load() >= kExchanges; }, 60s)) << pongs.load();
 }
+
+TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenOn) {
+  // A callback run where DDS delivers (Cyclone's receive thread between
+  // processes) holds up every topic of the process while it blocks: after
+  // one long run its node runs on executor workers for good, the stall is
+  // reported, and a reliable subscriber of the same topic gets everything.
+  const auto s = test_settings("x");
+  Side b("b", s);
+  dds::Participant raw(s);
+  const std::string type = "std_msgs::msg::dds_::String_";
+  ddsi_sertype* st = dds::detail::make_sertype(type, dds::find_type_by_dds_name(type), 1 << 20);
+  const dds_entity_t topic =
+      dds_create_topic_sertype(raw.handle(), dds::dds_topic_name("/loud").c_str(), &st, nullptr, nullptr, nullptr);
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(10));
+  dds_qset_history(q, DDS_HISTORY_KEEP_ALL, 0);
+  const dds_entity_t w = dds_create_writer(raw.handle(), topic, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(w, 0);
+  auto write = [w](const std::string& data) {
+    StringMsg m;
+    m.data = data;
+    const std::vector<std::uint8_t> bytes = msg::serialize(m);
+    EXPECT_EQ(dds_write(w, &bytes), DDS_RETCODE_OK);
+  };
+
+  constexpr int kMessages = 1000;
+  std::mutex mu;
+  std::condition_variable cv;
+  bool gate_open = false;
+  std::atomic<bool> blocking{false};
+  std::atomic<std::int64_t> blocked_at_ns{0};  // steady clock
+  std::atomic<std::thread::id> writer_thread{};
+  std::atomic<int> inline_after_stall{0};
+  auto blocker = b.node("blocker");
+  auto loud = blocker->create_subscription<StringMsg>("/loud", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+    const bool on_writer = std::this_thread::get_id() == writer_thread.load();
+    if (m.data == "1" && on_writer) {  // a stderr pipe nobody reads, say
+      blocked_at_ns.store(std::chrono::steady_clock::now().time_since_epoch().count());
+      blocking.store(true);
+      b.signal->notify();
+      std::unique_lock lk(mu);
+      cv.wait(lk, [&] { return gate_open; });
+    } else if (on_writer && m.data != "0") {
+      inline_after_stall.fetch_add(1);
+    }
+  });
+  std::atomic<int> recorded{0};
+  auto recorder =
+      b.node("recorder")->create_subscription<StringMsg>("/loud", bus::QoS::reliable(kMessages), [&](const StringMsg&) {
+        recorded.fetch_add(1);
+        b.signal->notify();
+      });
+  b.run();
+  auto ok = b.bridge->wait_for_peers({{"/loud", 0, 1}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing;
+  write("0");  // the executor runs: inline runs may start
+  ASSERT_TRUE(b.signal->wait_for([&] { return recorded.load() >= 1; }, 10s)) << b.sink->dump();
+
+  std::thread writer([&] {
+    writer_thread.store(std::this_thread::get_id());
+    for (int i = 1; i < kMessages; ++i) write(std::to_string(i));
+  });
+  ASSERT_TRUE(b.signal->wait_for([&] { return blocking.load(); }, 10s)) << b.sink->dump();
+  // Held long enough to count as blocked, not as a thread that lost its core.
+  ASSERT_TRUE(b.signal->wait_for(
+      [&] {
+        const auto now = std::chrono::steady_clock::now().time_since_epoch().count();
+        return std::chrono::nanoseconds(now - blocked_at_ns.load()) >= 30ms;
+      },
+      10s));
+  {
+    std::lock_guard lk(mu);
+    gate_open = true;
+  }
+  cv.notify_all();
+  writer.join();
+  EXPECT_TRUE(b.signal->wait_for([&] { return recorded.load() >= kMessages; }, 30s)) << recorded.load();
+  EXPECT_EQ(inline_after_stall.load(), 0) << "the blocking node ran on the delivering thread again";
+  EXPECT_GE(b.stats("/loud").stalls, 1u);
+  EXPECT_TRUE(b.sink->contains(bus::LogLevel::Warn, "held DDS's receive thread")) << b.sink->dump();
+  b.stop();
+  dds_delete(w);
+}
+
+TEST(DdsBridge, ATopicANodeWantsIsBroughtInWhenAnotherProcessPublishesIt) {
+  // A recorder's `topics` may name a topic only another process publishes:
+  // nothing here has an endpoint on it, so only DDS discovery knows its type.
+  const auto s = test_settings("x");
+  Side a("a", s), b("b", s);
+  auto pub = a.node("talker")->create_publisher<StringMsg>("/elsewhere", bus::QoS::keep_last(10));
+  auto late = b.node("late");
+  b.ctx->graph().want("/elsewhere");
+  a.run();
+  b.run();
+  ASSERT_TRUE(b.signal->wait_for([&] { return b.ctx->graph().find("/elsewhere") != nullptr; }, 20s)) << b.sink->dump();
+  EXPECT_EQ(b.ctx->graph().find("/elsewhere")->type().name, a.ctx->graph().find("/elsewhere")->type().name);
+  tinyline::testing::Inbox<std::string> got(b.signal);
+  auto sub = late->create_subscription<StringMsg>("/elsewhere", bus::QoS::keep_last(10),
+                                                  [&](const StringMsg& m) { got.push(m.data); });
+  auto ok = a.bridge->wait_for_peers({{"/elsewhere", 1, 0}}, 10s);
+  ASSERT_TRUE(ok.ok) << ok.missing << "\n" << b.sink->dump();
+  pub->publish(text("hello"));
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 1; }, 10s)) << b.sink->dump();
+  EXPECT_EQ(got.items()[0], "hello");
+}
+
+TEST(DdsBridge, TwoProcessesUsingATopicWithDifferentTypesAreToldWhichTypes) {
+  const auto s = test_settings("x");
+  Side a("a", s), b("b", s);
+  auto pub = a.node("talker")->create_publisher<StringMsg>("/mixed", bus::QoS::keep_last(10));
+  auto sub = b.node("listener")
+                 ->create_subscription<sensor_msgs::msg::LaserScan>("/mixed", bus::QoS::keep_last(10),
+                                                                    [](const sensor_msgs::msg::LaserScan&) {});
+  a.run();
+  b.run();
+  EXPECT_TRUE(b.signal->wait_for(
+      [&] { return b.sink->contains(bus::LogLevel::Error, "uses it as std_msgs/msg/String, this process as"); }, 20s))
+      << b.sink->dump();
+  EXPECT_TRUE(a.signal->wait_for(
+      [&] { return a.sink->contains(bus::LogLevel::Error, "uses it as sensor_msgs/msg/LaserScan"); }, 20s))
+      << a.sink->dump();
+}

@@ -137,6 +137,10 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   /// another thread is running it; `ran` gets the number run. `subs` is the
   /// caller's copy of subscriptions() (fetched here when null).
   bool try_run(std::size_t max, std::size_t* ran = nullptr, const SubList* subs = nullptr);
+  /// As try_run, also after the executor was asked to stop: a node finishing
+  /// in on_stop() runs what its queues still hold (a recorder records it).
+  /// Only for callbacks that never wait on another node's queue.
+  bool try_run_after_stop(std::size_t max, std::size_t* ran = nullptr);
   /// True when a message or a tick waits (`subs` as for try_run).
   bool has_work(const SubList& subs) const;
   bool has_work() const { return has_work(*subscriptions()); }
@@ -149,9 +153,6 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
 
   /// The executor this group is attached to (nullptr if none).
   Executor* executor() const;
-  /// True when the calling thread runs callbacks for this group's executor,
-  /// and that executor has a single thread (so waiting on it would deadlock).
-  bool drained_by_this_thread_only() const;
   bool unbounded_reliable() const { return unbounded_reliable_.load(); }
   /// True when the executor this group is attached to was asked to stop.
   bool executor_stopping() const {
@@ -161,6 +162,12 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   /// Wakes publishers waiting for room in this group's reliable queues (they
   /// look again at why they wait: the executor may have stopped).
   void wake_publishers() const;
+  /// A reliable publisher that finds this group's queue full runs the
+  /// group's callbacks itself when it is one of the group's executor threads
+  /// and the group is idle: the node that can make room runs, instead of
+  /// waiting for a worker that every blocked publisher may be holding.
+  /// Returns true if it ran at least one callback.
+  bool run_for_waiting_publisher();
   /// True when the calling thread is inside one of this group's callbacks.
   bool running_here() const {
     return running_.load(std::memory_order_acquire) && running_thread_.load() == std::this_thread::get_id();
@@ -176,6 +183,12 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   /// transport's delivery thread must not.
   void refuse_inline() { inline_refused_.store(true, std::memory_order_relaxed); }
   bool accepts_inline() const;
+  /// How long the inline run in progress has lasted (zero when none runs):
+  /// a transport watches it, since its delivery thread waits for the run.
+  std::chrono::nanoseconds inline_run_time() const;
+  /// Inline runs stop for good: the node's callbacks once held a transport's
+  /// delivery thread too long (they may block) and run on workers from now on.
+  void stop_inline() { inline_refused_.store(true, std::memory_order_relaxed); }
 
   /// Callback exceptions caught (and logged) so far.
   std::uint64_t errors() const { return errors_.load(); }
@@ -193,7 +206,8 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   std::uint64_t next_stamp() { return next_stamp_.fetch_add(1, std::memory_order_relaxed); }
   /// Publisher side, after queueing: wakes a worker or enters the FIFO.
   void announce();
-  std::size_t run_claimed(std::size_t max, const SubList& subs);
+  bool claim_and_run(std::size_t max, std::size_t* ran, const SubList* subs, bool after_stop);
+  std::size_t run_claimed(std::size_t max, const SubList& subs, bool after_stop);
   /// Books one inline run's wall time: a group whose inline runs keep taking
   /// long goes back to the workers for a while (it would hold up the transport).
   void note_inline_run(std::chrono::steady_clock::duration took);
@@ -226,6 +240,7 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   std::atomic<bool> inline_refused_{false};
   std::atomic<int> slow_inline_runs_{0};                 ///< in a row over the budget
   std::atomic<std::int64_t> inline_paused_until_ns_{0};  ///< steady clock; 0: not paused
+  std::atomic<std::int64_t> inline_since_ns_{0};         ///< steady clock; 0: no inline run now
   // Deterministic executors: in the FIFO already.
   alignas(64) std::atomic<bool> scheduled_{false};
 };

@@ -100,6 +100,10 @@ class SubscriptionBase : public std::enable_shared_from_this<SubscriptionBase> {
   std::size_t clear();
   /// Consumer side, after taking a message: wakes a reliable publisher waiting for room.
   void made_room();
+  /// A reliable publisher facing a full queue: waits for room (running the
+  /// subscriber itself when it may), up to max_block.
+  enum class Room { Made, Gone, Failed };
+  Room wait_for_room(CallbackGroup& g, std::string* why);
   /// Why a reliable publish failed: the executor draining the queue stops.
   std::string stopping_reason(const CallbackGroup& g) const;
 
@@ -158,7 +162,11 @@ class Topic {
   std::size_t subscription_count() const;
   std::uint64_t published() const { return published_.load(std::memory_order_relaxed); }
   std::uint64_t next_sequence() { return sequence_.fetch_add(1, std::memory_order_relaxed) + 1; }
-  /// Sum over subscriptions (live and gone) of keep-last drops and reliable timeouts.
+  /// Messages a transport knows were published elsewhere but never reached
+  /// this process (DDS reported them lost on the way): part of dropped().
+  void count_lost(std::uint64_t n) { lost_.fetch_add(n, std::memory_order_relaxed); }
+  std::uint64_t lost() const { return lost_.load(std::memory_order_relaxed); }
+  /// Sum over subscriptions (live and gone) of keep-last drops, plus lost().
   std::uint64_t dropped() const;
   std::uint64_t timeouts() const;
 
@@ -173,6 +181,7 @@ class Topic {
   std::atomic<std::size_t> publishers_{0};
   std::atomic<std::uint64_t> published_{0};
   std::atomic<std::uint64_t> sequence_{0};
+  std::atomic<std::uint64_t> lost_{0};
   std::uint64_t gone_dropped_ = 0;  // from removed subscriptions (under mu_)
   std::uint64_t gone_timeouts_ = 0;
   // Transient-local: the last messages published, for late subscribers.
@@ -235,6 +244,14 @@ class Graph {
   /// Called by Node (never with a node's lock held).
   void endpoints_changed(const std::string& topic);
 
+  /// A node wants this topic though nothing in the process publishes or
+  /// subscribes to it yet (a recorder's `topics`): a transport that sees it
+  /// published elsewhere creates it here, with the type it learns there.
+  /// Tells the endpoint listeners.
+  void want(const std::string& topic);
+  bool wanted(const std::string& topic) const;
+  std::vector<std::string> wants() const;
+
   // Node bookkeeping for introspection.
   void add_node(const void* key, std::function<NodeInfo()> describe);
   void remove_node(const void* key);
@@ -245,6 +262,7 @@ class Graph {
   std::vector<std::pair<int, std::function<void(const std::shared_ptr<Topic>&)>>> listeners_;
   std::vector<std::pair<int, std::function<void(const std::string&)>>> endpoint_listeners_;
   std::vector<std::pair<const void*, std::function<NodeInfo()>>> nodes_;
+  std::vector<std::string> wanted_;
   int next_listener_ = 1;
 };
 

@@ -44,6 +44,7 @@ struct RecorderStats {
   std::uint64_t written = 0;                ///< messages in the file
   std::uint64_t dropped = 0;                ///< every message not in the file, whatever the cause (reported)
   std::uint64_t subscription_timeouts = 0;  ///< of those: publishers that found a recorder queue full
+  std::uint64_t lost_upstream = 0;          ///< of those: lost by the transport before they reached the process
   std::uint64_t file_bytes = 0;
   std::size_t topics = 0;
   std::map<std::string, std::uint64_t> dropped_by_topic;  ///< `dropped`, per topic
@@ -82,6 +83,8 @@ class Recorder : public bus::Node {
   struct TopicState {
     std::string name;
     std::shared_ptr<bus::GenericSubscription> sub;
+    std::shared_ptr<bus::Topic> topic;
+    std::uint64_t lost_before = 0;             ///< the topic's transport losses when recording began on it
     std::optional<AsyncWriter::TopicId> id;    ///< declared with the first message
     std::atomic<std::uint64_t> after_stop{0};  ///< callbacks that came after recording ended
     std::atomic<std::uint64_t> discarded{0};   ///< left in the queue when it was cancelled

@@ -79,6 +79,8 @@ struct LinkStats {
   std::uint64_t decode_errors = 0;  ///< samples from DDS that did not decode (dropped, logged)
   std::uint64_t write_errors = 0;   ///< DDS writes that failed (logged)
   std::uint64_t incompatible = 0;   ///< remote endpoints refused for incompatible QoS
+  std::uint64_t lost = 0;           ///< samples DDS reports lost on the way here (also in the topic's dropped)
+  std::uint64_t stalls = 0;         ///< deliveries a callback held up for 20 ms or more on the receive thread
 };
 
 /// Remote endpoints a process expects before its nodes start.
@@ -157,7 +159,7 @@ class Bridge : public bus::Node {
   };
   LocalEndpoints local_endpoints(const std::string& topic);
   std::shared_ptr<Link> find_link(const std::string& topic) const;
-  std::shared_ptr<Link> add_link(const std::string& topic, const bus::Topic& local);
+  std::shared_ptr<Link> add_link(const std::string& topic, const std::shared_ptr<bus::Topic>& local);
   void sync_writer(Link& link, const std::shared_ptr<bus::Topic>& local, const std::vector<bus::QoS>& publishers);
   void sync_reader(Link& link, const std::vector<bus::QoS>& subscribers);
   void send(Link& link, const std::shared_ptr<const void>& msg);
@@ -167,8 +169,18 @@ class Bridge : public bus::Node {
   void drain(Link& link, std::int32_t reader, bool may_block);
   void take_available(Link& link, std::int32_t reader, bool may_block);
   void hand_over(Link& link);
+  /// Runs the callbacks deferred on this thread; reports a long one.
+  void flush_inline(Link& link, bus::InlineDelivery& d);
   void backpressure_loop();
   void attach_graph(const std::weak_ptr<Bridge>& self);
+  /// Remote endpoints as discovery reports them (every topic, matched or
+  /// not): names a type mismatch on a topic of ours, and adopts a topic a
+  /// local node wants (Graph::want) once another process publishes it.
+  void watch_remote_endpoints();
+  void read_remote_endpoints(std::int32_t reader, bool writers, bool only_new);
+  void on_remote_endpoint(const std::string& dds_topic, const std::string& dds_type, const std::string& who,
+                          bool writer);
+  void adopt(const std::string& topic, const msg::TypeSupport& type);
 
   BridgeOptions options_;
   std::unique_ptr<Participant> participant_;
@@ -189,6 +201,10 @@ class Bridge : public bus::Node {
   std::condition_variable slow_cv_;
   std::vector<Link*> slow_links_;
   std::vector<std::string> resync_;  // topics whose endpoints changed inside a listener
+  std::vector<std::pair<std::string, const msg::TypeSupport*>> adopt_;  // wanted topics found remotely
+  std::atomic<std::int32_t> remote_pubs_{0}, remote_subs_{0};           // builtin-topic readers
+  std::mutex remote_mu_;
+  std::vector<std::string> mismatches_reported_;  // "topic|type" (under remote_mu_)
   std::thread backpressure_;
   std::mutex match_mu_;  // guards match_events_ (bumped by DDS listeners)
   std::condition_variable matched_cv_;
