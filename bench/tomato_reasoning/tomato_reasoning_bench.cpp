@@ -108,7 +108,9 @@ struct FrameTally {
 using Clock = std::chrono::steady_clock;
 double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); }
 
-void BM_Tinyline(benchmark::State& state, char cls) {
+// The whole pipeline; `before`: without the seen pedicel (the pipeline as it
+// was before it), for the side-by-side.
+void run_tinyline(benchmark::State& state, char cls, bool before) {
   const auto& fs = frames(cls);
   std::size_t k = 0;
   FrameTally tally;
@@ -116,16 +118,20 @@ void BM_Tinyline(benchmark::State& state, char cls) {
     const Frame& f = fs[k++ % fs.size()];
     PipelineParams p;
     p.gravity = f.scenario.gravity_camera;
+    p.pedicel.enabled = !before;
     const PipelineResult r = TomatoPipeline(p).run(f.scenario.cloud());
     benchmark::DoNotOptimize(r.tomatoes.data());
     tally.hsi += r.times.hsi_ms, tally.branch += r.times.branch_ms, tally.smooth += r.times.smoothing_ms,
-        tally.spheres += r.times.spheres_ms, tally.reasoning += r.times.reasoning_ms;
+        tally.spheres += r.times.spheres_ms, tally.reasoning += r.times.reasoning_ms + r.times.green_ms;
     std::vector<Eigen::Vector3d> c;
     for (const auto& t : r.tomatoes) c.push_back(t.fit.sphere.centre);
     tally.add_detections(f.scenario, c);
   }
   tally.report(state, /*with_reasoning=*/true);
 }
+
+void BM_Tinyline(benchmark::State& state, char cls) { run_tinyline(state, cls, false); }
+void BM_TinylineBefore(benchmark::State& state, char cls) { run_tinyline(state, cls, true); }
 
 // PCL's stages, with the pipeline's parameters.
 using P = pcl::PointXYZRGB;
@@ -423,6 +429,9 @@ void BM_RaycastPerPixelVga(benchmark::State& state) {
 BENCHMARK(BM_RgbdCameraVga)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_RaycastPerPixelVga)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK_CAPTURE(BM_Tinyline, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
+BENCHMARK_CAPTURE(BM_TinylineBefore, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
+BENCHMARK_CAPTURE(BM_TinylineBefore, class_B, 'B')->Unit(benchmark::kMillisecond)->Iterations(8);
+BENCHMARK_CAPTURE(BM_TinylineBefore, class_C, 'C')->Unit(benchmark::kMillisecond)->Iterations(8);
 BENCHMARK_CAPTURE(BM_PclChain, class_A, 'A')->Unit(benchmark::kMillisecond)->Iterations(8);
 BENCHMARK_CAPTURE(BM_Tinyline, class_B, 'B')->Unit(benchmark::kMillisecond)->Iterations(8);
 BENCHMARK_CAPTURE(BM_PclChain, class_B, 'B')->Unit(benchmark::kMillisecond)->Iterations(8);

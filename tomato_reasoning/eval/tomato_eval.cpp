@@ -32,6 +32,7 @@
 
 #include "tomato_reasoning/eval/harvest.hpp"
 #include "tomato_reasoning/eval/scenario.hpp"
+#include "tomato_reasoning/eval/frames_on_disk.hpp"
 #include "tomato_reasoning/eval/scoring.hpp"
 #include "tomato_reasoning/eval/variants.hpp"
 #include "tomato_reasoning/pipeline.hpp"
@@ -105,8 +106,28 @@ struct Request {
   std::vector<double> kappas;
   bool quiet = false, verify = false, fit_kappa = false, closed_loop = false, harvest = false;
   eval::ScenarioOptions scenario;
-  std::string seeds_label;  ///< which seeds and what they are (common/seeds.hpp), on every printed figure
+  std::string via_disk;       ///< frames through RGB-D files in this folder (empty: in memory)
+  double depth_noise_mm = 0;  ///< --depth-noise, into scenario.extra_depth_noise_m after parsing
+  int order_frames = 0;       ///< pick order over this many re-rendered frames per truss (0: not measured)
+  std::string seeds_label;    ///< which seeds and what they are (common/seeds.hpp), on every printed figure
 };
+
+/// The conditions of the frames (extra noise, lost pedicels, through files, re-rendered).
+void add_frame_options(cli::App& app, Request& r) {
+  app.add_option("--views", r.scenario.views, "camera views per truss")->check(cli::range(1, 2))->capture_default_str();
+  app.add_option("--depth-noise", r.depth_noise_mm,
+                 "extra Gaussian depth noise along each ray [mm] on the rendered frames (a test condition)")
+      ->check(cli::non_negative());
+  app.add_flag("--drop-pedicel-depth", r.scenario.drop_pedicel_depth,
+               "no depth on pixels that see a pedicel or calyx (a camera that loses every thin structure)");
+  app.add_option("--order-frames", r.order_frames,
+                 "render every truss N more times (own camera noise) and report how often the pick order of the "
+                 "first variant stays the same")
+      ->check(cli::range(0, 100));
+  app.add_option("--via-disk", r.via_disk,
+                 "write every frame as an RGB-D folder (PNG, 16-bit depth in mm) under DIR and run the pipeline on "
+                 "what the io reader reads back (frames from disk)");
+}
 
 /// The laser verification's and the harvest's options (Table 4.3, Table 4.2).
 void add_pick_options(cli::App& app, Request& r, std::vector<std::string>& verify_sets,
@@ -163,11 +184,11 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   app.add_flag("--fit-kappa", r.fit_kappa,
                "fit force.kernel_kappa on these seeds (HPD50 coverage closest to 50 %, log grid 2..1000), written to "
                "DIR/kappa_fit.csv");
-  app.add_option("--views", r.scenario.views, "camera views per truss")->check(cli::range(1, 2))->capture_default_str();
   app.add_option("--pose-noise", pose_noise, "the second view's pose error: METRES,DEGREES")
       ->delimiter(',')
       ->expected(2)
       ->check(cli::non_negative());
+  add_frame_options(app, r);
   add_pick_options(app, r, verify_sets, harvest_sets);
   std::vector<std::string> truss_sets;
   app.add_option("--truss-set", truss_sets,
@@ -358,14 +379,73 @@ void print_truss_line(const Run& run, char cls, std::uint64_t seed, const eval::
               ts.ok ? "" : (ts.stage + ": " + ts.reason).c_str());
 }
 
+/// Per class: trusses whose pick order was the same in every re-rendered
+/// frame, and frames whose first pick was the first frame's.
+struct OrderTally {
+  int trusses = 0, stable = 0, frames = 0, same_first = 0;
+};
+
+// A pick order as truth indices (-1: a sphere matching no tomato within 1 cm).
+std::vector<int> order_in_truth(const eval::Scenario& s, const PipelineResult& r) {
+  std::vector<int> out;
+  for (int k : r.pick_order) {
+    int best = -1;
+    double d = 0.01;
+    for (std::size_t t = 0; t < s.truth.size(); ++t) {
+      const double e = (r.tomatoes[std::size_t(k)].fit.sphere.centre - s.truth[t].centre_m).norm();
+      if (e < d) d = e, best = int(t);
+    }
+    out.push_back(best);
+  }
+  return out;
+}
+
+// The scenario's views rendered `n` more times, the variant run on each.
+void tally_order(const Request& r, const eval::Variant& variant, const eval::Scenario& sc, OrderTally& t) {
+  eval::Scenario again = sc;
+  std::vector<std::vector<int>> orders;
+  for (int f = 1; f <= r.order_frames; ++f) {
+    for (std::size_t v = 0; v < again.clouds.size(); ++v)
+      again.clouds[v] = eval::render_again(sc, r.scenario, v, sc.seed * 16 + 1000 * std::uint64_t(f) + v);
+    orders.push_back(order_in_truth(sc, variant.run(again)));
+  }
+  ++t.trusses;
+  bool stable = true;
+  for (const auto& o : orders) {
+    stable = stable && o == orders.front();
+    ++t.frames;
+    t.same_first += !o.empty() && !orders.front().empty() && o.front() == orders.front().front();
+  }
+  t.stable += stable;
+}
+
+void print_order(const std::map<char, OrderTally>& by_class, int frames) {
+  std::printf("\npick order over %d re-rendered frames per truss\n%-6s %16s %20s\n", frames, "class", "same order",
+              "same first pick");
+  OrderTally all;
+  auto row = [](const std::string& label, const OrderTally& t) {
+    std::printf("%-6s %4d/%-4d %5.1f%% %6d/%-6d %5.1f%%\n", label.c_str(), t.stable, t.trusses,
+                100.0 * t.stable / std::max(1, t.trusses), t.same_first, t.frames,
+                100.0 * t.same_first / std::max(1, t.frames));
+  };
+  for (const auto& [cls, t] : by_class) {
+    row(std::string(1, cls), t);
+    all.trusses += t.trusses, all.stable += t.stable, all.frames += t.frames, all.same_first += t.same_first;
+  }
+  row("all", all);
+}
+
 /// Every variant on every truss (each rendered once), scored; the first
 /// variant's results also feed the kappa tally and the verification.
-void evaluate(const Request& r, std::vector<Run>& runs, PickVerification* verification, KappaTally& tally) {
+void evaluate(const Request& r, std::vector<Run>& runs, PickVerification* verification, KappaTally& tally,
+              std::map<char, OrderTally>& order) {
   for (const auto& cls : r.classes) {
     const auto c = sim::parse_truss_class(cls);
     if (!c) throw UsageError("unknown class '" + cls + "'");
     for (std::uint64_t seed : r.seeds) {
-      const eval::Scenario sc = eval::make_scenario(*c, seed, r.scenario);
+      eval::Scenario sc = eval::make_scenario(*c, seed, r.scenario);
+      if (!r.via_disk.empty()) eval::round_trip_through_files(sc, r.via_disk);
+      if (r.order_frames > 0) tally_order(r, *runs.front().variant, sc, order[*cls.c_str()]);
       for (auto& run : runs) {
         const bool first = &run == &runs.front();
         const PipelineResult res = run.variant->run(sc);
@@ -389,6 +469,21 @@ void print_summary_row(const std::string& label, const eval::Summary& s) {
               100 * s.cut_cover_rate, s.total_ms_median);
 }
 
+/// The seen pedicel and the sphere bias per class: how often the pedicel was
+/// seen, the direction error before (force model) and after (posterior), and
+/// the signed radius and along-the-ray centre errors.
+void print_evidence(const Run& run) {
+  std::printf("\n%s: pedicel evidence and sphere bias\n%-6s %14s %10s %10s %12s %12s %10s %10s\n", run.name.c_str(),
+              "class", "seen", "prior_med", "post_med", "seen_prior", "seen_post", "rad_bias", "toward_cam");
+  auto row = [](const std::string& label, const eval::Summary& s) {
+    std::printf("%-6s %5d/%-4d %5.1f%% %8.2fdeg %8.2fdeg %10.2fdeg %10.2fdeg %8.2fmm %8.2fmm\n", label.c_str(), s.seen,
+                s.detected, 100.0 * s.seen / std::max(1, s.detected), s.prior_pedicel_median_deg, s.pedicel_median_deg,
+                s.seen_prior_median_deg, s.seen_posterior_median_deg, s.radius_bias_mm, s.centre_toward_camera_mm);
+  };
+  for (const auto& [cls, v] : run.by_class) row(std::string(1, cls), eval::summarize(v));
+  row("all", eval::summarize(run.scores));
+}
+
 /// Per class and overall: printed, and DIR/<variant>_summary.json.
 void write_summary(const Run& run, const Request& r) {
   files::AtomicStream js(r.out_dir + "/" + run.name + "_summary.json");
@@ -405,6 +500,7 @@ void write_summary(const Run& run, const Request& r) {
   }
   const eval::Summary all = eval::summarize(run.scores);
   print_summary_row("all", all);
+  print_evidence(run);
   js << ",\n\"all\": " << eval::to_json(all) << "}\n}\n";
   js.commit();
 }
@@ -500,6 +596,7 @@ void write_tables(const std::vector<Run>& runs, const PickVerification* v, const
 int main(int argc, char** argv) {
   Request request;
   if (const auto rc = parse(argc, argv, request)) return *rc;
+  request.scenario.extra_depth_noise_m = request.depth_noise_mm / 1000.0;
   if (std::error_code ec; !std::filesystem::create_directories(request.out_dir, ec) && ec) {
     std::fprintf(stderr, "tomato_eval: cannot create the output directory %s: %s\n", request.out_dir.c_str(),
                  ec.message().c_str());
@@ -510,7 +607,9 @@ int main(int argc, char** argv) {
     KappaTally tally = kappa_tally(request);
     std::vector<Run> runs = open_runs(request);
     const std::unique_ptr<PickVerification> verification = open_verification(request);
-    evaluate(request, runs, verification.get(), tally);
+    std::map<char, OrderTally> order;
+    evaluate(request, runs, verification.get(), tally, order);
+    if (request.order_frames > 0) print_order(order, request.order_frames);
     write_tables(runs, verification.get(), request);
     for (const auto& run : runs) write_summary(run, request);
     const std::string& first = runs.front().name;

@@ -2,6 +2,7 @@
 #include "tomato_reasoning/pipeline.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 namespace tinyline::tomato_reasoning {
@@ -9,12 +10,68 @@ namespace tinyline::tomato_reasoning {
 namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// HSI filter per view, red points into the reference frame; the first empty
+// view's reason.
+std::string filter_views(const std::vector<View>& views, const HsiFilterParams& params, PipelineResult& r) {
+  std::string hsi_reason;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    const HsiFilterResult hsi = filter_hsi(views[v].cloud, params);
+    r.finite_points += hsi.finite;
+    if (hsi.indices.empty() && hsi_reason.empty()) hsi_reason = hsi.reason;
+    const Eigen::Isometry3f T = views[v].T_ref_camera.cast<float>();
+    for (int k : hsi.indices) {
+      r.red_xyz.push_back(T * views[v].cloud.point(static_cast<std::size_t>(k)));
+      r.red_view.push_back(static_cast<std::uint8_t>(v));
+    }
+    r.viewpoints.push_back(T.translation());
+  }
+  return hsi_reason;
+}
+
+// The green points of every view within reach of a found fruit's pedicel
+// (the spheres' box grown by the largest radius and the evidence's shell).
+GreenPoints gather_green(const std::vector<View>& views, const std::vector<SphereFit>& fits,
+                         const std::vector<Eigen::Vector3f>& viewpoints, const PedicelEvidenceParams& P) {
+  GreenPoints g;
+  g.viewpoints = viewpoints;
+  Eigen::AlignedBox3f box;
+  for (const auto& f : fits) {
+    const float reach = static_cast<float>(f.sphere.radius_m + P.shell_outer_m);
+    const Eigen::Vector3f c = f.sphere.centre.cast<float>();
+    box.extend(c - Eigen::Vector3f::Constant(reach));
+    box.extend(c + Eigen::Vector3f::Constant(reach));
+  }
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    const CloudView& cloud = views[v].cloud;
+    const Eigen::Isometry3f T = views[v].T_ref_camera.cast<float>();
+    for (std::size_t k = 0; k < cloud.size(); ++k) {
+      if (!is_green(cloud.colour(k), P)) continue;
+      const Eigen::Vector3f p = cloud.point(k);
+      if (!p.allFinite()) continue;
+      const Eigen::Vector3f q = T * p;
+      if (!box.contains(q)) continue;
+      g.xyz.push_back(q);
+      g.view.push_back(static_cast<std::uint8_t>(v));
+    }
+  }
+  return g;
+}
+
+// The cut on the seen pedicel when the plan cuts along it.
+void cut_on_seen_pedicel(const Sphere& s, const PedicelSighting& seen, double cone_deg, CutPlan& cut) {
+  if (!seen.cut_point_seen) return;
+  const Eigen::Vector3d d = (seen.cut_point - s.centre).normalized();
+  if (d.dot(cut.direction) < std::cos(cone_deg * M_PI / 180.0)) return;
+  cut.point = seen.cut_point;
+  cut.direction = d;
+}
 }  // namespace
 
 common::Validation validate(const PipelineParams& p) {
-  for (const common::Validation& v :
-       {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"), validate(p.smoothing).within("smoothing"),
-        validate(p.spheres).within("spheres"), validate(p.force).within("force")}) {
+  for (const common::Validation& v : {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"),
+                                      validate(p.smoothing).within("smoothing"), validate(p.spheres).within("spheres"),
+                                      validate(p.force).within("force"), validate(p.pedicel).within("pedicel")}) {
     if (!v.valid) return v;
   }
   if (!p.gravity.allFinite() || !(p.gravity.norm() > 1e-9))
@@ -54,20 +111,8 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   }
   if (total == 0) return stop("input", "empty cloud");
 
-  // HSI filter per view, red points into the reference frame.
   auto t0 = Clock::now();
-  std::string hsi_reason;
-  for (std::size_t v = 0; v < views.size(); ++v) {
-    const HsiFilterResult hsi = filter_hsi(views[v].cloud, params_.hsi);
-    r.finite_points += hsi.finite;
-    if (hsi.indices.empty() && hsi_reason.empty()) hsi_reason = hsi.reason;
-    const Eigen::Isometry3f T = views[v].T_ref_camera.cast<float>();
-    for (int k : hsi.indices) {
-      r.red_xyz.push_back(T * views[v].cloud.point(static_cast<std::size_t>(k)));
-      r.red_view.push_back(static_cast<std::uint8_t>(v));
-    }
-    r.viewpoints.push_back(T.translation());
-  }
+  const std::string hsi_reason = filter_views(views, params_.hsi, r);
   r.times.hsi_ms = ms_since(t0);
   r.red_points = r.red_xyz.size();
   if (r.red_xyz.empty()) return stop("hsi", hsi_reason);
@@ -93,6 +138,12 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   r.segmentation = segment_spheres(r.smoothed.points, r.smoothed.normals, params_.spheres, r.viewpoints);
   r.times.spheres_ms = ms_since(t0);
   if (r.segmentation.spheres.empty()) return stop("spheres", "no sphere found: " + r.segmentation.stop_reason);
+
+  if (params_.pedicel.enabled) {
+    t0 = Clock::now();
+    r.green = gather_green(views, r.segmentation.spheres, r.viewpoints, params_.pedicel);
+    r.times.green_ms = ms_since(t0);
+  }
 
   t0 = Clock::now();
   for (const auto& f : r.segmentation.spheres) {
@@ -135,11 +186,22 @@ void TomatoPipeline::reason(PipelineResult& r) const {
   std::vector<Sphere> spheres;
   for (const auto& t : r.tomatoes) spheres.push_back(t.fit.sphere);
   r.edges = contact_graph(spheres, params_.force.contact_tolerance_m);
-  const auto peds = estimate_pedicels(spheres, r.edges, params_.gravity, params_.force);
+  auto peds = estimate_pedicels(spheres, r.edges, params_.gravity, params_.force);
+  for (std::size_t i = 0; i < r.tomatoes.size() && i < peds.size(); ++i) {
+    Tomato& t = r.tomatoes[i];
+    t.pedicel_prior = peds[i];
+    if (!params_.pedicel.enabled || r.green.xyz.empty()) continue;
+    const double cut_distance = spheres[i].radius_m + params_.cut.cut_offset_m;
+    t.sighting =
+        sight_pedicel(r.green, spheres, static_cast<int>(i), peds[i].expected_dir, cut_distance, params_.pedicel);
+    peds[i] = pedicel_posterior(peds[i], t.sighting, params_.gravity);
+  }
   const auto costs = pick_order(spheres, peds, params_.gravity, params_.pick);
   for (std::size_t i = 0; i < r.tomatoes.size(); ++i) {
-    r.tomatoes[i].pedicel = peds[i];
-    r.tomatoes[i].cut = plan_cut(spheres, static_cast<int>(i), peds[i], params_.cut);
+    Tomato& t = r.tomatoes[i];
+    t.pedicel = peds[i];
+    t.cut = plan_cut(spheres, static_cast<int>(i), peds[i], params_.cut);
+    cut_on_seen_pedicel(spheres[i], t.sighting, params_.pedicel.cone_deg, t.cut);
   }
   for (std::size_t rank = 0; rank < costs.size(); ++rank) {
     Tomato& t = r.tomatoes[static_cast<std::size_t>(costs[rank].sphere)];

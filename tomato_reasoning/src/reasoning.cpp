@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <tuple>
 
 #include <Eigen/Geometry>
 
@@ -157,6 +158,16 @@ PedicelDistribution PedicelDistribution::rotated(const Eigen::Matrix3d& R) const
   return PedicelDistribution(std::move(d), kappa_, seed_);
 }
 
+std::pair<double, double> spread_deg(const PedicelDistribution& d, const Eigen::Vector3d& centre, int n,
+                                     std::uint64_t seed) {
+  // Angles of the full distribution (kernel included) from `centre`.
+  std::vector<double> ang;
+  for (const auto& x : d.sample(n, seed)) ang.push_back(angle_between(x, centre));
+  if (ang.empty()) return {0.0, 0.0};
+  std::sort(ang.begin(), ang.end());
+  return {ang[ang.size() / 2] * 180.0 / M_PI, ang[std::min(ang.size() - 1, ang.size() * 9 / 10)] * 180.0 / M_PI};
+}
+
 std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& spheres,
                                                const std::vector<ContactEdge>& edges, const Eigen::Vector3d& gravity,
                                                const ForceModelParams& P) {
@@ -206,13 +217,8 @@ std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& sphere
       draws.push_back(Fp.norm() > 1e-12 ? Eigen::Vector3d(Fp.normalized()) : e.expected_dir);
     }
     e.distribution = PedicelDistribution(std::move(draws), P.kernel_kappa, P.seed * 1000003ULL + i);
-    // Spread: angles of the full distribution (kernel included) from the expectation.
-    std::vector<double> ang;
-    for (const auto& d : e.distribution.sample(P.samples, P.seed + 7 * i + 1))
-      ang.push_back(angle_between(d, e.expected_dir));
-    std::sort(ang.begin(), ang.end());
-    e.spread50_deg = ang[ang.size() / 2] * 180.0 / M_PI;
-    e.spread90_deg = ang[std::min(ang.size() - 1, ang.size() * 9 / 10)] * 180.0 / M_PI;
+    std::tie(e.spread50_deg, e.spread90_deg) =
+        spread_deg(e.distribution, e.expected_dir, P.samples, P.seed + 7 * i + 1);
     e.gravity_angle_rad = angle_between(e.expected_dir, -g);
     out.push_back(std::move(e));
   }

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include <tinyline/common/random.hpp>
 
@@ -24,6 +25,29 @@ double unit_normal(std::uint64_t key) {
   const double u1 = common::unit_open(splitmix64(key));
   const double u2 = common::unit_open(splitmix64(key + 1));
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+}
+
+// The test conditions of ScenarioOptions on one rendered frame's cloud.
+void apply_conditions(const ScenarioOptions& o, const sim::World& world, const sim::RgbdFrame& f, std::uint64_t key,
+                      ColorCloud& c) {
+  if (o.drop_pedicel_depth) {
+    std::vector<std::uint8_t> thin(world.size(), 0);
+    for (std::size_t k = 0; k < world.size(); ++k) {
+      const std::string& n = world.object(static_cast<sim::ObjectId>(k)).name;
+      thin[k] = n.find("_pedicel_") != std::string::npos || n.find("_calyx_") != std::string::npos;
+    }
+    for (std::size_t i = 0; i < f.size(); ++i)
+      if (f.object[i] != sim::kNoObject && thin[static_cast<std::size_t>(f.object[i])])
+        c.xyz[i].setConstant(std::numeric_limits<float>::quiet_NaN());
+  }
+  if (o.extra_depth_noise_m > 0) {
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      if (!c.xyz[i].allFinite()) continue;
+      const float z = c.xyz[i].z();
+      const float dz = static_cast<float>(o.extra_depth_noise_m * unit_normal(splitmix64(key + 2 * i)));
+      c.xyz[i] *= (z + dz) / z;  // along the ray: depth and the point scale together
+    }
+  }
 }
 }  // namespace
 
@@ -53,6 +77,7 @@ Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed, const Sce
   for (std::size_t v = 0; v < T_world_camera.size(); ++v) {
     s.frames.push_back(camera.render(s.world, T_world_camera[v], seed * 16 + v));
     s.clouds.push_back(to_cloud(s.frames.back()));
+    apply_conditions(o, s.world, s.frames.back(), splitmix64(seed * 7919 + v) << 20, s.clouds.back());
     Eigen::Isometry3d T = T_ref_world * T_world_camera[v];
     if (v > 0) {
       // The pose the pipeline believes: off by the calibration residual.
@@ -93,6 +118,13 @@ Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed, const Sce
   }
   for (const auto& d : second) s.distractors.push_back(T_cam_world * d.centre_m);
   return s;
+}
+
+ColorCloud render_again(const Scenario& s, const ScenarioOptions& o, std::size_t view, std::uint64_t frame_index) {
+  const sim::RgbdFrame f = sim::RgbdCamera(o.camera).render(s.world, s.frames.at(view).T_world_camera, frame_index);
+  ColorCloud c = to_cloud(f);
+  apply_conditions(o, s.world, f, splitmix64(frame_index * 104729 + view) << 20, c);
+  return c;
 }
 
 }  // namespace tinyline::tomato_reasoning::eval

@@ -14,6 +14,41 @@ namespace {
 double deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
 }
+// Distance [m] from p to the true pedicel's path (anchor to calyx), reference frame.
+double distance_to_pedicel(const Scenario& s, std::size_t t, const Eigen::Vector3d& p) {
+  if (t >= s.truss.tomatoes.size()) return NAN;
+  const auto& tt = s.truss.tomatoes[t];
+  std::vector<Eigen::Vector3d> path = tt.pedicel_path_m;
+  if (path.size() < 2) path = {tt.anchor_m, tt.calyx_m};
+  const Eigen::Isometry3d T_ref_world = s.frame().T_world_camera.inverse();
+  double best = INFINITY;
+  for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+    const Eigen::Vector3d a = T_ref_world * path[k], b = T_ref_world * path[k + 1];
+    const double u = std::clamp((p - a).dot(b - a) / std::max(1e-12, (b - a).squaredNorm()), 0.0, 1.0);
+    best = std::min(best, (a + u * (b - a) - p).norm());
+  }
+  return best;
+}
+// The errors of detection `d` of true tomato `t`.
+void score_detection(const Scenario& s, std::size_t t, const Tomato& d, const ScoreParams& p, TomatoScore& ts) {
+  const TruthTomato& tr = s.truth[t];
+  ts.centre_error_m = (d.fit.sphere.centre - tr.centre_m).norm();
+  ts.radius_error_m = d.fit.sphere.radius_m - tr.radius_m;
+  ts.centre_toward_camera_m = -(d.fit.sphere.centre - tr.centre_m).dot(tr.centre_m.normalized());
+  ts.edges_estimated = d.pedicel.edges;
+  ts.pedicel_error_deg = deg(d.pedicel.expected_dir, tr.pedicel_dir);
+  ts.prior_pedicel_error_deg = deg(d.pedicel_prior.expected_dir, tr.pedicel_dir);
+  ts.pedicel_seen = d.sighting.seen;
+  ts.seen_points = d.sighting.points;
+  if (d.sighting.seen) ts.seen_error_deg = deg(d.sighting.direction, tr.pedicel_dir);
+  ts.cut_point_axis_mm = 1000 * distance_to_pedicel(s, t, d.cut.point);
+  if (tr.pedicel_force_n.norm() > 1e-9) ts.force_dir_error_deg = deg(d.pedicel.expected_dir, tr.pedicel_force_n);
+  ts.truth_in_hpd = d.pedicel.distribution.in_hpd(tr.pedicel_dir, p.hpd_mass);
+  ts.spread50_deg = d.pedicel.spread50_deg;
+  ts.cut_coverage = d.cut.coverage;
+  ts.cut_covers_truth = std::cos(d.cut.half_angle_rad) <= d.cut.direction.dot(tr.pedicel_dir.normalized());
+  ts.pick_rank = d.pick_rank;
+}
 }  // namespace
 
 double percentile(std::vector<double> v, double pct) {
@@ -72,20 +107,10 @@ TrussScore score_truss(const Scenario& s, const PipelineResult& r, const ScorePa
     out.visible += visible;
     const int k = det_of[t];
     if (k >= 0) {
-      const Tomato& d = r.tomatoes[std::size_t(k)];
       ts.detection = k;
       ++out.detected;
       out.visible_detected += visible;
-      ts.centre_error_m = (d.fit.sphere.centre - tr.centre_m).norm();
-      ts.radius_error_m = d.fit.sphere.radius_m - tr.radius_m;
-      ts.edges_estimated = d.pedicel.edges;
-      ts.pedicel_error_deg = deg(d.pedicel.expected_dir, tr.pedicel_dir);
-      if (tr.pedicel_force_n.norm() > 1e-9) ts.force_dir_error_deg = deg(d.pedicel.expected_dir, tr.pedicel_force_n);
-      ts.truth_in_hpd = d.pedicel.distribution.in_hpd(tr.pedicel_dir, p.hpd_mass);
-      ts.spread50_deg = d.pedicel.spread50_deg;
-      ts.cut_coverage = d.cut.coverage;
-      ts.cut_covers_truth = std::cos(d.cut.half_angle_rad) <= d.cut.direction.dot(tr.pedicel_dir.normalized());
-      ts.pick_rank = d.pick_rank;
+      score_detection(s, t, r.tomatoes[std::size_t(k)], p, ts);
     }
     out.tomatoes.push_back(ts);
   }
@@ -117,7 +142,7 @@ TrussScore score_truss(const Scenario& s, const PipelineResult& r, const ScorePa
 
 Summary summarize(const std::vector<TrussScore>& scores) {
   Summary s;
-  std::vector<double> ce, re, pe, ge, ms;
+  std::vector<double> ce, re, pe, ge, ms, prior, seen_prior, seen_post, rb, tc;
   int hpd = 0, hpd_n = 0, cover = 0;
   double cov_sum = 0;
   int tp = 0, fp = 0, fn = 0;
@@ -139,6 +164,14 @@ Summary summarize(const std::vector<TrussScore>& scores) {
       ce.push_back(1000 * x.centre_error_m);
       re.push_back(1000 * std::abs(x.radius_error_m));
       pe.push_back(x.pedicel_error_deg);
+      prior.push_back(x.prior_pedicel_error_deg);
+      rb.push_back(1000 * x.radius_error_m);
+      tc.push_back(1000 * x.centre_toward_camera_m);
+      if (x.pedicel_seen) {
+        ++s.seen;
+        seen_prior.push_back(x.prior_pedicel_error_deg);
+        seen_post.push_back(x.pedicel_error_deg);
+      }
       hpd += x.truth_in_hpd;
       cover += x.cut_covers_truth;
       cov_sum += x.cut_coverage;
@@ -151,6 +184,11 @@ Summary summarize(const std::vector<TrussScore>& scores) {
   s.radius_p95_mm = percentile(re, 95);
   s.pedicel_median_deg = percentile(pe, 50);
   s.pedicel_p95_deg = percentile(pe, 95);
+  s.prior_pedicel_median_deg = percentile(prior, 50);
+  s.radius_bias_mm = percentile(rb, 50);
+  s.centre_toward_camera_mm = percentile(tc, 50);
+  s.seen_prior_median_deg = percentile(seen_prior, 50);
+  s.seen_posterior_median_deg = percentile(seen_post, 50);
   s.gravity_only_median_deg = percentile(ge, 50);
   s.gravity_only_p95_deg = percentile(ge, 95);
   if (hpd_n > 0) {
@@ -168,7 +206,8 @@ Summary summarize(const std::vector<TrussScore>& scores) {
 std::string csv_header() {
   return "class,seed,truth,detection,visible_share,centre_error_mm,radius_error_mm,edges_true,edges_estimated,"
          "pedicel_error_deg,gravity_only_error_deg,force_dir_error_deg,truth_in_hpd50,spread50_deg,cut_coverage,"
-         "cut_covers_truth,pick_rank\n";
+         "cut_covers_truth,pick_rank,prior_pedicel_error_deg,pedicel_seen,seen_points,seen_error_deg,cut_point_axis_"
+         "mm\n";
 }
 
 std::string csv_rows(const TrussScore& s) {
@@ -179,7 +218,8 @@ std::string csv_rows(const TrussScore& s) {
       << 1000 * t.centre_error_m << ',' << 1000 * t.radius_error_m << ',' << t.edges_true << ',' << t.edges_estimated
       << ',' << t.pedicel_error_deg << ',' << t.gravity_only_error_deg << ',' << t.force_dir_error_deg << ','
       << int(t.truth_in_hpd) << ',' << t.spread50_deg << ',' << t.cut_coverage << ',' << int(t.cut_covers_truth) << ','
-      << t.pick_rank << '\n';
+      << t.pick_rank << ',' << t.prior_pedicel_error_deg << ',' << int(t.pedicel_seen) << ',' << t.seen_points << ','
+      << t.seen_error_deg << ',' << t.cut_point_axis_mm << '\n';
   }
   return o.str();
 }
@@ -211,6 +251,10 @@ std::string to_json(const Summary& s) {
   num("radius_p95_mm", s.radius_p95_mm);
   num("pedicel_median_deg", s.pedicel_median_deg);
   num("pedicel_p95_deg", s.pedicel_p95_deg);
+  num("prior_pedicel_median_deg", s.prior_pedicel_median_deg);
+  num("pedicel_seen", s.seen);
+  num("seen_prior_median_deg", s.seen_prior_median_deg);
+  num("seen_posterior_median_deg", s.seen_posterior_median_deg);
   num("gravity_only_median_deg", s.gravity_only_median_deg);
   num("gravity_only_p95_deg", s.gravity_only_p95_deg);
   num("hpd50_hit_rate", s.hpd_hit_rate);

@@ -160,6 +160,21 @@ const std::map<std::string, Setter>& setters() {
       {"force.kernel_kappa", [](PipelineParams& p, double v) { p.force.kernel_kappa = v; }},
       {"force.samples", [](PipelineParams& p, double v) { p.force.samples = int(v); }},
       {"cut.cut_offset_m", [](PipelineParams& p, double v) { p.cut.cut_offset_m = v; }},
+      {"pedicel.enabled", [](PipelineParams& p, double v) { p.pedicel.enabled = v != 0; }},
+      {"pedicel.green_margin", [](PipelineParams& p, double v) { p.pedicel.green_margin = int(v); }},
+      {"pedicel.shell_inner_m", [](PipelineParams& p, double v) { p.pedicel.shell_inner_m = v; }},
+      {"pedicel.shell_outer_m", [](PipelineParams& p, double v) { p.pedicel.shell_outer_m = v; }},
+      {"pedicel.max_prior_angle_deg", [](PipelineParams& p, double v) { p.pedicel.max_prior_angle_deg = v; }},
+      {"pedicel.cone_deg", [](PipelineParams& p, double v) { p.pedicel.cone_deg = v; }},
+      {"pedicel.calyx_depth_m", [](PipelineParams& p, double v) { p.pedicel.calyx_depth_m = v; }},
+      {"pedicel.direction_source", [](PipelineParams& p, double v) { p.pedicel.direction_source = int(v); }},
+      {"pedicel.calyx_cone_deg", [](PipelineParams& p, double v) { p.pedicel.calyx_cone_deg = v; }},
+      {"pedicel.line_reach_m", [](PipelineParams& p, double v) { p.pedicel.line_reach_m = v; }},
+      {"pedicel.min_points", [](PipelineParams& p, double v) { p.pedicel.min_points = int(v); }},
+      {"pedicel.min_pedicel_points", [](PipelineParams& p, double v) { p.pedicel.min_pedicel_points = int(v); }},
+      {"pedicel.rod_radius_m", [](PipelineParams& p, double v) { p.pedicel.rod_radius_m = v; }},
+      {"pedicel.kappa_per_point", [](PipelineParams& p, double v) { p.pedicel.kappa_per_point = v; }},
+      {"pedicel.kappa_max", [](PipelineParams& p, double v) { p.pedicel.kappa_max = v; }},
   };
   return m;
 }

@@ -9,6 +9,7 @@
 
 #include "tomato_reasoning/branch_clustering.hpp"
 #include "tomato_reasoning/harvest.hpp"
+#include "tomato_reasoning/pedicel_evidence.hpp"
 #include "tomato_reasoning/hsi_filter.hpp"
 #include "tomato_reasoning/pick_pose.hpp"
 #include "tomato_reasoning/pipeline.hpp"
@@ -111,6 +112,29 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
+requires common::SettingsOf<S, PedicelEvidenceParams>
+void for_each_param(S& p, V&& v) {
+  v(p.enabled, {"enabled", "", {}, {}, "use the seen calyx and pedicel (false: the force model alone)"});
+  v(p.green_margin, {"green_margin", "", 0, 255, "green channel above red and blue by this: a calyx/pedicel point"});
+  v(p.min_intensity, {"min_intensity", "", 0, 255, "(r + g + b) / 3 of a green point at least"});
+  v(p.shell_inner_m, {"shell_inner_m", "m", 0.0, 0.05, "green points from this far inside the fruit's surface"});
+  v(p.shell_outer_m, {"shell_outer_m", "m", 1e-3, 0.1, "... to this far beyond it"});
+  v(p.max_prior_angle_deg,
+    {"max_prior_angle_deg", "deg", 1.0, 180.0, "look only within this of the force model's expected direction"});
+  v(p.cone_deg, {"cone_deg", "deg", 1.0, 89.0, "mean-shift window on the points' directions"});
+  v(p.calyx_depth_m, {"calyx_depth_m", "m", 0.0, 0.05, "points beyond the surface + this are pedicel"});
+  v(p.calyx_cone_deg, {"calyx_cone_deg", "deg", 1.0, 89.0, "calyx points within this of the bundle"});
+  v(p.line_reach_m, {"line_reach_m", "m", 1e-3, 0.1, "the pedicel's line is fitted up to this beyond the surface"});
+  v(p.direction_source, {"direction_source", "", 0, 1, "0: mean direction of the bundle; 1: line, disc, mean"});
+  v(p.min_points, {"min_points", "", 1, 100000, "supporting points of a sighting at least"});
+  v(p.min_pedicel_points, {"min_pedicel_points", "", 1, 100000, "pedicel points to take the direction from them"});
+  v(p.rod_radius_m, {"rod_radius_m", "m", 0.0, 0.02, "points pushed back along their ray by this"});
+  v(p.kappa_per_point, {"kappa_per_point", "", 1e-3, 1e6, "likelihood concentration per supporting point"});
+  v(p.kappa_max, {"kappa_max", "", 1e-3, 1e6, "likelihood concentration at most"});
+  v(p.cut_band_m, {"cut_band_m", "m", 1e-4, 0.05, "seen cut point: pedicel points this close to the cut distance"});
+}
+
+template <class S, class V>
 requires common::SettingsOf<S, PipelineParams>
 void for_each_param(S& p, V&& v) {
   common::nest(p.hsi, "hsi.", v);
@@ -120,6 +144,7 @@ void for_each_param(S& p, V&& v) {
   common::nest(p.force, "force.", v);
   common::nest(p.pick, "pick.", v);
   common::nest(p.cut, "cut.", v);
+  common::nest(p.pedicel, "pedicel.", v);
   v(p.gravity, {"gravity", "", -1e6, 1e6, "gravity direction in the cloud's frame (3 numbers, normalised)"});
 }
 

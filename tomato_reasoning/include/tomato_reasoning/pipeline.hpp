@@ -16,6 +16,7 @@
 #include "tomato_reasoning/branch_clustering.hpp"
 #include "tomato_reasoning/cloud.hpp"
 #include "tomato_reasoning/hsi_filter.hpp"
+#include "tomato_reasoning/pedicel_evidence.hpp"
 #include "tomato_reasoning/reasoning.hpp"
 #include "tomato_reasoning/smoothing.hpp"
 #include "tomato_reasoning/sphere_ransac.hpp"
@@ -32,6 +33,7 @@ struct PipelineParams {
   ForceModelParams force;
   PickOrderParams pick;
   CutParams cut;
+  PedicelEvidenceParams pedicel;  ///< the seen calyx and pedicel (posterior over the force model's prior)
   /// Unit direction of gravity in the cloud's frame (a level camera's
   /// optical frame: +y). Normalised on use.
   Eigen::Vector3d gravity{0, 1, 0};
@@ -41,12 +43,21 @@ common::Validation validate(const PipelineParams& p);
 
 struct StageTimes {
   double hsi_ms = 0, branch_ms = 0, smoothing_ms = 0, spheres_ms = 0, reasoning_ms = 0;
-  [[nodiscard]] double total_ms() const { return hsi_ms + branch_ms + smoothing_ms + spheres_ms + reasoning_ms; }
+  double green_ms = 0;  ///< gathering the green points for the pedicel evidence
+  [[nodiscard]] double total_ms() const {
+    return hsi_ms + branch_ms + smoothing_ms + spheres_ms + reasoning_ms + green_ms;
+  }
 };
 
 struct Tomato {
   SphereFit fit;
+  /// The pedicel direction the pick uses: the posterior when the camera saw
+  /// the pedicel or calyx (`sighting.seen`), else the force model's.
   PedicelEstimate pedicel;
+  PedicelEstimate pedicel_prior;  ///< the force model's alone (Eq. 4.18-4.22)
+  PedicelSighting sighting;       ///< what the camera saw of the pedicel
+  /// Planned on `pedicel`; its point lies on the seen pedicel when
+  /// `sighting.cut_point_seen` and the plan's direction agrees with it.
   CutPlan cut;
   PickCost cost;
   int pick_rank = -1;  ///< 0 = pick first
@@ -71,6 +82,9 @@ struct PipelineResult {
   std::vector<Eigen::Vector3f> red_xyz;
   std::vector<std::uint8_t> red_view;
   std::vector<Eigen::Vector3f> viewpoints;  ///< camera origins in the reference frame
+  /// Green points (calyx, pedicel, stem, leaf colours) near the fruit found,
+  /// reference frame: the pedicel evidence's input.
+  GreenPoints green;
   BranchResult branch;
   SmoothedCloud smoothed;
   SphereSegmentation segmentation;

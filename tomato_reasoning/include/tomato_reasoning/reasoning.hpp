@@ -31,6 +31,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -108,6 +109,11 @@ struct PedicelEstimate {
   double gravity_angle_rad = 0.0;                            ///< angle(F^e_ip, -G_i) of Eq. 4.23
   PedicelDistribution distribution;
 };
+
+/// The median and 90th-percentile angle [deg] of `n` draws of `d` from the
+/// unit direction `centre` (reproducible for a seed).
+[[nodiscard]] std::pair<double, double> spread_deg(const PedicelDistribution& d, const Eigen::Vector3d& centre, int n,
+                                                   std::uint64_t seed);
 
 /// Eq. 4.18-4.22 for every sphere of a branch.
 [[nodiscard]] std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& spheres,

@@ -40,6 +40,13 @@ struct ScenarioOptions {
   double pose_noise_m = 0.0015;
   double pose_noise_deg = 0.2;
   sim::RgbdCameraParams camera;
+  /// Test conditions applied to the rendered frames, not the camera model:
+  /// Gaussian depth noise of this standard deviation along each pixel's ray
+  /// [m] on top of the camera's own (the frames-from-disk check's 2 and 5 mm),
+  /// and no depth on pixels that see a pedicel or calyx (a camera that loses
+  /// every thin structure).
+  double extra_depth_noise_m = 0.0;
+  bool drop_pedicel_depth = false;
   /// The world's truss options (physics, scene ranges); class and seed are
   /// set per truss.
   sim::TrussParams truss;
@@ -63,6 +70,12 @@ struct Scenario {
   [[nodiscard]] const sim::RgbdFrame& frame() const { return frames.front(); }
   [[nodiscard]] const ColorCloud& cloud() const { return clouds.front(); }
 };
+
+/// View `view` of a scenario rendered again as frame `frame_index` (its own
+/// camera noise), with the options' test conditions: one of N frames of the
+/// same scene.
+[[nodiscard]] ColorCloud render_again(const Scenario& s, const ScenarioOptions& options, std::size_t view,
+                                      std::uint64_t frame_index);
 
 /// Builds the truss of (class, seed) and renders it from its hand-camera pose(s).
 [[nodiscard]] Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed,

@@ -31,10 +31,16 @@ struct TomatoScore {
   int detection = -1;          ///< index into PipelineResult::tomatoes, -1 if missed
   double visible_share = 0.0;  ///< seen pixels / pixels of its unoccluded disc
   double centre_error_m = NAN;
-  double radius_error_m = NAN;  ///< estimate - truth
+  double radius_error_m = NAN;          ///< estimate - truth
+  double centre_toward_camera_m = NAN;  ///< centre error along the ray, positive towards the camera
   int edges_true = 0;
   int edges_estimated = -1;
-  double pedicel_error_deg = NAN;       ///< expected direction vs the true pedicel
+  double pedicel_error_deg = NAN;        ///< expected direction vs the true pedicel
+  double prior_pedicel_error_deg = NAN;  ///< ... the force model's alone (before the seen pedicel)
+  bool pedicel_seen = false;             ///< the camera saw the pedicel or calyx (a sighting)
+  int seen_points = 0;
+  double seen_error_deg = NAN;          ///< the sighting's own direction vs the true pedicel
+  double cut_point_axis_mm = NAN;       ///< planned cut point's distance from the true pedicel's path [mm]
   double gravity_only_error_deg = NAN;  ///< straight up (no reasoning) vs the true pedicel
   double force_dir_error_deg = NAN;     ///< expected direction vs the true pedicel *force*
   bool truth_in_hpd = false;
@@ -69,6 +75,11 @@ struct Summary {
   double centre_median_mm = NAN, centre_p95_mm = NAN;
   double radius_median_mm = NAN, radius_p95_mm = NAN;  ///< of |error|
   double pedicel_median_deg = NAN, pedicel_p95_deg = NAN;
+  double prior_pedicel_median_deg = NAN;  ///< the force model alone
+  double radius_bias_mm = NAN;            ///< median of the signed radius error (estimate - truth)
+  double centre_toward_camera_mm = NAN;   ///< median centre error along the ray, positive towards the camera
+  int seen = 0;                           ///< detected tomatoes whose pedicel was seen
+  double seen_prior_median_deg = NAN, seen_posterior_median_deg = NAN;  ///< over the seen ones
   double gravity_only_median_deg = NAN, gravity_only_p95_deg = NAN;
   double hpd_hit_rate = NAN;
   double cut_cover_rate = NAN;     ///< how often the planned cut covers the true pedicel
