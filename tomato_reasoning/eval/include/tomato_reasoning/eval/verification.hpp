@@ -57,6 +57,9 @@ struct VerificationOptions {
   /// "nothing found"), move max_move_m towards it and let the loop look from
   /// there (expectation_after_move; one of the rescans). false: give up.
   bool approach_far = false;
+  /// A single object between the blades wider than this is no pedicel (the
+  /// peduncle, a fruit, two pedicels side by side) [m].
+  double max_pedicel_width_m = 0.012;
 };
 
 /// The simulated hand laser these options describe (sensor, read-out schedule,
@@ -100,6 +103,16 @@ struct LoopEnd {
   int scans = 0;
 };
 
+/// What the laser sees between the blades at a pose (its scan plane is the
+/// blade plane): one thin object in the throat (a pedicel: clear), nothing
+/// (closing would meet nothing), or something the blades would jam on.
+struct BladeCheck {
+  enum class Kind { kClear, kEmpty, kJam };
+  Kind kind = Kind::kEmpty;
+  std::string what;  ///< kJam: what lies there ("2 objects", "an object 23 mm wide")
+};
+[[nodiscard]] const char* to_string(BladeCheck::Kind k);
+
 class VerificationHarness {
  public:
   /// Builds the simulated hand laser and fits its calibration (seconds).
@@ -123,6 +136,11 @@ class VerificationHarness {
   [[nodiscard]] LoopEnd closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
                                     std::optional<laser_clustering::PedicelExpectation> belief, std::uint64_t scan_seed,
                                     bool approach_far);
+
+  /// One scan at `T_ref_laser` and what lies in the blades' box there
+  /// (options().pose.blades, its margin across the opening).
+  [[nodiscard]] BladeCheck check_blades(const sim::World& world, const Scenario& s,
+                                        const Eigen::Isometry3d& T_ref_laser, std::uint64_t scan_seed);
 
  private:
   [[nodiscard]] laser_clustering::PedicelDetection look(
