@@ -72,6 +72,21 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
       from = comma + 1;
     }
     o.raw_pulses = pulses;
+  } else if (key == "cut_offsets_m") {
+    std::vector<double> offsets;
+    std::size_t from = 0;
+    while (from <= value.size()) {
+      const std::size_t comma = std::min(value.find(',', from), value.size());
+      const double m = number(value.substr(from, comma - from));
+      if (!(m > 0 && m < 0.05)) throw std::invalid_argument("option 'cut_offsets_m': each must be in (0, 0.05) m");
+      offsets.push_back(m);
+      from = comma + 1;
+    }
+    o.pose.cut_offsets_m = offsets;
+  } else if (key == "blade_margin_m" || key == "max_pedicel_width_m") {
+    const double v = number(value);
+    if (!(v >= 0 && v < 0.05)) throw std::invalid_argument("option '" + key + "' must be in [0, 0.05) m");
+    (key == "blade_margin_m" ? o.pose.blades.margin_m : o.max_pedicel_width_m) = v;
   } else if (key == "expectation_sd_m" || key == "max_move_m") {
     const double v = number(value);
     if (!(v > 0)) throw std::invalid_argument("option '" + key + "' must be > 0");
@@ -95,7 +110,8 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
   } else {
     throw std::invalid_argument(
         "unknown option '" + key +
-        "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far)");
+        "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far, "
+        "cut_offsets_m, blade_margin_m, max_pedicel_width_m)");
   }
 }
 

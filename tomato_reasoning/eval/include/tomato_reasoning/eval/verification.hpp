@@ -69,7 +69,8 @@ struct VerificationOptions {
 
 /// Sets one option by name (pulses=10,20,50,120,300,
 /// expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans,
-/// approach_far=0|1); throws
+/// approach_far=0|1, cut_offsets_m=0.008,0.005, blade_margin_m,
+/// max_pedicel_width_m); throws
 /// std::invalid_argument saying what is wrong.
 void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value);
 
