@@ -146,7 +146,8 @@ void add_pick_options(cli::App& app, Request& r, std::vector<std::string>& verif
                "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
                "truss), written to DIR/harvest.csv");
   app.add_option("--harvest-set", harvest_sets,
-                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=0), repeatable");
+                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=1 check_blades=1 ceiling=0), "
+                 "repeatable");
 }
 
 /// Fills `r` from the command line; the exit code when the program stops there.
@@ -191,9 +192,10 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
   add_frame_options(app, r);
   add_pick_options(app, r, verify_sets, harvest_sets);
   std::vector<std::string> truss_sets;
-  app.add_option("--truss-set", truss_sets,
-                 "the simulated world's truss option key=value (physics=pendulum|elastic_rod, stem_bend_deg, "
-                 "peduncle_curl_deg, pedicel_leaves, rest_tilt_max_deg, ...; sim/scenes/truss.hpp), repeatable");
+  app.add_option(
+      "--truss-set", truss_sets,
+      "the simulated world's truss option key=value (physics=elastic_rod (the default)|pendulum, stem_bend_deg, "
+      "peduncle_curl_deg, pedicel_leaves, rest_tilt_max_deg, ...; sim/scenes/truss.hpp), repeatable");
   app.add_flag("--quiet", r.quiet, "no per-truss lines");
   bool tuning = false;
   app.add_flag("--tuning", tuning,
@@ -205,6 +207,9 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     for (const auto& kv : sets) r.sets.push_back(key_value("--set", kv));
     for (const auto& kv : verify_sets) r.verify_sets.push_back(key_value("--verify-set", kv));
     for (const auto& kv : harvest_sets) r.harvest_sets.push_back(key_value("--harvest-set", kv));
+    // The elastic-rod world is the evaluations' default: its truth does not
+    // come from the force model the reasoning inverts (physics=pendulum for that one).
+    r.scenario.truss.physics = tinyline::sim::TrussPhysics::kElasticRod;
     for (const auto& kv : truss_sets) {
       const auto [key, value] = key_value("--truss-set", kv);
       if (const auto why = tinyline::sim::set_truss_option(r.scenario.truss, key, value); !why.valid)
@@ -222,7 +227,10 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     return 2;
   }
   r.seeds_label = seeds::describe(seeds::kTomato, r.seeds);
-  for (const auto& kv : truss_sets) r.seeds_label += ", world " + kv;
+  r.seeds_label +=
+      r.scenario.truss.physics == tinyline::sim::TrussPhysics::kElasticRod ? ", elastic-rod world" : ", pendulum world";
+  for (const auto& kv : truss_sets)
+    if (kv.rfind("physics=", 0) != 0) r.seeds_label += ", world " + kv;
   if (pose_noise.size() == 2) {
     r.scenario.pose_noise_m = pose_noise[0];
     r.scenario.pose_noise_deg = pose_noise[1];
@@ -253,6 +261,7 @@ struct PickVerification {
   std::ostringstream harvest_csv, csv;  ///< DIR/harvest.csv, DIR/verification.csv, written when the run ends
   eval::HarvestOptions harvest_options;
   std::map<char, eval::HarvestCounts> harvested;            // class -> Table 4.2 row
+  std::map<std::string, int> causes;                        // why a trial was not picked -> n
   std::map<std::string, std::map<std::string, int>> count;  // case -> verdict -> n
   std::map<std::string, int> vision_ok;
   bool closed_loop = false;  ///< re-scans asked for: the CSV gets a scans column
@@ -310,7 +319,7 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
   out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
   std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
   if (r.harvest) {
-    out->harvest_csv << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on\n";
+    out->harvest_csv << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on,why\n";
   }
   if (!r.verify) return out;
   vo.random_offset_m = 0.05;
@@ -345,12 +354,27 @@ void count_kappa_hits(KappaTally& tally, const eval::Scenario& sc, const Pipelin
   }
 }
 
+/// A trial's failure cause in a few words: what jammed the blades (its
+/// kind: fruit, peduncle, main stem, pedicels), or why the last attempt did
+/// not close (the reason's words before any number); "" when picked.
+std::string cause_of(const eval::HarvestTrial& t) {
+  using O = eval::HarvestOutcome;
+  if (t.outcome == O::kPickedFirst || t.outcome == O::kPickedSecond) return "";
+  if (t.outcome == O::kKnockedOff) return "knocked off by another fruit's cut";
+  if (t.outcome == O::kCutFailure) return "jammed on " + t.jammed_on.substr(0, t.jammed_on.find_first_of("0123456789"));
+  if (!t.detected) return "not detected";
+  const std::string last = t.why.substr(t.why.rfind(';') + 1);
+  if (last.empty()) return "left after: " + t.cuts.substr(t.cuts.rfind(';') + 1);
+  return "left: " + last.substr(0, std::min(last.find_first_of("0123456789("), std::size_t{60}));
+}
+
 void harvest_truss(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {
   for (const auto& t : eval::harvest(*v.as_recognised, sc, res, v.harvest_options)) {
     v.harvested[t.complexity].add(t);
+    if (const std::string c = cause_of(t); !c.empty()) v.causes[c]++;
     v.harvest_csv << t.complexity << ',' << t.seed << ',' << t.truth << ',' << int(t.detected) << ',' << t.pick_rank
                   << ',' << t.attempts << ',' << t.scans << ',' << eval::to_string(t.outcome) << ',' << t.cuts << ",\""
-                  << t.jammed_on << "\"\n";
+                  << t.jammed_on << "\",\"" << t.why << "\"\n";
   }
 }
 
@@ -531,6 +555,8 @@ void print_harvest(const PickVerification& v, const std::string& variant, const 
     all += c;
   }
   row("all", all);
+  std::printf("\nwhy trials were not picked (%s)\n| cause | trials |\n|---|---|\n", seeds_label.c_str());
+  for (const auto& [cause, n] : v.causes) std::printf("| %s | %s |\n", cause.c_str(), rate(n, all.trials).c_str());
 }
 
 void print_verification(PickVerification& v, const std::string& variant, const std::string& seeds_label) {

@@ -8,6 +8,8 @@ namespace tinyline::tomato_reasoning {
 common::Validation validate(const HarvestParams& p) {
   if (p.max_attempts < 1 || p.max_attempts > 5)
     return common::Validation::invalid("max_attempts must be 1..5, got " + std::to_string(p.max_attempts));
+  if (!(p.retry_roll_deg >= 0 && p.retry_roll_deg <= 90))
+    return common::Validation::invalid("retry_roll_deg must be 0..90, got " + std::to_string(p.retry_roll_deg));
   return common::Validation::ok();
 }
 
@@ -57,7 +59,7 @@ GripperStep PickAttempts::after_verification(const Verification& v) {
   if (done_) return finish(PickOutcome::kLeftForHuman);
   if (detail_.empty()) note("1: ");
   note(to_string(v.outcome));
-  if (!v.will_cut()) return finish(PickOutcome::kLeftForHuman);
+  if (!v.will_cut()) return retry_elsewhere();
   if (v.outcome == Verification::Outcome::kMove) {
     note(" by " + std::to_string(static_cast<int>(std::lround(1000 * v.move.norm()))) + " mm");
     // The laser moves with the hand: the next scan (or the cut) is from there.
@@ -80,8 +82,16 @@ GripperStep PickAttempts::after_cut(BladeResult r) {
     case BladeResult::kCutOtherPedicel: return finish(PickOutcome::kCutOther);
     case BladeResult::kClosedOnNothing: break;
   }
-  if (attempt_ < params_.max_attempts) return rescan();
-  return finish(PickOutcome::kLeftForHuman);
+  return retry_elsewhere();
+}
+
+GripperStep PickAttempts::retry_elsewhere() {
+  if (attempt_ >= params_.max_attempts) return finish(PickOutcome::kLeftForHuman);
+  // The same cut point seen from another side: the throat stays, the laser turns about the pedicel.
+  const double throat_z = (pose_.cut_point - pose_.T_ref_laser.translation()).norm();
+  const double sign = attempt_ % 2 == 1 ? 1.0 : -1.0;
+  pose_ = rolled(pose_, sign * params_.retry_roll_deg * M_PI / 180.0, throat_z);
+  return rescan();
 }
 
 }  // namespace tinyline::tomato_reasoning

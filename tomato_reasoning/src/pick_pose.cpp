@@ -30,39 +30,118 @@ PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& p
   return pose;
 }
 
+namespace {
+
+// How far the laser's rays to the throat (and a blade opening either side)
+// pass from the fruit that cut the scan plane [m]; negative: blocked.
+double view_clearance(const Eigen::Isometry3d& T_ref_laser, const std::vector<Sphere>& fruit, const PickPoseParams& p) {
+  const Eigen::Isometry3d T = T_ref_laser.inverse();
+  double worst = std::numeric_limits<double>::infinity();
+  for (const Sphere& o : fruit) {
+    const Eigen::Vector3d c = T * o.centre;
+    const double r2 = o.radius_m * o.radius_m - c.y() * c.y();
+    if (!(r2 > 0)) continue;  // off the plane (or not finite)
+    const Eigen::Vector2d q(c.x(), c.z());
+    for (double dx : {-0.02, 0.0, 0.02}) {
+      const Eigen::Vector2d end(dx, p.throat_z_m);
+      const double s = std::clamp(q.dot(end) / end.squaredNorm(), 0.0, 1.0);
+      worst = std::min(worst, (q - s * end).norm() - std::sqrt(r2));
+    }
+  }
+  return worst;
+}
+
+constexpr double kOwnFruitMargin_m = 0.001;
+
+// Turns from the straight approach, smallest first: 0, +step, -step, ...
+std::vector<double> rolls_deg(const PickPoseParams& p) {
+  std::vector<double> out{0.0};
+  if (!(p.roll_step_deg > 0)) return out;
+  for (double step = p.roll_step_deg; step <= p.max_turn_deg + 1e-9; step += p.roll_step_deg) {
+    out.push_back(step);
+    out.push_back(-step);
+  }
+  return out;
+}
+
+// Candidate order: fits the blades, clears the view, smaller roll, preferred offset.
+bool better(const CutCandidate& a, const CutCandidate& b, const PickPoseParams& p) {
+  if (a.fits(p) != b.fits(p)) return a.fits(p);
+  if (!a.fits(p)) return a.blade_clear_m > b.blade_clear_m;
+  const bool av = a.view_clear_m >= p.view_clearance_m, bv = b.view_clear_m >= p.view_clearance_m;
+  if (av != bv) return av;
+  return false;  // otherwise keep the generation order (roll, then offset)
+}
+
+}  // namespace
+
+PickPose rolled(const PickPose& pose, double roll_rad, double throat_z_m) {
+  PickPose turned = pose;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(roll_rad, pose.pedicel_axis).toRotationMatrix();
+  turned.T_ref_laser.linear() = R * pose.T_ref_laser.linear();
+  turned.T_ref_laser.translation() = pose.cut_point - throat_z_m * turned.T_ref_laser.linear().col(2);
+  return turned;
+}
+
+double blade_clearance(const Eigen::Isometry3d& T_ref_laser, const Sphere& s, const PickPoseParams& p) {
+  const Eigen::Vector3d c = T_ref_laser.inverse() * s.centre - Eigen::Vector3d(0, 0, p.throat_z_m);
+  const Eigen::Vector3d half(0.5 * p.blades.opening_m, 0.5 * p.blades.thickness_m, p.blades.reach_m);
+  const Eigen::Vector3d outside = (c.cwiseAbs() - half).cwiseMax(0.0);
+  return outside.norm() - s.radius_m;
+}
+
+std::vector<CutCandidate> cut_candidates(const Sphere& target, const Eigen::Vector3d& pedicel_dir,
+                                         const std::vector<Sphere>& others, const PickPoseParams& p) {
+  std::vector<CutCandidate> out;
+  if (!pedicel_dir.allFinite() || !(pedicel_dir.norm() > 1e-9)) return out;
+  const Eigen::Vector3d u = pedicel_dir.normalized();
+  for (double roll : rolls_deg(p)) {
+    for (double offset : p.cut_offsets_m) {
+      const PickPose straight = picking_pose(target.centre + (target.radius_m + offset) * u, u, p);
+      if (!straight.ok()) return out;
+      CutCandidate c;
+      c.pose = rolled(straight, roll * M_PI / 180.0, p.throat_z_m);
+      c.offset_m = offset;
+      c.roll_rad = roll * M_PI / 180.0;
+      // The target's own surface stands where its sphere says relative to
+      // the blades (both follow the same pedicel): 1 mm is margin enough.
+      c.blade_clear_m = blade_clearance(c.pose.T_ref_laser, target, p) + p.blades.margin_m - kOwnFruitMargin_m;
+      for (const Sphere& f : others)
+        c.blade_clear_m = std::min(c.blade_clear_m, blade_clearance(c.pose.T_ref_laser, f, p));
+      c.view_clear_m = view_clearance(c.pose.T_ref_laser, others, p);
+      out.push_back(c);
+    }
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [&](const CutCandidate& a, const CutCandidate& b) { return better(a, b, p); });
+  return out;
+}
+
+std::vector<CutCandidate> cut_candidates(const PipelineResult& r, int index, const std::vector<int>& gone,
+                                         const PickPoseParams& p) {
+  if (index < 0 || static_cast<std::size_t>(index) >= r.tomatoes.size()) return {};
+  std::vector<Sphere> others;
+  for (std::size_t k = 0; k < r.tomatoes.size(); ++k)
+    if (static_cast<int>(k) != index && std::find(gone.begin(), gone.end(), static_cast<int>(k)) == gone.end())
+      others.push_back(r.tomatoes[k].fit.sphere);
+  const Tomato& t = r.tomatoes[static_cast<std::size_t>(index)];
+  std::vector<CutCandidate> out = cut_candidates(t.fit.sphere, t.cut.direction, others, p);
+  for (CutCandidate& c : out) c.pose.tomato = index;
+  return out;
+}
+
 PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis,
                       const std::vector<Sphere>& fruit, const PickPoseParams& p) {
   const PickPose pose = picking_pose(cut_point, pedicel_axis, p);
   if (!pose.ok() || !(p.max_turn_deg > 0)) return pose;
-  // How far the laser's rays to the throat (and a blade opening either side)
-  // pass from the fruit that cut the scan plane [m]; negative: blocked.
-  auto clearance = [&](const Eigen::Isometry3d& T_ref_laser) {
-    const Eigen::Isometry3d T = T_ref_laser.inverse();
-    double worst = std::numeric_limits<double>::infinity();
-    for (const Sphere& o : fruit) {
-      const Eigen::Vector3d c = T * o.centre;
-      const double r2 = o.radius_m * o.radius_m - c.y() * c.y();
-      if (!(r2 > 0)) continue;  // off the plane (or not finite)
-      const Eigen::Vector2d q(c.x(), c.z());
-      for (double dx : {-0.02, 0.0, 0.02}) {
-        const Eigen::Vector2d end(dx, p.throat_z_m);
-        const double s = std::clamp(q.dot(end) / end.squaredNorm(), 0.0, 1.0);
-        worst = std::min(worst, (q - s * end).norm() - std::sqrt(r2));
-      }
-    }
-    return worst;
-  };
   PickPose best = pose;
-  double best_clear = clearance(pose.T_ref_laser);
+  double best_clear = view_clearance(pose.T_ref_laser, fruit, p);
   if (best_clear >= p.view_clearance_m) return pose;
   // The smallest turn that clears the view, else the clearest.
   for (double step = 15.0; step <= p.max_turn_deg + 1e-9; step += 15.0) {
     for (double sign : {1.0, -1.0}) {
-      PickPose turned = pose;
-      const Eigen::Matrix3d R = Eigen::AngleAxisd(sign * step * M_PI / 180.0, pose.pedicel_axis).toRotationMatrix();
-      turned.T_ref_laser.linear() = R * pose.T_ref_laser.linear();
-      turned.T_ref_laser.translation() = pose.cut_point - p.throat_z_m * turned.T_ref_laser.linear().col(2);
-      const double c = clearance(turned.T_ref_laser);
+      const PickPose turned = rolled(pose, sign * step * M_PI / 180.0, p.throat_z_m);
+      const double c = view_clearance(turned.T_ref_laser, fruit, p);
       if (c >= p.view_clearance_m) return turned;
       if (c > best_clear) best = turned, best_clear = c;
     }

@@ -1,4 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include "tomato_reasoning/harvest.hpp"
@@ -57,10 +59,19 @@ TEST(Harvest, AMoveIsFollowedByARescanThereAndTheLastAttemptCutsAfterItsMove) {
   EXPECT_EQ(p.detail(), "1: move by 12 mm; 2: move by 4 mm -> cut_target");
 }
 
-TEST(Harvest, NothingFoundIsLeftForAHuman) {
+// Nothing found: the second attempt scans from the pose turned about the
+// pedicel (the throat where it was); nothing again: left for a human.
+TEST(Harvest, NothingFoundIsRetriedFromAnotherSideThenLeftForAHuman) {
   for (auto o :
        {Verification::Outcome::kNothingFound, Verification::Outcome::kOutOfView, Verification::Outcome::kFailed}) {
-    PickAttempts p(pose_at(0), HarvestParams{});
+    PickPose start = pose_at(0);
+    start.pedicel_axis = Eigen::Vector3d::UnitY();
+    PickAttempts p(start, HarvestParams{});
+    const GripperStep r = p.after_verification(said(o));
+    EXPECT_EQ(r.action, Action::kRescan);
+    EXPECT_EQ(p.attempt(), 2);
+    EXPECT_NEAR(r.T_ref_laser.linear().col(2).dot(Eigen::Vector3d::UnitZ()), std::cos(30.0 * M_PI / 180.0), 1e-12);
+    EXPECT_LT((r.T_ref_laser * Eigen::Vector3d(0, 0, 0.12) - start.cut_point).norm(), 1e-12);
     const GripperStep s = p.after_verification(said(o));
     EXPECT_EQ(s.action, Action::kDone);
     EXPECT_EQ(s.outcome, PickOutcome::kLeftForHuman);

@@ -69,6 +69,39 @@ TEST(PickingPose, BadInputGivesNoPoseAndTheReason) {
   EXPECT_NE(none.reason.find("of 0"), std::string::npos);
 }
 
+// A fruit beyond the cut on the straight approach would be in the blades'
+// box: the best cut rolls about the pedicel until the box clears it by the
+// margin; a fruit hugging the pedicel leaves no cut that fits, and says so.
+TEST(CutCandidates, RollTheBladesOffANeighbourOrSayNoneFits) {
+  PickPoseParams p;
+  p.max_turn_deg = 90;
+  Sphere target;
+  target.centre = Eigen::Vector3d(0, 0, 0.5);
+  target.radius_m = 0.03;
+  const Eigen::Vector3d up(0, -1, 0);
+  Sphere beyond;  // level with the cut point, 3 cm further along the straight approach
+  beyond.centre = Eigen::Vector3d(0, -0.038, 0.53);
+  beyond.radius_m = 0.015;
+  const std::vector<CutCandidate> cuts = cut_candidates(target, up, {beyond}, p);
+  ASSERT_FALSE(cuts.empty());
+  const PickPose straight = picking_pose(target.centre + (target.radius_m + 0.008) * up, up, p);
+  EXPECT_LT(blade_clearance(straight.T_ref_laser, beyond, p), 0.0);  // the straight approach would jam
+  ASSERT_TRUE(cuts.front().fits(p));
+  EXPECT_GE(blade_clearance(cuts.front().pose.T_ref_laser, beyond, p), p.blades.margin_m);
+  EXPECT_GE(blade_clearance(cuts.front().pose.T_ref_laser, target, p), 0.0);
+  EXPECT_NE(cuts.front().roll_rad, 0.0);
+  // The throat stays on the pedicel, the laser line across it.
+  const Eigen::Vector3d throat = cuts.front().pose.T_ref_laser * Eigen::Vector3d(0, 0, p.throat_z_m);
+  EXPECT_LT((throat - target.centre).cross(up).norm(), 1e-12);
+  EXPECT_NEAR(cuts.front().pose.T_ref_laser.linear().col(1).dot(up), 1.0, 1e-12);
+  Sphere hugging;  // beside the pedicel, closer than the blades' half opening
+  hugging.centre = Eigen::Vector3d(0.02, -0.045, 0.5);
+  hugging.radius_m = 0.012;
+  const std::vector<CutCandidate> none = cut_candidates(target, up, {hugging}, p);
+  ASSERT_FALSE(none.empty());
+  EXPECT_FALSE(none.front().fits(p));
+}
+
 TEST(Verify, MovesTheThroatOntoThePedicelTheFinderSaw) {
   PickPoseParams p;
   const PickPose pose = picking_pose(Eigen::Vector3d(0.0, 0.0, 0.5), Eigen::Vector3d::UnitY(), p);

@@ -71,6 +71,8 @@ class SimGripperNode : public bus::Node {
   explicit SimGripperNode(bus::NodeOptions o) : Node(std::move(o)) {
     class_ = truss_class(*this, declare_parameter<std::string>("truss_class", "B", "the truss_camera's class"));
     seed_ = declare_parameter("seed", 1, "the truss_camera's seed", ParamConstraints::range(0, 1 << 30));
+    physics_ =
+        truss_physics(*this, declare_parameter<std::string>("physics", kDefaultPhysics, "the truss_camera's physics"));
     frame_id_ = declare_parameter<std::string>("frame_id", "hand_laser", "frame of the published scans");
     scan_pub_ = create_publisher<msgs::LineScan>("scan");
     cut_pub_ = create_publisher<msgs::CutOutcome>("cut_outcome", bus::QoS::keep_last(16));
@@ -83,6 +85,7 @@ class SimGripperNode : public bus::Node {
     sim::TrussParams p;
     p.complexity = class_;
     p.seed = std::uint64_t(seed_);
+    p.physics = physics_;
     truss_ = sim::make_truss(p);
     (void)sim::add_to_world(truss_, world_);
     scanner_ = te::make_hand_laser(te::VerificationOptions{});  // the hand laser the scoring uses
@@ -144,6 +147,7 @@ class SimGripperNode : public bus::Node {
 
   sim::TrussClass class_ = sim::TrussClass::kB;
   int seed_ = 1;
+  sim::TrussPhysics physics_ = sim::TrussPhysics::kElasticRod;
   std::string frame_id_;
   sim::Truss truss_;
   sim::World world_;
@@ -192,6 +196,8 @@ class HarvestScoreNode : public bus::Node {
   explicit HarvestScoreNode(bus::NodeOptions o) : Node(std::move(o)) {
     class_ = truss_class(*this, declare_parameter<std::string>("truss_class", "B", "the truss_camera's class"));
     seed_ = declare_parameter("seed", 1, "the truss_camera's seed", ParamConstraints::range(0, 1 << 30));
+    physics_ =
+        truss_physics(*this, declare_parameter<std::string>("physics", kDefaultPhysics, "the truss_camera's physics"));
     score_pub_ = create_publisher<msgs::HarvestScore>("score", bus::QoS::keep_last(4));
     cut_sub_ = create_subscription<msgs::CutOutcome>("cut_outcome", bus::QoS::keep_last(64),
                                                      [this](const msgs::CutOutcome& m) {
@@ -208,6 +214,7 @@ class HarvestScoreNode : public bus::Node {
     sim::TrussParams p;
     p.complexity = class_;
     p.seed = std::uint64_t(seed_);
+    p.physics = physics_;
     truss_ = sim::make_truss(p);
   }
 
@@ -278,6 +285,7 @@ class HarvestScoreNode : public bus::Node {
 
   sim::TrussClass class_ = sim::TrussClass::kB;
   int seed_ = 1;
+  sim::TrussPhysics physics_ = sim::TrussPhysics::kElasticRod;
   sim::Truss truss_;
   std::map<int, msgs::CutOutcome> cuts_;  // the last closing of each pick, by rank
   std::optional<msgs::HarvestSummary> summary_;

@@ -52,6 +52,8 @@ class TrussCameraNode : public bus::Node {
     frame_id_ = declare_parameter<std::string>("frame_id", "camera", "the camera's optical frame");
     views_ = declare_parameter("views", 1, "1: one hand-camera view (cloud); 2: also cloud2 and cloud2_pose",
                                ParamConstraints::range(1, 2));
+    physics_ = truss_physics(*this, declare_parameter<std::string>("physics", kDefaultPhysics,
+                                                                   "the truss's physics: elastic_rod or pendulum"));
     cloud_pub_ = create_publisher<sensor_msgs::msg::PointCloud2>("cloud");
     if (views_ == 2) {
       cloud2_pub_ = create_publisher<sensor_msgs::msg::PointCloud2>("cloud2");
@@ -64,6 +66,7 @@ class TrussCameraNode : public bus::Node {
   void on_start() override {
     te::ScenarioOptions so;
     so.views = views_;
+    so.truss.physics = physics_;
     scenario_ = std::make_unique<te::Scenario>(te::make_scenario(class_, std::uint64_t(seed_), so));
     logger().info("truss class {} seed {}: {} tomatoes, camera {:.2f} m away, {} view(s)", char(class_), seed_,
                   scenario_->truth.size(), scenario_->truss.params.camera_distance_m, views_);
@@ -133,6 +136,7 @@ class TrussCameraNode : public bus::Node {
   }
   sim::TrussClass class_ = sim::TrussClass::kB;
   int seed_ = 1;
+  sim::TrussPhysics physics_ = sim::TrussPhysics::kElasticRod;
   double rate_hz_ = 1.0;
   int views_ = 1;
   std::string frame_id_;

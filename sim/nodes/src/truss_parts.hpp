@@ -22,6 +22,16 @@ inline sim::TrussClass truss_class(const bus::Node& n, const std::string& s) {
   return *c;
 }
 
+/// The world's physics by name: the elastic-rod world is the default of the
+/// demo and the evaluations (its truth does not come from the reasoning's
+/// own force model).
+inline constexpr const char* kDefaultPhysics = "elastic_rod";
+inline sim::TrussPhysics truss_physics(const bus::Node& n, const std::string& s) {
+  const auto p = sim::parse_truss_physics(s);
+  if (!p) throw bus::ParamError({}, "node '" + n.full_name() + "': physics '" + s + "' is not pendulum or elastic_rod");
+  return *p;
+}
+
 /// The truss tomato a detected sphere is (world frame): the nearest one still
 /// hanging whose true centre lies within its own radius of the detected
 /// centre; -1 when none does (the detection is no tomato of this truss).

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/eval/harvest.hpp"
 
+#include <algorithm>
+#include <optional>
 #include <stdexcept>
 
 #include "picking.hpp"
@@ -29,16 +31,23 @@ void HarvestCounts::add(const HarvestTrial& t) {
 }
 
 void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value) {
+  auto flag = [&](bool& f) {
+    if (value != "0" && value != "1") throw std::invalid_argument("option '" + key + "' must be 0 or 1");
+    f = value == "1";
+  };
   if (key == "attempts") {
     if (value.size() != 1 || value[0] < '1' || value[0] > '9')
       throw std::invalid_argument("option 'attempts': '" + value + "' is not a whole number in [1, 9]");
     o.attempts = value[0] - '0';
   } else if (key == "later_attempts_approach_far") {
-    if (value != "0" && value != "1")
-      throw std::invalid_argument("option 'later_attempts_approach_far' must be 0 or 1");
-    o.later_attempts_approach_far = value == "1";
+    flag(o.later_attempts_approach_far);
+  } else if (key == "check_blades") {
+    flag(o.check_blades);
+  } else if (key == "ceiling") {
+    flag(o.ceiling);
   } else {
-    throw std::invalid_argument("unknown option '" + key + "' (attempts, later_attempts_approach_far)");
+    throw std::invalid_argument("unknown option '" + key +
+                                "' (attempts, later_attempts_approach_far, check_blades, ceiling)");
   }
 }
 
@@ -95,32 +104,133 @@ bool settle_cut(HangingTruss& h, HarvestTrial& t, const sim::CutOutcome& c) {
   return false;
 }
 
-/// Up to o.attempts attempts at detection `k` (true tomato t.truth).
+/// What the harvest believes about a pedicel: the fruit's sphere and the
+/// direction from its centre towards the cut, and the rolls already tried.
+struct Hypothesis {
+  Sphere fruit;
+  Eigen::Vector3d direction;
+  std::vector<double> tried_rolls;
+};
+
+/// The detections whose fruit has fallen: no longer in the blades' way.
+std::vector<int> fallen(const Scenario& s, const PipelineResult& r, const HangingTruss& h, double match_m) {
+  std::vector<int> gone;
+  for (std::size_t k = 0; k < r.tomatoes.size(); ++k)
+    if (const int t = matched_truth(s, r.tomatoes[k], match_m); t >= 0 && !h.hanging(t))
+      gone.push_back(static_cast<int>(k));
+  return gone;
+}
+
+/// The reconstructed fruit other than detection `k` and those fallen.
+std::vector<Sphere> obstacles(const PipelineResult& r, int k, const std::vector<int>& gone) {
+  std::vector<Sphere> out;
+  for (std::size_t j = 0; j < r.tomatoes.size(); ++j)
+    if (static_cast<int>(j) != k && std::find(gone.begin(), gone.end(), static_cast<int>(j)) == gone.end())
+      out.push_back(r.tomatoes[j].fit.sphere);
+  return out;
+}
+
+/// The best cut that fits the blades, from a roll not yet tried when there
+/// is one (another side may show what the last did not); nullopt: none fits.
+std::optional<CutCandidate> next_cut(const Hypothesis& hyp, const std::vector<Sphere>& others,
+                                     const PickPoseParams& pp) {
+  const std::vector<CutCandidate> all = cut_candidates(hyp.fruit, hyp.direction, others, pp);
+  std::optional<CutCandidate> any;
+  for (const CutCandidate& c : all) {
+    if (!c.fits(pp)) break;  // the fitting ones come first
+    const bool tried = std::any_of(hyp.tried_rolls.begin(), hyp.tried_rolls.end(),
+                                   [&](double r) { return std::abs(r - c.roll_rad) < 0.35; });  // ~20 deg
+    if (!tried) return c;
+    if (!any) any = c;
+  }
+  return any;
+}
+
+/// Why the blades must not close at the loop's end, or "" to close: the box
+/// there must clear the reconstructed fruit, and the laser must see one thin
+/// object and nothing else between the blades.
+std::string refuse_to_close(VerificationHarness& laser, const HangingTruss& h, const Scenario& s,
+                            const Eigen::Isometry3d& T_ref_laser, const std::vector<Sphere>& others,
+                            std::uint64_t key) {
+  const PickPoseParams& pp = laser.options().pose;
+  for (const Sphere& f : others)
+    if (blade_clearance(T_ref_laser, f, pp) < pp.blades.margin_m) return "a reconstructed fruit in the blades";
+  const BladeCheck b = laser.check_blades(h.world, s, T_ref_laser, key);
+  if (b.kind == BladeCheck::Kind::kClear) return "";
+  return b.kind == BladeCheck::Kind::kEmpty ? "the laser sees nothing between the blades"
+                                            : "the laser sees " + b.what + " between the blades";
+}
+
+/// Up to o.attempts attempts at detection `k` (true tomato t.truth), each
+/// from a cut that fits the blades; what an attempt's laser saw becomes the
+/// next attempt's pedicel hypothesis.
 void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineResult& r, int k, HangingTruss& h,
                   HarvestTrial& t, const HarvestOptions& o, const CutModel& cut) {
-  PickPose pose = picking_pose(r, k, camera_side(laser.options().pose));
-  if (!pose.ok()) return;  // left for a human
-  std::optional<laser_clustering::PedicelExpectation> belief;
+  const PickPoseParams pp = camera_side(laser.options().pose);
+  const Tomato& det = r.tomatoes[static_cast<std::size_t>(k)];
+  Hypothesis hyp{det.fit.sphere, det.cut.direction, {}};
+  const std::vector<Sphere> others = obstacles(r, k, fallen(s, r, h, o.match_m));
   for (t.attempts = 1; t.attempts <= o.attempts; ++t.attempts) {
+    if (t.attempts > 1) t.cuts += ';', t.why += ';';
+    const std::optional<CutCandidate> plan = next_cut(hyp, others, pp);
+    if (!plan) {  // say so, and do not close the blades
+      t.cuts += "no_cut";
+      t.why += "no cut clears the blades";
+      return;
+    }
+    hyp.tried_rolls.push_back(plan->roll_rad);
     const std::uint64_t key =
         s.seed * 1000 + static_cast<std::uint64_t>(k) + kAttemptSeedStride * static_cast<std::uint64_t>(t.attempts);
     const bool far = laser.options().approach_far || (t.attempts > 1 && o.later_attempts_approach_far);
-    const LoopEnd end = laser.closed_loop(h.world, s, pose, belief, key, far);
+    const LoopEnd end = laser.closed_loop(h.world, s, plan->pose, std::nullopt, key, far);
     t.scans += end.scans;
-    if (t.attempts > 1) t.cuts += ';';
-    // The next attempt scans again from where this one left the hand.
-    pose.T_ref_laser = end.verification.T_ref_laser_final;
-    pose.cut_point = end.verification.cut_point;
-    belief = end.belief;
-    if (!end.verification.will_cut()) {
+    const Verification& v = end.verification;
+    if (!v.will_cut()) {
       t.cuts += "no_cut";
+      t.why += std::string(to_string(v.outcome)) + ": " + v.reason;
       continue;
     }
-    const Eigen::Isometry3d T_world_throat = sim::throat_from_laser(
-        s.truss.T_world_camera * end.verification.T_ref_laser_final, laser.options().pose.throat_z_m);
+    // The pedicel is where the laser put the throat: aim the next attempt there.
+    if (const Eigen::Vector3d d = v.cut_point - hyp.fruit.centre; d.norm() > hyp.fruit.radius_m)
+      hyp.direction = d.normalized();
+    if (o.check_blades) {
+      const std::string no = refuse_to_close(laser, h, s, v.T_ref_laser_final, others, key + 17);
+      ++t.scans;
+      if (!no.empty()) {
+        t.cuts += "no_cut";
+        t.why += no;
+        continue;
+      }
+    }
+    const Eigen::Isometry3d T_world_throat =
+        sim::throat_from_laser(s.truss.T_world_camera * v.T_ref_laser_final, pp.throat_z_m);
     if (settle_cut(h, t, cut(h.truss, T_world_throat, t.truth))) return;
   }
   t.attempts = o.attempts;
+}
+
+/// The ceiling: cuts along the true pedicel (calyx -> anchor) at every
+/// offset and roll the planner may choose, the cutter model deciding; the
+/// first that severs the target alone picks it.
+void ceiling_pick(const Scenario& s, HangingTruss& h, HarvestTrial& t, const PickPoseParams& pp, const CutModel& cut) {
+  const sim::TrussTomato& truth = h.truss.tomatoes[static_cast<std::size_t>(t.truth)];
+  const Eigen::Isometry3d T_ref_world = s.truss.T_world_camera.inverse();
+  const Eigen::Vector3d calyx = T_ref_world * truth.calyx_m, anchor = T_ref_world * truth.anchor_m;
+  const Eigen::Vector3d axis = (anchor - calyx).normalized();
+  const double length = (anchor - calyx).norm();
+  t.attempts = 1;
+  for (double along = 0.002; along < length; along += 0.003) {
+    const PickPose straight = picking_pose(calyx + along * axis, axis, pp);
+    for (double roll = -90.0; roll <= 90.0; roll += 15.0) {
+      const PickPose pose = rolled(straight, roll * M_PI / 180.0, pp.throat_z_m);
+      const Eigen::Isometry3d T = sim::throat_from_laser(s.truss.T_world_camera * pose.T_ref_laser, pp.throat_z_m);
+      if (cut(h.truss, T, t.truth).result != sim::CutResult::kCutTarget) continue;
+      (void)settle_cut(h, t, cut(h.truss, T, t.truth));
+      return;
+    }
+  }
+  t.cuts = "no_cut";
+  t.why = "no cut along the true pedicel severs it alone";
 }
 
 }  // namespace
@@ -140,15 +250,27 @@ std::vector<HarvestTrial> harvest(VerificationHarness& laser, const Scenario& s,
         return sim::close_blades(truss, T, o.blades, target);
       });
   HangingTruss h{s.truss, s.world, trials};
-  for (int rank = 0; rank < static_cast<int>(r.pick_order.size()); ++rank) {
-    const int k = r.pick_order[static_cast<std::size_t>(rank)];
+  std::vector<int> order;  // true tomatoes in the pipeline's pick order (each once), detection indices beside
+  std::vector<int> detection;
+  for (const int k : r.pick_order) {
     const int truth = matched_truth(s, r.tomatoes[static_cast<std::size_t>(k)], o.match_m);
-    // Spheres that are no tomato are not picked here; a fruit already
-    // fallen or attempted is not attempted again.
-    if (truth < 0 || !h.hanging(truth) || trials[static_cast<std::size_t>(truth)].pick_rank >= 0) continue;
+    // Spheres that are no tomato are not picked here.
+    if (truth < 0 || std::find(order.begin(), order.end(), truth) != order.end()) continue;
+    order.push_back(truth);
+    detection.push_back(k);
+  }
+  if (o.ceiling)  // the ceiling also picks what the vision missed, last
+    for (int i = 0; i < static_cast<int>(trials.size()); ++i)
+      if (std::find(order.begin(), order.end(), i) == order.end()) order.push_back(i), detection.push_back(-1);
+  for (std::size_t n = 0; n < order.size(); ++n) {
+    const int truth = order[n];
+    if (!h.hanging(truth)) continue;  // a fruit already fallen is not attempted
     HarvestTrial& t = trials[static_cast<std::size_t>(truth)];
-    t.pick_rank = rank;
-    attempt_pick(laser, s, r, k, h, t, o, cut);
+    t.pick_rank = static_cast<int>(n);
+    if (o.ceiling)
+      ceiling_pick(s, h, t, camera_side(laser.options().pose), cut);
+    else
+      attempt_pick(laser, s, r, detection[n], h, t, o, cut);
     // Picked, or finished by the human helper: it leaves the truss either way.
     if (h.hanging(truth)) h.fall(truth);
   }

@@ -72,6 +72,21 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
       from = comma + 1;
     }
     o.raw_pulses = pulses;
+  } else if (key == "cut_offsets_m") {
+    std::vector<double> offsets;
+    std::size_t from = 0;
+    while (from <= value.size()) {
+      const std::size_t comma = std::min(value.find(',', from), value.size());
+      const double m = number(value.substr(from, comma - from));
+      if (!(m > 0 && m < 0.05)) throw std::invalid_argument("option 'cut_offsets_m': each must be in (0, 0.05) m");
+      offsets.push_back(m);
+      from = comma + 1;
+    }
+    o.pose.cut_offsets_m = offsets;
+  } else if (key == "blade_margin_m" || key == "max_pedicel_width_m") {
+    const double v = number(value);
+    if (!(v >= 0 && v < 0.05)) throw std::invalid_argument("option '" + key + "' must be in [0, 0.05) m");
+    (key == "blade_margin_m" ? o.pose.blades.margin_m : o.max_pedicel_width_m) = v;
   } else if (key == "expectation_sd_m" || key == "max_move_m") {
     const double v = number(value);
     if (!(v > 0)) throw std::invalid_argument("option '" + key + "' must be > 0");
@@ -95,7 +110,8 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
   } else {
     throw std::invalid_argument(
         "unknown option '" + key +
-        "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far)");
+        "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far, "
+        "cut_offsets_m, blade_margin_m, max_pedicel_width_m)");
   }
 }
 
@@ -210,6 +226,60 @@ LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario
     pose.cut_point = pose.T_ref_laser * Eigen::Vector3d(0, 0, o_.pose.throat_z_m);
     belief = lc::expectation_after_move(fp, belief, d, part);
   }
+}
+
+const char* to_string(BladeCheck::Kind k) {
+  switch (k) {
+    case BladeCheck::Kind::kClear: return "clear";
+    case BladeCheck::Kind::kEmpty: return "empty";
+    case BladeCheck::Kind::kJam: return "jam";
+  }
+  return "?";
+}
+
+namespace {
+
+/// Per object of the scan, how many of its points lie in the blades' box (laser frame).
+std::vector<int> points_between_blades(const lc::LineScan& scan, const lc::TwoStageResult& objects,
+                                       const PickPoseParams& p) {
+  std::vector<int> inside(objects.clusters.size(), 0);
+  const double half_x = 0.5 * p.blades.opening_m + p.blades.margin_m;
+  for (std::size_t i = 0; i < scan.size() && i < objects.labels.size(); ++i) {
+    const int label = objects.labels[i];
+    if (!scan.valid(i) || label < 0 || static_cast<std::size_t>(label) >= inside.size()) continue;
+    const double x = scan.range_m[i] * std::sin(scan.angle_rad[i]), z = scan.range_m[i] * std::cos(scan.angle_rad[i]);
+    if (std::abs(x) <= half_x && std::abs(z - p.throat_z_m) <= p.blades.reach_m)
+      ++inside[static_cast<std::size_t>(label)];
+  }
+  return inside;
+}
+
+}  // namespace
+
+BladeCheck VerificationHarness::check_blades(const sim::World& world, const Scenario& s,
+                                             const Eigen::Isometry3d& T_ref_laser, std::uint64_t scan_seed) {
+  const sim::eval::SimulatedScan scan = scanner_->scan(world, s.truss.T_world_camera * T_ref_laser, scan_seed);
+  const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
+  const std::vector<int> inside = points_between_blades(scan.scan, objects, o_.pose);
+  BladeCheck check;
+  int found = 0;
+  double widest = 0.0;
+  for (std::size_t c = 0; c < inside.size(); ++c) {
+    if (inside[c] == 0) continue;
+    ++found;
+    widest = std::max(widest, objects.clusters[c].width_m);
+  }
+  if (found == 0) return check;
+  if (found > 1) {
+    check.kind = BladeCheck::Kind::kJam;
+    check.what = std::to_string(found) + " objects";
+  } else if (widest > o_.max_pedicel_width_m) {
+    check.kind = BladeCheck::Kind::kJam;
+    check.what = "an object " + std::to_string(std::lround(1000 * widest)) + " mm wide";
+  } else {
+    check.kind = BladeCheck::Kind::kClear;
+  }
+  return check;
 }
 
 bool throat_on_pedicel(const VerificationOptions& o, const std::pair<Eigen::Vector3d, Eigen::Vector3d>& pedicel,

@@ -7,13 +7,14 @@
 //                 move            -> attempt 1: move, and re-scan there
 //                                    (the thesis's second attempt);
 //                                    the last attempt: move and close
-//                 nothing found,  -> give up: left for a human
-//                 out of view
+//                 nothing found,  -> while attempts remain: scan again from
+//                 out of view        the pose turned about the pedicel
+//                                    (another side may show what this one
+//                                    hid), else left for a human
 //   blades        cut the target  -> picked (at this attempt)
 //                 jammed          -> a cut failure
 //                 cut another's   -> that fruit fell; this one is not picked
-//                 closed on nothing -> re-scan from the same pose while
-//                                    attempts remain, else left for a human
+//                 closed on nothing -> as nothing found
 //
 // The gripper's report comes back as plain values (BladeResult) so that this
 // core depends on no simulator.
@@ -33,6 +34,9 @@ struct HarvestParams {
   /// Laser scans per pick: 2 = the picking pose, then one re-scan after the
   /// finder's move or an empty closing (Table 4.2's SP(1) and SP(2)).
   int max_attempts = 2;
+  /// A later attempt after nothing found or an empty closing comes from the
+  /// pose turned about the pedicel by this much, alternating sides [deg].
+  double retry_roll_deg = 30.0;
 };
 [[nodiscard]] common::Validation validate(const HarvestParams& p);
 
@@ -72,6 +76,7 @@ class PickAttempts {
  private:
   GripperStep finish(PickOutcome o);
   GripperStep rescan();
+  GripperStep retry_elsewhere();
   void note(const std::string& s);
   PickPose pose_;
   HarvestParams params_;

@@ -149,6 +149,15 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
+requires common::SettingsOf<S, BladeBox>
+void for_each_param(S& p, V&& v) {
+  v(p.opening_m, {"opening_m", "m", 0.001, 0.2, "the blades' opening across the throat"});
+  v(p.reach_m, {"reach_m", "m", 0.001, 0.2, "how far along the blades, either side of the throat, they close"});
+  v(p.thickness_m, {"thickness_m", "m", 0.0, 0.05, "through the two blade layers"});
+  v(p.margin_m, {"margin_m", "m", 0.0, 0.05, "every reconstructed fruit stays this far outside the blades' box"});
+}
+
+template <class S, class V>
 requires common::SettingsOf<S, PickPoseParams>
 void for_each_param(S& p, V&& v) {
   v(p.throat_z_m, {"throat_z_m", "m", 0.01, 1.0, "blade throat along the hand laser's axis"});
@@ -160,6 +169,10 @@ void for_each_param(S& p, V&& v) {
   v(p.max_turn_deg,
     {"max_turn_deg", "deg", 0.0, 180.0,
      "turn the picking pose about the pedicel by up to this to see past a fruit (0: straight approach)"});
+  common::nest(p.blades, "blades.", v);
+  v(p.cut_offsets_m, {"cut_offsets_m", "m", 0.0, 0.05,
+                      "cut points tried beyond the fruit's surface along the pedicel, the first preferred"});
+  v(p.roll_step_deg, {"roll_step_deg", "deg", 1.0, 90.0, "the blades' roll about the pedicel is tried in these steps"});
 }
 
 template <class S, class V>
@@ -167,6 +180,8 @@ requires common::SettingsOf<S, HarvestParams>
 void for_each_param(S& p, V&& v) {
   v(p.max_attempts, {"max_attempts", "", 1, 5,
                      "laser scans per pick: the picking pose, then re-scans after a move or an empty closing"});
+  v(p.retry_roll_deg, {"retry_roll_deg", "deg", 0.0, 90.0,
+                       "a retry after nothing found or an empty closing turns the pose about the pedicel by this"});
 }
 
 }  // namespace tinyline::tomato_reasoning

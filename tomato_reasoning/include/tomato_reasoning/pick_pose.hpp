@@ -26,6 +26,17 @@
 
 namespace tinyline::tomato_reasoning {
 
+/// The blades' swept volume in the throat frame (origin at the throat, z
+/// along the blades, x across the opening, y through the blade layers): the
+/// simulator's cutter model (sim::BladeParams) mirrored here, since the core
+/// depends on no simulator, plus a margin for the vision's error.
+struct BladeBox {
+  double opening_m = 0.02;     ///< across the throat [m]
+  double reach_m = 0.02;       ///< along the blades, either side of the throat [m]
+  double thickness_m = 0.004;  ///< through the two blade layers [m]
+  double margin_m = 0.004;     ///< every reconstructed fruit stays this far outside the box [m]
+};
+
 struct PickPoseParams {
   double throat_z_m = 0.12;  ///< blade throat along the laser's optical axis [m] (laser_clustering ScissorGeometry)
   /// Where the robot comes from, in the reference frame (e.g. the camera or
@@ -41,6 +52,12 @@ struct PickPoseParams {
   /// front (0: always the straight approach).
   double view_clearance_m = 0.01;
   double max_turn_deg = 60.0;
+  BladeBox blades;
+  /// Where along the pedicel a cut may go: this far beyond the fruit's
+  /// surface [m], the first preferred (the reasoning's cut_offset_m). Nearer
+  /// the calyx keeps the blades off the peduncle; further, off a neighbour.
+  std::vector<double> cut_offsets_m{0.008, 0.005, 0.012, 0.016};
+  double roll_step_deg = 15.0;  ///< the blades' roll about the pedicel is tried in these steps, up to max_turn_deg
 };
 
 struct PickPose {
@@ -61,6 +78,37 @@ struct PickPose {
 /// ... turned about the pedicel when one of `fruit` blocks the view.
 [[nodiscard]] PickPose picking_pose(const Eigen::Vector3d& cut_point, const Eigen::Vector3d& pedicel_axis,
                                     const std::vector<Sphere>& fruit, const PickPoseParams& params = {});
+
+/// The pose turned by `roll_rad` about its pedicel, the throat kept on its cut point.
+[[nodiscard]] PickPose rolled(const PickPose& pose, double roll_rad, double throat_z_m);
+
+/// How far the sphere lies outside the blade box at `T_ref_laser` [m]
+/// (negative: it reaches into the blades).
+[[nodiscard]] double blade_clearance(const Eigen::Isometry3d& T_ref_laser, const Sphere& s, const PickPoseParams& p);
+
+/// One way to cut a pedicel: where along it, with what roll, and what the
+/// blades and the laser's view clear.
+struct CutCandidate {
+  PickPose pose;
+  double offset_m = 0.0;       ///< cut point beyond the fruit's surface along the pedicel [m]
+  double roll_rad = 0.0;       ///< turn about the pedicel from the straight approach
+  double blade_clear_m = 0.0;  ///< the nearest reconstructed fruit's distance outside the blade box [m]
+  double view_clear_m = 0.0;   ///< ... from the laser's view of the throat [m]
+  [[nodiscard]] bool fits(const PickPoseParams& p) const { return blade_clear_m >= p.blades.margin_m; }
+};
+
+/// Every cut of `target`'s pedicel along `pedicel_dir` (unit, from the centre
+/// outwards) the parameters allow, best first: the blades clear of every
+/// fruit (the target's own included) by the margin, then the laser's view
+/// clear, then the smallest roll, then the preferred cut offset. When none
+/// fits, the first is the one that clears most: check fits() before closing.
+[[nodiscard]] std::vector<CutCandidate> cut_candidates(const Sphere& target, const Eigen::Vector3d& pedicel_dir,
+                                                       const std::vector<Sphere>& others,
+                                                       const PickPoseParams& params = {});
+/// The same for tomato `index` of a result along its cut plan's direction,
+/// among the fruit not `gone` (indices of result.tomatoes already picked).
+[[nodiscard]] std::vector<CutCandidate> cut_candidates(const PipelineResult& result, int index,
+                                                       const std::vector<int>& gone, const PickPoseParams& params = {});
 
 /// What the pedicel finder said about the scan at the picking pose (laser
 /// frame offsets, as laser_clustering::PedicelDetection gives them).

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/nodes/nodes.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -384,20 +385,28 @@ void PickVerifierNode::next_pick() {
   }
   const int k = m.pick_order[rank_];
   const auto& e = m.tomatoes[std::size_t(k)];
-  std::vector<Sphere> fruit;  // turn past a fruit that blocks the laser's view
-  for (const auto& o : m.tomatoes) {
+  auto sphere = [](const auto& o) {
     Sphere s;
     s.centre = eig(o.centre);
     s.radius_m = o.radius_m;
-    fruit.push_back(s);
-  }
-  PickPose pose = picking_pose(eig(e.cut_point), eig(e.cut_direction), fruit, params_);
+    return s;
+  };
+  // The fruit still hanging (those earlier in the order are gone) stay out of the blades and the laser's view.
+  std::vector<Sphere> others;
+  for (std::size_t j = 0; j < m.tomatoes.size(); ++j)
+    if (static_cast<int>(j) != k && std::find(m.pick_order.begin(), m.pick_order.begin() + long(rank_), int(j)) ==
+                                        m.pick_order.begin() + long(rank_))
+      others.push_back(sphere(m.tomatoes[j]));
+  const std::vector<CutCandidate> cuts = cut_candidates(sphere(e), eig(e.cut_direction), others, params_);
+  PickPose pose = cuts.empty() ? picking_pose(eig(e.cut_point), eig(e.cut_direction), params_) : cuts.front().pose;
   pose.tomato = pose.ok() ? k : -1;
   attempts_.emplace(pose, harvest_);
-  if (!pose.ok()) {
+  if (!pose.ok() || (!cuts.empty() && !cuts.front().fits(params_))) {
     Verification v;
     v.outcome = Verification::Outcome::kFailed;
-    v.reason = "no picking pose: " + pose.reason;
+    v.reason = pose.ok() ? "no cut clears the blades (the nearest fruit " +
+                               std::to_string(std::lround(1000 * cuts.front().blade_clear_m)) + " mm from them)"
+                         : "no picking pose: " + pose.reason;
     publish_verification(v);
     return end_pick(PickOutcome::kLeftForHuman, "1: " + v.reason);
   }

@@ -359,7 +359,8 @@ TEST(TomatoNodes, TwoViewDetectorFusesTheSecondViewAtItsPose) {
     cam.param("truss_class", std::string("C"))
         .param("seed", seed)
         .param("rate_hz", 1.0)
-        .param("views", std::int64_t(2));
+        .param("views", std::int64_t(2))
+        .param("physics", std::string("pendulum"));  // the world the core test's trusses come from
     one.name = "one_view";
     one.remap("tomatoes", "/one/tomatoes");
     two.name = "two_views";

@@ -48,6 +48,10 @@ struct HarvestTrial {
   std::string
       cuts;  ///< each attempt's end, ';'-separated: sim::to_string(CutResult), or "no cut" (the verification refused)
   std::string jammed_on;  ///< what stopped the blades (kCutFailure)
+  /// Why each attempt that did not close did not, ';'-separated ("" for one
+  /// that closed): "no cut clears the blades", the verification's reason, or
+  /// what the blades' check saw.
+  std::string why;
 };
 
 /// The blades closing at a throat pose on the truss as it now hangs
@@ -58,16 +62,25 @@ using CutModel =
 struct HarvestOptions {
   int attempts = 2;  ///< the thesis's: a second try, then human support
   /// The attempts after the first go towards a pedicel the finder sees
-  /// beyond max_move_m (VerificationOptions::approach_far): the thesis's
-  /// "laser guide mode" when nothing is found where the pedicel should be.
-  /// Off: on tuning trusses it picked 3 more fruit of 473 and jammed the
-  /// blades 23 more times (docs/tomato_reasoning.md, "Harvest trials").
-  bool later_attempts_approach_far = false;
+  /// beyond max_move_m (VerificationOptions::approach_far), the blades'
+  /// checks below deciding whether to close there: the thesis's "laser
+  /// guide mode" when nothing is found where the pedicel should be.
+  bool later_attempts_approach_far = true;
+  /// Before closing, the blades' box at the final pose must clear every
+  /// reconstructed fruit (PickPoseParams::blades) and the laser, scanning in
+  /// the blade plane, must see one thin object and nothing else there; else
+  /// the attempt refuses and the next one comes from another pose.
+  bool check_blades = true;
+  /// The world's ceiling: the truth's pedicel (calyx -> anchor) handed to the
+  /// planner and the cutter model as its clearance check; a trial is picked
+  /// when some cut along it (offset, roll) severs it and nothing else.
+  bool ceiling = false;
   sim::BladeParams blades;  ///< the default cut model's scissors
   double match_m = 0.01;    ///< a detection is a true tomato when its centre is this near [m]
 };
 
-/// Sets one option by name (attempts, later_attempts_approach_far=0|1);
+/// Sets one option by name (attempts, later_attempts_approach_far=0|1,
+/// check_blades=0|1, ceiling=0|1);
 /// throws std::invalid_argument saying what is wrong.
 void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value);
 

@@ -57,6 +57,9 @@ struct VerificationOptions {
   /// "nothing found"), move max_move_m towards it and let the loop look from
   /// there (expectation_after_move; one of the rescans). false: give up.
   bool approach_far = false;
+  /// A single object between the blades wider than this is no pedicel (the
+  /// peduncle, a fruit, two pedicels side by side) [m].
+  double max_pedicel_width_m = 0.012;
 };
 
 /// The simulated hand laser these options describe (sensor, read-out schedule,
@@ -66,7 +69,8 @@ struct VerificationOptions {
 
 /// Sets one option by name (pulses=10,20,50,120,300,
 /// expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans,
-/// approach_far=0|1); throws
+/// approach_far=0|1, cut_offsets_m=0.008,0.005, blade_margin_m,
+/// max_pedicel_width_m); throws
 /// std::invalid_argument saying what is wrong.
 void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value);
 
@@ -100,6 +104,16 @@ struct LoopEnd {
   int scans = 0;
 };
 
+/// What the laser sees between the blades at a pose (its scan plane is the
+/// blade plane): one thin object in the throat (a pedicel: clear), nothing
+/// (closing would meet nothing), or something the blades would jam on.
+struct BladeCheck {
+  enum class Kind { kClear, kEmpty, kJam };
+  Kind kind = Kind::kEmpty;
+  std::string what;  ///< kJam: what lies there ("2 objects", "an object 23 mm wide")
+};
+[[nodiscard]] const char* to_string(BladeCheck::Kind k);
+
 class VerificationHarness {
  public:
   /// Builds the simulated hand laser and fits its calibration (seconds).
@@ -123,6 +137,11 @@ class VerificationHarness {
   [[nodiscard]] LoopEnd closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
                                     std::optional<laser_clustering::PedicelExpectation> belief, std::uint64_t scan_seed,
                                     bool approach_far);
+
+  /// One scan at `T_ref_laser` and what lies in the blades' box there
+  /// (options().pose.blades, its margin across the opening).
+  [[nodiscard]] BladeCheck check_blades(const sim::World& world, const Scenario& s,
+                                        const Eigen::Isometry3d& T_ref_laser, std::uint64_t scan_seed);
 
  private:
   [[nodiscard]] laser_clustering::PedicelDetection look(
