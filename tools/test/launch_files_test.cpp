@@ -104,7 +104,7 @@ TEST(StaticFrames, AFrameDeclaredAsInRos2IsPublishedLatchedOnTfStaticAndGoesOnDd
 TEST(StaticFrames, AWrongFrameDeclarationStopsTheLaunchAtItsLineWithTheReason) {
   EXPECT_EQ(frames_error(frame("--frame-id base_link --child-frame-id laser")), "no error");
   const std::string missing = frames_error(frame("--frame-id base_link"));
-  EXPECT_NE(missing.find("frames.yaml:2:3: "), std::string::npos) << missing;  // the node entry
+  EXPECT_NE(missing.find("frames.yaml:3:5: "), std::string::npos) << missing;  // the node entry
   EXPECT_NE(missing.find("parameter 'child_frame_id' is required"), std::string::npos) << missing;
   EXPECT_EQ(frames_error(frame("--frame-id a --child-frame-id a")),
             "frames.yaml:5:11: node '/static_transform_publisher': frame 'a' cannot be its own parent");
