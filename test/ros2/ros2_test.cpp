@@ -490,9 +490,10 @@ TEST(Ros2Graph, ADefaultRos2NodeInANamespaceSeesEveryNodeOfTheDemoItsLogItsParam
   ChildProcess demo(cli(
       {"launch", std::string(TINYLINE_SOURCE_DIR) + "/launch/laser_demo.launch.yaml", "bag:=" + bag, "--no-table"}));
   ASSERT_TRUE(exited_ok(watcher, kDiscovery + 90s)) << watcher.output() << demo.output();
+  // ALL SEEN includes rclpy naming /laser/laser as the owner of its scans
+  // (between discovering an endpoint and the process's ros_discovery_info it
+  // says _NODE_NAME_UNKNOWN_, as it does for a ROS 2 node's).
   EXPECT_TRUE(watcher.find("ALL SEEN")) << watcher.output();
-  // No tinyline endpoint is left to _NODE_NAME_UNKNOWN_.
-  EXPECT_FALSE(watcher.find("_NODE_NAME_UNKNOWN_")) << watcher.output();
   // T_laser_laserscan of docs/driver.md, as the shipped launch file declares it.
   EXPECT_TRUE(watcher.find("FRAME laser laser_scan 0 0 0 -0.5 -0.5 -0.5 0.5")) << watcher.output();
   EXPECT_TRUE(watcher.wait_for_line(std::regex("^PARAM /laser/laser frame_id 'laser'$"), 0ms)) << watcher.output();
