@@ -4,10 +4,53 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <shared_mutex>
+#include <utility>
+#include <vector>
+
+#include <tinyline/bus/log_observer.hpp>
 
 #include <tinyline/bus/clock.hpp>
 
 namespace tinyline::bus {
+
+namespace {
+
+// Few observers, rarely changed: one shared lock per record. Held shared
+// while they run, so removal waits for a call in progress.
+struct Observers {
+  std::shared_mutex mu;
+  std::vector<std::pair<int, std::pair<const LogSink*, std::function<void(const LogRecord&)>>>> list;
+  int next = 1;
+};
+
+Observers& observers() {
+  static Observers o;
+  return o;
+}
+
+void notify_observers(const LogSink* sink, const LogRecord& r) {
+  auto& o = observers();
+  std::shared_lock lk(o.mu);
+  for (const auto& [id, entry] : o.list)
+    if (entry.first == sink) entry.second(r);
+}
+
+}  // namespace
+
+int add_log_observer(const LogSink* sink, std::function<void(const LogRecord&)> fn) {
+  auto& o = observers();
+  std::unique_lock lk(o.mu);
+  const int id = o.next++;
+  o.list.push_back({id, {sink, std::move(fn)}});
+  return id;
+}
+
+void remove_log_observer(int id) {
+  auto& o = observers();
+  std::unique_lock lk(o.mu);
+  std::erase_if(o.list, [id](const auto& e) { return e.first == id; });
+}
 
 std::string_view to_string(LogLevel l) {
   switch (l) {
@@ -58,6 +101,7 @@ void Logger::log(LogLevel level, std::string text) const {
   r.logger = name_;
   r.text = std::move(text);
   sink_->write(r);
+  notify_observers(sink_.get(), r);
 }
 
 }  // namespace tinyline::bus

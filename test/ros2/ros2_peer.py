@@ -163,6 +163,16 @@ def summary(msg):
         finite = [r for r in msg.ranges if msg.range_min <= r <= msg.range_max]
         return (f"frame={msg.header.frame_id} ranges={len(msg.ranges)} in_range={len(finite)} "
                 f"angles={msg.angle_min:.4f}..{msg.angle_max:.4f} limits={msg.range_min:.3f}..{msg.range_max:.3f}")
+    if isinstance(msg, PointCloud2):
+        import math
+        import struct
+        points = [struct.unpack_from("<ffff" if not msg.is_bigendian else ">ffff", bytes(msg.data), k * msg.point_step)
+                  for k in range(msg.width * msg.height)]
+        valid = [p for p in points if not math.isnan(p[0])]
+        fields = ",".join(f"{f.name}:{f.offset}:{f.datatype}:{f.count}" for f in msg.fields)
+        return (f"frame={msg.header.frame_id} height={msg.height} width={msg.width} fields={fields} "
+                f"point_step={msg.point_step} row_step={msg.row_step} dense={msg.is_dense} valid={len(valid)} "
+                f"z_max={max((p[2] for p in valid), default=0):.3f}")
     return type(msg).__name__
 
 

@@ -8,7 +8,9 @@
 #include <stdlib.h>
 #include <sys/stat.h>
 
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <condition_variable>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +20,7 @@
 #include <tinyline/bus/context.hpp>
 #include <tinyline/bus/executor.hpp>
 #include <tinyline/bus/testing.hpp>
+#include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
 
 #include <tiny_laser_driver/nodes/laser_driver.hpp>
 #include <tiny_laser_driver/nodes/register.hpp>
@@ -164,6 +167,51 @@ TEST(LaserDriverNode, PublishesRawLineAndLaserScans) {
   EXPECT_FLOAT_EQ(ls.angle_min, scan.angles[8]);
   EXPECT_NEAR(ls.ranges[0], scan.distance_m[8], 1e-6);
   EXPECT_NEAR(ls.ranges[255], scan.distance_m[263], 1e-6);
+}
+
+TEST(LaserDriverNode, PublishesTheLineAsPointCloud2OnlyWhenAsked) {
+  Rig quiet;
+  EXPECT_FALSE(quiet.ctx->graph().find("/cloud")) << "off by default";
+
+  Rig rig({{"publish_cloud", true}});
+  auto& clouds = rig.collect<tinyline::sensor_msgs::msg::PointCloud2>("/cloud", bus::QoS::keep_last(10));
+  rig.step();
+  rig.link->push(make_set());
+  rig.step();
+  ASSERT_EQ(clouds.size(), 1u);
+  ASSERT_EQ(rig.scans.size(), 1u);
+  const auto& c = *clouds[0];
+  const auto& scan = *rig.scans[0];
+  EXPECT_EQ(c.header.frame_id, "laser");
+  EXPECT_EQ(c.header.stamp, scan.header.stamp);
+  EXPECT_EQ(c.height, 1u);
+  ASSERT_EQ(c.width, 272u);
+  ASSERT_EQ(c.fields.size(), 4u);
+  const char* names[] = {"x", "y", "z", "intensity"};
+  for (std::size_t f = 0; f < 4; ++f) {
+    EXPECT_EQ(c.fields[f].name, names[f]);
+    EXPECT_EQ(c.fields[f].offset, 4 * f);
+    EXPECT_EQ(c.fields[f].datatype, tinyline::sensor_msgs::msg::PointField::FLOAT32);
+    EXPECT_EQ(c.fields[f].count, 1u);
+  }
+  EXPECT_EQ(c.point_step, 16u);
+  EXPECT_EQ(c.row_step, 16u * 272);
+  ASSERT_EQ(c.data.size(), 16u * 272);
+  EXPECT_FALSE(c.is_dense);
+  auto point = [&](std::size_t p) {
+    std::array<float, 4> v{};
+    std::memcpy(v.data(), c.data.data() + 16 * p, 16);
+    return v;
+  };
+  EXPECT_TRUE(std::isnan(point(0)[0]));  // a dark pixel: no point
+  for (std::size_t p = 8; p < 264; ++p) {
+    const auto v = point(p);
+    // distance_m along the pixel's ray in the x-z plane, z forward.
+    EXPECT_NEAR(std::hypot(v[0], v[2]), scan.distance_m[p], 1e-5) << p;
+    EXPECT_NEAR(std::atan2(v[0], v[2]), scan.angles[p], 1e-5) << p;
+    EXPECT_EQ(v[1], 0.0f);
+    EXPECT_EQ(v[3], scan.intensity[p]);
+  }
 }
 
 TEST(LaserDriverNode, StampsAreTheLastByteTimeMinusTheTransmissionTime) {

@@ -271,7 +271,10 @@ int run_launch(const LaunchArgs& a) {
     fmt::print(stderr, "{}: DDS: {}\n", a.file, e.what());
     return 1;
   }
-  if (bridge) l.nodes.push_back(bridge);
+  if (bridge) {
+    bridge->announce_parameters(l.nodes);
+    l.nodes.push_back(bridge);
+  }
   auto supervisor = start_children(a, l.graph);
 
   RunOptions ro;

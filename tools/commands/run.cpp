@@ -74,6 +74,7 @@ int run(RunArgs a) {
     bo.settings.process_name = node->full_name();
     bo.selection.all = true;
     auto bridge = dds::Bridge::create(ctx, bo);
+    bridge->announce_parameters(nodes);
     nodes.push_back(bridge);
     ro.before_spin = [bridge] { bridge->start(); };
   }

@@ -96,6 +96,7 @@ void register_nodes(bus::NodeRegistry& r) {
   r.add<Echo>("tinyline", "echo", "logs every message of a topic as YAML (remap 'input')");
   r.add<Relay>("tinyline", "relay", "republishes 'input' as 'output' without copying");
   r.add<Pulse>("tinyline", "pulse", "publishes a numbered text on 'output' at a fixed rate");
+  register_static_transform(r);
 }
 
 }  // namespace tinyline::tools

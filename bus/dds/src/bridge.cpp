@@ -11,6 +11,7 @@
 
 #include "entities.hpp"
 #include "probe.hpp"
+#include "ros_graph.hpp"
 #include "serdata.hpp"
 
 namespace tinyline::dds {
@@ -118,6 +119,7 @@ struct Bridge::Link {
   std::atomic<std::uint64_t> sent{0}, unmatched{0}, received{0}, decode_errors{0}, write_errors{0}, incompatible{0};
   std::atomic<std::uint64_t> lost{0}, stalls{0};
   std::atomic<std::size_t> last_size{64};  // serialization buffer guess
+  detail::Gid writer_gid{}, reader_gid{};  // ROS 2 graph ids of writer and reader (under sync_mu_)
   std::mutex peers_mu;
   std::map<dds_instance_handle_t, Identity> readers_seen, writers_seen;
 };
@@ -278,6 +280,8 @@ Bridge::Bridge(bus::NodeOptions node_options, BridgeOptions options)
   participant_ = std::make_unique<Participant>(options_.settings);
   origin_ = g_next_origin.fetch_add(1);
   backpressure_ = std::thread([this] { backpressure_loop(); });
+  ros_graph_ =
+      std::make_unique<detail::RosGraph>(*participant_, context().log_sink().get(), [this] { return ros_nodes(); });
 }
 
 void Bridge::attach_graph(const std::weak_ptr<Bridge>& self) {
@@ -287,6 +291,7 @@ void Bridge::attach_graph(const std::weak_ptr<Bridge>& self) {
 }
 
 Bridge::~Bridge() {
+  ros_graph_.reset();
   context().graph().remove_on_endpoints_changed(graph_listener_);
   {
     // No publisher may be inside send() once the links go: remove_tap waits.
@@ -325,6 +330,7 @@ void Bridge::start() {
   }
   watch_remote_endpoints();
   for (const auto& t : context().graph().topics()) sync_topic(t.name);
+  ros_graph_->graph_changed();  // nodes without endpoints too
 }
 
 void Bridge::watch_remote_endpoints() {
@@ -453,6 +459,44 @@ void Bridge::sync_topic(const std::string& name) {
   if (!l) l = add_link(name, topic);
   sync_writer(*l, topic, local.publishers);
   sync_reader(*l, local.subscribers);
+  ros_graph_->graph_changed();
+}
+
+std::vector<detail::NodeEntities> Bridge::ros_nodes() {
+  std::lock_guard sync(sync_mu_);  // the links' entities stay as they are
+  std::vector<std::shared_ptr<Link>> links;
+  {
+    std::lock_guard lk(mu_);
+    links = links_;
+  }
+  auto gid_for = [&](const std::string& topic, bool writer) -> std::optional<detail::Gid> {
+    for (const auto& l : links) {
+      if (l->name != topic) continue;
+      if (writer ? l->writer.load() != 0 : l->reader.load() != 0) return writer ? l->writer_gid : l->reader_gid;
+    }
+    return std::nullopt;
+  };
+  std::vector<detail::NodeEntities> out;
+  const std::string self = full_name();
+  for (const auto& n : context().graph().nodes()) {
+    if (n.full_name == self) continue;
+    detail::NodeEntities e = detail::split_full_name(n.full_name);
+    for (const auto& p : n.publishers)
+      if (auto g = gid_for(p.topic, true)) e.writers.push_back(*g);
+    for (const auto& s : n.subscriptions)
+      if (auto g = gid_for(s.topic, false)) e.readers.push_back(*g);
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+void Bridge::announce_parameters(const std::vector<std::shared_ptr<bus::Node>>& nodes) {
+  std::vector<rcl_interfaces::msg::ParameterEvent> events;
+  for (const auto& n : nodes) {
+    if (n.get() == this || n->parameters().empty()) continue;
+    events.push_back(detail::declared_parameters(n->full_name(), n->parameters()));
+  }
+  ros_graph_->set_parameter_events(std::move(events));
 }
 
 Bridge::LocalEndpoints Bridge::local_endpoints(const std::string& name) {
@@ -512,6 +556,7 @@ void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, cons
   dds_delete_listener(ls);
   if (w < 0) fail("cannot create a DDS writer for " + L.name, w);
   L.writer_latched.store(wq.transient_local);
+  L.writer_gid = detail::gid_of(w);
   L.writer.store(w);
   BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
   if (L.tap != 0) return;
@@ -557,6 +602,7 @@ void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
   const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
   dds_delete_listener(ls);
   if (r < 0) fail("cannot create a DDS reader for " + L.name, r);
+  L.reader_gid = detail::gid_of(r);
   L.reader.store(r);
   BridgeAccess::refresh_reader(L, r);
   drain(L, r, false);  // what arrived before the reader was stored

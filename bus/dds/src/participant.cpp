@@ -27,10 +27,14 @@ void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who, 
   dds_qset_reliability(out.q, q.reliable ? DDS_RELIABILITY_RELIABLE : DDS_RELIABILITY_BEST_EFFORT,
                        q.max_blocking.count());
   dds_qset_durability(out.q, q.transient_local ? DDS_DURABILITY_TRANSIENT_LOCAL : DDS_DURABILITY_VOLATILE);
-  if (q.keep_all) {
-    dds_qset_history(out.q, DDS_HISTORY_KEEP_ALL, DDS_LENGTH_UNLIMITED);
-  } else {
-    dds_qset_history(out.q, DDS_HISTORY_KEEP_LAST, std::max(1, q.depth));
+  const dds_history_kind_t kind = q.keep_all ? DDS_HISTORY_KEEP_ALL : DDS_HISTORY_KEEP_LAST;
+  const int32_t depth = q.keep_all ? DDS_LENGTH_UNLIMITED : std::max(1, q.depth);
+  dds_qset_history(out.q, kind, depth);
+  // Cyclone keeps for late joiners what the durability service's history
+  // says (depth 1 unless set), not the writer's history: as rmw_cyclonedds does.
+  if (q.transient_local) {
+    dds_qset_durability_service(out.q, 0, kind, depth, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED,
+                                DDS_LENGTH_UNLIMITED);
   }
   const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
   dds_qset_data_representation(out.q, 1, &xcdr1);

@@ -7,7 +7,10 @@
 #include <dds/dds.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
+#include <cstring>
+#include <functional>
 #include <cstdlib>
 #include <future>
 #include <thread>
@@ -19,6 +22,9 @@
 #include <tinyline/dds/participant.hpp>
 #include <tinyline/msg/sensor_msgs/laser_scan.hpp>
 #include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
+#include <tinyline/msg/rcl_interfaces/log.hpp>
+#include <tinyline/msg/rcl_interfaces/parameter_event.hpp>
+#include <tinyline/msg/rmw_dds_common/participant_entities_info.hpp>
 #include <tinyline/msg/std_msgs/string.hpp>
 
 #include "../src/serdata.hpp"
@@ -951,4 +957,117 @@ TEST(DdsBridge, TwoProcessesUsingATopicWithDifferentTypesAreToldWhichTypes) {
   EXPECT_TRUE(a.signal->wait_for(
       [&] { return a.sink->contains(bus::LogLevel::Error, "uses it as sensor_msgs/msg/LaserScan"); }, 20s))
       << a.sink->dump();
+}
+
+// ------------------------------------------------------------------ the ROS 2 graph
+
+namespace {
+
+using Guid = std::array<std::uint8_t, 16>;
+
+/// The GUIDs of the DDS writers discovery has seen on `dds_topic` (waits up to `timeout` for one).
+std::vector<Guid> writer_guids(dds::Participant& p, const std::string& dds_topic, std::chrono::milliseconds timeout) {
+  const dds_entity_t r = dds_create_reader(p.handle(), DDS_BUILTIN_TOPIC_DCPSPUBLICATION, nullptr, nullptr);
+  const dds_entity_t cond = dds_create_readcondition(r, DDS_ANY_STATE);
+  const dds_entity_t ws = dds_create_waitset(p.handle());
+  dds_waitset_attach(ws, cond, 0);
+  std::vector<Guid> out;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (out.empty() && std::chrono::steady_clock::now() < deadline) {
+    dds_waitset_wait(ws, nullptr, 0, DDS_MSECS(100));
+    void* samples[16] = {};
+    dds_sample_info_t infos[16];
+    const int n = dds_read(r, samples, infos, 16, 16);
+    for (int i = 0; i < n; ++i) {
+      const auto* e = static_cast<const dds_builtintopic_endpoint_t*>(samples[i]);
+      if (infos[i].valid_data && dds_topic == e->topic_name) {
+        Guid g;
+        std::memcpy(g.data(), e->key.v, g.size());
+        out.push_back(g);
+      }
+    }
+    if (n > 0) dds_return_loan(r, samples, n);
+  }
+  dds_delete(ws);
+  dds_delete(r);
+  return out;
+}
+
+/// Takes samples of `reader` as `T` until `done` holds for one or `timeout` passes.
+template <class T>
+bool take_until(dds::RawReader& reader, std::chrono::milliseconds timeout, const std::function<bool(const T&)>& done) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  bool found = false;
+  while (!found && std::chrono::steady_clock::now() < deadline) {
+    reader.take(100ms, [&](const dds::RawSample& s) {
+      T m;
+      if (msg::deserialize(s.cdr, m).ok && done(m)) found = true;
+    });
+  }
+  return found;
+}
+
+dds::EndpointQos latched_qos(int depth) {
+  dds::EndpointQos q;
+  q.transient_local = true;
+  q.depth = depth;
+  return q;
+}
+
+}  // namespace
+
+TEST(DdsRosGraph, NodesAreAnnouncedOnRosDiscoveryInfoWithTheGidsOfTheirEndpoints) {
+  const auto s = test_settings("x");
+  Side a("a", s);
+  auto talker = a.node("talker");
+  auto pub = talker->create_publisher<StringMsg>("/chatter");
+  auto quiet = a.node("quiet");  // no endpoints: announced all the same
+  a.run();
+
+  dds::Participant p(s);
+  const auto chatter = writer_guids(p, "rt/chatter", 10s);
+  ASSERT_EQ(chatter.size(), 1u);
+  dds::RawReader info(p, "ros_discovery_info", "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_", latched_qos(1));
+  using rmw_dds_common::msg::ParticipantEntitiesInfo;
+  rmw_dds_common::msg::NodeEntitiesInfo seen;
+  std::size_t nodes = 0;
+  const bool ok = take_until<ParticipantEntitiesInfo>(info, 10s, [&](const ParticipantEntitiesInfo& m) {
+    for (const auto& n : m.node_entities_info_seq) {
+      if (n.node_name == "talker" && !n.writer_gid_seq.empty() && n.writer_gid_seq[0].data == chatter[0]) {
+        seen = n;
+        nodes = m.node_entities_info_seq.size();
+        return true;
+      }
+    }
+    return false;
+  });
+  ASSERT_TRUE(ok) << "no ros_discovery_info naming /talker with its /chatter writer";
+  EXPECT_EQ(seen.node_namespace, "/");
+  EXPECT_EQ(nodes, 2u);                       // talker and quiet, not the bridge
+  EXPECT_EQ(seen.writer_gid_seq.size(), 3u);  // /chatter, /rosout, /parameter_events
+  EXPECT_TRUE(seen.reader_gid_seq.empty());
+}
+
+TEST(DdsRosGraph, TheLogGoesToRosoutAndDeclaredParametersToParameterEvents) {
+  const auto s = test_settings("x");
+  Side a("a", s);
+  auto talker = a.node("talker");
+  (void)talker->declare_parameter("gain", 2.5, "a gain");
+  a.bridge->announce_parameters(a.nodes);
+  a.run();
+  dds::Participant p(s);
+  dds::RawReader rosout(p, "rt/rosout", "rcl_interfaces::msg::dds_::Log_", latched_qos(1000));
+  dds::EndpointQos volatile_qos;
+  volatile_qos.depth = 1000;
+  dds::RawReader events(p, "rt/parameter_events", "rcl_interfaces::msg::dds_::ParameterEvent_", volatile_qos);
+  talker->logger().warn("hello {}", "rosout");
+  using rcl_interfaces::msg::Log;
+  EXPECT_TRUE(take_until<Log>(rosout, 10s, [](const Log& m) {
+    return m.name == "talker" && m.level == Log::WARN && m.msg == "hello rosout" && m.stamp.sec > 1'600'000'000;
+  }));
+  using rcl_interfaces::msg::ParameterEvent;
+  EXPECT_TRUE(take_until<ParameterEvent>(events, 10s, [](const ParameterEvent& e) {
+    return e.node == "/talker" && e.new_parameters.size() == 1 && e.new_parameters[0].name == "gain" &&
+           e.new_parameters[0].value.type == 3 && e.new_parameters[0].value.double_value == 2.5;
+  }));
 }

@@ -392,7 +392,8 @@ struct Loader {
   // ---------------------------------------------------------------- node
 
   void action_node(const Scope& s, const YAML::Node& v) {
-    check_keys(s, v, {"pkg", "exec", "name", "namespace", "param", "remap", "respawn", "output", "process", "dds"},
+    check_keys(s, v,
+               {"pkg", "exec", "name", "namespace", "param", "args", "remap", "respawn", "output", "process", "dds"},
                "node");
     NodeSpec n;
     n.where = loc(s, v);
@@ -405,14 +406,48 @@ struct Loader {
     n.process = v["process"] ? str(s, v["process"], "process") : s.process;
     n.ns = node_namespace(s, v);
     if (v["respawn"]) n.respawn = boolean(s, v["respawn"], "respawn");
-    n.dds = v["dds"] ? boolean(s, v["dds"], "dds") : s.dds;
+    // Frames are for the ROS 2 graph: a static transform publisher's /tf_static
+    // goes on DDS unless the entry says otherwise.
+    const bool frames = n.pkg == "tf2_ros" && n.exec == "static_transform_publisher";
+    n.dds = v["dds"] ? boolean(s, v["dds"], "dds") : s.dds || frames;
     if (v["output"]) {
       const std::string o = str(s, v["output"], "output");
       if (o != "screen" && o != "log") fail(s, v["output"], "output must be screen or log");
     }
     if (v["param"]) n.params = node_params(s, v["param"], (n.ns == "/" ? "" : n.ns) + "/" + n.name);
     if (v["remap"]) n.remaps = node_remaps(s, v["remap"]);
+    if (v["args"]) {
+      auto from_args = node_args(s, v["args"]);
+      n.params.insert(n.params.end(), from_args.begin(), from_args.end());
+    }
     plan.nodes.push_back(std::move(n));
+  }
+
+  /// ROS 2's command-line arguments of a node, `args: "--x 0.1 --frame-id
+  /// base_link"`: each `--flag value` pair sets the parameter `flag` (dashes
+  /// read as underscores), typed like a command-line value and located at
+  /// the args entry, so the node's declarations check name, type and range.
+  std::vector<bus::ParamOverride> node_args(const Scope& s, const YAML::Node& v) {
+    std::vector<std::string> tokens;
+    std::istringstream in(str(s, v, "args"));
+    for (std::string t; in >> t;) tokens.push_back(t);
+    std::vector<bus::ParamOverride> out;
+    for (std::size_t i = 0; i < tokens.size(); i += 2) {
+      const std::string& flag = tokens[i];
+      if (flag.size() < 3 || flag.rfind("--", 0) != 0) {
+        fail(s, v,
+             fmt::format("args: expected a --flag before '{}' (positional arguments are not supported; give "
+                         "each value as --flag value)",
+                         flag));
+      }
+      if (i + 1 == tokens.size() || tokens[i + 1].rfind("--", 0) == 0) {
+        fail(s, v, fmt::format("args: {} needs a value", flag));
+      }
+      std::string name = flag.substr(2);
+      std::replace(name.begin(), name.end(), '-', '_');
+      out.push_back(bus::ParamOverride{name, bus::parse_param_text(tokens[i + 1]), loc(s, v)});
+    }
+    return out;
   }
 
   std::string node_namespace(const Scope& s, const YAML::Node& v) {

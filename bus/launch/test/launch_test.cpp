@@ -459,3 +459,32 @@ TEST_F(LaunchTest, AnInvalidGroupNamespaceIsAnErrorAtItsLine) {
   EXPECT_EQ(error_of([&] { (void)launch::load_launch_string(yaml, "g.yaml"); }),
             "g.yaml:3:16: namespace '/bad-ns' is invalid: character '-' is not allowed (letters, digits, '_' and '/')");
 }
+
+TEST_F(LaunchTest, NodeArgsSetParametersAsRos2FlagsAndAreCheckedAtTheirLine) {
+  // ROS 2's `args: "--flag value"` of a node entry: each flag is the
+  // parameter of that name (dashes as underscores), substitutions applied.
+  const std::string yaml =
+      "launch:\n- arg: {name: rate, default: '25.0'}\n- node:\n    pkg: demo\n    exec: talker\n"
+      "    args: \"--rate-hz $(var rate) --text hi --count 3\"\n";
+  const auto plan = launch::load_launch_string(yaml, "args.yaml");
+  const auto nodes = launch::instantiate(plan, registry(), context());
+  ASSERT_EQ(nodes.size(), 1u);
+  const auto& t = dynamic_cast<const Talker&>(*nodes[0]);
+  EXPECT_DOUBLE_EQ(t.rate, 25.0);
+  EXPECT_EQ(t.text, "hi");
+  EXPECT_EQ(t.count, 3);
+
+  auto error = [&](const std::string& args) {
+    return error_of([&] {
+      const auto p = launch::load_launch_string(
+          "launch:\n- node:\n    pkg: demo\n    exec: talker\n    args: \"" + args + "\"\n", "bad.yaml");
+      (void)launch::instantiate(p, registry(), context());
+    });
+  };
+  EXPECT_EQ(error("--rate-hz"), "bad.yaml:5:11: args: --rate-hz needs a value");
+  EXPECT_EQ(error("20"),
+            "bad.yaml:5:11: args: expected a --flag before '20' (positional arguments are not supported; give each "
+            "value as --flag value)");
+  EXPECT_NE(error("--rate-hz 5000").find("bad.yaml:5:11"), std::string::npos) << error("--rate-hz 5000");
+  EXPECT_NE(error("--volume 3").find("volume"), std::string::npos) << error("--volume 3");
+}

@@ -105,6 +105,7 @@ LaserDriver::LaserDriver(bus::NodeOptions options) : Node(std::move(options)) {
   if (p.publish_raw) raw_pub_ = create_publisher<tinyline_msgs::msg::RawScan>("raw", bus::QoS::sensor_data());
   scan_pub_ = create_publisher<tinyline_msgs::msg::LineScan>("scan", bus::QoS::sensor_data());
   laser_scan_pub_ = create_publisher<sensor_msgs::msg::LaserScan>("laser_scan", bus::QoS::sensor_data());
+  if (p.publish_cloud) cloud_pub_ = create_publisher<sensor_msgs::msg::PointCloud2>("cloud", bus::QoS::sensor_data());
   diag_pub_ = create_publisher<diagnostic_msgs::msg::DiagnosticArray>("/diagnostics", bus::QoS::keep_last(10));
   command_sub_ = create_subscription<tinyline_msgs::msg::LaserCommand>(
       "laser_command", bus::QoS::keep_last(10), [this](const tinyline_msgs::msg::LaserCommand& m) { on_command(m); });
@@ -382,6 +383,7 @@ void LaserDriver::publish_scan(const ProcessedScan& scan, std::uint32_t index, b
   prev_stamp_ = stamp;
   scan_pub_->publish(messages_->line(scan, index, stamp, temperature_c));
   laser_scan_pub_->publish(messages_->laser(scan, stamp, scan_period_s_));
+  if (cloud_pub_) cloud_pub_->publish(messages_->cloud(scan, stamp));
   constexpr double kEffective = kPixels - 2 * kDarkPixels;
   std::lock_guard lk(mu_);
   ++status_.scans_published;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <tiny_laser_driver/nodes/scan_messages.hpp>
 
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -115,6 +116,51 @@ std::unique_ptr<sensor_msgs::msg::LaserScan> ScanMessages::laser(const Processed
     ls->intensities[i] = std::isfinite(scan.intensity[p]) ? scan.intensity[p] : 0.0f;
   }
   return ls;
+}
+
+namespace {
+
+std::vector<sensor_msgs::msg::PointField> xyzi_fields() {
+  std::vector<sensor_msgs::msg::PointField> fields;
+  std::uint32_t offset = 0;
+  for (const char* name : {"x", "y", "z", "intensity"}) {
+    sensor_msgs::msg::PointField f;
+    f.name = name;
+    f.offset = offset;
+    f.datatype = sensor_msgs::msg::PointField::FLOAT32;
+    f.count = 1;
+    fields.push_back(std::move(f));
+    offset += sizeof(float);
+  }
+  return fields;
+}
+
+}  // namespace
+
+std::unique_ptr<sensor_msgs::msg::PointCloud2> ScanMessages::cloud(const ProcessedScan& scan, bus::Time stamp) const {
+  constexpr std::uint32_t kStep = 4 * sizeof(float);
+  auto c = std::make_unique<sensor_msgs::msg::PointCloud2>();
+  c->header.stamp = stamp.to_msg();
+  c->header.frame_id = frame_id_;
+  c->height = 1;
+  c->width = static_cast<std::uint32_t>(kPixels);
+  c->fields = xyzi_fields();
+  c->is_bigendian = std::endian::native == std::endian::big;  // the floats are copied as they are
+  c->point_step = kStep;
+  c->row_step = kStep * c->width;
+  c->is_dense = false;
+  c->data.resize(static_cast<std::size_t>(c->row_step));
+  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  for (std::size_t p = 0; p < kPixels; ++p) {
+    const bool valid = scan.status[p] == PixelStatus::kValid;
+    const float r = scan.distance_m[p];
+    // The pixel's ray lies in the sensor's x-z plane, `angles_[p]` from z towards +x.
+    const float point[4] = {valid ? r * std::sin(angles_[p]) : kNaN, valid ? 0.0f : kNaN,
+                            valid ? r * std::cos(angles_[p]) : kNaN,
+                            std::isfinite(scan.intensity[p]) ? scan.intensity[p] : 0.0f};
+    std::memcpy(c->data.data() + p * kStep, point, kStep);
+  }
+  return c;
 }
 
 }  // namespace tinyline::tiny_laser_driver

@@ -48,6 +48,10 @@
 namespace tinyline::dds {
 
 struct BridgeAccess;
+namespace detail {
+class RosGraph;
+struct NodeEntities;
+}  // namespace detail
 
 /// Which topics of a process travel over DDS.
 struct TopicSelection {
@@ -139,6 +143,12 @@ class Bridge : public bus::Node {
   [[nodiscard]] WaitResult wait_for_peers(const std::vector<PeerExpectation>& expected,
                                           std::chrono::milliseconds timeout);
 
+  /// Publishes on /parameter_events each node's declared parameters (a
+  /// ParameterEvent with them all as new_parameters), once a subscriber of
+  /// /parameter_events has matched: nodes declare their parameters before the
+  /// process joins the graph, and a volatile event with nobody listening is lost.
+  void announce_parameters(const std::vector<std::shared_ptr<bus::Node>>& nodes);
+
   std::vector<LinkStats> stats() const;
   /// The origin of messages this bridge injects (MessageInfo::origin).
   std::uint32_t origin() const { return origin_; }
@@ -181,6 +191,9 @@ class Bridge : public bus::Node {
   void on_remote_endpoint(const std::string& dds_topic, const std::string& dds_type, const std::string& who,
                           bool writer);
   void adopt(const std::string& topic, const msg::TypeSupport& type);
+  /// The process's nodes (but the bridge) with the DDS endpoints serving
+  /// each, for ros_discovery_info.
+  std::vector<detail::NodeEntities> ros_nodes();
 
   BridgeOptions options_;
   std::unique_ptr<Participant> participant_;
@@ -209,6 +222,9 @@ class Bridge : public bus::Node {
   std::mutex match_mu_;  // guards match_events_ (bumped by DDS listeners)
   std::condition_variable matched_cv_;
   std::uint64_t match_events_ = 0;
+  // Announces the nodes, forwards the log (ROS 2 graph citizenship); goes
+  // first in the destructor: its thread calls ros_nodes().
+  std::unique_ptr<detail::RosGraph> ros_graph_;
 };
 
 }  // namespace tinyline::dds

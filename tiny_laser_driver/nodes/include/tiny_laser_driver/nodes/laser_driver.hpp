@@ -76,6 +76,7 @@ struct DriverParams {
   double stall_timeout_s = 1.0;       ///< connected but no complete frame for this long: WARN [s]
   bool threaded = true;               ///< run the I/O thread (false: the embedding code calls pump())
   bool publish_raw = true;            ///< publish RawScan (raw mode)
+  bool publish_cloud = false;         ///< publish the line as sensor_msgs/PointCloud2 on `cloud`
 };
 
 /// What the link is doing, for diagnostics and tests (a copy, thread-safe).
@@ -181,6 +182,7 @@ class LaserDriver : public bus::Node {
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::RawScan>> raw_pub_;
   std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineScan>> scan_pub_;
   std::shared_ptr<bus::Publisher<sensor_msgs::msg::LaserScan>> laser_scan_pub_;
+  std::shared_ptr<bus::Publisher<sensor_msgs::msg::PointCloud2>> cloud_pub_;  // publish_cloud only
   std::shared_ptr<bus::Publisher<diagnostic_msgs::msg::DiagnosticArray>> diag_pub_;
   std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LaserCommand>> command_sub_;
   std::shared_ptr<bus::Timer> diag_timer_;

@@ -71,6 +71,12 @@ void for_each_param(S& p, V&& v) {
   v(p.stall_timeout_s, {"stall_timeout_s", "s", 0.01, 3600.0, "connected but no complete frame for this long: WARN"});
   v(p.threaded, {"threaded", "", {}, {}, "run the I/O thread; false: the embedding code calls pump()"});
   v(p.publish_raw, {"publish_raw", "", {}, {}, "publish tinyline_msgs/RawScan (raw sets)"});
+  v(p.publish_cloud, {"publish_cloud",
+                      "",
+                      {},
+                      {},
+                      "also publish the line on 'cloud' as sensor_msgs/PointCloud2 (x y z intensity float32, in "
+                      "frame_id, one point per pixel, NaN where the pixel has no valid distance)"});
 }
 
 }  // namespace tinyline::tiny_laser_driver

@@ -11,6 +11,7 @@
 
 #include <tinyline/bus/time.hpp>
 #include <tinyline/msg/sensor_msgs/laser_scan.hpp>
+#include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
 #include <tinyline/msg/tinyline_msgs/line_scan.hpp>
 #include <tinyline/msg/tinyline_msgs/raw_scan.hpp>
 
@@ -38,6 +39,12 @@ class ScanMessages {
   /// NaN where the reading is unusable; intensities: (a + b) per pulse.
   [[nodiscard]] std::unique_ptr<sensor_msgs::msg::LaserScan> laser(const ProcessedScan& scan, bus::Time stamp,
                                                                    double scan_time_s) const;
+  /// The line as an organized cloud in frame_id: one point per pixel (height
+  /// 1, width 272, the dark pixels too), fields x y z intensity (float32 in
+  /// the host's byte order, as is_bigendian says), each point distance_m
+  /// along its pixel's ray; x y z NaN where the pixel has no valid distance
+  /// (is_dense false): the LaserScan's NaN and +inf alike.
+  [[nodiscard]] std::unique_ptr<sensor_msgs::msg::PointCloud2> cloud(const ProcessedScan& scan, bus::Time stamp) const;
   [[nodiscard]] const std::string& frame_id() const { return frame_id_; }
 
  private:
