@@ -255,8 +255,8 @@ class Recovery {
       // The magic and nothing whole after it (a 9-byte file): not an "empty" bag.
       if (lr_.status().ok()) {
         return {StatusCode::InvalidRecord,
-                fmt::format("{}: {} bytes is too short for an MCAP file (no Header record after the magic)",
-                            in_.name(), in_.size())};
+                fmt::format("{}: {} bytes is too short for an MCAP file (no Header record after the magic)", in_.name(),
+                            in_.size())};
       }
       return lr_.status();
     }
