@@ -16,13 +16,13 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 #include <tinyline/common/seeds.hpp>
 
 #include "sim_discovery_cases.hpp"
@@ -125,11 +125,14 @@ int main(int argc, char** argv) {
     return 0;
   }
   const auto use = *range_use(a.seeds);
-  std::ofstream csv;
+  std::optional<tinyline::files::AtomicStream> csv;  // checked before the sweep, renamed into place at its end
   if (!a.out.empty()) {
-    csv.open(a.out);
-    if (!csv) return usage("cannot write " + a.out);
-    csv << "case,seed,named,first_effect,before_m,after_m,floor_m,twin_effects\n";
+    try {
+      csv.emplace(a.out, tinyline::files::named("sweep table"));
+    } catch (const tinyline::files::FileError& e) {
+      return usage(e.what());
+    }
+    *csv << "case,seed,named,first_effect,before_m,after_m,floor_m,twin_effects\n";
   }
   std::printf("seeds %llu-%llu (%s)\n", static_cast<unsigned long long>(a.seeds.first),
               static_cast<unsigned long long>(a.seeds.last), std::string(seeds::to_string(use)).c_str());
@@ -148,8 +151,8 @@ int main(int argc, char** argv) {
       twin_any += o.twin.effects.empty() ? 0 : 1;
       ratio.push_back(o.result.rmse_after_m / o.floor_m);
       if (csv) {
-        csv << c.name << ',' << seed << ',' << (o.named ? 1 : 0) << ',' << o.names() << ',' << o.result.rmse_before_m
-            << ',' << o.result.rmse_after_m << ',' << o.floor_m << ',' << o.twin.effects.size() << '\n';
+        *csv << c.name << ',' << seed << ',' << (o.named ? 1 : 0) << ',' << o.names() << ',' << o.result.rmse_before_m
+             << ',' << o.result.rmse_after_m << ',' << o.floor_m << ',' << o.twin.effects.size() << '\n';
       }
       std::fprintf(stderr, "%s seed %llu: %s, %.2f -> %.2f cm (floor %.2f cm); twin: %s\n", c.name.c_str(),
                    static_cast<unsigned long long>(seed), o.names().c_str(), 100 * o.result.rmse_before_m,
@@ -160,6 +163,14 @@ int main(int argc, char** argv) {
     std::printf("| %s | %d | %d (%.0f %%) | %d | %.2f, %.2f | %d |\n", c.name.c_str(), runs, hits, 100.0 * hits / runs,
                 any, ratio[ratio.size() / 2], ratio.back(), twin_any);
     std::fflush(stdout);
+  }
+  if (csv) {
+    try {
+      csv->commit();
+    } catch (const tinyline::files::FileError& e) {
+      std::fprintf(stderr, "calibration_discovery_sweep: %s\n", e.what());
+      return 1;
+    }
   }
   return 0;
 }

@@ -10,12 +10,12 @@
 //      .venv/bin/python bench/laser_clustering/side_by_side.py --build build
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <vector>
 
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
+#include <tinyline/common/files.hpp>
 
 #include "bench_scenes.hpp"
 #include "laser_clustering/dbscan.hpp"
@@ -170,7 +170,7 @@ BENCHMARK(BM_BruteForceDbscan3D)->Arg(1000)->Arg(10000)->Unit(benchmark::kMillis
 // Writes the benchmark's inputs for side_by_side.py: every scan's points and
 // the 100k cloud, in hex floats (exact), with the parameters used.
 void dump_points(const std::string& path) {
-  std::ofstream f(path);
+  tinyline::files::AtomicStream f(path, tinyline::files::named("points file"));
   const lc::TwoStageParams p;
   f << fmt::format("params {:a} {} {:a} {} {:a} {}\n", p.groups.eps, p.groups.min_points, p.objects.eps,
                    p.objects.min_points, kCloudEps, kCloudMin);
@@ -185,6 +185,7 @@ void dump_points(const std::string& path) {
   const auto& c = cloud(100000);
   f << "cloud " << c.cols() << "\n";
   for (Eigen::Index i = 0; i < c.cols(); ++i) f << fmt::format("{:a} {:a} {:a}\n", c(0, i), c(1, i), c(2, i));
+  f.commit();
 }
 
 }  // namespace
@@ -193,7 +194,12 @@ int main(int argc, char** argv) {
   std::vector<char*> args;
   for (int i = 0; i < argc; ++i) {
     if (std::strncmp(argv[i], "--dump_points=", 14) == 0) {
-      dump_points(argv[i] + 14);
+      try {
+        dump_points(argv[i] + 14);
+      } catch (const tinyline::files::FileError& e) {
+        std::fprintf(stderr, "laser_clustering_bench: %s\n", e.what());
+        return 1;
+      }
       return 0;
     }
     args.push_back(argv[i]);

@@ -145,12 +145,30 @@ TEST(Files, ASecondWriterOfThePathFailsAndAStalePartialIsKeptWhenAsked) {
     first.write("partial");
   }  // not committed: the partial recording stays for recovery
   EXPECT_EQ(slurp(out + ".part"), "partial");
-  EXPECT_NE(error_of([&] { AtomicFile again(out, keep); }).find("exists: an earlier write that did not finish"),
+  EXPECT_NE(error_of([&] { AtomicFile again(out, keep); }).find("exists (an earlier write that did not finish"),
             std::string::npos);
   EXPECT_EQ(slurp(out + ".part"), "partial");
-  // A writer that does not keep partials takes the leftover over.
-  AtomicFile plain(out);
-  plain.write("done");
-  plain.commit();
-  EXPECT_EQ(slurp(out), "done");
+}
+
+// Regression: a writer truncated and reused a leftover "<path>.part" (a
+// crashed recording, a user's file), and `bag recover F.part F` its own input.
+TEST(Files, AnExistingPartIsNeverReusedNorRemoved) {
+  const auto d = scratch("leftover");
+  const auto out = (d / "data.csv").string();
+  spit(out + ".part", "a user's data");
+  for (const bool keep : {false, true}) {
+    OutputOptions o;
+    o.keep_partial = keep;
+    const std::string e = error_of([&] { AtomicFile f(out, o); });
+    EXPECT_NE(e.find(out + ".part exists"), std::string::npos) << e;
+    EXPECT_NE(e.find("remove or rename it to go on"), std::string::npos) << e;
+    EXPECT_EQ(slurp(out + ".part"), "a user's data");
+    EXPECT_FALSE(fs::exists(out));
+  }
+  OutputOptions o;
+  o.inputs = {out + ".part"};
+  const std::string e = error_of([&] { tinyline::files::write_atomically(out, "x", o); });
+  EXPECT_NE(e.find("its temporary " + out + ".part is an input of this command"), std::string::npos) << e;
+  EXPECT_EQ(slurp(out + ".part"), "a user's data");
+  EXPECT_FALSE(fs::exists(out));
 }

@@ -36,8 +36,6 @@ namespace ev = tinyline::hydrus_fitting::eval;
 
 namespace {
 
-bool write(const std::string& path, const std::string& text) { return ev::write_output("hydrus_eval", path, text); }
-
 /// What the command line asks for (unset fields keep the study's defaults).
 struct Request {
   int trials = 0;
@@ -127,26 +125,28 @@ int main(int argc, char** argv) {
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
 
   const std::string description = std::string(TINYLINE_SOURCE_DIR) + "/hydrus_fitting/config/hydrus4.yaml";
+  auto out = ev::Output::open("hydrus_eval", r.out, {description});
+  if (!out) return 1;
   if (kcr->parsed()) {
     ev::KcrStudyParams p;
     if (r.trials > 0) p.trials = r.trials;
     apply_grid(r, p);
     if (!apply_seed("kcr", r, p)) return 2;
-    return write(r.out, ev::kcr_csv(ev::kcr_study(p))) ? 0 : 1;
+    return out->write(ev::kcr_csv(ev::kcr_study(p))) ? 0 : 1;
   }
   if (robustness->parsed()) {
     ev::RobustnessParams p;
     p.robot_description = description;
     if (r.trials > 0) p.trials = r.trials;
     if (!apply_seed("robustness", r, p)) return 2;
-    return write(r.out, ev::robustness_csv(ev::robustness_study(p))) ? 0 : 1;
+    return out->write(ev::robustness_csv(ev::robustness_study(p))) ? 0 : 1;
   }
   if (ray_noise->parsed()) {
     ev::RayNoiseParams p;
     p.robot_description = description;
     if (r.trials > 0) p.trials = r.trials;
     if (!apply_seed("ray_noise", r, p)) return 2;
-    return write(r.out, ev::ray_noise_csv(ev::ray_noise_study(p))) ? 0 : 1;
+    return out->write(ev::ray_noise_csv(ev::ray_noise_study(p))) ? 0 : 1;
   }
   if (correction->parsed()) {
     ev::CorrectionStudyParams p;
@@ -160,11 +160,11 @@ int main(int argc, char** argv) {
       for (const auto& n : r.noise) p.noise.push_back(n == "rays" ? ev::NoiseKind::kRays : ev::NoiseKind::kIsotropic);
     }
     if (!apply_seed("correction", r, p)) return 2;
-    return write(r.out, ev::correction_csv(ev::correction_study(p))) ? 0 : 1;
+    return out->write(ev::correction_csv(ev::correction_study(p))) ? 0 : 1;
   }
   ev::SecondOrderParams p;
   if (r.trials > 0) p.draws = r.trials;
   apply_grid(r, p);
   if (!apply_seed("second_order", r, p)) return 2;
-  return write(r.out, ev::second_order_csv(ev::second_order_study(p))) ? 0 : 1;
+  return out->write(ev::second_order_csv(ev::second_order_study(p))) ? 0 : 1;
 }

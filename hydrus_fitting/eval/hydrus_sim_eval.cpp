@@ -28,11 +28,7 @@ namespace cli = tinyline::cli;
 
 namespace ev = tinyline::hydrus_fitting::eval;
 
-namespace {
-
-bool write(const std::string& path, const std::string& text) { return ev::write_output("hydrus_sim_eval", path, text); }
-
-}  // namespace
+namespace {}  // namespace
 
 int main(int argc, char** argv) {
   const std::string src = TINYLINE_SOURCE_DIR;
@@ -65,6 +61,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-base-motion", no_base_motion, "leave the scans where the joints put them");
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   const bool base_motion = !no_base_motion;
+  auto updates = ev::Output::open("hydrus_sim_eval", updates_path, {scene, robot, calibration});
+  auto rates = ev::Output::open("hydrus_sim_eval", rates_path, {scene, robot, calibration});
+  if (!updates || !rates) return 1;
 
   std::vector<ev::SimStudyResult> runs;
   try {
@@ -87,7 +86,7 @@ int main(int argc, char** argv) {
     std::cerr << "hydrus_sim_eval: " << e.what() << "\n";
     return 1;
   }
-  bool ok = write(updates_path, ev::sim_updates_csv(runs));
-  ok = write(rates_path, ev::sim_rates_csv(runs)) && ok;
+  bool ok = updates->write(ev::sim_updates_csv(runs));
+  ok = rates->write(ev::sim_rates_csv(runs)) && ok;
   return ok ? 0 : 1;
 }

@@ -545,16 +545,24 @@ int main(int argc, char** argv) {
   Args parsed;
   if (const auto rc = parse(argc, argv, parsed)) return *rc;
   const Args& args = parsed;
+  if (!args.write_calibration.empty()) {  // that file alone: no output folder
+    if (!tinyline::files::output_allowed("laser_clustering_eval", args.write_calibration,
+                                         tinyline::files::named("calibration")))
+      return 1;
+    write_calibration(args, scanner_options(args).gripper);
+    return 0;
+  }
+  // The tables checked before the folder is made and any trial runs (the scans are checked as written).
+  for (const std::string name : {"summary.json", "trials_random_offset.csv", "trials_recognition_error.csv",
+                                 "trials_stick.csv", "trials_wrench.csv", "wrench_sweeps.csv"}) {
+    if (!tinyline::files::output_allowed("laser_clustering_eval", (args.out / name).string())) return 1;
+  }
   if (std::error_code ec; !fs::create_directories(args.out / "scans", ec) && ec) {
     std::cerr << "laser_clustering_eval: cannot create the output directory " << (args.out / "scans") << ": "
               << ec.message() << "\n";
     return 2;
   }
   const ScannerOptions scanners = scanner_options(args);
-  if (!args.write_calibration.empty()) {
-    write_calibration(args, scanners.gripper);
-    return 0;
-  }
   Evaluation e{args, nullptr, nullptr, {}, {}};
   try {
     open_evaluation(e, scanners);

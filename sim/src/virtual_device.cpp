@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <system_error>
+#include <utility>
 
 #include <tiny_laser_driver/protocol.hpp>
 
@@ -29,6 +30,7 @@ struct VirtualDevice::State {
   // Link.
   int master = -1;
   std::string pty_name;
+  bool link_made = false;  // options.link_path is the symlink this device made to pty_name
   bool plugged = false;
   bool host_present = false;
   double stall_until = -1.0;
@@ -104,6 +106,32 @@ std::unique_ptr<VirtualDevice> VirtualDevice::from_port(const std::string& port,
 
 VirtualDevice::~VirtualDevice() { stop(); }
 
+namespace {
+
+// Makes `link` a symbolic link to the pty. symlink() never replaces: whatever
+// is at `link` (a user's file, the scene, a device, another link) is refused.
+void make_link(const std::string& link, const std::string& pty) {
+  if (::symlink(pty.c_str(), link.c_str()) == 0) return;
+  const int e = errno;
+  if (e == EEXIST) {
+    throw std::system_error(e, std::generic_category(),
+                            "virtual device: link '" + link +
+                                "' exists and is not this device's link: not replaced (remove it or give another "
+                                "path)");
+  }
+  throw std::system_error(e, std::generic_category(), "virtual device: cannot create the link '" + link + "'");
+}
+
+// Removes `link` only while it is still the link made to `pty`: never what
+// someone put there since.
+void remove_own_link(const std::string& link, const std::string& pty) {
+  char target[4096];
+  const ssize_t n = ::readlink(link.c_str(), target, sizeof target);
+  if (n > 0 && std::string(target, static_cast<std::size_t>(n)) == pty) ::unlink(link.c_str());
+}
+
+}  // namespace
+
 void VirtualDevice::open_pty() {
   State& s = *state_;
   const int m = posix_openpt(O_RDWR | O_NOCTTY | O_NONBLOCK);
@@ -137,24 +165,21 @@ void VirtualDevice::open_pty() {
   s.host_present = false;
   s.plugged = true;
   if (!options_.link_path.empty()) {
-    namespace fs = std::filesystem;
-    const fs::path link(options_.link_path);
-    const fs::path tmp = link.string() + ".tmp";
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    fs::create_symlink(name, tmp, ec);
-    if (ec) throw std::system_error(ec, "virtual device: cannot create link " + tmp.string());
-    fs::rename(tmp, link, ec);  // atomic replace
-    if (ec) throw std::system_error(ec, "virtual device: cannot create link " + link.string());
+    try {
+      make_link(options_.link_path, name);
+    } catch (...) {
+      ::close(std::exchange(s.master, -1));  // not plugged in: no port without its link
+      s.plugged = false;
+      throw;
+    }
+    s.link_made = true;
   }
 }
 
 void VirtualDevice::close_pty() {
   State& s = *state_;
-  if (!options_.link_path.empty()) {
-    std::error_code ec;
-    std::filesystem::remove(options_.link_path, ec);
-  }
+  if (s.link_made) remove_own_link(options_.link_path, s.pty_name);
+  s.link_made = false;
   if (s.master >= 0) ::close(s.master);
   s.master = -1;
   s.plugged = false;

@@ -11,8 +11,10 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <optional>
+#include <system_error>
 
 #include <tiny_laser_driver/protocol.hpp>
 
@@ -173,6 +175,43 @@ TEST(VirtualDevice, SurvivesTheHostClosingAndReopening) {
     host.close();
   }
   EXPECT_GE(dev.stats().host_opens, 1u);  // a quick close/open may go unnoticed; the data must not
+}
+
+// Regression: --link replaced whatever was at its path (a user's file, the
+// scene, a device, a link) through PATH.tmp and removed it on stop.
+TEST(VirtualDevice, ALinkPathThatIsTakenIsRefusedAndOnlyItsOwnLinkIsRemoved) {
+  TempDir dir;
+  const std::string link = (dir.path / "ttyTINY0").string();
+  const auto text = [](const std::string& p) {
+    std::ifstream in(p);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  std::ofstream(link) << "a user's file";
+  std::ofstream(link + ".tmp") << "another";
+  VirtualDeviceOptions o;
+  o.link_path = link;
+  {
+    VirtualDevice dev(SimulatedSystem::from_file(scene_path()), o);
+    try {
+      dev.start();
+      ADD_FAILURE() << "started over a user's file";
+    } catch (const std::system_error& e) {
+      EXPECT_NE(std::string(e.what()).find("'" + link + "' exists and is not this device's link"), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_EQ(text(link), "a user's file");
+  EXPECT_EQ(text(link + ".tmp"), "another");
+  std::filesystem::remove(link);
+  {
+    VirtualDevice dev(SimulatedSystem::from_file(scene_path()), o);
+    dev.start();
+    ASSERT_TRUE(std::filesystem::is_symlink(link));
+    std::filesystem::remove(link);  // someone puts their own file there while it serves
+    std::ofstream(link) << "theirs";
+    dev.stop();
+  }
+  EXPECT_EQ(text(link), "theirs");
 }
 
 TEST(VirtualDevice, UnplugRemovesThePathAndReplugBringsItBack) {

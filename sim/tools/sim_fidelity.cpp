@@ -85,6 +85,9 @@ int main(int argc, char** argv) {
   app.add_option("--tune", tune, "tune one group of the sensor's constants instead")
       ->check(cli::one_of({"trap", "noise", "offset"}));
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
+  if (!json_path.empty() && !tinyline::files::output_allowed(
+                                "sim_fidelity", json_path, {.inputs = {sensor_path, measured_path}, .what = "report"}))
+    return 1;
   try {
     const SensorParams p = load_sensor_params(sensor_path);
     const ThesisFigures m = load_thesis_figures(measured_path);

@@ -187,6 +187,9 @@ void run(const Options& o) {
 int main(int argc, char** argv) {
   Options o;
   if (const auto rc = parse(argc, argv, o)) return *rc;
+  if (!o.out.empty() &&
+      !tinyline::files::output_allowed("sim_rail_csv", o.out, {.inputs = {o.sensor}, .what = "data file"}))
+    return 1;
   try {
     run(o);
   } catch (const std::exception& e) {

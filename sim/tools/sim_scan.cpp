@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   app.add_option("--index", index, "set index (seeds its noise)")->check(cli::non_negative())->capture_default_str();
   app.add_option("--out", out_path, "JSON file to write (default: stdout)");
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
+  if (!out_path.empty() && !tinyline::files::output_allowed("sim_scan", out_path, {.inputs = {scene_path}})) return 1;
   try {
     const Scene s = load_scene(scene_path);
     const SensorMount* m = sensor_name.empty() ? (s.sensors.empty() ? nullptr : &s.sensors[0]) : s.sensor(sensor_name);

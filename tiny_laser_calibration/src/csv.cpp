@@ -54,6 +54,8 @@ CalibrationDataset CalibrationDataset::subset(const std::vector<std::size_t>& ro
 
 namespace {
 
+constexpr double kMaxTruthDistanceM = 100.0;
+
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
   while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
@@ -203,6 +205,11 @@ void add_row(const CsvLayout& l, const std::vector<std::string>& cells, const st
   r.temperature_c = cell.number(l.col[CsvLayout::kTemp]);
   const double d = cell.number(l.col[CsvLayout::kDist]);
   if (!(d > 0.0)) throw cell.fail(fmt::format("column 'distance_m': {} is not a positive distance", d));
+  // A time-of-flight line sensor reads centimetres to metres: 1e22 m is a broken column, not a target.
+  if (d > kMaxTruthDistanceM) {
+    throw cell.fail(fmt::format("column 'distance_m': {} m is beyond any target of this sensor (at most {} m)", d,
+                                kMaxTruthDistanceM));
+  }
   r.extra.reserve(l.extra_cols.size());
   for (int c : l.extra_cols) r.extra.push_back(cell.number(c));
   data.add(std::move(r), d, l.material_col >= 0 ? cells[static_cast<std::size_t>(l.material_col)] : std::string(),

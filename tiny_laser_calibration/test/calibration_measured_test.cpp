@@ -275,3 +275,34 @@ TEST(CalibrationMeasured, BadFilesNameTheFileLineAndField) {
   EXPECT_EQ(cal::run_calib_command({"measured", "--data", "/nonexistent/m.yaml"}, out, err, env), 1);
   EXPECT_THAT(err.str(), HasSubstr("/nonexistent/m.yaml': cannot open"));
 }
+
+// Regression: a repeated key, a negative sd_cm and two rows for one material
+// were accepted (yaml-cpp shows the first of two keys; the rest was ignored).
+TEST(CalibrationMeasured, RepeatedKeysNegativeSpreadsAndRepeatedMaterialsAreRefused) {
+  auto error_of = [](const std::string& text) {
+    try {
+      (void)cal::parse_measured_data(text, "m.yaml");
+    } catch (const cal::CalibrationDataError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string good = file_text(kMeasured);
+  EXPECT_EQ(error_of(good), "no error");
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    std::string t = good;
+    const auto at = t.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return at == std::string::npos ? t : t.replace(at, from.size(), to);
+  };
+  EXPECT_THAT(error_of(replaced("  warm_temperature_c: 48", "  warm_temperature_c: 48\n  warm_temperature_c: 20")),
+              HasSubstr("field 'sensor.warm_temperature_c': given twice"));
+  EXPECT_THAT(error_of(replaced("sd_cm: 0.4505", "sd_cm: -0.4505")),
+              HasSubstr("field 'materials_at_30cm[0].sd_cm': must be positive"));
+  EXPECT_THAT(error_of(replaced("material: black_cushion", "material: white_paper")),
+              HasSubstr("field 'materials_at_30cm[1].material': 'white_paper' has a row already"));
+  EXPECT_THAT(error_of(replaced("  J: {poly", "  R: {poly")),
+              HasSubstr("field 'real_sensor_polynomials.R': given twice"));
+  EXPECT_THAT(error_of(replaced("sd_cm: 0.4505", "sd-cm: 0.4505")),
+              HasSubstr("'materials_at_30cm[0].sd-cm': unknown key"));
+}

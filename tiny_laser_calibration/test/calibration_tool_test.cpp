@@ -249,3 +249,43 @@ TEST_F(CalibTool, BadInputGetsAClearErrorAndExitCode) {
   EXPECT_EQ(run({"eval", invalid, "--calib", bad_yaml}), 1);
   EXPECT_THAT(err_.str(), HasSubstr("bad.yaml:2: field 'polynomial.coefficients_m[1]'"));
 }
+
+// Regression: `fit data.csv.part -o data.csv` deleted its input (the writer
+// took "<output>.part" for its own temporary).
+TEST_F(CalibTool, FitNeverTouchesAnInputNamedLikeItsTemporary) {
+  const auto csv = rail_csv(false);
+  const auto part = path("data.csv.part");
+  fs::copy_file(csv, part);
+  const std::string before = slurp(part);
+  EXPECT_EQ(run({"fit", part, "-o", path("data.csv")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr(part + " is an input of this command"));
+  EXPECT_EQ(slurp(part), before);
+  EXPECT_FALSE(fs::exists(path("data.csv")));
+}
+
+// Regression: `fit -o OUT --report BAD` replaced OUT, then failed on the report.
+TEST_F(CalibTool, AFitThatFailsOnItsReportLeavesTheModelAsItWas) {
+  const auto csv = rail_csv(false);
+  const auto yaml = write_file("calib.yaml", "the user's model\n");
+  const auto not_a_dir = write_file("report", "a file, not a directory\n");
+  EXPECT_EQ(run({"fit", csv, "-o", yaml, "--report", not_a_dir}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr(not_a_dir + ": cannot create the report directory"));
+  EXPECT_EQ(slurp(yaml), "the user's model\n");
+  fs::create_directories(path("r"));
+  fs::create_symlink(csv, path("r/curve.csv"));  // a report file it must not replace
+  EXPECT_EQ(run({"fit", csv, "-o", yaml, "--report", path("r")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("curve.csv' is a symbolic link"));
+  EXPECT_EQ(slurp(yaml), "the user's model\n");
+  EXPECT_FALSE(fs::exists(path("r/summary.json")));
+  EXPECT_FALSE(fs::exists(path("r/summary.json.part")));
+}
+
+// Regression: a truth distance of 1e22 m was fitted, and the model written
+// was one the driver's own loader refuses.
+TEST_F(CalibTool, AnAbsurdTruthDistanceIsRefusedNamingTheLine) {
+  const std::string header = "t_s,pixel,pulses,a,b,temperature_c,distance_m\n";
+  const auto csv = write_file("far.csv", header + "0,10,100,50,50,40,0.5\n0,10,100,50,50,40,1e22\n");
+  EXPECT_EQ(run({"fit", csv, "-o", path("far.yaml")}), 1);
+  EXPECT_THAT(err_.str(), HasSubstr("far.csv:3: column 'distance_m': 1e+22 m is beyond any target"));
+  EXPECT_FALSE(fs::exists(path("far.yaml")));
+}

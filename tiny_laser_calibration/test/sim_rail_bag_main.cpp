@@ -13,6 +13,7 @@
 #include "sim_rail_session.hpp"
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 namespace cli = tinyline::cli;
 
@@ -38,6 +39,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--seed", seed, "seed of the visiting order")->check(cli::non_negative())->capture_default_str();
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
+  if (!tinyline::files::output_allowed("calibration_sim_rail_bag", s.bag_path, {.inputs = {s.scene}, .what = "bag"}))
+    return 1;
   if (!(to >= from)) {
     std::cerr << "calibration_sim_rail_bag: --to (" << to << ") must not be below --from (" << from << ")\n";
     return 2;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 #include "synthetic_sensor.hpp"
 
@@ -45,6 +46,8 @@ int main(int argc, char** argv) {
       ->check(cli::non_negative())
       ->capture_default_str();
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
+  if (!tinyline::files::output_allowed("calibration_synthetic_rail", out, tinyline::files::named("data file")))
+    return 1;
   for (const std::string& e : effects) {
     if (e == "material") {
       s.effects.material_bias = true;

@@ -3,13 +3,13 @@
 // sets and distance frames, clean and with the damage a serial link does.
 // Input layout: byte 0 = (readouts - 1) << 1 (bit 0 unused), byte 1 = chunking seed.
 #include <cstdio>
-#include <fstream>
 #include <string>
 #include <vector>
 
 #include <tiny_laser_driver/protocol.hpp>
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 namespace cli = tinyline::cli;
 
@@ -44,19 +44,30 @@ std::vector<std::uint8_t> distance_frame(int seed) {
 }
 
 void write(const std::string& dir, const std::string& name, std::uint8_t mode, const std::vector<std::uint8_t>& body) {
-  std::ofstream f(dir + "/" + name, std::ios::binary);
-  const std::uint8_t head[2] = {mode, 7};
-  f.write(reinterpret_cast<const char*>(head), 2);
-  f.write(reinterpret_cast<const char*>(body.data()), static_cast<std::streamsize>(body.size()));
+  std::string bytes{static_cast<char>(mode), 7};
+  bytes.append(reinterpret_cast<const char*>(body.data()), body.size());
+  tinyline::files::write_atomically(dir + "/" + name, bytes, tinyline::files::named("seed"));
 }
 
 }  // namespace
+
+void write_seeds(const std::string& dir);
 
 int main(int argc, char** argv) {
   std::string dir;
   cli::App app{"Writes the seed corpus of the driver's parser fuzzer.", "driver_parser_fuzz_seeds"};
   app.add_option("SEED_DIR", dir, "directory to write into")->required();
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
+  try {
+    write_seeds(dir);
+  } catch (const tinyline::files::FileError& e) {
+    std::fprintf(stderr, "driver_parser_fuzz_seeds: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
+
+void write_seeds(const std::string& dir) {
   const std::uint8_t raw5 = 4 << 1;  // readouts 5, raw mode
   auto two = raw_set(1);
   const auto second = raw_set(2);
@@ -79,5 +90,4 @@ int main(int argc, char** argv) {
   dist.insert(dist.end(), d2.begin(), d2.end());
   write(dir, "distance_two", 1, dist);
   write(dir, "distance_then_raw", 1, mixed);
-  return 0;
 }

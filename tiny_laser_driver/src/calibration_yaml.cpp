@@ -104,7 +104,9 @@ void parse_ratio(const YAML::Node& r, const Reader& rd, Impl& m) {
     m.ratio_max = v[1];
   }
   m.ratio_margin = rd.number_or(r, "ratio", "range_margin", m.ratio_margin);
-  if (m.ratio_margin < 0.0) rd.fail(r["range_margin"], "ratio.range_margin", "must not be negative");
+  // A share of the fitted X range: beyond 1 the out-of-range check is as good as off (1e300 was).
+  if (m.ratio_margin < 0.0 || m.ratio_margin > 1.0)
+    rd.fail(r["range_margin"], "ratio.range_margin", "must be 0-1 (a share of the fitted range)");
 }
 
 void parse_polynomial(const YAML::Node& p, const Reader& rd, Impl& m) {

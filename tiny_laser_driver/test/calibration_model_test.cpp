@@ -401,3 +401,11 @@ TEST(CalibrationModel, NonFiniteInputsNeverGiveAValidNaN) {
   r.pixel = 999;  // out of range: the common Rsen
   EXPECT_TRUE(std::isfinite(m.distance_m(r)));
 }
+
+// Regression: range_margin 1e300 switched the out-of-range check off.
+TEST(CalibrationYaml, ARangeMarginBeyondTheFittedRangeIsRefused) {
+  EXPECT_THAT(expect_load_error(minimal("ratio",
+                                        "ratio: {sensitivity_ratio: 1, leakage_offset: 0, leakage_per_pulse: "
+                                        "0, range: [0, 1], range_margin: 1e300}\n")),
+              HasSubstr("field 'ratio.range_margin': must be 0-1"));
+}

@@ -45,6 +45,8 @@ int main(int argc, char** argv) try {
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
   const auto cls = sim::parse_truss_class(class_name);
   const std::filesystem::path out = out_dir;
+  for (const char* name : {"points.csv", "spheres.csv", "edges.csv"})  // checked before the truss is made
+    if (!files::output_allowed("tomato_dump", (out / name).string())) return 1;
   std::filesystem::create_directories(out);
   const eval::Scenario s = eval::make_scenario(*cls, seed);
   PipelineParams p;

@@ -617,12 +617,25 @@ void write_tables(const std::vector<Run>& runs, const PickVerification* v, const
   if (v && v->harvest) files::write_atomically(r.out_dir + "/harvest.csv", v->harvest_csv.view());
 }
 
+/// Every file the run may write, checked before any truss is simulated.
+bool outputs_allowed(const Request& r) {
+  std::vector<std::string> names{"verification.csv", "harvest.csv", "kappa_fit.csv", "kappa_sweep.csv"};
+  for (const auto& v : r.variants) {
+    names.push_back(v + "_tomatoes.csv");
+    names.push_back(v + "_summary.json");
+  }
+  for (const auto& n : names)
+    if (!files::output_allowed("tomato_eval", r.out_dir + "/" + n)) return false;
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   Request request;
   if (const auto rc = parse(argc, argv, request)) return *rc;
   request.scenario.extra_depth_noise_m = request.depth_noise_mm / 1000.0;
+  if (!outputs_allowed(request)) return 1;
   if (std::error_code ec; !std::filesystem::create_directories(request.out_dir, ec) && ec) {
     std::fprintf(stderr, "tomato_eval: cannot create the output directory %s: %s\n", request.out_dir.c_str(),
                  ec.message().c_str());

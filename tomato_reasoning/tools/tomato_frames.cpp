@@ -13,6 +13,7 @@
 #include <opencv2/core.hpp>
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 #include "tomato_reasoning/io/rgbd_files.hpp"
 #include "tomato_reasoning/pipeline.hpp"
@@ -42,6 +43,25 @@ void print(const std::string& name, const tr::PipelineResult& r) {
   }
 }
 
+// The annotated images' destinations, checked before any frame is read: never
+// an input (`--out FOLDER/depth` would overwrite the depth images), a link, a
+// device, a FIFO or a leftover "<name>.part".
+void check_outputs(const tr::io::RgbdFolder& f, const std::string& out) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (const char* sub : {"rgb", "depth"}) {
+    if (fs::equivalent(out, fs::path(f.path) / sub, ec)) {
+      throw tinyline::files::FileError("output folder '" + out + "' is the input folder's " + sub +
+                                       "/: its images would be overwritten; give another folder");
+    }
+  }
+  if (!fs::exists(fs::symlink_status(out, ec))) return;  // made new: nothing in it to replace
+  for (const auto& frame : f.frames) {
+    tinyline::files::AtomicFile::check((fs::path(out) / (frame.name + ".png")).string(),
+                                       {.inputs = {frame.colour, frame.depth}, .what = "annotated image"});
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -67,7 +87,10 @@ int main(int argc, char** argv) {
   int failed = 0;
   try {
     const tr::io::RgbdFolder f = tr::io::open_folder(folder);
-    if (!out.empty()) std::filesystem::create_directories(out);
+    if (!out.empty()) {
+      check_outputs(f, out);
+      std::filesystem::create_directories(out);
+    }
     const tr::TomatoPipeline pipeline(p);
     for (const auto& frame : f.frames) {
       try {

@@ -14,6 +14,7 @@
 #include <tinyline/bag/reader.hpp>
 #include <tinyline/bag/recorder.hpp>
 #include <tinyline/bag/recover.hpp>
+#include <tinyline/common/visible_text.hpp>
 #include <tinyline/bag/ros2.hpp>
 #include <tinyline/launch/launch.hpp>
 #include <tinyline/msg/yaml_writer.hpp>
@@ -24,6 +25,8 @@
 
 namespace tinyline::tools {
 namespace {
+
+using common::visible;
 
 // Progress on a terminal: one line, redrawn in place on stderr.
 void progress(const std::string& line) {
@@ -80,8 +83,8 @@ void print_overview(const bag::Reader& r, const std::string& path) {
   fmt::print("file:         {} ({}, {}, {})\n", path, human_bytes(ec ? 0 : size),
              r.complete() ? "complete" : "NOT complete: no footer",
              r.has_summary() ? "indexed" : "no summary, scanned");
-  fmt::print("profile:      {} (written by {})\n", sum.header.profile.empty() ? "(none)" : sum.header.profile,
-             sum.header.library);
+  fmt::print("profile:      {} (written by {})\n", sum.header.profile.empty() ? "(none)" : visible(sum.header.profile),
+             visible(sum.header.library));
   if (st.message_count > 0) {
     fmt::print("start:        {}\nend:          {}\nduration:     {:.3f} s\n", human_time(st.message_start_time),
                human_time(st.message_end_time),
@@ -90,7 +93,7 @@ void print_overview(const bag::Reader& r, const std::string& path) {
   fmt::print("messages:     {}\n", st.message_count);
   std::string comp;
   for (const auto& [c, n] : sum.chunks_by_compression) {
-    comp += fmt::format("{}{}: {}", comp.empty() ? "" : ", ", c.empty() ? "none" : c, n);
+    comp += fmt::format("{}{}: {}", comp.empty() ? "" : ", ", c.empty() ? "none" : visible(c), n);
   }
   std::uint64_t raw = 0, packed = 0;
   for (const auto& ci : sum.chunk_indexes) {
@@ -114,8 +117,8 @@ void print_topics(const bag::Reader& r) {
   };
   std::size_t w_topic = 5, w_type = 4;
   for (const auto& [id, ch] : r.channels()) {
-    w_topic = std::max(w_topic, ch.topic.size());
-    if (const auto* sc = schema_of(ch)) w_type = std::max(w_type, sc->name.size());
+    w_topic = std::max(w_topic, visible(ch.topic).size());
+    if (const auto* sc = schema_of(ch)) w_type = std::max(w_type, visible(sc->name).size());
   }
   fmt::print("topics:\n");
   for (const auto& [id, ch] : r.channels()) {
@@ -123,9 +126,9 @@ void print_topics(const bag::Reader& r) {
     auto cnt = st.channel_message_counts.find(id);
     const std::uint64_t n = cnt == st.channel_message_counts.end() ? 0 : cnt->second;
     const bool known = bag::ros2::type_support_for(sc, ch) != nullptr;
-    fmt::print("  {:<{}}  {:<{}}  {:>8} msgs  {:>8.1f} Hz{}\n", ch.topic, w_topic, sc ? sc->name : "(no schema)",
-               w_type, n, dur > 0 && n > 1 ? static_cast<double>(n - 1) / dur : 0.0,
-               known ? "" : "  (type unknown to tinyline)");
+    fmt::print("  {:<{}}  {:<{}}  {:>8} msgs  {:>8.1f} Hz{}\n", visible(ch.topic), w_topic,
+               sc ? visible(sc->name) : "(no schema)", w_type, n,
+               dur > 0 && n > 1 ? static_cast<double>(n - 1) / dur : 0.0, known ? "" : "  (type unknown to tinyline)");
   }
 }
 
@@ -135,8 +138,8 @@ void print_metadata(bag::Reader& r) {
     if (!r.read_metadata(mi, md).ok()) continue;
     std::string kv;
     for (const auto& [k, v] : md.metadata)
-      kv += fmt::format("{}{}={}", kv.empty() ? "" : ", ", k, v.empty() ? "\"\"" : v);
-    fmt::print("metadata '{}': {}\n", md.name, kv);
+      kv += fmt::format("{}{}={}", kv.empty() ? "" : ", ", visible(k), v.empty() ? "\"\"" : visible(v));
+    fmt::print("metadata '{}': {}\n", visible(md.name), kv);
   }
 }
 
@@ -379,6 +382,7 @@ std::vector<std::shared_ptr<bus::Node>> record_nodes(const RecordArgs& a, const 
     }
   }
   if (a.launch_file.empty() && !lo.args.empty()) throw UsageError("name:=value arguments need --launch FILE");
+  if (!a.launch_file.empty()) ro.writer.inputs = {a.launch_file};
   bus::NodeOptions no;
   no.name = "recorder";
   no.context = ctx;

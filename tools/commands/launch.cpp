@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include <tinyline/bus/names.hpp>
 #include <tinyline/dds/bridge.hpp>
 #include <tinyline/launch/launch.hpp>
 #include <tinyline/tools/command.hpp>
@@ -250,6 +251,20 @@ bool published_on(const bus::Graph& graph, const std::string& topic) {
   return false;
 }
 
+/// Why --until cannot end this run: its topic is published only in another
+/// process, whose messages this one never sees ("" when it can).
+std::string until_problem(const LaunchArgs& a, const GraphPlan& g, const ProcessPlan& mine) {
+  if (!a.until_topic || mine.uses.count(*a.until_topic) != 0) return {};
+  for (const auto& p : g.processes) {
+    if (&p == &mine || p.publishes.count(*a.until_topic) == 0) continue;
+    return fmt::format(
+        "--until {}: published only in process '{}', which this process does not see; --until watches the "
+        "process it is given to (a topic a node of it publishes or subscribes)",
+        *a.until_topic, p.name);
+  }
+  return {};
+}
+
 int run_launch(const LaunchArgs& a) {
   auto ctx = bus::Context::create();
   Loaded l;
@@ -264,6 +279,10 @@ int run_launch(const LaunchArgs& a) {
     for (const auto& w : l.graph.warnings) fmt::print(stderr, "[launch] warning: {}\n", w);
   }
   const ProcessPlan& mine = *l.graph.find(a.process.value_or(""));
+  if (const std::string why = until_problem(a, l.graph, mine); !why.empty()) {
+    fmt::print(stderr, "{}: {}\n", a.file, why);
+    return 1;
+  }
   std::shared_ptr<dds::Bridge> bridge;
   try {
     bridge = make_bridge(a, l, mine, ctx);
@@ -318,8 +337,15 @@ CommandRun setup_launch(cli::App& cmd) {
                  "end when a message is published on TOPIC (absolute, in this process); with --duration as a guard: "
                  "ending without that message is an error (exit 1)")
       ->type_name("TOPIC")
-      ->check([](const std::string& t) {
-        return !t.empty() && t[0] == '/' ? std::string() : "must be an absolute topic name (/...)";
+      ->check([](const std::string& t) -> std::string {
+        if (t.empty() || t[0] != '/') return "must be an absolute topic name (/...)";
+        if (t == "/") return "'/' is the root namespace, not a topic";
+        try {
+          bus::validate_name(t, "topic");  // "/", "//x" and "/a b" would run and only fail at the end
+        } catch (const std::exception& e) {
+          return e.what();
+        }
+        return {};
       });
   cmd.add_option("--threads", a->threads, "executor threads per process")->capture_default_str()->check(cli::threads());
   cmd.add_flag("--no-table", a->no_table, "no live table");

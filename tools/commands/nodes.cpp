@@ -3,10 +3,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 #include <fmt/format.h>
@@ -32,17 +34,18 @@ CommandRun setup_nodes(cli::App& cmd) {
 // given an empty text here, only to see the declarations; constructors
 // read no files (they open them in on_start()).
 // An empty regular file that lives as long as the program (removed at exit).
+// mkstemp makes a new name exclusively: never a file someone put there.
 std::string placeholder_file() {
-  static const std::filesystem::path path = [] {
-    auto p = std::filesystem::temp_directory_path() / ("tinyline_describe_" + std::to_string(::getpid()));
-    std::ofstream{p};
-    std::atexit([] {
-      std::filesystem::remove(std::filesystem::temp_directory_path() /
-                              ("tinyline_describe_" + std::to_string(::getpid())));
-    });
+  static const std::string path = [] {
+    std::string p = (std::filesystem::temp_directory_path() / "tinyline_describe_XXXXXX").string();
+    const int fd = ::mkstemp(p.data());
+    if (fd < 0) throw std::runtime_error("cannot create a placeholder file in " + p + ": " + std::strerror(errno));
+    ::close(fd);
     return p;
   }();
-  return path.string();
+  static const bool removed_at_exit = [] { return std::atexit([] { ::unlink(path.c_str()); }) == 0; }();
+  (void)removed_at_exit;
+  return path;
 }
 
 std::shared_ptr<bus::Node> build_default(const std::string& full) {

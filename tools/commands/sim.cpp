@@ -15,7 +15,6 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -26,6 +25,7 @@
 #include <fmt/ranges.h>
 
 #include <sim/virtual_device.hpp>
+#include <tinyline/common/files.hpp>
 #include <tinyline/tools/command.hpp>
 
 #include "../src/parsing.hpp"
@@ -54,25 +54,39 @@ struct ServeOptions {
 };
 
 // The ground truth of every frame (or buffer update), one JSON object per
-// line, written to a temporary name and renamed when the server stops.
+// line, written through an AtomicFile (refusing a link, a device, a FIFO and
+// the scene it reads) and renamed into place when the server stops.
 class TruthFile {
  public:
-  explicit TruthFile(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
-    out_.open(tmp_, std::ios::trunc);
-    if (!out_) throw std::runtime_error(fmt::format("cannot write the truth file {}", tmp_));
-  }
+  TruthFile(const std::string& path, const std::string& scene)
+      : file_(path, {.inputs = {scene}, .what = "truth file"}) {}
   void write(const sim::WireTruth& w) {
     std::lock_guard lock(mu_);
-    out_ << line(w) << '\n';
+    buffer_ += line(w);
+    buffer_ += '\n';
+    if (buffer_.size() >= kFlushBytes) flush();
   }
+  /// Writes the rest and renames the file into place; throws FileError (also
+  /// for a write that failed on the device's thread, e.g. a full disk).
   void close() {
     std::lock_guard lock(mu_);
-    out_.close();
-    if (!out_) throw std::runtime_error(fmt::format("writing the truth file {} failed", tmp_));
-    std::filesystem::rename(tmp_, path_);
+    flush();
+    if (!error_.empty()) throw tinyline::files::FileError(error_);
+    file_.commit();
   }
 
  private:
+  static constexpr std::size_t kFlushBytes = 1 << 16;
+  // Called on the device's thread: an error is kept for close(), not thrown there.
+  void flush() {
+    if (!error_.empty()) return;
+    try {
+      file_.write(buffer_);
+    } catch (const tinyline::files::FileError& e) {
+      error_ = e.what();
+    }
+    buffer_.clear();
+  }
   static std::string line(const sim::WireTruth& w) {
     const std::string head = fmt::format(R"({{"seq": {}, "t": {}, "queued": {})", w.sequence, w.t_s, w.queued);
     if (w.kind == sim::WireTruth::Kind::kRawFrame) {
@@ -100,9 +114,10 @@ class TruthFile {
         fw.compensated_pixel, fw.compensated_pixel_factor, w.firmware->saturation_counts(),
         fmt::join(w.firmware->polynomial(), ","), copies);
   }
-  std::string path_, tmp_;
+  tinyline::files::AtomicFile file_;
   std::mutex mu_;
-  std::ofstream out_;
+  std::string buffer_;
+  std::string error_;
 };
 
 // Single keys from a terminal on stdin (no echo, no line buffering) while serving.
@@ -181,7 +196,7 @@ int serve(const ServeOptions& o) {
   sim::VirtualDevice dev(system, device_options(o));
   std::unique_ptr<TruthFile> truth;
   if (!o.truth.empty()) {
-    truth = std::make_unique<TruthFile>(o.truth);
+    truth = std::make_unique<TruthFile>(o.truth, o.scene);
     dev.on_wire([t = truth.get()](const sim::WireTruth& w) { t->write(w); });
   }
   fmt::print("tinyline sim serve: sensor '{}' of scene '{}', firmware {}, {} baud 8N1\n",

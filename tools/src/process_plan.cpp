@@ -50,8 +50,15 @@ std::vector<std::shared_ptr<bus::Node>> build_process(ProcessPlan& pp, const lau
   for (const auto& n : nodes) {
     pp.nodes.push_back(n->full_name());
     const auto info = n->describe();
-    for (const auto& e : info.publishers) uses[e.topic].pubs.push_back(e.qos);
-    for (const auto& e : info.subscriptions) uses[e.topic].subs.push_back(e.qos);
+    for (const auto& e : info.publishers) {
+      uses[e.topic].pubs.push_back(e.qos);
+      pp.publishes.insert(e.topic);
+      pp.uses.insert(e.topic);
+    }
+    for (const auto& e : info.subscriptions) {
+      uses[e.topic].subs.push_back(e.qos);
+      pp.uses.insert(e.topic);
+    }
     for (const auto* list : {&info.publishers, &info.subscriptions})
       for (const auto& e : *list) uses[e.topic].type = e.type;
     if (marked.count(n->full_name()) != 0) {
@@ -149,7 +156,7 @@ GraphPlan plan_processes(const launch::LaunchPlan& plan, const bus::NodeRegistry
   GraphPlan g;
   g.processes.push_back(ProcessPlan{});
   for (const auto& n : plan.nodes) {
-    if (g.find(n.process) == nullptr) g.processes.push_back(ProcessPlan{n.process, {}, false, {}, {}});
+    if (g.find(n.process) == nullptr) g.processes.push_back(ProcessPlan{n.process, {}, false, {}, {}, {}, {}});
   }
   std::vector<TopicUses> uses(g.processes.size());
   std::vector<std::vector<std::string>> wants(g.processes.size());

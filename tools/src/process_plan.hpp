@@ -13,6 +13,7 @@
 //     discovery.
 #pragma once
 
+#include <set>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,8 @@ struct ProcessPlan {
   bool respawn = false;                      ///< some node asks to be restarted
   dds::TopicSelection dds;                   ///< topics this process puts on DDS
   std::vector<dds::PeerExpectation> expect;  ///< remote endpoints to wait for
+  std::set<std::string> publishes;           ///< topics its nodes publish
+  std::set<std::string> uses;                ///< topics its nodes publish or subscribe
   bool uses_dds() const { return dds.all || !dds.topics.empty(); }
 };
 

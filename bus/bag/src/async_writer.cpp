@@ -15,6 +15,7 @@ Status AsyncWriter::open(const std::string& path, AsyncWriterOptions options) {
   auto f = std::make_unique<FileWritable>();
   FileWritableOptions fo;
   fo.keep_partial = true;  // a recording that fails half-way is still worth recovering
+  fo.inputs = options.inputs;
   if (Status s = f->open(path, fo); !s.ok()) return s;
   return start(std::move(f), std::move(options));
 }

@@ -252,7 +252,13 @@ class Recovery {
     load_summary();
     LinearRecord r;
     if (!lr_.next(r)) {
-      return lr_.status().ok() ? Status(StatusCode::InvalidRecord, in_.name() + ": empty") : lr_.status();
+      // The magic and nothing whole after it (a 9-byte file): not an "empty" bag.
+      if (lr_.status().ok()) {
+        return {StatusCode::InvalidRecord,
+                fmt::format("{}: {} bytes is too short for an MCAP file (no Header record after the magic)", in_.name(),
+                            in_.size())};
+      }
+      return lr_.status();
     }
     if (r.kind != LinearRecord::Kind::Header) {
       return {StatusCode::InvalidRecord,

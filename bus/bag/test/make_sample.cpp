@@ -3,13 +3,12 @@
 // copy cut mid-chunk, as a killed recorder leaves it (DIR/cut.mcap).
 #include <cstdio>
 #include <string>
-#include <fstream>
-#include <iterator>
-#include <vector>
+#include <string_view>
 
 #include "sample_traffic.hpp"
 
 #include <tinyline/common/cli.hpp>
+#include <tinyline/common/files.hpp>
 
 namespace cli = tinyline::cli;
 
@@ -21,15 +20,25 @@ int main(int argc, char** argv) {
       "bag_make_sample"};
   app.add_option("DIR", dir, "directory to write into")->required();
   if (const auto rc = cli::parse_command_line(app, argc, argv)) return *rc;
+  for (const char* name : {"/sample.mcap", "/cut.mcap"})
+    if (!tinyline::files::output_allowed("bag_make_sample", dir + name, tinyline::files::named("bag"))) return 1;
   ros2::Ros2Writer w;
   WriterOptions o;
   o.chunk_size_bytes = 32 * 1024;
-  if (!w.open(dir + "/sample.mcap", o).ok()) return 1;
-  if (!testing::write_samples(w, testing::sample_traffic(60)).ok()) return 1;
-  if (!w.close().ok()) return 1;
-  std::ifstream in(dir + "/sample.mcap", std::ios::binary);
-  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::ofstream cut(dir + "/cut.mcap", std::ios::binary);
-  cut.write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2));
+  Status s = w.open(dir + "/sample.mcap", o);
+  if (s.ok()) s = testing::write_samples(w, testing::sample_traffic(60));
+  if (s.ok()) s = w.close();
+  if (!s.ok()) {
+    std::fprintf(stderr, "bag_make_sample: %s\n", s.str().c_str());
+    return 1;
+  }
+  try {
+    const std::string bytes = tinyline::files::read_text(dir + "/sample.mcap", "bag", 0);
+    tinyline::files::write_atomically(dir + "/cut.mcap", std::string_view(bytes).substr(0, bytes.size() / 2),
+                                      tinyline::files::named("bag"));
+  } catch (const tinyline::files::FileError& e) {
+    std::fprintf(stderr, "bag_make_sample: %s\n", e.what());
+    return 1;
+  }
   return 0;
 }

@@ -144,6 +144,15 @@ TEST(Recover, ADamagedTopicInTheDataSectionIsReplacedByTheSummarysCopy) {
   EXPECT_TRUE(mentions(got.report, "/demo/rbw")) << "the disagreement is reported";
 }
 
+// Regression: a 9-byte file (the magic and one byte) was called "empty".
+TEST(Recover, AFileTooShortToHoldAHeaderIsCalledSoNotEmpty) {
+  const Bytes good = make_bag();
+  const Recovered got = recover_bytes(Bytes(good.begin(), good.begin() + 9));
+  ASSERT_FALSE(got.status.ok());
+  EXPECT_NE(got.status.message.find("9 bytes is too short for an MCAP file"), std::string::npos) << got.status.str();
+  EXPECT_EQ(got.status.message.find("empty"), std::string::npos) << got.status.str();
+}
+
 TEST(Recover, WithoutASummaryStringsThatCannotBeRightAreRefusedNotCopied) {
   // No summary to compare with: a topic that is no ROS name (or no UTF-8)
   // and a profile that is no text are refused rather than written.

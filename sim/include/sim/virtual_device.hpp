@@ -81,8 +81,10 @@ struct WireTruth {
 struct VirtualDeviceOptions {
   std::string sensor;  ///< sensor name in the scene; empty: the first sensor
   /// A stable path for the host: a symlink to the current pty, created by
-  /// start(), removed by unplug()/stop(), re-created by replug(). Empty: none
-  /// (path() is then the pty itself, which changes on replug).
+  /// start(), removed by unplug()/stop(), re-created by replug(). Anything
+  /// already at the path is refused (start() throws), and only the device's
+  /// own link is ever removed. Empty: none (path() is then the pty itself,
+  /// which changes on replug).
   std::string link_path;
   double baud = 2000000.0;  ///< the FT232's rate; frames are paced at baud / 10 bytes per second
   /// The firmware; empty: the sensor's `firmware.profile`.

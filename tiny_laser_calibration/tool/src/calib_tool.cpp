@@ -361,10 +361,10 @@ std::string summary_json(const ReportContext& c) {
 }
 
 // Held-out read-outs with every candidate covariate and both residuals.
-void write_residuals(const ReportContext& c, const std::string& path) {
+std::string residuals_csv(const ReportContext& c) {
   const auto& data = *c.data;
   const auto& r = *c.result;
-  files::AtomicStream out(path);
+  std::ostringstream out;
   out << "line,distance_m,target_group,material";
   for (Covariate k : builtin_covariates()) out << ',' << covariate_name(k);
   for (const auto& n : data.extra_names) out << ',' << n;
@@ -389,14 +389,14 @@ void write_residuals(const ReportContext& c, const std::string& path) {
     line += (std::isfinite(b) ? fmt::format(",{}", b) : ",") + (std::isfinite(a) ? fmt::format(",{}", a) : ",");
     out << line << '\n';
   }
-  out.commit();
+  return out.str();
 }
 
 // Data points (X, truth) under the final model and the model's polynomial.
-void write_curve(const ReportContext& c, const std::string& path) {
+std::string curve_csv(const ReportContext& c) {
   const auto& data = *c.data;
   const auto& m = c.final_model->impl();
-  files::AtomicStream out(path);
+  std::ostringstream out;
   out << "kind,ratio,distance_m\n";
   const auto rows = select_readouts(data, {}, m.validity, c.params->declared.selection);
   const std::size_t step = std::max<std::size_t>(1, rows.size() / 6000);
@@ -409,7 +409,7 @@ void write_curve(const ReportContext& c, const std::string& path) {
     const double x = m.ratio_min - margin + (m.ratio_max - m.ratio_min + 2 * margin) * i / 200.0;
     out << fmt::format("model,{},{}\n", x, m.polynomial_m(x));
   }
-  out.commit();
+  return out.str();
 }
 
 std::string report_markdown(const ReportContext& c, const std::string& dir, const std::string& plot_note) {
@@ -481,19 +481,37 @@ std::string report_markdown(const ReportContext& c, const std::string& dir, cons
   return md;
 }
 
-void write_report(const ReportContext& c, const std::string& dir, const CalibToolEnv& env, std::ostream& err) {
+// The report's files, each checked and its temporary made before any work, so
+// that a report that cannot be written fails before any output is replaced.
+struct ReportFiles {
+  std::string dir;
+  files::AtomicFile summary, residuals, curve, markdown;
+};
+
+ReportFiles open_report(const std::string& dir, const std::vector<std::string>& inputs) {
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec || !fs::is_directory(dir))
     throw std::runtime_error(fmt::format("{}: cannot create the report directory", dir));
-  files::write_atomically((fs::path(dir) / "summary.json").string(), summary_json(c));
-  write_residuals(c, (fs::path(dir) / "residuals.csv").string());
-  write_curve(c, (fs::path(dir) / "curve.csv").string());
+  auto open = [&](const char* name) {
+    return files::AtomicFile((fs::path(dir) / name).string(), {.inputs = inputs, .what = "report file"});
+  };
+  return {dir, open("summary.json"), open("residuals.csv"), open("curve.csv"), open("report.md")};
+}
+
+void write_report(const ReportContext& c, ReportFiles& f, const CalibToolEnv& env, std::ostream& err) {
+  f.summary.write(summary_json(c));
+  f.residuals.write(residuals_csv(c));
+  f.curve.write(curve_csv(c));
+  f.summary.commit();
+  f.residuals.commit();
+  f.curve.commit();  // the plot script reads the tables
   std::string note;
-  if (tool::run_plot_script(env, dir, note) != 0)
+  if (tool::run_plot_script(env, f.dir, note) != 0)
     err << "tinyline calib: warning: " << note << "; report without plots\n";
-  files::write_atomically((fs::path(dir) / "report.md").string(), report_markdown(c, dir, note));
+  f.markdown.write(report_markdown(c, f.dir, note));
+  f.markdown.commit();
 }
 
 void print_summary(std::ostream& out, const DiscoveryResult& r) {
@@ -513,6 +531,18 @@ void print_summary(std::ostream& out, const DiscoveryResult& r) {
 
 // ------------------------------------------------------------------ commands
 
+// Why `model` must not be written ("" when it may): the driver's own loader
+// refuses it, or its error is no number (1e308 m of truth gave "rmse_m": null).
+std::string unwritable(const CalibrationModel& model, double rmse_m, const std::string& path) {
+  if (!std::isfinite(rmse_m)) return "the fit's RMSE is not a finite number: the data cannot be fitted";
+  try {
+    (void)CalibrationModel::from_yaml(model.to_yaml(), path);
+  } catch (const std::exception& e) {
+    return fmt::format("the fitted model is not one the driver can load: {}", e.what());
+  }
+  return {};
+}
+
 int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
   std::vector<std::string> valued = kFitValued;
   valued.insert(valued.end(), kLoopValued.begin(), kLoopValued.end());
@@ -526,8 +556,11 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
   const bool discover = o.flag("--discover");
   const auto report = o.value("--report");
   const std::string data_path = o.positional()[0];
-  // Checked before the work: never the input, a link or a device; replaced only on success.
+  // Every output checked before the work (never the input, a link or a device)
+  // and replaced only when all of them are made: the model last.
   files::AtomicFile output_file(*output, {.inputs = {data_path}, .what = "calibration"});
+  std::optional<ReportFiles> report_files;
+  if (report) report_files = open_report(*report, {data_path, *output});
   const auto data = read_calibration_csv(data_path);
 
   // The declared fit on every row: what is written without --discover, and the in-sample figures.
@@ -556,9 +589,11 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
     print_summary(out, *loop);
     model = loop->model;
   }
+  if (const std::string why = unwritable(model, declared.rmse_m, *output); !why.empty()) {
+    err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, why);
+    return 1;
+  }
   output_file.write(model.to_yaml());
-  output_file.commit();
-  out << fmt::format("wrote {}\n", *output);
   if (report) {
     ReportContext c;
     c.command = "fit";
@@ -571,9 +606,11 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
     c.final_model = &model;
     c.used = declared.used;
     c.fit_notes = declared.notes;
-    write_report(c, *report, env, err);
-    out << fmt::format("wrote {}/report.md\n", *report);
+    write_report(c, *report_files, env, err);
   }
+  output_file.commit();
+  out << fmt::format("wrote {}\n", *output);
+  if (report) out << fmt::format("wrote {}/report.md\n", *report);
   if (o.flag("--json") && loop) {
     ReportContext c;
     c.command = "fit";
@@ -599,6 +636,7 @@ int cmd_diagnose(const std::vector<std::string>& argv, std::ostream& out, std::o
   if (!report) throw UsageError("diagnose needs --report DIR");
   DiscoveryParams p;
   apply_loop_options(o, p);
+  auto report_files = open_report(*report, {o.positional()[0], *calib});
   const auto model = CalibrationModel::load(*calib);
   p.declared.validity = model.validity();
   const std::string data_path = o.positional()[0];
@@ -619,7 +657,7 @@ int cmd_diagnose(const std::vector<std::string>& argv, std::ostream& out, std::o
   c.covariate_model = &model;
   c.final_model = &model;
   c.used = r.train_rows.size() + r.heldout_eval_rows.size();
-  write_report(c, *report, env, err);
+  write_report(c, report_files, env, err);
   out << fmt::format("wrote {}/report.md\n", *report);
   if (o.flag("--json")) out << summary_json(c);
   return 0;

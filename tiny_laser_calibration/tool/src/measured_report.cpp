@@ -221,6 +221,9 @@ int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::o
     fs::create_directories(*report, ec);
     if (ec || !fs::is_directory(*report))
       throw std::runtime_error(fmt::format("{}: cannot create the report directory", *report));
+    // Every report file checked before the first is written: a refused one leaves the report as it was.
+    for (const char* name : {"measured_materials.csv", "measured_curves.csv", "measured.json", "measured.md"})
+      files::AtomicFile::check((fs::path(*report) / name).string(), {.inputs = {path}, .what = "report file"});
     write_plot_data(*report, d, mat, curves);
     files::write_atomically((fs::path(*report) / "measured.json").string(), report_json(mat, dist, fits, curves));
     std::string note;

@@ -125,12 +125,11 @@ TEST(RgbdFiles, BadIntrinsicsAreRefusedWithTheReason) {
   Folder f;
   const std::string p = (f.root / "intrinsics.yaml").string();
   f.write(p, "width: 8\nheight: 6\nfx: .nan\nfy: 12\ncx: 3.5\ncy: 2.5\n");
-  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }),
-              AllOf(HasSubstr(p), HasSubstr("fx and fy must be finite")));
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), AllOf(HasSubstr(p + ":3: field 'fx': must be finite")));
   f.write(p, "width: 8\nheight: 6\nfx: 10\nfy: 12\ncx: 3.5\n");
-  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("has no 'cy'"));
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("field 'cy': missing"));
   f.write(p, "width: 8.5\nheight: 6\nfx: 10\nfy: 12\ncx: 3.5\ncy: 1\n");
-  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("'width' is not a number of whole pixels"));
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("'width': is not a number of whole pixels"));
   f.write(p, "width: 8\nheight: 6\nfx: 10\nfy: 12\ncx: 3.5\ncy: 1\ndepth_scale: 0\n");
   EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("depth_scale must be finite and > 0"));
   f.write(p, "[1, 2");
@@ -207,4 +206,71 @@ TEST(RgbdFiles, DebugImagesAreDrawnAndWrittenWhole) {
   EXPECT_THAT(error_of([&] { io::write_image((f.root / "rgb").string(), img); }), HasSubstr(".png, .jpg or .jpeg"));
   EXPECT_THAT(error_of([&] { io::write_image((f.root / "rgb.png").string() + "/x.png", img); }),
               HasSubstr("x.png.part"));
+}
+
+// Regression: unknown and repeated keys were ignored (`depth-scale: 5000`
+// silently used 1000; of two fx the first won), and absurd numbers accepted.
+TEST(RgbdFiles, UnknownRepeatedAndAbsurdIntrinsicsAreRefused) {
+  Folder f;
+  const std::string p = (f.root / "intrinsics.yaml").string();
+  const std::string good = "width: 8\nheight: 6\nfx: 10\nfy: 12\ncx: 3.5\ncy: 2.5\n";
+  f.write(p, good + "depth-scale: 5000\n");
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }),
+              AllOf(HasSubstr(p + ":7: field 'depth-scale': unknown key"), HasSubstr("depth_scale")));
+  f.write(p, good + "fx: 11\n");
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr(p + ":7: field 'fx': given twice"));
+  f.write(p, "width: 8\nheight: 6\nfx: 1e-300\nfy: 12\ncx: 3.5\ncy: 2.5\n");
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("fx and fy must be finite, 1-1e+06 px"));
+  f.write(p, "width: 8\nheight: 6\nfx: 10\nfy: 12\ncx: 1e300\ncy: 2.5\n");
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("cx and cy must be finite and within"));
+  f.write(p, "width: 16384\nheight: 16384\nfx: 10\nfy: 12\ncx: 3.5\ncy: 2.5\n");
+  EXPECT_THAT(error_of([&] { (void)io::read_intrinsics(p); }), HasSubstr("width x height must be at most 16777216 px"));
+}
+
+// Regression: a JPEG cut at 80 % decoded grey with only a decoder warning
+// (and changed the pick order); a cut PNG is refused the same way.
+TEST(RgbdFiles, ATruncatedImageIsRefusedNotDecodedGrey) {
+  Folder f;
+  f.add_frame("x");
+  cv::Mat bgr(6, 8, CV_8UC3, cv::Scalar(10, 200, 30));
+  std::vector<std::uint8_t> jpg;
+  ASSERT_TRUE(cv::imencode(".jpg", bgr, jpg));
+  fs::remove(f.rgb("x.png"));
+  f.write(f.rgb("x.jpg"), std::string(jpg.begin(), jpg.begin() + std::ptrdiff_t(jpg.size() * 8 / 10)));
+  const io::FrameFiles cut_jpeg{"x", f.rgb("x.jpg"), f.depth("x.png")};
+  EXPECT_THAT(error_of([&] { (void)io::read_frame(cut_jpeg, f.k); }),
+              HasSubstr("colour image '" + f.rgb("x.jpg") + "' is cut short"));
+  f.write(f.rgb("x.jpg"), std::string(jpg.begin(), jpg.end()));
+  EXPECT_EQ(error_of([&] { (void)io::read_frame(cut_jpeg, f.k); }), "no error");
+  std::ifstream in(f.depth("x.png"), std::ios::binary);
+  const std::string png((std::istreambuf_iterator<char>(in)), {});
+  f.write(f.depth("x.png"), png.substr(0, png.size() * 8 / 10));
+  EXPECT_THAT(error_of([&] { (void)io::read_frame(cut_jpeg, f.k); }),
+              HasSubstr("depth image '" + f.depth("x.png") + "' is cut short"));
+}
+
+// Regression: a 16384 x 16384 pair of about 1 MB took 5.3 GB to decode
+// before its size was checked: the header's size is checked first.
+TEST(RgbdFiles, AnImageLargerThanItsIntrinsicsIsRefusedBeforeDecoding) {
+  Folder f;
+  f.add_frame("x");
+  std::ifstream in(f.depth("x.png"), std::ios::binary);
+  std::string png((std::istreambuf_iterator<char>(in)), {});
+  png[16] = png[20] = 0, png[17] = png[21] = 0, png[18] = png[22] = 0x40, png[19] = png[23] = 0;  // 16384 x 16384
+  f.write(f.depth("x.png"), png);
+  const io::FrameFiles frame{"x", f.rgb("x.png"), f.depth("x.png")};
+  EXPECT_THAT(error_of([&] { (void)io::read_frame(frame, f.k); }),
+              HasSubstr("depth image '" + f.depth("x.png") + "' is 16384 x 16384 px but the intrinsics say 8 x 6"));
+}
+
+// Regression: a depth image behind a symbolic link loop read as "has no
+// depth image"; an empty rgb/ was a folder of no frames (exit 0).
+TEST(RgbdFiles, ALinkLoopAndAnEmptyFolderSayWhatTheyAre) {
+  Folder f;
+  EXPECT_THAT(error_of([&] { (void)io::open_folder(f.root.string()); }), HasSubstr("has no frames in rgb/"));
+  f.add_frame("x");
+  fs::remove(f.depth("x.png"));
+  fs::create_symlink(f.depth("x.png"), f.depth("x.png"));
+  EXPECT_THAT(error_of([&] { (void)io::open_folder(f.root.string()); }),
+              AllOf(HasSubstr("depth image '" + f.depth("x.png") + "'"), HasSubstr("symbolic links")));
 }

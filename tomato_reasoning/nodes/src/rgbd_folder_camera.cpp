@@ -64,8 +64,7 @@ RgbdFolderCameraNode::RgbdFolderCameraNode(bus::NodeOptions o) : Node(std::move(
 
 void RgbdFolderCameraNode::on_configure() {
   // The executor names the node; the errors name the file.
-  frames_ = io::open_folder(folder_);
-  if (frames_.frames.empty()) throw io::RgbdFileError("RGB-D folder '" + folder_ + "' has no frames in rgb/");
+  frames_ = io::open_folder(folder_);  // refuses a folder without frames
 }
 
 void RgbdFolderCameraNode::on_start() {

@@ -9,8 +9,9 @@
 //                  onto the path by commit(); dropped without commit(), the
 //                  path keeps what it had. It refuses to replace a symbolic
 //                  link, a device or anything not a regular file, and the
-//                  command's own inputs; the .part file is locked while
-//                  written, so a second writer of the same path fails.
+//                  command's own inputs; the .part file is created new
+//                  (an existing one, a user's or a dead writer's, is refused,
+//                  never reused) and locked while written.
 //  AtomicStream    the same for code that writes with iostreams: the text is
 //                  kept in memory and written through an AtomicFile by
 //                  commit() (reports, CSV and JSON of the tools).
@@ -26,6 +27,7 @@
 
 #include <cerrno>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -132,7 +134,7 @@ struct OutputOptions {
   /// The command's input files: the output must not be one of them.
   std::vector<std::string> inputs;
   /// On failure keep "<path>.part" (a partial recording is still worth
-  /// recovering) instead of removing it; a leftover one is then refused too.
+  /// recovering) instead of removing it. A leftover one is always refused.
   bool keep_partial = false;
   /// fsync before the rename: the new content survives a power cut.
   bool sync = true;
@@ -155,6 +157,7 @@ class AtomicFile {
   explicit AtomicFile(std::string path, OutputOptions options = {})
       : path_(std::move(path)), temp_(path_ + ".part"), options_(std::move(options)) {
     check_destination();
+    check_temp_is_no_input();
     open_temp();
   }
   ~AtomicFile() { abandon(); }
@@ -172,6 +175,19 @@ class AtomicFile {
   }
   AtomicFile(const AtomicFile&) = delete;
   AtomicFile& operator=(const AtomicFile&) = delete;
+
+  /// The constructor's checks, creating nothing: for a command that checks
+  /// every output before its work and makes them one at a time.
+  static void check(std::string path, OutputOptions options = {}) {
+    AtomicFile f;
+    f.path_ = std::move(path);
+    f.temp_ = f.path_ + ".part";
+    f.options_ = std::move(options);
+    f.check_destination();
+    f.check_temp_is_no_input();
+    struct stat st {};
+    if (::lstat(f.temp_.c_str(), &st) == 0) throw FileError(f.what() + f.existing_temp_reason());
+  }
 
   bool is_open() const { return fd_ >= 0; }
   int fd() const { return fd_; }
@@ -234,42 +250,56 @@ class AtomicFile {
                       "link)");
     }
     if (!S_ISREG(st.st_mode)) throw FileError(what() + " is " + detail::kind_of(st.st_mode) + ": not replaced");
-    for (const auto& in : options_.inputs) {
-      struct stat is {};
-      if (::stat(in.c_str(), &is) == 0 && is.st_dev == st.st_dev && is.st_ino == st.st_ino) {
-        throw FileError(what() + " is also an input of this command ('" + in + "'): not replaced");
-      }
-    }
+    if (const std::string in = input_named_by(st); !in.empty())
+      throw FileError(what() + " is also an input of this command ('" + in + "'): not replaced");
     mode_ = st.st_mode & 07777;
   }
 
-  // Creates and locks "<path>.part". A locked one belongs to a writer still at
-  // work; an unlocked one was left by a writer that died.
+  // The input that is the file `st` describes ("" if none).
+  std::string input_named_by(const struct stat& st) const {
+    for (const auto& in : options_.inputs) {
+      struct stat is {};
+      if (::stat(in.c_str(), &is) == 0 && is.st_dev == st.st_dev && is.st_ino == st.st_ino) return in;
+    }
+    return {};
+  }
+
+  // Refuses a temporary name that is one of the inputs (`bag recover F.part F`).
+  void check_temp_is_no_input() const {
+    struct stat st {};
+    if (::lstat(temp_.c_str(), &st) != 0) return;
+    if (const std::string in = input_named_by(st); !in.empty()) {
+      throw FileError(what() + ": its temporary " + temp_ + " is an input of this command ('" + in +
+                      "'): not touched; write the output under another name");
+    }
+  }
+
+  // Creates and locks "<path>.part", which must not exist: a file there is a
+  // writer still at work (locked), or one that died, or a user's own file (a
+  // crashed recording is worth recovering); none of them is ours to reuse.
   void open_temp() {
-    int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0644);
-    const bool fresh = fd >= 0;
-    if (!fresh && errno == EEXIST) fd = ::open(temp_.c_str(), O_WRONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+    const int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0644);
+    if (fd < 0 && errno == EEXIST) throw FileError(what() + existing_temp_reason());
     if (fd < 0) throw FileError(what() + ": cannot create " + temp_ + ": " + detail::errno_text(errno));
     detail::Fd guard(fd);
     if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
       throw FileError(what() + " is being written by another process (" + temp_ + " is locked)");
     }
-    if (!fresh) {
-      struct stat st {};
-      if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode))
-        throw FileError(what() + ": " + temp_ + " is not a regular file");
-      if (options_.keep_partial) {
-        throw FileError(what() + ": " + temp_ +
-                        " exists: an earlier write that did not finish (a recording: "
-                        "`tinyline bag recover " +
-                        temp_ + " FIXED.mcap` saves it); remove it to go on");
-      }
-      if (::ftruncate(fd, 0) != 0)
-        throw FileError(what() + ": cannot truncate " + temp_ + ": " + detail::errno_text(errno));
-      if (::fcntl(fd, F_SETFL, 0) != 0) throw FileError(what() + ": " + temp_ + ": " + detail::errno_text(errno));
-    }
     if (mode_ != 0) (void)::fchmod(fd, mode_);  // the replaced file's permissions
     fd_ = std::exchange(guard.fd, -1);
+  }
+
+  // Why an existing temporary is left alone, for the message after what().
+  std::string existing_temp_reason() const {
+    const int fd = ::open(temp_.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+    if (fd >= 0) {
+      detail::Fd guard(fd);
+      if (::flock(fd, LOCK_EX | LOCK_NB) != 0) return " is being written by another process (" + temp_ + " is locked)";
+    }
+    return ": " + temp_ +
+           " exists (an earlier write that did not finish, or a file of yours): left as it is; a recording is "
+           "saved by `tinyline bag recover " +
+           temp_ + " FIXED.mcap`; remove or rename it to go on";
   }
 
   std::string path_;
@@ -278,6 +308,18 @@ class AtomicFile {
   int fd_ = -1;
   mode_t mode_ = 0;
 };
+
+/// AtomicFile::check at a program's start, before its work: false, with
+/// "PROGRAM: reason" on stderr, when `path` must not be written.
+inline bool output_allowed(const char* program, const std::string& path, OutputOptions options = {}) {
+  try {
+    AtomicFile::check(path, std::move(options));
+    return true;
+  } catch (const FileError& e) {
+    std::fprintf(stderr, "%s: %s\n", program, e.what());
+    return false;
+  }
+}
 
 /// Writes `content` to `path` through an AtomicFile.
 inline void write_atomically(const std::string& path, std::string_view content, OutputOptions options = {}) {

@@ -25,6 +25,8 @@ namespace tinyline::bag {
 
 struct AsyncWriterOptions {
   WriterOptions writer;
+  /// The recording command's input files (its launch file): the bag never replaces one.
+  std::vector<std::string> inputs;
   /// Serialized bytes allowed to wait for the writer thread; past this a
   /// message is refused (and counted) instead of growing memory without bound.
   std::uint64_t max_queue_bytes = 256ULL << 20;
