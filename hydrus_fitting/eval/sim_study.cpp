@@ -18,7 +18,7 @@
 #include "hydrus_fitting/estimator.hpp"
 #include "hydrus_fitting/robot_model.hpp"
 #include "hydrus_fitting/sequencer.hpp"
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
 
 namespace tinyline::hydrus_fitting::eval {
 

@@ -13,7 +13,7 @@
 #include <sim/system.hpp>
 
 #include "hydrus_fitting/robot_model.hpp"
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
 #include "hydrus_fitting/trajectory.hpp"
 #include "sim_study.hpp"
 

@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "harness.hpp"
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 
 namespace ev = tinyline::laser_clustering::eval;
 namespace sim = tinyline::sim;

@@ -31,7 +31,7 @@
 #include <tinyline/common/seeds.hpp>
 
 #include "harness.hpp"
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 
 namespace cli = tinyline::cli;
 

@@ -12,7 +12,7 @@
 
 #include <Eigen/Geometry>
 
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 #include <sim/world.hpp>
 
 #include "laser_clustering/alignment_search.hpp"

@@ -10,7 +10,7 @@
 
 #include "harness.hpp"
 #include "picking.hpp"
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 #include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning::eval {

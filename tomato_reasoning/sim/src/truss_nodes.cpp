@@ -31,7 +31,8 @@
 #include <tomato_reasoning/eval/scenario.hpp>
 #include <tomato_reasoning/nodes/nodes.hpp>
 
-#include "parts.hpp"
+#include <tomato_reasoning/sim/register.hpp>
+
 #include "truss_parts.hpp"
 
 namespace tinyline::sim::nodes {
@@ -145,11 +146,15 @@ class TrussCameraNode : public bus::Node {
   bool stale_ = false;  ///< fruit fell since the frames were rendered
 };
 
-void register_truss_nodes(bus::NodeRegistry& r) {
-  r.add<TrussCameraNode>(
+}  // namespace tinyline::sim::nodes
+
+namespace tinyline::tomato_reasoning {
+
+void register_sim_nodes(bus::NodeRegistry& r) {
+  r.add<sim::nodes::TrussCameraNode>(
       "tomato_reasoning", "truss_camera",
       "simulated RGB-D camera on a seeded tomato truss (class A/B/C): cloud + truth markers; cut fruit leave it");
-  register_harvest_nodes(r);
+  sim::nodes::register_harvest_nodes(r);
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::tomato_reasoning

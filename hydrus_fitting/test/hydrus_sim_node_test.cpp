@@ -11,8 +11,8 @@
 #include <sim/system.hpp>
 
 #include <hydrus_fitting/trajectory.hpp>
-#include <sim/nodes/hydrus_sim_node.hpp>
-#include <sim/nodes/register.hpp>
+#include <hydrus_fitting/sim/hydrus_sim_node.hpp>
+#include <hydrus_fitting/sim/register.hpp>
 
 namespace hf = tinyline::hydrus_fitting;
 namespace bus = tinyline::bus;
@@ -26,7 +26,7 @@ const std::string kSrc = TINYLINE_SOURCE_DIR;
 // The hydrus_sim node on stepped sim time (bus/testing.hpp), with its joint
 // states and ground truth kept.
 struct Rig : bus::testing::NodeRig {
-  Rig() : NodeRig({&tinyline::sim::register_nodes}) {}
+  Rig() : NodeRig({&hf::register_sim_nodes}) {}
   std::vector<std::shared_ptr<const JointState>>& joints = collect<JointState>("joint_states");
   std::vector<std::shared_ptr<const CircleFit>>& truth = collect<CircleFit>("truth");
   std::shared_ptr<bus::Node> add(bus::NodeOptions o) {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
 
 #include <stdexcept>
 

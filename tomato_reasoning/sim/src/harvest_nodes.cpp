@@ -33,10 +33,9 @@
 #include <tinyline/msg/tinyline_msgs/harvest_summary.hpp>
 #include <tinyline/msg/tinyline_msgs/line_scan.hpp>
 
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 #include <tomato_reasoning/eval/verification.hpp>
 
-#include "parts.hpp"
 #include "truss_parts.hpp"
 
 namespace tinyline::sim::nodes {

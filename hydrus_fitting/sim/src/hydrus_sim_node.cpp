@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <sim/nodes/hydrus_sim_node.hpp>
-
-#include "parts.hpp"
+#include <hydrus_fitting/sim/hydrus_sim_node.hpp>
+#include <hydrus_fitting/sim/register.hpp>
 
 #include <cmath>
 
 #include <fmt/format.h>
 
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
+#include <sim/nodes/nodes.hpp>
 #include <sim/system.hpp>
 #include <tinyline/bus/param_table.hpp>
 #include <tinyline/bus/registry.hpp>
@@ -103,10 +103,15 @@ void HydrusSimNode::tick() {
   truth_pub_->publish(std::move(truth));
 }
 
-void register_hydrus_nodes(bus::NodeRegistry& r) {
-  r.add<HydrusSimNode>("hydrus_fitting", "hydrus_sim",
-                       "flies the simulated Hydrus of a scene through the grasp: moves its links and sensors, "
-                       "publishes joint states and the true cylinder");
+}  // namespace tinyline::sim::nodes
+
+namespace tinyline::hydrus_fitting {
+
+void register_sim_nodes(bus::NodeRegistry& r) {
+  r.add<sim::nodes::HydrusSimNode>(
+      "hydrus_fitting", "hydrus_sim",
+      "flies the simulated Hydrus of a scene through the grasp: moves its links and sensors, "
+      "publishes joint states and the true cylinder");
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::hydrus_fitting

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 
 #include <algorithm>
 #include <cmath>
