@@ -44,7 +44,7 @@ TEST(HydrusSimNode, PublishesTheManoeuvreAndMovesTheSensors) {
   bus::NodeOptions o;
   o.name = "robot";
   o.param("scene", scene).param("robot_description", kSrc + "/hydrus_fitting/config/hydrus4.yaml").param("loop", false);
-  auto node = std::dynamic_pointer_cast<tinyline::sim::nodes::HydrusSimNode>(r.add(o));
+  auto node = std::dynamic_pointer_cast<hf::sim_nodes::HydrusSimNode>(r.add(o));
   ASSERT_NE(node, nullptr);
   r.ex.advance_to(bus::Time::from_seconds(0.0));  // starts the node (its timer)
   r.ex.advance_to(bus::Time::from_seconds(8.0));  // mid-way through closing the links

@@ -38,7 +38,7 @@
 
 #include "truss_parts.hpp"
 
-namespace tinyline::sim::nodes {
+namespace tinyline::tomato_reasoning::sim_nodes {
 
 namespace msgs = tinyline_msgs::msg;
 namespace te = tomato_reasoning::eval;
@@ -147,7 +147,7 @@ class SimGripperNode : public bus::Node {
   sim::Truss truss_;
   sim::World world_;
   sim::BladeParams blades_;
-  std::unique_ptr<eval::Scanner> scanner_;
+  std::unique_ptr<laser_clustering::eval::Scanner> scanner_;
   std::uint64_t index_ = 0;
   std::shared_ptr<bus::Publisher<msgs::LineScan>> scan_pub_;
   std::shared_ptr<bus::Publisher<msgs::CutOutcome>> cut_pub_;
@@ -295,4 +295,4 @@ void register_harvest_nodes(bus::NodeRegistry& r) {
                           "the harvest's summary scored against the truss's truth as Table 4.2 counts it -> score");
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::tomato_reasoning::sim_nodes

@@ -14,7 +14,7 @@
 #include <sim/scenes/cutter.hpp>
 #include <sim/scenes/truss.hpp>
 
-namespace tinyline::sim::nodes {
+namespace tinyline::tomato_reasoning::sim_nodes {
 
 /// tomato_reasoning/sim_gripper, tomato_reasoning/harvest_score (harvest_nodes.cpp).
 void register_harvest_nodes(bus::NodeRegistry& registry);
@@ -40,4 +40,4 @@ inline int match_truth(const sim::Truss& truss, const Eigen::Vector3d& centre_wo
   return best;
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::tomato_reasoning::sim_nodes
