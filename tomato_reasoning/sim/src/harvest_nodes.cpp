@@ -82,8 +82,9 @@ class SimGripperNode : public bus::Node {
     sim::TrussParams p;
     p.complexity = class_;
     p.seed = std::uint64_t(seed_);
-    truss_ = sim::make_truss(p);
-    (void)sim::add_to_world(truss_, world_);
+    sim::TrussWorld built = sim::make_truss_world(p);  // the truss_camera's truss
+    truss_ = std::move(built.truss);
+    world_ = std::move(built.world);
     scanner_ = te::make_hand_laser(te::VerificationOptions{});  // the hand laser the scoring uses
     logger().info("hand laser: {}", scanner_->describe());
   }
