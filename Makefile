@@ -4,7 +4,7 @@
 SHELL := /bin/bash
 JOBS ?= 2
 
-.PHONY: demo test build bootstrap asan tsan fuzz bench docs clean
+.PHONY: demo test build bootstrap asan tsan fuzz bench docs clean lint format
 
 bootstrap:
 	@scripts/bootstrap
@@ -36,6 +36,14 @@ fuzz: bootstrap
 
 bench: build
 	@scripts/run_benchmarks
+
+# The style kept by machine: format, function size, clang-tidy (scripts/lint).
+lint: build
+	@scripts/lint
+
+# Reformat the tree in place with .clang-format.
+format: bootstrap
+	@scripts/lint fix
 
 clean:
 	rm -rf build build-asan build-tsan build-fuzz

@@ -26,6 +26,14 @@ double median(std::vector<double> v) {
   return 0.5 * (*mid + *std::max_element(v.begin(), mid));
 }
 
+/// 1.4826 median |e|: the RMS of a Gaussian's errors, robust to outliers.
+double robust_rms(const std::vector<double>& e) {
+  std::vector<double> a;
+  a.reserve(e.size());
+  for (const double x : e) a.push_back(std::abs(x));
+  return 1.4826 * median(a);
+}
+
 Eigen::Matrix2Xd arc_points(const Circle& c, double arc_deg, int n) {
   Eigen::Matrix2Xd p(2, n);
   const bool closed = arc_deg >= 360.0;
@@ -62,6 +70,87 @@ const char* to_string(Method m) {
   return "?";
 }
 
+namespace {
+
+/// One trial's fit of `noisy` by method `m` (trial `t` seeds the robust fit).
+CircleFit fit_by(Method m, const Eigen::Matrix2Xd& noisy, const KcrStudyParams& p, const Circle& truth, double sigma,
+                 int t) {
+  switch (m) {
+    case Method::kKasa: return fit_circle_kasa(noisy);
+    case Method::kHyper: return fit_circle_hyper(noisy);
+    case Method::kGeometric: return fit_circle(noisy);
+    case Method::kGeometricUnbiased: {
+      RefineParams rp;
+      rp.remove_radius_bias = true;
+      return fit_circle(noisy, rp);
+    }
+    case Method::kGeometricSecondOrder: return fit_circle(noisy, second_order_params());
+    case Method::kRobust: {
+      RobustCircleParams rp;
+      rp.inlier_threshold_m = 4.0 * sigma;  // the node's rule: a few SDs of the range noise
+      rp.max_radius_m = 100.0;
+      rp.seed = static_cast<std::uint64_t>(t + 1);
+      return fit_circle_robust(noisy, rp);
+    }
+    case Method::kKnownRadius: {
+      RefineParams rp;
+      rp.known_radius_m = p.radius_m;
+      const CircleFit h = fit_circle_hyper(noisy);
+      return refine_circle(noisy, h.ok() ? Circle{h.circle.centre_m, p.radius_m} : truth, rp);
+    }
+  }
+  return {};
+}
+
+/// The errors (cx, cy, r) and reported SDs of one method's trials.
+struct TrialErrors {
+  std::vector<double> err[3], rep[3];
+};
+
+/// Runs one method's trials at one arc and noise level; counts failures in `row`.
+TrialErrors run_kcr_trials(const KcrStudyParams& p, const Circle& truth, const Eigen::Matrix2Xd& exact, double arc,
+                           double sigma, KcrRow& row) {
+  // The same noise draws for every method (paired comparison).
+  common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000) + static_cast<std::uint64_t>(sigma * 1e7));
+  TrialErrors out;
+  Eigen::Matrix2Xd noisy(2, p.points);
+  for (int t = 0; t < p.trials; ++t) {
+    for (int i = 0; i < p.points; ++i) {
+      noisy(0, i) = exact(0, i) + sigma * rng.normal();
+      noisy(1, i) = exact(1, i) + sigma * rng.normal();
+    }
+    const CircleFit f = fit_by(row.method, noisy, p, truth, sigma, t);
+    if (!f.ok()) {
+      ++row.failed;
+      continue;
+    }
+    const double e[3] = {f.circle.centre_m.x() - truth.centre_m.x(), f.circle.centre_m.y() - truth.centre_m.y(),
+                         f.circle.radius_m - truth.radius_m};
+    for (int k = 0; k < 3; ++k) {
+      out.err[k].push_back(e[k]);
+      out.rep[k].push_back(std::sqrt(std::max(0.0, f.covariance(k, k))));
+    }
+  }
+  return out;
+}
+
+/// The row's robust RMSE, bias, spread and ratios to the bound `b`.
+void summarise_kcr(const TrialErrors& te, const KcrBound& b, KcrRow& row) {
+  for (int k = 0; k < 3; ++k) {
+    if (row.method == Method::kKnownRadius && k == 2) continue;
+    row.kcr_sd[k] = std::sqrt(b.covariance(k, k));
+    row.rmse[k] = robust_rms(te.err[k]);
+    row.bias[k] = median(te.err[k]);
+    std::vector<double> d;
+    for (const double x : te.err[k]) d.push_back(std::abs(x - row.bias[k]));
+    row.spread[k] = 1.4826 * median(d);
+    row.ratio[k] = row.kcr_sd[k] > 0 ? row.rmse[k] / row.kcr_sd[k] : std::nan("");
+    row.reported_sd_ratio[k] = row.kcr_sd[k] > 0 ? median(te.rep[k]) / row.kcr_sd[k] : std::nan("");
+  }
+}
+
+}  // namespace
+
 std::vector<KcrRow> kcr_study(const KcrStudyParams& p) {
   std::vector<KcrRow> rows;
   const Circle truth{{0.0, 0.0}, p.radius_m};
@@ -72,74 +161,13 @@ std::vector<KcrRow> kcr_study(const KcrStudyParams& p) {
       const KcrBound free_bound = kcr_bound(exact, truth, sig, false);
       const KcrBound known_bound = kcr_bound(exact, truth, sig, true);
       for (const Method m : p.methods) {
-        // The same noise draws for every method (paired comparison).
-        common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000) +
-                                   static_cast<std::uint64_t>(sigma * 1e7));
-        std::vector<double> err[3], rep[3];
         KcrRow row;
         row.arc_deg = arc;
         row.sigma_m = sigma;
         row.method = m;
         row.trials = p.trials;
-        Eigen::Matrix2Xd noisy(2, p.points);
-        for (int t = 0; t < p.trials; ++t) {
-          for (int i = 0; i < p.points; ++i) {
-            noisy(0, i) = exact(0, i) + sigma * rng.normal();
-            noisy(1, i) = exact(1, i) + sigma * rng.normal();
-          }
-          CircleFit f;
-          switch (m) {
-            case Method::kKasa: f = fit_circle_kasa(noisy); break;
-            case Method::kHyper: f = fit_circle_hyper(noisy); break;
-            case Method::kGeometric: f = fit_circle(noisy); break;
-            case Method::kGeometricUnbiased: {
-              RefineParams rp;
-              rp.remove_radius_bias = true;
-              f = fit_circle(noisy, rp);
-              break;
-            }
-            case Method::kGeometricSecondOrder: f = fit_circle(noisy, second_order_params()); break;
-            case Method::kRobust: {
-              RobustCircleParams rp;
-              rp.inlier_threshold_m = 4.0 * sigma;  // the node's rule: a few SDs of the range noise
-              rp.max_radius_m = 100.0;
-              rp.seed = static_cast<std::uint64_t>(t + 1);
-              f = fit_circle_robust(noisy, rp);
-              break;
-            }
-            case Method::kKnownRadius: {
-              RefineParams rp;
-              rp.known_radius_m = p.radius_m;
-              const CircleFit h = fit_circle_hyper(noisy);
-              f = refine_circle(noisy, h.ok() ? Circle{h.circle.centre_m, p.radius_m} : truth, rp);
-              break;
-            }
-          }
-          if (!f.ok()) {
-            ++row.failed;
-            continue;
-          }
-          const double e[3] = {f.circle.centre_m.x() - truth.centre_m.x(), f.circle.centre_m.y() - truth.centre_m.y(),
-                               f.circle.radius_m - truth.radius_m};
-          for (int k = 0; k < 3; ++k) {
-            err[k].push_back(e[k]);
-            rep[k].push_back(std::sqrt(std::max(0.0, f.covariance(k, k))));
-          }
-        }
-        const KcrBound& b = (m == Method::kKnownRadius) ? known_bound : free_bound;
-        for (int k = 0; k < 3; ++k) {
-          if (m == Method::kKnownRadius && k == 2) continue;
-          row.kcr_sd[k] = std::sqrt(b.covariance(k, k));
-          std::vector<double> a;
-          for (const double x : err[k]) a.push_back(std::abs(x));
-          row.rmse[k] = 1.4826 * median(a);
-          row.bias[k] = median(err[k]);
-          std::vector<double> d;
-          for (const double x : err[k]) d.push_back(std::abs(x - row.bias[k]));
-          row.spread[k] = 1.4826 * median(d);
-          row.ratio[k] = row.kcr_sd[k] > 0 ? row.rmse[k] / row.kcr_sd[k] : std::nan("");
-          row.reported_sd_ratio[k] = row.kcr_sd[k] > 0 ? median(rep[k]) / row.kcr_sd[k] : std::nan("");
-        }
+        const TrialErrors te = run_kcr_trials(p, truth, exact, arc, sigma, row);
+        summarise_kcr(te, m == Method::kKnownRadius ? known_bound : free_bound, row);
         rows.push_back(row);
       }
     }
@@ -225,33 +253,30 @@ CircleFit end_weighted_fit(const Eigen::Matrix2Xd& pts) {
   return refine_circle(pts, f.circle, {}, sd);
 }
 
-double robust_rms(const std::vector<double>& e) {
-  std::vector<double> a;
-  a.reserve(e.size());
-  for (const double x : e) a.push_back(std::abs(x));
-  return 1.4826 * median(a);
-}
-
 }  // namespace
 
-std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
-  std::vector<SecondOrderRow> rows;
-  const Circle truth{{0.0, 0.0}, p.radius_m};
-  const Eigen::Vector3d theta0(truth.centre_m.x(), truth.centre_m.y(), truth.radius_m);
-  constexpr int kNodes = 9;  // s = -4h..4h, a degree-8 polynomial through them
-  Eigen::Matrix<double, kNodes, kNodes> V;
-  for (int j = 0; j < kNodes; ++j)
-    for (int k = 0; k < kNodes; ++k) V(j, k) = std::pow(static_cast<double>(j - 4), k);
-  const Eigen::Matrix<double, kNodes, kNodes> Vinv = V.fullPivLu().inverse();
-  const char* methods[] = {"geometric", "hyper", "end_weighted", "geometric_second_order"};
-  // a1, a2, a3 (columns) of the fit of exact + s e, from fits at s = -4h..4h
-  // continued outwards from the truth.
-  auto taylor = [&](const Eigen::Matrix2Xd& exact, const Eigen::Matrix2Xd& e, bool geo) {
+namespace {
+
+constexpr int kNodes = 9;  // s = -4h..4h, a degree-8 polynomial through them
+const char* const kSecondOrderMethods[] = {"geometric", "hyper", "end_weighted", "geometric_second_order"};
+
+/// a1, a2, a3 (columns) of the fit of exact + s e, from fits at s = -4h..4h
+/// continued outwards from the truth.
+class TaylorExpansion {
+ public:
+  TaylorExpansion(const Eigen::Vector3d& theta0, double step_m) : theta0_(theta0), step_m_(step_m) {
+    Eigen::Matrix<double, kNodes, kNodes> V;
+    for (int j = 0; j < kNodes; ++j)
+      for (int k = 0; k < kNodes; ++k) V(j, k) = std::pow(static_cast<double>(j - 4), k);
+    Vinv_ = V.fullPivLu().inverse();
+  }
+
+  Eigen::Matrix3d operator()(const Eigen::Matrix2Xd& exact, const Eigen::Matrix2Xd& e, bool geo) const {
     Eigen::Matrix<double, kNodes, 3> th;
     for (const int dir : {1, -1}) {
-      Eigen::Vector3d prev = theta0;
+      Eigen::Vector3d prev = theta0_;
       for (int j = 0; j <= 4; ++j) {
-        const Eigen::Matrix2Xd q = exact + (dir * j * p.step_m) * e;
+        const Eigen::Matrix2Xd q = exact + (dir * j * step_m_) * e;
         if (geo) {
           prev = geometric_exact(q, prev);
         } else {
@@ -261,132 +286,188 @@ std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
         th.row(4 + dir * j) = prev.transpose();
       }
     }
-    const Eigen::Matrix<double, kNodes, 3> c = Vinv * th;
+    const Eigen::Matrix<double, kNodes, 3> c = Vinv_ * th;
     Eigen::Matrix3d a;
-    for (int k = 1; k <= 3; ++k) a.col(k - 1) = c.row(k).transpose() / std::pow(p.step_m, k);
+    for (int k = 1; k <= 3; ++k) a.col(k - 1) = c.row(k).transpose() / std::pow(step_m_, k);
     return a;
-  };
+  }
+
+ private:
+  Eigen::Vector3d theta0_;
+  double step_m_;
+  Eigen::Matrix<double, kNodes, kNodes> Vinv_;
+};
+
+/// What one method's draws leave: the Taylor coefficients per draw (when
+/// expanded), the a2 parts' second moments, and the errors at every sigma.
+struct SecondOrderDraws {
+  std::vector<Eigen::Matrix3d> coef;           // columns a1 a2 a3
+  std::vector<Eigen::Vector3d> cross_of_draw;  // the normal x tangential part of a2
+  std::vector<std::vector<Eigen::Vector3d>> err;
+  Eigen::Vector3d En2 = Eigen::Vector3d::Zero(), Et2 = En2, Ex2 = En2;  // E[a2^2] of the normal, tangential, cross
+};
+
+/// Expectations of the Taylor coefficients over the draws.
+struct SecondOrderMoments {
+  Eigen::Vector3d Ea1sq = Eigen::Vector3d::Zero(), Ea2sq = Ea1sq, Ea1a3 = Ea1sq, Ea2 = Ea1sq, En2, Et2, Ex2;
+};
+
+CircleFit second_order_fit(int m, const Eigen::Matrix2Xd& q) {
+  switch (m) {
+    case 0: return fit_circle(q);
+    case 1: return fit_circle_hyper(q);
+    case 2: return end_weighted_fit(q);
+    default: return fit_circle(q, second_order_params());
+  }
+}
+
+/// The second-order term split by the noise's normal and tangential parts
+/// (at the true points): a2(e) = a2(n) + a2(t) + cross.
+void expand_draw(const TaylorExpansion& taylor, const Circle& truth, const Eigen::Matrix2Xd& exact,
+                 const Eigen::Matrix2Xd& e, bool geo, SecondOrderDraws& d) {
+  const Eigen::Matrix3d a = taylor(exact, e, geo);
+  Eigen::Matrix2Xd en(2, e.cols()), et(2, e.cols());
+  for (Eigen::Index i = 0; i < e.cols(); ++i) {
+    const Eigen::Vector2d u = (exact.col(i) - truth.centre_m).normalized();
+    en.col(i) = u * u.dot(e.col(i));
+    et.col(i) = e.col(i) - en.col(i);
+  }
+  const Eigen::Vector3d a2n = taylor(exact, en, geo).col(1), a2t = taylor(exact, et, geo).col(1);
+  const Eigen::Vector3d cross = a.col(1) - a2n - a2t;
+  d.En2 += a2n.cwiseProduct(a2n);
+  d.Et2 += a2t.cwiseProduct(a2t);
+  d.Ex2 += cross.cwiseProduct(cross);
+  d.coef.push_back(a);
+  d.cross_of_draw.push_back(cross);
+}
+
+/// Method m's draws at one arc: the Taylor series of the two smooth fits
+/// (m < 2), the weighted one by Monte-Carlo only.
+SecondOrderDraws run_second_order_draws(const SecondOrderParams& p, const TaylorExpansion& taylor, const Circle& truth,
+                                        const Eigen::Matrix2Xd& exact, double arc, int m) {
+  const Eigen::Vector3d theta0(truth.centre_m.x(), truth.centre_m.y(), truth.radius_m);
+  SecondOrderDraws d;
+  d.err.resize(p.sigmas_m.size());
+  common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000));
+  Eigen::Matrix2Xd e(2, p.points);
+  for (int t = 0; t < p.draws; ++t) {
+    for (int i = 0; i < p.points; ++i) e.col(i) = Eigen::Vector2d(rng.normal(), rng.normal());
+    if (m < 2) expand_draw(taylor, truth, exact, e, m == 0, d);
+    for (std::size_t si = 0; si < p.sigmas_m.size(); ++si) {
+      const CircleFit f = second_order_fit(m, exact + p.sigmas_m[si] * e);
+      Eigen::Vector3d dv = Eigen::Vector3d::Constant(std::nan(""));
+      if (f.ok()) dv = Eigen::Vector3d(f.circle.centre_m.x(), f.circle.centre_m.y(), f.circle.radius_m) - theta0;
+      d.err[si].push_back(dv);
+    }
+  }
+  return d;
+}
+
+SecondOrderMoments moments(const SecondOrderDraws& d) {
+  SecondOrderMoments mo;
+  for (const auto& a : d.coef) {
+    mo.Ea1sq += a.col(0).cwiseProduct(a.col(0));
+    mo.Ea2sq += a.col(1).cwiseProduct(a.col(1));
+    mo.Ea1a3 += a.col(0).cwiseProduct(a.col(2));
+    mo.Ea2 += a.col(1);
+  }
+  const double nd = std::max<double>(1.0, static_cast<double>(d.coef.size()));
+  mo.Ea1sq /= nd;
+  mo.Ea2sq /= nd;
+  mo.Ea1a3 /= nd;
+  mo.Ea2 /= nd;
+  mo.En2 = d.En2 / nd;
+  mo.Et2 = d.Et2 / nd;
+  mo.Ex2 = d.Ex2 / nd;
+  return mo;
+}
+
+/// The series' terms of component k at noise s, over the bound's SD.
+void series_terms(const SecondOrderMoments& mo, double s, double kcr, int k, SecondOrderRow& row) {
+  const double kcr2 = kcr * kcr;
+  const double first = s * s * mo.Ea1sq(k);
+  const double s4 = s * s * s * s;
+  row.first_order[k] = std::sqrt(first) / kcr;
+  row.second_order[k] = std::sqrt(std::max(0.0, first + s4 * (mo.Ea2sq(k) + 2.0 * mo.Ea1a3(k)))) / kcr;
+  row.mse_terms[k][0] = s4 * mo.Ea2sq(k) / kcr2;
+  row.mse_terms[k][1] = 2.0 * s4 * mo.Ea1a3(k) / kcr2;
+  row.mse_terms[k][2] = s4 * mo.Ea2(k) * mo.Ea2(k) / kcr2;
+  row.bias2[k] = s * s * mo.Ea2(k) / kcr;
+  row.a2_split[k][0] = s4 * mo.En2(k) / kcr2;
+  row.a2_split[k][1] = s4 * mo.Et2(k) / kcr2;
+  row.a2_split[k][2] = s4 * mo.Ex2(k) / kcr2;
+}
+
+/// The Monte-Carlo errors of component k at sigma index si, and the
+/// truncated series' errors of the same draws, over the bound's SD.
+void monte_carlo_terms(const SecondOrderDraws& d, std::size_t si, double s, double kcr, int k, SecondOrderRow& row) {
+  std::vector<double> full, s2, s3, forced;
+  double sum = 0, sumsq = 0;
+  int n = 0;
+  for (std::size_t t = 0; t < d.err[si].size(); ++t) {
+    if (t < d.coef.size()) {
+      const double y2 = s * d.coef[t](k, 0) + s * s * d.coef[t](k, 1);
+      s2.push_back(y2);
+      s3.push_back(y2 + s * s * s * d.coef[t](k, 2));
+      forced.push_back(s * d.coef[t](k, 0) + s * s * d.cross_of_draw[t](k));
+    }
+    const double x = d.err[si][t](k);
+    if (std::isnan(x)) continue;
+    full.push_back(x);
+    sum += x;
+    sumsq += x * x;
+    ++n;
+  }
+  row.mc_rms[k] = n ? std::sqrt(sumsq / n) / kcr : std::nan("");
+  row.mc_mean_bias[k] = n ? sum / n / kcr : std::nan("");
+  row.mc_robust[k] = robust_rms(full) / kcr;
+  row.mc_shorth[k] = shorth_rms(full) / kcr;
+  row.series2_robust[k] = robust_rms(s2) / kcr;
+  row.series3_robust[k] = robust_rms(s3) / kcr;
+  row.forced_robust[k] = robust_rms(forced) / kcr;
+  row.forced_shorth[k] = shorth_rms(forced) / kcr;
+}
+
+/// The series' columns mean nothing for a method that was not expanded.
+void blank_series(int k, SecondOrderRow& row) {
+  for (double* v : {&row.first_order[k], &row.second_order[k], &row.mse_terms[k][0], &row.mse_terms[k][1],
+                    &row.mse_terms[k][2], &row.a2_split[k][0], &row.a2_split[k][1], &row.a2_split[k][2], &row.bias2[k],
+                    &row.series2_robust[k], &row.series3_robust[k], &row.forced_robust[k], &row.forced_shorth[k]})
+    *v = std::nan("");
+}
+
+SecondOrderRow second_order_row(const SecondOrderParams& p, const SecondOrderDraws& d, const SecondOrderMoments& mo,
+                                const KcrBound& b, double arc, int m, std::size_t si) {
+  const double s = p.sigmas_m[si];
+  SecondOrderRow row;
+  row.arc_deg = arc;
+  row.sigma_m = s;
+  row.method = kSecondOrderMethods[m];
+  row.draws = p.draws;
+  for (int k = 0; k < 3; ++k) {
+    const double kcr = std::sqrt(b.covariance(k, k));
+    row.kcr_sd[k] = kcr;
+    series_terms(mo, s, kcr, k, row);
+    monte_carlo_terms(d, si, s, kcr, k, row);
+    if (m >= 2) blank_series(k, row);
+  }
+  return row;
+}
+
+}  // namespace
+
+std::vector<SecondOrderRow> second_order_study(const SecondOrderParams& p) {
+  std::vector<SecondOrderRow> rows;
+  const Circle truth{{0.0, 0.0}, p.radius_m};
+  const TaylorExpansion taylor(Eigen::Vector3d(truth.centre_m.x(), truth.centre_m.y(), truth.radius_m), p.step_m);
   for (const double arc : p.arcs_deg) {
     const Eigen::Matrix2Xd exact = arc_points(truth, arc, p.points);
     for (int m = 0; m < 4; ++m) {
-      const bool geo = (m == 0);
-      const bool expand = (m < 2);  // the Taylor series of the two smooth fits; the weighted one by Monte-Carlo only
-      // Per draw: a1, a2, a3 (3 components each) and the estimator's error at every sigma.
-      std::vector<Eigen::Matrix3d> coef;           // columns a1 a2 a3
-      std::vector<Eigen::Vector3d> cross_of_draw;  // the normal x tangential part of a2
-      std::vector<std::vector<Eigen::Vector3d>> err(p.sigmas_m.size());
-      Eigen::Vector3d En2 = Eigen::Vector3d::Zero(), Et2 = En2,
-                      Ex2 = En2;  // E[a2^2] of the normal, tangential, cross parts
-      common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(arc * 1000));
-      Eigen::Matrix2Xd e(2, p.points), q(2, p.points);
-      for (int t = 0; t < p.draws; ++t) {
-        for (int i = 0; i < p.points; ++i) e.col(i) = Eigen::Vector2d(rng.normal(), rng.normal());
-        if (expand) {
-          const Eigen::Matrix3d a = taylor(exact, e, geo);
-          // The second-order term split by the noise's normal and tangential
-          // parts (at the true points): a2(e) = a2(n) + a2(t) + cross.
-          Eigen::Matrix2Xd en(2, p.points), et(2, p.points);
-          for (int i = 0; i < p.points; ++i) {
-            const Eigen::Vector2d u = (exact.col(i) - truth.centre_m).normalized();
-            en.col(i) = u * u.dot(e.col(i));
-            et.col(i) = e.col(i) - en.col(i);
-          }
-          const Eigen::Vector3d a2n = taylor(exact, en, geo).col(1), a2t = taylor(exact, et, geo).col(1);
-          const Eigen::Vector3d cross = a.col(1) - a2n - a2t;
-          En2 += a2n.cwiseProduct(a2n);
-          Et2 += a2t.cwiseProduct(a2t);
-          Ex2 += cross.cwiseProduct(cross);
-          coef.push_back(a);
-          cross_of_draw.push_back(cross);
-        }
-        for (std::size_t si = 0; si < p.sigmas_m.size(); ++si) {
-          q = exact + p.sigmas_m[si] * e;
-          CircleFit f;
-          switch (m) {
-            case 0: f = fit_circle(q); break;
-            case 1: f = fit_circle_hyper(q); break;
-            case 2: f = end_weighted_fit(q); break;
-            default: f = fit_circle(q, second_order_params()); break;
-          }
-          Eigen::Vector3d d = Eigen::Vector3d::Constant(std::nan(""));
-          if (f.ok()) d = Eigen::Vector3d(f.circle.centre_m.x(), f.circle.centre_m.y(), f.circle.radius_m) - theta0;
-          err[si].push_back(d);
-        }
-      }
-      // Expectations over the draws.
-      Eigen::Vector3d Ea1sq = Eigen::Vector3d::Zero(), Ea2sq = Ea1sq, Ea1a3 = Ea1sq, Ea2 = Ea1sq;
-      for (const auto& a : coef) {
-        Ea1sq += a.col(0).cwiseProduct(a.col(0));
-        Ea2sq += a.col(1).cwiseProduct(a.col(1));
-        Ea1a3 += a.col(0).cwiseProduct(a.col(2));
-        Ea2 += a.col(1);
-      }
-      const double nd = std::max<double>(1.0, static_cast<double>(coef.size()));
-      Ea1sq /= nd;
-      Ea2sq /= nd;
-      Ea1a3 /= nd;
-      Ea2 /= nd;
-      En2 /= nd;
-      Et2 /= nd;
-      Ex2 /= nd;
+      const SecondOrderDraws d = run_second_order_draws(p, taylor, truth, exact, arc, m);
+      const SecondOrderMoments mo = moments(d);
       for (std::size_t si = 0; si < p.sigmas_m.size(); ++si) {
-        const double s = p.sigmas_m[si];
-        const std::vector<double> sig{s};
-        const KcrBound b = kcr_bound(exact, truth, sig, false);
-        SecondOrderRow row;
-        row.arc_deg = arc;
-        row.sigma_m = s;
-        row.method = methods[m];
-        row.draws = p.draws;
-        for (int k = 0; k < 3; ++k) {
-          const double kcr = std::sqrt(b.covariance(k, k));
-          const double kcr2 = kcr * kcr;
-          row.kcr_sd[k] = kcr;
-          const double first = s * s * Ea1sq(k);
-          const double s4 = s * s * s * s;
-          row.first_order[k] = std::sqrt(first) / kcr;
-          row.second_order[k] = std::sqrt(std::max(0.0, first + s4 * (Ea2sq(k) + 2.0 * Ea1a3(k)))) / kcr;
-          row.mse_terms[k][0] = s4 * Ea2sq(k) / kcr2;
-          row.mse_terms[k][1] = 2.0 * s4 * Ea1a3(k) / kcr2;
-          row.mse_terms[k][2] = s4 * Ea2(k) * Ea2(k) / kcr2;
-          row.bias2[k] = s * s * Ea2(k) / kcr;
-          row.a2_split[k][0] = s4 * En2(k) / kcr2;
-          row.a2_split[k][1] = s4 * Et2(k) / kcr2;
-          row.a2_split[k][2] = s4 * Ex2(k) / kcr2;
-          std::vector<double> full, s2, s3, forced;
-          double sum = 0, sumsq = 0;
-          int n = 0;
-          for (std::size_t t = 0; t < err[si].size(); ++t) {
-            if (t < coef.size()) {
-              const double y2 = s * coef[t](k, 0) + s * s * coef[t](k, 1);
-              s2.push_back(y2);
-              s3.push_back(y2 + s * s * s * coef[t](k, 2));
-              forced.push_back(s * coef[t](k, 0) + s * s * cross_of_draw[t](k));
-            }
-            const double x = err[si][t](k);
-            if (std::isnan(x)) continue;
-            full.push_back(x);
-            sum += x;
-            sumsq += x * x;
-            ++n;
-          }
-          row.mc_rms[k] = n ? std::sqrt(sumsq / n) / kcr : std::nan("");
-          row.mc_mean_bias[k] = n ? sum / n / kcr : std::nan("");
-          row.mc_robust[k] = robust_rms(full) / kcr;
-          row.mc_shorth[k] = shorth_rms(full) / kcr;
-          row.series2_robust[k] = robust_rms(s2) / kcr;
-          row.series3_robust[k] = robust_rms(s3) / kcr;
-          row.forced_robust[k] = robust_rms(forced) / kcr;
-          row.forced_shorth[k] = shorth_rms(forced) / kcr;
-          if (!expand) {
-            for (double* v :
-                 {&row.first_order[k], &row.second_order[k], &row.mse_terms[k][0], &row.mse_terms[k][1],
-                  &row.mse_terms[k][2], &row.a2_split[k][0], &row.a2_split[k][1], &row.a2_split[k][2], &row.bias2[k],
-                  &row.series2_robust[k], &row.series3_robust[k], &row.forced_robust[k], &row.forced_shorth[k]})
-              *v = std::nan("");
-          }
-        }
-        rows.push_back(row);
+        const std::vector<double> sig{p.sigmas_m[si]};
+        rows.push_back(second_order_row(p, d, mo, kcr_bound(exact, truth, sig, false), arc, m, si));
       }
     }
   }
@@ -419,6 +500,118 @@ std::string second_order_csv(const std::vector<SecondOrderRow>& rows) {
 
 // ---------------------------------------------------------------------------- robustness
 
+namespace {
+
+/// One way of fitting the robustness study's scans.
+struct RobustnessMethod {
+  const char* name;
+  bool robust, views, self_filter;
+  double min_r, max_r;  // radius prior (multiples of the true radius); 0, 0: none
+  bool known;
+};
+constexpr RobustnessMethod kRobustnessMethods[] = {{"plain", false, false, false, 0, 0, false},
+                                                   {"msac", true, false, false, 0, 0, false},
+                                                   {"msac_views", true, true, false, 0, 0, false},
+                                                   {"msac_views_selffilter", true, true, true, 0, 0, false},
+                                                   {"msac_views_radius_prior", true, true, false, 0.6, 1.5, false},
+                                                   {"msac_views_known_radius", true, true, false, 0, 0, true}};
+
+/// The target near `ring`, and `clutter` smaller objects inside the ring,
+/// close to but clear of the target.
+PlanarWorld cluttered_world(const Eigen::Vector2d& ring, double radius_m, int clutter, common::SplitMixRandom& rng) {
+  PlanarWorld world;
+  const Circle truth{ring + Eigen::Vector2d(0.04 * (rng.uniform() - 0.5), 0.04 * (rng.uniform() - 0.5)), radius_m};
+  world.cylinders.push_back(truth);
+  for (int c = 0; c < clutter; ++c) {
+    for (int tries = 0; tries < 50; ++tries) {
+      const double a = 2 * kPi * rng.uniform();
+      const double d = radius_m + 0.06 + 0.08 * rng.uniform();
+      const Circle o{truth.centre_m + d * Eigen::Vector2d(std::cos(a), std::sin(a)), 0.025 + 0.02 * rng.uniform()};
+      bool clear = (o.centre_m - truth.centre_m).norm() > truth.radius_m + o.radius_m + 0.03;
+      for (const auto& w : world.cylinders) clear = clear && (o.centre_m - w.centre_m).norm() > w.radius_m + o.radius_m;
+      if (clear) {
+        world.cylinders.push_back(o);
+        break;
+      }
+    }
+  }
+  world.robot_links_visible = true;
+  return world;
+}
+
+CircleEstimatorParams robustness_estimator(const RobustnessMethod& m, double radius_m, int t) {
+  CircleEstimatorParams ep;
+  ep.fusion.self_filter = m.self_filter;
+  ep.use_viewpoints = m.views;
+  ep.robust.max_radius_m = 0.5;
+  if (m.max_r > 0) {
+    ep.robust.min_radius_m = m.min_r * radius_m;
+    ep.robust.max_radius_m = m.max_r * radius_m;
+  }
+  if (m.known) ep.robust.known_radius_m = radius_m;
+  ep.robust.seed = static_cast<std::uint64_t>(t + 1);
+  return ep;
+}
+
+/// Outlier share of what the fit is offered (self points included when the
+/// self-filter is off).
+double outlier_fraction(const FusedCloud& cloud, const Circle& truth) {
+  int out = 0;
+  for (int i = 0; i < cloud.size(); ++i) {
+    const double d = std::abs((cloud.points_m().col(i) - truth.centre_m).norm() - truth.radius_m);
+    out += d > 0.03;
+  }
+  return cloud.size() ? static_cast<double>(out) / cloud.size() : 0.0;
+}
+
+/// Scores one trial's fit into the row.
+void score_robustness_trial(const CircleFit& fit, const Circle& truth, double outliers, RobustnessRow& row,
+                            std::vector<double>& centre_err) {
+  ++row.trials;
+  const bool hard = outliers >= 0.4;
+  row.trials_over_40 += hard;
+  if (!fit.ok()) return;
+  ++row.ok;
+  const double ce = (fit.circle.centre_m - truth.centre_m).norm();
+  centre_err.push_back(ce);
+  if (ce < 0.01 && std::abs(fit.circle.radius_m - truth.radius_m) < 0.01) {
+    ++row.correct;
+    row.correct_over_40 += hard;
+  }
+}
+
+RobustnessRow robustness_row(const RobustnessParams& p, const RobotModel& model, const std::vector<double>& joints,
+                             const Eigen::Vector2d& ring, int clutter, const RobustnessMethod& m) {
+  RobustnessRow row;
+  row.method = m.name;
+  row.clutter_objects = clutter;
+  std::vector<double> centre_err, outlier_frac;
+  common::SplitMixRandom rng(p.seed);
+  JointStateBuffer jb(model.joint_names());
+  (void)jb.add(0, model.joint_names(), joints);
+  for (int t = 0; t < p.trials; ++t) {
+    const PlanarWorld world = cluttered_world(ring, p.radius_m, clutter, rng);
+    const Circle& truth = world.cylinders.front();
+    const auto scans = scan_all(model, joints, world, {}, rng);
+    CircleEstimator est(model, robustness_estimator(m, p.radius_m, t));
+    std::vector<ScanView> views;
+    for (const auto& s : scans) views.push_back({s.sensor, 0, s.angle_rad, s.range_m});
+    CircleEstimate e = est.estimate(views, jb);
+    const FusedCloud& cloud = est.cloud();
+    outlier_frac.push_back(outlier_fraction(cloud, truth));
+    if (!m.robust) {
+      const std::span<const double> sig(cloud.sigma_m);
+      e.fit = fit_circle(cloud.points_m(), {}, sig);
+    }
+    score_robustness_trial(e.fit, truth, outlier_frac.back(), row, centre_err);
+  }
+  row.median_centre_error_m = median(centre_err);
+  row.median_outlier_fraction = median(outlier_frac);
+  return row;
+}
+
+}  // namespace
+
 std::vector<RobustnessRow> robustness_study(const RobustnessParams& p) {
   const RobotModel model = RobotModel::load(p.robot_description);
   const double q = p.joint_deg * kPi / 180.0;
@@ -426,96 +619,9 @@ std::vector<RobustnessRow> robustness_study(const RobustnessParams& p) {
   // Centre of the ring the chain curls into (equal links, equal turns).
   const double L = model.links().front().length_m;
   const Eigen::Vector2d ring(0.5 * L, 0.5 * L / std::tan(0.5 * q));
-
-  struct M {
-    const char* name;
-    bool robust, views, self_filter;
-    double min_r, max_r;  // radius prior (multiples of the true radius); 0, 0: none
-    bool known;
-  };
-  const M methods[] = {{"plain", false, false, false, 0, 0, false},
-                       {"msac", true, false, false, 0, 0, false},
-                       {"msac_views", true, true, false, 0, 0, false},
-                       {"msac_views_selffilter", true, true, true, 0, 0, false},
-                       {"msac_views_radius_prior", true, true, false, 0.6, 1.5, false},
-                       {"msac_views_known_radius", true, true, false, 0, 0, true}};
   std::vector<RobustnessRow> rows;
-  for (const int clutter : p.clutter_objects) {
-    for (const auto& m : methods) {
-      RobustnessRow row;
-      row.method = m.name;
-      row.clutter_objects = clutter;
-      std::vector<double> centre_err, outlier_frac;
-      common::SplitMixRandom rng(p.seed);
-      for (int t = 0; t < p.trials; ++t) {
-        PlanarWorld world;
-        const Circle truth{ring + Eigen::Vector2d(0.04 * (rng.uniform() - 0.5), 0.04 * (rng.uniform() - 0.5)),
-                           p.radius_m};
-        world.cylinders.push_back(truth);
-        // Clutter: smaller objects inside the ring, close to but clear of the target.
-        for (int c = 0; c < clutter; ++c) {
-          for (int tries = 0; tries < 50; ++tries) {
-            const double a = 2 * kPi * rng.uniform();
-            const double d = p.radius_m + 0.06 + 0.08 * rng.uniform();
-            const Circle o{truth.centre_m + d * Eigen::Vector2d(std::cos(a), std::sin(a)),
-                           0.025 + 0.02 * rng.uniform()};
-            bool clear = (o.centre_m - truth.centre_m).norm() > truth.radius_m + o.radius_m + 0.03;
-            for (const auto& w : world.cylinders)
-              clear = clear && (o.centre_m - w.centre_m).norm() > w.radius_m + o.radius_m;
-            if (clear) {
-              world.cylinders.push_back(o);
-              break;
-            }
-          }
-        }
-        world.robot_links_visible = true;
-        const auto scans = scan_all(model, joints, world, {}, rng);
-        // Outlier share of what the fit is offered (self points included when
-        // the self-filter is off).
-        JointStateBuffer jb(model.joint_names());
-        (void)jb.add(0, model.joint_names(), joints);
-        CircleEstimatorParams ep;
-        ep.fusion.self_filter = m.self_filter;
-        ep.use_viewpoints = m.views;
-        ep.robust.max_radius_m = 0.5;
-        if (m.max_r > 0) {
-          ep.robust.min_radius_m = m.min_r * p.radius_m;
-          ep.robust.max_radius_m = m.max_r * p.radius_m;
-        }
-        if (m.known) ep.robust.known_radius_m = p.radius_m;
-        ep.robust.seed = static_cast<std::uint64_t>(t + 1);
-        CircleEstimator est(model, ep);
-        std::vector<ScanView> views;
-        for (const auto& s : scans) views.push_back({s.sensor, 0, s.angle_rad, s.range_m});
-        CircleEstimate e = est.estimate(views, jb);
-        const FusedCloud& cloud = est.cloud();
-        int out = 0;
-        for (int i = 0; i < cloud.size(); ++i) {
-          const double d = std::abs((cloud.points_m().col(i) - truth.centre_m).norm() - truth.radius_m);
-          out += d > 0.03;
-        }
-        outlier_frac.push_back(cloud.size() ? static_cast<double>(out) / cloud.size() : 0.0);
-        if (!m.robust) {
-          const std::span<const double> sig(cloud.sigma_m);
-          e.fit = fit_circle(cloud.points_m(), {}, sig);
-        }
-        ++row.trials;
-        const bool hard = outlier_frac.back() >= 0.4;
-        row.trials_over_40 += hard;
-        if (!e.fit.ok()) continue;
-        ++row.ok;
-        const double ce = (e.fit.circle.centre_m - truth.centre_m).norm();
-        centre_err.push_back(ce);
-        if (ce < 0.01 && std::abs(e.fit.circle.radius_m - truth.radius_m) < 0.01) {
-          ++row.correct;
-          row.correct_over_40 += hard;
-        }
-      }
-      row.median_centre_error_m = median(centre_err);
-      row.median_outlier_fraction = median(outlier_frac);
-      rows.push_back(row);
-    }
-  }
+  for (const int clutter : p.clutter_objects)
+    for (const auto& m : kRobustnessMethods) rows.push_back(robustness_row(p, model, joints, ring, clutter, m));
   return rows;
 }
 
@@ -531,6 +637,121 @@ std::string robustness_csv(const std::vector<RobustnessRow>& rows) {
 
 // ---------------------------------------------------------------------------- ray noise
 
+namespace {
+
+/// The cylinder's true points as the sensors see it, each point's noise
+/// along its surface normal, and the arc they cover [deg].
+struct TruePoints {
+  Eigen::Matrix2Xd points;
+  std::vector<double> normal_sd;
+  double arc_deg = 0;
+};
+
+/// Arc covered: 360 minus the largest gap between sorted point angles.
+double covered_arc_deg(std::vector<double> angles) {
+  std::sort(angles.begin(), angles.end());
+  double gap = angles.empty() ? 2 * kPi : angles.front() + 2 * kPi - angles.back();
+  for (std::size_t i = 1; i < angles.size(); ++i) gap = std::max(gap, angles[i] - angles[i - 1]);
+  return (2 * kPi - gap) * 180.0 / kPi;
+}
+
+TruePoints true_points(const RobotModel& model, const std::vector<double>& joints, const PlanarWorld& world,
+                       const Circle& truth) {
+  SyntheticScanParams exact;
+  exact.noise_scale = 0.0;
+  common::SplitMixRandom rng0(1);
+  const auto clean = scan_all(model, joints, world, exact, rng0);
+  std::vector<Eigen::Vector2d> tp;
+  std::vector<double> angles;
+  TruePoints out;
+  const Kinematics k = model.forward(joints);
+  for (std::size_t s = 0; s < clean.size(); ++s) {
+    const auto& T = k.T_base_sensor[s];
+    for (std::size_t i = 0; i < clean[s].range_m.size(); ++i) {
+      if (clean[s].hit_kind[i] != kHitCylinder) continue;
+      const double r = clean[s].true_range_m[i];
+      const Eigen::Vector2d ray = (T.linear() * model.sensors()[s].ray(clean[s].angle_rad[i])).normalized();
+      const Eigen::Vector2d pt = T.translation() + r * ray;
+      const Eigen::Vector2d nrm = (pt - truth.centre_m).normalized();
+      tp.push_back(pt);
+      out.normal_sd.push_back(SyntheticScanParams{}.noise.sd_at(r) * std::abs(ray.dot(nrm)));
+      angles.push_back(std::atan2(nrm.y(), nrm.x()));
+    }
+  }
+  out.arc_deg = covered_arc_deg(std::move(angles));
+  out.points.resize(2, static_cast<Eigen::Index>(tp.size()));
+  for (std::size_t i = 0; i < tp.size(); ++i) out.points.col(static_cast<Eigen::Index>(i)) = tp[i];
+  return out;
+}
+
+/// One way of fitting the ray-noise study's scans.
+struct RayNoiseVariant {
+  const char* name;
+  bool kasa, incidence, bias;
+  ArcCorrection correction = ArcCorrection::kNone;
+};
+constexpr RayNoiseVariant kRayNoiseVariants[] = {{"kasa", true, false, false},
+                                                 {"msac", false, false, false},
+                                                 {"msac_incidence", false, true, false},
+                                                 {"estimator_plain_refit", false, true, true},
+                                                 {"estimator", false, true, true, ArcCorrection::kSecondOrder}};
+
+/// What every variant's row of one pose shares: the settings, the robot, its world.
+struct RayNoiseRun {
+  const RayNoiseParams& p;
+  const RobotModel& model;
+  const std::vector<double>& joints;
+  const PlanarWorld& world;
+  const Circle& truth;
+};
+
+RayNoiseRow ray_noise_row(const RayNoiseRun& run, const TruePoints& tp, const KcrBound& b, double jd, double scale,
+                          const RayNoiseVariant& v) {
+  const RayNoiseParams& p = run.p;
+  RayNoiseRow row;
+  row.joint_deg = jd;
+  row.noise_scale = scale;
+  row.variant = v.name;
+  row.points = static_cast<int>(tp.normal_sd.size());
+  row.arc_deg = tp.arc_deg;
+  row.trials = p.trials;
+  common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(jd * 100 + scale * 10));
+  SyntheticScanParams noisy;
+  noisy.noise_scale = scale;
+  CircleEstimatorParams ep;
+  ep.incidence_weighting = v.incidence;
+  ep.remove_radius_bias = v.bias;
+  ep.arc_correction = v.correction;
+  ep.robust.inlier_threshold_m = 0.1;  // no outliers here: keep every point
+  CircleEstimator est(run.model, ep);
+  JointStateBuffer jb(run.model.joint_names());
+  (void)jb.add(0, run.model.joint_names(), run.joints);
+  std::vector<double> err[3];
+  for (int t = 0; t < p.trials; ++t) {
+    const auto scans = scan_all(run.model, run.joints, run.world, noisy, rng);
+    std::vector<ScanView> views;
+    for (const auto& sc : scans) views.push_back({sc.sensor, 0, sc.angle_rad, sc.range_m});
+    CircleEstimate e = est.estimate(views, jb);
+    if (v.kasa) e.fit = fit_circle_kasa(est.cloud().points_m());
+    if (!e.fit.ok()) {
+      ++row.failed;
+      continue;
+    }
+    err[0].push_back(e.fit.circle.centre_m.x() - run.truth.centre_m.x());
+    err[1].push_back(e.fit.circle.centre_m.y() - run.truth.centre_m.y());
+    err[2].push_back(e.fit.circle.radius_m - run.truth.radius_m);
+  }
+  for (int c = 0; c < 3; ++c) {
+    row.kcr_sd[c] = b.ok ? std::sqrt(b.covariance(c, c)) : std::nan("");
+    row.rmse[c] = robust_rms(err[c]);
+    row.bias[c] = median(err[c]);
+    row.ratio[c] = row.rmse[c] / row.kcr_sd[c];
+  }
+  return row;
+}
+
+}  // namespace
+
 std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
   const RobotModel model = RobotModel::load(p.robot_description);
   const double L = model.links().front().length_m;
@@ -540,96 +761,17 @@ std::vector<RayNoiseRow> ray_noise_study(const RayNoiseParams& p) {
     const std::vector<double> joints(model.joint_names().size(), q);
     // The ring's centre; for an open chain the cylinder sits where the
     // middle sensors' axes meet it.
-    const Eigen::Vector2d ring(0.5 * L, 0.5 * L / std::tan(0.5 * q));
-    const Circle truth{ring, p.radius_m};
+    const Circle truth{Eigen::Vector2d(0.5 * L, 0.5 * L / std::tan(0.5 * q)), p.radius_m};
     PlanarWorld world;
     world.cylinders.push_back(truth);
     world.robot_links_visible = false;
-    SyntheticScanParams exact;
-    exact.noise_scale = 0.0;
-    common::SplitMixRandom rng0(1);
-    const auto clean = scan_all(model, joints, world, exact, rng0);
-    // True points, their normal noise and the arc they cover.
-    std::vector<Eigen::Vector2d> tp;
-    std::vector<double> sn;
-    std::vector<double> angles;
-    const Kinematics k = model.forward(joints);
-    for (std::size_t s = 0; s < clean.size(); ++s) {
-      const auto& T = k.T_base_sensor[s];
-      for (std::size_t i = 0; i < clean[s].range_m.size(); ++i) {
-        if (clean[s].hit_kind[i] != kHitCylinder) continue;
-        const double r = clean[s].true_range_m[i];
-        const Eigen::Vector2d ray = (T.linear() * model.sensors()[s].ray(clean[s].angle_rad[i])).normalized();
-        const Eigen::Vector2d pt = T.translation() + r * ray;
-        const Eigen::Vector2d nrm = (pt - truth.centre_m).normalized();
-        tp.push_back(pt);
-        sn.push_back(SyntheticScanParams{}.noise.sd_at(r) * std::abs(ray.dot(nrm)));
-        angles.push_back(std::atan2(nrm.y(), nrm.x()));
-      }
-    }
-    // Arc covered: 360 minus the largest gap between sorted point angles.
-    std::sort(angles.begin(), angles.end());
-    double gap = angles.empty() ? 2 * kPi : angles.front() + 2 * kPi - angles.back();
-    for (std::size_t i = 1; i < angles.size(); ++i) gap = std::max(gap, angles[i] - angles[i - 1]);
-    const double arc = (2 * kPi - gap) * 180.0 / kPi;
-    Eigen::Matrix2Xd tpm(2, static_cast<Eigen::Index>(tp.size()));
-    for (std::size_t i = 0; i < tp.size(); ++i) tpm.col(static_cast<Eigen::Index>(i)) = tp[i];
-
+    const TruePoints tp = true_points(model, joints, world, truth);
+    const RayNoiseRun run{p, model, joints, world, truth};
     for (const double scale : p.noise_scale) {
       std::vector<double> sns;
-      for (const double x : sn) sns.push_back(scale * x);
-      const KcrBound b = kcr_bound(tpm, truth, sns);
-      struct V {
-        const char* name;
-        bool kasa, incidence, bias;
-        ArcCorrection correction = ArcCorrection::kNone;
-      };
-      for (const V v : {V{"kasa", true, false, false}, V{"msac", false, false, false},
-                        V{"msac_incidence", false, true, false}, V{"estimator_plain_refit", false, true, true},
-                        V{"estimator", false, true, true, ArcCorrection::kSecondOrder}}) {
-        RayNoiseRow row;
-        row.joint_deg = jd;
-        row.noise_scale = scale;
-        row.variant = v.name;
-        row.points = static_cast<int>(tp.size());
-        row.arc_deg = arc;
-        row.trials = p.trials;
-        common::SplitMixRandom rng(p.seed + static_cast<std::uint64_t>(jd * 100 + scale * 10));
-        SyntheticScanParams noisy;
-        noisy.noise_scale = scale;
-        CircleEstimatorParams ep;
-        ep.incidence_weighting = v.incidence;
-        ep.remove_radius_bias = v.bias;
-        ep.arc_correction = v.correction;
-        ep.robust.inlier_threshold_m = 0.1;  // no outliers here: keep every point
-        CircleEstimator est(model, ep);
-        JointStateBuffer jb(model.joint_names());
-        (void)jb.add(0, model.joint_names(), joints);
-        std::vector<double> err[3];
-        for (int t = 0; t < p.trials; ++t) {
-          const auto scans = scan_all(model, joints, world, noisy, rng);
-          std::vector<ScanView> views;
-          for (const auto& sc : scans) views.push_back({sc.sensor, 0, sc.angle_rad, sc.range_m});
-          CircleEstimate e = est.estimate(views, jb);
-          if (v.kasa) e.fit = fit_circle_kasa(est.cloud().points_m());
-          if (!e.fit.ok()) {
-            ++row.failed;
-            continue;
-          }
-          err[0].push_back(e.fit.circle.centre_m.x() - truth.centre_m.x());
-          err[1].push_back(e.fit.circle.centre_m.y() - truth.centre_m.y());
-          err[2].push_back(e.fit.circle.radius_m - truth.radius_m);
-        }
-        for (int c = 0; c < 3; ++c) {
-          row.kcr_sd[c] = b.ok ? std::sqrt(b.covariance(c, c)) : std::nan("");
-          std::vector<double> a;
-          for (const double x : err[c]) a.push_back(std::abs(x));
-          row.rmse[c] = 1.4826 * median(a);
-          row.bias[c] = median(err[c]);
-          row.ratio[c] = row.rmse[c] / row.kcr_sd[c];
-        }
-        rows.push_back(row);
-      }
+      for (const double x : tp.normal_sd) sns.push_back(scale * x);
+      const KcrBound b = kcr_bound(tp.points, truth, sns);
+      for (const auto& v : kRayNoiseVariants) rows.push_back(ray_noise_row(run, tp, b, jd, scale, v));
     }
   }
   return rows;

@@ -16,7 +16,15 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kEps = 1e-9;
 
-/// Smallest t > eps with |o + t d - c| = r (d unit), or inf.
+double dist_to_segment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double l2 = ab.squaredNorm();
+  const double t = l2 > 0.0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
+  return (a + t * ab - p).norm();
+}
+
+}  // namespace
+
 double ray_circle(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& c, double r) {
   const Eigen::Vector2d oc = o - c;
   const double b = oc.dot(d);
@@ -30,7 +38,6 @@ double ray_circle(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eige
   return kInf;
 }
 
-/// Smallest t > eps where the ray crosses segment p-q, or inf.
 double ray_segment(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& p,
                    const Eigen::Vector2d& q) {
   const Eigen::Vector2d e = q - p;
@@ -43,18 +50,10 @@ double ray_segment(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eig
   return kInf;
 }
 
-double dist_to_segment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  const Eigen::Vector2d ab = b - a;
-  const double l2 = ab.squaredNorm();
-  const double t = l2 > 0.0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
-}
-
 bool inside_capsule(const Eigen::Vector2d& p, const Capsule& c) {
   return dist_to_segment(p, c.a_m, c.b_m) < c.half_width_m;
 }
 
-/// First hit of the ray with a capsule (its two end caps and two sides).
 double ray_capsule(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Capsule& c) {
   double t = std::min(ray_circle(o, d, c.a_m, c.half_width_m), ray_circle(o, d, c.b_m, c.half_width_m));
   const Eigen::Vector2d ab = c.b_m - c.a_m;
@@ -66,6 +65,8 @@ double ray_capsule(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Cap
   }
   return t;
 }
+
+namespace {
 
 /// Occluders prepared for one ray origin: the ones containing it are skipped
 /// (a sensor sits on its own link; light leaves it).

@@ -53,6 +53,16 @@ struct Capsule {
   double half_width_m = 0.0;
 };
 
+/// 2-D ray casts, the ray o + t d with d a unit vector: the distance t > 1e-9
+/// to the first crossing, or infinity. Shared by the interference check and
+/// the evaluation's planar scenes.
+[[nodiscard]] double ray_circle(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& c, double r);
+[[nodiscard]] double ray_segment(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Eigen::Vector2d& p,
+                                 const Eigen::Vector2d& q);
+/// First hit with a capsule's two end caps and two sides.
+[[nodiscard]] double ray_capsule(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const Capsule& c);
+[[nodiscard]] bool inside_capsule(const Eigen::Vector2d& p, const Capsule& c);
+
 /// What blocks light in the plane.
 struct Occluders {
   std::vector<Circle> circles;    ///< objects (e.g. the fitted cylinder)

@@ -36,27 +36,33 @@ static_assert(wire(AlignmentOutcome::kInvalidInput) == msgs::AlignmentResult::IN
 
 // ---------------------------------------------------------------------------- line_clusterer
 
-LineClustererNode::LineClustererNode(bus::NodeOptions o)
-    : Node(std::move(o)), clusterer_(bus::declared_settings<TwoStageParams>(*this)) {
-  min_reflectance_ = nodes::declare_min_reflectance(*this);
-  pub_ = create_publisher<msgs::LineClusters>("clusters");
-  sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
-                                             [this](const msgs::LineScan& m) { on_scan(m); });
+detail::ScanToClusters::ScanToClusters(bus::Node& node, Cluster cluster)
+    : node_(node), cluster_(std::move(cluster)), min_reflectance_(nodes::declare_min_reflectance(node)) {
+  pub_ = node.create_publisher<msgs::LineClusters>("clusters");
+  sub_ = node.create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
+                                                  [this](const msgs::LineScan& m) { on_scan(m); });
 }
 
-void LineClustererNode::on_scan(const msgs::LineScan& m) {
+void detail::ScanToClusters::on_scan(const msgs::LineScan& m) {
   auto out = std::make_unique<msgs::LineClusters>();
   out->header = m.header;
   if (const auto bad = nodes::to_core(m, scan_, min_reflectance_); !bad.empty()) {
-    logger().warn("{}", bad);
+    node_.logger().warn("{}", bad);
     out->brightest = -1;
     out->note = bad;
   } else {
-    clusterer_.run(scan_, objects_);
-    nodes::to_msg(objects_, *out);
+    cluster_(scan_, *out);
   }
   pub_->publish(std::move(out));
 }
+
+LineClustererNode::LineClustererNode(bus::NodeOptions o)
+    : Node(std::move(o)),
+      clusterer_(bus::declared_settings<TwoStageParams>(*this)),
+      topics_(*this, [this](const LineScan& scan, msgs::LineClusters& out) {
+        clusterer_.run(scan, objects_);
+        nodes::to_msg(objects_, out);
+      }) {}
 
 // ---------------------------------------------------------------------------- pedicel_finder
 
@@ -224,25 +230,11 @@ void TomatoRegistrationNode::on_scan(const msgs::LineScan& m) {
 // ---------------------------------------------------------------------------- reflectance_clusterer
 
 ReflectanceClustererNode::ReflectanceClustererNode(bus::NodeOptions o)
-    : Node(std::move(o)), params_(bus::declared_settings<ReflectanceClusteringParams>(*this)) {
-  min_reflectance_ = nodes::declare_min_reflectance(*this);
-  pub_ = create_publisher<msgs::LineClusters>("clusters");
-  sub_ = create_subscription<msgs::LineScan>("scan", bus::QoS::keep_last(kScanQueue),
-                                             [this](const msgs::LineScan& m) { on_scan(m); });
-}
-
-void ReflectanceClustererNode::on_scan(const msgs::LineScan& m) {
-  auto out = std::make_unique<msgs::LineClusters>();
-  out->header = m.header;
-  if (const auto bad = nodes::to_core(m, scan_, min_reflectance_); !bad.empty()) {
-    logger().warn("{}", bad);
-    out->brightest = -1;
-    out->note = bad;
-  } else {
-    nodes::to_msg(cluster_by_reflectance(scan_, params_), *out);
-  }
-  pub_->publish(std::move(out));
-}
+    : Node(std::move(o)),
+      params_(bus::declared_settings<ReflectanceClusteringParams>(*this)),
+      topics_(*this, [this](const LineScan& scan, msgs::LineClusters& out) {
+        nodes::to_msg(cluster_by_reflectance(scan, params_), out);
+      }) {}
 
 // ---------------------------------------------------------------------------- alignment_search
 

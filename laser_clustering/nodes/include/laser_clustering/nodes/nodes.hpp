@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -34,6 +35,26 @@
 
 namespace tinyline::laser_clustering {
 
+namespace detail {
+/// What the line and reflectance clusterer nodes share: `min_reflectance`,
+/// scan in, clusters out, and a scan the conversion refuses published as an
+/// empty result whose note says why. Each node says only how it clusters.
+class ScanToClusters {
+ public:
+  using Cluster = std::function<void(const LineScan&, tinyline_msgs::msg::LineClusters&)>;
+  ScanToClusters(bus::Node& node, Cluster cluster);
+
+ private:
+  void on_scan(const tinyline_msgs::msg::LineScan& msg);
+  bus::Node& node_;
+  Cluster cluster_;
+  LineScan scan_;  // reused buffers
+  double min_reflectance_ = 0.0;
+  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
+  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+};
+}  // namespace detail
+
 /// scan (tinyline_msgs/LineScan) -> clusters (tinyline_msgs/LineClusters):
 /// two-stage clustering of thesis 4.4.2.
 class LineClustererNode : public bus::Node {
@@ -41,13 +62,9 @@ class LineClustererNode : public bus::Node {
   explicit LineClustererNode(bus::NodeOptions options);
 
  private:
-  void on_scan(const tinyline_msgs::msg::LineScan& msg);
   LineScanClusterer clusterer_;
-  LineScan scan_;  // reused buffers
-  TwoStageResult objects_;
-  double min_reflectance_ = 0.0;
-  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
-  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+  TwoStageResult objects_;  // reused buffers
+  detail::ScanToClusters topics_;
 };
 
 /// scan -> pedicel (tinyline_msgs/PedicelDetection) and clusters: the
@@ -127,12 +144,8 @@ class ReflectanceClustererNode : public bus::Node {
   explicit ReflectanceClustererNode(bus::NodeOptions options);
 
  private:
-  void on_scan(const tinyline_msgs::msg::LineScan& msg);
   ReflectanceClusteringParams params_;
-  LineScan scan_;
-  double min_reflectance_ = 0.0;
-  std::shared_ptr<bus::Publisher<tinyline_msgs::msg::LineClusters>> pub_;
-  std::shared_ptr<bus::Subscription<tinyline_msgs::msg::LineScan>> sub_;
+  detail::ScanToClusters topics_;
 };
 
 /// scan + joint_states (sensor_msgs/JointState with the gripper's pitch
