@@ -9,6 +9,10 @@
 #   tinyline_node_library(<name> SOURCES ... [DEPS ...] [NOT_INSTALLED])
 #       Thin nodes. Adds tinyline::bus and tinyline::msgs. Include dir <pkg>/nodes/include.
 #       NOT_INSTALLED: for the build tree only (nodes on evaluation libraries).
+#   tinyline_sim_library(<name> SOURCES ... [DEPS ...] [PRIVATE_DEPS ...])
+#       A package's room for simulation (<pkg>/sim/): its simulated nodes and
+#       devices, on the simulator. Include dir <pkg>/sim/include. Not a core or
+#       node library (the layering tests let it link sim) and not installed.
 #   tinyline_test(<name> SOURCES ... [LIBS ...] [LABELS ...])
 #       A GoogleTest executable; each TEST() becomes a ctest entry.
 #
@@ -76,6 +80,16 @@ function(tinyline_node_library name)
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include)
     install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/nodes/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   endif()
+endfunction()
+
+function(tinyline_sim_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
+  set(target tinyline_${name})
+  add_library(${target} STATIC ${ARG_SOURCES})
+  add_library(tinyline::${name} ALIAS ${target})
+  target_include_directories(${target} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/sim/include)
+  target_link_libraries(${target} PUBLIC ${ARG_DEPS} tinyline::sim_core tinyline::common PRIVATE ${ARG_PRIVATE_DEPS})
+  tinyline_apply_flags(${target})
 endfunction()
 
 function(tinyline_test name)

@@ -18,7 +18,7 @@
 #include "hydrus_fitting/estimator.hpp"
 #include "hydrus_fitting/robot_model.hpp"
 #include "hydrus_fitting/sequencer.hpp"
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
 
 namespace tinyline::hydrus_fitting::eval {
 
@@ -50,7 +50,7 @@ SimStudyResult sim_study(const SimStudyParams& p) {
 
   const RobotModel model = RobotModel::load(p.robot_description);
   sim::SimulatedSystem sys(sim::load_scene(p.scene_path));
-  sim::eval::SimulatedHydrus robot(sys, model);  // throws naming what the scene lacks
+  SimulatedHydrus robot(sys, model);  // throws naming what the scene lacks
   const double truth_radius = robot.cylinder_radius_m();
   const auto cylinder_id = sys.with_scene([](const sim::Scene& s) { return s.world.find("cylinder"); });
   if (!cylinder_id) throw std::runtime_error("sim_study: scene " + p.scene_path + " has no object 'cylinder'");

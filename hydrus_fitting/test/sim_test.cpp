@@ -13,7 +13,7 @@
 #include <sim/system.hpp>
 
 #include "hydrus_fitting/robot_model.hpp"
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
 #include "hydrus_fitting/trajectory.hpp"
 #include "sim_study.hpp"
 
@@ -105,7 +105,7 @@ truth: {cylinder_centre_m: [0, 0], cylinder_radius_m: 0.1, sensing_height_m: 0.5
   scene.replace(scene.find("SENSORS"), 7, kSrc + "/sim/config/sensors");
   sim::SimulatedSystem sys(sim::load_scene_string(scene, "one.yaml", kSrc + "/sim/config/scenes"));
   RobotModel model = RobotModel::load(kRobot);
-  EXPECT_NO_THROW(sim::eval::SimulatedHydrus(sys, model));
+  EXPECT_NO_THROW(SimulatedHydrus(sys, model));
   std::string yaml = R"(
 name: five
 links:
@@ -116,7 +116,7 @@ sensors:
 )";
   const RobotModel other = RobotModel::parse(yaml, "five.yaml");
   try {
-    sim::eval::SimulatedHydrus h(sys, other);
+    SimulatedHydrus h(sys, other);
     FAIL() << "expected an error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("laser9"), std::string::npos) << e.what();

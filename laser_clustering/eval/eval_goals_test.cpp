@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "harness.hpp"
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 
 namespace ev = tinyline::laser_clustering::eval;
 namespace sim = tinyline::sim;
@@ -20,8 +20,8 @@ constexpr std::uint64_t kSeed = 1;
 
 // The evaluation's headline schedule: one a real sensor can run (the wire
 // sets pulses in tens).
-sim::eval::SimScannerOptions options(const char* config, std::vector<int> pulses = {10, 20, 50, 120, 300}) {
-  sim::eval::SimScannerOptions o;
+ev::SimScannerOptions options(const char* config, std::vector<int> pulses = {10, 20, 50, 120, 300}) {
+  ev::SimScannerOptions o;
   o.sensor_config = config;
   o.raw_pulses = std::move(pulses);
   o.calibration_max_m = 0.6;
@@ -31,11 +31,11 @@ sim::eval::SimScannerOptions options(const char* config, std::vector<int> pulses
 }
 
 ev::Scanner& gripper() {
-  static auto s = sim::eval::make_sim_scanner(options("tiny_tof_3p6mm.yaml"));
+  static auto s = ev::make_sim_scanner(options("tiny_tof_3p6mm.yaml"));
   return *s;
 }
 ev::Scanner& tools() {
-  static auto s = sim::eval::make_sim_scanner(options("tiny_tof_8mm.yaml"));
+  static auto s = ev::make_sim_scanner(options("tiny_tof_8mm.yaml"));
   return *s;
 }
 
@@ -139,7 +139,7 @@ TEST(EvalGoals, WrenchMedianPitchErrorUnderOneDegree) {
 // The simulator's finer schedule (3/8/25/80/250 pulses, not commandable on
 // the wire) saturates nothing: the sweep's peak is whole (docs: 0.10 deg).
 TEST(EvalGoals, WrenchOnTheSimulatorsFinerScheduleMedianUnderTwoTenthsOfADegree) {
-  auto scanner = sim::eval::make_sim_scanner(options("tiny_tof_8mm.yaml", {3, 8, 25, 80, 250}));
+  auto scanner = ev::make_sim_scanner(options("tiny_tof_8mm.yaml", {3, 8, 25, 80, 250}));
   const auto r = ev::run_wrench_case(*scanner, kTrials, kSeed);
   EXPECT_LE(r.median_error_deg, 0.2) << "documented: 0.10 deg";
   EXPECT_GE(r.within_1deg.k, 185) << "documented: 194/200";

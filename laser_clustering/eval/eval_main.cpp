@@ -31,7 +31,7 @@
 #include <tinyline/common/seeds.hpp>
 
 #include "harness.hpp"
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 
 namespace cli = tinyline::cli;
 
@@ -158,7 +158,7 @@ std::vector<std::string> truth_kinds(const ev::TrussScene& scene, const ev::Simu
 // schedule short enough for close range (the default 20..700 pulses
 // saturates every pixel nearer than about 20 cm).
 struct ScannerOptions {
-  sim::eval::SimScannerOptions gripper, tools;
+  ev::SimScannerOptions gripper, tools;
 };
 
 ScannerOptions scanner_options(const Args& args) {
@@ -174,8 +174,8 @@ ScannerOptions scanner_options(const Args& args) {
   return s;
 }
 
-void write_calibration(const Args& args, const sim::eval::SimScannerOptions& gripper) {
-  const auto c = sim::eval::write_sim_calibration(gripper, args.write_calibration);
+void write_calibration(const Args& args, const ev::SimScannerOptions& gripper) {
+  const auto c = ev::write_sim_calibration(gripper, args.write_calibration);
   std::cout << fmt::format(
       "wrote {}: {} sensor, raw pulses {}, rail 5-{:.0f} cm every {:.0f} mm, in-sample RMSE {:.1f} mm; "
       "white paper's reflectance figure {:.1f} (2 %: {:.1f})\n",
@@ -203,8 +203,8 @@ void open_evaluation(Evaluation& e, const ScannerOptions& so) {
   const Args& args = e.args;
   const bool trusses = args.cases.count("random_offset") || args.cases.count("recognition_error");
   const bool metal = args.cases.count("stick") || args.cases.count("wrench");
-  e.truss_scanner = trusses ? sim::eval::make_sim_scanner(so.gripper) : nullptr;
-  e.tool_scanner = metal ? sim::eval::make_sim_scanner(so.tools) : nullptr;
+  e.truss_scanner = trusses ? ev::make_sim_scanner(so.gripper) : nullptr;
+  e.tool_scanner = metal ? ev::make_sim_scanner(so.tools) : nullptr;
   std::cout << "# laser_clustering evaluation\n\n";
   if (e.truss_scanner) std::cout << "trusses: " << e.truss_scanner->describe() << "\n\n";
   if (e.tool_scanner) std::cout << "stick and wrench: " << e.tool_scanner->describe() << "\n\n";

@@ -12,7 +12,7 @@
 
 #include <Eigen/Geometry>
 
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 #include <sim/world.hpp>
 
 #include "laser_clustering/alignment_search.hpp"
@@ -26,8 +26,6 @@
 namespace tinyline::laser_clustering::eval {
 
 // The scanner: the simulated sensor and the driver's processing (sim/eval).
-using sim::eval::Scanner;
-using sim::eval::SimulatedScan;
 
 /// A proportion with its Wilson score 95 % interval.
 struct Rate {

@@ -13,14 +13,7 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-struct Rng {
-  explicit Rng(std::uint64_t seed) : gen(seed) {}
-  double uniform(double a, double b) { return std::uniform_real_distribution<double>(a, b)(gen); }
-  double uniform(const double (&r)[2]) { return uniform(r[0], r[1]); }
-  double normal(double sd) { return std::normal_distribution<double>(0.0, sd)(gen); }
-  int integer(int a, int b) { return std::uniform_int_distribution<int>(a, b)(gen); }
-  std::mt19937_64 gen;
-};
+using Rng = sim::SceneRng;
 
 sim::MaterialId material(const sim::World& w, const std::string& name) {
   const auto id = w.materials().find(name);
@@ -39,51 +32,80 @@ Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) {
   return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
 }
 
-struct Hanging {
-  Eigen::Vector3d top, bottom, dir;
-  double radius = 0, length = 0;
-  Eigen::Vector3d tomato_centre;
-  double tomato_radius = 0;
-};
-
-// A pedicel hanging from `top` (down = +y) within max_tilt of vertical, with its tomato.
-Hanging hang(Rng& rng, const Eigen::Vector3d& top, const TrussOptions& o) {
-  Hanging h;
-  const double tilt = rng.uniform(0.0, o.max_tilt_deg) * kDeg, az = rng.uniform(0.0, 2.0 * std::numbers::pi);
-  h.dir = Eigen::Vector3d(std::sin(tilt) * std::cos(az), std::cos(tilt), std::sin(tilt) * std::sin(az));
-  h.length = rng.uniform(o.pedicel_length_m);
-  h.radius = rng.uniform(o.pedicel_radius_m);
-  h.top = top;
-  h.bottom = top + h.length * h.dir;
-  h.tomato_radius = rng.uniform(o.tomato_radius_m);
-  h.tomato_centre = h.bottom + h.tomato_radius * h.dir;
-  return h;
-}
-
-bool overlaps(const Hanging& a, const std::vector<Hanging>& others) {
-  for (const auto& b : others) {
-    if ((a.tomato_centre - b.tomato_centre).norm() < a.tomato_radius + b.tomato_radius + 0.002) return true;
-    // The new pedicel must not run through an existing tomato, nor its tomato through a pedicel.
-    for (const auto& [p, s] : {std::pair{&a, &b}, std::pair{&b, &a}}) {
-      const Eigen::Vector3d d = p->bottom - p->top;
-      const double t = std::clamp((s->tomato_centre - p->top).dot(d) / d.squaredNorm(), 0.0, 1.0);
-      if ((p->top + t * d - s->tomato_centre).norm() < s->tomato_radius + p->radius) return true;
-    }
+// The target pedicel crosses the world's y = 0 plane here: at the throat, or
+// off it by the random offset.
+Eigen::Vector3d target_crossing(TrussCase c, Rng& rng, const TrussOptions& o) {
+  Eigen::Vector3d cross(0.0, 0.0, o.throat_z_m);
+  if (c == TrussCase::kRandomOffset) {
+    const double rho = o.max_offset_m * std::sqrt(rng.uniform(0.0, 1.0)),
+                 phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
+    cross += Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
   }
-  return false;
+  return cross;
 }
 
-void add_hanging(sim::World& w, const Hanging& h, const std::string& name, sim::MaterialId stem, sim::MaterialId red,
-                 sim::ObjectId& pedicel, sim::ObjectId& tomato) {
-  pedicel = w.add({name + "_pedicel", sim::RodShape{h.top, h.bottom, h.radius}, Eigen::Isometry3d::Identity(), stem});
-  tomato = w.add({name + "_tomato", sim::SphereShape{h.tomato_radius}, pose(h.tomato_centre), red});
+// Where the gripper really is: kRecognitionError moves and turns it, and the
+// expectation comes from the vision's (nearly right) tomato.
+void place_gripper(TrussCase c, Rng& rng, const Eigen::Vector3d& cross, const sim::HangingTomato& target,
+                   const TrussOptions& o, TrussScene& s) {
+  if (c != TrussCase::kRecognitionError) {
+    s.truth.expected_xz_m = Eigen::Vector2d(0.0, o.throat_z_m);
+    return;
+  }
+  const double rho = rng.uniform(o.recognition_offset_m), phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
+  const Eigen::Vector3d estimate = cross + Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
+  const Eigen::Matrix3d yaw =
+      rot(Eigen::Vector3d::UnitY(), rng.uniform(-o.recognition_yaw_deg, o.recognition_yaw_deg) * kDeg);
+  s.T_world_sensor = pose(estimate - yaw * Eigen::Vector3d(0.0, 0.0, o.throat_z_m), yaw);
+  // The vision's tomato is right (within a few mm): the pedicel is expected
+  // right above its centre.
+  const Eigen::Vector3d tomato = target.tomato_centre + Eigen::Vector3d(rng.normal(o.tomato_estimate_sd_m), 0.0,
+                                                                        rng.normal(o.tomato_estimate_sd_m));
+  const Eigen::Vector3d expected = s.T_world_sensor.inverse() * Eigen::Vector3d(tomato.x(), 0.0, tomato.z());
+  s.truth.expected_xz_m = Eigen::Vector2d(expected.x(), expected.z());
+  s.truth.expected_sd_m = 0.015;
+  s.truth.use_expectation = true;
 }
 
-// The curved stem's offset of a pedicel top dx along the stem from the
-// target's (TrussOptions::stem_bow_m), across the stem at angle psi in y-z.
-Eigen::Vector3d bow(const TrussOptions& o, double psi, double dx) {
-  const double a = o.stem_bow_m * (dx / 0.1) * (dx / 0.1);
-  return {0.0, a * std::cos(psi), a * std::sin(psi)};
+// The vision's view of the whole truss: every tomato within a few mm, each
+// pedicel expected right above its tomato (as for the recognition-error
+// target). Its own streams, so the scene and the gripper stay as they were.
+void expect_as_the_vision(TrussCase c, std::uint64_t seed, const std::vector<sim::HangingTomato>& hangings,
+                          const TrussOptions& o, TrussScene& s) {
+  Rng vision(seed ^ 0x9e3779b97f4a7c15ULL);
+  std::vector<Eigen::Vector3d> estimate;
+  std::vector<double> top_y;  // the tomato's top, below the laser plane (y = 0) when positive
+  for (const auto& h : hangings) {
+    const Eigen::Vector3d noise(vision.normal(o.tomato_estimate_sd_m), vision.normal(o.tomato_estimate_sd_m),
+                                vision.normal(o.tomato_estimate_sd_m));
+    estimate.push_back(h.tomato_centre + noise);
+    top_y.push_back(estimate.back().y() - h.tomato_radius);
+    estimate.back().y() = 0.0;
+  }
+  const Eigen::Isometry3d T_sensor_world = s.T_world_sensor.inverse();
+  Rng radius_noise(seed ^ 0x5851f42d4c957f2dULL);
+  for (std::size_t i = 0; i < estimate.size(); ++i) {
+    const Eigen::Vector3d centre(estimate[i].x(), top_y[i] + hangings[i].tomato_radius, estimate[i].z());
+    const Eigen::Vector3d e = c == TrussCase::kRandomOffset
+                                  ? Eigen::Vector3d(0.0, 0.0, o.throat_z_m) +
+                                        (centre - Eigen::Vector3d(estimate[0].x(), 0.0, estimate[0].z()))
+                                  : Eigen::Vector3d(T_sensor_world * centre);
+    s.truth.tomatoes_expected.push_back(
+        {e, std::max(0.005, hangings[i].tomato_radius + radius_noise.normal(o.tomato_radius_sd_m))});
+  }
+  for (std::size_t i = 1; i < estimate.size(); ++i) {
+    // A tomato whose top reaches the plane puts itself, not its pedicel, in the scan.
+    if (top_y[i] < -o.expected_tomato_in_plane_m) continue;
+    Eigen::Vector3d e;
+    if (c == TrussCase::kRandomOffset) {
+      // The offset moved the whole recognition result: the target's
+      // expectation is the throat, the layout around it is the vision's.
+      e = Eigen::Vector3d(0.0, 0.0, o.throat_z_m) + (estimate[i] - estimate[0]);
+    } else {
+      e = T_sensor_world * estimate[i];
+    }
+    s.truth.neighbours_expected.push_back({Eigen::Vector2d(e.x(), e.z()), top_y[i] < o.expected_pedicel_clearance_m});
+  }
 }
 
 }  // namespace
@@ -113,141 +135,17 @@ std::string set_truss_option(TrussOptions& o, const std::string& key, const std:
 TrussScene make_truss_scene(TrussCase c, std::uint64_t seed, const TrussOptions& o) {
   Rng rng(seed);
   TrussScene s;
-  sim::World& w = s.world;
-  const auto stem_mat = material(w, "stem"), red = material(w, "tomato_red"), leaf = material(w, "leaf");
-
-  // The target pedicel crosses the world's y = 0 plane at `cross`.
-  Eigen::Vector3d cross(0.0, 0.0, o.throat_z_m);
-  if (c == TrussCase::kRandomOffset) {
-    const double rho = o.max_offset_m * std::sqrt(rng.uniform(0.0, 1.0)),
-                 phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
-    cross += Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
-  }
-  Hanging target = hang(rng, Eigen::Vector3d::Zero(), o);
-  const double along = std::clamp(0.5 * target.length + rng.uniform(-o.vertical_jitter_m, o.vertical_jitter_m),
-                                  0.2 * target.length, 0.8 * target.length);
-  // Move it so that the point `along` down its axis lies on the plane at `cross`.
-  const Eigen::Vector3d shift = cross - along * target.dir;
-  target.top += shift;
-  target.bottom += shift;
-  target.tomato_centre += shift;
-  std::vector<Hanging> hangings{target};
-
-  // Neighbours along the stem on both sides (at least one in all).
-  const double psi = o.stem_bow_m != 0.0 ? Rng(seed ^ 0x5bd1e995ULL).uniform(0.0, 2.0 * std::numbers::pi) : 0.0;
-  int left = rng.integer(0, 2), right = rng.integer(0, 2);
-  if (left + right == 0) (rng.integer(0, 1) ? left : right) = 1;
-  for (const int side : {-1, 1}) {
-    double x = target.top.x();
-    for (int k = 0; k < (side < 0 ? left : right); ++k) {
-      // Tomatoes do not interpenetrate: a crowded draw is redrawn, a little
-      // further out each time.
-      for (int attempt = 0; attempt < 50; ++attempt) {
-        const double x_try = x + side * rng.uniform(o.neighbour_spacing_m) * (1.0 + 0.02 * attempt);
-        Eigen::Vector3d top(x_try, target.top.y() + rng.uniform(-o.neighbour_drop_m, o.neighbour_drop_m),
-                            target.top.z() + rng.uniform(-o.neighbour_depth_m, o.neighbour_depth_m));
-        if (o.stem_bow_m != 0.0) top += bow(o, psi, x_try - target.top.x());
-        const Hanging h = hang(rng, top, o);
-        if (!overlaps(h, hangings)) {
-          hangings.push_back(h);
-          x = x_try;
-          break;
-        }
-      }
-    }
-  }
-  for (std::size_t i = 0; i < hangings.size(); ++i) {
-    sim::ObjectId p, t;
-    add_hanging(w, hangings[i], i == 0 ? "target" : "neighbour" + std::to_string(i), stem_mat, red, p, t);
-    s.truth.pedicels.push_back(p);
-    s.truth.tomatoes.push_back(t);
+  const Eigen::Vector3d cross = target_crossing(c, rng, o);
+  const sim::CloseTruss truss = sim::add_close_truss(s.world, rng, seed, cross, o.throat_z_m, o);
+  for (const auto& h : truss.hangings) {
+    s.truth.pedicels.push_back(h.pedicel);
+    s.truth.tomatoes.push_back(h.tomato);
   }
   s.truth.target_pedicel = s.truth.pedicels.front();
-  s.truth.target_radius_m = target.radius;
-
-  // The truss's main stem (rachis) runs through every pedicel's top: a chain
-  // of rods in order along x, continued 10 cm beyond the outer tops.
-  std::vector<Eigen::Vector3d> tops;
-  for (const auto& h : hangings) tops.push_back(h.top);
-  std::sort(tops.begin(), tops.end(), [](const auto& a, const auto& b) { return a.x() < b.x(); });
-  const Eigen::Vector3d first = tops.front(), last = tops.back();
-  tops.insert(tops.begin(), first - Eigen::Vector3d(0.10, 0.0, 0.0));
-  tops.push_back(last + Eigen::Vector3d(0.10, 0.0, 0.0));
-  if (o.stem_bow_m != 0.0) {  // the ends follow the bow
-    const double x0 = target.top.x();
-    tops.front() += bow(o, psi, first.x() - 0.10 - x0) - bow(o, psi, first.x() - x0);
-    tops.back() += bow(o, psi, last.x() + 0.10 - x0) - bow(o, psi, last.x() - x0);
-  }
-  for (std::size_t i = 0; i + 1 < tops.size(); ++i) {
-    const sim::ObjectId id = w.add({"stem" + std::to_string(i), sim::RodShape{tops[i], tops[i + 1], 0.004},
-                                    Eigen::Isometry3d::Identity(), stem_mat});
-    if (i == 0) s.truth.stem = id;
-  }
-  // Leaves behind the truss.
-  if (rng.uniform(0.0, 1.0) < o.leaf_probability) {
-    const Eigen::Matrix3d R = rot(Eigen::Vector3d::UnitY(), rng.uniform(-20.0, 20.0) * kDeg) *
-                              rot(Eigen::Vector3d::UnitX(), rng.uniform(-20.0, 20.0) * kDeg);
-    w.add({"leaf", sim::PlaneShape{Eigen::Vector2d(0.6, 0.6)},
-           pose(Eigen::Vector3d(rng.uniform(-0.1, 0.1), 0.0, o.throat_z_m + rng.uniform(o.leaf_z_m) - 0.15), R), leaf});
-  }
-
-  // Where the gripper really is.
-  if (c == TrussCase::kRecognitionError) {
-    const double rho = rng.uniform(o.recognition_offset_m), phi = rng.uniform(0.0, 2.0 * std::numbers::pi);
-    const Eigen::Vector3d estimate = cross + Eigen::Vector3d(rho * std::cos(phi), 0.0, rho * std::sin(phi));
-    const Eigen::Matrix3d yaw =
-        rot(Eigen::Vector3d::UnitY(), rng.uniform(-o.recognition_yaw_deg, o.recognition_yaw_deg) * kDeg);
-    s.T_world_sensor = pose(estimate - yaw * Eigen::Vector3d(0.0, 0.0, o.throat_z_m), yaw);
-    // The vision's tomato is right (within a few mm): the pedicel is expected
-    // right above its centre.
-    const Eigen::Vector3d tomato = target.tomato_centre + Eigen::Vector3d(rng.normal(o.tomato_estimate_sd_m), 0.0,
-                                                                          rng.normal(o.tomato_estimate_sd_m));
-    const Eigen::Vector3d expected = s.T_world_sensor.inverse() * Eigen::Vector3d(tomato.x(), 0.0, tomato.z());
-    s.truth.expected_xz_m = Eigen::Vector2d(expected.x(), expected.z());
-    s.truth.expected_sd_m = 0.015;
-    s.truth.use_expectation = true;
-  } else {
-    s.truth.expected_xz_m = Eigen::Vector2d(0.0, o.throat_z_m);
-  }
-  // The vision's view of the whole truss: every tomato within a few mm, each
-  // pedicel expected right above its tomato (as for the recognition-error
-  // target). Its own stream, so the scene and the gripper stay as they were.
-  {
-    Rng vision(seed ^ 0x9e3779b97f4a7c15ULL);
-    std::vector<Eigen::Vector3d> estimate;
-    std::vector<double> top_y;  // the tomato's top, below the laser plane (y = 0) when positive
-    for (const auto& h : hangings) {
-      const Eigen::Vector3d noise(vision.normal(o.tomato_estimate_sd_m), vision.normal(o.tomato_estimate_sd_m),
-                                  vision.normal(o.tomato_estimate_sd_m));
-      estimate.push_back(h.tomato_centre + noise);
-      top_y.push_back(estimate.back().y() - h.tomato_radius);
-      estimate.back().y() = 0.0;
-    }
-    const Eigen::Isometry3d T_sensor_world = s.T_world_sensor.inverse();
-    Rng radius_noise(seed ^ 0x5851f42d4c957f2dULL);
-    for (std::size_t i = 0; i < estimate.size(); ++i) {
-      const Eigen::Vector3d centre(estimate[i].x(), top_y[i] + hangings[i].tomato_radius, estimate[i].z());
-      const Eigen::Vector3d e = c == TrussCase::kRandomOffset
-                                    ? Eigen::Vector3d(0.0, 0.0, o.throat_z_m) +
-                                          (centre - Eigen::Vector3d(estimate[0].x(), 0.0, estimate[0].z()))
-                                    : Eigen::Vector3d(T_sensor_world * centre);
-      s.truth.tomatoes_expected.push_back(
-          {e, std::max(0.005, hangings[i].tomato_radius + radius_noise.normal(o.tomato_radius_sd_m))});
-    }
-    for (std::size_t i = 1; i < estimate.size(); ++i) {
-      // A tomato whose top reaches the plane puts itself, not its pedicel, in the scan.
-      if (top_y[i] < -o.expected_tomato_in_plane_m) continue;
-      Eigen::Vector3d e;
-      if (c == TrussCase::kRandomOffset) {
-        // The offset moved the whole recognition result: the target's
-        // expectation is the throat, the layout around it is the vision's.
-        e = Eigen::Vector3d(0.0, 0.0, o.throat_z_m) + (estimate[i] - estimate[0]);
-      } else {
-        e = T_sensor_world * estimate[i];
-      }
-      s.truth.neighbours_expected.push_back({Eigen::Vector2d(e.x(), e.z()), top_y[i] < o.expected_pedicel_clearance_m});
-    }
-  }
+  s.truth.target_radius_m = truss.hangings.front().radius;
+  s.truth.stem = truss.stem;
+  place_gripper(c, rng, cross, truss.hangings.front(), o, s);
+  expect_as_the_vision(c, seed, truss.hangings, o, s);
   s.truth.target_in_sensor = s.T_world_sensor.inverse() * cross;
   return s;
 }

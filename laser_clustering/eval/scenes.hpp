@@ -2,9 +2,11 @@
 // Scenes of the laser_clustering evaluation (docs/laser_clustering.md),
 // built on the simulator's world (sim/world.hpp) from a seed, with their
 // ground truth:
-//   - tomato trusses at the harvesting gripper (thesis 4.5, Table 4.3):
-//     pedicels as thin rods, tomatoes as spheres hanging from them, the
-//     truss stem, neighbouring pedicels and tomatoes, leaves behind;
+//   - tomato trusses at the harvesting gripper (thesis 4.5, Table 4.3): the
+//     simulator's close-up truss (sim/scenes/truss_close.hpp: pedicels as
+//     thin rods, tomatoes as spheres hanging from them, the truss stem,
+//     neighbouring pedicels and tomatoes, leaves behind), with the gripper
+//     where the case puts it and what the vision expects;
 //   - a metal stick a few millimetres before a panel (Figure 5.8 B);
 //   - a wrench hanging on a panel, for the pitch sweep of 5.3.2.
 //
@@ -14,11 +16,11 @@
 #pragma once
 
 #include <cstdint>
-#include <random>
 #include <vector>
 
 #include <Eigen/Geometry>
 
+#include <sim/scenes/truss_close.hpp>
 #include <sim/world.hpp>
 
 #include "laser_clustering/pedicel_finder.hpp"
@@ -37,23 +39,11 @@ enum class TrussCase {
   kRecognitionError,
 };
 
-struct TrussOptions {
-  double throat_z_m = 0.15;          ///< blade throat ahead of the laser [m] (gripper geometry)
-  double max_offset_m = 0.05;        ///< kRandomOffset: horizontal offset, uniform in a disc [m]
-  double vertical_jitter_m = 0.008;  ///< where along the pedicel the laser plane cuts, around its middle [m]
-  double max_tilt_deg = 15.0;        ///< pedicels hang within this of vertical (up to 60)
-  /// A curved stem: the pedicel tops leave the straight line through the
-  /// target's top by stem_bow_m (dx / 10 cm)^2 at dx along it, in a direction
-  /// across the stem drawn per scene from its own stream. 0: straight.
-  double stem_bow_m = 0.0;
-  double pedicel_radius_m[2] = {0.0025, 0.0035};
-  double pedicel_length_m[2] = {0.03, 0.05};
-  double tomato_radius_m[2] = {0.025, 0.035};
-  double neighbour_spacing_m[2] = {0.045, 0.085};  ///< along the stem between pedicel tops
-  double neighbour_depth_m = 0.025;                ///< neighbours sit up to this before/behind the target [m]
-  double neighbour_drop_m = 0.02;                  ///< neighbours' tops up to this above/below the target's [m]
-  double leaf_probability = 0.6;                   ///< a leaf wall behind the truss
-  double leaf_z_m[2] = {0.30, 0.60};
+/// The truss (the simulator's close-up truss: tilts, sizes, neighbours,
+/// leaves, stem bow) and the gripper's and the vision's part.
+struct TrussOptions : sim::CloseTrussParams {
+  double throat_z_m = 0.15;    ///< blade throat ahead of the laser [m] (gripper geometry)
+  double max_offset_m = 0.05;  ///< kRandomOffset: horizontal offset, uniform in a disc [m]
   /// kRecognitionError: the gripper's error (offset in a disc, yaw) and the
   /// error of the tomato-based expectation.
   double recognition_offset_m[2] = {0.02, 0.06};

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 # Fails when a package's own code includes the simulator: every file under a
-# src/, include/ or nodes/ folder of any package but sim/ (evaluation harnesses
-# under <pkg>/eval/, tests and benchmarks may). Run as
+# src/, include/ or nodes/ folder of any package but sim/ (its simulation room
+# <pkg>/sim/, evaluation harnesses under <pkg>/eval/, tests and benchmarks may). Run as
 #   cmake -DROOT=<source dir> -P only_sim_includes_the_simulator.cmake
 if(NOT ROOT)
   message(FATAL_ERROR "ROOT (the source tree) is required")
@@ -19,8 +19,8 @@ foreach(pkg IN LISTS _top)
   file(GLOB_RECURSE _files RELATIVE ${ROOT} ${ROOT}/${pkg}/*.hpp ${ROOT}/${pkg}/*.cpp ${ROOT}/${pkg}/*.h ${ROOT}/${pkg}/*.cc)
   foreach(f IN LISTS _files)
     # Only the package's own layers: src/, include/, nodes/ at any depth
-    # (bus/bag/src, ...), never under eval/, test/ or fuzz/.
-    if(NOT f MATCHES "/(src|include|nodes)/" OR f MATCHES "/(eval|test|fuzz)/")
+    # (bus/bag/src, ...), never under sim/, eval/, test/ or fuzz/.
+    if(NOT f MATCHES "/(src|include|nodes)/" OR f MATCHES "^[^/]+/(.*/)?(sim|eval|test|fuzz)/")
       continue()
     endif()
     file(STRINGS ${ROOT}/${f} _hits REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"]sim/")

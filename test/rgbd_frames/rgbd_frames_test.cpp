@@ -31,6 +31,7 @@
 #include <tinyline/msg/tinyline_msgs/tomato_estimates.hpp>
 #include <tomato_reasoning/eval/scenario.hpp>
 #include <tomato_reasoning/nodes/register.hpp>
+#include <tomato_reasoning/sim/register.hpp>
 
 namespace bus = tinyline::bus;
 namespace launch = tinyline::launch;
@@ -51,6 +52,7 @@ struct Launched {
   Launched(const std::string& file, std::map<std::string, std::string> args) : ctx(make_ctx(log)), ex(ctx->clock()) {
     tinyline::sim::register_nodes(registry);
     tinyline::tomato_reasoning::register_nodes(registry);
+    tinyline::tomato_reasoning::register_sim_nodes(registry);
     tinyline::laser_clustering::register_nodes(registry);
     tinyline::bag::register_nodes(registry);
     ctx->clock().set_sim_time(bus::Time::from_seconds(1000.0));

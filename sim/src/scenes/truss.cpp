@@ -1217,13 +1217,19 @@ TrussTruth truss_truth_from_scene(const Scene& scene) {
   return out;
 }
 
+TrussWorld make_truss_world(const TrussParams& params) {
+  TrussWorld t{make_truss(params), World(), {}};
+  t.distractors = add_to_world(t.truss, t.world);
+  return t;
+}
+
 Scene make_truss_scene(const TrussParams& params) {
   Scene s;
   s.name = params.name + "_" + static_cast<char>(params.complexity) + "_" + std::to_string(params.seed);
   s.description = "tomato truss, complexity class " + std::string(1, static_cast<char>(params.complexity));
-  const Truss t = make_truss(params);
-  const auto second = add_to_world(t, s.world);
-  write_truth(t, s, second);
+  TrussWorld t = make_truss_world(params);
+  s.world = std::move(t.world);
+  write_truth(t.truss, s, t.distractors);
   return s;
 }
 

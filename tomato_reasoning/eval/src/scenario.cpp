@@ -58,8 +58,10 @@ Scenario make_scenario(sim::TrussClass complexity, std::uint64_t seed, const Sce
   sim::TrussParams p = o.truss;
   p.complexity = complexity;
   p.seed = seed;
-  s.truss = sim::make_truss(p);
-  const auto second = sim::add_to_world(s.truss, s.world);
+  sim::TrussWorld built = sim::make_truss_world(p);
+  s.truss = std::move(built.truss);
+  s.world = std::move(built.world);
+  const std::vector<sim::TrussTomato>& second = built.distractors;
   const sim::RgbdCamera camera(o.camera);
   std::vector<Eigen::Isometry3d> T_world_camera{s.truss.T_world_camera};
   if (o.views >= 2) {

@@ -10,7 +10,7 @@
 
 #include "harness.hpp"
 #include "picking.hpp"
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 #include <tinyline/common/random.hpp>
 
 namespace tinyline::tomato_reasoning::eval {
@@ -125,14 +125,14 @@ const char* to_string(PickVerdict v) {
   return "?";
 }
 
-std::unique_ptr<sim::eval::Scanner> make_hand_laser(const VerificationOptions& o) {
-  sim::eval::SimScannerOptions so;
+std::unique_ptr<laser_clustering::eval::Scanner> make_hand_laser(const VerificationOptions& o) {
+  laser_clustering::eval::SimScannerOptions so;
   so.sensor_config = o.sensor_config;
   so.raw_pulses = o.raw_pulses;
   so.calibration_max_m = o.calibration_max_m;
   so.calibration_step_m = o.calibration_step_m;
   so.calibration_sets = o.calibration_sets;
-  return sim::eval::make_sim_scanner(so);
+  return laser_clustering::eval::make_sim_scanner(so);
 }
 
 VerificationHarness::VerificationHarness(VerificationOptions o) : o_(std::move(o)), scanner_(make_hand_laser(o_)) {}
@@ -152,7 +152,8 @@ lc::PedicelDetection VerificationHarness::look(const sim::World& world, const Sc
                                                const Eigen::Isometry3d& T_ref_laser,
                                                const std::optional<lc::PedicelExpectation>& belief,
                                                std::uint64_t scan_seed) {
-  const sim::eval::SimulatedScan scan = scanner_->scan(world, s.truss.T_world_camera * T_ref_laser, scan_seed);
+  const laser_clustering::eval::SimulatedScan scan =
+      scanner_->scan(world, s.truss.T_world_camera * T_ref_laser, scan_seed);
   const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
   return lc::find_pedicel(scan.scan, objects, finder(), belief);
 }

@@ -14,12 +14,12 @@
 #include <tinyline/msg/tinyline_msgs/harvest_score.hpp>
 
 #include <laser_clustering/nodes/register.hpp>
-#include <sim/nodes/register.hpp>
 #include <sim/scenes/truss.hpp>
 
 #include "tomato_reasoning/nodes/nodes.hpp"
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/nodes/register.hpp"
+#include "tomato_reasoning/sim/register.hpp"
 
 namespace bus = tinyline::bus;
 namespace tr = tinyline::tomato_reasoning;
@@ -39,8 +39,7 @@ namespace {
 // and hand laser, on stepped sim time
 // (bus/testing.hpp).
 struct Harness : bus::testing::NodeRig {
-  Harness()
-      : NodeRig({&tr::register_nodes, &tinyline::laser_clustering::register_nodes, &tinyline::sim::register_nodes}) {}
+  Harness() : NodeRig({&tr::register_nodes, &tinyline::laser_clustering::register_nodes, &tr::register_sim_nodes}) {}
 };
 
 }  // namespace
@@ -48,7 +47,7 @@ struct Harness : bus::testing::NodeRig {
 TEST(TomatoNodes, AllAreRegistered) {
   bus::NodeRegistry r;
   tr::register_nodes(r);
-  tinyline::sim::register_nodes(r);  // the demo's simulated camera and hand laser
+  tr::register_sim_nodes(r);  // the demo's simulated camera and hand laser
   for (const char* t : {"tomato_detector", "pick_verifier", "truss_camera", "sim_gripper", "harvest_score"})
     EXPECT_NE(r.find("tomato_reasoning", t), nullptr) << t;
 }

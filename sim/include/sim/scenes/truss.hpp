@@ -218,6 +218,18 @@ struct TrussTruth {
 /// naming the missing or malformed entry.
 [[nodiscard]] TrussTruth truss_truth_from_scene(const Scene& scene);
 
+/// A settled truss in a world of its own: make_truss() then add_to_world().
+struct TrussWorld {
+  Truss truss;
+  World world;
+  std::vector<TrussTomato> distractors;  ///< the second branch's fruit (empty when there is none)
+};
+
+/// Builds and settles a truss and puts it in a world: what a scene of one
+/// truss and the tomato evaluation's scenarios stand on. Throws
+/// std::invalid_argument on bad parameters.
+[[nodiscard]] TrussWorld make_truss_world(const TrussParams& params);
+
 /// A scene holding one truss (room, leaves, truth), as the `truss`
 /// generator makes it from YAML.
 [[nodiscard]] Scene make_truss_scene(const TrussParams& params);

@@ -23,8 +23,14 @@
 #include <tinyline/msg/tinyline_msgs/scene_truth.hpp>
 
 #include <sim/system.hpp>
+#include <sim/yaml_node.hpp>
 
 namespace tinyline::sim::nodes {
+
+/// The constraints of a node's `scene` parameter: an input file, checked when
+/// the node is built, so a launch (and `launch --check`) stops at the line
+/// that set it. (Simulated nodes of other packages use it too.)
+inline bus::ParamConstraints scene_file() { return bus::ParamConstraints::input_file(kMaxConfigFileBytes); }
 
 /// SensorSet -> RawScan exactly as the wire carries it (charges x 10 as int16,
 /// temperature as the MCU reads it).

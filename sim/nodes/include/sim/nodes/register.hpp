@@ -8,10 +8,10 @@
 namespace tinyline::sim {
 
 /// Registers sim/virtual_sensor and sim/scene_truth; laser_clustering/
-/// sim_gripper_pitch; with the packages in the build, hydrus_fitting/
-/// hydrus_sim and tomato_reasoning/truss_camera, sim_gripper and harvest_score (under the
-/// names of the packages they simulate for); and the driver's `sim:` port
-/// scheme (sim/nodes/port.hpp). The `tinyline` tool calls it with every
+/// sim_gripper_pitch (a generic pitch joint, named for the launch files that
+/// use it); and the driver's `sim:` port scheme (sim/nodes/port.hpp). The
+/// applications' simulated nodes register from their own packages
+/// (`<pkg>/sim/register.hpp`). The `tinyline` tool calls it with every
 /// package's register_nodes().
 void register_nodes(bus::NodeRegistry& registry);
 

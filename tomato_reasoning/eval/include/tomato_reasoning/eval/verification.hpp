@@ -18,7 +18,7 @@
 #include "tomato_reasoning/pick_pose.hpp"
 #include "tomato_reasoning/pipeline.hpp"
 
-namespace tinyline::sim::eval {
+namespace tinyline::laser_clustering::eval {
 class Scanner;
 }
 
@@ -64,8 +64,8 @@ struct VerificationOptions {
 
 /// The simulated hand laser these options describe (sensor, read-out schedule,
 /// calibration rail), as the scoring and the hand_laser node both build it.
-/// Throws std::runtime_error as sim::eval::make_sim_scanner.
-[[nodiscard]] std::unique_ptr<sim::eval::Scanner> make_hand_laser(const VerificationOptions& o);
+/// Throws std::runtime_error as laser_clustering::eval::make_sim_scanner.
+[[nodiscard]] std::unique_ptr<laser_clustering::eval::Scanner> make_hand_laser(const VerificationOptions& o);
 
 /// Sets one option by name (pulses=10,20,50,120,300,
 /// expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans,
@@ -150,7 +150,7 @@ class VerificationHarness {
   [[nodiscard]] laser_clustering::PedicelFinderParams finder() const;
 
   VerificationOptions o_;
-  std::unique_ptr<sim::eval::Scanner> scanner_;
+  std::unique_ptr<laser_clustering::eval::Scanner> scanner_;
 };
 
 }  // namespace tinyline::tomato_reasoning::eval

@@ -27,12 +27,13 @@
 
 namespace tinyline::sim {
 class SimulatedSystem;
-namespace eval {
-class SimulatedHydrus;
-}
 }  // namespace tinyline::sim
 
-namespace tinyline::sim::nodes {
+namespace tinyline::hydrus_fitting {
+class SimulatedHydrus;
+}  // namespace tinyline::hydrus_fitting
+
+namespace tinyline::hydrus_fitting::sim_nodes {
 
 class HydrusSimNode : public bus::Node {
  public:
@@ -49,10 +50,10 @@ class HydrusSimNode : public bus::Node {
   std::string scene_path_, description_path_, frame_id_;
   double rate_hz_ = 100.0;
   bool loop_ = true;
-  hydrus_fitting::ApproachParams approach_;
-  std::unique_ptr<hydrus_fitting::RobotModel> model_;
-  std::shared_ptr<SimulatedSystem> system_;
-  std::unique_ptr<eval::SimulatedHydrus> robot_;
+  ApproachParams approach_;
+  std::unique_ptr<RobotModel> model_;
+  std::shared_ptr<sim::SimulatedSystem> system_;
+  std::unique_ptr<SimulatedHydrus> robot_;
   bus::Time start_{};
   bool started_ = false;
   double last_t_ = 0.0;
@@ -62,4 +63,4 @@ class HydrusSimNode : public bus::Node {
   std::shared_ptr<bus::Timer> timer_;
 };
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::hydrus_fitting::sim_nodes

@@ -33,13 +33,12 @@
 #include <tinyline/msg/tinyline_msgs/harvest_summary.hpp>
 #include <tinyline/msg/tinyline_msgs/line_scan.hpp>
 
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 #include <tomato_reasoning/eval/verification.hpp>
 
-#include "parts.hpp"
 #include "truss_parts.hpp"
 
-namespace tinyline::sim::nodes {
+namespace tinyline::tomato_reasoning::sim_nodes {
 
 namespace msgs = tinyline_msgs::msg;
 namespace te = tomato_reasoning::eval;
@@ -86,8 +85,9 @@ class SimGripperNode : public bus::Node {
     p.complexity = class_;
     p.seed = std::uint64_t(seed_);
     p.physics = physics_;
-    truss_ = sim::make_truss(p);
-    (void)sim::add_to_world(truss_, world_);
+    sim::TrussWorld built = sim::make_truss_world(p);  // the truss_camera's truss
+    truss_ = std::move(built.truss);
+    world_ = std::move(built.world);
     scanner_ = te::make_hand_laser(te::VerificationOptions{});  // the hand laser the scoring uses
     logger().info("hand laser: {}", scanner_->describe());
   }
@@ -152,7 +152,7 @@ class SimGripperNode : public bus::Node {
   sim::Truss truss_;
   sim::World world_;
   sim::BladeParams blades_;
-  std::unique_ptr<eval::Scanner> scanner_;
+  std::unique_ptr<laser_clustering::eval::Scanner> scanner_;
   std::uint64_t index_ = 0;
   std::shared_ptr<bus::Publisher<msgs::LineScan>> scan_pub_;
   std::shared_ptr<bus::Publisher<msgs::CutOutcome>> cut_pub_;
@@ -304,4 +304,4 @@ void register_harvest_nodes(bus::NodeRegistry& r) {
                           "the harvest's summary scored against the truss's truth as Table 4.2 counts it -> score");
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::tomato_reasoning::sim_nodes

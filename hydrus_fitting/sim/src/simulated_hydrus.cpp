@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
 
 #include <stdexcept>
 
@@ -7,11 +7,7 @@
 
 #include <sim/scenes/hydrus.hpp>
 
-namespace tinyline::sim::eval {
-
-using hydrus_fitting::Kinematics;
-using hydrus_fitting::RobotModel;
-using hydrus_fitting::RobotPose2D;
+namespace tinyline::hydrus_fitting {
 
 SimulatedHydrus::SimulatedHydrus(sim::SimulatedSystem& system, const RobotModel& model)
     : system_(&system), model_(&model) {
@@ -66,4 +62,4 @@ void SimulatedHydrus::place(const RobotPose2D& pose) {
   }
 }
 
-}  // namespace tinyline::sim::eval
+}  // namespace tinyline::hydrus_fitting

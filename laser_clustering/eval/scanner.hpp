@@ -19,20 +19,20 @@
 #include <laser_clustering/line_scan.hpp>
 #include <sim/world.hpp>
 
-namespace tinyline::sim::eval {
+namespace tinyline::laser_clustering::eval {
 
 /// One calibrated scan with the ground truth of every pixel.
 struct SimulatedScan {
   laser_clustering::LineScan scan;
-  std::vector<ObjectId> truth_object;     ///< per pixel: what its central ray hits (kNoObject: nothing)
-  std::vector<std::uint8_t> truth_mixed;  ///< per pixel: its footprint spans several surfaces
+  std::vector<sim::ObjectId> truth_object;  ///< per pixel: what its central ray hits (sim::kNoObject: nothing)
+  std::vector<std::uint8_t> truth_mixed;    ///< per pixel: its footprint spans several surfaces
 };
 
 /// Produces scans of a world from a sensor pose. `index` seeds the scan's noise.
 class Scanner {
  public:
   virtual ~Scanner() = default;
-  virtual SimulatedScan scan(const World& world, const Eigen::Isometry3d& T_world_sensor, std::uint64_t index) = 0;
+  virtual SimulatedScan scan(const sim::World& world, const Eigen::Isometry3d& T_world_sensor, std::uint64_t index) = 0;
   /// One line for reports (sensor model, lens, calibration).
   [[nodiscard]] virtual std::string describe() const = 0;
 };
@@ -78,4 +78,4 @@ struct SimCalibrationSummary {
 /// does. Throws std::runtime_error as make_sim_scanner.
 SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, const std::string& path);
 
-}  // namespace tinyline::sim::eval
+}  // namespace tinyline::laser_clustering::eval

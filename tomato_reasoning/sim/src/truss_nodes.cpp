@@ -31,10 +31,11 @@
 #include <tomato_reasoning/eval/scenario.hpp>
 #include <tomato_reasoning/nodes/nodes.hpp>
 
-#include "parts.hpp"
+#include <tomato_reasoning/sim/register.hpp>
+
 #include "truss_parts.hpp"
 
-namespace tinyline::sim::nodes {
+namespace tinyline::tomato_reasoning::sim_nodes {
 
 namespace msgs = tinyline_msgs::msg;
 namespace te = tomato_reasoning::eval;
@@ -149,11 +150,15 @@ class TrussCameraNode : public bus::Node {
   bool stale_ = false;  ///< fruit fell since the frames were rendered
 };
 
-void register_truss_nodes(bus::NodeRegistry& r) {
-  r.add<TrussCameraNode>(
+}  // namespace tinyline::tomato_reasoning::sim_nodes
+
+namespace tinyline::tomato_reasoning {
+
+void register_sim_nodes(bus::NodeRegistry& r) {
+  r.add<sim_nodes::TrussCameraNode>(
       "tomato_reasoning", "truss_camera",
       "simulated RGB-D camera on a seeded tomato truss (class A/B/C): cloud + truth markers; cut fruit leave it");
-  register_harvest_nodes(r);
+  sim_nodes::register_harvest_nodes(r);
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::tomato_reasoning

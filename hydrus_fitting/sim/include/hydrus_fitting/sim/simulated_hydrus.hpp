@@ -16,35 +16,35 @@
 #include <hydrus_fitting/trajectory.hpp>
 #include <sim/system.hpp>
 
-namespace tinyline::sim::eval {
+namespace tinyline::hydrus_fitting {
 
 class SimulatedHydrus {
  public:
   /// Throws std::runtime_error naming the scene and what is missing: a sensor
   /// or link of the description not in the scene, or the truth entries
   /// cylinder_centre_m, cylinder_radius_m, sensing_height_m.
-  SimulatedHydrus(SimulatedSystem& system, const hydrus_fitting::RobotModel& model);
+  SimulatedHydrus(sim::SimulatedSystem& system, const RobotModel& model);
 
   /// Moves every sensor and link box of the description to `pose` (base in
   /// the world, joint angles).
-  void place(const hydrus_fitting::RobotPose2D& pose);
+  void place(const RobotPose2D& pose);
 
   [[nodiscard]] std::size_t sim_sensor(std::size_t description_sensor) const { return sensors_.at(description_sensor); }
   [[nodiscard]] const Eigen::Vector2d& cylinder_centre_world_m() const { return centre_world_; }
   [[nodiscard]] double cylinder_radius_m() const { return radius_m_; }
   [[nodiscard]] double sensing_height_m() const { return height_m_; }
   /// The cylinder's centre in the robot (base) frame at `pose`.
-  [[nodiscard]] Eigen::Vector2d centre_in_base(const hydrus_fitting::RobotPose2D& pose) const {
+  [[nodiscard]] Eigen::Vector2d centre_in_base(const RobotPose2D& pose) const {
     return pose.T_world_base().inverse() * centre_world_;
   }
 
  private:
-  SimulatedSystem* system_;
-  const hydrus_fitting::RobotModel* model_;
+  sim::SimulatedSystem* system_;
+  const RobotModel* model_;
   std::vector<std::size_t> sensors_;
-  std::vector<ObjectId> links_;
+  std::vector<sim::ObjectId> links_;
   Eigen::Vector2d centre_world_ = Eigen::Vector2d::Zero();
   double radius_m_ = 0.0, height_m_ = 0.0;
 };
 
-}  // namespace tinyline::sim::eval
+}  // namespace tinyline::hydrus_fitting

@@ -9,11 +9,15 @@
 
 #include <tinyline/bus/node.hpp>
 #include <tinyline/bus/params.hpp>
+#include <tinyline/bus/registry.hpp>
 
 #include <sim/scenes/cutter.hpp>
 #include <sim/scenes/truss.hpp>
 
-namespace tinyline::sim::nodes {
+namespace tinyline::tomato_reasoning::sim_nodes {
+
+/// tomato_reasoning/sim_gripper, tomato_reasoning/harvest_score (harvest_nodes.cpp).
+void register_harvest_nodes(bus::NodeRegistry& registry);
 
 /// The node's truss_class parameter as a class; a ParamError naming the node otherwise.
 inline sim::TrussClass truss_class(const bus::Node& n, const std::string& s) {
@@ -46,4 +50,4 @@ inline int match_truth(const sim::Truss& truss, const Eigen::Vector3d& centre_wo
   return best;
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::tomato_reasoning::sim_nodes

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <sim/eval/scanner.hpp>
+#include "scanner.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -18,7 +18,7 @@
 #include <tiny_laser_calibration/fit.hpp>
 #include <tiny_laser_driver/scan_processor.hpp>
 
-namespace tinyline::sim::eval {
+namespace tinyline::laser_clustering::eval {
 
 namespace {
 
@@ -193,4 +193,4 @@ SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, co
   return {c.rmse_m, white_reflectance(options, params, processor)};
 }
 
-}  // namespace tinyline::sim::eval
+}  // namespace tinyline::laser_clustering::eval

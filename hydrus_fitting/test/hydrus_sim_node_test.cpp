@@ -11,8 +11,8 @@
 #include <sim/system.hpp>
 
 #include <hydrus_fitting/trajectory.hpp>
-#include <sim/nodes/hydrus_sim_node.hpp>
-#include <sim/nodes/register.hpp>
+#include <hydrus_fitting/sim/hydrus_sim_node.hpp>
+#include <hydrus_fitting/sim/register.hpp>
 
 namespace hf = tinyline::hydrus_fitting;
 namespace bus = tinyline::bus;
@@ -26,7 +26,7 @@ const std::string kSrc = TINYLINE_SOURCE_DIR;
 // The hydrus_sim node on stepped sim time (bus/testing.hpp), with its joint
 // states and ground truth kept.
 struct Rig : bus::testing::NodeRig {
-  Rig() : NodeRig({&tinyline::sim::register_nodes}) {}
+  Rig() : NodeRig({&hf::register_sim_nodes}) {}
   std::vector<std::shared_ptr<const JointState>>& joints = collect<JointState>("joint_states");
   std::vector<std::shared_ptr<const CircleFit>>& truth = collect<CircleFit>("truth");
   std::shared_ptr<bus::Node> add(bus::NodeOptions o) {
@@ -44,7 +44,7 @@ TEST(HydrusSimNode, PublishesTheManoeuvreAndMovesTheSensors) {
   bus::NodeOptions o;
   o.name = "robot";
   o.param("scene", scene).param("robot_description", kSrc + "/hydrus_fitting/config/hydrus4.yaml").param("loop", false);
-  auto node = std::dynamic_pointer_cast<tinyline::sim::nodes::HydrusSimNode>(r.add(o));
+  auto node = std::dynamic_pointer_cast<hf::sim_nodes::HydrusSimNode>(r.add(o));
   ASSERT_NE(node, nullptr);
   r.ex.advance_to(bus::Time::from_seconds(0.0));  // starts the node (its timer)
   r.ex.advance_to(bus::Time::from_seconds(8.0));  // mid-way through closing the links

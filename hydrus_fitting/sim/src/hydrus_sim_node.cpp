@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include <sim/nodes/hydrus_sim_node.hpp>
-
-#include "parts.hpp"
+#include <hydrus_fitting/sim/hydrus_sim_node.hpp>
+#include <hydrus_fitting/sim/register.hpp>
 
 #include <cmath>
 
 #include <fmt/format.h>
 
-#include <sim/eval/simulated_hydrus.hpp>
+#include <hydrus_fitting/sim/simulated_hydrus.hpp>
+#include <sim/nodes/nodes.hpp>
 #include <sim/system.hpp>
 #include <tinyline/bus/param_table.hpp>
 #include <tinyline/bus/registry.hpp>
@@ -15,21 +15,17 @@
 #include <hydrus_fitting/param_tables.hpp>
 #include <hydrus_fitting/robot_model.hpp>
 
-namespace tinyline::sim::nodes {
-
-using hydrus_fitting::ApproachParams;
-using hydrus_fitting::RobotModel;
-using hydrus_fitting::RobotPose2D;
+namespace tinyline::hydrus_fitting::sim_nodes {
 
 using bus::ParamConstraints;
 namespace msgs = tinyline_msgs::msg;
 
 HydrusSimNode::HydrusSimNode(bus::NodeOptions o) : Node(std::move(o)) {
-  ParamConstraints scene = scene_file();
+  ParamConstraints scene = sim::nodes::scene_file();
   scene.required = true;
   scene_path_ = declare_parameter<std::string>(
       "scene", "", "scene YAML with the Hydrus (sim/config/scenes/hydrus4_grasp.yaml)", scene);
-  ParamConstraints description = ParamConstraints::input_file(hydrus_fitting::kMaxRobotDescriptionBytes);
+  ParamConstraints description = ParamConstraints::input_file(kMaxRobotDescriptionBytes);
   description.required = true;
   description_path_ = declare_parameter<std::string>(
       "robot_description", "", "robot description YAML (links, joints, sensor mounts)", description);
@@ -50,7 +46,7 @@ void HydrusSimNode::on_start() {
   approach_.joints = static_cast<int>(model_->joint_names().size());
   // The same system as the drivers' `sim:` devices of this process.
   system_ = sim::SimulatedSystem::shared(scene_path_);
-  robot_ = std::make_unique<eval::SimulatedHydrus>(*system_, *model_);
+  robot_ = std::make_unique<SimulatedHydrus>(*system_, *model_);
   robot_->place(approach_pose(approach_, 0.0));
   logger().info("flying '{}' in scene '{}': {} s manoeuvre{}", model_->name(), system_->scene_name(),
                 approach_.duration_s(), loop_ ? ", looped" : "");
@@ -103,10 +99,15 @@ void HydrusSimNode::tick() {
   truth_pub_->publish(std::move(truth));
 }
 
-void register_hydrus_nodes(bus::NodeRegistry& r) {
-  r.add<HydrusSimNode>("hydrus_fitting", "hydrus_sim",
-                       "flies the simulated Hydrus of a scene through the grasp: moves its links and sensors, "
-                       "publishes joint states and the true cylinder");
+}  // namespace tinyline::hydrus_fitting::sim_nodes
+
+namespace tinyline::hydrus_fitting {
+
+void register_sim_nodes(bus::NodeRegistry& r) {
+  r.add<sim_nodes::HydrusSimNode>(
+      "hydrus_fitting", "hydrus_sim",
+      "flies the simulated Hydrus of a scene through the grasp: moves its links and sensors, "
+      "publishes joint states and the true cylinder");
 }
 
-}  // namespace tinyline::sim::nodes
+}  // namespace tinyline::hydrus_fitting
