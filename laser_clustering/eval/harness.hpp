@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The evaluation harness of docs/laser_clustering.md: seeded trials of the
 // scenes in scenes.hpp, scanned by a Scanner (the simulated sensor and the
-// driver's processing, see sim/eval/scanner.hpp), scored against ground truth,
+// driver's processing, see eval/scanner.hpp), scored against ground truth,
 // with Wilson 95 % confidence intervals.
 #pragma once
 
@@ -25,7 +25,7 @@
 
 namespace tinyline::laser_clustering::eval {
 
-// The scanner: the simulated sensor and the driver's processing (sim/eval).
+// The scanner: the simulated sensor and the driver's processing (eval/scanner.hpp).
 
 /// A proportion with its Wilson score 95 % interval.
 struct Rate {

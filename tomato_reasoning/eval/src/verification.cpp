@@ -259,7 +259,7 @@ std::vector<int> points_between_blades(const lc::LineScan& scan, const lc::TwoSt
 
 BladeCheck VerificationHarness::check_blades(const sim::World& world, const Scenario& s,
                                              const Eigen::Isometry3d& T_ref_laser, std::uint64_t scan_seed) {
-  const sim::eval::SimulatedScan scan = scanner_->scan(world, s.truss.T_world_camera * T_ref_laser, scan_seed);
+  const lc::eval::SimulatedScan scan = scanner_->scan(world, s.truss.T_world_camera * T_ref_laser, scan_seed);
   const lc::TwoStageResult objects = lc::cluster_line_scan(scan.scan);
   const std::vector<int> inside = points_between_blades(scan.scan, objects, o_.pose);
   BladeCheck check;
