@@ -198,6 +198,7 @@ def destination(case, entry, scratch, given_input):
 
 def place(case, path, scratch):
     """Puts the case's thing at `path`; returns the path the message must name."""
+    os.makedirs(os.path.dirname(path), exist_ok=True)  # a file a program writes into a folder of its own
     if case == "symlink":
         target = os.path.join(scratch, "link_target")
         with open(target, "w", encoding="utf-8") as f:

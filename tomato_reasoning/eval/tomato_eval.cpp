@@ -618,6 +618,27 @@ void write_tables(const std::vector<Run>& runs, const PickVerification* v, const
 }
 
 /// Every file the run may write, checked before any truss is simulated.
+/// The frames --via-disk writes (eval::round_trip_through_files: a folder
+/// per class, seed and view), checked before any work.
+bool via_disk_allowed(const Request& r) {
+  namespace fs = std::filesystem;
+  if (r.via_disk.empty()) return true;
+  std::error_code ec;
+  const fs::file_status st = fs::symlink_status(r.via_disk, ec);
+  if (fs::exists(st) && !fs::is_directory(st)) {
+    std::fprintf(stderr, "tomato_eval: --via-disk %s is not a folder: left as it is\n", r.via_disk.c_str());
+    return false;
+  }
+  for (const auto& c : r.classes)
+    for (const std::uint64_t seed : r.seeds)
+      for (int v = 0; v < r.scenario.views; ++v)
+        for (const char* name : {"rgb/000000.png", "depth/000000.png", "intrinsics.yaml"}) {
+          const fs::path file = fs::path(r.via_disk) / (c + std::to_string(seed) + "_v" + std::to_string(v)) / name;
+          if (!files::output_allowed("tomato_eval", file.string())) return false;
+        }
+  return true;
+}
+
 bool outputs_allowed(const Request& r) {
   std::vector<std::string> names{"verification.csv", "harvest.csv", "kappa_fit.csv", "kappa_sweep.csv"};
   for (const auto& v : r.variants) {
@@ -626,7 +647,7 @@ bool outputs_allowed(const Request& r) {
   }
   for (const auto& n : names)
     if (!files::output_allowed("tomato_eval", r.out_dir + "/" + n)) return false;
-  return true;
+  return via_disk_allowed(r);
 }
 
 }  // namespace

@@ -74,12 +74,16 @@ TEST(LaserVerification, OptionsBySettingParseOrSayWhatIsWrong) {
 // The closed loop of 4.5 (move, scan again, re-centre): on class B truss 204
 // (a tuning seed) the first tomato's pick from a random offset ends on
 // something else after the first scan's move alone, and on its pedicel once
-// the hand scans again from there and re-centres.
+// the hand scans again from there and re-centres. The case was found with
+// the force model's pedicel direction alone: the seen pedicel's evidence
+// moves the first scan elsewhere, so it is off here.
 TEST(LaserVerification, TheClosedLoopEndsOnThePedicelWhereOneScanDoesNot) {
   eval::ScenarioOptions two_views;
   two_views.views = 2;
   const eval::Scenario s = eval::make_scenario(sim::TrussClass::kB, 204, two_views);
-  const PipelineResult r = eval::make_variant("default", eval::variant_params("default"))->run(s);
+  PipelineParams force_model_only = eval::variant_params("default");
+  force_model_only.pedicel.enabled = false;
+  const PipelineResult r = eval::make_variant("default", force_model_only)->run(s);
   ASSERT_TRUE(r.ok) << r.reason;
   eval::VerificationOptions o;
   o.random_offset_m = 0.05;

@@ -204,6 +204,9 @@ int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::o
   if (!o.positional().empty()) throw UsageError("measured takes no positional argument");
   const std::string path = o.value("--data").value_or(env.measured_data);
   if (path.empty()) throw UsageError("measured needs --data MEASURED.yaml (no default known)");
+  // The corrected calibration is checked before any work: never one of the inputs, a link, a device or a leftover.
+  if (const auto calib = o.value("--apply"))
+    files::AtomicFile::check(*o.value("-o"), {.inputs = {path, *calib}, .what = "calibration"});
   const MeasuredData d = load_measured_data(path);
   const MaterialAnalysis mat = analyse_materials(d);
   const DistanceAnalysis dist = analyse_distances(d);
