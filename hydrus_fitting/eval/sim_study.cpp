@@ -54,13 +54,6 @@ std::vector<SensorRun> sensor_runs(const RobotModel& model, const SimulatedHydru
   return sensors;
 }
 
-drv::OpticsParams optics_of(const sim::SensorParams& sp) {
-  drv::OpticsParams optics;
-  optics.focal_mm = sp.lens.focal_mm;
-  optics.sensor_length_mm = sp.lens.sensor_length_mm;
-  return optics;
-}
-
 SequencerParams sequencer_params(double set_s, double guard_s) {
   SequencerParams seq;
   seq.timing.set_period_s = set_s;
@@ -83,7 +76,7 @@ class SimStudyRun {
         sp_(sys_.sensor(sensors_.front().sim_index).params()),
         pulses_(sp_.acquisition.raw_pulses),
         set_s_(pulses_.back() / sp_.emitter.pulse_rate_hz),
-        processor_(drv::CalibrationModel::load(p.calibration_path), optics_of(sp_)),
+        processor_(drv::CalibrationModel::load(p.calibration_path), sim::driver_optics(sp_)),
         joints_(model_.joint_names(), JointBufferParams{0.05, 5.0}),
         base_poses_(BasePoseBufferParams{0.05, 5.0}),
         estimator_(model_),

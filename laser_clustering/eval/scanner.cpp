@@ -38,13 +38,6 @@ sim::SensorParams load(const SimScannerOptions& o) {
   return p;
 }
 
-tld::OpticsParams optics(const sim::SensorParams& p) {
-  tld::OpticsParams o;
-  o.focal_mm = p.lens.focal_mm;
-  o.sensor_length_mm = p.lens.sensor_length_mm;
-  return o;
-}
-
 tld::RawSet to_raw(const sim::SensorSet& set) {
   tld::RawSet raw;
   raw.frames = sim::raw_frames(set);
@@ -119,7 +112,7 @@ class SimScanner : public Scanner {
         params_(load(o)),
         sensor_(params_),
         calibration_(calibrate(o, params_)),
-        processor_(calibration_.model, optics(params_)) {
+        processor_(calibration_.model, sim::driver_optics(params_)) {
     white_reflectance_ = white_reflectance(o, params_, processor_);
   }
 
@@ -189,7 +182,7 @@ SimCalibrationSummary write_sim_calibration(const SimScannerOptions& options, co
   const sim::SensorParams params = load(options);
   const Calibration c = calibrate(options, params);
   c.model.save(path);
-  const tld::ScanProcessor processor(c.model, optics(params));
+  const tld::ScanProcessor processor(c.model, sim::driver_optics(params));
   return {c.rmse_m, white_reflectance(options, params, processor)};
 }
 

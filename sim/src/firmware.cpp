@@ -88,6 +88,13 @@ std::vector<std::uint16_t> firmware_distances(const SensorSet& set, const tld::C
   return out;
 }
 
+tld::OpticsParams driver_optics(const SensorParams& params) {
+  tld::OpticsParams o;
+  o.focal_mm = params.lens.focal_mm;
+  o.sensor_length_mm = params.lens.sensor_length_mm;
+  return o;
+}
+
 std::vector<tld::RawFrame> raw_frames(const SensorSet& set) {
   std::vector<tld::RawFrame> frames;
   const double t = std::clamp(set.temperature_c, 0.0, 65.4);

@@ -33,6 +33,7 @@
 
 #include <tiny_laser_driver/calibration.hpp>
 #include <tiny_laser_driver/protocol.hpp>
+#include <tiny_laser_driver/scan_processor.hpp>
 
 #include <sim/tof_sensor.hpp>
 
@@ -51,6 +52,9 @@ namespace tinyline::sim {
 /// A set as wire frames: one raw frame per read-out (charges x 10, rounded,
 /// clamped to int16; index, last flag, temperature and pulses/10 packed).
 [[nodiscard]] std::vector<tiny_laser_driver::RawFrame> raw_frames(const SensorSet& set);
+
+/// The receiver lens as the driver's scan processing takes it.
+[[nodiscard]] tiny_laser_driver::OpticsParams driver_optics(const SensorParams& params);
 
 // ---------------------------------------------------------------------------- published
 
