@@ -15,22 +15,9 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 using Rng = sim::SceneRng;
 
-sim::MaterialId material(const sim::World& w, const std::string& name) {
-  const auto id = w.materials().find(name);
-  if (!id) throw std::invalid_argument("eval scene: unknown material '" + name + "'");
-  return *id;
-}
-
-Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Matrix3d& R = Eigen::Matrix3d::Identity()) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  T.translation() = t;
-  return T;
-}
-
-Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) {
-  return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
-}
+sim::MaterialId material(const sim::World& w, const std::string& name) { return sim::material(w, name, "eval scene"); }
+using sim::pose;
+using sim::rot;
 
 // The target pedicel crosses the world's y = 0 plane here: at the throat, or
 // off it by the random offset.

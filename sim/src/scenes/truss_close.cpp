@@ -13,22 +13,7 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-MaterialId material(const World& w, const std::string& name) {
-  const auto id = w.materials().find(name);
-  if (!id) throw std::invalid_argument("close truss: unknown material '" + name + "'");
-  return *id;
-}
-
-Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Matrix3d& R = Eigen::Matrix3d::Identity()) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  T.translation() = t;
-  return T;
-}
-
-Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) {
-  return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
-}
+MaterialId material(const World& w, const std::string& name) { return sim::material(w, name, "close truss"); }
 
 // A pedicel hanging from `top` (down = +y) within max_tilt of vertical, with its tomato.
 HangingTomato hang(SceneRng& rng, const Eigen::Vector3d& top, const CloseTrussParams& o) {

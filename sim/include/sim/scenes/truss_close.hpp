@@ -14,6 +14,8 @@
 
 #include <cstdint>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -21,6 +23,25 @@
 #include <sim/world.hpp>
 
 namespace tinyline::sim {
+
+/// Placing things in a close-up scene (this truss, laser_clustering's gripper
+/// and tool scenes): a pose from a translation and a rotation, a rotation
+/// about an axis, and a material by name (`who` names the scene in the error).
+[[nodiscard]] inline Eigen::Isometry3d pose(const Eigen::Vector3d& t,
+                                            const Eigen::Matrix3d& R = Eigen::Matrix3d::Identity()) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = t;
+  return T;
+}
+[[nodiscard]] inline Eigen::Matrix3d rot(const Eigen::Vector3d& axis, double angle) {
+  return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+}
+[[nodiscard]] inline MaterialId material(const World& w, const std::string& name, const char* who) {
+  const auto id = w.materials().find(name);
+  if (!id) throw std::invalid_argument(std::string(who) + ": unknown material '" + name + "'");
+  return *id;
+}
 
 /// The close-up scenes' draws: std::mt19937_64 through the standard
 /// distributions. Kept because the evaluation's documented figures come from
