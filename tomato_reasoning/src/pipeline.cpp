@@ -58,6 +58,16 @@ GreenPoints gather_green(const std::vector<View>& views, const std::vector<Spher
   return g;
 }
 
+// Each sphere's depth noise measured on the raw points and its bias removed.
+void correct_spheres(const PipelineResult& r, const PipelineParams& P, std::vector<SphereFit>& fits) {
+  for (SphereFit& f : fits) {
+    f.uncorrected = f.sphere;
+    const DepthNoise noise = measure_depth_noise(r.red_xyz, r.red_view, r.viewpoints, f.sphere, P.noise_bias);
+    f.depth_noise_m = noise.sigma_m;
+    f.sphere = correct_noise_bias(f.sphere, noise, P.noise_bias, P.spheres.radius_min_m, P.spheres.radius_max_m);
+  }
+}
+
 // The cut on the seen pedicel when the plan cuts along it.
 void cut_on_seen_pedicel(const Sphere& s, const PedicelSighting& seen, double cone_deg, CutPlan& cut) {
   if (!seen.cut_point_seen) return;
@@ -69,9 +79,10 @@ void cut_on_seen_pedicel(const Sphere& s, const PedicelSighting& seen, double co
 }  // namespace
 
 common::Validation validate(const PipelineParams& p) {
-  for (const common::Validation& v : {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"),
-                                      validate(p.smoothing).within("smoothing"), validate(p.spheres).within("spheres"),
-                                      validate(p.force).within("force"), validate(p.pedicel).within("pedicel")}) {
+  for (const common::Validation& v :
+       {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"), validate(p.smoothing).within("smoothing"),
+        validate(p.spheres).within("spheres"), validate(p.noise_bias).within("noise_bias"),
+        validate(p.force).within("force"), validate(p.pedicel).within("pedicel")}) {
     if (!v.valid) return v;
   }
   if (!p.gravity.allFinite() || !(p.gravity.norm() > 1e-9))
@@ -136,8 +147,9 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
 
   t0 = Clock::now();
   r.segmentation = segment_spheres(r.smoothed.points, r.smoothed.normals, params_.spheres, r.viewpoints);
-  r.times.spheres_ms = ms_since(t0);
   if (r.segmentation.spheres.empty()) return stop("spheres", "no sphere found: " + r.segmentation.stop_reason);
+  correct_spheres(r, params_, r.segmentation.spheres);
+  r.times.spheres_ms = ms_since(t0);
 
   if (params_.pedicel.enabled) {
     t0 = Clock::now();
@@ -196,7 +208,7 @@ void TomatoPipeline::reason(PipelineResult& r) const {
         sight_pedicel(r.green, spheres, static_cast<int>(i), peds[i].expected_dir, cut_distance, params_.pedicel);
     peds[i] = pedicel_posterior(peds[i], t.sighting, params_.gravity);
   }
-  const auto costs = pick_order(spheres, peds, params_.gravity, params_.pick);
+  const auto costs = pick_order(spheres, peds, params_.gravity, params_.pick, params_.force.contact_tolerance_m);
   for (std::size_t i = 0; i < r.tomatoes.size(); ++i) {
     Tomato& t = r.tomatoes[i];
     t.pedicel = peds[i];

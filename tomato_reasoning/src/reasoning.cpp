@@ -225,8 +225,22 @@ std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& sphere
   return out;
 }
 
+namespace {
+// N of Eq. 4.23 for sphere i: each neighbour counted by how surely it touches.
+double soft_edges(const std::vector<Sphere>& spheres, std::size_t i, double d_e, double soft) {
+  double n = 0;
+  for (std::size_t j = 0; j < spheres.size(); ++j) {
+    if (j == i) continue;
+    const double gap = (spheres[i].centre - spheres[j].centre).norm() - spheres[i].radius_m - spheres[j].radius_m;
+    n += std::clamp((d_e + soft - std::abs(gap)) / (2 * soft), 0.0, 1.0);
+  }
+  return n;
+}
+
+}  // namespace
+
 std::vector<PickCost> pick_order(const std::vector<Sphere>& spheres, const std::vector<PedicelEstimate>& pedicels,
-                                 const Eigen::Vector3d& gravity, const PickOrderParams& P) {
+                                 const Eigen::Vector3d& gravity, const PickOrderParams& P, double d_e) {
   std::vector<PickCost> out;
   if (spheres.empty() || pedicels.size() != spheres.size() || !(gravity.norm() > 0)) return out;
   const Eigen::Vector3d g = gravity.normalized();
@@ -236,9 +250,10 @@ std::vector<PickCost> pick_order(const std::vector<Sphere>& spheres, const std::
     PickCost c;
     c.sphere = static_cast<int>(i);
     const double height = -spheres[i].centre.dot(g) - lowest;
-    const double Ep = spheres[i].radius_m / kRefRadius * height;       // theta r h, theta per 3 cm tomato
+    const double Ep = spheres[i].radius_m / kRefRadius * height;  // theta r h, theta per 3 cm tomato
+    const double N = P.edge_softness_m > 0 ? soft_edges(spheres, i, d_e, P.edge_softness_m) : pedicels[i].edges;
     c.energy_term = -P.w_energy_per_m * Ep;                            // Eq. 4.23: -Ep
-    c.edge_term = P.w_edges * pedicels[i].edges;                       // N
+    c.edge_term = P.w_edges * N;                                       // N
     c.angle_term = P.w_angle_per_rad * pedicels[i].gravity_angle_rad;  // <F^e_ip, -G_i>
     c.cost = c.energy_term + c.edge_term + c.angle_term;
     out.push_back(c);

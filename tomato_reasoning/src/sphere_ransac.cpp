@@ -471,4 +471,78 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
   return out;
 }
 
+common::Validation validate(const NoiseBiasParams& p) {
+  if (!(p.band_m > 0) || !std::isfinite(p.band_m)) return common::Validation::invalid("band_m must be finite and > 0");
+  if (!(p.min_cos >= 0 && p.min_cos < 1)) return common::Validation::invalid("min_cos must be in [0, 1)");
+  if (p.min_points < 3) return common::Validation::invalid("min_points must be >= 3");
+  for (double x : {p.radius_bias_m, p.radius_per_var, p.centre_bias_m, p.centre_per_var})
+    if (!std::isfinite(x)) return common::Validation::invalid("the bias coefficients must be finite");
+  return common::Validation::ok();
+}
+
+namespace {
+// The upper median (the element nth_element puts in the middle).
+double median_of(std::vector<double> v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// The range along the ray from `eye` through `p` to the sphere's front, and
+// the cosine of the ray's incidence there; nullopt when the ray misses.
+std::optional<std::pair<double, double>> front_along_ray(const Eigen::Vector3d& eye, const Eigen::Vector3d& u,
+                                                         const Sphere& s) {
+  const Eigen::Vector3d ec = s.centre - eye;
+  const double b = u.dot(ec);
+  const double disc = b * b - (ec.squaredNorm() - s.radius_m * s.radius_m);
+  if (!(disc > 0) || b <= 0) return std::nullopt;
+  const double t = b - std::sqrt(disc);
+  const Eigen::Vector3d n = (eye + t * u - s.centre) / s.radius_m;
+  return std::make_pair(t, -n.dot(u));
+}
+}  // namespace
+
+DepthNoise measure_depth_noise(const std::vector<Eigen::Vector3f>& points, const std::vector<std::uint8_t>& view_of,
+                               const std::vector<Eigen::Vector3f>& viewpoints, const Sphere& sphere,
+                               const NoiseBiasParams& P) {
+  DepthNoise out;
+  if (view_of.size() != points.size() || !(sphere.radius_m > 0)) return out;
+  const double reach2 = std::pow(sphere.radius_m + P.band_m, 2);
+  std::vector<std::vector<double>> by_view(viewpoints.size());
+  Eigen::Vector3d away = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Vector3d p = points[k].cast<double>();
+    if (view_of[k] >= viewpoints.size() || (p - sphere.centre).squaredNorm() > reach2) continue;
+    const Eigen::Vector3d eye = viewpoints[view_of[k]].cast<double>();
+    const double range = (p - eye).norm();
+    const auto front = front_along_ray(eye, (p - eye) / range, sphere);
+    if (!front || front->second < P.min_cos || std::abs(range - front->first) > P.band_m) continue;
+    by_view[view_of[k]].push_back(range - front->first);
+    away += (sphere.centre - eye).normalized();
+  }
+  // Robust spread about each view's own median (a view's pose error shifts
+  // all its points alike; occluders in front are outliers).
+  std::vector<double> residuals;
+  for (const auto& v : by_view) {
+    if (v.empty()) continue;
+    const double med = median_of(v);
+    for (double x : v) residuals.push_back(std::abs(x - med));
+  }
+  if (static_cast<int>(residuals.size()) < P.min_points) return out;
+  out.sigma_m = 1.4826 * median_of(residuals);
+  out.points = static_cast<int>(residuals.size());
+  out.away = away.normalized();
+  return out;
+}
+
+Sphere correct_noise_bias(const Sphere& sphere, const DepthNoise& noise, const NoiseBiasParams& P, double r_min,
+                          double r_max) {
+  if (!P.enabled || noise.points == 0) return sphere;
+  const double var = noise.sigma_m * noise.sigma_m;
+  Sphere out = sphere;
+  out.radius_m = std::clamp(sphere.radius_m + P.radius_bias_m + P.radius_per_var * var, r_min, r_max);
+  out.centre += (P.centre_bias_m + P.centre_per_var * var) * noise.away;
+  return out;
+}
+
 }  // namespace tinyline::tomato_reasoning

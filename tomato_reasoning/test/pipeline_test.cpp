@@ -89,3 +89,77 @@ TEST(Pipeline, BadInputStopsWithTheStageAndTheReason) {
   EXPECT_THROW(TomatoPipeline{bad}, std::invalid_argument);
   EXPECT_EQ(pipe.reason_about({}).stage, "spheres");
 }
+
+namespace {
+// The pick order as indices of the true tomatoes (-1: a sphere matching none within 1 cm).
+std::vector<int> order_in_truth(const eval::Scenario& s, const PipelineResult& r) {
+  std::vector<int> out;
+  for (int k : r.pick_order) {
+    int best = -1;
+    double d = 0.01;
+    for (std::size_t t = 0; t < s.truth.size(); ++t) {
+      const double e = (r.tomatoes[std::size_t(k)].fit.sphere.centre - s.truth[t].centre_m).norm();
+      if (e < d) d = e, best = int(t);
+    }
+    out.push_back(best);
+  }
+  return out;
+}
+
+// The pick orders of `frames` renderings of one scene, each with its own noise.
+std::vector<std::vector<int>> orders_over_frames(const eval::Scenario& s, const eval::ScenarioOptions& o,
+                                                 const PipelineParams& p, int frames) {
+  std::vector<std::vector<int>> out;
+  for (int f = 0; f < frames; ++f) {
+    const ColorCloud c = f == 0 ? s.cloud() : eval::render_again(s, o, 0, s.seed * 16 + 1000 * std::uint64_t(f));
+    out.push_back(order_in_truth(s, TomatoPipeline(p).run(c)));
+  }
+  return out;
+}
+}  // namespace
+
+bool all_the_same(const std::vector<std::vector<int>>& orders) {
+  for (const auto& o : orders)
+    if (o != orders.front()) return false;
+  return true;
+}
+
+// Class B trusses (tuning seeds) whose order changed between 4 frames with 5 mm of depth noise before the spheres'
+// bias was removed and contacts counted softly, and stays the same since.
+TEST(Pipeline, PickOrderUnchangedAcrossNoisyFramesOfOneScene) {
+  eval::ScenarioOptions o;
+  o.extra_depth_noise_m = 0.005;
+  for (std::uint64_t seed : {1u, 3u, 9u}) {
+    const eval::Scenario s = eval::make_scenario(sim::TrussClass::kB, seed, o);
+    PipelineParams p;
+    p.gravity = s.gravity_camera;
+    EXPECT_TRUE(all_the_same(orders_over_frames(s, o, p, 4))) << "seed " << seed;
+    PipelineParams before = p;
+    before.noise_bias.enabled = false;
+    before.pick.edge_softness_m = 0;
+    EXPECT_FALSE(all_the_same(orders_over_frames(s, o, before, 4))) << "seed " << seed;
+  }
+}
+
+// Spheres 3 mm too small under 5 mm of depth noise: the noise is measured along the rays and the shrink removed.
+TEST(Pipeline, SpheresDoNotShrinkUnderDepthNoise) {
+  eval::ScenarioOptions o;
+  o.extra_depth_noise_m = 0.005;
+  std::vector<double> before, after, sigma;
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const eval::Scenario s = eval::make_scenario(sim::TrussClass::kB, seed, o);
+    PipelineParams p;
+    p.gravity = s.gravity_camera;
+    const eval::TrussScore sc = eval::score_truss(s, TomatoPipeline(p).run(s.cloud()));
+    for (const auto& t : sc.tomatoes) {
+      if (t.detection < 0) continue;
+      before.push_back(t.uncorrected_radius_error_m);
+      after.push_back(t.radius_error_m);
+      sigma.push_back(t.depth_noise_m);
+    }
+  }
+  ASSERT_GE(before.size(), 6u);
+  EXPECT_NEAR(eval::percentile(sigma, 50), 0.005, 0.001);
+  EXPECT_LT(eval::percentile(before, 50), -0.002);
+  EXPECT_LT(std::abs(eval::percentile(after, 50)), 0.5 * std::abs(eval::percentile(before, 50)));
+}

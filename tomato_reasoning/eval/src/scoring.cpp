@@ -35,6 +35,9 @@ void score_detection(const Scenario& s, std::size_t t, const Tomato& d, const Sc
   ts.centre_error_m = (d.fit.sphere.centre - tr.centre_m).norm();
   ts.radius_error_m = d.fit.sphere.radius_m - tr.radius_m;
   ts.centre_toward_camera_m = -(d.fit.sphere.centre - tr.centre_m).dot(tr.centre_m.normalized());
+  ts.depth_noise_m = d.fit.depth_noise_m;
+  ts.uncorrected_radius_error_m = d.fit.uncorrected.radius_m - tr.radius_m;
+  ts.uncorrected_toward_camera_m = -(d.fit.uncorrected.centre - tr.centre_m).dot(tr.centre_m.normalized());
   ts.edges_estimated = d.pedicel.edges;
   ts.pedicel_error_deg = deg(d.pedicel.expected_dir, tr.pedicel_dir);
   ts.prior_pedicel_error_deg = deg(d.pedicel_prior.expected_dir, tr.pedicel_dir);
@@ -207,7 +210,7 @@ std::string csv_header() {
   return "class,seed,truth,detection,visible_share,centre_error_mm,radius_error_mm,edges_true,edges_estimated,"
          "pedicel_error_deg,gravity_only_error_deg,force_dir_error_deg,truth_in_hpd50,spread50_deg,cut_coverage,"
          "cut_covers_truth,pick_rank,prior_pedicel_error_deg,pedicel_seen,seen_points,seen_error_deg,cut_point_axis_"
-         "mm\n";
+         "mm,depth_noise_mm,toward_camera_mm,uncorrected_radius_error_mm,uncorrected_toward_camera_mm\n";
 }
 
 std::string csv_rows(const TrussScore& s) {
@@ -219,7 +222,9 @@ std::string csv_rows(const TrussScore& s) {
       << ',' << t.pedicel_error_deg << ',' << t.gravity_only_error_deg << ',' << t.force_dir_error_deg << ','
       << int(t.truth_in_hpd) << ',' << t.spread50_deg << ',' << t.cut_coverage << ',' << int(t.cut_covers_truth) << ','
       << t.pick_rank << ',' << t.prior_pedicel_error_deg << ',' << int(t.pedicel_seen) << ',' << t.seen_points << ','
-      << t.seen_error_deg << ',' << t.cut_point_axis_mm << '\n';
+      << t.seen_error_deg << ',' << t.cut_point_axis_mm << ',' << 1000 * t.depth_noise_m << ','
+      << 1000 * t.centre_toward_camera_m << ',' << 1000 * t.uncorrected_radius_error_m << ','
+      << 1000 * t.uncorrected_toward_camera_m << '\n';
   }
   return o.str();
 }

@@ -175,6 +175,10 @@ const std::map<std::string, Setter>& setters() {
       {"pedicel.rod_radius_m", [](PipelineParams& p, double v) { p.pedicel.rod_radius_m = v; }},
       {"pedicel.kappa_per_point", [](PipelineParams& p, double v) { p.pedicel.kappa_per_point = v; }},
       {"pedicel.kappa_max", [](PipelineParams& p, double v) { p.pedicel.kappa_max = v; }},
+      {"pick.edge_softness_m", [](PipelineParams& p, double v) { p.pick.edge_softness_m = v; }},
+      {"noise_bias.enabled", [](PipelineParams& p, double v) { p.noise_bias.enabled = v != 0; }},
+      {"noise_bias.radius_per_var", [](PipelineParams& p, double v) { p.noise_bias.radius_per_var = v; }},
+      {"noise_bias.centre_per_var", [](PipelineParams& p, double v) { p.noise_bias.centre_per_var = v; }},
   };
   return m;
 }

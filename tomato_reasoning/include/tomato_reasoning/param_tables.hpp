@@ -81,6 +81,19 @@ void for_each_param(S& p, V&& v) {
 }
 
 template <class S, class V>
+requires common::SettingsOf<S, NoiseBiasParams>
+void for_each_param(S& p, V&& v) {
+  v(p.enabled, {"enabled", "", {}, {}, "remove the spheres' bias under depth noise (false: as segmented)"});
+  v(p.band_m, {"band_m", "m", 1e-4, 0.1, "raw points within this of the sphere's front along their ray"});
+  v(p.min_cos, {"min_cos", "", 0.0, 0.999, "rays meeting the surface at least this squarely"});
+  v(p.min_points, {"min_points", "", 3, 1'000'000, "front points needed to measure the noise"});
+  v(p.radius_bias_m, {"radius_bias_m", "m", -0.02, 0.02, "radius added at zero noise"});
+  v(p.radius_per_var, {"radius_per_var", "1/m", -1e4, 1e4, "radius added per depth noise variance"});
+  v(p.centre_bias_m, {"centre_bias_m", "m", -0.02, 0.02, "centre moved away from the cameras at zero noise"});
+  v(p.centre_per_var, {"centre_per_var", "1/m", -1e4, 1e4, "centre moved away per depth noise variance"});
+}
+
+template <class S, class V>
 requires common::SettingsOf<S, ForceModelParams>
 void for_each_param(S& p, V&& v) {
   v(p.contact_tolerance_m, {"contact_tolerance_m", "m", 0.0, 0.1, "contact graph tolerance d_e (Eq. 4.17)"});
@@ -101,6 +114,8 @@ void for_each_param(S& p, V&& v) {
   v(p.w_energy_per_m, {"w_energy_per_m", "1/m", 0.0, 1e6, "Eq. 4.23 sigma_1: per metre of height"});
   v(p.w_edges, {"w_edges", "", 0.0, 1e6, "Eq. 4.23 sigma_2: per contact edge"});
   v(p.w_angle_per_rad, {"w_angle_per_rad", "1/rad", 0.0, 1e6, "Eq. 4.23 sigma_3: per radian off straight up"});
+  v(p.edge_softness_m, {"edge_softness_m", "m", 0.0, 0.05,
+                        "a contact counts fully below d_e - this, not above d_e + this (0: Eq. 4.23's count)"});
 }
 
 template <class S, class V>
@@ -141,6 +156,7 @@ void for_each_param(S& p, V&& v) {
   common::nest(p.branch, "branch.", v);
   common::nest(p.smoothing, "smoothing.", v);
   common::nest(p.spheres, "spheres.", v);
+  common::nest(p.noise_bias, "noise_bias.", v);
   common::nest(p.force, "force.", v);
   common::nest(p.pick, "pick.", v);
   common::nest(p.cut, "cut.", v);

@@ -30,6 +30,7 @@ struct PipelineParams {
   BranchClusteringParams branch;
   SmoothingParams smoothing;
   SphereRansacParams spheres;
+  NoiseBiasParams noise_bias;  ///< the spheres' bias under depth noise, removed after the segmentation
   ForceModelParams force;
   PickOrderParams pick;
   CutParams cut;

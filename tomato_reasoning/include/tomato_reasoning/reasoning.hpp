@@ -125,6 +125,10 @@ struct PickOrderParams {
   double w_energy_per_m = 10.0;  ///< sigma_1: per metre of height, times r / 3 cm (the thesis's weight theta r)
   double w_edges = 0.5;          ///< sigma_2: per contact edge
   double w_angle_per_rad = 1.0;  ///< sigma_3: per radian between the pedicel and straight up
+  /// N counts a contact by how surely it is one: fully at a gap below d_e -
+  /// this, not at all above d_e + this, linearly between [m]; a gap near
+  /// d_e then no longer flips the order between frames. 0: Eq. 4.23's count.
+  double edge_softness_m = 0.004;
 };
 
 struct PickCost {
@@ -133,10 +137,12 @@ struct PickCost {
   double energy_term = 0.0, edge_term = 0.0, angle_term = 0.0;  ///< the three parts of Eq. 4.23, weighted
 };
 
-/// Eq. 4.23: every sphere's cost, cheapest (first to pick) first.
+/// Eq. 4.23: every sphere's cost, cheapest (first to pick) first; contacts
+/// within `contact_tolerance_m` (Eq. 4.17 d_e) are N's.
 [[nodiscard]] std::vector<PickCost> pick_order(const std::vector<Sphere>& spheres,
                                                const std::vector<PedicelEstimate>& pedicels,
-                                               const Eigen::Vector3d& gravity, const PickOrderParams& params = {});
+                                               const Eigen::Vector3d& gravity, const PickOrderParams& params = {},
+                                               double contact_tolerance_m = ForceModelParams{}.contact_tolerance_m);
 
 struct CutParams {
   double scissor_opening_m = 0.02;  ///< the thesis's scissors

@@ -106,6 +106,11 @@ struct SphereFit {
   /// cap faces the camera.
   double cap_facing = 0.0;
   int round = 0;  ///< the round that found it
+  /// Depth noise along the rays measured around this sphere [m rms] (0: not
+  /// measured) and the sphere as the segmentation found it, before the noise
+  /// bias was corrected (`sphere` is corrected when the pipeline does it).
+  double depth_noise_m = 0.0;
+  Sphere uncorrected;
 };
 
 struct SphereSegmentation {
@@ -132,5 +137,47 @@ struct SphereSegmentation {
                                                  const std::vector<Eigen::Vector3f>& normals,
                                                  const SphereRansacParams& params,
                                                  const std::vector<Eigen::Vector3f>& viewpoints);
+
+/// The bias a fit to a noisy cap seen from one side keeps (docs/tomato_reasoning.md,
+/// "Sphere bias under depth noise"): the sphere comes out too small and too
+/// near the camera, by amounts that grow with the depth noise's variance.
+/// Measured against truth on tuning trusses, it is corrected as
+///   r += radius_bias_m + radius_per_var * sigma^2,
+///   c += (centre_bias_m + centre_per_var * sigma^2) * (away from the cameras),
+/// sigma the noise along the rays measured on the raw points of the sphere's
+/// front (robust: the median absolute deviation of their range to the front).
+struct NoiseBiasParams {
+  bool enabled = true;    ///< false: the segmentation's spheres as found
+  double band_m = 0.015;  ///< raw points within this of the front along their ray [m]
+  double min_cos = 0.5;   ///< rays meeting the surface at least this squarely (not the limb)
+  int min_points = 20;    ///< fewer: no noise measured, no correction
+  /// Fitted on tuning trusses 1-40 (elastic rods, one and two views, 0-5 mm
+  /// extra noise, a common slope per view count's intercept); the intercepts
+  /// differ by view count (one view -0.5 mm radius, two +0.2 mm) and stay 0.
+  double radius_bias_m = 0.0;     ///< radius added at zero noise [m]
+  double radius_per_var = 96.0;   ///< radius added per noise variance [1/m] (0.096 mm per mm^2)
+  double centre_bias_m = 0.0;     ///< centre moved away from the cameras at zero noise [m]
+  double centre_per_var = 134.0;  ///< ... per noise variance [1/m]
+};
+
+common::Validation validate(const NoiseBiasParams& p);
+
+struct DepthNoise {
+  double sigma_m = 0.0;                            ///< along the rays [m rms]
+  int points = 0;                                  ///< front points it was measured on
+  Eigen::Vector3d away = Eigen::Vector3d::Zero();  ///< unit, from the cameras through the centre (their mean)
+};
+
+/// The depth noise around `sphere` on raw points (seen from
+/// viewpoints[view_of[k]]); `points` 0 when too few lie on its front.
+[[nodiscard]] DepthNoise measure_depth_noise(const std::vector<Eigen::Vector3f>& points,
+                                             const std::vector<std::uint8_t>& view_of,
+                                             const std::vector<Eigen::Vector3f>& viewpoints, const Sphere& sphere,
+                                             const NoiseBiasParams& params = {});
+
+/// `sphere` with the bias of `noise` removed (unchanged when nothing was
+/// measured); the radius stays within [r_min, r_max].
+[[nodiscard]] Sphere correct_noise_bias(const Sphere& sphere, const DepthNoise& noise, const NoiseBiasParams& params,
+                                        double r_min, double r_max);
 
 }  // namespace tinyline::tomato_reasoning

@@ -38,7 +38,7 @@ TEST(TomatoParamTables, TheDetectorDeclaresEveryPipelineSettingWithItsDefault) {
   const auto node = rig.add("tomato_reasoning", "tomato_detector", o);
   auto declared = params_by_name(*node);
   const auto want = table_defaults<tr::PipelineParams>();
-  ASSERT_EQ(want.size(), 62u);  // every field but the gravity vector and the hypothesis word
+  ASSERT_EQ(want.size(), 71u);  // every field but the gravity vector and the hypothesis word
   for (const auto& [name, value] : want) {
     ASSERT_TRUE(declared.count(name)) << name << " is not a parameter";
     EXPECT_EQ(param_number(declared[name]->default_value), value) << name;

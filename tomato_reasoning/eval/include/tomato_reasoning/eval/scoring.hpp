@@ -31,8 +31,11 @@ struct TomatoScore {
   int detection = -1;          ///< index into PipelineResult::tomatoes, -1 if missed
   double visible_share = 0.0;  ///< seen pixels / pixels of its unoccluded disc
   double centre_error_m = NAN;
-  double radius_error_m = NAN;          ///< estimate - truth
-  double centre_toward_camera_m = NAN;  ///< centre error along the ray, positive towards the camera
+  double radius_error_m = NAN;               ///< estimate - truth
+  double centre_toward_camera_m = NAN;       ///< centre error along the ray, positive towards the camera
+  double depth_noise_m = NAN;                ///< the depth noise measured around the sphere (0: not measured)
+  double uncorrected_radius_error_m = NAN;   ///< signed, before the noise bias was removed
+  double uncorrected_toward_camera_m = NAN;  ///< ... and the centre's along the ray
   int edges_true = 0;
   int edges_estimated = -1;
   double pedicel_error_deg = NAN;        ///< expected direction vs the true pedicel
