@@ -18,7 +18,7 @@ TEST(Seeds, EachEvaluationKeepsItsTuningAndHeldOutSeedsApart) {
     EXPECT_FALSE(e.tuning.empty()) << e.name;
     EXPECT_FALSE(e.held_out.empty()) << e.name;
   }
-  EXPECT_EQ(s::use_of(s::kLaserClustering, 1), s::SeedUse::kTuning);  // the truss layout was designed on 1-200
+  EXPECT_EQ(s::use_of(s::kLaserClustering, 1), s::SeedUse::kTuning);    // the truss layout was designed on 1-200
   EXPECT_EQ(s::use_of(s::kLaserClustering, 201), s::SeedUse::kTuning);  // looked at while changing the finder
   EXPECT_EQ(s::use_of(s::kLaserClustering, 4001), s::SeedUse::kHeldOut);
   EXPECT_EQ(s::use_of(s::kTomato, 250), s::SeedUse::kTuning);  // the kernel width's fit
