@@ -543,13 +543,6 @@ std::string unwritable(const CalibrationModel& model, double rmse_m, const std::
   return {};
 }
 
-// What the driver will publish as each pixel's range uncertainty (section 3.5).
-std::string noise_line(const tiny_laser_driver::NoiseLaw& law) {
-  if (law.empty()) return "noise (3.5): too few repeated read-outs per distance and pixel: no range SD published\n";
-  return fmt::format("noise (3.5): var(X) (a + b)^2 = {:.4g} (a + b) + {:.4g} pulses + {:.4g} (shot, transfer, read)\n",
-                     law.shot, law.per_pulse, law.read);
-}
-
 int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
   std::vector<std::string> valued = kFitValued;
   valued.insert(valued.end(), kLoopValued.begin(), kLoopValued.end());
@@ -596,8 +589,8 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
     print_summary(out, *loop);
     model = loop->model;
   }
+  // The per-pixel range SD the driver publishes (section 3.5); in the YAML, not printed.
   model.impl().noise = fit_noise_law(model, data);
-  out << noise_line(model.impl().noise);
   if (const std::string why = unwritable(model, declared.rmse_m, *output); !why.empty()) {
     err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, why);
     return 1;
