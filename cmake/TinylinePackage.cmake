@@ -141,6 +141,7 @@ tinyline_export_dependency("find_dependency(fmt)")
 # would not find it downstream.
 set(_TL_THIRD_PARTY_PATTERNS
     "^Threads::=Threads" "^Eigen3::=Eigen3" "^fmt::=fmt" "^yaml-cpp=yaml-cpp" "^CycloneDDS::=CycloneDDS"
+    "^iceoryx_binding_c::=iceoryx_binding_c"
     "^pcl_=PCL" "^FLANN::=PCL" "^Boost::=PCL" "^VTK::=PCL" "^QHULL::=PCL" "^opencv_=OpenCV")
 
 function(_tinyline_third_party_package item out)
