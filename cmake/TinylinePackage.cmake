@@ -143,6 +143,7 @@ tinyline_export_dependency("find_dependency(jsoncpp CONFIG)")
 # would not find it downstream.
 set(_TL_THIRD_PARTY_PATTERNS
     "^Threads::=Threads" "^Eigen3::=Eigen3" "^fmt::=fmt" "^yaml-cpp=yaml-cpp" "^CycloneDDS::=CycloneDDS"
+    "^iceoryx_binding_c::=iceoryx_binding_c"
     "^pcl_=PCL" "^FLANN::=PCL" "^Boost::=PCL" "^VTK::=PCL" "^QHULL::=PCL" "^opencv_=OpenCV"
     "^CLI11::=CLI11" "^JsonCpp::=jsoncpp")
 

@@ -579,6 +579,8 @@ int cmd_fit(const FitOptions& o, std::ostream& out, std::ostream& err, const Cal
     print_summary(out, *loop);
     model = loop->model;
   }
+  // The per-pixel range SD the driver publishes (section 3.5); in the YAML, not printed.
+  model.impl().noise = fit_noise_law(model, data);
   if (const std::string why = unwritable(model, declared.rmse_m, o.output); !why.empty()) {
     err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, why);
     return 1;
