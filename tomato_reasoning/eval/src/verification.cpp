@@ -48,19 +48,59 @@ bool crossing(const Eigen::Isometry3d& T_ref_laser, const Eigen::Vector3d& a, co
 
 }  // namespace
 
+namespace {
+
+// `text` as a finite number, or std::invalid_argument naming option `key`.
+double option_number(const std::string& key, const std::string& text) {
+  std::size_t used = 0;
+  double v = NAN;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(v))
+    throw std::invalid_argument("option '" + key + "': '" + text + "' is not a number");
+  return v;
+}
+
+// The tomato look's options; false when `key` is none of them.
+bool set_look_option(VerificationOptions& o, const std::string& key, const std::string& value) {
+  if (key == "tomato_look") {
+    if (value != "0" && value != "1") throw std::invalid_argument("option 'tomato_look' must be 0 or 1");
+    o.tomato_look = value == "1";
+  } else if (key == "look_nothing") {
+    if (value != "0" && value != "1" && value != "2")
+      throw std::invalid_argument("option 'look_nothing' must be 0 (no cut), 1 (blind move) or 2 (unregistered)");
+    o.look_nothing = static_cast<LookNothing>(value[0] - '0');
+  } else if (key == "look_min_tomatoes") {
+    const double v = option_number(key, value);
+    if (!(v >= 1 && v <= 10) || v != std::floor(v))
+      throw std::invalid_argument("option 'look_min_tomatoes' must be a whole number in [1, 10]");
+    o.look_min_tomatoes = static_cast<int>(v);
+  } else if (key == "registered_gate_sd") {
+    const double v = option_number(key, value);
+    if (!(v > 0)) throw std::invalid_argument("option 'registered_gate_sd' must be > 0");
+    o.registered_gate_sd = v;
+  } else if (key == "look_back_m" || key == "registered_sd_m" || key == "registered_max_move_m" ||
+             key == "look_max_shift_m") {
+    const double v = option_number(key, value);
+    if (!(v > 0 && v <= 0.2)) throw std::invalid_argument("option '" + key + "' must be in (0, 0.2] m");
+    (key == "look_back_m"             ? o.look_back_m
+     : key == "registered_sd_m"       ? o.registered_sd_m
+     : key == "registered_max_move_m" ? o.registered_max_move_m
+                                      : o.look_max_shift_m) = v;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value) {
-  auto number = [&](const std::string& text) {
-    std::size_t used = 0;
-    double v = NAN;
-    try {
-      v = std::stod(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != text.size() || !std::isfinite(v))
-      throw std::invalid_argument("option '" + key + "': '" + text + "' is not a number");
-    return v;
-  };
+  auto number = [&](const std::string& text) { return option_number(key, text); };
+  if (set_look_option(o, key, value)) return;
   if (key == "pulses") {
     std::vector<int> pulses;
     std::size_t from = 0;
@@ -104,29 +144,6 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
   } else if (key == "approach_far") {
     if (value != "0" && value != "1") throw std::invalid_argument("option 'approach_far' must be 0 or 1");
     o.approach_far = value == "1";
-  } else if (key == "tomato_look") {
-    if (value != "0" && value != "1") throw std::invalid_argument("option 'tomato_look' must be 0 or 1");
-    o.tomato_look = value == "1";
-  } else if (key == "look_back_m" || key == "registered_sd_m" || key == "registered_gate_sd" ||
-             key == "registered_max_move_m" || key == "look_max_shift_m") {
-    const double v = number(value);
-    if (!(v >= 0 && v <= 0.2) && key != "registered_gate_sd")
-      throw std::invalid_argument("option '" + key + "' must be in [0, 0.2] m");
-    if (!(v > 0)) throw std::invalid_argument("option '" + key + "' must be > 0");
-    if (key == "look_back_m") o.look_back_m = v;
-    if (key == "registered_sd_m") o.registered_sd_m = v;
-    if (key == "registered_gate_sd") o.registered_gate_sd = v;
-    if (key == "registered_max_move_m") o.registered_max_move_m = v;
-    if (key == "look_max_shift_m") o.look_max_shift_m = v;
-  } else if (key == "look_nothing") {
-    if (value != "0" && value != "1" && value != "2")
-      throw std::invalid_argument("option 'look_nothing' must be 0 (no cut), 1 (blind move) or 2 (unregistered)");
-    o.look_nothing = static_cast<LookNothing>(value[0] - '0');
-  } else if (key == "look_min_tomatoes") {
-    const double v = number(value);
-    if (!(v >= 1 && v <= 10) || v != std::floor(v))
-      throw std::invalid_argument("option 'look_min_tomatoes' must be a whole number in [1, 10]");
-    o.look_min_tomatoes = static_cast<int>(v);
   } else if (key == "max_turn_deg") {  // 0: the straight approach, whatever is in front
     const double v = number(value);
     if (!(v >= 0 && v <= 180)) throw std::invalid_argument("option 'max_turn_deg' must be in [0, 180]");
