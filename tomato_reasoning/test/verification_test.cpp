@@ -191,8 +191,33 @@ TEST(LaserVerification, TomatoLookOptionsParseOrSayWhatIsWrong) {
   EXPECT_EQ(o.look_min_tomatoes, 2);
   eval::set_verification_option(o, "registered_gate_sd", "3");
   EXPECT_DOUBLE_EQ(o.registered_gate_sd, 3.0);
+  EXPECT_TRUE(o.look_heights_m.empty());
+  eval::set_verification_option(o, "look_heights_m", "0.01,-0.01");
+  EXPECT_EQ(o.look_heights_m, (std::vector<double>{0.01, -0.01}));
+  EXPECT_THROW(eval::set_verification_option(o, "look_heights_m", "0.1"), std::invalid_argument);
   EXPECT_THROW(eval::set_verification_option(o, "tomato_look", "yes"), std::invalid_argument);
   EXPECT_THROW(eval::set_verification_option(o, "look_nothing", "3"), std::invalid_argument);
   EXPECT_THROW(eval::set_verification_option(o, "look_min_tomatoes", "0"), std::invalid_argument);
   EXPECT_THROW(eval::set_verification_option(o, "look_back_m", "-0.1"), std::invalid_argument);
+}
+
+// Scans at other heights along the expected pedicel (off by default: on the
+// tuning trusses they added more wrong cuts than cuts on the pedicel): from
+// the vision's own pose on class B truss 218 (a tuning seed) the first pick
+// sees nothing pedicel-like where the registered truss puts the pedicel, and
+// a plane 1 cm nearer the fruit sees it.
+TEST(LaserVerification, AScanAtAnotherHeightFindsAPedicelTheCutHeightHides) {
+  const RodTruss t = rod_truss(sim::TrussClass::kB, 218);
+  ASSERT_TRUE(t.r.ok) << t.r.reason;
+  eval::VerificationOptions o;
+  o.rescans = 2;
+  eval::VerificationHarness one_height(o);
+  o.look_heights_m = {-0.01};
+  eval::VerificationHarness two_heights(o);
+  const auto a = one_height.run(t.s, t.r), b = two_heights.run(t.s, t.r);
+  const eval::VerificationTrial *before = trial_of(a, 0), *after = trial_of(b, 0);
+  ASSERT_NE(before, nullptr);
+  ASSERT_NE(after, nullptr);
+  EXPECT_EQ(before->verdict, eval::PickVerdict::kNothingFound) << before->reason;
+  EXPECT_EQ(after->verdict, eval::PickVerdict::kAligned) << after->reason;
 }

@@ -78,6 +78,16 @@ bool set_look_option(VerificationOptions& o, const std::string& key, const std::
     if (!(v >= 1 && v <= 10) || v != std::floor(v))
       throw std::invalid_argument("option 'look_min_tomatoes' must be a whole number in [1, 10]");
     o.look_min_tomatoes = static_cast<int>(v);
+  } else if (key == "look_heights_m") {
+    std::vector<double> heights;
+    for (std::size_t from = 0; from < value.size();) {
+      const std::size_t comma = std::min(value.find(',', from), value.size());
+      const double h = option_number(key, value.substr(from, comma - from));
+      if (!(std::abs(h) <= 0.05)) throw std::invalid_argument("option 'look_heights_m': each must be within 0.05 m");
+      heights.push_back(h);
+      from = comma + 1;
+    }
+    o.look_heights_m = heights;
   } else if (key == "registered_gate_sd") {
     const double v = option_number(key, value);
     if (!(v > 0)) throw std::invalid_argument("option 'registered_gate_sd' must be > 0");
@@ -154,7 +164,7 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
         "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far, "
         "cut_offsets_m, blade_margin_m, max_pedicel_width_m, tomato_look, look_back_m, registered_sd_m, "
         "registered_gate_sd, registered_max_move_m, look_max_shift_m, "
-        "look_min_tomatoes, look_nothing)");
+        "look_min_tomatoes, look_nothing, look_heights_m)");
   }
 }
 
@@ -298,9 +308,22 @@ LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario
     ++end.scans;
     const bool last_scan = loop_scans++ >= o_.rescans;
     const bool nothing_registered = end.registered && loop_scans == 1 && d.outcome == lc::PedicelOutcome::kNothingToCut;
-    const bool blind = nothing_registered && !last_scan && o_.look_nothing == LookNothing::kBlindMove;
+    if (nothing_registered) {
+      // Other heights along the expected pedicel, where nothing hides it.
+      for (double h : o_.look_heights_m) {
+        const Eigen::Isometry3d T_h = pose.T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
+        const lc::PedicelDetection dh =
+            look(world, s, T_h, belief, scan_seed + kLookSeedOffset + static_cast<std::uint64_t>(++end.scans));
+        if (finder_found(dh)) {
+          d = dh;
+          break;
+        }
+      }
+    }
+    const bool blind =
+        nothing_registered && !finder_found(d) && !last_scan && o_.look_nothing == LookNothing::kBlindMove;
     if (blind) d = blind_move_to(*belief, fp);
-    if (nothing_registered && o_.look_nothing == LookNothing::kUnregistered) {
+    if (nothing_registered && !finder_found(d) && o_.look_nothing == LookNothing::kUnregistered) {
       // The same scan, judged as without the look (its move limit too).
       d = look(world, s, pose.T_ref_laser, unregistered, scan_seed);
       trust = o_.pose;

@@ -87,6 +87,10 @@ struct VerificationOptions {
   /// The vision's common offset (the arm's and its own) is searched this far [m].
   double look_max_shift_m = 0.07;
   LookNothing look_nothing = LookNothing::kBlindMove;
+  /// Before that: scans at these heights along the expected pedicel (laser
+  /// y, + away from the fruit) [m], the first with a pedicel-like object
+  /// where the registered truss puts the pedicel taken.
+  std::vector<double> look_heights_m{};
   /// Fruit sections the look must meet (TomatoRegistrationParams::min_tomatoes).
   /// One: the plane square to a pedicel through its fruit's centre meets no
   /// other fruit in most picks, and the target's own section alone places
