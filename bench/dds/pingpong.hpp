@@ -36,6 +36,7 @@
 #include <vector>
 
 #include <dds/dds.h>
+#include <dds/ddsc/dds_loan_api.h>
 #include <fmt/format.h>
 
 #include <tinyline/bus/executor.hpp>
@@ -80,6 +81,8 @@ inline dds::Settings settings(const std::string& process, bool alone = false) {
                                   : parent ? parent
                                            : fmt::format("bench_{}", getpid()));
   if (const char* c = std::getenv("DDS_BENCH_CONFIG"); c != nullptr && !alone) s.config = c;
+  // DDS_BENCH_SHM=1: Cyclone's shared memory (a RouDi must run), both processes.
+  if (const char* shm = std::getenv("DDS_BENCH_SHM"); shm != nullptr && !alone) s.shared_memory = *shm == '1';
   s.process_name = process;
   return s;
 }
@@ -156,14 +159,16 @@ struct Arrivals {
 
 namespace engine {
 
-inline dds::EndpointQos endpoint_qos(bool reader) {
+inline dds::EndpointQos endpoint_qos(bool reader, bool shared_memory) {
   const std::vector<bus::QoS> q{bench_qos()};
-  return reader ? dds::requested_qos(q) : dds::offered_qos(q);
+  dds::EndpointQos e = reader ? dds::requested_qos(q) : dds::offered_qos(q);
+  e.accept_local = shared_memory;  // shared memory's condition; no writer of its own on the topic
+  return e;
 }
 
 inline dds_entity_t writer(dds::Participant& p, const dds::detail::TopicHandle& t) {
   dds::detail::Qos q;
-  dds::detail::fill_qos(q, endpoint_qos(false), false, p.identity(), &msg::type_support<Cloud>());
+  dds::detail::fill_qos(q, endpoint_qos(false, p.shared_memory()), false, p.identity(), &msg::type_support<Cloud>());
   const dds_entity_t w = dds_create_writer(p.handle(), t.topic, q.q, nullptr);
   if (w < 0) throw std::runtime_error("engine: cannot create a writer");
   return w;
@@ -172,7 +177,7 @@ inline dds_entity_t writer(dds::Participant& p, const dds::detail::TopicHandle& 
 inline dds_entity_t reader(dds::Participant& p, const dds::detail::TopicHandle& t, dds_on_data_available_fn fn,
                            void* arg) {
   dds::detail::Qos q;
-  dds::detail::fill_qos(q, endpoint_qos(true), true, p.identity(), &msg::type_support<Cloud>());
+  dds::detail::fill_qos(q, endpoint_qos(true, p.shared_memory()), true, p.identity(), &msg::type_support<Cloud>());
   dds_listener_t* l = dds_create_listener(arg);
   dds_lset_data_available(l, fn);
   const dds_entity_t r = dds_create_reader(p.handle(), t.topic, q.q, l);
@@ -188,11 +193,15 @@ inline dds::detail::TopicHandle topic(dds::Participant& p, const std::string& na
 }
 
 /// Writes a copy of `bytes` (what a writer of serialized data must do: the
-/// caller keeps its buffer).
+/// caller keeps its buffer), through a shared-memory chunk when the writer
+/// can use one, as the bridge does.
 inline void write_copy(dds_entity_t w, const ddsi_sertype* type, std::span<const std::uint8_t> bytes) {
   TL_DDS_PROBE(Publish);
-  const dds_return_t rc =
-      dds_writecdr(w, dds::detail::make_serdata(type, std::vector<std::uint8_t>(bytes.begin(), bytes.end())));
+  std::string why;
+  ddsi_serdata* sd = dds::detail::make_serdata_for(w, dds_is_shared_memory_available(w), type,
+                                                   std::vector<std::uint8_t>(bytes.begin(), bytes.end()), why);
+  if (sd == nullptr) throw std::runtime_error("engine: " + why);
+  const dds_return_t rc = dds_writecdr(w, sd);
   TL_DDS_PROBE(Written);
   if (rc < 0)
     throw std::runtime_error(

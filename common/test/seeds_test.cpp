@@ -18,18 +18,21 @@ TEST(Seeds, EachEvaluationKeepsItsTuningAndHeldOutSeedsApart) {
     EXPECT_FALSE(e.tuning.empty()) << e.name;
     EXPECT_FALSE(e.held_out.empty()) << e.name;
   }
-  EXPECT_EQ(s::use_of(s::kLaserClustering, 1), s::SeedUse::kTuning);  // the truss layout was designed on 1-200
-  EXPECT_EQ(s::use_of(s::kLaserClustering, 201), s::SeedUse::kHeldOut);
+  EXPECT_EQ(s::use_of(s::kLaserClustering, 1), s::SeedUse::kTuning);    // the truss layout was designed on 1-200
+  EXPECT_EQ(s::use_of(s::kLaserClustering, 201), s::SeedUse::kTuning);  // looked at while changing the finder
+  EXPECT_EQ(s::use_of(s::kLaserClustering, 4001), s::SeedUse::kHeldOut);
   EXPECT_EQ(s::use_of(s::kTomato, 250), s::SeedUse::kTuning);  // the kernel width's fit
   EXPECT_EQ(s::use_of(s::kTomato, 150), s::SeedUse::kHeldOut);
   EXPECT_EQ(s::use_of(s::kHydrus, 5), s::SeedUse::kTuning);
   EXPECT_EQ(s::use_of(s::kHydrus, 6), s::SeedUse::kHeldOut);
+  EXPECT_EQ(s::use_of(s::kHydrus, 23), s::SeedUse::kTuning);  // the rule's before/after, looked at
+  EXPECT_EQ(s::use_of(s::kHydrus, 1100), s::SeedUse::kHeldOut);
   EXPECT_EQ(s::use_of(s::kCalibration, 1500), s::SeedUse::kHeldOut);
   EXPECT_FALSE(s::use_of(s::kCalibration, 5000).has_value());
 }
 
 TEST(Seeds, TheLabelSaysWhichSeedsAndWhatTheyAre) {
-  EXPECT_EQ(s::describe(s::kLaserClustering, s::seed_run(201, 200)), "laser_clustering seeds 201-400 (held-out)");
+  EXPECT_EQ(s::describe(s::kLaserClustering, s::seed_run(4001, 200)), "laser_clustering seeds 4001-4200 (held-out)");
   EXPECT_EQ(s::describe(s::kLaserClustering, s::seed_run(1, 200)), "laser_clustering seeds 1-200 (tuning)");
   EXPECT_EQ(s::describe(s::kTomato, std::vector<std::uint64_t>{1, 5, 6, 7, 150}),
             "tomato seeds 1, 5-7, 150 (mixed: 1, 5-7 tuning, 150 held-out)");

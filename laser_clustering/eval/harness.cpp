@@ -82,6 +82,190 @@ const char* to_string(Verdict v) {
   return "unknown";
 }
 
+namespace {
+
+bool moves(const PedicelDetection& d) {
+  return d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove;
+}
+
+/// What the finder is told before the first scan: the case's expectation
+/// and the vision's layout of the truss, when the options use them.
+std::optional<PedicelExpectation> first_expectation(const TrussScene& scene, const PedicelFinderParams& finder,
+                                                    const TrussEvalOptions& o) {
+  const bool layout = o.use_layout && !scene.truth.neighbours_expected.empty();
+  if (!o.use_expectation || !(scene.truth.use_expectation || layout)) return std::nullopt;
+  // kRandomOffset has no expectation of its own: the throat, with the finder's search spread.
+  PedicelExpectation e{scene.truth.expected_xz_m,
+                       scene.truth.use_expectation ? scene.truth.expected_sd_m : finder.search_sd_m,
+                       {},
+                       0.015};
+  if (layout) e.neighbours = scene.truth.neighbours_expected;
+  return e;
+}
+
+/// The first scan's decision, after the tomato look when one was taken.
+struct FirstDecision {
+  PedicelDetection d;
+  std::optional<PedicelExpectation> expectation;
+  bool looked = false, registered = false, blind = false;
+};
+
+/// Before moving: lower the plane through the target's tomato (y is down),
+/// back off out of the sensor's short-range bias, and register the vision's
+/// tomatoes there.
+TomatoRegistration look_through_tomatoes(Scanner& scanner, const TrussScene& scene, std::uint64_t seed,
+                                         const PedicelExpectation& expectation, const TrussEvalOptions& o,
+                                         const LookObserver& on_look) {
+  const double down = scene.truth.tomatoes_expected.front().centre_m.y();
+  std::vector<ExpectedTomato> tomatoes = scene.truth.tomatoes_expected;
+  for (auto& t : tomatoes) t.centre_m += Eigen::Vector3d(0.0, -down, o.look_back_m);
+  const SimulatedScan look =
+      scanner.scan(scene.world, scene.T_world_sensor * Eigen::Translation3d(0.0, down, -o.look_back_m),
+                   seed + kRescanSeedStride * 97);
+  // The vision's common offset is searched as far as the expectation's
+  // own spread allows (3 sd): a tomato-based expectation (kRecognitionError)
+  // is good to 1.5 cm, a shifted recognition (kRandomOffset) is not.
+  TomatoRegistrationParams registration = o.registration;
+  registration.max_shift_m = std::min(registration.max_shift_m, o.registration_search_sd * expectation.sd_m);
+  TomatoRegistration reg = register_tomatoes(look.scan, tomatoes, registration);
+  if (on_look) on_look(seed, scene, look, tomatoes, reg);
+  return reg;
+}
+
+/// Nothing pedicel-like where the registered truss puts the target (hidden
+/// from here): go there and look again.
+void move_blind(PedicelDetection& d, const PedicelExpectation& expectation, const PedicelFinderParams& finder) {
+  d.outcome = PedicelOutcome::kMove;
+  d.cluster = -1;
+  d.candidates.clear();
+  d.lateral_offset_m = expectation.position_xz_m.x() - finder.scissors.centre_x_m;
+  d.depth_offset_m = expectation.position_xz_m.y() - finder.scissors.centre_z_m;
+}
+
+FirstDecision decide_first(Scanner& scanner, const TrussScene& scene, const SimulatedScan& s,
+                           const TwoStageResult& objects, std::uint64_t seed, const PedicelFinderParams& finder,
+                           const TrussEvalOptions& o, const LookObserver& on_look) {
+  FirstDecision f;
+  f.expectation = first_expectation(scene, finder, o);
+  f.d = find_pedicel(s.scan, objects, finder, f.expectation);
+  if (!o.tomato_look || !f.expectation || scene.truth.tomatoes_expected.empty() || !moves(f.d)) return f;
+  f.looked = true;
+  const TomatoRegistration reg = look_through_tomatoes(scanner, scene, seed, *f.expectation, o, on_look);
+  if (!reg.ok) return f;
+  f.registered = true;
+  f.expectation = shifted(*f.expectation, reg.shift_xz_m);
+  f.expectation->sd_m = o.registered_sd_m;
+  f.expectation->gate_sd = o.registered_gate_sd;
+  f.d = find_pedicel(s.scan, objects, finder, f.expectation);
+  if (f.d.outcome == PedicelOutcome::kNothingToCut && o.blind_move) {
+    f.blind = true;
+    move_blind(f.d, *f.expectation, finder);
+  }
+  return f;
+}
+
+/// Where the closed loop leaves the gripper: its pose, the last move made
+/// and the majority object of what it last centred.
+struct LoopEnd {
+  Eigen::Isometry3d T_world_sensor;
+  PedicelDetection last;
+  sim::ObjectId chosen = sim::kNoObject;
+  int rescans = 0;
+};
+
+/// The closed loop (4.5): after a move, scan again from where the gripper
+/// now is and re-centre on what the finder sees there.
+LoopEnd close_the_loop(Scanner& scanner, LineScanClusterer& clusterer, const TrussScene& scene, std::uint64_t seed,
+                       const FirstDecision& first, sim::ObjectId chosen, const PedicelFinderParams& finder,
+                       const TrussEvalOptions& o) {
+  LoopEnd end{scene.T_world_sensor, first.d, chosen, 0};
+  std::optional<PedicelExpectation> belief = first.expectation;
+  for (int k = 0; k < o.rescans && end.last.outcome == PedicelOutcome::kMove; ++k) {
+    const PedicelDetection& last = end.last;
+    end.T_world_sensor = end.T_world_sensor * Eigen::Translation3d(last.lateral_offset_m, 0.0, last.depth_offset_m);
+    if (k == 0 && first.blind) {
+      // The move went to the registered expectation, not to a seen
+      // pedicel: that expectation, its spread and gate, moves along.
+      belief = expectation_after_move(finder, belief, last, {last.lateral_offset_m, last.depth_offset_m});
+    } else {
+      belief = o.carry_runners_up ? expectation_after_centring(finder, belief, last)
+                                  : expectation_after_centring(finder, belief);
+    }
+    const SimulatedScan again =
+        scanner.scan(scene.world, end.T_world_sensor, seed + kRescanSeedStride * static_cast<std::uint64_t>(k + 1));
+    const TwoStageResult objects_again = clusterer.run(again.scan);
+    const PedicelDetection d_again = find_pedicel(again.scan, objects_again, finder, belief);
+    ++end.rescans;
+    if (!moves(d_again)) {
+      // Lost it: the gripper stays where the last move put it.
+      end.last.lateral_offset_m = end.last.depth_offset_m = 0.0;
+      break;
+    }
+    end.chosen = majority_object(objects_again.labels,
+                                 objects_again.clusters[static_cast<std::size_t>(d_again.cluster)].id, again);
+    end.last = d_again;
+  }
+  return end;
+}
+
+/// Aligned when the loop ends on the target between the blades (within the
+/// opening less the pedicel's radius, and the depth tolerance).
+void score_the_move(TrussTrial& trial, const TrussScene& scene, const LoopEnd& end, const PedicelFinderParams& finder,
+                    const TrussEvalOptions& o) {
+  trial.chosen_kind = object_kind(scene, trial.chosen);
+  // Where the target ends up relative to the throat after the last move.
+  const Eigen::Vector3d tgt = end.T_world_sensor.inverse() * (scene.T_world_sensor * scene.truth.target_in_sensor);
+  const double lateral = tgt.x() - (finder.scissors.centre_x_m + end.last.lateral_offset_m);
+  const double depth = tgt.z() - (finder.scissors.centre_z_m + end.last.depth_offset_m);
+  trial.lateral_error_m = lateral;
+  const bool between = std::abs(lateral) <= finder.scissors.opening_m / 2 - scene.truth.target_radius_m &&
+                       std::abs(depth) <= o.depth_tolerance_m;
+  trial.verdict = trial.chosen == scene.truth.target_pedicel && between ? Verdict::kAligned : Verdict::kWrong;
+}
+
+/// Geometric ambiguity: another pedicel's axis crosses the laser plane nearer
+/// the expected point than the target's.
+bool neighbour_nearer(const TrussScene& scene, const Eigen::Vector2d& expected) {
+  const Eigen::Isometry3d T_sensor_world = scene.T_world_sensor.inverse();
+  const Eigen::Vector3d& tgt = scene.truth.target_in_sensor;
+  const double target_d = (Eigen::Vector2d(tgt.x(), tgt.z()) - expected).norm();
+  bool nearer = false;
+  for (const auto id : scene.truth.pedicels) {
+    if (id == scene.truth.target_pedicel) continue;
+    const auto& rod = std::get<sim::RodShape>(scene.world.object(id).shape);
+    const Eigen::Vector3d p0 = T_sensor_world * rod.p0, p1 = T_sensor_world * rod.p1;
+    if ((p0.y() < 0.0) == (p1.y() < 0.0)) continue;  // does not reach the plane
+    const Eigen::Vector3d c = p0 + (-p0.y() / (p1.y() - p0.y())) * (p1 - p0);
+    if ((Eigen::Vector2d(c.x(), c.z()) - expected).norm() < target_d) nearer = true;
+  }
+  return nearer;
+}
+
+/// The counts behind TrussResult's rates.
+struct TrussTally {
+  int counts[4] = {0, 0, 0, 0};
+  int ambiguous = 0, unambiguous = 0, aligned_unambiguous = 0;
+
+  void add(const TrussTrial& t) {
+    ++counts[static_cast<int>(t.verdict)];
+    ambiguous += t.neighbour_nearer;
+    if (!t.neighbour_nearer) {
+      ++unambiguous;
+      aligned_unambiguous += t.verdict == Verdict::kAligned;
+    }
+  }
+  void rates(TrussResult& out, int trials) const {
+    out.aligned = wilson(counts[0], trials);
+    out.wrong = wilson(counts[1], trials);
+    out.out_of_view = wilson(counts[2], trials);
+    out.missed = wilson(counts[3], trials);
+    out.ambiguous = wilson(ambiguous, trials);
+    out.aligned_unambiguous = wilson(aligned_unambiguous, unambiguous);
+  }
+};
+
+}  // namespace
+
 TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint64_t seed0, const TrussEvalOptions& o,
                            const TrussObserver& on_trial, const LookObserver& on_look) {
   TrussResult out;
@@ -89,115 +273,33 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
   finder.scissors.centre_x_m = 0.0;
   finder.scissors.centre_z_m = o.scene.throat_z_m;
   LineScanClusterer clusterer(o.clustering);
-  int counts[4] = {0, 0, 0, 0};
-  int ambiguous = 0, unambiguous = 0, aligned_unambiguous = 0;
+  TrussTally tally;
   for (int t = 0; t < trials; ++t) {
     const std::uint64_t seed = seed0 + static_cast<std::uint64_t>(t);
     const TrussScene scene = make_truss_scene(c, seed, o.scene);
     const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor, seed);
     const TwoStageResult objects = clusterer.run(s.scan);
-    std::optional<PedicelExpectation> expectation;
-    const bool layout = o.use_layout && !scene.truth.neighbours_expected.empty();
-    if (o.use_expectation && (scene.truth.use_expectation || layout)) {
-      // kRandomOffset has no expectation of its own: the throat, with the finder's search spread.
-      expectation = PedicelExpectation{scene.truth.expected_xz_m,
-                                       scene.truth.use_expectation ? scene.truth.expected_sd_m : finder.search_sd_m,
-                                       {},
-                                       0.015};
-      if (layout) expectation->neighbours = scene.truth.neighbours_expected;
-    }
-    PedicelDetection d = find_pedicel(s.scan, objects, finder, expectation);
-    bool looked = false, registered = false, blind = false;
-    if (o.tomato_look && expectation && !scene.truth.tomatoes_expected.empty() &&
-        (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove)) {
-      // Before moving: lower the plane through the target's tomato (y is
-      // down), back off out of the sensor's short-range bias, and register
-      // the vision's tomatoes there.
-      looked = true;
-      const double down = scene.truth.tomatoes_expected.front().centre_m.y();
-      std::vector<ExpectedTomato> tomatoes = scene.truth.tomatoes_expected;
-      for (auto& t : tomatoes) t.centre_m += Eigen::Vector3d(0.0, -down, o.look_back_m);
-      const SimulatedScan look =
-          scanner.scan(scene.world, scene.T_world_sensor * Eigen::Translation3d(0.0, down, -o.look_back_m),
-                       seed + kRescanSeedStride * 97);
-      // The vision's common offset is searched as far as the expectation's
-      // own spread allows (3 sd): a tomato-based expectation (kRecognitionError)
-      // is good to 1.5 cm, a shifted recognition (kRandomOffset) is not.
-      TomatoRegistrationParams registration = o.registration;
-      registration.max_shift_m = std::min(registration.max_shift_m, o.registration_search_sd * expectation->sd_m);
-      const TomatoRegistration reg = register_tomatoes(look.scan, tomatoes, registration);
-      if (on_look) on_look(seed, scene, look, tomatoes, reg);
-      if (reg.ok) {
-        registered = true;
-        expectation = shifted(*expectation, reg.shift_xz_m);
-        expectation->sd_m = o.registered_sd_m;
-        expectation->gate_sd = o.registered_gate_sd;
-        d = find_pedicel(s.scan, objects, finder, expectation);
-        if (d.outcome == PedicelOutcome::kNothingToCut && o.blind_move) {
-          // Nothing pedicel-like where the registered truss puts the target
-          // (hidden from here): go there and look again.
-          blind = true;
-          d.outcome = PedicelOutcome::kMove;
-          d.cluster = -1;
-          d.candidates.clear();
-          d.lateral_offset_m = expectation->position_xz_m.x() - finder.scissors.centre_x_m;
-          d.depth_offset_m = expectation->position_xz_m.y() - finder.scissors.centre_z_m;
-        }
-      }
-    }
+    const FirstDecision first = decide_first(scanner, scene, s, objects, seed, finder, o, on_look);
+    const PedicelDetection& d = first.d;
 
     TrussTrial trial;
     trial.seed = seed;
     trial.outcome = d.outcome;
     trial.confidence = d.confidence;
-    trial.looked = looked;
-    trial.registered = registered;
+    trial.looked = first.looked;
+    trial.registered = first.registered;
     int target_pixels = 0;
     for (const auto id : s.truth_object) target_pixels += id == scene.truth.target_pedicel;
     trial.target_visible = target_pixels >= 2;
-    if (d.outcome == PedicelOutcome::kCutHere || d.outcome == PedicelOutcome::kMove) {
-      trial.chosen = d.cluster >= 0
-                         ? majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s)
+    if (moves(d)) {
+      const sim::ObjectId chosen =
+          d.cluster >= 0 ? majority_object(objects.labels, objects.clusters[static_cast<std::size_t>(d.cluster)].id, s)
                          : sim::kNoObject;
-      Eigen::Isometry3d T_world_sensor = scene.T_world_sensor;
-      PedicelDetection last = d;
-      std::optional<PedicelExpectation> belief = expectation;
-      // The closed loop (4.5): after a move, scan again from where the
-      // gripper now is and re-centre on what the finder sees there.
-      for (int k = 0; k < o.rescans && last.outcome == PedicelOutcome::kMove; ++k) {
-        T_world_sensor = T_world_sensor * Eigen::Translation3d(last.lateral_offset_m, 0.0, last.depth_offset_m);
-        if (k == 0 && blind) {
-          // The move went to the registered expectation, not to a seen
-          // pedicel: that expectation, its spread and gate, moves along.
-          belief = expectation_after_move(finder, belief, last, {last.lateral_offset_m, last.depth_offset_m});
-        } else {
-          belief = o.carry_runners_up ? expectation_after_centring(finder, belief, last)
-                                      : expectation_after_centring(finder, belief);
-        }
-        const SimulatedScan again =
-            scanner.scan(scene.world, T_world_sensor, seed + kRescanSeedStride * static_cast<std::uint64_t>(k + 1));
-        const TwoStageResult objects_again = clusterer.run(again.scan);
-        const PedicelDetection d_again = find_pedicel(again.scan, objects_again, finder, belief);
-        ++trial.rescans;
-        if (d_again.outcome != PedicelOutcome::kCutHere && d_again.outcome != PedicelOutcome::kMove) {
-          // Lost it: the gripper stays where the last move put it.
-          last.lateral_offset_m = last.depth_offset_m = 0.0;
-          break;
-        }
-        trial.chosen = majority_object(objects_again.labels,
-                                       objects_again.clusters[static_cast<std::size_t>(d_again.cluster)].id, again);
-        last = d_again;
-      }
-      trial.chosen_kind = object_kind(scene, trial.chosen);
-      // Where the target ends up relative to the throat after the last move.
-      const Eigen::Vector3d tgt = T_world_sensor.inverse() * (scene.T_world_sensor * scene.truth.target_in_sensor);
-      const double lateral = tgt.x() - (finder.scissors.centre_x_m + last.lateral_offset_m);
-      const double depth = tgt.z() - (finder.scissors.centre_z_m + last.depth_offset_m);
-      trial.lateral_error_m = lateral;
-      const bool between = std::abs(lateral) <= finder.scissors.opening_m / 2 - scene.truth.target_radius_m &&
-                           std::abs(depth) <= o.depth_tolerance_m;
-      trial.verdict = trial.chosen == scene.truth.target_pedicel && between ? Verdict::kAligned : Verdict::kWrong;
-      if (blind && trial.chosen == sim::kNoObject) {  // the look from there found nothing either: no cut
+      const LoopEnd end = close_the_loop(scanner, clusterer, scene, seed, first, chosen, finder, o);
+      trial.chosen = end.chosen;
+      trial.rescans = end.rescans;
+      score_the_move(trial, scene, end, finder, o);
+      if (first.blind && trial.chosen == sim::kNoObject) {  // the look from there found nothing either: no cut
         trial.outcome = PedicelOutcome::kNothingToCut;
         trial.verdict = trial.target_visible ? Verdict::kMissed : Verdict::kOutOfView;
       }
@@ -205,38 +307,14 @@ TrussResult run_truss_case(TrussCase c, Scanner& scanner, int trials, std::uint6
       trial.chosen_kind = "none";
       trial.verdict = trial.target_visible ? Verdict::kMissed : Verdict::kOutOfView;
     }
-    // Geometric ambiguity: where each pedicel's axis crosses the laser plane.
-    {
-      const Eigen::Isometry3d T_sensor_world = scene.T_world_sensor.inverse();
-      const Eigen::Vector2d expected = expectation
-                                           ? scene.truth.expected_xz_m
-                                           : Eigen::Vector2d(finder.scissors.centre_x_m, finder.scissors.centre_z_m);
-      const Eigen::Vector3d& tgt = scene.truth.target_in_sensor;
-      const double target_d = (Eigen::Vector2d(tgt.x(), tgt.z()) - expected).norm();
-      for (const auto id : scene.truth.pedicels) {
-        if (id == scene.truth.target_pedicel) continue;
-        const auto& rod = std::get<sim::RodShape>(scene.world.object(id).shape);
-        const Eigen::Vector3d p0 = T_sensor_world * rod.p0, p1 = T_sensor_world * rod.p1;
-        if ((p0.y() < 0.0) == (p1.y() < 0.0)) continue;  // does not reach the plane
-        const Eigen::Vector3d c = p0 + (-p0.y() / (p1.y() - p0.y())) * (p1 - p0);
-        if ((Eigen::Vector2d(c.x(), c.z()) - expected).norm() < target_d) trial.neighbour_nearer = true;
-      }
-    }
-    ++counts[static_cast<int>(trial.verdict)];
-    ambiguous += trial.neighbour_nearer;
-    if (!trial.neighbour_nearer) {
-      ++unambiguous;
-      aligned_unambiguous += trial.verdict == Verdict::kAligned;
-    }
+    trial.neighbour_nearer = neighbour_nearer(
+        scene, first.expectation ? scene.truth.expected_xz_m
+                                 : Eigen::Vector2d(finder.scissors.centre_x_m, finder.scissors.centre_z_m));
+    tally.add(trial);
     if (on_trial) on_trial(trial, scene, s, objects, d);
     out.trials.push_back(std::move(trial));
   }
-  out.aligned = wilson(counts[0], trials);
-  out.wrong = wilson(counts[1], trials);
-  out.out_of_view = wilson(counts[2], trials);
-  out.missed = wilson(counts[3], trials);
-  out.ambiguous = wilson(ambiguous, trials);
-  out.aligned_unambiguous = wilson(aligned_unambiguous, unambiguous);
+  tally.rates(out, trials);
   return out;
 }
 

@@ -3,6 +3,7 @@
 // range noise): the verdict logic and the confidence intervals. The reported
 // figures come from the simulated sensor, never from this scanner.
 #include <cmath>
+#include <map>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -78,7 +79,23 @@ TEST(EvalHarness, TrussVerdictsAreConsistentWithTheTruth) {
       });
   EXPECT_EQ(observed, 60);
   ASSERT_EQ(r.trials.size(), 60u);
-  EXPECT_EQ(r.aligned.k + r.wrong.k + r.out_of_view.k + r.missed.k, 60);
+  // The rates are the trials' own verdicts recounted (a sum of the four
+  // counts would hold whatever the tally did).
+  std::map<ev::Verdict, int> verdicts;
+  int ambiguous = 0, unambiguous = 0, aligned_unambiguous = 0;
+  for (const auto& t : r.trials) {
+    ++verdicts[t.verdict];
+    ambiguous += t.neighbour_nearer;
+    unambiguous += !t.neighbour_nearer;
+    aligned_unambiguous += !t.neighbour_nearer && t.verdict == ev::Verdict::kAligned;
+  }
+  EXPECT_EQ(r.aligned.k, verdicts[ev::Verdict::kAligned]);
+  EXPECT_EQ(r.wrong.k, verdicts[ev::Verdict::kWrong]);
+  EXPECT_EQ(r.out_of_view.k, verdicts[ev::Verdict::kOutOfView]);
+  EXPECT_EQ(r.missed.k, verdicts[ev::Verdict::kMissed]);
+  EXPECT_EQ(r.ambiguous.k, ambiguous);
+  EXPECT_EQ(r.aligned_unambiguous.k, aligned_unambiguous);
+  EXPECT_EQ(r.aligned_unambiguous.n, unambiguous);
   // Ideal rays see the 6 mm rods clearly: most trials align.
   EXPECT_GE(r.aligned.k, 45);
 }
@@ -91,5 +108,9 @@ TEST(EvalHarness, StickAndWrenchCasesRunAndScore) {
   EXPECT_EQ(st.reflectance_correct.k, 20);
   const auto wr = ev::run_wrench_case(scanner, 5, 3);
   EXPECT_EQ(wr.trials.size(), 5u);
-  for (const auto& t : wr.trials) EXPECT_GE(t.error_rad, 0.0);
+  // The ideal rays' reflectance does not change with the pitch (no specular
+  // lobe): the search must say it found no peak, never report a pitch (the
+  // old check, an absolute error >= 0, held whatever it reported).
+  EXPECT_EQ(wr.found.k, 0);
+  for (const auto& t : wr.trials) EXPECT_TRUE(std::isinf(t.error_rad)) << t.error_rad;
 }

@@ -217,13 +217,13 @@ def measured_plots(d):
     for i, s in enumerate(sensors):
         rows = [r for r in curves if r["sensor"] == s]
         l = column(rows, "l_cm")
-        ax[0].plot(l, column(rows, "residual_declared_cm"), color=f"C{i}", label=s)
-        ax[1].plot(l, column(rows, "residual_best_cm"), color=f"C{i}", label=s)
-    ax[0].set_title("declared (Eq. 3.16, Rsen = 1) against each factory curve")
-    ax[1].set_title("with a gain on A and the pulse shape")
+        ax[0].plot(l, column(rows, "declared_heldout_residual_cm"), color=f"C{i}", label=s)
+        ax[1].plot(l, column(rows, "best_heldout_residual_cm"), color=f"C{i}", label=s)
+    ax[0].set_title("declared (Eq. 3.16, Rsen = 1), held out by blocks of distance")
+    ax[1].set_title("the chosen model, held out by blocks of distance")
     for a in ax:
         a.set_xlabel("distance the factory curve reads [cm]")
-        a.set_ylabel("curve - model [cm]")
+        a.set_ylabel("curve - model, held out [cm]")
         a.axhline(0.0, color="0.6", lw=0.8)
         a.legend(fontsize=7)
     fig.tight_layout()

@@ -249,7 +249,10 @@ TEST(CalibrationMeasured, OneCommandWritesTheReport) {
   EXPECT_THAT(md, HasSubstr("Section 3.5"));
   EXPECT_THAT(md, HasSubstr("factory curves"));
   EXPECT_TRUE(fs::exists(dir / "measured.json"));
-  EXPECT_TRUE(fs::exists(dir / "measured_curves.csv"));
+  // The curves' columns say which residuals are held out (by blocks of distance) and which are in sample.
+  const std::string curves = file_text((dir / "measured_curves.csv").string());
+  EXPECT_EQ(curves.substr(0, curves.find('\n')),
+            "sensor,k,l_cm,declared_heldout_residual_cm,best_heldout_residual_cm,best_in_sample_residual_cm");
   fs::remove_all(dir);
 }
 

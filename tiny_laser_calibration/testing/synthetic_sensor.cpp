@@ -147,104 +147,156 @@ Charges expected_charges(const SyntheticSensor& s, double distance_m, double alb
   return {pulses * (e.q1 + v) / consts.rsen[static_cast<std::size_t>(pixel)], pulses * (e.q2 + v)};
 }
 
-CalibrationDataset simulate_rail(const SyntheticSensor& s, const RailPlan& plan_in) {
-  RailPlan plan = plan_in;
+namespace {
+
+// The rail's random draws, in one order: the same seed gives the same rail.
+struct RailNoise {
+  explicit RailNoise(std::uint64_t seed) : rng(seed) {}
+  std::mt19937_64 rng;
+  std::normal_distribution<double> n01{0.0, 1.0};  // one object: it caches every second draw
+  std::uniform_real_distribution<double> u01{0.0, 1.0};
+  double normal() { return n01(rng); }
+  double uniform() { return u01(rng); }
+};
+
+struct Visit {
+  double distance;
+  std::size_t material;
+};
+
+// The defaults for what the plan leaves empty.
+RailPlan completed(const RailPlan& in) {
+  RailPlan plan = in;
   if (plan.distances_m.empty() || plan.pixels.empty()) {
     const RailPlan d = default_rail();
     if (plan.distances_m.empty()) plan.distances_m = d.distances_m;
     if (plan.pixels.empty()) plan.pixels = d.pixels;
   }
-  std::vector<int> pulses = plan.pulses;
-  std::sort(pulses.begin(), pulses.end());
+  std::sort(plan.pulses.begin(), plan.pulses.end());
+  return plan;
+}
 
-  const auto consts = pixel_constants(s);
-  std::mt19937_64 rng(plan.seed);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  std::uniform_real_distribution<double> u01(0.0, 1.0);
-
-  CalibrationDataset data;
-  data.source = "synthetic rail";
-  data.has_material = plan.materials.size() > 1 || s.effects.material_bias;
-  const bool supply_col = s.effects.supply_voltage || s.effects.supply_column;
-  if (supply_col) data.extra_names.push_back("supply_v");
-
-  struct Visit {
-    double distance;
-    std::size_t material;
-  };
+// Every distance on every material once per pass, each pass in shuffled order.
+std::vector<Visit> shuffled_visits(const RailPlan& plan, RailNoise& noise) {
   std::vector<Visit> visits;
   for (int pass = 0; pass < plan.passes; ++pass) {
     std::vector<Visit> round;
     for (double d : plan.distances_m) {
       for (std::size_t m = 0; m < plan.materials.size(); ++m) round.push_back({d, m});
     }
-    std::shuffle(round.begin(), round.end(), rng);
+    std::shuffle(round.begin(), round.end(), noise.rng);
     visits.insert(visits.end(), round.begin(), round.end());
   }
+  return visits;
+}
 
-  double t = 0.0;
+// The MCU's reading while the sensor warms, as the wire carries it (0.1 degC).
+double mcu_temperature(const SyntheticSensor& s, double t, RailNoise& noise) {
+  const double temperature =
+      s.ambient_c + (s.t_ref_c - s.ambient_c) * (1.0 - std::exp(-t / s.warmup_s)) + 0.1 * noise.normal();
+  return std::round(temperature * 10.0) / 10.0;
+}
+
+// The delay of the effects the sensor carries beyond the declared ones [ns].
+double undeclared_delay_ns(const SyntheticSensor& s, const PixelConstants& consts, int px, double albedo, double t,
+                           double supply) {
+  double delay = 0.0;
+  if (s.effects.material_bias) delay += 2.0 * material_bias_m(albedo) / kLightMPerNs;
+  if (s.effects.pixel_pattern) delay += 2.0 * consts.pattern_m[static_cast<std::size_t>(px)] / kLightMPerNs;
+  if (s.effects.time_drift) delay += 2.0 * s.effects.time_drift_m_per_ks * t / 1000.0 / kLightMPerNs;
+  if (s.effects.supply_voltage) delay += supply_delay_ns(s, supply);
+  return delay;
+}
+
+// The read-outs' pulse counts: the firmware's buffer, or the thesis's fixed-discharge
+// data (pulses so the fuller capacitor reaches the plan's share of full scale).
+std::vector<int> pulse_levels(const SyntheticSensor& s, const RailPlan& plan, const Echo& e, double v_leak,
+                              double rsen) {
+  if (plan.fixed_discharge <= 0.0) return plan.pulses;
+  const double fuller = std::max((e.q1 + v_leak) / rsen, e.q2 + v_leak);
+  const double p = plan.fixed_discharge * s.full_scale / std::max(fuller, 1e-9);
+  return {static_cast<int>(std::clamp(std::round(p / 10.0) * 10.0, 10.0, 990.0))};
+}
+
+// Non-destructive read-outs: one accumulation per capacitor, shot noise as a random walk.
+std::vector<Charges> accumulate(const SyntheticSensor& s, const std::vector<int>& levels, const Echo& e, double v_leak,
+                                RailNoise& noise) {
+  std::vector<Charges> out;
+  double acc1 = 0.0, acc2 = 0.0;
+  int prev = 0;
+  for (int level : levels) {
+    const double dp = level - prev;
+    prev = level;
+    const double m1 = dp * (e.q1 + v_leak), m2 = dp * (e.q2 + v_leak);
+    acc1 += m1 + std::sqrt(s.shot_gain * std::max(m1, 0.0)) * noise.normal();
+    acc2 += m2 + std::sqrt(s.shot_gain * std::max(m2, 0.0)) * noise.normal();
+    out.push_back({acc1, acc2});
+  }
+  return out;
+}
+
+// What the ADC reports for one accumulated charge: the capacitor's transfer
+// curve (when the sensor has the effect), ADC noise, the rails, the wire's 0.1.
+double adc_reading(const SyntheticSensor& s, double charge, RailNoise& noise) {
+  if (s.effects.capacitor_nonlinearity)
+    charge *= 1.0 - s.effects.nonlinearity_eta * std::min(charge, s.full_scale) / s.full_scale;
+  const double v = std::clamp(charge + s.adc_sd * noise.normal(), -s.full_scale, s.full_scale);
+  return s.quantise ? std::round(v * 10.0) / 10.0 : v;  // the wire carries ten times the charge unit as int16
+}
+
+struct PixelRead {
+  double t = 0.0, temperature = 0.0, supply = 0.0;
+  int px = 0;
+};
+
+// One pixel's read-outs of one frame, added to `data`.
+void read_pixel(const SyntheticSensor& s, const RailPlan& plan, const PixelConstants& consts, const Visit& visit,
+                const PixelRead& at, bool supply_col, RailNoise& noise, CalibrationDataset& data) {
+  const auto& material = plan.materials[visit.material];
   const double v_leak = s.ambient_per_pulse + s.leak_per_pulse;
-  std::vector<double> walk1(pulses.size() + 1), walk2(pulses.size() + 1);
-  std::vector<int> pixel_levels;
-  for (const Visit& visit : visits) {
-    t += plan.move_time_s;
-    const auto& material = plan.materials[visit.material];
-    const double supply = 4.7 + 0.6 * u01(rng);  // per visit: the bench supply is retuned between visits
+  const double angle = ray_angle(s, at.px);
+  const double ray_m = visit.distance / std::cos(angle);  // flat target normal to the axis
+  const double delay = undeclared_delay_ns(s, consts, at.px, material.albedo, at.t, at.supply);
+  // Delay drift with the temperature the MCU reads (declared, 3.3.4) uses the true temperature.
+  const Echo e = echo(s, ray_m, angle, material.albedo, delay, at.temperature);
+  const double rsen = consts.rsen[static_cast<std::size_t>(at.px)];
+  const std::vector<int> levels = pulse_levels(s, plan, e, v_leak, rsen);
+  const std::vector<Charges> walk = accumulate(s, levels, e, v_leak, noise);
+  for (std::size_t k = 0; k < levels.size(); ++k) {
+    Readout r;
+    r.a = adc_reading(s, walk[k].a / rsen, noise);
+    r.b = adc_reading(s, walk[k].b, noise);
+    r.t_s = std::round(at.t * 1000.0) / 1000.0;
+    r.pixel = at.px;
+    r.pulses = levels[k];
+    r.temperature_c = at.temperature;
+    const double supply_read = at.supply + 0.005 * noise.normal();  // drawn always: the same seed, the same noise
+    if (supply_col) r.extra.push_back(std::round(supply_read * 1000.0) / 1000.0);
+    data.add(std::move(r), ray_m, material.name);
+  }
+}
+
+}  // namespace
+
+CalibrationDataset simulate_rail(const SyntheticSensor& s, const RailPlan& plan_in) {
+  const RailPlan plan = completed(plan_in);
+  const auto consts = pixel_constants(s);
+  RailNoise noise(plan.seed);
+  CalibrationDataset data;
+  data.source = "synthetic rail";
+  data.has_material = plan.materials.size() > 1 || s.effects.material_bias;
+  const bool supply_col = s.effects.supply_voltage || s.effects.supply_column;
+  if (supply_col) data.extra_names.push_back("supply_v");
+  PixelRead at;
+  for (const Visit& visit : shuffled_visits(plan, noise)) {
+    at.t += plan.move_time_s;
+    at.supply = 4.7 + 0.6 * noise.uniform();  // per visit: the bench supply is retuned between visits
     for (int f = 0; f < plan.frames_per_visit; ++f) {
-      t += plan.frame_period_s;
-      double temperature = s.ambient_c + (s.t_ref_c - s.ambient_c) * (1.0 - std::exp(-t / s.warmup_s)) + 0.1 * n01(rng);
-      temperature = std::round(temperature * 10.0) / 10.0;  // the wire carries 0.1 degC
+      at.t += plan.frame_period_s;
+      at.temperature = mcu_temperature(s, at.t, noise);
       for (int px : plan.pixels) {
-        const double angle = ray_angle(s, px);
-        const double ray_m = visit.distance / std::cos(angle);  // flat target normal to the axis
-        double delay = 0.0;
-        if (s.effects.material_bias) delay += 2.0 * material_bias_m(material.albedo) / kLightMPerNs;
-        if (s.effects.pixel_pattern) delay += 2.0 * consts.pattern_m[static_cast<std::size_t>(px)] / kLightMPerNs;
-        if (s.effects.time_drift) delay += 2.0 * s.effects.time_drift_m_per_ks * t / 1000.0 / kLightMPerNs;
-        if (s.effects.supply_voltage) delay += supply_delay_ns(s, supply);
-        // Delay drift with the temperature the MCU reads (declared, 3.3.4) uses the true temperature.
-        const Echo e = echo(s, ray_m, angle, material.albedo, delay, temperature);
-        const double rsen = consts.rsen[static_cast<std::size_t>(px)];
-        std::vector<int>& levels = pixel_levels;
-        levels = pulses;
-        if (plan.fixed_discharge > 0.0) {
-          // The thesis's fixed-discharge data: pulses so the fuller capacitor reaches the share.
-          const double fuller = std::max((e.q1 + v_leak) / rsen, e.q2 + v_leak);
-          const double p = plan.fixed_discharge * s.full_scale / std::max(fuller, 1e-9);
-          levels = {static_cast<int>(std::clamp(std::round(p / 10.0) * 10.0, 10.0, 990.0))};
-        }
-        double acc1 = 0.0, acc2 = 0.0;
-        int prev = 0;
-        for (std::size_t k = 0; k < levels.size(); ++k) {
-          // Non-destructive read-outs: one accumulation, shot noise as a random walk.
-          const double dp = levels[k] - prev;
-          prev = levels[k];
-          const double m1 = dp * (e.q1 + v_leak), m2 = dp * (e.q2 + v_leak);
-          acc1 += m1 + std::sqrt(s.shot_gain * std::max(m1, 0.0)) * n01(rng);
-          acc2 += m2 + std::sqrt(s.shot_gain * std::max(m2, 0.0)) * n01(rng);
-          walk1[k] = acc1;
-          walk2[k] = acc2;
-        }
-        for (std::size_t k = 0; k < levels.size(); ++k) {
-          double a = walk1[k] / rsen;
-          double b = walk2[k];
-          if (s.effects.capacitor_nonlinearity) {
-            a *= 1.0 - s.effects.nonlinearity_eta * std::min(a, s.full_scale) / s.full_scale;
-            b *= 1.0 - s.effects.nonlinearity_eta * std::min(b, s.full_scale) / s.full_scale;
-          }
-          a = std::clamp(a + s.adc_sd * n01(rng), -s.full_scale, s.full_scale);
-          b = std::clamp(b + s.adc_sd * n01(rng), -s.full_scale, s.full_scale);
-          Readout r;
-          r.t_s = std::round(t * 1000.0) / 1000.0;
-          r.pixel = px;
-          r.pulses = levels[k];
-          r.a = s.quantise ? std::round(a * 10.0) / 10.0 : a;  // the wire carries ten times the charge unit as int16
-          r.b = s.quantise ? std::round(b * 10.0) / 10.0 : b;
-          r.temperature_c = temperature;
-          const double supply_read = supply + 0.005 * n01(rng);  // drawn always: the same seed gives the same noise
-          if (supply_col) r.extra.push_back(std::round(supply_read * 1000.0) / 1000.0);
-          data.add(std::move(r), ray_m, material.name);
-        }
+        at.px = px;
+        read_pixel(s, plan, consts, visit, at, supply_col, noise, data);
       }
     }
   }

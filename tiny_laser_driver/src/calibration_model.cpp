@@ -298,6 +298,18 @@ double CalibrationModel::Impl::polynomial_m(double x) const {
   return acc;
 }
 
+double CalibrationModel::Impl::polynomial_slope_m(double x) const {
+  const double u = (x - poly_center) / poly_scale;
+  double acc = 0.0;
+  for (std::size_t k = poly_m.size(); k-- > 1;) acc = acc * u + static_cast<double>(k) * poly_m[k];
+  return acc / poly_scale;
+}
+
+double NoiseLaw::ratio_sd_at(double sum, int pulses) const {
+  if (empty() || !(sum > 0.0)) return kNaN;
+  return std::sqrt(shot * sum + per_pulse * pulses + read) / sum;
+}
+
 double CalibrationModel::Impl::declared_m(double x, double temperature_c) const {
   return polynomial_m(x) + temperature_coef_m_per_c * (temperature_reference_c - temperature_c);  // 3.3.4
 }
@@ -413,6 +425,7 @@ CalibrationEvaluation compute(const CalibrationModel::Impl& m, const Readout& r)
     ev.reflectance = CalibrationModel::Impl::covariate_value(Covariate::kReflectance, -1, r, ev.ratio,
                                                              ev.declared_distance_m, m.amplitude_reference);
     ev.albedo = m.amplitude_reference.albedo(r, ev.declared_distance_m);
+    ev.range_sd_m = std::abs(m.polynomial_slope_m(ev.ratio)) * m.noise.ratio_sd_at(r.a + r.b, r.pulses);
   }
   double d = ev.declared_distance_m;
   bool missing = !has_temperature && m.temperature_coef_m_per_c != 0.0;
@@ -452,6 +465,10 @@ std::string CalibrationModel::describe() const {
                    m.poly_m.empty() ? 0 : m.poly_m.size() - 1, m.ratio_min, m.ratio_max);
   s += fmt::format("temperature (3.3.4): {:.4g} mm/degC below {:.1f} degC\n", m.temperature_coef_m_per_c * 1e3,
                    m.temperature_reference_c);
+  if (!m.noise.empty()) {
+    s += fmt::format("noise (3.5): var(X) (a + b)^2 = {:.4g} (a + b) + {:.4g} pulses + {:.4g}\n", m.noise.shot,
+                     m.noise.per_pulse, m.noise.read);
+  }
   for (const auto& t : m.terms) {
     s += fmt::format("term: {} of {} ({} coefficients)\n", to_string(t.form), t.covariate, t.basis_size());
   }

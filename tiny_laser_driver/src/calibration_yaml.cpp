@@ -270,15 +270,30 @@ void require_plausible(const YAML::Node& root, const Reader& rd, const Impl& m) 
   }
 }
 
+void parse_noise(const YAML::Node& n, const Reader& rd, NoiseLaw& law) {
+  rd.only_keys(n, "noise", {"shot", "per_pulse", "read"});
+  double* fields[] = {&law.shot, &law.per_pulse, &law.read};
+  const char* names[] = {"shot", "per_pulse", "read"};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const auto v = rd.required(n, "noise", names[k]);
+    const std::string field = std::string("noise.") + names[k];
+    *fields[k] = rd.number(v, field);
+    if (!(*fields[k] >= 0.0)) rd.fail(v, field, "must not be negative: a variance");
+  }
+  if (law.empty()) rd.fail(n, "noise", "every term is 0: leave the section out");
+}
+
 void parse(const YAML::Node& root, const Reader& rd, Impl& m) {
-  rd.only_keys(root, "",
-               {"format", "validity", "ratio", "polynomial", "temperature", "amplitude_reference", "terms", "fit"});
+  rd.only_keys(
+      root, "",
+      {"format", "validity", "ratio", "polynomial", "temperature", "amplitude_reference", "noise", "terms", "fit"});
   parse_format(root, rd);
   if (const auto v = root["validity"]) parse_validity(v, rd, m.validity);
   if (const auto r = root["ratio"]) parse_ratio(r, rd, m);
   if (const auto p = root["polynomial"]) parse_polynomial(p, rd, m);
   if (const auto t = root["temperature"]) parse_temperature(t, rd, m);
   if (const auto a = root["amplitude_reference"]) parse_amplitude_reference(a, rd, m.amplitude_reference);
+  if (const auto n = root["noise"]) parse_noise(n, rd, m.noise);
   if (const auto terms = root["terms"]) parse_terms(terms, rd, m);
   if (const auto fit = root["fit"]) parse_fit(fit, rd, m.info);
   require_complete(root, rd);
@@ -381,6 +396,11 @@ std::string CalibrationModel::to_yaml() const {
     y +=
         fmt::format("  knots_m: {}\n  log_amplitude: {}\n", list(ref.knots_m, "    "), list(ref.log_amplitude, "    "));
     if (!ref.pixel_log_offset.empty()) y += fmt::format("  pixel_log_offset: {}\n", list(ref.pixel_log_offset, "    "));
+  }
+  if (!m.noise.empty()) {
+    y += "noise:                    # section 3.5: var(X) = (shot (a + b) + per_pulse pulses + read) / (a + b)^2\n";
+    y += fmt::format("  shot: {}\n  per_pulse: {}\n  read: {}\n", num(m.noise.shot), num(m.noise.per_pulse),
+                     num(m.noise.read));
   }
   if (m.terms.empty()) {
     y += "terms: []                # effects found by the residual analysis (none)\n";

@@ -30,6 +30,7 @@ bool is_measurement(const CalibrationEvaluation& ev) {
 
 void clear_pixel(ProcessedScan& out, std::size_t p, PixelStatus s) {
   out.distance_m[p] = kNaNf;
+  out.range_sd_m[p] = kNaNf;
   out.intensity[p] = kNaNf;
   out.reflectance[p] = kNaNf;
   out.pulses[p] = 0;
@@ -86,8 +87,8 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
     int chosen = -1;
     for (int k = n - 1; k >= 0; --k) {
       const RawFrame& f = set.frames[static_cast<std::size_t>(k)];
-      r.a = f.a[p] / 10.0;  // the wire carries ten times the charge unit
-      r.b = f.b[p] / 10.0;
+      r.a = charge_units(f.a[p]);
+      r.b = charge_units(f.b[p]);
       r.pulses = f.pulses;
       if (rule.check(r) != ValidityRule::Verdict::kSaturated) {
         chosen = k;
@@ -111,6 +112,7 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
       const double d_m = ev.distance_m;
       const double d_cm = 100.0 * d_m;
       out.distance_m[p] = static_cast<float>(d_m);
+      out.range_sd_m[p] = static_cast<float>(ev.range_sd_m);
       out.reflectance[p] =
           static_cast<float>(d_cm * d_cm * (r.a + r.b) / (r.pulses / 10.0));  // the sensor's reflectance figure
       out.status[p] = PixelStatus::kValid;
@@ -118,6 +120,7 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
       continue;
     }
     out.distance_m[p] = kNaNf;
+    out.range_sd_m[p] = kNaNf;
     out.reflectance[p] = kNaNf;
     if (ev.status == S::kOutOfRange || has_distance(ev)) {
       out.status[p] = PixelStatus::kOutOfRange;

@@ -327,7 +327,7 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
   out->closed_loop = vo.rescans > 0;
   out->csv << "case,class,seed,truth,pick_rank,offset_m,vision_on_pedicel,outcome,verdict,on_pedicel,lateral_error_mm,"
               "depth_error_mm,move_mm,confidence,reason"
-           << (out->closed_loop ? ",scans\n" : "\n");
+           << (out->closed_loop ? ",scans,registered,blind_move\n" : ",registered\n");
   return out;
 }
 
@@ -392,6 +392,8 @@ void verify_picks(PickVerification& v, const eval::Scenario& sc, const PipelineR
             << ',' << int(t.on_pedicel) << ',' << 1000 * t.lateral_error_m << ',' << 1000 * t.depth_error_m << ','
             << 1000 * t.move_m << ',' << t.confidence << ",\"" << t.reason << '"';
       if (v.closed_loop) v.csv << ',' << t.scans;
+      v.csv << ',' << int(t.registered);
+      if (v.closed_loop) v.csv << ',' << int(t.blind_move);
       v.csv << '\n';
     }
   }

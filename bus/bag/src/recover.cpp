@@ -2,6 +2,7 @@
 #include <tinyline/bag/recover.hpp>
 
 #include <algorithm>
+#include <charconv>
 #include <cctype>
 #include <map>
 #include <optional>
@@ -116,8 +117,31 @@ bool fits_rosidl(std::string_view name, bool constant) {
          });
 }
 
+// A default or constant value a numeric or boolean field cannot hold
+// ("float64 w 1*"); other types' values (strings, arrays) are not checked.
+bool literal_fits(std::string_view type, std::string_view value) {
+  static const std::set<std::string_view> integers = {"byte",   "char",  "int8",   "uint8", "int16",
+                                                      "uint16", "int32", "uint32", "int64", "uint64"};
+  value = value.substr(0, value.find_last_not_of(" \t") + 1);
+  if (type == "bool")
+    return value == "true" || value == "false" || value == "True" || value == "False" || value == "1" || value == "0";
+  const char* end = value.data() + value.size();
+  if (type == "float32" || type == "float64") {
+    double v = 0.0;
+    const auto r = std::from_chars(value.data(), end, v);
+    return r.ec == std::errc() && r.ptr == end;
+  }
+  if (integers.count(type) != 0) {
+    long long v = 0;
+    const auto r = std::from_chars(value.data() + (value.rfind('+', 0) == 0 ? 1 : 0), end, v);
+    return r.ec == std::errc() && r.ptr == end;
+  }
+  return true;
+}
+
 // Why a line of ros2msg schema text cannot be right, if it cannot: each is a
-// comment, a separator (all '='), "MSG: pkg/Type", a field or a constant.
+// comment, a separator (all '='), "MSG: pkg/Type", a field (with its
+// default, if any) or a constant.
 std::optional<std::string> ros2msg_line_damage(std::string_view raw) {
   const std::string_view line = strip_line(raw);
   const auto bad = [&] { return std::optional<std::string>("'" + std::string(line) + "'"); };
@@ -130,7 +154,11 @@ std::optional<std::string> ros2msg_line_damage(std::string_view raw) {
   const std::string_view name = rest.substr(0, rest.find_first_of(" \t="));
   std::string_view after = rest.substr(name.size());
   after.remove_prefix(std::min(after.size(), after.find_first_not_of(" \t")));
-  return fits_rosidl(name, !after.empty() && after[0] == '=') ? std::nullopt : bad();
+  const bool constant = !after.empty() && after[0] == '=';
+  if (!fits_rosidl(name, constant)) return bad();
+  std::string_view value = constant ? after.substr(1) : after;
+  value.remove_prefix(std::min(value.size(), value.find_first_not_of(" \t")));
+  return value.empty() || literal_fits(line.substr(0, space), value) ? std::nullopt : bad();
 }
 
 std::vector<std::string_view> lines_of(std::string_view text) {

@@ -380,6 +380,7 @@ def sample_messages(typestore, seed: int = 3):
         out.append(('/tiny/scan', 'tinyline_msgs/msg/LineScan', T['tinyline_msgs/msg/LineScan'](
             header=Header(stamp=stamp, frame_id='tiny'), set_index=i, temperature_c=np.float32(31.25).item(),
             angles=np.linspace(-0.5, 0.5, 256, dtype=np.float32), distance_m=dist,
+            range_sd_m=rng.uniform(0.001, 0.05, 256).astype(np.float32),
             intensity=rng.uniform(0, 50, 256).astype(np.float32), reflectance=rng.uniform(0, 1e4, 256).astype(np.float32),
             pulses=rng.integers(10, 200, 256).astype(np.uint16), status=status)))
         if i % 4 == 0:

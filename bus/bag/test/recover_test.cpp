@@ -12,6 +12,7 @@
 #include <tinyline/bag/recover.hpp>
 #include <tinyline/bag/ros2.hpp>
 #include <tinyline/bus/names.hpp>
+#include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
 #include <tinyline/msg/std_msgs/string.hpp>
 
 namespace tinyline::bag {
@@ -204,6 +205,32 @@ TEST(Recover, WithoutASummaryASchemaNameWithACapitalisedPackageIsRefused) {
   f[name_at + 7] ^= 0x20;
   const Recovered got = recover_bytes(f);
   EXPECT_TRUE(mentions(got.report, "no ROS 2 type name")) << "the damaged schema is reported";
+  if (got.status.ok()) {
+    EXPECT_TRUE(got.topics.empty()) << "no channel may keep a schema that cannot be right";
+  }
+}
+
+TEST(Recover, WithoutASummaryASchemaWhoseDefaultValueCannotBeRightIsRefused) {
+  // One bit (0x20) turns Quaternion's "float64 w 1\n" into "float64 w 1*":
+  // still text, but no number, and a ROS 2 reader refuses the whole file.
+  ros2::Ros2Writer w;
+  auto sink = std::make_unique<MemoryWritable>();
+  auto* mem = sink.get();
+  WriterOptions opt;
+  opt.summary = false;
+  ASSERT_TRUE(w.open(std::move(sink), opt).ok());
+  ChannelId pose;
+  ASSERT_TRUE(w.add_topic("/pose", msg::type_support<geometry_msgs::msg::PoseStamped>(), pose).ok());
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_TRUE(w.write(pose, geometry_msgs::msg::PoseStamped{}, 1000 + i, 1000, static_cast<std::uint32_t>(i)).ok());
+  }
+  ASSERT_TRUE(w.close().ok());
+  Bytes f = mem->data();
+  const auto* at = find_text(f.data(), f.data() + f.size(), "float64 w 1\n");
+  ASSERT_NE(at, f.data() + f.size()) << "Quaternion's default w is in the schema text";
+  f[static_cast<std::size_t>(at - f.data()) + 11] ^= 0x20;
+  const Recovered got = recover_bytes(f);
+  EXPECT_TRUE(mentions(got.report, "'float64 w 1*'")) << "the damaged schema is reported";
   if (got.status.ok()) {
     EXPECT_TRUE(got.topics.empty()) << "no channel may keep a schema that cannot be right";
   }

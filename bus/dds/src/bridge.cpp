@@ -5,6 +5,7 @@
 #include <map>
 #include <optional>
 
+#include <dds/ddsc/dds_loan_api.h>
 #include <fmt/format.h>
 
 #include <tinyline/dds/naming.hpp>
@@ -106,6 +107,8 @@ struct Bridge::Link {
   std::atomic<dds_entity_t> writer{0};
   std::atomic<dds_entity_t> reader{0};
   std::atomic<bool> writer_latched{false};
+  std::atomic<bool> writer_shm{false};          // the writer publishes through shared memory too
+  std::atomic<std::uint64_t> writer_handle{0};  // its instance handle: its samples come back through iceoryx
   // Delivery: one thread at a time takes and publishes (order); a listener
   // that finds it busy leaves `pending` for the holder to look again.
   std::mutex deliver_mu;
@@ -278,6 +281,15 @@ Bridge::Bridge(bus::NodeOptions node_options, BridgeOptions options)
     : Node(std::move(node_options)), options_(std::move(options)) {
   for (const auto& note : options_.settings.notes) logger().warn("{}", note);
   participant_ = std::make_unique<Participant>(options_.settings);
+  if (participant_->shared_memory()) {
+    logger().info(
+        "shared memory on (iceoryx): keep-last, volatile topics reach processes on this machine "
+        "without the loopback socket");
+  } else if (options_.settings.shared_memory) {
+    logger().warn(
+        "shared memory was asked for, but no RouDi (iox-roudi) runs on this machine: every topic goes "
+        "over loopback");
+  }
   origin_ = g_next_origin.fetch_add(1);
   backpressure_ = std::thread([this] { backpressure_loop(); });
   ros_graph_ =
@@ -556,6 +568,11 @@ void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, cons
   dds_delete_listener(ls);
   if (w < 0) fail("cannot create a DDS writer for " + L.name, w);
   L.writer_latched.store(wq.transient_local);
+  L.writer_shm.store(participant_->shared_memory() && dds_is_shared_memory_available(w));
+  dds_instance_handle_t ih = 0;
+  dds_get_instance_handle(w, &ih);
+  L.writer_handle.store(ih);
+  if (participant_->shared_memory() && !L.writer_shm.load()) explain_no_shared_memory(L, wq, "publishers");
   L.writer_gid = detail::gid_of(w);
   L.writer.store(w);
   BridgeAccess::refresh_writer(L, w);  // readers matched while it was being created
@@ -573,7 +590,8 @@ void Bridge::sync_writer(Link& L, const std::shared_ptr<bus::Topic>& topic, cons
 void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
   // A reader exists while the process subscribes to the topic, with the QoS
   // its subscribers need now.
-  const EndpointQos rq = requested_qos(subs);
+  EndpointQos rq = requested_qos(subs);
+  rq.accept_local = participant_->shared_memory();  // its own writes are dropped in take_available
   if (L.reader.load() != 0 && (subs.empty() || !same(rq, L.rq))) {
     dds_delete(L.reader.exchange(0));  // waits for a listener call in progress
     L.remote_writers.store(0);
@@ -602,6 +620,9 @@ void Bridge::sync_reader(Link& L, const std::vector<bus::QoS>& subs) {
   const dds_entity_t r = dds_create_reader(participant_->handle(), L.topic.topic, q.q, ls);
   dds_delete_listener(ls);
   if (r < 0) fail("cannot create a DDS reader for " + L.name, r);
+  if (participant_->shared_memory() && !dds_is_shared_memory_available(r)) {
+    explain_no_shared_memory(L, rq, "subscribers");
+  }
   L.reader_gid = detail::gid_of(r);
   L.reader.store(r);
   BridgeAccess::refresh_reader(L, r);
@@ -630,7 +651,14 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
   }
   l.last_size.store(buf.size(), std::memory_order_relaxed);
   TL_DDS_PROBE(Serialized);
-  ddsi_serdata* sd = detail::make_serdata(l.topic.sertype, std::move(buf));
+  std::string why;
+  ddsi_serdata* sd = detail::make_serdata_for(w, l.writer_shm.load(), l.topic.sertype, std::move(buf), why);
+  if (sd == nullptr) {
+    if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
+      logger().error("{}: a message was not sent to the processes on this machine: {}", l.name, why);
+    }
+    return;
+  }
   t_in_write = true;
   const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
   t_in_write = false;
@@ -685,7 +713,11 @@ void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
     if (quit_.load() || dds_takecdr(reader, &sd, 1, &info, DDS_ANY_STATE) <= 0) return;
     TL_DDS_PROBE(Taken);
     detail::taking_over(sd);
-    if (info.valid_data) {
+    if (detail::serdata_lost_before(sd)) count_shared_memory_loss(l);
+    // Shared memory delivers our own writes back to us (iceoryx knows no
+    // ignore-local): those are the local subscribers' already.
+    const bool own = info.publication_handle == l.writer_handle.load() && l.writer_handle.load() != 0;
+    if (info.valid_data && !own) {
       std::shared_ptr<void> msg;
       try {
         msg = l.type->deserialize(detail::serdata_bytes(sd));
@@ -711,6 +743,30 @@ void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
     }
     detail::handing_over(sd);
     ddsi_serdata_unref(sd);
+  }
+}
+
+void Bridge::explain_no_shared_memory(Link& l, const EndpointQos& q, const char* who) {
+  // Cyclone 0.10 carries keep-last, volatile (or shallow transient-local)
+  // endpoints through iceoryx; anything else keeps to the socket.
+  std::string why;
+  if (q.keep_all) {
+    why = fmt::format("the {} keep all (QoS::reliable()), shared memory needs keep-last", who);
+  } else if (q.transient_local) {
+    why = fmt::format("the {} are latched (transient local), shared memory serves volatile topics", who);
+  } else {
+    why = "Cyclone refused it for this endpoint";
+  }
+  logger().info("{}: over loopback, not shared memory: {} ({})", l.name, why, q.describe());
+}
+
+void Bridge::count_shared_memory_loss(Link& l) {
+  // iceoryx says only that chunks were lost since it was last asked: at least one.
+  const auto total = l.lost.fetch_add(1) + 1;
+  l.local->count_lost(1);
+  if (worth_logging(total)) {
+    logger().error("{}: shared memory dropped message(s) this process did not take in time ({} time(s) so far)", l.name,
+                   total);
   }
 }
 

@@ -38,7 +38,7 @@ void fill_qos(Qos& out, const EndpointQos& q, bool reader, const Identity& who, 
   }
   const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
   dds_qset_data_representation(out.q, 1, &xcdr1);
-  if (reader) dds_qset_ignorelocal(out.q, DDS_IGNORELOCAL_PARTICIPANT);
+  if (reader && !q.accept_local) dds_qset_ignorelocal(out.q, DDS_IGNORELOCAL_PARTICIPANT);
   std::string ud = type != nullptr && !type->type_hash.empty() ? fmt::format("typehash={};", type->type_hash) : "";
   ud += who.to_user_data();
   dds_qset_userdata(out.q, ud.data(), ud.size());
@@ -175,7 +175,10 @@ std::string host_name() {
 
 Participant::Participant(Settings settings) : settings_(std::move(settings)) {
   check_domain_id(settings_.domain_id, "Settings.domain_id");
-  const std::string config = settings_.effective_config();
+  // Only with a RouDi there: without one Cyclone would wait and then abort.
+  shared_memory_ = settings_.shared_memory && roudi_running();
+  std::string config = settings_.effective_config();
+  if (shared_memory_) config = config.empty() ? shared_memory_config() : config + "," + shared_memory_config();
   identity_.process =
       settings_.process_name.empty() ? std::string(program_invocation_short_name) : settings_.process_name;
   identity_.pid = static_cast<long>(getpid());

@@ -1,7 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "serdata.hpp"
 
+// iceoryx's C binding declares its functions without C linkage for C++.
+extern "C" {
+#include <iceoryx_binding_c/subscriber.h>
+}
+#include <dds/ddsc/dds_loan_api.h>
+#include <dds/ddsi/ddsi_shm_transport.h>
 #include <dds/ddsi/q_radmin.h>
+#include <fmt/format.h>
 
 #include "probe.hpp"
 
@@ -70,9 +77,7 @@ void pad(std::vector<std::uint8_t>& b) {
 
 bool sd_eqkey(const ddsi_serdata*, const ddsi_serdata*) { return true; }  // keyless topics
 
-std::uint32_t sd_get_size(const ddsi_serdata* d) {
-  return static_cast<std::uint32_t>(static_cast<const Serdata*>(d)->bytes.size());
-}
+std::uint32_t sd_get_size(const ddsi_serdata* d) { return static_cast<std::uint32_t>(serdata_bytes(d).size()); }
 
 ddsi_serdata* sd_from_ser(const ddsi_sertype* type, ddsi_serdata_kind kind, const nn_rdata* frag, std::size_t size) {
   TL_DDS_PROBE(FromSer);
@@ -142,12 +147,12 @@ ddsi_serdata* sd_to_untyped(const ddsi_serdata* d) {
 
 void sd_to_ser(const ddsi_serdata* d, std::size_t off, std::size_t sz, void* buf) {
   taking_over(d);
-  std::memcpy(buf, static_cast<const Serdata*>(d)->bytes.data() + off, sz);
+  std::memcpy(buf, serdata_bytes(d).data() + off, sz);
 }
 
 ddsi_serdata* sd_to_ser_ref(const ddsi_serdata* d, std::size_t off, std::size_t sz, ddsrt_iovec_t* ref) {
   taking_over(d);
-  ref->iov_base = const_cast<std::uint8_t*>(static_cast<const Serdata*>(d)->bytes.data() + off);
+  ref->iov_base = const_cast<std::uint8_t*>(serdata_bytes(d).data() + off);
   ref->iov_len = static_cast<ddsrt_iov_len_t>(sz);
   return ddsi_serdata_ref(d);
 }
@@ -160,7 +165,7 @@ void sd_to_ser_unref(ddsi_serdata* d, const ddsrt_iovec_t*) {
 bool sd_to_sample(const ddsi_serdata* d, void* sample, void**, void*) {
   taking_over(d);
   auto* out = static_cast<Sample*>(sample);
-  const auto& b = static_cast<const Serdata*>(d)->bytes;
+  const auto b = serdata_bytes(d);
   if (d->kind == SDK_DATA) {
     out->assign(b.begin(), b.end());
   } else {
@@ -176,13 +181,38 @@ bool sd_untyped_to_sample(const ddsi_sertype*, const ddsi_serdata*, void* sample
 
 void sd_free(ddsi_serdata* d) {
   taking_over(d);  // every thread that used it handed it over before its unref
+  // A chunk received through shared memory goes back to its subscriber; a
+  // loaned one we wrote was handed to iceoryx by the write (or released there).
+  if (d->iox_chunk != nullptr && d->iox_subscriber != nullptr) {
+    free_iox_chunk(static_cast<iox_sub_t*>(d->iox_subscriber), &d->iox_chunk);
+  }
   delete static_cast<Serdata*>(d);
 }
 
+// A sample from shared memory: its bytes stay in the chunk, which the sample
+// holds until freed. Without a subscriber it is a loaned sample of a local
+// write (dds_write with a loan, which we never do): copied, so it owns nothing.
+ddsi_serdata* sd_from_iox(const ddsi_sertype* type, ddsi_serdata_kind kind, void* sub, void* buffer) {
+  auto* d = new_serdata(type, kind);
+  const iceoryx_header_t* h = iceoryx_header_from_chunk(buffer);
+  if (sub == nullptr) {
+    const auto* p = static_cast<const std::uint8_t*>(buffer);
+    d->bytes.assign(p, p + h->data_size);
+  } else {
+    d->iox_chunk = buffer;
+    d->iox_subscriber = sub;
+    d->lost_before = iox_sub_has_lost_chunks(*static_cast<iox_sub_t*>(sub));
+  }
+  handing_over(d);
+  return d;
+}
+
+std::uint32_t sd_sample_size(const ddsi_serdata* d) { return sd_get_size(d); }
+
 std::size_t sd_print(const ddsi_sertype* type, const ddsi_serdata* d, char* buf, std::size_t size) {
   const auto* t = sertype_of(type);
-  const int n = std::snprintf(buf, size, "%s: %zu bytes of CDR", t && t->type_name ? t->type_name : "?",
-                              static_cast<const Serdata*>(d)->bytes.size());
+  const int n =
+      std::snprintf(buf, size, "%s: %zu bytes of CDR", t && t->type_name ? t->type_name : "?", serdata_bytes(d).size());
   return n < 0 ? 0 : static_cast<std::size_t>(n);
 }
 
@@ -206,6 +236,8 @@ const ddsi_serdata_ops& serdata_ops() {
     o.free = sd_free;
     o.print = sd_print;
     o.get_keyhash = sd_get_keyhash;
+    o.get_sample_size = sd_sample_size;
+    o.from_iox_buffer = sd_from_iox;
     return o;
   }();
   return ops;
@@ -305,9 +337,40 @@ ddsi_serdata* make_serdata(const ddsi_sertype* type, std::vector<std::uint8_t>&&
   return d;
 }
 
-std::span<const std::uint8_t> serdata_bytes(const ddsi_serdata* d) {
-  const auto& b = static_cast<const Serdata*>(d)->bytes;
-  return {b.data(), b.size()};
+ddsi_serdata* make_serdata_for(std::int32_t writer, bool shared_memory, const ddsi_sertype* type,
+                               std::vector<std::uint8_t>&& encapsulated_cdr, std::string& error) {
+  auto* d = new_serdata(type, SDK_DATA);
+  d->bytes = std::move(encapsulated_cdr);
+  pad(d->bytes);
+  if (shared_memory) {
+    void* chunk = nullptr;
+    const dds_return_t rc = dds_loan_shared_memory_buffer(writer, d->bytes.size(), &chunk);
+    if (rc != DDS_RETCODE_OK || chunk == nullptr) {
+      error = fmt::format(
+          "no shared-memory chunk of {} bytes ({}): RouDi's memory pools are used up or have "
+          "no chunk that large",
+          d->bytes.size(), dds_strretcode(rc));
+      delete d;
+      return nullptr;
+    }
+    std::memcpy(chunk, d->bytes.data(), d->bytes.size());
+    iceoryx_header_t* h = iceoryx_header_from_chunk(chunk);
+    h->data_size = static_cast<std::uint32_t>(d->bytes.size());
+    h->shm_data_state = IOX_CHUNK_CONTAINS_SERIALIZED_DATA;
+    d->iox_chunk = chunk;  // dds_writecdr publishes it (and takes it off the sample)
+  }
+  handing_over(d);
+  return d;
 }
+
+std::span<const std::uint8_t> serdata_bytes(const ddsi_serdata* d) {
+  const auto* s = static_cast<const Serdata*>(d);
+  if (s->bytes.empty() && s->iox_chunk != nullptr && s->iox_subscriber != nullptr) {
+    return {static_cast<const std::uint8_t*>(s->iox_chunk), iceoryx_header_from_chunk(s->iox_chunk)->data_size};
+  }
+  return {s->bytes.data(), s->bytes.size()};
+}
+
+bool serdata_lost_before(const ddsi_serdata* d) { return static_cast<const Serdata*>(d)->lost_before; }
 
 }  // namespace tinyline::dds::detail

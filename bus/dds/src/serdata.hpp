@@ -24,6 +24,11 @@ struct Sertype : ddsi_sertype {
 
 struct Serdata : ddsi_serdata {
   std::vector<std::uint8_t> bytes;  ///< encapsulated CDR, zero-padded to a multiple of 4
+  /// A sample that came through shared memory has no `bytes`: they stay in
+  /// its iceoryx chunk (`iox_chunk`, held until the last reference goes).
+  /// True when iceoryx said that chunks were lost before this one arrived
+  /// (its subscriber queue overflowed: a reader too slow for the writer).
+  bool lost_before = false;
 };
 
 /// A new sertype named `dds_type_name`; the caller hands it to
@@ -35,8 +40,21 @@ ddsi_sertype* make_sertype(const std::string& dds_type_name, const msg::TypeSupp
 /// refcount 1, for dds_writecdr (which takes that reference).
 ddsi_serdata* make_serdata(const ddsi_sertype* type, std::vector<std::uint8_t>&& encapsulated_cdr);
 
-/// The bytes of a sample of one of our sertypes.
+/// Wraps serialized bytes as make_serdata() does and, when `writer` can use
+/// shared memory (Cyclone's iceoryx path), also copies them into a chunk
+/// loaned from it, which dds_writecdr then publishes to the readers on this
+/// machine (the bytes stay for readers over the network). Returns null, with
+/// the reason in `error`, when no chunk could be had: those readers would
+/// not get the sample.
+ddsi_serdata* make_serdata_for(std::int32_t writer, bool shared_memory, const ddsi_sertype* type,
+                               std::vector<std::uint8_t>&& encapsulated_cdr, std::string& error);
+
+/// The bytes of a sample of one of our sertypes (in its shared-memory chunk
+/// if it came through one: no copy).
 std::span<const std::uint8_t> serdata_bytes(const ddsi_serdata* d);
+
+/// Whether iceoryx reported lost chunks just before this sample came.
+bool serdata_lost_before(const ddsi_serdata* d);
 
 /// Thread-sanitizer hand-over marks. Cyclone is not instrumented, so TSan
 /// cannot see that its reference counting orders our writes of a sample's

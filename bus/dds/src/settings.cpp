@@ -4,10 +4,13 @@
 #include <ifaddrs.h>
 #include <net/if.h>
 #include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 
 #include <fmt/format.h>
@@ -109,6 +112,7 @@ Settings Settings::from_environment() {
   Settings s;
   s.domain_id = read_domain_id();
   if (const char* uri = std::getenv("CYCLONEDDS_URI"); uri != nullptr && *uri != '\0') s.config = uri;
+  s.shared_memory = env("TINYLINE_SHARED_MEMORY") == "1";
   // rcl: ROS_LOCALHOST_ONLY=1 forces LOCALHOST without static peers; any
   // other non-empty value hands over to the two newer variables.
   const std::string localhost_only = env("ROS_LOCALHOST_ONLY");
@@ -228,6 +232,24 @@ std::vector<std::string> machine_interfaces() {
   multicast.insert(multicast.end(), other.begin(), other.end());
   if (multicast.size() > 3) multicast.resize(3);
   return multicast;
+}
+
+bool roudi_running() {
+  // iceoryx 2.0's RouDi listens on a datagram socket named after it in /tmp:
+  // a connect succeeds only while it runs (a stale file refuses).
+  const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return false;
+  sockaddr_un a{};
+  a.sun_family = AF_UNIX;
+  std::snprintf(a.sun_path, sizeof(a.sun_path), "/tmp/roudi");
+  const bool up = connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof(a)) == 0;
+  close(fd);
+  return up;
+}
+
+std::string shared_memory_config() {
+  return "<CycloneDDS><Domain Id=\"any\"><SharedMemory><Enable>true</Enable><LogLevel>error</LogLevel>"
+         "</SharedMemory></Domain></CycloneDDS>";
 }
 
 std::string loopback_config(const std::string& tag, int max_participants) {

@@ -1071,3 +1071,74 @@ TEST(DdsRosGraph, TheLogGoesToRosoutAndDeclaredParametersToParameterEvents) {
            e.new_parameters[0].value.type == 3 && e.new_parameters[0].value.double_value == 2.5;
   }));
 }
+
+// ---------------------------------------------------------------------------- shared memory
+
+// Whether a RouDi answers decides which half runs: ctest runs this binary
+// once as it is (no RouDi: the fallback) and once beside a RouDi of its own
+// in a private mount namespace (bench/dds/with_roudi.sh: shared memory).
+TEST(DdsSharedMemory, WithoutRouDiEveryProcessFallsBackToLoopbackWithOneLogLine) {
+  if (dds::roudi_running()) GTEST_SKIP() << "a RouDi runs here: the shared-memory tests cover this run";
+  auto s = test_settings("x");
+  s.shared_memory = true;
+  Side a("a", s), b("b", s);
+  auto pub = a.node("talker")->create_publisher<StringMsg>("/shm/chatter");
+  tinyline::testing::Inbox<std::string> got(b.signal);
+  auto sub = b.node("listener")
+                 ->create_subscription<StringMsg>("/shm/chatter", bus::QoS::keep_last(10),
+                                                  [&](const StringMsg& m) { got.push(m.data); });
+  a.run();
+  b.run();
+  ASSERT_TRUE(a.bridge->wait_for_peers({{"/shm/chatter", 1, 0}}, 10s).ok);
+  for (int i = 0; i < 5; ++i) pub->publish(text("over loopback " + std::to_string(i)));
+  ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 5; }, 10s)) << b.sink->dump();
+  EXPECT_FALSE(a.bridge->participant().shared_memory());
+  const std::string log = a.sink->dump();
+  std::size_t lines = 0;
+  for (auto p = log.find("no RouDi"); p != std::string::npos; p = log.find("no RouDi", p + 1)) ++lines;
+  EXPECT_EQ(lines, 1u) << log;
+}
+
+TEST(DdsSharedMemory, LargeCloudsCrossThroughSharedMemoryIntactAndNothingComesBack) {
+  if (!dds::roudi_running()) GTEST_SKIP() << "needs a RouDi (ctest runs this under bench/dds/with_roudi.sh)";
+  using Cloud = sensor_msgs::msg::PointCloud2;
+  auto s = test_settings("x");
+  s.shared_memory = true;
+  Side a("a", s), b("b", s);
+  auto pub = a.node("camera")->create_publisher<Cloud>("/shm/cloud", bus::QoS::keep_last(4));
+  tinyline::testing::Inbox<std::shared_ptr<const Cloud>> local(a.signal), remote(b.signal);
+  auto lsub = a.node("local")->create_subscription<Cloud>(
+      "/shm/cloud", bus::QoS::keep_last(4), [&](const std::shared_ptr<const Cloud>& m) { local.push(m); });
+  auto rsub = b.node("viewer")->create_subscription<Cloud>(
+      "/shm/cloud", bus::QoS::keep_last(4), [&](const std::shared_ptr<const Cloud>& m) { remote.push(m); });
+  a.run();
+  b.run();
+  ASSERT_TRUE(a.bridge->wait_for_peers({{"/shm/cloud", 1, 0}}, 10s).ok);
+  ASSERT_TRUE(a.bridge->participant().shared_memory());
+  constexpr int kClouds = 40;
+  for (int i = 0; i < kClouds; ++i) {
+    auto c = std::make_unique<Cloud>();
+    c->width = static_cast<std::uint32_t>(i);
+    c->data.resize(std::size_t{1} << 20);
+    for (std::size_t k = 0; k < c->data.size(); ++k) c->data[k] = static_cast<std::uint8_t>(k * 31 + i);
+    pub->publish(std::move(c));
+    // One in flight: the test is about intact samples, not queue depth.
+    ASSERT_TRUE(b.signal->wait_for([&] { return remote.size() >= static_cast<std::size_t>(i + 1); }, 10s))
+        << b.sink->dump();
+  }
+  const auto got = remote.items();
+  for (int i = 0; i < kClouds; ++i) {
+    const Cloud& c = *got[static_cast<std::size_t>(i)];
+    ASSERT_EQ(c.width, static_cast<std::uint32_t>(i));
+    ASSERT_EQ(c.data.size(), std::size_t{1} << 20);
+    bool intact = true;
+    for (std::size_t k = 0; k < c.data.size(); ++k) intact &= c.data[k] == static_cast<std::uint8_t>(k * 31 + i);
+    EXPECT_TRUE(intact) << "cloud " << i;
+  }
+  // Shared memory hands a's own writes back to a's reader: dropped there.
+  ASSERT_TRUE(a.signal->wait_for([&] { return local.size() >= kClouds; }, 10s));
+  EXPECT_EQ(local.size(), static_cast<std::size_t>(kClouds));
+  EXPECT_EQ(a.stats("/shm/cloud").received, 0u);
+  EXPECT_EQ(b.stats("/shm/cloud").lost, 0u);
+  EXPECT_EQ(a.stats("/shm/cloud").write_errors, 0u) << a.sink->dump();
+}

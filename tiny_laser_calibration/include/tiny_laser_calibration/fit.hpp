@@ -20,6 +20,7 @@
 #include <vector>
 
 #include <tiny_laser_calibration/data.hpp>
+#include <tiny_laser_driver/calibration_impl.hpp>
 
 namespace tinyline::tiny_laser_calibration {
 
@@ -129,6 +130,13 @@ struct ErrorStats {
 /// Residuals model - truth per row of `rows` (NaN where the model gives no distance).
 [[nodiscard]] std::vector<double> model_residuals(const CalibrationModel& model, const CalibrationDataset& data,
                                                   const std::vector<std::size_t>& rows);
+
+/// The read-out noise law of section 3.5 from a model's errors on data with repeated
+/// sets: per target distance and pixel the spread of the driver's read-outs in units
+/// of X, var(X) (a + b)^2 fitted as shot (a + b) + per_pulse pulses + read (weighted
+/// least squares, no term negative). Empty when the data has too few repeated
+/// read-outs (200). The driver publishes the range's SD from it.
+[[nodiscard]] tiny_laser_driver::NoiseLaw fit_noise_law(const CalibrationModel& model, const CalibrationDataset& data);
 
 /// Summary statistics of residuals (NaNs skipped).
 [[nodiscard]] ErrorStats error_stats(const std::vector<double>& residuals_m);

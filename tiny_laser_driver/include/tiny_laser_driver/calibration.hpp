@@ -85,6 +85,9 @@ struct CalibrationEvaluation {
   /// pixel (1 = like the target; white paper calibrations read other materials' albedo
   /// relative to white paper). NaN when the model carries no amplitude reference.
   double albedo = std::numeric_limits<double>::quiet_NaN();
+  /// The range's SD from the calibration's noise law (section 3.5) at this read-out's
+  /// light [m]; NaN when the model carries no law or there is no distance.
+  double range_sd_m = std::numeric_limits<double>::quiet_NaN();
 };
 std::string_view to_string(CalibrationEvaluation::Status s);
 

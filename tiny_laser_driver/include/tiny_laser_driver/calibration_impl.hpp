@@ -119,6 +119,20 @@ struct AmplitudeReference {
   [[nodiscard]] double albedo(const Readout& r, double declared_m) const;
 };
 
+/// The read-out noise as the charge ratio sees it (section 3.5):
+/// var(X) = (shot S + per_pulse p + read) / S^2, S = a + b and p the pulses of
+/// the read-out: shot noise (var(X) ~ 1/S, SD ~ S^-0.5), the transfer noise that
+/// accumulates per gate cycle, and the read-out's own. The range's SD is
+/// sqrt(var(X)) |dL/dX| of the polynomial: what the driver publishes per pixel.
+struct NoiseLaw {
+  double shot = 0.0;       ///< [charge_unit]
+  double per_pulse = 0.0;  ///< [charge_unit^2 per pulse]
+  double read = 0.0;       ///< [charge_unit^2]
+  [[nodiscard]] bool empty() const { return !(shot > 0.0 || per_pulse > 0.0 || read > 0.0); }
+  /// SD of X at light S after p pulses (NaN when empty or S is not positive).
+  [[nodiscard]] double ratio_sd_at(double sum, int pulses) const;
+};
+
 /// Provenance and in-sample figures written beside the model (informational).
 struct CalibrationFitInfo {
   std::string data;                                          ///< data file the model was fitted on
@@ -153,6 +167,7 @@ struct CalibrationModel::Impl {
   double temperature_coef_m_per_c = 0.0;
 
   AmplitudeReference amplitude_reference;  ///< for the albedo covariate and evaluation output
+  NoiseLaw noise;                          ///< the per-pixel range uncertainty (empty: none published)
 
   std::vector<CalibrationTerm> terms;
   std::vector<std::string> extra_covariates;  ///< derived from terms (resolve())
@@ -172,6 +187,8 @@ struct CalibrationModel::Impl {
   [[nodiscard]] double sensitivity_ratio_of(int pixel) const;
   /// Eq. 3.18 in X.
   [[nodiscard]] double polynomial_m(double x) const;
+  /// dL/dX of Eq. 3.18 at ratio x [m per unit of X].
+  [[nodiscard]] double polynomial_slope_m(double x) const;
   /// Polynomial + temperature offset for ratio x [m].
   [[nodiscard]] double declared_m(double x, double temperature_c) const;
   /// Value of covariate `kind` for a read-out (extra_index for kExtra), given its

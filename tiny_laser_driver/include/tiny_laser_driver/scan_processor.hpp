@@ -52,6 +52,9 @@ struct ProcessedScan {
   std::array<float, kPixels> intensity{};   ///< (a + b) / pulses of the chosen read-out [charge_unit per pulse]
   std::array<float, kPixels>
       reflectance{};  ///< distance_cm^2 (a + b) / (pulses / 10) (the sensor's reflectance figure); NaN unless kValid
+  /// SD of the range from the calibration's noise law at this read-out's light [m]; NaN unless
+  /// kValid and the calibration has a `noise` section.
+  std::array<float, kPixels> range_sd_m{};
   std::array<std::uint16_t, kPixels> pulses{};  ///< pulses of the chosen read-out (0: none)
   std::array<std::int8_t, kPixels> readout{};   ///< index of the chosen read-out in the set (-1: none)
   std::array<PixelStatus, kPixels> status{};

@@ -84,6 +84,7 @@ std::unique_ptr<tinyline_msgs::msg::LineScan> ScanMessages::line(const Processed
   line->temperature_c = temperature_c;
   line->angles = angles_;
   line->distance_m.assign(scan.distance_m.begin(), scan.distance_m.end());
+  line->range_sd_m.assign(scan.range_sd_m.begin(), scan.range_sd_m.end());
   line->intensity.assign(scan.intensity.begin(), scan.intensity.end());
   line->reflectance.assign(scan.reflectance.begin(), scan.reflectance.end());
   line->pulses.assign(scan.pulses.begin(), scan.pulses.end());

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include <laser_clustering/pedicel_finder.hpp>
+#include <laser_clustering/tomato_registration.hpp>
 #include <laser_clustering/two_stage.hpp>
 
 #include "harness.hpp"
@@ -47,19 +48,69 @@ bool crossing(const Eigen::Isometry3d& T_ref_laser, const Eigen::Vector3d& a, co
 
 }  // namespace
 
-void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value) {
-  auto number = [&](const std::string& text) {
-    std::size_t used = 0;
-    double v = NAN;
-    try {
-      v = std::stod(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
+namespace {
+
+// `text` as a finite number, or std::invalid_argument naming option `key`.
+double option_number(const std::string& key, const std::string& text) {
+  std::size_t used = 0;
+  double v = NAN;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(v))
+    throw std::invalid_argument("option '" + key + "': '" + text + "' is not a number");
+  return v;
+}
+
+// The tomato look's options; false when `key` is none of them.
+bool set_look_option(VerificationOptions& o, const std::string& key, const std::string& value) {
+  if (key == "tomato_look") {
+    if (value != "0" && value != "1") throw std::invalid_argument("option 'tomato_look' must be 0 or 1");
+    o.tomato_look = value == "1";
+  } else if (key == "look_nothing") {
+    if (value != "0" && value != "1" && value != "2")
+      throw std::invalid_argument("option 'look_nothing' must be 0 (no cut), 1 (blind move) or 2 (unregistered)");
+    o.look_nothing = static_cast<LookNothing>(value[0] - '0');
+  } else if (key == "look_min_tomatoes") {
+    const double v = option_number(key, value);
+    if (!(v >= 1 && v <= 10) || v != std::floor(v))
+      throw std::invalid_argument("option 'look_min_tomatoes' must be a whole number in [1, 10]");
+    o.look_min_tomatoes = static_cast<int>(v);
+  } else if (key == "look_heights_m") {
+    std::vector<double> heights;
+    for (std::size_t from = 0; from < value.size();) {
+      const std::size_t comma = std::min(value.find(',', from), value.size());
+      const double h = option_number(key, value.substr(from, comma - from));
+      if (!(std::abs(h) <= 0.05)) throw std::invalid_argument("option 'look_heights_m': each must be within 0.05 m");
+      heights.push_back(h);
+      from = comma + 1;
     }
-    if (used == 0 || used != text.size() || !std::isfinite(v))
-      throw std::invalid_argument("option '" + key + "': '" + text + "' is not a number");
-    return v;
-  };
+    o.look_heights_m = heights;
+  } else if (key == "registered_gate_sd") {
+    const double v = option_number(key, value);
+    if (!(v > 0)) throw std::invalid_argument("option 'registered_gate_sd' must be > 0");
+    o.registered_gate_sd = v;
+  } else if (key == "look_back_m" || key == "registered_sd_m" || key == "registered_max_move_m" ||
+             key == "look_max_shift_m") {
+    const double v = option_number(key, value);
+    if (!(v > 0 && v <= 0.2)) throw std::invalid_argument("option '" + key + "' must be in (0, 0.2] m");
+    (key == "look_back_m"             ? o.look_back_m
+     : key == "registered_sd_m"       ? o.registered_sd_m
+     : key == "registered_max_move_m" ? o.registered_max_move_m
+                                      : o.look_max_shift_m) = v;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value) {
+  auto number = [&](const std::string& text) { return option_number(key, text); };
+  if (set_look_option(o, key, value)) return;
   if (key == "pulses") {
     std::vector<int> pulses;
     std::size_t from = 0;
@@ -111,7 +162,9 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
     throw std::invalid_argument(
         "unknown option '" + key +
         "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far, "
-        "cut_offsets_m, blade_margin_m, max_pedicel_width_m)");
+        "cut_offsets_m, blade_margin_m, max_pedicel_width_m, tomato_look, look_back_m, registered_sd_m, "
+        "registered_gate_sd, registered_max_move_m, look_max_shift_m, "
+        "look_min_tomatoes, look_nothing, look_heights_m)");
   }
 }
 
@@ -181,9 +234,54 @@ constexpr std::uint64_t kRescanSeedStride = 1'000'003;
 
 }  // namespace
 
+std::optional<lc::PedicelExpectation> VerificationHarness::look_at_fruit(const sim::World& world, const Scenario& s,
+                                                                         const Eigen::Isometry3d& T_ref_laser,
+                                                                         const TrussView& truss,
+                                                                         const lc::PedicelExpectation& belief,
+                                                                         std::uint64_t scan_seed) {
+  if (truss.target < 0 || static_cast<std::size_t>(truss.target) >= truss.fruit.size()) return std::nullopt;
+  // The plane through the target fruit's centre (where its section is
+  // widest), backed off out of the sensor's short-range bias.
+  const Eigen::Isometry3d to_believed = truss.T_ref_laser_believed.inverse();
+  const double along = (to_believed * truss.fruit[static_cast<std::size_t>(truss.target)].centre).y();
+  const Eigen::Vector3d look_move(0.0, along, -o_.look_back_m);
+  std::vector<lc::ExpectedTomato> tomatoes;
+  tomatoes.reserve(truss.fruit.size());
+  for (const Sphere& f : truss.fruit) tomatoes.push_back({to_believed * f.centre - look_move, f.radius_m});
+  const Eigen::Isometry3d T_look = T_ref_laser * Eigen::Translation3d(look_move);
+  const lc::eval::SimulatedScan scan = scanner_->scan(world, s.truss.T_world_camera * T_look, scan_seed);
+  lc::TomatoRegistrationParams params;
+  params.max_shift_m = o_.look_max_shift_m;
+  params.min_tomatoes = o_.look_min_tomatoes;
+  const lc::TomatoRegistration reg = lc::register_tomatoes(scan.scan, tomatoes, params);
+  if (!reg.ok) return std::nullopt;
+  lc::PedicelExpectation e = lc::shifted(belief, reg.shift_xz_m);
+  e.sd_m = o_.registered_sd_m;
+  e.gate_sd = o_.registered_gate_sd;
+  return e;
+}
+
+namespace {
+
+// The tomato look's scan is keyed apart from the loop's.
+constexpr std::uint64_t kLookSeedOffset = 97 * kRescanSeedStride;
+
+// The move to where the registered truss puts the pedicel, seen or not.
+lc::PedicelDetection blind_move_to(const lc::PedicelExpectation& e, const lc::PedicelFinderParams& fp) {
+  lc::PedicelDetection d;
+  d.outcome = lc::PedicelOutcome::kMove;
+  d.reason = "nothing pedicel-like where the registered truss puts the pedicel: go there and look again";
+  d.position_xz_m = e.position_xz_m;
+  d.lateral_offset_m = e.position_xz_m.x() - fp.scissors.centre_x_m;
+  d.depth_offset_m = e.position_xz_m.y() - fp.scissors.centre_z_m;
+  return d;
+}
+
+}  // namespace
+
 LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
                                          std::optional<lc::PedicelExpectation> belief, std::uint64_t scan_seed,
-                                         bool approach_far) {
+                                         bool approach_far, const std::optional<TrussView>& truss) {
   const lc::PedicelFinderParams fp = finder();
   if (!belief) {
     lc::PedicelExpectation expect;
@@ -192,16 +290,52 @@ LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario
     belief = expect;
   }
   LoopEnd end;
+  PickPoseParams trust = o_.pose;  // the move limit this loop trusts
+  const std::optional<lc::PedicelExpectation> unregistered = belief;
+  if (truss && o_.tomato_look) {
+    ++end.scans;
+    if (auto registered = look_at_fruit(world, s, pose.T_ref_laser, *truss, *belief, scan_seed + kLookSeedOffset)) {
+      belief = std::move(registered);
+      end.registered = true;
+      trust.max_move_m = std::max(trust.max_move_m, o_.registered_max_move_m);
+    }
+  }
   bool moved = false;  // a move put the hand on a pedicel: end.verification says where
-  for (;;) {
-    const lc::PedicelDetection d =
-        look(world, s, pose.T_ref_laser, belief, scan_seed + kRescanSeedStride * static_cast<std::uint64_t>(end.scans));
-    const bool last_scan = end.scans++ >= o_.rescans;
-    const Verification v = verify(pose, answer_of(d), o_.pose);
+  bool seen = false;   // ... and the laser saw it there (not only the blind move)
+  for (int loop_scans = 0;;) {
+    lc::PedicelDetection d = look(world, s, pose.T_ref_laser, belief,
+                                  scan_seed + kRescanSeedStride * static_cast<std::uint64_t>(loop_scans));
+    ++end.scans;
+    const bool last_scan = loop_scans++ >= o_.rescans;
+    const bool nothing_registered = end.registered && loop_scans == 1 && d.outcome == lc::PedicelOutcome::kNothingToCut;
+    if (nothing_registered) {
+      // Other heights along the expected pedicel, where nothing hides it.
+      for (double h : o_.look_heights_m) {
+        const Eigen::Isometry3d T_h = pose.T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
+        const lc::PedicelDetection dh =
+            look(world, s, T_h, belief, scan_seed + kLookSeedOffset + static_cast<std::uint64_t>(++end.scans));
+        if (finder_found(dh)) {
+          d = dh;
+          break;
+        }
+      }
+    }
+    const bool blind =
+        nothing_registered && !finder_found(d) && !last_scan && o_.look_nothing == LookNothing::kBlindMove;
+    if (blind) d = blind_move_to(*belief, fp);
+    if (nothing_registered && !finder_found(d) && o_.look_nothing == LookNothing::kUnregistered) {
+      // The same scan, judged as without the look (its move limit too).
+      d = look(world, s, pose.T_ref_laser, unregistered, scan_seed);
+      trust = o_.pose;
+    }
+    const Verification v = verify(pose, answer_of(d), trust);
     if (v.will_cut()) {
       end.verification = v;
       end.total_move += v.move;
-      end.belief = lc::expectation_after_centring(fp, belief, d);
+      end.blind_move = end.blind_move || blind;
+      seen = seen || !blind;
+      end.belief = blind ? lc::expectation_after_move(fp, belief, d, {d.lateral_offset_m, d.depth_offset_m})
+                         : lc::expectation_after_centring(fp, belief, d);
       if (d.outcome != lc::PedicelOutcome::kMove || last_scan) return end;
       // Move, scan again from there, re-centre (4.5).
       moved = true;
@@ -210,17 +344,16 @@ LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario
       belief = end.belief;
       continue;
     }
-    if (moved) {
-      return end;  // lost it after a move: the hand stays where that move put it
-    }
+    if (moved && seen) return end;  // lost it after a move: the hand stays where that move put it
     const Eigen::Vector2d step(d.lateral_offset_m, d.depth_offset_m);
-    if (!(approach_far && finder_found(d) && step.norm() > o_.pose.max_move_m) || last_scan) {
+    if (moved || !(approach_far && finder_found(d) && step.norm() > trust.max_move_m) || last_scan) {
+      // (After a blind move that found nothing there either: no cut.)
       end.verification = v;
       end.belief = belief;
       return end;
     }
     // The finder's pedicel is beyond a trusted move: go max_move_m towards it and look again.
-    const Eigen::Vector2d part = step * (o_.pose.max_move_m / step.norm());
+    const Eigen::Vector2d part = step * (trust.max_move_m / step.norm());
     const Eigen::Vector3d shift = pose.T_ref_laser.linear() * Eigen::Vector3d(part.x(), 0.0, part.y());
     pose.T_ref_laser.translation() += shift;
     end.total_move += shift;
@@ -325,6 +458,18 @@ PickPoseParams camera_side(PickPoseParams p) {
   return p;
 }
 
+TrussView truss_view(const PipelineResult& r, int target, const std::vector<int>& gone,
+                     const Eigen::Isometry3d& T_ref_laser_believed) {
+  TrussView view;
+  view.T_ref_laser_believed = T_ref_laser_believed;
+  for (int k = 0; k < static_cast<int>(r.tomatoes.size()); ++k) {
+    if (std::find(gone.begin(), gone.end(), k) != gone.end()) continue;
+    if (k == target) view.target = static_cast<int>(view.fruit.size());
+    view.fruit.push_back(r.tomatoes[static_cast<std::size_t>(k)].fit.sphere);
+  }
+  return view;
+}
+
 std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const PipelineResult& r, double match_m) {
   std::vector<VerificationTrial> out;
   // True pedicels (anchor -> calyx) in the reference frame (the first view);
@@ -335,6 +480,7 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
   // Harvesting goes in pick order: a picked fruit (with its pedicel and
   // sepals) is gone before the next scan.
   sim::World world = s.world;
+  std::vector<int> gone;  // detections already picked (or given up on)
   for (int rank = 0; rank < static_cast<int>(r.pick_order.size()); ++rank) {
     const int k = r.pick_order[static_cast<std::size_t>(rank)];
     const int truth = matched_truth(s, r.tomatoes[static_cast<std::size_t>(k)], match_m);
@@ -346,6 +492,8 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
     trial.pick_rank = rank;
     PickPose pose = picking_pose(r, k, pose_params);
     if (!pose.ok()) continue;
+    const TrussView truss = truss_view(r, k, gone, pose.T_ref_laser);
+    gone.push_back(k);
     if (o_.random_offset_m > 0) {
       // Uniform in the disc square to the pedicel (the laser's x-z plane).
       const std::uint64_t key = splitmix64(s.seed * 7919 + static_cast<std::uint64_t>(k) * 31 + 5);
@@ -359,10 +507,12 @@ std::vector<VerificationTrial> VerificationHarness::run(const Scenario& s, const
     const auto& target = pedicels[static_cast<std::size_t>(truth)];
     trial.vision_on_pedicel = throat_on_pedicel(o_, target, pose.T_ref_laser, nullptr, nullptr);
 
-    const LoopEnd end =
-        closed_loop(world, s, pose, std::nullopt, s.seed * 1000 + static_cast<std::uint64_t>(k), o_.approach_far);
+    const LoopEnd end = closed_loop(world, s, pose, std::nullopt, s.seed * 1000 + static_cast<std::uint64_t>(k),
+                                    o_.approach_far, truss);
     const Verification& v = end.verification;
     trial.scans = end.scans;
+    trial.registered = end.registered;
+    trial.blind_move = end.blind_move;
     trial.outcome = v.outcome;
     trial.confidence = v.confidence;
     trial.reason = v.reason;

@@ -179,6 +179,9 @@ class Bridge : public bus::Node {
   void drain(Link& link, std::int32_t reader, bool may_block);
   void take_available(Link& link, std::int32_t reader, bool may_block);
   void hand_over(Link& link);
+  /// Says why shared memory does not serve this endpoint (its QoS).
+  void explain_no_shared_memory(Link& link, const EndpointQos& qos, const char* who);
+  void count_shared_memory_loss(Link& link);
   /// Runs the callbacks deferred on this thread; reports a long one.
   void flush_inline(Link& link, bus::InlineDelivery& d);
   void backpressure_loop();

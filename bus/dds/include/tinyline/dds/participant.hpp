@@ -42,6 +42,10 @@ struct EndpointQos {
   bool keep_all = false;         ///< KEEP_ALL history (bus::QoS::reliable): the writer blocks when full
   int depth = 10;                ///< KEEP_LAST depth
   std::chrono::nanoseconds max_blocking = std::chrono::seconds(1);  ///< reliable writer: longest wait for room
+  /// Reader: also take this participant's own writes. Cyclone 0.10 gives
+  /// shared memory only to readers that do (iceoryx knows no ignore-local);
+  /// the owner then drops its own samples itself (by publication handle).
+  bool accept_local = false;
   std::string describe() const;
 };
 
@@ -57,10 +61,13 @@ class Participant {
   std::int32_t handle() const { return participant_; }
   const Settings& settings() const { return settings_; }
   const Identity& identity() const { return identity_; }
+  /// Shared memory is on: the settings asked for it and a RouDi runs here.
+  bool shared_memory() const { return shared_memory_; }
 
  private:
   Settings settings_;
   Identity identity_;
+  bool shared_memory_ = false;
   std::int32_t participant_ = 0;
 };
 

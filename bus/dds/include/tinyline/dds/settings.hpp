@@ -53,6 +53,11 @@ struct Settings {
   /// Largest sample accepted from the network [bytes]; bigger ones are dropped
   /// and counted as errors (a peer must not make us allocate gigabytes).
   std::size_t max_sample_bytes = std::size_t{256} << 20;
+  /// Use Cyclone's shared-memory transport (iceoryx) to processes on this
+  /// machine when a RouDi (`iox-roudi`) runs here; over loopback as before
+  /// when none does (TINYLINE_SHARED_MEMORY=1; a launch file's
+  /// `dds: {shared_memory: true}`). Serves keep-last, volatile topics only.
+  bool shared_memory = false;
   /// What reading the environment decided that the user should hear, as rcl
   /// warns it (a deprecated or ignored variable); logged when DDS starts.
   std::vector<std::string> notes;
@@ -90,6 +95,14 @@ std::vector<std::string> machine_interfaces();
 /// this_machine_config() on the loopback interface alone: tests and
 /// benchmarks that must not depend on the machine's network cards.
 std::string loopback_config(const std::string& tag = "", int max_participants = 64);
+
+/// Whether an iceoryx RouDi daemon answers on this machine (its socket in
+/// /tmp). Cyclone with shared memory enabled and no RouDi would wait for one
+/// for a minute and then abort the process, so this is asked first.
+bool roudi_running();
+
+/// The Cyclone settings that turn shared memory on.
+std::string shared_memory_config();
 
 /// Checks a domain id (0..232, the range whose ports fit in 16 bits); throws
 /// DdsError naming `where` otherwise.

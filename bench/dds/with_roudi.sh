@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
+# Runs a command beside a RouDi (iox-roudi, Debian package iceoryx) of its own:
+# in a private mount namespace whose /tmp (RouDi's sockets and locks) and
+# /dev/shm (its memory) are fresh, so it meets no other RouDi on the machine
+# and leaves nothing behind. Needs root (unshare). Usage:
+#   bench/dds/with_roudi.sh [--config roudi.toml] COMMAND...
+set -euo pipefail
+config="$(dirname "$(readlink -f "$0")")/roudi.toml"
+if [[ "${1:-}" == "--config" ]]; then config="$(readlink -f "$2")"; shift 2; fi
+if [[ -z "${WITH_ROUDI_INSIDE:-}" ]]; then
+  exec env WITH_ROUDI_INSIDE=1 unshare --mount --propagation private "$0" --config "$config" "$@"
+fi
+mount -t tmpfs tmpfs /tmp
+mount -t tmpfs tmpfs /dev/shm
+iox-roudi -c "$config" -l warning >/tmp/roudi.log 2>&1 &
+roudi=$!
+trap 'kill -INT $roudi 2>/dev/null; wait $roudi 2>/dev/null || true' EXIT
+for _ in $(seq 100); do [[ -S /tmp/roudi ]] && break; sleep 0.1; done
+[[ -S /tmp/roudi ]] || { cat /tmp/roudi.log >&2; echo "RouDi did not start" >&2; exit 1; }
+"$@"
