@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <tinyline/bus/executor.hpp>
 
+#include <sys/resource.h>
+
 #include <algorithm>
 
 #include <tinyline/bus/graph.hpp>
@@ -28,14 +30,26 @@ thread_local bool tl_running_inline = false;
 constexpr auto kInlineBudget = std::chrono::microseconds(200);
 constexpr int kSlowInlineRuns = 3;
 constexpr auto kInlinePause = std::chrono::seconds(1);
-// One inline run this long is no lost core: the callbacks block (a full pipe,
-// a lock, a disk). They run on workers for good, where blocking holds up only
-// their own node.
+// One inline run this long in which the thread went to sleep: the callbacks
+// block (a full pipe, a lock, a disk). They run on workers for good, where
+// blocking holds up only their own node. A run this long without sleeping lost
+// its core (load, a sanitizer): only a slow run.
 constexpr auto kInlineStall = std::chrono::milliseconds(20);
+// Callbacks in a row within kInlineBudget before a group may run inline: a
+// callback that blocks on its first runs blocks a worker, not the transport.
+constexpr int kProvenRuns = 8;
 constexpr std::size_t kInlineBatch = 8;
 // Callbacks a waiting reliable publisher runs for the full subscriber per
 // turn: enough to make room, few enough to go back to its own message soon.
 constexpr std::size_t kHelpBatch = 16;
+
+// Times this thread went to sleep so far (voluntary context switches). A
+// thread that only lost its core to another is switched involuntarily.
+long voluntary_waits() {
+  rusage u{};
+  getrusage(RUSAGE_THREAD, &u);
+  return u.ru_nvcsw;
+}
 
 std::int64_t steady_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
@@ -142,13 +156,15 @@ bool CallbackGroup::run_for_waiting_publisher() {
   return try_run(kHelpBatch, &ran) && ran > 0;
 }
 
+bool CallbackGroup::proven() const { return short_runs_.load(std::memory_order_relaxed) >= kProvenRuns; }
+
 bool CallbackGroup::accepts_inline() const {
-  if (inline_refused_.load(std::memory_order_relaxed)) return false;
+  if (inline_refused_.load(std::memory_order_relaxed) || !proven()) return false;
   const std::int64_t until = inline_paused_until_ns_.load(std::memory_order_relaxed);
   return until == 0 || steady_ns() >= until;
 }
 
-bool CallbackGroup::try_run_inline() {
+bool CallbackGroup::try_run_inline(bool* blocked) {
   detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
   if (core == nullptr || core->fifo || core->workers.load(std::memory_order_seq_cst) == 0 ||
       core->stopping.load(std::memory_order_seq_cst) || dead() || !accepts_inline()) {
@@ -156,6 +172,7 @@ bool CallbackGroup::try_run_inline() {
   }
   if (tl_running_inline) return false;
   CoreScope scope(core);  // current_executor() inside the callbacks, as on a worker
+  const long waits_before = voluntary_waits();
   const auto start = std::chrono::steady_clock::now();
   tl_running_inline = true;
   inline_since_ns_.store(steady_ns(), std::memory_order_relaxed);
@@ -163,7 +180,9 @@ bool CallbackGroup::try_run_inline() {
   inline_since_ns_.store(0, std::memory_order_relaxed);
   tl_running_inline = false;
   if (!ran) return false;
-  note_inline_run(std::chrono::steady_clock::now() - start);
+  const auto took = std::chrono::steady_clock::now() - start;
+  const bool stalled = note_inline_run(took, took >= kInlineStall && voluntary_waits() > waits_before);
+  if (blocked) *blocked = stalled;
   // Work that came meanwhile (or beyond the batch) announced itself to a
   // group that was running; make sure a worker looks.
   if (has_work()) core->wake();
@@ -175,25 +194,35 @@ std::chrono::nanoseconds CallbackGroup::inline_run_time() const {
   return std::chrono::nanoseconds(since == 0 ? 0 : std::max<std::int64_t>(0, steady_ns() - since));
 }
 
-void CallbackGroup::note_inline_run(std::chrono::steady_clock::duration took) {
-  if (took >= kInlineStall) {
+bool CallbackGroup::note_inline_run(std::chrono::steady_clock::duration took, bool waited) {
+  if (waited) {
     stop_inline();
-    return;
+    return true;
   }
   if (took <= kInlineBudget) {
     slow_inline_runs_.store(0, std::memory_order_relaxed);
-    return;
+    return false;
   }
   // One slow run is often just the thread losing its core; several in a row
   // are the callbacks themselves.
-  if (slow_inline_runs_.fetch_add(1, std::memory_order_relaxed) + 1 < kSlowInlineRuns) return;
+  if (slow_inline_runs_.fetch_add(1, std::memory_order_relaxed) + 1 < kSlowInlineRuns) return false;
   slow_inline_runs_.store(0, std::memory_order_relaxed);
   inline_paused_until_ns_.store(steady_ns() + std::chrono::nanoseconds(kInlinePause).count(),
                                 std::memory_order_relaxed);
+  return false;
+}
+
+void CallbackGroup::note_run(std::chrono::steady_clock::duration took) {
+  // One writer at a time (the group's running thread): load and store suffice.
+  const int n = short_runs_.load(std::memory_order_relaxed);
+  short_runs_.store(took <= kInlineBudget ? std::min(n + 1, kProvenRuns) : 0, std::memory_order_relaxed);
 }
 
 template <class F>
 void CallbackGroup::guarded(F&& f) {
+  // Proven groups skip the clock: the inline run's own timing watches them.
+  const bool timed = !proven();
+  const auto start = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
   try {
     f();
   } catch (const std::exception& ex) {
@@ -203,6 +232,7 @@ void CallbackGroup::guarded(F&& f) {
     errors_.fetch_add(1);
     if (on_error) on_error("unknown exception");
   }
+  if (timed) note_run(std::chrono::steady_clock::now() - start);
 }
 
 void CallbackGroup::wake_publishers() const {

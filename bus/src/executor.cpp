@@ -281,7 +281,18 @@ void Executor::worker_loop() {
   }
 }
 
+Executor::SpinGuard::SpinGuard(Executor& e) : e_(e) {
+  if (e_.spinning_.exchange(true, std::memory_order_acq_rel)) {
+    throw std::logic_error(
+        "this executor is already spinning (spin() or spin_some() on another thread, or inside "
+        "one of its callbacks)");
+  }
+}
+
+Executor::SpinGuard::~SpinGuard() { e_.spinning_.store(false, std::memory_order_release); }
+
 void Executor::spin() {
+  const SpinGuard guard(*this);
   // A stop() that comes before spin() gets going ends this spin at once (a
   // thread started to spin may begin after its owner already asked it to
   // stop); the request is consumed on the way out, so a later spin() runs.
@@ -292,6 +303,7 @@ void Executor::spin() {
 }
 
 std::size_t Executor::spin_some() {
+  const SpinGuard guard(*this);
   core_->stopping.store(false, std::memory_order_seq_cst);
   start_pending_nodes();
   fire_due_timers(clock_.now(), clock_.is_sim());

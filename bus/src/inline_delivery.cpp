@@ -23,17 +23,22 @@ bool InlineDelivery::defer(CallbackGroup& g) {
   return true;
 }
 
-void InlineDelivery::flush() {
-  if (pending_.empty()) return;
+std::size_t InlineDelivery::flush() {
+  if (pending_.empty()) return 0;
   std::vector<std::shared_ptr<CallbackGroup>> todo;
   todo.swap(pending_);
   // The callbacks' own publishes wake workers: one level of inline runs.
   tl_inline = previous_;
+  std::size_t blocked = 0;
   for (const auto& g : todo) {
-    if (!g->try_run_inline()) g->announce();
+    bool stalled = false;
+    if (!g->try_run_inline(&stalled)) g->announce();
+    if (stalled) ++blocked;
   }
   tl_inline = this;
   todo.clear();
   if (pending_.capacity() == 0) pending_.swap(todo);  // keep the allocation
+  return blocked;
 }
+
 }  // namespace tinyline::bus

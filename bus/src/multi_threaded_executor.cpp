@@ -7,6 +7,7 @@
 namespace tinyline::bus {
 
 void MultiThreadedExecutor::spin() {
+  const SpinGuard guard(*this);
   core_->stopping.store(false, std::memory_order_seq_cst);  // see Executor::spin()
   start_pending_nodes();
   std::vector<std::thread> workers;

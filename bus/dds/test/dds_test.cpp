@@ -758,8 +758,17 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
     EXPECT_EQ(dds_write(w, &bytes), DDS_RETCODE_OK);
   };
   tinyline::testing::Inbox<std::pair<std::string, std::thread::id>> got(b.signal);  // (data, thread)
-  auto record = [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); };
-  auto quick = b.node("quick")->create_subscription<StringMsg>("/fast", bus::QoS::keep_last(10), record);
+  std::atomic<int> proofs{0};  // messages that only prove a node's callbacks short
+  auto record = [&](const StringMsg& m) {
+    if (m.data == "proof") {
+      proofs.fetch_add(1);
+      b.signal->notify();
+      return;
+    }
+    got.push({m.data, std::this_thread::get_id()});
+  };
+  auto quick_node = b.node("quick");
+  auto quick = quick_node->create_subscription<StringMsg>("/fast", bus::QoS::keep_last(10), record);
   auto waiter = b.node("waiter");
   auto waiter_out = waiter->create_publisher<StringMsg>("/out", bus::QoS::reliable(4));  // may wait for room
   auto waiter_in = waiter->create_subscription<StringMsg>("/careful", bus::QoS::keep_last(10), record);
@@ -769,7 +778,7 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
   auto grower = b.node("grower");
   auto grower_in = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(10), [&](const StringMsg& m) {
     record(m);
-    if (stronger) return;
+    if (stronger || m.data == "proof") return;
     // A deeper one on the topic it runs in: its reader is replaced.
     stronger = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(50), [](const StringMsg&) {});
   });
@@ -777,6 +786,15 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
   b.run();
   auto ok = b.bridge->wait_for_peers({{"/fast", 0, 1}, {"/careful", 0, 1}, {"/grow", 0, 1}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing;
+  // A node runs where DDS delivers only once its callbacks proved short on
+  // the workers.
+  for (const auto& [w, n] : {std::pair{fast, quick_node}, std::pair{grow, grower}}) {
+    while (!n->callback_group()->proven()) {
+      const int before = proofs.load();
+      write(w, "proof");
+      ASSERT_TRUE(b.signal->wait_for([&] { return proofs.load() > before; }, 10s)) << b.sink->dump();
+    }
+  }
 
   // The first callback to run proves b's executor runs: nothing runs inline
   // before it does.
@@ -870,7 +888,10 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
   std::atomic<std::thread::id> writer_thread{};
   std::atomic<int> inline_after_stall{0};
   auto blocker = b.node("blocker");
+  std::atomic<int> blocker_seen{0};
   auto loud = blocker->create_subscription<StringMsg>("/loud", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+    blocker_seen.fetch_add(1);
+    b.signal->notify();
     const bool on_writer = std::this_thread::get_id() == writer_thread.load();
     if (m.data == "1" && on_writer) {  // a stderr pipe nobody reads, say
       blocked_at_ns.store(std::chrono::steady_clock::now().time_since_epoch().count());
@@ -893,6 +914,15 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
   ASSERT_TRUE(ok.ok) << ok.missing;
   write("0");  // the executor runs: inline runs may start
   ASSERT_TRUE(b.signal->wait_for([&] { return recorded.load() >= 1; }, 10s)) << b.sink->dump();
+  // The blocker's callbacks prove short on the workers: it may run inline.
+  int proofs = 0;
+  while (!blocker->callback_group()->proven()) {
+    write("proof");
+    ++proofs;
+    ASSERT_TRUE(
+        b.signal->wait_for([&] { return recorded.load() >= 1 + proofs && blocker_seen.load() >= 1 + proofs; }, 10s))
+        << b.sink->dump();
+  }
 
   std::thread writer([&] {
     writer_thread.store(std::this_thread::get_id());
@@ -912,7 +942,7 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
   }
   cv.notify_all();
   writer.join();
-  EXPECT_TRUE(b.signal->wait_for([&] { return recorded.load() >= kMessages; }, 30s)) << recorded.load();
+  EXPECT_TRUE(b.signal->wait_for([&] { return recorded.load() >= kMessages + proofs; }, 30s)) << recorded.load();
   EXPECT_EQ(inline_after_stall.load(), 0) << "the blocking node ran on the delivering thread again";
   EXPECT_GE(b.stats("/loud").stalls, 1u);
   EXPECT_TRUE(b.sink->contains(bus::LogLevel::Warn, "held DDS's receive thread")) << b.sink->dump();
