@@ -909,7 +909,34 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
         recorded.fetch_add(1);
         b.signal->notify();
       });
+  // Two nodes whose callbacks hold both workers while the writer runs: a
+  // worker still polling after its last callback would take a message before
+  // the delivering thread could, and "1" would block a worker instead.
+  std::promise<void> free_workers;
+  std::shared_future<void> workers_free = free_workers.get_future().share();
+  struct Release {
+    std::promise<void>& p;
+    bool done = false;
+    void operator()() {
+      if (!std::exchange(done, true)) p.set_value();
+    }
+    ~Release() { (*this)(); }
+  };
+  std::atomic<int> holding{0};
+  std::vector<std::shared_ptr<bus::Subscription<StringMsg>>> holds;
+  std::vector<std::shared_ptr<bus::Publisher<StringMsg>>> hold_pubs;
+  for (int i = 0; i < 2; ++i) {
+    auto n = b.node("holder" + std::to_string(i));
+    const std::string t = "/hold" + std::to_string(i);
+    holds.push_back(n->create_subscription<StringMsg>(t, bus::QoS::keep_last(1), [&](const StringMsg&) {
+      holding.fetch_add(1);
+      b.signal->notify();
+      workers_free.wait();
+    }));
+    hold_pubs.push_back(n->create_publisher<StringMsg>(t));
+  }
   b.run();
+  Release release{free_workers};
   auto ok = b.bridge->wait_for_peers({{"/loud", 0, 1}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing;
   write("0");  // the executor runs: inline runs may start
@@ -924,6 +951,8 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
         << b.sink->dump();
   }
 
+  for (auto& p : hold_pubs) p->publish(text("hold"));
+  ASSERT_TRUE(b.signal->wait_for([&] { return holding.load() == 2; }, 10s));
   std::thread writer([&] {
     writer_thread.store(std::this_thread::get_id());
     for (int i = 1; i < kMessages; ++i) write(std::to_string(i));
@@ -941,6 +970,7 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
     gate_open = true;
   }
   cv.notify_all();
+  release();
   writer.join();
   EXPECT_TRUE(b.signal->wait_for([&] { return recorded.load() >= kMessages + proofs; }, 30s)) << recorded.load();
   EXPECT_EQ(inline_after_stall.load(), 0) << "the blocking node ran on the delivering thread again";
