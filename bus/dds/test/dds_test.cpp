@@ -100,6 +100,40 @@ std::unique_ptr<StringMsg> text(std::string s) {
   return m;
 }
 
+/// Two nodes of `side` whose callbacks hold both executor workers until
+/// released: a worker that polls for work would otherwise take a message
+/// before the thread DDS delivers on could run it. Made before side.run().
+struct WorkerHolder {
+  Side& side;
+  std::promise<void> free;
+  std::shared_future<void> freed = free.get_future().share();
+  std::atomic<int> holding{0};
+  std::vector<std::shared_ptr<bus::Subscription<StringMsg>>> subs;
+  std::vector<std::shared_ptr<bus::Publisher<StringMsg>>> pubs;
+  bool released = false;
+
+  explicit WorkerHolder(Side& s) : side(s) {
+    for (int i = 0; i < 2; ++i) {
+      auto n = side.node("holder" + std::to_string(i));
+      const std::string t = "/hold" + std::to_string(i);
+      subs.push_back(n->create_subscription<StringMsg>(t, bus::QoS::keep_last(1), [this](const StringMsg&) {
+        holding.fetch_add(1);
+        side.signal->notify();
+        freed.wait();
+      }));
+      pubs.push_back(n->create_publisher<StringMsg>(t));
+    }
+  }
+  [[nodiscard]] bool hold() {
+    for (auto& p : pubs) p->publish(text("hold"));
+    return side.signal->wait_for([&] { return holding.load() == 2; }, 10s);
+  }
+  void release() {
+    if (!std::exchange(released, true)) free.set_value();
+  }
+  ~WorkerHolder() { release(); }
+};
+
 }  // namespace
 
 TEST(DdsNaming, TopicsAndTypesAreNamedTheWayRos2NamesThem) {
@@ -783,6 +817,7 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
     stronger = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(50), [](const StringMsg&) {});
   });
   const dds_entity_t fast = writer_for("/fast"), careful = writer_for("/careful"), grow = writer_for("/grow");
+  WorkerHolder held(b);
   b.run();
   auto ok = b.bridge->wait_for_peers({{"/fast", 0, 1}, {"/careful", 0, 1}, {"/grow", 0, 1}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing;
@@ -800,10 +835,12 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
   // before it does.
   write(careful, "careful");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 1; }, 10s)) << b.sink->dump();
+  ASSERT_TRUE(held.hold());
   write(fast, "fast");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 2; }, 10s)) << b.sink->dump();
   write(grow, "grow");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 3; }, 10s)) << b.sink->dump();
+  held.release();
   // The reader of /grow was replaced by the bridge's thread, which waited for
   // the listener the callback ran in to return (no deadlock).
   EXPECT_TRUE(b.signal->wait_for(
@@ -909,34 +946,11 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
         recorded.fetch_add(1);
         b.signal->notify();
       });
-  // Two nodes whose callbacks hold both workers while the writer runs: a
-  // worker still polling after its last callback would take a message before
-  // the delivering thread could, and "1" would block a worker instead.
-  std::promise<void> free_workers;
-  std::shared_future<void> workers_free = free_workers.get_future().share();
-  struct Release {
-    std::promise<void>& p;
-    bool done = false;
-    void operator()() {
-      if (!std::exchange(done, true)) p.set_value();
-    }
-    ~Release() { (*this)(); }
-  };
-  std::atomic<int> holding{0};
-  std::vector<std::shared_ptr<bus::Subscription<StringMsg>>> holds;
-  std::vector<std::shared_ptr<bus::Publisher<StringMsg>>> hold_pubs;
-  for (int i = 0; i < 2; ++i) {
-    auto n = b.node("holder" + std::to_string(i));
-    const std::string t = "/hold" + std::to_string(i);
-    holds.push_back(n->create_subscription<StringMsg>(t, bus::QoS::keep_last(1), [&](const StringMsg&) {
-      holding.fetch_add(1);
-      b.signal->notify();
-      workers_free.wait();
-    }));
-    hold_pubs.push_back(n->create_publisher<StringMsg>(t));
-  }
+  // Both workers held while the writer runs: a worker still polling after
+  // its last callback would take a message before the delivering thread
+  // could, and "1" would block a worker instead.
+  WorkerHolder held(b);
   b.run();
-  Release release{free_workers};
   auto ok = b.bridge->wait_for_peers({{"/loud", 0, 1}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing;
   write("0");  // the executor runs: inline runs may start
@@ -951,8 +965,7 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
         << b.sink->dump();
   }
 
-  for (auto& p : hold_pubs) p->publish(text("hold"));
-  ASSERT_TRUE(b.signal->wait_for([&] { return holding.load() == 2; }, 10s));
+  ASSERT_TRUE(held.hold());
   std::thread writer([&] {
     writer_thread.store(std::this_thread::get_id());
     for (int i = 1; i < kMessages; ++i) write(std::to_string(i));
@@ -970,7 +983,7 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
     gate_open = true;
   }
   cv.notify_all();
-  release();
+  held.release();
   writer.join();
   EXPECT_TRUE(b.signal->wait_for([&] { return recorded.load() >= kMessages + proofs; }, 30s)) << recorded.load();
   EXPECT_EQ(inline_after_stall.load(), 0) << "the blocking node ran on the delivering thread again";
