@@ -1017,8 +1017,31 @@ struct InlineGraph {
   std::vector<std::pair<std::string, std::thread::id>> seen;  // under mu
   std::function<void(const StringMsg&)> during;               // runs inside the callback
   std::thread spinner;
+  // Two nodes whose callbacks hold both workers until released: a worker
+  // that polls for work would otherwise take a message before flush() does.
+  std::vector<std::shared_ptr<Node>> holders{make_node(ctx, "holder0"), make_node(ctx, "holder1")};
+  std::vector<std::shared_ptr<bus::SubscriptionBase>> holding_subs;
+  std::vector<std::shared_ptr<bus::Publisher<StringMsg>>> holding_pubs;
+  int holding = 0;  // under mu
+  std::promise<void> free_workers;
+  std::shared_future<void> workers_free = free_workers.get_future().share();
+  bool released = false;
 
   InlineGraph() {
+    for (std::size_t i = 0; i < holders.size(); ++i) {
+      const std::string topic = "hold" + std::to_string(i);
+      holding_subs.push_back(
+          holders[i]->create_subscription<StringMsg>(topic, QoS::keep_last(1), [this](const StringMsg&) {
+            {
+              std::lock_guard lk(mu);
+              ++holding;
+            }
+            cv.notify_all();
+            workers_free.wait();
+          }));
+      holding_pubs.push_back(holders[i]->create_publisher<StringMsg>(topic));
+      ex.add_node(holders[i]);
+    }
     sub = node->create_subscription<StringMsg>("t", QoS::keep_last(16), [this](const StringMsg& m) {
       if (during) during(m);
       {
@@ -1046,6 +1069,17 @@ struct InlineGraph {
     pub->publish(text(s));
     d.flush();
   }
+  /// Lets the workers run the listener's callbacks until they proved short
+  /// (a group runs inline only then), and forgets them.
+  void prove() {
+    while (!node->callback_group()->proven()) {
+      const std::size_t before = count();
+      pub->publish(text("proof"));
+      wait_for(before + 1);
+    }
+    std::lock_guard lk(mu);
+    seen.clear();
+  }
   std::vector<std::pair<std::string, std::thread::id>> wait_for(std::size_t n) {
     std::unique_lock lk(mu);
     cv.wait(lk, [&] { return seen.size() >= n; });
@@ -1055,7 +1089,19 @@ struct InlineGraph {
     std::lock_guard lk(mu);
     return seen.size();
   }
+  /// Returns once both workers run a holder's callback: only flush() can run
+  /// the listener now.
+  void hold_workers() {
+    for (auto& p : holding_pubs) p->publish(text("hold"));
+    std::unique_lock lk(mu);
+    cv.wait(lk, [&] { return holding == static_cast<int>(holding_pubs.size()); });
+  }
+  void release_workers() {
+    if (std::exchange(released, true)) return;
+    free_workers.set_value();
+  }
   ~InlineGraph() {
+    release_workers();
     ex.stop();
     if (spinner.joinable()) spinner.join();
   }
@@ -1066,8 +1112,10 @@ struct InlineGraph {
 TEST(InlineDelivery, AnIdleGroupsCallbackRunsOnThePublishingThreadBeforeFlushReturns) {
   InlineGraph g;
   const auto me = std::this_thread::get_id();
-  g.during = [&](const StringMsg&) { EXPECT_EQ(bus::current_executor(), &g.ex); };
   g.run();
+  g.prove();
+  g.hold_workers();
+  g.during = [&](const StringMsg&) { EXPECT_EQ(bus::current_executor(), &g.ex); };
   g.publish_inline("a");
   g.publish_inline("b");
   ASSERT_EQ(g.count(), 2u);  // ran inside flush(): nothing to wait for
@@ -1079,10 +1127,15 @@ TEST(InlineDelivery, AnIdleGroupsCallbackRunsOnThePublishingThreadBeforeFlushRet
 TEST(InlineDelivery, NothingRunsInlineBeforeTheExecutorRunsNorOnADeterministicExecutor) {
   {
     InlineGraph g;  // nodes added, spin() not called yet: the start gate
+    while (!g.node->callback_group()->proven()) {
+      g.pub->publish(text("proof"));
+      EXPECT_EQ(g.ex.spin_some(), 1u);
+    }
+    const std::size_t proofs = g.count();
     g.publish_inline("early");
-    EXPECT_EQ(g.count(), 0u);
+    EXPECT_EQ(g.count(), proofs);
     EXPECT_EQ(g.ex.spin_some(), 1u);  // the executor's own caller runs it
-    EXPECT_EQ(g.count(), 1u);
+    EXPECT_EQ(g.count(), proofs + 1);
   }
   auto ctx = sim_context();
   bus::DeterministicExecutor ex(ctx->clock());
@@ -1105,6 +1158,7 @@ TEST(InlineDelivery, ANodeWithAReliablePublisherRunsOnlyOnTheWorkers) {
   InlineGraph g;
   auto out = g.node->create_publisher<StringMsg>("out", QoS::reliable(4));  // its callbacks may wait for room
   g.run();
+  g.prove();
   g.publish_inline("a");
   const auto seen = g.wait_for(1);
   EXPECT_NE(seen[0].second, std::this_thread::get_id());
@@ -1115,12 +1169,13 @@ TEST(InlineDelivery, ABusyGroupIsNotEnteredAndItsMessagesKeepTheirOrder) {
   std::promise<void> entered;
   std::promise<void> release;
   auto released = release.get_future().share();
+  g.run();
+  g.prove();
   g.during = [&](const StringMsg& m) {
     if (m.data != "first") return;
     entered.set_value();
     released.wait();
   };
-  g.run();
   g.pub->publish(text("first"));  // a worker runs it and holds the group
   entered.get_future().wait();
   g.publish_inline("second");
@@ -1134,15 +1189,116 @@ TEST(InlineDelivery, ABusyGroupIsNotEnteredAndItsMessagesKeepTheirOrder) {
 
 TEST(InlineDelivery, CallbacksThatKeepTakingLongGoBackToTheWorkers) {
   InlineGraph g;
+  g.run();
+  g.prove();
   g.during = [](const StringMsg&) {  // longer than an inline run may take
     const auto until = std::chrono::steady_clock::now() + 2ms;
     while (std::chrono::steady_clock::now() < until) {}
   };
-  g.run();
   const auto me = std::this_thread::get_id();
+  g.hold_workers();
   for (int i = 0; i < 3; ++i) g.publish_inline(std::to_string(i));
   g.publish_inline("3");
+  g.release_workers();
   const auto seen = g.wait_for(4);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(seen[i].second, me) << i;  // a slow run may be a lost core: tried again
   EXPECT_NE(seen[3].second, me);                                   // three in a row: the workers take it
+}
+
+TEST(InlineDelivery, ACallbackThatBlocksOnItsFirstRunBlocksAWorkerNotTheDeliveringThread) {
+  // The delivering thread (Cyclone's receive thread) serves every subscriber
+  // of the process: a node runs there only once its callbacks proved short.
+  InlineGraph g;
+  const auto me = std::this_thread::get_id();
+  std::promise<void> release;
+  auto released = release.get_future().share();
+  std::atomic<bool> ran_here{false};
+  g.during = [&](const StringMsg& m) {
+    if (m.data != "first") return;
+    if (std::this_thread::get_id() == me) {
+      ran_here.store(true);  // blocking here would hang the test: report it instead
+      return;
+    }
+    released.wait();  // a pipe nobody reads, say
+  };
+  g.run();
+  g.hold_workers();
+  g.publish_inline("first");  // returns while the callback waits for a worker
+  EXPECT_FALSE(ran_here.load()) << "a callback that never ran before ran on the delivering thread";
+  EXPECT_FALSE(g.node->callback_group()->accepts_inline());
+  g.release_workers();
+  release.set_value();
+  const auto seen = g.wait_for(1);
+  EXPECT_NE(seen[0].second, me);
+}
+
+TEST(InlineDelivery, ALongRunThatOnlyLostItsCoreKeepsTheNodeInline) {
+  // Under load (or a sanitizer) a short callback may wait 20 ms for a core:
+  // that is no blocked callback, and the node stays inline.
+  InlineGraph g;
+  g.run();
+  g.prove();
+  g.during = [](const StringMsg& m) {
+    if (m.data != "long") return;
+    const auto until = std::chrono::steady_clock::now() + 30ms;  // runnable throughout, never asleep
+    while (std::chrono::steady_clock::now() < until) {}
+  };
+  const auto me = std::this_thread::get_id();
+  g.hold_workers();
+  g.publish_inline("long");
+  g.publish_inline("next");
+  g.release_workers();
+  const auto seen = g.wait_for(2);
+  EXPECT_EQ(seen[0].second, me);
+  EXPECT_EQ(seen[1].second, me) << "a run that lost its core sent the node off the delivering thread";
+  EXPECT_TRUE(g.node->callback_group()->accepts_inline());
+}
+
+TEST(InlineDelivery, ACallbackThatSleptLongOnTheDeliveringThreadRunsOnTheWorkersFromThenOn) {
+  InlineGraph g;
+  g.run();
+  g.prove();
+  g.during = [](const StringMsg& m) {
+    if (m.data == "block") std::this_thread::sleep_for(30ms);  // what the callback does: a disk that stalls
+  };
+  const auto me = std::this_thread::get_id();
+  g.hold_workers();
+  {
+    bus::InlineDelivery d;
+    g.pub->publish(text("block"));
+    EXPECT_EQ(d.flush(), 1u);  // reported to the transport as a stall
+  }
+  g.publish_inline("next");
+  g.release_workers();
+  const auto seen = g.wait_for(2);
+  EXPECT_EQ(seen[0].second, me);
+  EXPECT_NE(seen[1].second, me);
+  EXPECT_FALSE(g.node->callback_group()->accepts_inline());
+}
+
+TEST(Executor, SpinningAnExecutorThatAlreadySpinsIsAnError) {
+  InlineGraph g;
+  g.run();  // spins on another thread
+  ASSERT_THROW(g.ex.spin_some(), std::logic_error);
+  EXPECT_THROW(g.ex.spin(), std::logic_error);
+  std::promise<std::string> inside;
+  std::atomic<bool> tried{false};
+  g.during = [&](const StringMsg&) {
+    if (tried.exchange(true)) return;
+    try {
+      g.ex.spin();
+      inside.set_value("spun");
+    } catch (const std::logic_error& e) {
+      inside.set_value(e.what());
+    }
+  };
+  g.pub->publish(text("x"));
+  const std::string said = inside.get_future().get();
+  EXPECT_NE(said.find("already spinning"), std::string::npos) << said;
+  g.ex.stop();
+  g.spinner.join();
+  // Stopped, it spins again.
+  g.spinner = std::thread([&] { g.ex.spin(); });
+  g.pub->publish(text("again"));
+  EXPECT_EQ(g.wait_for(2).back().first, "again");
 }

@@ -47,9 +47,6 @@ bool same(const EndpointQos& a, const EndpointQos& b) {
 /// cannot flood the log.
 bool worth_logging(std::uint64_t count) { return count == 1 || count % 100 == 0; }
 
-// An inline delivery this long is reported (the bus stops running that node
-// inline after it: see CallbackGroup::note_inline_run).
-constexpr auto kReportedStall = std::chrono::milliseconds(20);
 constexpr int kEndpointBatch = 32;
 
 }  // namespace
@@ -771,13 +768,13 @@ void Bridge::count_shared_memory_loss(Link& l) {
 }
 
 void Bridge::flush_inline(Link& l, bus::InlineDelivery& d) {
-  // A callback that runs long here holds up every topic of the process (this
+  // A callback that blocks here holds up every topic of the process (this
   // thread also receives them); the bus sends its node to the workers for
-  // good after one such run. Said once per 100, with how long it took.
+  // good after one such run (a run that was only long, the thread having lost
+  // its core, is no stall). Said once per 100, with how long it took.
   const auto start = std::chrono::steady_clock::now();
-  d.flush();
+  if (d.flush() == 0) return;
   const auto took = std::chrono::steady_clock::now() - start;
-  if (took < kReportedStall) return;
   if (worth_logging(l.stalls.fetch_add(1) + 1)) {
     logger().warn(
         "{}: a subscriber's callback held DDS's receive thread for {:.0f} ms (every topic of this process waited); "

@@ -100,6 +100,40 @@ std::unique_ptr<StringMsg> text(std::string s) {
   return m;
 }
 
+/// Two nodes of `side` whose callbacks hold both executor workers until
+/// released: a worker that polls for work would otherwise take a message
+/// before the thread DDS delivers on could run it. Made before side.run().
+struct WorkerHolder {
+  Side& side;
+  std::promise<void> free;
+  std::shared_future<void> freed = free.get_future().share();
+  std::atomic<int> holding{0};
+  std::vector<std::shared_ptr<bus::Subscription<StringMsg>>> subs;
+  std::vector<std::shared_ptr<bus::Publisher<StringMsg>>> pubs;
+  bool released = false;
+
+  explicit WorkerHolder(Side& s) : side(s) {
+    for (int i = 0; i < 2; ++i) {
+      auto n = side.node("holder" + std::to_string(i));
+      const std::string t = "/hold" + std::to_string(i);
+      subs.push_back(n->create_subscription<StringMsg>(t, bus::QoS::keep_last(1), [this](const StringMsg&) {
+        holding.fetch_add(1);
+        side.signal->notify();
+        freed.wait();
+      }));
+      pubs.push_back(n->create_publisher<StringMsg>(t));
+    }
+  }
+  [[nodiscard]] bool hold() {
+    for (auto& p : pubs) p->publish(text("hold"));
+    return side.signal->wait_for([&] { return holding.load() == 2; }, 10s);
+  }
+  void release() {
+    if (!std::exchange(released, true)) free.set_value();
+  }
+  ~WorkerHolder() { release(); }
+};
+
 }  // namespace
 
 TEST(DdsNaming, TopicsAndTypesAreNamedTheWayRos2NamesThem) {
@@ -758,8 +792,17 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
     EXPECT_EQ(dds_write(w, &bytes), DDS_RETCODE_OK);
   };
   tinyline::testing::Inbox<std::pair<std::string, std::thread::id>> got(b.signal);  // (data, thread)
-  auto record = [&](const StringMsg& m) { got.push({m.data, std::this_thread::get_id()}); };
-  auto quick = b.node("quick")->create_subscription<StringMsg>("/fast", bus::QoS::keep_last(10), record);
+  std::atomic<int> proofs{0};  // messages that only prove a node's callbacks short
+  auto record = [&](const StringMsg& m) {
+    if (m.data == "proof") {
+      proofs.fetch_add(1);
+      b.signal->notify();
+      return;
+    }
+    got.push({m.data, std::this_thread::get_id()});
+  };
+  auto quick_node = b.node("quick");
+  auto quick = quick_node->create_subscription<StringMsg>("/fast", bus::QoS::keep_last(10), record);
   auto waiter = b.node("waiter");
   auto waiter_out = waiter->create_publisher<StringMsg>("/out", bus::QoS::reliable(4));  // may wait for room
   auto waiter_in = waiter->create_subscription<StringMsg>("/careful", bus::QoS::keep_last(10), record);
@@ -769,23 +812,35 @@ TEST(DdsBridge, SubscribersRunWhereDdsDeliversAsItsListenersDoUnlessTheirNodeMay
   auto grower = b.node("grower");
   auto grower_in = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(10), [&](const StringMsg& m) {
     record(m);
-    if (stronger) return;
+    if (stronger || m.data == "proof") return;
     // A deeper one on the topic it runs in: its reader is replaced.
     stronger = grower->create_subscription<StringMsg>("/grow", bus::QoS::keep_last(50), [](const StringMsg&) {});
   });
   const dds_entity_t fast = writer_for("/fast"), careful = writer_for("/careful"), grow = writer_for("/grow");
+  WorkerHolder held(b);
   b.run();
   auto ok = b.bridge->wait_for_peers({{"/fast", 0, 1}, {"/careful", 0, 1}, {"/grow", 0, 1}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing;
+  // A node runs where DDS delivers only once its callbacks proved short on
+  // the workers.
+  for (const auto& [w, n] : {std::pair{fast, quick_node}, std::pair{grow, grower}}) {
+    while (!n->callback_group()->proven()) {
+      const int before = proofs.load();
+      write(w, "proof");
+      ASSERT_TRUE(b.signal->wait_for([&] { return proofs.load() > before; }, 10s)) << b.sink->dump();
+    }
+  }
 
   // The first callback to run proves b's executor runs: nothing runs inline
   // before it does.
   write(careful, "careful");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 1; }, 10s)) << b.sink->dump();
+  ASSERT_TRUE(held.hold());
   write(fast, "fast");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 2; }, 10s)) << b.sink->dump();
   write(grow, "grow");
   ASSERT_TRUE(b.signal->wait_for([&] { return got.size() >= 3; }, 10s)) << b.sink->dump();
+  held.release();
   // The reader of /grow was replaced by the bridge's thread, which waited for
   // the listener the callback ran in to return (no deadlock).
   EXPECT_TRUE(b.signal->wait_for(
@@ -870,7 +925,10 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
   std::atomic<std::thread::id> writer_thread{};
   std::atomic<int> inline_after_stall{0};
   auto blocker = b.node("blocker");
+  std::atomic<int> blocker_seen{0};
   auto loud = blocker->create_subscription<StringMsg>("/loud", bus::QoS::keep_last(10), [&](const StringMsg& m) {
+    blocker_seen.fetch_add(1);
+    b.signal->notify();
     const bool on_writer = std::this_thread::get_id() == writer_thread.load();
     if (m.data == "1" && on_writer) {  // a stderr pipe nobody reads, say
       blocked_at_ns.store(std::chrono::steady_clock::now().time_since_epoch().count());
@@ -888,12 +946,26 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
         recorded.fetch_add(1);
         b.signal->notify();
       });
+  // Both workers held while the writer runs: a worker still polling after
+  // its last callback would take a message before the delivering thread
+  // could, and "1" would block a worker instead.
+  WorkerHolder held(b);
   b.run();
   auto ok = b.bridge->wait_for_peers({{"/loud", 0, 1}}, 10s);
   ASSERT_TRUE(ok.ok) << ok.missing;
   write("0");  // the executor runs: inline runs may start
   ASSERT_TRUE(b.signal->wait_for([&] { return recorded.load() >= 1; }, 10s)) << b.sink->dump();
+  // The blocker's callbacks prove short on the workers: it may run inline.
+  int proofs = 0;
+  while (!blocker->callback_group()->proven()) {
+    write("proof");
+    ++proofs;
+    ASSERT_TRUE(
+        b.signal->wait_for([&] { return recorded.load() >= 1 + proofs && blocker_seen.load() >= 1 + proofs; }, 10s))
+        << b.sink->dump();
+  }
 
+  ASSERT_TRUE(held.hold());
   std::thread writer([&] {
     writer_thread.store(std::this_thread::get_id());
     for (int i = 1; i < kMessages; ++i) write(std::to_string(i));
@@ -911,8 +983,9 @@ TEST(DdsBridge, ACallbackThatBlocksTheDeliveringThreadOnceRunsOnWorkersFromThenO
     gate_open = true;
   }
   cv.notify_all();
+  held.release();
   writer.join();
-  EXPECT_TRUE(b.signal->wait_for([&] { return recorded.load() >= kMessages; }, 30s)) << recorded.load();
+  EXPECT_TRUE(b.signal->wait_for([&] { return recorded.load() >= kMessages + proofs; }, 30s)) << recorded.load();
   EXPECT_EQ(inline_after_stall.load(), 0) << "the blocking node ran on the delivering thread again";
   EXPECT_GE(b.stats("/loud").stalls, 1u);
   EXPECT_TRUE(b.sink->contains(bus::LogLevel::Warn, "held DDS's receive thread")) << b.sink->dump();

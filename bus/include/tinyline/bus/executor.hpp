@@ -176,13 +176,20 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   /// Runs this group's queued callbacks on the calling thread (a transport's
   /// delivery thread, see InlineDelivery) if its executor's workers are
   /// running, the group is idle and it accepts inline runs; false otherwise
-  /// (the caller then announces the work to a worker).
-  bool try_run_inline();
+  /// (the caller then announces the work to a worker). `blocked` is set when
+  /// the run waited long (see note_inline_run): the group left inline runs.
+  bool try_run_inline(bool* blocked = nullptr);
   /// From now on this group's callbacks run only on its executor's threads:
   /// they may wait (a node with a reliable publisher waits for room), and a
   /// transport's delivery thread must not.
   void refuse_inline() { inline_refused_.store(true, std::memory_order_relaxed); }
+  /// True when the group may run inline now: not refused nor paused, and
+  /// proven: its last callbacks ran short (a callback that blocks on its
+  /// first run then blocks a worker, never a transport's delivery thread).
   bool accepts_inline() const;
+  /// True once the group's last callbacks (a few in a row) each ran within
+  /// the inline budget, wherever they ran.
+  bool proven() const;
   /// How long the inline run in progress has lasted (zero when none runs):
   /// a transport watches it, since its delivery thread waits for the run.
   std::chrono::nanoseconds inline_run_time() const;
@@ -208,10 +215,15 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   void announce();
   bool claim_and_run(std::size_t max, std::size_t* ran, const SubList* subs, bool after_stop);
   std::size_t run_claimed(std::size_t max, const SubList& subs, bool after_stop);
-  /// Books one inline run's wall time: a group whose inline runs keep taking
-  /// long goes back to the workers for a while (it would hold up the transport).
-  void note_inline_run(std::chrono::steady_clock::duration took);
-  /// Runs a callback, catching and counting what it throws.
+  /// Books one inline run's wall time and whether the thread waited in it
+  /// (went to sleep: a lock, a pipe, a disk): a run that waited long leaves
+  /// inline runs for good (returns true); one that was only long (lost its
+  /// core) counts as slow, and slow runs in a row pause inline runs a while.
+  bool note_inline_run(std::chrono::steady_clock::duration took, bool waited);
+  /// Books one callback's wall time towards the proof inline runs need.
+  void note_run(std::chrono::steady_clock::duration took);
+  /// Runs a callback, catching and counting what it throws; times it while
+  /// the group is not proven yet.
   template <class F>
   void guarded(F&& f);
 
@@ -238,6 +250,7 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   std::atomic<std::uint64_t> errors_{0};
   // Inline runs (InlineDelivery).
   std::atomic<bool> inline_refused_{false};
+  std::atomic<int> short_runs_{0};                       ///< callbacks in a row within the budget (capped)
   std::atomic<int> slow_inline_runs_{0};                 ///< in a row over the budget
   std::atomic<std::int64_t> inline_paused_until_ns_{0};  ///< steady clock; 0: not paused
   std::atomic<std::int64_t> inline_since_ns_{0};         ///< steady clock; 0: no inline run now
@@ -267,8 +280,10 @@ class Executor {
 
   /// Blocks running callbacks until stop() (from any thread or a signal-safe
   /// flag). A stop() made before spin() starts ends that spin at once.
+  /// Throws std::logic_error while the executor already spins (spin() or
+  /// spin_some() on another thread, or inside one of its callbacks).
   virtual void spin();
-  /// Runs what is ready now (and due timers), then returns.
+  /// Runs what is ready now (and due timers), then returns. Throws as spin().
   std::size_t spin_some();
   void stop();
   bool stopped() const { return stop_.load(); }
@@ -280,6 +295,18 @@ class Executor {
   void add_timer(const std::shared_ptr<Timer>& t, const std::shared_ptr<CallbackGroup>& g);
 
  protected:
+  /// Marks the executor spinning for its lifetime; throws std::logic_error
+  /// when it already spins: two spins would run every node twice over.
+  class SpinGuard {
+   public:
+    explicit SpinGuard(Executor& e);
+    ~SpinGuard();
+    SpinGuard(const SpinGuard&) = delete;
+    SpinGuard& operator=(const SpinGuard&) = delete;
+
+   private:
+    Executor& e_;
+  };
   /// Calls on_configure() of every node added since the last call, then their on_start().
   void start_pending_nodes();
   /// A worker's copies of the attached groups and their subscription lists
@@ -317,6 +344,7 @@ class Executor {
   std::vector<std::shared_ptr<Node>> nodes_;
   std::vector<std::shared_ptr<Node>> unstarted_;
   std::atomic<bool> stop_{false};
+  std::atomic<bool> spinning_{false};  ///< see SpinGuard
   int clock_listener_ = 0;
 };
 
@@ -363,7 +391,9 @@ Executor* current_executor();
 /// and wakes a worker otherwise. Queues, order, drops and the callback
 /// group's exclusion are the executor's own: the message goes through the
 /// subscription's queue either way. Publishes made by the callbacks it runs
-/// wake workers as usual (one level deep only).
+/// wake workers as usual (one level deep only). A group runs inline only once
+/// its callbacks proved short on the workers, and never again once one of its
+/// runs here slept long (it blocks).
 class InlineDelivery {
  public:
   InlineDelivery();
@@ -371,8 +401,10 @@ class InlineDelivery {
   InlineDelivery(const InlineDelivery&) = delete;
   InlineDelivery& operator=(const InlineDelivery&) = delete;
 
-  /// Runs or announces the work published on this thread since the last flush.
-  void flush();
+  /// Runs or announces the work published on this thread since the last
+  /// flush. Returns how many groups blocked in their run here (and run on
+  /// their workers from now on).
+  std::size_t flush();
   /// Publisher side (CallbackGroup::announce): true when the active scope
   /// on this thread takes over announcing `g`.
   static bool defer(CallbackGroup& g);

@@ -14,7 +14,8 @@
 // itself (a data-available listener): it takes each sample, deserializes it
 // and queues it for the subscribers' executor, with no thread in between;
 // then, when the executor is running and a subscriber's callback group is
-// idle and may run there (bus::InlineDelivery), it runs that callback at once
+// idle and may run there (bus::InlineDelivery: its callbacks proved short on
+// the workers and never blocked here), it runs that callback at once
 // on the same thread, as a DDS listener does, instead of waking a worker.
 // That thread must never block (it also handles acknowledgements), so while
 // a reliable local subscriber's queue is full the bridge's own thread takes
@@ -84,7 +85,7 @@ struct LinkStats {
   std::uint64_t write_errors = 0;   ///< DDS writes that failed (logged)
   std::uint64_t incompatible = 0;   ///< remote endpoints refused for incompatible QoS
   std::uint64_t lost = 0;           ///< samples DDS reports lost on the way here (also in the topic's dropped)
-  std::uint64_t stalls = 0;         ///< deliveries a callback held up for 20 ms or more on the receive thread
+  std::uint64_t stalls = 0;         ///< deliveries a callback blocked 20 ms or more on the receive thread
 };
 
 /// Remote endpoints a process expects before its nodes start.
