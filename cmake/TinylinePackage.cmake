@@ -135,13 +135,16 @@ tinyline_export_dependency("find_dependency(Threads)")
 tinyline_export_dependency("find_dependency(Eigen3 3.4 NO_MODULE)")
 tinyline_export_dependency("find_dependency(yaml-cpp)")
 tinyline_export_dependency("find_dependency(fmt)")
+tinyline_export_dependency("find_dependency(CLI11)")
+tinyline_export_dependency("find_dependency(jsoncpp CONFIG)")
 
 # The package that defines a third-party target a tinyline library links, by
 # the target's name. A target missing here stops configure: its component
 # would not find it downstream.
 set(_TL_THIRD_PARTY_PATTERNS
     "^Threads::=Threads" "^Eigen3::=Eigen3" "^fmt::=fmt" "^yaml-cpp=yaml-cpp" "^CycloneDDS::=CycloneDDS"
-    "^pcl_=PCL" "^FLANN::=PCL" "^Boost::=PCL" "^VTK::=PCL" "^QHULL::=PCL" "^opencv_=OpenCV")
+    "^pcl_=PCL" "^FLANN::=PCL" "^Boost::=PCL" "^VTK::=PCL" "^QHULL::=PCL" "^opencv_=OpenCV"
+    "^CLI11::=CLI11" "^JsonCpp::=jsoncpp")
 
 function(_tinyline_third_party_package item out)
   set(${out} "" PARENT_SCOPE)

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <iostream>
+#include <algorithm>
 #include <string_view>
 
 #include <CLI/CLI.hpp>
@@ -174,9 +176,9 @@ void App::pass_through() {
 
 std::vector<std::string> App::remaining() const { return app_->remaining(); }
 
-void App::parse(int argc, char** argv) {
+void App::translating_errors(const std::function<void()>& parse) {
   try {
-    app_->parse(argc, argv);
+    parse();
   } catch (const CLI::CallForHelp& e) {
     throw ParseError(std::current_exception(), e.what(), true);
   } catch (const CLI::CallForAllHelp& e) {
@@ -186,11 +188,22 @@ void App::parse(int argc, char** argv) {
   }
 }
 
-int App::exit(const ParseError& e) const {
+void App::parse(int argc, char** argv) {
+  translating_errors([&] { app_->parse(argc, argv); });
+}
+
+void App::parse(std::vector<std::string> args) {
+  std::reverse(args.begin(), args.end());  // CLI11 takes them last first
+  translating_errors([&] { app_->parse(args); });
+}
+
+int App::exit(const ParseError& e) const { return exit(e, std::cout, std::cerr); }
+
+int App::exit(const ParseError& e, std::ostream& out, std::ostream& err) const {
   try {
     std::rethrow_exception(e.original_);
   } catch (const CLI::Error& original) {
-    return app_->exit(original);
+    return app_->exit(original, out, err);
   }
 }
 
@@ -209,18 +222,32 @@ std::vector<const App*> App::parsed_subcommands() const {
 std::string App::name() const { return app_->get_name(); }
 std::string App::help() const { return app_->help(); }
 
-std::optional<int> parse_command_line(App& app, int argc, char** argv) {
+namespace {
+/// What a parse leaves the program: its exit code when it stops here.
+template <class Parse>
+std::optional<int> stop_or_run(App& app, Parse&& parse, std::ostream& out, std::ostream& err) {
   try {
-    app.parse(argc, argv);
+    parse();
   } catch (const ParseError& e) {
-    const int code = app.exit(e);
+    const int code = app.exit(e, out, err);
     return e.help() ? code : 2;
   }
   if (only_check_options()) {
-    print_options_ok(app.name());
+    out << app.name() << ": options ok\n";
     return 0;
   }
   return std::nullopt;
+}
+}  // namespace
+
+std::optional<int> parse_command_line(App& app, int argc, char** argv) {
+  return stop_or_run(
+      app, [&] { app.parse(argc, argv); }, std::cout, std::cerr);
+}
+
+std::optional<int> parse_command_line(App& app, std::vector<std::string> args, std::ostream& out, std::ostream& err) {
+  return stop_or_run(
+      app, [&] { app.parse(std::move(args)); }, out, err);
 }
 
 bool only_check_options() {
@@ -228,7 +255,7 @@ bool only_check_options() {
   return v != nullptr && std::string_view(v) == "1";
 }
 
-void print_options_ok(const std::string& program) { std::printf("%s: options ok\n", program.c_str()); }
+void print_options_ok(const std::string& program) { std::cout << program << ": options ok" << std::endl; }
 
 // The variables an option can fill (detail::option_type).
 template Option* App::add_typed_option(std::string, std::string&, std::string);

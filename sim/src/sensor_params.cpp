@@ -285,15 +285,15 @@ common::Validation SensorParams::validate() const {
   return common::Validation::ok();
 }
 
-std::string to_yaml(const SensorParams& p) {
-  std::ostringstream s;
-  s.precision(10);
-  auto list = [&](const std::vector<int>& v) {
-    std::string out = "[";
-    for (std::size_t i = 0; i < v.size(); ++i) out += (i ? ", " : "") + std::to_string(v[i]);
-    return out + "]";
-  };
-  s << "name: " << p.name << "\nseed: " << p.seed << "\n";
+namespace {
+std::string int_list(const std::vector<int>& v) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) out += (i ? ", " : "") + std::to_string(v[i]);
+  return out + "]";
+}
+
+// lens: and emitter:
+void write_optics(std::ostream& s, const SensorParams& p) {
   const auto& l = p.lens;
   s << "lens:\n  focal_mm: " << l.focal_mm << "\n  sensor_length_mm: " << l.sensor_length_mm
     << "\n  pixels: " << l.pixels << "\n  dark_pixels: " << l.dark_pixels
@@ -307,6 +307,10 @@ std::string to_yaml(const SensorParams& p) {
     << "\n  pulse_rise_exponent: " << e.pulse_rise_exponent << "\n  pulse_fall_exponent: " << e.pulse_fall_exponent
     << "\n  diffusion_tail_ns: " << e.diffusion_tail_ns << "\n  pulse_rate_hz: " << e.pulse_rate_hz
     << "\n  charge_per_pulse_1m: " << e.charge_per_pulse_1m << "\n";
+}
+
+// pixel:, thermal:, acquisition:, environment:, firmware:
+void write_electronics(std::ostream& s, const SensorParams& p) {
   const auto& q = p.pixel;
   s << "pixel:\n  gate_split_ns: " << q.gate_split_ns << "\n  sensitivity_ratio: " << q.sensitivity_ratio
     << "\n  sensitivity_ratio_sd: " << q.sensitivity_ratio_sd << "\n  leakage_per_ms: " << q.leakage_per_ms
@@ -319,8 +323,8 @@ std::string to_yaml(const SensorParams& p) {
   s << "thermal:\n  ambient_c: " << t.ambient_c << "\n  warm_c: " << t.warm_c
     << "\n  time_constant_s: " << t.time_constant_s << "\n  reference_c: " << t.reference_c
     << "\n  delay_drift_ns_per_c: " << t.delay_drift_ns_per_c << "\n  reading_noise_c: " << t.reading_noise_c << "\n";
-  s << "acquisition:\n  raw_pulses: " << list(p.acquisition.raw_pulses)
-    << "\n  distance_pulses: " << list(p.acquisition.distance_pulses) << "\n";
+  s << "acquisition:\n  raw_pulses: " << int_list(p.acquisition.raw_pulses)
+    << "\n  distance_pulses: " << int_list(p.acquisition.distance_pulses) << "\n";
   s << "environment:\n  ambient_charge_per_pulse: " << p.environment.ambient_charge_per_pulse << "\n";
   const auto& f = p.firmware;
   s << "firmware:\n  profile: " << to_string(f.profile) << "\n  tick_s: " << f.tick_s
@@ -328,48 +332,59 @@ std::string to_yaml(const SensorParams& p) {
     << "\n  compensated_pixel: " << f.compensated_pixel
     << "\n  compensated_pixel_factor: " << f.compensated_pixel_factor
     << "\n  saturation_charge: " << f.saturation_charge << "\n";
+}
+
+// One item of effects:, its type's fields.
+void write_effect(std::ostream& s, const EffectSpec& fx) {
+  s << "  - type: " << effect_type(fx) << "\n";
+  std::visit(
+      Overloaded{[&](const TrapDelayEffect& x) {
+                   s << "    capacity_per_pulse: " << x.capacity_per_pulse
+                     << "\n    release_delay_ns: " << x.release_delay_ns << "\n";
+                 },
+                 [&](const MaterialBiasEffect& x) {
+                   s << "    path_mm: {";
+                   bool first = true;
+                   for (const auto& [k, v] : x.path_mm) {
+                     s << (first ? "" : ", ") << k << ": " << v;
+                     first = false;
+                   }
+                   s << "}\n";
+                 },
+                 [&](const FixedPatternEffect& x) {
+                   s << "    sigma_ps: " << x.sigma_ps << "\n    ramp_ps: " << x.ramp_ps << "\n    seed: " << x.seed
+                     << "\n";
+                 },
+                 [&](const RangeWalkEffect& x) {
+                   s << "    ns_per_decade: " << x.ns_per_decade
+                     << "\n    reference_charge_per_pulse: " << x.reference_charge_per_pulse
+                     << "\n    max_ns: " << x.max_ns << "\n";
+                 },
+                 [&](const TimeDriftEffect& x) {
+                   s << "    ns_per_hour: " << x.ns_per_hour << "\n    sine_amplitude_ns: " << x.sine_amplitude_ns
+                     << "\n    sine_period_s: " << x.sine_period_s << "\n";
+                 },
+                 [&](const CovariateEffect& x) {
+                   s << "    name: " << x.name << "\n    mean: " << x.mean << "\n    amplitude: " << x.amplitude
+                     << "\n    period_s: " << x.period_s << "\n    random_walk_per_sqrt_s: " << x.random_walk_per_sqrt_s
+                     << "\n    ns_per_unit: " << x.ns_per_unit << "\n";
+                 },
+                 [&](const TemperatureLagEffect& x) { s << "    time_constant_s: " << x.time_constant_s << "\n"; },
+                 [&](const ChargeEffect& x) { detail::write_charge_effect(s, x); }},
+      fx);
+}
+}  // namespace
+
+std::string to_yaml(const SensorParams& p) {
+  std::ostringstream s;
+  s.precision(10);
+  s << "name: " << p.name << "\nseed: " << p.seed << "\n";
+  write_optics(s, p);
+  write_electronics(s, p);
   s << "effects:";
   if (p.effects.empty()) s << " []";
   s << "\n";
-  for (const auto& fx : p.effects) {
-    s << "  - type: " << effect_type(fx) << "\n";
-    std::visit(
-        Overloaded{[&](const TrapDelayEffect& x) {
-                     s << "    capacity_per_pulse: " << x.capacity_per_pulse
-                       << "\n    release_delay_ns: " << x.release_delay_ns << "\n";
-                   },
-                   [&](const MaterialBiasEffect& x) {
-                     s << "    path_mm: {";
-                     bool first = true;
-                     for (const auto& [k, v] : x.path_mm) {
-                       s << (first ? "" : ", ") << k << ": " << v;
-                       first = false;
-                     }
-                     s << "}\n";
-                   },
-                   [&](const FixedPatternEffect& x) {
-                     s << "    sigma_ps: " << x.sigma_ps << "\n    ramp_ps: " << x.ramp_ps << "\n    seed: " << x.seed
-                       << "\n";
-                   },
-                   [&](const RangeWalkEffect& x) {
-                     s << "    ns_per_decade: " << x.ns_per_decade
-                       << "\n    reference_charge_per_pulse: " << x.reference_charge_per_pulse
-                       << "\n    max_ns: " << x.max_ns << "\n";
-                   },
-                   [&](const TimeDriftEffect& x) {
-                     s << "    ns_per_hour: " << x.ns_per_hour << "\n    sine_amplitude_ns: " << x.sine_amplitude_ns
-                       << "\n    sine_period_s: " << x.sine_period_s << "\n";
-                   },
-                   [&](const CovariateEffect& x) {
-                     s << "    name: " << x.name << "\n    mean: " << x.mean << "\n    amplitude: " << x.amplitude
-                       << "\n    period_s: " << x.period_s
-                       << "\n    random_walk_per_sqrt_s: " << x.random_walk_per_sqrt_s
-                       << "\n    ns_per_unit: " << x.ns_per_unit << "\n";
-                   },
-                   [&](const TemperatureLagEffect& x) { s << "    time_constant_s: " << x.time_constant_s << "\n"; },
-                   [&](const ChargeEffect& x) { detail::write_charge_effect(s, x); }},
-        fx);
-  }
+  for (const auto& fx : p.effects) write_effect(s, fx);
   return s.str();
 }
 

@@ -65,6 +65,52 @@ void json(std::ostream& o, const FidelityReport& r, const ThesisFigures& m, cons
   o << "]\n}\n";
 }
 
+// What --tune found, and on which figures.
+void print_tune(const TuneResult& t) {
+  std::printf("%s\n%s\nfit set:", t.what.c_str(), t.table.c_str());
+  for (const auto& f : t.fit_set) std::printf(" %s;", f.c_str());
+  std::printf("\nheld out:");
+  for (const auto& f : t.held_out) std::printf(" %s;", f.c_str());
+  std::printf("\nbest:");
+  for (const auto& [k, v] : t.best) std::printf(" %s=%g", k.c_str(), v);
+  std::printf("\nfit error %.4f, held-out error %.4f\n", t.fit_error, t.held_out_error);
+}
+
+// The simulated figures beside the thesis's, and the verdict.
+void print_report(const std::string& sensor_path, const FidelityReport& r, const ThesisFigures& m,
+                  const FidelityVerdict& v) {
+  std::printf("sensor %s: R_sen %.4f, V_le %.5f per pulse\n\n", sensor_path.c_str(), r.constants.rsen,
+              r.constants.vle_per_pulse);
+  std::printf("Section 3.5 fits [cm^2, cm]        sim var   sim SD  held-out | thesis var  thesis SD\n");
+  for (const auto& f : r.fits) {
+    double mv = NAN, ms = NAN;
+    for (const auto& x : m.fits)
+      if (x.name == f.name) {
+        mv = x.var_cm2;
+        ms = x.sd_cm;
+      }
+    std::printf("  %-26s %9.3f %8.3f %8.3f | %9.3f %9.3f\n", f.name.c_str(), f.var_cm2, f.sd_cm, f.heldout_sd_cm, mv,
+                ms);
+  }
+  std::printf("\nTable 3.1 [cm]   sim bias   sim SD  pulses | thesis bias  thesis SD  SD ratio\n");
+  for (std::size_t i = 0; i < r.table31.size(); ++i) {
+    const auto& d = r.table31[i];
+    const auto& md = m.table31.at(i);
+    std::printf("  %6.1f      %8.3f %8.3f %7.0f | %10.3f %10.3f %8.2f%s\n", d.truth_cm, d.mean_cm - d.truth_cm, d.sd_cm,
+                d.mean_pulses, md.mean_cm - md.truth_cm, md.sd_cm, d.sd_cm / md.sd_cm,
+                d.invalid ? " (invalid sets!)" : "");
+  }
+  std::printf("\nTable 3.2 [cm]     pulses  sim bias   sim SD  refl/pulse | thesis bias  thesis SD  thesis refl\n");
+  for (std::size_t i = 0; i < r.table32.size(); ++i) {
+    const auto& d = r.table32[i];
+    const auto& md = m.table32.at(i);
+    std::printf("  %-15s %5d %8.3f %8.3f %10.3f | %10.3f %10.3f %10.3f\n", d.material.c_str(), d.pulses,
+                d.mean_cm - 30.0, d.sd_cm, d.reflectance, md.mean_cm - 30.0, md.sd_cm, md.reflectance);
+  }
+  std::printf("\nTemperature (3.3.4): %.3f cm per degC during warm-up\n", r.temperature_cm_per_c);
+  std::printf("\n%s\n", v.ok ? "All goals met." : "Goals missed:");
+  for (const auto& f : v.failures) std::printf("  - %s\n", f.c_str());
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -95,48 +141,12 @@ int main(int argc, char** argv) {
       const TuneResult t = tune == "trap"    ? tune_trap(p, m, opt)
                            : tune == "noise" ? tune_noise(p, m, opt)
                                              : tune_offset(p, m, opt);
-      std::printf("%s\n%s\nfit set:", t.what.c_str(), t.table.c_str());
-      for (const auto& f : t.fit_set) std::printf(" %s;", f.c_str());
-      std::printf("\nheld out:");
-      for (const auto& f : t.held_out) std::printf(" %s;", f.c_str());
-      std::printf("\nbest:");
-      for (const auto& [k, v] : t.best) std::printf(" %s=%g", k.c_str(), v);
-      std::printf("\nfit error %.4f, held-out error %.4f\n", t.fit_error, t.held_out_error);
+      print_tune(t);
       return 0;
     }
     const FidelityReport r = run_fidelity(p, opt);
     const FidelityVerdict v = judge(r, m);
-    std::printf("sensor %s: R_sen %.4f, V_le %.5f per pulse\n\n", sensor_path.c_str(), r.constants.rsen,
-                r.constants.vle_per_pulse);
-    std::printf("Section 3.5 fits [cm^2, cm]        sim var   sim SD  held-out | thesis var  thesis SD\n");
-    for (const auto& f : r.fits) {
-      double mv = NAN, ms = NAN;
-      for (const auto& x : m.fits)
-        if (x.name == f.name) {
-          mv = x.var_cm2;
-          ms = x.sd_cm;
-        }
-      std::printf("  %-26s %9.3f %8.3f %8.3f | %9.3f %9.3f\n", f.name.c_str(), f.var_cm2, f.sd_cm, f.heldout_sd_cm, mv,
-                  ms);
-    }
-    std::printf("\nTable 3.1 [cm]   sim bias   sim SD  pulses | thesis bias  thesis SD  SD ratio\n");
-    for (std::size_t i = 0; i < r.table31.size(); ++i) {
-      const auto& d = r.table31[i];
-      const auto& md = m.table31.at(i);
-      std::printf("  %6.1f      %8.3f %8.3f %7.0f | %10.3f %10.3f %8.2f%s\n", d.truth_cm, d.mean_cm - d.truth_cm,
-                  d.sd_cm, d.mean_pulses, md.mean_cm - md.truth_cm, md.sd_cm, d.sd_cm / md.sd_cm,
-                  d.invalid ? " (invalid sets!)" : "");
-    }
-    std::printf("\nTable 3.2 [cm]     pulses  sim bias   sim SD  refl/pulse | thesis bias  thesis SD  thesis refl\n");
-    for (std::size_t i = 0; i < r.table32.size(); ++i) {
-      const auto& d = r.table32[i];
-      const auto& md = m.table32.at(i);
-      std::printf("  %-15s %5d %8.3f %8.3f %10.3f | %10.3f %10.3f %10.3f\n", d.material.c_str(), d.pulses,
-                  d.mean_cm - 30.0, d.sd_cm, d.reflectance, md.mean_cm - 30.0, md.sd_cm, md.reflectance);
-    }
-    std::printf("\nTemperature (3.3.4): %.3f cm per degC during warm-up\n", r.temperature_cm_per_c);
-    std::printf("\n%s\n", v.ok ? "All goals met." : "Goals missed:");
-    for (const auto& f : v.failures) std::printf("  - %s\n", f.c_str());
+    print_report(sensor_path, r, m, v);
     if (!json_path.empty()) {
       tinyline::files::AtomicStream o(json_path);
       json(o, r, m, v, sensor_path);

@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: Apache-2.0
 # Fails when a package's own code includes the simulator: every file under a
 # src/, include/ or nodes/ folder of any package but sim/ (its simulation room
-# <pkg>/sim/, evaluation harnesses under <pkg>/eval/, tests and benchmarks may). Run as
+# <pkg>/sim/, evaluation harnesses under <pkg>/eval/, tests and benchmarks may;
+# so may tools/, the top: the one executable that registers every package's
+# nodes, the simulator's among them). Run as
 #   cmake -DROOT=<source dir> -P only_sim_includes_the_simulator.cmake
 if(NOT ROOT)
   message(FATAL_ERROR "ROOT (the source tree) is required")
@@ -13,7 +15,7 @@ foreach(pkg IN LISTS _top)
   if(NOT IS_DIRECTORY ${ROOT}/${pkg} OR NOT EXISTS ${ROOT}/${pkg}/CMakeLists.txt)
     continue()
   endif()
-  if(pkg MATCHES "^(sim|test|bench|build.*)$")
+  if(pkg MATCHES "^(sim|test|bench|tools|build.*)$")
     continue()
   endif()
   file(GLOB_RECURSE _files RELATIVE ${ROOT} ${ROOT}/${pkg}/*.hpp ${ROOT}/${pkg}/*.cpp ${ROOT}/${pkg}/*.h ${ROOT}/${pkg}/*.cc)

@@ -294,23 +294,11 @@ def output_options(program, words=()):
     return found
 
 
-def calib_output_options(program):
-    """`tinyline calib` has its own usage text: 'fit DATA.csv -o CALIB.yaml [--report DIR]'."""
-    text = help_of(program, ["calib"])
-    found = []
-    for sub, rest in re.findall(r"^  (\w+) (.*)$", text, re.MULTILINE):
-        for opt in re.findall(r"(-o|--output|--report|--out) [A-Z]", rest):
-            found.append((f"calib {sub} {opt}", f"calib {sub} {rest.strip()}"))
-    return found
-
-
 def check_list(entries, ignored, programs):
     listed = {(e.target, e.key) for e in entries} | ignored
     missing = []
     for target, program in programs.items():
         options = output_options(program)
-        if target == "tinyline":
-            options += calib_output_options(program)
         for key, line in options:
             if (target, key) not in listed:
                 missing.append(f"{target}: '{key}' reads as an output ({line}): add it to outputs.txt")
@@ -326,8 +314,6 @@ _cache = {}
 def output_options_cached(target, programs):
     if target not in _cache:
         _cache[target] = output_options(programs[target])
-        if target == "tinyline":
-            _cache[target] += calib_output_options(programs[target])
     return _cache[target]
 
 

@@ -48,9 +48,9 @@ int calib(const std::vector<std::string>& args, std::string& out, std::string& e
 }
 
 double json_field(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\": ");
+  const auto at = json.find("\"" + key + "\":");
   if (at == std::string::npos) return std::nan("");
-  return std::stod(json.substr(at + key.size() + 4));
+  return std::stod(json.substr(at + key.size() + 3));
 }
 
 tt::SimRailSession session(const std::string& bag, double from, double to, double step) {
@@ -245,7 +245,7 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
   }
   std::string out, err;
   EXPECT_EQ(calib({"collect", tmp / "raw_only.mcap"}, out, err), 2);
-  EXPECT_THAT(err, HasSubstr("collect needs -o DATA.csv"));
+  EXPECT_THAT(err, HasSubstr("--output is required"));
   EXPECT_EQ(calib({"collect", tmp / "raw_only.mcap", "-o", tmp / "x.csv"}, out, err), 1);
   EXPECT_THAT(err, HasSubstr("tinyline calib collect: error:"));
   EXPECT_FALSE(fs::exists(tmp / "x.csv"));

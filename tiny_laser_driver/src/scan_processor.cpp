@@ -86,8 +86,8 @@ void ScanProcessor::process(const RawSet& set, double t_s, ProcessedScan& out) c
     int chosen = -1;
     for (int k = n - 1; k >= 0; --k) {
       const RawFrame& f = set.frames[static_cast<std::size_t>(k)];
-      r.a = f.a[p] / 10.0;  // the wire carries ten times the charge unit
-      r.b = f.b[p] / 10.0;
+      r.a = charge_units(f.a[p]);
+      r.b = charge_units(f.b[p]);
       r.pulses = f.pulses;
       if (rule.check(r) != ValidityRule::Verdict::kSaturated) {
         chosen = k;

@@ -13,6 +13,8 @@
 #include <cstring>
 
 #include <fmt/format.h>
+#include <json/json.h>
+#include <tinyline/common/cli.hpp>
 #include <tinyline/common/files.hpp>
 
 #include <tiny_laser_calibration/collect.hpp>
@@ -27,80 +29,15 @@ namespace tinyline::tiny_laser_calibration {
 
 namespace tool {
 
-// ------------------------------------------------------------------ arguments
-
-Options::Options(const std::vector<std::string>& argv, const std::vector<std::string>& valued,
-                 const std::vector<std::string>& flags) {
-  for (std::size_t i = 0; i < argv.size(); ++i) {
-    const std::string& a = argv[i];
-    if (a.size() > 1 && a[0] == '-' &&
-        !(a.size() > 1 && (std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.'))) {
-      if (std::find(flags.begin(), flags.end(), a) != flags.end()) {
-        flags_.push_back(a);
-      } else if (std::find(valued.begin(), valued.end(), a) != valued.end()) {
-        if (i + 1 >= argv.size()) throw UsageError(fmt::format("option {} needs a value", a));
-        values_[a] = argv[++i];
-      } else {
-        throw UsageError(fmt::format("unknown option '{}'", a));
-      }
-    } else {
-      positional_.push_back(a);
-    }
-  }
-}
-
-bool Options::flag(const std::string& f) const { return std::find(flags_.begin(), flags_.end(), f) != flags_.end(); }
-
-std::optional<std::string> Options::value(const std::string& name) const {
-  const auto it = values_.find(name);
-  if (it == values_.end()) return std::nullopt;
-  return it->second;
-}
-
-double Options::number(const std::string& name, double fallback) const {
-  const auto v = value(name);
-  if (!v) return fallback;
-  try {
-    std::size_t used = 0;
-    const double x = std::stod(*v, &used);
-    if (used != v->size() || !std::isfinite(x)) throw std::invalid_argument("");
-    return x;
-  } catch (const std::exception&) {
-    throw UsageError(fmt::format("option {}: '{}' is not a number", name, *v));
-  }
-}
-
-int Options::integer(const std::string& name, int fallback, int lo, int hi) const {
-  const double x = number(name, fallback);
-  if (x != std::floor(x) || x < lo || x > hi) {
-    throw UsageError(fmt::format("option {}: '{}' is not an integer in [{}, {}]", name, *value(name), lo, hi));
-  }
-  return static_cast<int>(x);
-}
-
 // ------------------------------------------------------------------ JSON
 
-std::string json_string(const std::string& s) {
-  std::string o = "\"";
-  for (const char c : s) {
-    switch (c) {
-      case '"': o += "\\\""; break;
-      case '\\': o += "\\\\"; break;
-      case '\n': o += "\\n"; break;
-      case '\r': o += "\\r"; break;
-      case '\t': o += "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          o += fmt::format("\\u{:04x}", static_cast<int>(c));
-        } else {
-          o += c;
-        }
-    }
-  }
-  return o + "\"";
-}
+Json::Value json_number(double v) { return std::isfinite(v) ? Json::Value(v) : Json::Value(Json::nullValue); }
 
-std::string json_number(double v) { return std::isfinite(v) ? fmt::format("{}", v) : "null"; }
+std::string json_text(const Json::Value& v, const char* indentation) {
+  Json::StreamWriterBuilder w;
+  w["indentation"] = indentation;
+  return Json::writeString(w, v) + "\n";
+}
 
 // ------------------------------------------------------------------ plots
 
@@ -141,136 +78,183 @@ int run_plot_script(const CalibToolEnv& env, const std::string& dir, std::string
 namespace {
 
 using tool::json_number;
-using tool::json_string;
-using tool::Options;
+using tool::json_text;
 using tool::UsageError;
 
-constexpr const char* kUsage =
-    "usage: tinyline calib <command> ...\n"
-    "\n"
-    "  fit DATA.csv -o CALIB.yaml [--discover] [--report DIR] [options]\n"
-    "      fit the declared model (Eq. 3.16, 3.18, 3.20, 3.3.4); with --discover run the\n"
-    "      residual loop and add every effect it accepts to the model written\n"
-    "  diagnose DATA.csv --calib CALIB.yaml --report DIR [options]\n"
-    "      the residual analysis of a calibration on data, alone\n"
-    "  eval DATA.csv --calib CALIB.yaml [--select driver|all]\n"
-    "      prints {\"n\", \"rmse_m\", \"bias_m\", \"p95_abs_m\"} over the valid read-outs\n"
-    "  measured [--data MEASURED.yaml] [--report DIR] [--json] [--apply CALIB.yaml -o OUT.yaml]\n"
-    "      the loop on the real sensor's measured figures (Tables 3.1, 3.2, section 3.5, the\n"
-    "      five real sensors' factory curves); default data: the package's measured.yaml\n"
-    "      --apply adds the chosen Table 3.2 light walk to CALIB (needs its amplitude_reference)\n"
-    "  collect BAG -o DATA.csv [options]\n"
-    "      a recorded bag (raw scans + the simulator's scan_truth) -> the calibration CSV\n"
-    "\n"
-    "fit options:\n"
-    "  --degree N                 polynomial degree of Eq. 3.18 (default 6)\n"
-    "  --rsen per-pixel|fixed     per-pixel sensitivity ratio around --rsen-value, or one value (default per-pixel)\n"
-    "  --rsen-value V             the common Rsen, measured under ambient light (default 1)\n"
-    "  --leakage fit|OFFSET,PER_PULSE   fit Vle or use measured values [charge_unit, charge_unit/pulse]\n"
-    "  --weighting ones|inverse-variance   K_i of Eq. 3.20 (default ones)\n"
-    "  --no-temperature           no temperature offset term\n"
-    "  --temperature-reference C  T_ref of the offset (default 48, the warm temperature)\n"
-    "residual loop options (fit --discover, diagnose):\n"
-    "  --select driver|all        read-outs used: the driver's choice per pixel (default) or every valid one\n"
-    "  --group-by auto|distance|frame   cross-validation groups (default auto)\n"
-    "  --folds K                  (default 5)   --seed N   (default 1)   --max-terms N (default 4)\n"
-    "  --exclude a,b,...          covariates never tried\n"
-    "  --json                     print the summary as JSON\n"
-    "collect options:\n"
-    "  --raw-topic T / --truth-topic T   RawScan / ScanTruth topics (default: the bag's only one)\n"
-    "  --sensor NAME              the sensor whose sets to take (default: the raw scans' one frame)\n"
-    "  --max-gap S                largest stamp gap of a scan and its truth (default 0.01 s)\n"
-    "  --pixel-step N             every N-th effective pixel (default 1)\n"
-    "  --keep-mixed               keep pixels whose footprint spans several surfaces\n"
-    "  --incidence                add an incidence_deg column (angle of the ray to the surface normal)\n"
-    "  --positions LOG.csv        a real sensor on a rail: no truth topic; the tape-measure log\n"
-    "                             t_from_s,t_to_s,distance_m[,material] (s since the first raw scan)\n"
-    "  --focal-mm F               its lens (default 3.6): each pixel's range is distance / cos(ray angle)\n"
-    "  --pixels FROM-TO           keep these pixels only (e.g. the central ones)\n";
+// The residual loop's options (fit --discover, diagnose), as given.
+struct LoopOptions {
+  std::string select = "driver", group_by = "auto";
+  int folds = DiscoveryParams{}.folds, max_terms = DiscoveryParams{}.max_terms;
+  unsigned long seed = DiscoveryParams{}.seed;
+  std::vector<std::string> exclude;
+};
 
-std::vector<std::string> split_list(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
+void add_loop_options(cli::App& c, LoopOptions& o) {
+  c.add_option("--select", o.select, "read-outs used: the driver's choice per pixel, or every valid one")
+      ->check(cli::one_of({"driver", "all"}))
+      ->capture_default_str();
+  c.add_option("--group-by", o.group_by, "cross-validation groups")
+      ->check(cli::one_of({"auto", "distance", "frame"}))
+      ->capture_default_str();
+  c.add_option("--folds", o.folds, "cross-validation folds")->check(cli::whole(2, 50))->capture_default_str();
+  c.add_option("--seed", o.seed, "shuffles groups into hold-out and folds")
+      ->check(cli::whole(0, 1 << 30))
+      ->capture_default_str();
+  c.add_option("--max-terms", o.max_terms, "most terms accepted")->check(cli::whole(0, 20))->capture_default_str();
+  c.add_option("--exclude", o.exclude, "covariates never tried")->delimiter(',');
 }
 
-const std::vector<std::string> kLoopValued = {"--select", "--group-by",  "--folds",
-                                              "--seed",   "--max-terms", "--exclude"};
-const std::vector<std::string> kFitValued = {"-o",        "--output",    "--report",
-                                             "--degree",  "--rsen",      "--rsen-value",
-                                             "--leakage", "--weighting", "--temperature-reference"};
-
-void apply_loop_options(const Options& o, DiscoveryParams& p) {
-  if (const auto s = o.value("--select")) {
-    if (*s == "driver") {
-      p.declared.selection = ReadoutSelection::kDriver;
-    } else if (*s == "all") {
-      p.declared.selection = ReadoutSelection::kAll;
-    } else {
-      throw UsageError(fmt::format("--select: '{}' is not driver or all", *s));
-    }
-  }
-  if (const auto g = o.value("--group-by")) {
-    if (*g == "auto") {
-      p.group_by = GroupBy::kAuto;
-    } else if (*g == "distance") {
-      p.group_by = GroupBy::kTargetDistance;
-    } else if (*g == "frame") {
-      p.group_by = GroupBy::kFrame;
-    } else {
-      throw UsageError(fmt::format("--group-by: '{}' is not auto, distance or frame", *g));
-    }
-  }
-  p.folds = o.integer("--folds", p.folds, 2, 50);
-  p.seed = static_cast<std::uint64_t>(o.integer("--seed", static_cast<int>(p.seed), 0, 1 << 30));
-  p.max_terms = o.integer("--max-terms", p.max_terms, 0, 20);
-  if (const auto e = o.value("--exclude")) p.exclude = split_list(*e);
+ReadoutSelection selection(const std::string& s) {
+  return s == "all" ? ReadoutSelection::kAll : ReadoutSelection::kDriver;
 }
 
-void apply_fit_options(const Options& o, DeclaredFitParams& p) {
-  p.degree = o.integer("--degree", p.degree, 1, 12);
-  if (const auto r = o.value("--rsen")) {
-    if (*r == "per-pixel") {
-      p.sensitivity_ratio_mode = SensitivityRatioMode::kPerPixel;
-    } else if (*r == "fixed") {
-      p.sensitivity_ratio_mode = SensitivityRatioMode::kFixed;
-    } else {
-      throw UsageError(fmt::format("--rsen: '{}' is not per-pixel or fixed", *r));
-    }
+void apply(const LoopOptions& o, DiscoveryParams& p) {
+  p.declared.selection = selection(o.select);
+  p.group_by = o.group_by == "distance" ? GroupBy::kTargetDistance
+               : o.group_by == "frame"  ? GroupBy::kFrame
+                                        : GroupBy::kAuto;
+  p.folds = o.folds;
+  p.seed = o.seed;
+  p.max_terms = o.max_terms;
+  p.exclude = o.exclude;
+}
+
+// The declared fit's options (fit), as given.
+struct FitOptions {
+  std::string data, output, report, rsen = "per-pixel", leakage = "fit", weighting = "ones";
+  int degree = DeclaredFitParams{}.degree;
+  double rsen_value = DeclaredFitParams{}.sensitivity_ratio;
+  double temperature_reference = DeclaredFitParams{}.temperature_reference_c;
+  bool discover = false, no_temperature = false, json = false;
+  LoopOptions loop;
+};
+
+// --leakage fit|OFFSET,PER_PULSE.
+cli::Validator leakage_values() {
+  return {[](std::string& text) -> std::string {
+            if (text == "fit") return {};
+            const auto comma = text.find(',');
+            auto number = [](const std::string& t) { return cli::finite()(t).empty(); };
+            if (comma != std::string::npos && number(text.substr(0, comma)) && number(text.substr(comma + 1)))
+              return {};
+            return "'" + text + "' is not 'fit' or OFFSET,PER_PULSE";
+          },
+          "fit|OFFSET,PER_PULSE"};
+}
+
+void add_fit_options(cli::App& c, FitOptions& o) {
+  c.add_option("data", o.data, "the calibration CSV (DATA.csv)")->required()->type_name("DATA.csv");
+  c.add_option("-o,--output", o.output, "the calibration written (YAML)")->required()->type_name("CALIB");
+  c.add_option("--report", o.report, "write a report (tables, plots, report.md) into DIR")->type_name("DIR");
+  c.add_flag("--discover", o.discover, "run the residual loop and add every effect it accepts to the model");
+  c.add_option("--degree", o.degree, "polynomial degree of Eq. 3.18")->check(cli::whole(1, 12))->capture_default_str();
+  c.add_option("--rsen", o.rsen, "per-pixel sensitivity ratio around --rsen-value, or one value")
+      ->check(cli::one_of({"per-pixel", "fixed"}))
+      ->capture_default_str();
+  c.add_option("--rsen-value", o.rsen_value, "the common Rsen, measured under ambient light")
+      ->check(cli::positive())
+      ->capture_default_str();
+  c.add_option("--leakage", o.leakage, "fit Vle, or measured values [charge_unit, charge_unit/pulse]")
+      ->check(leakage_values())
+      ->capture_default_str();
+  c.add_option("--weighting", o.weighting, "K_i of Eq. 3.20")
+      ->check(cli::one_of({"ones", "inverse-variance"}))
+      ->capture_default_str();
+  c.add_flag("--no-temperature", o.no_temperature, "no temperature offset term");
+  c.add_option("--temperature-reference", o.temperature_reference, "T_ref of the offset [degC]")
+      ->check(cli::finite())
+      ->capture_default_str();
+  c.add_flag("--json", o.json, "print the loop's summary as JSON");
+  add_loop_options(c, o.loop);
+}
+
+DiscoveryParams discovery_params(const FitOptions& o) {
+  DiscoveryParams p;
+  auto& d = p.declared;
+  d.degree = o.degree;
+  d.sensitivity_ratio_mode = o.rsen == "fixed" ? SensitivityRatioMode::kFixed : SensitivityRatioMode::kPerPixel;
+  d.sensitivity_ratio = o.rsen_value;
+  if (o.leakage != "fit") {
+    const auto comma = o.leakage.find(',');
+    d.fit_leakage = false;
+    d.leakage_offset = std::stod(o.leakage.substr(0, comma));
+    d.leakage_per_pulse = std::stod(o.leakage.substr(comma + 1));
   }
-  p.sensitivity_ratio = o.number("--rsen-value", p.sensitivity_ratio);
-  if (!(p.sensitivity_ratio > 0.0)) throw UsageError("--rsen-value must be positive");
-  if (const auto l = o.value("--leakage")) {
-    if (*l != "fit") {
-      const auto parts = split_list(*l);
-      double off = 0.0, per = 0.0;
-      try {
-        if (parts.size() != 2) throw std::invalid_argument("");
-        off = std::stod(parts[0]);
-        per = std::stod(parts[1]);
-      } catch (const std::exception&) {
-        throw UsageError(fmt::format("--leakage: '{}' is not 'fit' or OFFSET,PER_PULSE", *l));
-      }
-      p.fit_leakage = false;
-      p.leakage_offset = off;
-      p.leakage_per_pulse = per;
-    }
-  }
-  if (const auto w = o.value("--weighting")) {
-    if (*w == "ones") {
-      p.weighting = DistanceWeighting::kOnes;
-    } else if (*w == "inverse-variance") {
-      p.weighting = DistanceWeighting::kInverseVariance;
-    } else {
-      throw UsageError(fmt::format("--weighting: '{}' is not ones or inverse-variance", *w));
-    }
-  }
-  if (o.flag("--no-temperature")) p.fit_temperature = false;
-  p.temperature_reference_c = o.number("--temperature-reference", p.temperature_reference_c);
+  d.weighting = o.weighting == "inverse-variance" ? DistanceWeighting::kInverseVariance : DistanceWeighting::kOnes;
+  d.fit_temperature = !o.no_temperature;
+  d.temperature_reference_c = o.temperature_reference;
+  apply(o.loop, p);
+  return p;
+}
+
+struct DiagnoseOptions {
+  std::string data, calib, report;
+  bool json = false;
+  LoopOptions loop;
+};
+
+void add_diagnose_options(cli::App& c, DiagnoseOptions& o) {
+  c.add_option("data", o.data, "the calibration CSV (DATA.csv)")->required()->type_name("DATA.csv");
+  c.add_option("--calib", o.calib, "the calibration diagnosed")->required()->type_name("CALIB.yaml");
+  c.add_option("--report", o.report, "the report's folder")->required()->type_name("DIR");
+  c.add_flag("--json", o.json, "print the summary as JSON");
+  add_loop_options(c, o.loop);
+}
+
+struct EvalOptions {
+  std::string data, calib, select = "driver";
+};
+
+void add_eval_options(cli::App& c, EvalOptions& o) {
+  c.add_option("data", o.data, "the calibration CSV (DATA.csv)")->required()->type_name("DATA.csv");
+  c.add_option("--calib", o.calib, "the calibration evaluated")->required()->type_name("CALIB.yaml");
+  c.add_option("--select", o.select, "read-outs used: the driver's choice per pixel, or every valid one")
+      ->check(cli::one_of({"driver", "all"}))
+      ->capture_default_str();
+}
+
+struct CollectOptions {
+  std::string bag, output, pixels;
+  CollectParams params;
+};
+
+// --pixels FROM-TO, 0 <= FROM <= TO <= 271.
+cli::Validator pixel_range() {
+  return {
+      [](std::string& text) -> std::string {
+        int from = 0, to = 0;
+        char dash = 0;
+        std::istringstream in(text);
+        if (in >> from >> dash >> to && dash == '-' && (in >> std::ws).eof() && 0 <= from && from <= to && to <= 271)
+          return {};
+        return "'" + text + "' is not FROM-TO with 0 <= FROM <= TO <= 271";
+      },
+      "FROM-TO"};
+}
+
+void add_collect_options(cli::App& c, CollectOptions& o) {
+  auto& p = o.params;
+  c.add_option("bag", o.bag, "a recorded bag (raw scans and the simulator's scan_truth)")->required()->type_name("BAG");
+  c.add_option("-o,--output", o.output, "the calibration CSV written")->required()->type_name("DATA");
+  c.add_option("--raw-topic", p.raw_topic, "RawScan topic (default: the bag's only one)");
+  c.add_option("--truth-topic", p.truth_topic, "ScanTruth topic (default: the bag's only one)");
+  c.add_option("--sensor", p.sensor, "the sensor whose sets to take (default: the raw scans' one frame)");
+  c.add_option("--max-gap", p.max_pair_gap_s, "largest stamp gap of a scan and its truth [s]")
+      ->check(cli::non_negative())
+      ->capture_default_str();
+  c.add_option("--pixel-step", p.pixel_step, "every N-th effective pixel")
+      ->check(cli::whole(1, 256))
+      ->capture_default_str();
+  c.add_flag("--keep-mixed", p.keep_mixed, "keep pixels whose footprint spans several surfaces");
+  c.add_flag("--incidence", p.incidence_column, "add an incidence_deg column (the ray's angle to the surface normal)");
+  c.add_option("--positions", p.positions_csv,
+               "a real sensor on a rail: no truth topic; the tape-measure log t_from_s,t_to_s,distance_m[,material] "
+               "(s since the first raw scan)")
+      ->type_name("LOG.csv");
+  c.add_option("--focal-mm", p.focal_mm, "its lens: each pixel's range is distance / cos(ray angle)")
+      ->check(cli::positive())
+      ->capture_default_str();
+  c.add_option("--pixels", o.pixels, "keep these pixels only (e.g. the central ones)")->check(pixel_range());
 }
 
 std::string cm(double m) { return std::isfinite(m) ? fmt::format("{:.3f} cm", m * 100.0) : "n/a"; }
@@ -298,66 +282,81 @@ struct ReportContext {
   std::vector<std::string> fit_notes;
 };
 
+Json::Value score_json(const std::string& covariate, TermForm form) {
+  Json::Value j;
+  j["covariate"] = covariate;
+  j["form"] = std::string(to_string(form));
+  return j;
+}
+
+Json::Value effect_json(const DiscoveredEffect& e) {
+  Json::Value j = score_json(e.covariate, e.form);
+  j["rmse_before_m"] = json_number(e.rmse_before_m);
+  j["rmse_after_m"] = json_number(e.rmse_after_m);
+  j["cv_rmse_before_m"] = json_number(e.cv_rmse_before_m);
+  j["cv_rmse_after_m"] = json_number(e.cv_rmse_after_m);
+  j["gain"] = json_number(e.gain);
+  j["z"] = json_number(e.z);
+  j["written"] = e.written;
+  j["reading"] = e.reading;
+  return j;
+}
+
+Json::Value rounds_json(const DiscoveryResult& r) {
+  Json::Value rounds(Json::arrayValue);
+  for (const auto& round : r.rounds) {
+    Json::Value scores(Json::arrayValue);
+    for (const auto& s : round) {
+      Json::Value j = score_json(s.covariate, s.form);
+      j["cv_rmse_m"] = json_number(s.cv_rmse_m);
+      j["gain"] = json_number(s.gain);
+      j["z"] = json_number(s.z);
+      j["passes"] = s.passes;
+      scores.append(j);
+    }
+    rounds.append(scores);
+  }
+  return rounds;
+}
+
+Json::Value strings_json(const std::vector<std::string>& v) {
+  Json::Value a(Json::arrayValue);
+  for (const auto& s : v) a.append(s);
+  return a;
+}
+
 std::string summary_json(const ReportContext& c) {
   const auto& r = *c.result;
   const auto& p = *c.params;
-  std::string j = "{\n";
-  j += fmt::format("  \"command\": {},\n  \"data\": {},\n  \"model\": {},\n", json_string(c.command),
-                   json_string(c.data_path), json_string(c.model_path));
-  j += fmt::format("  \"rows\": {},\n  \"used\": {},\n", c.data->size(), c.used);
-  j += fmt::format("  \"selection\": {},\n  \"grouping\": {},\n  \"groups\": {},\n  \"holdout_groups\": {},\n",
-                   json_string(p.declared.selection == ReadoutSelection::kDriver ? "driver" : "all"),
-                   json_string(std::string(to_string(r.grouping))), r.groups, r.holdout_groups);
-  j += fmt::format("  \"heldout_readouts\": {},\n", r.heldout_eval_rows.size());
-  j += fmt::format("  \"rmse_before_m\": {},\n  \"rmse_after_m\": {},\n", json_number(r.rmse_before_m),
-                   json_number(r.rmse_after_m));
-  j += "  \"effects\": [";
-  for (std::size_t k = 0; k < r.effects.size(); ++k) {
-    const auto& e = r.effects[k];
-    j += fmt::format(
-        "{}\n    {{\"covariate\": {}, \"form\": {}, \"rmse_before_m\": {}, \"rmse_after_m\": {}, "
-        "\"cv_rmse_before_m\": {}, \"cv_rmse_after_m\": {}, \"gain\": {}, \"z\": {}, \"written\": {}, \"reading\": "
-        "{}}}",
-        k ? "," : "", json_string(e.covariate), json_string(std::string(to_string(e.form))),
-        json_number(e.rmse_before_m), json_number(e.rmse_after_m), json_number(e.cv_rmse_before_m),
-        json_number(e.cv_rmse_after_m), json_number(e.gain), json_number(e.z), e.written ? "true" : "false",
-        json_string(e.reading));
-  }
-  j += r.effects.empty() ? "],\n" : "\n  ],\n";
-  j += fmt::format(
-      "  \"acceptance\": {{\"folds\": {}, \"alpha\": {}, \"z_threshold\": {}, \"min_relative_gain\": {}, "
-      "\"max_terms\": {}}},\n",
-      p.folds, json_number(p.alpha), json_number(r.z_threshold), json_number(p.min_relative_gain), p.max_terms);
-  j += "  \"candidates\": [";
-  for (std::size_t k = 0; k < r.candidates.size(); ++k) j += (k ? ", " : "") + json_string(r.candidates[k]);
-  j += "],\n  \"rounds\": [";
-  for (std::size_t k = 0; k < r.rounds.size(); ++k) {
-    j += k ? ",\n    [" : "\n    [";
-    for (std::size_t i = 0; i < r.rounds[k].size(); ++i) {
-      const auto& s = r.rounds[k][i];
-      j += fmt::format(
-          "{}\n      {{\"covariate\": {}, \"form\": {}, \"cv_rmse_m\": {}, \"gain\": {}, \"z\": {}, "
-          "\"passes\": {}}}",
-          i ? "," : "", json_string(s.covariate), json_string(std::string(to_string(s.form))), json_number(s.cv_rmse_m),
-          json_number(s.gain), json_number(s.z), s.passes ? "true" : "false");
-    }
-    j += "\n    ]";
-  }
-  j += r.rounds.empty() ? "],\n" : "\n  ],\n";
-  j += "  \"rejected_on_holdout\": [";
-  for (std::size_t k = 0; k < r.rejected_on_holdout.size(); ++k) {
-    j += fmt::format("{}{{\"covariate\": {}, \"form\": {}}}", k ? ", " : "",
-                     json_string(r.rejected_on_holdout[k].covariate),
-                     json_string(std::string(to_string(r.rejected_on_holdout[k].form))));
-  }
-  j += "],\n  \"notes\": [";
+  Json::Value j;
+  j["command"] = c.command;
+  j["data"] = c.data_path;
+  j["model"] = c.model_path;
+  j["rows"] = Json::UInt64(c.data->size());
+  j["used"] = Json::UInt64(c.used);
+  j["selection"] = p.declared.selection == ReadoutSelection::kDriver ? "driver" : "all";
+  j["grouping"] = std::string(to_string(r.grouping));
+  j["groups"] = Json::UInt64(r.groups);
+  j["holdout_groups"] = Json::UInt64(r.holdout_groups);
+  j["heldout_readouts"] = Json::UInt64(r.heldout_eval_rows.size());
+  j["rmse_before_m"] = json_number(r.rmse_before_m);
+  j["rmse_after_m"] = json_number(r.rmse_after_m);
+  j["effects"] = Json::Value(Json::arrayValue);
+  for (const auto& e : r.effects) j["effects"].append(effect_json(e));
+  auto& acceptance = j["acceptance"];
+  acceptance["folds"] = p.folds;
+  acceptance["alpha"] = json_number(p.alpha);
+  acceptance["z_threshold"] = json_number(r.z_threshold);
+  acceptance["min_relative_gain"] = json_number(p.min_relative_gain);
+  acceptance["max_terms"] = p.max_terms;
+  j["candidates"] = strings_json(r.candidates);
+  j["rounds"] = rounds_json(r);
+  j["rejected_on_holdout"] = Json::Value(Json::arrayValue);
+  for (const auto& k : r.rejected_on_holdout) j["rejected_on_holdout"].append(score_json(k.covariate, k.form));
   std::vector<std::string> notes = r.notes;
   notes.insert(notes.end(), c.fit_notes.begin(), c.fit_notes.end());
-  notes = unique(std::move(notes));
-  for (std::size_t k = 0; k < notes.size(); ++k) j += (k ? ",\n    " : "\n    ") + json_string(notes[k]);
-  j += notes.empty() ? "]\n" : "\n  ]\n";
-  j += "}\n";
-  return j;
+  j["notes"] = strings_json(unique(std::move(notes)));
+  return json_text(j);
 }
 
 // Held-out read-outs with every candidate covariate and both residuals.
@@ -543,24 +542,15 @@ std::string unwritable(const CalibrationModel& model, double rmse_m, const std::
   return {};
 }
 
-int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
-  std::vector<std::string> valued = kFitValued;
-  valued.insert(valued.end(), kLoopValued.begin(), kLoopValued.end());
-  const Options o(argv, valued, {"--discover", "--no-temperature", "--json"});
-  if (o.positional().size() != 1) throw UsageError("fit needs exactly one DATA.csv");
-  const auto output = o.value("-o") ? o.value("-o") : o.value("--output");
-  if (!output) throw UsageError("fit needs -o CALIB.yaml");
-  DiscoveryParams p;
-  apply_fit_options(o, p.declared);
-  apply_loop_options(o, p);
-  const bool discover = o.flag("--discover");
-  const auto report = o.value("--report");
-  const std::string data_path = o.positional()[0];
+int cmd_fit(const FitOptions& o, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
+  const DiscoveryParams p = discovery_params(o);
+  const bool report = !o.report.empty();
+  const std::string& data_path = o.data;
   // Every output checked before the work (never the input, a link or a device)
   // and replaced only when all of them are made: the model last.
-  files::AtomicFile output_file(*output, {.inputs = {data_path}, .what = "calibration"});
+  files::AtomicFile output_file(o.output, {.inputs = {data_path}, .what = "calibration"});
   std::optional<ReportFiles> report_files;
-  if (report) report_files = open_report(*report, {data_path, *output});
+  if (report) report_files = open_report(o.report, {data_path, o.output});
   const auto data = read_calibration_csv(data_path);
 
   // The declared fit on every row: what is written without --discover, and the in-sample figures.
@@ -578,9 +568,9 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
 
   CalibrationModel model = declared.model;
   std::optional<DiscoveryResult> loop;
-  if (discover || report) {
+  if (o.discover || report) {
     DiscoveryParams lp = p;
-    if (!discover) lp.max_terms = 0;  // the held-out split for the report, no terms
+    if (!o.discover) lp.max_terms = 0;  // the held-out split for the report, no terms
     loop = discover_effects(data, lp);
     if (!loop->ok) {
       err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, loop->reason);
@@ -589,57 +579,36 @@ int cmd_fit(const std::vector<std::string>& argv, std::ostream& out, std::ostrea
     print_summary(out, *loop);
     model = loop->model;
   }
-  if (const std::string why = unwritable(model, declared.rmse_m, *output); !why.empty()) {
+  if (const std::string why = unwritable(model, declared.rmse_m, o.output); !why.empty()) {
     err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, why);
     return 1;
   }
   output_file.write(model.to_yaml());
-  if (report) {
-    ReportContext c;
-    c.command = "fit";
-    c.data_path = data_path;
-    c.model_path = *output;
-    c.data = &data;
-    c.params = &p;
-    c.result = &*loop;
-    c.covariate_model = &loop->train_before;
-    c.final_model = &model;
-    c.used = declared.used;
-    c.fit_notes = declared.notes;
-    write_report(c, *report_files, env, err);
-  }
+  const ReportContext c{.command = "fit",
+                        .data_path = data_path,
+                        .model_path = o.output,
+                        .data = &data,
+                        .params = &p,
+                        .result = loop ? &*loop : nullptr,
+                        .covariate_model = loop ? &loop->train_before : nullptr,
+                        .final_model = &model,
+                        .used = declared.used,
+                        .fit_notes = declared.notes};
+  if (report) write_report(c, *report_files, env, err);
   output_file.commit();
-  out << fmt::format("wrote {}\n", *output);
-  if (report) out << fmt::format("wrote {}/report.md\n", *report);
-  if (o.flag("--json") && loop) {
-    ReportContext c;
-    c.command = "fit";
-    c.data_path = data_path;
-    c.model_path = *output;
-    c.data = &data;
-    c.params = &p;
-    c.result = &*loop;
-    c.used = declared.used;
-    out << summary_json(c);
-  }
+  out << fmt::format("wrote {}\n", o.output);
+  if (report) out << fmt::format("wrote {}/report.md\n", o.report);
+  if (o.json && loop) out << summary_json(c);
   return 0;
 }
 
-int cmd_diagnose(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
-  std::vector<std::string> valued = {"--calib", "--report"};
-  valued.insert(valued.end(), kLoopValued.begin(), kLoopValued.end());
-  const Options o(argv, valued, {"--json"});
-  if (o.positional().size() != 1) throw UsageError("diagnose needs exactly one DATA.csv");
-  const auto calib = o.value("--calib");
-  if (!calib) throw UsageError("diagnose needs --calib CALIB.yaml");
-  const auto report = o.value("--report");
-  if (!report) throw UsageError("diagnose needs --report DIR");
+int cmd_diagnose(const DiagnoseOptions& o, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
   DiscoveryParams p;
-  apply_loop_options(o, p);
-  auto report_files = open_report(*report, {o.positional()[0], *calib});
-  const auto model = CalibrationModel::load(*calib);
+  apply(o.loop, p);
+  auto report_files = open_report(o.report, {o.data, o.calib});
+  const auto model = CalibrationModel::load(o.calib);
   p.declared.validity = model.validity();
-  const std::string data_path = o.positional()[0];
+  const std::string& data_path = o.data;
   const auto data = read_calibration_csv(data_path);
   const auto r = diagnose_model(model, data, p);
   if (!r.ok) {
@@ -650,7 +619,7 @@ int cmd_diagnose(const std::vector<std::string>& argv, std::ostream& out, std::o
   ReportContext c;
   c.command = "diagnose";
   c.data_path = data_path;
-  c.model_path = *calib;
+  c.model_path = o.calib;
   c.data = &data;
   c.params = &p;
   c.result = &r;
@@ -658,37 +627,29 @@ int cmd_diagnose(const std::vector<std::string>& argv, std::ostream& out, std::o
   c.final_model = &model;
   c.used = r.train_rows.size() + r.heldout_eval_rows.size();
   write_report(c, report_files, env, err);
-  out << fmt::format("wrote {}/report.md\n", *report);
-  if (o.flag("--json")) out << summary_json(c);
+  out << fmt::format("wrote {}/report.md\n", o.report);
+  if (o.json) out << summary_json(c);
   return 0;
 }
 
-int cmd_eval(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {
-  const Options o(argv, {"--calib", "--select"}, {});
-  if (o.positional().size() != 1) throw UsageError("eval needs exactly one DATA.csv");
-  const auto calib = o.value("--calib");
-  if (!calib) throw UsageError("eval needs --calib CALIB.yaml");
-  ReadoutSelection sel = ReadoutSelection::kDriver;
-  if (const auto s = o.value("--select")) {
-    if (*s == "all") {
-      sel = ReadoutSelection::kAll;
-    } else if (*s != "driver") {
-      throw UsageError(fmt::format("--select: '{}' is not driver or all", *s));
-    }
-  }
-  const auto model = CalibrationModel::load(*calib);
+int cmd_eval(const EvalOptions& o, std::ostream& out, std::ostream& err) {
+  const auto model = CalibrationModel::load(o.calib);
   // A term on a lagged temperature needs that column: derived from the data's own temperatures.
-  const auto data = with_derived_covariates(read_calibration_csv(o.positional()[0]), model.extra_covariates());
-  const auto s = evaluate_model(model, data, {}, sel);
+  const auto data = with_derived_covariates(read_calibration_csv(o.data), model.extra_covariates());
+  const auto s = evaluate_model(model, data, {}, selection(o.select));
   if (s.n == 0) {
     err << fmt::format(
         "tinyline calib eval: error: {}: the calibration gives no distance for any read-out ({} "
         "saturated, {} too dark, {} outside its ratio range, {} missing a covariate)\n",
-        o.positional()[0], s.saturated, s.too_dark, s.out_of_range, s.missing_covariate);
+        o.data, s.saturated, s.too_dark, s.out_of_range, s.missing_covariate);
     return 1;
   }
-  out << fmt::format("{{\"n\": {}, \"rmse_m\": {}, \"bias_m\": {}, \"p95_abs_m\": {}}}\n", s.n, json_number(s.rmse_m),
-                     json_number(s.bias_m), json_number(s.p95_abs_m));
+  Json::Value j;
+  j["n"] = Json::UInt64(s.n);
+  j["rmse_m"] = json_number(s.rmse_m);
+  j["bias_m"] = json_number(s.bias_m);
+  j["p95_abs_m"] = json_number(s.p95_abs_m);
+  out << json_text(j, "");
   if (s.out_of_range || s.missing_covariate) {
     err << fmt::format("note: left out {} read-outs outside the calibrated ratio range and {} missing a covariate\n",
                        s.out_of_range, s.missing_covariate);
@@ -696,41 +657,15 @@ int cmd_eval(const std::vector<std::string>& argv, std::ostream& out, std::ostre
   return 0;
 }
 
-int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {
-  const Options o(argv,
-                  {"-o", "--output", "--raw-topic", "--truth-topic", "--sensor", "--max-gap", "--pixel-step",
-                   "--positions", "--focal-mm", "--pixels"},
-                  {"--keep-mixed", "--incidence"});
-  if (o.positional().size() != 1) throw UsageError("collect needs exactly one BAG");
-  const auto output = o.value("-o") ? o.value("-o") : o.value("--output");
-  if (!output) throw UsageError("collect needs -o DATA.csv");
-  CollectParams p;
-  p.raw_topic = o.value("--raw-topic").value_or("");
-  p.truth_topic = o.value("--truth-topic").value_or("");
-  p.sensor = o.value("--sensor").value_or("");
-  p.max_pair_gap_s = o.number("--max-gap", p.max_pair_gap_s);
-  if (p.max_pair_gap_s < 0.0) throw UsageError("--max-gap must not be negative");
-  p.pixel_step = o.integer("--pixel-step", p.pixel_step, 1, 256);
-  p.keep_mixed = o.flag("--keep-mixed");
-  p.incidence_column = o.flag("--incidence");
-  p.positions_csv = o.value("--positions").value_or("");
-  p.focal_mm = o.number("--focal-mm", p.focal_mm);
-  if (const auto px = o.value("--pixels")) {
-    const auto dash = px->find('-');
-    try {
-      if (dash == std::string::npos) throw std::invalid_argument("");
-      std::size_t used_from = 0, used_to = 0;
-      p.pixel_from = std::stoi(px->substr(0, dash), &used_from);
-      p.pixel_to = std::stoi(px->substr(dash + 1), &used_to);
-      if (used_from != dash || used_to != px->size() - dash - 1) throw std::invalid_argument("");
-    } catch (const std::exception&) {
-      throw UsageError(fmt::format("--pixels: '{}' is not FROM-TO", *px));
-    }
-    if (p.pixel_from < 0 || p.pixel_to < p.pixel_from || p.pixel_to > 271)
-      throw UsageError("--pixels: expected 0 <= FROM <= TO <= 271");
+int cmd_collect(const CollectOptions& o, std::ostream& out, std::ostream& err) {
+  CollectParams p = o.params;
+  if (!o.pixels.empty()) {
+    const auto dash = o.pixels.find('-');
+    p.pixel_from = std::stoi(o.pixels.substr(0, dash));
+    p.pixel_to = std::stoi(o.pixels.substr(dash + 1));
   }
-  files::AtomicFile output_file(*output, {.inputs = {o.positional()[0], p.positions_csv}, .what = "data file"});
-  const auto r = collect_calibration_data(o.positional()[0], p);
+  files::AtomicFile output_file(o.output, {.inputs = {o.bag, p.positions_csv}, .what = "data file"});
+  const auto r = collect_calibration_data(o.bag, p);
   for (const auto& n : r.notes) err << "note: " << n << "\n";
   if (!r.ok) {
     err << fmt::format("tinyline calib collect: error: {}\n", r.reason);
@@ -742,44 +677,73 @@ int cmd_collect(const std::vector<std::string>& argv, std::ostream& out, std::os
   output_file.commit();
   std::size_t materials = r.data.materials.size();
   if (p.positions_csv.empty()) {
-    out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.positional()[0], r.raw_scans,
-                       r.raw_topic, r.truths, r.truth_topic, r.paired);
+    out << fmt::format("{}: {} raw scans on {}, {} truths on {}, {} paired\n", o.bag, r.raw_scans, r.raw_topic,
+                       r.truths, r.truth_topic, r.paired);
   } else {
-    out << fmt::format("{}: {} raw scans on {}, {} at a logged rail position, {} between positions\n",
-                       o.positional()[0], r.raw_scans, r.raw_topic, r.paired, r.between_positions);
+    out << fmt::format("{}: {} raw scans on {}, {} at a logged rail position, {} between positions\n", o.bag,
+                       r.raw_scans, r.raw_topic, r.paired, r.between_positions);
   }
   out << fmt::format("pixels left out per set: {} dark, {} without a range, {} unlit, {} mixed (totals over sets)\n",
                      r.dark_pixels, r.no_range, r.unlit, r.mixed);
   out << fmt::format("wrote {} rows ({} material{}) to {}\n", r.data.size(), materials, materials == 1 ? "" : "s",
-                     *output);
+                     o.output);
   return 0;
 }
+
+// Every sub-command's options, filled by one parse.
+struct CalibCommandLine {
+  cli::App app{
+      "The calibration tool: fit the declared model, discover the effects it lacks, diagnose, evaluate, "
+      "collect data from bags, and run the loop on the real sensor's measurements.",
+      "tinyline calib"};
+  FitOptions fit;
+  DiagnoseOptions diagnose;
+  EvalOptions eval;
+  CollectOptions collect;
+  tool::MeasuredOptions measured;
+
+  explicit CalibCommandLine(const CalibToolEnv& env) {
+    add_fit_options(*app.add_subcommand("fit",
+                                        "fit the declared model (Eq. 3.16, 3.18, 3.20, 3.3.4); with --discover run "
+                                        "the residual loop and add every effect it accepts to the model written"),
+                    fit);
+    add_diagnose_options(*app.add_subcommand("diagnose", "the residual analysis of a calibration on data, alone"),
+                         diagnose);
+    add_eval_options(
+        *app.add_subcommand("eval", "prints {\"n\", \"rmse_m\", \"bias_m\", \"p95_abs_m\"} over the valid read-outs"),
+        eval);
+    add_collect_options(
+        *app.add_subcommand("collect",
+                            "a recorded bag (raw scans + the simulator's scan_truth) -> the calibration CSV"),
+        collect);
+    measured.data = env.measured_data;
+    tool::add_measured_options(*app.add_subcommand("measured",
+                                                   "the loop on the real sensor's measured figures (Tables 3.1, 3.2, "
+                                                   "section 3.5, the five real sensors' factory curves)"),
+                               measured);
+    app.require_subcommand(1);
+  }
+
+  int run(const std::string& sub, std::ostream& out, std::ostream& err, const CalibToolEnv& env) const {
+    if (sub == "fit") return cmd_fit(fit, out, err, env);
+    if (sub == "diagnose") return cmd_diagnose(diagnose, out, err, env);
+    if (sub == "eval") return cmd_eval(eval, out, err);
+    if (sub == "collect") return cmd_collect(collect, out, err);
+    return tool::cmd_measured(measured, out, err, env);
+  }
+};
 
 }  // namespace
 
 int run_calib_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
                       const CalibToolEnv& env) {
-  if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
-    (args.empty() ? err : out) << kUsage;
-    return args.empty() ? 2 : 0;
-  }
-  const std::string& sub = args[0];
-  const std::vector<std::string> rest(args.begin() + 1, args.end());
-  if (std::find(rest.begin(), rest.end(), "--help") != rest.end() ||
-      std::find(rest.begin(), rest.end(), "-h") != rest.end()) {
-    out << kUsage;
-    return 0;
-  }
+  CalibCommandLine line(env);
+  if (const auto rc = cli::parse_command_line(line.app, args, out, err)) return *rc;
+  const std::string sub = line.app.parsed_subcommands().front()->name();
   try {
-    if (sub == "fit") return cmd_fit(rest, out, err, env);
-    if (sub == "diagnose") return cmd_diagnose(rest, out, err, env);
-    if (sub == "eval") return cmd_eval(rest, out, err);
-    if (sub == "collect") return cmd_collect(rest, out, err);
-    if (sub == "measured") return tool::cmd_measured(rest, out, err, env);
-    err << fmt::format("tinyline calib: unknown command '{}'\n\n{}", sub, kUsage);
-    return 2;
+    return line.run(sub, out, err, env);
   } catch (const UsageError& e) {
-    err << fmt::format("tinyline calib {}: {}\n\n{}", sub, e.what(), kUsage);
+    err << fmt::format("tinyline calib {}: {}\nRun with --help for more information.\n", sub, e.what());
     return 2;
   } catch (const std::exception& e) {
     err << fmt::format("tinyline calib {}: error: {}\n", sub, e.what());

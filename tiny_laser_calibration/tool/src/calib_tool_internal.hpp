@@ -3,11 +3,12 @@
 #pragma once
 
 #include <iosfwd>
-#include <map>
-#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <json/json.h>
+#include <tinyline/common/cli.hpp>
 
 #include <tiny_laser_calibration/tool.hpp>
 
@@ -18,29 +19,19 @@ class UsageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Positionals, `--name value` options (`valued`) and flags; anything else
-/// starting with '-' is a UsageError (negative numbers are positionals).
-class Options {
- public:
-  Options(const std::vector<std::string>& argv, const std::vector<std::string>& valued,
-          const std::vector<std::string>& flags);
-  [[nodiscard]] const std::vector<std::string>& positional() const { return positional_; }
-  [[nodiscard]] bool flag(const std::string& f) const;
-  [[nodiscard]] std::optional<std::string> value(const std::string& name) const;
-  [[nodiscard]] double number(const std::string& name, double fallback) const;
-  [[nodiscard]] int integer(const std::string& name, int fallback, int lo, int hi) const;
+/// A number as JSON: null for NaN and infinities.
+Json::Value json_number(double v);
+/// `v` as JSON text with a final newline: indented, or on one line (indentation "").
+std::string json_text(const Json::Value& v, const char* indentation = "  ");
 
- private:
-  std::vector<std::string> positional_;
-  std::map<std::string, std::string> values_;
-  std::vector<std::string> flags_;
+/// `tinyline calib measured`'s options, as given (measured_report.cpp).
+struct MeasuredOptions {
+  std::string data;  ///< the measured figures (default: the package's measured.yaml)
+  std::string report, apply, output;
+  bool json = false;
 };
-
-std::string json_string(const std::string& s);
-std::string json_number(double v);  ///< null for NaN/inf
-
-/// `tinyline calib measured` (measured_report.cpp).
-int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env);
+void add_measured_options(cli::App& c, MeasuredOptions& o);
+int cmd_measured(const MeasuredOptions& o, std::ostream& out, std::ostream& err, const CalibToolEnv& env);
 
 /// Runs env.python env.plot_script DIR; 0 on success, else -1 with `message`.
 int run_plot_script(const CalibToolEnv& env, const std::string& dir, std::string& message);

@@ -203,8 +203,8 @@ void add_set_rows(const RawScan& r, const ScanTruth& t, double t_s, const Collec
         mi >= 0 && static_cast<std::size_t>(mi) < t.materials.size() ? t.materials[static_cast<std::size_t>(mi)] : "";
     for (std::size_t j = 0; j < k; ++j) {
       Readout ro;
-      ro.a = r.a[j * n + i] / 10.0;  // the wire carries ten times the charge unit
-      ro.b = r.b[j * n + i] / 10.0;
+      ro.a = tiny_laser_driver::charge_units(r.a[j * n + i]);
+      ro.b = tiny_laser_driver::charge_units(r.b[j * n + i]);
       ro.pulses = r.pulses[j];
       ro.temperature_c = r.temperature_c;
       ro.pixel = static_cast<int>(i);

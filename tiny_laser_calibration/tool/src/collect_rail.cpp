@@ -177,8 +177,8 @@ void add_rail_rows(const RawScan& r, double t_s, const RailPosition& pos, const 
     const double range = pos.distance_m / std::cos(tiny_laser_driver::pixel_angle_rad(optics, i));
     for (std::size_t j = 0; j < k; ++j) {
       Readout ro;
-      ro.a = r.a[j * n + i] / 10.0;  // the wire carries ten times the charge unit
-      ro.b = r.b[j * n + i] / 10.0;
+      ro.a = tiny_laser_driver::charge_units(r.a[j * n + i]);
+      ro.b = tiny_laser_driver::charge_units(r.b[j * n + i]);
       ro.pulses = r.pulses[j];
       ro.temperature_c = r.temperature_c;
       ro.pixel = static_cast<int>(i);

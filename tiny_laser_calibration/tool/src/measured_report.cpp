@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // `tinyline calib measured`: the calibration loop on every real measurement
 // the project holds (measured.hpp), as a report.
+#include <cmath>
 #include <filesystem>
 #include <ostream>
 
@@ -112,46 +113,63 @@ std::string curves_section(const std::vector<CurveAnalysis>& cs) {
   return md + "\n";
 }
 
+Json::Value numbers_json(const std::vector<double>& v) {
+  Json::Value a(Json::arrayValue);
+  for (double x : v) a.append(json_number(x));
+  return a;
+}
+
+Json::Value hypotheses_json(const std::vector<EffectHypothesis>& hs) {
+  Json::Value a(Json::arrayValue);
+  for (const auto& h : hs) {
+    Json::Value j;
+    j["effect"] = h.effect;
+    j["form"] = h.form;
+    j["n_params"] = h.n_params;
+    j["params"] = numbers_json(h.params);
+    j["loo_rmse_cm"] = json_number(h.loo_rmse_cm);
+    j["score_cm"] = json_number(h.score_cm);
+    j["in_sample_rmse_cm"] = json_number(h.in_sample_rmse_cm);
+    j["loo_residual_cm"] = numbers_json(h.loo_residual_cm);
+    j["bound"] = h.bound;
+    a.append(j);
+  }
+  return a;
+}
+
+Json::Value curve_json(const CurveAnalysis& c) {
+  Json::Value j;
+  j["sensor"] = c.sensor;
+  j["k_min"] = json_number(c.k_min);
+  j["k_max"] = json_number(c.k_max);
+  j["best"] = c.best;
+  for (const auto& m : c.models) {
+    j["heldout_rmse_cm"].append(json_number(m.loo_rmse_cm));
+    j["in_sample_rmse_cm"].append(json_number(m.in_sample_rmse_cm));
+    j["bound"].append(m.bound);
+  }
+  return j;
+}
+
 std::string report_json(const MaterialAnalysis& m, const DistanceAnalysis& dist, const FitsAnalysis& f,
                         const std::vector<CurveAnalysis>& cs) {
-  auto hyps = [](const std::vector<EffectHypothesis>& hs) {
-    std::string j = "[";
-    for (std::size_t i = 0; i < hs.size(); ++i) {
-      std::vector<std::string> params, res;
-      for (double v : hs[i].params) params.push_back(json_number(v));
-      for (double v : hs[i].loo_residual_cm) res.push_back(json_number(v));
-      j += fmt::format(
-          "{}{{\"effect\": {}, \"form\": {}, \"n_params\": {}, \"params\": [{}], \"loo_rmse_cm\": {}, "
-          "\"score_cm\": {}, \"in_sample_rmse_cm\": {}, \"loo_residual_cm\": [{}], \"bound\": {}}}",
-          i ? ", " : "", json_string(hs[i].effect), json_string(hs[i].form), hs[i].n_params, fmt::join(params, ", "),
-          json_number(hs[i].loo_rmse_cm), json_number(hs[i].score_cm), json_number(hs[i].in_sample_rmse_cm),
-          fmt::join(res, ", "), json_string(hs[i].bound));
-    }
-    return j + "]";
-  };
-  std::string j = "{\n";
-  std::vector<std::string> drivers;
-  for (const auto& d : m.drivers) drivers.push_back(json_string(d));
-  j += fmt::format("  \"table32\": {{\"before_rmse_cm\": {}, \"best\": {}, \"drivers\": [{}], \"hypotheses\": {}}},\n",
-                   json_number(m.before_rmse_cm), m.best, fmt::join(drivers, ", "), hyps(m.hypotheses));
-  j += fmt::format(
-      "  \"table31\": {{\"before_rmse_cm\": {}, \"best\": {}, \"sd_log_slope\": {}, \"hypotheses\": {}}},\n",
-      json_number(dist.before_rmse_cm), dist.best, json_number(dist.sd_log_slope), hyps(dist.hypotheses));
-  j += fmt::format("  \"section35\": {{\"noise_exponent\": {}, \"multi_shot_prediction_cm2\": {}}},\n",
-                   json_number(f.noise_exponent), json_number(f.multi_shot_prediction_cm2));
-  j += "  \"curves\": [";
-  for (std::size_t i = 0; i < cs.size(); ++i) {
-    const auto& ms = cs[i].models;
-    j += fmt::format(
-        "{}\n    {{\"sensor\": {}, \"k_min\": {}, \"k_max\": {}, \"best\": {}, \"heldout_rmse_cm\": [{}, {}, {}], "
-        "\"in_sample_rmse_cm\": [{}, {}, {}], \"bound\": [{}, {}, {}]}}",
-        i ? "," : "", json_string(cs[i].sensor), json_number(cs[i].k_min), json_number(cs[i].k_max), cs[i].best,
-        json_number(ms[0].loo_rmse_cm), json_number(ms[1].loo_rmse_cm), json_number(ms[2].loo_rmse_cm),
-        json_number(ms[0].in_sample_rmse_cm), json_number(ms[1].in_sample_rmse_cm),
-        json_number(ms[2].in_sample_rmse_cm), json_string(ms[0].bound), json_string(ms[1].bound),
-        json_string(ms[2].bound));
-  }
-  return j + "\n  ]\n}\n";
+  Json::Value j;
+  auto& t32 = j["table32"];
+  t32["before_rmse_cm"] = json_number(m.before_rmse_cm);
+  t32["best"] = m.best;
+  t32["drivers"] = Json::Value(Json::arrayValue);
+  for (const auto& d : m.drivers) t32["drivers"].append(d);
+  t32["hypotheses"] = hypotheses_json(m.hypotheses);
+  auto& t31 = j["table31"];
+  t31["before_rmse_cm"] = json_number(dist.before_rmse_cm);
+  t31["best"] = dist.best;
+  t31["sd_log_slope"] = json_number(dist.sd_log_slope);
+  t31["hypotheses"] = hypotheses_json(dist.hypotheses);
+  j["section35"]["noise_exponent"] = json_number(f.noise_exponent);
+  j["section35"]["multi_shot_prediction_cm2"] = json_number(f.multi_shot_prediction_cm2);
+  j["curves"] = Json::Value(Json::arrayValue);
+  for (const auto& c : cs) j["curves"].append(curve_json(c));
+  return json_text(j);
 }
 
 // The data the plot script draws (measured_*.csv).
@@ -165,7 +183,7 @@ void write_plot_data(const std::string& dir, const MeasuredData& d, const Materi
     for (std::size_t i = 0; i < d.table32.size(); ++i) {
       const auto& t = d.table32[i];
       out << fmt::format("{},{},{},{},{}\n", t.name, t.reflectance, t.mean_cm - 30.0, t.sd_cm,
-                         h ? json_number(h->loo_residual_cm[i]) : "null");
+                         h && std::isfinite(h->loo_residual_cm[i]) ? fmt::format("{}", h->loo_residual_cm[i]) : "");
     }
     out.commit();
   }
@@ -197,16 +215,23 @@ void apply_walk(const MaterialAnalysis& mat, const std::string& in, const std::s
 
 }  // namespace
 
-int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
-  const Options o(argv, {"--data", "--report", "--apply", "-o"}, {"--json"});
-  if (o.value("--apply").has_value() != o.value("-o").has_value())
+void add_measured_options(cli::App& c, MeasuredOptions& o) {
+  c.add_option("--data", o.data, "the measured figures")->type_name("MEASURED.yaml")->capture_default_str();
+  c.add_option("--report", o.report, "write measured.md, measured.json, the tables and plots into DIR")
+      ->type_name("DIR");
+  c.add_option("--apply", o.apply, "add the chosen Table 3.2 light walk to CALIB (needs its amplitude_reference)")
+      ->type_name("CALIB.yaml");
+  c.add_option("-o,--output", o.output, "where --apply writes the corrected calibration")->type_name("OUT");
+  c.add_flag("--json", o.json, "print the analysis as JSON");
+}
+
+int cmd_measured(const MeasuredOptions& o, std::ostream& out, std::ostream& err, const CalibToolEnv& env) {
+  if (o.apply.empty() != o.output.empty())
     throw UsageError("measured --apply CALIB.yaml needs -o OUT.yaml, and -o needs --apply");
-  if (!o.positional().empty()) throw UsageError("measured takes no positional argument");
-  const std::string path = o.value("--data").value_or(env.measured_data);
+  const std::string& path = o.data;
   if (path.empty()) throw UsageError("measured needs --data MEASURED.yaml (no default known)");
   // The corrected calibration is checked before any work: never one of the inputs, a link, a device or a leftover.
-  if (const auto calib = o.value("--apply"))
-    files::AtomicFile::check(*o.value("-o"), {.inputs = {path, *calib}, .what = "calibration"});
+  if (!o.apply.empty()) files::AtomicFile::check(o.output, {.inputs = {path, o.apply}, .what = "calibration"});
   const MeasuredData d = load_measured_data(path);
   const MaterialAnalysis mat = analyse_materials(d);
   const DistanceAnalysis dist = analyse_distances(d);
@@ -218,7 +243,7 @@ int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::o
       std::filesystem::path(path).filename().string(), d.table32.size(), d.table31.size(), d.fits.size(),
       d.sensors.size());
   md += materials_section(d, mat) + distances_section(d, dist) + fits_section(fits) + curves_section(curves);
-  if (const auto report = o.value("--report")) {
+  if (const auto* report = o.report.empty() ? nullptr : &o.report) {
     namespace fs = std::filesystem;
     std::error_code ec;
     fs::create_directories(*report, ec);
@@ -238,10 +263,10 @@ int cmd_measured(const std::vector<std::string>& argv, std::ostream& out, std::o
     files::write_atomically((fs::path(*report) / "measured.md").string(), md);
     out << fmt::format("wrote {}/measured.md\n", *report);
   }
-  if (const auto in = o.value("--apply")) apply_walk(mat, *in, *o.value("-o"), out);
-  if (o.flag("--json")) {
+  if (!o.apply.empty()) apply_walk(mat, o.apply, o.output, out);
+  if (o.json) {
     out << report_json(mat, dist, fits, curves);
-  } else if (!o.value("--report") && !o.value("--apply")) {
+  } else if (o.report.empty() && o.apply.empty()) {
     out << md;
   }
   return 0;

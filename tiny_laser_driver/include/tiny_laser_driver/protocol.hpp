@@ -43,6 +43,9 @@ inline constexpr std::size_t kRawFrameBytes = 2 + 4 + 2 * kPixels * 2 + 2;  // 1
 /// Largest magnitude a raw pixel value can have on the wire: the 12-bit ADC
 /// reads 0-4095 tenths of a charge unit, and a discharge is a difference of two.
 inline constexpr int kMaxRawMagnitude = 4095;
+/// A raw read-out on the wire (RawFrame::a, b; RawScan's a, b) in the
+/// sensor's charge unit: the wire carries ten times the unit as int16.
+[[nodiscard]] constexpr double charge_units(std::int16_t wire) { return wire / 10.0; }
 /// Bits per byte on the wire at 8N1 (start + 8 data + stop).
 inline constexpr int kBitsPerByte8N1 = 10;
 

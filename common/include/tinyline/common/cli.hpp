@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <iosfwd>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -164,9 +165,13 @@ class App {
 
   /// Throws ParseError on bad usage and after --help.
   void parse(int argc, char** argv);
+  /// The same for arguments already split, without the program's name
+  /// (a library's command run in-process with its own streams).
+  void parse(std::vector<std::string> args);
   /// Prints what `e` says (help on stdout, an error on stderr) as CLI11
   /// does; returns CLI11's exit code (0 after help).
   int exit(const ParseError& e) const;
+  int exit(const ParseError& e, std::ostream& out, std::ostream& err) const;
 
   /// This sub-command was named on the command line.
   [[nodiscard]] bool parsed() const;
@@ -177,6 +182,8 @@ class App {
 
  private:
   explicit App(CLI::App* sub);
+  /// Runs a CLI11 parse, turning its errors into ParseError.
+  static void translating_errors(const std::function<void()>& parse);
   template <class T>
   Option* add_typed_option(std::string name, T& value, std::string description);
   Option* keep(CLI::Option* o);
@@ -192,6 +199,9 @@ class App {
 /// (printed on stderr, with a pointer to --help), 0 after a good command line
 /// when only_check_options() (printed on stdout); nullopt when it should run.
 [[nodiscard]] std::optional<int> parse_command_line(App& app, int argc, char** argv);
+/// The same for arguments already split (no program name), printing on `out` and `err`.
+[[nodiscard]] std::optional<int> parse_command_line(App& app, std::vector<std::string> args, std::ostream& out,
+                                                    std::ostream& err);
 
 /// True when the environment sets TINYLINE_CHECK_OPTIONS=1: every program
 /// parses and checks its command line, says "options ok" and stops before it
