@@ -163,6 +163,36 @@ PickPose picking_pose(const PipelineResult& r, int index, const PickPoseParams& 
   return pose;
 }
 
+std::vector<PickPose> nearby_cuts(const PickPose& at, const Sphere& own, const std::vector<Sphere>& others,
+                                  const PickPoseParams& p, const CutProbeParams& probe) {
+  struct Ranked {
+    PickPose pose;
+    double cost;
+  };
+  std::vector<Ranked> found;
+  if (!at.ok()) return {};
+  const Eigen::Vector3d axis = at.pedicel_axis.normalized();
+  for (double shift : probe.shifts_m) {
+    PickPose moved = at;
+    moved.cut_point += shift * axis;
+    moved.T_ref_laser.translation() += shift * axis;
+    for (double roll : probe.rolls_deg) {
+      if (shift == 0.0 && roll == 0.0) continue;  // that is `at`
+      const PickPose pose = rolled(moved, roll * M_PI / 180.0, p.throat_z_m);
+      if (blade_clearance(pose.T_ref_laser, own, p) < kOwnFruitMargin_m) continue;
+      const bool clear = std::all_of(others.begin(), others.end(), [&](const Sphere& f) {
+        return blade_clearance(pose.T_ref_laser, f, p) >= p.blades.margin_m;
+      });
+      if (!clear) continue;
+      found.push_back({pose, std::abs(shift) / probe.shift_scale_m + std::abs(roll) / probe.roll_scale_deg});
+    }
+  }
+  std::stable_sort(found.begin(), found.end(), [](const Ranked& a, const Ranked& b) { return a.cost < b.cost; });
+  std::vector<PickPose> out;
+  for (const Ranked& r : found) out.push_back(r.pose);
+  return out;
+}
+
 const char* to_string(Verification::Outcome o) {
   switch (o) {
     case Verification::Outcome::kCutHere: return "cut_here";

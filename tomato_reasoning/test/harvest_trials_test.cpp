@@ -229,4 +229,17 @@ TEST(HarvestTrials, OptionsBySettingParseOrSayWhatIsWrong) {
   EXPECT_NE(why("attempts", "2.5").find("whole number"), std::string::npos);
   EXPECT_NE(why("later_attempts_approach_far", "yes").find("0 or 1"), std::string::npos);
   EXPECT_NE(why("blades", "1").find("unknown option"), std::string::npos);
+  eval::set_harvest_option(o, "probes", "0");
+  EXPECT_EQ(o.probes, 0);
+  eval::set_harvest_option(o, "probe_shifts_mm", "0,-3,4.5");
+  ASSERT_EQ(o.probe.shifts_m.size(), 3u);
+  EXPECT_DOUBLE_EQ(o.probe.shifts_m[2], 0.0045);
+  eval::set_harvest_option(o, "probe_rolls_deg", "0,20");
+  EXPECT_EQ(o.probe.rolls_deg, (std::vector<double>{0.0, 20.0}));
+  EXPECT_FALSE(o.probe_after_laser_refusal);
+  eval::set_harvest_option(o, "probe_after_laser_refusal", "1");
+  EXPECT_TRUE(o.probe_after_laser_refusal);
+  EXPECT_NE(why("probes", "x").find("whole number"), std::string::npos);
+  EXPECT_NE(why("probe_rolls_deg", "0,,20").find("not a number"), std::string::npos);
+  EXPECT_NE(why("probe_shifts_mm", "200").find("not a number"), std::string::npos);
 }

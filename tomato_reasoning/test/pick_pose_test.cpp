@@ -102,6 +102,40 @@ TEST(CutCandidates, RollTheBladesOffANeighbourOrSayNoneFits) {
   EXPECT_FALSE(none.front().fits(p));
 }
 
+// The laser put the throat where a neighbour's sphere reaches into the
+// blades: the nearby cuts on the same pedicel (moved along it, rolled about
+// it) that clear it come smallest change first, the throat still on the
+// pedicel's line; none of them cuts into the target's own fruit.
+TEST(NearbyCuts, DodgeANeighbourInTheBladesOnTheSamePedicel) {
+  PickPoseParams p;
+  Sphere own;
+  own.centre = Eigen::Vector3d(0, 0, 0.5);
+  own.radius_m = 0.03;
+  const Eigen::Vector3d up(0, -1, 0);
+  const PickPose at = picking_pose(own.centre + (own.radius_m + 0.008) * up, up, p);
+  Sphere beyond;  // level with the cut, 3 cm further along the straight approach
+  beyond.centre = Eigen::Vector3d(0, -0.038, 0.53);
+  beyond.radius_m = 0.015;
+  ASSERT_LT(blade_clearance(at.T_ref_laser, beyond, p), p.blades.margin_m);
+  CutProbeParams probe;
+  probe.shifts_m = {0.0, 0.004, -0.003};
+  probe.rolls_deg = {0.0, 60.0, -60.0, 90.0, -90.0};
+  const std::vector<PickPose> near = nearby_cuts(at, own, {beyond}, p, probe);
+  ASSERT_FALSE(near.empty());
+  for (const PickPose& n : near) {
+    EXPECT_GE(blade_clearance(n.T_ref_laser, beyond, p), p.blades.margin_m);
+    EXPECT_GE(blade_clearance(n.T_ref_laser, own, p), 0.001);
+    const Eigen::Vector3d throat = n.T_ref_laser * Eigen::Vector3d(0, 0, p.throat_z_m);
+    EXPECT_LT((throat - own.centre).cross(up).norm(), 1e-12);  // on the pedicel's line
+    EXPECT_NEAR(n.T_ref_laser.linear().col(1).dot(up), 1.0, 1e-12);
+  }
+  // The smallest change first: a roll at the same point, not a move along the pedicel as well.
+  EXPECT_LT((near.front().cut_point - at.cut_point).norm(), 1e-12);
+  // Nothing in the way: every change is offered but `at` itself.
+  EXPECT_EQ(nearby_cuts(at, own, {}, p, probe).size(), probe.shifts_m.size() * probe.rolls_deg.size() - 1);
+  EXPECT_TRUE(nearby_cuts(PickPose{}, own, {}, p).empty());
+}
+
 TEST(Verify, MovesTheThroatOntoThePedicelTheFinderSaw) {
   PickPoseParams p;
   const PickPose pose = picking_pose(Eigen::Vector3d(0.0, 0.0, 0.5), Eigen::Vector3d::UnitY(), p);

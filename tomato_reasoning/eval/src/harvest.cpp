@@ -2,6 +2,8 @@
 #include "tomato_reasoning/eval/harvest.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <optional>
 #include <stdexcept>
 
@@ -30,6 +32,32 @@ void HarvestCounts::add(const HarvestTrial& t) {
   knocked_off += t.outcome == HarvestOutcome::kKnockedOff;
 }
 
+namespace {
+
+// A comma-separated list of numbers, each within +-90 (mm or deg).
+std::vector<double> numbers(const std::string& key, const std::string& value) {
+  std::vector<double> out;
+  std::size_t from = 0;
+  while (from <= value.size()) {
+    const std::size_t comma = std::min(value.find(',', from), value.size());
+    const std::string item = value.substr(from, comma - from);
+    std::size_t used = 0;
+    double v = NAN;
+    try {
+      v = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || !(std::abs(v) <= 90))
+      throw std::invalid_argument("option '" + key + "': '" + item + "' is not a number in [-90, 90]");
+    out.push_back(v);
+    from = comma + 1;
+  }
+  return out;
+}
+
+}  // namespace
+
 void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value) {
   auto flag = [&](bool& f) {
     if (value != "0" && value != "1") throw std::invalid_argument("option '" + key + "' must be 0 or 1");
@@ -43,11 +71,26 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
     flag(o.later_attempts_approach_far);
   } else if (key == "check_blades") {
     flag(o.check_blades);
+  } else if (key == "probe_after_laser_refusal") {
+    flag(o.probe_after_laser_refusal);
+  } else if (key == "probe_shifts_mm" || key == "probe_rolls_deg") {
+    const std::vector<double> list = numbers(key, value);
+    if (key == "probe_rolls_deg") {
+      o.probe.rolls_deg = list;
+    } else {
+      o.probe.shifts_m.clear();
+      for (double mm : list) o.probe.shifts_m.push_back(mm / 1000.0);
+    }
+  } else if (key == "probes") {
+    if (value.size() != 1 || value[0] < '0' || value[0] > '9')
+      throw std::invalid_argument("option 'probes': '" + value + "' is not a whole number in [0, 9]");
+    o.probes = value[0] - '0';
   } else if (key == "ceiling") {
     flag(o.ceiling);
   } else {
     throw std::invalid_argument("unknown option '" + key +
-                                "' (attempts, later_attempts_approach_far, check_blades, ceiling)");
+                                "' (attempts, later_attempts_approach_far, check_blades, probes, "
+                                "probe_after_laser_refusal, probe_shifts_mm, probe_rolls_deg, ceiling)");
   }
 }
 
@@ -146,6 +189,8 @@ std::optional<CutCandidate> next_cut(const Hypothesis& hyp, const std::vector<Sp
   return any;
 }
 
+constexpr const char* kFruitInBlades = "a reconstructed fruit in the blades";
+
 /// Why the blades must not close at the loop's end, or "" to close: the box
 /// there must clear the reconstructed fruit, and the laser must see one thin
 /// object and nothing else between the blades.
@@ -154,11 +199,58 @@ std::string refuse_to_close(VerificationHarness& laser, const HangingTruss& h, c
                             std::uint64_t key) {
   const PickPoseParams& pp = laser.options().pose;
   for (const Sphere& f : others)
-    if (blade_clearance(T_ref_laser, f, pp) < pp.blades.margin_m) return "a reconstructed fruit in the blades";
+    if (blade_clearance(T_ref_laser, f, pp) < pp.blades.margin_m) return kFruitInBlades;
   const BladeCheck b = laser.check_blades(h.world, s, T_ref_laser, key);
   if (b.kind == BladeCheck::Kind::kClear) return "";
   return b.kind == BladeCheck::Kind::kEmpty ? "the laser sees nothing between the blades"
                                             : "the laser sees " + b.what + " between the blades";
+}
+
+/// Where the blades close after the loop, or why nowhere.
+struct Closing {
+  std::optional<Eigen::Isometry3d> T_ref_laser;
+  std::string why;  ///< the loop's final pose's refusal, when no pose passed
+};
+
+/// How `to` differs from `from` on the same pedicel: "+4mm 20deg".
+std::string describe_change(const PickPose& from, const PickPose& to) {
+  const Eigen::Vector3d axis = from.pedicel_axis.normalized();
+  const double shift_mm = 1000 * (to.cut_point - from.cut_point).dot(axis);
+  const Eigen::Vector3d z0 = from.T_ref_laser.linear().col(2), z1 = to.T_ref_laser.linear().col(2);
+  const double roll_deg = std::atan2(z0.cross(z1).dot(axis), z0.dot(z1)) * 180.0 / M_PI;
+  char text[48];
+  std::snprintf(text, sizeof text, "%+.0fmm %.0fdeg", shift_mm, roll_deg);
+  return text;
+}
+
+/// The loop's final pose when the checks pass there; else the first nearby
+/// cut on the same pedicel (moved along it, rolled: nearby_cuts) whose
+/// blade box clears the fruit and where the laser sees one thin object, at
+/// most o.probes more scans.
+Closing where_to_close(VerificationHarness& laser, const HangingTruss& h, const Scenario& s, const Verification& v,
+                       const Sphere& own, const std::vector<Sphere>& others, std::uint64_t key, const HarvestOptions& o,
+                       HarvestTrial& t) {
+  const std::string first = refuse_to_close(laser, h, s, v.T_ref_laser_final, others, key);
+  ++t.scans;
+  if (first.empty()) return {v.T_ref_laser_final, ""};
+  // What the laser saw between the blades lies near any nearby cut too: only a fruit's sphere is dodged.
+  if (!o.probe_after_laser_refusal && first != kFruitInBlades) return {std::nullopt, first};
+  PickPose at;
+  at.tomato = 0;
+  at.T_ref_laser = v.T_ref_laser_final;
+  at.cut_point = v.cut_point;
+  at.pedicel_axis = v.T_ref_laser_final.linear().col(1);
+  int probes = 0;
+  for (const PickPose& near : nearby_cuts(at, own, others, laser.options().pose, o.probe)) {
+    if (probes++ >= o.probes) break;
+    ++t.scans;
+    const std::uint64_t probe_key = key + 31 * static_cast<std::uint64_t>(probes);
+    if (laser.check_blades(h.world, s, near.T_ref_laser, probe_key).kind == BladeCheck::Kind::kClear) {
+      t.probed += describe_change(at, near);
+      return {near.T_ref_laser, ""};
+    }
+  }
+  return {std::nullopt, first};
 }
 
 /// Up to o.attempts attempts at detection `k` (true tomato t.truth), each
@@ -171,7 +263,7 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
   Hypothesis hyp{det.fit.sphere, det.cut.direction, {}};
   const std::vector<Sphere> others = obstacles(r, k, fallen(s, r, h, o.match_m));
   for (t.attempts = 1; t.attempts <= o.attempts; ++t.attempts) {
-    if (t.attempts > 1) t.cuts += ';', t.why += ';';
+    if (t.attempts > 1) t.cuts += ';', t.why += ';', t.probed += ';';
     const std::optional<CutCandidate> plan = next_cut(hyp, others, pp);
     if (!plan) {  // say so, and do not close the blades
       t.cuts += "no_cut";
@@ -193,17 +285,17 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
     // The pedicel is where the laser put the throat: aim the next attempt there.
     if (const Eigen::Vector3d d = v.cut_point - hyp.fruit.centre; d.norm() > hyp.fruit.radius_m)
       hyp.direction = d.normalized();
+    Eigen::Isometry3d T_close = v.T_ref_laser_final;
     if (o.check_blades) {
-      const std::string no = refuse_to_close(laser, h, s, v.T_ref_laser_final, others, key + 17);
-      ++t.scans;
-      if (!no.empty()) {
+      const Closing closing = where_to_close(laser, h, s, v, hyp.fruit, others, key + 17, o, t);
+      if (!closing.T_ref_laser) {
         t.cuts += "no_cut";
-        t.why += no;
+        t.why += closing.why;
         continue;
       }
+      T_close = *closing.T_ref_laser;
     }
-    const Eigen::Isometry3d T_world_throat =
-        sim::throat_from_laser(s.truss.T_world_camera * v.T_ref_laser_final, pp.throat_z_m);
+    const Eigen::Isometry3d T_world_throat = sim::throat_from_laser(s.truss.T_world_camera * T_close, pp.throat_z_m);
     if (settle_cut(h, t, cut(h.truss, T_world_throat, t.truth))) return;
   }
   t.attempts = o.attempts;

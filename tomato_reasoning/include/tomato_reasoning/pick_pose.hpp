@@ -54,9 +54,10 @@ struct PickPoseParams {
   double max_turn_deg = 60.0;
   BladeBox blades;
   /// Where along the pedicel a cut may go: this far beyond the fruit's
-  /// surface [m], the first preferred (the reasoning's cut_offset_m). Nearer
-  /// the calyx keeps the blades off the peduncle; further, off a neighbour.
-  std::vector<double> cut_offsets_m{0.008, 0.005, 0.012, 0.016};
+  /// surface [m], the first preferred. Nearer the calyx keeps the blades off
+  /// the peduncle (the jams left were on it; the sepals are soft); further,
+  /// off a neighbour. Tuned on tuning trusses (8, 5, 12, 16 mm before).
+  std::vector<double> cut_offsets_m{0.004, 0.002, 0.006, 0.009};
   double roll_step_deg = 15.0;  ///< the blades' roll about the pedicel is tried in these steps, up to max_turn_deg
 };
 
@@ -109,6 +110,27 @@ struct CutCandidate {
 /// among the fruit not `gone` (indices of result.tomatoes already picked).
 [[nodiscard]] std::vector<CutCandidate> cut_candidates(const PipelineResult& result, int index,
                                                        const std::vector<int>& gone, const PickPoseParams& params = {});
+
+/// Where else the blades may close on a pedicel the laser has put them on,
+/// when the checks refuse that pose: the scan plane (the blade plane) moved
+/// along the pedicel (near the calyx the sepals make it wide; near the
+/// anchor the peduncle lies beside it) and the blades rolled about it (a
+/// neighbour in the box).
+struct CutProbeParams {
+  /// Moves of the throat along the pedicel, + away from the fruit [m].
+  std::vector<double> shifts_m{0.0, 0.004, -0.003, 0.008, -0.006};
+  std::vector<double> rolls_deg{0.0, 20.0, -20.0, 40.0, -40.0};  ///< turns about the pedicel [deg]
+  double shift_scale_m = 0.004;  ///< a move of this much ranks as far as a turn of roll_scale_deg
+  double roll_scale_deg = 20.0;
+};
+
+/// The poses near `at` (its throat moved along its pedicel axis, turned
+/// about it; `at` itself left out) whose blade box clears `others` by the
+/// margin and `own` (the target's fruit, which follows the same pedicel) by
+/// 1 mm, the smallest change first.
+[[nodiscard]] std::vector<PickPose> nearby_cuts(const PickPose& at, const Sphere& own,
+                                                const std::vector<Sphere>& others, const PickPoseParams& params = {},
+                                                const CutProbeParams& probe = {});
 
 /// What the pedicel finder said about the scan at the picking pose (laser
 /// frame offsets, as laser_clustering::PedicelDetection gives them).

@@ -52,6 +52,9 @@ struct HarvestTrial {
   /// that closed): "no cut clears the blades", the verification's reason, or
   /// what the blades' check saw.
   std::string why;
+  /// Each attempt that closed at a nearby cut rather than the loop's final
+  /// pose, ';'-separated: its move along the pedicel and roll ("+4mm 20deg").
+  std::string probed;
 };
 
 /// The blades closing at a throat pose on the truss as it now hangs
@@ -71,6 +74,18 @@ struct HarvestOptions {
   /// the blade plane, must see one thin object and nothing else there; else
   /// the attempt refuses and the next one comes from another pose.
   bool check_blades = true;
+  /// When the checks refuse the loop's final pose, up to this many nearby
+  /// cuts on the same pedicel (moved along it, rolled: nearby_cuts) are
+  /// checked by the laser, one scan each, and the blades close at the first
+  /// that passes (0: refuse at once). Off: on tuning trusses 4 probes picked
+  /// 3 more fruit in 473 trials and jammed 5 more times.
+  int probes = 0;
+  CutProbeParams probe;  ///< where the nearby cuts are
+  /// Probe also when the laser refused (two objects, a wide one, nothing):
+  /// on the dev trusses the nearby cuts it then passed jammed on the
+  /// peduncle about as often as they picked, so by default only a
+  /// reconstructed fruit in the box is dodged.
+  bool probe_after_laser_refusal = false;
   /// The world's ceiling: the truth's pedicel (calyx -> anchor) handed to the
   /// planner and the cutter model as its clearance check; a trial is picked
   /// when some cut along it (offset, roll) severs it and nothing else.
@@ -80,7 +95,7 @@ struct HarvestOptions {
 };
 
 /// Sets one option by name (attempts, later_attempts_approach_far=0|1,
-/// check_blades=0|1, ceiling=0|1);
+/// check_blades=0|1, probes=0..9, ceiling=0|1);
 /// throws std::invalid_argument saying what is wrong.
 void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value);
 
