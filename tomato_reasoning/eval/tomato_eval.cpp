@@ -151,6 +151,36 @@ void add_pick_options(cli::App& app, Request& r, std::vector<std::string>& verif
 }
 
 /// Fills `r` from the command line; the exit code when the program stops there.
+// The world: elastic rods (the evaluations' default: its truth does not come
+// from the force model the reasoning inverts; physics=pendulum for that one),
+// then each --truss-set option.
+void apply_truss_sets(const std::vector<std::string>& truss_sets, Request& r) {
+  r.scenario.truss.physics = tinyline::sim::TrussPhysics::kElasticRod;
+  for (const auto& kv : truss_sets) {
+    const auto [key, value] = key_value("--truss-set", kv);
+    if (const auto why = tinyline::sim::set_truss_option(r.scenario.truss, key, value); !why.valid)
+      throw cli::ParseError("--truss-set", why.reason);
+  }
+}
+
+// A tuning run refuses held-out seeds (exit 2); every figure says which
+// seeds and which world it comes from.
+std::optional<int> check_and_label_seeds(bool tuning, const std::vector<std::string>& truss_sets, Request& r) {
+  namespace seeds = tinyline::common::seeds;
+  try {
+    if (tuning || r.fit_kappa) seeds::require_tuning(seeds::kTomato, r.seeds);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "tomato_eval: %s\n", e.what());
+    return 2;
+  }
+  r.seeds_label = seeds::describe(seeds::kTomato, r.seeds);
+  r.seeds_label +=
+      r.scenario.truss.physics == tinyline::sim::TrussPhysics::kElasticRod ? ", elastic-rod world" : ", pendulum world";
+  for (const auto& kv : truss_sets)
+    if (kv.rfind("physics=", 0) != 0) r.seeds_label += ", world " + kv;
+  return std::nullopt;
+}
+
 std::optional<int> parse(int argc, char** argv, Request& r) {
   cli::App app{
       "Scores the tomato pipeline on seeded simulated trusses (docs/tomato_reasoning.md); every variant "
@@ -207,30 +237,12 @@ std::optional<int> parse(int argc, char** argv, Request& r) {
     for (const auto& kv : sets) r.sets.push_back(key_value("--set", kv));
     for (const auto& kv : verify_sets) r.verify_sets.push_back(key_value("--verify-set", kv));
     for (const auto& kv : harvest_sets) r.harvest_sets.push_back(key_value("--harvest-set", kv));
-    // The elastic-rod world is the evaluations' default: its truth does not
-    // come from the force model the reasoning inverts (physics=pendulum for that one).
-    r.scenario.truss.physics = tinyline::sim::TrussPhysics::kElasticRod;
-    for (const auto& kv : truss_sets) {
-      const auto [key, value] = key_value("--truss-set", kv);
-      if (const auto why = tinyline::sim::set_truss_option(r.scenario.truss, key, value); !why.valid)
-        throw cli::ParseError("--truss-set", why.reason);
-    }
+    apply_truss_sets(truss_sets, r);
   } catch (const cli::ParseError& e) {
     (void)app.exit(e);
     return 2;
   }
-  namespace seeds = tinyline::common::seeds;
-  try {
-    if (tuning || r.fit_kappa) seeds::require_tuning(seeds::kTomato, r.seeds);
-  } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "tomato_eval: %s\n", e.what());
-    return 2;
-  }
-  r.seeds_label = seeds::describe(seeds::kTomato, r.seeds);
-  r.seeds_label +=
-      r.scenario.truss.physics == tinyline::sim::TrussPhysics::kElasticRod ? ", elastic-rod world" : ", pendulum world";
-  for (const auto& kv : truss_sets)
-    if (kv.rfind("physics=", 0) != 0) r.seeds_label += ", world " + kv;
+  if (const auto rc = check_and_label_seeds(tuning, truss_sets, r)) return rc;
   if (pose_noise.size() == 2) {
     r.scenario.pose_noise_m = pose_noise[0];
     r.scenario.pose_noise_deg = pose_noise[1];
