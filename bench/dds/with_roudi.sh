@@ -11,11 +11,25 @@ if [[ "${1:-}" == "--config" ]]; then config="$(readlink -f "$2")"; shift 2; fi
 if [[ -z "${WITH_ROUDI_INSIDE:-}" ]]; then
   exec env WITH_ROUDI_INSIDE=1 unshare --mount --propagation private "$0" --config "$config" "$@"
 fi
+# A tree, build or config under /tmp (a clone in /tmp) stays visible: the
+# first folder under /tmp of each is bound back into the fresh /tmp.
+keep=()
+for p in "$PWD" "$config" "$(command -v "$1" || echo "$1")"; do
+  p="$(readlink -f "$p")"
+  if [[ "$p" == /tmp/?* ]]; then keep+=("/tmp/$(cut -d/ -f3 <<<"$p")"); fi
+done
+old_tmp="$(mktemp -d /run/with_roudi.XXXXXX)"
+mount --bind /tmp "$old_tmp"
+trap 'umount -l "$old_tmp" 2>/dev/null; rmdir "$old_tmp" 2>/dev/null || true' EXIT
 mount -t tmpfs tmpfs /tmp
+for top in "${keep[@]}"; do
+  [[ -d "$top" ]] && continue
+  mkdir -p "$top" && mount --bind "$old_tmp/${top#/tmp/}" "$top"
+done
 mount -t tmpfs tmpfs /dev/shm
 iox-roudi -c "$config" -l warning >/tmp/roudi.log 2>&1 &
 roudi=$!
-trap 'kill -INT $roudi 2>/dev/null; wait $roudi 2>/dev/null || true' EXIT
+trap 'kill -INT $roudi 2>/dev/null; wait $roudi 2>/dev/null || true; umount -l "$old_tmp" 2>/dev/null; rmdir "$old_tmp" 2>/dev/null || true' EXIT
 for _ in $(seq 100); do [[ -S /tmp/roudi ]] && break; sleep 0.1; done
 [[ -S /tmp/roudi ]] || { cat /tmp/roudi.log >&2; echo "RouDi did not start" >&2; exit 1; }
 "$@"
