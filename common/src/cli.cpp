@@ -223,6 +223,9 @@ std::string App::name() const { return app_->get_name(); }
 std::string App::help() const { return app_->help(); }
 
 namespace {
+/// The line a program prints when only_check_options() stops it.
+void options_ok(std::ostream& out, const std::string& program) { out << program << ": options ok" << std::endl; }
+
 /// What a parse leaves the program: its exit code when it stops here.
 template <class Parse>
 std::optional<int> stop_or_run(App& app, Parse&& parse, std::ostream& out, std::ostream& err) {
@@ -233,7 +236,7 @@ std::optional<int> stop_or_run(App& app, Parse&& parse, std::ostream& out, std::
     return e.help() ? code : 2;
   }
   if (only_check_options()) {
-    out << app.name() << ": options ok\n";
+    options_ok(out, app.name());
     return 0;
   }
   return std::nullopt;
@@ -255,7 +258,7 @@ bool only_check_options() {
   return v != nullptr && std::string_view(v) == "1";
 }
 
-void print_options_ok(const std::string& program) { std::cout << program << ": options ok" << std::endl; }
+void print_options_ok(const std::string& program) { options_ok(std::cout, program); }
 
 // The variables an option can fill (detail::option_type).
 template Option* App::add_typed_option(std::string, std::string&, std::string);
