@@ -423,21 +423,6 @@ struct OrderTally {
   int trusses = 0, stable = 0, frames = 0, same_first = 0;
 };
 
-// A pick order as truth indices (-1: a sphere matching no tomato within 1 cm).
-std::vector<int> order_in_truth(const eval::Scenario& s, const PipelineResult& r) {
-  std::vector<int> out;
-  for (int k : r.pick_order) {
-    int best = -1;
-    double d = 0.01;
-    for (std::size_t t = 0; t < s.truth.size(); ++t) {
-      const double e = (r.tomatoes[std::size_t(k)].fit.sphere.centre - s.truth[t].centre_m).norm();
-      if (e < d) d = e, best = int(t);
-    }
-    out.push_back(best);
-  }
-  return out;
-}
-
 // The scenario's views rendered `n` more times, the variant run on each.
 void tally_order(const Request& r, const eval::Variant& variant, const eval::Scenario& sc, OrderTally& t) {
   eval::Scenario again = sc;
@@ -445,7 +430,7 @@ void tally_order(const Request& r, const eval::Variant& variant, const eval::Sce
   for (int f = 1; f <= r.order_frames; ++f) {
     for (std::size_t v = 0; v < again.clouds.size(); ++v)
       again.clouds[v] = eval::render_again(sc, r.scenario, v, sc.seed * 16 + 1000 * std::uint64_t(f) + v);
-    orders.push_back(order_in_truth(sc, variant.run(again)));
+    orders.push_back(eval::pick_order_in_truth(sc, variant.run(again)));
   }
   ++t.trusses;
   bool stable = true;

@@ -91,28 +91,13 @@ TEST(Pipeline, BadInputStopsWithTheStageAndTheReason) {
 }
 
 namespace {
-// The pick order as indices of the true tomatoes (-1: a sphere matching none within 1 cm).
-std::vector<int> order_in_truth(const eval::Scenario& s, const PipelineResult& r) {
-  std::vector<int> out;
-  for (int k : r.pick_order) {
-    int best = -1;
-    double d = 0.01;
-    for (std::size_t t = 0; t < s.truth.size(); ++t) {
-      const double e = (r.tomatoes[std::size_t(k)].fit.sphere.centre - s.truth[t].centre_m).norm();
-      if (e < d) d = e, best = int(t);
-    }
-    out.push_back(best);
-  }
-  return out;
-}
-
 // The pick orders of `frames` renderings of one scene, each with its own noise.
 std::vector<std::vector<int>> orders_over_frames(const eval::Scenario& s, const eval::ScenarioOptions& o,
                                                  const PipelineParams& p, int frames) {
   std::vector<std::vector<int>> out;
   for (int f = 0; f < frames; ++f) {
     const ColorCloud c = f == 0 ? s.cloud() : eval::render_again(s, o, 0, s.seed * 16 + 1000 * std::uint64_t(f));
-    out.push_back(order_in_truth(s, TomatoPipeline(p).run(c)));
+    out.push_back(eval::pick_order_in_truth(s, TomatoPipeline(p).run(c)));
   }
   return out;
 }

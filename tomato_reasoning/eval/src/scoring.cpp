@@ -143,6 +143,20 @@ TrussScore score_truss(const Scenario& s, const PipelineResult& r, const ScorePa
   return out;
 }
 
+std::vector<int> pick_order_in_truth(const Scenario& s, const PipelineResult& r, const ScoreParams& p) {
+  std::vector<int> out;
+  for (int k : r.pick_order) {
+    int best = -1;
+    double d = p.match_distance_m;
+    for (std::size_t t = 0; t < s.truth.size(); ++t) {
+      const double e = (r.tomatoes[std::size_t(k)].fit.sphere.centre - s.truth[t].centre_m).norm();
+      if (e < d) d = e, best = int(t);
+    }
+    out.push_back(best);
+  }
+  return out;
+}
+
 Summary summarize(const std::vector<TrussScore>& scores) {
   Summary s;
   std::vector<double> ce, re, pe, ge, ms, prior, seen_prior, seen_post, rb, tc;

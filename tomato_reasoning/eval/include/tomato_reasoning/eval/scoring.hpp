@@ -73,6 +73,11 @@ struct TrussScore {
 
 [[nodiscard]] TrussScore score_truss(const Scenario& s, const PipelineResult& r, const ScoreParams& p = {});
 
+/// The pick order as indices of the true tomatoes: each pick's nearest true
+/// centre within p.match_distance_m, -1 when none is that near.
+[[nodiscard]] std::vector<int> pick_order_in_truth(const Scenario& s, const PipelineResult& r,
+                                                   const ScoreParams& p = {});
+
 struct Summary {
   int trusses = 0, truth = 0, detected = 0, visible = 0, visible_detected = 0, detections = 0, unmatched = 0;
   double centre_median_mm = NAN, centre_p95_mm = NAN;
