@@ -18,7 +18,6 @@ import numpy as np  # noqa: E402
 from mcap.reader import make_reader  # noqa: E402
 from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 
-OUTCOMES = {0: "cut here", 1: "moved", 2: "nothing found", 3: "out of view", 4: "failed"}
 PICKS = {0: "picked", 1: "cut failure", 2: "cut another's", 3: "left"}
 
 
@@ -62,6 +61,36 @@ def intrinsics(xyz):
     return fx, fy, cx, cy
 
 
+RING = {0: "lime", 1: "red", 2: "orange", 3: "white"}
+
+
+def pick_outcomes(tomatoes, summary):
+    """Each detected tomato's pick (outcome, attempts), matched by nearest centre."""
+    if tomatoes is None or summary is None:
+        return {}
+    centres = np.array([[t.centre.x, t.centre.y, t.centre.z] for t in tomatoes.tomatoes])
+    out = {}
+    for p in summary.picks:
+        k = int(np.argmin(np.linalg.norm(centres - [p.centre.x, p.centre.y, p.centre.z], axis=1)))
+        out[k] = (p.outcome, p.attempts)
+    return out
+
+
+def draw_tomato(ax, project, fx, t, outcome):
+    c = np.array([t.centre.x, t.centre.y, t.centre.z])
+    u, v = project(c)
+    ring = "yellow" if outcome is None else RING.get(outcome[0], "yellow")
+    ax.add_patch(plt.Circle((u, v), fx * t.radius_m / c[2], fill=False, ec=ring, lw=2))
+    d = np.array([t.pedicel_direction.x, t.pedicel_direction.y, t.pedicel_direction.z])
+    u0, v0 = project(c + t.radius_m * d)
+    u1, v1 = project(c + (t.radius_m + 0.04) * d)
+    ax.annotate("", xy=(u1, v1), xytext=(u0, v0), arrowprops=dict(arrowstyle="->", color="lime", lw=2))
+    ax.text(u, v, f"#{t.pick_rank + 1}", color="white", ha="center", va="center", fontsize=12, weight="bold")
+    cu, cv = project([t.cut_point.x, t.cut_point.y, t.cut_point.z])
+    ax.plot(cu, cv, "x", color="yellow", ms=8, mew=2)
+
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bag")
@@ -80,37 +109,28 @@ def main():
     ax.imshow(img)
     ax.set_axis_off()
     title = "simulated truss"
+    outcome_of = pick_outcomes(tomatoes, summary)
     if tomatoes is not None:
         title = f"{len(tomatoes.tomatoes)} tomatoes, pick order {list(tomatoes.pick_order)}"
         for k, t in enumerate(tomatoes.tomatoes):
-            c = np.array([t.centre.x, t.centre.y, t.centre.z])
-            u, v = project(c)
-            r_px = fx * t.radius_m / c[2]
-            ax.add_patch(plt.Circle((u, v), r_px, fill=False, ec="yellow", lw=1.5))
-            d = np.array([t.pedicel_direction.x, t.pedicel_direction.y, t.pedicel_direction.z])
-            u0, v0 = project(c + t.radius_m * d)
-            u1, v1 = project(c + (t.radius_m + 0.04) * d)
-            ax.annotate("", xy=(u1, v1), xytext=(u0, v0), arrowprops=dict(arrowstyle="->", color="lime", lw=2))
-            ax.text(u, v, f"#{t.pick_rank + 1}", color="white", ha="center", va="center", fontsize=12, weight="bold")
-            cu, cv = project([t.cut_point.x, t.cut_point.y, t.cut_point.z])
-            ax.plot(cu, cv, "x", color="yellow", ms=8, mew=2)
+            draw_tomato(ax, project, fx, t, outcome_of.get(k))
     for m in verifications:
-        cu, cv = project([m.cut_point.x, m.cut_point.y, m.cut_point.z])
+        cut = [m.cut_point.x, m.cut_point.y, m.cut_point.z]
+        if not (np.all(np.isfinite(cut)) and cut[2] > 0):
+            continue  # nothing found: no cut point to draw
+        cu, cv = project(cut)
         colour = "cyan" if m.outcome in (0, 1) else "magenta"
         ax.plot(cu, cv, "o", mfc="none", mec=colour, ms=10, mew=2)
-        ax.text(cu + 8, cv, OUTCOMES.get(m.outcome, "?"), color=colour, fontsize=8)
-    if summary is not None:
-        for p in summary.picks:
-            c = np.array([p.centre.x, p.centre.y, p.centre.z])
-            u, v = project(c)
-            colour = "lime" if p.outcome == 0 else "orange"
-            ax.text(u, v + fx * p.radius_m / c[2] + 12, f"{PICKS.get(p.outcome, '?')} ({p.attempts})", color=colour,
-                    ha="center", fontsize=10, weight="bold")
+    if outcome_of:
+        lines = [f"#{tomatoes.tomatoes[k].pick_rank + 1}: {PICKS.get(o, '?')} (attempts {a})"
+                 for k, (o, a) in sorted(outcome_of.items(), key=lambda kv: tomatoes.tomatoes[kv[0]].pick_rank)]
+        ax.text(0.01, 0.99, "\n".join(lines), transform=ax.transAxes, va="top", fontsize=10, family="monospace",
+                bbox=dict(facecolor="white", alpha=0.85, edgecolor="grey"))
     if score is not None:
         title += (f"\nclass {score.truss_class} seed {score.seed}: trials {score.trials}, SD {score.detected}, "
                   f"SP(1) {score.picked_first}, SP(2) {score.picked_second}, HS {score.human}, CF {score.cut_failures}")
-    ax.set_title(title + "\nyellow: spheres, planned cuts (x); green: expected pedicels; cyan: cuts after laser "
-                 "verification;\nbelow each fruit: its pick's outcome (attempts)", fontsize=10)
+    ax.set_title(title + "\nspheres coloured by outcome (green picked, red cut failure, orange cut another's, white left); "
+                 "\nx: planned cuts; arrows: expected pedicels; cyan rings: cuts after laser verification", fontsize=10)
     fig.tight_layout()
     fig.savefig(args.out, dpi=110)
     print(f"wrote {args.out}")
