@@ -368,7 +368,7 @@ void count_kappa_hits(KappaTally& tally, const eval::Scenario& sc, const Pipelin
 
 /// A trial's failure cause in a few words: what jammed the blades (its
 /// kind: fruit, peduncle, main stem, pedicels), or why the last attempt did
-/// not close (the reason's words before any number); "" when picked.
+/// not close (the reason with its figures as N); "" when picked.
 std::string cause_of(const eval::HarvestTrial& t) {
   using O = eval::HarvestOutcome;
   if (t.outcome == O::kPickedFirst || t.outcome == O::kPickedSecond) return "";
@@ -377,7 +377,7 @@ std::string cause_of(const eval::HarvestTrial& t) {
   if (!t.detected) return "not detected";
   const std::string last = t.why.substr(t.why.rfind(';') + 1);
   if (last.empty()) return "left after: " + t.cuts.substr(t.cuts.rfind(';') + 1);
-  return "left: " + last.substr(0, std::min(last.find_first_of("0123456789("), std::size_t{60}));
+  return "left: " + eval::without_figures(last);
 }
 
 void harvest_truss(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {

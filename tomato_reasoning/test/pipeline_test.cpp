@@ -148,3 +148,15 @@ TEST(Pipeline, SpheresDoNotShrinkUnderDepthNoise) {
   EXPECT_LT(eval::percentile(before, 50), -0.002);
   EXPECT_LT(std::abs(eval::percentile(after, 50)), 0.5 * std::abs(eval::percentile(before, 50)));
 }
+
+TEST(Scoring, ReasonsThatDifferOnlyInTheirFiguresCountAsOneCause) {
+  using eval::without_figures;
+  EXPECT_EQ(without_figures("the laser sees 2 objects between the blades"),
+            without_figures("the laser sees 3 objects between the blades"));
+  EXPECT_EQ(without_figures("the laser sees an object 14 mm wide between the blades"),
+            "the laser sees an object N mm wide between the blades");
+  EXPECT_EQ(without_figures("out_of_view: no return between 0.050 and 0.350 m (0 valid pixels of 256)"),
+            "out_of_view: no return between N and N m");
+  EXPECT_EQ(without_figures("no cut clears the blades (the nearest fruit 3 mm from them)"), "no cut clears the blades");
+  EXPECT_EQ(without_figures("nothing_found: "), "nothing_found");
+}

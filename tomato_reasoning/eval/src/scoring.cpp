@@ -2,6 +2,7 @@
 #include "tomato_reasoning/eval/scoring.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <set>
 #include <sstream>
@@ -285,6 +286,19 @@ std::string to_json(const Summary& s) {
   num("total_ms_p95", s.total_ms_p95, true);
   o << "}\n";
   return o.str();
+}
+
+std::string without_figures(const std::string& reason) {
+  std::string out;
+  bool in_number = false;  // a decimal point inside a number belongs to it
+  for (const char c : reason.substr(0, reason.find('('))) {
+    const bool digit = std::isdigit(static_cast<unsigned char>(c)) != 0;
+    if (digit && !in_number) out += 'N';
+    if (!digit && !(in_number && c == '.')) out += c;
+    in_number = digit || (in_number && c == '.');
+  }
+  while (!out.empty() && (out.back() == ' ' || out.back() == ':')) out.pop_back();
+  return out;
 }
 
 }  // namespace tinyline::tomato_reasoning::eval

@@ -78,6 +78,11 @@ struct TrussScore {
 [[nodiscard]] std::vector<int> pick_order_in_truth(const Scenario& s, const PipelineResult& r,
                                                    const ScoreParams& p = {});
 
+/// A reason's words with every number as N and nothing from the first '('
+/// on ("the laser sees 2 objects (...)" -> "the laser sees N objects"), so
+/// that reasons differing only in their figures count together.
+[[nodiscard]] std::string without_figures(const std::string& reason);
+
 struct Summary {
   int trusses = 0, truth = 0, detected = 0, visible = 0, visible_detected = 0, detections = 0, unmatched = 0;
   double centre_median_mm = NAN, centre_p95_mm = NAN;
