@@ -33,7 +33,7 @@
 #include <type_traits>
 #include <utility>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::common {
 
@@ -139,17 +139,17 @@ inline std::string text(double v) {
 /// Checks every numeric field of `settings` against its table's range (NaN
 /// fails): the first field outside it, named as in launch files.
 template <class S>
-[[nodiscard]] Validation within_table(const S& settings) {
+[[nodiscard]] Status within_table(const S& settings) {
   using detail::text;
-  Validation out;
+  Status out;
   auto check = [&out](const auto& field, const Param& p, auto&&...) {
     using T = std::remove_cvref_t<decltype(field)>;
     if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
-      if (!out.valid) return;
+      if (!out.ok()) return;
       const double v = static_cast<double>(field) / p.scale;
       if (std::isnan(v) || (p.min && v < *p.min) || (p.max && v > *p.max)) {
-        out = Validation::invalid(std::string(p.name) + " must be in [" + (p.min ? text(*p.min) : "-inf") + ", " +
-                                  (p.max ? text(*p.max) : "inf") + "], got " + text(v));
+        out = Status::invalid(std::string(p.name) + " must be in [" + (p.min ? text(*p.min) : "-inf") + ", " +
+                              (p.max ? text(*p.max) : "inf") + "], got " + text(v));
       }
     }
   };
