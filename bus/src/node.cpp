@@ -51,8 +51,8 @@ Node::~Node() {
 
 std::string Node::full_name() const { return (ns_ == "/" ? "" : ns_) + "/" + name_; }
 
-void Node::require_valid(const common::Validation& v) const {
-  if (!v.valid) throw ParamError({}, "node '" + full_name() + "': " + v.reason);
+void Node::require_valid(const common::Status& v) const {
+  if (!v.ok()) throw ParamError({}, "node '" + full_name() + "': " + v.message);
 }
 
 std::string Node::resolve_topic(const std::string& name) const {

@@ -20,7 +20,7 @@
 #include <tinyline/bus/names.hpp>
 #include <tinyline/bus/params.hpp>
 #include <tinyline/bus/qos.hpp>
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 #include <tinyline/msg/type_support.hpp>
 
 namespace tinyline::bus {
@@ -166,7 +166,7 @@ class Node {
 
   /// A core's verdict on the parameters this node read: throws ParamError
   /// "node '/ns/name': <reason>" when it is invalid.
-  void require_valid(const common::Validation& v) const;
+  void require_valid(const common::Status& v) const;
 
   /// The topic a name given in code resolves to (namespace, ~, remaps).
   std::string resolve_topic(const std::string& name) const;

@@ -4,46 +4,18 @@
 // in BagError.
 #pragma once
 
-#include <cstdint>
 #include <stdexcept>
-#include <string>
-#include <string_view>
 #include <utility>
+
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::bag {
 
-enum class StatusCode {
-  Ok = 0,
-  OpenFailed,        ///< the file could not be opened or created
-  ReadFailed,        ///< an I/O error while reading
-  WriteFailed,       ///< an I/O error while writing (disk full, closed fd)
-  BadMagic,          ///< the leading or trailing magic bytes are wrong
-  Truncated,         ///< the file ends inside a record (a writer that died, or a cut copy)
-  InvalidRecord,     ///< a record's content does not parse
-  InvalidFooter,     ///< the footer or summary offsets point outside the file
-  CrcMismatch,       ///< a chunk, data section, summary or attachment CRC does not match
-  Unsupported,       ///< an unknown chunk compression, or a feature this reader lacks
-  DecompressFailed,  ///< the compressed bytes of a chunk are corrupt
-  LimitExceeded,     ///< a record is larger than the reader's configured limit
-  InvalidArgument,   ///< the caller asked for something impossible (unknown channel, ...)
-  NotOpen,           ///< the reader or writer is not open (or already closed)
-};
-
-std::string_view to_string(StatusCode c);
-
-struct [[nodiscard]] Status {
-  StatusCode code = StatusCode::Ok;
-  std::string message;
-
-  Status() = default;
-  Status(StatusCode c, std::string m) : code(c), message(std::move(m)) {}
-
-  static Status ok_status() { return {}; }
-  bool ok() const { return code == StatusCode::Ok; }
-  explicit operator bool() const { return ok(); }
-  /// "crc mismatch: scans.mcap: chunk at byte 1234: ..."
-  std::string str() const;
-};
+/// The bag codec's outcome is the project's one outcome type; its codes for
+/// files and streams (OpenFailed ... NotOpen) live there with the others.
+using common::Status;
+using common::StatusCode;
+using common::to_string;
 
 class BagError : public std::runtime_error {
  public:
