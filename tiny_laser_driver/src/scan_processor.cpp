@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <tiny_laser_driver/scan_processor.hpp>
 
+#include <tiny_laser_driver/param_tables.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -39,14 +41,7 @@ void clear_pixel(ProcessedScan& out, std::size_t p, PixelStatus s) {
 }
 }  // namespace
 
-common::Validation OpticsParams::validate() const {
-  if (!(focal_mm > 0.0) || !std::isfinite(focal_mm))
-    return common::Validation::invalid(fmt::format("focal_mm must be positive, got {}", focal_mm));
-  if (!(sensor_length_mm > 0.0) || !std::isfinite(sensor_length_mm)) {
-    return common::Validation::invalid(fmt::format("sensor_length_mm must be positive, got {}", sensor_length_mm));
-  }
-  return common::Validation::ok();
-}
+common::Validation OpticsParams::validate() const { return common::within_table(*this); }
 
 double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
   const double pitch_mm = optics.sensor_length_mm / static_cast<double>(kPixels - 2 * kDarkPixels);

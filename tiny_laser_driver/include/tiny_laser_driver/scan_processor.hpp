@@ -26,8 +26,8 @@ struct OpticsParams {
   double focal_mm = 3.6;           ///< receiver lens focal length [mm] (3.6 or 8 mm shipped)
   double sensor_length_mm = 5.12;  ///< length of the 256 effective pixels [mm] (the sensor's data)
 
-  /// Why these cannot work (empty when they can).
-  common::Validation validate() const;
+  /// Why these cannot work: a value outside its parameter table's range.
+  [[nodiscard]] common::Validation validate() const;
 };
 
 /// Ray angle of pixel `pixel` (0-271, dark ones included) in the sensor's x-z
