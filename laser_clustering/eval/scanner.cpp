@@ -34,7 +34,7 @@ std::string resolve(const std::string& config) {
 sim::SensorParams load(const SimScannerOptions& o) {
   sim::SensorParams p = sim::load_sensor_params(resolve(o.sensor_config));
   if (!o.raw_pulses.empty()) p.acquisition.raw_pulses = o.raw_pulses;
-  if (const common::Validation why = p.validate(); !why.valid) throw std::runtime_error("sim scanner: " + why.reason);
+  if (const common::Status why = p.validate(); !why.ok()) throw std::runtime_error("sim scanner: " + why.message);
   return p;
 }
 

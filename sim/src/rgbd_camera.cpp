@@ -134,35 +134,35 @@ double DepthDistortion::offset_m(double xn, double yn, double z_m) const {
   return c[0] + c[1] * xn + c[2] * yn + c[3] * xn * xn + c[4] * xn * yn + c[5] * yn * yn + z_slope * z_m;  // Eq. 4.4
 }
 
-common::Validation RgbdCameraParams::validate() const {
+common::Status RgbdCameraParams::validate() const {
   const auto& k = intrinsics;
   auto finite_pos = [](double x) { return std::isfinite(x) && x > 0.0; };
-  if (k.width < 2 || k.height < 2) return common::Validation::invalid("intrinsics: width and height must be >= 2 px");
+  if (k.width < 2 || k.height < 2) return common::Status::invalid("intrinsics: width and height must be >= 2 px");
   if (!finite_pos(k.fx) || !finite_pos(k.fy))
-    return common::Validation::invalid("intrinsics: fx and fy must be finite and > 0");
+    return common::Status::invalid("intrinsics: fx and fy must be finite and > 0");
   if (!std::isfinite(k.cx) || !std::isfinite(k.cy))
-    return common::Validation::invalid("intrinsics: cx and cy must be finite");
+    return common::Status::invalid("intrinsics: cx and cy must be finite");
   if (!finite_pos(min_depth_m) || !(max_depth_m > min_depth_m) || !std::isfinite(max_depth_m))
-    return common::Validation::invalid("min_depth_m must be > 0 and below max_depth_m (finite)");
-  if (!finite_pos(projector_baseline_m)) return common::Validation::invalid("projector_baseline_m must be > 0");
+    return common::Status::invalid("min_depth_m must be > 0 and below max_depth_m (finite)");
+  if (!finite_pos(projector_baseline_m)) return common::Status::invalid("projector_baseline_m must be > 0");
   if (!(disparity_noise_px >= 0) || !(disparity_noise_correlated_px >= 0) || !(disparity_step_px >= 0))
-    return common::Validation::invalid("disparity noise and step must be >= 0");
-  if (correlation_window_px < 1) return common::Validation::invalid("correlation_window_px must be >= 1");
+    return common::Status::invalid("disparity noise and step must be >= 0");
+  if (correlation_window_px < 1) return common::Status::invalid("correlation_window_px must be >= 1");
   if (!(edge_jump_m > 0) || !(edge_jump_per_m >= 0))
-    return common::Validation::invalid("edge_jump_m must be > 0 and edge_jump_per_m >= 0");
-  if (!(edge_dropout >= 0 && edge_dropout <= 1)) return common::Validation::invalid("edge_dropout must be in [0, 1]");
+    return common::Status::invalid("edge_jump_m must be > 0 and edge_jump_per_m >= 0");
+  if (!(edge_dropout >= 0 && edge_dropout <= 1)) return common::Status::invalid("edge_dropout must be in [0, 1]");
   if (!(grazing_start_deg >= 0 && grazing_start_deg < grazing_end_deg && grazing_end_deg <= 90))
-    return common::Validation::invalid("grazing angles must satisfy 0 <= start < end <= 90 deg");
-  if (!light_position_m.allFinite()) return common::Validation::invalid("light_position_m must be finite");
+    return common::Status::invalid("grazing angles must satisfy 0 <= start < end <= 90 deg");
+  if (!light_position_m.allFinite()) return common::Status::invalid("light_position_m must be finite");
   if (!(light_intensity >= 0) || !(ambient >= 0) || !(exposure > 0) || !(colour_noise_dn >= 0))
-    return common::Validation::invalid("light_intensity, ambient, colour_noise_dn must be >= 0 and exposure > 0");
+    return common::Status::invalid("light_intensity, ambient, colour_noise_dn must be >= 0 and exposure > 0");
   for (const auto& g : gloss)
     if (!(g.strength >= 0 && g.strength <= 1) || !(g.exponent >= 1))
-      return common::Validation::invalid("gloss: strength in [0, 1], exponent >= 1");
+      return common::Status::invalid("gloss: strength in [0, 1], exponent >= 1");
   for (double c : distortion.spatial_m)
-    if (!std::isfinite(c)) return common::Validation::invalid("distortion coefficients must be finite");
-  if (!std::isfinite(distortion.z_slope)) return common::Validation::invalid("distortion z_slope must be finite");
-  return common::Validation::ok();
+    if (!std::isfinite(c)) return common::Status::invalid("distortion coefficients must be finite");
+  if (!std::isfinite(distortion.z_slope)) return common::Status::invalid("distortion z_slope must be finite");
+  return common::Status{};
 }
 
 Eigen::Vector3f RgbdFrame::point(std::size_t i) const {
@@ -178,8 +178,8 @@ std::size_t RgbdFrame::num_valid() const {
 }
 
 RgbdCamera::RgbdCamera(RgbdCameraParams params) : params_(std::move(params)) {
-  if (const common::Validation why = params_.validate(); !why.valid)
-    throw std::invalid_argument("RgbdCamera: " + why.reason);
+  if (const common::Status why = params_.validate(); !why.ok())
+    throw std::invalid_argument("RgbdCamera: " + why.message);
 }
 
 bool RgbdCamera::project(const Eigen::Vector3d& p, Eigen::Vector2d& uv) const {

@@ -130,8 +130,8 @@ void read_sensors(const YamlNode& list, Scene& scene, const std::string& base_di
     }
     if (auto params = n.find("params")) apply_sensor_params(*params, m.params);
     if (auto pose = n.find("pose")) m.T_world_sensor = pose->as_pose();
-    if (const std::string why = scene.check_sensor_placement(m); !why.empty()) {
-      (n.find("pose") ? *n.find("pose") : n).fail(why);
+    if (const common::Status why = scene.check_sensor_placement(m); !why.ok()) {
+      (n.find("pose") ? *n.find("pose") : n).fail(why.message);
     }
     scene.sensors.push_back(std::move(m));
   }
@@ -187,14 +187,14 @@ const SensorMount* Scene::sensor(std::string_view n) const {
   return nullptr;
 }
 
-std::string Scene::check_sensor_placement(const SensorMount& m) const {
+common::Status Scene::check_sensor_placement(const SensorMount& m) const {
   const Eigen::Vector3d receiver = m.T_world_sensor.translation();
   const Eigen::Vector3d emitter = m.T_world_sensor * Eigen::Vector3d(m.params.emitter.baseline_m, 0, 0);
   for (const auto& [what, p] : {std::pair{"receiver", receiver}, std::pair{"emitter", emitter}}) {
     const auto inside = world.containing(p);
     if (!inside.empty()) {
-      return std::string("sensor '") + m.name + "' " + what + " is inside object '" +
-             world.object(inside.front()).name + "'";
+      return common::Status::invalid(std::string("sensor '") + m.name + "' " + what + " is inside object '" +
+                                     world.object(inside.front()).name + "'");
     }
   }
   return {};

@@ -245,7 +245,7 @@ void apply_sensor_params(const YamlNode& n, SensorParams& p) {
     p.effects.clear();  // a file's list replaces its base's list
     for (const auto& item : e->items()) p.effects.push_back(read_effect(item));
   }
-  if (const common::Validation why = p.validate(); !why.valid) n.fail(why.reason);
+  if (const common::Status why = p.validate(); !why.ok()) n.fail(why.message);
 }
 
 SensorParams load_sensor_params(const std::string& path) {
@@ -268,21 +268,20 @@ SensorParams load_sensor_params(const std::string& path) {
   return p;
 }
 
-common::Validation SensorParams::validate() const {
+common::Status SensorParams::validate() const {
   if (lens.pixels <= 2 * lens.dark_pixels)
-    return common::Validation::invalid("lens.pixels must exceed twice lens.dark_pixels");
-  if (pixel.knee > pixel.full_scale) return common::Validation::invalid("pixel.knee must not exceed pixel.full_scale");
+    return common::Status::invalid("lens.pixels must exceed twice lens.dark_pixels");
+  if (pixel.knee > pixel.full_scale) return common::Status::invalid("pixel.knee must not exceed pixel.full_scale");
   if (pixel.adc_max < pixel.full_scale)
-    return common::Validation::invalid("pixel.adc_max must be at least pixel.full_scale");
-  if (pixel.adc_max * 10.0 > 32767.0)
-    return common::Validation::invalid("pixel.adc_max * 10 must fit the wire's int16");
+    return common::Status::invalid("pixel.adc_max must be at least pixel.full_scale");
+  if (pixel.adc_max * 10.0 > 32767.0) return common::Status::invalid("pixel.adc_max * 10 must fit the wire's int16");
   if (thermal.warm_c < thermal.ambient_c - 50.0)
-    return common::Validation::invalid("thermal.warm_c is implausibly below thermal.ambient_c");
+    return common::Status::invalid("thermal.warm_c is implausibly below thermal.ambient_c");
   if (thermal.warm_c >= 65.5 || thermal.ambient_c >= 65.5)
-    return common::Validation::invalid("temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)");
+    return common::Status::invalid("temperatures must stay below 65.5 degC (the wire packs 0.1 degC * 100)");
   if (firmware.compensated_pixel >= lens.pixels)
-    return common::Validation::invalid("firmware.compensated_pixel must be a pixel (or -1: none)");
-  return common::Validation::ok();
+    return common::Status::invalid("firmware.compensated_pixel must be a pixel (or -1: none)");
+  return common::Status{};
 }
 
 namespace {

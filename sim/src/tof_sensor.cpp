@@ -284,8 +284,8 @@ void resolve_effects(TofLineSensor::Impl& m, const std::vector<EffectSpec>& effe
 }  // namespace
 
 TofLineSensor::TofLineSensor(SensorParams params) : params_(std::move(params)), impl_(std::make_unique<Impl>()) {
-  if (const common::Validation why = params_.validate(); !why.valid)
-    throw std::invalid_argument("sensor parameters: " + why.reason);
+  if (const common::Status why = params_.validate(); !why.ok())
+    throw std::invalid_argument("sensor parameters: " + why.message);
   Impl& m = *impl_;
   init_geometry(m, params_.lens);
   init_pixel_constants(m, params_.pixel, params_.seed);

@@ -167,58 +167,58 @@ const char* shape_name(const Shape& s) {
       s);
 }
 
-common::Validation validate_shape(const Shape& s) {
-  return std::visit(Overloaded{[](const PlaneShape& p) -> common::Validation {
+common::Status validate_shape(const Shape& s) {
+  return std::visit(Overloaded{[](const PlaneShape& p) -> common::Status {
                                  if (std::isnan(p.size_m.x()) || std::isnan(p.size_m.y()) || !(p.size_m.x() > 0) ||
                                      !(p.size_m.y() > 0))
-                                   return common::Validation::invalid("plane size_m must be > 0");
-                                 return common::Validation::ok();
+                                   return common::Status::invalid("plane size_m must be > 0");
+                                 return common::Status{};
                                },
-                               [](const BoxShape& b) -> common::Validation {
+                               [](const BoxShape& b) -> common::Status {
                                  if (!finite(b.size_m) || (b.size_m.array() <= 0.0).any())
-                                   return common::Validation::invalid("box size_m must be finite and > 0");
-                                 return common::Validation::ok();
+                                   return common::Status::invalid("box size_m must be finite and > 0");
+                                 return common::Status{};
                                },
-                               [](const SphereShape& s) -> common::Validation {
+                               [](const SphereShape& s) -> common::Status {
                                  if (!std::isfinite(s.radius_m) || s.radius_m <= 0)
-                                   return common::Validation::invalid("sphere radius_m must be finite and > 0");
-                                 return common::Validation::ok();
+                                   return common::Status::invalid("sphere radius_m must be finite and > 0");
+                                 return common::Status{};
                                },
-                               [](const CylinderShape& c) -> common::Validation {
+                               [](const CylinderShape& c) -> common::Status {
                                  if (!std::isfinite(c.radius_m) || c.radius_m <= 0)
-                                   return common::Validation::invalid("cylinder radius_m must be finite and > 0");
+                                   return common::Status::invalid("cylinder radius_m must be finite and > 0");
                                  if (!std::isfinite(c.length_m) || c.length_m <= 0)
-                                   return common::Validation::invalid("cylinder length_m must be finite and > 0");
-                                 return common::Validation::ok();
+                                   return common::Status::invalid("cylinder length_m must be finite and > 0");
+                                 return common::Status{};
                                },
-                               [](const RodShape& r) -> common::Validation {
+                               [](const RodShape& r) -> common::Status {
                                  if (!std::isfinite(r.radius_m) || r.radius_m <= 0)
-                                   return common::Validation::invalid("rod radius_m must be finite and > 0");
+                                   return common::Status::invalid("rod radius_m must be finite and > 0");
                                  if (!finite(r.p0) || !finite(r.p1))
-                                   return common::Validation::invalid("rod end points must be finite");
+                                   return common::Status::invalid("rod end points must be finite");
                                  if ((r.p1 - r.p0).norm() < 1e-9)
-                                   return common::Validation::invalid("rod end points p0 and p1 coincide");
-                                 return common::Validation::ok();
+                                   return common::Status::invalid("rod end points p0 and p1 coincide");
+                                 return common::Status{};
                                },
-                               [](const MeshShape& m) -> common::Validation {
-                                 if (m.triangles.empty()) return common::Validation::invalid("mesh has no triangles");
+                               [](const MeshShape& m) -> common::Status {
+                                 if (m.triangles.empty()) return common::Status::invalid("mesh has no triangles");
                                  for (const auto& v : m.vertices)
-                                   if (!finite(v)) return common::Validation::invalid("mesh vertex is not finite");
+                                   if (!finite(v)) return common::Status::invalid("mesh vertex is not finite");
                                  const int n = static_cast<int>(m.vertices.size());
                                  for (std::size_t i = 0; i < m.triangles.size(); ++i) {
                                    const auto& t = m.triangles[i];
                                    if ((t.array() < 0).any() || (t.array() >= n).any())
-                                     return common::Validation::invalid("mesh triangle " + std::to_string(i) +
-                                                                        " indexes a vertex that does not exist");
+                                     return common::Status::invalid("mesh triangle " + std::to_string(i) +
+                                                                    " indexes a vertex that does not exist");
                                  }
-                                 return common::Validation::ok();
+                                 return common::Status{};
                                }},
                     s);
 }
 
 ObjectId World::add(Object o) {
-  if (const common::Validation why = validate_shape(o.shape); !why.valid) {
-    throw std::invalid_argument("object '" + o.name + "': " + why.reason);
+  if (const common::Status why = validate_shape(o.shape); !why.ok()) {
+    throw std::invalid_argument("object '" + o.name + "': " + why.message);
   }
   if (o.material < 0 || static_cast<std::size_t>(o.material) >= materials_.size()) {
     throw std::invalid_argument("object '" + o.name + "': unknown material id " + std::to_string(o.material));

@@ -17,7 +17,7 @@ TEST(Fidelity, ShippedSensorMeetsTheThesisGoals) {
   const FidelityReport r = run_fidelity(load_sensor_params(src("config/sensors/tiny_tof_8mm.yaml")));
   const FidelityVerdict v = judge(r, measured);
   for (const auto& f : v.failures) ADD_FAILURE() << f;
-  EXPECT_TRUE(v.ok);
+  EXPECT_TRUE(v.goals_met());
   EXPECT_LE(v.worst_sd_ratio_error, 0.30);
   EXPECT_LE(v.worst_material_bias_cm, 0.5);
   EXPECT_LE(v.ic_foam_bias_error_cm, 2.0);
@@ -38,7 +38,7 @@ TEST(Fidelity, FirstGuessModelMissesTheGoals) {
   o.fits = o.temperature = false;
   const FidelityReport r = run_fidelity(load_sensor_params(src("config/fidelity/loop/step0_first_guess.yaml")), o);
   const FidelityVerdict v = judge(r, measured);
-  EXPECT_FALSE(v.ok);
+  EXPECT_FALSE(v.goals_met());
   EXPECT_GT(v.ic_foam_bias_error_cm, 5.0);
   EXPECT_GT(v.worst_sd_ratio_error, 1.0);
 }

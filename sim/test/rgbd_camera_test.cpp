@@ -234,7 +234,7 @@ TEST(RgbdCamera, BadParametersAreRefused) {
   auto bad = [](auto edit) {
     RgbdCameraParams p;
     edit(p);
-    EXPECT_FALSE(p.validate().valid);
+    EXPECT_FALSE(p.validate().ok());
     EXPECT_THROW(RgbdCamera{p}, std::invalid_argument);
   };
   bad([](RgbdCameraParams& p) { p.intrinsics.width = 0; });

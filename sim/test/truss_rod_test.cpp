@@ -223,20 +223,20 @@ TEST(TrussRod, PathsRoundTripThroughTheSceneAndPendulumScenesStayStraight) {
 
 TEST(TrussRod, SceneOptionsAreSetByNameAndBadOnesAreRefused) {
   TrussParams p;
-  EXPECT_TRUE(set_truss_option(p, "physics", "elastic_rod").valid);
+  EXPECT_TRUE(set_truss_option(p, "physics", "elastic_rod").ok());
   EXPECT_EQ(p.physics, TrussPhysics::kElasticRod);
-  EXPECT_TRUE(set_truss_option(p, "stem_bend_deg", "30").valid);
+  EXPECT_TRUE(set_truss_option(p, "stem_bend_deg", "30").ok());
   EXPECT_DOUBLE_EQ(p.stem_bend_deg, 30.0);
-  EXPECT_TRUE(set_truss_option(p, "pedicel_leaves", "2").valid);
+  EXPECT_TRUE(set_truss_option(p, "pedicel_leaves", "2").ok());
   EXPECT_EQ(p.pedicel_leaves, 2);
-  EXPECT_FALSE(set_truss_option(p, "physics", "jelly").valid);
-  EXPECT_FALSE(set_truss_option(p, "friction", "nan").valid);
-  EXPECT_FALSE(set_truss_option(p, "friction", "0.5x").valid);
-  EXPECT_FALSE(set_truss_option(p, "pedicel_leaves", "1.5").valid);
-  EXPECT_FALSE(set_truss_option(p, "stem_bend_deg", "500").valid);
+  EXPECT_FALSE(set_truss_option(p, "physics", "jelly").ok());
+  EXPECT_FALSE(set_truss_option(p, "friction", "nan").ok());
+  EXPECT_FALSE(set_truss_option(p, "friction", "0.5x").ok());
+  EXPECT_FALSE(set_truss_option(p, "pedicel_leaves", "1.5").ok());
+  EXPECT_FALSE(set_truss_option(p, "stem_bend_deg", "500").ok());
   const auto unknown = set_truss_option(p, "wobble", "1");
-  EXPECT_FALSE(unknown.valid);
-  EXPECT_NE(unknown.reason.find("wobble"), std::string::npos);
+  EXPECT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.message.find("wobble"), std::string::npos);
 }
 
 TEST(TrussRod, CurvedStemsAndPedicelLeavesAppearInTheWorld) {

@@ -25,7 +25,7 @@ namespace {
 void json(std::ostream& o, const FidelityReport& r, const ThesisFigures& m, const FidelityVerdict& v,
           const std::string& sensor) {
   o.precision(8);
-  o << "{\n  \"sensor\": \"" << sensor << "\",\n  \"goals_met\": " << (v.ok ? "true" : "false") << ",\n";
+  o << "{\n  \"sensor\": \"" << sensor << "\",\n  \"goals_met\": " << (v.goals_met() ? "true" : "false") << ",\n";
   o << "  \"calibration\": {\"rsen\": " << r.constants.rsen << ", \"vle_per_pulse\": " << r.constants.vle_per_pulse
     << "},\n";
   o << "  \"fits\": [";
@@ -108,7 +108,7 @@ void print_report(const std::string& sensor_path, const FidelityReport& r, const
                 d.mean_cm - 30.0, d.sd_cm, d.reflectance, md.mean_cm - 30.0, md.sd_cm, md.reflectance);
   }
   std::printf("\nTemperature (3.3.4): %.3f cm per degC during warm-up\n", r.temperature_cm_per_c);
-  std::printf("\n%s\n", v.ok ? "All goals met." : "Goals missed:");
+  std::printf("\n%s\n", v.goals_met() ? "All goals met." : "Goals missed:");
   for (const auto& f : v.failures) std::printf("  - %s\n", f.c_str());
 }
 }  // namespace
@@ -152,7 +152,7 @@ int main(int argc, char** argv) {
       json(o, r, m, v, sensor_path);
       o.commit();
     }
-    return v.ok ? 0 : 1;
+    return v.goals_met() ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "sim_fidelity: " << e.what() << "\n";
     return 1;

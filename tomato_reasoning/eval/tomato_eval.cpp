@@ -158,8 +158,8 @@ void apply_truss_sets(const std::vector<std::string>& truss_sets, Request& r) {
   r.scenario.truss.physics = tinyline::sim::TrussPhysics::kElasticRod;
   for (const auto& kv : truss_sets) {
     const auto [key, value] = key_value("--truss-set", kv);
-    if (const auto why = tinyline::sim::set_truss_option(r.scenario.truss, key, value); !why.valid)
-      throw cli::ParseError("--truss-set", why.reason);
+    if (const auto why = tinyline::sim::set_truss_option(r.scenario.truss, key, value); !why.ok())
+      throw cli::ParseError("--truss-set", why.message);
   }
 }
 

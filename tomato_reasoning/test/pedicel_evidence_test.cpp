@@ -86,7 +86,7 @@ TEST(PedicelEvidence, ANeighboursPedicelIsNotThisFruitsEvidence) {
 TEST(PedicelEvidence, OnSimulatedElasticRodTrussesThePosteriorBeatsTheForceModel) {
   eval::ScenarioOptions o;
   o.views = 2;
-  ASSERT_TRUE(sim::set_truss_option(o.truss, "physics", "elastic_rod").valid);
+  ASSERT_TRUE(sim::set_truss_option(o.truss, "physics", "elastic_rod").ok());
   std::vector<double> prior, post;
   for (std::uint64_t seed : {1u, 2u, 3u}) {  // tuning seeds
     const eval::Scenario s = eval::make_scenario(sim::TrussClass::kB, seed, o);

@@ -11,8 +11,8 @@ namespace sim = tinyline::sim;
 TEST(ScenarioWorld, TheTrussOptionsReachTheScenario) {
   eval::ScenarioOptions o;
   const eval::Scenario pendulum = eval::make_scenario(sim::TrussClass::kB, 7, o);
-  ASSERT_TRUE(sim::set_truss_option(o.truss, "physics", "elastic_rod").valid);
-  ASSERT_TRUE(sim::set_truss_option(o.truss, "pedicel_leaves", "1").valid);
+  ASSERT_TRUE(sim::set_truss_option(o.truss, "physics", "elastic_rod").ok());
+  ASSERT_TRUE(sim::set_truss_option(o.truss, "pedicel_leaves", "1").ok());
   const eval::Scenario rod = eval::make_scenario(sim::TrussClass::kB, 7, o);
   EXPECT_EQ(pendulum.truss.params.physics, sim::TrussPhysics::kPendulum);
   EXPECT_EQ(rod.truss.params.physics, sim::TrussPhysics::kElasticRod);

@@ -100,12 +100,15 @@ struct ThesisFigures {
 [[nodiscard]] ThesisFigures load_thesis_figures(const std::string& path);
 
 /// The fidelity goals (docs/simulator_fidelity.md), checked against the measured figures.
+/// A verdict, not an error: judge() always runs to the end and lists every
+/// goal missed.
 struct FidelityVerdict {
-  bool ok = true;
   std::vector<std::string> failures;    ///< one line per missed goal
   double worst_sd_ratio_error = 0.0;    ///< max |sim/measured - 1| over Table 3.1 SDs
   double worst_material_bias_cm = 0.0;  ///< max |sim bias - measured bias| excluding IC foam
   double ic_foam_bias_error_cm = 0.0;
+
+  [[nodiscard]] bool goals_met() const { return failures.empty(); }
 };
 [[nodiscard]] FidelityVerdict judge(const FidelityReport& r, const ThesisFigures& m);
 

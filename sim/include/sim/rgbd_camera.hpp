@@ -33,7 +33,7 @@
 
 #include <sim/world.hpp>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::sim {
 
@@ -109,8 +109,8 @@ struct RgbdCameraParams {
   /// whole world (the reference the benchmark compares with).
   bool tile_culling = true;
 
-  /// Why the parameters cannot work (empty when they can).
-  common::Validation validate() const;
+  /// Why the parameters cannot work (InvalidArgument); ok when they can.
+  common::Status validate() const;
 };
 
 /// One registered RGB-D frame. Pixel (u, v) is index v * width + u.

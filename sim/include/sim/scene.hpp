@@ -30,6 +30,8 @@
 
 #include <Eigen/Geometry>
 
+#include <tinyline/common/status.hpp>
+
 #include <sim/sensor_params.hpp>
 #include <sim/world.hpp>
 #include <sim/yaml_node.hpp>
@@ -53,8 +55,8 @@ struct Scene {
   std::map<std::string, std::vector<double>> truth;
 
   [[nodiscard]] const SensorMount* sensor(std::string_view name) const;
-  /// Why a sensor cannot be where it is (inside an object); empty when fine.
-  [[nodiscard]] std::string check_sensor_placement(const SensorMount& m) const;
+  /// Why a sensor cannot be where it is (inside an object).
+  [[nodiscard]] common::Status check_sensor_placement(const SensorMount& m) const;
 };
 
 /// Loads a scene file. Throws ConfigError (file, line, field) on bad content.

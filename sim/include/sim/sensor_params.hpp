@@ -21,7 +21,7 @@
 
 #include <sim/effects.hpp>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::sim {
 
@@ -145,8 +145,8 @@ struct SensorParams {
   std::vector<EffectSpec> effects;  ///< undeclared extras, off unless listed
   std::uint64_t seed = 1;           ///< per-pixel constants and noise
 
-  /// Why the parameters cannot work (empty when they can).
-  common::Validation validate() const;
+  /// Why the parameters cannot work (InvalidArgument); ok when they can.
+  common::Status validate() const;
 };
 
 /// Reads a sensor YAML (see config/sensors/). Unknown keys, wrong types and

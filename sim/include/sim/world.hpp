@@ -23,7 +23,7 @@
 
 #include <sim/material.hpp>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::sim {
 
@@ -78,8 +78,8 @@ struct Hit {
   MaterialId material = kNoMaterial;
 };
 
-/// Why a shape is not valid (empty when it is).
-common::Validation validate_shape(const Shape& s);
+/// Why a shape is not valid (InvalidArgument); ok when it is.
+common::Status validate_shape(const Shape& s);
 
 class World {
  public:

@@ -91,15 +91,14 @@ std::string list_pedicels(const std::vector<int>& ids) {
 
 }  // namespace
 
-common::Validation BladeParams::validate() const {
-  if (!(opening_m > 0 && opening_m < 0.2)) return common::Validation::invalid("opening_m must be in (0, 0.2) m");
-  if (!(reach_m > 0 && reach_m < 0.2)) return common::Validation::invalid("reach_m must be in (0, 0.2) m");
-  if (!(thickness_m > 0 && thickness_m < 0.05))
-    return common::Validation::invalid("thickness_m must be in (0, 0.05) m");
+common::Status BladeParams::validate() const {
+  if (!(opening_m > 0 && opening_m < 0.2)) return common::Status::invalid("opening_m must be in (0, 0.2) m");
+  if (!(reach_m > 0 && reach_m < 0.2)) return common::Status::invalid("reach_m must be in (0, 0.2) m");
+  if (!(thickness_m > 0 && thickness_m < 0.05)) return common::Status::invalid("thickness_m must be in (0, 0.05) m");
   if (!(max_cut_diameter_m >= 0 && max_cut_diameter_m < 0.1))
-    return common::Validation::invalid("max_cut_diameter_m must be in [0, 0.1) m");
-  if (!(grid_m >= 1e-4 && grid_m <= 0.01)) return common::Validation::invalid("grid_m must be in [0.0001, 0.01] m");
-  return common::Validation::ok();
+    return common::Status::invalid("max_cut_diameter_m must be in [0, 0.1) m");
+  if (!(grid_m >= 1e-4 && grid_m <= 0.01)) return common::Status::invalid("grid_m must be in [0.0001, 0.01] m");
+  return common::Status{};
 }
 
 const char* to_string(CutResult r) {
@@ -125,9 +124,9 @@ StemRod main_stem(const Truss& truss) {
 CutOutcome close_blades(const Truss& truss, const Eigen::Isometry3d& T_world_throat, const BladeParams& params,
                         int target) {
   CutOutcome out;
-  if (const auto v = params.validate(); !v.valid) {
+  if (const auto v = params.validate(); !v.ok()) {
     out.result = CutResult::kJammed;
-    out.object = "invalid blade parameters: " + v.reason;
+    out.object = "invalid blade parameters: " + v.message;
     return out;
   }
   if (!T_world_throat.matrix().allFinite()) {

@@ -12,15 +12,15 @@ namespace {
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 }
 
-common::Validation HydrusChainParams::validate() const {
-  if (links < 1 || links > 32) return common::Validation::invalid("links must be 1..32, got " + std::to_string(links));
-  if (!(link_length_m > 0.0)) return common::Validation::invalid("link_length_m must be > 0");
-  if (!(link_width_m > 0.0)) return common::Validation::invalid("link_width_m must be > 0");
-  if (!(link_thickness_m > 0.0)) return common::Validation::invalid("link_thickness_m must be > 0");
-  if (!std::isfinite(height_m)) return common::Validation::invalid("height_m must be finite");
+common::Status HydrusChainParams::validate() const {
+  if (links < 1 || links > 32) return common::Status::invalid("links must be 1..32, got " + std::to_string(links));
+  if (!(link_length_m > 0.0)) return common::Status::invalid("link_length_m must be > 0");
+  if (!(link_width_m > 0.0)) return common::Status::invalid("link_width_m must be > 0");
+  if (!(link_thickness_m > 0.0)) return common::Status::invalid("link_thickness_m must be > 0");
+  if (!std::isfinite(height_m)) return common::Status::invalid("height_m must be finite");
   if (!sensor_mount_m.allFinite() || !std::isfinite(sensor_yaw_rad))
-    return common::Validation::invalid("sensor mount must be finite");
-  return common::Validation::ok();
+    return common::Status::invalid("sensor mount must be finite");
+  return common::Status{};
 }
 
 Eigen::Isometry3d planar_sensor_frame(const Eigen::Vector2d& origin_m, double yaw_rad, double height_m,
@@ -37,7 +37,7 @@ Eigen::Isometry3d planar_sensor_frame(const Eigen::Vector2d& origin_m, double ya
 }
 
 HydrusPoses hydrus_poses(const HydrusChainParams& chain, const HydrusState& state) {
-  if (const common::Validation why = chain.validate(); !why.valid) throw std::invalid_argument("hydrus: " + why.reason);
+  if (const common::Status why = chain.validate(); !why.ok()) throw std::invalid_argument("hydrus: " + why.message);
   if (state.joints_rad.size() != static_cast<std::size_t>(chain.links - 1))
     throw std::invalid_argument("hydrus: " + std::to_string(state.joints_rad.size()) + " joint angles for " +
                                 std::to_string(chain.links - 1) + " joints");
@@ -85,8 +85,8 @@ void add_hydrus(const HydrusChainParams& chain, const HydrusState& state, const 
     m.config_file = sensor_config_file;
     m.T_world_sensor = poses.T_world_sensor[static_cast<std::size_t>(i)];
     if (scene.sensor(m.name)) throw std::invalid_argument("hydrus: a sensor named '" + m.name + "' already exists");
-    if (const std::string why = scene.check_sensor_placement(m); !why.empty())
-      throw std::invalid_argument("hydrus: sensor '" + m.name + "': " + why);
+    if (const common::Status why = scene.check_sensor_placement(m); !why.ok())
+      throw std::invalid_argument("hydrus: sensor '" + m.name + "': " + why.message);
     scene.sensors.push_back(std::move(m));
   }
 }
@@ -110,7 +110,7 @@ void make_hydrus(const YamlNode& p, Scene& scene) {
   if (axis != "left" && axis != "right") p.at("line_axis").fail("must be left or right, got '" + axis + "'");
   c.line_axis_left = axis == "left";
   c.material = p.get_string("material", c.material);
-  if (const common::Validation why = c.validate(); !why.valid) p.fail(why.reason);
+  if (const common::Status why = c.validate(); !why.ok()) p.fail(why.message);
 
   HydrusState s;
   if (auto b = p.find("base")) {

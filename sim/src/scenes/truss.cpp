@@ -704,11 +704,11 @@ std::optional<TrussPhysics> parse_truss_physics(std::string_view s) {
   return std::nullopt;
 }
 
-common::Validation set_truss_option(TrussParams& p, std::string_view key, std::string_view value) {
+common::Status set_truss_option(TrussParams& p, std::string_view key, std::string_view value) {
   const std::string v(value);
   if (key == "physics") {
     const auto ph = parse_truss_physics(v);
-    if (!ph) return common::Validation::invalid("physics must be pendulum or elastic_rod, got '" + v + "'");
+    if (!ph) return common::Status::invalid("physics must be pendulum or elastic_rod, got '" + v + "'");
     p.physics = *ph;
     return p.validate();
   }
@@ -720,10 +720,10 @@ common::Validation set_truss_option(TrussParams& p, std::string_view key, std::s
     used = 0;
   }
   if (used == 0 || used != v.size() || !std::isfinite(x))
-    return common::Validation::invalid("truss option '" + std::string(key) + "' wants a number, got '" + v + "'");
+    return common::Status::invalid("truss option '" + std::string(key) + "' wants a number, got '" + v + "'");
   auto integer = [&](int& field) {
     if (x != std::floor(x))
-      return common::Validation::invalid("truss option '" + std::string(key) + "' wants a whole number");
+      return common::Status::invalid("truss option '" + std::string(key) + "' wants a whole number");
     field = static_cast<int>(x);
     return p.validate();
   };
@@ -745,55 +745,53 @@ common::Validation set_truss_option(TrussParams& p, std::string_view key, std::s
   if (key == "pedicel_segments") return integer(p.pedicel_segments);
   if (key == "pedicel_leaves") return integer(p.pedicel_leaves);
   if (key == "front_leaves") return integer(p.front_leaves);
-  return common::Validation::invalid(
+  return common::Status::invalid(
       "unknown truss option '" + std::string(key) +
       "' (physics, pedicel_young_min_pa, pedicel_young_max_pa, peduncle_young_min_pa, "
       "peduncle_young_max_pa, friction, pedicel_segments, stem_bend_deg, peduncle_curl_deg, "
       "pedicel_leaves, front_leaves, front_leaf_offset_min, front_leaf_offset_max, rest_tilt_max_deg)");
 }
 
-common::Validation TrussParams::validate() const {
-  if (num_tomatoes < 0 || num_tomatoes > 8)
-    return common::Validation::invalid("num_tomatoes must be 0 (by class) or 1..8");
+common::Status TrussParams::validate() const {
+  if (num_tomatoes < 0 || num_tomatoes > 8) return common::Status::invalid("num_tomatoes must be 0 (by class) or 1..8");
   if (!(radius_min_m > 0.005) || !(radius_max_m >= radius_min_m) || radius_max_m > 0.08)
-    return common::Validation::invalid("tomato radii must satisfy 0.005 < radius_min_m <= radius_max_m <= 0.08 m");
+    return common::Status::invalid("tomato radii must satisfy 0.005 < radius_min_m <= radius_max_m <= 0.08 m");
   if (!(pedicel_length_min_m > 0.005) || !(pedicel_length_max_m >= pedicel_length_min_m) || pedicel_length_max_m > 0.15)
-    return common::Validation::invalid("pedicel lengths must satisfy 0.005 < min <= max <= 0.15 m");
+    return common::Status::invalid("pedicel lengths must satisfy 0.005 < min <= max <= 0.15 m");
   if (!(pedicel_radius_m > 0) || !(peduncle_radius_m > 0))
-    return common::Validation::invalid("pedicel and peduncle radii must be > 0");
+    return common::Status::invalid("pedicel and peduncle radii must be > 0");
   if (!(flatness_min >= 0.5) || !(flatness_max >= flatness_min) || !(flatness_max <= 1.2))
-    return common::Validation::invalid("flatness must satisfy 0.5 <= flatness_min <= flatness_max <= 1.2");
-  if (!(rib_max >= 0 && rib_max <= 0.1)) return common::Validation::invalid("rib_max must be in [0, 0.1]");
-  if (!(density_kg_m3 > 0)) return common::Validation::invalid("density_kg_m3 must be > 0");
+    return common::Status::invalid("flatness must satisfy 0.5 <= flatness_min <= flatness_max <= 1.2");
+  if (!(rib_max >= 0 && rib_max <= 0.1)) return common::Status::invalid("rib_max must be in [0, 0.1]");
+  if (!(density_kg_m3 > 0)) return common::Status::invalid("density_kg_m3 must be > 0");
   if (!(stiffness_ratio_min >= 0) || !(stiffness_ratio_max >= stiffness_ratio_min))
-    return common::Validation::invalid("stiffness ratios must be 0 <= min <= max");
+    return common::Status::invalid("stiffness ratios must be 0 <= min <= max");
   if (!(rest_tilt_max_deg >= 0 && rest_tilt_max_deg <= 80))
-    return common::Validation::invalid("rest_tilt_max_deg must be in [0, 80]");
+    return common::Status::invalid("rest_tilt_max_deg must be in [0, 80]");
   if (front_leaves < -1 || front_leaves > 8)
-    return common::Validation::invalid("front_leaves must be -1 (by class) or 0..8");
+    return common::Status::invalid("front_leaves must be -1 (by class) or 0..8");
   if (!(camera_distance_m >= 0.2 && camera_distance_m <= 2.0))
-    return common::Validation::invalid("camera_distance_m must be in [0.2, 2] m");
+    return common::Status::invalid("camera_distance_m must be in [0.2, 2] m");
   if (!(camera_jitter_m >= 0) || !(camera_yaw_jitter_deg >= 0))
-    return common::Validation::invalid("camera jitters must be >= 0");
-  if (!origin_m.allFinite()) return common::Validation::invalid("origin_m must be finite");
+    return common::Status::invalid("camera jitters must be >= 0");
+  if (!origin_m.allFinite()) return common::Status::invalid("origin_m must be finite");
   if (!(pedicel_young_min_pa > 0) || !(pedicel_young_max_pa >= pedicel_young_min_pa) || !(peduncle_young_min_pa > 0) ||
       !(peduncle_young_max_pa >= peduncle_young_min_pa) || pedicel_young_max_pa > 1e12 || peduncle_young_max_pa > 1e12)
-    return common::Validation::invalid("Young's moduli must satisfy 0 < min <= max <= 1e12 Pa");
-  if (!(friction >= 0 && friction <= 2)) return common::Validation::invalid("friction must be in [0, 2]");
+    return common::Status::invalid("Young's moduli must satisfy 0 < min <= max <= 1e12 Pa");
+  if (!(friction >= 0 && friction <= 2)) return common::Status::invalid("friction must be in [0, 2]");
   if (pedicel_segments < 2 || pedicel_segments > 16)
-    return common::Validation::invalid("pedicel_segments must be in 2..16");
-  if (!(std::abs(stem_bend_deg) <= 120)) return common::Validation::invalid("stem_bend_deg must be in [-120, 120]");
-  if (!(std::abs(peduncle_curl_deg) <= 180))
-    return common::Validation::invalid("peduncle_curl_deg must be in [-180, 180]");
-  if (pedicel_leaves < 0 || pedicel_leaves > 8) return common::Validation::invalid("pedicel_leaves must be in 0..8");
+    return common::Status::invalid("pedicel_segments must be in 2..16");
+  if (!(std::abs(stem_bend_deg) <= 120)) return common::Status::invalid("stem_bend_deg must be in [-120, 120]");
+  if (!(std::abs(peduncle_curl_deg) <= 180)) return common::Status::invalid("peduncle_curl_deg must be in [-180, 180]");
+  if (pedicel_leaves < 0 || pedicel_leaves > 8) return common::Status::invalid("pedicel_leaves must be in 0..8");
   if (!(front_leaf_offset_min >= 0) || !(front_leaf_offset_max >= front_leaf_offset_min) ||
       !(front_leaf_offset_max <= 5))
-    return common::Validation::invalid("front leaf offsets must satisfy 0 <= min <= max <= 5 radii");
-  return common::Validation::ok();
+    return common::Status::invalid("front leaf offsets must satisfy 0 <= min <= max <= 5 radii");
+  return common::Status{};
 }
 
 Truss make_truss(const TrussParams& params) {
-  if (const common::Validation why = params.validate(); !why.valid) throw std::invalid_argument("truss: " + why.reason);
+  if (const common::Status why = params.validate(); !why.ok()) throw std::invalid_argument("truss: " + why.message);
   Truss T;
   T.params = params;
   Rng rng(params.seed);

@@ -30,7 +30,7 @@
 #include <sim/scenes/truss.hpp>
 #include <sim/world.hpp>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::sim {
 
@@ -55,7 +55,7 @@ struct BladeParams {
   /// Sampling step of the blade box [m]: finer than half a pedicel.
   double grid_m = 0.001;
 
-  common::Validation validate() const;
+  common::Status validate() const;
 };
 
 enum class CutResult {

@@ -42,7 +42,7 @@
 #include <sim/scene.hpp>
 #include <sim/sensor_params.hpp>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::sim {
 
@@ -60,8 +60,8 @@ struct HydrusChainParams {
 
   [[nodiscard]] std::string link_name(int i) const { return name + "link" + std::to_string(i + 1); }
   [[nodiscard]] std::string sensor_name(int i) const { return name + "laser" + std::to_string(i + 1); }
-  /// Why the parameters are impossible; empty when fine.
-  common::Validation validate() const;
+  /// Why the parameters are impossible (InvalidArgument); ok when fine.
+  common::Status validate() const;
 };
 
 /// Where the robot is: base pose in the plane and the links-1 joint angles.

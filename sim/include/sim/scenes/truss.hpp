@@ -45,7 +45,7 @@
 #include <sim/scene.hpp>
 #include <sim/world.hpp>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::sim {
 
@@ -115,7 +115,7 @@ struct TrussParams {
   double front_leaf_offset_min = 1.2;
   double front_leaf_offset_max = 1.9;
 
-  common::Validation validate() const;
+  common::Status validate() const;
 };
 
 /// Sets one TrussParams field from text (the evaluation's `key=value`
@@ -125,7 +125,7 @@ struct TrussParams {
 /// front_leaf_offset_min, front_leaf_offset_max, rest_tilt_max_deg.
 /// Returns why not when the key is unknown, the value malformed or the
 /// result invalid (the field may then hold the rejected value).
-common::Validation set_truss_option(TrussParams& p, std::string_view key, std::string_view value);
+common::Status set_truss_option(TrussParams& p, std::string_view key, std::string_view value);
 
 struct TrussTomato {
   Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
