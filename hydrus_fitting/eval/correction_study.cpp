@@ -138,7 +138,7 @@ CorrectionRow run_cell(const CorrectionStudyParams& p, double arc, int n, double
   row.applied_share = ok > 0 ? double(applied) / ok : std::nan("");
   for (int k = 0; k < 3; ++k) {
     for (int c = 0; c < 3; ++c) {
-      const double sd = b.ok ? std::sqrt(b.covariance(c, c)) : std::nan("");
+      const double sd = b.status.ok() ? std::sqrt(b.covariance(c, c)) : std::nan("");
       if (err[k][c].empty() || !(sd > 0)) {
         row.robust[k] = row.rms[k] = std::nan("");
         continue;

@@ -742,7 +742,7 @@ RayNoiseRow ray_noise_row(const RayNoiseRun& run, const TruePoints& tp, const Kc
     err[2].push_back(e.fit.circle.radius_m - run.truth.radius_m);
   }
   for (int c = 0; c < 3; ++c) {
-    row.kcr_sd[c] = b.ok ? std::sqrt(b.covariance(c, c)) : std::nan("");
+    row.kcr_sd[c] = b.status.ok() ? std::sqrt(b.covariance(c, c)) : std::nan("");
     row.rmse[c] = robust_rms(err[c]);
     row.bias[c] = median(err[c]);
     row.ratio[c] = row.rmse[c] / row.kcr_sd[c];

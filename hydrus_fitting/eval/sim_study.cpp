@@ -247,8 +247,8 @@ SimStudyResult sim_study(const SimStudyParams& p) {
   if (p.schedule != "all_on" && p.schedule != "time_slicing" && p.schedule != "colouring")
     throw std::invalid_argument("sim_study: schedule must be all_on, time_slicing or colouring, got '" + p.schedule +
                                 "'");
-  if (const common::Validation why = p.approach.validate(); !why.valid)
-    throw std::invalid_argument("sim_study: " + why.reason);
+  if (const common::Status why = p.approach.validate(); !why.ok())
+    throw std::invalid_argument("sim_study: " + why.message);
   return SimStudyRun(p).run();
 }
 

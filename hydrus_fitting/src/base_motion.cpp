@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "hydrus_fitting/base_motion.hpp"
 
+#include "hydrus_fitting/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -10,16 +12,10 @@
 
 namespace tinyline::hydrus_fitting {
 
-common::Validation validate(const BasePoseBufferParams& params) {
-  if (!(params.tolerance_s >= 0.0) || !(params.history_s > 0.0))
-    return common::Validation::invalid(
-        fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}", params.tolerance_s, params.history_s));
-  return common::Validation::ok();
-}
+common::Status validate(const BasePoseBufferParams& params) { return common::within_table(params); }
 
 BasePoseBuffer::BasePoseBuffer(BasePoseBufferParams params) : params_(params) {
-  if (const common::Validation v = validate(params_); !v.valid)
-    throw std::invalid_argument("BasePoseBuffer: " + v.reason);
+  if (const common::Status v = validate(params_); !v.ok()) throw std::invalid_argument("BasePoseBuffer: " + v.message);
 }
 
 bool BasePoseBuffer::add(std::int64_t stamp_ns, const Eigen::Vector2d& xy_m, double yaw_rad) {
@@ -40,11 +36,11 @@ bool BasePoseBuffer::add(std::int64_t stamp_ns, const Eigen::Vector2d& xy_m, dou
 BasePoseLookup BasePoseBuffer::at(std::int64_t stamp_ns) const {
   BasePoseLookup out;
   if (poses_.empty()) {
-    out.reason = "no base pose received yet";
+    out.status.message = "no base pose received yet";
     return out;
   }
   auto make = [&](double x, double y, double yaw) {
-    out.ok = true;
+    out.status = {};
     out.T_fixed_base = Eigen::Translation2d(x, y) * Eigen::Rotation2Dd(yaw);
     return out;
   };
@@ -53,7 +49,7 @@ BasePoseLookup BasePoseBuffer::at(std::int64_t stamp_ns) const {
     const Pose& end = after ? poses_.back() : poses_.front();
     const double gap = 1e-9 * static_cast<double>(after ? stamp_ns - end.t_ns : end.t_ns - stamp_ns);
     if (gap > params_.tolerance_s) {
-      out.reason =
+      out.status.message =
           fmt::format("the {} base pose is {:.3f} s {} the scan (tolerance {:.3f} s)", after ? "newest" : "oldest kept",
                       gap, after ? "older than" : "newer than", params_.tolerance_s);
       return out;
@@ -70,9 +66,9 @@ BasePoseLookup BasePoseBuffer::at(std::int64_t stamp_ns) const {
 
 BasePoseLookup BasePoseBuffer::motion(std::int64_t from_ns, std::int64_t to_ns) const {
   const BasePoseLookup from = at(from_ns);
-  if (!from.ok) return from;
+  if (!from.status.ok()) return from;
   BasePoseLookup to = at(to_ns);
-  if (!to.ok) return to;
+  if (!to.status.ok()) return to;
   to.T_fixed_base = to.T_fixed_base.inverse() * from.T_fixed_base;
   return to;
 }

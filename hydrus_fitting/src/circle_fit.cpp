@@ -50,20 +50,20 @@ KcrBound kcr_bound(const Eigen::Ref<const Eigen::Matrix2Xd>& true_points, const 
   KcrBound b;
   const auto n = true_points.cols();
   if (sigma_m.size() != 1 && sigma_m.size() != static_cast<std::size_t>(n)) {
-    b.reason = fmt::format("sigma_m needs 1 or {} entries, got {}", n, sigma_m.size());
+    b.status = common::Status::invalid(fmt::format("sigma_m needs 1 or {} entries, got {}", n, sigma_m.size()));
     return b;
   }
   Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
   for (Eigen::Index i = 0; i < n; ++i) {
     const double s = sigma_m.size() == 1 ? sigma_m[0] : sigma_m[static_cast<std::size_t>(i)];
     if (!(s > 0.0) || !std::isfinite(s) || !finite(true_points.col(i))) {
-      b.reason = fmt::format("point {} has a non-finite coordinate or sigma {}", i, s);
+      b.status = common::Status::invalid(fmt::format("point {} has a non-finite coordinate or sigma {}", i, s));
       return b;
     }
     const Eigen::Vector2d dv = true_points.col(i) - truth.centre_m;
     const double rho = dv.norm();
     if (rho == 0.0) {
-      b.reason = fmt::format("point {} is at the centre", i);
+      b.status = common::Status::invalid(fmt::format("point {} is at the centre", i));
       return b;
     }
     const Eigen::Vector3d g(-dv.x() / rho, -dv.y() / rho, -1.0);
@@ -72,19 +72,18 @@ KcrBound kcr_bound(const Eigen::Ref<const Eigen::Matrix2Xd>& true_points, const 
   if (known_radius) {
     Eigen::FullPivLU<Eigen::Matrix2d> lu(W.topLeftCorner<2, 2>());
     if (!lu.isInvertible()) {
-      b.reason = "information matrix is singular (fewer than 2 distinct directions)";
+      b.status = common::Status::invalid("information matrix is singular (fewer than 2 distinct directions)");
       return b;
     }
     b.covariance.topLeftCorner<2, 2>() = lu.inverse();
   } else {
     Eigen::FullPivLU<Eigen::Matrix3d> lu(W);
     if (!lu.isInvertible() || n < 3) {
-      b.reason = "information matrix is singular (fewer than 3 distinct directions)";
+      b.status = common::Status::invalid("information matrix is singular (fewer than 3 distinct directions)");
       return b;
     }
     b.covariance = lu.inverse();
   }
-  b.ok = true;
   return b;
 }
 

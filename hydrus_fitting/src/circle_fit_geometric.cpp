@@ -24,14 +24,14 @@ namespace tinyline::hydrus_fitting {
 
 using namespace detail;
 
-common::Validation validate(const RefineParams& params) {
+common::Status validate(const RefineParams& params) {
   if (params.known_radius_m && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
   if (params.max_iterations < 1)
-    return common::Validation::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
+    return common::Status::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
   if (params.correction == ArcCorrection::kSecondOrder) return validate_second_order(params.second_order);
-  return common::Validation::ok();
+  return common::Status{};
 }
 
 namespace {
@@ -269,7 +269,7 @@ void weight_the_ends(CircleFit& f, GeometricRun& run, UsedPoints& pts, const Eig
 CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
                         const RefineParams& params, std::span<const double> sigma_m) {
   const bool known = params.known_radius_m.has_value();
-  if (const common::Validation v = validate(params); !v.valid) return failed(FitStatus::kInvalidParams, v.reason);
+  if (const common::Status v = validate(params); !v.ok()) return failed(FitStatus::kInvalidParams, v.message);
   if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols())) {
     return failed(FitStatus::kInvalidParams,
                   fmt::format("sigma_m has {} entries for {} points", sigma_m.size(), points.cols()));

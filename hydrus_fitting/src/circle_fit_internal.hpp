@@ -141,7 +141,7 @@ inline std::optional<CircleFit> check_algebraic_input(const Normalised& n, const
 /// The Hyper fit's algebraic parameters for checked, normalised points.
 Eigen::Vector4d hyper_parameters(const Normalised& n);
 
-common::Validation validate_second_order(const SecondOrderCorrection& so);
+common::Status validate_second_order(const SecondOrderCorrection& so);
 
 /// Step 1 of the second-order correction, the weights: multiplies the n
 /// points' weights `pw` by the arc's end weights for the noise over the

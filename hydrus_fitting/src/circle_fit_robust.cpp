@@ -24,28 +24,26 @@ namespace tinyline::hydrus_fitting {
 
 using namespace detail;
 
-common::Validation validate(const RobustCircleParams& params) {
+common::Status validate(const RobustCircleParams& params) {
   const bool known = params.known_radius_m.has_value();
   if (!(params.inlier_threshold_m > 0.0) || !std::isfinite(params.inlier_threshold_m))
-    return common::Validation::invalid(
-        fmt::format("inlier_threshold_m must be > 0, got {}", params.inlier_threshold_m));
+    return common::Status::invalid(fmt::format("inlier_threshold_m must be > 0, got {}", params.inlier_threshold_m));
   if (!(params.min_radius_m >= 0.0) || !(params.max_radius_m > params.min_radius_m))
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("need 0 <= min_radius_m < max_radius_m, got [{}, {}]", params.min_radius_m, params.max_radius_m));
   if (known && !(*params.known_radius_m > 0.0 && std::isfinite(*params.known_radius_m)))
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("known_radius_m must be finite and > 0, got {}", *params.known_radius_m));
   if (params.max_iterations < 1)
-    return common::Validation::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
+    return common::Status::invalid(fmt::format("max_iterations must be >= 1, got {}", params.max_iterations));
   if (!(params.confidence > 0.0 && params.confidence < 1.0))
-    return common::Validation::invalid(fmt::format("confidence must be in (0, 1), got {}", params.confidence));
+    return common::Status::invalid(fmt::format("confidence must be in (0, 1), got {}", params.confidence));
   if (params.min_inliers < (known ? 2 : 3))
-    return common::Validation::invalid(
-        fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
+    return common::Status::invalid(fmt::format("min_inliers must be >= {}, got {}", known ? 2 : 3, params.min_inliers));
   if (!(params.inlier_threshold_sigmas >= 0.0))
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("inlier_threshold_sigmas must be >= 0, got {}", params.inlier_threshold_sigmas));
-  return common::Validation::ok();
+  return common::Status{};
 }
 
 std::optional<Circle> circle_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
@@ -74,7 +72,7 @@ std::optional<CircleFit> check_robust_input(const Eigen::Ref<const Eigen::Matrix
                                             const RobustCircleParams& params, std::span<const double> sigma_m,
                                             const Viewpoints& viewpoints) {
   auto invalid = [](std::string r) { return failed(FitStatus::kInvalidParams, std::move(r)); };
-  if (const common::Validation v = validate(params); !v.valid) return invalid(v.reason);
+  if (const common::Status v = validate(params); !v.ok()) return invalid(v.message);
   if (!sigma_m.empty() && sigma_m.size() != static_cast<std::size_t>(points.cols()))
     return invalid(fmt::format("sigma_m has {} entries for {} points", sigma_m.size(), points.cols()));
   for (std::size_t i = 0; i < sigma_m.size(); ++i)

@@ -97,37 +97,36 @@ bool second_order_applies(const SecondOrderCorrection& so, int n, double q) {
 
 namespace detail {
 
-common::Validation validate_second_order(const SecondOrderCorrection& so) {
+common::Status validate_second_order(const SecondOrderCorrection& so) {
   const auto bad = [](double v) { return !std::isfinite(v); };
   if (bad(so.end_weight) || so.end_weight < 0.0)
-    return common::Validation::invalid(fmt::format("second_order.end_weight must be >= 0, got {}", so.end_weight));
+    return common::Status::invalid(fmt::format("second_order.end_weight must be >= 0, got {}", so.end_weight));
   if (bad(so.max_end_weight) || so.max_end_weight < 0.0 || so.max_end_weight > 1.0)
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("second_order.max_end_weight must be in [0, 1], got {}", so.max_end_weight));
   if (bad(so.reference_sigma_over_r) || !(so.reference_sigma_over_r > 0.0))
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("second_order.reference_sigma_over_r must be > 0, got {}", so.reference_sigma_over_r));
   if (bad(so.full_weighting_arc_deg) || bad(so.no_weighting_arc_deg) || so.full_weighting_arc_deg < 0.0 ||
       so.no_weighting_arc_deg < so.full_weighting_arc_deg)
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("second_order needs 0 <= full_weighting_arc_deg <= no_weighting_arc_deg, got {} and {}",
                     so.full_weighting_arc_deg, so.no_weighting_arc_deg));
   if (bad(so.full_weighting_rel_sd_r) || bad(so.no_weighting_rel_sd_r) || so.full_weighting_rel_sd_r < 0.0 ||
       so.no_weighting_rel_sd_r < so.full_weighting_rel_sd_r)
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("second_order needs 0 <= full_weighting_rel_sd_r <= no_weighting_rel_sd_r, got {} and {}",
                     so.full_weighting_rel_sd_r, so.no_weighting_rel_sd_r));
   if (std::isnan(so.max_sigma_over_r) || !(so.max_sigma_over_r > 0.0))
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("second_order.max_sigma_over_r must be > 0, got {}", so.max_sigma_over_r));
   if (so.max_points < 3)
-    return common::Validation::invalid(fmt::format("second_order.max_points must be >= 3, got {}", so.max_points));
+    return common::Status::invalid(fmt::format("second_order.max_points must be >= 3, got {}", so.max_points));
   if (bad(so.mode_shift) || so.mode_shift < 0.0)
-    return common::Validation::invalid(fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift));
+    return common::Status::invalid(fmt::format("second_order.mode_shift must be >= 0, got {}", so.mode_shift));
   if (bad(so.max_shift_sds) || so.max_shift_sds < 0.0)
-    return common::Validation::invalid(
-        fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds));
-  return common::Validation::ok();
+    return common::Status::invalid(fmt::format("second_order.max_shift_sds must be >= 0, got {}", so.max_shift_sds));
+  return common::Status{};
 }
 
 double weight_the_arc_ends(const CircleFit& f, const double* px, const double* py, double* pw, int n, double q,

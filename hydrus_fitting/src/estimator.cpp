@@ -29,10 +29,10 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
     for (std::size_t i = 0; i < scans.size() && e.base_motion_compensated; ++i) {
       if (newest - scans[i].stamp_ns > skew_ns) continue;  // left out below
       const BasePoseLookup m = base_poses->motion(scans[i].stamp_ns, newest);
-      if (!m.ok) {
+      if (!m.status.ok()) {
         e.base_motion_compensated = false;
         e.base_motion_reason =
-            fmt::format("scan of '{}': {}; no scan moved by the base's motion", scans[i].sensor, m.reason);
+            fmt::format("scan of '{}': {}; no scan moved by the base's motion", scans[i].sensor, m.status.message);
         motion_.assign(scans.size(), Eigen::Isometry2d::Identity());
       } else {
         motion_[i] = m.T_fixed_base;

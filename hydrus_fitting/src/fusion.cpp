@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "hydrus_fitting/fusion.hpp"
 
+#include "hydrus_fitting/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -76,16 +78,11 @@ bool on_robot(const RobotModel& model, const Kinematics& k, const Eigen::Vector2
   return inside(footprints(model, k, margin_m), p, margin_m);
 }
 
-common::Validation validate(const FusionParams& params) {
-  if (!(params.self_filter_margin_m >= 0.0))
-    return common::Validation::invalid(
-        fmt::format("self_filter_margin_m must be >= 0, got {}", params.self_filter_margin_m));
-  return common::Validation::ok();
-}
+common::Status validate(const FusionParams& params) { return common::within_table(params); }
 
 ScanFuser::ScanFuser(const RobotModel& model, FusionParams params)
     : model_(&model), params_(std::move(params)), trig_(model.sensors().size()) {
-  if (const common::Validation v = validate(params_); !v.valid) throw std::invalid_argument("fusion: " + v.reason);
+  if (const common::Status v = validate(params_); !v.ok()) throw std::invalid_argument("fusion: " + v.message);
 }
 
 void ScanFuser::clear() {

@@ -32,14 +32,14 @@ bool fit_line(const std::vector<Eigen::Vector2d>& p, Eigen::Vector2d& dir, Eigen
 
 }  // namespace
 
-common::Validation validate(const RectangleFitParams& params) {
-  if (!(params.inlier_threshold_m > 0.0)) return common::Validation::invalid("inlier_threshold_m must be > 0");
-  if (params.min_points_per_side < 2) return common::Validation::invalid("min_points_per_side must be >= 2");
+common::Status validate(const RectangleFitParams& params) {
+  if (!(params.inlier_threshold_m > 0.0)) return common::Status::invalid("inlier_threshold_m must be > 0");
+  if (params.min_points_per_side < 2) return common::Status::invalid("min_points_per_side must be >= 2");
   if (!(params.confidence > 0.0 && params.confidence < 1.0))
-    return common::Validation::invalid("confidence must be in (0, 1)");
+    return common::Status::invalid("confidence must be in (0, 1)");
   if (params.known_size_m && !(params.known_size_m->array() > 0.0).all())
-    return common::Validation::invalid("known_size_m must be > 0");
-  return common::Validation::ok();
+    return common::Status::invalid("known_size_m must be > 0");
+  return common::Status{};
 }
 
 namespace {
@@ -341,7 +341,7 @@ struct RectangleFitter {
 RectangleFit fit_rectangle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const RectangleFitParams& params,
                            const Viewpoints& viewpoints) {
   RectangleFitter f(points, params, viewpoints);
-  if (const common::Validation v = validate(params); !v.valid) return f.fail(FitStatus::kInvalidParams, v.reason);
+  if (const common::Status v = validate(params); !v.ok()) return f.fail(FitStatus::kInvalidParams, v.message);
   if (!viewpoints.origins_m.empty() && viewpoints.sensor_of_point.size() != static_cast<std::size_t>(points.cols()))
     return f.fail(FitStatus::kInvalidParams, "viewpoints.sensor_of_point must have one entry per point");
   if (!f.finite_points()) {

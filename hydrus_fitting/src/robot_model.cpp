@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "hydrus_fitting/robot_model.hpp"
 
+#include "hydrus_fitting/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -304,17 +306,11 @@ const char* to_string(JointLookupStatus s) {
   return "unknown";
 }
 
-common::Validation validate(const JointBufferParams& params) {
-  if (!(params.tolerance_s >= 0.0) || !(params.history_s > 0.0))
-    return common::Validation::invalid(
-        fmt::format("need tolerance_s >= 0 and history_s > 0, got {} and {}", params.tolerance_s, params.history_s));
-  return common::Validation::ok();
-}
+common::Status validate(const JointBufferParams& params) { return common::within_table(params); }
 
 JointStateBuffer::JointStateBuffer(std::vector<std::string> joint_names, JointBufferParams params)
     : names_(std::move(joint_names)), params_(params), series_(names_.size()) {
-  if (const common::Validation v = validate(params_); !v.valid)
-    throw std::invalid_argument("joint buffer: " + v.reason);
+  if (const common::Status v = validate(params_); !v.ok()) throw std::invalid_argument("joint buffer: " + v.message);
 }
 
 void JointStateBuffer::clear() {

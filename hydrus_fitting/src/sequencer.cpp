@@ -384,19 +384,21 @@ Schedule with_always_emitting(Schedule s, std::span<const int> always) {
   return s;
 }
 
-std::string check_schedule(const InterferenceGraph& g, const Schedule& s) {
+common::Status check_schedule(const InterferenceGraph& g, const Schedule& s) {
   std::vector<int> seen(static_cast<std::size_t>(g.n), 0);
   for (std::size_t k = 0; k < s.slots.size(); ++k) {
     const auto& m = s.slots[k];
     for (std::size_t a = 0; a < m.size(); ++a) {
-      if (m[a] < 0 || m[a] >= g.n) return fmt::format("slot {} holds sensor {} of {}", k, m[a], g.n);
+      if (m[a] < 0 || m[a] >= g.n)
+        return common::Status::invalid(fmt::format("slot {} holds sensor {} of {}", k, m[a], g.n));
       ++seen[static_cast<std::size_t>(m[a])];
       for (std::size_t b = a + 1; b < m.size(); ++b)
-        if (g.conflict(m[a], m[b])) return fmt::format("slot {}: sensors {} and {} conflict", k, m[a], m[b]);
+        if (g.conflict(m[a], m[b]))
+          return common::Status::invalid(fmt::format("slot {}: sensors {} and {} conflict", k, m[a], m[b]));
     }
   }
   for (int v = 0; v < g.n; ++v)
-    if (!seen[static_cast<std::size_t>(v)]) return fmt::format("sensor {} never emits", v);
+    if (!seen[static_cast<std::size_t>(v)]) return common::Status::invalid(fmt::format("sensor {} never emits", v));
   return {};
 }
 

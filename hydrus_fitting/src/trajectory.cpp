@@ -15,20 +15,20 @@ Eigen::Isometry2d RobotPose2D::T_world_base() const {
   return T;
 }
 
-common::Validation ApproachParams::validate() const {
-  if (joints < 0) return common::Validation::invalid(fmt::format("joints must be >= 0, got {}", joints));
+common::Status ApproachParams::validate() const {
+  if (joints < 0) return common::Status::invalid(fmt::format("joints must be >= 0, got {}", joints));
   if (!grasp_base_xy_m.allFinite() || !std::isfinite(base_yaw_rad))
-    return common::Validation::invalid("grasp pose must be finite");
+    return common::Status::invalid("grasp pose must be finite");
   if (!(approach_direction.norm() > 0.0) || !approach_direction.allFinite())
-    return common::Validation::invalid("approach_direction must be a non-zero finite vector");
+    return common::Status::invalid("approach_direction must be a non-zero finite vector");
   if (!(start_distance_m >= 0.0))
-    return common::Validation::invalid(fmt::format("start_distance_m must be >= 0, got {}", start_distance_m));
+    return common::Status::invalid(fmt::format("start_distance_m must be >= 0, got {}", start_distance_m));
   if (!std::isfinite(open_joint_rad) || !std::isfinite(closed_joint_rad))
-    return common::Validation::invalid("joint angles must be finite");
+    return common::Status::invalid("joint angles must be finite");
   if (!(approach_s >= 0.0) || !(close_s >= 0.0) || !(hold_s >= 0.0))
-    return common::Validation::invalid(
+    return common::Status::invalid(
         fmt::format("phase durations must be >= 0 s, got approach {} close {} hold {}", approach_s, close_s, hold_s));
-  return common::Validation::ok();
+  return common::Status{};
 }
 
 RobotPose2D approach_pose(const ApproachParams& p, double t_s) {

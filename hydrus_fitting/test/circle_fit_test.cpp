@@ -166,12 +166,12 @@ TEST(CircleFit, KcrBoundOfAFullCircleIsTheTextbookValue) {
   const double s = 0.01;
   const std::vector<double> sig{s};
   const auto b = hf::kcr_bound(arc(kTruth, 360, n), kTruth, sig);
-  ASSERT_TRUE(b.ok) << b.reason;
+  ASSERT_TRUE(b.status.ok()) << b.status.message;
   EXPECT_NEAR(b.covariance(0, 0), 2 * s * s / n, 1e-12);
   EXPECT_NEAR(b.covariance(1, 1), 2 * s * s / n, 1e-12);
   EXPECT_NEAR(b.covariance(2, 2), s * s / n, 1e-12);
   EXPECT_NEAR(b.covariance(0, 2), 0.0, 1e-12);
-  EXPECT_FALSE(hf::kcr_bound(arc(kTruth, 360, 2), kTruth, sig).ok);
+  EXPECT_FALSE(hf::kcr_bound(arc(kTruth, 360, 2), kTruth, sig).status.ok());
 }
 
 TEST(CircleFit, KasaIsBiasedOnAShortArcAndHyperIsNot) {
@@ -199,7 +199,7 @@ TEST(CircleFit, GeometricFitReachesTheKcrBoundAndReportsItsCovariance) {
   const double s = 0.005;
   const std::vector<double> sig{s};
   const auto bound = hf::kcr_bound(truth, kTruth, sig);
-  ASSERT_TRUE(bound.ok);
+  ASSERT_TRUE(bound.status.ok());
   std::vector<double> ex, ey, er, rep_sd_x;
   for (int t = 0; t < 600; ++t) {
     const auto f = hf::fit_circle(noisy(truth, s, rng));
@@ -301,7 +301,7 @@ TEST(CircleFit, RobustFitIgnoresFortyPercentOutliers) {
   // that ignores the outliers is as good as the clean fit, so its squared
   // Mahalanobis error follows chi^2 with 3 dof (median 2.37).
   const auto bound = hf::kcr_bound(arc(kTruth, 150, 120, -90), kTruth, std::vector<double>{0.004});
-  ASSERT_TRUE(bound.ok);
+  ASSERT_TRUE(bound.status.ok());
   const Eigen::Matrix3d info = bound.covariance.inverse();
   tinyline::common::SplitMixRandom rng(21);
   std::vector<double> m2;
@@ -451,7 +451,7 @@ TEST(CircleFitSecondOrder, LeavesThePlainFitAloneAtLowNoiseAndOnAClosedCircle) {
     const Eigen::Matrix2Xd exact = arc(truth, c.arc_deg, 100);
     const std::vector<double> sig{c.sigma_m};
     const hf::KcrBound b = hf::kcr_bound(exact, truth, sig);
-    ASSERT_TRUE(b.ok);
+    ASSERT_TRUE(b.status.ok());
     tinyline::common::SplitMixRandom rng(11);
     for (int t = 0; t < 200; ++t) {
       const Eigen::Matrix2Xd q = noisy(exact, c.sigma_m, rng);

@@ -166,7 +166,7 @@ TEST(BasePoseBuffer, InterpolatesPoseAndYawTheShortWayRound) {
   EXPECT_TRUE(b.add(ns(1.1), {1.0, 2.0}, -3.1));  // out of order: placed by time
   EXPECT_TRUE(b.add(ns(1.0), {0.0, 0.0}, 3.1));
   const auto mid = b.at(ns(1.05));
-  ASSERT_TRUE(mid.ok) << mid.reason;
+  ASSERT_TRUE(mid.status.ok()) << mid.status.message;
   EXPECT_NEAR(mid.T_fixed_base.translation().x(), 0.5, 1e-12);
   EXPECT_NEAR(mid.T_fixed_base.translation().y(), 1.0, 1e-12);
   // 3.1 to -3.1 rad is 0.083 rad through pi, not 6.2 rad the other way.
@@ -185,23 +185,24 @@ TEST(BasePoseBuffer, MotionMapsAPointSeenEarlierIntoTheLaterBaseFrame) {
   // stands on it, turned a quarter to the left, so the base's origin at
   // t = 0 is 1 m straight behind it, (-1, 0).
   const auto m = b.motion(ns(0.0), ns(1.0));
-  ASSERT_TRUE(m.ok) << m.reason;
+  ASSERT_TRUE(m.status.ok()) << m.status.message;
   EXPECT_LT((m.T_fixed_base * Eigen::Vector2d(0.0, 1.0)).norm(), 1e-12);
   EXPECT_LT((m.T_fixed_base * Eigen::Vector2d(0.0, 0.0) - Eigen::Vector2d(-1.0, 0.0)).norm(), 1e-12);
 }
 
 TEST(BasePoseBuffer, BadInputIsAnOutcomeWithAReason) {
   hf::BasePoseBuffer b(hf::BasePoseBufferParams{0.02, 2.0});
-  EXPECT_THAT(b.at(ns(1.0)).reason, HasSubstr("no base pose received yet"));
+  EXPECT_THAT(b.at(ns(1.0)).status.message, HasSubstr("no base pose received yet"));
   const double nan = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(b.add(ns(1.0), {nan, 0.0}, 0.0));
   EXPECT_FALSE(b.add(ns(1.0), {0.0, 0.0}, std::numeric_limits<double>::infinity()));
   EXPECT_TRUE(b.empty());
   ASSERT_TRUE(b.add(ns(1.0), {0.0, 0.0}, 0.0));
-  EXPECT_TRUE(b.at(ns(1.015)).ok);  // within the tolerance: held
+  EXPECT_TRUE(b.at(ns(1.015)).status.ok());  // within the tolerance: held
   const auto stale = b.at(ns(1.1));
-  EXPECT_FALSE(stale.ok);
-  EXPECT_THAT(stale.reason, HasSubstr("newest base pose is 0.100 s older than the scan"));
-  EXPECT_THAT(b.at(ns(0.5)).reason, HasSubstr("oldest kept base pose is 0.500 s newer"));
+  EXPECT_FALSE(stale.status.ok());
+  EXPECT_EQ(stale.status.code, tinyline::common::StatusCode::OutOfRange);
+  EXPECT_THAT(stale.status.message, HasSubstr("newest base pose is 0.100 s older than the scan"));
+  EXPECT_THAT(b.at(ns(0.5)).status.message, HasSubstr("oldest kept base pose is 0.500 s newer"));
   EXPECT_THROW(hf::BasePoseBuffer(hf::BasePoseBufferParams{-1.0, 2.0}), std::invalid_argument);
 }

@@ -3,6 +3,7 @@
 // their settings from the settings' tables, with the structs' defaults.
 #include <limits>
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <variant>
 
@@ -34,10 +35,22 @@ std::shared_ptr<bus::Node> add(bus::testing::NodeRig& rig, const std::string& ty
 }  // namespace
 
 TEST(HydrusParamTables, EveryDefaultIsWithinItsTable) {
-  EXPECT_TRUE(common::within_table(hf::CircleEstimatorParams{}).valid);
-  EXPECT_TRUE(common::within_table(hf::SequencerParams{}).valid);
-  EXPECT_TRUE(common::within_table(hf::JointBufferParams{}).valid);
-  EXPECT_TRUE(common::within_table(hf::BasePoseBufferParams{}).valid);
+  EXPECT_TRUE(common::within_table(hf::CircleEstimatorParams{}).ok());
+  EXPECT_TRUE(common::within_table(hf::SequencerParams{}).ok());
+  EXPECT_TRUE(common::within_table(hf::JointBufferParams{}).ok());
+  EXPECT_TRUE(common::within_table(hf::BasePoseBufferParams{}).ok());
+}
+
+// The buffers' ranges live in their tables only: validate() is the table.
+TEST(HydrusParamTables, TheBuffersAreBoundedByTheirTables) {
+  EXPECT_THAT(hf::validate(hf::BasePoseBufferParams{.tolerance_s = 0.02, .history_s = 0.0}).message,
+              HasSubstr("history_s must be in [0.01, 600], got 0"));
+  EXPECT_THAT(hf::validate(hf::JointBufferParams{.tolerance_s = -1.0}).message,
+              HasSubstr("tolerance_s must be in [0, 60], got -1"));
+  EXPECT_THROW(hf::BasePoseBuffer({.tolerance_s = std::numeric_limits<double>::quiet_NaN()}), std::invalid_argument);
+  hf::FusionParams f;
+  f.self_filter_margin_m = -0.01;
+  EXPECT_THAT(hf::validate(f).message, HasSubstr("self_filter_margin_m must be in [0, 1], got -0.01"));
 }
 
 TEST(HydrusParamTables, TheCircleFitterDeclaresEveryEstimatorSettingWithItsDefault) {

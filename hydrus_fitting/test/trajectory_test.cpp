@@ -43,13 +43,13 @@ TEST(ApproachTrajectory, ZeroLengthPhasesJump) {
 
 TEST(ApproachTrajectory, BadParametersAreNamed) {
   ApproachParams p;
-  EXPECT_TRUE(p.validate().valid);
+  EXPECT_TRUE(p.validate().ok());
   p.close_s = -1.0;
-  EXPECT_NE(p.validate().reason.find("durations"), std::string::npos);
+  EXPECT_NE(p.validate().message.find("durations"), std::string::npos);
   p = {};
   p.approach_direction.setZero();
-  EXPECT_NE(p.validate().reason.find("approach_direction"), std::string::npos);
+  EXPECT_NE(p.validate().message.find("approach_direction"), std::string::npos);
   p = {};
   p.start_distance_m = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_NE(p.validate().reason.find("start_distance_m"), std::string::npos);
+  EXPECT_NE(p.validate().message.find("start_distance_m"), std::string::npos);
 }

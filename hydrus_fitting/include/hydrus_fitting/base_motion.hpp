@@ -14,7 +14,7 @@
 
 #include <Eigen/Geometry>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::hydrus_fitting {
 
@@ -24,11 +24,11 @@ struct BasePoseBufferParams {
   double tolerance_s = 0.02;
   double history_s = 2.0;  ///< poses older than this behind the newest are forgotten [s]
 };
-common::Validation validate(const BasePoseBufferParams& params);
+common::Status validate(const BasePoseBufferParams& params);
 
 struct BasePoseLookup {
-  bool ok = false;
-  std::string reason;                                              ///< why not, when !ok
+  /// OutOfRange: no pose yet, or the stamp beyond the tolerance of the poses held.
+  common::Status status = common::Status(common::StatusCode::OutOfRange, "not looked up");
   Eigen::Isometry2d T_fixed_base = Eigen::Isometry2d::Identity();  ///< the base in the fixed frame
 };
 

@@ -33,7 +33,7 @@
 
 #include <Eigen/Core>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::hydrus_fitting {
 
@@ -167,7 +167,7 @@ struct RefineParams {
 /// otherwise every point has weight 1. Needs >= 3 points (>= 2 with a known
 /// radius).
 /// The parameter check refine_circle makes first (second_order only when it applies).
-common::Validation validate(const RefineParams& params);
+common::Status validate(const RefineParams& params);
 
 [[nodiscard]] CircleFit refine_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Circle& initial,
                                       const RefineParams& params = {}, std::span<const double> sigma_m = {});
@@ -231,7 +231,7 @@ struct Viewpoints {
 
 /// MSAC + local optimisation. `sigma_m` as in refine_circle (per point).
 /// The parameter check fit_circle_robust makes first.
-common::Validation validate(const RobustCircleParams& params);
+common::Status validate(const RobustCircleParams& params);
 
 [[nodiscard]] CircleFit fit_circle_robust(const Eigen::Ref<const Eigen::Matrix2Xd>& points,
                                           const RobustCircleParams& params = {}, std::span<const double> sigma_m = {},
@@ -242,8 +242,7 @@ common::Validation validate(const RobustCircleParams& params);
 /// (sum_i g_i g_i^T / sigma_i^2)^-1 with g_i = d(|p_i - c| - r)/d(cx, cy, r) at
 /// the true circle. With a known radius, the 2 x 2 centre block (r terms zero).
 struct KcrBound {
-  bool ok = false;
-  std::string reason;
+  common::Status status;  ///< InvalidArgument: bad sigma or points, or a singular information matrix
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< [m^2]
 };
 /// `true_points` lie on `truth`; `sigma_m` is one SD for all points (size 1)

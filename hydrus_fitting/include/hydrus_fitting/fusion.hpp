@@ -17,7 +17,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 #include "hydrus_fitting/robot_model.hpp"
 
@@ -39,7 +39,7 @@ struct FusionParams {
   double self_filter_margin_m = 0.03;
   RangeNoiseModel noise;
 };
-common::Validation validate(const FusionParams& params);
+common::Status validate(const FusionParams& params);
 
 /// One line scan in the robot description's terms (LineScan, converted).
 struct ScanView {

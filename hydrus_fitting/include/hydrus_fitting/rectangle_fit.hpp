@@ -55,7 +55,7 @@ struct RectangleFit {
 };
 
 /// The parameter check fit_rectangle makes first.
-common::Validation validate(const RectangleFitParams& params);
+common::Status validate(const RectangleFitParams& params);
 
 [[nodiscard]] RectangleFit fit_rectangle(const Eigen::Ref<const Eigen::Matrix2Xd>& points,
                                          const RectangleFitParams& params = {}, const Viewpoints& viewpoints = {});

@@ -35,7 +35,7 @@
 
 #include <Eigen/Geometry>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::hydrus_fitting {
 
@@ -135,7 +135,7 @@ struct JointBufferParams {
   /// Samples older than this behind the newest are forgotten.
   double history_s = 2.0;
 };
-common::Validation validate(const JointBufferParams& params);
+common::Status validate(const JointBufferParams& params);
 
 enum class JointLookupStatus : std::uint8_t {
   kOk = 0,

@@ -137,8 +137,8 @@ struct Schedule {
 /// slot that only held such sensors is dropped (it gave nobody else time).
 [[nodiscard]] Schedule with_always_emitting(Schedule s, std::span<const int> always);
 /// Why a schedule is unsafe for a graph (two conflicting sensors share a
-/// slot, a sensor never emits); empty when it is safe.
-[[nodiscard]] std::string check_schedule(const InterferenceGraph& g, const Schedule& s);
+/// slot, a sensor never emits): InvalidArgument, ok when it is safe.
+[[nodiscard]] common::Status check_schedule(const InterferenceGraph& g, const Schedule& s);
 
 struct SequencerParams {
   InterferenceParams interference;

@@ -10,7 +10,7 @@
 
 #include <Eigen/Geometry>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::hydrus_fitting {
 
@@ -38,8 +38,8 @@ struct ApproachParams {
   double approach_s = 6.0;
   double close_s = 4.0;
   double hold_s = 2.0;
-  /// Why the parameters are impossible; empty when fine.
-  common::Validation validate() const;
+  /// Why the parameters are impossible (InvalidArgument); ok when fine.
+  common::Status validate() const;
   [[nodiscard]] double duration_s() const { return approach_s + close_s + hold_s; }
 };
 
