@@ -125,20 +125,21 @@ int pixels(const Fields& f, const YAML::Node& doc, const char* key) {
 
 }  // namespace
 
-std::string check_intrinsics(const CameraIntrinsics& k) {
+common::Status check_intrinsics(const CameraIntrinsics& k) {
   if (k.width < 1 || k.height < 1 || k.width > kMaxSidePx || k.height > kMaxSidePx)
-    return "width and height must be 1-" + std::to_string(kMaxSidePx) + " px (are " + size_text(k.width, k.height) +
-           ")";
+    return common::Status::invalid("width and height must be 1-" + std::to_string(kMaxSidePx) + " px (are " +
+                                   size_text(k.width, k.height) + ")");
   if (std::int64_t(k.width) * k.height > kMaxPixels)
-    return "width x height must be at most " + std::to_string(kMaxPixels) + " px (is " + size_text(k.width, k.height) +
-           ")";
+    return common::Status::invalid("width x height must be at most " + std::to_string(kMaxPixels) + " px (is " +
+                                   size_text(k.width, k.height) + ")");
   if (!(k.fx >= kMinFocalPx && k.fx <= kMaxFocalPx) || !(k.fy >= kMinFocalPx && k.fy <= kMaxFocalPx))
-    return "fx and fy must be finite, " + fmt_number(kMinFocalPx) + "-" + fmt_number(kMaxFocalPx) + " px";
+    return common::Status::invalid("fx and fy must be finite, " + fmt_number(kMinFocalPx) + "-" +
+                                   fmt_number(kMaxFocalPx) + " px");
   if (!(std::abs(k.cx) <= 2.0 * k.width) || !(std::abs(k.cy) <= 2.0 * k.height))
-    return "cx and cy must be finite and within twice the image size of its corner";
+    return common::Status::invalid("cx and cy must be finite and within twice the image size of its corner");
   if (!(k.depth_scale >= kMinDepthScale && k.depth_scale <= kMaxDepthScale))
-    return "depth_scale must be finite and > 0, " + fmt_number(kMinDepthScale) + "-" + fmt_number(kMaxDepthScale) +
-           " (depth image units per metre, 1000 for millimetres)";
+    return common::Status::invalid("depth_scale must be finite and > 0, " + fmt_number(kMinDepthScale) + "-" +
+                                   fmt_number(kMaxDepthScale) + " (depth image units per metre, 1000 for millimetres)");
   return {};
 }
 
@@ -163,14 +164,14 @@ CameraIntrinsics read_intrinsics(const std::string& path) {
   k.cx = f.number(doc, "", "cx");
   k.cy = f.number(doc, "", "cy");
   k.depth_scale = f.number_or(doc, "", "depth_scale", k.depth_scale);
-  if (const std::string bad = check_intrinsics(k); !bad.empty())
-    throw RgbdFileError("intrinsics file '" + path + "': " + bad);
+  if (const common::Status bad = check_intrinsics(k); !bad.ok())
+    throw RgbdFileError("intrinsics file '" + path + "': " + bad.message);
   return k;
 }
 
 void write_intrinsics(const std::string& path, const CameraIntrinsics& k) {
-  if (const std::string bad = check_intrinsics(k); !bad.empty())
-    throw RgbdFileError("intrinsics for '" + path + "': " + bad);
+  if (const common::Status bad = check_intrinsics(k); !bad.ok())
+    throw RgbdFileError("intrinsics for '" + path + "': " + bad.message);
   std::ostringstream s;
   s.precision(std::numeric_limits<double>::max_digits10);
   s << "# pinhole camera, depth registered to colour\nwidth: " << k.width << "\nheight: " << k.height

@@ -21,6 +21,8 @@
 
 #include <opencv2/core.hpp>
 
+#include <tinyline/common/status.hpp>
+
 #include "tomato_reasoning/cloud.hpp"
 #include "tomato_reasoning/pipeline.hpp"
 
@@ -42,8 +44,8 @@ struct CameraIntrinsics {
   double depth_scale = 1000.0;  ///< depth image units per metre (1000: mm; TUM uses 5000)
 };
 
-/// Empty when the intrinsics can be used, else what is wrong.
-[[nodiscard]] std::string check_intrinsics(const CameraIntrinsics& k);
+/// Whether the intrinsics can be used: InvalidArgument says what is wrong.
+[[nodiscard]] common::Status check_intrinsics(const CameraIntrinsics& k);
 
 /// Reads `path` (YAML: the fields of CameraIntrinsics by name).
 [[nodiscard]] CameraIntrinsics read_intrinsics(const std::string& path);
