@@ -54,8 +54,9 @@ int main(int argc, char** argv) try {
   if (kernel_kappa) p.force.kernel_kappa = *kernel_kappa;
   const PipelineResult r = TomatoPipeline(p).run(s.cloud());
   std::printf("class %c seed %llu: %zu true tomatoes, %zu spheres (%s%s%s)\n", char(*cls),
-              static_cast<unsigned long long>(seed), s.truth.size(), r.tomatoes.size(), r.ok ? "ok" : r.stage.c_str(),
-              r.ok ? "" : ": ", r.reason.c_str());
+              static_cast<unsigned long long>(seed), s.truth.size(), r.tomatoes.size(),
+              r.status.ok() ? "ok" : std::string(to_string(r.stage)).c_str(), r.status.ok() ? "" : ": ",
+              r.status.message.c_str());
 
   files::AtomicStream pts((out / "points.csv").string());
   pts << "x,y,z,r,g,b,red\n";

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/branch_clustering.hpp"
 
+#include "tomato_reasoning/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -31,14 +33,10 @@ struct UnionFind {
 
 }  // namespace
 
-common::Validation validate(const BranchClusteringParams& p) {
-  if (!(p.tolerance_m > 0) || !std::isfinite(p.tolerance_m))
-    return common::Validation::invalid("tolerance_m must be finite and > 0");
-  if (p.min_points < 1) return common::Validation::invalid("min_points must be >= 1");
-  if (!(p.min_range_m >= 0) || !(p.max_range_m > p.min_range_m))
-    return common::Validation::invalid("ranges must satisfy 0 <= min_range_m < max_range_m");
-  if (!(p.max_extent_m > 0)) return common::Validation::invalid("max_extent_m must be > 0");
-  return common::Validation::ok();
+common::Status validate(const BranchClusteringParams& p) {
+  if (common::Status s = common::within_table(p); !s.ok()) return s;
+  if (!(p.max_range_m > p.min_range_m)) return common::Status::invalid("ranges must satisfy min_range_m < max_range_m");
+  return {};
 }
 
 std::vector<Indices> euclidean_clusters(const std::vector<Eigen::Vector3f>& points, const Indices& indices_in,
@@ -112,12 +110,12 @@ BranchResult cluster_branches(const ColorCloud& cloud, const Indices& candidates
   const std::vector<Eigen::Vector3f> viewpoints =
       viewpoints_in.empty() ? std::vector<Eigen::Vector3f>{Eigen::Vector3f::Zero()} : viewpoints_in;
   BranchResult r;
-  if (const common::Validation why = validate(p); !why.valid) {
-    r.reason = "bad branch clustering parameters: " + why.reason;
+  if (const common::Status why = validate(p); !why.ok()) {
+    r.reason = "bad branch clustering parameters: " + why.message;
     return r;
   }
-  if (const std::string why = check_cloud(cloud); !why.empty()) {
-    r.reason = "malformed cloud: " + why;
+  if (const common::Status why = check_cloud(cloud); !why.ok()) {
+    r.reason = "malformed cloud: " + why.message;
     return r;
   }
   for (int k : candidates) {

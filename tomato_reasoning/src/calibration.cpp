@@ -17,11 +17,11 @@
 
 namespace tinyline::tomato_reasoning {
 
-common::Validation validate(const DepthCorrectionParams& p) {
+common::Status validate(const DepthCorrectionParams& p) {
   if (p.cells_u < 1 || p.cells_v < 1 || p.cells_u * p.cells_v > 10000)
-    return common::Validation::invalid("cells_u x cells_v must be 1..10000 cells");
-  if (p.degree < 0 || p.degree > 6) return common::Validation::invalid("degree must be 0..6");
-  return common::Validation::ok();
+    return common::Status::invalid("cells_u x cells_v must be 1..10000 cells");
+  if (p.degree < 0 || p.degree > 6) return common::Status::invalid("degree must be 0..6");
+  return common::Status{};
 }
 
 namespace {
@@ -32,7 +32,7 @@ int cell_of(const DepthCorrectionParams& p, int width, int height, int u, int v)
 }  // namespace
 
 double DepthCorrection::correct(int u, int v, double z) const {
-  if (!ok || u < 0 || v < 0 || u >= width || v >= height || !std::isfinite(z)) return z;
+  if (!status.ok() || u < 0 || v < 0 || u >= width || v >= height || !std::isfinite(z)) return z;
   double t = cell_offset_m[std::size_t(cell_of(params, width, height, u, v))], zk = 1.0;
   for (double c : theta) t += c * (zk *= z);
   return z + t;
@@ -44,8 +44,8 @@ DepthCorrection fit_depth_correction(const std::vector<DepthSample>& samples, in
   d.params = p;
   d.width = width;
   d.height = height;
-  if (const common::Validation bad = validate(p); !bad.valid) return d.reason = bad.reason, d;
-  if (width <= 0 || height <= 0) return d.reason = "image size must be positive", d;
+  if (const common::Status bad = validate(p); !bad.ok()) return d.status = bad, d;
+  if (width <= 0 || height <= 0) return d.status = common::Status::invalid("image size must be positive"), d;
   const int cells = p.cells_u * p.cells_v, n = cells + p.degree;
   // z_true - z = Z(cell) + sum_k c_k z^k: linear in the unknowns; normal equations.
   Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(n, n);
@@ -75,7 +75,8 @@ DepthCorrection fit_depth_correction(const std::vector<DepthSample>& samples, in
     ++d.samples_used;
   }
   if (d.samples_used < std::size_t(n)) {
-    d.reason = std::to_string(d.samples_used) + " usable samples, fewer than the " + std::to_string(n) + " unknowns";
+    d.status = common::Status::invalid(std::to_string(d.samples_used) + " usable samples, fewer than the " +
+                                       std::to_string(n) + " unknowns");
     return d;
   }
   // Cells without samples: pin their offset to 0 (a unit row keeps the system regular).
@@ -85,10 +86,11 @@ DepthCorrection fit_depth_correction(const std::vector<DepthSample>& samples, in
       ++d.empty_cells;
     }
   const Eigen::VectorXd x = AtA.ldlt().solve(Atb);
-  if (!x.allFinite()) return d.reason = "the depth range is too narrow to separate Z(u, v) from theta(z)", d;
+  if (!x.allFinite())
+    return d.status = common::Status::invalid("the depth range is too narrow to separate Z(u, v) from theta(z)"), d;
   d.cell_offset_m.assign(x.data(), x.data() + cells);
   d.theta.assign(x.data() + cells, x.data() + n);
-  d.ok = true;
+  d.status = {};
   double sse_after = 0;
   for (const auto& s : samples) {
     if (!std::isfinite(s.measured_m) || !std::isfinite(s.true_m) || s.u < 0 || s.v < 0 || s.u >= width || s.v >= height)
@@ -98,7 +100,7 @@ DepthCorrection fit_depth_correction(const std::vector<DepthSample>& samples, in
   }
   d.rms_before_m = std::sqrt(sse_before / double(d.samples_used));
   d.rms_after_m = std::sqrt(sse_after / double(d.samples_used));
-  if (d.empty_cells > 0) d.reason = std::to_string(d.empty_cells) + " cells without samples keep Z = 0";
+  if (d.empty_cells > 0) d.note = std::to_string(d.empty_cells) + " cells without samples keep Z = 0";
   return d;
 }
 
@@ -123,8 +125,8 @@ HandToHeadResult calibrate_hand_to_head(const ColorCloud& head, const ColorCloud
                                         const HandToHeadParams& p) {
   HandToHeadResult r;
   r.T_head_hand = guess;
-  if (const auto bad = check_cloud(head); !bad.empty()) return r.reason = "head cloud: " + bad, r;
-  if (const auto bad = check_cloud(hand); !bad.empty()) return r.reason = "hand cloud: " + bad, r;
+  if (const auto bad = check_cloud(head); !bad.ok()) return r.reason = "head cloud: " + bad.message, r;
+  if (const auto bad = check_cloud(hand); !bad.ok()) return r.reason = "hand cloud: " + bad.message, r;
   if (!guess.matrix().allFinite()) return r.reason = "the guess is not finite", r;
   if (!(p.max_correspondence_m > 0) || p.max_iterations < 1)
     return r.reason = "max_correspondence_m and max_iterations must be positive", r;

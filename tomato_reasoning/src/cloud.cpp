@@ -3,18 +3,20 @@
 
 namespace tinyline::tomato_reasoning {
 
-std::string check_cloud(const ColorCloud& c) {
+common::Status check_cloud(const ColorCloud& c) {
   if (c.xyz.size() != c.rgb.size())
-    return "cloud has " + std::to_string(c.xyz.size()) + " points but " + std::to_string(c.rgb.size()) + " colours";
+    return common::Status::invalid("cloud has " + std::to_string(c.xyz.size()) + " points but " +
+                                   std::to_string(c.rgb.size()) + " colours");
   if (c.width < 0 || c.height < 1)
-    return "cloud has width " + std::to_string(c.width) + ", height " + std::to_string(c.height);
+    return common::Status::invalid("cloud has width " + std::to_string(c.width) + ", height " +
+                                   std::to_string(c.height));
   if (static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height) != c.xyz.size())
-    return "cloud is " + std::to_string(c.width) + " x " + std::to_string(c.height) + " but holds " +
-           std::to_string(c.xyz.size()) + " points";
+    return common::Status::invalid("cloud is " + std::to_string(c.width) + " x " + std::to_string(c.height) +
+                                   " but holds " + std::to_string(c.xyz.size()) + " points");
   return {};
 }
 
-CloudView::CloudView(const ColorCloud& c) : problem(check_cloud(c)) {
+CloudView::CloudView(const ColorCloud& c) : problem(check_cloud(c).message) {
   if (!problem.empty() || c.empty()) return;
   width = c.width;
   height = c.height;
@@ -26,15 +28,17 @@ CloudView::CloudView(const ColorCloud& c) : problem(check_cloud(c)) {
   rgb_stride = sizeof(Rgb);
 }
 
-std::string check_view(const CloudView& v) {
-  if (!v.problem.empty()) return v.problem;
+common::Status check_view(const CloudView& v) {
+  if (!v.problem.empty()) return common::Status::invalid(v.problem);
   if (v.width < 0 || v.height < 1)
-    return "cloud has width " + std::to_string(v.width) + ", height " + std::to_string(v.height);
+    return common::Status::invalid("cloud has width " + std::to_string(v.width) + ", height " +
+                                   std::to_string(v.height));
   if (v.empty()) return {};
-  if (!v.xyz || !v.r || !v.g || !v.b) return "cloud of " + std::to_string(v.size()) + " points has no point data";
+  if (!v.xyz || !v.r || !v.g || !v.b)
+    return common::Status::invalid("cloud of " + std::to_string(v.size()) + " points has no point data");
   if (v.xyz_stride < 3 * sizeof(float) && v.size() > 1)
-    return "point stride " + std::to_string(v.xyz_stride) + " bytes is shorter than x, y, z";
-  if (v.rgb_stride < 1 && v.size() > 1) return "colour stride is 0";
+    return common::Status::invalid("point stride " + std::to_string(v.xyz_stride) + " bytes is shorter than x, y, z");
+  if (v.rgb_stride < 1 && v.size() > 1) return common::Status::invalid("colour stride is 0");
   return {};
 }
 

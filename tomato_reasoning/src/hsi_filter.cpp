@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/hsi_filter.hpp"
 
+#include "tomato_reasoning/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -23,15 +25,14 @@ int saturation(const Rgb& c, int i) {
 }
 }  // namespace
 
-common::Validation validate(const HsiFilterParams& p) {
-  if (!(p.h_min_deg >= -180 && p.h_max_deg <= 180 && p.h_min_deg <= p.h_max_deg))
-    return common::Validation::invalid("hue range must satisfy -180 <= h_min_deg <= h_max_deg <= 180 (got [" +
-                                       std::to_string(p.h_min_deg) + ", " + std::to_string(p.h_max_deg) + "])");
-  if (p.s_min < 0 || p.s_max > 255 || p.s_min > p.s_max)
-    return common::Validation::invalid("saturation range must satisfy 0 <= s_min <= s_max <= 255");
-  if (p.i_min < 0 || p.i_max > 255 || p.i_min > p.i_max)
-    return common::Validation::invalid("intensity range must satisfy 0 <= i_min <= i_max <= 255");
-  return common::Validation::ok();
+common::Status validate(const HsiFilterParams& p) {
+  if (common::Status s = common::within_table(p); !s.ok()) return s;
+  if (!(p.h_min_deg <= p.h_max_deg))
+    return common::Status::invalid("hue range must satisfy h_min_deg <= h_max_deg (got [" +
+                                   std::to_string(p.h_min_deg) + ", " + std::to_string(p.h_max_deg) + "])");
+  if (p.s_min > p.s_max) return common::Status::invalid("saturation range must satisfy s_min <= s_max");
+  if (p.i_min > p.i_max) return common::Status::invalid("intensity range must satisfy i_min <= i_max");
+  return {};
 }
 
 Hsi to_hsi(const Rgb& c) {
@@ -41,8 +42,7 @@ Hsi to_hsi(const Rgb& c) {
 }
 
 HsiFilter::HsiFilter(const HsiFilterParams& params) : params_(params) {
-  if (const common::Validation why = validate(params); !why.valid)
-    throw std::invalid_argument("HSI filter: " + why.reason);
+  if (const common::Status why = validate(params); !why.ok()) throw std::invalid_argument("HSI filter: " + why.message);
   const double a = params.h_min_deg * M_PI / 180.0, b = params.h_max_deg * M_PI / 180.0;
   cos_min_ = std::cos(a);
   sin_min_ = std::sin(a);
@@ -69,12 +69,12 @@ bool HsiFilter::passes(const Rgb& c) const {
 
 HsiFilterResult filter_hsi(const CloudView& cloud, const HsiFilterParams& params) {
   HsiFilterResult r;
-  if (const common::Validation why = validate(params); !why.valid) {
-    r.reason = "bad HSI parameters: " + why.reason;
+  if (const common::Status why = validate(params); !why.ok()) {
+    r.reason = "bad HSI parameters: " + why.message;
     return r;
   }
-  if (const std::string why = check_view(cloud); !why.empty()) {
-    r.reason = "malformed cloud: " + why;
+  if (const common::Status why = check_view(cloud); !why.ok()) {
+    r.reason = "malformed cloud: " + why.message;
     return r;
   }
   if (cloud.empty()) {

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/pipeline.hpp"
 
+#include "tomato_reasoning/param_tables.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -78,23 +80,23 @@ void cut_on_seen_pedicel(const Sphere& s, const PedicelSighting& seen, double co
 }
 }  // namespace
 
-common::Validation validate(const PipelineParams& p) {
-  for (const common::Validation& v :
-       {validate(p.hsi).within("hsi"), validate(p.branch).within("branch"), validate(p.smoothing).within("smoothing"),
-        validate(p.spheres).within("spheres"), validate(p.noise_bias).within("noise_bias"),
-        validate(p.force).within("force"), validate(p.pedicel).within("pedicel")}) {
-    if (!v.valid) return v;
+common::Status validate(const PipelineParams& p) {
+  for (const common::Status& v : std::initializer_list<common::Status>{
+           validate(p.hsi).within("hsi"), validate(p.branch).within("branch"),
+           validate(p.smoothing).within("smoothing"), validate(p.spheres).within("spheres"),
+           validate(p.noise_bias).within("noise_bias"), validate(p.force).within("force"),
+           validate(p.pedicel).within("pedicel")}) {
+    if (!v.ok()) return v;
   }
   if (!p.gravity.allFinite() || !(p.gravity.norm() > 1e-9))
-    return common::Validation::invalid("gravity must be a finite, non-zero vector");
-  if (!(p.cut.scissor_opening_m > 0) || !(p.cut.cut_offset_m >= 0) || p.cut.candidates < 1)
-    return common::Validation::invalid("cut: scissor_opening_m > 0, cut_offset_m >= 0 and candidates >= 1");
-  return common::Validation::ok();
+    return common::Status::invalid("gravity must be a finite, non-zero vector");
+  if (common::Status s = common::within_table(p.cut); !s.ok()) return s.within("cut");
+  return common::Status{};
 }
 
 TomatoPipeline::TomatoPipeline(PipelineParams params) : params_(std::move(params)) {
-  if (const common::Validation why = validate(params_); !why.valid)
-    throw std::invalid_argument("tomato pipeline: " + why.reason);
+  if (const common::Status why = validate(params_); !why.ok())
+    throw std::invalid_argument("tomato pipeline: " + why.message);
 }
 
 PipelineResult TomatoPipeline::run(const CloudView& cloud) const {
@@ -103,30 +105,49 @@ PipelineResult TomatoPipeline::run(const CloudView& cloud) const {
   return run(std::vector<View>{v});
 }
 
+std::string_view to_string(PipelineStage stage) {
+  switch (stage) {
+    case PipelineStage::kNone: return "";
+    case PipelineStage::kInput: return "input";
+    case PipelineStage::kHsi: return "hsi";
+    case PipelineStage::kBranch: return "branch";
+    case PipelineStage::kSmoothing: return "smoothing";
+    case PipelineStage::kSpheres: return "spheres";
+  }
+  return "";
+}
+
+namespace {
+/// `r` stopped at `stage` for `why`: bad input there, or nothing found.
+PipelineResult& stopped(PipelineResult& r, PipelineStage stage, std::string why) {
+  r.stage = stage;
+  r.status = {stage == PipelineStage::kInput ? common::StatusCode::InvalidArgument : common::StatusCode::NotFound,
+              std::move(why)};
+  return r;
+}
+}  // namespace
+
 PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   PipelineResult r;
-  auto stop = [&](const char* stage, std::string why) {
-    r.stage = stage;
-    r.reason = std::move(why);
-    return r;
-  };
-  if (views.empty()) return stop("input", "no views");
-  if (views.size() > 255) return stop("input", "more than 255 views");
+  auto stop = [&](PipelineStage stage, std::string why) { return stopped(r, stage, std::move(why)); };
+  using enum PipelineStage;
+  if (views.empty()) return stop(kInput, "no views");
+  if (views.size() > 255) return stop(kInput, "more than 255 views");
   std::size_t total = 0;
   for (std::size_t v = 0; v < views.size(); ++v) {
     const std::string name = views.size() > 1 ? "view " + std::to_string(v) + ": " : "";
-    if (const std::string why = check_view(views[v].cloud); !why.empty())
-      return stop("input", name + "malformed cloud: " + why);
-    if (!views[v].T_ref_camera.matrix().allFinite()) return stop("input", name + "camera pose is not finite");
+    if (const common::Status why = check_view(views[v].cloud); !why.ok())
+      return stop(kInput, name + "malformed cloud: " + why.message);
+    if (!views[v].T_ref_camera.matrix().allFinite()) return stop(kInput, name + "camera pose is not finite");
     total += views[v].cloud.size();
   }
-  if (total == 0) return stop("input", "empty cloud");
+  if (total == 0) return stop(kInput, "empty cloud");
 
   auto t0 = Clock::now();
   const std::string hsi_reason = filter_views(views, params_.hsi, r);
   r.times.hsi_ms = ms_since(t0);
   r.red_points = r.red_xyz.size();
-  if (r.red_xyz.empty()) return stop("hsi", hsi_reason);
+  if (r.red_xyz.empty()) return stop(kHsi, hsi_reason);
 
   t0 = Clock::now();
   ColorCloud red;
@@ -138,16 +159,16 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   r.branch = cluster_branches(red, all, params_.branch, r.viewpoints);
   r.times.branch_ms = ms_since(t0);
   const Cluster* branch = r.branch.branch();
-  if (!branch) return stop("branch", r.branch.reason);
+  if (!branch) return stop(kBranch, r.branch.reason);
 
   t0 = Clock::now();
   r.smoothed = smooth_mls(r.red_xyz, branch->indices, params_.smoothing, r.viewpoints, r.red_view);
   r.times.smoothing_ms = ms_since(t0);
-  if (r.smoothed.points.empty()) return stop("smoothing", r.smoothed.reason);
+  if (r.smoothed.points.empty()) return stop(kSmoothing, r.smoothed.reason);
 
   t0 = Clock::now();
   r.segmentation = segment_spheres(r.smoothed.points, r.smoothed.normals, params_.spheres, r.viewpoints);
-  if (r.segmentation.spheres.empty()) return stop("spheres", "no sphere found: " + r.segmentation.stop_reason);
+  if (r.segmentation.spheres.empty()) return stop(kSpheres, "no sphere found: " + r.segmentation.stop_reason);
   correct_spheres(r, params_, r.segmentation.spheres);
   r.times.spheres_ms = ms_since(t0);
 
@@ -165,24 +186,18 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   }
   reason(r);
   r.times.reasoning_ms = ms_since(t0);
-  r.ok = true;
+  r.status = {};
   return r;
 }
 
 PipelineResult TomatoPipeline::reason_about(const std::vector<SphereFit>& spheres) const {
   PipelineResult r;
-  if (spheres.empty()) {
-    r.stage = "spheres";
-    r.reason = "no spheres to reason about";
-    return r;
-  }
+  if (spheres.empty()) return stopped(r, PipelineStage::kSpheres, "no spheres to reason about");
   const auto t0 = Clock::now();
   for (const auto& f : spheres) {
     if (!f.sphere.centre.allFinite() || !(f.sphere.radius_m > 0)) {
-      r.stage = "input";
-      r.reason = "a sphere has a non-finite centre or a radius <= 0";
       r.tomatoes.clear();
-      return r;
+      return stopped(r, PipelineStage::kInput, "a sphere has a non-finite centre or a radius <= 0");
     }
     Tomato t;
     t.fit = f;
@@ -190,7 +205,7 @@ PipelineResult TomatoPipeline::reason_about(const std::vector<SphereFit>& sphere
   }
   reason(r);
   r.times.reasoning_ms = ms_since(t0);
-  r.ok = true;
+  r.status = {};
   return r;
 }
 

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/reasoning.hpp"
 
+#include "tomato_reasoning/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -61,23 +63,13 @@ std::vector<ContactEdge> contact_graph(const std::vector<Sphere>& s, double d_e_
   return out;
 }
 
-common::Validation validate(const ForceModelParams& p) {
-  if (!(p.contact_tolerance_m >= 0) || !std::isfinite(p.contact_tolerance_m))
-    return common::Validation::invalid("contact_tolerance_m must be finite and >= 0");
-  if (!std::isfinite(p.eps_mean) || !(p.eps_variance > 0) || !std::isfinite(p.eps_variance))
-    return common::Validation::invalid("eps_mean must be finite and eps_variance finite and > 0");
-  if (!(p.eps_max > 0) || !std::isfinite(p.eps_max))
-    return common::Validation::invalid("eps_max must be finite and > 0");
+common::Status validate(const ForceModelParams& p) {
+  if (common::Status s = common::within_table(p); !s.ok()) return s;
   if (normal_cdf((p.eps_max - p.eps_mean) / std::sqrt(p.eps_variance)) -
           normal_cdf(-p.eps_mean / std::sqrt(p.eps_variance)) <
       1e-6)
-    return common::Validation::invalid("eps ~ N(eps_mean, eps_variance) has (almost) no mass in [0, eps_max)");
-  if (!(p.weight_exponent >= 0) || !std::isfinite(p.weight_exponent))
-    return common::Validation::invalid("weight_exponent must be finite and >= 0");
-  if (!(p.kernel_kappa >= 0) || !std::isfinite(p.kernel_kappa))
-    return common::Validation::invalid("kernel_kappa must be finite and >= 0");
-  if (p.samples < 10) return common::Validation::invalid("samples must be >= 10");
-  return common::Validation::ok();
+    return common::Status::invalid("eps ~ N(eps_mean, eps_variance) has (almost) no mass in [0, eps_max)");
+  return {};
 }
 
 double truncated_normal_mean(double mu, double var, double max) {
@@ -172,7 +164,7 @@ std::vector<PedicelEstimate> estimate_pedicels(const std::vector<Sphere>& sphere
                                                const std::vector<ContactEdge>& edges, const Eigen::Vector3d& gravity,
                                                const ForceModelParams& P) {
   std::vector<PedicelEstimate> out;
-  if (!validate(P).valid || spheres.empty() || !(gravity.norm() > 0) || !gravity.allFinite()) return out;
+  if (!validate(P).ok() || spheres.empty() || !(gravity.norm() > 0) || !gravity.allFinite()) return out;
   const Eigen::Vector3d g = gravity.normalized();
   const double sd = std::sqrt(P.eps_variance);
   const double eps_mean = truncated_normal_mean(P.eps_mean, P.eps_variance, P.eps_max);

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/smoothing.hpp"
 
+#include "tomato_reasoning/param_tables.hpp"
+
 #include <cmath>
 
 #include <Eigen/Eigenvalues>
@@ -9,17 +11,7 @@
 
 namespace tinyline::tomato_reasoning {
 
-common::Validation validate(const SmoothingParams& p) {
-  if (!(p.voxel_m >= 0) || !std::isfinite(p.voxel_m))
-    return common::Validation::invalid("voxel_m must be finite and >= 0");
-  if (!(p.search_radius_m > 0) || !std::isfinite(p.search_radius_m))
-    return common::Validation::invalid("search_radius_m must be finite and > 0");
-  if (p.polynomial_order < 1 || p.polynomial_order > 2)
-    return common::Validation::invalid("polynomial_order must be 1 or 2");
-  if (p.min_neighbours < 3)
-    return common::Validation::invalid("min_neighbours must be >= 3 (a plane needs three points)");
-  return common::Validation::ok();
-}
+common::Status validate(const SmoothingParams& p) { return common::within_table(p); }
 
 namespace {
 
@@ -97,7 +89,7 @@ namespace {
 std::string smoothing_input_problem(const std::vector<Eigen::Vector3f>& points, const Indices& indices,
                                     const SmoothingParams& p, const std::vector<Eigen::Vector3f>& viewpoints) {
   if (viewpoints.empty()) return "no viewpoint";
-  if (const common::Validation why = validate(p); !why.valid) return "bad smoothing parameters: " + why.reason;
+  if (const common::Status why = validate(p); !why.ok()) return "bad smoothing parameters: " + why.message;
   for (int k : indices) {
     if (k < 0 || static_cast<std::size_t>(k) >= points.size())
       return "index " + std::to_string(k) + " outside the " + std::to_string(points.size()) + " points";

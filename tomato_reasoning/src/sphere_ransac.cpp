@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "tomato_reasoning/sphere_ransac.hpp"
 
+#include "tomato_reasoning/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -136,22 +138,11 @@ SphereRefinement refine_sphere(const std::vector<Eigen::Vector3f>& points, const
   return fixed;
 }
 
-common::Validation validate(const SphereRansacParams& p) {
-  if (!(p.radius_min_m > 0) || !(p.radius_max_m >= p.radius_min_m) || !std::isfinite(p.radius_max_m))
-    return common::Validation::invalid("radius range must satisfy 0 < radius_min_m <= radius_max_m (finite)");
-  if (!(p.inlier_distance_m > 0) || !std::isfinite(p.inlier_distance_m))
-    return common::Validation::invalid("inlier_distance_m must be finite and > 0");
-  if (!(p.normal_tolerance_deg < 90) || std::isnan(p.normal_tolerance_deg))
-    return common::Validation::invalid("normal_tolerance_deg must be < 90 (<= 0: off)");
-  if (p.max_iterations < 1) return common::Validation::invalid("max_iterations must be >= 1");
-  if (!(p.confidence > 0 && p.confidence < 1)) return common::Validation::invalid("confidence must be in (0, 1)");
-  if (p.min_inliers < 4) return common::Validation::invalid("min_inliers must be >= 4 (a sphere has four parameters)");
-  if (p.min_remaining < 4) return common::Validation::invalid("min_remaining must be >= 4");
-  if (p.max_spheres < 1) return common::Validation::invalid("max_spheres must be >= 1");
-  if (p.max_failed_rounds < 1) return common::Validation::invalid("max_failed_rounds must be >= 1");
-  if (!(p.max_overlap_m >= 0)) return common::Validation::invalid("max_overlap_m must be >= 0");
-  if (!(p.removal_factor >= 1)) return common::Validation::invalid("removal_factor must be >= 1");
-  return common::Validation::ok();
+common::Status validate(const SphereRansacParams& p) {
+  if (common::Status s = common::within_table(p); !s.ok()) return s;
+  if (!(p.radius_max_m >= p.radius_min_m))
+    return common::Status::invalid("radius range must satisfy radius_min_m <= radius_max_m");
+  return {};
 }
 
 SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
@@ -446,8 +437,8 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
     out.stop_reason = "no viewpoint";
     return out;
   }
-  if (const common::Validation why = validate(P); !why.valid) {
-    out.stop_reason = "bad sphere parameters: " + why.reason;
+  if (const common::Status why = validate(P); !why.ok()) {
+    out.stop_reason = "bad sphere parameters: " + why.message;
     return out;
   }
   const bool use_normals = P.normal_tolerance_deg > 0 || P.hypothesis == SphereHypothesis::kTwoPointsWithNormals;
@@ -471,14 +462,7 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
   return out;
 }
 
-common::Validation validate(const NoiseBiasParams& p) {
-  if (!(p.band_m > 0) || !std::isfinite(p.band_m)) return common::Validation::invalid("band_m must be finite and > 0");
-  if (!(p.min_cos >= 0 && p.min_cos < 1)) return common::Validation::invalid("min_cos must be in [0, 1)");
-  if (p.min_points < 3) return common::Validation::invalid("min_points must be >= 3");
-  for (double x : {p.radius_bias_m, p.radius_per_var, p.centre_bias_m, p.centre_per_var})
-    if (!std::isfinite(x)) return common::Validation::invalid("the bias coefficients must be finite");
-  return common::Validation::ok();
-}
+common::Status validate(const NoiseBiasParams& p) { return common::within_table(p); }
 
 namespace {
 // The upper median (the element nth_element puts in the middle).

@@ -29,7 +29,7 @@ std::vector<DepthSample> frames(std::vector<double> depths, unsigned seed) {
 
 TEST(DepthCorrection, FitsZuvAndThetaAndCorrectsHeldOutDepths) {
   const DepthCorrection d = fit_depth_correction(frames({0.4, 0.6, 0.8, 1.0, 1.2, 1.4}, 1), 640, 480);
-  ASSERT_TRUE(d.ok) << d.reason;
+  ASSERT_TRUE(d.status.ok()) << d.status.message;
   EXPECT_EQ(d.empty_cells, 0);
   EXPECT_LT(d.rms_after_m, d.rms_before_m / 5);
   // Held out: depths between the fitted ones, other noise.
@@ -46,14 +46,14 @@ TEST(DepthCorrection, FitsZuvAndThetaAndCorrectsHeldOutDepths) {
 }
 
 TEST(DepthCorrection, BadInputGivesNoModelAndTheReason) {
-  EXPECT_FALSE(fit_depth_correction({}, 640, 480).ok);
-  EXPECT_NE(fit_depth_correction({}, 640, 480).reason.find("usable samples"), std::string::npos);
+  EXPECT_FALSE(fit_depth_correction({}, 640, 480).status.ok());
+  EXPECT_NE(fit_depth_correction({}, 640, 480).status.message.find("usable samples"), std::string::npos);
   std::vector<DepthSample> nan(500, DepthSample{1, 1, std::nan(""), 0.5});
-  EXPECT_FALSE(fit_depth_correction(nan, 640, 480).ok);
+  EXPECT_FALSE(fit_depth_correction(nan, 640, 480).status.ok());
   DepthCorrectionParams bad;
   bad.cells_u = 0;
-  EXPECT_NE(fit_depth_correction(frames({0.5}, 1), 640, 480, bad).reason.find("cells"), std::string::npos);
-  EXPECT_FALSE(fit_depth_correction(frames({0.5}, 1), 0, 480).ok);
+  EXPECT_NE(fit_depth_correction(frames({0.5}, 1), 640, 480, bad).status.message.find("cells"), std::string::npos);
+  EXPECT_FALSE(fit_depth_correction(frames({0.5}, 1), 0, 480).status.ok());
   // A model that is not ok leaves depths alone.
   EXPECT_EQ(DepthCorrection{}.correct(3, 4, 0.7), 0.7);
 }

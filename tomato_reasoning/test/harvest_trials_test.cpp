@@ -51,7 +51,7 @@ eval::HarvestCounts count(const std::vector<eval::HarvestTrial>& trials) {
 // with the real cutter: every pick is SP(2), none SP(1).
 TEST(HarvestTrials, AMissedFirstCutIsPickedOnTheSecondAttempt) {
   const Harvested h = scene(sim::TrussClass::kA, 1);
-  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  ASSERT_TRUE(h.result.status.ok()) << h.result.status.message;
   std::map<int, int> calls;
   const eval::CutModel first_misses = [&](const sim::Truss& truss, const Eigen::Isometry3d& T, int target) {
     const Eigen::Isometry3d aside = ++calls[target] == 1 ? T * Eigen::Translation3d(0.03, 0, 0) : T;
@@ -78,7 +78,7 @@ TEST(HarvestTrials, AMissedFirstCutIsPickedOnTheSecondAttempt) {
 // goes on to the next tomato.
 TEST(HarvestTrials, AJammedCutIsACutFailure) {
   const Harvested h = scene(sim::TrussClass::kB, 2);
-  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  ASSERT_TRUE(h.result.status.ok()) << h.result.status.message;
   const eval::CutModel jams = [](const sim::Truss&, const Eigen::Isometry3d&, int) {
     sim::CutOutcome o;
     o.result = sim::CutResult::kJammed;
@@ -104,7 +104,7 @@ TEST(HarvestTrials, AJammedCutIsACutFailure) {
 // attempted) and the target gets its second attempt.
 TEST(HarvestTrials, ANeighboursPedicelCutKnocksItsFruitOff) {
   const Harvested h = scene(sim::TrussClass::kB, 2);
-  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  ASSERT_TRUE(h.result.status.ok()) << h.result.status.message;
   ASSERT_GE(h.scenario.truss.tomatoes.size(), 3u);
   int first_target = -1, victim = -1;
   const eval::CutModel wrong_first = [&](const sim::Truss& truss, const Eigen::Isometry3d& T, int target) {
@@ -174,7 +174,7 @@ TEST(HarvestTrials, CountsPartitionTheTrials) {
   for (sim::TrussClass c : {sim::TrussClass::kA, sim::TrussClass::kB, sim::TrussClass::kC}) {
     for (std::uint64_t seed : {1u, 2u}) {
       const Harvested h = scene(c, seed);
-      ASSERT_TRUE(h.result.ok) << h.result.reason;
+      ASSERT_TRUE(h.result.status.ok()) << h.result.status.message;
       const auto trials = eval::harvest(laser(), h.scenario, h.result);
       ASSERT_EQ(trials.size(), h.scenario.truss.tomatoes.size());
       const int severed = severed_others(trials);

@@ -83,6 +83,6 @@ TEST(HsiFilter, BadInputGivesAnEmptyResultWithTheReason) {
   EXPECT_NE(filter_hsi(broken).reason.find("malformed cloud"), std::string::npos);
   HsiFilterParams bad;
   bad.s_min = 300;
-  EXPECT_NE(filter_hsi(green, bad).reason.find("saturation"), std::string::npos);
+  EXPECT_NE(filter_hsi(green, bad).reason.find("s_min must be in [0, 255], got 300"), std::string::npos);
   EXPECT_THROW(HsiFilter{bad}, std::invalid_argument);
 }

@@ -15,7 +15,7 @@ using namespace tinyline::tomato_reasoning;
 namespace {
 
 void expect_same_detections(const PipelineResult& a, const PipelineResult& b) {
-  ASSERT_EQ(a.ok, b.ok) << a.reason << " / " << b.reason;
+  ASSERT_EQ(a.status.ok(), b.status.ok()) << a.status.message << " / " << b.status.message;
   EXPECT_EQ(a.finite_points, b.finite_points);
   EXPECT_EQ(a.red_points, b.red_points);
   ASSERT_EQ(a.tomatoes.size(), b.tomatoes.size());
@@ -47,7 +47,7 @@ TEST(PclClouds, OrganisedAndUnorganisedPclCloudsGiveTheColorCloudsDetections) {
     p.gravity = s.gravity_camera;
     const TomatoPipeline pipe(p);
     const PipelineResult reference = pipe.run(s.cloud());
-    ASSERT_TRUE(reference.ok) << reference.reason;
+    ASSERT_TRUE(reference.status.ok()) << reference.status.message;
     ASSERT_GT(reference.tomatoes.size(), 0u);
 
     const pcl::PointCloud<pcl::PointXYZRGB> organised = to_pcl(s.cloud());
@@ -71,7 +71,7 @@ TEST(PclClouds, TwoViewsOfPclCloudsGiveTheColorCloudsDetections) {
   const pcl::PointCloud<pcl::PointXYZRGB> c0 = to_pcl(s.clouds[0]), c1 = to_pcl(s.clouds[1]);
   const PipelineResult reference =
       pipe.run({View{s.clouds[0], s.T_ref_camera[0]}, View{s.clouds[1], s.T_ref_camera[1]}});
-  ASSERT_TRUE(reference.ok) << reference.reason;
+  ASSERT_TRUE(reference.status.ok()) << reference.status.message;
   expect_same_detections(reference,
                          pipe.run({View{view_of(c0), s.T_ref_camera[0]}, View{view_of(c1), s.T_ref_camera[1]}}));
 }
@@ -90,7 +90,7 @@ TEST(PclClouds, TheViewReadsThePclPointsInPlace) {
   }
   cloud.points[3].z = NAN;
   const CloudView v = view_of(cloud);
-  EXPECT_EQ(check_view(v), "");
+  EXPECT_TRUE(check_view(v).ok());
   EXPECT_EQ(v.width, 2);
   EXPECT_EQ(v.height, 2);
   EXPECT_TRUE(v.organised());
@@ -103,7 +103,7 @@ TEST(PclClouds, TheViewReadsThePclPointsInPlace) {
   EXPECT_EQ(v.colour(1)[0], 99);
 
   const ColorCloud owned = to_color_cloud(cloud);
-  EXPECT_EQ(check_cloud(owned), "");
+  EXPECT_TRUE(check_cloud(owned).ok());
   EXPECT_EQ(owned.width, 2);
   EXPECT_EQ(owned.rgb[1], (Rgb{99, 20, 31}));
   const pcl::PointCloud<pcl::PointXYZRGB> back = to_pcl(owned);
@@ -116,9 +116,9 @@ TEST(PclClouds, AMalformedOrEmptyPclCloudStopsAtTheInput) {
   pcl::PointCloud<pcl::PointXYZRGB> broken(4, 3);
   broken.points.pop_back();  // 4 x 3 but 11 points
   const PipelineResult r = pipe.run(view_of(broken));
-  EXPECT_EQ(r.stage, "input");
-  EXPECT_NE(r.reason.find("4 x 3 but holds 11 points"), std::string::npos) << r.reason;
+  EXPECT_EQ(r.stage, PipelineStage::kInput);
+  EXPECT_NE(r.status.message.find("4 x 3 but holds 11 points"), std::string::npos) << r.status.message;
 
   const pcl::PointCloud<pcl::PointXYZRGB> empty;
-  EXPECT_EQ(pipe.run(view_of(empty)).reason, "empty cloud");
+  EXPECT_EQ(pipe.run(view_of(empty)).status.message, "empty cloud");
 }

@@ -13,7 +13,7 @@ TEST(Pipeline, FindsEveryTomatoOfASimpleTrussWithinAFewMillimetres) {
   PipelineParams p;
   p.gravity = s.gravity_camera;
   const PipelineResult r = TomatoPipeline(p).run(s.cloud());
-  ASSERT_TRUE(r.ok) << r.stage << ": " << r.reason;
+  ASSERT_TRUE(r.status.ok()) << to_string(r.stage) << ": " << r.status.message;
   const eval::TrussScore sc = eval::score_truss(s, r);
   EXPECT_EQ(sc.detected, sc.truth);
   EXPECT_EQ(sc.unmatched, 0);
@@ -49,45 +49,45 @@ TEST(Pipeline, BadInputStopsWithTheStageAndTheReason) {
   const TomatoPipeline pipe;
   ColorCloud empty;
   PipelineResult r = pipe.run(empty);
-  EXPECT_FALSE(r.ok);
-  EXPECT_EQ(r.stage, "input");
-  EXPECT_EQ(r.reason, "empty cloud");
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_EQ(r.stage, PipelineStage::kInput);
+  EXPECT_EQ(r.status.message, "empty cloud");
 
   ColorCloud nan;
   for (int k = 0; k < 100; ++k) nan.push_back({NAN, NAN, NAN}, {200, 40, 30});
   r = pipe.run(nan);
-  EXPECT_EQ(r.stage, "hsi");
-  EXPECT_NE(r.reason.find("depth"), std::string::npos);
+  EXPECT_EQ(r.stage, PipelineStage::kHsi);
+  EXPECT_NE(r.status.message.find("depth"), std::string::npos);
 
   ColorCloud green;
   for (int k = 0; k < 100; ++k) green.push_back({0.001f * k, 0, 0.5f}, {60, 130, 40});
-  EXPECT_EQ(pipe.run(green).stage, "hsi");
+  EXPECT_EQ(pipe.run(green).stage, PipelineStage::kHsi);
 
   ColorCloud one;
   one.push_back({0, 0, 0.5f}, {200, 40, 30});
   r = pipe.run(one);
-  EXPECT_EQ(r.stage, "branch");
+  EXPECT_EQ(r.stage, PipelineStage::kBranch);
 
   // A flat red card: plenty of red points, no sphere.
   ColorCloud card;
   for (int i = 0; i < 60; ++i)
     for (int j = 0; j < 60; ++j) card.push_back({0.001f * i, 0.001f * j, 0.5f}, {200, 40, 30});
   r = pipe.run(card);
-  EXPECT_FALSE(r.ok);
-  EXPECT_EQ(r.stage, "spheres");
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_EQ(r.stage, PipelineStage::kSpheres);
   EXPECT_TRUE(r.tomatoes.empty());
 
   ColorCloud broken = card;
   broken.width = 7;
-  EXPECT_EQ(pipe.run(broken).stage, "input");
-  EXPECT_EQ(pipe.run(std::vector<View>{}).stage, "input");
+  EXPECT_EQ(pipe.run(broken).stage, PipelineStage::kInput);
+  EXPECT_EQ(pipe.run(std::vector<View>{}).stage, PipelineStage::kInput);
   View no_cloud;
-  EXPECT_EQ(pipe.run(std::vector<View>{no_cloud}).stage, "input");
+  EXPECT_EQ(pipe.run(std::vector<View>{no_cloud}).stage, PipelineStage::kInput);
 
   PipelineParams bad;
   bad.gravity = Eigen::Vector3d::Zero();
   EXPECT_THROW(TomatoPipeline{bad}, std::invalid_argument);
-  EXPECT_EQ(pipe.reason_about({}).stage, "spheres");
+  EXPECT_EQ(pipe.reason_about({}).stage, PipelineStage::kSpheres);
 }
 
 namespace {

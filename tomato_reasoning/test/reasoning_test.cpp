@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -142,13 +143,15 @@ TEST(CutPlan, CoversAtLeastAsMuchAsTheExpectationAndStaysOutsideOtherFruit) {
 TEST(ForceModel, BadInputGivesNoEstimates) {
   ForceModelParams bad;
   bad.eps_variance = -1;
-  EXPECT_FALSE(validate(bad).valid);
+  EXPECT_FALSE(validate(bad).ok());
   EXPECT_TRUE(estimate_pedicels({{{0, 0, 1}, 0.03}}, {}, kDown, bad).empty());
   EXPECT_TRUE(estimate_pedicels({}, {}, kDown).empty());
   EXPECT_TRUE(estimate_pedicels({{{0, 0, 1}, 0.03}}, {}, Eigen::Vector3d::Zero()).empty());
   ForceModelParams nomass;
-  nomass.eps_mean = 50;  // N(50, 0.25) has no mass in [0, 1)
-  EXPECT_FALSE(validate(nomass).valid);
+  nomass.eps_mean = 1.0;  // N(1, 1e-6) has no mass in [0, 0.5)
+  nomass.eps_variance = 1e-6;
+  nomass.eps_max = 0.5;
+  EXPECT_THAT(validate(nomass).message, ::testing::HasSubstr("no mass"));
   EXPECT_TRUE(pick_order({}, {}, kDown).empty());
   EXPECT_EQ(plan_cut({}, 0, {}).coverage, 0.0);
 }

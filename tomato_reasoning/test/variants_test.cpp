@@ -15,7 +15,7 @@ TEST(Variants, TheImageMaskWithoutMorphologyIsThePerPointFilter) {
   const te::Scenario s = te::make_scenario(tinyline::sim::TrussClass::kB, 4);
   const auto run = [&](const std::string& name) { return te::make_variant(name, te::variant_params(name))->run(s); };
   const tr::PipelineResult a = run("default"), b = run("opencv_hsi"), c = run("opencv_hsi:open=5:area=400");
-  ASSERT_TRUE(a.ok) << a.reason;
+  ASSERT_TRUE(a.status.ok()) << a.status.message;
   ASSERT_EQ(b.tomatoes.size(), a.tomatoes.size());
   EXPECT_EQ(b.red_points, a.red_points);
   for (std::size_t i = 0; i < a.tomatoes.size(); ++i)

@@ -22,7 +22,7 @@ TEST(LaserVerification, ConfirmsOrRelocatesThePedicelOfSimpleTrusses) {
     PipelineParams p;
     p.gravity = s.gravity_camera;
     const PipelineResult r = TomatoPipeline(p).run(s.cloud());
-    ASSERT_TRUE(r.ok) << r.reason;
+    ASSERT_TRUE(r.status.ok()) << r.status.message;
     for (const auto& t : as_recognised.run(s, r)) {
       ++trials;
       aligned += t.on_pedicel;
@@ -84,7 +84,7 @@ TEST(LaserVerification, TheClosedLoopEndsOnThePedicelWhereOneScanDoesNot) {
   PipelineParams force_model_only = eval::variant_params("default");
   force_model_only.pedicel.enabled = false;
   const PipelineResult r = eval::make_variant("default", force_model_only)->run(s);
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   eval::VerificationOptions o;
   o.random_offset_m = 0.05;
   o.tomato_look = false;  // the loop alone
@@ -141,7 +141,7 @@ const eval::VerificationTrial* trial_of(const std::vector<eval::VerificationTria
 // truss (one more scan). Found by comparing the two on tuning seeds 201-230.
 TEST(LaserVerification, TheTomatoLookPlacesTheTrussBeforeTheFirstMove) {
   const RodTruss t = rod_truss(sim::TrussClass::kA, 206);
-  ASSERT_TRUE(t.r.ok) << t.r.reason;
+  ASSERT_TRUE(t.r.status.ok()) << t.r.status.message;
   eval::VerificationOptions o;
   o.random_offset_m = 0.05;
   o.rescans = 2;
@@ -165,7 +165,7 @@ TEST(LaserVerification, TheTomatoLookPlacesTheTrussBeforeTheFirstMove) {
 // the first pick of class B truss 210 (a tuning seed), from a random offset.
 TEST(LaserVerification, ABlindMoveThatSeesNothingDoesNotCut) {
   const RodTruss t = rod_truss(sim::TrussClass::kB, 210);
-  ASSERT_TRUE(t.r.ok) << t.r.reason;
+  ASSERT_TRUE(t.r.status.ok()) << t.r.status.message;
   eval::VerificationOptions o;
   o.random_offset_m = 0.05;
   o.rescans = 2;
@@ -208,7 +208,7 @@ TEST(LaserVerification, TomatoLookOptionsParseOrSayWhatIsWrong) {
 // a plane 1 cm nearer the fruit sees it.
 TEST(LaserVerification, AScanAtAnotherHeightFindsAPedicelTheCutHeightHides) {
   const RodTruss t = rod_truss(sim::TrussClass::kB, 218);
-  ASSERT_TRUE(t.r.ok) << t.r.reason;
+  ASSERT_TRUE(t.r.status.ok()) << t.r.status.message;
   eval::VerificationOptions o;
   o.rescans = 2;
   eval::VerificationHarness one_height(o);

@@ -25,8 +25,9 @@ namespace tr = tinyline::tomato_reasoning;
 namespace {
 
 void print(const std::string& name, const tr::PipelineResult& r) {
-  if (!r.ok) {
-    std::printf("%s: no tomatoes (%s: %s)\n", name.c_str(), r.stage.c_str(), r.reason.c_str());
+  if (!r.status.ok()) {
+    std::printf("%s: no tomatoes (%s: %s)\n", name.c_str(), std::string(to_string(r.stage)).c_str(),
+                r.status.message.c_str());
     return;
   }
   std::string order;

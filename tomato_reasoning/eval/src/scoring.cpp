@@ -69,9 +69,9 @@ TrussScore score_truss(const Scenario& s, const PipelineResult& r, const ScorePa
   TrussScore out;
   out.complexity = static_cast<char>(s.complexity);
   out.seed = s.seed;
-  out.ok = r.ok;
-  out.stage = r.stage;
-  out.reason = r.reason;
+  out.ok = r.status.ok();
+  out.stage = std::string(to_string(r.stage));
+  out.reason = r.status.message;
   out.times = r.times;
   out.truth = static_cast<int>(s.truth.size());
   out.detections = static_cast<int>(r.tomatoes.size());

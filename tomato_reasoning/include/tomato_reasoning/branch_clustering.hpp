@@ -18,7 +18,7 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -35,7 +35,7 @@ struct BranchClusteringParams {
   double max_extent_m = 0.6;  ///< a cluster wider than this (bounding-box diagonal) is not one branch [m]
 };
 
-common::Validation validate(const BranchClusteringParams& p);
+common::Status validate(const BranchClusteringParams& p);
 
 struct Cluster {
   Indices indices;  ///< into the cloud

@@ -17,7 +17,7 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -33,11 +33,13 @@ struct DepthCorrectionParams {
   int degree = 2;  ///< theta(z) = sum_{k=1..degree} c_k z^k (its constant is Z's)
 };
 
-common::Validation validate(const DepthCorrectionParams& p);
+common::Status validate(const DepthCorrectionParams& p);
 
 struct DepthCorrection {
-  bool ok = false;
-  std::string reason;  ///< why not ok, or notes (cells without samples)
+  /// InvalidArgument: bad parameters or image size, too few usable samples, a
+  /// depth range too narrow to fit; NotFound when never fitted.
+  common::Status status{common::StatusCode::NotFound, "not fitted"};
+  std::string note;  ///< on a fitted model: what it could not fit (cells without samples)
   int width = 0, height = 0;
   DepthCorrectionParams params;
   std::vector<double> cell_offset_m;  ///< Z per cell, row-major (cells_v rows)
@@ -46,7 +48,7 @@ struct DepthCorrection {
   int empty_cells = 0;                           ///< cells without samples (their Z is 0)
   double rms_before_m = 0.0, rms_after_m = 0.0;  ///< on the fitting samples
 
-  /// z_c for pixel (u, v); z unchanged when not ok or the pixel is outside the image.
+  /// z_c for pixel (u, v); z unchanged when not fitted or the pixel is outside the image.
   [[nodiscard]] double correct(int u, int v, double z_m) const;
 };
 

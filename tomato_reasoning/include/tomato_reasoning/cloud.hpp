@@ -15,6 +15,8 @@
 
 #include <Eigen/Core>
 
+#include <tinyline/common/status.hpp>
+
 namespace tinyline::tomato_reasoning {
 
 using Rgb = std::array<std::uint8_t, 3>;
@@ -78,13 +80,13 @@ struct CloudView {
   [[nodiscard]] bool finite(std::size_t k) const { return point(k).allFinite(); }
 };
 
-/// Empty when the view can be read (well formed, points present where it has a size, a
-/// stride at least as large as the data it steps over), else what is wrong.
-[[nodiscard]] std::string check_view(const CloudView& view);
+/// Whether the view can be read (well formed, points present where it has a size, a
+/// stride at least as large as the data it steps over): InvalidArgument says what is wrong.
+[[nodiscard]] common::Status check_view(const CloudView& view);
 
-/// Empty when the cloud is well formed, else what is wrong (xyz and rgb of
-/// different lengths, width * height not the size).
-[[nodiscard]] std::string check_cloud(const ColorCloud& cloud);
+/// Whether the cloud is well formed: InvalidArgument says what is wrong (xyz
+/// and rgb of different lengths, width * height not the size).
+[[nodiscard]] common::Status check_cloud(const ColorCloud& cloud);
 
 /// Indices of points into a cloud.
 using Indices = std::vector<int>;

@@ -16,7 +16,7 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -30,7 +30,7 @@ struct HsiFilterParams {
 };
 
 /// Empty when usable, else why not.
-common::Validation validate(const HsiFilterParams& p);
+common::Status validate(const HsiFilterParams& p);
 
 struct Hsi {
   double h_deg = 0.0;

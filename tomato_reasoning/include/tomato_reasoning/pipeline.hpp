@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -21,7 +22,7 @@
 #include "tomato_reasoning/smoothing.hpp"
 #include "tomato_reasoning/sphere_ransac.hpp"
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -40,7 +41,7 @@ struct PipelineParams {
   Eigen::Vector3d gravity{0, 1, 0};
 };
 
-common::Validation validate(const PipelineParams& p);
+common::Status validate(const PipelineParams& p);
 
 struct StageTimes {
   double hsi_ms = 0, branch_ms = 0, smoothing_ms = 0, spheres_ms = 0, reasoning_ms = 0;
@@ -72,10 +73,16 @@ struct View {
   Eigen::Isometry3d T_ref_camera = Eigen::Isometry3d::Identity();
 };
 
+/// Where a pipeline run stopped.
+enum class PipelineStage { kNone, kInput, kHsi, kBranch, kSmoothing, kSpheres };
+/// "input", "hsi", "branch", "smoothing", "spheres"; "" for kNone (it did not stop).
+[[nodiscard]] std::string_view to_string(PipelineStage stage);
+
 struct PipelineResult {
-  bool ok = false;    ///< false: nothing found (see stage and reason) or bad input
-  std::string stage;  ///< where it stopped: "input", "hsi", "branch", "smoothing", "spheres" or "" when ok
-  std::string reason;
+  /// InvalidArgument: bad input (stage kInput); NotFound: nothing found at
+  /// `stage`. A result never run is NotFound at kNone.
+  common::Status status{common::StatusCode::NotFound, ""};
+  PipelineStage stage = PipelineStage::kNone;  ///< where it stopped; kNone when ok
   std::size_t finite_points = 0;
   std::size_t red_points = 0;
   /// The HSI-filtered points of every view in the reference frame (what the

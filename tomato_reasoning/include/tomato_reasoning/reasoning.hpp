@@ -38,7 +38,7 @@
 
 #include "tomato_reasoning/sphere_ransac.hpp"
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -65,7 +65,7 @@ struct ForceModelParams {
   std::uint64_t seed = 1;
 };
 
-common::Validation validate(const ForceModelParams& p);
+common::Status validate(const ForceModelParams& p);
 
 /// The distribution of one tomato's pedicel direction.
 class PedicelDistribution {

@@ -16,7 +16,7 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -30,7 +30,7 @@ struct SmoothingParams {
   bool project_points = true;      ///< false: keep positions, only estimate normals
 };
 
-common::Validation validate(const SmoothingParams& p);
+common::Status validate(const SmoothingParams& p);
 
 struct SmoothedCloud {
   std::vector<Eigen::Vector3f> points;

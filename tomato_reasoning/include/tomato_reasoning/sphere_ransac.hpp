@@ -34,7 +34,7 @@
 
 #include "tomato_reasoning/cloud.hpp"
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tomato_reasoning {
 
@@ -94,7 +94,7 @@ struct SphereRansacParams {
   std::uint64_t seed = 1;  ///< sampling is reproducible
 };
 
-common::Validation validate(const SphereRansacParams& p);
+common::Status validate(const SphereRansacParams& p);
 
 struct SphereFit {
   Sphere sphere;
@@ -160,7 +160,7 @@ struct NoiseBiasParams {
   double centre_per_var = 134.0;  ///< ... per noise variance [1/m]
 };
 
-common::Validation validate(const NoiseBiasParams& p);
+common::Status validate(const NoiseBiasParams& p);
 
 struct DepthNoise {
   double sigma_m = 0.0;                            ///< along the rays [m rms]

@@ -45,9 +45,9 @@ void draw_tomato(cv::Mat& bgr, const Tomato& t, int rank, const CameraIntrinsics
 
 void draw_detections(cv::Mat& bgr, const PipelineResult& result, const CameraIntrinsics& k) {
   for (const Tomato& t : result.tomatoes) draw_tomato(bgr, t, t.pick_rank, k);
-  if (!result.ok)
-    cv::putText(bgr, "no tomatoes (" + result.stage + ")", {10, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6, kWhite, 1,
-                cv::LINE_AA);
+  if (!result.status.ok())
+    cv::putText(bgr, "no tomatoes (" + std::string(to_string(result.stage)) + ")", {10, 24}, cv::FONT_HERSHEY_SIMPLEX,
+                0.6, kWhite, 1, cv::LINE_AA);
 }
 
 void write_image(const std::string& path, const cv::Mat& image) {

@@ -179,7 +179,7 @@ TEST(RgbdFiles, DebugImagesAreDrawnAndWrittenWhole) {
   io::CameraIntrinsics k;
   k.width = 160, k.height = 120, k.fx = k.fy = 100, k.cx = 79.5, k.cy = 59.5;
   tinyline::tomato_reasoning::PipelineResult r;
-  r.ok = true;
+  r.status = {};
   r.tomatoes.resize(1);
   r.tomatoes[0].fit.sphere.centre = {0, 0, 0.5};
   r.tomatoes[0].fit.sphere.radius_m = 0.1;  // 20 px at 0.5 m

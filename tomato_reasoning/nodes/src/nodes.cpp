@@ -137,8 +137,8 @@ void to_msg(const ColorCloud& c, sensor_msgs::msg::PointCloud2& out) {
 void to_msg(const PipelineResult& r, const Eigen::Vector3d& gravity, msgs::TomatoEstimates& out) {
   out.tomatoes.clear();
   out.gravity = vec(gravity.normalized());
-  out.stage = r.stage;
-  out.reason = r.reason;
+  out.stage = std::string(to_string(r.stage));
+  out.reason = r.status.message;
   out.finite_points = std::uint32_t(r.finite_points);
   out.red_points = std::uint32_t(r.red_points);
   out.hsi_ms = r.times.hsi_ms;
@@ -284,7 +284,7 @@ void TomatoDetectorNode::detect() {
   if (views_ == 1) {
     const PipelineResult r = pipeline_->run(cloud_);
     to_msg(r, pipeline_->params().gravity, *out);
-    if (!r.ok) logger().info("no tomatoes ({}): {}", r.stage, r.reason);
+    if (!r.status.ok()) logger().info("no tomatoes ({}): {}", to_string(r.stage), r.status.message);
   } else {
     // One detection per stamp: wait for the other view and its pose.
     if (!header2_ || !pose2_header_ || !same_stamp(*header_, *header2_) || !same_stamp(*header_, *pose2_header_))
@@ -306,7 +306,7 @@ void TomatoDetectorNode::detect() {
       v1.T_ref_camera = T_ref_camera2_;
       const PipelineResult r = pipeline_->run(std::vector<View>{v0, v1});
       to_msg(r, pipeline_->params().gravity, *out);
-      if (!r.ok) logger().info("no tomatoes ({}): {}", r.stage, r.reason);
+      if (!r.status.ok()) logger().info("no tomatoes ({}): {}", to_string(r.stage), r.status.message);
     }
   }
   header_.reset();

@@ -26,8 +26,44 @@ using tinyline::bus::testing::table_defaults;
 namespace {}  // namespace
 
 TEST(TomatoParamTables, EveryDefaultIsWithinItsTable) {
-  EXPECT_TRUE(common::within_table(tr::PipelineParams{}).valid) << common::within_table(tr::PipelineParams{}).reason;
-  EXPECT_TRUE(common::within_table(tr::PickPoseParams{}).valid);
+  EXPECT_TRUE(common::within_table(tr::PipelineParams{}).ok()) << common::within_table(tr::PipelineParams{}).message;
+  EXPECT_TRUE(common::within_table(tr::PickPoseParams{}).ok());
+}
+
+// A single field's range lives in its table; validate() adds only the rules
+// that span fields.
+TEST(TomatoParamTables, ValidateChecksTheTablesRangesAndTheRulesAcrossFields) {
+  tr::SmoothingParams sm;
+  sm.polynomial_order = 3;
+  EXPECT_THAT(tr::validate(sm).message, HasSubstr("polynomial_order must be in [1, 2], got 3"));
+  tr::SphereRansacParams sp;
+  sp.confidence = 1.0;
+  EXPECT_THAT(tr::validate(sp).message, HasSubstr("confidence must be in [0.5, 0.999999], got 1"));
+  sp = {};
+  sp.radius_min_m = 0.05;
+  sp.radius_max_m = 0.04;
+  EXPECT_THAT(tr::validate(sp).message, HasSubstr("radius_min_m <= radius_max_m"));
+  tr::BranchClusteringParams b;
+  b.tolerance_m = 0.0;
+  EXPECT_THAT(tr::validate(b).message, HasSubstr("tolerance_m must be in [0.001, 1], got 0"));
+  b = {};
+  b.min_range_m = b.max_range_m;
+  EXPECT_THAT(tr::validate(b).message, HasSubstr("min_range_m < max_range_m"));
+  tr::HsiFilterParams h;
+  h.s_min = 300;
+  EXPECT_THAT(tr::validate(h).message, HasSubstr("s_min must be in [0, 255], got 300"));
+  h = {};
+  h.i_min = h.i_max + 1;
+  EXPECT_THAT(tr::validate(h).message, HasSubstr("i_min <= i_max"));
+  tr::NoiseBiasParams nb;
+  nb.band_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THAT(tr::validate(nb).message, HasSubstr("band_m must be in [1e-04, 0.1], got nan"));
+  tr::ForceModelParams f;
+  f.samples = 5;
+  EXPECT_THAT(tr::validate(f).message, HasSubstr("samples must be in [10, 1e+05], got 5"));
+  tr::PipelineParams p;
+  p.cut.candidates = 0;
+  EXPECT_THAT(tr::validate(p).message, HasSubstr("cut: candidates must be in [1, 1e+05], got 0"));
 }
 
 TEST(TomatoParamTables, TheDetectorDeclaresEveryPipelineSettingWithItsDefault) {
