@@ -14,26 +14,24 @@
 
 namespace tinyline::laser_clustering {
 
-common::Validation validate(const DbscanParams& p) {
-  if (!std::isfinite(p.eps) || p.eps <= 0.0) {
-    return {false, fmt::format("DbscanParams.eps must be finite and > 0 (got {})", p.eps)};
-  }
-  if (p.min_points < 1) {
-    return {false, fmt::format("DbscanParams.min_points must be >= 1 (got {})", p.min_points)};
-  }
+common::Status validate(const DbscanParams& p) {
+  if (!std::isfinite(p.eps) || p.eps <= 0.0)
+    return common::Status::invalid(fmt::format("DbscanParams.eps must be finite and > 0 (got {})", p.eps));
+  if (p.min_points < 1)
+    return common::Status::invalid(fmt::format("DbscanParams.min_points must be >= 1 (got {})", p.min_points));
   return {};
 }
 
 namespace detail {
 
-std::string check_points_input(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params) {
-  if (auto v = validate(params); !v.valid) return v.reason;
-  if (points.cols() > 0 && points.rows() == 0) {
-    return fmt::format("points have dimension 0 ({} columns of no coordinates)", points.cols());
-  }
-  if (points.cols() >= std::numeric_limits<int>::max()) {
-    return fmt::format("too many points ({}); at most {}", points.cols(), std::numeric_limits<int>::max() - 1);
-  }
+common::Status check_points_input(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params) {
+  if (common::Status v = validate(params); !v.ok()) return v;
+  if (points.cols() > 0 && points.rows() == 0)
+    return common::Status::invalid(
+        fmt::format("points have dimension 0 ({} columns of no coordinates)", points.cols()));
+  if (points.cols() >= std::numeric_limits<int>::max())
+    return common::Status::invalid(
+        fmt::format("too many points ({}); at most {}", points.cols(), std::numeric_limits<int>::max() - 1));
   return {};
 }
 
@@ -60,16 +58,16 @@ void finish(DbscanResult& r) {
 }
 
 void finish(DbscanResult& r, std::size_t core, std::size_t noise, std::size_t invalid) {
-  r.ok = true;
+  r.status = {};
   r.num_core = core;
   r.num_noise = noise;
   r.num_invalid = invalid;
   // Notes only where there is nothing else to report (formatting costs
   // more than clustering a scan).
   if (r.labels.empty()) {
-    r.reason = "empty input";
+    r.note = "empty input";
   } else if (invalid == r.labels.size()) {
-    r.reason = fmt::format("no valid points ({} invalid)", invalid);
+    r.note = fmt::format("no valid points ({} invalid)", invalid);
   }
 }
 
@@ -124,7 +122,7 @@ DbscanResult label_from_neighbours(const std::vector<std::uint8_t>& valid, const
 
 DbscanResult dbscan_brute_force(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params) {
   DbscanResult bad;
-  if (bad.reason = detail::check_points_input(points, params); !bad.reason.empty()) return bad;
+  if (bad.status = detail::check_points_input(points, params); !bad.status.ok()) return bad;
   std::vector<std::uint8_t> valid;
   detail::mark_valid(points, valid);
   const double eps2 = params.eps * params.eps;
@@ -202,17 +200,20 @@ DbscanResult OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanP
 }
 
 void OrderedScanDbscan::run(const OrderedScanPoints& scan, const DbscanParams& params, DbscanResult& r) {
-  r.ok = false;
-  r.reason.clear();
+  r.status = {common::StatusCode::InvalidArgument, {}};
+  r.note.clear();
   r.labels.clear();
   r.is_core.clear();
   r.num_clusters = 0;
   r.num_core = r.num_noise = r.num_invalid = 0;
-  if (auto v = validate(params); !v.valid) {
-    r.reason = v.reason;
+  if (common::Status v = validate(params); !v.ok()) {
+    r.status = std::move(v);
     return;
   }
-  if (r.reason = check_scan_shape(scan); !r.reason.empty()) return;
+  if (std::string why = check_scan_shape(scan); !why.empty()) {
+    r.status = common::Status::invalid(std::move(why));
+    return;
+  }
   // One instantiation per input shape keeps the inner loops free of the
   // feature and group branches.
   const bool f = !scan.feature.empty(), g = !scan.group.empty();
@@ -287,7 +288,7 @@ template <bool with_f, bool with_g>
     if (m > 0) {
       if (direction == 0.0) direction = ti > theta_[m - 1] ? 1.0 : -1.0;
       if (!(direction * (ti - theta_[m - 1]) > 0.0)) {
-        r.reason = fmt::format(
+        r.status.message = fmt::format(
             "pixel angles must be strictly monotone over valid pixels: pixel {} at {} rad after pixel {} at {} rad", i,
             ti, index_[m - 1], theta_[m - 1]);
         return 0;
@@ -535,7 +536,7 @@ void OrderedScanDbscan::run_impl(const OrderedScanPoints& scan, const DbscanPara
   r.is_core.assign(n_all, 0);
   cache_trig(scan.angle_rad);
   const std::size_t m = compact<with_f, with_g>(scan, params.eps, r);
-  if (!r.reason.empty()) {
+  if (!r.status.message.empty()) {
     r.labels.clear();
     r.is_core.clear();
     return;

@@ -40,7 +40,7 @@ class CsrResultSet : public flann::ResultSet<double> {
 
 DbscanResult dbscan(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params) {
   DbscanResult bad;
-  if (bad.reason = detail::check_points_input(points, params); !bad.reason.empty()) return bad;
+  if (bad.status = detail::check_points_input(points, params); !bad.status.ok()) return bad;
   std::vector<std::uint8_t> valid;
   const std::size_t n_valid = detail::mark_valid(points, valid);
   const auto n = static_cast<std::size_t>(points.cols());

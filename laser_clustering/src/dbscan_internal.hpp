@@ -59,9 +59,9 @@ inline double squared_distance(const Eigen::Ref<const Eigen::MatrixXd>& p, Eigen
   return s;
 }
 
-/// Rejects bad parameters and inputs the same way for every search. Returns
-/// an empty string when the call may proceed.
-std::string check_points_input(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params);
+/// Rejects bad parameters and inputs the same way for every search: ok when
+/// the call may proceed.
+common::Status check_points_input(const Eigen::Ref<const Eigen::MatrixXd>& points, const DbscanParams& params);
 
 /// Marks columns with a non-finite coordinate invalid; returns the valid count.
 std::size_t mark_valid(const Eigen::Ref<const Eigen::MatrixXd>& points, std::vector<std::uint8_t>& valid);

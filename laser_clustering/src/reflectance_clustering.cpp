@@ -10,7 +10,7 @@
 namespace tinyline::laser_clustering {
 
 common::Validation validate(const ReflectanceClusteringParams& p) {
-  if (auto v = validate(p.dbscan); !v.valid) return {false, "dbscan: " + v.reason};
+  if (auto v = validate(p.dbscan); !v.ok()) return {false, "dbscan: " + v.message};
   if (!std::isfinite(p.reflectance_ratio_at_eps) || p.reflectance_ratio_at_eps <= 1.0) {
     return {false, fmt::format("reflectance_ratio_at_eps must be finite and > 1 (got {})", p.reflectance_ratio_at_eps)};
   }
@@ -128,8 +128,8 @@ ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const R
   const std::size_t no_reflectance = p.use_reflectance ? reflectance_feature(scan, p, feature) : 0;
   OrderedScanDbscan dbscan;
   const DbscanResult r = dbscan.run({scan.angle_rad, range, feature, {}}, p.dbscan);
-  if (!r.ok) {
-    out.reason = r.reason;
+  if (!r.status.ok()) {
+    out.reason = r.status.message;
     return out;
   }
   out.ok = true;

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "laser_clustering/two_stage.hpp"
 
+#include "laser_clustering/param_tables.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -20,32 +22,12 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr int kFovEdgePx = 1;
 }  // namespace
 
-common::Validation validate(const TwoStageParams& p) {
-  if (auto v = validate(p.groups); !v.valid) return {false, "groups: " + v.reason};
-  if (auto v = validate(p.objects); !v.valid) return {false, "objects: " + v.reason};
-  const auto& e = p.edge;
-  if (e.edge_width_px < 0) return {false, fmt::format("edge.edge_width_px must be >= 0 (got {})", e.edge_width_px)};
-  if (e.reference_px < 1 || e.reference_px > detail::kMaxReferencePx) {
-    return {false,
-            fmt::format("edge.reference_px must be in [1, {}] (got {})", detail::kMaxReferencePx, e.reference_px)};
-  }
-  if (!std::isfinite(e.step_m) || e.step_m < 0.0) {
-    return {false, fmt::format("edge.step_m must be finite and >= 0 (got {})", e.step_m)};
-  }
-  if (!std::isfinite(e.step_per_m) || e.step_per_m < 0.0) {
-    return {false, fmt::format("edge.step_per_m must be finite and >= 0 (got {})", e.step_per_m)};
-  }
-  if (e.min_keep_px < 1) return {false, fmt::format("edge.min_keep_px must be >= 1 (got {})", e.min_keep_px)};
-  if (!std::isfinite(e.mixed_step_m) || e.mixed_step_m < 0.0) {
-    return {false, fmt::format("edge.mixed_step_m must be finite and >= 0 (got {})", e.mixed_step_m)};
-  }
-  if (!std::isfinite(e.smooth_step_m) || e.smooth_step_m < 0.0) {
-    return {false, fmt::format("edge.smooth_step_m must be finite and >= 0 (got {})", e.smooth_step_m)};
-  }
-  if (e.smooth_half_width_px < 0) {
-    return {false, fmt::format("edge.smooth_half_width_px must be >= 0 (got {})", e.smooth_half_width_px)};
-  }
-  return {};
+common::Status validate(const TwoStageParams& p) {
+  if (auto v = validate(p.groups); !v.ok()) return v.within("groups");
+  if (auto v = validate(p.objects); !v.ok()) return v.within("objects");
+  // The edge filter's fields are single-field ranges: its table holds them
+  // (edge_reference_px at most detail::kMaxReferencePx).
+  return common::within_table(p.edge).within("edge");
 }
 
 namespace detail {
@@ -119,15 +101,15 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
 
 void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
   reset(out);
-  if (!valid_.valid) {
-    out.reason = valid_.reason;
+  if (!valid_.ok()) {
+    out.reason = valid_.message;
     return;
   }
   if (out.reason = check_once(scan); !out.reason.empty()) return;
   // Stage 1: object groups.
   dbscan_.run({scan.angle_rad, scan.range_m, {}, {}}, params_.groups, groups_);
-  if (!groups_.ok) {
-    out.reason = "stage 1: " + groups_.reason;
+  if (!groups_.status.ok()) {
+    out.reason = "stage 1: " + groups_.status.message;
     return;
   }
   out.ok = true;
@@ -135,9 +117,9 @@ void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
   edge_filter(scan, out);
   // Stage 3: small-eps DBSCAN inside each group, on the smoothed ranges.
   dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects, objects_);
-  if (!objects_.ok) {
+  if (!objects_.status.ok()) {
     out.ok = false;
-    out.reason = "stage 3: " + objects_.reason;
+    out.reason = "stage 3: " + objects_.status.message;
     return;
   }
   out.labels.assign(objects_.labels.begin(), objects_.labels.end());

@@ -171,7 +171,7 @@ std::map<std::string, SkResult> read_results(const fs::path& path) {
 
 void compare(const Case& c, const SkResult& sk, const lc::DbscanResult& ours, const char* search) {
   SCOPED_TRACE(fmt::format("case {} ({} search, eps {}, min {})", c.name, search, c.params.eps, c.params.min_points));
-  ASSERT_TRUE(ours.ok) << ours.reason;
+  ASSERT_TRUE(ours.status.ok()) << ours.status.message;
   const auto n = static_cast<std::size_t>(c.points.cols());
   ASSERT_EQ(sk.labels.size(), n);
   ASSERT_EQ(ours.labels.size(), n);

@@ -25,8 +25,8 @@ Eigen::MatrixXd line_1d(const std::vector<double>& xs) {
 }
 
 void expect_same(const lc::DbscanResult& a, const lc::DbscanResult& b, const char* what) {
-  ASSERT_TRUE(a.ok) << what << ": " << a.reason;
-  ASSERT_TRUE(b.ok) << what << ": " << b.reason;
+  ASSERT_TRUE(a.status.ok()) << what << ": " << a.status.message;
+  ASSERT_TRUE(b.status.ok()) << what << ": " << b.status.message;
   EXPECT_EQ(a.labels, b.labels) << what;
   EXPECT_EQ(a.is_core, b.is_core) << what;
   EXPECT_EQ(a.num_clusters, b.num_clusters) << what;
@@ -39,7 +39,7 @@ TEST(Dbscan, CoreBorderNoiseOnALine) {
   // only neighbours are 2 and itself); 10 is noise.
   const auto p = line_1d({0.0, 1.0, 2.0, 3.0, 10.0});
   const auto r = lc::dbscan(p, {1.0, 3});
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   EXPECT_THAT(r.labels, ElementsAre(0, 0, 0, 0, lc::kNoise));
   EXPECT_THAT(r.is_core, ElementsAre(0, 1, 1, 0, 0));
   EXPECT_EQ(r.num_clusters, 1);
@@ -53,7 +53,7 @@ TEST(Dbscan, TakesFixedSizeEigenPointsWithoutCopying) {
       0, 0, 0, 0,       //
       0, 0, 0, 0;
   const auto r = lc::dbscan(p, {.eps = 0.15, .min_points = 2});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_THAT(r.labels, ElementsAre(0, 0, 0, lc::kNoise));
 }
 
@@ -61,7 +61,7 @@ TEST(Dbscan, NeighbourAtExactlyEpsCounts) {
   // Distances of exactly eps (exact in binary) are neighbours: |p-q|^2 <= eps^2.
   const auto p = line_1d({0.0, 0.5, 1.0});
   const auto r = lc::dbscan(p, {0.5, 3});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_THAT(r.is_core, ElementsAre(0, 1, 0));
   EXPECT_THAT(r.labels, ElementsAre(0, 0, 0));
 }
@@ -71,7 +71,7 @@ TEST(Dbscan, BorderReachableFromTwoClustersJoinsLowerNumberedCluster) {
   // {2, 4, 6} only, so it is a border point within eps of both clusters.
   const auto p = line_1d({8.0, 7.5, 7.0, 6.5, 6.0, 4.0, 2.0, 1.5, 1.0, 0.5, 0.0});
   const auto r = lc::dbscan(p, {2.0, 4});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_EQ(r.is_core[5], 0);
   EXPECT_EQ(r.num_clusters, 2);
   // Clusters are numbered by their lowest-indexed core point: the group at
@@ -83,7 +83,7 @@ TEST(Dbscan, BorderReachableFromTwoClustersJoinsLowerNumberedCluster) {
   // which is now the group at 0..2.
   const auto q = line_1d({0.0, 0.5, 1.0, 1.5, 2.0, 4.0, 6.0, 6.5, 7.0, 7.5, 8.0});
   const auto s = lc::dbscan(q, {2.0, 4});
-  ASSERT_TRUE(s.ok);
+  ASSERT_TRUE(s.status.ok());
   EXPECT_EQ(s.labels[0], 0);
   EXPECT_EQ(s.labels[5], 0);
   EXPECT_EQ(s.labels[10], 1);
@@ -93,7 +93,7 @@ TEST(Dbscan, BorderReachableFromTwoClustersJoinsLowerNumberedCluster) {
 TEST(Dbscan, MinPointsOneMakesEveryPointCore) {
   const auto p = line_1d({0.0, 5.0, 5.5});
   const auto r = lc::dbscan(p, {1.0, 1});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_THAT(r.is_core, ElementsAre(1, 1, 1));
   EXPECT_THAT(r.labels, ElementsAre(0, 1, 1));
 }
@@ -101,7 +101,7 @@ TEST(Dbscan, MinPointsOneMakesEveryPointCore) {
 TEST(Dbscan, MinPointsAboveSizeMakesEverythingNoise) {
   const auto p = line_1d({0.0, 0.1, 0.2});
   const auto r = lc::dbscan(p, {1.0, 4});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_THAT(r.labels, ElementsAre(lc::kNoise, lc::kNoise, lc::kNoise));
   EXPECT_EQ(r.num_clusters, 0);
 }
@@ -109,7 +109,7 @@ TEST(Dbscan, MinPointsAboveSizeMakesEverythingNoise) {
 TEST(Dbscan, DuplicatesCountAsSeparateNeighbours) {
   const auto p = line_1d({3.0, 3.0, 3.0});
   const auto r = lc::dbscan(p, {1e-9, 3});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_THAT(r.labels, ElementsAre(0, 0, 0));
 }
 
@@ -118,35 +118,35 @@ TEST(Dbscan, RejectsBadParameters) {
   for (const double eps :
        {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     const auto r = lc::dbscan(p, {eps, 2});
-    EXPECT_FALSE(r.ok);
-    EXPECT_THAT(r.reason, HasSubstr("eps"));
+    EXPECT_FALSE(r.status.ok());
+    EXPECT_THAT(r.status.message, HasSubstr("eps"));
     EXPECT_TRUE(r.labels.empty());
     const auto b = lc::dbscan_brute_force(p, {eps, 2});
-    EXPECT_FALSE(b.ok);
+    EXPECT_FALSE(b.status.ok());
   }
   const auto r = lc::dbscan(p, {1.0, 0});
-  EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("min_points must be >= 1 (got 0)"));
-  EXPECT_FALSE(lc::validate(lc::DbscanParams{1.0, -3}).valid);
-  EXPECT_TRUE(lc::validate(lc::DbscanParams{}).valid);
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_THAT(r.status.message, HasSubstr("min_points must be >= 1 (got 0)"));
+  EXPECT_FALSE(lc::validate(lc::DbscanParams{1.0, -3}).ok());
+  EXPECT_TRUE(lc::validate(lc::DbscanParams{}).ok());
 }
 
 TEST(Dbscan, EmptyInputIsAnExplicitEmptyResult) {
   const Eigen::MatrixXd p(3, 0);
   const auto r = lc::dbscan(p, {});
-  EXPECT_TRUE(r.ok);
+  EXPECT_TRUE(r.status.ok());
   EXPECT_TRUE(r.labels.empty());
-  EXPECT_EQ(r.reason, "empty input");
+  EXPECT_EQ(r.note, "empty input");
   const auto s = lc::dbscan_ordered_scan({}, {});
-  EXPECT_TRUE(s.ok);
-  EXPECT_EQ(s.reason, "empty input");
+  EXPECT_TRUE(s.status.ok());
+  EXPECT_EQ(s.note, "empty input");
 }
 
 TEST(Dbscan, ZeroDimensionalPointsAreRejected) {
   const Eigen::MatrixXd p(0, 4);
   const auto r = lc::dbscan(p, {});
-  EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("dimension 0"));
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_THAT(r.status.message, HasSubstr("dimension 0"));
 }
 
 TEST(Dbscan, NonFinitePointsAreInvalidAndIgnored) {
@@ -155,16 +155,16 @@ TEST(Dbscan, NonFinitePointsAreInvalidAndIgnored) {
   p << 0.0, nan, 0.1, 0.2, std::numeric_limits<double>::infinity(),  //
       0.0, 0.0, 0.0, 0.0, 0.0;
   for (const auto& r : {lc::dbscan(p, {0.15, 2}), lc::dbscan_brute_force(p, {0.15, 2})}) {
-    ASSERT_TRUE(r.ok);
+    ASSERT_TRUE(r.status.ok());
     EXPECT_THAT(r.labels, ElementsAre(0, lc::kInvalid, 0, 0, lc::kInvalid));
     EXPECT_EQ(r.num_invalid, 2u);
     EXPECT_EQ(r.num_noise, 0u);
   }
   Eigen::MatrixXd all_bad = Eigen::MatrixXd::Constant(2, 3, nan);
   const auto r = lc::dbscan(all_bad, {});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_THAT(r.labels, ElementsAre(lc::kInvalid, lc::kInvalid, lc::kInvalid));
-  EXPECT_THAT(r.reason, HasSubstr("no valid points"));
+  EXPECT_THAT(r.note, HasSubstr("no valid points"));
 }
 
 TEST(Dbscan, FlannMatchesBruteForceOnRandomBlobsInSeveralDimensions) {
@@ -296,16 +296,16 @@ TEST(Dbscan, OrderedScanWithEpsLargerThanRangeSearchesEverything) {
 TEST(Dbscan, OrderedScanRejectsNonMonotoneAnglesAndShapeMismatch) {
   std::vector<double> angle{0.0, 0.1, 0.05}, range{1.0, 1.0, 1.0};
   const auto r = lc::dbscan_ordered_scan({angle, range, {}}, {});
-  EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("strictly monotone"));
-  EXPECT_THAT(r.reason, HasSubstr("pixel 2"));
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_THAT(r.status.message, HasSubstr("strictly monotone"));
+  EXPECT_THAT(r.status.message, HasSubstr("pixel 2"));
   std::vector<double> short_range{1.0};
   const auto s = lc::dbscan_ordered_scan({angle, short_range, {}}, {});
-  EXPECT_FALSE(s.ok);
-  EXPECT_THAT(s.reason, HasSubstr("3 angles but 1 ranges"));
+  EXPECT_FALSE(s.status.ok());
+  EXPECT_THAT(s.status.message, HasSubstr("3 angles but 1 ranges"));
   const auto t = lc::dbscan_ordered_scan({angle, range, {}}, {-0.1, 2});
-  EXPECT_FALSE(t.ok);
-  EXPECT_THAT(t.reason, HasSubstr("eps"));
+  EXPECT_FALSE(t.status.ok());
+  EXPECT_THAT(t.status.message, HasSubstr("eps"));
 }
 
 TEST(Dbscan, OrderedScanInvalidPixelsDoNotBreakMonotonicity) {
@@ -313,11 +313,11 @@ TEST(Dbscan, OrderedScanInvalidPixelsDoNotBreakMonotonicity) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> angle{0.0, 0.01, nan, 0.02, 0.03}, range{0.3, 0.3, 0.3, -1.0, 0.3};
   const auto r = lc::dbscan_ordered_scan({angle, range, {}}, {0.01, 2});
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   EXPECT_THAT(r.labels, ElementsAre(0, 0, lc::kInvalid, lc::kInvalid, 0));
   std::vector<double> all_nan(5, nan);
   const auto s = lc::dbscan_ordered_scan({angle, all_nan, {}}, {0.01, 2});
-  ASSERT_TRUE(s.ok);
+  ASSERT_TRUE(s.status.ok());
   EXPECT_EQ(s.num_invalid, 5u);
-  EXPECT_THAT(s.reason, HasSubstr("no valid points"));
+  EXPECT_THAT(s.note, HasSubstr("no valid points"));
 }

@@ -33,24 +33,24 @@ std::shared_ptr<bus::Node> pedicel_finder(bus::testing::NodeRig& rig, bus::NodeO
 }  // namespace
 
 TEST(ParamTables, EveryDefaultIsWithinItsTable) {
-  EXPECT_TRUE(common::within_table(lc::DbscanParams{}).valid);
-  EXPECT_TRUE(common::within_table(lc::TwoStageParams{}).valid);
-  EXPECT_TRUE(common::within_table(lc::PedicelFinderParams{}).valid);
-  EXPECT_TRUE(common::within_table(lc::ReflectanceClusteringParams{}).valid);
-  EXPECT_TRUE(common::within_table(lc::AlignmentParams{}).valid);
-  EXPECT_TRUE(common::within_table(lc::SurfaceReflectanceParams{}).valid);
-  EXPECT_TRUE(common::within_table(lc::TomatoRegistrationParams{}).valid);
+  EXPECT_TRUE(common::within_table(lc::DbscanParams{}).ok());
+  EXPECT_TRUE(common::within_table(lc::TwoStageParams{}).ok());
+  EXPECT_TRUE(common::within_table(lc::PedicelFinderParams{}).ok());
+  EXPECT_TRUE(common::within_table(lc::ReflectanceClusteringParams{}).ok());
+  EXPECT_TRUE(common::within_table(lc::AlignmentParams{}).ok());
+  EXPECT_TRUE(common::within_table(lc::SurfaceReflectanceParams{}).ok());
+  EXPECT_TRUE(common::within_table(lc::TomatoRegistrationParams{}).ok());
 }
 
 TEST(ParamTables, AFieldOutsideItsTableIsNamedAsInLaunchFiles) {
   lc::TwoStageParams p;
   p.objects.eps = std::numeric_limits<double>::quiet_NaN();
   const auto v = common::within_table(p);
-  ASSERT_FALSE(v.valid);
-  EXPECT_THAT(v.reason, HasSubstr("objects_eps_m must be in [1e-04, 2], got nan"));
+  ASSERT_FALSE(v.ok());
+  EXPECT_THAT(v.message, HasSubstr("objects_eps_m must be in [1e-04, 2], got nan"));
   lc::PedicelFinderParams f;
   f.scissors.opening_m = 0.5;
-  EXPECT_THAT(common::within_table(f).reason, HasSubstr("scissor_opening_m must be in [0.001, 0.2], got 0.5"));
+  EXPECT_THAT(common::within_table(f).message, HasSubstr("scissor_opening_m must be in [0.001, 0.2], got 0.5"));
 }
 
 TEST(ParamTables, ThePedicelFinderDeclaresEveryFieldOfItsSettingsWithTheStructsDefault) {

@@ -215,10 +215,12 @@ TEST(TwoStage, RejectsBadParameters) {
   p.edge.step_m = std::numeric_limits<double>::quiet_NaN();
   const auto r = lc::cluster_line_scan({}, p);
   EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("edge.step_m"));
+  EXPECT_THAT(r.reason, HasSubstr("edge: edge_step_m must be in [0, 1], got nan"));
   p = {};
   p.edge.reference_px = 0;
-  EXPECT_FALSE(lc::validate(p).valid);
+  EXPECT_THAT(lc::validate(p).message, HasSubstr("edge_reference_px must be in [1, 16], got 0"));
+  p.edge.reference_px = 17;  // the filter's buffers hold 16
+  EXPECT_FALSE(lc::validate(p).ok());
 }
 
 TEST(TwoStage, GroupsKeepStageThreeInsideThem) {
@@ -231,7 +233,7 @@ TEST(TwoStage, GroupsKeepStageThreeInsideThem) {
   std::vector<int> group(s.scan.size());
   for (std::size_t i = 0; i < group.size(); ++i) group[i] = static_cast<int>(i / 64);  // four arbitrary groups
   const auto r = lc::dbscan_ordered_scan({s.scan.angle_rad, s.scan.range_m, {}, group}, {0.01, 2});
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   // The brute-force reference with a group coordinate 1 km apart per group.
   Eigen::MatrixXd p(3, static_cast<Eigen::Index>(group.size()));
   p.topRows(2) = lc::to_points({s.scan.angle_rad, s.scan.range_m, {}, {}});

@@ -29,7 +29,7 @@
 
 #include <Eigen/Core>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::laser_clustering {
 
@@ -44,15 +44,15 @@ struct DbscanParams {
 };
 
 /// Parameter check shared by every entry point.
-common::Validation validate(const DbscanParams& params);
+[[nodiscard]] common::Status validate(const DbscanParams& params);
 
 struct DbscanResult {
-  /// False when the parameters or the input were rejected; `reason` says why
-  /// and the per-point vectors are empty.
-  bool ok = false;
-  /// Why !ok, or a note on an ok result without valid points ("empty input",
-  /// "no valid points (5 invalid)"); empty otherwise (see num_invalid).
-  std::string reason;
+  /// InvalidArgument when the parameters or the input were rejected (the
+  /// per-point vectors are then empty); not ok before a run.
+  common::Status status{common::StatusCode::InvalidArgument, "not run"};
+  /// On an ok result without valid points: "empty input", "no valid points
+  /// (5 invalid)"; empty otherwise (see num_invalid).
+  std::string note;
   /// Per input point: a cluster id in [0, num_clusters), kNoise or kInvalid.
   std::vector<int> labels;
   /// Per input point: 1 for a core point.

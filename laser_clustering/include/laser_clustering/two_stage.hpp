@@ -61,7 +61,7 @@ struct TwoStageParams {
   DbscanParams objects{0.008, 2};
 };
 
-common::Validation validate(const TwoStageParams& params);
+[[nodiscard]] common::Status validate(const TwoStageParams& params);
 
 /// What happened to a pixel.
 enum class PixelFate : std::uint8_t {
@@ -128,7 +128,7 @@ class LineScanClusterer {
   void finish_cluster(const LineScan& scan, std::size_t l, TwoStageResult& out) const;
 
   TwoStageParams params_;
-  common::Validation valid_;
+  common::Status valid_;
   OrderedScanDbscan dbscan_;
   DbscanResult groups_, objects_;  // the two DBSCAN passes' results, reused
   std::vector<double> range_, checked_angle_, sum_r2_, sum_refl_;
