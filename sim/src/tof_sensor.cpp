@@ -787,12 +787,17 @@ void read_out_pixel(const TofLineSensor::Impl& m, const TofLineSensor& sensor, c
       a += px.read_noise * rng.normal();
       b += px.read_noise * rng.normal();
     }
+    // The capacitor saturates first (it holds no more than its swing); the read-out's
+    // transfer curve then maps what it holds, so a saturated capacitor reads a
+    // plateau, never a value that falls again with more charge.
+    a = compress(a, px.knee, px.full_scale);
+    b = compress(b, px.knee, px.full_scale);
     if (px.nonlinearity > 0.0) {
       a -= px.nonlinearity * a * std::abs(a) / px.full_scale;
       b -= px.nonlinearity * b * std::abs(b) / px.full_scale;
     }
-    a = compress(a, px.knee, px.full_scale) + px.adc_offset_a;
-    b = compress(b, px.knee, px.full_scale) + px.adc_offset_b;
+    a += px.adc_offset_a;
+    b += px.adc_offset_b;
     if (noise) {
       a = std::round(a / px.adc_lsb) * px.adc_lsb;
       b = std::round(b / px.adc_lsb) * px.adc_lsb;

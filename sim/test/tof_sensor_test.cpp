@@ -151,6 +151,31 @@ TEST(TofSensor, DarkSetsShowLeakageAndSensitivityRatio) {
   EXPECT_NEAR(o1.readouts[1].b[i] - s.readouts[0].b[i], -1.5, 1e-9);
 }
 
+// The capacitor saturates before its read-out's transfer curve: with more light
+// the read-out rises to a plateau of full_scale (1 - nonlinearity) and stays
+// there, so a saturated read-out is told by its level, never read as a dim one.
+TEST(TofSensor, ReadOutNonlinearityActsAfterSaturation) {
+  SensorParams p;
+  p.pixel.knee = p.pixel.full_scale;  // hard saturation
+  p.pixel.nonlinearity = 0.3;
+  p.pixel.adc_offset_a = 0.0;
+  p.pixel.adc_offset_b = 0.0;
+  CalibrationRail rail(p);
+  rail.set_target_distance(0.3);
+  MeasureOptions clean;
+  clean.noise = false;
+  const std::vector<int> pulses{20, 100, 200, 400, 700, 1400, 2800};
+  const SensorSet s = rail.measure(3600.0, pulses, 0, clean);
+  const auto i = static_cast<std::size_t>(kCentre);
+  const double top = p.pixel.full_scale * (1.0 - p.pixel.nonlinearity);
+  for (std::size_t k = 1; k < pulses.size(); ++k) {
+    EXPECT_GE(s.readouts[k].a[i], s.readouts[k - 1].a[i] - 1e-9) << pulses[k] << " pulses";
+    EXPECT_GE(s.readouts[k].b[i], s.readouts[k - 1].b[i] - 1e-9) << pulses[k] << " pulses";
+    EXPECT_LE(std::max(s.readouts[k].a[i], s.readouts[k].b[i]), top + 1e-9);
+  }
+  EXPECT_NEAR(std::max(s.readouts.back().a[i], s.readouts.back().b[i]), top, 1e-9);  // the plateau is reached
+}
+
 TEST(TofSensor, NoiseIsCorrelatedAcrossNonDestructiveReadouts) {
   CalibrationRail rail(SensorParams{});
   rail.set_target_distance(1.5);  // no read-out saturates

@@ -816,6 +816,13 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
     res.reason = fmt::format("{} folds: cross-validation needs at least 2", p.folds);
     return res;
   }
+  if (p.declared.ceiling_from_data) {
+    double plateau = kNaN;
+    p.declared.validity = validity_from_data(data, p.declared.validity, &plateau);
+    if (std::isfinite(plateau))
+      res.notes.push_back(fmt::format("the read-outs saturate at {:.1f} charge_unit: validity ceiling {:.1f}", plateau,
+                                      p.declared.validity.high));
+  }
   std::size_t n_valid = 0;
   const std::vector<bool> valid = valid_rows(data, p.declared.validity, n_valid);
   if (n_valid == 0) {

@@ -159,6 +159,7 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
     return;
   }
   offered = rows.empty() ? data.size() : rows.size();
+  if (p_.ceiling_from_data) take_ceiling_from_data();
   rows_ = select_readouts(data, rows, p_.validity, p_.selection, &saturated, &too_dark, &not_selected);
   if (rows_.empty()) {
     problem_ = fmt::format(
@@ -185,6 +186,17 @@ FitEngine::FitEngine(const CalibrationDataset& data, const std::vector<std::size
   leak_per_pulse_ = p_.leakage_per_pulse;
   if (!scale_ratio()) return;
   set_weights(std::vector<double>(groups_, 1.0));
+}
+
+void FitEngine::take_ceiling_from_data() {
+  double plateau = 0.0;
+  const ValidityRule rule = validity_from_data(data_, p_.validity, &plateau);
+  if (rule.high == p_.validity.high) return;
+  notes.push_back(
+      fmt::format("the read-outs saturate at {:.1f} charge_unit, below the validity rule's {:.0f}: "
+                  "ceiling {:.1f} ({:.0f} % of the plateau)",
+                  plateau, p_.validity.high, rule.high, 100.0 * kCeilingShareOfPlateau));
+  p_.validity = rule;
 }
 
 bool FitEngine::group_rows() {
@@ -780,6 +792,23 @@ CalibrationModel FitEngine::model() const {
 }  // namespace detail
 
 // ------------------------------------------------------------------ public API
+
+ValidityRule validity_from_data(const CalibrationDataset& data, ValidityRule rule, double* plateau) {
+  constexpr double kBand = 0.5;       // [charge_unit] read-outs this close to the top are on the plateau
+  constexpr double kMinShare = 0.01;  // of all charges on it
+  constexpr std::size_t kMinCount = 20;
+  if (plateau) *plateau = std::numeric_limits<double>::quiet_NaN();
+  double top = -std::numeric_limits<double>::infinity();
+  for (const auto& r : data.readouts) top = std::max({top, r.a, r.b});
+  if (!(top < rule.high)) return rule;  // the constant sees the top: nothing to learn
+  std::size_t on = 0;
+  for (const auto& r : data.readouts) on += (r.a >= top - kBand ? 1 : 0) + (r.b >= top - kBand ? 1 : 0);
+  const double share = static_cast<double>(on) / static_cast<double>(2 * data.size());
+  if (on < kMinCount || share < kMinShare) return rule;  // no pile-up: the light never filled a capacitor
+  if (plateau) *plateau = top;
+  rule.high = std::max(kCeilingShareOfPlateau * top, rule.low + 1.0);
+  return rule;
+}
 
 std::vector<std::size_t> select_readouts(const CalibrationDataset& data, const std::vector<std::size_t>& rows,
                                          const ValidityRule& rule, ReadoutSelection selection, std::size_t* saturated,

@@ -84,6 +84,7 @@ class FitEngine {
 
  private:
   // Steps of the constructor (each false with problem_ set when the data cannot be fitted).
+  void take_ceiling_from_data();
   bool group_rows();
   bool enough_data();
   void decide_leakage_offset();

@@ -3,6 +3,7 @@
 // two-capacitor model (synthetic_sensor.hpp), and its bad-input results.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <numeric>
 
@@ -172,6 +173,40 @@ TEST(CalibrationFit, DriverSelectionKeepsOneReadoutPerPixelAndFrame) {
   // 40 distances x 2 passes x 3 frames x 64 pixels, less the pixels with no valid read-out at all.
   EXPECT_LE(fit.used, 40u * 2 * 3 * 64);
   EXPECT_GT(fit.used, 40u * 2 * 3 * 64 * 9 / 10);
+}
+
+// A read-out compressed by its transfer curve after the capacitor saturates tops
+// out below the published rule's 230: the saturated read-outs pile up at the
+// plateau, and the ceiling comes from there (92 % of it), else the fit is handed
+// saturated read-outs as good ones.
+TEST(CalibrationFit, SaturationCeilingComesFromTheDataWhenTheReadOutsTopOutBelowTheRule) {
+  const auto plain = cal::validity_from_data(noisy_rail(), tl::ValidityRule{});
+  EXPECT_EQ(plain.high, tl::ValidityRule{}.high);  // this rail saturates above the rule: unchanged
+  auto data = noisy_rail();
+  const auto transfer = [](double q) {
+    const double held = std::min(q, 250.0);
+    return std::round(10.0 * held * (1.0 - 0.3 * held / 250.0)) / 10.0;
+  };
+  for (auto& r : data.readouts) {
+    r.a = transfer(r.a);
+    r.b = transfer(r.b);
+  }
+  double plateau = 0.0;
+  const auto rule = cal::validity_from_data(data, tl::ValidityRule{}, &plateau);
+  EXPECT_NEAR(plateau, 175.0, 0.05);
+  EXPECT_NEAR(rule.high, cal::kCeilingShareOfPlateau * 175.0, 0.05);
+  EXPECT_EQ(rule.low, tl::ValidityRule{}.low);
+  const auto fit = cal::fit_declared_model(data);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  EXPECT_NEAR(fit.model.validity().high, rule.high, 1e-12);  // the rule written is the one applied
+  EXPECT_THAT(fit.notes, ::testing::Contains(HasSubstr("saturate at 175.0")));
+  cal::DeclaredFitParams constant;
+  constant.ceiling_from_data = false;
+  const auto blind = cal::fit_declared_model(data, constant);
+  ASSERT_TRUE(blind.ok) << blind.reason;
+  std::printf("compressed rail: in-sample RMSE %.2f cm with the data's ceiling, %.2f cm with 230\n", 100 * fit.rmse_m,
+              100 * blind.rmse_m);
+  EXPECT_LT(2.0 * fit.rmse_m, blind.rmse_m);
 }
 
 TEST(CalibrationFit, FixedLeakageAndInverseVarianceWeighting) {

@@ -70,8 +70,9 @@ struct PixelParams {
   double prnu_sd = 0.02;      ///< photo-response non-uniformity (relative gain spread)
   double full_scale = 250.0;  ///< saturation of a capacitor read-out [charge_unit]
   double knee = 225.0;        ///< soft compression starts here [charge_unit]
-  /// Charge-to-voltage non-linearity of the storage node: a read-out v of
-  /// charge q is q * (1 - nonlinearity * q / full_scale) (compression at full scale).
+  /// Charge-to-voltage non-linearity of the read-out: a read-out v of the charge
+  /// q the capacitor holds (after its saturation) is q * (1 - nonlinearity * q /
+  /// full_scale), so it tops out at full_scale * (1 - nonlinearity).
   double nonlinearity = 0.0;
   double read_noise = 0.15;       ///< ADC + reset noise per read-out [charge_unit rms]
   double shot_noise_gain = 4e-4;  ///< shot-noise variance per unit of collected charge [charge_unit]

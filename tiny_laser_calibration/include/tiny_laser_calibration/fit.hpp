@@ -62,6 +62,9 @@ struct DeclaredFitParams {
   DistanceWeighting weighting = DistanceWeighting::kOnes;
   ReadoutSelection selection = ReadoutSelection::kDriver;
   ValidityRule validity;
+  /// true: the saturation ceiling comes from the data where it shows one below
+  /// validity.high (validity_from_data()); the rule written is the one applied.
+  bool ceiling_from_data = true;
   int min_rows_per_pixel = 20;      ///< per-pixel Rsen only for pixels with this many valid read-outs
   int min_distances_per_pixel = 4;  ///< ... spread over at least this many target distances
   double term_ridge = 1.0;          ///< pseudo-observations pulling each term coefficient to 0
@@ -99,6 +102,20 @@ struct DeclaredFitResult {
                                                       const std::vector<std::size_t>& rows,
                                                       const DeclaredFitParams& params,
                                                       const std::vector<CalibrationTerm>& terms);
+
+/// The share of the saturation plateau the ceiling sits at: the published rule's
+/// 230 of the 250 charge_unit a capacitor holds.
+inline constexpr double kCeilingShareOfPlateau = 230.0 / 250.0;
+
+/// A saturated capacitor reads a plateau: the same top value again and again.
+/// When the read-outs of `data` pile up at one top level below `rule.high` (at
+/// least 1 % of all charges within 0.5 charge_unit of the largest; e.g. a
+/// read-out compressed by its transfer curve tops out at 175), the rule's
+/// constant never sees saturation: the ceiling becomes kCeilingShareOfPlateau
+/// of that level. Otherwise `rule` as given. `plateau` (when given) receives
+/// the level found, NaN when none.
+[[nodiscard]] ValidityRule validity_from_data(const CalibrationDataset& data, ValidityRule rule,
+                                              double* plateau = nullptr);
 
 /// Of rows `rows` of `data` (all when empty), the read-outs valid under `rule`; with
 /// kDriver, per pixel and frame (same t_s) only the one with the most pulses. Sorted.
