@@ -193,7 +193,7 @@ class SimStudyRun {
     // The truth in the robot frame at the newest scan's time.
     const RobotPose2D pose_now = approach_pose(p_.approach, static_cast<double>(e.stamp_ns) * 1e-9);
     const Eigen::Vector2d truth = robot_.centre_in_base(pose_now);
-    u.status = static_cast<int>(e.fit.status);
+    u.status = static_cast<int>(e.fit.detail);
     u.true_x_m = truth.x();
     u.true_y_m = truth.y();
     u.points = e.points;

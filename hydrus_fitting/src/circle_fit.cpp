@@ -37,6 +37,18 @@ const char* to_string(FitStatus s) {
   return "unknown";
 }
 
+common::Status fit_status(FitStatus detail, std::string message) {
+  switch (detail) {
+    case FitStatus::kOk: return {};
+    case FitStatus::kInvalidParams: return common::Status::invalid(std::move(message));
+    case FitStatus::kTooFewPoints:
+    case FitStatus::kCollinear:
+    case FitStatus::kNoConsensus:
+    case FitStatus::kRadiusOutOfRange: break;
+  }
+  return common::Status::not_found(std::move(message));
+}
+
 const char* to_string(ArcCorrection c) {
   switch (c) {
     case ArcCorrection::kNone: return "none";

@@ -223,7 +223,7 @@ CircleFit first_order_fit(const GeometricRun& run, const Eigen::Vector3d& theta,
   const bool known = run.known;
   const int n = pts.n, p = known ? 2 : 3;
   CircleFit f;
-  f.status = FitStatus::kOk;
+  f.set_outcome(FitStatus::kOk);
   f.circle.centre_m = theta.head<2>();
   f.circle.radius_m = theta(2);
   f.points_used = n;
@@ -353,10 +353,10 @@ CircleFit fit_circle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, const Ref
                      std::span<const double> sigma_m) {
   CircleFit init = fit_circle_hyper(points);
   if (!init.ok()) {
-    if (params.known_radius_m && init.status == FitStatus::kCollinear) {
+    if (params.known_radius_m && init.detail == FitStatus::kCollinear) {
       // A known radius still fixes a circle through collinear points (two
       // mirror solutions); the algebraic start cannot, so say so plainly.
-      init.reason += " (a known radius does not resolve which side the centre is on)";
+      init.status.message += " (a known radius does not resolve which side the centre is on)";
     }
     return init;
   }

@@ -26,8 +26,7 @@ constexpr double kCollinearPlanarity = 1e-12;
 
 inline CircleFit failed(FitStatus s, std::string reason, int non_finite = 0) {
   CircleFit f;
-  f.status = s;
-  f.reason = std::move(reason);
+  f.set_outcome(s, std::move(reason));
   f.non_finite = non_finite;
   return f;
 }
@@ -115,7 +114,7 @@ inline CircleFit from_algebraic(const Eigen::Vector4d& A, const Normalised& n,
                   n.non_finite);
   }
   CircleFit f;
-  f.status = FitStatus::kOk;
+  f.set_outcome(FitStatus::kOk);
   f.circle = *circle;
   f.points_used = static_cast<int>(n.q.cols());
   f.non_finite = n.non_finite;

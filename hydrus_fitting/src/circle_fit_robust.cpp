@@ -415,7 +415,7 @@ CircleFit RobustCircleFitter::final_fit() {
   }
   if (!fit.ok()) {
     fit = CircleFit{};
-    fit.status = FitStatus::kOk;
+    fit.set_outcome(FitStatus::kOk);
     fit.circle = current_;
     double ss = 0.0;
     for (int k = 0; k < n_; ++k) {
@@ -433,15 +433,15 @@ CircleFit RobustCircleFitter::final_fit() {
     fit.inlier_mask[static_cast<std::size_t>(idx_[static_cast<std::size_t>(k)])] = mask_[static_cast<std::size_t>(k)];
   fit.points_used = count_;
   if (count_ < params_.min_inliers) {
-    fit.status = FitStatus::kNoConsensus;
-    fit.reason = fmt::format("best circle has {} inliers of {} points, fewer than min_inliers = {}", count_, n_,
-                             params_.min_inliers);
+    fit.set_outcome(FitStatus::kNoConsensus,
+                    fmt::format("best circle has {} inliers of {} points, fewer than min_inliers = {}", count_, n_,
+                                params_.min_inliers));
     return fit;
   }
   if (fit.circle.radius_m < params_.min_radius_m || fit.circle.radius_m > params_.max_radius_m) {
-    fit.status = FitStatus::kRadiusOutOfRange;
-    fit.reason = fmt::format("fitted radius {:.4f} m is outside [{}, {}] m", fit.circle.radius_m, params_.min_radius_m,
-                             params_.max_radius_m);
+    fit.set_outcome(FitStatus::kRadiusOutOfRange,
+                    fmt::format("fitted radius {:.4f} m is outside [{}, {}] m", fit.circle.radius_m,
+                                params_.min_radius_m, params_.max_radius_m));
     return fit;
   }
   return fit;

@@ -43,10 +43,10 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
     const ScanView& s = scans[i];
     if (newest - s.stamp_ns > skew_ns) {
       ScanOutcome o;
-      o.status = ScanStatus::kJointState;
       o.sensor = fuser_.model().sensor_index(s.sensor).value_or(-1);
-      o.reason = fmt::format("scan of '{}' is {:.3f} s older than the newest (max_scan_skew_s {:.3f}): left out",
-                             s.sensor, 1e-9 * static_cast<double>(newest - s.stamp_ns), params_.max_scan_skew_s);
+      o.status = {common::StatusCode::OutOfRange,
+                  fmt::format("scan of '{}' is {:.3f} s older than the newest (max_scan_skew_s {:.3f}): left out",
+                              s.sensor, 1e-9 * static_cast<double>(newest - s.stamp_ns), params_.max_scan_skew_s)};
       e.scans.push_back(std::move(o));
       continue;
     }
@@ -70,7 +70,8 @@ CircleEstimate CircleEstimator::estimate(std::span<const ScanView> scans, const 
     refine_with_incidence(e.fit, true, true);
   }
   if (!e.fit.ok() && e.scans_fused == 0 && !scans.empty()) {
-    e.fit.reason = fmt::format("no scan could be fused ({}); {}", e.scans.front().reason, e.fit.reason);
+    e.fit.status.message =
+        fmt::format("no scan could be fused ({}); {}", e.scans.front().status.message, e.fit.status.message);
   }
   return e;
 }

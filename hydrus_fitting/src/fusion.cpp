@@ -24,16 +24,6 @@ double RangeNoiseModel::sd_at(double range_m) const {
   return (1.0 - w) * lo->second + w * hi->second;
 }
 
-const char* to_string(ScanStatus s) {
-  switch (s) {
-    case ScanStatus::kOk: return "ok";
-    case ScanStatus::kUnknownSensor: return "unknown_sensor";
-    case ScanStatus::kJointState: return "joint_state";
-    case ScanStatus::kBadScan: return "bad_scan";
-  }
-  return "unknown";
-}
-
 namespace {
 
 /// A link's footprint as a test in its own frame: x in [-m, L + m], |y| <= w/2 + m,
@@ -101,24 +91,21 @@ ScanOutcome ScanFuser::add(const ScanView& scan, const JointStateBuffer& joints,
   ScanOutcome out;
   const auto sensor = model_->sensor_index(scan.sensor);
   if (!sensor) {
-    out.status = ScanStatus::kUnknownSensor;
     std::string known;
     for (const auto& s : model_->sensors()) known += (known.empty() ? "" : ", ") + s.name;
-    out.reason = fmt::format("sensor '{}' is not in the robot description '{}' (it has: {})", scan.sensor,
-                             model_->name(), known);
+    out.status = common::Status::not_found(fmt::format("sensor '{}' is not in the robot description '{}' (it has: {})",
+                                                       scan.sensor, model_->name(), known));
     return out;
   }
   if (joints.joint_names() != model_->joint_names()) {
-    out.status = ScanStatus::kJointState;
-    out.reason = "joint buffer was made for other joints than the robot model's";
+    out.status = common::Status::invalid("joint buffer was made for other joints than the robot model's");
     return out;
   }
   const JointLookup q = joints.at(scan.stamp_ns);
   if (!q.ok()) {
-    out.status = ScanStatus::kJointState;
-    out.joints = q.status;
+    out.status = q.status;
+    out.joints = q.detail;
     out.sensor = *sensor;
-    out.reason = q.reason;
     return out;
   }
   return add_resolved(scan, *sensor, q.positions, T_ref_base);
@@ -129,13 +116,13 @@ ScanOutcome ScanFuser::add(const ScanView& scan, std::span<const double> joint_p
   ScanOutcome out;
   const auto sensor = model_->sensor_index(scan.sensor);
   if (!sensor) {
-    out.status = ScanStatus::kUnknownSensor;
-    out.reason = fmt::format("sensor '{}' is not in the robot description '{}'", scan.sensor, model_->name());
+    out.status = common::Status::not_found(
+        fmt::format("sensor '{}' is not in the robot description '{}'", scan.sensor, model_->name()));
     return out;
   }
   if (joint_positions.size() != model_->joint_names().size()) {
-    out.status = ScanStatus::kJointState;
-    out.reason = fmt::format("{} joint positions for {} joints", joint_positions.size(), model_->joint_names().size());
+    out.status = common::Status::invalid(
+        fmt::format("{} joint positions for {} joints", joint_positions.size(), model_->joint_names().size()));
     return out;
   }
   return add_resolved(scan, *sensor, joint_positions, T_ref_base);
@@ -146,9 +133,8 @@ ScanOutcome ScanFuser::add_resolved(const ScanView& scan, int sensor, std::span<
   ScanOutcome out;
   out.sensor = sensor;
   if (scan.angle_rad.size() != scan.range_m.size()) {
-    out.status = ScanStatus::kBadScan;
-    out.reason = fmt::format("scan of '{}' has {} angles but {} ranges", scan.sensor, scan.angle_rad.size(),
-                             scan.range_m.size());
+    out.status = common::Status::invalid(fmt::format("scan of '{}' has {} angles but {} ranges", scan.sensor,
+                                                     scan.angle_rad.size(), scan.range_m.size()));
     return out;
   }
   const Kinematics k = model_->forward(q);

@@ -69,8 +69,7 @@ struct RectangleFitter {
   double lo1 = 0.0, hi1 = 0.0;  ///< side 1's extent along u1
 
   RectangleFit fail(FitStatus s, std::string r) {
-    out.status = s;
-    out.reason = std::move(r);
+    out.set_outcome(s, std::move(r));
     return out;
   }
 
@@ -357,7 +356,7 @@ RectangleFit fit_rectangle(const Eigen::Ref<const Eigen::Matrix2Xd>& points, con
   if (!f.joint_refinement()) return f.fail(FitStatus::kNoConsensus, "the first side lost its support while refining");
   f.corner_and_extent();
   f.size_and_centre();
-  f.out.status = FitStatus::kOk;
+  f.out.set_outcome(FitStatus::kOk);
   return f.out;
 }
 

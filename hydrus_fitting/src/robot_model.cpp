@@ -361,16 +361,17 @@ JointLookup JointStateBuffer::at(std::int64_t stamp_ns) const {
   for (std::size_t j = 0; j < names_.size(); ++j) {
     const auto& s = series_[j];
     if (s.empty()) {
-      out.status = JointLookupStatus::kNoData;
-      out.reason = fmt::format("no joint state received yet for joint '{}'", names_[j]);
+      out.detail = JointLookupStatus::kNoData;
+      out.status = common::Status::not_found(fmt::format("no joint state received yet for joint '{}'", names_[j]));
       return out;
     }
     if (stamp_ns >= s.back().t_ns) {
       const double gap = 1e-9 * static_cast<double>(stamp_ns - s.back().t_ns);
       if (gap > tol) {
-        out.status = JointLookupStatus::kStale;
-        out.reason = fmt::format("joint '{}': newest state is {:.3f} s older than the scan (tolerance {:.3f} s)",
-                                 names_[j], gap, tol);
+        out.detail = JointLookupStatus::kStale;
+        out.status = {common::StatusCode::OutOfRange,
+                      fmt::format("joint '{}': newest state is {:.3f} s older than the scan (tolerance {:.3f} s)",
+                                  names_[j], gap, tol)};
         return out;
       }
       out.positions[j] = s.back().q;
@@ -378,10 +379,11 @@ JointLookup JointStateBuffer::at(std::int64_t stamp_ns) const {
     } else if (stamp_ns <= s.front().t_ns) {
       const double gap = 1e-9 * static_cast<double>(s.front().t_ns - stamp_ns);
       if (gap > tol) {
-        out.status = JointLookupStatus::kBeforeHistory;
-        out.reason =
+        out.detail = JointLookupStatus::kBeforeHistory;
+        out.status = {
+            common::StatusCode::OutOfRange,
             fmt::format("joint '{}': the scan is {:.3f} s older than the oldest kept state (tolerance {:.3f} s)",
-                        names_[j], gap, tol);
+                        names_[j], gap, tol)};
         return out;
       }
       out.positions[j] = s.front().q;
@@ -397,7 +399,8 @@ JointLookup JointStateBuffer::at(std::int64_t stamp_ns) const {
       out.max_gap_s = std::max(out.max_gap_s, gap);
     }
   }
-  out.status = JointLookupStatus::kOk;
+  out.detail = JointLookupStatus::kOk;
+  out.status = {};
   return out;
 }
 

@@ -114,7 +114,7 @@ TEST(CircleFitReference, TheStandardFitsAgreeWithPublishedImplementations) {
     // (relative to its radius; an ill-posed short noisy arc loosens it).
     for (const auto& [method, ours] :
          {std::pair{"kasa", &kasa}, std::pair{"taubin", &taubin}, std::pair{"hyper", &hyper}}) {
-      ASSERT_TRUE(ours->ok()) << method << ": " << ours->reason;
+      ASSERT_TRUE(ours->ok()) << method << ": " << ours->status.message;
       ASSERT_TRUE(r.count(method)) << method;
       const Eigen::Vector3d d = as_vector(*ours) - r.at(method);
       EXPECT_LT(d.cwiseAbs().maxCoeff(), 1e-7 * std::max(1.0, ours->circle.radius_m))
@@ -123,7 +123,7 @@ TEST(CircleFitReference, TheStandardFitsAgreeWithPublishedImplementations) {
     // The geometric fit is a minimum of the same sum of squares: where both
     // found it (the library's LM stops at its own tolerance) the same circle,
     // and ours never a worse one.
-    ASSERT_TRUE(geometric.ok()) << geometric.reason;
+    ASSERT_TRUE(geometric.ok()) << geometric.status.message;
     const Eigen::Vector3d lib = r.at("geometric");
     const hf::Circle lib_circle{lib.head<2>(), lib(2)};
     auto rss = [&](const hf::Circle& cc) {

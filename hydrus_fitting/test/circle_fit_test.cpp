@@ -68,7 +68,7 @@ TEST(CircleFit, ExactPointsRecoveredByEveryFit) {
          {std::pair{"kasa", hf::fit_circle_kasa(p)}, std::pair{"hyper", hf::fit_circle_hyper(p)},
           std::pair{"taubin", hf::fit_circle_taubin(p)}, std::pair{"geometric", hf::fit_circle(p)},
           std::pair{"robust", hf::fit_circle_robust(p)}}) {
-      ASSERT_TRUE(f.ok()) << name << " " << arc_deg << ": " << f.reason;
+      ASSERT_TRUE(f.ok()) << name << " " << arc_deg << ": " << f.status.message;
       EXPECT_NEAR(f.circle.centre_m.x(), 0.4, 1e-8) << name << " " << arc_deg;
       EXPECT_NEAR(f.circle.centre_m.y(), -0.2, 1e-8) << name << " " << arc_deg;
       EXPECT_NEAR(f.circle.radius_m, 0.3, 1e-8) << name << " " << arc_deg;
@@ -85,7 +85,7 @@ TEST(CircleFit, ThreePointsGiveTheCircleThroughThem) {
   EXPECT_FALSE(hf::circle_through({0, 0}, {1, 1}, {2, 2}));
   EXPECT_FALSE(hf::circle_through({0, 0}, {0, 0}, {2, 1}));
   const auto f = hf::fit_circle_hyper(arc(kTruth, 90, 3));
-  ASSERT_TRUE(f.ok()) << f.reason;
+  ASSERT_TRUE(f.ok()) << f.status.message;
   EXPECT_NEAR(f.circle.radius_m, 0.3, 1e-10);
 }
 
@@ -99,13 +99,13 @@ TEST(CircleFit, TooFewPointsIsAnOutcomeWithAReason) {
   for (const auto& p : {none, two, with_nan}) {
     for (const auto& f : {hf::fit_circle_kasa(p), hf::fit_circle_hyper(p), hf::fit_circle_taubin(p), hf::fit_circle(p),
                           hf::fit_circle_robust(p)}) {
-      EXPECT_EQ(f.status, hf::FitStatus::kTooFewPoints);
-      EXPECT_THAT(f.reason, HasSubstr("at least"));
+      EXPECT_EQ(f.detail, hf::FitStatus::kTooFewPoints);
+      EXPECT_THAT(f.status.message, HasSubstr("at least"));
     }
   }
   const auto f = hf::fit_circle_hyper(with_nan);
   EXPECT_EQ(f.non_finite, 2);
-  EXPECT_THAT(f.reason, HasSubstr("2 non-finite skipped"));
+  EXPECT_THAT(f.status.message, HasSubstr("2 non-finite skipped"));
 }
 
 TEST(CircleFit, NonFinitePointsAreSkippedAndCounted) {
@@ -113,7 +113,7 @@ TEST(CircleFit, NonFinitePointsAreSkippedAndCounted) {
   p(0, 3) = std::numeric_limits<double>::quiet_NaN();
   p(1, 7) = std::numeric_limits<double>::infinity();
   for (const auto& f : {hf::fit_circle_kasa(p), hf::fit_circle_hyper(p), hf::fit_circle(p), hf::fit_circle_robust(p)}) {
-    ASSERT_TRUE(f.ok()) << f.reason;
+    ASSERT_TRUE(f.ok()) << f.status.message;
     EXPECT_EQ(f.non_finite, 2);
     EXPECT_NEAR(f.circle.radius_m, 0.3, 1e-8);
   }
@@ -124,8 +124,9 @@ TEST(CircleFit, CollinearPointsAreAnOutcome) {
   for (int i = 0; i < 20; ++i) p.col(i) = Eigen::Vector2d(0.1 * i, 0.5 + 0.05 * i);
   for (const auto& f : {hf::fit_circle_kasa(p), hf::fit_circle_hyper(p), hf::fit_circle_taubin(p), hf::fit_circle(p),
                         hf::fit_circle_robust(p)}) {
-    EXPECT_EQ(f.status, hf::FitStatus::kCollinear) << f.reason;
-    EXPECT_THAT(f.reason, HasSubstr("collinear"));
+    EXPECT_EQ(f.detail, hf::FitStatus::kCollinear) << f.status.message;
+    EXPECT_EQ(f.status.code, tinyline::common::StatusCode::NotFound);  // valid input without a circle
+    EXPECT_THAT(f.status.message, HasSubstr("collinear"));
   }
   // Nearly collinear (a noisy wall): the robust fit refuses radii beyond its range.
   tinyline::common::SplitMixRandom rng(3);
@@ -133,7 +134,7 @@ TEST(CircleFit, CollinearPointsAreAnOutcome) {
   hf::RobustCircleParams rp;
   rp.max_radius_m = 1.0;
   const auto r = hf::fit_circle_robust(wall, rp);
-  EXPECT_EQ(r.status, hf::FitStatus::kRadiusOutOfRange) << r.reason;
+  EXPECT_EQ(r.detail, hf::FitStatus::kRadiusOutOfRange) << r.status.message;
 }
 
 TEST(CircleFit, InvalidParametersAreNamed) {
@@ -143,20 +144,23 @@ TEST(CircleFit, InvalidParametersAreNamed) {
     set(rp);
     return rp;
   };
-  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.inlier_threshold_m = -1; })).reason,
+  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.inlier_threshold_m = -1; })).status.message,
               HasSubstr("inlier_threshold_m"));
   EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) {
                                       r.min_radius_m = 2;
                                       r.max_radius_m = 1;
                                     }))
-                  .reason,
+                  .status.message,
               HasSubstr("min_radius_m"));
-  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.known_radius_m = -0.3; })).reason,
+  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.known_radius_m = -0.3; })).status.message,
               HasSubstr("known_radius_m"));
-  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.confidence = 1.0; })).reason, HasSubstr("confidence"));
+  EXPECT_THAT(hf::fit_circle_robust(p, with([](auto& r) { r.confidence = 1.0; })).status.message,
+              HasSubstr("confidence"));
   std::vector<double> short_sigma(3, 0.01);
-  EXPECT_EQ(hf::fit_circle_robust(p, {}, short_sigma).status, hf::FitStatus::kInvalidParams);
-  EXPECT_EQ(hf::refine_circle(p, kTruth, {}, short_sigma).status, hf::FitStatus::kInvalidParams);
+  const auto bad_sigma = hf::fit_circle_robust(p, {}, short_sigma);
+  EXPECT_EQ(bad_sigma.detail, hf::FitStatus::kInvalidParams);
+  EXPECT_EQ(bad_sigma.status.code, tinyline::common::StatusCode::InvalidArgument);
+  EXPECT_EQ(hf::refine_circle(p, kTruth, {}, short_sigma).detail, hf::FitStatus::kInvalidParams);
 }
 
 TEST(CircleFit, KcrBoundOfAFullCircleIsTheTextbookValue) {
@@ -203,7 +207,7 @@ TEST(CircleFit, GeometricFitReachesTheKcrBoundAndReportsItsCovariance) {
   std::vector<double> ex, ey, er, rep_sd_x;
   for (int t = 0; t < 600; ++t) {
     const auto f = hf::fit_circle(noisy(truth, s, rng));
-    ASSERT_TRUE(f.ok()) << f.reason;
+    ASSERT_TRUE(f.ok()) << f.status.message;
     ASSERT_TRUE(f.converged);
     ex.push_back(f.circle.centre_m.x() - kTruth.centre_m.x());
     ey.push_back(f.circle.centre_m.y() - kTruth.centre_m.y());
@@ -229,14 +233,14 @@ TEST(CircleFit, RefineStopsAtAStepUnderTheTolerance) {
   hf::RefineParams loose;
   loose.step_tolerance_m = 1e-2;  // the first step (under 1 mm) is under it
   const auto f = hf::refine_circle(p, start, loose);
-  ASSERT_TRUE(f.ok()) << f.reason;
+  ASSERT_TRUE(f.ok()) << f.status.message;
   EXPECT_TRUE(f.converged);
   EXPECT_EQ(f.iterations, 1);
   EXPECT_EQ(f.circle.centre_m, start.centre_m);
   EXPECT_EQ(f.circle.radius_m, start.radius_m);
 
   const auto g = hf::refine_circle(p, start);
-  ASSERT_TRUE(g.ok()) << g.reason;
+  ASSERT_TRUE(g.ok()) << g.status.message;
   EXPECT_TRUE(g.converged);
   EXPECT_LT(g.iterations, 10);
   EXPECT_NEAR(g.circle.centre_m.x(), truth.centre_m.x(), 1e-12);
@@ -252,7 +256,7 @@ TEST(CircleFit, KnownRadiusFitsOnlyTheCentre) {
   hf::RefineParams rp;
   rp.known_radius_m = 0.3;
   const auto f = hf::fit_circle(p, rp);
-  ASSERT_TRUE(f.ok()) << f.reason;
+  ASSERT_TRUE(f.ok()) << f.status.message;
   EXPECT_DOUBLE_EQ(f.circle.radius_m, 0.3);
   EXPECT_EQ(f.covariance(2, 2), 0.0);
   EXPECT_GT(f.covariance(0, 0), 0.0);
@@ -267,7 +271,7 @@ TEST(CircleFit, KnownRadiusFitsOnlyTheCentre) {
   hf::RobustCircleParams rob;
   rob.known_radius_m = 0.3;
   const auto r = hf::fit_circle_robust(p, rob);
-  ASSERT_TRUE(r.ok()) << r.reason;
+  ASSERT_TRUE(r.ok()) << r.status.message;
   EXPECT_LT((r.circle.centre_m - f.circle.centre_m).norm(), 1e-6);
 }
 
@@ -311,7 +315,7 @@ TEST(CircleFit, RobustFitIgnoresFortyPercentOutliers) {
     hf::RobustCircleParams rp;
     rp.seed = static_cast<std::uint64_t>(t + 1);
     const auto f = hf::fit_circle_robust(p, rp);
-    ASSERT_TRUE(f.ok()) << f.reason;
+    ASSERT_TRUE(f.ok()) << f.status.message;
     const Eigen::Vector3d e(f.circle.centre_m.x() - kTruth.centre_m.x(), f.circle.centre_m.y() - kTruth.centre_m.y(),
                             f.circle.radius_m - kTruth.radius_m);
     m2.push_back(e.dot(info * e));
@@ -361,7 +365,7 @@ TEST(CircleFit, ViewpointsRejectCirclesThroughPointsFacingAway) {
   hf::RobustCircleParams rp;
   rp.inlier_threshold_m = 0.005;
   const auto f = hf::fit_circle_robust(p, rp, {}, {origins, sensor});
-  ASSERT_TRUE(f.ok()) << f.reason;
+  ASSERT_TRUE(f.ok()) << f.status.message;
   EXPECT_LT((f.circle.centre_m - truth.centre_m).norm(), 1e-6);
   EXPECT_EQ(f.points_used, 60);
 }
@@ -479,21 +483,21 @@ TEST(CircleFitSecondOrder, BadParametersAreNamedAndAKnownRadiusIsLeftAlone) {
   rp.correction = hf::ArcCorrection::kSecondOrder;
   rp.second_order.end_weight = -1.0;
   hf::CircleFit f = hf::refine_circle(p, kTruth, rp);
-  EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
-  EXPECT_THAT(f.reason, HasSubstr("end_weight"));
+  EXPECT_EQ(f.detail, hf::FitStatus::kInvalidParams);
+  EXPECT_THAT(f.status.message, HasSubstr("end_weight"));
   rp.second_order = {};
   rp.second_order.no_weighting_arc_deg = 90.0;  // below full_weighting_arc_deg
   f = hf::refine_circle(p, kTruth, rp);
-  EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
-  EXPECT_THAT(f.reason, HasSubstr("no_weighting_arc_deg"));
+  EXPECT_EQ(f.detail, hf::FitStatus::kInvalidParams);
+  EXPECT_THAT(f.status.message, HasSubstr("no_weighting_arc_deg"));
   rp.second_order = {};
   rp.second_order.full_weighting_rel_sd_r = 0.3;  // above no_weighting_rel_sd_r
   f = hf::refine_circle(p, kTruth, rp);
-  EXPECT_EQ(f.status, hf::FitStatus::kInvalidParams);
-  EXPECT_THAT(f.reason, HasSubstr("rel_sd_r"));
+  EXPECT_EQ(f.detail, hf::FitStatus::kInvalidParams);
+  EXPECT_THAT(f.status.message, HasSubstr("rel_sd_r"));
   rp.second_order = {};
   rp.second_order.mode_shift = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_EQ(hf::refine_circle(p, kTruth, rp).status, hf::FitStatus::kInvalidParams);
+  EXPECT_EQ(hf::refine_circle(p, kTruth, rp).detail, hf::FitStatus::kInvalidParams);
   // A known radius: the correction does not apply (centre-only fit).
   tinyline::common::SplitMixRandom rng(4);
   const Eigen::Matrix2Xd q = noisy(p, 0.02, rng);

@@ -46,7 +46,7 @@ TEST(CircleEstimator, FourSensorsAroundACylinder) {
   Rig s({t, t, t}, {{truth}, {}, true});
   hf::CircleEstimator est(s.model);
   const auto e = est.estimate(s.views, s.joints);
-  ASSERT_TRUE(e.fit.ok()) << e.fit.reason;
+  ASSERT_TRUE(e.fit.ok()) << e.fit.status.message;
   EXPECT_EQ(e.scans_fused, 4);
   EXPECT_LT((e.fit.circle.centre_m - truth.centre_m).norm(), 0.004);
   EXPECT_NEAR(e.fit.circle.radius_m, truth.radius_m, 0.004);
@@ -66,7 +66,7 @@ TEST(CircleEstimator, SelfPointsAndClutterDoNotHoldTheFit) {
   ASSERT_GT(robot_pixels, 200) << "the scene must show the robot to the sensors";
   hf::CircleEstimator est(s.model);
   const auto e = est.estimate(s.views, s.joints);
-  ASSERT_TRUE(e.fit.ok()) << e.fit.reason;
+  ASSERT_TRUE(e.fit.ok()) << e.fit.status.message;
   EXPECT_GT(e.self_filtered, 150);
   EXPECT_LT((e.fit.circle.centre_m - truth.centre_m).norm(), 0.005);
   EXPECT_NEAR(e.fit.circle.radius_m, truth.radius_m, 0.005);
@@ -81,13 +81,13 @@ TEST(CircleEstimator, StaleAndUnknownScansAreReportedNotFused) {
   hf::CircleEstimator est(s.model);
   const auto e = est.estimate(s.views, s.joints);
   ASSERT_EQ(e.scans.size(), 4u);
-  EXPECT_EQ(e.scans[1].status, hf::ScanStatus::kUnknownSensor);
-  EXPECT_THAT(e.scans[2].reason, HasSubstr("older than the newest"));
+  EXPECT_EQ(e.scans[1].status.code, tinyline::common::StatusCode::NotFound);
+  EXPECT_THAT(e.scans[2].status.message, HasSubstr("older than the newest"));
   EXPECT_EQ(e.scans_fused, 2);
-  EXPECT_TRUE(e.fit.ok()) << e.fit.reason;  // two sensors still see enough
+  EXPECT_TRUE(e.fit.ok()) << e.fit.status.message;  // two sensors still see enough
   // Nothing at all: an outcome with reasons.
   const auto none = est.estimate({}, s.joints);
-  EXPECT_EQ(none.fit.status, hf::FitStatus::kTooFewPoints);
+  EXPECT_EQ(none.fit.detail, hf::FitStatus::kTooFewPoints);
   // Joint states far older than every scan: nothing fused, said so.
   hf::JointStateBuffer old(s.model.joint_names());
   (void)old.add(ns(0.0), s.model.joint_names(), std::vector<double>{t, t, t});
@@ -95,8 +95,8 @@ TEST(CircleEstimator, StaleAndUnknownScansAreReportedNotFused) {
   const auto stale = est.estimate(fresh.views, old);
   EXPECT_EQ(stale.scans_fused, 0);
   EXPECT_FALSE(stale.fit.ok());
-  EXPECT_THAT(stale.fit.reason, HasSubstr("no scan could be fused"));
-  EXPECT_THAT(stale.fit.reason, HasSubstr("older than the scan"));
+  EXPECT_THAT(stale.fit.status.message, HasSubstr("no scan could be fused"));
+  EXPECT_THAT(stale.fit.status.message, HasSubstr("older than the scan"));
 }
 
 namespace {
@@ -148,13 +148,13 @@ TEST(CircleEstimator, TheBaseMotionBetweenScansIsCompensated) {
   // Without the base's poses the four scans see the cylinder up to 11 mm
   // and 1 degree apart: the fit is smeared.
   const auto smeared = est.estimate(m.views, m.joints);
-  ASSERT_TRUE(smeared.fit.ok()) << smeared.fit.reason;
+  ASSERT_TRUE(smeared.fit.ok()) << smeared.fit.status.message;
   EXPECT_FALSE(smeared.base_motion_compensated);
   const double before = (smeared.fit.circle.centre_m - m.centre_now).norm();
   EXPECT_GT(before, 0.003);
   // With them, every scan is moved to the newest one's base frame.
   const auto moved = est.estimate(m.views, m.joints, &m.poses);
-  ASSERT_TRUE(moved.fit.ok()) << moved.fit.reason;
+  ASSERT_TRUE(moved.fit.ok()) << moved.fit.status.message;
   EXPECT_TRUE(moved.base_motion_compensated) << moved.base_motion_reason;
   EXPECT_EQ(moved.scans_fused, 4);
   const double after = (moved.fit.circle.centre_m - m.centre_now).norm();

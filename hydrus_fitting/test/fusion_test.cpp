@@ -50,7 +50,7 @@ TEST(Fusion, PlacesPixelsInTheRobotFrame) {
   hf::ScanFuser fuser(m);
   const Scan scan(0.4);
   const auto out = fuser.add(scan.view("laser2", 1.0), joints);
-  ASSERT_TRUE(out.ok()) << out.reason;
+  ASSERT_TRUE(out.ok()) << out.status.message;
   EXPECT_EQ(out.sensor, 1);
   EXPECT_EQ(out.added, 256);
   const auto& c = fuser.cloud();
@@ -91,23 +91,25 @@ TEST(Fusion, BadInputIsAnOutcomeNeverACrash) {
   // Unknown sensor: names the sensor and the ones the description has.
   const auto joints = joints_at(m, 1.0, {0, 0, 0});
   auto out = fuser.add(scan.view("laser9", 1.0), joints);
-  EXPECT_EQ(out.status, hf::ScanStatus::kUnknownSensor);
-  EXPECT_THAT(out.reason, HasSubstr("'laser9' is not in the robot description 'hydrus4' (it has: laser1, laser2"));
+  EXPECT_EQ(out.status.code, tinyline::common::StatusCode::NotFound);
+  EXPECT_THAT(out.status.message,
+              HasSubstr("'laser9' is not in the robot description 'hydrus4' (it has: laser1, laser2"));
   // Stale joints.
   out = fuser.add(scan.view("laser1", 1.5), joints);
-  EXPECT_EQ(out.status, hf::ScanStatus::kJointState);
+  EXPECT_EQ(out.status.code, tinyline::common::StatusCode::OutOfRange);
   EXPECT_EQ(out.joints, hf::JointLookupStatus::kStale);
-  EXPECT_THAT(out.reason, HasSubstr("older than the scan"));
+  EXPECT_THAT(out.status.message, HasSubstr("older than the scan"));
   // No joint state at all.
   hf::JointStateBuffer empty(m.joint_names());
   EXPECT_EQ(fuser.add(scan.view("laser1", 1.0), empty).joints, hf::JointLookupStatus::kNoData);
   // Mismatched arrays.
   std::vector<double> short_range(10, 0.4);
   out = fuser.add({"laser1", ns(1.0), scan.angle, short_range}, joints);
-  EXPECT_EQ(out.status, hf::ScanStatus::kBadScan);
-  EXPECT_THAT(out.reason, HasSubstr("256 angles but 10 ranges"));
+  EXPECT_EQ(out.status.code, tinyline::common::StatusCode::InvalidArgument);
+  EXPECT_THAT(out.status.message, HasSubstr("256 angles but 10 ranges"));
   // Wrong number of joint angles.
-  EXPECT_EQ(fuser.add(scan.view("laser1", 1.0), std::vector<double>{0.0}).status, hf::ScanStatus::kJointState);
+  EXPECT_EQ(fuser.add(scan.view("laser1", 1.0), std::vector<double>{0.0}).status.code,
+            tinyline::common::StatusCode::InvalidArgument);
   EXPECT_EQ(fuser.cloud().size(), 0);  // nothing was added by any of these
   // NaN, zero, negative and out-of-range pixels are counted, not fused.
   Scan odd(0.4);

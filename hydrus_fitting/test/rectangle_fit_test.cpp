@@ -62,7 +62,7 @@ TEST(RectangleFit, TwoSidesOfABox) {
   const auto p = box_l_shape(c, yaw, 0.4, 0.3, 60, 0.003, rng);
   hf::RectangleFitParams params;
   auto f = hf::fit_rectangle(p, params);
-  ASSERT_TRUE(f.ok()) << f.reason;
+  ASSERT_TRUE(f.ok()) << f.status.message;
   EXPECT_EQ(f.sides_visible, 2);
   EXPECT_LT(angle_diff_mod_half_pi(f.yaw_rad, yaw), 0.5 * kPi / 180.0);
   EXPECT_GE(f.points_used, 110);
@@ -90,7 +90,7 @@ TEST(RectangleFit, OneSideWithKnownSizeAndViewpoints) {
   hf::RectangleFitParams params;
   params.known_size_m = Eigen::Vector2d(0.4, 0.3);
   const auto f = hf::fit_rectangle(p, params, {origins, sensor});
-  ASSERT_TRUE(f.ok()) << f.reason;
+  ASSERT_TRUE(f.ok()) << f.status.message;
   EXPECT_EQ(f.sides_visible, 1);
   ASSERT_TRUE(f.centre_m);
   EXPECT_LT((*f.centre_m - Eigen::Vector2d(0.0, 0.75)).norm(), 0.01);
@@ -109,7 +109,7 @@ TEST(RectangleFit, IgnoresThirtyPercentOutliers) {
   hf::RectangleFitParams params;
   params.known_size_m = Eigen::Vector2d(0.5, 0.25);
   const auto f = hf::fit_rectangle(p, params);
-  ASSERT_TRUE(f.ok()) << f.reason;
+  ASSERT_TRUE(f.ok()) << f.status.message;
   EXPECT_EQ(f.sides_visible, 2);
   EXPECT_LT(angle_diff_mod_half_pi(f.yaw_rad, yaw), 1.0 * kPi / 180.0);
   ASSERT_TRUE(f.centre_m);
@@ -119,13 +119,13 @@ TEST(RectangleFit, IgnoresThirtyPercentOutliers) {
 TEST(RectangleFit, DegenerateInputIsAnOutcome) {
   Eigen::Matrix2Xd few(2, 3);
   few << 0, 1, 2, 0, 0, 0;
-  EXPECT_EQ(hf::fit_rectangle(few).status, hf::FitStatus::kTooFewPoints);
+  EXPECT_EQ(hf::fit_rectangle(few).detail, hf::FitStatus::kTooFewPoints);
   tinyline::common::SplitMixRandom rng(6);
   Eigen::Matrix2Xd scatter(2, 30);  // no 8 of them within 1.5 cm of a line
   for (int k = 0; k < 30; ++k) scatter.col(k) = Eigen::Vector2d(rng.uniform(), rng.uniform());
   const auto f = hf::fit_rectangle(scatter);
-  EXPECT_EQ(f.status, hf::FitStatus::kNoConsensus) << f.reason;
+  EXPECT_EQ(f.detail, hf::FitStatus::kNoConsensus) << f.status.message;
   hf::RectangleFitParams bad;
   bad.inlier_threshold_m = 0.0;
-  EXPECT_EQ(hf::fit_rectangle(scatter, bad).status, hf::FitStatus::kInvalidParams);
+  EXPECT_EQ(hf::fit_rectangle(scatter, bad).detail, hf::FitStatus::kInvalidParams);
 }

@@ -135,7 +135,7 @@ TEST(JointStateBuffer, InterpolatesBetweenSamples) {
   (void)b.add(ns(1.0), names, std::vector<double>{0.0, 1.0});
   (void)b.add(ns(1.1), names, std::vector<double>{0.2, 1.0});
   const auto q = b.at(ns(1.025));
-  ASSERT_TRUE(q.ok()) << q.reason;
+  ASSERT_TRUE(q.ok()) << q.status.message;
   EXPECT_NEAR(q.positions[0], 0.05, 1e-12);
   EXPECT_NEAR(q.positions[1], 1.0, 1e-12);
   EXPECT_NEAR(q.max_gap_s, 0.025, 1e-9);
@@ -145,15 +145,17 @@ TEST(JointStateBuffer, StaleStatesAreAnExplicitOutcome) {
   hf::JointStateBuffer b({"j1"}, {.tolerance_s = 0.02, .history_s = 2.0});
   const std::vector<std::string> names{"j1"};
   const auto none = b.at(ns(1.0));
-  EXPECT_EQ(none.status, hf::JointLookupStatus::kNoData);
-  EXPECT_THAT(none.reason, HasSubstr("'j1'"));
+  EXPECT_EQ(none.detail, hf::JointLookupStatus::kNoData);
+  EXPECT_EQ(none.status.code, tinyline::common::StatusCode::NotFound);
+  EXPECT_THAT(none.status.message, HasSubstr("'j1'"));
   (void)b.add(ns(1.0), names, std::vector<double>{0.3});
   EXPECT_TRUE(b.at(ns(1.015)).ok());  // held within the tolerance
   const auto stale = b.at(ns(1.1));
-  EXPECT_EQ(stale.status, hf::JointLookupStatus::kStale);
-  EXPECT_THAT(stale.reason, HasSubstr("0.100 s older than the scan"));
+  EXPECT_EQ(stale.detail, hf::JointLookupStatus::kStale);
+  EXPECT_EQ(stale.status.code, tinyline::common::StatusCode::OutOfRange);
+  EXPECT_THAT(stale.status.message, HasSubstr("0.100 s older than the scan"));
   const auto early = b.at(ns(0.5));
-  EXPECT_EQ(early.status, hf::JointLookupStatus::kBeforeHistory);
+  EXPECT_EQ(early.detail, hf::JointLookupStatus::kBeforeHistory);
 }
 
 TEST(JointStateBuffer, PartialUnknownOutOfOrderAndNonFiniteSamples) {
@@ -161,7 +163,7 @@ TEST(JointStateBuffer, PartialUnknownOutOfOrderAndNonFiniteSamples) {
   // A message with one joint only, one with a foreign joint, one with a NaN.
   auto r = b.add(ns(1.0), std::vector<std::string>{"j1"}, std::vector<double>{0.0});
   EXPECT_EQ(r.used, 1);
-  EXPECT_EQ(b.at(ns(1.0)).status, hf::JointLookupStatus::kNoData);  // j2 still missing
+  EXPECT_EQ(b.at(ns(1.0)).detail, hf::JointLookupStatus::kNoData);  // j2 still missing
   r = b.add(ns(1.0), std::vector<std::string>{"j2", "gimbal"}, std::vector<double>{0.5, 9.0});
   EXPECT_EQ(r.unknown, 1);
   EXPECT_THAT(r.reason, HasSubstr("1 unknown joint"));
@@ -171,7 +173,7 @@ TEST(JointStateBuffer, PartialUnknownOutOfOrderAndNonFiniteSamples) {
   (void)b.add(ns(1.2), std::vector<std::string>{"j1"}, std::vector<double>{0.4});
   (void)b.add(ns(1.1), std::vector<std::string>{"j1", "j2"}, std::vector<double>{0.1, 0.6});
   const auto q = b.at(ns(1.15));
-  ASSERT_TRUE(q.ok()) << q.reason;
+  ASSERT_TRUE(q.ok()) << q.status.message;
   EXPECT_NEAR(q.positions[0], 0.25, 1e-12);
   EXPECT_NEAR(q.positions[1], 0.65, 1e-12);
   // Mismatched lengths use the common prefix and say so.
@@ -183,6 +185,6 @@ TEST(JointStateBuffer, PartialUnknownOutOfOrderAndNonFiniteSamples) {
 TEST(JointStateBuffer, ForgetsHistoryBeyondItsWindow) {
   hf::JointStateBuffer b({"j1"}, {.tolerance_s = 0.01, .history_s = 0.5});
   for (int i = 0; i <= 20; ++i) (void)b.add(ns(0.1 * i), std::vector<std::string>{"j1"}, std::vector<double>{1.0 * i});
-  EXPECT_EQ(b.at(ns(1.0)).status, hf::JointLookupStatus::kBeforeHistory);
+  EXPECT_EQ(b.at(ns(1.0)).detail, hf::JointLookupStatus::kBeforeHistory);
   EXPECT_TRUE(b.at(ns(1.6)).ok());
 }

@@ -42,6 +42,9 @@ struct Circle {
   double radius_m = 0.0;
 };
 
+/// Why a fit failed, finer than its Status's code: the circle fitter sends
+/// it on the wire (msgs::CircleFit::STATUS_*), and fit_circle tells a
+/// collinear start from the others. fit_status() gives the code.
 enum class FitStatus : std::uint8_t {
   kOk = 0,
   kTooFewPoints,      ///< fewer finite points than the fit needs
@@ -51,12 +54,16 @@ enum class FitStatus : std::uint8_t {
   kInvalidParams,     ///< a parameter is out of its range (reason names it)
 };
 [[nodiscard]] const char* to_string(FitStatus s);
+/// The outcome of a fit ending with `detail`: ok for kOk, InvalidArgument for
+/// kInvalidParams, NotFound for valid input without a circle (too few points,
+/// collinear, no consensus, radius out of range).
+[[nodiscard]] common::Status fit_status(FitStatus detail, std::string message);
 
 /// Result of every circle fit. Covariance rows/cols are (cx, cy, r); with a
 /// known radius the r row and column are zero.
 struct CircleFit {
-  FitStatus status = FitStatus::kTooFewPoints;
-  std::string reason;  ///< why !ok(), empty when ok
+  common::Status status{common::StatusCode::NotFound, ""};  ///< the message says why when not ok
+  FitStatus detail = FitStatus::kTooFewPoints;              ///< the finer case, kOk when ok
   Circle circle;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< [m^2]; zero for the algebraic fits
   double rms_residual_m = 0.0;                           ///< RMS orthogonal distance of the points used
@@ -70,7 +77,12 @@ struct CircleFit {
   Eigen::Vector3d mode_shift_m = Eigen::Vector3d::Zero();  ///< (cx, cy, r) added by the second-order mode shift
   std::vector<std::uint8_t> inlier_mask;                   ///< robust fit: 1 per input point in the consensus set
 
-  [[nodiscard]] bool ok() const { return status == FitStatus::kOk; }
+  [[nodiscard]] bool ok() const { return status.ok(); }
+  /// Sets status and detail together.
+  void set_outcome(FitStatus d, std::string message = {}) {
+    detail = d;
+    status = fit_status(d, std::move(message));
+  }
 };
 
 /// Kasa: minimises sum (x^2 + y^2 + D x + E y + F)^2. Biased (radius too

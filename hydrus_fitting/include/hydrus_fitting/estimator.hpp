@@ -44,7 +44,7 @@ struct CircleEstimatorParams {
 
 struct CircleEstimate {
   CircleFit fit;
-  std::vector<ScanOutcome> scans;  ///< per scan offered, in order (skipped stale scans: kJointState with a reason)
+  std::vector<ScanOutcome> scans;  ///< per scan offered, in order (skipped stale scans: OutOfRange with the times)
   int scans_fused = 0;
   int points = 0;  ///< fused points offered to the fit
   int self_filtered = 0;

@@ -49,24 +49,19 @@ struct ScanView {
   std::span<const double> range_m;    ///< per pixel along its ray; NaN or <= 0 when invalid
 };
 
-enum class ScanStatus : std::uint8_t {
-  kOk = 0,
-  kUnknownSensor,  ///< the scan's sensor is not in the robot description
-  kJointState,     ///< no usable joint state at the scan's time (see joints)
-  kBadScan,        ///< angles and ranges differ in length
-};
-[[nodiscard]] const char* to_string(ScanStatus s);
-
+/// What became of one scan. status: NotFound for a sensor not in the robot
+/// description, InvalidArgument for a scan or joint vector of the wrong
+/// length, the joint lookup's (NotFound or OutOfRange, joints says which
+/// case) when there is no usable joint state at the scan's time.
 struct ScanOutcome {
-  ScanStatus status = ScanStatus::kOk;
-  std::string reason;
+  common::Status status;
   JointLookupStatus joints = JointLookupStatus::kOk;
   int sensor = -1;        ///< index in the robot description
   int added = 0;          ///< points appended to the cloud
   int invalid = 0;        ///< pixels without a valid range (NaN, <= 0)
   int out_of_range = 0;   ///< outside the sensor's range_m
   int self_filtered = 0;  ///< on the robot's own links
-  [[nodiscard]] bool ok() const { return status == ScanStatus::kOk; }
+  [[nodiscard]] bool ok() const { return status.ok(); }
 };
 
 /// The fused points in the robot (base) frame, with what the fitters need.

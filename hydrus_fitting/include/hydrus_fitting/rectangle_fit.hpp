@@ -33,10 +33,10 @@ struct RectangleFitParams {
 };
 
 struct RectangleFit {
-  FitStatus status = FitStatus::kTooFewPoints;
-  std::string reason;
-  int sides_visible = 0;  ///< 1 or 2
-  double yaw_rad = 0.0;   ///< direction u1 of the first side, in (-pi/2, pi/2]
+  common::Status status{common::StatusCode::NotFound, ""};  ///< the message says why when not ok
+  FitStatus detail = FitStatus::kTooFewPoints;              ///< the finer case, kOk when ok
+  int sides_visible = 0;                                    ///< 1 or 2
+  double yaw_rad = 0.0;                                     ///< direction u1 of the first side, in (-pi/2, pi/2]
   Eigen::Vector2d u1 = Eigen::Vector2d::UnitX(),
                   u2 = Eigen::Vector2d::UnitY();       ///< side directions (u2 = u1 turned +90 deg)
   Eigen::Vector2d corner_m = Eigen::Vector2d::Zero();  ///< where the sides meet (2 sides) or the first side's start (1)
@@ -51,7 +51,12 @@ struct RectangleFit {
   int non_finite = 0;
   std::vector<std::uint8_t> side_of_point;  ///< per input point: 0 none, 1 or 2
 
-  [[nodiscard]] bool ok() const { return status == FitStatus::kOk; }
+  [[nodiscard]] bool ok() const { return status.ok(); }
+  /// Sets status and detail together.
+  void set_outcome(FitStatus d, std::string message = {}) {
+    detail = d;
+    status = fit_status(d, std::move(message));
+  }
 };
 
 /// The parameter check fit_rectangle makes first.

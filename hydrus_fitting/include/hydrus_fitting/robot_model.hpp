@@ -137,6 +137,10 @@ struct JointBufferParams {
 };
 common::Status validate(const JointBufferParams& params);
 
+/// Why a joint lookup failed, finer than its Status's code (NotFound for
+/// kNoData, OutOfRange for the others): a joint not heard from yet is waited
+/// for, one that stopped publishing is a fault, a scan older than the history
+/// is dropped. The fusion reports it per scan (ScanOutcome::joints).
 enum class JointLookupStatus : std::uint8_t {
   kOk = 0,
   kNoData,         ///< a joint has no sample yet
@@ -146,11 +150,11 @@ enum class JointLookupStatus : std::uint8_t {
 [[nodiscard]] const char* to_string(JointLookupStatus s);
 
 struct JointLookup {
-  JointLookupStatus status = JointLookupStatus::kNoData;
-  std::string reason;             ///< names the joint and the times when not ok
-  std::vector<double> positions;  ///< per joint of the model [rad], interpolated
-  double max_gap_s = 0.0;         ///< largest time to the nearest sample used, over the joints
-  [[nodiscard]] bool ok() const { return status == JointLookupStatus::kOk; }
+  common::Status status{common::StatusCode::NotFound, ""};  ///< the message names the joint and the times
+  JointLookupStatus detail = JointLookupStatus::kNoData;    ///< the finer case, kOk when ok
+  std::vector<double> positions;                            ///< per joint of the model [rad], interpolated
+  double max_gap_s = 0.0;  ///< largest time to the nearest sample used, over the joints
+  [[nodiscard]] bool ok() const { return status.ok(); }
 };
 
 struct JointAddResult {

@@ -163,12 +163,12 @@ void CircleFitterNode::publish(const CircleEstimate& e) {
   auto out = std::make_unique<msgs::CircleFit>();
   out->header.stamp = bus::Time::from_ns(e.stamp_ns).to_msg();
   out->header.frame_id = frame_id_;
-  out->status = wire(e.fit.status);
-  out->reason = e.fit.reason;
+  out->status = wire(e.fit.detail);
+  out->reason = e.fit.status.message;
   if (out->reason.empty() && e.fit.ok()) {
     // Say which scans were left out, if any: the fit is fine but partial.
     for (const auto& s : e.scans)
-      if (!s.ok()) out->reason += (out->reason.empty() ? "" : "; ") + s.reason;
+      if (!s.ok()) out->reason += (out->reason.empty() ? "" : "; ") + s.status.message;
   }
   const double z = model_->sensor_height_m();
   out->centre = point(e.fit.circle.centre_m.x(), e.fit.circle.centre_m.y(), z);

@@ -105,10 +105,10 @@ void SequencerNode::on_slot() {
                       sequencer_->graph().edges());
       }
       last_problem_.clear();
-    } else if (q.reason != last_problem_) {
+    } else if (q.status.message != last_problem_) {
       // Without the joints the geometry is unknown: fall back to one sensor per slot.
-      logger().warn("{}: using one sensor per slot until joint states arrive", q.reason);
-      last_problem_ = q.reason;
+      logger().warn("{}: using one sensor per slot until joint states arrive", q.status.message);
+      last_problem_ = q.status.message;
       schedule_ = time_slicing_schedule(n, params_.timing);
       slot_ = -1;
     }
