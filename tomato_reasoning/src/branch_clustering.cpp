@@ -111,22 +111,22 @@ BranchResult cluster_branches(const ColorCloud& cloud, const Indices& candidates
       viewpoints_in.empty() ? std::vector<Eigen::Vector3f>{Eigen::Vector3f::Zero()} : viewpoints_in;
   BranchResult r;
   if (const common::Status why = validate(p); !why.ok()) {
-    r.reason = "bad branch clustering parameters: " + why.message;
+    r.status = common::Status::invalid("bad branch clustering parameters: " + why.message);
     return r;
   }
   if (const common::Status why = check_cloud(cloud); !why.ok()) {
-    r.reason = "malformed cloud: " + why.message;
+    r.status = common::Status::invalid("malformed cloud: " + why.message);
     return r;
   }
   for (int k : candidates) {
     if (k < 0 || static_cast<std::size_t>(k) >= cloud.size()) {
-      r.reason =
-          "candidate index " + std::to_string(k) + " outside the cloud of " + std::to_string(cloud.size()) + " points";
+      r.status = common::Status::invalid("candidate index " + std::to_string(k) + " outside the cloud of " +
+                                         std::to_string(cloud.size()) + " points");
       return r;
     }
   }
   if (candidates.empty()) {
-    r.reason = "no candidate points";
+    r.status = common::Status::not_found("no candidate points");
     return r;
   }
   for (auto& idx : euclidean_clusters(cloud.xyz, candidates, p.tolerance_m)) {
@@ -162,8 +162,9 @@ BranchResult cluster_branches(const ColorCloud& cloud, const Indices& candidates
     }
   }
   if (r.chosen < 0) {
-    r.reason = std::to_string(r.clusters.size()) + " cluster(s), none feasible";
-    if (!r.clusters.empty()) r.reason += " (largest: " + r.clusters.front().why_not + ")";
+    std::string why = std::to_string(r.clusters.size()) + " cluster(s), none feasible";
+    if (!r.clusters.empty()) why += " (largest: " + r.clusters.front().why_not + ")";
+    r.status = common::Status::not_found(std::move(why));
   }
   return r;
 }

@@ -125,16 +125,16 @@ HandToHeadResult calibrate_hand_to_head(const ColorCloud& head, const ColorCloud
                                         const HandToHeadParams& p) {
   HandToHeadResult r;
   r.T_head_hand = guess;
-  if (const auto bad = check_cloud(head); !bad.ok()) return r.reason = "head cloud: " + bad.message, r;
-  if (const auto bad = check_cloud(hand); !bad.ok()) return r.reason = "hand cloud: " + bad.message, r;
-  if (!guess.matrix().allFinite()) return r.reason = "the guess is not finite", r;
+  auto fail = [&r](common::Status s) { return r.status = std::move(s), r; };
+  if (const auto bad = check_cloud(head); !bad.ok()) return fail(bad.within("head cloud"));
+  if (const auto bad = check_cloud(hand); !bad.ok()) return fail(bad.within("hand cloud"));
+  if (!guess.matrix().allFinite()) return fail(common::Status::invalid("the guess is not finite"));
   if (!(p.max_correspondence_m > 0) || p.max_iterations < 1)
-    return r.reason = "max_correspondence_m and max_iterations must be positive", r;
+    return fail(common::Status::invalid("max_correspondence_m and max_iterations must be positive"));
   const auto target = thinned(head, p.voxel_m, p.max_range_m), source = thinned(hand, p.voxel_m, p.max_range_m);
   if (target->size() < 10 || source->size() < 10)
-    return r.reason = "too few points with depth (head " + std::to_string(target->size()) + ", hand " +
-                      std::to_string(source->size()) + ")",
-           r;
+    return fail(common::Status::not_found("too few points with depth (head " + std::to_string(target->size()) +
+                                          ", hand " + std::to_string(source->size()) + ")"));
   // Coarse to fine: the correspondence distance shrinks so that the last
   // rounds pair only points that truly face each other.
   pcl::PointCloud<pcl::PointXYZ> aligned;
@@ -172,12 +172,14 @@ HandToHeadResult calibrate_hand_to_head(const ColorCloud& head, const ColorCloud
   }
   r.overlap = double(paired) / double(aligned.size());
   r.rms_m = paired ? std::sqrt(sse / paired) : 0.0;
-  r.converged = converged && r.overlap >= p.min_overlap;
   if (!converged)
-    r.reason = "ICP did not converge";
+    r.status = common::Status::not_found("ICP did not converge");
   else if (r.overlap < p.min_overlap)
-    r.reason = "only " + std::to_string(int(100 * r.overlap)) +
-               "% of the hand's points found a partner (the views barely overlap, or the guess is far off)";
+    r.status = common::Status::not_found(
+        "only " + std::to_string(int(100 * r.overlap)) +
+        "% of the hand's points found a partner (the views barely overlap, or the guess is far off)");
+  else
+    r.status = {};
   return r;
 }
 

@@ -70,15 +70,15 @@ bool HsiFilter::passes(const Rgb& c) const {
 HsiFilterResult filter_hsi(const CloudView& cloud, const HsiFilterParams& params) {
   HsiFilterResult r;
   if (const common::Status why = validate(params); !why.ok()) {
-    r.reason = "bad HSI parameters: " + why.message;
+    r.status = common::Status::invalid("bad HSI parameters: " + why.message);
     return r;
   }
   if (const common::Status why = check_view(cloud); !why.ok()) {
-    r.reason = "malformed cloud: " + why.message;
+    r.status = common::Status::invalid("malformed cloud: " + why.message);
     return r;
   }
   if (cloud.empty()) {
-    r.reason = "empty cloud";
+    r.status = common::Status::not_found("empty cloud");
     return r;
   }
   const HsiFilter f(params);
@@ -89,9 +89,11 @@ HsiFilterResult filter_hsi(const CloudView& cloud, const HsiFilterParams& params
     if (f.passes(cloud.colour(k))) r.indices.push_back(static_cast<int>(k));
   }
   if (r.finite == 0) {
-    r.reason = "no point of the cloud has depth (" + std::to_string(cloud.size()) + " points, all NaN)";
+    r.status = common::Status::not_found("no point of the cloud has depth (" + std::to_string(cloud.size()) +
+                                         " points, all NaN)");
   } else if (r.indices.empty()) {
-    r.reason = "no point passes the HSI filter (" + std::to_string(r.finite) + " points with depth, none red)";
+    r.status = common::Status::not_found("no point passes the HSI filter (" + std::to_string(r.finite) +
+                                         " points with depth, none red)");
   }
   return r;
 }

@@ -20,7 +20,7 @@ std::string filter_views(const std::vector<View>& views, const HsiFilterParams& 
   for (std::size_t v = 0; v < views.size(); ++v) {
     const HsiFilterResult hsi = filter_hsi(views[v].cloud, params);
     r.finite_points += hsi.finite;
-    if (hsi.indices.empty() && hsi_reason.empty()) hsi_reason = hsi.reason;
+    if (hsi.indices.empty() && hsi_reason.empty()) hsi_reason = hsi.status.message;
     const Eigen::Isometry3f T = views[v].T_ref_camera.cast<float>();
     for (int k : hsi.indices) {
       r.red_xyz.push_back(T * views[v].cloud.point(static_cast<std::size_t>(k)));
@@ -159,16 +159,19 @@ PipelineResult TomatoPipeline::run(const std::vector<View>& views) const {
   r.branch = cluster_branches(red, all, params_.branch, r.viewpoints);
   r.times.branch_ms = ms_since(t0);
   const Cluster* branch = r.branch.branch();
-  if (!branch) return stop(kBranch, r.branch.reason);
+  if (!branch) return stop(kBranch, r.branch.status.message);
 
   t0 = Clock::now();
   r.smoothed = smooth_mls(r.red_xyz, branch->indices, params_.smoothing, r.viewpoints, r.red_view);
   r.times.smoothing_ms = ms_since(t0);
-  if (r.smoothed.points.empty()) return stop(kSmoothing, r.smoothed.reason);
+  if (r.smoothed.points.empty()) return stop(kSmoothing, r.smoothed.status.message);
 
   t0 = Clock::now();
   r.segmentation = segment_spheres(r.smoothed.points, r.smoothed.normals, params_.spheres, r.viewpoints);
-  if (r.segmentation.spheres.empty()) return stop(kSpheres, "no sphere found: " + r.segmentation.stop_reason);
+  if (r.segmentation.spheres.empty()) {
+    const SphereSegmentation& s = r.segmentation;
+    return stop(kSpheres, "no sphere found: " + (s.status.ok() ? s.stop_reason : s.status.message));
+  }
   correct_spheres(r, params_, r.segmentation.spheres);
   r.times.spheres_ms = ms_since(t0);
 

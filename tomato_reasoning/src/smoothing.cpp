@@ -69,14 +69,14 @@ SmoothedCloud smooth_mls(const std::vector<Eigen::Vector3f>& points, const Indic
                          const std::vector<Eigen::Vector3f>& viewpoints, const std::vector<std::uint8_t>& view_of) {
   SmoothedCloud out;
   if (view_of.size() != points.size()) {
-    out.reason =
-        "view_of has " + std::to_string(view_of.size()) + " entries for " + std::to_string(points.size()) + " points";
+    out.status = common::Status::invalid("view_of has " + std::to_string(view_of.size()) + " entries for " +
+                                         std::to_string(points.size()) + " points");
     return out;
   }
   for (std::uint8_t v : view_of) {
     if (v >= viewpoints.size()) {
-      out.reason =
-          "a point's view " + std::to_string(v) + " has no viewpoint (" + std::to_string(viewpoints.size()) + " given)";
+      out.status = common::Status::invalid("a point's view " + std::to_string(v) + " has no viewpoint (" +
+                                           std::to_string(viewpoints.size()) + " given)");
       return out;
     }
   }
@@ -184,12 +184,14 @@ bool fit_height_field(const std::vector<Eigen::Vector3f>& pts, const std::vector
 SmoothedCloud smooth(const std::vector<Eigen::Vector3f>& points, const Indices& indices, const SmoothingParams& p,
                      const std::vector<Eigen::Vector3f>& viewpoints, const std::vector<std::uint8_t>* view_of) {
   SmoothedCloud out;
-  out.reason = smoothing_input_problem(points, indices, p, viewpoints);
-  if (!out.reason.empty()) return out;
+  if (std::string why = smoothing_input_problem(points, indices, p, viewpoints); !why.empty()) {
+    out.status = common::Status::invalid(std::move(why));
+    return out;
+  }
   std::vector<std::uint8_t> pt_view;
   const std::vector<Eigen::Vector3f> pts = thin(points, indices, p.voxel_m, view_of, pt_view);
   if (pts.empty()) {
-    out.reason = indices.empty() ? "no points to smooth" : "no finite points to smooth";
+    out.status = common::Status::not_found(indices.empty() ? "no points to smooth" : "no finite points to smooth");
     return out;
   }
   Indices all(pts.size());
@@ -225,8 +227,8 @@ SmoothedCloud smooth(const std::vector<Eigen::Vector3f>& points, const Indices& 
     out.view.push_back(pt_view[qi]);
   }
   if (out.points.empty())
-    out.reason = "every point is isolated (fewer than " + std::to_string(p.min_neighbours) + " neighbours within " +
-                 std::to_string(p.search_radius_m) + " m)";
+    out.status = common::Status::not_found("every point is isolated (fewer than " + std::to_string(p.min_neighbours) +
+                                           " neighbours within " + std::to_string(p.search_radius_m) + " m)");
   return out;
 }
 

@@ -434,18 +434,19 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
                                    const std::vector<Eigen::Vector3f>& viewpoints) {
   SphereSegmentation out;
   if (viewpoints.empty()) {
-    out.stop_reason = "no viewpoint";
+    out.status = common::Status::invalid("no viewpoint");
     return out;
   }
   if (const common::Status why = validate(P); !why.ok()) {
-    out.stop_reason = "bad sphere parameters: " + why.message;
+    out.status = common::Status::invalid("bad sphere parameters: " + why.message);
     return out;
   }
   const bool use_normals = P.normal_tolerance_deg > 0 || P.hypothesis == SphereHypothesis::kTwoPointsWithNormals;
   if (use_normals && normals.size() != points.size()) {
-    out.stop_reason = "normals are needed (" + std::string(to_string(P.hypothesis)) + ", normal tolerance " +
-                      std::to_string(P.normal_tolerance_deg) + " deg) but " + std::to_string(normals.size()) +
-                      " normals came with " + std::to_string(points.size()) + " points";
+    out.status =
+        common::Status::invalid("normals are needed (" + std::string(to_string(P.hypothesis)) + ", normal tolerance " +
+                                std::to_string(P.normal_tolerance_deg) + " deg) but " + std::to_string(normals.size()) +
+                                " normals came with " + std::to_string(points.size()) + " points");
     return out;
   }
   Indices alive_list;
@@ -453,9 +454,10 @@ SphereSegmentation segment_spheres(const std::vector<Eigen::Vector3f>& points,
     if (points[k].allFinite() && (!use_normals || normals[k].allFinite())) alive_list.push_back(static_cast<int>(k));
   if (static_cast<int>(alive_list.size()) < P.min_remaining) {
     out.remaining_points = static_cast<int>(alive_list.size());
-    out.stop_reason = points.empty() ? "no points"
-                                     : "only " + std::to_string(alive_list.size()) + " usable points (< " +
-                                           std::to_string(P.min_remaining) + ")";
+    out.status =
+        common::Status::not_found(points.empty() ? "no points"
+                                                 : "only " + std::to_string(alive_list.size()) + " usable points (< " +
+                                                       std::to_string(P.min_remaining) + ")");
     return out;
   }
   SphereSegmenter(points, normals, P, viewpoints, use_normals, std::move(alive_list), out).run();

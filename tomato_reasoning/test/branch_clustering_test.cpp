@@ -91,14 +91,14 @@ TEST(BranchClustering, ChoosesTheClosestFeasibleBranch) {
 TEST(BranchClustering, BadInputGivesNoBranchAndTheReason) {
   ColorCloud c;
   c.push_back({0, 0, 0.5f}, {200, 40, 30});
-  EXPECT_EQ(cluster_branches(c, {}).reason, "no candidate points");
-  EXPECT_NE(cluster_branches(c, {7}).reason.find("outside the cloud"), std::string::npos);
+  EXPECT_EQ(cluster_branches(c, {}).status.message, "no candidate points");
+  EXPECT_NE(cluster_branches(c, {7}).status.message.find("outside the cloud"), std::string::npos);
   const BranchResult one = cluster_branches(c, {0});  // a single point
   EXPECT_EQ(one.chosen, -1);
-  EXPECT_NE(one.reason.find("none feasible"), std::string::npos);
+  EXPECT_NE(one.status.message.find("none feasible"), std::string::npos);
   BranchClusteringParams bad;
   bad.tolerance_m = -1;
-  EXPECT_NE(cluster_branches(c, {0}, bad).reason.find("tolerance_m"), std::string::npos);
+  EXPECT_NE(cluster_branches(c, {0}, bad).status.message.find("tolerance_m"), std::string::npos);
   ColorCloud nan;
   nan.push_back({NAN, 0, 0}, {200, 40, 30});
   EXPECT_TRUE(cluster_branches(nan, {0}).clusters.empty());

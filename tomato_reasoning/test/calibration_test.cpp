@@ -70,7 +70,7 @@ TEST(HandToHead, IcpRecoversTheHandCameraPoseFromAnOffGuess) {
   guess.linear() =
       guess.linear() * Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
   const HandToHeadResult r = calibrate_hand_to_head(s.clouds[0], s.clouds[1], guess);
-  ASSERT_TRUE(r.converged) << r.reason;
+  ASSERT_TRUE(r.ok()) << r.status.message;
   EXPECT_LT((r.T_head_hand.translation() - truth.translation()).norm(), 0.003);
   EXPECT_LT(Eigen::AngleAxisd(r.T_head_hand.linear().transpose() * truth.linear()).angle(), 0.4 * M_PI / 180);
   EXPECT_GT(r.overlap, 0.5);
@@ -78,12 +78,13 @@ TEST(HandToHead, IcpRecoversTheHandCameraPoseFromAnOffGuess) {
 
 TEST(HandToHead, BadInputGivesNoPoseAndTheReason) {
   ColorCloud empty;
-  EXPECT_FALSE(calibrate_hand_to_head(empty, empty, Eigen::Isometry3d::Identity()).converged);
+  EXPECT_FALSE(calibrate_hand_to_head(empty, empty, Eigen::Isometry3d::Identity()).ok());
   ColorCloud broken;
   broken.xyz.resize(3);
-  EXPECT_NE(calibrate_hand_to_head(broken, empty, Eigen::Isometry3d::Identity()).reason.find("head cloud"),
+  EXPECT_NE(calibrate_hand_to_head(broken, empty, Eigen::Isometry3d::Identity()).status.message.find("head cloud"),
             std::string::npos);
   ColorCloud few;
   few.push_back({0, 0, 1}, {1, 1, 1});
-  EXPECT_NE(calibrate_hand_to_head(few, few, Eigen::Isometry3d::Identity()).reason.find("too few"), std::string::npos);
+  EXPECT_NE(calibrate_hand_to_head(few, few, Eigen::Isometry3d::Identity()).status.message.find("too few"),
+            std::string::npos);
 }

@@ -66,23 +66,25 @@ TEST(HsiFilter, KeepsOnlyFinitePointsThatPass) {
   const HsiFilterResult r = filter_hsi(c);
   EXPECT_EQ(r.indices, (Indices{0, 3}));
   EXPECT_EQ(r.finite, 3u);
-  EXPECT_TRUE(r.reason.empty());
+  EXPECT_TRUE(r.status.ok());
 }
 
 TEST(HsiFilter, BadInputGivesAnEmptyResultWithTheReason) {
   ColorCloud empty;
-  EXPECT_EQ(filter_hsi(empty).reason, "empty cloud");
+  EXPECT_EQ(filter_hsi(empty).status.message, "empty cloud");
+  EXPECT_EQ(filter_hsi(empty).status.code, tinyline::common::StatusCode::NotFound);
   ColorCloud nan;
   for (int k = 0; k < 5; ++k) nan.push_back({NAN, NAN, NAN}, {200, 40, 30});
-  EXPECT_NE(filter_hsi(nan).reason.find("no point of the cloud has depth"), std::string::npos);
+  EXPECT_NE(filter_hsi(nan).status.message.find("no point of the cloud has depth"), std::string::npos);
   ColorCloud green;
   for (int k = 0; k < 5; ++k) green.push_back({0, 0, 1}, {60, 130, 40});
-  EXPECT_NE(filter_hsi(green).reason.find("none red"), std::string::npos);
+  EXPECT_NE(filter_hsi(green).status.message.find("none red"), std::string::npos);
   ColorCloud broken = green;
   broken.rgb.pop_back();
-  EXPECT_NE(filter_hsi(broken).reason.find("malformed cloud"), std::string::npos);
+  EXPECT_NE(filter_hsi(broken).status.message.find("malformed cloud"), std::string::npos);
   HsiFilterParams bad;
   bad.s_min = 300;
-  EXPECT_NE(filter_hsi(green, bad).reason.find("s_min must be in [0, 255], got 300"), std::string::npos);
+  EXPECT_NE(filter_hsi(green, bad).status.message.find("s_min must be in [0, 255], got 300"), std::string::npos);
+  EXPECT_EQ(filter_hsi(green, bad).status.code, tinyline::common::StatusCode::InvalidArgument);
   EXPECT_THROW(HsiFilter{bad}, std::invalid_argument);
 }

@@ -85,16 +85,16 @@ TEST(Smoothing, EachNormalFacesTheViewThatSawIt) {
 
 TEST(Smoothing, BadInputGivesAnEmptyResultWithTheReason) {
   std::vector<Eigen::Vector3f> pts{{0, 0, 0.5f}};
-  EXPECT_EQ(smooth_mls(pts, {}).reason, "no points to smooth");
+  EXPECT_EQ(smooth_mls(pts, {}).status.message, "no points to smooth");
   const SmoothedCloud one = smooth_mls(pts, {0});
   EXPECT_TRUE(one.points.empty());
   EXPECT_EQ(one.dropped_isolated, 1);
-  EXPECT_NE(one.reason.find("isolated"), std::string::npos);
+  EXPECT_NE(one.status.message.find("isolated"), std::string::npos);
   std::vector<Eigen::Vector3f> nan{{NAN, 0, 0}, {0, NAN, 0}};
-  EXPECT_EQ(smooth_mls(nan, {0, 1}).reason, "no finite points to smooth");
-  EXPECT_NE(smooth_mls(pts, {3}).reason.find("outside"), std::string::npos);
+  EXPECT_EQ(smooth_mls(nan, {0, 1}).status.message, "no finite points to smooth");
+  EXPECT_NE(smooth_mls(pts, {3}).status.message.find("outside"), std::string::npos);
   SmoothingParams bad;
   bad.polynomial_order = 3;
-  EXPECT_NE(smooth_mls(pts, {0}, bad).reason.find("polynomial_order"), std::string::npos);
-  EXPECT_NE(smooth_mls(pts, {0}, {}, {Eigen::Vector3f::Zero()}, {}).reason.find("view_of"), std::string::npos);
+  EXPECT_NE(smooth_mls(pts, {0}, bad).status.message.find("polynomial_order"), std::string::npos);
+  EXPECT_NE(smooth_mls(pts, {0}, {}, {Eigen::Vector3f::Zero()}, {}).status.message.find("view_of"), std::string::npos);
 }

@@ -163,13 +163,14 @@ TEST(SphereSegmentation, DegenerateInputGivesNoSphereAndTheReason) {
   EXPECT_FALSE(flat.stop_reason.empty());
   EXPECT_TRUE(segment_spheres(plane, up).spheres.empty());
 
-  EXPECT_EQ(segment_spheres({}, {}).stop_reason, "no points");
+  EXPECT_EQ(segment_spheres({}, {}).status.message, "no points");
+  EXPECT_EQ(segment_spheres({}, {}).status.code, tinyline::common::StatusCode::NotFound);
   std::vector<Eigen::Vector3f> one{{0, 0, 0.5f}}, n1{{0, 0, -1}};
-  EXPECT_NE(segment_spheres(one, n1).stop_reason.find("usable points"), std::string::npos);
-  EXPECT_NE(segment_spheres(plane, {}).stop_reason.find("normals are needed"), std::string::npos);
+  EXPECT_NE(segment_spheres(one, n1).status.message.find("usable points"), std::string::npos);
+  EXPECT_NE(segment_spheres(plane, {}).status.message.find("normals are needed"), std::string::npos);
   std::vector<Eigen::Vector3f> nan(100, Eigen::Vector3f(NAN, NAN, NAN));
   EXPECT_TRUE(segment_spheres(nan, nan).spheres.empty());
   SphereRansacParams bad;
   bad.radius_min_m = 0.05;
-  EXPECT_NE(segment_spheres(plane, up, bad).stop_reason.find("radius range"), std::string::npos);
+  EXPECT_NE(segment_spheres(plane, up, bad).status.message.find("radius range"), std::string::npos);
 }

@@ -49,7 +49,10 @@ struct Cluster {
 struct BranchResult {
   std::vector<Cluster> clusters;  ///< all clusters, largest first
   int chosen = -1;                ///< index into clusters of the closest feasible branch, -1 if none
-  std::string reason;             ///< why nothing was chosen
+  /// Not ok when nothing was chosen: InvalidArgument for bad parameters, a
+  /// malformed cloud or a candidate outside it, NotFound for no candidates
+  /// or no feasible cluster.
+  common::Status status;
 
   [[nodiscard]] const Cluster* branch() const {
     return chosen >= 0 ? &clusters[static_cast<std::size_t>(chosen)] : nullptr;

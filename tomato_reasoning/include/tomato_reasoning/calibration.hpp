@@ -69,11 +69,13 @@ struct HandToHeadParams {
 };
 
 struct HandToHeadResult {
-  bool converged = false;
+  /// InvalidArgument for unusable clouds, guess or parameters; NotFound when
+  /// ICP did not converge or too few points paired; ok when the pose holds.
+  common::Status status{common::StatusCode::NotFound, ""};
   Eigen::Isometry3d T_head_hand = Eigen::Isometry3d::Identity();
   double rms_m = 0.0;    ///< RMS distance of the final pairs [m]
   double overlap = 0.0;  ///< share of the hand's (thinned) points paired
-  std::string reason;    ///< why not converged
+  [[nodiscard]] bool ok() const { return status.ok(); }
 };
 
 /// The hand camera's pose in the head camera's frame from a guess (the

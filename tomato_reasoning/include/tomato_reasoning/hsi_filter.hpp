@@ -57,7 +57,9 @@ class HsiFilter {
 struct HsiFilterResult {
   Indices indices;         ///< finite points that pass, in cloud order
   std::size_t finite = 0;  ///< finite points looked at
-  std::string reason;      ///< why `indices` is empty (empty cloud, no depth, no red points, bad parameters)
+  /// Not ok when `indices` is empty: InvalidArgument for bad parameters or a
+  /// malformed cloud, NotFound for an empty cloud, no depth or no red point.
+  common::Status status;
 };
 
 /// Over a ColorCloud or any CloudView (a PCL cloud: pcl_conversions.hpp).

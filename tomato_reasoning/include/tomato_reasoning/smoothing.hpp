@@ -38,7 +38,9 @@ struct SmoothedCloud {
   std::vector<float> curvature;          ///< surface variation lambda_0 / sum(lambda) of the neighbourhood
   std::vector<std::uint8_t> view;        ///< the view each point's normal faces (index into the viewpoints)
   int dropped_isolated = 0;
-  std::string reason;  ///< why `points` is empty
+  /// Not ok when `points` is empty: InvalidArgument for bad parameters or
+  /// views, NotFound for no (finite, non-isolated) points.
+  common::Status status;
 
   [[nodiscard]] std::size_t size() const { return points.size(); }
 };

@@ -121,7 +121,10 @@ struct SphereSegmentation {
   int rejected_cap = 0;      ///< best models refused because the cap faced away
   int rejected_overlap = 0;  ///< ... because they reached into an accepted sphere
   int remaining_points = 0;
-  std::string stop_reason;  ///< why the rounds stopped (or why nothing was done)
+  /// Not ok when nothing could be done: InvalidArgument for bad parameters,
+  /// no viewpoint or missing normals, NotFound for too few usable points.
+  common::Status status;
+  std::string stop_reason;  ///< a note on why the rounds stopped (when they ran)
 };
 
 /// Segments spheres among `points` (with `normals`, required for
