@@ -204,12 +204,14 @@ TEST(SerialPort, ASecondOpenIsRefusedAsBusy) {
 TEST(SerialPort, MissingDeviceAndNonSerialFilesSayWhatTheyAre) {
   const auto missing = io::SerialPort::open("/dev/ttyUSB_tinyline_missing");
   EXPECT_EQ(missing.status.error, io::IoError::kNotFound);
+  EXPECT_EQ(missing.status.code, tinyline::common::StatusCode::NotFound);
   EXPECT_NE(missing.status.message.find("/dev/ttyUSB_tinyline_missing"), std::string::npos);
   EXPECT_NE(missing.status.message.find("tinyline sensors"), std::string::npos);
   TempDir tmp;
   write_file(tmp.path / "plain", "x");
   const auto plain = io::SerialPort::open((tmp.path / "plain").string());
   EXPECT_EQ(plain.status.error, io::IoError::kNotSerial);
+  EXPECT_EQ(plain.status.code, tinyline::common::StatusCode::InvalidArgument);
 }
 
 TEST(SerialPort, PermissionErrorsNameTheGroupAndTheUdevRule) {

@@ -22,6 +22,20 @@ std::string_view to_string(IoError e) {
   return "?";
 }
 
+common::StatusCode status_code(IoError e) {
+  switch (e) {
+    case IoError::kNone: return common::StatusCode::Ok;
+    case IoError::kNotFound: return common::StatusCode::NotFound;
+    case IoError::kBadSetting:
+    case IoError::kNotSerial: return common::StatusCode::InvalidArgument;
+    case IoError::kPermission:
+    case IoError::kBusy: return common::StatusCode::OpenFailed;
+    case IoError::kDisconnected:
+    case IoError::kIo: break;
+  }
+  return common::StatusCode::ReadFailed;
+}
+
 struct MemoryLink::State {
   mutable std::mutex mu;
   std::condition_variable cv;

@@ -18,6 +18,8 @@
 #include <string_view>
 #include <vector>
 
+#include <tinyline/common/status.hpp>
+
 namespace tinyline::tiny_laser_driver::io {
 
 /// What went wrong on a port. The kind decides the driver's reaction
@@ -31,15 +33,26 @@ enum class IoError {
   kNotSerial,     ///< the path is not a serial port
   kBadSetting,    ///< a baud rate (or other setting) the port cannot do
   kDisconnected,  ///< the device went away while open (unplug, hang-up)
-  kIo,            ///< any other I/O failure
+  kIo,            ///< any other I/O failure (read or write)
 };
 std::string_view to_string(IoError e);
 
-struct IoStatus {
+/// The common code for an IoError: NotFound (kNotFound), InvalidArgument
+/// (kBadSetting, kNotSerial), OpenFailed (kPermission, kBusy), ReadFailed
+/// (kDisconnected, kIo).
+[[nodiscard]] common::StatusCode status_code(IoError e);
+
+/// A port's outcome: a common::Status (code, message: what, where, and what
+/// to do about it) with the IoError the driver's reaction depends on.
+struct IoStatus : common::Status {
   IoError error = IoError::kNone;
-  std::string message;  ///< what, where, and what to do about it
-  [[nodiscard]] bool ok() const { return error == IoError::kNone; }
-  static IoStatus fail(IoError e, std::string message) { return IoStatus{e, std::move(message)}; }
+  static IoStatus fail(IoError e, std::string message) {
+    IoStatus s;
+    s.code = status_code(e);
+    s.message = std::move(message);
+    s.error = e;
+    return s;
+  }
 };
 
 struct ReadResult {
