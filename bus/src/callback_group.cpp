@@ -16,16 +16,17 @@ using detail::CoreScope;
 using detail::tl_core;
 
 namespace {
-// Set while this thread runs callbacks inline. A callback's publish may come
-// back to this thread inline again (Cyclone delivers to readers of its own
-// process on the writer's thread): that one goes to the workers, so two
-// graphs replying to each other cannot recurse without end.
+// Set while this thread runs callbacks inline (an InlineRunner's thread). A
+// callback's publish may come back to this thread (Cyclone delivers to
+// readers of its own process on the writer's thread): that one is queued for
+// the runner or the workers, so two graphs replying to each other cannot
+// recurse without end.
 thread_local bool tl_running_inline = false;
 
-// Inline runs hold up the transport thread that makes them (DDS's receive
-// thread also handles acknowledgements for every topic): callbacks that take
-// longer than this, several times in a row, go back to the workers for a
-// while. The runs of a message or two on the way through a graph take a few
+// Inline runs hold up the runner every transport hands its messages to (and
+// a run that outlives the runner's bound costs a fresh thread): callbacks
+// that take longer than this, several times in a row, go back to the workers
+// for a while. The runs of a message or two on the way through a graph take a few
 // microseconds; large messages take longer but are copy-bound anyway.
 constexpr auto kInlineBudget = std::chrono::microseconds(200);
 constexpr int kSlowInlineRuns = 3;
@@ -164,14 +165,17 @@ bool CallbackGroup::accepts_inline() const {
   return until == 0 || steady_ns() >= until;
 }
 
-bool CallbackGroup::try_run_inline(bool* blocked) {
+bool CallbackGroup::may_run_inline() const {
+  const detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
+  return core != nullptr && !core->fifo && core->workers.load(std::memory_order_seq_cst) != 0 &&
+         !core->stopping.load(std::memory_order_seq_cst) && !dead() && accepts_inline();
+}
+
+bool CallbackGroup::try_run_inline() {
+  if (tl_running_inline || !may_run_inline()) return false;
   detail::ExecutorCore* core = core_raw_.load(std::memory_order_acquire);
-  if (core == nullptr || core->fifo || core->workers.load(std::memory_order_seq_cst) == 0 ||
-      core->stopping.load(std::memory_order_seq_cst) || dead() || !accepts_inline()) {
-    return false;
-  }
-  if (tl_running_inline) return false;
-  CoreScope scope(core);  // current_executor() inside the callbacks, as on a worker
+  if (core == nullptr) return false;  // detached meanwhile
+  CoreScope scope(core);              // current_executor() inside the callbacks, as on a worker
   const long waits_before = voluntary_waits();
   const auto start = std::chrono::steady_clock::now();
   tl_running_inline = true;
@@ -181,8 +185,7 @@ bool CallbackGroup::try_run_inline(bool* blocked) {
   tl_running_inline = false;
   if (!ran) return false;
   const auto took = std::chrono::steady_clock::now() - start;
-  const bool stalled = note_inline_run(took, took >= kInlineStall && voluntary_waits() > waits_before);
-  if (blocked) *blocked = stalled;
+  note_inline_run(took, took >= kInlineStall && voluntary_waits() > waits_before);
   // Work that came meanwhile (or beyond the batch) announced itself to a
   // group that was running; make sure a worker looks.
   if (has_work()) core->wake();
@@ -194,22 +197,21 @@ std::chrono::nanoseconds CallbackGroup::inline_run_time() const {
   return std::chrono::nanoseconds(since == 0 ? 0 : std::max<std::int64_t>(0, steady_ns() - since));
 }
 
-bool CallbackGroup::note_inline_run(std::chrono::steady_clock::duration took, bool waited) {
+void CallbackGroup::note_inline_run(std::chrono::steady_clock::duration took, bool waited) {
   if (waited) {
     stop_inline();
-    return true;
+    return;
   }
   if (took <= kInlineBudget) {
     slow_inline_runs_.store(0, std::memory_order_relaxed);
-    return false;
+    return;
   }
   // One slow run is often just the thread losing its core; several in a row
   // are the callbacks themselves.
-  if (slow_inline_runs_.fetch_add(1, std::memory_order_relaxed) + 1 < kSlowInlineRuns) return false;
+  if (slow_inline_runs_.fetch_add(1, std::memory_order_relaxed) + 1 < kSlowInlineRuns) return;
   slow_inline_runs_.store(0, std::memory_order_relaxed);
   inline_paused_until_ns_.store(steady_ns() + std::chrono::nanoseconds(kInlinePause).count(),
                                 std::memory_order_relaxed);
-  return false;
 }
 
 void CallbackGroup::note_run(std::chrono::steady_clock::duration took) {

@@ -112,7 +112,11 @@ bool SubscriptionBase::pop(QueuedMessage* out) {
   // once the ring is empty, not while a publisher is still writing its head.
   if (overflow_size_.load(std::memory_order_acquire) == 0 || ring_.size() != 0) return false;
   std::lock_guard lk(slow_mu_);
-  if (overflow_.empty()) return false;
+  // Again under the lock: while this thread waited for it, a publisher may
+  // have put a message in the ring and its next one in the overflow, and
+  // another consumer taken what was ahead of that one. The overflow's front
+  // is then newer than the ring's message of the same publisher.
+  if (overflow_.empty() || ring_.size() != 0) return false;
   *out = std::move(overflow_.front().m);
   overflow_.pop_front();
   overflow_size_.fetch_sub(1, std::memory_order_seq_cst);
@@ -123,7 +127,7 @@ std::optional<std::uint64_t> SubscriptionBase::front_stamp() {
   if (auto s = ring_.front_stamp()) return s;
   if (overflow_size_.load(std::memory_order_acquire) == 0 || ring_.size() != 0) return std::nullopt;
   std::lock_guard lk(slow_mu_);
-  if (overflow_.empty()) return std::nullopt;
+  if (overflow_.empty() || ring_.size() != 0) return std::nullopt;  // as in pop()
   return overflow_.front().stamp;
 }
 

@@ -33,10 +33,6 @@ class Echo : public bus::Node {
           ts.to_yaml(m.get(), y);
           logger().info("{}:\n{}---", sub_->topic_name(), y.str());
         });
-    // Its callback writes to a stream nobody may be reading: it must block
-    // only its own node, never a transport's delivery thread (and with it
-    // every other subscriber of the process).
-    callback_group()->refuse_inline();
   }
 
  private:

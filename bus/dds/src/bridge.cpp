@@ -26,15 +26,11 @@ bool TopicSelection::selects(const std::string& topic) const {
 namespace {
 
 thread_local bool t_in_sync = false;  // the bridge's own endpoints must not re-enter sync_topic
-// True on Cyclone's receive thread inside our listener: callbacks run inline
-// there, and one that adds or removes endpoints must not make us replace the
-// very reader whose listener it runs in (deleting it waits for that listener).
+// True inside our listener (Cyclone's receive thread, or a writer's thread
+// delivering to a reader of this process): a change of endpoints seen there
+// must not make us replace the very reader whose listener it runs in
+// (deleting it waits for that listener).
 thread_local bool t_in_listener = false;
-// True inside our own dds_writecdr: Cyclone delivers to readers of this
-// process on the writer's thread while it holds the writer's locks, so a
-// callback run inline there could write and take another writer's locks in
-// the opposite order of a thread doing the reverse (a deadlock).
-thread_local bool t_in_write = false;
 
 std::atomic<std::uint32_t> g_next_origin{0xdd500001u};
 
@@ -289,6 +285,10 @@ Bridge::Bridge(bus::NodeOptions node_options, BridgeOptions options)
   }
   origin_ = g_next_origin.fetch_add(1);
   backpressure_ = std::thread([this] { backpressure_loop(); });
+  runner_ = std::make_unique<bus::InlineRunner>(
+      [this](const void* link, const std::string& node, std::chrono::nanoseconds held) {
+        on_inline_stall(*static_cast<Link*>(const_cast<void*>(link)), node, held);
+      });
   ros_graph_ =
       std::make_unique<detail::RosGraph>(*participant_, context().log_sink().get(), [this] { return ros_nodes(); });
 }
@@ -329,6 +329,7 @@ void Bridge::on_stop() {
   }
   slow_cv_.notify_all();
   if (backpressure_.joinable()) backpressure_.join();
+  runner_->stop();  // what it still held goes to the workers
 }
 
 void Bridge::start() {
@@ -656,9 +657,7 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     }
     return;
   }
-  t_in_write = true;
   const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
-  t_in_write = false;
   TL_DDS_PROBE(Written);
   if (rc < 0) {
     if (worth_logging(l.write_errors.fetch_add(1) + 1)) {
@@ -693,13 +692,12 @@ void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
     bool value;
     ~Reset() { t_in_listener = value; }
   } reset{was_in_listener};
-  // On Cyclone's receive thread, the subscribers' callbacks run right here
-  // when their executor lets them (bus::InlineDelivery), as a DDS listener
-  // would: no hand-off to a worker. The back-pressure thread, sync_topic
-  // (which holds sync_mu_) draining a new reader, and our own write
-  // delivering to a reader of this process leave them to the workers.
+  // From Cyclone's receive thread, the subscribers' callbacks go to the
+  // inline runner when their executor lets them (bus::InlineDelivery): no
+  // wake-up of a worker, and no user code on Cyclone's thread. The
+  // back-pressure thread leaves them to the workers.
   std::optional<bus::InlineDelivery> inline_delivery;
-  if (!may_block && !t_in_sync && !t_in_write) inline_delivery.emplace();
+  if (!may_block) inline_delivery.emplace(*runner_, &l);
   for (;;) {
     if (!may_block && l.in->would_wait()) {
       hand_over(l);
@@ -734,7 +732,7 @@ void Bridge::take_available(Link& l, dds_entity_t reader, bool may_block) {
       if (msg) {
         l.in->publish(std::move(msg), origin_, may_block ? bus::Wait::ForRoom : bus::Wait::Never);
         TL_DDS_PROBE(Delivered);
-        if (inline_delivery) flush_inline(l, *inline_delivery);
+        if (inline_delivery) inline_delivery->flush();
         l.received.fetch_add(1, std::memory_order_relaxed);
       }
     }
@@ -767,19 +765,17 @@ void Bridge::count_shared_memory_loss(Link& l) {
   }
 }
 
-void Bridge::flush_inline(Link& l, bus::InlineDelivery& d) {
-  // A callback that blocks here holds up every topic of the process (this
-  // thread also receives them); the bus sends its node to the workers for
-  // good after one such run (a run that was only long, the thread having lost
-  // its core, is no stall). Said once per 100, with how long it took.
-  const auto start = std::chrono::steady_clock::now();
-  if (d.flush() == 0) return;
-  const auto took = std::chrono::steady_clock::now() - start;
+bool Bridge::is_inline_thread(std::thread::id id) const { return runner_->is_runner_thread(id); }
+
+void Bridge::on_inline_stall(Link& l, const std::string& node, std::chrono::nanoseconds held) {
+  // The run keeps the runner's old thread and a fresh one delivers on; if
+  // the run slept, its node runs on executor threads from now on (Cyclone's
+  // thread never waited for it). Said once per 100.
   if (worth_logging(l.stalls.fetch_add(1) + 1)) {
     logger().warn(
-        "{}: a subscriber's callback held DDS's receive thread for {:.0f} ms (every topic of this process waited); "
-        "its node runs on executor threads from now on",
-        l.name, std::chrono::duration<double, std::milli>(took).count());
+        "{}: the callback of '{}' held the inline delivery thread for {:.0f} ms; a fresh thread delivers the other "
+        "subscribers, and a callback that sleeps runs on its executor's threads from now on",
+        l.name, node, std::chrono::duration<double, std::milli>(held).count());
   }
 }
 

@@ -173,12 +173,14 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
     return running_.load(std::memory_order_acquire) && running_thread_.load() == std::this_thread::get_id();
   }
 
-  /// Runs this group's queued callbacks on the calling thread (a transport's
-  /// delivery thread, see InlineDelivery) if its executor's workers are
-  /// running, the group is idle and it accepts inline runs; false otherwise
-  /// (the caller then announces the work to a worker). `blocked` is set when
-  /// the run waited long (see note_inline_run): the group left inline runs.
-  bool try_run_inline(bool* blocked = nullptr);
+  /// Runs this group's queued callbacks on the calling thread (an
+  /// InlineRunner's, see InlineDelivery) if may_run_inline() and the group is
+  /// idle; false otherwise (the caller then announces the work to a worker).
+  /// A run that slept long leaves inline runs for good (note_inline_run).
+  bool try_run_inline();
+  /// True when an inline run would be tried now: executor workers running
+  /// and not stopping, group alive, and accepts_inline().
+  bool may_run_inline() const;
   /// From now on this group's callbacks run only on its executor's threads:
   /// they may wait (a node with a reliable publisher waits for room), and a
   /// transport's delivery thread must not.
@@ -205,6 +207,7 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   friend class SubscriptionBase;
   friend class DeterministicExecutor;
   friend class InlineDelivery;
+  friend class InlineRunner;
   struct Tick {
     std::uint64_t stamp = 0;
     std::shared_ptr<Timer> timer;
@@ -217,9 +220,9 @@ class CallbackGroup : public std::enable_shared_from_this<CallbackGroup> {
   std::size_t run_claimed(std::size_t max, const SubList& subs, bool after_stop);
   /// Books one inline run's wall time and whether the thread waited in it
   /// (went to sleep: a lock, a pipe, a disk): a run that waited long leaves
-  /// inline runs for good (returns true); one that was only long (lost its
-  /// core) counts as slow, and slow runs in a row pause inline runs a while.
-  bool note_inline_run(std::chrono::steady_clock::duration took, bool waited);
+  /// inline runs for good; one that was only long (lost its core) counts as
+  /// slow, and slow runs in a row pause inline runs a while.
+  void note_inline_run(std::chrono::steady_clock::duration took, bool waited);
   /// Books one callback's wall time towards the proof inline runs need.
   void note_run(std::chrono::steady_clock::duration took);
   /// Runs a callback, catching and counting what it throws; times it while
@@ -381,35 +384,101 @@ class DeterministicExecutor : public Executor {
 /// The executor currently running a callback on this thread, if any.
 Executor* current_executor();
 
-/// Lets a transport's delivery thread run the callbacks of what it publishes
-/// itself, as DDS's own listeners do, instead of waking an executor worker
-/// (a futex wake-up and a second thread per message). While one is alive on
-/// a thread, publishes made there queue as usual but leave the wake-up to
-/// flush(), which runs each receiving group's queued callbacks right there
-/// when the group may run inline (CallbackGroup::try_run_inline: executor
-/// running, group idle, no reliable publisher in the node, inline runs short)
+struct InlineRunnerOptions {
+  /// How long one inline run may hold the runner before a fresh thread
+  /// takes over (checked every `bound`: at most twice this in all).
+  std::chrono::nanoseconds bound = std::chrono::milliseconds(20);
+  /// An idle runner polls this long for work before it sleeps: a message
+  /// that comes meanwhile costs a cache miss, not a futex wake-up.
+  std::chrono::nanoseconds spin = std::chrono::microseconds(50);
+};
+
+/// The thread on which a transport's delivered messages run their
+/// subscribers' callbacks inline (see InlineDelivery), owned by the bus so
+/// that no callback ever holds the transport's own thread (DDS's receive
+/// thread, which every subscriber of the process waits on). A watchdog looks
+/// at the run in progress every `bound`: a run older than that keeps its
+/// thread, and a fresh thread takes over everything queued behind it, so a
+/// callback that blocks for good holds up its own node and nobody else. The
+/// old thread ends once its run returns; the run books itself there as every
+/// inline run does (CallbackGroup::note_inline_run: one that slept leaves
+/// inline runs for good).
+class InlineRunner {
+ public:
+  using Options = InlineRunnerOptions;
+  /// Told when a run outlived the bound: the tag given with the work (a
+  /// transport's topic, say), the node, and how long it had run. Called on
+  /// the watchdog's thread.
+  using OnStall = std::function<void(const void* tag, const std::string& node, std::chrono::nanoseconds held)>;
+
+  explicit InlineRunner(OnStall on_stall = {}, Options options = {});
+  ~InlineRunner();
+  InlineRunner(const InlineRunner&) = delete;
+  InlineRunner& operator=(const InlineRunner&) = delete;
+
+  /// Queues `g` for an inline run on the runner. False once stop() was
+  /// called (the caller then announces the work to the group's workers).
+  bool post(std::shared_ptr<CallbackGroup> g, const void* tag);
+  /// Ends the runner and its watchdog (joins them; a thread left to a
+  /// blocked run ends when the run returns). Queued groups go to their
+  /// workers.
+  void stop();
+  /// Returns once nothing is queued and no run is in progress on any of the
+  /// runner's threads (also one left to a run that outlived the bound).
+  void wait_idle();
+  /// Runs that outlived the bound so far (each moved delivery to a fresh thread).
+  std::uint64_t stalls() const;
+  /// True when `id` is or was one of this runner's threads.
+  bool is_runner_thread(std::thread::id id) const;
+
+  struct State;
+
+ private:
+  struct Item {
+    std::shared_ptr<CallbackGroup> group;
+    const void* tag = nullptr;
+  };
+  /// A runner thread: runs queued groups until stop() or until the watchdog
+  /// gave its place to a fresh thread (generation `gen` is no longer current).
+  static void run_loop(const std::shared_ptr<State>& s, std::uint64_t gen);
+  /// Waits for the next item of generation `gen` (polling first); false when it is to end.
+  static bool next_item(State& s, std::uint64_t gen, Item* out);
+  /// The watchdog: every `bound`, hands the queue to a fresh thread if the run in progress outlived it.
+  static void watch_loop(const std::shared_ptr<State>& s);
+  static void start_thread(const std::shared_ptr<State>& s);
+
+  std::shared_ptr<State> state_;
+  std::thread watchdog_;
+};
+
+/// Lets a transport's delivery thread hand the callbacks of what it publishes
+/// to an InlineRunner, instead of waking an executor worker (a futex wake-up
+/// and a second thread per message, unless a worker polls). While one is
+/// alive on a thread, publishes made there queue as usual but leave the
+/// wake-up to flush(), which posts each receiving group to the runner when the
+/// group may run inline now (CallbackGroup::may_run_inline: executor running,
+/// no reliable publisher in the node, callbacks proven short and not paused)
 /// and wakes a worker otherwise. Queues, order, drops and the callback
 /// group's exclusion are the executor's own: the message goes through the
-/// subscription's queue either way. Publishes made by the callbacks it runs
-/// wake workers as usual (one level deep only). A group runs inline only once
-/// its callbacks proved short on the workers, and never again once one of its
-/// runs here slept long (it blocks).
+/// subscription's queue either way. Publishes made by the callbacks on the
+/// runner wake workers as usual (one level deep only).
 class InlineDelivery {
  public:
-  InlineDelivery();
+  /// `tag` is handed back with a stall (InlineRunner::OnStall).
+  explicit InlineDelivery(InlineRunner& runner, const void* tag = nullptr);
   ~InlineDelivery();
   InlineDelivery(const InlineDelivery&) = delete;
   InlineDelivery& operator=(const InlineDelivery&) = delete;
 
-  /// Runs or announces the work published on this thread since the last
-  /// flush. Returns how many groups blocked in their run here (and run on
-  /// their workers from now on).
-  std::size_t flush();
+  /// Posts or announces the work published on this thread since the last flush.
+  void flush();
   /// Publisher side (CallbackGroup::announce): true when the active scope
   /// on this thread takes over announcing `g`.
   static bool defer(CallbackGroup& g);
 
  private:
+  InlineRunner& runner_;
+  const void* tag_;
   InlineDelivery* previous_;
   std::vector<std::shared_ptr<CallbackGroup>> pending_;
 };

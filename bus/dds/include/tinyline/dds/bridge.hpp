@@ -13,11 +13,14 @@
 // skips serialization entirely. Receiving happens on Cyclone's receive thread
 // itself (a data-available listener): it takes each sample, deserializes it
 // and queues it for the subscribers' executor, with no thread in between;
-// then, when the executor is running and a subscriber's callback group is
-// idle and may run there (bus::InlineDelivery: its callbacks proved short on
-// the workers and never blocked here), it runs that callback at once
-// on the same thread, as a DDS listener does, instead of waking a worker.
-// That thread must never block (it also handles acknowledgements), so while
+// then, when the executor is running and a subscriber's callback group may
+// run inline (bus::InlineDelivery: its callbacks proved short on the workers
+// and never slept long inline), it hands the group to the bridge's inline
+// runner (bus::InlineRunner), a thread of ours that runs the callback at
+// once, instead of waking a worker. No user callback ever runs on Cyclone's
+// thread: one that blocks holds the runner at most its bound (20 ms) before a
+// fresh runner thread takes over. Cyclone's thread must never block (it also
+// handles acknowledgements for every topic), so while
 // a reliable local subscriber's queue is full the bridge's own thread takes
 // over the topic and waits for room, leaving the rest in the DDS reader's
 // history: back-pressure reaches the remote writer as before. One topic's
@@ -85,7 +88,7 @@ struct LinkStats {
   std::uint64_t write_errors = 0;   ///< DDS writes that failed (logged)
   std::uint64_t incompatible = 0;   ///< remote endpoints refused for incompatible QoS
   std::uint64_t lost = 0;           ///< samples DDS reports lost on the way here (also in the topic's dropped)
-  std::uint64_t stalls = 0;         ///< deliveries a callback blocked 20 ms or more on the receive thread
+  std::uint64_t stalls = 0;         ///< inline runs that held the runner past its bound (a fresh thread took over)
 };
 
 /// Remote endpoints a process expects before its nodes start.
@@ -151,6 +154,9 @@ class Bridge : public bus::Node {
   void announce_parameters(const std::vector<std::shared_ptr<bus::Node>>& nodes);
 
   std::vector<LinkStats> stats() const;
+  /// True when `id` is (or was) a thread of the bridge's inline runner: the
+  /// thread subscribers' callbacks run on when they run where DDS delivers.
+  bool is_inline_thread(std::thread::id id) const;
   /// The origin of messages this bridge injects (MessageInfo::origin).
   std::uint32_t origin() const { return origin_; }
   const Participant& participant() const { return *participant_; }
@@ -183,8 +189,8 @@ class Bridge : public bus::Node {
   /// Says why shared memory does not serve this endpoint (its QoS).
   void explain_no_shared_memory(Link& link, const EndpointQos& qos, const char* who);
   void count_shared_memory_loss(Link& link);
-  /// Runs the callbacks deferred on this thread; reports a long one.
-  void flush_inline(Link& link, bus::InlineDelivery& d);
+  /// Counts and reports an inline run that outlived the runner's bound.
+  void on_inline_stall(Link& link, const std::string& node, std::chrono::nanoseconds held);
   void backpressure_loop();
   void attach_graph(const std::weak_ptr<Bridge>& self);
   /// Remote endpoints as discovery reports them (every topic, matched or
@@ -223,6 +229,8 @@ class Bridge : public bus::Node {
   std::mutex remote_mu_;
   std::vector<std::string> mismatches_reported_;  // "topic|type" (under remote_mu_)
   std::thread backpressure_;
+  // Runs the callbacks of what arrives, off Cyclone's thread (bus::InlineDelivery).
+  std::unique_ptr<bus::InlineRunner> runner_;
   std::mutex match_mu_;  // guards match_events_ (bumped by DDS listeners)
   std::condition_variable matched_cv_;
   std::uint64_t match_events_ = 0;
