@@ -12,8 +12,9 @@ average before and after goes with the figures.
                               [--ddsperf-seconds 6] [--no-ddsperf] [--shm]
 
 --shm adds ddsperf over Cyclone's shared memory (iceoryx; Debian's build has
-it): it starts an `iox-roudi` (Debian package iceoryx) for the run and enables
-SharedMemory in the same configuration.
+it) with SharedMemory enabled in the same configuration: beside the RouDi
+that runs (bench/dds/with_roudi.sh), or an `iox-roudi` (Debian package
+iceoryx) it starts for the run with the project's pools (config/roudi.toml).
 
 Round trips: p50 / p99 in microseconds (the median of the repetitions' own
 p50 and p99). ddsperf prints half the round trip; the table doubles it.
@@ -82,6 +83,32 @@ def run_ddsperf(config, domain, size, seconds):
     return statistics.median(p50[1:]), statistics.median(p99[1:])
 
 
+def roudi_answers():
+    """Whether a RouDi runs here (it listens on a datagram socket in /tmp)."""
+    import socket
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    try:
+        s.connect("/tmp/roudi")
+        return True
+    except OSError:
+        return False
+    finally:
+        s.close()
+
+
+def start_roudi():
+    """None if a RouDi runs already; otherwise one started with the project's pools."""
+    if roudi_answers():
+        return None
+    pools = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "config", "roudi.toml")
+    roudi = subprocess.Popen(["iox-roudi", "-c", pools], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    for _ in range(100):  # RouDi maps its pools before clients may register
+        if roudi_answers():
+            break
+        time.sleep(0.1)
+    return roudi
+
+
 def size_name(n):
     return f"{n >> 20} MiB" if n >= 1 << 20 else f"{n >> 10} KiB" if n >= 1024 else f"{n} B"
 
@@ -111,14 +138,14 @@ def main():
         for size in SIZES:
             ddsperf[size] = run_ddsperf(config, domain, size, a.ddsperf_seconds)
     if a.shm:
-        roudi = subprocess.Popen(["iox-roudi"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        roudi = start_roudi()
         try:
-            time.sleep(1)  # RouDi maps its shared memory before clients may register
             for size in SIZES[2:]:
                 shm[size] = run_ddsperf(with_shared_memory(config), domain, size, a.ddsperf_seconds)
         finally:
-            roudi.terminate()
-            roudi.wait()
+            if roudi is not None:
+                roudi.terminate()
+                roudi.wait()
     after = load()
 
     print(f"{started}; load average (1, 5, 15 min) before {before[0]:.2f} {before[1]:.2f} {before[2]:.2f}, "

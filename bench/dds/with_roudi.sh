@@ -3,13 +3,19 @@
 # Runs a command beside a RouDi (iox-roudi, Debian package iceoryx) of its own:
 # in a private mount namespace whose /tmp (RouDi's sockets and locks) and
 # /dev/shm (its memory) are fresh, so it meets no other RouDi on the machine
-# and leaves nothing behind. Needs root (unshare). Usage:
-#   bench/dds/with_roudi.sh [--config roudi.toml] COMMAND...
+# and leaves nothing behind. With --no-roudi the namespace is all it gives
+# (for a command that starts its own, as `tinyline launch` does). Needs root
+# (unshare). Usage:
+#   bench/dds/with_roudi.sh [--config roudi.toml] [--no-roudi] COMMAND...
 set -euo pipefail
-config="$(dirname "$(readlink -f "$0")")/roudi.toml"
+config="$(dirname "$(readlink -f "$0")")/../../config/roudi.toml"
 if [[ "${1:-}" == "--config" ]]; then config="$(readlink -f "$2")"; shift 2; fi
+roudi_too=1
+if [[ "${1:-}" == "--no-roudi" ]]; then roudi_too=; shift; fi
 if [[ -z "${WITH_ROUDI_INSIDE:-}" ]]; then
-  exec env WITH_ROUDI_INSIDE=1 unshare --mount --propagation private "$0" --config "$config" "$@"
+  flags=(--config "$config")
+  [[ -n "$roudi_too" ]] || flags+=(--no-roudi)
+  exec env WITH_ROUDI_INSIDE=1 unshare --mount --propagation private "$0" "${flags[@]}" "$@"
 fi
 # A tree, build or config under /tmp (a clone in /tmp) stays visible: the
 # first folder under /tmp of each is bound back into the fresh /tmp.
@@ -27,6 +33,7 @@ for top in "${keep[@]}"; do
   mkdir -p "$top" && mount --bind "$old_tmp/${top#/tmp/}" "$top"
 done
 mount -t tmpfs tmpfs /dev/shm
+if [[ -z "$roudi_too" ]]; then "$@"; exit; fi
 iox-roudi -c "$config" -l warning >/tmp/roudi.log 2>&1 &
 roudi=$!
 trap 'kill -INT $roudi 2>/dev/null; wait $roudi 2>/dev/null || true; umount -l "$old_tmp" 2>/dev/null; rmdir "$old_tmp" 2>/dev/null || true' EXIT

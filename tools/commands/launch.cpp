@@ -22,6 +22,7 @@
 #include "../src/parsing.hpp"
 #include "../src/graph_runner.hpp"
 #include "../src/process_plan.hpp"
+#include "../src/roudi.hpp"
 #include "../src/supervisor.hpp"
 
 namespace tinyline::tools {
@@ -266,6 +267,7 @@ std::string until_problem(const LaunchArgs& a, const GraphPlan& g, const Process
 }
 
 int run_launch(const LaunchArgs& a) {
+  std::unique_ptr<Supervisor> roudi;  // goes last: every process using it has stopped by then
   auto ctx = bus::Context::create();
   Loaded l;
   try {
@@ -283,6 +285,7 @@ int run_launch(const LaunchArgs& a) {
     fmt::print(stderr, "{}: {}\n", a.file, why);
     return 1;
   }
+  if (!a.process && l.plan.dds.shared_memory) roudi = provide_roudi(share_dir() + "/config/roudi.toml");
   std::shared_ptr<dds::Bridge> bridge;
   try {
     bridge = make_bridge(a, l, mine, ctx);
@@ -308,6 +311,7 @@ int run_launch(const LaunchArgs& a) {
   const bool supervising = !a.process && l.graph.has_groups();
   if (supervising || a.until_topic) {
     ro.tick = [&](std::chrono::milliseconds budget) {
+      if (roudi) roudi->poll(std::chrono::milliseconds(0));
       if (supervising) {
         supervisor->poll(budget);
       } else {

@@ -93,6 +93,7 @@ void register_nodes(bus::NodeRegistry& r) {
   r.add<Relay>("tinyline", "relay", "republishes 'input' as 'output' without copying");
   r.add<Pulse>("tinyline", "pulse", "publishes a numbered text on 'output' at a fixed rate");
   register_static_transform(r);
+  register_cloud_stream(r);
 }
 
 }  // namespace tinyline::tools

@@ -182,6 +182,7 @@ dds::Settings dds_settings(const launch::LaunchPlan& plan, const std::string& pr
   dds::Settings s = dds::Settings::from_environment();
   if (plan.dds.domain_id) s.domain_id = *plan.dds.domain_id;
   if (!plan.dds.config.empty()) s.config = plan.dds.config;
+  s.shared_memory = s.shared_memory || plan.dds.shared_memory;
   s.process_name = process_name;
   return s;
 }

@@ -657,7 +657,7 @@ void Bridge::send(Link& l, const std::shared_ptr<const void>& m) {
     }
     return;
   }
-  const dds_return_t rc = dds_writecdr(w, sd);  // takes the reference
+  const dds_return_t rc = detail::write_serdata(w, sd);  // takes the reference
   TL_DDS_PROBE(Written);
   if (rc < 0) {
     if (worth_logging(l.write_errors.fetch_add(1) + 1)) {

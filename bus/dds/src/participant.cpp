@@ -331,7 +331,7 @@ RawWriter::~RawWriter() {
 void RawWriter::write(std::span<const std::uint8_t> cdr) {
   ddsi_serdata* sd = detail::make_serdata(static_cast<const ddsi_sertype*>(sertype_),
                                           std::vector<std::uint8_t>(cdr.begin(), cdr.end()));
-  if (const auto rc = dds_writecdr(writer_, sd); rc < 0) fail("DDS write failed", rc);
+  if (const auto rc = detail::write_serdata(writer_, sd); rc < 0) fail("DDS write failed", rc);
 }
 
 std::size_t RawWriter::matched_readers() const {

@@ -159,7 +159,7 @@ bool TypedWriter::write(const void* m) {
   type_->serialize(m, buf);
   ddsi_serdata* sd = make_serdata(topic_.sertype, std::move(buf));
   sd->timestamp.v = dds_time();  // the source time: lifespan counts from it, and writecdr takes it as given
-  return dds_writecdr(writer_, sd) >= 0;
+  return write_serdata(writer_, sd) >= 0;
 }
 
 namespace {

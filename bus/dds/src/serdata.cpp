@@ -5,6 +5,7 @@
 extern "C" {
 #include <iceoryx_binding_c/subscriber.h>
 }
+#include <dds/ddsc/dds_data_allocator.h>
 #include <dds/ddsc/dds_loan_api.h>
 #include <dds/ddsi/ddsi_shm_transport.h>
 #include <dds/ddsi/q_radmin.h>
@@ -179,14 +180,29 @@ bool sd_untyped_to_sample(const ddsi_sertype*, const ddsi_serdata*, void* sample
   return true;
 }
 
+// A chunk loaned from a writer and never published (the write failed, or
+// never happened) goes back to that writer's pool. A deleted writer's
+// iceoryx publisher took its chunks back with it: nothing to give.
+void release_unpublished(Serdata& s) {
+  dds_data_allocator_t a;
+  if (dds_data_allocator_init(s.loaned_from, &a) != DDS_RETCODE_OK) return;
+  dds_data_allocator_free(&a, s.iox_chunk);
+  dds_data_allocator_fini(&a);
+  s.iox_chunk = nullptr;
+}
+
 void sd_free(ddsi_serdata* d) {
   taking_over(d);  // every thread that used it handed it over before its unref
+  auto* s = static_cast<Serdata*>(d);
   // A chunk received through shared memory goes back to its subscriber; a
-  // loaned one we wrote was handed to iceoryx by the write (or released there).
-  if (d->iox_chunk != nullptr && d->iox_subscriber != nullptr) {
-    free_iox_chunk(static_cast<iox_sub_t*>(d->iox_subscriber), &d->iox_chunk);
+  // loaned one was handed to iceoryx by a write that published it (which
+  // clears iox_chunk), or is still ours.
+  if (s->iox_chunk != nullptr && s->iox_subscriber != nullptr) {
+    free_iox_chunk(static_cast<iox_sub_t*>(s->iox_subscriber), &s->iox_chunk);
+  } else if (s->iox_chunk != nullptr && s->loaned_from != 0) {
+    release_unpublished(*s);
   }
-  delete static_cast<Serdata*>(d);
+  delete s;
 }
 
 // A sample from shared memory: its bytes stay in the chunk, which the sample
@@ -358,9 +374,20 @@ ddsi_serdata* make_serdata_for(std::int32_t writer, bool shared_memory, const dd
     h->data_size = static_cast<std::uint32_t>(d->bytes.size());
     h->shm_data_state = IOX_CHUNK_CONTAINS_SERIALIZED_DATA;
     d->iox_chunk = chunk;  // dds_writecdr publishes it (and takes it off the sample)
+    d->loaned_from = writer;
   }
   handing_over(d);
   return d;
+}
+
+dds_return_t write_serdata(dds_entity_t writer, ddsi_serdata* d) {
+  handing_over(d);
+  const dds_return_t rc = dds_writecdr(writer, d);
+  // dds_writer_lock's failures: the sample never reached Cyclone.
+  if (rc == DDS_RETCODE_BAD_PARAMETER || rc == DDS_RETCODE_ALREADY_DELETED || rc == DDS_RETCODE_ILLEGAL_OPERATION) {
+    ddsi_serdata_unref(d);
+  }
+  return rc;
 }
 
 std::span<const std::uint8_t> serdata_bytes(const ddsi_serdata* d) {

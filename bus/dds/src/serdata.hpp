@@ -29,6 +29,10 @@ struct Serdata : ddsi_serdata {
   /// True when iceoryx said that chunks were lost before this one arrived
   /// (its subscriber queue overflowed: a reader too slow for the writer).
   bool lost_before = false;
+  /// The writer a chunk of ours (`iox_chunk` without `iox_subscriber`) was
+  /// loaned from while it is not yet published: a sample freed before its
+  /// write handed the chunk to iceoryx gives the chunk back to that writer.
+  dds_entity_t loaned_from = 0;
 };
 
 /// A new sertype named `dds_type_name`; the caller hands it to
@@ -48,6 +52,12 @@ ddsi_serdata* make_serdata(const ddsi_sertype* type, std::vector<std::uint8_t>&&
 /// not get the sample.
 ddsi_serdata* make_serdata_for(std::int32_t writer, bool shared_memory, const ddsi_sertype* type,
                                std::vector<std::uint8_t>&& encapsulated_cdr, std::string& error);
+
+/// dds_writecdr(writer, d), taking the reference to `d` in every case:
+/// Cyclone takes it only once it has the writer locked, so a write refused
+/// before that (a deleted or wrong handle) drops it here, and a loaned chunk
+/// that was not published goes back to its writer (sd_free).
+dds_return_t write_serdata(dds_entity_t writer, ddsi_serdata* d);
 
 /// The bytes of a sample of one of our sertypes (in its shared-memory chunk
 /// if it came through one: no copy).

@@ -526,12 +526,13 @@ struct Loader {
   // ---------------------------------------------------------------- dds
 
   void action_dds(const Scope& s, const YAML::Node& v) {
-    check_keys(s, v, {"topics", "domain_id", "config"}, "dds");
+    check_keys(s, v, {"topics", "domain_id", "config", "shared_memory"}, "dds");
     DdsPlan& d = plan.dds;
     if (!d.where.known()) d.where = loc(s, v);
     if (const YAML::Node t = v["topics"]) dds_topics(s, t);
     if (const YAML::Node id = v["domain_id"]) dds_domain(s, id);
     if (const YAML::Node c = v["config"]) d.config = dds_config(s, c);
+    if (const YAML::Node m = v["shared_memory"]) d.shared_memory = d.shared_memory || boolean(s, m, "shared_memory");
   }
 
   void dds_topics(const Scope& s, const YAML::Node& t) {

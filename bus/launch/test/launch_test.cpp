@@ -309,6 +309,17 @@ TEST_F(LaunchTest, DdsMarksNodesGroupsAndTopicsAndIsInheritedIntoIncludes) {
   fs::remove_all(dir);
 }
 
+TEST_F(LaunchTest, DdsSharedMemoryIsAskedForByAnyDdsActionAndMustBeABool) {
+  EXPECT_FALSE(launch::load_launch_string("launch:\n- dds: {topics: all}\n", "a.yaml").dds.shared_memory);
+  const auto on =
+      launch::load_launch_string("launch:\n- dds: {shared_memory: true}\n- dds: {shared_memory: false}\n", "s.yaml");
+  EXPECT_TRUE(on.dds.shared_memory) << "a later false does not undo an earlier true";
+  EXPECT_NE(error_of([] {
+              (void)launch::load_launch_string("launch:\n- dds: {shared_memory: often}\n", "b.yaml");
+            }).find("b.yaml:2:"),
+            std::string::npos);
+}
+
 TEST_F(LaunchTest, AFifoOrADeviceAsLaunchFileIncludeOrParamFileIsRefusedNamingIt) {
   const fs::path d = scratch("fifo");
   const std::string fifo = (d / "pipe.yaml").string();

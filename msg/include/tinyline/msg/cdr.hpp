@@ -169,6 +169,15 @@ class Reader {
     pos_ += len;
   }
 
+  /// The next `n` bytes where they lie (a byte sequence's elements read in
+  /// place, no copy): valid while the payload is.
+  std::span<const std::uint8_t> get_bytes(std::size_t n) {
+    need(n);
+    const auto s = data_.subspan(pos_, n);
+    pos_ += n;
+    return s;
+  }
+
   std::size_t position() const { return pos_; }
   std::size_t remaining() const { return pos_ >= data_.size() ? 0 : data_.size() - pos_; }
 

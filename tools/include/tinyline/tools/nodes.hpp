@@ -13,5 +13,6 @@ namespace tinyline::tools {
 void register_nodes(bus::NodeRegistry& r);
 /// tf2_ros/static_transform_publisher alone (register_nodes adds it too).
 void register_static_transform(bus::NodeRegistry& r);
+void register_cloud_stream(bus::NodeRegistry& r);
 
 }  // namespace tinyline::tools

@@ -18,7 +18,7 @@
 //
 //   - group: {process: ground, dds: true, children: [...]}   # own process; its topics on DDS
 //   - node: {pkg: ..., exec: ..., process: ground, dds: true}
-//   - dds: {topics: all | [/scan, /clusters], domain_id: 3, config: "$(dirname)/net.xml"}
+//   - dds: {topics: all | [/scan, /clusters], domain_id: 3, config: "$(dirname)/net.xml", shared_memory: true}
 //
 // Topics that cross process groups always travel over DDS; `dds` marks more
 // (every topic of a node or group, named topics, or all) so other programs
@@ -93,7 +93,10 @@ struct DdsPlan {
   std::vector<std::string> topics;  ///< these (absolute names) travel over DDS
   std::optional<int> domain_id;     ///< overrides ROS_DOMAIN_ID
   std::string config;               ///< Cyclone DDS configuration (XML or file:// URI); overrides CYCLONEDDS_URI
-  bus::SourceLocation where;        ///< the first dds action (empty if none)
+  /// Large messages to processes on this machine through shared memory:
+  /// `tinyline launch` runs a RouDi for the launch if none runs (docs/dds.md).
+  bool shared_memory = false;
+  bus::SourceLocation where;  ///< the first dds action (empty if none)
 };
 
 struct LaunchPlan {
