@@ -331,7 +331,8 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
   out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
   std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
   if (r.harvest) {
-    out->harvest_csv << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on,why,probed\n";
+    out->harvest_csv
+        << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on,why,probed,on_pedicel\n";
   }
   if (!r.verify) return out;
   vo.random_offset_m = 0.05;
@@ -386,7 +387,7 @@ void harvest_truss(PickVerification& v, const eval::Scenario& sc, const Pipeline
     if (const std::string c = cause_of(t); !c.empty()) v.causes[c]++;
     v.harvest_csv << t.complexity << ',' << t.seed << ',' << t.truth << ',' << int(t.detected) << ',' << t.pick_rank
                   << ',' << t.attempts << ',' << t.scans << ',' << eval::to_string(t.outcome) << ',' << t.cuts << ",\""
-                  << t.jammed_on << "\",\"" << t.why << "\",\"" << t.probed << "\"\n";
+                  << t.jammed_on << "\",\"" << t.why << "\",\"" << t.probed << "\",\"" << t.on_pedicel << "\"\n";
   }
 }
 

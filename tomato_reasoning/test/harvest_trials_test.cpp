@@ -236,10 +236,52 @@ TEST(HarvestTrials, OptionsBySettingParseOrSayWhatIsWrong) {
   EXPECT_DOUBLE_EQ(o.probe.shifts_m[2], 0.0045);
   eval::set_harvest_option(o, "probe_rolls_deg", "0,20");
   EXPECT_EQ(o.probe.rolls_deg, (std::vector<double>{0.0, 20.0}));
-  EXPECT_FALSE(o.probe_after_laser_refusal);
-  eval::set_harvest_option(o, "probe_after_laser_refusal", "1");
   EXPECT_TRUE(o.probe_after_laser_refusal);
+  eval::set_harvest_option(o, "probe_after_laser_refusal", "0");
+  EXPECT_FALSE(o.probe_after_laser_refusal);
+  EXPECT_EQ(o.blade_plane_shifts_m, (std::vector<double>{-0.002, 0.002}));
+  eval::set_harvest_option(o, "blade_plane_shifts_mm", "-1.5,3");
+  EXPECT_EQ(o.blade_plane_shifts_m, (std::vector<double>{-0.0015, 0.003}));
+  eval::set_harvest_option(o, "blade_plane_shifts_mm", "none");
+  EXPECT_TRUE(o.blade_plane_shifts_m.empty());
+  EXPECT_LT(o.arbitrate_mm, 0.0);
+  eval::set_harvest_option(o, "arbitrate_mm", "6");
+  EXPECT_DOUBLE_EQ(o.arbitrate_mm, 6.0);
+  eval::set_harvest_option(o, "vision_when_nothing", "1");
+  EXPECT_TRUE(o.vision_when_nothing);
+  EXPECT_NE(why("arbitrate_mm", "1,2").find("one number"), std::string::npos);
   EXPECT_NE(why("probes", "x").find("whole number"), std::string::npos);
   EXPECT_NE(why("probe_rolls_deg", "0,,20").find("not a number"), std::string::npos);
   EXPECT_NE(why("probe_shifts_mm", "200").find("not a number"), std::string::npos);
+}
+
+// The planes beside the scan plane are checked before every closing: one
+// scan each where the blades close, and a plane that meets something the
+// blades would jam on refuses the cut. Moved 25 mm towards the fruit, that
+// plane cuts through the fruit itself, so no attempt closes and none jams.
+TEST(HarvestTrials, ABladePlaneBesideTheScanThatMeetsTheFruitRefusesTheCut) {
+  const Harvested h = scene(sim::TrussClass::kA, 1);
+  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  eval::HarvestOptions one_plane;
+  one_plane.probes = 0;
+  one_plane.blade_plane_shifts_m = {};
+  eval::HarvestOptions three_planes = one_plane;
+  three_planes.blade_plane_shifts_m = {-0.002, 0.002};
+  const auto plain = eval::harvest(laser(), h.scenario, h.result, one_plane);
+  const auto beside = eval::harvest(laser(), h.scenario, h.result, three_planes);
+  ASSERT_EQ(plain.size(), beside.size());
+  int closed_at_first = 0;
+  for (std::size_t i = 0; i < plain.size(); ++i) {
+    if (plain[i].outcome != eval::HarvestOutcome::kPickedFirst || beside[i].outcome != plain[i].outcome) continue;
+    ++closed_at_first;
+    EXPECT_EQ(beside[i].scans, plain[i].scans + 2) << "trial " << i;
+  }
+  EXPECT_GT(closed_at_first, 0);
+  eval::HarvestOptions into_fruit = one_plane;
+  into_fruit.blade_plane_shifts_m = {-0.025};
+  for (const auto& t : eval::harvest(laser(), h.scenario, h.result, into_fruit)) {
+    EXPECT_NE(t.outcome, eval::HarvestOutcome::kPickedFirst) << t.cuts;
+    EXPECT_NE(t.outcome, eval::HarvestOutcome::kCutFailure) << t.cuts;
+    EXPECT_NE(t.why.find("beside the blade plane"), std::string::npos) << t.why;
+  }
 }

@@ -81,6 +81,16 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
       o.probe.shifts_m.clear();
       for (double mm : list) o.probe.shifts_m.push_back(mm / 1000.0);
     }
+  } else if (key == "arbitrate_mm") {
+    const std::vector<double> list = numbers(key, value);
+    if (list.size() != 1) throw std::invalid_argument("option 'arbitrate_mm': one number");
+    o.arbitrate_mm = list[0];
+  } else if (key == "vision_when_nothing") {
+    flag(o.vision_when_nothing);
+  } else if (key == "blade_plane_shifts_mm") {
+    o.blade_plane_shifts_m.clear();
+    if (value != "none")
+      for (double mm : numbers(key, value)) o.blade_plane_shifts_m.push_back(mm / 1000.0);
   } else if (key == "probes") {
     if (value.size() != 1 || value[0] < '0' || value[0] > '9')
       throw std::invalid_argument("option 'probes': '" + value + "' is not a whole number in [0, 9]");
@@ -88,9 +98,11 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
   } else if (key == "ceiling") {
     flag(o.ceiling);
   } else {
-    throw std::invalid_argument("unknown option '" + key +
-                                "' (attempts, later_attempts_approach_far, check_blades, probes, "
-                                "probe_after_laser_refusal, probe_shifts_mm, probe_rolls_deg, ceiling)");
+    throw std::invalid_argument(
+        "unknown option '" + key +
+        "' (attempts, later_attempts_approach_far, check_blades, probes, "
+        "probe_after_laser_refusal, probe_shifts_mm, probe_rolls_deg, arbitrate_mm, vision_when_nothing, "
+        "blade_plane_shifts_mm, ceiling)");
   }
 }
 
@@ -191,19 +203,34 @@ std::optional<CutCandidate> next_cut(const Hypothesis& hyp, const std::vector<Sp
 
 constexpr const char* kFruitInBlades = "a reconstructed fruit in the blades";
 
-/// Why the blades must not close at the loop's end, or "" to close: the box
-/// there must clear the reconstructed fruit, and the laser must see one thin
-/// object and nothing else between the blades.
-std::string refuse_to_close(VerificationHarness& laser, const HangingTruss& h, const Scenario& s,
-                            const Eigen::Isometry3d& T_ref_laser, const std::vector<Sphere>& others,
-                            std::uint64_t key) {
-  const PickPoseParams& pp = laser.options().pose;
-  for (const Sphere& f : others)
-    if (blade_clearance(T_ref_laser, f, pp) < pp.blades.margin_m) return kFruitInBlades;
+/// What the laser's scan at `T_ref_laser` says against closing there, or "".
+std::string laser_refusal(VerificationHarness& laser, const HangingTruss& h, const Scenario& s,
+                          const Eigen::Isometry3d& T_ref_laser, std::uint64_t key) {
   const BladeCheck b = laser.check_blades(h.world, s, T_ref_laser, key);
   if (b.kind == BladeCheck::Kind::kClear) return "";
   return b.kind == BladeCheck::Kind::kEmpty ? "the laser sees nothing between the blades"
                                             : "the laser sees " + b.what + " between the blades";
+}
+
+/// Why the blades must not close at `T_ref_laser`, or "" to close: the box
+/// there must clear the reconstructed fruit, the laser must see one thin
+/// object and nothing else between the blades, and nothing the blades would
+/// jam on in the planes beside (o.blade_plane_shifts_m; one scan each).
+std::string refuse_to_close(VerificationHarness& laser, const HangingTruss& h, const Scenario& s,
+                            const Eigen::Isometry3d& T_ref_laser, const std::vector<Sphere>& others, std::uint64_t key,
+                            const HarvestOptions& o, HarvestTrial& t) {
+  const PickPoseParams& pp = laser.options().pose;
+  for (const Sphere& f : others)
+    if (blade_clearance(T_ref_laser, f, pp) < pp.blades.margin_m) return kFruitInBlades;
+  ++t.scans;
+  if (std::string why = laser_refusal(laser, h, s, T_ref_laser, key); !why.empty()) return why;
+  std::uint64_t k = key;
+  for (double dy : o.blade_plane_shifts_m) {
+    ++t.scans;
+    const BladeCheck b = laser.check_blades(h.world, s, T_ref_laser * Eigen::Translation3d(0.0, dy, 0.0), k += 7);
+    if (b.kind == BladeCheck::Kind::kJam) return "the laser sees " + b.what + " beside the blade plane";
+  }
+  return "";
 }
 
 /// Where the blades close after the loop, or why nowhere.
@@ -230,8 +257,7 @@ std::string describe_change(const PickPose& from, const PickPose& to) {
 Closing where_to_close(VerificationHarness& laser, const HangingTruss& h, const Scenario& s, const Verification& v,
                        const Sphere& own, const std::vector<Sphere>& others, std::uint64_t key, const HarvestOptions& o,
                        HarvestTrial& t) {
-  const std::string first = refuse_to_close(laser, h, s, v.T_ref_laser_final, others, key);
-  ++t.scans;
+  const std::string first = refuse_to_close(laser, h, s, v.T_ref_laser_final, others, key, o, t);
   if (first.empty()) return {v.T_ref_laser_final, ""};
   // What the laser saw between the blades lies near any nearby cut too: only a fruit's sphere is dodged.
   if (!o.probe_after_laser_refusal && first != kFruitInBlades) return {std::nullopt, first};
@@ -243,14 +269,50 @@ Closing where_to_close(VerificationHarness& laser, const HangingTruss& h, const 
   int probes = 0;
   for (const PickPose& near : nearby_cuts(at, own, others, laser.options().pose, o.probe)) {
     if (probes++ >= o.probes) break;
-    ++t.scans;
     const std::uint64_t probe_key = key + 31 * static_cast<std::uint64_t>(probes);
-    if (laser.check_blades(h.world, s, near.T_ref_laser, probe_key).kind == BladeCheck::Kind::kClear) {
+    if (refuse_to_close(laser, h, s, near.T_ref_laser, others, probe_key, o, t).empty()) {
       t.probed += describe_change(at, near);
       return {near.T_ref_laser, ""};
     }
   }
   return {std::nullopt, first};
+}
+
+/// Where the blades close at an attempt whose planned (the vision's) cut
+/// is `plan` and whose loop ended with `v`, or why nowhere: the vision's
+/// cut when the laser's loop found nothing there (o.vision_when_nothing) or
+/// moved it far (o.arbitrate_mm) and the checks there pass; else the loop's
+/// final pose (where_to_close).
+Closing arbitrate(VerificationHarness& laser, const HangingTruss& h, const Scenario& s, const PickPose& plan,
+                  const Verification& v, const Sphere& own, const std::vector<Sphere>& others, std::uint64_t key,
+                  const HarvestOptions& o, HarvestTrial& t) {
+  const bool far = v.will_cut() && o.arbitrate_mm >= 0 && 1000 * (v.cut_point - plan.cut_point).norm() > o.arbitrate_mm;
+  const bool lost = !v.will_cut() && o.vision_when_nothing;
+  if (!v.will_cut() && !lost) return {std::nullopt, std::string(to_string(v.outcome)) + ": " + v.reason};
+  if (far || lost) {
+    const std::string why = refuse_to_close(laser, h, s, plan.T_ref_laser, others, key + 23, o, t);
+    if (why.empty()) return {plan.T_ref_laser, ""};
+    if (lost) return {std::nullopt, std::string(to_string(v.outcome)) + ": " + v.reason};
+  }
+  if (!o.check_blades) return {v.T_ref_laser_final, ""};
+  return where_to_close(laser, h, s, v, own, others, key + 17, o, t);
+}
+
+/// "v1l0c1": the throat on the true pedicel at the vision's cut, the loop's
+/// final pose and the closing ('-' where there is none).
+std::string on_pedicel(const VerificationHarness& laser, const Scenario& s, int truth, const PickPose& plan,
+                       const Verification& v, const std::optional<Eigen::Isometry3d>& closed) {
+  const auto pedicel = true_pedicels(s)[static_cast<std::size_t>(truth)];
+  auto on = [&](const Eigen::Isometry3d& T) {
+    return throat_on_pedicel(laser.options(), pedicel, T, nullptr, nullptr) ? '1' : '0';
+  };
+  std::string out = "v";
+  out += on(plan.T_ref_laser);
+  out += 'l';
+  out += v.will_cut() ? on(v.T_ref_laser_final) : '-';
+  out += 'c';
+  out += closed ? on(*closed) : '-';
+  return out;
 }
 
 /// Up to o.attempts attempts at detection `k` (true tomato t.truth), each
@@ -263,7 +325,7 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
   Hypothesis hyp{det.fit.sphere, det.cut.direction, {}};
   const std::vector<Sphere> others = obstacles(r, k, fallen(s, r, h, o.match_m));
   for (t.attempts = 1; t.attempts <= o.attempts; ++t.attempts) {
-    if (t.attempts > 1) t.cuts += ';', t.why += ';', t.probed += ';';
+    if (t.attempts > 1) t.cuts += ';', t.why += ';', t.probed += ';', t.on_pedicel += ';';
     const std::optional<CutCandidate> plan = next_cut(hyp, others, pp);
     if (!plan) {  // say so, and do not close the blades
       t.cuts += "no_cut";
@@ -277,25 +339,18 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
     const LoopEnd end = laser.closed_loop(h.world, s, plan->pose, std::nullopt, key, far);
     t.scans += end.scans;
     const Verification& v = end.verification;
-    if (!v.will_cut()) {
+    // The pedicel is where the laser put the throat: aim the next attempt there.
+    if (const Eigen::Vector3d d = v.cut_point - hyp.fruit.centre; v.will_cut() && d.norm() > hyp.fruit.radius_m)
+      hyp.direction = d.normalized();
+    const Closing closing = arbitrate(laser, h, s, plan->pose, v, hyp.fruit, others, key, o, t);
+    t.on_pedicel += on_pedicel(laser, s, t.truth, plan->pose, v, closing.T_ref_laser);
+    if (!closing.T_ref_laser) {
       t.cuts += "no_cut";
-      t.why += std::string(to_string(v.outcome)) + ": " + v.reason;
+      t.why += closing.why;
       continue;
     }
-    // The pedicel is where the laser put the throat: aim the next attempt there.
-    if (const Eigen::Vector3d d = v.cut_point - hyp.fruit.centre; d.norm() > hyp.fruit.radius_m)
-      hyp.direction = d.normalized();
-    Eigen::Isometry3d T_close = v.T_ref_laser_final;
-    if (o.check_blades) {
-      const Closing closing = where_to_close(laser, h, s, v, hyp.fruit, others, key + 17, o, t);
-      if (!closing.T_ref_laser) {
-        t.cuts += "no_cut";
-        t.why += closing.why;
-        continue;
-      }
-      T_close = *closing.T_ref_laser;
-    }
-    const Eigen::Isometry3d T_world_throat = sim::throat_from_laser(s.truss.T_world_camera * T_close, pp.throat_z_m);
+    const Eigen::Isometry3d T_world_throat =
+        sim::throat_from_laser(s.truss.T_world_camera * *closing.T_ref_laser, pp.throat_z_m);
     if (settle_cut(h, t, cut(h.truss, T_world_throat, t.truth))) return;
   }
   t.attempts = o.attempts;

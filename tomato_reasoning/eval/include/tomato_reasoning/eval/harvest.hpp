@@ -55,6 +55,11 @@ struct HarvestTrial {
   /// Each attempt that closed at a nearby cut rather than the loop's final
   /// pose, ';'-separated: its move along the pedicel and roll ("+4mm 20deg").
   std::string probed;
+  /// Per attempt, ';'-separated, whether the blade throat lay on the true
+  /// pedicel (throat_on_pedicel) at the vision's planned cut (v), at the
+  /// laser loop's final pose (l) and where the blades closed (c): "v1l0c1"
+  /// ('-': no such pose). A score of the arbitration, never read by the harvest.
+  std::string on_pedicel;
 };
 
 /// The blades closing at a throat pose on the truss as it now hangs
@@ -76,16 +81,34 @@ struct HarvestOptions {
   bool check_blades = true;
   /// When the checks refuse the loop's final pose, up to this many nearby
   /// cuts on the same pedicel (moved along it, rolled: nearby_cuts) are
-  /// checked by the laser, one scan each, and the blades close at the first
-  /// that passes (0: refuse at once). Off: on tuning trusses 4 probes picked
-  /// 3 more fruit in 473 trials and jammed 5 more times.
-  int probes = 0;
+  /// checked by the laser, every check of the final pose's repeated there
+  /// (blade_plane_shifts_m too), and the blades close at the first that
+  /// passes (0: refuse at once). 4 on tuning trusses 201-240 and 1-40 (with
+  /// the planes beside): picked +4 points, cut failures not up; without the
+  /// planes beside, the probes' cuts jammed on the peduncle.
+  int probes = 4;
   CutProbeParams probe;  ///< where the nearby cuts are
-  /// Probe also when the laser refused (two objects, a wide one, nothing):
-  /// on the dev trusses the nearby cuts it then passed jammed on the
-  /// peduncle about as often as they picked, so by default only a
-  /// reconstructed fruit in the box is dodged.
-  bool probe_after_laser_refusal = false;
+  /// Probe also when the laser refused (two objects, a wide one, nothing),
+  /// not only when a reconstructed fruit is in the box.
+  bool probe_after_laser_refusal = true;
+  /// The vision's cut against the laser's: when the loop moved the cut more
+  /// than arbitrate_mm from the vision's planned cut, the laser first checks
+  /// the blades at the vision's cut (one scan) and they close there when it
+  /// sees one thin object in the box and the box clears the reconstructed
+  /// fruit (both agree); else the loop's final pose is checked as before.
+  /// Negative: off (on tuning trusses 6 mm picked 1 point more and jammed
+  /// about as much more).
+  double arbitrate_mm = -1.0;
+  /// When the loop finds nothing (or nothing within the move limit), the
+  /// laser still checks the vision's cut and the blades close there when it
+  /// sees one thin object in the box.
+  bool vision_when_nothing = false;
+  /// Blade planes beside the scan plane checked before closing [m] (laser
+  /// y, along the pedicel): the blades are 4 mm thick, and a peduncle or
+  /// fruit within their thickness but off the single scan plane jams them.
+  /// A second object or a wide one in any of these planes refuses the cut
+  /// (one scan each; tuning trusses 201-240: cut failures 6.1 -> 3.2 %).
+  std::vector<double> blade_plane_shifts_m{-0.002, 0.002};
   /// The world's ceiling: the truth's pedicel (calyx -> anchor) handed to the
   /// planner and the cutter model as its clearance check; a trial is picked
   /// when some cut along it (offset, roll) severs it and nothing else.
@@ -95,7 +118,10 @@ struct HarvestOptions {
 };
 
 /// Sets one option by name (attempts, later_attempts_approach_far=0|1,
-/// check_blades=0|1, probes=0..9, ceiling=0|1);
+/// check_blades=0|1, probes=0..9, probe_after_laser_refusal=0|1,
+/// probe_shifts_mm, probe_rolls_deg, arbitrate_mm (-1: off),
+/// vision_when_nothing=0|1, blade_plane_shifts_mm (mm list or "none"),
+/// ceiling=0|1);
 /// throws std::invalid_argument saying what is wrong.
 void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value);
 
