@@ -64,6 +64,49 @@ double option_number(const std::string& key, const std::string& text) {
   return v;
 }
 
+// A comma-separated list of heights along the pedicel, each within 5 cm.
+std::vector<double> heights_of(const std::string& key, const std::string& value) {
+  std::vector<double> heights;
+  for (std::size_t from = 0; from < value.size();) {
+    const std::size_t comma = std::min(value.find(',', from), value.size());
+    const double h = option_number(key, value.substr(from, comma - from));
+    if (!(std::abs(h) <= 0.05)) throw std::invalid_argument("option '" + key + "': each must be within 0.05 m");
+    heights.push_back(h);
+    from = comma + 1;
+  }
+  return heights;
+}
+
+// The pedicel search's options; false when `key` is none of them.
+bool set_sweep_option(VerificationOptions& o, const std::string& key, const std::string& value) {
+  lc::PedicelSearchParams& p = o.search;
+  if (key == "sweep") {
+    if (value != "0" && value != "1") throw std::invalid_argument("option 'sweep' must be 0 or 1");
+    o.sweep = value == "1";
+    return true;
+  }
+  if (key == "sweep_heights_m") {
+    p.heights_m = heights_of(key, value);
+  } else if (key == "sweep_min_planes") {
+    const double v = option_number(key, value);
+    if (v != std::floor(v)) throw std::invalid_argument("option 'sweep_min_planes' must be a whole number");
+    p.min_planes = static_cast<int>(v);
+  } else if (key == "sweep_link_m" || key == "sweep_slope_sd" || key == "sweep_max_slope" ||
+             key == "sweep_miss_factor") {
+    const double v = option_number(key, value);
+    (key == "sweep_link_m"      ? p.link_m
+     : key == "sweep_slope_sd"  ? p.slope_sd
+     : key == "sweep_max_slope" ? p.max_slope
+                                : p.miss_factor) = v;
+  } else {
+    return false;
+  }
+  if (auto v = lc::validate(p); !v.valid) throw std::invalid_argument("option '" + key + "': " + v.reason);
+  if (std::find(p.heights_m.begin(), p.heights_m.end(), 0.0) == p.heights_m.end())
+    throw std::invalid_argument("option 'sweep_heights_m' must hold 0 (the plane of the cut)");
+  return true;
+}
+
 // The tomato look's options; false when `key` is none of them.
 bool set_look_option(VerificationOptions& o, const std::string& key, const std::string& value) {
   if (key == "tomato_look") {
@@ -79,15 +122,7 @@ bool set_look_option(VerificationOptions& o, const std::string& key, const std::
       throw std::invalid_argument("option 'look_min_tomatoes' must be a whole number in [1, 10]");
     o.look_min_tomatoes = static_cast<int>(v);
   } else if (key == "look_heights_m") {
-    std::vector<double> heights;
-    for (std::size_t from = 0; from < value.size();) {
-      const std::size_t comma = std::min(value.find(',', from), value.size());
-      const double h = option_number(key, value.substr(from, comma - from));
-      if (!(std::abs(h) <= 0.05)) throw std::invalid_argument("option 'look_heights_m': each must be within 0.05 m");
-      heights.push_back(h);
-      from = comma + 1;
-    }
-    o.look_heights_m = heights;
+    o.look_heights_m = heights_of(key, value);
   } else if (key == "registered_gate_sd") {
     const double v = option_number(key, value);
     if (!(v > 0)) throw std::invalid_argument("option 'registered_gate_sd' must be > 0");
@@ -110,7 +145,7 @@ bool set_look_option(VerificationOptions& o, const std::string& key, const std::
 
 void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value) {
   auto number = [&](const std::string& text) { return option_number(key, text); };
-  if (set_look_option(o, key, value)) return;
+  if (set_look_option(o, key, value) || set_sweep_option(o, key, value)) return;
   if (key == "pulses") {
     std::vector<int> pulses;
     std::size_t from = 0;
@@ -164,7 +199,8 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
         "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far, "
         "cut_offsets_m, blade_margin_m, max_pedicel_width_m, tomato_look, look_back_m, registered_sd_m, "
         "registered_gate_sd, registered_max_move_m, look_max_shift_m, "
-        "look_min_tomatoes, look_nothing, look_heights_m)");
+        "look_min_tomatoes, look_nothing, look_heights_m, sweep, sweep_heights_m, sweep_min_planes, sweep_link_m, "
+        "sweep_slope_sd, sweep_max_slope, sweep_miss_factor)");
   }
 }
 
@@ -277,7 +313,44 @@ lc::PedicelDetection blind_move_to(const lc::PedicelExpectation& e, const lc::Pe
   return d;
 }
 
+// The sweep's scans are keyed apart from the loop's and the look's.
+constexpr std::uint64_t kSweepSeedOffset = 89 * kRescanSeedStride;
+
 }  // namespace
+
+lc::PedicelDetection VerificationHarness::sweep(const sim::World& world, const Scenario& s,
+                                                const Eigen::Isometry3d& T_ref_laser,
+                                                const lc::PedicelExpectation& belief, std::uint64_t scan_seed,
+                                                int& scans) {
+  std::vector<lc::SweepScan> planes;
+  planes.reserve(o_.search.heights_m.size());
+  for (std::size_t i = 0; i < o_.search.heights_m.size(); ++i) {
+    const double h = o_.search.heights_m[i];
+    const Eigen::Isometry3d T_h = T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
+    const std::uint64_t seed = h == 0.0 ? scan_seed : scan_seed + kSweepSeedOffset + i;
+    planes.push_back({h, look(world, s, T_h, belief, seed)});
+    ++scans;
+  }
+  return lc::fuse_sweep(planes, finder(), belief, o_.search).detection;
+}
+
+lc::PedicelDetection VerificationHarness::first_look(const sim::World& world, const Scenario& s,
+                                                     const Eigen::Isometry3d& T_ref_laser,
+                                                     const lc::PedicelExpectation& belief, std::uint64_t scan_seed,
+                                                     bool with_truss, bool registered, int& scans) {
+  if (with_truss && o_.sweep) return sweep(world, s, T_ref_laser, belief, scan_seed, scans);
+  lc::PedicelDetection d = look(world, s, T_ref_laser, belief, scan_seed);
+  ++scans;
+  if (!registered || d.outcome != lc::PedicelOutcome::kNothingToCut) return d;
+  // Other heights along the expected pedicel, where nothing hides it.
+  for (double h : o_.look_heights_m) {
+    const Eigen::Isometry3d T_h = T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
+    const lc::PedicelDetection dh =
+        look(world, s, T_h, belief, scan_seed + kLookSeedOffset + static_cast<std::uint64_t>(++scans));
+    if (finder_found(dh)) return dh;
+  }
+  return d;
+}
 
 LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
                                          std::optional<lc::PedicelExpectation> belief, std::uint64_t scan_seed,
@@ -303,23 +376,16 @@ LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario
   bool moved = false;  // a move put the hand on a pedicel: end.verification says where
   bool seen = false;   // ... and the laser saw it there (not only the blind move)
   for (int loop_scans = 0;;) {
-    lc::PedicelDetection d = look(world, s, pose.T_ref_laser, belief,
-                                  scan_seed + kRescanSeedStride * static_cast<std::uint64_t>(loop_scans));
-    ++end.scans;
+    lc::PedicelDetection d;
+    if (loop_scans == 0) {
+      d = first_look(world, s, pose.T_ref_laser, *belief, scan_seed, truss.has_value(), end.registered, end.scans);
+    } else {
+      d = look(world, s, pose.T_ref_laser, belief,
+               scan_seed + kRescanSeedStride * static_cast<std::uint64_t>(loop_scans));
+      ++end.scans;
+    }
     const bool last_scan = loop_scans++ >= o_.rescans;
     const bool nothing_registered = end.registered && loop_scans == 1 && d.outcome == lc::PedicelOutcome::kNothingToCut;
-    if (nothing_registered) {
-      // Other heights along the expected pedicel, where nothing hides it.
-      for (double h : o_.look_heights_m) {
-        const Eigen::Isometry3d T_h = pose.T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
-        const lc::PedicelDetection dh =
-            look(world, s, T_h, belief, scan_seed + kLookSeedOffset + static_cast<std::uint64_t>(++end.scans));
-        if (finder_found(dh)) {
-          d = dh;
-          break;
-        }
-      }
-    }
     const bool blind =
         nothing_registered && !finder_found(d) && !last_scan && o_.look_nothing == LookNothing::kBlindMove;
     if (blind) d = blind_move_to(*belief, fp);

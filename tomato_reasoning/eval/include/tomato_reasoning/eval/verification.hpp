@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <laser_clustering/pedicel_finder.hpp>
+#include <laser_clustering/pedicel_search.hpp>
 
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/pick_pose.hpp"
@@ -96,6 +97,16 @@ struct VerificationOptions {
   /// other fruit in most picks, and the target's own section alone places
   /// the truss (laser_clustering's 2 left 63 % of the picks unregistered).
   int look_min_tomatoes = 1;
+  /// The pedicel search (laser_clustering's fuse_sweep): the loop's first
+  /// scan becomes a sweep of the blade plane along the expected pedicel, at
+  /// search.heights_m (one scan each; the hand moves 1 cm between them),
+  /// fused into pedicel tracks; the track that enough planes see, along the
+  /// expected direction and nearest the (registered) expected pedicel is
+  /// the first scan's answer, and a candidate seen in one plane only is
+  /// none. Only when closed_loop is given the truss; look_heights_m is then
+  /// not used. false: one scan (the state before).
+  bool sweep = true;
+  laser_clustering::PedicelSearchParams search;
 };
 
 /// The simulated hand laser these options describe (sensor, read-out schedule,
@@ -205,6 +216,20 @@ class VerificationHarness {
       const sim::World& world, const Scenario& s, const Eigen::Isometry3d& T_ref_laser,
       const std::optional<laser_clustering::PedicelExpectation>& belief, std::uint64_t scan_seed);
   [[nodiscard]] laser_clustering::PedicelFinderParams finder() const;
+  /// The pedicel search from `T_ref_laser`: a scan at each of the options'
+  /// heights, fused; its answer in the height-0 plane. Adds its scans to `scans`.
+  [[nodiscard]] laser_clustering::PedicelDetection sweep(const sim::World& world, const Scenario& s,
+                                                         const Eigen::Isometry3d& T_ref_laser,
+                                                         const laser_clustering::PedicelExpectation& belief,
+                                                         std::uint64_t scan_seed, int& scans);
+  /// The loop's first answer: the sweep (with the truss and the options'
+  /// sweep), else one scan and, when the registered truss's pedicel is not
+  /// seen, the scans at look_heights_m.
+  [[nodiscard]] laser_clustering::PedicelDetection first_look(const sim::World& world, const Scenario& s,
+                                                              const Eigen::Isometry3d& T_ref_laser,
+                                                              const laser_clustering::PedicelExpectation& belief,
+                                                              std::uint64_t scan_seed, bool with_truss, bool registered,
+                                                              int& scans);
   /// The tomato look from `T_ref_laser`: `belief` shifted onto the registered
   /// truss, its spread and gate set; nullopt when the registration is not clear.
   [[nodiscard]] std::optional<laser_clustering::PedicelExpectation> look_at_fruit(
