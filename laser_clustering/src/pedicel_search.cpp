@@ -13,7 +13,8 @@ common::Validation validate(const PedicelSearchParams& p) {
   for (double h : p.heights_m) {
     if (!std::isfinite(h)) return {false, "heights_m must be finite"};
   }
-  if (!(p.link_m > 0.0) || !std::isfinite(p.link_m)) return {false, fmt::format("link_m must be > 0 (got {})", p.link_m)};
+  if (!(p.link_m > 0.0) || !std::isfinite(p.link_m))
+    return {false, fmt::format("link_m must be > 0 (got {})", p.link_m)};
   if (!(p.slope_sd > 0.0) || !(p.max_slope > 0.0) || !std::isfinite(p.max_slope)) {
     return {false, fmt::format("slope_sd and max_slope must be > 0 (got {}, {})", p.slope_sd, p.max_slope)};
   }
@@ -120,6 +121,10 @@ PedicelTrack score(const Line& line, std::span<const SweepScan> scans, const std
       continue;
     }
     const Seen& s = seen[static_cast<std::size_t>(link[k])];
+    const double nearest = t.nearest_seen_height_m;
+    if (t.planes_seen == 0 || std::abs(s.height_m) < std::abs(nearest) ||
+        (std::abs(s.height_m) == std::abs(nearest) && s.height_m > nearest))
+      t.nearest_seen_height_m = s.height_m;
     const double z = (line.at(s.height_m) - s.xz).norm() / p.link_m;
     t.support *= std::exp(-0.5 * z * z);
     t.quality += s.quality;
@@ -128,7 +133,8 @@ PedicelTrack score(const Line& line, std::span<const SweepScan> scans, const std
   if (t.planes_seen > 0) t.quality /= t.planes_seen;
   const double zp = (line.at0 - e.position_xz_m).norm() / e.sd_m;
   const double zs = line.slope.norm() / p.slope_sd;
-  t.prior = zp > e.gate_sd || line.slope.cwiseAbs().maxCoeff() > p.max_slope ? 0.0 : std::exp(-0.5 * (zp * zp + zs * zs));
+  t.prior =
+      zp > e.gate_sd || line.slope.cwiseAbs().maxCoeff() > p.max_slope ? 0.0 : std::exp(-0.5 * (zp * zp + zs * zs));
   t.weight = t.quality * t.support * t.prior;
   return t;
 }
@@ -155,13 +161,13 @@ std::vector<PedicelTrack> tracks_of(std::span<const SweepScan> scans, const Pedi
   return distinct;
 }
 
-// The chosen track as the height-0 plane's detection.
-PedicelDetection detection_of(const std::vector<PedicelTrack>& tracks, const PedicelFinderParams& f) {
+// The chosen track as the detection in the plane at height h.
+PedicelDetection detection_of(const std::vector<PedicelTrack>& tracks, const PedicelFinderParams& f, double h) {
   PedicelDetection d;
   double total = 0.0;
   for (const PedicelTrack& t : tracks) {
     PedicelCandidate c;
-    c.position_xz_m = t.position_xz_m;
+    c.position_xz_m = t.position_xz_m + t.slope * h;
     c.shape_score = t.quality;
     c.isolation = 1.0;
     c.position_score = t.prior;
@@ -171,11 +177,11 @@ PedicelDetection detection_of(const std::vector<PedicelTrack>& tracks, const Ped
     total += t.weight;
   }
   const PedicelTrack& best = tracks.front();
-  d.position_xz_m = best.position_xz_m;
-  d.lateral_offset_m = best.position_xz_m.x() - f.scissors.centre_x_m;
-  d.depth_offset_m = best.position_xz_m.y() - f.scissors.centre_z_m;
-  d.angle_rad = std::atan2(best.position_xz_m.x(), best.position_xz_m.y()) -
-                std::atan2(f.scissors.centre_x_m, f.scissors.centre_z_m);
+  d.position_xz_m = d.candidates.front().position_xz_m;
+  d.lateral_offset_m = d.position_xz_m.x() - f.scissors.centre_x_m;
+  d.depth_offset_m = d.position_xz_m.y() - f.scissors.centre_z_m;
+  d.angle_rad =
+      std::atan2(d.position_xz_m.x(), d.position_xz_m.y()) - std::atan2(f.scissors.centre_x_m, f.scissors.centre_z_m);
   d.confidence = best.quality * best.weight / total;
   const bool between = std::abs(d.lateral_offset_m) <= f.scissors.opening_m / 2 - f.blade_margin_m &&
                        std::abs(d.depth_offset_m) <= f.depth_tolerance_m;
@@ -200,7 +206,8 @@ PedicelSearchResult fuse_sweep(std::span<const SweepScan> scans, const PedicelFi
       std::count_if(scans.begin(), scans.end(), [](const SweepScan& s) { return in_view(s.detection); }));
   r.tracks = tracks_of(scans, expected, p, std::max(1, std::min(p.min_planes, in_view_planes)));
   if (!r.tracks.empty()) {
-    r.detection = detection_of(r.tracks, finder);
+    r.cut_height_m = r.tracks.front().nearest_seen_height_m;
+    r.detection = detection_of(r.tracks, finder, r.cut_height_m);
     return r;
   }
   r.detection = base->detection;
@@ -209,8 +216,8 @@ PedicelSearchResult fuse_sweep(std::span<const SweepScan> scans, const PedicelFi
     r.detection.outcome = PedicelOutcome::kNothingToCut;
     r.detection.candidates.clear();
     r.detection.cluster = -1;
-    r.detection.reason = fmt::format("{} pedicel-like object{} in {} planes, none on a pedicel's track seen in {}", seen,
-                                     seen == 1 ? "" : "s", r.planes, p.min_planes);
+    r.detection.reason = fmt::format("{} pedicel-like object{} in {} planes, none on a pedicel's track seen in {}",
+                                     seen, seen == 1 ? "" : "s", r.planes, p.min_planes);
   }
   return r;
 }

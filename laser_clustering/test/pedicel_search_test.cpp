@@ -75,13 +75,14 @@ TEST(PedicelSearch, APedicelAlongTheSweepBeatsAPeduncleNearerTheExpectedPoint) {
   EXPECT_NEAR(r.detection.position_xz_m.x(), 0.02, 0.003);
   EXPECT_NEAR(r.detection.lateral_offset_m, 0.02, 0.003);
   ASSERT_FALSE(r.tracks.empty());
-  EXPECT_EQ(r.tracks.front().planes_seen, 4);
+  EXPECT_EQ(r.tracks.front().planes_seen, static_cast<int>(planes.size()));
+  EXPECT_EQ(r.cut_height_m, 0.0);
   EXPECT_NEAR(r.tracks.front().slope.x(), 0.2, 0.15);
 }
 
 TEST(PedicelSearch, APedicelHiddenAtTheCutIsFoundFromThePlanesAbove) {
   // At heights 0 and below a fruit in front hides the pedicel; above it,
-  // the pedicel is in the clear.
+  // the pedicel is in the clear: the cut goes to the nearest plane there.
   const auto planes = sweep(
       [](double h) {
         std::vector<Disc> d{{0.012, 0.13, kRod, 6.0, 1}};
@@ -95,6 +96,8 @@ TEST(PedicelSearch, APedicelHiddenAtTheCutIsFoundFromThePlanesAbove) {
   ASSERT_EQ(r.detection.outcome, PedicelOutcome::kMove) << r.detection.reason;
   EXPECT_NEAR(r.detection.position_xz_m.x(), 0.012, 0.003);
   EXPECT_NEAR(r.detection.position_xz_m.y(), 0.13, 0.005);
+  EXPECT_GT(r.cut_height_m, 0.0);
+  EXPECT_LE(r.cut_height_m, 0.005 + 1e-12);
 }
 
 TEST(PedicelSearch, AThinThingInOnePlaneOnlyIsRefused) {

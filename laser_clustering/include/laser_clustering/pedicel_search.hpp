@@ -35,7 +35,7 @@ struct PedicelSearchParams {
   /// Heights of the sweep's planes along the expected pedicel (laser y, +
   /// away from the fruit) [m]; 0 is the plane of the planned cut. The plan:
   /// scan them in this order.
-  std::vector<double> heights_m{0.0, 0.01, 0.02, -0.005};
+  std::vector<double> heights_m{0.0, -0.005, 0.005, -0.01, 0.01};
   /// A candidate within this of a track's line in its plane supports it [m]
   /// (range noise, a pedicel's width, the arm's repeatability).
   double link_m = 0.005;
@@ -68,18 +68,23 @@ struct PedicelTrack {
   Eigen::Vector2d position_xz_m = Eigen::Vector2d::Zero();  ///< where it crosses the height-0 plane [m]
   Eigen::Vector2d slope = Eigen::Vector2d::Zero();          ///< d(x, z) / d height
   int planes_seen = 0;                                      ///< planes with a candidate on it
-  double quality = 0.0;      ///< its candidates' shape and isolation, averaged over the planes seeing it
-  double support = 0.0;      ///< product over the planes of the seen ones' fit and the missed ones' miss_factor
-  double prior = 0.0;        ///< position (at height 0) and slope against the expectation, in (0, 1]
-  double weight = 0.0;       ///< quality * support * prior
+  double nearest_seen_height_m = 0.0;  ///< of those planes, the height nearest 0 (above on a tie) [m]
+  double quality = 0.0;                ///< its candidates' shape and isolation, averaged over the planes seeing it
+  double support = 0.0;  ///< product over the planes of the seen ones' fit and the missed ones' miss_factor
+  double prior = 0.0;    ///< position (at height 0) and slope against the expectation, in (0, 1]
+  double weight = 0.0;   ///< quality * support * prior
 };
 
 struct PedicelSearchResult {
-  /// The answer in the height-0 plane, as find_pedicel's: the chosen track's
-  /// crossing as the pedicel (its candidates are the tracks, best first,
-  /// cluster -1), or the height-0 scan's own answer when no track is a
-  /// pedicel (kNothingToCut with the reason when the sweep saw candidates
-  /// but none on a track that enough planes see).
+  /// Where to cut: the height-0 plane when the chosen track is seen there,
+  /// else the plane nearest it that sees the track (the planned cut may lie
+  /// below the calyx or above the pedicel's top) [m].
+  double cut_height_m = 0.0;
+  /// The answer in the plane at cut_height_m, as find_pedicel's: the chosen
+  /// track's crossing as the pedicel (its candidates are the tracks' crossings,
+  /// best first, cluster -1), or the height-0 scan's own answer when no
+  /// track is a pedicel (kNothingToCut with the reason when the sweep saw
+  /// candidates but none on a track that enough planes see).
   PedicelDetection detection;
   std::vector<PedicelTrack> tracks;  ///< best first, each distinct
   int planes = 0;                    ///< planes fused
