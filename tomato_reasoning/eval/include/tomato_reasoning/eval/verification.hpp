@@ -7,6 +7,7 @@
 // A pick succeeds when the blade throat ends on the tomato's true pedicel.
 #pragma once
 
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
@@ -53,6 +54,11 @@ struct VerificationOptions {
   double calibration_max_m = 0.35;
   double calibration_step_m = 0.01;
   int calibration_sets = 3;
+  /// The finder's thin-object range bias (PedicelFinderParams::range_bias_m)
+  /// [m]: measured when the harness is built, by scanning a pedicel-like rod
+  /// (the truss's pedicel: its 6 mm and its material) across the plane at
+  /// 8-18 cm, when this is NaN; a number sets it (0: none, the state before).
+  double pedicel_range_bias_m = NAN;
   /// How far the pedicel may be from the throat, for the finder's ranking [m]
   /// (laser_clustering's pedicel_finder node default).
   double expectation_sd_m = 0.015;
@@ -107,6 +113,12 @@ struct VerificationOptions {
   /// not used. false: one scan (the state before).
   bool sweep = true;
   laser_clustering::PedicelSearchParams search;
+  /// When the sweep finds no pedicel, the search keeps looking: the hand
+  /// turns about the expected pedicel (through the blade throat) by each of
+  /// these angles in turn and sweeps again, a fruit in front hiding the
+  /// pedicel from one side often not from another; the first turn whose
+  /// sweep finds a pedicel is where the hand stays [deg]. Empty: no turns.
+  std::vector<double> search_turns_deg{30.0, -30.0};
 };
 
 /// The simulated hand laser these options describe (sensor, read-out schedule,
@@ -194,6 +206,8 @@ class VerificationHarness {
                                                    double match_m = 0.01);
   [[nodiscard]] std::string describe() const;
   [[nodiscard]] const VerificationOptions& options() const { return o_; }
+  /// The finder's thin-object range bias in use (measured or set) [m].
+  [[nodiscard]] double pedicel_range_bias_m() const { return range_bias_m_; }
 
   /// One verification from `pose` in `world` (the scenario's reference frame
   /// is its first camera): scan, answer, and the closed loop of the options.
@@ -217,19 +231,20 @@ class VerificationHarness {
       const std::optional<laser_clustering::PedicelExpectation>& belief, std::uint64_t scan_seed);
   [[nodiscard]] laser_clustering::PedicelFinderParams finder() const;
   /// The pedicel search from `T_ref_laser`: a scan at each of the options'
-  /// heights, fused; its answer in the height-0 plane. Adds its scans to `scans`.
-  [[nodiscard]] laser_clustering::PedicelDetection sweep(const sim::World& world, const Scenario& s,
-                                                         const Eigen::Isometry3d& T_ref_laser,
-                                                         const laser_clustering::PedicelExpectation& belief,
-                                                         std::uint64_t scan_seed, int& scans);
+  /// heights, fused. Adds its scans to `scans`.
+  [[nodiscard]] laser_clustering::PedicelSearchResult sweep(const sim::World& world, const Scenario& s,
+                                                            const Eigen::Isometry3d& T_ref_laser,
+                                                            const laser_clustering::PedicelExpectation& belief,
+                                                            std::uint64_t scan_seed, int& scans);
   /// The loop's first answer: the sweep (with the truss and the options'
-  /// sweep), else one scan and, when the registered truss's pedicel is not
-  /// seen, the scans at look_heights_m.
+  /// sweep; the pose then goes to the plane it answers for), else one scan
+  /// and, when the registered truss's pedicel is not seen, the scans at
+  /// look_heights_m.
   [[nodiscard]] laser_clustering::PedicelDetection first_look(const sim::World& world, const Scenario& s,
-                                                              const Eigen::Isometry3d& T_ref_laser,
+                                                              PickPose& pose,
                                                               const laser_clustering::PedicelExpectation& belief,
                                                               std::uint64_t scan_seed, bool with_truss, bool registered,
-                                                              int& scans);
+                                                              LoopEnd& end);
   /// The tomato look from `T_ref_laser`: `belief` shifted onto the registered
   /// truss, its spread and gate set; nullopt when the registration is not clear.
   [[nodiscard]] std::optional<laser_clustering::PedicelExpectation> look_at_fruit(
@@ -238,6 +253,7 @@ class VerificationHarness {
 
   VerificationOptions o_;
   std::unique_ptr<laser_clustering::eval::Scanner> scanner_;
+  double range_bias_m_ = 0.0;
 };
 
 }  // namespace tinyline::tomato_reasoning::eval
