@@ -292,6 +292,14 @@ struct Census {
   double nearest_beyond_m = std::numeric_limits<double>::infinity();
 };
 
+// Where an object's axis is: its centroid moved back along its bearing by
+// the thin objects' range bias.
+Eigen::Vector2d centre_of(const ScanCluster& c, const PedicelFinderParams& p) {
+  const double r = c.centroid_xz_m.norm();
+  return r > p.range_bias_m && r > 0.0 ? Eigen::Vector2d(c.centroid_xz_m * ((r - p.range_bias_m) / r))
+                                       : c.centroid_xz_m;
+}
+
 // Object k as a candidate: its shape, isolation and position scores. Sets
 // z_min to its distance to the nearest expected point (or alternative) in sd.
 PedicelCandidate candidate_of(const ScanCluster& c, int k, const PedicelFinderParams& p, const Prior& prior,
@@ -299,16 +307,16 @@ PedicelCandidate candidate_of(const ScanCluster& c, int k, const PedicelFinderPa
   PedicelCandidate cand;
   cand.cluster = k;
   cand.width_m = c.width_m;
-  cand.position_xz_m = c.centroid_xz_m;
+  cand.position_xz_m = centre_of(c, p);
   const double zw = (c.width_m - p.diameter_m) / p.diameter_sd_m;
   cand.shape_score = std::exp(-0.5 * zw * zw);
   cand.isolation = (c.occluded_low ? 0.5 : 1.0) * (c.occluded_high ? 0.5 : 1.0);
-  const double zp = (c.centroid_xz_m - prior.expected).norm() / prior.sd;
+  const double zp = (cand.position_xz_m - prior.expected).norm() / prior.sd;
   z_min = zp;
   cand.position_score = std::exp(-0.5 * zp * zp);
   if (expectation) {
     for (const auto& alt : expectation->alternatives) {
-      const double za = (c.centroid_xz_m - alt.position_xz_m).norm() / prior.sd;
+      const double za = (cand.position_xz_m - alt.position_xz_m).norm() / prior.sd;
       z_min = std::min(z_min, za);
       cand.position_score = std::max(cand.position_score, alt.weight * std::exp(-0.5 * za * za));
     }

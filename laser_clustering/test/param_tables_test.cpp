@@ -59,7 +59,7 @@ TEST(ParamTables, ThePedicelFinderDeclaresEveryFieldOfItsSettingsWithTheStructsD
   auto declared = params_by_name(*node);
   auto want = table_defaults<lc::PedicelFinderParams>();
   want.merge(table_defaults<lc::TwoStageParams>());
-  ASSERT_EQ(want.size(), 29u);  // 14 + 3 scissor fields of the finder; 2 + 8 + 2 of the clustering
+  ASSERT_EQ(want.size(), 30u);  // 15 + 3 scissor fields of the finder; 2 + 8 + 2 of the clustering
   for (const auto& [name, value] : want) {
     ASSERT_TRUE(declared.count(name)) << name << " is not a parameter";
     EXPECT_EQ(param_number(declared[name]->default_value), value) << name;

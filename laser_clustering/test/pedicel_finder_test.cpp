@@ -332,3 +332,17 @@ TEST(PedicelFinder, BadInputIsInvalidInputWithAReason) {
   EXPECT_EQ(d.outcome, PedicelOutcome::kInvalidInput);
   EXPECT_STREQ(lc::to_string(d.outcome), "invalid_input");
 }
+
+TEST(PedicelFinder, TheRangeBiasMovesEveryCentreBackAlongItsBearing) {
+  const auto s = synth_scan({{0.03, 0.15, 0.003, 6.0, 1}}, with_wall(3));
+  const auto plain = detect(s.scan);
+  lc::PedicelFinderParams p;
+  p.range_bias_m = 0.01;
+  const auto corrected = detect(s.scan, p);
+  ASSERT_EQ(plain.outcome, PedicelOutcome::kMove) << plain.reason;
+  ASSERT_EQ(corrected.outcome, PedicelOutcome::kMove) << corrected.reason;
+  EXPECT_NEAR(plain.position_xz_m.norm() - corrected.position_xz_m.norm(), 0.01, 1e-9);
+  EXPECT_NEAR(std::atan2(corrected.position_xz_m.x(), corrected.position_xz_m.y()),
+              std::atan2(plain.position_xz_m.x(), plain.position_xz_m.y()), 1e-9);
+  EXPECT_NEAR(plain.depth_offset_m - corrected.depth_offset_m, 0.01 * 0.15 / std::hypot(0.03, 0.15), 0.001);
+}

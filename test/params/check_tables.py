@@ -20,6 +20,7 @@ NOT_NODE_SETTINGS = {
     "HandToHeadParams": "tomato_reasoning's camera calibration tool, not a node",
     "RectangleFitParams": "hydrus_fitting's rectangle fit, used by no node",
     "CutProbeParams": "the harvest evaluation's nearby cuts (tomato_eval --harvest-set probe_*), used by no node",
+    "PedicelSearchParams": "the tomato verification's pedicel search (tomato_eval --verify-set sweep_*), used by no node",
 }
 
 TABLE = re.compile(r"SettingsOf<S,\s*(\w+)>\s*void for_each_param\(S& p, V&& v\) \{(.*?)\n\}", re.S)

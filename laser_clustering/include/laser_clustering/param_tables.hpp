@@ -77,6 +77,8 @@ void for_each_param(S& p, V&& v) {
      "an expected pedicel behind a return this much nearer on its bearing is hidden, not missing"});
   v(p.recentre_sd_m,
     {"recentre_sd_m", "m", 1e-5, 1.0, "after centring a pedicel: how far it may still be from the throat"});
+  v(p.range_bias_m, {"range_bias_m", "m", -0.05, 0.05,
+                     "thin dark objects read this much farther than their axis; moved back along the bearing"});
   common::nest(p.scissors, "scissor_", v);
 }
 

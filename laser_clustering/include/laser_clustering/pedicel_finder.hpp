@@ -61,6 +61,11 @@ struct PedicelFinderParams {
   /// far it may still be from the throat, the measurement's error rather than
   /// the vision's [m].
   double recentre_sd_m = 0.01;
+  /// A thin dark object reads this much farther than its axis (the driver's
+  /// calibration is fitted on white paper; a pedicel's front surface and its
+  /// material differ): every object's centre is moved this much back along
+  /// its bearing [m]. 0: none; measured on a pedicel-like rod.
+  double range_bias_m = 0.0;
   ScissorGeometry scissors;
 };
 

@@ -64,6 +64,60 @@ double option_number(const std::string& key, const std::string& text) {
   return v;
 }
 
+// A comma-separated list of heights along the pedicel, each within 5 cm.
+std::vector<double> heights_of(const std::string& key, const std::string& value) {
+  std::vector<double> heights;
+  for (std::size_t from = 0; from < value.size();) {
+    const std::size_t comma = std::min(value.find(',', from), value.size());
+    const double h = option_number(key, value.substr(from, comma - from));
+    if (!(std::abs(h) <= 0.05)) throw std::invalid_argument("option '" + key + "': each must be within 0.05 m");
+    heights.push_back(h);
+    from = comma + 1;
+  }
+  return heights;
+}
+
+// The pedicel search's options; false when `key` is none of them.
+bool set_sweep_option(VerificationOptions& o, const std::string& key, const std::string& value) {
+  lc::PedicelSearchParams& p = o.search;
+  if (key == "sweep") {
+    if (value != "0" && value != "1") throw std::invalid_argument("option 'sweep' must be 0 or 1");
+    o.sweep = value == "1";
+    return true;
+  }
+  if (key == "search_turns_deg") {
+    o.search_turns_deg.clear();
+    for (std::size_t from = 0; from < value.size();) {
+      const std::size_t comma = std::min(value.find(',', from), value.size());
+      const double deg = option_number(key, value.substr(from, comma - from));
+      if (!(std::abs(deg) <= 90)) throw std::invalid_argument("option 'search_turns_deg': each must be within 90");
+      o.search_turns_deg.push_back(deg);
+      from = comma + 1;
+    }
+    return true;
+  }
+  if (key == "sweep_heights_m") {
+    p.heights_m = heights_of(key, value);
+  } else if (key == "sweep_min_planes") {
+    const double v = option_number(key, value);
+    if (v != std::floor(v)) throw std::invalid_argument("option 'sweep_min_planes' must be a whole number");
+    p.min_planes = static_cast<int>(v);
+  } else if (key == "sweep_link_m" || key == "sweep_slope_sd" || key == "sweep_max_slope" ||
+             key == "sweep_miss_factor") {
+    const double v = option_number(key, value);
+    (key == "sweep_link_m"      ? p.link_m
+     : key == "sweep_slope_sd"  ? p.slope_sd
+     : key == "sweep_max_slope" ? p.max_slope
+                                : p.miss_factor) = v;
+  } else {
+    return false;
+  }
+  if (auto v = lc::validate(p); !v.valid) throw std::invalid_argument("option '" + key + "': " + v.reason);
+  if (std::find(p.heights_m.begin(), p.heights_m.end(), 0.0) == p.heights_m.end())
+    throw std::invalid_argument("option 'sweep_heights_m' must hold 0 (the plane of the cut)");
+  return true;
+}
+
 // The tomato look's options; false when `key` is none of them.
 bool set_look_option(VerificationOptions& o, const std::string& key, const std::string& value) {
   if (key == "tomato_look") {
@@ -79,15 +133,7 @@ bool set_look_option(VerificationOptions& o, const std::string& key, const std::
       throw std::invalid_argument("option 'look_min_tomatoes' must be a whole number in [1, 10]");
     o.look_min_tomatoes = static_cast<int>(v);
   } else if (key == "look_heights_m") {
-    std::vector<double> heights;
-    for (std::size_t from = 0; from < value.size();) {
-      const std::size_t comma = std::min(value.find(',', from), value.size());
-      const double h = option_number(key, value.substr(from, comma - from));
-      if (!(std::abs(h) <= 0.05)) throw std::invalid_argument("option 'look_heights_m': each must be within 0.05 m");
-      heights.push_back(h);
-      from = comma + 1;
-    }
-    o.look_heights_m = heights;
+    o.look_heights_m = heights_of(key, value);
   } else if (key == "registered_gate_sd") {
     const double v = option_number(key, value);
     if (!(v > 0)) throw std::invalid_argument("option 'registered_gate_sd' must be > 0");
@@ -110,7 +156,7 @@ bool set_look_option(VerificationOptions& o, const std::string& key, const std::
 
 void set_verification_option(VerificationOptions& o, const std::string& key, const std::string& value) {
   auto number = [&](const std::string& text) { return option_number(key, text); };
-  if (set_look_option(o, key, value)) return;
+  if (set_look_option(o, key, value) || set_sweep_option(o, key, value)) return;
   if (key == "pulses") {
     std::vector<int> pulses;
     std::size_t from = 0;
@@ -142,6 +188,11 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
     const double v = number(value);
     if (!(v > 0)) throw std::invalid_argument("option '" + key + "' must be > 0");
     (key == "max_move_m" ? o.pose.max_move_m : o.expectation_sd_m) = v;
+  } else if (key == "pedicel_range_bias_m") {  // "nan": measured on the rod
+    const double v = value == "nan" ? NAN : number(value);
+    if (!(std::isnan(v) || std::abs(v) < 0.05))
+      throw std::invalid_argument("option 'pedicel_range_bias_m' must be nan or within 0.05 m");
+    o.pedicel_range_bias_m = v;
   } else if (key == "calibration_max_m") {
     const double v = number(value);
     if (!(v > 0.1 && v <= 2.0)) throw std::invalid_argument("option 'calibration_max_m' must be in (0.1, 2] m");
@@ -164,7 +215,8 @@ void set_verification_option(VerificationOptions& o, const std::string& key, con
         "' (pulses, expectation_sd_m, max_move_m, max_turn_deg, calibration_max_m, rescans, approach_far, "
         "cut_offsets_m, blade_margin_m, max_pedicel_width_m, tomato_look, look_back_m, registered_sd_m, "
         "registered_gate_sd, registered_max_move_m, look_max_shift_m, "
-        "look_min_tomatoes, look_nothing, look_heights_m)");
+        "look_min_tomatoes, look_nothing, look_heights_m, sweep, sweep_heights_m, sweep_min_planes, sweep_link_m, "
+        "sweep_slope_sd, sweep_max_slope, sweep_miss_factor, search_turns_deg, pedicel_range_bias_m)");
   }
 }
 
@@ -188,16 +240,52 @@ std::unique_ptr<laser_clustering::eval::Scanner> make_hand_laser(const Verificat
   return laser_clustering::eval::make_sim_scanner(so);
 }
 
-VerificationHarness::VerificationHarness(VerificationOptions o) : o_(std::move(o)), scanner_(make_hand_laser(o_)) {}
+namespace {
+
+// The hand laser on a pedicel-like rod (the truss's pedicel: 6 mm across,
+// its "stem" material, nothing behind it) across the plane at the finder's
+// working distances: how much farther than its axis the finder puts it
+// (the median over the placements) [m].
+double rod_range_bias(lc::eval::Scanner& scanner, const lc::PedicelFinderParams& finder) {
+  std::vector<double> errors;
+  std::uint64_t seed = 7'000'001;
+  for (double z : {0.08, 0.10, 0.12, 0.14, 0.16, 0.18}) {
+    for (double x : {-0.02, 0.0, 0.02}) {
+      sim::World world;
+      const auto stem = world.materials().find("stem");
+      if (!stem) throw std::runtime_error("verification: material 'stem' missing from the library");
+      world.add({"rod", sim::RodShape{Eigen::Vector3d(x, -0.05, z), Eigen::Vector3d(x, 0.05, z), 0.003},
+                 Eigen::Isometry3d::Identity(), *stem});
+      const lc::eval::SimulatedScan scan = scanner.scan(world, Eigen::Isometry3d::Identity(), seed++);
+      const lc::PedicelDetection d = lc::find_pedicel(scan.scan, lc::cluster_line_scan(scan.scan), finder);
+      if (d.outcome == lc::PedicelOutcome::kCutHere || d.outcome == lc::PedicelOutcome::kMove)
+        errors.push_back(d.position_xz_m.norm() - std::hypot(x, z));
+    }
+  }
+  if (errors.empty()) throw std::runtime_error("verification: the hand laser found the calibration rod nowhere");
+  std::nth_element(errors.begin(), errors.begin() + static_cast<std::ptrdiff_t>(errors.size() / 2), errors.end());
+  return errors[errors.size() / 2];
+}
+
+}  // namespace
+
+VerificationHarness::VerificationHarness(VerificationOptions o) : o_(std::move(o)), scanner_(make_hand_laser(o_)) {
+  range_bias_m_ = std::isnan(o_.pedicel_range_bias_m) ? rod_range_bias(*scanner_, finder()) : o_.pedicel_range_bias_m;
+}
 
 VerificationHarness::~VerificationHarness() = default;
 
-std::string VerificationHarness::describe() const { return scanner_->describe(); }
+std::string VerificationHarness::describe() const {
+  return scanner_->describe() + "; pedicels read " +
+         std::to_string(std::lround(10000 * range_bias_m_) / 10.0).substr(0, 5) + " mm long (" +
+         (std::isnan(o_.pedicel_range_bias_m) ? "measured on a rod" : "set") + ")";
+}
 
 lc::PedicelFinderParams VerificationHarness::finder() const {
   lc::PedicelFinderParams finder;
   finder.scissors.centre_z_m = o_.pose.throat_z_m;
   finder.scissors.opening_m = o_.scissor_opening_m;
+  finder.range_bias_m = range_bias_m_;
   return finder;
 }
 
@@ -277,7 +365,82 @@ lc::PedicelDetection blind_move_to(const lc::PedicelExpectation& e, const lc::Pe
   return d;
 }
 
+// The sweep's scans are keyed apart from the loop's and the look's.
+constexpr std::uint64_t kSweepSeedOffset = 89 * kRescanSeedStride;
+constexpr std::uint64_t kTurnSeedOffset = 83 * kRescanSeedStride;
+
+// The laser turned by `deg` about its y axis through the blade throat (the
+// expected pedicel): the throat stays where it was.
+Eigen::Isometry3d turned(const Eigen::Isometry3d& T_ref_laser, double deg, double throat_z_m) {
+  return T_ref_laser * Eigen::Translation3d(0.0, 0.0, throat_z_m) *
+         Eigen::AngleAxisd(deg * M_PI / 180.0, Eigen::Vector3d::UnitY()) * Eigen::Translation3d(0.0, 0.0, -throat_z_m);
+}
+
+// `e` as the laser turned by `deg` (turned above) expects it.
+lc::PedicelExpectation turned(lc::PedicelExpectation e, double deg, double throat_z_m) {
+  const Eigen::Isometry3d T_new_old = turned(Eigen::Isometry3d::Identity(), deg, throat_z_m).inverse();
+  const auto in_new = [&](const Eigen::Vector2d& xz) {
+    const Eigen::Vector3d p = T_new_old * Eigen::Vector3d(xz.x(), 0.0, xz.y());
+    return Eigen::Vector2d(p.x(), p.z());
+  };
+  e.position_xz_m = in_new(e.position_xz_m);
+  for (auto& nb : e.neighbours) nb.position_xz_m = in_new(nb.position_xz_m);
+  for (auto& alt : e.alternatives) alt.position_xz_m = in_new(alt.position_xz_m);
+  return e;
+}
+
 }  // namespace
+
+lc::PedicelSearchResult VerificationHarness::sweep(const sim::World& world, const Scenario& s,
+                                                   const Eigen::Isometry3d& T_ref_laser,
+                                                   const lc::PedicelExpectation& belief, std::uint64_t scan_seed,
+                                                   int& scans) {
+  std::vector<lc::SweepScan> planes;
+  planes.reserve(o_.search.heights_m.size());
+  for (std::size_t i = 0; i < o_.search.heights_m.size(); ++i) {
+    const double h = o_.search.heights_m[i];
+    const Eigen::Isometry3d T_h = T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
+    const std::uint64_t seed = h == 0.0 ? scan_seed : scan_seed + kSweepSeedOffset + i;
+    planes.push_back({h, look(world, s, T_h, belief, seed)});
+    ++scans;
+  }
+  return lc::fuse_sweep(planes, finder(), belief, o_.search);
+}
+
+lc::PedicelDetection VerificationHarness::first_look(const sim::World& world, const Scenario& s, PickPose& pose,
+                                                     const lc::PedicelExpectation& belief, std::uint64_t scan_seed,
+                                                     bool with_truss, bool registered, LoopEnd& end) {
+  if (with_truss && o_.sweep) {
+    lc::PedicelSearchResult r = sweep(world, s, pose.T_ref_laser, belief, scan_seed, end.scans);
+    for (std::size_t i = 0; i < o_.search_turns_deg.size() && !finder_found(r.detection); ++i) {
+      // Keep looking: from the side, turned about the expected pedicel.
+      const Eigen::Isometry3d T_turn = turned(pose.T_ref_laser, o_.search_turns_deg[i], o_.pose.throat_z_m);
+      lc::PedicelSearchResult t = sweep(world, s, T_turn, turned(belief, o_.search_turns_deg[i], o_.pose.throat_z_m),
+                                        scan_seed + kTurnSeedOffset * (i + 1), end.scans);
+      if (!finder_found(t.detection)) continue;
+      pose.T_ref_laser = T_turn;  // the throat stays on the expected pedicel: the cut point with it
+      r = std::move(t);
+    }
+    if (r.cut_height_m != 0.0) {  // the pedicel is seen in another plane: cut there
+      const Eigen::Vector3d shift = pose.T_ref_laser.linear() * Eigen::Vector3d(0.0, r.cut_height_m, 0.0);
+      pose.T_ref_laser.translation() += shift;
+      pose.cut_point += shift;
+      end.total_move += shift;
+    }
+    return r.detection;
+  }
+  lc::PedicelDetection d = look(world, s, pose.T_ref_laser, belief, scan_seed);
+  ++end.scans;
+  if (!registered || d.outcome != lc::PedicelOutcome::kNothingToCut) return d;
+  // Other heights along the expected pedicel, where nothing hides it.
+  for (double h : o_.look_heights_m) {
+    const Eigen::Isometry3d T_h = pose.T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
+    const lc::PedicelDetection dh =
+        look(world, s, T_h, belief, scan_seed + kLookSeedOffset + static_cast<std::uint64_t>(++end.scans));
+    if (finder_found(dh)) return dh;
+  }
+  return d;
+}
 
 LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario& s, PickPose pose,
                                          std::optional<lc::PedicelExpectation> belief, std::uint64_t scan_seed,
@@ -303,23 +466,16 @@ LoopEnd VerificationHarness::closed_loop(const sim::World& world, const Scenario
   bool moved = false;  // a move put the hand on a pedicel: end.verification says where
   bool seen = false;   // ... and the laser saw it there (not only the blind move)
   for (int loop_scans = 0;;) {
-    lc::PedicelDetection d = look(world, s, pose.T_ref_laser, belief,
-                                  scan_seed + kRescanSeedStride * static_cast<std::uint64_t>(loop_scans));
-    ++end.scans;
+    lc::PedicelDetection d;
+    if (loop_scans == 0) {
+      d = first_look(world, s, pose, *belief, scan_seed, truss.has_value(), end.registered, end);
+    } else {
+      d = look(world, s, pose.T_ref_laser, belief,
+               scan_seed + kRescanSeedStride * static_cast<std::uint64_t>(loop_scans));
+      ++end.scans;
+    }
     const bool last_scan = loop_scans++ >= o_.rescans;
     const bool nothing_registered = end.registered && loop_scans == 1 && d.outcome == lc::PedicelOutcome::kNothingToCut;
-    if (nothing_registered) {
-      // Other heights along the expected pedicel, where nothing hides it.
-      for (double h : o_.look_heights_m) {
-        const Eigen::Isometry3d T_h = pose.T_ref_laser * Eigen::Translation3d(0.0, h, 0.0);
-        const lc::PedicelDetection dh =
-            look(world, s, T_h, belief, scan_seed + kLookSeedOffset + static_cast<std::uint64_t>(++end.scans));
-        if (finder_found(dh)) {
-          d = dh;
-          break;
-        }
-      }
-    }
     const bool blind =
         nothing_registered && !finder_found(d) && !last_scan && o_.look_nothing == LookNothing::kBlindMove;
     if (blind) d = blind_move_to(*belief, fp);

@@ -7,12 +7,14 @@
 // A pick succeeds when the blade throat ends on the tomato's true pedicel.
 #pragma once
 
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <laser_clustering/pedicel_finder.hpp>
+#include <laser_clustering/pedicel_search.hpp>
 
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/pick_pose.hpp"
@@ -52,6 +54,11 @@ struct VerificationOptions {
   double calibration_max_m = 0.35;
   double calibration_step_m = 0.01;
   int calibration_sets = 3;
+  /// The finder's thin-object range bias (PedicelFinderParams::range_bias_m)
+  /// [m]: measured when the harness is built, by scanning a pedicel-like rod
+  /// (the truss's pedicel: its 6 mm and its material) across the plane at
+  /// 8-18 cm, when this is NaN; a number sets it (0: none, the state before).
+  double pedicel_range_bias_m = NAN;
   /// How far the pedicel may be from the throat, for the finder's ranking [m]
   /// (laser_clustering's pedicel_finder node default).
   double expectation_sd_m = 0.015;
@@ -96,6 +103,22 @@ struct VerificationOptions {
   /// other fruit in most picks, and the target's own section alone places
   /// the truss (laser_clustering's 2 left 63 % of the picks unregistered).
   int look_min_tomatoes = 1;
+  /// The pedicel search (laser_clustering's fuse_sweep): the loop's first
+  /// scan becomes a sweep of the blade plane along the expected pedicel, at
+  /// search.heights_m (one scan each; the hand moves 1 cm between them),
+  /// fused into pedicel tracks; the track that enough planes see, along the
+  /// expected direction and nearest the (registered) expected pedicel is
+  /// the first scan's answer, and a candidate seen in one plane only is
+  /// none. Only when closed_loop is given the truss; look_heights_m is then
+  /// not used. false: one scan (the state before).
+  bool sweep = true;
+  laser_clustering::PedicelSearchParams search;
+  /// When the sweep finds no pedicel, the search keeps looking: the hand
+  /// turns about the expected pedicel (through the blade throat) by each of
+  /// these angles in turn and sweeps again, a fruit in front hiding the
+  /// pedicel from one side often not from another; the first turn whose
+  /// sweep finds a pedicel is where the hand stays [deg]. Empty: no turns.
+  std::vector<double> search_turns_deg{30.0, -30.0};
 };
 
 /// The simulated hand laser these options describe (sensor, read-out schedule,
@@ -183,6 +206,8 @@ class VerificationHarness {
                                                    double match_m = 0.01);
   [[nodiscard]] std::string describe() const;
   [[nodiscard]] const VerificationOptions& options() const { return o_; }
+  /// The finder's thin-object range bias in use (measured or set) [m].
+  [[nodiscard]] double pedicel_range_bias_m() const { return range_bias_m_; }
 
   /// One verification from `pose` in `world` (the scenario's reference frame
   /// is its first camera): scan, answer, and the closed loop of the options.
@@ -205,6 +230,21 @@ class VerificationHarness {
       const sim::World& world, const Scenario& s, const Eigen::Isometry3d& T_ref_laser,
       const std::optional<laser_clustering::PedicelExpectation>& belief, std::uint64_t scan_seed);
   [[nodiscard]] laser_clustering::PedicelFinderParams finder() const;
+  /// The pedicel search from `T_ref_laser`: a scan at each of the options'
+  /// heights, fused. Adds its scans to `scans`.
+  [[nodiscard]] laser_clustering::PedicelSearchResult sweep(const sim::World& world, const Scenario& s,
+                                                            const Eigen::Isometry3d& T_ref_laser,
+                                                            const laser_clustering::PedicelExpectation& belief,
+                                                            std::uint64_t scan_seed, int& scans);
+  /// The loop's first answer: the sweep (with the truss and the options'
+  /// sweep; the pose then goes to the plane it answers for), else one scan
+  /// and, when the registered truss's pedicel is not seen, the scans at
+  /// look_heights_m.
+  [[nodiscard]] laser_clustering::PedicelDetection first_look(const sim::World& world, const Scenario& s,
+                                                              PickPose& pose,
+                                                              const laser_clustering::PedicelExpectation& belief,
+                                                              std::uint64_t scan_seed, bool with_truss, bool registered,
+                                                              LoopEnd& end);
   /// The tomato look from `T_ref_laser`: `belief` shifted onto the registered
   /// truss, its spread and gate set; nullopt when the registration is not clear.
   [[nodiscard]] std::optional<laser_clustering::PedicelExpectation> look_at_fruit(
@@ -213,6 +253,7 @@ class VerificationHarness {
 
   VerificationOptions o_;
   std::unique_ptr<laser_clustering::eval::Scanner> scanner_;
+  double range_bias_m_ = 0.0;
 };
 
 }  // namespace tinyline::tomato_reasoning::eval
