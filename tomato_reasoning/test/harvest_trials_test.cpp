@@ -261,7 +261,7 @@ TEST(HarvestTrials, OptionsBySettingParseOrSayWhatIsWrong) {
 // plane cuts through the fruit itself, so no attempt closes and none jams.
 TEST(HarvestTrials, ABladePlaneBesideTheScanThatMeetsTheFruitRefusesTheCut) {
   const Harvested h = scene(sim::TrussClass::kA, 1);
-  ASSERT_TRUE(h.result.ok) << h.result.reason;
+  ASSERT_TRUE(h.result.status.ok()) << h.result.status.message;
   eval::HarvestOptions one_plane;
   one_plane.probes = 0;
   one_plane.blade_plane_shifts_m = {};
