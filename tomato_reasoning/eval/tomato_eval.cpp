@@ -269,7 +269,7 @@ struct Run {
 /// with a random offset (--verify), and the harvest trials (--harvest, as recognised).
 struct PickVerification {
   bool verify = false, harvest = false;
-  std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset;
+  std::unique_ptr<eval::VerificationHarness> as_recognised, with_offset, harvest_laser;
   std::ostringstream harvest_csv, csv;  ///< DIR/harvest.csv, DIR/verification.csv, written when the run ends
   eval::HarvestOptions harvest_options;
   std::map<char, eval::HarvestCounts> harvested;            // class -> Table 4.2 row
@@ -331,6 +331,9 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
   out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
   std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
   if (r.harvest) {
+    out->harvest_laser = std::make_unique<eval::VerificationHarness>(eval::harvest_laser(vo, out->harvest_options));
+    std::printf("harvest's hand laser: pedicels moved back %.2f mm\n",
+                1000 * out->harvest_laser->pedicel_range_bias_m());
     out->harvest_csv
         << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on,why,probed,on_pedicel\n";
   }
@@ -382,7 +385,7 @@ std::string cause_of(const eval::HarvestTrial& t) {
 }
 
 void harvest_truss(PickVerification& v, const eval::Scenario& sc, const PipelineResult& res) {
-  for (const auto& t : eval::harvest(*v.as_recognised, sc, res, v.harvest_options)) {
+  for (const auto& t : eval::harvest(*v.harvest_laser, sc, res, v.harvest_options)) {
     v.harvested[t.complexity].add(t);
     if (const std::string c = cause_of(t); !c.empty()) v.causes[c]++;
     v.harvest_csv << t.complexity << ',' << t.seed << ',' << t.truth << ',' << int(t.detected) << ',' << t.pick_rank

@@ -2,6 +2,7 @@
 // Harvest trials (Table 4.2 protocol, eval/harvest.hpp) on simulated
 // trusses: the counts, with the blades scripted where a test needs an
 // outcome, and with sim's cutter model.
+#include <cmath>
 #include <gtest/gtest.h>
 
 #include <map>
@@ -33,9 +34,23 @@ eval::VerificationHarness& laser() {
   static eval::VerificationHarness h([] {
     eval::VerificationOptions o;
     o.rescans = 2;
-    return o;
+    return eval::harvest_laser(o, {});
   }());
   return h;
+}
+
+// The harvest's hand laser leaves the rod-measured range bias out unless
+// asked (on tuning trusses it added jams), and keeps a bias the caller set.
+TEST(HarvestTrials, TheHarvestsLaserLeavesTheRodBiasOutUnlessAsked) {
+  eval::VerificationOptions measured;  // NaN: measure on the rod
+  EXPECT_EQ(eval::harvest_laser(measured, {}).pedicel_range_bias_m, 0.0);
+  eval::HarvestOptions asked;
+  eval::set_harvest_option(asked, "rod_range_bias", "1");
+  EXPECT_TRUE(std::isnan(eval::harvest_laser(measured, asked).pedicel_range_bias_m));
+  eval::VerificationOptions set = measured;
+  set.pedicel_range_bias_m = 0.004;
+  EXPECT_EQ(eval::harvest_laser(set, {}).pedicel_range_bias_m, 0.004);
+  EXPECT_EQ(laser().pedicel_range_bias_m(), 0.0);
 }
 
 eval::HarvestCounts count(const std::vector<eval::HarvestTrial>& trials) {
@@ -284,4 +299,25 @@ TEST(HarvestTrials, ABladePlaneBesideTheScanThatMeetsTheFruitRefusesTheCut) {
     EXPECT_NE(t.outcome, eval::HarvestOutcome::kCutFailure) << t.cuts;
     EXPECT_NE(t.why.find("beside the blade plane"), std::string::npos) << t.why;
   }
+}
+
+// With pedicel_search the attempt's loop first looks through the tomatoes
+// and sweeps the blade plane (several scans), as the verification does;
+// without it the loop alone scans.
+TEST(HarvestTrials, ThePedicelSearchRunsInTheHarvestWhenAsked) {
+  const Harvested h = scene(sim::TrussClass::kA, 1);
+  ASSERT_TRUE(h.result.status.ok()) << h.result.status.message;
+  eval::HarvestOptions plain;
+  eval::HarvestOptions search = plain;
+  eval::set_harvest_option(search, "pedicel_search", "1");
+  const auto without = eval::harvest(laser(), h.scenario, h.result, plain);
+  const auto with = eval::harvest(laser(), h.scenario, h.result, search);
+  ASSERT_EQ(without.size(), with.size());
+  int attempted = 0;
+  for (std::size_t i = 0; i < with.size(); ++i) {
+    if (without[i].attempts == 0 || with[i].attempts == 0) continue;
+    ++attempted;
+    EXPECT_GT(with[i].scans, without[i].scans) << "trial " << i;
+  }
+  EXPECT_GT(attempted, 0);
 }

@@ -95,6 +95,10 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
     if (value.size() != 1 || value[0] < '0' || value[0] > '9')
       throw std::invalid_argument("option 'probes': '" + value + "' is not a whole number in [0, 9]");
     o.probes = value[0] - '0';
+  } else if (key == "pedicel_search") {
+    flag(o.pedicel_search);
+  } else if (key == "rod_range_bias") {
+    flag(o.rod_range_bias);
   } else if (key == "ceiling") {
     flag(o.ceiling);
   } else {
@@ -102,8 +106,13 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
         "unknown option '" + key +
         "' (attempts, later_attempts_approach_far, check_blades, probes, "
         "probe_after_laser_refusal, probe_shifts_mm, probe_rolls_deg, arbitrate_mm, vision_when_nothing, "
-        "blade_plane_shifts_mm, ceiling)");
+        "blade_plane_shifts_mm, pedicel_search, rod_range_bias, ceiling)");
   }
+}
+
+VerificationOptions harvest_laser(VerificationOptions vo, const HarvestOptions& o) {
+  if (!o.rod_range_bias && std::isnan(vo.pedicel_range_bias_m)) vo.pedicel_range_bias_m = 0.0;
+  return vo;
 }
 
 HarvestCounts& HarvestCounts::operator+=(const HarvestCounts& o) {
@@ -323,7 +332,8 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
   const PickPoseParams pp = camera_side(laser.options().pose);
   const Tomato& det = r.tomatoes[static_cast<std::size_t>(k)];
   Hypothesis hyp{det.fit.sphere, det.cut.direction, {}};
-  const std::vector<Sphere> others = obstacles(r, k, fallen(s, r, h, o.match_m));
+  const std::vector<int> gone = fallen(s, r, h, o.match_m);
+  const std::vector<Sphere> others = obstacles(r, k, gone);
   for (t.attempts = 1; t.attempts <= o.attempts; ++t.attempts) {
     if (t.attempts > 1) t.cuts += ';', t.why += ';', t.probed += ';', t.on_pedicel += ';';
     const std::optional<CutCandidate> plan = next_cut(hyp, others, pp);
@@ -336,7 +346,9 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
     const std::uint64_t key =
         s.seed * 1000 + static_cast<std::uint64_t>(k) + kAttemptSeedStride * static_cast<std::uint64_t>(t.attempts);
     const bool far = laser.options().approach_far || (t.attempts > 1 && o.later_attempts_approach_far);
-    const LoopEnd end = laser.closed_loop(h.world, s, plan->pose, std::nullopt, key, far);
+    std::optional<TrussView> truss;
+    if (o.pedicel_search) truss = truss_view(r, k, gone, plan->pose.T_ref_laser);
+    const LoopEnd end = laser.closed_loop(h.world, s, plan->pose, std::nullopt, key, far, truss);
     t.scans += end.scans;
     const Verification& v = end.verification;
     // The pedicel is where the laser put the throat: aim the next attempt there.

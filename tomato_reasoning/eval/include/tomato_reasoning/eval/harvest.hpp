@@ -109,6 +109,17 @@ struct HarvestOptions {
   /// A second object or a wide one in any of these planes refuses the cut
   /// (one scan each; tuning trusses 201-240: cut failures 6.1 -> 3.2 %).
   std::vector<double> blade_plane_shifts_m{-0.002, 0.002};
+  /// Each attempt's loop is given the truss as the camera reconstructed it
+  /// (truss_view): the look through the tomatoes and the pedicel search
+  /// (the sweep of the blade plane, turned sweeps) run before the closed
+  /// loop, as in Table 4.3's verification. Off: on tuning trusses it picked
+  /// no more and jammed more (turned sweeps find neighbours' pedicels).
+  bool pedicel_search = false;
+  /// The hand laser subtracts the pedicel range bias measured on a rod
+  /// (VerificationOptions::pedicel_range_bias_m) in the harvest's scans too.
+  /// Off: on tuning trusses it raised cut failures by 2-3 points (more jams
+  /// on the peduncle) and picked no more.
+  bool rod_range_bias = false;
   /// The world's ceiling: the truth's pedicel (calyx -> anchor) handed to the
   /// planner and the cutter model as its clearance check; a trial is picked
   /// when some cut along it (offset, roll) severs it and nothing else.
@@ -121,9 +132,13 @@ struct HarvestOptions {
 /// check_blades=0|1, probes=0..9, probe_after_laser_refusal=0|1,
 /// probe_shifts_mm, probe_rolls_deg, arbitrate_mm (-1: off),
 /// vision_when_nothing=0|1, blade_plane_shifts_mm (mm list or "none"),
-/// ceiling=0|1);
+/// pedicel_search=0|1, rod_range_bias=0|1, ceiling=0|1);
 /// throws std::invalid_argument saying what is wrong.
 void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value);
+
+/// The hand laser's options for the harvest: `vo` without the rod-measured
+/// range bias unless o.rod_range_bias (a bias `vo` sets is kept).
+[[nodiscard]] VerificationOptions harvest_laser(VerificationOptions vo, const HarvestOptions& o);
 
 /// Harvests the truss of `s` as `r` (the pipeline's result on it) orders,
 /// the hand laser of `laser` verifying each attempt. One trial per true
