@@ -86,7 +86,7 @@ void BM_RegisterTomatoes(benchmark::State& state) {
   const lc::TomatoRegistrationParams params;
   for (auto _ : state) {
     const auto r = lc::register_tomatoes(scan, expected, params);
-    if (!r.ok) state.SkipWithError(r.reason.c_str());
+    if (!r.status.ok()) state.SkipWithError(r.status.message.c_str());
     benchmark::DoNotOptimize(r.shift_xz_m.data());
   }
 }

@@ -264,7 +264,7 @@ struct TrussRecorder {
     t << "expected_x_m,expected_z_m,height_m,radius_m,registered,shift_x_m,shift_z_m\n";
     for (const auto& e : tomatoes) {
       t << fmt::format("{:.5f},{:.5f},{:.5f},{:.5f},{},{:.5f},{:.5f}\n", e.centre_m.x(), e.centre_m.z(), e.centre_m.y(),
-                       e.radius_m, reg.ok ? 1 : 0, reg.shift_xz_m.x(), reg.shift_xz_m.y());
+                       e.radius_m, reg.status.ok() ? 1 : 0, reg.shift_xz_m.x(), reg.shift_xz_m.y());
     }
     t.commit();
   }

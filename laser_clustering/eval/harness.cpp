@@ -151,7 +151,7 @@ FirstDecision decide_first(Scanner& scanner, const TrussScene& scene, const Simu
   if (!o.tomato_look || !f.expectation || scene.truth.tomatoes_expected.empty() || !moves(f.d)) return f;
   f.looked = true;
   const TomatoRegistration reg = look_through_tomatoes(scanner, scene, seed, *f.expectation, o, on_look);
-  if (!reg.ok) return f;
+  if (!reg.status.ok()) return f;
   f.registered = true;
   f.expectation = shifted(*f.expectation, reg.shift_xz_m);
   f.expectation->sd_m = o.registered_sd_m;
@@ -357,8 +357,8 @@ StickResult run_stick_case(Scanner& scanner, int trials, std::uint64_t seed0, co
     const auto rd = cluster_by_reflectance(s.scan, pd);
     StickTrial trial;
     trial.seed = seed;
-    trial.iou_reflectance = rw.ok ? stick_iou(rw.labels, s, scene.stick) : 0.0;
-    trial.iou_distance_only = rd.ok ? stick_iou(rd.labels, s, scene.stick) : 0.0;
+    trial.iou_reflectance = rw.status.ok() ? stick_iou(rw.labels, s, scene.stick) : 0.0;
+    trial.iou_distance_only = rd.status.ok() ? stick_iou(rd.labels, s, scene.stick) : 0.0;
     with += trial.iou_reflectance >= o.min_iou;
     without += trial.iou_distance_only >= o.min_iou;
     if (on_trial) on_trial(trial, scene, s, rw, rd);
@@ -382,7 +382,7 @@ WrenchResult run_wrench_case(Scanner& scanner, int trials, std::uint64_t seed0, 
     for (double p = o.sweep_from_deg; p <= o.sweep_to_deg + 1e-9; p += o.sweep_step_deg, ++k) {
       const SimulatedScan s = scanner.scan(scene.world, scene.T_world_sensor(p * kDeg), seed * 1000 + k);
       const SurfaceReflectance r = surface_reflectance(s.scan, o.surface);
-      if (r.found) sweep.push_back({p * kDeg, r.reflectance});
+      if (r.status.ok()) sweep.push_back({p * kDeg, r.reflectance});
     }
     const AlignmentResult a = find_alignment(sweep, o.alignment);
     WrenchTrial trial;

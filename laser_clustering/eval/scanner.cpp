@@ -80,7 +80,7 @@ Calibration calibrate(const SimScannerOptions& o, const sim::SensorParams& param
     }
   }
   const auto fit = cal::fit_declared_model(data);
-  if (!fit.ok) throw std::runtime_error("sim scanner: calibration fit failed: " + fit.reason);
+  if (!fit.status.ok()) throw std::runtime_error("sim scanner: calibration fit failed: " + fit.status.message);
   return {fit.model, fit.rmse_m};
 }
 

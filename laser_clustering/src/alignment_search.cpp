@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "laser_clustering/alignment_search.hpp"
 
+#include "laser_clustering/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -20,20 +22,14 @@ const char* to_string(AlignmentOutcome o) {
   return "unknown";
 }
 
-common::Validation validate(const AlignmentParams& p) {
-  if (p.fit_half_width < 1) return {false, fmt::format("fit_half_width must be >= 1 (got {})", p.fit_half_width)};
-  if (!std::isfinite(p.min_peak_ratio) || p.min_peak_ratio < 1.0) {
-    return {false, fmt::format("min_peak_ratio must be finite and >= 1 (got {})", p.min_peak_ratio)};
-  }
-  return {};
+common::Status validate(const AlignmentParams& p) {
+  // Every rule is a single field's range: the table holds them.
+  return common::within_table(p);
 }
 
 AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const AlignmentParams& p) {
   AlignmentResult out;
-  if (auto v = validate(p); !v.valid) {
-    out.reason = v.reason;
-    return out;
-  }
+  if (out.status = validate(p); !out.status.ok()) return out;
   std::vector<AlignmentSample> s;
   for (const auto& x : samples) {
     if (std::isfinite(x.pitch_rad) && std::isfinite(x.reflectance) && x.reflectance > 0.0) s.push_back(x);
@@ -52,8 +48,8 @@ AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const A
   const int n = static_cast<int>(u.size());
   out.num_samples = n;
   if (n < 3) {
-    out.reason =
-        fmt::format("need at least 3 usable pitches, got {} ({} samples skipped as non-finite or <= 0)", n, skipped);
+    out.status = common::Status::invalid(
+        fmt::format("need at least 3 usable pitches, got {} ({} samples skipped as non-finite or <= 0)", n, skipped));
     return out;
   }
   const auto k = static_cast<int>(
@@ -68,14 +64,16 @@ AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const A
   const double median = r[r.size() / 2];
   if (out.peak_reflectance < p.min_peak_ratio * median) {
     out.outcome = AlignmentOutcome::kNoPeak;
-    out.reason = fmt::format("maximum {:.3g} is only {:.2f} x the sweep's median {:.3g} (need {:.2f})",
-                             out.peak_reflectance, out.peak_reflectance / median, median, p.min_peak_ratio);
+    out.status = common::Status::not_found(
+        fmt::format("maximum {:.3g} is only {:.2f} x the sweep's median {:.3g} (need {:.2f})", out.peak_reflectance,
+                    out.peak_reflectance / median, median, p.min_peak_ratio));
     return out;
   }
   if (k == 0 || k == n - 1) {
     out.outcome = AlignmentOutcome::kAtSweepEdge;
-    out.reason = fmt::format("maximum at the {} pitch of the sweep ({:.4f} rad): extend the sweep",
-                             k == 0 ? "lowest" : "highest", out.best_pitch_rad);
+    out.status =
+        common::Status::not_found(fmt::format("maximum at the {} pitch of the sweep ({:.4f} rad): extend the sweep",
+                                              k == 0 ? "lowest" : "highest", out.best_pitch_rad));
     return out;
   }
   // Least-squares parabola y = a + b t + c t^2 in t = pitch - pitch_k.
@@ -100,33 +98,28 @@ AlignmentResult find_alignment(std::span<const AlignmentSample> samples, const A
     out.peak_reflectance = p.fit_log ? std::exp(v) : v;
     out.refined = true;
   }
-  out.reason = fmt::format("peak at {:.4f} rad ({} usable pitches{})", out.best_pitch_rad, n,
-                           out.refined ? "" : ", not refined: the neighbourhood is not concave");
+  out.note = fmt::format("peak at {:.4f} rad ({} usable pitches{})", out.best_pitch_rad, n,
+                         out.refined ? "" : ", not refined: the neighbourhood is not concave");
   return out;
 }
 
-common::Validation validate(const SurfaceReflectanceParams& p) {
-  if (!(p.quantile > 0.0 && p.quantile <= 1.0))
-    return {false, fmt::format("quantile must be in (0, 1] (got {})", p.quantile)};
-  if (p.first_pixel < 0) return {false, fmt::format("first_pixel must be >= 0 (got {})", p.first_pixel)};
+common::Status validate(const SurfaceReflectanceParams& p) {
+  // The single fields' ranges are the table's; the region spans two.
+  if (common::Status v = common::within_table(p); !v.ok()) return v;
   if (p.last_pixel >= 0 && p.last_pixel < p.first_pixel) {
-    return {false, fmt::format("last_pixel ({}) is before first_pixel ({})", p.last_pixel, p.first_pixel)};
-  }
-  if (p.method == SurfaceReflectanceParams::Method::kBrightestCluster) {
-    if (auto v = validate(p.clustering); !v.valid) return {false, "clustering: " + v.reason};
+    return common::Status::invalid(
+        fmt::format("last_pixel ({}) is before first_pixel ({})", p.last_pixel, p.first_pixel));
   }
   return {};
 }
 
 SurfaceReflectance surface_reflectance(const LineScan& scan, const SurfaceReflectanceParams& p) {
   SurfaceReflectance out;
-  if (auto v = validate(p); !v.valid) {
-    out.reason = v.reason;
-    return out;
-  }
-  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
+  if (out.status = validate(p); !out.status.ok()) return out;
+  if (out.status = check_scan(scan); !out.status.ok()) return out;
   if (scan.reflectance.size() != scan.size()) {
-    out.reason = fmt::format("the scan has {} reflectance values for {} pixels", scan.reflectance.size(), scan.size());
+    out.status = common::Status::invalid(
+        fmt::format("the scan has {} reflectance values for {} pixels", scan.reflectance.size(), scan.size()));
     return out;
   }
   const auto n = static_cast<int>(scan.size());
@@ -142,12 +135,12 @@ SurfaceReflectance surface_reflectance(const LineScan& scan, const SurfaceReflec
       }
     }
     if (v.empty()) {
-      out.reason = fmt::format("no valid pixel with a reflectance in pixels {}..{}", first, last);
+      out.status =
+          common::Status::not_found(fmt::format("no valid pixel with a reflectance in pixels {}..{}", first, last));
       return out;
     }
     const auto k = static_cast<std::size_t>(std::ceil(p.quantile * static_cast<double>(v.size()))) - 1;
     std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-    out.found = true;
     out.reflectance = v[k];
     return out;
   }
@@ -159,15 +152,12 @@ SurfaceReflectance surface_reflectance(const LineScan& scan, const SurfaceReflec
     roi.reflectance.push_back(scan.reflectance[u]);
   }
   const auto c = cluster_by_reflectance(roi, p.clustering);
-  if (!c.ok) {
-    out.reason = c.reason;
-    return out;
-  }
+  if (out.status = c.status; !out.status.ok()) return out;
   if (c.brightest < 0) {
-    out.reason = c.reason.empty() ? "no reflectance cluster in the scan" : "no reflectance cluster: " + c.reason;
+    out.status = common::Status::not_found(c.note.empty() ? "no reflectance cluster in the scan"
+                                                          : "no reflectance cluster: " + c.note);
     return out;
   }
-  out.found = true;
   out.cluster = c.brightest;
   out.reflectance = c.clusters[static_cast<std::size_t>(c.brightest)].median_reflectance;
   return out;

@@ -48,12 +48,14 @@ double LineScan::pixel_pitch_rad() const {
   return d[d.size() / 2];
 }
 
-std::string check_scan(const LineScan& s) {
+common::Status check_scan(const LineScan& s) {
   if (s.angle_rad.size() != s.range_m.size()) {
-    return fmt::format("scan has {} angles but {} ranges", s.angle_rad.size(), s.range_m.size());
+    return common::Status::invalid(
+        fmt::format("scan has {} angles but {} ranges", s.angle_rad.size(), s.range_m.size()));
   }
   if (!s.reflectance.empty() && s.reflectance.size() != s.range_m.size()) {
-    return fmt::format("scan has {} ranges but {} reflectance values", s.range_m.size(), s.reflectance.size());
+    return common::Status::invalid(
+        fmt::format("scan has {} ranges but {} reflectance values", s.range_m.size(), s.reflectance.size()));
   }
   // One pass; the error path re-reads to name the culprit.
   const std::size_t n = s.angle_rad.size();
@@ -66,12 +68,14 @@ std::string check_scan(const LineScan& s) {
   }
   if (ok) return {};
   for (std::size_t i = 0; i < n; ++i) {
-    if (!std::isfinite(a[i])) return fmt::format("pixel {} has a non-finite angle ({})", i, a[i]);
+    if (!std::isfinite(a[i]))
+      return common::Status::invalid(fmt::format("pixel {} has a non-finite angle ({})", i, a[i]));
   }
   for (std::size_t i = 1; i < n; ++i) {
     if (!(dir * (a[i] - a[i - 1]) > 0.0)) {
-      return fmt::format("pixel angles must be strictly monotone: pixel {} at {} rad after pixel {} at {} rad", i, a[i],
-                         i - 1, a[i - 1]);
+      return common::Status::invalid(
+          fmt::format("pixel angles must be strictly monotone: pixel {} at {} rad after pixel {} at {} rad", i, a[i],
+                      i - 1, a[i - 1]));
     }
   }
   return {};

@@ -264,7 +264,7 @@ std::string check_inputs(const LineScan& scan, const TwoStageResult& objects, co
   if (expectation) {
     if (std::string why = check_expectation(*expectation); !why.empty()) return why;
   }
-  if (!objects.ok) return "clustering failed: " + objects.reason;
+  if (!objects.status.ok()) return "clustering failed: " + objects.status.message;
   if (objects.labels.size() != scan.size()) {
     return fmt::format("clustering has {} labels for a scan of {} pixels", objects.labels.size(), scan.size());
   }

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "laser_clustering/reflectance_clustering.hpp"
 
+#include "laser_clustering/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -9,18 +11,9 @@
 
 namespace tinyline::laser_clustering {
 
-common::Validation validate(const ReflectanceClusteringParams& p) {
-  if (auto v = validate(p.dbscan); !v.ok()) return {false, "dbscan: " + v.message};
-  if (!std::isfinite(p.reflectance_ratio_at_eps) || p.reflectance_ratio_at_eps <= 1.0) {
-    return {false, fmt::format("reflectance_ratio_at_eps must be finite and > 1 (got {})", p.reflectance_ratio_at_eps)};
-  }
-  if (p.smooth_half_width_px < 0) {
-    return {false, fmt::format("smooth_half_width_px must be >= 0 (got {})", p.smooth_half_width_px)};
-  }
-  if (!std::isfinite(p.smooth_step_m) || p.smooth_step_m < 0.0) {
-    return {false, fmt::format("smooth_step_m must be finite and >= 0 (got {})", p.smooth_step_m)};
-  }
-  return {};
+common::Status validate(const ReflectanceClusteringParams& p) {
+  // Every rule is a single field's range: the table holds them.
+  return common::within_table(p);
 }
 
 namespace {
@@ -113,14 +106,12 @@ void finish_cluster(const LineScan& scan, std::vector<double>& v, ReflectanceClu
 
 ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const ReflectanceClusteringParams& p) {
   ReflectanceClusteringResult out;
-  if (auto v = validate(p); !v.valid) {
-    out.reason = v.reason;
-    return out;
-  }
-  if (out.reason = check_scan(scan); !out.reason.empty()) return out;
+  if (out.status = validate(p); !out.status.ok()) return out;
+  if (out.status = check_scan(scan); !out.status.ok()) return out;
   if (p.use_reflectance && scan.reflectance.size() != scan.size()) {
-    out.reason = fmt::format("reflectance clustering needs a reflectance per pixel; the scan has {} for {} pixels",
-                             scan.reflectance.size(), scan.size());
+    out.status = common::Status::invalid(
+        fmt::format("reflectance clustering needs a reflectance per pixel; the scan has {} for {} pixels",
+                    scan.reflectance.size(), scan.size()));
     return out;
   }
   const std::vector<double> range = smooth_ranges(scan, p);
@@ -128,18 +119,14 @@ ReflectanceClusteringResult cluster_by_reflectance(const LineScan& scan, const R
   const std::size_t no_reflectance = p.use_reflectance ? reflectance_feature(scan, p, feature) : 0;
   OrderedScanDbscan dbscan;
   const DbscanResult r = dbscan.run({scan.angle_rad, range, feature, {}}, p.dbscan);
-  if (!r.status.ok()) {
-    out.reason = r.status.message;
-    return out;
-  }
-  out.ok = true;
+  if (out.status = r.status; !out.status.ok()) return out;
   out.labels = r.labels;
   if (scan.size() == 0) {
-    out.reason = "empty scan";
+    out.note = "empty scan";
   } else if (scan.num_valid() == 0) {
-    out.reason = "no valid pixels";
+    out.note = "no valid pixels";
   } else if (no_reflectance > 0) {
-    out.reason = fmt::format("{} pixels without a positive reflectance left out", no_reflectance);
+    out.note = fmt::format("{} pixels without a positive reflectance left out", no_reflectance);
   }
   out.clusters.resize(static_cast<std::size_t>(r.num_clusters));
   std::vector<std::vector<double>> refl(out.clusters.size());

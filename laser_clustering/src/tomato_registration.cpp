@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "laser_clustering/tomato_registration.hpp"
 
+#include "laser_clustering/param_tables.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -13,40 +15,16 @@
 
 namespace tinyline::laser_clustering {
 
-common::Validation validate(const TomatoRegistrationParams& p) {
-  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
-  if (!positive(p.max_shift_m)) return {false, fmt::format("max_shift_m must be > 0 (got {})", p.max_shift_m)};
-  if (!positive(p.grid_step_m) || p.grid_step_m > p.max_shift_m) {
-    return {false, fmt::format("grid_step_m must be in (0, max_shift_m] (got {})", p.grid_step_m)};
+common::Status validate(const TomatoRegistrationParams& p) {
+  // The single fields' ranges are the table's; these two span fields.
+  if (common::Status v = common::within_table(p); !v.ok()) return v;
+  if (p.grid_step_m > p.max_shift_m) {
+    return common::Status::invalid(
+        fmt::format("grid_step_m must be in (0, max_shift_m] (got {} and {})", p.grid_step_m, p.max_shift_m));
   }
-  if (!positive(p.inlier_m)) return {false, fmt::format("inlier_m must be > 0 (got {})", p.inlier_m)};
-  if (!std::isfinite(p.min_section_radius_m) || p.min_section_radius_m < 0.0) {
-    return {false, fmt::format("min_section_radius_m must be >= 0 (got {})", p.min_section_radius_m)};
-  }
-  if (!std::isfinite(p.min_range_m) || p.min_range_m < 0.0 || !positive(p.max_range_m) ||
-      p.max_range_m <= p.min_range_m) {
-    return {false, fmt::format("need 0 <= min_range_m < max_range_m (got {} and {})", p.min_range_m, p.max_range_m)};
-  }
-  if (!(p.core_fraction > 0.0 && p.core_fraction <= 1.0)) {
-    return {false, fmt::format("core_fraction must be in (0, 1] (got {})", p.core_fraction)};
-  }
-  if (!(std::isfinite(p.free_space_margin_m) && p.free_space_margin_m >= 0.0) ||
-      !(std::isfinite(p.violation_cost) && p.violation_cost >= 0.0) ||
-      !(std::isfinite(p.no_return_cost) && p.no_return_cost >= 0.0)) {
-    return {
-        false,
-        fmt::format("free_space_margin_m, violation_cost and no_return_cost must be finite and >= 0 (got {}, {}, {})",
-                    p.free_space_margin_m, p.violation_cost, p.no_return_cost)};
-  }
-  if (p.min_tomatoes < 1 || p.min_points_per_tomato < 1) {
-    return {false, fmt::format("min_tomatoes and min_points_per_tomato must be >= 1 (got {} and {})", p.min_tomatoes,
-                               p.min_points_per_tomato)};
-  }
-  if (!std::isfinite(p.distinct_shift_m) || p.distinct_shift_m < 0.0) {
-    return {false, fmt::format("distinct_shift_m must be >= 0 (got {})", p.distinct_shift_m)};
-  }
-  if (!(p.ambiguity_ratio > 0.0 && p.ambiguity_ratio <= 1.0)) {
-    return {false, fmt::format("ambiguity_ratio must be in (0, 1] (got {})", p.ambiguity_ratio)};
+  if (p.max_range_m <= p.min_range_m) {
+    return common::Status::invalid(
+        fmt::format("need 0 <= min_range_m < max_range_m (got {} and {})", p.min_range_m, p.max_range_m));
   }
   return {};
 }
@@ -163,13 +141,14 @@ double support(const std::vector<Point>& points, const std::vector<Ray>& rays, c
 }
 
 // The tomatoes' cross-sections with the laser plane wider than
-// min_section_radius_m, into `sections`; a reason for a bad tomato, or empty.
-std::string plane_sections(std::span<const ExpectedTomato> tomatoes, const TomatoRegistrationParams& p,
-                           std::vector<Section>& sections) {
+// min_section_radius_m, into `sections`; InvalidArgument for a bad tomato.
+common::Status plane_sections(std::span<const ExpectedTomato> tomatoes, const TomatoRegistrationParams& p,
+                              std::vector<Section>& sections) {
   for (std::size_t i = 0; i < tomatoes.size(); ++i) {
     const ExpectedTomato& t = tomatoes[i];
     if (!t.centre_m.allFinite() || !(std::isfinite(t.radius_m) && t.radius_m > 0.0)) {
-      return fmt::format("tomato {} needs a finite centre and a radius > 0 (got {})", i, t.radius_m);
+      return common::Status::invalid(
+          fmt::format("tomato {} needs a finite centre and a radius > 0 (got {})", i, t.radius_m));
     }
     const double h = t.centre_m.y();
     if (std::abs(h) >= t.radius_m) continue;
@@ -180,15 +159,15 @@ std::string plane_sections(std::span<const ExpectedTomato> tomatoes, const Tomat
 }
 
 // Every pixel as a ray, ascending by bearing, and the returns within the
-// range limits as points; a reason for a non-finite or non-monotone angle, or empty.
-std::string rays_and_points(const LineScan& scan, const TomatoRegistrationParams& p, std::vector<Ray>& rays,
-                            std::vector<Point>& points) {
+// range limits as points; InvalidArgument for a non-finite or non-monotone angle.
+common::Status rays_and_points(const LineScan& scan, const TomatoRegistrationParams& p, std::vector<Ray>& rays,
+                               std::vector<Point>& points) {
   const bool descending = scan.size() > 1 && scan.angle_rad.front() > scan.angle_rad.back();
   for (std::size_t k = 0; k < scan.size(); ++k) {
     const std::size_t i = descending ? scan.size() - 1 - k : k;
     const double a = scan.angle_rad[i];
     if (!std::isfinite(a) || (!rays.empty() && !(a > rays.back().angle))) {
-      return fmt::format("pixel {} has a non-finite or non-monotone angle ({})", i, a);
+      return common::Status::invalid(fmt::format("pixel {} has a non-finite or non-monotone angle ({})", i, a));
     }
     const Eigen::Vector2d u(std::sin(a), std::cos(a));
     rays.push_back({u, a, scan.valid(i) ? scan.range_m[i] : std::numeric_limits<double>::quiet_NaN()});
@@ -280,22 +259,22 @@ void score_shift(const std::vector<Point>& points, const std::vector<Ray>& rays,
   for (const int k : per_section) out.tomatoes_matched += k >= p.min_points_per_tomato;
 }
 
-// ok when enough tomatoes are met and no distinct shift comes close; the reason either way.
+// ok when enough tomatoes are met and no distinct shift comes close (the
+// note says how well), else NotFound saying which.
 void judge(const TomatoRegistrationParams& p, TomatoRegistration& out) {
   if (out.tomatoes_matched < p.min_tomatoes) {
-    out.reason = fmt::format("{} of {} tomatoes in the plane met by the scan, need {}", out.tomatoes_matched,
-                             out.tomatoes_in_plane, p.min_tomatoes);
+    out.status = common::Status::not_found(fmt::format("{} of {} tomatoes in the plane met by the scan, need {}",
+                                                       out.tomatoes_matched, out.tomatoes_in_plane, p.min_tomatoes));
     return;
   }
   if (out.runner_up_support >= p.ambiguity_ratio * out.support) {
-    out.reason =
+    out.status = common::Status::not_found(
         fmt::format("ambiguous: a shift {:.3f} m away has {:.0f} % of the best's support",
-                    (out.runner_up_shift_xz_m - out.shift_xz_m).norm(), 100.0 * out.runner_up_support / out.support);
+                    (out.runner_up_shift_xz_m - out.shift_xz_m).norm(), 100.0 * out.runner_up_support / out.support));
     return;
   }
-  out.ok = true;
-  out.reason = fmt::format("{} of {} tomatoes matched, {} returns, RMS {:.4f} m, {} pixels see through",
-                           out.tomatoes_matched, out.tomatoes_in_plane, out.inliers, out.rms_m, out.violations);
+  out.note = fmt::format("{} of {} tomatoes matched, {} returns, RMS {:.4f} m, {} pixels see through",
+                         out.tomatoes_matched, out.tomatoes_in_plane, out.inliers, out.rms_m, out.violations);
 }
 
 }  // namespace
@@ -303,27 +282,27 @@ void judge(const TomatoRegistrationParams& p, TomatoRegistration& out) {
 TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const ExpectedTomato> tomatoes,
                                      const TomatoRegistrationParams& p) {
   TomatoRegistration out;
-  if (auto v = validate(p); !v.valid) {
-    out.reason = v.reason;
-    return out;
-  }
+  if (out.status = validate(p); !out.status.ok()) return out;
   if (scan.angle_rad.size() != scan.range_m.size()) {
-    out.reason = fmt::format("scan has {} angles for {} ranges", scan.angle_rad.size(), scan.range_m.size());
+    out.status = common::Status::invalid(
+        fmt::format("scan has {} angles for {} ranges", scan.angle_rad.size(), scan.range_m.size()));
     return out;
   }
   std::vector<Section> sections;
-  if (out.reason = plane_sections(tomatoes, p, sections); !out.reason.empty()) return out;
+  if (out.status = plane_sections(tomatoes, p, sections); !out.status.ok()) return out;
   out.tomatoes_in_plane = static_cast<int>(sections.size());
   if (sections.empty()) {
-    out.reason = fmt::format("none of the {} tomatoes is cut by the laser plane wider than {:.3f} m", tomatoes.size(),
-                             p.min_section_radius_m);
+    out.status =
+        common::Status::not_found(fmt::format("none of the {} tomatoes is cut by the laser plane wider than {:.3f} m",
+                                              tomatoes.size(), p.min_section_radius_m));
     return out;
   }
   std::vector<Point> points;
   std::vector<Ray> rays;
-  if (out.reason = rays_and_points(scan, p, rays, points); !out.reason.empty()) return out;
+  if (out.status = rays_and_points(scan, p, rays, points); !out.status.ok()) return out;
   if (points.empty()) {
-    out.reason = fmt::format("no return between {:.3f} and {:.3f} m", p.min_range_m, p.max_range_m);
+    out.status =
+        common::Status::not_found(fmt::format("no return between {:.3f} and {:.3f} m", p.min_range_m, p.max_range_m));
     return out;
   }
   const Eigen::Vector2d coarse = grid_search(points, rays, sections, p, out);

@@ -102,24 +102,22 @@ TwoStageResult LineScanClusterer::run(const LineScan& scan) {
 void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
   reset(out);
   if (!valid_.ok()) {
-    out.reason = valid_.message;
+    out.status = valid_;
     return;
   }
-  if (out.reason = check_once(scan); !out.reason.empty()) return;
+  if (out.status = check_once(scan); !out.status.ok()) return;
   // Stage 1: object groups.
   dbscan_.run({scan.angle_rad, scan.range_m, {}, {}}, params_.groups, groups_);
   if (!groups_.status.ok()) {
-    out.reason = "stage 1: " + groups_.status.message;
+    out.status = groups_.status.within("stage 1");
     return;
   }
-  out.ok = true;
   out.num_groups = groups_.num_clusters;
   edge_filter(scan, out);
   // Stage 3: small-eps DBSCAN inside each group, on the smoothed ranges.
   dbscan_.run({scan.angle_rad, out.smoothed_range_m, {}, group_}, params_.objects, objects_);
   if (!objects_.status.ok()) {
-    out.ok = false;
-    out.reason = "stage 3: " + objects_.status.message;
+    out.status = objects_.status.within("stage 3");
     return;
   }
   out.labels.assign(objects_.labels.begin(), objects_.labels.end());
@@ -127,15 +125,15 @@ void LineScanClusterer::run(const LineScan& scan, TwoStageResult& out) {
   for (std::size_t l = 0; l < out.clusters.size(); ++l) finish_cluster(scan, l, out);
   out.group_labels.assign(groups_.labels.begin(), groups_.labels.end());
   if (scan.size() == 0) {
-    out.reason = "empty scan";
+    out.note = "empty scan";
   } else if (!any_valid) {
-    out.reason = "no valid pixels";
+    out.note = "no valid pixels";
   }
 }
 
 void LineScanClusterer::reset(TwoStageResult& out) {
-  out.ok = false;
-  out.reason.clear();
+  out.status = {};
+  out.note.clear();
   out.group_labels.clear();
   out.fate.clear();
   out.smoothed_range_m.clear();
@@ -145,7 +143,7 @@ void LineScanClusterer::reset(TwoStageResult& out) {
   out.num_edge_dropped = 0;
 }
 
-std::string LineScanClusterer::check_once(const LineScan& scan) {
+common::Status LineScanClusterer::check_once(const LineScan& scan) {
   // A sensor's pixel angles are the same scan after scan: check them once.
   const bool same_angles =
       checked_angle_.size() == scan.angle_rad.size() && !checked_angle_.empty() &&
@@ -154,13 +152,13 @@ std::string LineScanClusterer::check_once(const LineScan& scan) {
       (scan.reflectance.empty() || scan.reflectance.size() == scan.range_m.size())) {
     return {};  // checked before
   }
-  std::string reason = check_scan(scan);
-  if (reason.empty()) {
+  common::Status status = check_scan(scan);
+  if (status.ok()) {
     checked_angle_.assign(scan.angle_rad.begin(), scan.angle_rad.end());
   } else {
     checked_angle_.clear();
   }
-  return reason;
+  return status;
 }
 
 // Stage 2: the edge filter, run by run. A run is a stretch of valid pixels

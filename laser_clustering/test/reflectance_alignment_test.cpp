@@ -80,11 +80,11 @@ TEST(ReflectanceClustering, StickNearBackgroundSeparatesOnlyWithReflectance) {
     const auto s = stick_scene(static_cast<unsigned>(t + 1), 0.004);
     lc::ReflectanceClusteringParams p;
     const auto r = lc::cluster_by_reflectance(s.scan, p);
-    ASSERT_TRUE(r.ok) << r.reason;
+    ASSERT_TRUE(r.status.ok()) << r.status.message;
     with += stick_iou(r.labels, s) >= 0.8;
     p.use_reflectance = false;
     const auto d = lc::cluster_by_reflectance(s.scan, p);
-    ASSERT_TRUE(d.ok);
+    ASSERT_TRUE(d.status.ok());
     without += stick_iou(d.labels, s) >= 0.8;
   }
   EXPECT_GE(with, 95) << "of " << trials;
@@ -94,7 +94,7 @@ TEST(ReflectanceClustering, StickNearBackgroundSeparatesOnlyWithReflectance) {
 TEST(ReflectanceClustering, BrightestClusterIsTheMetal) {
   const auto s = stick_scene(3, 0.004);
   const auto r = lc::cluster_by_reflectance(s.scan);
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   ASSERT_GE(r.brightest, 0);
   const auto& c = r.clusters[static_cast<std::size_t>(r.brightest)];
   EXPECT_NEAR(c.median_reflectance, 37.0, 4.0);
@@ -107,50 +107,50 @@ TEST(ReflectanceClustering, BadInput) {
   lc::LineScan no_refl = s.scan;
   no_refl.reflectance.clear();
   auto r = lc::cluster_by_reflectance(no_refl);
-  EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("needs a reflectance per pixel"));
+  EXPECT_EQ(r.status.code, tinyline::StatusCode::InvalidArgument);
+  EXPECT_THAT(r.status.message, HasSubstr("needs a reflectance per pixel"));
   lc::ReflectanceClusteringParams p;
   p.use_reflectance = false;
-  EXPECT_TRUE(lc::cluster_by_reflectance(no_refl, p).ok) << "distance-only needs no reflectance";
+  EXPECT_TRUE(lc::cluster_by_reflectance(no_refl, p).status.ok()) << "distance-only needs no reflectance";
   p = {};
   p.reflectance_ratio_at_eps = 1.0;
-  EXPECT_THAT(lc::cluster_by_reflectance(s.scan, p).reason,
-              HasSubstr("reflectance_ratio_at_eps must be finite and > 1"));
+  EXPECT_THAT(lc::cluster_by_reflectance(s.scan, p).status.message,
+              HasSubstr("reflectance_ratio_at_eps must be in [1.0001, 1000], got 1"));
   p = {};
   p.dbscan.eps = -1.0;
-  EXPECT_THAT(lc::cluster_by_reflectance(s.scan, p).reason, HasSubstr("dbscan: DbscanParams.eps"));
+  EXPECT_THAT(lc::cluster_by_reflectance(s.scan, p).status.message, HasSubstr("eps_m must be in"));
   // Zero and NaN reflectance: those pixels are left out and counted.
   lc::LineScan holes = s.scan;
   holes.reflectance[10] = 0.0;
   holes.reflectance[11] = std::numeric_limits<double>::quiet_NaN();
   r = lc::cluster_by_reflectance(holes);
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   EXPECT_EQ(r.labels[10], lc::kInvalid);
   EXPECT_EQ(r.labels[11], lc::kInvalid);
-  EXPECT_THAT(r.reason, HasSubstr("2 pixels without a positive reflectance"));
+  EXPECT_THAT(r.note, HasSubstr("2 pixels without a positive reflectance"));
   // Empty and all-invalid.
-  EXPECT_EQ(lc::cluster_by_reflectance(lc::LineScan{}).reason, "empty scan");
+  EXPECT_EQ(lc::cluster_by_reflectance(lc::LineScan{}).note, "empty scan");
   lc::LineScan dark = s.scan;
   for (auto& x : dark.range_m) x = std::numeric_limits<double>::quiet_NaN();
   r = lc::cluster_by_reflectance(dark);
-  EXPECT_TRUE(r.ok);
+  EXPECT_TRUE(r.status.ok());
   EXPECT_EQ(r.brightest, -1);
   // Finite figures on invalid pixels are saturated pixels' lower bounds
   // (line_scan.hpp): without them, or when told not to use them, nothing.
   lc::SurfaceReflectanceParams valid_only;
   valid_only.use_saturated = false;
   auto sr = lc::surface_reflectance(dark, valid_only);
-  EXPECT_FALSE(sr.found);
-  EXPECT_THAT(sr.reason, HasSubstr("no valid pixel with a reflectance in pixels 0..255"));
+  EXPECT_EQ(sr.status.code, tinyline::StatusCode::NotFound);
+  EXPECT_THAT(sr.status.message, HasSubstr("no valid pixel with a reflectance in pixels 0..255"));
   for (auto& x : dark.reflectance) x = std::numeric_limits<double>::quiet_NaN();
   sr = lc::surface_reflectance(dark);
-  EXPECT_FALSE(sr.found);
-  EXPECT_THAT(sr.reason, HasSubstr("no valid pixel with a reflectance in pixels 0..255"));
+  EXPECT_EQ(sr.status.code, tinyline::StatusCode::NotFound);
+  EXPECT_THAT(sr.status.message, HasSubstr("no valid pixel with a reflectance in pixels 0..255"));
   lc::SurfaceReflectanceParams by_cluster;
   by_cluster.method = lc::SurfaceReflectanceParams::Method::kBrightestCluster;
   const auto sc = lc::surface_reflectance(dark, by_cluster);
-  EXPECT_FALSE(sc.found);
-  EXPECT_THAT(sc.reason, HasSubstr("no valid pixels"));
+  EXPECT_EQ(sc.status.code, tinyline::StatusCode::NotFound);
+  EXPECT_THAT(sc.status.message, HasSubstr("no reflectance cluster: no valid pixels"));
 }
 
 namespace {
@@ -179,13 +179,13 @@ TEST(AlignmentSearch, RefinesThePeakBetweenSteps) {
     const double p0 = u(rng) * kDeg;
     const auto clean = sweep(p0, 4.0 * kDeg, 2.0 * kDeg, -20 * kDeg, 20 * kDeg, 0.0, rng);
     const auto a = lc::find_alignment(clean);
-    ASSERT_EQ(a.outcome, AlignmentOutcome::kFound) << a.reason;
+    ASSERT_EQ(a.outcome, AlignmentOutcome::kFound) << a.status.message;
     EXPECT_TRUE(a.refined);
     err_noiseless.push_back(std::abs(a.best_pitch_rad - p0));
     auto noisy = sweep(p0, 4.0 * kDeg, 2.0 * kDeg, -20 * kDeg, 20 * kDeg, 0.05, rng);
     std::shuffle(noisy.begin(), noisy.end(), rng);  // order does not matter
     const auto b = lc::find_alignment(noisy);
-    ASSERT_EQ(b.outcome, AlignmentOutcome::kFound) << b.reason;
+    ASSERT_EQ(b.outcome, AlignmentOutcome::kFound) << b.status.message;
     err_noisy.push_back(std::abs(b.best_pitch_rad - p0));
   }
   std::sort(err_noiseless.begin(), err_noiseless.end());
@@ -202,22 +202,25 @@ TEST(AlignmentSearch, EdgeFlatAndTooFewSamples) {
   const auto edge = sweep(12 * kDeg, 4 * kDeg, 2 * kDeg, -10 * kDeg, 10 * kDeg, 0.0, rng);
   const auto a = lc::find_alignment(edge);
   EXPECT_EQ(a.outcome, AlignmentOutcome::kAtSweepEdge);
-  EXPECT_THAT(a.reason, HasSubstr("highest pitch"));
+  EXPECT_EQ(a.status.code, tinyline::StatusCode::NotFound);
+  EXPECT_THAT(a.status.message, HasSubstr("highest pitch"));
   EXPECT_NEAR(a.best_pitch_rad, 10 * kDeg, 1e-9);
 
   std::vector<lc::AlignmentSample> flat{{0.0, 5.0}, {0.1, 5.1}, {0.2, 4.9}, {0.3, 5.0}};
   EXPECT_EQ(lc::find_alignment(flat).outcome, AlignmentOutcome::kNoPeak);
+  EXPECT_EQ(lc::find_alignment(flat).status.code, tinyline::StatusCode::NotFound);
 
   std::vector<lc::AlignmentSample> few{
       {0.0, 5.0}, {0.1, std::numeric_limits<double>::quiet_NaN()}, {0.2, -1.0}, {0.3, 9.0}};
   const auto f = lc::find_alignment(few);
   EXPECT_EQ(f.outcome, AlignmentOutcome::kInvalidInput);
-  EXPECT_THAT(f.reason, HasSubstr("need at least 3 usable pitches, got 2 (2 samples skipped"));
+  EXPECT_EQ(f.status.code, tinyline::StatusCode::InvalidArgument);
+  EXPECT_THAT(f.status.message, HasSubstr("need at least 3 usable pitches, got 2 (2 samples skipped"));
   EXPECT_EQ(lc::find_alignment({}).outcome, AlignmentOutcome::kInvalidInput);
 
   lc::AlignmentParams p;
   p.fit_half_width = 0;
-  EXPECT_THAT(lc::find_alignment(flat, p).reason, HasSubstr("fit_half_width"));
+  EXPECT_THAT(lc::find_alignment(flat, p).status.message, HasSubstr("fit_half_width must be in [1, 50], got 0"));
 }
 
 TEST(AlignmentSearch, RepeatedPitchesAreAveraged) {
@@ -235,19 +238,19 @@ TEST(AlignmentSearch, SurfaceReflectanceOfTheMetal) {
   lc::SurfaceReflectanceParams q;
   q.quantile = 0.98;
   const auto r = lc::surface_reflectance(s.scan, q);
-  ASSERT_TRUE(r.found) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   EXPECT_NEAR(r.reflectance, 37.0, 4.0);
   // The same from the brightest cluster.
   lc::SurfaceReflectanceParams c;
   c.method = lc::SurfaceReflectanceParams::Method::kBrightestCluster;
   const auto rc = lc::surface_reflectance(s.scan, c);
-  ASSERT_TRUE(rc.found) << rc.reason;
+  ASSERT_TRUE(rc.status.ok()) << rc.status.message;
   EXPECT_NEAR(rc.reflectance, 37.0, 4.0);
   // A region of interest without the stick sees the wall only.
   lc::SurfaceReflectanceParams left = q;
   left.last_pixel = 100;
   const auto rl = lc::surface_reflectance(s.scan, left);
-  ASSERT_TRUE(rl.found);
+  ASSERT_TRUE(rl.status.ok());
   EXPECT_LT(rl.reflectance, 7.0);
 }
 
@@ -255,14 +258,16 @@ TEST(AlignmentSearch, SurfaceReflectanceRejectsBadParameters) {
   const auto s = stick_scene(5, 0.004);
   lc::SurfaceReflectanceParams p;
   p.quantile = 0.0;
-  EXPECT_THAT(lc::surface_reflectance(s.scan, p).reason, HasSubstr("quantile must be in (0, 1]"));
+  EXPECT_THAT(lc::surface_reflectance(s.scan, p).status.message,
+              HasSubstr("surface_quantile must be in [0.01, 1], got 0"));
   p = {};
   p.first_pixel = 50;
   p.last_pixel = 10;
-  EXPECT_THAT(lc::surface_reflectance(s.scan, p).reason, HasSubstr("last_pixel (10) is before first_pixel (50)"));
+  EXPECT_THAT(lc::surface_reflectance(s.scan, p).status.message,
+              HasSubstr("last_pixel (10) is before first_pixel (50)"));
   lc::LineScan no_refl = s.scan;
   no_refl.reflectance.clear();
-  EXPECT_THAT(lc::surface_reflectance(no_refl).reason, HasSubstr("0 reflectance values for 256 pixels"));
+  EXPECT_THAT(lc::surface_reflectance(no_refl).status.message, HasSubstr("0 reflectance values for 256 pixels"));
 }
 
 // A specular peak that saturates: its pixels have no distance; their
@@ -296,11 +301,11 @@ TEST(AlignmentSearch, SaturatedPixelsCountAsLowerBoundsOfThePeak) {
   lc::SurfaceReflectanceParams p;
   p.quantile = 0.95;
   const auto with = lc::surface_reflectance(bounded, p);
-  ASSERT_TRUE(with.found) << with.reason;
+  ASSERT_TRUE(with.status.ok()) << with.status.message;
   EXPECT_DOUBLE_EQ(with.reflectance, 187500.0);
   p.use_saturated = false;
   const auto without = lc::surface_reflectance(bounded, p);
-  ASSERT_TRUE(without.found);
+  ASSERT_TRUE(without.status.ok());
   EXPECT_DOUBLE_EQ(without.reflectance, 9000.0) << "the shoulders only";
 
   // No valid neighbour within the gap: no bound. Mismatched sizes: nothing done.

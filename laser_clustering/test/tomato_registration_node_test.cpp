@@ -97,8 +97,8 @@ TEST(LaserClusteringNodes, TomatoRegistrationAnswersWhatTheCoreAnswers) {
   EXPECT_NEAR(r.shift_z_m, offset.y(), 0.004);
 
   const auto core = lc::register_tomatoes(through_the_wire(s.scan), vision_tomatoes(offset));
-  EXPECT_EQ(r.ok, core.ok);
-  EXPECT_EQ(r.reason, core.reason);
+  EXPECT_EQ(r.ok, core.status.ok());
+  EXPECT_EQ(r.reason, core.status.ok() ? core.note : core.status.message);
   EXPECT_DOUBLE_EQ(r.shift_x_m, core.shift_xz_m.x());
   EXPECT_DOUBLE_EQ(r.shift_z_m, core.shift_xz_m.y());
   EXPECT_EQ(r.tomatoes_in_plane, core.tomatoes_in_plane);
@@ -127,8 +127,8 @@ TEST(LaserClusteringNodes, TomatoRegistrationAnswersWhatTheCoreAnswers) {
   lc::TomatoRegistrationParams p;
   p.max_shift_m = 0.02;
   const auto bounded = lc::register_tomatoes(through_the_wire(s.scan), vision_tomatoes(offset), p);
-  EXPECT_EQ(look.got[2]->ok, bounded.ok);
-  EXPECT_EQ(look.got[2]->reason, bounded.reason);
+  EXPECT_EQ(look.got[2]->ok, bounded.status.ok());
+  EXPECT_EQ(look.got[2]->reason, bounded.status.ok() ? bounded.note : bounded.status.message);
   EXPECT_DOUBLE_EQ(look.got[2]->shift_x_m, bounded.shift_xz_m.x());
   EXPECT_DOUBLE_EQ(look.got[2]->shift_z_m, bounded.shift_xz_m.y());
   EXPECT_DOUBLE_EQ(look.got[2]->support, bounded.support);

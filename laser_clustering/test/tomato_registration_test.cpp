@@ -56,7 +56,7 @@ TEST(TomatoRegistration, RecoversTheVisionsCommonOffset) {
        {Eigen::Vector2d(0.03, -0.015), Eigen::Vector2d(-0.045, 0.01), Eigen::Vector2d(0.0, 0.0)}) {
     const auto s = synth_scan(truth, wall(11));
     const auto r = lc::register_tomatoes(s.scan, vision(truth, offset, 0.01));
-    ASSERT_TRUE(r.ok) << r.reason;
+    ASSERT_TRUE(r.status.ok()) << r.status.message;
     EXPECT_NEAR(r.shift_xz_m.x(), offset.x(), 0.004);
     EXPECT_NEAR(r.shift_xz_m.y(), offset.y(), 0.004);
     EXPECT_EQ(r.tomatoes_in_plane, 4);
@@ -74,8 +74,8 @@ TEST(TomatoRegistration, ARepeatingTrussIsAmbiguousNotGuessed) {
   const std::vector<Disc> seen(truth.begin() + 1, truth.begin() + 4);
   const auto s = synth_scan(truth, wall(12));
   const auto r = lc::register_tomatoes(s.scan, vision(seen, {0.0, 0.0}));
-  EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("ambiguous"));
+  EXPECT_EQ(r.status.code, tinyline::StatusCode::NotFound);
+  EXPECT_THAT(r.status.message, HasSubstr("ambiguous"));
   EXPECT_GT(r.runner_up_support, 0.8 * r.support);
 }
 
@@ -89,14 +89,14 @@ TEST(TomatoRegistration, FreeSpaceRulesOutAShiftThatPutsATomatoWhereTheLaserSees
   const auto s = synth_scan({left, middle, right, leaf}, wall(13));
   const auto expected = vision({left, middle, right}, {0.0, 0.0});
   const auto r = lc::register_tomatoes(s.scan, expected);
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   EXPECT_NEAR(r.shift_xz_m.x(), 0.0, 0.004);
   EXPECT_NEAR(r.shift_xz_m.y(), 0.0, 0.004);
   EXPECT_LE(r.violations, 2);
   lc::TomatoRegistrationParams arcs_only;
   arcs_only.violation_cost = arcs_only.no_return_cost = 0.0;
   const auto a = lc::register_tomatoes(s.scan, expected, arcs_only);
-  EXPECT_FALSE(a.ok) << "arcs alone cannot tell the two shifts apart: " << a.reason;
+  EXPECT_FALSE(a.status.ok()) << "arcs alone cannot tell the two shifts apart: " << a.status.message;
   EXPECT_GT(a.runner_up_support, 0.8 * a.support);
 }
 
@@ -104,13 +104,13 @@ TEST(TomatoRegistration, TooFewTomatoesInThePlaneOrInTheScanIsNoRegistration) {
   const std::vector<Disc> truth{{0.0, 0.22, 0.03, 6.0, 1}};
   const auto s = synth_scan(truth, wall(14));
   const auto one = lc::register_tomatoes(s.scan, vision(truth, {0.01, 0.0}));
-  EXPECT_FALSE(one.ok);
-  EXPECT_THAT(one.reason, HasSubstr("need 2"));
+  EXPECT_FALSE(one.status.ok());
+  EXPECT_THAT(one.status.message, HasSubstr("need 2"));
   // Centres 4 cm off the plane: no tomato is cut by it.
   const auto above = lc::register_tomatoes(
       s.scan, {{{Eigen::Vector3d(0.0, 0.04, 0.22), 0.03}, {Eigen::Vector3d(0.07, 0.04, 0.22), 0.03}}});
-  EXPECT_FALSE(above.ok);
-  EXPECT_THAT(above.reason, HasSubstr("cut by the laser plane"));
+  EXPECT_FALSE(above.status.ok());
+  EXPECT_THAT(above.status.message, HasSubstr("cut by the laser plane"));
   EXPECT_EQ(above.tomatoes_in_plane, 0);
 }
 
@@ -120,36 +120,36 @@ TEST(TomatoRegistration, BadInputIsAnErrorWithAReasonNeverACrash) {
   const auto tomatoes = vision(truth, {0.0, 0.0});
   const double nan = std::numeric_limits<double>::quiet_NaN();
 
-  EXPECT_THAT(lc::register_tomatoes(s.scan, {}).reason, HasSubstr("cut by the laser plane"));
+  EXPECT_THAT(lc::register_tomatoes(s.scan, {}).status.message, HasSubstr("cut by the laser plane"));
   auto bad = tomatoes;
   bad[1].centre_m.x() = nan;
-  EXPECT_THAT(lc::register_tomatoes(s.scan, bad).reason, HasSubstr("tomato 1"));
+  EXPECT_THAT(lc::register_tomatoes(s.scan, bad).status.message, HasSubstr("tomato 1"));
   bad = tomatoes;
   bad[0].radius_m = -0.01;
-  EXPECT_THAT(lc::register_tomatoes(s.scan, bad).reason, HasSubstr("tomato 0"));
+  EXPECT_THAT(lc::register_tomatoes(s.scan, bad).status.message, HasSubstr("tomato 0"));
 
   lc::TomatoRegistrationParams p;
   p.grid_step_m = 0.0;
-  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("grid_step_m"));
+  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).status.message, HasSubstr("grid_step_m"));
   p = {};
   p.inlier_m = nan;
-  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("inlier_m"));
+  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).status.message, HasSubstr("inlier_m"));
   p = {};
-  p.core_fraction = 0.0;
-  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("core_fraction"));
+  p.core_fraction = 1.5;
+  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).status.message, HasSubstr("core_fraction"));
   p = {};
   p.violation_cost = -1.0;
-  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("violation_cost"));
+  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).status.message, HasSubstr("violation_cost"));
   p = {};
   p.ambiguity_ratio = 1.5;
-  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).reason, HasSubstr("ambiguity_ratio"));
+  EXPECT_THAT(lc::register_tomatoes(s.scan, tomatoes, p).status.message, HasSubstr("ambiguity_ratio"));
 
   lc::LineScan empty;
-  EXPECT_THAT(lc::register_tomatoes(empty, tomatoes).reason, HasSubstr("no return"));
+  EXPECT_THAT(lc::register_tomatoes(empty, tomatoes).status.message, HasSubstr("no return"));
   lc::LineScan all_invalid = s.scan;
   for (auto& r : all_invalid.range_m) r = nan;
-  EXPECT_THAT(lc::register_tomatoes(all_invalid, tomatoes).reason, HasSubstr("no return"));
+  EXPECT_THAT(lc::register_tomatoes(all_invalid, tomatoes).status.message, HasSubstr("no return"));
   lc::LineScan short_angles = s.scan;
   short_angles.angle_rad.pop_back();
-  EXPECT_THAT(lc::register_tomatoes(short_angles, tomatoes).reason, HasSubstr("angles"));
+  EXPECT_THAT(lc::register_tomatoes(short_angles, tomatoes).status.message, HasSubstr("angles"));
 }

@@ -44,7 +44,7 @@ TEST(TwoStage, PedicelInFrontOfAWallIsOneNarrowObject) {
   sp.seed = 3;
   const auto s = synth_scan({{0.01, 0.15, 0.003, 6.0, 1}}, sp);
   const auto r = lc::cluster_line_scan(s.scan);
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   const int ped = object_of(r, s.truth, 1);
   ASSERT_GE(ped, 0);
   const auto& c = r.clusters[static_cast<std::size_t>(ped)];
@@ -76,7 +76,7 @@ TEST(TwoStage, DragTrailLeavesNoSpuriousObjectAndDoesNotWidenThePedicel) {
     const auto s =
         synth_scan({{-0.05, 0.16, 0.003, 6.0, 1}, {0.0, 0.14, 0.003, 6.0, 2}, {0.045, 0.18, 0.003, 6.0, 3}}, sp);
     const auto r = lc::cluster_line_scan(s.scan);
-    ASSERT_TRUE(r.ok) << r.reason;
+    ASSERT_TRUE(r.status.ok()) << r.status.message;
     dropped += r.num_edge_dropped;
     std::set<int> real;
     for (int id = 0; id <= 3; ++id) real.insert(object_of(r, s.truth, id));
@@ -105,7 +105,7 @@ TEST(TwoStage, PedicelTouchingATomatoIsSeparatedInsideOneGroup) {
   sp.seed = 5;
   const auto s = synth_scan({{0.0, 0.14, 0.003, 6.0, 1}, {0.0, 0.19, 0.032, 6.0, 2}}, sp);
   const auto r = lc::cluster_line_scan(s.scan);
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   const int ped = object_of(r, s.truth, 1), tom = object_of(r, s.truth, 2);
   ASSERT_GE(ped, 0);
   ASSERT_GE(tom, 0);
@@ -132,7 +132,7 @@ TEST(TwoStage, SmoothingReducesNoiseWithoutCrossingSteps) {
   sp.seed = 9;
   const auto s = synth_scan({}, sp);
   const auto r = lc::cluster_line_scan(s.scan);
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   double raw = 0.0, smooth = 0.0;
   int n = 0;
   for (std::size_t i = 0; i < s.scan.size(); ++i) {
@@ -164,7 +164,7 @@ TEST(TwoStage, FieldOfViewEdgeIsFlagged) {
   const double a = -35.0 * std::numbers::pi / 180.0;
   const auto s = synth_scan({{0.15 * std::sin(a) + 0.001, 0.15 * std::cos(a), 0.003, 6.0, 1}}, sp);
   const auto r = lc::cluster_line_scan(s.scan);
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.status.ok());
   ASSERT_EQ(r.clusters.size(), 1u);
   EXPECT_TRUE(r.clusters[0].touches_fov_edge);
   EXPECT_LT(r.clusters[0].width_m, 0.006);
@@ -172,8 +172,8 @@ TEST(TwoStage, FieldOfViewEdgeIsFlagged) {
 
 TEST(TwoStage, EmptyAllInvalidAndMalformedScans) {
   const auto empty = lc::cluster_line_scan({});
-  EXPECT_TRUE(empty.ok);
-  EXPECT_EQ(empty.reason, "empty scan");
+  EXPECT_TRUE(empty.status.ok());
+  EXPECT_EQ(empty.note, "empty scan");
   EXPECT_TRUE(empty.clusters.empty());
 
   lc::LineScan nan_scan;
@@ -182,40 +182,40 @@ TEST(TwoStage, EmptyAllInvalidAndMalformedScans) {
     nan_scan.range_m.push_back(std::numeric_limits<double>::quiet_NaN());
   }
   const auto all_bad = lc::cluster_line_scan(nan_scan);
-  EXPECT_TRUE(all_bad.ok);
-  EXPECT_EQ(all_bad.reason, "no valid pixels");
+  EXPECT_TRUE(all_bad.status.ok());
+  EXPECT_EQ(all_bad.note, "no valid pixels");
   EXPECT_TRUE(all_bad.clusters.empty());
   for (const auto l : all_bad.labels) EXPECT_EQ(l, lc::kInvalid);
 
   lc::LineScan mismatch = nan_scan;
   mismatch.range_m.pop_back();
   const auto m = lc::cluster_line_scan(mismatch);
-  EXPECT_FALSE(m.ok);
-  EXPECT_THAT(m.reason, HasSubstr("256 angles but 255 ranges"));
+  EXPECT_EQ(m.status.code, tinyline::StatusCode::InvalidArgument);
+  EXPECT_THAT(m.status.message, HasSubstr("256 angles but 255 ranges"));
 
   lc::LineScan backwards = nan_scan;
   backwards.angle_rad[100] = backwards.angle_rad[50];
   const auto b = lc::cluster_line_scan(backwards);
-  EXPECT_FALSE(b.ok);
-  EXPECT_THAT(b.reason, HasSubstr("pixel 100"));
+  EXPECT_FALSE(b.status.ok());
+  EXPECT_THAT(b.status.message, HasSubstr("pixel 100"));
 
   lc::LineScan refl = nan_scan;
   refl.reflectance.assign(3, 1.0);
-  EXPECT_THAT(lc::cluster_line_scan(refl).reason, HasSubstr("256 ranges but 3 reflectance"));
+  EXPECT_THAT(lc::cluster_line_scan(refl).status.message, HasSubstr("256 ranges but 3 reflectance"));
 }
 
 TEST(TwoStage, RejectsBadParameters) {
   lc::TwoStageParams p;
   p.groups.eps = 0.0;
-  EXPECT_THAT(lc::cluster_line_scan({}, p).reason, HasSubstr("groups: DbscanParams.eps"));
+  EXPECT_THAT(lc::cluster_line_scan({}, p).status.message, HasSubstr("groups: DbscanParams.eps"));
   p = {};
   p.objects.min_points = 0;
-  EXPECT_THAT(lc::cluster_line_scan({}, p).reason, HasSubstr("objects: DbscanParams.min_points"));
+  EXPECT_THAT(lc::cluster_line_scan({}, p).status.message, HasSubstr("objects: DbscanParams.min_points"));
   p = {};
   p.edge.step_m = std::numeric_limits<double>::quiet_NaN();
   const auto r = lc::cluster_line_scan({}, p);
-  EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("edge: edge_step_m must be in [0, 1], got nan"));
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_THAT(r.status.message, HasSubstr("edge: edge_step_m must be in [0, 1], got nan"));
   p = {};
   p.edge.reference_px = 0;
   EXPECT_THAT(lc::validate(p).message, HasSubstr("edge_reference_px must be in [1, 16], got 0"));
@@ -273,8 +273,9 @@ TEST(TwoStage, AReusedResultIsTheSameAsAFreshOne) {
     SCOPED_TRACE(k);
     reused_clusterer.run(scans[k], kept);
     const lc::TwoStageResult fresh = lc::cluster_line_scan(scans[k]);
-    EXPECT_EQ(kept.ok, fresh.ok);
-    EXPECT_EQ(kept.reason, fresh.reason);
+    EXPECT_EQ(kept.status.code, fresh.status.code);
+    EXPECT_EQ(kept.status.message, fresh.status.message);
+    EXPECT_EQ(kept.note, fresh.note);
     EXPECT_EQ(kept.group_labels, fresh.group_labels);
     EXPECT_EQ(kept.fate, fresh.fate);
     EXPECT_EQ(kept.labels, fresh.labels);
@@ -301,7 +302,7 @@ TEST(TwoStage, AReusedResultIsTheSameAsAFreshOne) {
       EXPECT_EQ(a.occluded_high, b.occluded_high);
     }
     if (k == 3) {
-      EXPECT_FALSE(kept.ok) << "the malformed scan";
+      EXPECT_FALSE(kept.status.ok()) << "the malformed scan";
     }
   }
 }

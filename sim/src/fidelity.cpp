@@ -126,7 +126,8 @@ FitScore score(const std::string& name, const cal::CalibrationDataset& train, co
   fp.fit_temperature = false;  // every set is warm
   fp.selection = cal::ReadoutSelection::kAll;
   const cal::DeclaredFitResult fit = cal::fit_declared_model(train, fp);
-  if (!fit.ok) throw std::runtime_error("fidelity: calibration fit '" + name + "' failed: " + fit.reason);
+  if (!fit.status.ok())
+    throw std::runtime_error("fidelity: calibration fit '" + name + "' failed: " + fit.status.message);
   std::vector<std::size_t> all(train.size());
   for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
   const std::vector<double> res = cal::model_residuals(fit.model, train, all);

@@ -62,7 +62,7 @@ tld::CalibrationModel factory_calibration(const SensorParams& params) {
   fp.temperature_reference_c = params.thermal.warm_c;
   fp.selection = cal::ReadoutSelection::kDriver;
   const cal::DeclaredFitResult fit = cal::fit_declared_model(data, fp);
-  if (!fit.ok) throw std::runtime_error("factory calibration failed: " + fit.reason);
+  if (!fit.status.ok()) throw std::runtime_error("factory calibration failed: " + fit.status.message);
   return fit.model;
 }
 

@@ -624,7 +624,7 @@ bool split_into(DiscoveryResult& res, const CalibrationDataset& data, const Disc
   res.groups = split.groups;
   res.holdout_groups = split.holdout_groups;
   if (!split.problem.empty()) {
-    res.reason = split.problem;
+    res.status = common::Status::invalid(split.problem);
     return false;
   }
   res.train_rows = rows_where(split, valid, false);
@@ -677,7 +677,8 @@ std::vector<CalibrationTerm> confirm_on_holdout(DiscoveryResult& res, const Cali
     auto trial = kept_terms;
     trial.push_back(loop.accepted[k]);
     const auto fit = fit_calibration_model(data, res.train_rows, p.declared, trial);
-    const double after = fit.ok ? evaluate_model(fit.model, data, res.holdout_rows, p.declared.selection).rmse_m : kNaN;
+    const double after =
+        fit.status.ok() ? evaluate_model(fit.model, data, res.holdout_rows, p.declared.selection).rmse_m : kNaN;
     if (!confirmed(current, after, p)) {
       res.rejected_on_holdout.push_back(loop.accepted[k]);
       res.notes.push_back(
@@ -749,8 +750,8 @@ bool holds_on_other_session(const CalibrationDataset& data, const DiscoveryParam
   without.erase(without.begin() + static_cast<std::ptrdiff_t>(k));
   const auto a = fit_calibration_model(data, first, p.declared, without);
   const auto b = fit_calibration_model(data, first, p.declared, terms);
-  const double before = a.ok ? evaluate_model(a.model, data, others, p.declared.selection).rmse_m : kNaN;
-  const double after = b.ok ? evaluate_model(b.model, data, others, p.declared.selection).rmse_m : kNaN;
+  const double before = a.status.ok() ? evaluate_model(a.model, data, others, p.declared.selection).rmse_m : kNaN;
+  const double after = b.status.ok() ? evaluate_model(b.model, data, others, p.declared.selection).rmse_m : kNaN;
   why = fmt::format("fitted on session {}, the other sessions read {:.3f} -> {:.3f} cm", sessions.front(),
                     100.0 * before, 100.0 * after);
   return std::isfinite(before) && confirmed(before, after, p);
@@ -809,11 +810,11 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
   DiscoveryParams p = given;
   const CalibrationDataset data = with_time_covariates(input, p, res.notes);
   if (data.empty()) {
-    res.reason = fmt::format("{}: no rows", data.source);
+    res.status = common::Status::invalid(fmt::format("{}: no rows", data.source));
     return res;
   }
   if (p.folds < 2) {
-    res.reason = fmt::format("{} folds: cross-validation needs at least 2", p.folds);
+    res.status = common::Status::invalid(fmt::format("{} folds: cross-validation needs at least 2", p.folds));
     return res;
   }
   if (p.declared.ceiling_from_data) {
@@ -827,7 +828,7 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
   const std::vector<bool> valid = valid_rows(data, p.declared.validity, n_valid);
   if (n_valid == 0) {
     // Let the declared fit word the reason (counts by verdict).
-    res.reason = fit_declared_model(data, p.declared).reason;
+    res.status = fit_declared_model(data, p.declared).status;
     return res;
   }
   Split split;
@@ -862,7 +863,7 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
   };
   LoopOutcome loop = run_loop(data, prepare, p, res.notes);
   if (!engine_problem.empty()) {
-    res.reason = "fit on the training groups: " + engine_problem;
+    res.status = common::Status::invalid("fit on the training groups: " + engine_problem);
     return res;
   }
   record_loop(res, loop);
@@ -873,8 +874,8 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
   res.heldout_residual_after_m = model_residuals(res.train_after, data, res.heldout_eval_rows);
 
   const auto final_fit = fit_calibration_model(data, {}, p.declared, kept_terms);
-  if (!final_fit.ok) {
-    res.reason = "final fit on all rows: " + final_fit.reason;
+  if (!final_fit.status.ok()) {
+    res.status = final_fit.status.within("final fit on all rows");
     return res;
   }
   res.model = final_fit.model;
@@ -883,7 +884,6 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
   info.heldout_rmse_after_m = res.rmse_after_m;
   for (const auto& n : final_fit.notes) res.notes.push_back(n);
   read_effects(res);
-  res.ok = true;
   return res;
 }
 
@@ -892,10 +892,10 @@ DiscoveryResult discover_effects(const CalibrationDataset& input, const Discover
 namespace {
 
 // Read-outs the given model gives a distance for and the driver would pick;
-// `reason` says why there are none.
+// `status` says why there are none (InvalidArgument).
 std::vector<bool> diagnosable_rows(const CalibrationModel& model, const CalibrationDataset& data,
                                    const DiscoveryParams& p, std::vector<CalibrationEvaluation>& ev,
-                                   std::string& reason) {
+                                   common::Status& status) {
   const auto readouts = readouts_for_model(data, model);
   std::vector<bool> selected(data.size(), false);
   for (std::size_t i : select_readouts(data, {}, model.validity(), p.declared.selection)) selected[i] = true;
@@ -913,10 +913,10 @@ std::vector<bool> diagnosable_rows(const CalibrationModel& model, const Calibrat
     n_valid += valid[i] ? 1 : 0;
   }
   if (n_valid == 0) {
-    reason = fmt::format(
-        "the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
-        "{} outside its ratio range, {} missing a covariate",
-        data.size(), data.source, counts[1], counts[2], counts[3], counts[4]);
+    status = common::Status::invalid(
+        fmt::format("the model gives no distance for any of the {} rows of {}: {} saturated, {} too dark, "
+                    "{} outside its ratio range, {} missing a covariate",
+                    data.size(), data.source, counts[1], counts[2], counts[3], counts[4]));
   }
   return valid;
 }
@@ -998,12 +998,12 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
   DiscoveryResult res;
   res.model = model;
   if (data.empty()) {
-    res.reason = fmt::format("{}: no rows", data.source);
+    res.status = common::Status::invalid(fmt::format("{}: no rows", data.source));
     return res;
   }
   std::vector<CalibrationEvaluation> ev;
-  const std::vector<bool> valid = diagnosable_rows(model, data, p, ev, res.reason);
-  if (!res.reason.empty()) return res;
+  const std::vector<bool> valid = diagnosable_rows(model, data, p, ev, res.status);
+  if (!res.status.ok()) return res;
   Split split;
   if (!split_into(res, data, p, valid, split)) return res;
   const CvData d = residual_cv_data(model, data, p, valid, ev, split);
@@ -1016,7 +1016,6 @@ DiscoveryResult diagnose_model(const CalibrationModel& model, const CalibrationD
   LoopOutcome loop = run_loop(data, prepare, p, res.notes);
   record_loop(res, loop);
   confirm_residual_terms(res, data, p, d, loop);
-  res.ok = true;
   return res;
 }
 

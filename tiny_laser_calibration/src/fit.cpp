@@ -867,7 +867,7 @@ DeclaredFitResult fit_calibration_model(const CalibrationDataset& data, const st
                                         const DeclaredFitParams& params, const std::vector<CalibrationTerm>& terms) {
   DeclaredFitResult res;
   if (data.empty()) {
-    res.reason = fmt::format("{}: no rows", data.source);
+    res.status = common::Status::invalid(fmt::format("{}: no rows", data.source));
     return res;
   }
   detail::FitEngine engine(data, rows, params, terms);
@@ -877,7 +877,7 @@ DeclaredFitResult fit_calibration_model(const CalibrationDataset& data, const st
   res.not_selected = engine.not_selected;
   res.distances = engine.distances;
   if (!engine.problem().empty()) {
-    res.reason = engine.problem();
+    res.status = common::Status::invalid(engine.problem());
     return res;
   }
   engine.fit();
@@ -889,10 +889,9 @@ DeclaredFitResult fit_calibration_model(const CalibrationDataset& data, const st
   res.rmse_m = stats.rmse_m;
   res.model.impl().info.rmse_m = stats.rmse_m;
   if (stats.n == 0) {
-    res.reason = "the fitted model gives no distance on its own data (fit diverged)";
+    res.status = common::Status::not_found("the fitted model gives no distance on its own data (fit diverged)");
     return res;
   }
-  res.ok = true;
   return res;
 }
 

@@ -58,7 +58,7 @@ Outcome run(const Case& c) {
   clean.effects = {};
   clean.effects.supply_column = c.sensor.effects.supply_voltage || c.sensor.effects.supply_column;
   const auto null = cal::discover_effects(tt::simulate_rail(clean, c.plan));
-  EXPECT_TRUE(null.ok) << null.reason;
+  EXPECT_TRUE(null.status.ok()) << null.status.message;
   EXPECT_TRUE(null.effects.empty()) << "the effect-free twin names " << null.effects.front().covariate;
   o.floor_m = null.rmse_before_m;
   return o;
@@ -72,7 +72,7 @@ std::string named(const cal::DiscoveryResult& r) {
 
 void expect_named_and_at_floor(const Outcome& o, const std::string& covariate) {
   const auto& r = o.result;
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   ASSERT_FALSE(r.effects.empty()) << "nothing named";
   EXPECT_EQ(r.effects.front().covariate, covariate) << named(r);
   EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m)
@@ -98,7 +98,7 @@ TEST(CalibrationDiscovery, NullCaseNamesNothingAndKeepsTheError) {
   c.sensor.effects.supply_column = true;  // a measured column with no effect: a distractor
   const auto data = tt::simulate_rail(c.sensor, c.plan);
   const auto r = cal::discover_effects(data);
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   EXPECT_TRUE(r.effects.empty()) << named(r);
   EXPECT_EQ(r.rmse_after_m, r.rmse_before_m);
   EXPECT_TRUE(r.model.impl().terms.empty());
@@ -166,7 +166,7 @@ TEST(CalibrationDiscovery, CapacitorNonlinearityIsNamedAsTheReadOutsTransferCurv
   c.sensor.effects.nonlinearity_eta = 0.15;
   const auto o = run(c);
   const auto& r = o.result;
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   ASSERT_FALSE(r.effects.empty());
   EXPECT_EQ(r.effects.front().form, tl::TermForm::kReadout) << named(r);
   EXPECT_EQ(r.effects.front().covariate, "charge") << named(r);
@@ -177,7 +177,7 @@ TEST(CalibrationDiscovery, DiscoveredTermsTravelInTheYamlToTheDriver) {
   const auto c = material_case();
   const auto data = tt::simulate_rail(c.sensor, c.plan);
   const auto r = cal::discover_effects(data);
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   ASSERT_FALSE(r.effects.empty());
   const auto path = std::filesystem::temp_directory_path() / "tinyline_calib_discovered.yaml";
   r.model.save(path.string());
@@ -205,18 +205,18 @@ TEST(CalibrationDiscovery, DiagnoseNamesWhatAWhitePaperCalibrationMisses) {
   auto white = c.plan;
   white.materials = {{"white_paper", 1.0}};
   const auto calib = cal::fit_declared_model(tt::simulate_rail(c.sensor, white));
-  ASSERT_TRUE(calib.ok) << calib.reason;
+  ASSERT_TRUE(calib.status.ok()) << calib.status.message;
   c.plan.seed = 99;
   const auto mixed = tt::simulate_rail(c.sensor, c.plan);
   const auto d = cal::diagnose_model(calib.model, mixed);
-  ASSERT_TRUE(d.ok) << d.reason;
+  ASSERT_TRUE(d.status.ok()) << d.status.message;
   ASSERT_FALSE(d.effects.empty());
   EXPECT_THAT(d.effects.front().covariate, AnyOf(Eq("albedo"), Eq("reflectance")));
   EXPECT_LT(d.rmse_after_m, 0.5 * d.rmse_before_m);
   // The same calibration on fresh white-paper data: nothing to name.
   white.seed = 99;
   const auto again = cal::diagnose_model(calib.model, tt::simulate_rail(c.sensor, white));
-  ASSERT_TRUE(again.ok) << again.reason;
+  ASSERT_TRUE(again.status.ok()) << again.status.message;
   EXPECT_TRUE(again.effects.empty()) << named(again);
 }
 
@@ -227,21 +227,21 @@ TEST(CalibrationDiscovery, TooFewGroupsOrNoValidRowsGiveReasons) {
   cal::DiscoveryParams p;
   p.group_by = cal::GroupBy::kTargetDistance;
   const auto r = cal::discover_effects(data, p);
-  EXPECT_FALSE(r.ok);
-  EXPECT_THAT(r.reason, HasSubstr("only 8 target_distance groups"));
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_THAT(r.status.message, HasSubstr("only 8 target_distance groups"));
   // Auto falls back to frames (48 of them) and works.
   const auto a = cal::discover_effects(data);
-  EXPECT_TRUE(a.ok) << a.reason;
+  EXPECT_TRUE(a.status.ok()) << a.status.message;
   EXPECT_EQ(a.grouping, cal::GroupBy::kFrame);
 
   auto dark = data.subset({0, 1, 2, 3});
   for (auto& ro : dark.readouts) ro.a = ro.b = 1.0;
   const auto d = cal::discover_effects(dark);
-  EXPECT_FALSE(d.ok);
-  EXPECT_THAT(d.reason, HasSubstr("no valid read-outs among 4 rows"));
+  EXPECT_FALSE(d.status.ok());
+  EXPECT_THAT(d.status.message, HasSubstr("no valid read-outs among 4 rows"));
   cal::DiscoveryParams bad;
   bad.folds = 1;
-  EXPECT_THAT(cal::discover_effects(data, bad).reason, HasSubstr("1 folds"));
+  EXPECT_THAT(cal::discover_effects(data, bad).status.message, HasSubstr("1 folds"));
 }
 
 TEST(CalibrationDiscovery, BonferroniThreshold) {

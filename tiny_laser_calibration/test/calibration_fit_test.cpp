@@ -65,7 +65,7 @@ TEST(CalibrationFit, NoiseFreeDataIsFittedToAMillimetre) {
   s.shot_gain = 0.0;
   s.quantise = false;
   const auto fit = cal::fit_declared_model(rail(s, 1));
-  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_TRUE(fit.status.ok()) << fit.status.message;
   EXPECT_LT(fit.rmse_m, 0.001) << fit.model.describe();
   EXPECT_GT(fit.used, 7000u);  // one read-out per pixel and frame
 }
@@ -73,7 +73,7 @@ TEST(CalibrationFit, NoiseFreeDataIsFittedToAMillimetre) {
 TEST(CalibrationFit, RecoversPerPixelSensitivityDifferencesAndTemperatureDrift) {
   tt::SyntheticSensor s;
   const auto fit = cal::fit_declared_model(noisy_rail());
-  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_TRUE(fit.status.ok()) << fit.status.message;
   const auto& m = fit.model.impl();
   ASSERT_EQ(m.sensitivity_ratio_per_pixel.size(), 272u);
   // Only relative Rsen is identifiable: compare both normalised by their median over the rail's pixels.
@@ -106,7 +106,7 @@ TEST(CalibrationFit, PerPixelSensitivityMattersOnThisSensor) {
   fixed.sensitivity_ratio_mode = cal::SensitivityRatioMode::kFixed;
   const auto a = cal::fit_declared_model(noisy_rail(), fixed);
   const auto b = cal::fit_declared_model(noisy_rail());
-  ASSERT_TRUE(a.ok && b.ok);
+  ASSERT_TRUE(a.status.ok() && b.status.ok());
   // On other noise than the fits saw: in-sample, the per-pixel model (which
   // nests the fixed one) could not do worse.
   const double fixed_rmse = held_out_rmse(a), per_pixel_rmse = held_out_rmse(b);
@@ -119,7 +119,7 @@ TEST(CalibrationFit, HigherDegreeFitsTheCurvedPulseBetter) {
   // Rsen and Vle are held at one set of values (the thesis measured them apart), else a
   // low-degree fit bends X through the leakage instead.
   const auto ref = cal::fit_declared_model(noisy_rail());
-  ASSERT_TRUE(ref.ok) << ref.reason;
+  ASSERT_TRUE(ref.status.ok()) << ref.status.message;
   double rmse[3];
   const int degrees[3] = {1, 3, 6};
   for (int i = 0; i < 3; ++i) {
@@ -129,7 +129,7 @@ TEST(CalibrationFit, HigherDegreeFitsTheCurvedPulseBetter) {
     p.leakage_offset = ref.model.impl().leakage_offset;
     p.leakage_per_pulse = ref.model.impl().leakage_per_pulse;
     const auto fit = cal::fit_declared_model(noisy_rail(), p);
-    ASSERT_TRUE(fit.ok) << fit.reason;
+    ASSERT_TRUE(fit.status.ok()) << fit.status.message;
     rmse[i] = held_out_rmse(fit);  // nested fits: only other data can rank them
   }
   EXPECT_GT(rmse[0], 2.0 * rmse[1]);
@@ -139,7 +139,7 @@ TEST(CalibrationFit, HigherDegreeFitsTheCurvedPulseBetter) {
 TEST(CalibrationFit, FittedModelSurvivesSaveAndLoadBitForBit) {
   const auto& data = noisy_rail();
   const auto fit = cal::fit_declared_model(data);
-  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_TRUE(fit.status.ok()) << fit.status.message;
   const auto path = std::filesystem::temp_directory_path() / "tinyline_calib_fit_roundtrip.yaml";
   fit.model.save(path.string());
   const auto back = tl::CalibrationModel::load(path.string());
@@ -164,11 +164,11 @@ TEST(CalibrationFit, FittedModelSurvivesSaveAndLoadBitForBit) {
 
 TEST(CalibrationFit, DriverSelectionKeepsOneReadoutPerPixelAndFrame) {
   const auto fit = cal::fit_declared_model(noisy_rail());  // kDriver is the default
-  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_TRUE(fit.status.ok()) << fit.status.message;
   cal::DeclaredFitParams p;
   p.selection = cal::ReadoutSelection::kAll;
   const auto all = cal::fit_declared_model(noisy_rail(), p);
-  ASSERT_TRUE(all.ok) << all.reason;
+  ASSERT_TRUE(all.status.ok()) << all.status.message;
   EXPECT_EQ(fit.used + fit.not_selected, all.used);
   // 40 distances x 2 passes x 3 frames x 64 pixels, less the pixels with no valid read-out at all.
   EXPECT_LE(fit.used, 40u * 2 * 3 * 64);
@@ -197,13 +197,13 @@ TEST(CalibrationFit, SaturationCeilingComesFromTheDataWhenTheReadOutsTopOutBelow
   EXPECT_NEAR(rule.high, cal::kCeilingShareOfPlateau * 175.0, 0.05);
   EXPECT_EQ(rule.low, tl::ValidityRule{}.low);
   const auto fit = cal::fit_declared_model(data);
-  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_TRUE(fit.status.ok()) << fit.status.message;
   EXPECT_NEAR(fit.model.validity().high, rule.high, 1e-12);  // the rule written is the one applied
   EXPECT_THAT(fit.notes, ::testing::Contains(HasSubstr("saturate at 175.0")));
   cal::DeclaredFitParams constant;
   constant.ceiling_from_data = false;
   const auto blind = cal::fit_declared_model(data, constant);
-  ASSERT_TRUE(blind.ok) << blind.reason;
+  ASSERT_TRUE(blind.status.ok()) << blind.status.message;
   std::printf("compressed rail: in-sample RMSE %.2f cm with the data's ceiling, %.2f cm with 230\n", 100 * fit.rmse_m,
               100 * blind.rmse_m);
   EXPECT_LT(2.0 * fit.rmse_m, blind.rmse_m);
@@ -215,7 +215,7 @@ TEST(CalibrationFit, FixedLeakageAndInverseVarianceWeighting) {
   p.leakage_per_pulse = 0.005;
   p.weighting = cal::DistanceWeighting::kInverseVariance;
   const auto fit = cal::fit_declared_model(noisy_rail(), p);
-  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_TRUE(fit.status.ok()) << fit.status.message;
   EXPECT_EQ(fit.model.impl().leakage_per_pulse, 0.005);
   EXPECT_EQ(fit.model.impl().leakage_offset, 0.0);
   EXPECT_THAT(fit.model.impl().info.weighting, HasSubstr("residual variance"));
@@ -230,9 +230,9 @@ TEST(CalibrationFit, AllInvalidRowsGiveAReasonWithCounts) {
   }
   data.readouts[0].a = 2.0;
   const auto fit = cal::fit_declared_model(data);
-  EXPECT_FALSE(fit.ok);
-  EXPECT_THAT(fit.reason, HasSubstr("no valid read-outs among 5 rows of synthetic rail: 4 saturated"));
-  EXPECT_THAT(fit.reason, HasSubstr("1 too dark"));
+  EXPECT_FALSE(fit.status.ok());
+  EXPECT_THAT(fit.status.message, HasSubstr("no valid read-outs among 5 rows of synthetic rail: 4 saturated"));
+  EXPECT_THAT(fit.status.message, HasSubstr("1 too dark"));
 }
 
 TEST(CalibrationFit, TooFewDistancesOrRowsOrBadDegree) {
@@ -242,23 +242,26 @@ TEST(CalibrationFit, TooFewDistancesOrRowsOrBadDegree) {
     if (data.distance_m[i] < 0.16 && data.readouts[i].pixel == 136) rows.push_back(i);  // three distances
   }
   const auto fit = cal::fit_calibration_model(data, rows, {}, {});
-  EXPECT_FALSE(fit.ok);
-  EXPECT_THAT(fit.reason, HasSubstr("only 3 distinct true distances (mm): a degree-6 polynomial needs at least 7"));
+  EXPECT_FALSE(fit.status.ok());
+  EXPECT_THAT(fit.status.message,
+              HasSubstr("only 3 distinct true distances (mm): a degree-6 polynomial needs at least 7"));
   cal::DeclaredFitParams bad;
   bad.degree = 0;
-  EXPECT_THAT(cal::fit_declared_model(data, bad).reason, HasSubstr("degree 0 is outside 1-12"));
+  const auto degree = cal::fit_declared_model(data, bad);
+  EXPECT_EQ(degree.status.code, tinyline::StatusCode::InvalidArgument);
+  EXPECT_THAT(degree.status.message, HasSubstr("degree 0 is outside 1-12"));
   const auto few = cal::fit_calibration_model(data, {0, 1, 2}, {}, {});
-  EXPECT_FALSE(few.ok);
+  EXPECT_FALSE(few.status.ok());
   cal::CalibrationDataset empty;
   empty.source = "e.csv";
-  EXPECT_THAT(cal::fit_declared_model(empty).reason, HasSubstr("e.csv: no rows"));
+  EXPECT_THAT(cal::fit_declared_model(empty).status.message, HasSubstr("e.csv: no rows"));
 }
 
 TEST(CalibrationFit, NoTemperatureSpreadMeansNoTemperatureTerm) {
   auto data = noisy_rail();
   for (auto& r : data.readouts) r.temperature_c = 47.9;
   const auto fit = cal::fit_declared_model(data);
-  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_TRUE(fit.status.ok()) << fit.status.message;
   EXPECT_EQ(fit.model.impl().temperature_coef_m_per_c, 0.0);
   EXPECT_THAT(fit.notes, ::testing::Contains(HasSubstr("no temperature term")));
 }
@@ -268,8 +271,8 @@ TEST(CalibrationFit, TermOnAColumnTheDataLacksIsAReason) {
   t.covariate = "humidity";
   t.knots = {0, 1};
   const auto fit = cal::fit_calibration_model(noisy_rail(), {}, {}, {t});
-  EXPECT_FALSE(fit.ok);
-  EXPECT_THAT(fit.reason, HasSubstr("'humidity' is neither a built-in covariate nor a column"));
+  EXPECT_FALSE(fit.status.ok());
+  EXPECT_THAT(fit.status.message, HasSubstr("'humidity' is neither a built-in covariate nor a column"));
 }
 
 TEST(CalibrationErrorStats, Percentiles) {

@@ -64,7 +64,7 @@ tl::CalibrationModel white_paper_calibration(const sim::SensorParams& sensor, st
   p.sensitivity_ratio = c.sensitivity_ratio;
   const auto data = tt::simulate_rail(sensor, plan);
   auto fit = cal::fit_declared_model(data, p);
-  EXPECT_TRUE(fit.ok) << fit.reason;
+  EXPECT_TRUE(fit.status.ok()) << fit.status.message;
   fit.model.impl().noise = cal::fit_noise_law(fit.model, data);  // as `calib fit` writes it
   return fit.model;
 }

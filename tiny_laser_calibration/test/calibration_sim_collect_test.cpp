@@ -74,7 +74,7 @@ TEST(CalibrationCollect, ARecordedSimulatedRailSessionBecomesTheCalibrationCsv) 
   EXPECT_EQ(rec.dropped, 0u);
 
   const auto r = cal::collect_calibration_data(s.bag_path);
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   EXPECT_EQ(r.raw_topic, "/rail/raw_scan");
   EXPECT_EQ(r.truth_topic, "/rail/scan_truth");
   EXPECT_EQ(r.paired, 36u);
@@ -119,7 +119,7 @@ TEST(CalibrationCollect, ARecordedSimulatedRailSessionBecomesTheCalibrationCsv) 
   inc.incidence_column = true;
   inc.pixel_step = 8;
   const auto ri = cal::collect_calibration_data(s.bag_path, inc);
-  ASSERT_TRUE(ri.ok) << ri.reason;
+  ASSERT_TRUE(ri.status.ok()) << ri.status.message;
   ASSERT_EQ(ri.data.extra_names, std::vector<std::string>{"incidence_deg"});
   EXPECT_LT(ri.data.size(), d.size() / 6);
   for (std::size_t i = 0; i < ri.data.size(); ++i) {
@@ -166,10 +166,12 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
   {
     std::ofstream(tmp / "junk.mcap") << "this is not an MCAP file";
     const auto r = cal::collect_calibration_data(tmp / "junk.mcap");
-    EXPECT_FALSE(r.ok);
-    EXPECT_THAT(r.reason, HasSubstr("junk.mcap"));
+    EXPECT_FALSE(r.status.ok());
+    EXPECT_THAT(r.status.message, HasSubstr("junk.mcap"));
   }
-  EXPECT_THAT(cal::collect_calibration_data(tmp / "missing.mcap").reason, HasSubstr("missing.mcap"));
+  const auto missing = cal::collect_calibration_data(tmp / "missing.mcap");
+  EXPECT_EQ(missing.status.code, tinyline::StatusCode::OpenFailed) << "the bag's own code";
+  EXPECT_THAT(missing.status.message, HasSubstr("missing.mcap"));
   // Raw scans but no ground truth (a real sensor's bag).
   {
     namespace bag = tinyline::bag;
@@ -187,12 +189,12 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
     ASSERT_TRUE(w.write(ch, m, 1000, 1000).ok());
     ASSERT_TRUE(w.close().ok());
     const auto r = cal::collect_calibration_data(tmp / "raw_only.mcap");
-    EXPECT_FALSE(r.ok);
-    EXPECT_THAT(r.reason, HasSubstr("no tinyline_msgs/msg/ScanTruth topic"));
-    EXPECT_THAT(r.reason, HasSubstr("raw_only.mcap"));
+    EXPECT_EQ(r.status.code, tinyline::StatusCode::NotFound);
+    EXPECT_THAT(r.status.message, HasSubstr("no tinyline_msgs/msg/ScanTruth topic"));
+    EXPECT_THAT(r.status.message, HasSubstr("raw_only.mcap"));
     cal::CollectParams p;
     p.raw_topic = "/other";
-    EXPECT_THAT(cal::collect_calibration_data(tmp / "raw_only.mcap", p).reason,
+    EXPECT_THAT(cal::collect_calibration_data(tmp / "raw_only.mcap", p).status.message,
                 HasSubstr("no tinyline_msgs/msg/RawScan topic '/other'"));
   }
   // A truth that cannot belong to its scan (10 pixels of truth for 272 of charges).
@@ -219,9 +221,9 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
     ASSERT_TRUE(w.write(truth, t, 5'000'000'000, 5'000'000'000).ok());
     ASSERT_TRUE(w.close().ok());
     const auto r = cal::collect_calibration_data(tmp / "sizes.mcap");
-    EXPECT_FALSE(r.ok);
+    EXPECT_FALSE(r.status.ok());
     EXPECT_EQ(r.bad_scans, 1u);
-    EXPECT_THAT(r.reason, HasSubstr("no rows"));
+    EXPECT_THAT(r.status.message, HasSubstr("no rows"));
     ASSERT_FALSE(r.notes.empty());
     EXPECT_THAT(r.notes.front(), HasSubstr("272 pixels x 1 read-outs, a 272 and b 272 values, truth of 10 pixels"));
   }
@@ -229,7 +231,7 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
     cal::CollectParams p;
     p.raw_topic = "/other";
     EXPECT_THAT(
-        cal::collect_calibration_data(tmp / "raw_only.mcap", p).reason,
+        cal::collect_calibration_data(tmp / "raw_only.mcap", p).status.message,
         HasSubstr("no tinyline_msgs/msg/RawScan topic '/other' (its tinyline_msgs/msg/RawScan topics: /tiny/raw)"));
   }
   // A good session asked for the wrong sensor or an impossible pixel step.
@@ -238,16 +240,19 @@ TEST(CalibrationCollect, BagsItCannotUseGiveReasons) {
     ASSERT_TRUE(tt::record_sim_rail_session(s).error.empty());
     cal::CollectParams p;
     p.sensor = "someone_else";
-    EXPECT_THAT(cal::collect_calibration_data(s.bag_path, p).reason, HasSubstr("no raw scan of sensor 'someone_else'"));
+    EXPECT_THAT(cal::collect_calibration_data(s.bag_path, p).status.message,
+                HasSubstr("no raw scan of sensor 'someone_else'"));
     p.sensor.clear();
     p.pixel_step = 0;
-    EXPECT_THAT(cal::collect_calibration_data(s.bag_path, p).reason, HasSubstr("pixel step 0"));
+    const auto step = cal::collect_calibration_data(s.bag_path, p);
+    EXPECT_EQ(step.status.code, tinyline::StatusCode::InvalidArgument);
+    EXPECT_THAT(step.status.message, HasSubstr("pixel step 0"));
   }
   std::string out, err;
   EXPECT_EQ(calib({"collect", tmp / "raw_only.mcap"}, out, err), 2);
   EXPECT_THAT(err, HasSubstr("--output is required"));
   EXPECT_EQ(calib({"collect", tmp / "raw_only.mcap", "-o", tmp / "x.csv"}, out, err), 1);
-  EXPECT_THAT(err, HasSubstr("tinyline calib collect: error:"));
+  EXPECT_THAT(err, HasSubstr("tinyline calib collect: error: not found: "));
   EXPECT_FALSE(fs::exists(tmp / "x.csv"));
 }
 

@@ -91,7 +91,7 @@ Outcome run(const sim::EffectSpec& effect, const RailPlan& plan, bool twin_must_
   with.effects.push_back(effect);
   o.result = cal::discover_effects(simulate(with, plan), measured_constants(with));
   const auto null = cal::discover_effects(simulate(declared_sensor(), plan), measured_constants(declared_sensor()));
-  EXPECT_TRUE(null.ok) << null.reason;
+  EXPECT_TRUE(null.status.ok()) << null.status.message;
   if (twin_must_be_null) {
     EXPECT_TRUE(null.effects.empty()) << "the effect-free twin names " << named(null);
   }
@@ -104,7 +104,7 @@ Outcome run(const sim::EffectSpec& effect, const RailPlan& plan, bool twin_must_
 
 void expect_named_and_at_floor(const Outcome& o, const std::string& covariate) {
   const auto& r = o.result;
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   ASSERT_FALSE(r.effects.empty()) << "nothing named";
   EXPECT_EQ(r.effects.front().covariate, covariate) << named(r);
   EXPECT_LT(r.rmse_after_m, 1.2 * o.floor_m)
@@ -136,8 +136,8 @@ tt::CaseOutcome expect_case(const std::string& name) {
     }
     std::printf("\n");
   }
-  EXPECT_TRUE(o.result.ok) << o.result.reason;
-  if (!o.result.ok) return o;
+  EXPECT_TRUE(o.result.status.ok()) << o.result.status.message;
+  if (!o.result.status.ok()) return o;
   EXPECT_TRUE(o.named) << "named " << o.names();
   EXPECT_LT(o.result.rmse_after_m, 1.2 * o.floor_m);
   EXPECT_GT(o.result.rmse_before_m, c.min_before_over_floor * o.floor_m)
@@ -162,7 +162,7 @@ TEST(CalibrationSimDiscovery, NullCaseNamesNothingAndKeepsTheError) {
   sim::SensorParams s = declared_sensor();
   s.effects.push_back(humidity);
   const auto r = cal::discover_effects(simulate(s, plan), measured_constants(s));
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   EXPECT_TRUE(r.effects.empty()) << named(r);
   EXPECT_EQ(r.rmse_after_m, r.rmse_before_m);
   EXPECT_TRUE(r.model.impl().terms.empty());
@@ -230,7 +230,7 @@ TEST(CalibrationSimDiscovery, RangeWalkIsNamedAsAnAmplitudeEffect) {
   walk.ns_per_decade = 0.4;
   const auto o = run(walk, matte_surfaces_plan(), /*twin_must_be_null=*/false);
   const auto& r = o.result;
-  ASSERT_TRUE(r.ok) << r.reason;
+  ASSERT_TRUE(r.status.ok()) << r.status.message;
   ASSERT_FALSE(r.effects.empty()) << "nothing named";
   EXPECT_THAT(r.effects.front().covariate,
               ::testing::AnyOf("amplitude_per_pulse", "amplitude", "reflectance", "albedo", "pulses"))
@@ -246,7 +246,7 @@ TEST(CalibrationSimDiscovery, FixedPatternGateSkewIsAbsorbedByThePerPixelSensiti
   sim::FixedPatternEffect skew;
   skew.sigma_ps = 200.0;  // 3 cm per pixel
   const auto o = run(skew, RailPlan{});
-  ASSERT_TRUE(o.result.ok) << o.result.reason;
+  ASSERT_TRUE(o.result.status.ok()) << o.result.status.message;
   EXPECT_TRUE(o.result.effects.empty()) << named(o.result);
   EXPECT_LT(o.result.rmse_before_m, 1.2 * o.floor_m);
   // With one Rsen for every pixel the skew is left over, and the loop names the pixel.
@@ -255,7 +255,7 @@ TEST(CalibrationSimDiscovery, FixedPatternGateSkewIsAbsorbedByThePerPixelSensiti
   cal::DiscoveryParams p = measured_constants(with);
   p.declared.sensitivity_ratio_mode = cal::SensitivityRatioMode::kFixed;
   const auto fixed = cal::discover_effects(simulate(with, RailPlan{}), p);
-  ASSERT_TRUE(fixed.ok) << fixed.reason;
+  ASSERT_TRUE(fixed.status.ok()) << fixed.status.message;
   ASSERT_FALSE(fixed.effects.empty());
   EXPECT_EQ(fixed.effects.front().covariate, "pixel") << named(fixed);
   EXPECT_EQ(fixed.effects.front().form, tl::TermForm::kTable);

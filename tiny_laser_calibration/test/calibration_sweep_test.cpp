@@ -64,7 +64,7 @@ TEST(CalibrationSweep, DISABLED_FiveSeedsPerEffect) {
       clean.effects = {};
       clean.effects.supply_column = s.effects.supply_voltage || s.effects.supply_column;
       const auto floor = cal::discover_effects(tt::simulate_rail(clean, plan));
-      ASSERT_TRUE(r.ok && floor.ok) << r.reason << floor.reason;
+      ASSERT_TRUE(r.status.ok() && floor.status.ok()) << r.status.message << floor.status.message;
       std::string named;
       for (const auto& e : r.effects) named += e.covariate + "/" + std::string(tl::to_string(e.form)) + " ";
       const bool hit = std::string(c.expected).empty()

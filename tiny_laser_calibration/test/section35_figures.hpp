@@ -31,8 +31,8 @@ inline Section35Figures section35_figures(const char* name, const CalibrationDat
   f.thesis_var = thesis_var;
   f.thesis_sd = thesis_sd;
   const auto r = fit_declared_model(data, p);
-  EXPECT_TRUE(r.ok) << name << ": " << r.reason;
-  if (!r.ok) return f;
+  EXPECT_TRUE(r.status.ok()) << name << ": " << r.status.message;
+  if (!r.status.ok()) return f;
   const auto s_in = evaluate_model(r.model, data, {}, ReadoutSelection::kAll);
   f.n = s_in.n;
   f.sd_cm = s_in.sd_m * 100.0;
@@ -49,7 +49,7 @@ inline Section35Figures section35_figures(const char* name, const CalibrationDat
       (interior && g % 5 == fold ? test : train).push_back(i);
     }
     const auto rf = fit_calibration_model(data, train, p, {});
-    EXPECT_TRUE(rf.ok) << rf.reason;
+    EXPECT_TRUE(rf.status.ok()) << rf.status.message;
     const auto res = model_residuals(rf.model, data, select_readouts(data, test, p.validity, p.selection));
     for (double v : res) {
       if (std::isfinite(v)) residuals.push_back(v);

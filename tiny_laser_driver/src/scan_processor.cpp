@@ -41,7 +41,7 @@ void clear_pixel(ProcessedScan& out, std::size_t p, PixelStatus s) {
 }
 }  // namespace
 
-common::Validation OpticsParams::validate() const { return common::within_table(*this); }
+common::Status OpticsParams::validate() const { return common::within_table(*this); }
 
 double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
   const double pitch_mm = optics.sensor_length_mm / static_cast<double>(kPixels - 2 * kDarkPixels);
@@ -50,8 +50,7 @@ double pixel_angle_rad(const OpticsParams& optics, std::size_t pixel) {
 }
 
 ScanProcessor::ScanProcessor(CalibrationModel model, OpticsParams optics) : model_(std::move(model)), optics_(optics) {
-  if (const common::Validation why = optics_.validate(); !why.valid)
-    throw std::invalid_argument("optics: " + why.reason);
+  if (const common::Status why = optics_.validate(); !why.ok()) throw std::invalid_argument("optics: " + why.message);
   for (std::size_t p = 0; p < kPixels; ++p) angles_[p] = static_cast<float>(pixel_angle_rad(optics_, p));
 }
 

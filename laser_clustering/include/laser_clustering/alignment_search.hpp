@@ -29,19 +29,25 @@ struct AlignmentParams {
   double min_peak_ratio = 1.3;
 };
 
-common::Validation validate(const AlignmentParams& params);
+/// InvalidArgument naming the field when one is outside its table's range.
+[[nodiscard]] common::Status validate(const AlignmentParams& params);
 
+/// The detail beside AlignmentResult::status: a caller extends the sweep on
+/// kAtSweepEdge and gives up on kNoPeak, both NotFound; the wire carries it
+/// (tinyline_msgs/AlignmentResult's outcome).
 enum class AlignmentOutcome {
-  kFound,         ///< an interior peak; best_pitch_rad is refined between the steps
-  kAtSweepEdge,   ///< the maximum is the first or last pitch: extend the sweep that way
-  kNoPeak,        ///< the sweep is flat (no target, or no specular surface in view)
-  kInvalidInput,  ///< bad parameters or too few usable samples (see reason)
+  kFound,         ///< an interior peak; best_pitch_rad is refined between the steps (status ok)
+  kAtSweepEdge,   ///< the maximum is the first or last pitch: extend the sweep that way (NotFound)
+  kNoPeak,        ///< the sweep is flat (no target, or no specular surface in view) (NotFound)
+  kInvalidInput,  ///< bad parameters or too few usable samples (InvalidArgument)
 };
 [[nodiscard]] const char* to_string(AlignmentOutcome o);
 
 struct AlignmentResult {
   AlignmentOutcome outcome = AlignmentOutcome::kInvalidInput;
-  std::string reason;
+  /// Why no peak: InvalidArgument (kInvalidInput), NotFound (kAtSweepEdge, kNoPeak).
+  common::Status status;
+  std::string note;  ///< on kFound, where the peak is and whether it was refined
   double best_pitch_rad = 0.0;
   double peak_reflectance = 0.0;  ///< at best_pitch_rad (from the fit when refined)
   int peak_sample = -1;           ///< index of the maximum among the usable samples, sorted by pitch
@@ -79,13 +85,16 @@ struct SurfaceReflectanceParams {
   ReflectanceClusteringParams clustering;  ///< kBrightestCluster
 };
 
-common::Validation validate(const SurfaceReflectanceParams& params);
+/// InvalidArgument naming the field or the rule: a field outside its table's
+/// range, or a region that ends before it starts.
+[[nodiscard]] common::Status validate(const SurfaceReflectanceParams& params);
 
 struct SurfaceReflectance {
-  bool found = false;
+  /// InvalidArgument: bad parameters or a malformed scan; NotFound: no pixel
+  /// or cluster with a reflectance in the region.
+  common::Status status;
   double reflectance = 0.0;
   int cluster = -1;  ///< kBrightestCluster: index into the clustering's clusters
-  std::string reason;
 };
 /// One alignment sample's reflectance from a scan.
 [[nodiscard]] SurfaceReflectance surface_reflectance(const LineScan& scan, const SurfaceReflectanceParams& params = {});

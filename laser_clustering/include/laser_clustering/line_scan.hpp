@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <tinyline/common/status.hpp>
+
 namespace tinyline::laser_clustering {
 
 /// Pixel i looks along angle_rad[i] in the sensor's x-z plane (z forward
@@ -48,8 +50,9 @@ struct LineScan {
 std::size_t saturated_reflectance_bound(LineScan& scan, const std::vector<std::uint8_t>& saturated,
                                         const std::vector<double>& intensity, int max_gap_px = 4);
 
-/// Empty when the scan is well formed, else what is wrong: mismatched
-/// lengths, non-finite angles, or angles that are not strictly monotone.
-[[nodiscard]] std::string check_scan(const LineScan& scan);
+/// Ok when the scan is well formed, else InvalidArgument saying what is
+/// wrong: mismatched lengths, non-finite angles, or angles that are not
+/// strictly monotone.
+[[nodiscard]] common::Status check_scan(const LineScan& scan);
 
 }  // namespace tinyline::laser_clustering

@@ -38,7 +38,8 @@ struct ReflectanceClusteringParams {
   double smooth_step_m = 0.01;
 };
 
-common::Validation validate(const ReflectanceClusteringParams& params);
+/// InvalidArgument naming the field when one is outside its table's range.
+[[nodiscard]] common::Status validate(const ReflectanceClusteringParams& params);
 
 struct ReflectanceCluster {
   int id = -1;
@@ -51,8 +52,9 @@ struct ReflectanceCluster {
 };
 
 struct ReflectanceClusteringResult {
-  bool ok = false;
-  std::string reason;       ///< why !ok, or a note ("no valid pixels", "12 pixels without reflectance")
+  /// InvalidArgument: bad parameters or a malformed scan (the message says which).
+  common::Status status;
+  std::string note;         ///< on success, what is worth knowing ("no valid pixels", "12 pixels without reflectance")
   std::vector<int> labels;  ///< per pixel: cluster id, kNoise or kInvalid (no range or no positive reflectance)
   std::vector<ReflectanceCluster> clusters;
   int brightest = -1;  ///< index of the cluster with the highest median reflectance, -1 if none

@@ -70,11 +70,16 @@ struct TomatoRegistrationParams {
   double ambiguity_ratio = 0.8;
 };
 
-common::Validation validate(const TomatoRegistrationParams& params);
+/// InvalidArgument naming the field or the rule: a field outside its table's
+/// range, a grid step over max_shift_m, or min_range_m not below max_range_m.
+[[nodiscard]] common::Status validate(const TomatoRegistrationParams& params);
 
 struct TomatoRegistration {
-  bool ok = false;  ///< a clear shift was found (else see reason)
-  std::string reason;
+  /// Ok: a clear shift was found. InvalidArgument: bad parameters, scan or
+  /// tomatoes; NotFound: no tomato in the plane, no return in range, too few
+  /// tomatoes met, or an ambiguous shift (the message says which).
+  common::Status status;
+  std::string note;  ///< when ok, how well the shift fits (tomatoes matched, returns, RMS)
   /// Add this to every position the vision expected (in the plane) to get
   /// where the truss is [m].
   Eigen::Vector2d shift_xz_m = Eigen::Vector2d::Zero();
@@ -93,7 +98,7 @@ struct TomatoRegistration {
 /// grid search over the shift (robust support: truncated quadratic on the
 /// distance to the nearest shifted near arc), then Gauss-Newton on the
 /// inliers. Bad parameters, a non-finite or non-positive tomato, or an empty
-/// list give ok = false with the reason, never an exception.
+/// list give a status that is not ok, never an exception.
 [[nodiscard]] TomatoRegistration register_tomatoes(const LineScan& scan, std::span<const ExpectedTomato> tomatoes,
                                                    const TomatoRegistrationParams& params = {});
 

@@ -96,8 +96,9 @@ struct ScanCluster {
 };
 
 struct TwoStageResult {
-  bool ok = false;                       ///< false: bad parameters or a malformed scan; see reason
-  std::string reason;                    ///< why !ok, or a note ("empty scan", "no valid pixels")
+  /// InvalidArgument: bad parameters or a malformed scan (the message says which).
+  common::Status status;
+  std::string note;                      ///< on success, what is worth knowing ("empty scan", "no valid pixels")
   std::vector<int> group_labels;         ///< per pixel: stage-1 group, kNoise or kInvalid
   std::vector<PixelFate> fate;           ///< per pixel
   std::vector<double> smoothed_range_m;  ///< per pixel: the range stage 3 saw (NaN unless kept)
@@ -120,7 +121,7 @@ class LineScanClusterer {
  private:
   // The steps of a run, in order (two_stage.cpp).
   static void reset(TwoStageResult& out);
-  std::string check_once(const LineScan& scan);
+  common::Status check_once(const LineScan& scan);
   void edge_filter(const LineScan& scan, TwoStageResult& out);
   void filter_run(const LineScan& scan, int group, TwoStageResult& out);
   void filter_piece(int first, int last, int group, TwoStageResult& out);

@@ -96,7 +96,7 @@ void to_msg(const TwoStageResult& r, tinyline_msgs::msg::LineClusters& out) {
     out.clusters.push_back(m);
   }
   out.brightest = -1;
-  out.note = r.ok ? r.reason : "clustering failed: " + r.reason;
+  out.note = r.status.ok() ? r.note : "clustering failed: " + r.status.message;
 }
 
 void to_msg(const ReflectanceClusteringResult& r, tinyline_msgs::msg::LineClusters& out) {
@@ -109,7 +109,7 @@ void to_msg(const ReflectanceClusteringResult& r, tinyline_msgs::msg::LineCluste
                                        c.mean_range_m, 0.0, c.width_m, c.median_reflectance));
   }
   out.brightest = r.brightest;
-  out.note = r.ok ? r.reason : "clustering failed: " + r.reason;
+  out.note = r.status.ok() ? r.note : "clustering failed: " + r.status.message;
 }
 
 }  // namespace tinyline::laser_clustering::nodes

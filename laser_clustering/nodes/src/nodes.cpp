@@ -210,8 +210,8 @@ void TomatoRegistrationNode::on_scan(const msgs::LineScan& m) {
     TomatoRegistrationParams params = params_;
     if (expected_->max_shift_m > 0.0) params.max_shift_m = expected_->max_shift_m;  // checked by the core
     const TomatoRegistration r = register_tomatoes(scan_, expected_->tomatoes, params);
-    out->ok = r.ok;
-    out->reason = r.reason;
+    out->ok = r.status.ok();
+    out->reason = r.status.ok() ? r.note : r.status.message;
     out->shift_x_m = r.shift_xz_m.x();
     out->shift_z_m = r.shift_xz_m.y();
     out->tomatoes_in_plane = r.tomatoes_in_plane;
@@ -291,14 +291,14 @@ void AlignmentSearchNode::on_scan(const msgs::LineScan& m) {
     return publish_invalid("no '" + joint_ + "' reading within max_joint_age_s of the scan");
   }
   const SurfaceReflectance s = surface_reflectance(scan_, surface_);
-  if (!s.found) return publish_invalid("no surface reflectance in the scan: " + s.reason);
+  if (!s.status.ok()) return publish_invalid("no surface reflectance in the scan: " + s.status.message);
   samples_.emplace_back(stamp, AlignmentSample{nearest->second, s.reflectance});
   while (!samples_.empty() && bus::to_seconds(stamp - samples_.front().first) > window_s_) samples_.pop_front();
   std::vector<AlignmentSample> sweep;
   for (const auto& [t, sample] : samples_) sweep.push_back(sample);
   const auto a = find_alignment(sweep, params_);
   out->outcome = wire(a.outcome);
-  out->reason = a.reason;
+  out->reason = a.status.ok() ? a.note : a.status.message;
   out->best_pitch_rad = a.best_pitch_rad;
   out->peak_reflectance = a.peak_reflectance;
   out->refined = a.refined;

@@ -97,8 +97,9 @@ struct DiscoveredEffect {
 };
 
 struct DiscoveryResult {
-  bool ok = false;
-  std::string reason;
+  /// InvalidArgument: no rows, too few folds or groups, no read-out the fit
+  /// or the model can use (the message says which); a failed fit's status.
+  common::Status status;
   /// Declared + accepted terms, fitted on every row (what `calib fit --discover` writes).
   CalibrationModel model;
   /// The same two fitted on the training groups only (their held-out residuals are the report's).

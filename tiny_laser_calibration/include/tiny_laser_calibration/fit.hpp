@@ -22,6 +22,8 @@
 #include <tiny_laser_calibration/data.hpp>
 #include <tiny_laser_driver/calibration_impl.hpp>
 
+#include <tinyline/common/status.hpp>
+
 namespace tinyline::tiny_laser_calibration {
 
 /// A common Rsen of all pixels only re-maps X monotonically, which the
@@ -78,8 +80,10 @@ struct DeclaredFitParams {
 };
 
 struct DeclaredFitResult {
-  bool ok = false;
-  std::string reason;  ///< why not ok
+  /// InvalidArgument: no rows, parameters or data the fit cannot work with
+  /// (the message says which: a degree out of range, too few distances, no
+  /// valid read-out, an unknown term covariate); NotFound: the fit diverged.
+  common::Status status;
   CalibrationModel model;
   std::size_t rows = 0;                                      ///< rows offered
   std::size_t used = 0;                                      ///< valid read-outs the fit used

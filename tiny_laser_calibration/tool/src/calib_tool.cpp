@@ -555,8 +555,8 @@ int cmd_fit(const FitOptions& o, std::ostream& out, std::ostream& err, const Cal
 
   // The declared fit on every row: what is written without --discover, and the in-sample figures.
   const auto declared = fit_declared_model(data, p.declared);
-  if (!declared.ok) {
-    err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, declared.reason);
+  if (!declared.status.ok()) {
+    err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, declared.status.message);
     return 1;
   }
   out << fmt::format(
@@ -572,8 +572,8 @@ int cmd_fit(const FitOptions& o, std::ostream& out, std::ostream& err, const Cal
     DiscoveryParams lp = p;
     if (!o.discover) lp.max_terms = 0;  // the held-out split for the report, no terms
     loop = discover_effects(data, lp);
-    if (!loop->ok) {
-      err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, loop->reason);
+    if (!loop->status.ok()) {
+      err << fmt::format("tinyline calib fit: error: {}: {}\n", data_path, loop->status.message);
       return 1;
     }
     print_summary(out, *loop);
@@ -613,8 +613,8 @@ int cmd_diagnose(const DiagnoseOptions& o, std::ostream& out, std::ostream& err,
   const std::string& data_path = o.data;
   const auto data = read_calibration_csv(data_path);
   const auto r = diagnose_model(model, data, p);
-  if (!r.ok) {
-    err << fmt::format("tinyline calib diagnose: error: {}: {}\n", data_path, r.reason);
+  if (!r.status.ok()) {
+    err << fmt::format("tinyline calib diagnose: error: {}: {}\n", data_path, r.status.message);
     return 1;
   }
   print_summary(out, r);
@@ -669,8 +669,9 @@ int cmd_collect(const CollectOptions& o, std::ostream& out, std::ostream& err) {
   files::AtomicFile output_file(o.output, {.inputs = {o.bag, p.positions_csv}, .what = "data file"});
   const auto r = collect_calibration_data(o.bag, p);
   for (const auto& n : r.notes) err << "note: " << n << "\n";
-  if (!r.ok) {
-    err << fmt::format("tinyline calib collect: error: {}\n", r.reason);
+  if (!r.status.ok()) {
+    // The code too: a bag's "open failed" or "crc mismatch" tells what to do about it.
+    err << fmt::format("tinyline calib collect: error: {}\n", r.status.str());
     return 1;
   }
   std::ostringstream csv;

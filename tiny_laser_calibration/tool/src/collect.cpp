@@ -6,6 +6,7 @@
 #include <memory>
 #include <numbers>
 #include <set>
+#include <utility>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -65,14 +66,15 @@ struct BagContent {
   std::set<std::string> frames;  ///< frame ids of the raw scans
 };
 
-bool open_bag(bag::Reader& reader, const std::string& bag_path, std::string& why) {
+// The bag's own status (its file and stream codes) when it cannot be read.
+bool open_bag(bag::Reader& reader, const std::string& bag_path, common::Status& why) {
   if (auto s = reader.open(bag_path); !s.ok()) {
-    why = s.str();
+    why = std::move(s);
     return false;
   }
   if (!reader.has_summary()) {
     if (auto s = reader.scan(); !s.ok()) {
-      why = s.str();
+      why = std::move(s);
       return false;
     }
   }
@@ -104,7 +106,7 @@ bool read_topics(bag::Reader& reader, CollectResult& out, BagContent& content) {
     return true;
   });
   if (!status.ok()) {
-    out.reason = status.str();
+    out.status = status;
     return false;
   }
   if (!decode_error.empty())
@@ -117,8 +119,9 @@ bool keep_one_sensor(const std::string& bag_path, const CollectParams& params, C
   std::string sensor = params.sensor;
   if (sensor.empty()) {
     if (c.frames.size() > 1) {
-      out.reason = fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor",
-                               bag_path, out.raw_topic, fmt::join(c.frames, ", "));
+      out.status = common::Status::invalid(
+          fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor", bag_path,
+                      out.raw_topic, fmt::join(c.frames, ", ")));
       return false;
     }
     sensor = *c.frames.begin();
@@ -131,12 +134,13 @@ bool keep_one_sensor(const std::string& bag_path, const CollectParams& params, C
   });
   out.truths = c.truths.size();
   if (c.scans.empty()) {
-    out.reason = fmt::format("{}: no raw scan of sensor '{}' on {} (frames: {})", bag_path, sensor, out.raw_topic,
-                             fmt::join(c.frames, ", "));
+    out.status = common::Status::not_found(fmt::format("{}: no raw scan of sensor '{}' on {} (frames: {})", bag_path,
+                                                       sensor, out.raw_topic, fmt::join(c.frames, ", ")));
     return false;
   }
   if (c.truths.empty()) {
-    out.reason = fmt::format("{}: no ground truth of sensor '{}' on {}", bag_path, sensor, out.truth_topic);
+    out.status = common::Status::not_found(
+        fmt::format("{}: no ground truth of sensor '{}' on {}", bag_path, sensor, out.truth_topic));
     return false;
   }
   std::sort(c.truths.begin(), c.truths.end(),
@@ -251,34 +255,35 @@ void pair_and_add(const std::string& bag_path, const CollectParams& params, Coll
 CollectResult collect_calibration_data(const std::string& bag_path, const CollectParams& params) {
   CollectResult out;
   if (params.pixel_step < 1) {
-    out.reason = fmt::format("pixel step {} is not a positive integer", params.pixel_step);
+    out.status = common::Status::invalid(fmt::format("pixel step {} is not a positive integer", params.pixel_step));
     return out;
   }
   if (!(params.max_pair_gap_s >= 0.0)) {
-    out.reason = fmt::format("pairing gap {} s is not a non-negative number", params.max_pair_gap_s);
+    out.status =
+        common::Status::invalid(fmt::format("pairing gap {} s is not a non-negative number", params.max_pair_gap_s));
     return out;
   }
   if (!params.positions_csv.empty()) return collect_rail_positions(bag_path, params);
   bag::Reader reader;
-  if (!open_bag(reader, bag_path, out.reason)) return out;
+  if (!open_bag(reader, bag_path, out.status)) return out;
   std::string why;
   out.raw_topic = pick_topic(reader, RawScan::kTypeName, params.raw_topic, bag_path, why);
   if (out.raw_topic.empty()) {
-    out.reason = why;
+    out.status = common::Status::not_found(why);
     return out;
   }
   out.truth_topic = pick_topic(reader, ScanTruth::kTypeName, params.truth_topic, bag_path, why);
   if (out.truth_topic.empty()) {
-    out.reason = why +
-                 " (record the simulator's scan_truth beside the raw scans, or give a real sensor's rail "
-                 "positions with --positions)";
+    out.status = common::Status::not_found(why +
+                                           " (record the simulator's scan_truth beside the raw scans, or give a "
+                                           "real sensor's rail positions with --positions)");
     return out;
   }
   BagContent content;
   if (!read_topics(reader, out, content)) return out;
   out.raw_scans = content.scans.size() + out.bad_scans;
   if (content.scans.empty()) {
-    out.reason = fmt::format("{}: topic {} holds no raw scan", bag_path, out.raw_topic);
+    out.status = common::Status::not_found(fmt::format("{}: topic {} holds no raw scan", bag_path, out.raw_topic));
     return out;
   }
   if (!keep_one_sensor(bag_path, params, out, content)) return out;
@@ -289,13 +294,12 @@ CollectResult collect_calibration_data(const std::string& bag_path, const Collec
   }
   if (out.other_sensor > 0) out.notes.push_back(fmt::format("{} truths of other sensors ignored", out.other_sensor));
   if (out.data.empty()) {
-    out.reason = fmt::format(
-        "{}: no rows: {} raw scans paired with their truth; pixels left out: {} without a range, "
-        "{} unlit, {} mixed",
-        bag_path, out.paired, out.no_range, out.unlit, out.mixed);
+    out.status = common::Status::not_found(
+        fmt::format("{}: no rows: {} raw scans paired with their truth; pixels left out: {} without a range, "
+                    "{} unlit, {} mixed",
+                    bag_path, out.paired, out.no_range, out.unlit, out.mixed));
     return out;
   }
-  out.ok = true;
   return out;
 }
 

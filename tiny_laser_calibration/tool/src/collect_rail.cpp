@@ -107,12 +107,12 @@ bool read_raw_scans(const std::string& bag_path, const CollectParams& params, Co
                     std::vector<std::pair<double, RawScan>>& scans) {
   bag::Reader reader;
   if (auto s = reader.open(bag_path); !s.ok()) {
-    out.reason = s.str();
+    out.status = std::move(s);
     return false;
   }
   if (!reader.has_summary()) {
     if (auto s = reader.scan(); !s.ok()) {
-      out.reason = s.str();
+      out.status = std::move(s);
       return false;
     }
   }
@@ -124,9 +124,11 @@ bool read_raw_scans(const std::string& bag_path, const CollectParams& params, Co
       if (sc != reader.schemas().end() && sc->second.name == RawScan::kTypeName) topics.insert(ch.topic);
     }
     if (topics.size() != 1) {
-      out.reason = topics.empty()
-                       ? fmt::format("{}: no {} topic in the bag", bag_path, RawScan::kTypeName)
-                       : fmt::format("{}: several raw scan topics ({}); choose one", bag_path, fmt::join(topics, ", "));
+      out.status =
+          topics.empty()
+              ? common::Status::not_found(fmt::format("{}: no {} topic in the bag", bag_path, RawScan::kTypeName))
+              : common::Status::invalid(
+                    fmt::format("{}: several raw scan topics ({}); choose one", bag_path, fmt::join(topics, ", ")));
       return false;
     }
     out.raw_topic = *topics.begin();
@@ -145,19 +147,21 @@ bool read_raw_scans(const std::string& bag_path, const CollectParams& params, Co
     return true;
   });
   if (!status.ok()) {
-    out.reason = status.str();
+    out.status = status;
     return false;
   }
   out.raw_scans = scans.size() + out.bad_scans;
   if (params.sensor.empty() && frames.size() > 1) {
-    out.reason = fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor",
-                             bag_path, out.raw_topic, fmt::join(frames, ", "));
+    out.status = common::Status::invalid(
+        fmt::format("{}: topic {} carries several sensors' scans (frames {}); choose one with --sensor", bag_path,
+                    out.raw_topic, fmt::join(frames, ", ")));
     return false;
   }
   if (!params.sensor.empty())
     std::erase_if(scans, [&](const auto& s) { return s.second.header.frame_id != params.sensor; });
   std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  if (scans.empty()) out.reason = fmt::format("{}: no raw scan on {}", bag_path, out.raw_topic);
+  if (scans.empty())
+    out.status = common::Status::not_found(fmt::format("{}: no raw scan on {}", bag_path, out.raw_topic));
   return !scans.empty();
 }
 
@@ -196,14 +200,14 @@ CollectResult collect_rail_positions(const std::string& bag_path, const CollectP
   try {
     positions = read_rail_positions(params.positions_csv);
   } catch (const CalibrationDataError& e) {
-    out.reason = e.what();
+    out.status = common::Status::invalid(e.what());
     return out;
   }
   tiny_laser_driver::OpticsParams optics;
   optics.focal_mm = params.focal_mm;
   optics.sensor_length_mm = params.sensor_length_mm;
-  if (const auto why = optics.validate(); !why.valid) {
-    out.reason = "optics: " + why.reason;
+  if (common::Status why = optics.validate(); !why.ok()) {
+    out.status = why.within("optics");
     return out;
   }
   std::vector<std::pair<double, RawScan>> scans;
@@ -233,11 +237,10 @@ CollectResult collect_rail_positions(const std::string& bag_path, const CollectP
                     out.between_positions));
   }
   if (out.data.empty()) {
-    out.reason = fmt::format("{}: no raw scan of {} lies inside a position of {}", bag_path, out.raw_topic,
-                             params.positions_csv);
+    out.status = common::Status::not_found(fmt::format("{}: no raw scan of {} lies inside a position of {}", bag_path,
+                                                       out.raw_topic, params.positions_csv));
     return out;
   }
-  out.ok = true;
   return out;
 }
 

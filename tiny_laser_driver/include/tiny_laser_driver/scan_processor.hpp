@@ -17,7 +17,7 @@
 #include <tiny_laser_driver/calibration.hpp>
 #include <tiny_laser_driver/protocol.hpp>
 
-#include <tinyline/common/validation.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tiny_laser_driver {
 
@@ -26,8 +26,9 @@ struct OpticsParams {
   double focal_mm = 3.6;           ///< receiver lens focal length [mm] (3.6 or 8 mm shipped)
   double sensor_length_mm = 5.12;  ///< length of the 256 effective pixels [mm] (the sensor's data)
 
-  /// Why these cannot work: a value outside its parameter table's range.
-  [[nodiscard]] common::Validation validate() const;
+  /// InvalidArgument naming the field outside its parameter table's range
+  /// (both rules are single fields': nothing spans them).
+  [[nodiscard]] common::Status validate() const;
 };
 
 /// Ray angle of pixel `pixel` (0-271, dark ones included) in the sensor's x-z

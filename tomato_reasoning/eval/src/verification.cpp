@@ -342,7 +342,7 @@ std::optional<lc::PedicelExpectation> VerificationHarness::look_at_fruit(const s
   params.max_shift_m = o_.look_max_shift_m;
   params.min_tomatoes = o_.look_min_tomatoes;
   const lc::TomatoRegistration reg = lc::register_tomatoes(scan.scan, tomatoes, params);
-  if (!reg.ok) return std::nullopt;
+  if (!reg.status.ok()) return std::nullopt;
   lc::PedicelExpectation e = lc::shifted(belief, reg.shift_xz_m);
   e.sd_m = o_.registered_sd_m;
   e.gate_sd = o_.registered_gate_sd;

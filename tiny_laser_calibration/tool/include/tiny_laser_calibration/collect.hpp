@@ -26,6 +26,7 @@
 #include <vector>
 
 #include <tiny_laser_calibration/data.hpp>
+#include <tinyline/common/status.hpp>
 
 namespace tinyline::tiny_laser_calibration {
 
@@ -63,8 +64,11 @@ inline constexpr std::uint64_t kMaxRailPositionsBytes = 16u << 20;
 std::vector<RailPosition> read_rail_positions(const std::string& path);
 
 struct CollectResult {
-  bool ok = false;
-  std::string reason;  ///< why nothing was collected (names the bag and what is missing)
+  /// Why nothing was collected, naming the bag: the bag's own status when it
+  /// cannot be read (OpenFailed, CrcMismatch, Truncated, ...); InvalidArgument
+  /// for bad parameters, a bad positions file or a choice left to make (several
+  /// sensors or topics); NotFound for a topic, sensor, truth or row not there.
+  common::Status status;
   CalibrationDataset data;
   std::string raw_topic, truth_topic;
   std::size_t raw_scans = 0, truths = 0, paired = 0;
@@ -76,8 +80,8 @@ struct CollectResult {
   std::vector<std::string> notes;
 };
 
-/// Reads the bag and builds the data set. Never throws for a bad bag: ok=false
-/// with a reason naming the file (and the record's byte offset for a corrupt one).
+/// Reads the bag and builds the data set. Never throws for a bad bag: a status
+/// naming the file (and the record's byte offset for a corrupt one).
 /// With params.positions_csv: collect_rail_positions().
 [[nodiscard]] CollectResult collect_calibration_data(const std::string& bag_path, const CollectParams& params = {});
 /// A real sensor's bag (raw scans only) with its tape-measure log (positions_csv).
