@@ -321,3 +321,28 @@ TEST(HarvestTrials, ThePedicelSearchRunsInTheHarvestWhenAsked) {
   }
   EXPECT_GT(attempted, 0);
 }
+
+// Where no cut along the estimated pedicel fits the blades, tilting the
+// hypothesis (no_cut_tilts_deg) gives the laser's loop a place to start:
+// trials that said "no cut clears the blades" at once get attempts, and
+// the checks before closing still decide whether the blades close.
+TEST(HarvestTrials, ATiltedHypothesisAttemptsWhereNoCutFitted) {
+  eval::HarvestOptions tilted;
+  eval::set_harvest_option(tilted, "no_cut_tilts_deg", "15,30");
+  ASSERT_EQ(tilted.no_cut_tilts_deg, (std::vector<double>{15, 30}));
+  int no_cut_before = 0, attempted_after = 0;
+  for (std::uint64_t seed = 1; seed <= 6 && attempted_after == 0; ++seed) {
+    const Harvested h = scene(sim::TrussClass::kC, seed);
+    ASSERT_TRUE(h.result.status.ok()) << h.result.status.message;
+    const auto plain = eval::harvest(laser(), h.scenario, h.result, {});
+    const auto with = eval::harvest(laser(), h.scenario, h.result, tilted);
+    ASSERT_EQ(plain.size(), with.size());
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+      if (plain[i].why != "no cut clears the blades") continue;
+      ++no_cut_before;
+      attempted_after += with[i].why != "no cut clears the blades";
+    }
+  }
+  ASSERT_GT(no_cut_before, 0);
+  EXPECT_GT(attempted_after, 0);
+}

@@ -99,6 +99,9 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
     flag(o.pedicel_search);
   } else if (key == "rod_range_bias") {
     flag(o.rod_range_bias);
+  } else if (key == "no_cut_tilts_deg") {
+    o.no_cut_tilts_deg.clear();
+    if (value != "none") o.no_cut_tilts_deg = numbers(key, value);
   } else if (key == "ceiling") {
     flag(o.ceiling);
   } else {
@@ -106,7 +109,7 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
         "unknown option '" + key +
         "' (attempts, later_attempts_approach_far, check_blades, probes, "
         "probe_after_laser_refusal, probe_shifts_mm, probe_rolls_deg, arbitrate_mm, vision_when_nothing, "
-        "blade_plane_shifts_mm, pedicel_search, rod_range_bias, ceiling)");
+        "blade_plane_shifts_mm, pedicel_search, rod_range_bias, no_cut_tilts_deg, ceiling)");
   }
 }
 
@@ -208,6 +211,29 @@ std::optional<CutCandidate> next_cut(const Hypothesis& hyp, const std::vector<Sp
     if (!any) any = c;
   }
   return any;
+}
+
+/// next_cut for the hypothesis, else for it tilted by o.no_cut_tilts_deg
+/// (six sides each, the smallest tilt first); a tilted fit becomes the
+/// hypothesis' direction.
+std::optional<CutCandidate> next_cut_tilted(Hypothesis& hyp, const std::vector<Sphere>& others,
+                                            const PickPoseParams& pp, const std::vector<double>& tilts_deg) {
+  if (std::optional<CutCandidate> c = next_cut(hyp, others, pp)) return c;
+  const Eigen::Vector3d d = hyp.direction.normalized();
+  const Eigen::Vector3d u = d.unitOrthogonal(), w = d.cross(u);
+  for (double tilt : tilts_deg) {
+    const double a = tilt * M_PI / 180.0;
+    for (int side = 0; side < 6; ++side) {
+      const double phi = side * M_PI / 3.0;
+      Hypothesis tilted = hyp;
+      tilted.direction = std::cos(a) * d + std::sin(a) * (std::cos(phi) * u + std::sin(phi) * w);
+      if (std::optional<CutCandidate> c = next_cut(tilted, others, pp); c && c->fits(pp)) {
+        hyp.direction = tilted.direction;
+        return c;
+      }
+    }
+  }
+  return std::nullopt;
 }
 
 constexpr const char* kFruitInBlades = "a reconstructed fruit in the blades";
@@ -336,7 +362,7 @@ void attempt_pick(VerificationHarness& laser, const Scenario& s, const PipelineR
   const std::vector<Sphere> others = obstacles(r, k, gone);
   for (t.attempts = 1; t.attempts <= o.attempts; ++t.attempts) {
     if (t.attempts > 1) t.cuts += ';', t.why += ';', t.probed += ';', t.on_pedicel += ';';
-    const std::optional<CutCandidate> plan = next_cut(hyp, others, pp);
+    const std::optional<CutCandidate> plan = next_cut_tilted(hyp, others, pp, o.no_cut_tilts_deg);
     if (!plan) {  // say so, and do not close the blades
       t.cuts += "no_cut";
       t.why += "no cut clears the blades";

@@ -120,6 +120,13 @@ struct HarvestOptions {
   /// Off: on tuning trusses it raised cut failures by 2-3 points (more jams
   /// on the peduncle) and picked no more.
   bool rod_range_bias = false;
+  /// When no cut along the pedicel hypothesis fits the blades, the planner
+  /// tries the hypothesis tilted by these angles [deg] (six sides each, the
+  /// smallest tilt first): the estimated direction is some 10-30 deg off,
+  /// and the laser's loop and the checks before closing decide from there.
+  /// Empty (default): say "no cut clears the blades" at once. On tuning
+  /// trusses 201-240, 15 and 30 deg picked 6 more and jammed 4 more.
+  std::vector<double> no_cut_tilts_deg;
   /// The world's ceiling: the truth's pedicel (calyx -> anchor) handed to the
   /// planner and the cutter model as its clearance check; a trial is picked
   /// when some cut along it (offset, roll) severs it and nothing else.
