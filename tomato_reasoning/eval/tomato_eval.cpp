@@ -146,8 +146,8 @@ void add_pick_options(cli::App& app, Request& r, std::vector<std::string>& verif
                "harvest trials as Table 4.2 (first variant, as recognised, two attempts, the blades closing in the "
                "truss), written to DIR/harvest.csv");
   app.add_option("--harvest-set", harvest_sets,
-                 "the harvest's options key=value (attempts=2 later_attempts_approach_far=1 check_blades=1 ceiling=0), "
-                 "repeatable");
+                 std::string("the harvest's options key=value, repeatable (") + eval::kHarvestOptionNames +
+                     "; eval/harvest.hpp says what each does)");
 }
 
 /// Fills `r` from the command line; the exit code when the program stops there.

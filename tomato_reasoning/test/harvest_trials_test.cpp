@@ -346,3 +346,22 @@ TEST(HarvestTrials, ATiltedHypothesisAttemptsWhereNoCutFitted) {
   ASSERT_GT(no_cut_before, 0);
   EXPECT_GT(attempted_after, 0);
 }
+
+// The names the help and the errors list are the names the parser takes.
+TEST(HarvestTrials, TheListedOptionNamesAreTheOnesTheParserTakes) {
+  std::string names = eval::kHarvestOptionNames;
+  int listed = 0;
+  for (std::size_t at = 0; at < names.size();) {
+    const std::size_t end = std::min(names.find(", ", at), names.size());
+    const std::string name = names.substr(at, end - at);
+    at = end + 2;
+    ++listed;
+    eval::HarvestOptions o;
+    try {
+      eval::set_harvest_option(o, name, "?");
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()).find("unknown option"), std::string::npos) << name << ": " << e.what();
+    }
+  }
+  EXPECT_EQ(listed, 14);
+}

@@ -105,11 +105,7 @@ void set_harvest_option(HarvestOptions& o, const std::string& key, const std::st
   } else if (key == "ceiling") {
     flag(o.ceiling);
   } else {
-    throw std::invalid_argument(
-        "unknown option '" + key +
-        "' (attempts, later_attempts_approach_far, check_blades, probes, "
-        "probe_after_laser_refusal, probe_shifts_mm, probe_rolls_deg, arbitrate_mm, vision_when_nothing, "
-        "blade_plane_shifts_mm, pedicel_search, rod_range_bias, no_cut_tilts_deg, ceiling)");
+    throw std::invalid_argument("unknown option '" + key + "' (" + kHarvestOptionNames + ")");
   }
 }
 

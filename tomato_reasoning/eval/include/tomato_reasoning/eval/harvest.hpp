@@ -143,6 +143,12 @@ struct HarvestOptions {
 /// throws std::invalid_argument saying what is wrong.
 void set_harvest_option(HarvestOptions& o, const std::string& key, const std::string& value);
 
+/// The names set_harvest_option takes, for help and error texts.
+inline constexpr const char* kHarvestOptionNames =
+    "attempts, later_attempts_approach_far, check_blades, probes, probe_after_laser_refusal, probe_shifts_mm, "
+    "probe_rolls_deg, arbitrate_mm, vision_when_nothing, blade_plane_shifts_mm, pedicel_search, rod_range_bias, "
+    "no_cut_tilts_deg, ceiling";
+
 /// The hand laser's options for the harvest: `vo` without the rod-measured
 /// range bias unless o.rod_range_bias (a bias `vo` sets is kept).
 [[nodiscard]] VerificationOptions harvest_laser(VerificationOptions vo, const HarvestOptions& o);
