@@ -808,6 +808,49 @@ std::pair<int, int> untag(const std::string& s) {
   const auto colon = s.find(':');
   return {std::stoi(s.substr(0, colon)), std::stoi(s.substr(colon + 1))};
 }
+
+/// What one keep-last subscriber of `depth` saw while `publishers` threads
+/// each published `each` tagged messages into it, drained by `threads` workers.
+struct OrderedRun {
+  int out_of_order = 0;
+  std::uint64_t sent = 0, delivered = 0, dropped = 0, received = 0, queued = 0;
+};
+
+OrderedRun publish_into_keep_last(std::size_t depth, int threads, int publishers, int each) {
+  auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
+  auto n = make_node(ctx, "sink");
+  std::vector<int> last(static_cast<std::size_t>(publishers), -1);
+  OrderedRun run;
+  run.sent = static_cast<std::uint64_t>(publishers) * static_cast<std::uint64_t>(each);
+  std::atomic<int> delivered{0};
+  auto sub = n->create_subscription<StringMsg>("t", QoS::keep_last(depth), [&](const StringMsg& m) {
+    const auto [p, seq] = untag(m.data);
+    if (seq <= last[static_cast<std::size_t>(p)]) ++run.out_of_order;
+    last[static_cast<std::size_t>(p)] = seq;
+    delivered.fetch_add(1, std::memory_order_release);
+  });
+  bus::MultiThreadedExecutor ex(ctx->clock(), threads);
+  ex.add_node(n);
+  std::thread spinner([&] { ex.spin(); });
+  std::vector<std::thread> pubs;
+  for (int p = 0; p < publishers; ++p) {
+    pubs.emplace_back([&, p] {
+      auto pub = make_node(ctx, "pub" + std::to_string(p))->create_publisher<StringMsg>("t");
+      for (int k = 0; k < each; ++k) pub->publish(tagged(p, k));
+    });
+  }
+  for (auto& t : pubs) t.join();
+  // Everything still queued is delivered eventually: at most the depth.
+  while (static_cast<std::uint64_t>(delivered.load(std::memory_order_acquire)) + sub->dropped() < run.sent)
+    std::this_thread::yield();
+  ex.stop();
+  spinner.join();
+  run.delivered = static_cast<std::uint64_t>(delivered.load());
+  run.dropped = sub->dropped();
+  run.received = sub->received();
+  run.queued = sub->queued();
+  return run;
+}
 }  // namespace
 
 TEST(Bus, KeepLastUnderManyPublishersKeepsEachPublishersOrderAndLosesOnlyCountedDrops) {
@@ -817,40 +860,11 @@ TEST(Bus, KeepLastUnderManyPublishersKeepsEachPublishersOrderAndLosesOnlyCounted
   // message is either delivered or counted as dropped, exactly once.
   for (int threads : {1, 2}) {
     SCOPED_TRACE(threads);
-    auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
-    constexpr int kPublishers = 4;
-    constexpr int kEach = 20000;
-    auto n = make_node(ctx, "sink");
-    std::vector<int> last(kPublishers, -1);
-    int out_of_order = 0;
-    std::atomic<int> delivered{0};
-    auto sub = n->create_subscription<StringMsg>("t", QoS::keep_last(4), [&](const StringMsg& m) {
-      const auto [p, seq] = untag(m.data);
-      if (seq <= last[static_cast<std::size_t>(p)]) ++out_of_order;
-      last[static_cast<std::size_t>(p)] = seq;
-      delivered.fetch_add(1, std::memory_order_release);
-    });
-    bus::MultiThreadedExecutor ex(ctx->clock(), threads);
-    ex.add_node(n);
-    std::thread spinner([&] { ex.spin(); });
-    std::vector<std::thread> pubs;
-    for (int p = 0; p < kPublishers; ++p) {
-      pubs.emplace_back([&, p] {
-        auto pub = make_node(ctx, "pub" + std::to_string(p))->create_publisher<StringMsg>("t");
-        for (int k = 0; k < kEach; ++k) pub->publish(tagged(p, k));
-      });
-    }
-    for (auto& t : pubs) t.join();
-    // Everything still queued is delivered eventually: at most the depth.
-    while (static_cast<std::uint64_t>(delivered.load(std::memory_order_acquire)) + sub->dropped() <
-           std::uint64_t{kPublishers} * kEach)
-      std::this_thread::yield();
-    ex.stop();
-    spinner.join();
-    EXPECT_EQ(out_of_order, 0);
-    EXPECT_EQ(static_cast<std::uint64_t>(delivered.load()) + sub->dropped(), std::uint64_t{kPublishers} * kEach);
-    EXPECT_EQ(sub->received(), std::uint64_t{kPublishers} * kEach);
-    EXPECT_EQ(sub->queued(), 0u);
+    const OrderedRun run = publish_into_keep_last(4, threads, 4, 20000);
+    EXPECT_EQ(run.out_of_order, 0);
+    EXPECT_EQ(run.delivered + run.dropped, run.sent);
+    EXPECT_EQ(run.received, run.sent);
+    EXPECT_EQ(run.queued, 0u);
   }
 }
 
@@ -861,38 +875,10 @@ TEST(Bus, KeepLastNoDeeperThanTheRingKeepsEachPublishersOrderUnderEvictingPublis
   // publisher's messages must still arrive in its order, each exactly once.
   for (const std::size_t depth : {std::size_t{1}, std::size_t{2}}) {
     SCOPED_TRACE(depth);
-    auto ctx = bus::Context::create(bus::ContextOptions{bus::ClockType::Wall, std::make_shared<bus::CaptureSink>()});
-    constexpr int kPublishers = 6;
-    constexpr int kEach = 20000;
-    auto n = make_node(ctx, "sink");
-    std::vector<int> last(kPublishers, -1);
-    int out_of_order = 0;
-    std::atomic<int> delivered{0};
-    auto sub = n->create_subscription<StringMsg>("t", QoS::keep_last(depth), [&](const StringMsg& m) {
-      const auto [p, seq] = untag(m.data);
-      if (seq <= last[static_cast<std::size_t>(p)]) ++out_of_order;
-      last[static_cast<std::size_t>(p)] = seq;
-      delivered.fetch_add(1, std::memory_order_release);
-    });
-    bus::MultiThreadedExecutor ex(ctx->clock(), 2);
-    ex.add_node(n);
-    std::thread spinner([&] { ex.spin(); });
-    std::vector<std::thread> pubs;
-    for (int p = 0; p < kPublishers; ++p) {
-      pubs.emplace_back([&, p] {
-        auto pub = make_node(ctx, "pub" + std::to_string(p))->create_publisher<StringMsg>("t");
-        for (int k = 0; k < kEach; ++k) pub->publish(tagged(p, k));
-      });
-    }
-    for (auto& t : pubs) t.join();
-    while (static_cast<std::uint64_t>(delivered.load(std::memory_order_acquire)) + sub->dropped() <
-           std::uint64_t{kPublishers} * kEach)
-      std::this_thread::yield();
-    ex.stop();
-    spinner.join();
-    EXPECT_EQ(out_of_order, 0);
-    EXPECT_EQ(static_cast<std::uint64_t>(delivered.load()) + sub->dropped(), std::uint64_t{kPublishers} * kEach);
-    EXPECT_EQ(sub->queued(), 0u);
+    const OrderedRun run = publish_into_keep_last(depth, 2, 6, 20000);
+    EXPECT_EQ(run.out_of_order, 0);
+    EXPECT_EQ(run.delivered + run.dropped, run.sent);
+    EXPECT_EQ(run.queued, 0u);
   }
 }
 
