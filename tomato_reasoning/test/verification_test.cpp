@@ -2,6 +2,7 @@
 // Laser verification on simulated trusses (small N; the full run is the
 // documented `tomato_eval --verify` command in docs/tomato_reasoning.md).
 #include <gtest/gtest.h>
+#include <optional>
 
 #include "tomato_reasoning/eval/scenario.hpp"
 #include "tomato_reasoning/pipeline.hpp"
@@ -147,6 +148,21 @@ const eval::VerificationTrial* trial_of(const std::vector<eval::VerificationTria
   return nullptr;
 }
 
+/// The trial of true tomato `truth` on `t` under two settings, or nullopt
+/// where a setting has none.
+struct TwoTrials {
+  std::optional<eval::VerificationTrial> before, after;
+};
+TwoTrials trials_of(const RodTruss& t, const eval::VerificationOptions& before, const eval::VerificationOptions& after,
+                    int truth) {
+  auto one = [&](const eval::VerificationOptions& o) -> std::optional<eval::VerificationTrial> {
+    const auto trials = eval::VerificationHarness(o).run(t.s, t.r);
+    const eval::VerificationTrial* found = trial_of(trials, truth);
+    return found ? std::optional(*found) : std::nullopt;
+  };
+  return {one(before), one(after)};
+}
+
 }  // namespace
 
 // The tomato look: from a random offset, the first pick of class A truss 206
@@ -160,13 +176,10 @@ TEST(LaserVerification, TheTomatoLookPlacesTheTrussBeforeTheFirstMove) {
   o.random_offset_m = 0.05;
   o.rescans = 2;
   o.tomato_look = false;
-  eval::VerificationHarness without(o);
-  o.tomato_look = true;
-  eval::VerificationHarness with(o);
-  const auto a = without.run(t.s, t.r), b = with.run(t.s, t.r);
-  const eval::VerificationTrial *before = trial_of(a, 0), *after = trial_of(b, 0);
-  ASSERT_NE(before, nullptr);
-  ASSERT_NE(after, nullptr);
+  eval::VerificationOptions with = o;
+  with.tomato_look = true;
+  const auto [before, after] = trials_of(t, o, with, 0);
+  ASSERT_TRUE(before && after);
   EXPECT_NE(before->verdict, eval::PickVerdict::kAligned) << before->reason;
   EXPECT_FALSE(before->registered);
   EXPECT_TRUE(after->registered);
@@ -223,15 +236,12 @@ TEST(LaserVerification, TomatoLookOptionsParseOrSayWhatIsWrong) {
 TEST(LaserVerification, AScanAtAnotherHeightFindsAPedicelTheCutHeightHides) {
   const RodTruss t = rod_truss(sim::TrussClass::kB, 218);
   ASSERT_TRUE(t.r.status.ok()) << t.r.status.message;
-  eval::VerificationOptions o = before_search();
-  o.rescans = 2;
-  eval::VerificationHarness one_height(o);
-  o.look_heights_m = {-0.01};
-  eval::VerificationHarness two_heights(o);
-  const auto a = one_height.run(t.s, t.r), b = two_heights.run(t.s, t.r);
-  const eval::VerificationTrial *before = trial_of(a, 0), *after = trial_of(b, 0);
-  ASSERT_NE(before, nullptr);
-  ASSERT_NE(after, nullptr);
+  eval::VerificationOptions one_height = before_search();
+  one_height.rescans = 2;
+  eval::VerificationOptions two_heights = one_height;
+  two_heights.look_heights_m = {-0.01};
+  const auto [before, after] = trials_of(t, one_height, two_heights, 0);
+  ASSERT_TRUE(before && after);
   EXPECT_EQ(before->verdict, eval::PickVerdict::kNothingFound) << before->reason;
   EXPECT_EQ(after->verdict, eval::PickVerdict::kAligned) << after->reason;
 }
@@ -243,16 +253,12 @@ TEST(LaserVerification, AScanAtAnotherHeightFindsAPedicelTheCutHeightHides) {
 TEST(LaserVerification, TheSearchTurnsToFindAPedicelHiddenFromTheFirstSide) {
   const RodTruss t = rod_truss(sim::TrussClass::kB, 207);
   ASSERT_TRUE(t.r.status.ok()) << t.r.status.message;
-  eval::VerificationOptions o = before_search();
+  eval::VerificationOptions before = before_search();
+  before.rescans = 2;
+  eval::VerificationOptions o;
   o.rescans = 2;
-  eval::VerificationHarness before(o);
-  o = eval::VerificationOptions{};
-  o.rescans = 2;
-  eval::VerificationHarness search(o);
-  const auto a = before.run(t.s, t.r), b = search.run(t.s, t.r);
-  const eval::VerificationTrial *one = trial_of(a, 2), *swept = trial_of(b, 2);
-  ASSERT_NE(one, nullptr);
-  ASSERT_NE(swept, nullptr);
+  const auto [one, swept] = trials_of(t, before, o, 2);
+  ASSERT_TRUE(one && swept);
   EXPECT_EQ(one->verdict, eval::PickVerdict::kNothingFound) << one->reason;
   EXPECT_EQ(swept->verdict, eval::PickVerdict::kAligned) << swept->reason;
   // The look, the sweep's planes, a turned sweep at least, the re-scans.
