@@ -22,6 +22,7 @@
 #include <vector>
 
 #include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
+#include <tinyline/msg/point_cloud.hpp>
 #include <tinyline/msg/sensor_msgs/joint_state.hpp>
 #include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
 #include <tinyline/msg/tinyline_msgs/line_scan.hpp>
@@ -106,15 +107,7 @@ inline std::vector<std::uint8_t> vga_cloud(std::mt19937& rng, std::int64_t t) {
   m.header.frame_id = "camera";
   m.height = 480;
   m.width = 640;
-  const char* names[] = {"x", "y", "z", "rgb"};
-  for (std::uint32_t f = 0; f < 4; ++f) {
-    sensor_msgs::msg::PointField pf;
-    pf.name = names[f];
-    pf.offset = 4 * f;
-    pf.datatype = sensor_msgs::msg::PointField::FLOAT32;
-    pf.count = 1;
-    m.fields.push_back(pf);
-  }
+  tinyline::msg::set_xyzrgb_fields(m);
   m.point_step = 16;
   m.row_step = 16 * 640;
   m.is_dense = false;

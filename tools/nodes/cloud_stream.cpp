@@ -9,7 +9,7 @@
 
 #include <fmt/format.h>
 
-#include <tinyline/msg/sensor_msgs/point_cloud2.hpp>
+#include <tinyline/msg/point_cloud.hpp>
 
 namespace tinyline::tools {
 
@@ -26,18 +26,6 @@ std::uint64_t word(const std::vector<std::uint8_t>& d, std::size_t i) {
   std::uint64_t w = 0;
   std::memcpy(&w, d.data() + i * 8, 8);
   return w;
-}
-
-void add_xyzrgb_fields(Cloud& c) {
-  const char* names[] = {"x", "y", "z", "rgb"};
-  for (std::uint32_t k = 0; k < 4; ++k) {
-    sensor_msgs::msg::PointField f;
-    f.name = names[k];
-    f.offset = 4 * k;
-    f.datatype = sensor_msgs::msg::PointField::FLOAT32;
-    f.count = 1;
-    c.fields.push_back(f);
-  }
 }
 
 class CloudSource : public bus::Node {
@@ -68,7 +56,7 @@ class CloudSource : public bus::Node {
     c->height = static_cast<std::uint32_t>(height_);
     c->point_step = static_cast<std::uint32_t>(point_step_);
     c->row_step = c->point_step * c->width;
-    add_xyzrgb_fields(*c);
+    msg::set_xyzrgb_fields(*c);
     c->data.resize(static_cast<std::size_t>(c->row_step) * c->height);
     const std::uint64_t seq = ++seq_;
     for (std::size_t i = 0; i < c->data.size() / 8; ++i) {

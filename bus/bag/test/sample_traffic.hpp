@@ -17,6 +17,7 @@
 #include <tinyline/bag/ros2.hpp>
 #include <tinyline/msg/diagnostic_msgs/diagnostic_array.hpp>
 #include <tinyline/msg/geometry_msgs/pose_stamped.hpp>
+#include <tinyline/msg/point_cloud.hpp>
 #include <tinyline/msg/rosgraph_msgs/clock.hpp>
 #include <tinyline/msg/sensor_msgs/joint_state.hpp>
 #include <tinyline/msg/sensor_msgs/laser_scan.hpp>
@@ -116,15 +117,7 @@ inline std::vector<SampleMessage> sample_traffic(int steps, std::uint32_t seed =
       m->header.frame_id = "camera";
       m->height = 8;
       m->width = 8;
-      const char* names[] = {"x", "y", "z", "rgb"};
-      for (std::uint32_t f = 0; f < 4; ++f) {
-        sensor_msgs::msg::PointField pf;
-        pf.name = names[f];
-        pf.offset = 4 * f;
-        pf.datatype = sensor_msgs::msg::PointField::FLOAT32;
-        pf.count = 1;
-        m->fields.push_back(pf);
-      }
+      tinyline::msg::set_xyzrgb_fields(*m);
       m->point_step = 16;
       m->row_step = 16 * 8;
       m->data.resize(16 * 64);

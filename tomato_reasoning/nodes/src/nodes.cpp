@@ -9,6 +9,7 @@
 
 #include <tinyline/bus/param_table.hpp>
 #include <tinyline/msg/eigen.hpp>
+#include <tinyline/msg/point_cloud.hpp>
 
 #include "tomato_reasoning/nodes/register.hpp"
 #include "tomato_reasoning/nodes/rgbd_folder_camera.hpp"
@@ -109,16 +110,7 @@ void to_msg(const ColorCloud& c, sensor_msgs::msg::PointCloud2& out) {
   using sensor_msgs::msg::PointField;
   out.height = std::uint32_t(std::max(1, c.height));
   out.width = std::uint32_t(c.size() / out.height);
-  out.fields.clear();
-  const char* names[] = {"x", "y", "z", "rgb"};
-  for (std::uint32_t k = 0; k < 4; ++k) {
-    PointField f;
-    f.name = names[k];
-    f.offset = 4 * k;
-    f.datatype = PointField::FLOAT32;
-    f.count = 1;
-    out.fields.push_back(f);
-  }
+  msg::set_xyzrgb_fields(out);
   out.is_bigendian = false;
   out.point_step = 16;
   out.row_step = out.point_step * out.width;
