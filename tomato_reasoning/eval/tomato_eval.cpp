@@ -328,16 +328,15 @@ std::unique_ptr<PickVerification> open_verification(const Request& r) {
   }
   out->verify = r.verify;
   out->harvest = r.harvest;
-  out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
-  std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
-  if (r.harvest) {
+  if (r.harvest) {  // the harvest's own laser; the verification's below
     out->harvest_laser = std::make_unique<eval::VerificationHarness>(eval::harvest_laser(vo, out->harvest_options));
-    std::printf("harvest's hand laser: pedicels moved back %.2f mm\n",
-                1000 * out->harvest_laser->pedicel_range_bias_m());
+    std::printf("harvest's hand laser: %s\n", out->harvest_laser->describe().c_str());
     out->harvest_csv
         << "class,seed,truth,detected,pick_rank,attempts,scans,outcome,cuts,jammed_on,why,probed,on_pedicel\n";
   }
   if (!r.verify) return out;
+  out->as_recognised = std::make_unique<eval::VerificationHarness>(vo);
+  std::printf("hand laser: %s\n", out->as_recognised->describe().c_str());
   vo.random_offset_m = 0.05;
   out->with_offset = std::make_unique<eval::VerificationHarness>(vo);
   out->closed_loop = vo.rescans > 0;
